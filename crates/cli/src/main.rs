@@ -1,0 +1,30 @@
+//! `rtcnc`: the command-line surface. Each subcommand lives in its own module under
+//! `commands/` and only calls the public API of the layers below.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod commands;
+
+#[derive(Debug, Parser)]
+#[command(name = "rtcnc", version, about = "Open software CNC and motion controller")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result: anyhow::Result<ExitCode> = match cli.command {};
+    match result {
+        Ok(code) => code,
+        Err(error) => {
+            eprintln!("rtcnc: error: {error:#}");
+            ExitCode::from(2)
+        }
+    }
+}
