@@ -1,0 +1,219 @@
+use serde::Deserialize;
+
+/// A configuration value was refused: `field` names it (a dotted path inside the servo
+/// section, e.g. `gains.p`), `reason` says why.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{field}: {reason}")]
+pub struct ConfigError {
+    /// Dotted path of the refused field.
+    pub field: String,
+    /// Why it was refused.
+    pub reason: String,
+}
+
+impl ConfigError {
+    fn new(field: &str, reason: impl Into<String>) -> Self {
+        Self {
+            field: field.to_owned(),
+            reason: reason.into(),
+        }
+    }
+
+    /// The same error with `prefix.` put in front of the field, for a caller that nests
+    /// this configuration (e.g. `joints[2].servo`).
+    pub fn within(mut self, prefix: &str) -> Self {
+        self.field = format!("{prefix}.{}", self.field);
+        self
+    }
+
+    /// Stable code of every configuration error of this crate.
+    pub fn code(&self) -> &'static str {
+        "servo.config"
+    }
+}
+
+fn finite(field: &str, value: f64) -> Result<(), ConfigError> {
+    if value.is_finite() {
+        Ok(())
+    } else {
+        Err(ConfigError::new(field, "must be a finite number"))
+    }
+}
+
+fn non_negative(field: &str, value: f64) -> Result<(), ConfigError> {
+    finite(field, value)?;
+    if value >= 0.0 {
+        Ok(())
+    } else {
+        Err(ConfigError::new(field, "must not be negative"))
+    }
+}
+
+fn positive(field: &str, value: f64) -> Result<(), ConfigError> {
+    finite(field, value)?;
+    if value > 0.0 {
+        Ok(())
+    } else {
+        Err(ConfigError::new(field, "must be greater than zero"))
+    }
+}
+
+/// Gains of the velocity-output position loop. Units follow from the output being a
+/// velocity command in joint units per second.
+///
+/// The defaults are tuned for the simulated analogue drive of `rtcnc-fieldbus`
+/// (200 Hz velocity loop, 1 ms servo period): with them the seeds' S-curve experiment stays
+/// within ±0.01 mm (see `docs/machine.md`).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PidGains {
+    /// Proportional gain (1/s): velocity command per unit of position error.
+    pub p: f64,
+    /// Integral gain (1/s²).
+    pub i: f64,
+    /// Derivative gain (dimensionless): on the error's rate of change.
+    pub d: f64,
+    /// Velocity feed-forward (dimensionless, LinuxCNC FF1): 1 passes the commanded
+    /// velocity through.
+    pub velocity_ff: f64,
+    /// Acceleration feed-forward (seconds, LinuxCNC FF2): makes up the drive's velocity lag
+    /// and the half period that a held command loses while accelerating.
+    pub acceleration_ff: f64,
+    /// Constant added to the output (units/s), e.g. an analogue drive's offset.
+    pub bias: f64,
+    /// Errors smaller than this (units) count as zero; larger ones are reduced by it.
+    pub deadband: f64,
+    /// Largest output magnitude (units/s); absent means unlimited.
+    pub output_limit: Option<f64>,
+    /// Largest magnitude of the error integral (units·s); absent means unlimited.
+    pub integrator_limit: Option<f64>,
+}
+
+impl Default for PidGains {
+    fn default() -> Self {
+        Self {
+            p: 200.0,
+            i: 0.0,
+            d: 0.0,
+            velocity_ff: 1.0,
+            acceleration_ff: 0.0035,
+            bias: 0.0,
+            deadband: 0.0,
+            output_limit: None,
+            integrator_limit: None,
+        }
+    }
+}
+
+impl PidGains {
+    /// Checks every gain; the error names the first refused field.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        non_negative("p", self.p)?;
+        non_negative("i", self.i)?;
+        non_negative("d", self.d)?;
+        finite("velocity_ff", self.velocity_ff)?;
+        finite("acceleration_ff", self.acceleration_ff)?;
+        finite("bias", self.bias)?;
+        non_negative("deadband", self.deadband)?;
+        if let Some(limit) = self.output_limit {
+            positive("output_limit", limit)?;
+        }
+        if let Some(limit) = self.integrator_limit {
+            non_negative("integrator_limit", limit)?;
+        }
+        Ok(())
+    }
+}
+
+/// Following-error limits, as LinuxCNC's `FERROR` and `MIN_FERROR`: the limit in force is
+/// `max(min_ferror, ferror · |commanded velocity| / max_velocity)`.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FollowingErrorLimits {
+    /// The static limit (units): applies at standstill and low speed.
+    pub min_ferror: f64,
+    /// The limit at `max_velocity` (units), scaled linearly with the commanded speed.
+    pub ferror: f64,
+    /// The joint's maximum velocity (units/s), the scale of `ferror`.
+    pub max_velocity: f64,
+}
+
+impl FollowingErrorLimits {
+    /// Checks the limits; the error names the first refused field.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        positive("min_ferror", self.min_ferror)?;
+        positive("ferror", self.ferror)?;
+        positive("max_velocity", self.max_velocity)?;
+        if self.ferror < self.min_ferror {
+            return Err(ConfigError::new(
+                "ferror",
+                "must not be smaller than min_ferror",
+            ));
+        }
+        Ok(())
+    }
+
+    /// The limit in force at a commanded velocity (units/s).
+    pub fn limit_at(&self, commanded_velocity: f64) -> f64 {
+        let scaled = self.ferror * commanded_velocity.abs() / self.max_velocity;
+        if scaled > self.min_ferror {
+            scaled
+        } else {
+            self.min_ferror
+        }
+    }
+}
+
+/// Configuration of one [`PidController`](crate::PidController).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PidConfig {
+    /// PID and feed-forward gains; every one has a default.
+    #[serde(default)]
+    pub gains: PidGains,
+    /// Following-error limits.
+    pub following_error: FollowingErrorLimits,
+}
+
+impl PidConfig {
+    /// Checks the whole configuration; the error names the field (`gains.p`, ...).
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        self.gains.validate().map_err(|e| e.within("gains"))?;
+        self.following_error
+            .validate()
+            .map_err(|e| e.within("following_error"))
+    }
+}
+
+/// Configuration of one [`CspLoop`](crate::CspLoop) (drive in cyclic synchronous position).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CspConfig {
+    /// Fraction of the commanded velocity sent as the drive's velocity offset (0 to 1).
+    #[serde(default = "one")]
+    pub velocity_ff: f64,
+    /// Torque offset per unit of commanded acceleration (N·m per unit/s²), i.e. the
+    /// reflected inertia; 0 sends no torque offset.
+    #[serde(default)]
+    pub torque_ff: f64,
+    /// Following-error limits.
+    pub following_error: FollowingErrorLimits,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+impl CspConfig {
+    /// Checks the whole configuration; the error names the field.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        finite("velocity_ff", self.velocity_ff)?;
+        if !(0.0..=1.0).contains(&self.velocity_ff) {
+            return Err(ConfigError::new("velocity_ff", "must be between 0 and 1"));
+        }
+        non_negative("torque_ff", self.torque_ff)?;
+        self.following_error
+            .validate()
+            .map_err(|e| e.within("following_error"))
+    }
+}

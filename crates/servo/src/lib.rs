@@ -1,0 +1,36 @@
+//! Position control for one joint of a machine, run once per servo cycle.
+//!
+//! Two loops share one vocabulary ([`SetPoint`] in, a command out, a [`ServoFault`] when the
+//! joint cannot follow):
+//!
+//! - [`PidController`]: the controller closes the position loop and outputs a velocity
+//!   command (an analogue drive behind a DAC, or a drive in cyclic synchronous velocity
+//!   mode). PID on the position error with velocity and acceleration feed-forward, bias,
+//!   deadband, output limit and integrator clamping (anti-windup), after LinuxCNC's `pid`
+//!   component.
+//! - [`CspLoop`]: the drive closes its own loop (CiA 402 cyclic synchronous position); the
+//!   controller passes the set-point on with optional velocity and torque feed-forward
+//!   offsets and still watches the following error.
+//!
+//! Both check the following error against [`FollowingErrorLimits`]: a static limit at
+//! standstill and a limit that grows with the commanded speed (LinuxCNC's `MIN_FERROR` and
+//! `FERROR`).
+//!
+//! Every per-cycle call is allocation-free and never panics on data: a non-finite input or
+//! period is a [`ServoFault`], never a NaN output. The caller passes the period each cycle.
+//! Configuration structs deserialize with serde (the machine TOML) and validate with errors
+//! that name the field.
+
+mod config;
+mod csp;
+mod fault;
+mod following_error;
+mod pid;
+mod setpoint;
+
+pub use config::{ConfigError, CspConfig, FollowingErrorLimits, PidConfig, PidGains};
+pub use csp::{CspCommand, CspLoop};
+pub use fault::ServoFault;
+pub use following_error::FollowingErrorMonitor;
+pub use pid::PidController;
+pub use setpoint::{SetPoint, SetPointDifferentiator};

@@ -1,0 +1,149 @@
+use rtcnc_servo::{
+    CspCommand, CspConfig, CspLoop, FollowingErrorLimits, PidConfig, PidController, ServoFault,
+    SetPoint, SetPointDifferentiator,
+};
+
+const LIMITS: FollowingErrorLimits = FollowingErrorLimits {
+    min_ferror: 0.01,
+    ferror: 0.1,
+    max_velocity: 100.0,
+};
+
+#[test]
+fn csp_loop_passes_the_set_point_with_feed_forward_offsets() {
+    let config = CspConfig {
+        velocity_ff: 0.5,
+        torque_ff: 2e-4,
+        following_error: LIMITS,
+    };
+    let mut csp = CspLoop::new(3, &config).unwrap();
+    let sp = SetPoint {
+        position: 12.5,
+        velocity: 40.0,
+        acceleration: 500.0,
+    };
+    let command = csp.update(sp, 12.49, 0.001).unwrap();
+    assert_eq!(
+        command,
+        CspCommand {
+            position: 12.5,
+            velocity_offset: 20.0,
+            torque_offset: 0.1
+        }
+    );
+}
+
+#[test]
+fn csp_loop_checks_following_error_and_names_its_joint() {
+    let config = CspConfig {
+        velocity_ff: 1.0,
+        torque_ff: 0.0,
+        following_error: LIMITS,
+    };
+    let mut csp = CspLoop::new(7, &config).unwrap();
+    // At 50 units/s the limit is 0.05.
+    let sp = SetPoint {
+        position: 1.0,
+        velocity: 50.0,
+        acceleration: 0.0,
+    };
+    assert!(csp.update(sp, 0.951, 0.001).is_ok());
+    let fault = csp.update(sp, 0.9, 0.001).unwrap_err();
+    assert_eq!(fault.joint(), 7);
+    assert_eq!(fault.code(), "servo.following_error");
+    assert!(
+        fault
+            .to_string()
+            .starts_with("joint 7: following error 0.1")
+    );
+    assert_eq!(
+        csp.update(SetPoint::at_rest(f64::NAN), 0.0, 0.001),
+        Err(ServoFault::NonFiniteInput {
+            joint: 7,
+            input: "set-point"
+        })
+    );
+}
+
+#[test]
+fn configuration_reads_from_toml_with_default_gains() {
+    let config: PidConfig = toml::from_str(
+        "[gains]\np = 120.0\noutput_limit = 150.0\n\
+         [following_error]\nmin_ferror = 0.01\nferror = 0.1\nmax_velocity = 100.0\n",
+    )
+    .unwrap();
+    assert_eq!(config.gains.p, 120.0);
+    assert_eq!(config.gains.output_limit, Some(150.0));
+    assert_eq!(config.gains.velocity_ff, 1.0);
+    assert!(PidController::new(0, &config).is_ok());
+}
+
+#[test]
+fn unknown_keys_are_refused() {
+    let result: Result<PidConfig, _> = toml::from_str(
+        "[gains]\nkp = 1.0\n[following_error]\nmin_ferror = 0.01\nferror = 0.1\nmax_velocity = 1.0\n",
+    );
+    assert!(
+        result
+            .unwrap_err()
+            .to_string()
+            .contains("unknown field `kp`")
+    );
+}
+
+#[test]
+fn validation_names_the_refused_field_and_the_reason() {
+    let mut config: PidConfig = toml::from_str(
+        "[following_error]\nmin_ferror = 0.01\nferror = 0.1\nmax_velocity = 100.0\n",
+    )
+    .unwrap();
+    config.gains.p = -1.0;
+    let error = PidController::new(0, &config).unwrap_err();
+    assert_eq!(error.field, "gains.p");
+    assert_eq!(error.to_string(), "gains.p: must not be negative");
+    config.gains.p = 1.0;
+    config.following_error.ferror = 0.001;
+    let error = config.validate().unwrap_err().within("joints[2].servo");
+    assert_eq!(error.field, "joints[2].servo.following_error.ferror");
+    assert_eq!(error.reason, "must not be smaller than min_ferror");
+    config.following_error.ferror = 0.1;
+    config.gains.acceleration_ff = f64::NAN;
+    assert_eq!(
+        config.validate().unwrap_err().field,
+        "gains.acceleration_ff"
+    );
+}
+
+#[test]
+fn csp_validation_refuses_feed_forward_outside_zero_to_one() {
+    let config = CspConfig {
+        velocity_ff: 1.5,
+        torque_ff: 0.0,
+        following_error: LIMITS,
+    };
+    assert_eq!(CspLoop::new(0, &config).unwrap_err().field, "velocity_ff");
+}
+
+#[test]
+fn differentiator_gives_backward_differences_of_a_parabola() {
+    // x = a·t²/2 sampled at kT: v[k] = a·(k - 1/2)·T, acceleration a from the third sample on.
+    let (a, t) = (300.0, 0.001);
+    let mut diff = SetPointDifferentiator::new();
+    let first = diff.next(0.0, t);
+    assert_eq!((first.velocity, first.acceleration), (0.0, 0.0));
+    for k in 1..50 {
+        let time = k as f64 * t;
+        let sp = diff.next(0.5 * a * time * time, t);
+        assert!(
+            (sp.velocity - a * (k as f64 - 0.5) * t).abs() < 1e-9,
+            "k {k}"
+        );
+        if k >= 2 {
+            assert!(
+                (sp.acceleration - a).abs() < 1e-6,
+                "k {k}: {}",
+                sp.acceleration
+            );
+        }
+    }
+}
