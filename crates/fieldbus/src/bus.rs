@@ -1,0 +1,113 @@
+use crate::image::{ProcessInputs, ProcessLayout, ProcessOutputs};
+
+/// Why a cyclic exchange failed.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum FieldbusError {
+    /// No answer from the bus this cycle; the inputs were not updated.
+    #[error("fieldbus communication lost: no process data this cycle")]
+    CommunicationLost,
+    /// A process image does not match the bus's layout.
+    #[error("process image {image}: {found} {what}, the bus has {expected}")]
+    ImageMismatch {
+        /// "outputs" or "inputs".
+        image: &'static str,
+        /// Which part: "joints", "digital", "analog".
+        what: &'static str,
+        /// Length the bus expects.
+        expected: usize,
+        /// Length passed in.
+        found: usize,
+    },
+    /// The cycle period was not a positive finite number of seconds in range.
+    #[error("cycle period {period_s} s is not a positive finite number of at most 1 s")]
+    InvalidPeriod {
+        /// The period passed in (seconds).
+        period_s: f64,
+    },
+}
+
+impl FieldbusError {
+    /// A stable machine-readable code.
+    pub fn code(&self) -> &'static str {
+        match self {
+            Self::CommunicationLost => "fieldbus.communication_lost",
+            Self::ImageMismatch { .. } => "fieldbus.image_mismatch",
+            Self::InvalidPeriod { .. } => "fieldbus.invalid_period",
+        }
+    }
+}
+
+/// Drives and I/O reached through one cyclic exchange per servo cycle: the simulated
+/// machine now, an EtherCAT master with CiA 402 drives later.
+///
+/// The controller's cycle is: read the inputs of the last exchange, compute (servo loops,
+/// machine logic), write the outputs, call [`exchange`](Fieldbus::exchange). The exchange
+/// sends the outputs and fills the inputs with the machine's state at the end of the cycle
+/// (for the simulated machine: after integrating it over `period_s`).
+///
+/// Implementations allocate nothing in `exchange` and never panic on data.
+pub trait Fieldbus {
+    /// The shape of the process images this bus exchanges.
+    fn layout(&self) -> &ProcessLayout;
+
+    /// One cyclic exchange: apply `outputs` for the next `period_s` seconds and read the
+    /// inputs back into `inputs`.
+    fn exchange(
+        &mut self,
+        period_s: f64,
+        outputs: &ProcessOutputs,
+        inputs: &mut ProcessInputs,
+    ) -> Result<(), FieldbusError>;
+}
+
+/// Checks that both images have the layout's shape.
+pub fn check_images(
+    layout: &ProcessLayout,
+    outputs: &ProcessOutputs,
+    inputs: &ProcessInputs,
+) -> Result<(), FieldbusError> {
+    let checks = [
+        (
+            "outputs",
+            "joints",
+            layout.joints.len(),
+            outputs.joints.len(),
+        ),
+        (
+            "outputs",
+            "digital",
+            layout.digital_outputs,
+            outputs.digital.len(),
+        ),
+        (
+            "outputs",
+            "analog",
+            layout.analog_outputs,
+            outputs.analog.len(),
+        ),
+        ("inputs", "joints", layout.joints.len(), inputs.joints.len()),
+        (
+            "inputs",
+            "digital",
+            layout.digital_inputs,
+            inputs.digital.len(),
+        ),
+        (
+            "inputs",
+            "analog",
+            layout.analog_inputs,
+            inputs.analog.len(),
+        ),
+    ];
+    for (image, what, expected, found) in checks {
+        if expected != found {
+            return Err(FieldbusError::ImageMismatch {
+                image,
+                what,
+                expected,
+                found,
+            });
+        }
+    }
+    Ok(())
+}

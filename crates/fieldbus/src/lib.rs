@@ -1,0 +1,44 @@
+//! Drives and I/O for rtcnc behind one trait, [`Fieldbus`]: a cyclic exchange of a process
+//! image ([`ProcessOutputs`] written, [`ProcessInputs`] read) once per servo cycle, in the
+//! vocabulary of CiA 402 drives ([`cia402`]: controlword, statusword, the drive state
+//! machine).
+//!
+//! The [`sim`] module holds the in-process simulated machine, the embedded default. An
+//! EtherCAT back-end (CiA 402 drives in cyclic synchronous position mode) is meant to
+//! implement the same trait; it does not exist yet.
+//!
+//! A controller's cycle:
+//!
+//! ```
+//! use rtcnc_fieldbus::sim::{SimulatedMachine, SimulatedMachineConfig};
+//! use rtcnc_fieldbus::{Fieldbus, ProcessInputs, ProcessOutputs};
+//!
+//! let config: SimulatedMachineConfig = toml::from_str(r#"
+//!     [[joints]]
+//!     drive = "velocity"
+//! "#).unwrap();
+//! let mut machine = SimulatedMachine::new(&config).unwrap();
+//! let mut outputs = ProcessOutputs::new(machine.layout());
+//! let mut inputs = ProcessInputs::new(machine.layout());
+//! for _ in 0..10 {
+//!     // read inputs -> servo update -> write outputs -> exchange
+//!     let joint = &inputs.joints[0];
+//!     outputs.joints[0].controlword = joint.state().controlword_towards(true);
+//!     outputs.joints[0].target_velocity = 0.0;
+//!     machine.exchange(0.001, &outputs, &mut inputs).unwrap();
+//! }
+//! assert_eq!(inputs.joints[0].state(), rtcnc_fieldbus::Cia402State::OperationEnabled);
+//! ```
+
+mod bus;
+pub mod cia402;
+mod image;
+pub mod sim;
+
+pub use bus::{Fieldbus, FieldbusError, check_images};
+pub use cia402::{Cia402State, ControlWord, DeviceCommand, StatusWord};
+pub use image::{
+    Coolant, DriveMode, JointCommand, JointFeedback, LatchFeedback, LatchSource, ProcessInputs,
+    ProcessLayout, ProcessOutputs, SpindleCommand, SpindleFeedback, ToolChangeCommand,
+    ToolChangerFeedback,
+};

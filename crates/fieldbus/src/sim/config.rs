@@ -1,0 +1,418 @@
+//! Plain-data configuration of the simulated machine, read from the machine TOML.
+
+use serde::Deserialize;
+
+use crate::image::DriveMode;
+
+/// A configuration value was refused: `field` names it (dotted path, e.g.
+/// `joints[1].motor.inertia`), `reason` says why.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{field}: {reason}")]
+pub struct ConfigError {
+    /// Dotted path of the refused field.
+    pub field: String,
+    /// Why it was refused.
+    pub reason: String,
+}
+
+impl ConfigError {
+    fn new(field: impl Into<String>, reason: impl Into<String>) -> Self {
+        Self {
+            field: field.into(),
+            reason: reason.into(),
+        }
+    }
+
+    /// The same error with `prefix.` in front of the field, for a caller that nests this
+    /// configuration (e.g. `fieldbus`).
+    pub fn within(mut self, prefix: &str) -> Self {
+        self.field = format!("{prefix}.{}", self.field);
+        self
+    }
+
+    /// Stable code of every configuration error of this crate.
+    pub fn code(&self) -> &'static str {
+        "fieldbus.config"
+    }
+}
+
+fn finite(field: &str, value: f64) -> Result<(), ConfigError> {
+    if value.is_finite() {
+        Ok(())
+    } else {
+        Err(ConfigError::new(field, "must be a finite number"))
+    }
+}
+
+fn non_negative(field: &str, value: f64) -> Result<(), ConfigError> {
+    finite(field, value)?;
+    if value >= 0.0 {
+        Ok(())
+    } else {
+        Err(ConfigError::new(field, "must not be negative"))
+    }
+}
+
+fn positive(field: &str, value: f64) -> Result<(), ConfigError> {
+    finite(field, value)?;
+    if value > 0.0 {
+        Ok(())
+    } else {
+        Err(ConfigError::new(field, "must be greater than zero"))
+    }
+}
+
+/// The whole simulated machine.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimulatedMachineConfig {
+    /// Longest integration step (s). Each cycle is split into the fewest equal sub-steps
+    /// no longer than this; the drives' internal loops run once per sub-step. Default
+    /// 62.5 µs (a 16 kHz drive loop).
+    #[serde(default = "defaults::substep_s")]
+    pub substep_s: f64,
+    /// How long the drives keep going on their last command when process data stops
+    /// arriving, before they fault (s). Default 0.1 s (EtherCAT's usual watchdog).
+    #[serde(default = "defaults::communication_watchdog_s")]
+    pub communication_watchdog_s: f64,
+    /// The e-stop chain removes drive power (safe torque off), spindle and coolant.
+    #[serde(default = "defaults::yes")]
+    pub estop_removes_power: bool,
+    /// The joints, in order.
+    pub joints: Vec<SimulatedJointConfig>,
+    /// The spindle.
+    #[serde(default)]
+    pub spindle: SpindleConfig,
+    /// The tool changer.
+    #[serde(default)]
+    pub tool_changer: ToolChangerConfig,
+    /// General-purpose I/O.
+    #[serde(default)]
+    pub io: IoConfig,
+}
+
+/// One joint: its drive, motor and load, encoder and switches. Positions are in joint
+/// units (mm or degrees); the motor side is in radians and N·m.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimulatedJointConfig {
+    /// How the drive is commanded.
+    pub drive: DriveMode,
+    /// Motor and load.
+    #[serde(default)]
+    pub motor: MotorConfig,
+    /// Joint travel per motor revolution (units), e.g. a 5 mm ball-screw lead.
+    #[serde(default = "defaults::units_per_revolution")]
+    pub units_per_revolution: f64,
+    /// Encoder counts per motor revolution.
+    #[serde(default = "defaults::encoder_counts")]
+    pub encoder_counts_per_revolution: u32,
+    /// Crossover frequency of the drive's velocity loop (Hz).
+    #[serde(default = "defaults::velocity_bandwidth_hz")]
+    pub velocity_loop_bandwidth_hz: f64,
+    /// Proportional gain of a CSP drive's position loop (1/s).
+    #[serde(default = "defaults::position_loop_gain")]
+    pub position_loop_gain: f64,
+    /// Deceleration on the quick-stop ramp (units/s²).
+    #[serde(default = "defaults::quick_stop_deceleration")]
+    pub quick_stop_deceleration: f64,
+    /// Position at power-up (units).
+    #[serde(default)]
+    pub initial_position: f64,
+    /// The negative limit switch is on at and below this position.
+    #[serde(default)]
+    pub negative_limit_switch: Option<f64>,
+    /// The positive limit switch is on at and above this position.
+    #[serde(default)]
+    pub positive_limit_switch: Option<f64>,
+    /// The home switch is on inside this range.
+    #[serde(default)]
+    pub home_switch: Option<SwitchRange>,
+    /// Index pulses at `index_offset + n · units_per_revolution`; absent: no index.
+    #[serde(default)]
+    pub index_offset: Option<f64>,
+}
+
+/// Motor plus load, reflected to the motor shaft.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MotorConfig {
+    /// Total inertia (kg·m²).
+    pub inertia: f64,
+    /// Viscous friction (N·m per rad/s).
+    pub viscous_friction: f64,
+    /// Coulomb friction (N·m); also the break-away torque at rest.
+    pub coulomb_friction: f64,
+    /// The drive's peak torque (N·m).
+    pub torque_limit: f64,
+}
+
+impl Default for MotorConfig {
+    /// A 400 W servo motor on a 5 mm ball screw with a light table: 1.5·10⁻⁴ kg·m²,
+    /// 2·10⁻⁴ N·m·s/rad, 0.1 N·m Coulomb friction, 3.8 N·m peak torque.
+    fn default() -> Self {
+        Self {
+            inertia: 1.5e-4,
+            viscous_friction: 2e-4,
+            coulomb_friction: 0.1,
+            torque_limit: 3.8,
+        }
+    }
+}
+
+/// An inclusive position range.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SwitchRange {
+    /// Lower end (units).
+    pub from: f64,
+    /// Upper end (units).
+    pub to: f64,
+}
+
+/// The spindle: a speed ramp and an at-speed window.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SpindleConfig {
+    /// Highest speed (rev/min); commands are clamped to it.
+    pub max_speed_rpm: f64,
+    /// Acceleration and deceleration (rev/min per second).
+    pub acceleration_rpm_per_s: f64,
+    /// At-speed window, a fraction of the commanded speed.
+    pub at_speed_tolerance: f64,
+}
+
+impl Default for SpindleConfig {
+    fn default() -> Self {
+        Self {
+            max_speed_rpm: 24000.0,
+            acceleration_rpm_per_s: 8000.0,
+            at_speed_tolerance: 0.02,
+        }
+    }
+}
+
+/// The tool changer.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ToolChangerConfig {
+    /// Time one change takes (s).
+    pub change_time_s: f64,
+    /// Tool in the spindle at power-up (0: none).
+    pub initial_tool: u32,
+}
+
+impl Default for ToolChangerConfig {
+    fn default() -> Self {
+        Self {
+            change_time_s: 3.0,
+            initial_tool: 0,
+        }
+    }
+}
+
+/// Counts of general-purpose I/O points.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct IoConfig {
+    /// Digital inputs.
+    pub digital_inputs: usize,
+    /// Digital outputs.
+    pub digital_outputs: usize,
+    /// Analogue inputs.
+    pub analog_inputs: usize,
+    /// Analogue outputs.
+    pub analog_outputs: usize,
+}
+
+impl Default for IoConfig {
+    fn default() -> Self {
+        Self {
+            digital_inputs: 16,
+            digital_outputs: 16,
+            analog_inputs: 4,
+            analog_outputs: 4,
+        }
+    }
+}
+
+/// Largest I/O count accepted per kind.
+pub const MAX_IO_POINTS: usize = 4096;
+/// Largest joint count accepted.
+pub const MAX_JOINTS: usize = 64;
+
+impl SimulatedMachineConfig {
+    /// Checks every field; the error names the first refused one.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        positive("substep_s", self.substep_s)?;
+        if !(1e-6..=1e-3).contains(&self.substep_s) {
+            return Err(ConfigError::new(
+                "substep_s",
+                "must be between 1e-6 and 1e-3 s",
+            ));
+        }
+        positive("communication_watchdog_s", self.communication_watchdog_s)?;
+        if self.joints.len() > MAX_JOINTS {
+            return Err(ConfigError::new(
+                "joints",
+                format!("at most {MAX_JOINTS} joints"),
+            ));
+        }
+        for (index, joint) in self.joints.iter().enumerate() {
+            joint
+                .validate(self.substep_s)
+                .map_err(|error| error.within(&format!("joints[{index}]")))?;
+        }
+        self.spindle
+            .validate()
+            .map_err(|error| error.within("spindle"))?;
+        non_negative(
+            "tool_changer.change_time_s",
+            self.tool_changer.change_time_s,
+        )?;
+        if self.tool_changer.change_time_s > 3600.0 {
+            return Err(ConfigError::new(
+                "tool_changer.change_time_s",
+                "must be at most 3600 s",
+            ));
+        }
+        for (name, count) in [
+            ("io.digital_inputs", self.io.digital_inputs),
+            ("io.digital_outputs", self.io.digital_outputs),
+            ("io.analog_inputs", self.io.analog_inputs),
+            ("io.analog_outputs", self.io.analog_outputs),
+        ] {
+            if count > MAX_IO_POINTS {
+                return Err(ConfigError::new(name, format!("at most {MAX_IO_POINTS}")));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl SimulatedJointConfig {
+    /// A joint with every default and the given drive mode.
+    pub fn with_drive(drive: DriveMode) -> Self {
+        Self {
+            drive,
+            motor: MotorConfig::default(),
+            units_per_revolution: defaults::units_per_revolution(),
+            encoder_counts_per_revolution: defaults::encoder_counts(),
+            velocity_loop_bandwidth_hz: defaults::velocity_bandwidth_hz(),
+            position_loop_gain: defaults::position_loop_gain(),
+            quick_stop_deceleration: defaults::quick_stop_deceleration(),
+            initial_position: 0.0,
+            negative_limit_switch: None,
+            positive_limit_switch: None,
+            home_switch: None,
+            index_offset: None,
+        }
+    }
+
+    /// Checks the joint's fields for a machine integrated at `substep_s`.
+    pub fn validate(&self, substep_s: f64) -> Result<(), ConfigError> {
+        positive("motor.inertia", self.motor.inertia)?;
+        non_negative("motor.viscous_friction", self.motor.viscous_friction)?;
+        non_negative("motor.coulomb_friction", self.motor.coulomb_friction)?;
+        positive("motor.torque_limit", self.motor.torque_limit)?;
+        positive("units_per_revolution", self.units_per_revolution)?;
+        if self.encoder_counts_per_revolution == 0 {
+            return Err(ConfigError::new(
+                "encoder_counts_per_revolution",
+                "must be at least 1",
+            ));
+        }
+        positive(
+            "velocity_loop_bandwidth_hz",
+            self.velocity_loop_bandwidth_hz,
+        )?;
+        // The drive's loops run once per sub-step; keep them well inside its Nyquist range.
+        let highest = 0.5 / (2.0 * std::f64::consts::PI * substep_s);
+        if self.velocity_loop_bandwidth_hz > highest {
+            return Err(ConfigError::new(
+                "velocity_loop_bandwidth_hz",
+                format!("at most {highest:.0} Hz with substep_s = {substep_s} s"),
+            ));
+        }
+        non_negative("position_loop_gain", self.position_loop_gain)?;
+        if self.position_loop_gain * substep_s > 0.5 {
+            return Err(ConfigError::new(
+                "position_loop_gain",
+                format!(
+                    "at most {:.0} 1/s with substep_s = {substep_s} s",
+                    0.5 / substep_s
+                ),
+            ));
+        }
+        positive("quick_stop_deceleration", self.quick_stop_deceleration)?;
+        finite("initial_position", self.initial_position)?;
+        if let Some(position) = self.negative_limit_switch {
+            finite("negative_limit_switch", position)?;
+        }
+        if let Some(position) = self.positive_limit_switch {
+            finite("positive_limit_switch", position)?;
+        }
+        if let (Some(negative), Some(positive)) =
+            (self.negative_limit_switch, self.positive_limit_switch)
+            && negative >= positive
+        {
+            return Err(ConfigError::new(
+                "positive_limit_switch",
+                "must be above negative_limit_switch",
+            ));
+        }
+        if let Some(range) = self.home_switch {
+            finite("home_switch.from", range.from)?;
+            finite("home_switch.to", range.to)?;
+            if range.from > range.to {
+                return Err(ConfigError::new(
+                    "home_switch.to",
+                    "must not be below home_switch.from",
+                ));
+            }
+        }
+        if let Some(offset) = self.index_offset {
+            finite("index_offset", offset)?;
+        }
+        Ok(())
+    }
+}
+
+impl SpindleConfig {
+    fn validate(&self) -> Result<(), ConfigError> {
+        positive("max_speed_rpm", self.max_speed_rpm)?;
+        positive("acceleration_rpm_per_s", self.acceleration_rpm_per_s)?;
+        non_negative("at_speed_tolerance", self.at_speed_tolerance)?;
+        if self.at_speed_tolerance >= 1.0 {
+            return Err(ConfigError::new("at_speed_tolerance", "must be below 1"));
+        }
+        Ok(())
+    }
+}
+
+mod defaults {
+    pub fn substep_s() -> f64 {
+        62.5e-6
+    }
+    pub fn communication_watchdog_s() -> f64 {
+        0.1
+    }
+    pub fn yes() -> bool {
+        true
+    }
+    pub fn units_per_revolution() -> f64 {
+        5.0
+    }
+    pub fn encoder_counts() -> u32 {
+        1 << 17
+    }
+    pub fn velocity_bandwidth_hz() -> f64 {
+        200.0
+    }
+    pub fn position_loop_gain() -> f64 {
+        300.0
+    }
+    pub fn quick_stop_deceleration() -> f64 {
+        2000.0
+    }
+}

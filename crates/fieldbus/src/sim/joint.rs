@@ -1,0 +1,368 @@
+//! One simulated joint: a CiA 402 drive (state machine, velocity/position loops), the motor
+//! and load, the encoder, limit and home switches, and the position latch.
+
+use std::f64::consts::PI;
+
+use crate::cia402::{Cia402State, StatusWord, error_code};
+use crate::image::{DriveMode, JointCommand, JointFeedback, LatchFeedback, LatchSource};
+use crate::sim::config::{SimulatedJointConfig, SwitchRange};
+use crate::sim::motor::MotorModel;
+
+/// What the machine tells every drive about one cycle.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct CycleConditions {
+    pub period_s: f64,
+    pub substeps: usize,
+    /// Drive power is present (the e-stop chain is closed, or does not cut power).
+    pub power: bool,
+    /// The process-data watchdog expired.
+    pub watchdog_expired: bool,
+}
+
+#[derive(Debug, Clone)]
+pub(crate) struct SimulatedJoint {
+    mode: DriveMode,
+    motor: MotorModel,
+    units_per_revolution: f64,
+    counts_per_revolution: f64,
+    units_per_radian: f64,
+    torque_limit: f64,
+    velocity_gain: f64,
+    velocity_integral_gain: f64,
+    position_gain: f64,
+    quick_stop_deceleration: f64,
+    negative_limit: Option<f64>,
+    positive_limit: Option<f64>,
+    home_switch: Option<SwitchRange>,
+    index_offset: Option<f64>,
+
+    state: Cia402State,
+    error_code: u16,
+    fault_reset_was_high: bool,
+    injected_fault: Option<u16>,
+    encoder_lost: bool,
+    counts: i64,
+    counts_at_last_exchange: i64,
+    velocity_integral: f64,
+    previous_target: f64,
+    quick_stop_velocity: f64,
+    torque: f64,
+    torque_limited: bool,
+    latch_request: Option<LatchSource>,
+    latch: LatchFeedback,
+}
+
+impl SimulatedJoint {
+    pub(crate) fn new(config: &SimulatedJointConfig) -> Self {
+        let bandwidth = 2.0 * PI * config.velocity_loop_bandwidth_hz;
+        let inertia = config.motor.inertia;
+        let units_per_radian = config.units_per_revolution / (2.0 * PI);
+        let mut joint = Self {
+            mode: config.drive,
+            motor: MotorModel::new(
+                &config.motor,
+                config.units_per_revolution,
+                config.initial_position,
+            ),
+            units_per_revolution: config.units_per_revolution,
+            counts_per_revolution: f64::from(config.encoder_counts_per_revolution),
+            units_per_radian,
+            torque_limit: config.motor.torque_limit,
+            // PI velocity loop tuned on the configured inertia: crossover at `bandwidth`,
+            // integral corner a quarter of it (a critically damped double pole at bw/2).
+            velocity_gain: inertia * bandwidth,
+            velocity_integral_gain: inertia * bandwidth * bandwidth / 4.0,
+            position_gain: config.position_loop_gain,
+            quick_stop_deceleration: config.quick_stop_deceleration,
+            negative_limit: config.negative_limit_switch,
+            positive_limit: config.positive_limit_switch,
+            home_switch: config.home_switch,
+            index_offset: config.index_offset,
+            state: Cia402State::NotReadyToSwitchOn,
+            error_code: error_code::NONE,
+            fault_reset_was_high: false,
+            injected_fault: None,
+            encoder_lost: false,
+            counts: 0,
+            counts_at_last_exchange: 0,
+            velocity_integral: 0.0,
+            previous_target: config.initial_position,
+            quick_stop_velocity: 0.0,
+            torque: 0.0,
+            torque_limited: false,
+            latch_request: None,
+            latch: LatchFeedback::default(),
+        };
+        joint.counts = joint.encoder_counts(config.initial_position);
+        joint.counts_at_last_exchange = joint.counts;
+        joint
+    }
+
+    pub(crate) fn true_position(&self) -> f64 {
+        self.motor.position()
+    }
+
+    pub(crate) fn true_velocity(&self) -> f64 {
+        self.motor.velocity()
+    }
+
+    pub(crate) fn set_injected_fault(&mut self, code: Option<u16>) {
+        self.injected_fault = code;
+    }
+
+    pub(crate) fn set_encoder_lost(&mut self, lost: bool) {
+        self.encoder_lost = lost;
+    }
+
+    fn encoder_counts(&self, position: f64) -> i64 {
+        // `as` saturates at the i64 range and maps NaN to 0: no panic on any state.
+        (position / self.units_per_revolution * self.counts_per_revolution).floor() as i64
+    }
+
+    fn counts_to_position(&self, counts: i64) -> f64 {
+        counts as f64 / self.counts_per_revolution * self.units_per_revolution
+    }
+
+    /// The fault the drive detects this cycle, as a CiA 402 error code.
+    fn fault_cause(&self, conditions: &CycleConditions) -> Option<u16> {
+        if let Some(code) = self.injected_fault {
+            return Some(code);
+        }
+        // A drive that closes the position loop itself sees its encoder go.
+        if self.encoder_lost && self.mode.takes_position() {
+            return Some(error_code::POSITION_SENSOR);
+        }
+        if conditions.watchdog_expired {
+            return Some(error_code::COMMUNICATION);
+        }
+        None
+    }
+
+    /// One transition of the state machine per cycle, from the controlword and events.
+    fn step_state_machine(&mut self, command: &JointCommand, conditions: &CycleConditions) {
+        let fault_reset_high = command.controlword.fault_reset_requested();
+        let fault_reset_edge = fault_reset_high && !self.fault_reset_was_high;
+        self.fault_reset_was_high = fault_reset_high;
+        let previous = self.state;
+        let cause = self.fault_cause(conditions);
+        self.state = match self.state {
+            Cia402State::NotReadyToSwitchOn => Cia402State::SwitchOnDisabled, // 1
+            Cia402State::FaultReactionActive => Cia402State::Fault,           // 14
+            Cia402State::Fault => {
+                if fault_reset_edge && cause.is_none() {
+                    self.error_code = error_code::NONE;
+                    Cia402State::SwitchOnDisabled // 15
+                } else {
+                    Cia402State::Fault
+                }
+            }
+            state => match cause {
+                Some(code) => {
+                    self.error_code = code;
+                    Cia402State::FaultReactionActive // 13
+                }
+                None if !conditions.power => Cia402State::SwitchOnDisabled,
+                None => state.after_command(command.controlword.command()),
+            },
+        };
+        if self.state == Cia402State::OperationEnabled && previous != Cia402State::OperationEnabled
+        {
+            self.velocity_integral = 0.0;
+            self.previous_target = command.target_position;
+        }
+        if self.state == Cia402State::QuickStopActive && previous != Cia402State::QuickStopActive {
+            self.quick_stop_velocity = self.motor.velocity();
+        }
+    }
+
+    fn step_latch_request(&mut self, request: Option<LatchSource>) {
+        if request != self.latch_request {
+            self.latch = LatchFeedback {
+                armed: request.is_some(),
+                ..LatchFeedback::default()
+            };
+            self.latch_request = request;
+        }
+    }
+
+    /// The torque of the PI velocity loop for `velocity_command` (units/s), integrating
+    /// over `step_s` unless the torque limit holds it (anti-windup).
+    fn velocity_loop(&mut self, velocity_command: f64, extra_torque: f64, step_s: f64) -> f64 {
+        let error = (velocity_command - self.motor.velocity()) / self.units_per_radian;
+        let torque = self.velocity_gain * error + self.velocity_integral + extra_torque;
+        let saturated = torque.abs() >= self.torque_limit && torque * error > 0.0;
+        if !saturated {
+            self.velocity_integral += self.velocity_integral_gain * error * step_s;
+        }
+        torque
+    }
+
+    /// Advances the joint by one cycle under `command` and writes its feedback.
+    pub(crate) fn cycle(
+        &mut self,
+        command: &JointCommand,
+        conditions: &CycleConditions,
+        feedback: &mut JointFeedback,
+    ) {
+        self.step_state_machine(command, conditions);
+        self.step_latch_request(command.latch);
+        let substeps = conditions.substeps.max(1);
+        let step_s = conditions.period_s / substeps as f64;
+        self.torque_limited = false;
+        if self.mode == DriveMode::Ideal {
+            self.torque = 0.0;
+            let before = self.motor.position();
+            if self.state == Cia402State::OperationEnabled {
+                let velocity = (command.target_position - before) / conditions.period_s;
+                self.motor.place(command.target_position, velocity);
+            } else {
+                self.motor.place(before, 0.0);
+            }
+            self.update_latch(before, self.motor.position());
+        } else {
+            for substep in 1..=substeps {
+                let demand = self.torque_demand(command, substep as f64 / substeps as f64, step_s);
+                let torque = demand.clamp(-self.torque_limit, self.torque_limit);
+                self.torque_limited |= torque != demand;
+                self.torque = torque;
+                let before = self.motor.position();
+                self.motor.advance(torque, step_s);
+                self.update_latch(before, self.motor.position());
+            }
+        }
+        if self.state == Cia402State::OperationEnabled {
+            self.previous_target = command.target_position;
+        }
+        if !self.encoder_lost {
+            self.counts = self.encoder_counts(self.motor.position());
+        }
+        self.write_feedback(conditions.period_s, feedback);
+    }
+
+    /// Torque demanded in one sub-step; `fraction` is how far through the cycle it ends.
+    fn torque_demand(&mut self, command: &JointCommand, fraction: f64, step_s: f64) -> f64 {
+        match self.state {
+            Cia402State::OperationEnabled => match self.mode {
+                DriveMode::Velocity => self.velocity_loop(command.target_velocity, 0.0, step_s),
+                DriveMode::Csp => {
+                    // Linear interpolation from the previous target to this one over the
+                    // cycle: the drive reaches each target one period after receiving it.
+                    let target = self.previous_target
+                        + (command.target_position - self.previous_target) * fraction;
+                    let velocity = self.position_gain * (target - self.motor.position())
+                        + command.velocity_offset;
+                    self.velocity_loop(velocity, command.torque_offset, step_s)
+                }
+                DriveMode::Torque => command.target_torque + command.torque_offset,
+                DriveMode::Ideal => 0.0,
+            },
+            Cia402State::QuickStopActive => {
+                let change = self.quick_stop_deceleration * step_s;
+                let v = self.quick_stop_velocity;
+                self.quick_stop_velocity = if v > change {
+                    v - change
+                } else if v < -change {
+                    v + change
+                } else {
+                    0.0
+                };
+                self.velocity_loop(self.quick_stop_velocity, 0.0, step_s)
+            }
+            _ => {
+                self.velocity_integral = 0.0;
+                0.0
+            }
+        }
+    }
+
+    fn update_latch(&mut self, before: f64, after: f64) {
+        if !self.latch.armed || self.latch.latched || self.encoder_lost || before == after {
+            return;
+        }
+        let event = match self.latch_request {
+            Some(LatchSource::IndexPulse) => self.index_between(before, after),
+            Some(LatchSource::HomeSwitch) => self.home_edge_between(before, after),
+            None => None,
+        };
+        if let Some(position) = event {
+            self.latch.latched = true;
+            self.latch.position = self.counts_to_position(self.encoder_counts(position));
+        }
+    }
+
+    /// The first index position passed moving from `before` to `after`.
+    fn index_between(&self, before: f64, after: f64) -> Option<f64> {
+        let offset = self.index_offset?;
+        let pitch = self.units_per_revolution;
+        let n_before = ((before - offset) / pitch).floor();
+        let n_after = ((after - offset) / pitch).floor();
+        if n_before == n_after {
+            return None;
+        }
+        // Index n sits at offset + n·pitch; moving up the first crossed is n_before + 1,
+        // moving down it is n_before.
+        let n = if after > before {
+            n_before + 1.0
+        } else {
+            n_before
+        };
+        Some(offset + n * pitch)
+    }
+
+    /// The first home-switch edge passed moving from `before` to `after`.
+    fn home_edge_between(&self, before: f64, after: f64) -> Option<f64> {
+        let range = self.home_switch?;
+        // The switch is on for from <= x <= to: its edges are crossed at `from` (entering
+        // upwards when x reaches it) and just above `to`.
+        let crossed = |edge: f64| (before < edge) != (after < edge);
+        let upper = range.to;
+        let edges = if after > before {
+            [range.from, upper]
+        } else {
+            [upper, range.from]
+        };
+        edges.into_iter().find(|&edge| crossed(edge))
+    }
+
+    fn write_feedback(&mut self, period_s: f64, feedback: &mut JointFeedback) {
+        let position = if self.mode == DriveMode::Ideal && !self.encoder_lost {
+            self.motor.position()
+        } else {
+            self.counts_to_position(self.counts)
+        };
+        let moved = self.counts.wrapping_sub(self.counts_at_last_exchange);
+        self.counts_at_last_exchange = self.counts;
+        let mut status = StatusWord::state_bits(self.state) | StatusWord::REMOTE;
+        if matches!(
+            self.state,
+            Cia402State::ReadyToSwitchOn
+                | Cia402State::SwitchedOn
+                | Cia402State::OperationEnabled
+                | Cia402State::QuickStopActive
+        ) {
+            status |= StatusWord::VOLTAGE_ENABLED;
+        }
+        if self.torque_limited {
+            status |= StatusWord::INTERNAL_LIMIT;
+        }
+        let true_position = self.motor.position();
+        *feedback = JointFeedback {
+            statusword: StatusWord(status),
+            error_code: self.error_code,
+            position,
+            position_counts: self.counts,
+            velocity: self.counts_to_position(moved) / period_s,
+            torque: self.torque,
+            negative_limit: self
+                .negative_limit
+                .is_some_and(|limit| true_position <= limit),
+            positive_limit: self
+                .positive_limit
+                .is_some_and(|limit| true_position >= limit),
+            home_switch: self
+                .home_switch
+                .is_some_and(|range| range.from <= true_position && true_position <= range.to),
+            latch: self.latch,
+        };
+    }
+}

@@ -1,0 +1,285 @@
+use crate::bus::{Fieldbus, FieldbusError, check_images};
+use crate::image::{
+    Coolant, JointCommand, ProcessInputs, ProcessLayout, ProcessOutputs, SpindleCommand,
+    ToolChangeCommand,
+};
+use crate::sim::config::{ConfigError, SimulatedMachineConfig};
+use crate::sim::joint::{CycleConditions, SimulatedJoint};
+use crate::sim::peripherals::{Spindle, ToolChanger, seconds_to_ns};
+
+/// A fault the test harness (or the operator's "what if" panel) puts into the machine.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InjectedFault {
+    /// The joint's drive detects an internal fault with this CiA 402 error code.
+    DriveFault {
+        /// Joint index.
+        joint: usize,
+        /// Error code the drive reports (0x603F).
+        error_code: u16,
+    },
+    /// The joint's encoder stops counting. A drive that closes the position loop (CSP,
+    /// ideal) faults with [`POSITION_SENSOR`](crate::cia402::error_code::POSITION_SENSOR); in velocity and torque modes
+    /// only the controller can notice (its following error grows).
+    EncoderLoss {
+        /// Joint index.
+        joint: usize,
+    },
+    /// Process data stops: `exchange` fails and the drives run on their last command
+    /// until the watchdog makes them fault with [`COMMUNICATION`](crate::cia402::error_code::COMMUNICATION).
+    CommunicationLoss,
+}
+
+/// A request to the simulated machine named something it does not have.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum SimulationError {
+    /// No such joint.
+    #[error("no joint {joint}: the machine has {joints}")]
+    NoSuchJoint {
+        /// Index asked for.
+        joint: usize,
+        /// Joints present.
+        joints: usize,
+    },
+    /// No such input point.
+    #[error("no {kind} input {index}: the machine has {count}")]
+    NoSuchInput {
+        /// "digital" or "analog".
+        kind: &'static str,
+        /// Index asked for.
+        index: usize,
+        /// Points present.
+        count: usize,
+    },
+}
+
+impl SimulationError {
+    /// A stable machine-readable code.
+    pub fn code(&self) -> &'static str {
+        match self {
+            Self::NoSuchJoint { .. } => "fieldbus.sim.no_such_joint",
+            Self::NoSuchInput { .. } => "fieldbus.sim.no_such_input",
+        }
+    }
+}
+
+/// The in-process simulated machine: drives, motors, switches, spindle, coolant, tool
+/// changer and I/O behind the [`Fieldbus`] trait. Deterministic: the same configuration
+/// and the same outputs give the same inputs, bit for bit.
+#[derive(Debug, Clone)]
+pub struct SimulatedMachine {
+    layout: ProcessLayout,
+    substep_s: f64,
+    watchdog_ns: u64,
+    estop_removes_power: bool,
+    joints: Vec<SimulatedJoint>,
+    /// The commands the drives last received (they keep acting on them when a cycle is
+    /// lost).
+    received: Vec<JointCommand>,
+    spindle: Spindle,
+    spindle_command: SpindleCommand,
+    coolant: Coolant,
+    tool_changer: ToolChanger,
+    tool_command: ToolChangeCommand,
+    digital_inputs: Vec<bool>,
+    analog_inputs: Vec<f64>,
+    digital_outputs: Vec<bool>,
+    analog_outputs: Vec<f64>,
+    estop_active: bool,
+    communication_lost: bool,
+    silent_ns: u64,
+    time_ns: u64,
+}
+
+impl SimulatedMachine {
+    /// Builds the machine at power-up (drives in "not ready to switch on"), or names the
+    /// first refused configuration field. All memory is allocated here.
+    pub fn new(config: &SimulatedMachineConfig) -> Result<Self, ConfigError> {
+        config.validate()?;
+        let layout = ProcessLayout {
+            joints: config.joints.iter().map(|joint| joint.drive).collect(),
+            digital_inputs: config.io.digital_inputs,
+            digital_outputs: config.io.digital_outputs,
+            analog_inputs: config.io.analog_inputs,
+            analog_outputs: config.io.analog_outputs,
+        };
+        Ok(Self {
+            substep_s: config.substep_s,
+            watchdog_ns: seconds_to_ns(config.communication_watchdog_s),
+            estop_removes_power: config.estop_removes_power,
+            joints: config.joints.iter().map(SimulatedJoint::new).collect(),
+            received: vec![JointCommand::default(); config.joints.len()],
+            spindle: Spindle::new(config.spindle),
+            spindle_command: SpindleCommand::default(),
+            coolant: Coolant::default(),
+            tool_changer: ToolChanger::new(config.tool_changer),
+            tool_command: ToolChangeCommand::default(),
+            digital_inputs: vec![false; config.io.digital_inputs],
+            analog_inputs: vec![0.0; config.io.analog_inputs],
+            digital_outputs: vec![false; config.io.digital_outputs],
+            analog_outputs: vec![0.0; config.io.analog_outputs],
+            estop_active: false,
+            communication_lost: false,
+            silent_ns: 0,
+            time_ns: 0,
+            layout,
+        })
+    }
+
+    /// Presses (`true`) or releases the e-stop button.
+    pub fn set_estop(&mut self, pressed: bool) {
+        self.estop_active = pressed;
+    }
+
+    /// Sets digital input `index` (a switch on the machine, a panel button).
+    pub fn set_digital_input(&mut self, index: usize, value: bool) -> Result<(), SimulationError> {
+        let count = self.digital_inputs.len();
+        let slot = self.digital_inputs.get_mut(index);
+        let slot = slot.ok_or(SimulationError::NoSuchInput {
+            kind: "digital",
+            index,
+            count,
+        })?;
+        *slot = value;
+        Ok(())
+    }
+
+    /// Sets analogue input `index`.
+    pub fn set_analog_input(&mut self, index: usize, value: f64) -> Result<(), SimulationError> {
+        let count = self.analog_inputs.len();
+        let slot = self.analog_inputs.get_mut(index);
+        let slot = slot.ok_or(SimulationError::NoSuchInput {
+            kind: "analog",
+            index,
+            count,
+        })?;
+        *slot = value;
+        Ok(())
+    }
+
+    /// Digital output `index` as the machine last received it.
+    pub fn digital_output(&self, index: usize) -> Option<bool> {
+        self.digital_outputs.get(index).copied()
+    }
+
+    /// Analogue output `index` as the machine last received it.
+    pub fn analog_output(&self, index: usize) -> Option<f64> {
+        self.analog_outputs.get(index).copied()
+    }
+
+    /// Puts a fault into the machine; it acts from the next exchange on.
+    pub fn inject(&mut self, fault: InjectedFault) -> Result<(), SimulationError> {
+        self.set_fault(fault, true)
+    }
+
+    /// Removes an injected fault (a faulted drive still needs a fault reset).
+    pub fn clear(&mut self, fault: InjectedFault) -> Result<(), SimulationError> {
+        self.set_fault(fault, false)
+    }
+
+    fn set_fault(&mut self, fault: InjectedFault, active: bool) -> Result<(), SimulationError> {
+        match fault {
+            InjectedFault::DriveFault { joint, error_code } => self
+                .joint_mut(joint)?
+                .set_injected_fault(active.then_some(error_code)),
+            InjectedFault::EncoderLoss { joint } => self.joint_mut(joint)?.set_encoder_lost(active),
+            InjectedFault::CommunicationLoss => self.communication_lost = active,
+        }
+        Ok(())
+    }
+
+    fn joint_mut(&mut self, joint: usize) -> Result<&mut SimulatedJoint, SimulationError> {
+        let joints = self.joints.len();
+        self.joints
+            .get_mut(joint)
+            .ok_or(SimulationError::NoSuchJoint { joint, joints })
+    }
+
+    /// The load's true position and velocity (units, units/s), before the encoder: for
+    /// plots and tests, not for control.
+    pub fn true_state(&self, joint: usize) -> Option<(f64, f64)> {
+        self.joints
+            .get(joint)
+            .map(|j| (j.true_position(), j.true_velocity()))
+    }
+
+    /// Simulated time since power-up (s).
+    pub fn time_s(&self) -> f64 {
+        self.time_ns as f64 * 1e-9
+    }
+
+    /// Number of sub-steps a cycle of `period_s` is split into.
+    pub fn substeps_for(&self, period_s: f64) -> usize {
+        // The small slack keeps a period that is a whole multiple of the sub-step from
+        // gaining a step through rounding.
+        ((period_s / self.substep_s) * (1.0 - 1e-12))
+            .ceil()
+            .max(1.0) as usize
+    }
+}
+
+impl Fieldbus for SimulatedMachine {
+    fn layout(&self) -> &ProcessLayout {
+        &self.layout
+    }
+
+    fn exchange(
+        &mut self,
+        period_s: f64,
+        outputs: &ProcessOutputs,
+        inputs: &mut ProcessInputs,
+    ) -> Result<(), FieldbusError> {
+        if !(period_s.is_finite() && period_s > 0.0 && period_s <= 1.0) {
+            return Err(FieldbusError::InvalidPeriod { period_s });
+        }
+        check_images(&self.layout, outputs, inputs)?;
+        let period_ns = seconds_to_ns(period_s);
+        if self.communication_lost {
+            self.silent_ns = self.silent_ns.saturating_add(period_ns);
+        } else {
+            self.silent_ns = 0;
+            self.received.copy_from_slice(&outputs.joints);
+            self.digital_outputs.copy_from_slice(&outputs.digital);
+            self.analog_outputs.copy_from_slice(&outputs.analog);
+            self.spindle_command = outputs.spindle;
+            self.coolant = outputs.coolant;
+            self.tool_command = outputs.tool_changer;
+        }
+        let power = !(self.estop_active && self.estop_removes_power);
+        let conditions = CycleConditions {
+            period_s,
+            substeps: self.substeps_for(period_s),
+            power,
+            watchdog_expired: self.silent_ns >= self.watchdog_ns && self.silent_ns > 0,
+        };
+        self.time_ns = self.time_ns.saturating_add(period_ns);
+        let spindle = self.spindle.cycle(&self.spindle_command, power, period_s);
+        let tool_changer = self.tool_changer.cycle(&self.tool_command, period_ns);
+        if self.communication_lost {
+            // The plant runs on; the controller hears nothing. Feedback goes to scratch.
+            let mut scratch = crate::image::JointFeedback::default();
+            for (joint, command) in self.joints.iter_mut().zip(&self.received) {
+                joint.cycle(command, &conditions, &mut scratch);
+            }
+            return Err(FieldbusError::CommunicationLost);
+        }
+        for ((joint, command), feedback) in self
+            .joints
+            .iter_mut()
+            .zip(&self.received)
+            .zip(inputs.joints.iter_mut())
+        {
+            joint.cycle(command, &conditions, feedback);
+        }
+        inputs.digital.copy_from_slice(&self.digital_inputs);
+        inputs.analog.copy_from_slice(&self.analog_inputs);
+        inputs.estop_active = self.estop_active;
+        inputs.spindle = spindle;
+        inputs.coolant = if power {
+            self.coolant
+        } else {
+            Coolant::default()
+        };
+        inputs.tool_changer = tool_changer;
+        Ok(())
+    }
+}

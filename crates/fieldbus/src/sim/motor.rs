@@ -1,0 +1,125 @@
+//! Rigid motor and load: `J·dω/dt = τ − b·ω − T_c·sgn(ω)`, with the load at rest staying at
+//! rest while `|τ| ≤ T_c` (stiction equal to the Coulomb friction).
+//!
+//! Integration is exact for a torque held over each step: between velocity sign changes the
+//! equation is linear with constant input, so velocity and position follow closed-form
+//! exponentials; when the velocity reaches zero inside a step the step is split there and
+//! the stick condition decides the rest. No truncation error, whatever the step.
+
+use crate::sim::config::MotorConfig;
+
+/// The motor and load of one joint, in joint units (position in units, velocity in
+/// units/s; torque in N·m on the motor shaft).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MotorModel {
+    /// Acceleration per N·m (units/s² per N·m).
+    acceleration_per_torque: f64,
+    /// Viscous decay rate b/J (1/s).
+    decay_rate: f64,
+    /// Coulomb friction as an acceleration (units/s²).
+    coulomb_acceleration: f64,
+    position: f64,
+    velocity: f64,
+}
+
+impl MotorModel {
+    /// A motor at rest at `position`; `units_per_revolution` maps the shaft to the joint.
+    pub fn new(config: &MotorConfig, units_per_revolution: f64, position: f64) -> Self {
+        let units_per_radian = units_per_revolution / (2.0 * std::f64::consts::PI);
+        let acceleration_per_torque = units_per_radian / config.inertia;
+        Self {
+            acceleration_per_torque,
+            decay_rate: config.viscous_friction / config.inertia,
+            coulomb_acceleration: config.coulomb_friction * acceleration_per_torque,
+            position,
+            velocity: 0.0,
+        }
+    }
+
+    /// Position (units).
+    pub fn position(&self) -> f64 {
+        self.position
+    }
+
+    /// Velocity (units/s).
+    pub fn velocity(&self) -> f64 {
+        self.velocity
+    }
+
+    /// Puts the load at `position`, at rest (an ideal drive's move).
+    pub fn place(&mut self, position: f64, velocity: f64) {
+        self.position = position;
+        self.velocity = velocity;
+    }
+
+    /// Advances by `step_s` seconds with `torque` (N·m) held.
+    pub fn advance(&mut self, torque: f64, step_s: f64) {
+        let drive = torque * self.acceleration_per_torque;
+        let mut remaining = step_s;
+        // At most two pieces: up to a stop, then from rest (which cannot reverse again).
+        for _ in 0..2 {
+            if remaining <= 0.0 {
+                break;
+            }
+            let direction = if self.velocity > 0.0 {
+                1.0
+            } else if self.velocity < 0.0 {
+                -1.0
+            } else if drive.abs() <= self.coulomb_acceleration {
+                return; // stuck
+            } else {
+                drive.signum()
+            };
+            let net = drive - direction * self.coulomb_acceleration;
+            let stop_after = self.time_to_stop(net);
+            if stop_after < remaining {
+                self.position += self.distance(net, stop_after);
+                self.velocity = 0.0;
+                remaining -= stop_after;
+            } else {
+                self.position += self.distance(net, remaining);
+                self.velocity = self.velocity_after(net, remaining);
+                remaining = 0.0;
+            }
+        }
+    }
+
+    /// Velocity after `t` with constant net acceleration input `net`.
+    fn velocity_after(&self, net: f64, t: f64) -> f64 {
+        let c = self.decay_rate;
+        if c > 0.0 {
+            let terminal = net / c;
+            terminal + (self.velocity - terminal) * (-c * t).exp()
+        } else {
+            self.velocity + net * t
+        }
+    }
+
+    /// Distance covered in `t` with constant net acceleration input `net`.
+    fn distance(&self, net: f64, t: f64) -> f64 {
+        let c = self.decay_rate;
+        if c > 0.0 {
+            let terminal = net / c;
+            terminal * t + (self.velocity - terminal) * (-(-c * t).exp_m1()) / c
+        } else {
+            self.velocity * t + 0.5 * net * t * t
+        }
+    }
+
+    /// When the velocity would reach zero under `net` (infinite if it never does).
+    fn time_to_stop(&self, net: f64) -> f64 {
+        let v = self.velocity;
+        // Only a net acceleration against the motion brings it to rest.
+        if v == 0.0 || net * v >= 0.0 {
+            return f64::INFINITY;
+        }
+        let c = self.decay_rate;
+        if c > 0.0 {
+            let terminal = net / c;
+            // v(t) = terminal + (v − terminal)·e^(−ct) = 0
+            ((v - terminal) / -terminal).ln() / c
+        } else {
+            -v / net
+        }
+    }
+}
