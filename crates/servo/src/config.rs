@@ -61,9 +61,13 @@ fn positive(field: &str, value: f64) -> Result<(), ConfigError> {
 /// Gains of the velocity-output position loop. Units follow from the output being a
 /// velocity command in joint units per second.
 ///
-/// The defaults are tuned for the simulated analogue drive of `rtcnc-fieldbus`
-/// (200 Hz velocity loop, 1 ms servo period): with them the seeds' S-curve experiment stays
-/// within ±0.01 mm (see `docs/machine.md`).
+/// The defaults (p = 200/s, velocity_ff = 1, acceleration_ff = 0.5 ms) are tuned for a
+/// velocity-commanded drive with integral action in its velocity loop (the simulated
+/// analogue drive of `rtcnc-fieldbus`, 200 Hz) and a 1 ms servo period: such a drive has no
+/// velocity lag under constant acceleration, so acceleration_ff only makes up the half
+/// period a held command loses (T/2). With them the seeds' S-curve experiment stays within
+/// 1 µm (test `experiment1` of `rtcnc-fieldbus`). For another period set
+/// acceleration_ff = T/2.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct PidGains {
@@ -96,7 +100,7 @@ impl Default for PidGains {
             i: 0.0,
             d: 0.0,
             velocity_ff: 1.0,
-            acceleration_ff: 0.0035,
+            acceleration_ff: 0.0005,
             bias: 0.0,
             deadband: 0.0,
             output_limit: None,
