@@ -221,7 +221,8 @@ impl SimulatedJoint {
             self.update_latch(before, self.motor.position());
         } else {
             for substep in 1..=substeps {
-                let demand = self.torque_demand(command, substep as f64 / substeps as f64, step_s);
+                let fraction = (substep - 1) as f64 / substeps as f64;
+                let demand = self.torque_demand(command, fraction, step_s);
                 let torque = demand.clamp(-self.torque_limit, self.torque_limit);
                 self.torque_limited |= torque != demand;
                 self.torque = torque;
@@ -239,14 +240,16 @@ impl SimulatedJoint {
         self.write_feedback(conditions.period_s, feedback);
     }
 
-    /// Torque demanded in one sub-step; `fraction` is how far through the cycle it ends.
+    /// Torque demanded in one sub-step; `fraction` is how far through the cycle it starts
+    /// (the drive samples reference and feedback at the same instant).
     fn torque_demand(&mut self, command: &JointCommand, fraction: f64, step_s: f64) -> f64 {
         match self.state {
             Cia402State::OperationEnabled => match self.mode {
                 DriveMode::Velocity => self.velocity_loop(command.target_velocity, 0.0, step_s),
                 DriveMode::Csp => {
                     // Linear interpolation from the previous target to this one over the
-                    // cycle: the drive reaches each target one period after receiving it.
+                    // cycle: the reference reaches each target one period after it
+                    // arrives, which is the lag of a CSP drive.
                     let target = self.previous_target
                         + (command.target_position - self.previous_target) * fraction;
                     let velocity = self.position_gain * (target - self.motor.position())
