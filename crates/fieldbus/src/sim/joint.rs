@@ -168,7 +168,11 @@ impl SimulatedJoint {
         if self.state == Cia402State::OperationEnabled && previous != Cia402State::OperationEnabled
         {
             self.velocity_integral = 0.0;
-            self.previous_target = command.target_position;
+            self.previous_target = if command.target_position.is_finite() {
+                command.target_position
+            } else {
+                self.motor.position()
+            };
         }
         if self.state == Cia402State::QuickStopActive && previous != Cia402State::QuickStopActive {
             self.quick_stop_velocity = self.motor.velocity();
@@ -212,7 +216,8 @@ impl SimulatedJoint {
         if self.mode == DriveMode::Ideal {
             self.torque = 0.0;
             let before = self.motor.position();
-            if self.state == Cia402State::OperationEnabled {
+            // A non-finite target (impossible on a real bus, which carries integers) holds.
+            if self.state == Cia402State::OperationEnabled && command.target_position.is_finite() {
                 let velocity = (command.target_position - before) / conditions.period_s;
                 self.motor.place(command.target_position, velocity);
             } else {
@@ -222,7 +227,12 @@ impl SimulatedJoint {
         } else {
             for substep in 1..=substeps {
                 let fraction = (substep - 1) as f64 / substeps as f64;
-                let demand = self.torque_demand(command, fraction, step_s);
+                let mut demand = self.torque_demand(command, fraction, step_s);
+                if !demand.is_finite() {
+                    // A non-finite command gives no torque rather than poisoning the model.
+                    demand = 0.0;
+                    self.velocity_integral = 0.0;
+                }
                 let torque = demand.clamp(-self.torque_limit, self.torque_limit);
                 self.torque_limited |= torque != demand;
                 self.torque = torque;
@@ -231,7 +241,7 @@ impl SimulatedJoint {
                 self.update_latch(before, self.motor.position());
             }
         }
-        if self.state == Cia402State::OperationEnabled {
+        if self.state == Cia402State::OperationEnabled && command.target_position.is_finite() {
             self.previous_target = command.target_position;
         }
         if !self.encoder_lost {

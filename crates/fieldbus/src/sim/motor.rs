@@ -20,6 +20,9 @@ pub struct MotorModel {
     coulomb_acceleration: f64,
     position: f64,
     velocity: f64,
+    /// e^(−c·t) − 1 for the last full step length, which repeats every sub-step.
+    cached_step: f64,
+    cached_decay: f64,
 }
 
 impl MotorModel {
@@ -33,6 +36,8 @@ impl MotorModel {
             coulomb_acceleration: config.coulomb_friction * acceleration_per_torque,
             position,
             velocity: 0.0,
+            cached_step: 0.0,
+            cached_decay: 0.0,
         }
     }
 
@@ -73,36 +78,38 @@ impl MotorModel {
             let net = drive - direction * self.coulomb_acceleration;
             let stop_after = self.time_to_stop(net);
             if stop_after < remaining {
-                self.position += self.distance(net, stop_after);
+                self.position += self.distance(net, stop_after).0;
                 self.velocity = 0.0;
                 remaining -= stop_after;
             } else {
-                self.position += self.distance(net, remaining);
-                self.velocity = self.velocity_after(net, remaining);
+                (self.position, self.velocity) = {
+                    let (distance, velocity) = self.distance(net, remaining);
+                    (self.position + distance, velocity)
+                };
                 remaining = 0.0;
             }
         }
     }
 
-    /// Velocity after `t` with constant net acceleration input `net`.
-    fn velocity_after(&self, net: f64, t: f64) -> f64 {
+    /// Distance covered in `t` with constant net acceleration input `net`, and the
+    /// velocity at its end.
+    fn distance(&mut self, net: f64, t: f64) -> (f64, f64) {
         let c = self.decay_rate;
         if c > 0.0 {
             let terminal = net / c;
-            terminal + (self.velocity - terminal) * (-c * t).exp()
+            // e^(−ct) − 1, accurate for small ct; the same step comes back every sub-step.
+            if t != self.cached_step {
+                self.cached_step = t;
+                self.cached_decay = (-c * t).exp_m1();
+            }
+            let decay = self.cached_decay;
+            let distance = terminal * t - (self.velocity - terminal) * decay / c;
+            (distance, self.velocity + (self.velocity - terminal) * decay)
         } else {
-            self.velocity + net * t
-        }
-    }
-
-    /// Distance covered in `t` with constant net acceleration input `net`.
-    fn distance(&self, net: f64, t: f64) -> f64 {
-        let c = self.decay_rate;
-        if c > 0.0 {
-            let terminal = net / c;
-            terminal * t + (self.velocity - terminal) * (-(-c * t).exp_m1()) / c
-        } else {
-            self.velocity * t + 0.5 * net * t * t
+            (
+                self.velocity * t + 0.5 * net * t * t,
+                self.velocity + net * t,
+            )
         }
     }
 
