@@ -97,6 +97,31 @@ fn constant_torque_against_viscous_friction_gives_the_exact_exponential_velocity
 }
 
 #[test]
+fn a_new_command_acts_after_the_configured_command_delay() {
+    let motor = MotorConfig {
+        inertia: 1e-4,
+        viscous_friction: 0.0,
+        coulomb_friction: 0.0,
+        torque_limit: 5.0,
+    };
+    let mut config: SimulatedMachineConfig =
+        toml::from_str("joints = []\ncommand_delay_s = 0.00025").unwrap();
+    config.joints.push(radian_joint(DriveMode::Torque, motor));
+    let mut bench = Bench::new(config);
+    bench.enable_all();
+    bench.outputs.joints[0].target_torque = 0.2;
+    bench.cycle().unwrap();
+    // 0.2 N·m / 1e-4 kg·m² = 2000 rad/s² for the last 0.75 ms of the period.
+    let (position, velocity) = bench.machine.true_state(0).unwrap();
+    assert!(close(velocity, 2000.0 * 0.75e-3, 1e-12), "{velocity}");
+    assert!(close(position, 2000.0 * 0.75e-3 * 0.75e-3 / 2.0, 1e-15));
+    bench.outputs.joints[0].target_torque = 0.0;
+    bench.cycle().unwrap();
+    let (_, velocity) = bench.machine.true_state(0).unwrap();
+    assert!(close(velocity, 2000.0 * 1e-3, 1e-12), "{velocity}");
+}
+
+#[test]
 fn coulomb_friction_holds_a_torque_commanded_joint_at_rest() {
     let motor = MotorConfig {
         inertia: 1e-4,

@@ -75,6 +75,11 @@ pub struct SimulatedMachineConfig {
     /// arriving, before they fault (s). Default 0.1 s (EtherCAT's usual watchdog).
     #[serde(default = "defaults::communication_watchdog_s")]
     pub communication_watchdog_s: f64,
+    /// Time from the feedback sample to a new velocity or torque command acting on the
+    /// motor (s): the controller's computation and the DAC. Until then the previous
+    /// command acts. Default 0; at most 0.01 s.
+    #[serde(default)]
+    pub command_delay_s: f64,
     /// The e-stop chain removes drive power (safe torque off), spindle and coolant.
     #[serde(default = "defaults::yes")]
     pub estop_removes_power: bool,
@@ -252,6 +257,13 @@ impl SimulatedMachineConfig {
             ));
         }
         positive("communication_watchdog_s", self.communication_watchdog_s)?;
+        non_negative("command_delay_s", self.command_delay_s)?;
+        if self.command_delay_s > 0.01 {
+            return Err(ConfigError::new(
+                "command_delay_s",
+                "must be at most 0.01 s",
+            ));
+        }
         if self.joints.len() > MAX_JOINTS {
             return Err(ConfigError::new(
                 "joints",

@@ -17,6 +17,8 @@ pub(crate) struct CycleConditions {
     pub power: bool,
     /// The process-data watchdog expired.
     pub watchdog_expired: bool,
+    /// Time from the sample to a new velocity or torque command acting (s).
+    pub command_delay_s: f64,
 }
 
 #[derive(Debug, Clone)]
@@ -50,6 +52,7 @@ pub(crate) struct SimulatedJoint {
     torque_limited: bool,
     latch_request: Option<LatchSource>,
     latch: LatchFeedback,
+    previous_command: JointCommand,
 }
 
 impl SimulatedJoint {
@@ -92,6 +95,7 @@ impl SimulatedJoint {
             torque_limited: false,
             latch_request: None,
             latch: LatchFeedback::default(),
+            previous_command: JointCommand::default(),
         };
         joint.counts = joint.encoder_counts(config.initial_position);
         joint.counts_at_last_exchange = joint.counts;
@@ -225,9 +229,17 @@ impl SimulatedJoint {
             }
             self.update_latch(before, self.motor.position());
         } else {
+            let previous = self.previous_command;
             for substep in 1..=substeps {
-                let fraction = (substep - 1) as f64 / substeps as f64;
-                let mut demand = self.torque_demand(command, fraction, step_s);
+                let started = (substep - 1) as f64;
+                let fraction = started / substeps as f64;
+                // Velocity and torque commands reach the motor `command_delay_s` after the
+                // sample (the controller's computation and the DAC): until then the
+                // previous command acts. A CSP drive's timing is its interpolation.
+                let delayed = started * step_s < conditions.command_delay_s * (1.0 - 1e-9)
+                    && self.mode != DriveMode::Csp;
+                let active = if delayed { &previous } else { command };
+                let mut demand = self.torque_demand(active, fraction, step_s);
                 if !demand.is_finite() {
                     // A non-finite command gives no torque rather than poisoning the model.
                     demand = 0.0;
@@ -244,6 +256,7 @@ impl SimulatedJoint {
         if self.state == Cia402State::OperationEnabled && command.target_position.is_finite() {
             self.previous_target = command.target_position;
         }
+        self.previous_command = *command;
         if !self.encoder_lost {
             self.counts = self.encoder_counts(self.motor.position());
         }

@@ -71,6 +71,7 @@ pub struct SimulatedMachine {
     substep_s: f64,
     watchdog_ns: u64,
     estop_removes_power: bool,
+    command_delay_s: f64,
     joints: Vec<SimulatedJoint>,
     /// The commands the drives last received (they keep acting on them when a cycle is
     /// lost).
@@ -106,6 +107,7 @@ impl SimulatedMachine {
             substep_s: config.substep_s,
             watchdog_ns: seconds_to_ns(config.communication_watchdog_s),
             estop_removes_power: config.estop_removes_power,
+            command_delay_s: config.command_delay_s,
             joints: config.joints.iter().map(SimulatedJoint::new).collect(),
             received: vec![JointCommand::default(); config.joints.len()],
             spindle: Spindle::new(config.spindle),
@@ -250,6 +252,7 @@ impl Fieldbus for SimulatedMachine {
             substeps: self.substeps_for(period_s),
             power,
             watchdog_expired: self.silent_ns >= self.watchdog_ns && self.silent_ns > 0,
+            command_delay_s: self.command_delay_s,
         };
         self.time_ns = self.time_ns.saturating_add(period_ns);
         let spindle = self.spindle.cycle(&self.spindle_command, power, period_s);
