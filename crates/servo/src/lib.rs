@@ -12,6 +12,7 @@
 //!   controller passes the set-point on with optional velocity and torque feed-forward
 //!   offsets and still watches the following error.
 //!
+//! [`ServoLoop`] holds either, chosen by the configuration (`loop = "pid"` or `"csp"`).
 //! Both check the following error against [`FollowingErrorLimits`]: a static limit at
 //! standstill and a limit that grows with the commanded speed (LinuxCNC's `MIN_FERROR` and
 //! `FERROR`).
@@ -20,11 +21,28 @@
 //! period is a [`ServoFault`], never a NaN output. The caller passes the period each cycle.
 //! Configuration structs deserialize with serde (the machine TOML) and validate with errors
 //! that name the field.
+//!
+//! ```
+//! use rtcnc_servo::{FollowingErrorLimits, PidConfig, PidController, PidGains, SetPoint};
+//!
+//! let limits = FollowingErrorLimits { min_ferror: 0.01, ferror: 0.1, max_velocity: 100.0 };
+//! let config = PidConfig { gains: PidGains::default(), following_error: limits };
+//! let mut pid = PidController::new(0, &config)?;
+//! // Each cycle: the interpolator's set-point, the measured position, the period.
+//! let setpoint = SetPoint { position: 1.0, velocity: 10.0, acceleration: 0.0 };
+//! let velocity_command = pid.update(setpoint, 0.999, 0.001)?;
+//! assert!((velocity_command - (200.0 * 0.001 + 10.0)).abs() < 1e-9);
+//! // Too far behind: a fault naming the joint.
+//! let fault = pid.update(setpoint, 0.5, 0.001).unwrap_err();
+//! assert_eq!(fault.code(), "servo.following_error");
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 mod config;
 mod csp;
 mod fault;
 mod following_error;
+mod joint_loop;
 mod pid;
 mod setpoint;
 
@@ -32,5 +50,6 @@ pub use config::{ConfigError, CspConfig, FollowingErrorLimits, PidConfig, PidGai
 pub use csp::{CspCommand, CspLoop};
 pub use fault::ServoFault;
 pub use following_error::FollowingErrorMonitor;
+pub use joint_loop::{ServoCommand, ServoLoop, ServoLoopConfig};
 pub use pid::PidController;
 pub use setpoint::{SetPoint, SetPointDifferentiator};

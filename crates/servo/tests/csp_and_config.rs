@@ -147,3 +147,41 @@ fn differentiator_gives_backward_differences_of_a_parabola() {
         }
     }
 }
+
+#[test]
+fn servo_loop_is_chosen_by_the_configuration() {
+    use rtcnc_servo::{ServoCommand, ServoLoop, ServoLoopConfig};
+    let limits = "[following_error]\nmin_ferror = 0.01\nferror = 0.1\nmax_velocity = 100.0\n";
+    let pid: ServoLoopConfig = toml::from_str(&format!("loop = \"pid\"\n{limits}")).unwrap();
+    let csp: ServoLoopConfig =
+        toml::from_str(&format!("loop = \"csp\"\ntorque_ff = 0.5\n{limits}")).unwrap();
+    let sp = SetPoint {
+        position: 1.0,
+        velocity: 2.0,
+        acceleration: 4.0,
+    };
+    let mut pid = ServoLoop::new(0, &pid).unwrap();
+    // Default gains: p·e + velocity_ff·v + acceleration_ff·a = 200·0.001 + 2 + 0.0005·4.
+    match pid.update(sp, 0.999, 0.001).unwrap() {
+        ServoCommand::Velocity(v) => assert!((v - (0.2 + 2.0 + 0.002)).abs() < 1e-9, "{v}"),
+        other => panic!("{other:?}"),
+    }
+    let mut csp = ServoLoop::new(1, &csp).unwrap();
+    assert_eq!(
+        csp.update(sp, 0.999, 0.001).unwrap(),
+        ServoCommand::Position(CspCommand {
+            position: 1.0,
+            velocity_offset: 2.0,
+            torque_offset: 2.0
+        })
+    );
+    assert_eq!(csp.following_error().joint(), 1);
+    let unknown = toml::from_str::<ServoLoopConfig>(&format!("loop = \"pid\"\nfoo = 1\n{limits}"));
+    assert!(unknown.is_err());
+    let bad = toml::from_str::<ServoLoopConfig>(&format!("loop = \"pd\"\n{limits}"));
+    assert!(
+        bad.unwrap_err()
+            .to_string()
+            .contains("unknown variant `pd`")
+    );
+}
