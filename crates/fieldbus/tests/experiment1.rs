@@ -1,11 +1,12 @@
 //! The seeds' experiment 1 at the servo level: a jerk-limited single-axis move of 6000
-//! pulses (1 pulse = 0.001 mm) through the PID position loop into the simulated analogue
-//! drive (velocity loop inside the drive), 1 ms servo period.
+//! pulses (1 pulse = 0.001 mm) through the servo loop into a simulated drive, 1 ms period.
 //!
-//! Reference profile, analytic: rest to rest, v_max 50 pulse/ms, a_max 1 pulse/ms²,
-//! j 0.01 pulse/ms³. Neither limit is reached, so the time-optimal profile (ruckig:
-//! 267.773 ms) is four equal jerk phases +j, −j, −j, +j of length T with 2·j·T³ = 6000
-//! pulses, i.e. T = (300 000)^(1/3) ms = 66.943 ms.
+//! The set-point stream is ruckig's plan of the move, sampled every millisecond
+//! (`tests/data/ruckig_seed_case_1ms.csv`, peer output). The lag fit needs the plan at any
+//! time, so the test also builds it analytically and checks it against ruckig's samples:
+//! neither velocity nor acceleration limit is reached, so the time-optimal profile is four
+//! equal jerk phases +j, −j, −j, +j of length T with 2·j·T³ = 6000 pulses, i.e.
+//! T = (300 000)^(1/3) ms = 66.943 ms, 267.773 ms in all.
 
 use rtcnc_fieldbus::sim::{SimulatedJointConfig, SimulatedMachine, SimulatedMachineConfig};
 use rtcnc_fieldbus::{Cia402State, DriveMode, Fieldbus, ProcessInputs, ProcessOutputs};
@@ -93,6 +94,41 @@ fn cycles() -> usize {
     (4.0 * phase_time() / PERIOD).ceil() as usize + 100
 }
 
+/// ruckig's samples at whole milliseconds, in mm, mm/s and mm/s².
+fn ruckig_samples() -> Vec<(f64, SetPoint)> {
+    include_str!("data/ruckig_seed_case_1ms.csv")
+        .lines()
+        .filter(|line| !line.starts_with('#'))
+        .map(|line| {
+            let fields: Vec<f64> = line
+                .split(',')
+                .map(|field| field.parse().unwrap())
+                .collect();
+            let setpoint = SetPoint {
+                position: fields[1] * PULSE_MM,
+                velocity: fields[2] * PULSE_MM * 1e3,
+                acceleration: fields[3] * PULSE_MM * 1e6,
+            };
+            (fields[0] * 1e-3, setpoint)
+        })
+        .filter(|(t, _)| (t / PERIOD).fract() == 0.0)
+        .collect()
+}
+
+/// The set-point of cycle `k`: ruckig's sample, then at rest at the end.
+fn setpoint_stream() -> Vec<SetPoint> {
+    let samples = ruckig_samples();
+    (0..cycles())
+        .map(|k| match samples.get(k) {
+            Some(&(t, setpoint)) => {
+                assert_eq!(t, k as f64 * PERIOD);
+                setpoint
+            }
+            None => SetPoint::at_rest(DISTANCE),
+        })
+        .collect()
+}
+
 const LIMITS: FollowingErrorLimits = FollowingErrorLimits {
     min_ferror: 0.05,
     ferror: 0.5,
@@ -113,9 +149,8 @@ fn run_velocity_mode(gains: PidGains, command_delay_s: f64) -> Run {
         actual: vec![],
         errors: vec![],
     };
-    for k in 0..cycles() {
+    for (k, setpoint) in setpoint_stream().into_iter().enumerate() {
         let t = k as f64 * PERIOD;
-        let setpoint = profile(t);
         let feedback = inputs.joints[0].position;
         let command = pid
             .update(setpoint, feedback, PERIOD)
@@ -143,9 +178,8 @@ fn run_csp_mode() -> Run {
         actual: vec![],
         errors: vec![],
     };
-    for k in 0..cycles() {
+    for (k, setpoint) in setpoint_stream().into_iter().enumerate() {
         let t = k as f64 * PERIOD;
-        let setpoint = profile(t);
         let feedback = inputs.joints[0].position;
         let command = csp
             .update(setpoint, feedback, PERIOD)
@@ -196,7 +230,22 @@ fn largest_velocity_lag(run: &Run) -> f64 {
 }
 
 #[test]
-fn analytic_profile_matches_ruckig() {
+fn analytic_profile_matches_ruckig_samples() {
+    let samples = ruckig_samples();
+    assert_eq!(samples.len(), 268);
+    for (t, ruckig) in samples {
+        let analytic = profile(t);
+        assert!((analytic.position - ruckig.position).abs() < 1e-9, "t {t}");
+        assert!((analytic.velocity - ruckig.velocity).abs() < 1e-9, "t {t}");
+        assert!(
+            (analytic.acceleration - ruckig.acceleration).abs() < 1e-6,
+            "t {t}"
+        );
+    }
+}
+
+#[test]
+fn analytic_profile_matches_ruckig_figures() {
     // ruckig: 267.773 ms, peak velocity 44.814 pulse/ms, peak acceleration 0.669 pulse/ms².
     assert!((4.0 * phase_time() * 1e3 - 267.773).abs() < 5e-4);
     let peak = profile(2.0 * phase_time());
