@@ -205,6 +205,8 @@ pub struct ProcessInputs {
     pub analog: Vec<f64>,
     /// The emergency-stop chain is open (button pressed or chain broken).
     pub estop_active: bool,
+    /// The handwheel (MPG) counter: detents turned since power-up, wrapping.
+    pub handwheel_counts: i64,
     /// Spindle.
     pub spindle: SpindleFeedback,
     /// Coolant pumps running.

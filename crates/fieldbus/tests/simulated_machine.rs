@@ -420,6 +420,10 @@ fn coolant_and_io_pass_through_and_estop_is_an_input() {
         !bench.inputs.coolant.flood,
         "the e-stop drops the coolant pumps"
     );
+    bench.machine.turn_handwheel(5);
+    bench.machine.turn_handwheel(-2);
+    bench.cycle().unwrap();
+    assert_eq!(bench.inputs.handwheel_counts, 3);
     let error = bench.machine.set_digital_input(16, true).unwrap_err();
     assert_eq!(error.to_string(), "no digital input 16: the machine has 16");
     assert_eq!(bench.machine.digital_output(99), None);

@@ -338,8 +338,7 @@ impl SimulatedJoint {
     /// The first home-switch edge passed moving from `before` to `after`.
     fn home_edge_between(&self, before: f64, after: f64) -> Option<f64> {
         let range = self.home_switch?;
-        // The switch is on for from <= x <= to: its edges are crossed at `from` (entering
-        // upwards when x reaches it) and just above `to`.
+        // The switch is on for from <= x <= to; the latch holds the edge it passed.
         let crossed = |edge: f64| (before < edge) != (after < edge);
         let upper = range.to;
         let edges = if after > before {

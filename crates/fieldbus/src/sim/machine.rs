@@ -86,6 +86,7 @@ pub struct SimulatedMachine {
     digital_outputs: Vec<bool>,
     analog_outputs: Vec<f64>,
     estop_active: bool,
+    handwheel_counts: i64,
     communication_lost: bool,
     silent_ns: u64,
     time_ns: u64,
@@ -120,6 +121,7 @@ impl SimulatedMachine {
             digital_outputs: vec![false; config.io.digital_outputs],
             analog_outputs: vec![0.0; config.io.analog_outputs],
             estop_active: false,
+            handwheel_counts: 0,
             communication_lost: false,
             silent_ns: 0,
             time_ns: 0,
@@ -130,6 +132,11 @@ impl SimulatedMachine {
     /// Presses (`true`) or releases the e-stop button.
     pub fn set_estop(&mut self, pressed: bool) {
         self.estop_active = pressed;
+    }
+
+    /// Turns the handwheel by `detents` (negative: the other way).
+    pub fn turn_handwheel(&mut self, detents: i64) {
+        self.handwheel_counts = self.handwheel_counts.wrapping_add(detents);
     }
 
     /// Sets digital input `index` (a switch on the machine, a panel button).
@@ -276,6 +283,7 @@ impl Fieldbus for SimulatedMachine {
         inputs.digital.copy_from_slice(&self.digital_inputs);
         inputs.analog.copy_from_slice(&self.analog_inputs);
         inputs.estop_active = self.estop_active;
+        inputs.handwheel_counts = self.handwheel_counts;
         inputs.spindle = spindle;
         inputs.coolant = if power {
             self.coolant
