@@ -94,9 +94,14 @@ impl DurationError {
 /// µs, ms, s, min). Zero and negative values are refused.
 pub fn parse_duration(text: &str) -> Result<Duration, DurationError> {
     let t = text.trim();
-    let split = t
-        .find(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-' || c == '+'))
-        .ok_or_else(|| DurationError::Syntax(text.to_string()))?;
+    let Some(split) = t.find(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-' || c == '+'))
+    else {
+        // A bare number: zero or negative is refused as such, anything else lacks a unit.
+        return match t.parse::<f64>() {
+            Ok(v) if v <= 0.0 => Err(DurationError::NotPositive(text.to_string())),
+            _ => Err(DurationError::Syntax(text.to_string())),
+        };
+    };
     let (number, unit) = t.split_at(split);
     let value: f64 = number
         .parse()
@@ -152,7 +157,11 @@ mod tests {
 
     #[test]
     fn refuses_zero_negative_and_garbage() {
-        assert_eq!(parse_duration("0"), Err(DurationError::Syntax("0".into())));
+        assert_eq!(
+            parse_duration("0"),
+            Err(DurationError::NotPositive("0".into()))
+        );
+        assert_eq!(parse_duration("5"), Err(DurationError::Syntax("5".into())));
         assert_eq!(
             parse_duration("0ms"),
             Err(DurationError::NotPositive("0ms".into()))
