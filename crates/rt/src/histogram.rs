@@ -3,6 +3,12 @@
 
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
+/// Adds to a counter that has one writer: a plain load and store, no locked instruction.
+#[inline]
+pub(crate) fn bump(counter: &AtomicU64, by: u64) {
+    counter.store(counter.load(Relaxed).wrapping_add(by), Relaxed);
+}
+
 /// Values below this are counted exactly, one bucket per nanosecond.
 const EXACT: u64 = 64;
 /// Sub-buckets per power of two above `EXACT`: relative bucket width at most 1/32.
@@ -68,10 +74,10 @@ impl LogHistogram {
     /// Adds one value (single writer; no allocation, no lock).
     pub fn record(&self, value: u64) {
         if let Some(b) = self.buckets.get(bucket_of(value)) {
-            b.fetch_add(1, Relaxed);
+            bump(b, 1);
         }
-        self.count.fetch_add(1, Relaxed);
-        self.sum.fetch_add(value, Relaxed);
+        bump(&self.count, 1);
+        bump(&self.sum, value);
         if value < self.min.load(Relaxed) {
             self.min.store(value, Relaxed);
         }
@@ -152,11 +158,11 @@ impl LinearHistogram {
     pub fn record(&self, value: u64) {
         let index = value / self.bin_width;
         match usize::try_from(index).ok().and_then(|i| self.bins.get(i)) {
-            Some(b) => b.fetch_add(1, Relaxed),
-            None => self.overflow.fetch_add(1, Relaxed),
+            Some(b) => bump(b, 1),
+            None => bump(&self.overflow, 1),
         };
-        self.count.fetch_add(1, Relaxed);
-        self.sum.fetch_add(value, Relaxed);
+        bump(&self.count, 1);
+        bump(&self.sum, value);
         if value < self.min.load(Relaxed) {
             self.min.store(value, Relaxed);
         }

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, AtomicU64, Ordering::Relaxed};
 use std::time::Duration;
 
-use crate::histogram::{LogHistogram, Summary};
+use crate::histogram::{LogHistogram, Summary, bump};
 use crate::sys::PiLock;
 use crate::time::Time;
 
@@ -215,7 +215,7 @@ impl TaskMonitor {
     }
 
     pub(crate) fn record_run(&self, lateness_ns: Option<u64>, exec_ns: u64) {
-        self.activations.fetch_add(1, Relaxed);
+        bump(&self.activations, 1);
         self.exec.record(exec_ns);
         if let Some(l) = lateness_ns {
             self.lateness.record(l);
@@ -223,12 +223,12 @@ impl TaskMonitor {
     }
 
     pub(crate) fn record_miss(&self, skipped: u64) {
-        self.deadline_misses.fetch_add(1, Relaxed);
-        self.skipped_releases.fetch_add(skipped, Relaxed);
+        bump(&self.deadline_misses, 1);
+        bump(&self.skipped_releases, skipped);
     }
 
     pub(crate) fn record_skipped(&self, skipped: u64) {
-        self.skipped_releases.fetch_add(skipped, Relaxed);
+        bump(&self.skipped_releases, skipped);
     }
 
     /// A snapshot of the counters.

@@ -3,6 +3,7 @@
 
 use std::collections::HashSet;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use crate::error::ConfigError;
@@ -481,7 +482,7 @@ impl TaskSetBuilder {
                 kind: decl.kind,
                 body: decl.body,
                 reaction: decl.reaction,
-                control: EventSemaphore::with_state("task start", !decl.start_stopped),
+                control: RunFlag::new(!decl.start_stopped),
                 lane,
             });
         }
@@ -518,7 +519,7 @@ pub(crate) struct TaskSpec {
     pub kind: DeclKind,
     pub body: Body,
     pub reaction: MissReaction,
-    pub control: EventSemaphore,
+    pub control: RunFlag,
     pub lane: usize,
 }
 
@@ -579,18 +580,54 @@ impl TaskSet {
     }
 }
 
+/// A task's start event, with an atomic copy of its state so that the per-cycle check
+/// takes no lock.
+#[derive(Clone)]
+pub(crate) struct RunFlag {
+    started: Arc<AtomicBool>,
+    event: EventSemaphore,
+}
+
+impl RunFlag {
+    fn new(started: bool) -> Self {
+        RunFlag {
+            started: Arc::new(AtomicBool::new(started)),
+            event: EventSemaphore::with_state("task start", started),
+        }
+    }
+
+    pub(crate) fn is_set(&self) -> bool {
+        self.started.load(Ordering::Acquire)
+    }
+
+    fn set(&self) {
+        self.started.store(true, Ordering::Release);
+        self.event.set();
+    }
+
+    fn reset(&self) {
+        self.started.store(false, Ordering::Release);
+        self.event.reset();
+    }
+
+    /// Blocks until started or `stop` (real-time runner, outside any task body).
+    pub(crate) fn wait_set_or_stop(&self, stop: &AtomicBool) -> bool {
+        self.event.wait_set_or_stop(stop)
+    }
+}
+
 /// Starts and stops one task through its start event: a task asked to stop finishes its
 /// current cycle and stops itself at the start of the next one; it is never suspended from
 /// outside.
 #[derive(Clone)]
 pub struct TaskControl {
-    run: EventSemaphore,
+    run: RunFlag,
     task: usize,
     monitor: Arc<Monitor>,
 }
 
 impl TaskControl {
-    pub(crate) fn new(run: EventSemaphore, task: usize, monitor: Arc<Monitor>) -> Self {
+    pub(crate) fn new(run: RunFlag, task: usize, monitor: Arc<Monitor>) -> Self {
         TaskControl { run, task, monitor }
     }
 

@@ -154,6 +154,8 @@ pub struct VirtualRunner {
     instant_steps: u64,
     instant: u64,
     background_step_ns: u64,
+    /// Something may have fired a trigger or changed a start event since the last poll.
+    dirty: bool,
 }
 
 impl VirtualRunner {
@@ -202,6 +204,7 @@ impl VirtualRunner {
             instant_steps: 0,
             instant: 0,
             background_step_ns: 10_000,
+            dirty: true,
         }
     }
 
@@ -248,6 +251,8 @@ impl VirtualRunner {
     /// `end` happens in the next call.
     pub fn run_until(&mut self, end: Time) -> Result<(), RunError> {
         let end = end.as_nanos();
+        // Code outside the task set may have fed mailboxes or started tasks since the last call.
+        self.dirty = true;
         while self.now < end {
             self.refresh();
             match self.pick() {
@@ -360,7 +365,25 @@ impl VirtualRunner {
                 }
             }
         }
+        // Triggers and start events only change when a body ran (or code outside the task set
+        // ran between two run calls); without that, only timeouts can wake a task.
+        let poll = std::mem::take(&mut self.dirty);
         for i in 0..self.reactive.len() {
+            if !poll {
+                let due = matches!(
+                    self.reactive[i].state,
+                    RState::Suspended { deadline: Some(d), .. } if d <= self.now
+                );
+                if due {
+                    let seq = self.next_seq();
+                    let r = &mut self.reactive[i];
+                    r.state = RState::Ready(Wake::TimedOut);
+                    r.seq = seq;
+                    let task = r.task;
+                    self.set_state(task, TaskState::Ready);
+                }
+                continue;
+            }
             let task = self.reactive[i].task;
             let started = self.tasks[task].control.is_set();
             // A started event task begins waiting for its trigger (and may find it ready now).
@@ -524,6 +547,7 @@ impl VirtualRunner {
             body(&mut ctx);
         }
         set_in_task_body(false);
+        self.dirty = true;
         let cost = ctx.consumed;
         cycle.step = Some(Step {
             task,
@@ -667,6 +691,7 @@ impl VirtualRunner {
             Body::Periodic(_) => Next::Done,
         };
         set_in_task_body(false);
+        self.dirty = true;
         let mut cost = ctx.consumed;
         if matches!(kind, DeclKind::Background) {
             cost = cost.max(self.background_step_ns);
@@ -737,5 +762,6 @@ impl VirtualRunner {
         if let Some(m) = self.recording.monitor.task_at(step.task) {
             m.set_state(shown);
         }
+        self.dirty = true;
     }
 }

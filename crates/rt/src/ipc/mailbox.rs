@@ -2,7 +2,7 @@
 
 use std::collections::VecDeque;
 use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::Duration;
 
 use super::trigger::{TriggerSource, WaitResult, wait_on};
@@ -15,6 +15,8 @@ struct Shared<T> {
     name: String,
     capacity: usize,
     queue: PiLock<VecDeque<T>>,
+    /// Copy of the queue length, written under the lock, so triggers poll without locking.
+    len: AtomicUsize,
 }
 
 /// A bounded FIFO of messages between tasks (and between tasks and outside threads).
@@ -46,6 +48,7 @@ impl<T: Send + 'static> Mailbox<T> {
                 name: name.to_string(),
                 capacity,
                 queue: PiLock::new(VecDeque::with_capacity(capacity)),
+                len: AtomicUsize::new(0),
             }),
         })
     }
@@ -62,7 +65,7 @@ impl<T: Send + 'static> Mailbox<T> {
 
     /// Messages waiting now.
     pub fn len(&self) -> usize {
-        self.shared.queue.lock().len()
+        self.shared.len.load(Ordering::Acquire)
     }
 
     /// True when no message waits.
@@ -87,6 +90,7 @@ impl<T: Send + 'static> Mailbox<T> {
                 return Err(Rejected::new(IpcError::Full, value));
             }
             q.push_back(value);
+            self.shared.len.store(q.len(), Ordering::Release);
         }
         self.changed();
         Ok(())
@@ -101,6 +105,7 @@ impl<T: Send + 'static> Mailbox<T> {
                 return Err(Rejected::new(IpcError::Full, value));
             }
             q.push_front(value);
+            self.shared.len.store(q.len(), Ordering::Release);
         }
         self.changed();
         Ok(())
@@ -111,11 +116,13 @@ impl<T: Send + 'static> Mailbox<T> {
             return Err(Rejected::new(IpcError::BlockingInTask, value));
         }
         let capacity = self.shared.capacity;
+        let len = &self.shared.len;
         let mut slot = Some(value);
         let result = wait_on(&self.shared.queue, deadline, None, |q| {
             if q.len() < capacity {
                 if let Some(v) = slot.take() {
                     q.push_back(v);
+                    len.store(q.len(), Ordering::Release);
                 }
                 true
             } else {
@@ -151,7 +158,12 @@ impl<T: Send + 'static> Mailbox<T> {
 
     /// Conditional get: the oldest message, or `None` when empty.
     pub fn try_get(&self) -> Option<T> {
-        let v = self.shared.queue.lock().pop_front();
+        let v = {
+            let mut q = self.shared.queue.lock();
+            let v = q.pop_front();
+            self.shared.len.store(q.len(), Ordering::Release);
+            v
+        };
         if v.is_some() {
             self.changed();
         }
@@ -163,8 +175,10 @@ impl<T: Send + 'static> Mailbox<T> {
             return Err(IpcError::BlockingInTask);
         }
         let mut out = None;
+        let len = &self.shared.len;
         wait_on(&self.shared.queue, deadline, None, |q| {
             out = q.pop_front();
+            len.store(q.len(), Ordering::Release);
             out.is_some()
         });
         match out {
@@ -205,6 +219,7 @@ impl<T: Send + 'static> Mailbox<T> {
             let mut q = self.shared.queue.lock();
             let n = q.len();
             q.clear();
+            self.shared.len.store(0, Ordering::Release);
             n
         };
         if n > 0 {
@@ -235,7 +250,7 @@ impl<T: Send> TriggerSource for DataTrigger<T> {
         0
     }
     fn is_ready(&self, _token: u64) -> bool {
-        !self.0.queue.lock().is_empty()
+        self.0.len.load(Ordering::Acquire) > 0
     }
     fn try_take(&self, token: u64) -> bool {
         self.is_ready(token)
@@ -253,7 +268,7 @@ impl<T: Send> TriggerSource for SpaceTrigger<T> {
         0
     }
     fn is_ready(&self, _token: u64) -> bool {
-        self.0.queue.lock().len() < self.0.capacity
+        self.0.len.load(Ordering::Acquire) < self.0.capacity
     }
     fn try_take(&self, token: u64) -> bool {
         self.is_ready(token)

@@ -1,7 +1,7 @@
 //! Binary, counting and event semaphores.
 
 use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::time::Duration;
 
 use super::trigger::{TriggerSource, WaitResult, wait_on};
@@ -27,26 +27,40 @@ struct CountShared {
     name: String,
     max: u32,
     count: PiLock<u32>,
+    /// Copy of the count, written under the lock, so triggers poll without locking.
+    mirror: AtomicU32,
 }
 
 impl CountShared {
     fn try_wait(&self) -> bool {
+        if self.mirror.load(Ordering::Acquire) == 0 {
+            return false;
+        }
         let mut c = self.count.lock();
         if *c > 0 {
             *c -= 1;
+            self.mirror.store(*c, Ordering::Release);
             true
         } else {
             false
         }
     }
 
+    fn store(&self, value: u32) {
+        let mut c = self.count.lock();
+        *c = value;
+        self.mirror.store(value, Ordering::Release);
+    }
+
     fn wait_until(&self, deadline: Option<u64>) -> Result<(), IpcError> {
         if in_task_body() {
             return Err(IpcError::BlockingInTask);
         }
+        let mirror = &self.mirror;
         outcome(wait_on(&self.count, deadline, None, |c| {
             if *c > 0 {
                 *c -= 1;
+                mirror.store(*c, Ordering::Release);
                 true
             } else {
                 false
@@ -63,7 +77,7 @@ impl TriggerSource for CountShared {
         0
     }
     fn is_ready(&self, _token: u64) -> bool {
-        *self.count.lock() > 0
+        self.mirror.load(Ordering::Acquire) > 0
     }
     fn try_take(&self, _token: u64) -> bool {
         self.try_wait()
@@ -88,6 +102,7 @@ impl BinarySemaphore {
                 name: name.to_string(),
                 max: 1,
                 count: PiLock::new(0),
+                mirror: AtomicU32::new(0),
             }),
         }
     }
@@ -99,13 +114,13 @@ impl BinarySemaphore {
 
     /// Makes the semaphore available and wakes a waiter.
     pub fn signal(&self) {
-        *self.shared.count.lock() = 1;
+        self.shared.store(1);
         self.shared.count.notify_all();
     }
 
     /// True when signalled and not yet taken.
     pub fn is_signalled(&self) -> bool {
-        *self.shared.count.lock() > 0
+        self.shared.mirror.load(Ordering::Acquire) > 0
     }
 
     /// Takes the semaphore if signalled.
@@ -155,6 +170,7 @@ impl CountingSemaphore {
                 name: name.to_string(),
                 max,
                 count: PiLock::new(initial),
+                mirror: AtomicU32::new(initial),
             }),
         })
     }
@@ -172,6 +188,7 @@ impl CountingSemaphore {
                 return Err(IpcError::AtMaximum);
             }
             *c += 1;
+            self.shared.mirror.store(*c, Ordering::Release);
         }
         self.shared.count.notify_all();
         Ok(())
@@ -179,7 +196,7 @@ impl CountingSemaphore {
 
     /// Units available now.
     pub fn count(&self) -> u32 {
-        *self.shared.count.lock()
+        self.shared.mirror.load(Ordering::Acquire)
     }
 
     /// Takes one unit if there is one.
@@ -215,6 +232,8 @@ struct EventState {
 struct EventShared {
     name: String,
     state: PiLock<EventState>,
+    /// Copy of the generation, written under the lock, so triggers poll without locking.
+    generation: AtomicU64,
 }
 
 impl TriggerSource for EventShared {
@@ -222,10 +241,10 @@ impl TriggerSource for EventShared {
         &self.name
     }
     fn arm(&self) -> u64 {
-        self.state.lock().generation
+        self.generation.load(Ordering::Acquire)
     }
     fn is_ready(&self, token: u64) -> bool {
-        self.state.lock().generation != token
+        self.generation.load(Ordering::Acquire) != token
     }
     fn try_take(&self, token: u64) -> bool {
         self.is_ready(token)
@@ -254,6 +273,7 @@ impl EventSemaphore {
             shared: Arc::new(EventShared {
                 name: name.to_string(),
                 state: PiLock::new(EventState { set, generation: 0 }),
+                generation: AtomicU64::new(0),
             }),
         }
     }
@@ -270,6 +290,9 @@ impl EventSemaphore {
             if !s.set {
                 s.set = true;
                 s.generation += 1;
+                self.shared
+                    .generation
+                    .store(s.generation, Ordering::Release);
             }
         }
         self.shared.state.notify_all();
@@ -286,6 +309,9 @@ impl EventSemaphore {
             let mut s = self.shared.state.lock();
             s.set = false;
             s.generation += 1;
+            self.shared
+                .generation
+                .store(s.generation, Ordering::Release);
         }
         self.shared.state.notify_all();
     }
