@@ -86,6 +86,16 @@ impl LogHistogram {
         }
     }
 
+    /// The non-empty buckets as (largest value of the bucket, count), in order.
+    pub fn buckets(&self) -> Vec<(u64, u64)> {
+        self.buckets
+            .iter()
+            .enumerate()
+            .map(|(i, b)| (bucket_high(i), b.load(Relaxed)))
+            .filter(|&(_, n)| n > 0)
+            .collect()
+    }
+
     /// A summary of what was recorded.
     pub fn summary(&self) -> Summary {
         let count = self.count.load(Relaxed);

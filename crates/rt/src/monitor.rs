@@ -205,6 +205,16 @@ impl TaskMonitor {
         self.priority
     }
 
+    /// Histogram of body execution times (ns).
+    pub fn execution_histogram(&self) -> &LogHistogram {
+        &self.exec
+    }
+
+    /// Histogram of periodic start lateness, i.e. jitter (ns).
+    pub fn lateness_histogram(&self) -> &LogHistogram {
+        &self.lateness
+    }
+
     /// Its state now.
     pub fn state(&self) -> TaskState {
         TaskState::from_u8(self.state.load(Relaxed))

@@ -85,6 +85,17 @@ fn rtx64_table_runs_in_priority_order_at_the_expected_times() {
     assert_eq!(interp.activations, 400);
     assert_eq!(interp.lateness.max, 30 * US);
     assert_eq!(interp.execution.max, 10 * US);
+    // The jitter histogram: runs start 20 µs and 30 µs after release, 200 times each. Above
+    // 64 ns a bucket is 1/32 of its octave: 20 000 ns falls in 19 968..=20 479 and 30 000 ns
+    // in 29 696..=30 207 (octave 2^14, width 512).
+    assert_eq!(
+        monitor
+            .task("interpolation")
+            .unwrap()
+            .lateness_histogram()
+            .buckets(),
+        vec![(20_479, 200), (30_207, 200)]
+    );
     assert_eq!(monitor.fault_count(), 0);
     assert_eq!(monitor.task("status").unwrap().state(), TaskState::Waiting);
 }
