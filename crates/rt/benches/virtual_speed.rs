@@ -1,0 +1,60 @@
+//! Virtual-time scheduler speed: simulated seconds per wall second for a 1 kHz thread with
+//! four task functions (interpolate, servo, PLC, I/O), each declaring 50 µs of work and
+//! passing data through a mailbox to an event task. Goal: at least 1000×.
+
+use std::hint::black_box;
+use std::time::{Duration, Instant};
+
+use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
+use rtcnc_rt::{Mailbox, Next, TaskSet, VirtualRunner};
+
+fn task_set() -> TaskSet {
+    let frames: Mailbox<u64> = Mailbox::new("frames", 16).unwrap();
+    let mut b = TaskSet::builder();
+    let servo = b.periodic_thread("servo", Duration::from_millis(1), 120);
+    for name in ["interpolate", "servo", "plc", "io"] {
+        let out = frames.clone();
+        let mut state = 0u64;
+        b.periodic(servo, name, 1, move |ctx| {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(ctx.activation());
+            if name == "io" {
+                let _ = out.try_put(state);
+            }
+            ctx.consume(Duration::from_micros(50));
+        });
+    }
+    let inbox = frames.clone();
+    b.event("log", 10, frames.data_trigger(), move |_| {
+        while let Some(v) = inbox.try_get() {
+            black_box(v);
+        }
+        Next::Done
+    });
+    b.build().unwrap()
+}
+
+fn virtual_speed(c: &mut Criterion) {
+    c.bench_function("virtual time: 1 s of a 1 kHz thread + 4 tasks", |b| {
+        b.iter_batched(
+            || VirtualRunner::new(task_set()),
+            |mut sim| sim.run_for(Duration::from_secs(1)).unwrap(),
+            BatchSize::LargeInput,
+        )
+    });
+    let mut sim = VirtualRunner::new(task_set());
+    let simulated = Duration::from_secs(20);
+    let t0 = Instant::now();
+    sim.run_for(simulated).unwrap();
+    let wall = t0.elapsed();
+    println!(
+        "virtual-time speed: {:.0} simulated s per wall s ({} s simulated in {:.3} s; goal >= 1000x)",
+        simulated.as_secs_f64() / wall.as_secs_f64(),
+        simulated.as_secs(),
+        wall.as_secs_f64()
+    );
+}
+
+criterion_group!(benches, virtual_speed);
+criterion_main!(benches);

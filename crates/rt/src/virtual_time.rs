@@ -1,0 +1,767 @@
+//! The virtual-time runner: the task set on one thread and a simulated clock.
+//!
+//! The model is one processor with fixed-priority preemptive scheduling. A body runs at the
+//! instant its turn comes (its effects are visible from that instant); the processor time it
+//! declares with [`Context::consume`] then keeps the simulated processor busy, and a task of
+//! higher priority released meanwhile preempts it. A periodic thread's cycle runs its task
+//! functions in order; the cycle's deadline is its next release. Ties between equal
+//! priorities go to whoever became ready first, then to declaration order. Nothing depends
+//! on the wall clock, so every run gives the same schedule, the same monitor figures and
+//! the same trace bytes.
+
+use std::time::Duration;
+
+use thiserror::Error;
+
+use crate::ipc::Trigger;
+use crate::monitor::{Fault, FaultCode, MissReaction, TaskState};
+use crate::sys::set_in_task_body;
+use crate::task::{
+    Body, ClockSource, Context, DeclKind, Next, Recording, TaskControl, TaskSet, TaskSpec,
+    ThreadSpec, Wake,
+};
+use crate::time::{Time, duration_ns};
+use crate::trace::{EventKind, TraceEvent};
+
+/// Steps allowed at one simulated instant before the run is declared a livelock.
+const MAX_STEPS_PER_INSTANT: u64 = 1_000_000;
+
+/// A virtual-time run could not go on.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum RunError {
+    /// Tasks kept running at one simulated instant without consuming time (for example an
+    /// event task that never takes the message that wakes it).
+    #[error(
+        "livelock at {time}: task '{task}' ran {MAX_STEPS_PER_INSTANT} times without time passing"
+    )]
+    Livelock {
+        /// The task seen last.
+        task: String,
+        /// The simulated instant.
+        time: Time,
+    },
+}
+
+impl RunError {
+    /// Stable error code.
+    pub fn code(&self) -> &'static str {
+        match self {
+            RunError::Livelock { .. } => "livelock",
+        }
+    }
+}
+
+/// When a periodic cycle that started at `release` ends at `end`, the next release: the
+/// next period boundary, or, after an overrun, the first boundary not before `end` (the
+/// boundaries in between are skipped, and counted).
+pub(crate) fn next_release(release: u64, period: u64, end: u64) -> (u64, u64) {
+    let nominal = release.saturating_add(period);
+    if end <= nominal {
+        return (nominal, 0);
+    }
+    let skipped = (end - nominal).div_ceil(period);
+    (nominal + skipped * period, skipped)
+}
+
+pub(crate) fn react_to_miss(
+    reaction: &MissReaction,
+    fault: &Fault,
+    describe: impl FnOnce() -> String,
+    warn_now: bool,
+) {
+    match reaction {
+        MissReaction::Count => {}
+        MissReaction::Warn => {
+            if warn_now {
+                eprintln!("rtcnc-rt: warning: {}", describe());
+            }
+        }
+        MissReaction::Hook(hook) => hook(fault),
+    }
+}
+
+struct Step {
+    task: usize,
+    start: u64,
+    remaining: u64,
+    lateness: Option<u64>,
+    next: Option<Next>,
+}
+
+struct Cycle {
+    release: u64,
+    activation: u64,
+    pos: usize,
+    run: u32,
+    checked: bool,
+    missed: Option<usize>,
+    seq: u64,
+    step: Option<Step>,
+}
+
+struct VThread {
+    spec: ThreadSpec,
+    next_release: u64,
+    cycle: Option<Cycle>,
+}
+
+enum RState {
+    /// Stopped by request; waits for its start event.
+    Parked,
+    WaitTrigger {
+        token: u64,
+    },
+    Suspended {
+        trigger: Option<Trigger>,
+        token: u64,
+        deadline: Option<u64>,
+    },
+    Ready(Wake),
+    Running,
+    /// A background task that returned `Next::Done`.
+    Finished,
+}
+
+struct VReactive {
+    task: usize,
+    priority: i32,
+    trigger: Option<Trigger>,
+    state: RState,
+    seq: u64,
+    activation: u64,
+    own_token: u64,
+    step: Option<Step>,
+}
+
+#[derive(Clone, Copy)]
+enum Pick {
+    Thread(usize),
+    Reactive(usize),
+}
+
+/// Runs a [`TaskSet`] in simulated time, deterministically and as fast as the CPU allows.
+///
+/// Use [`run_for`](Self::run_for) / [`run_until`](Self::run_until) in steps; between steps,
+/// code outside the task set may feed mailboxes or read the monitor, and the next step sees
+/// it at the simulated instant where the previous one stopped.
+pub struct VirtualRunner {
+    now: u64,
+    threads: Vec<VThread>,
+    reactive: Vec<VReactive>,
+    tasks: Vec<TaskSpec>,
+    recording: Recording,
+    seq: u64,
+    instant_steps: u64,
+    instant: u64,
+    background_step_ns: u64,
+    /// Something may have fired a trigger or changed a start event since the last poll.
+    dirty: bool,
+}
+
+impl VirtualRunner {
+    /// Takes the task set; the simulated clock starts at zero.
+    pub fn new(set: TaskSet) -> Self {
+        let TaskSet {
+            threads,
+            tasks,
+            recording,
+        } = set;
+        let reactive = tasks
+            .iter()
+            .enumerate()
+            .filter_map(|(i, t)| {
+                let trigger = match &t.kind {
+                    DeclKind::Periodic { .. } => return None,
+                    DeclKind::Event { trigger } => Some(trigger.clone()),
+                    DeclKind::Background => None,
+                };
+                Some(VReactive {
+                    task: i,
+                    priority: t.priority,
+                    trigger,
+                    state: RState::Parked,
+                    seq: 0,
+                    activation: 0,
+                    own_token: 0,
+                    step: None,
+                })
+            })
+            .collect();
+        VirtualRunner {
+            now: 0,
+            threads: threads
+                .into_iter()
+                .map(|spec| VThread {
+                    spec,
+                    next_release: 0,
+                    cycle: None,
+                })
+                .collect(),
+            reactive,
+            tasks,
+            recording,
+            seq: 0,
+            instant_steps: 0,
+            instant: 0,
+            background_step_ns: 10_000,
+            dirty: true,
+        }
+    }
+
+    /// The least simulated processor time one background body run takes (default 10 µs),
+    /// so that a background task that always continues lets time pass.
+    pub fn with_background_step(mut self, step: Duration) -> Self {
+        self.background_step_ns = duration_ns(step).max(1);
+        self
+    }
+
+    /// Simulated time now.
+    pub fn now(&self) -> Time {
+        Time::from_nanos(self.now)
+    }
+
+    /// The monitor and trace of the run.
+    pub fn recording(&self) -> &Recording {
+        &self.recording
+    }
+
+    /// Ends the run and keeps its monitor and trace.
+    pub fn into_recording(self) -> Recording {
+        self.recording
+    }
+
+    /// The start/stop control of the task called `name`.
+    pub fn control(&self, name: &str) -> Option<TaskControl> {
+        let index = self.tasks.iter().position(|t| t.name == name)?;
+        let t = &self.tasks[index];
+        Some(TaskControl::new(
+            t.control.clone(),
+            index,
+            std::sync::Arc::clone(&self.recording.monitor),
+        ))
+    }
+
+    /// Runs for `d` of simulated time.
+    pub fn run_for(&mut self, d: Duration) -> Result<(), RunError> {
+        let end = self.now.saturating_add(duration_ns(d));
+        self.run_until(Time::from_nanos(end))
+    }
+
+    /// Runs until simulated time `end`: everything due before `end` happens; what is due at
+    /// `end` happens in the next call.
+    pub fn run_until(&mut self, end: Time) -> Result<(), RunError> {
+        let end = end.as_nanos();
+        // Code outside the task set may have fed mailboxes or started tasks since the last call.
+        self.dirty = true;
+        while self.now < end {
+            self.refresh();
+            match self.pick() {
+                None => {
+                    let t = self.next_event_time().unwrap_or(u64::MAX);
+                    self.now = t.min(end).max(self.now);
+                }
+                Some(pick) => {
+                    let remaining = match pick {
+                        Pick::Thread(i) => self.threads[i]
+                            .cycle
+                            .as_ref()
+                            .and_then(|c| c.step.as_ref())
+                            .map(|s| s.remaining),
+                        Pick::Reactive(i) => self.reactive[i].step.as_ref().map(|s| s.remaining),
+                    };
+                    match remaining {
+                        Some(rem) => {
+                            let horizon = self.next_event_time().unwrap_or(u64::MAX).min(end);
+                            let slice = rem.min(horizon.saturating_sub(self.now));
+                            self.now += slice;
+                            let left = rem - slice;
+                            match pick {
+                                Pick::Thread(i) => {
+                                    if let Some(s) =
+                                        self.threads[i].cycle.as_mut().and_then(|c| c.step.as_mut())
+                                    {
+                                        s.remaining = left;
+                                    }
+                                    if left == 0 {
+                                        self.finish_thread_step(i);
+                                    }
+                                }
+                                Pick::Reactive(i) => {
+                                    if let Some(s) = self.reactive[i].step.as_mut() {
+                                        s.remaining = left;
+                                    }
+                                    if left == 0 {
+                                        self.finish_reactive_step(i);
+                                    }
+                                }
+                            }
+                        }
+                        None => {
+                            if self.instant != self.now {
+                                self.instant = self.now;
+                                self.instant_steps = 0;
+                            }
+                            self.instant_steps += 1;
+                            if self.instant_steps > MAX_STEPS_PER_INSTANT {
+                                let task = match pick {
+                                    Pick::Thread(i) => self.threads[i].spec.name.clone(),
+                                    Pick::Reactive(i) => {
+                                        self.tasks[self.reactive[i].task].name.clone()
+                                    }
+                                };
+                                return Err(RunError::Livelock {
+                                    task,
+                                    time: Time::from_nanos(self.now),
+                                });
+                            }
+                            match pick {
+                                Pick::Thread(i) => self.start_thread_step(i),
+                                Pick::Reactive(i) => self.start_reactive_step(i),
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn next_seq(&mut self) -> u64 {
+        self.seq += 1;
+        self.seq
+    }
+
+    fn set_state(&self, task: usize, state: TaskState) {
+        if let Some(m) = self.recording.monitor.task_at(task) {
+            m.set_state(state);
+        }
+    }
+
+    /// Releases due threads, wakes tasks whose trigger fired or timeout passed.
+    fn refresh(&mut self) {
+        for i in 0..self.threads.len() {
+            let th = &self.threads[i];
+            if th.cycle.is_none() && th.next_release <= self.now {
+                let release = th.next_release;
+                let activation = release / th.spec.period_ns.max(1);
+                let seq = self.next_seq();
+                let th = &mut self.threads[i];
+                th.cycle = Some(Cycle {
+                    release,
+                    activation,
+                    pos: 0,
+                    run: 0,
+                    checked: false,
+                    missed: None,
+                    seq,
+                    step: None,
+                });
+                for &t in &th.spec.tasks {
+                    if self.tasks[t].control.is_set() {
+                        if let Some(m) = self.recording.monitor.task_at(t) {
+                            m.set_state(TaskState::Ready);
+                        }
+                    }
+                }
+            }
+        }
+        // Triggers and start events only change when a body ran (or code outside the task set
+        // ran between two run calls); without that, only timeouts can wake a task.
+        let poll = std::mem::take(&mut self.dirty);
+        for i in 0..self.reactive.len() {
+            if !poll {
+                let due = matches!(
+                    self.reactive[i].state,
+                    RState::Suspended { deadline: Some(d), .. } if d <= self.now
+                );
+                if due {
+                    let seq = self.next_seq();
+                    let r = &mut self.reactive[i];
+                    r.state = RState::Ready(Wake::TimedOut);
+                    r.seq = seq;
+                    let task = r.task;
+                    self.set_state(task, TaskState::Ready);
+                }
+                continue;
+            }
+            let task = self.reactive[i].task;
+            let started = self.tasks[task].control.is_set();
+            // A started event task begins waiting for its trigger (and may find it ready now).
+            if started && matches!(self.reactive[i].state, RState::Parked) {
+                if let Some(trig) = &self.reactive[i].trigger {
+                    let token = trig.source.arm();
+                    self.reactive[i].state = RState::WaitTrigger { token };
+                    self.set_state(task, TaskState::Stopped);
+                }
+            }
+            let r = &self.reactive[i];
+            let wake: Option<Wake> = match &r.state {
+                RState::Parked => (started && r.trigger.is_none()).then_some(Wake::Scheduled),
+                RState::WaitTrigger { token } => {
+                    if !started {
+                        self.reactive[i].state = RState::Parked;
+                        None
+                    } else {
+                        match &r.trigger {
+                            Some(trig)
+                                if trig.source.is_ready(*token) && trig.source.try_take(*token) =>
+                            {
+                                Some(Wake::Triggered)
+                            }
+                            _ => None,
+                        }
+                    }
+                }
+                RState::Suspended {
+                    trigger,
+                    token,
+                    deadline,
+                } => {
+                    let fired = trigger
+                        .as_ref()
+                        .is_some_and(|t| t.source.is_ready(*token) && t.source.try_take(*token));
+                    if fired {
+                        Some(Wake::Triggered)
+                    } else if deadline.is_some_and(|d| d <= self.now) {
+                        Some(Wake::TimedOut)
+                    } else {
+                        None
+                    }
+                }
+                RState::Ready(_) | RState::Running | RState::Finished => None,
+            };
+            if let Some(w) = wake {
+                let seq = self.next_seq();
+                let r = &mut self.reactive[i];
+                r.state = RState::Ready(w);
+                r.seq = seq;
+                self.set_state(task, TaskState::Ready);
+            }
+        }
+    }
+
+    fn pick(&self) -> Option<Pick> {
+        let mut best: Option<(i32, u64, Pick)> = None;
+        let mut consider = |prio: i32, seq: u64, p: Pick| {
+            let better = match best {
+                None => true,
+                Some((bp, bs, _)) => prio > bp || (prio == bp && seq < bs),
+            };
+            if better {
+                best = Some((prio, seq, p));
+            }
+        };
+        for (i, th) in self.threads.iter().enumerate() {
+            if let Some(c) = &th.cycle {
+                consider(th.spec.priority, c.seq, Pick::Thread(i));
+            }
+        }
+        for (i, r) in self.reactive.iter().enumerate() {
+            if matches!(r.state, RState::Ready(_) | RState::Running) {
+                consider(r.priority, r.seq, Pick::Reactive(i));
+            }
+        }
+        best.map(|(_, _, p)| p)
+    }
+
+    fn next_event_time(&self) -> Option<u64> {
+        let releases = self
+            .threads
+            .iter()
+            .filter(|t| t.cycle.is_none())
+            .map(|t| t.next_release);
+        let timeouts = self.reactive.iter().filter_map(|r| match r.state {
+            RState::Suspended { deadline, .. } => deadline,
+            _ => None,
+        });
+        releases.chain(timeouts).filter(|&t| t > self.now).min()
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn context<'a>(
+        recording: &'a Recording,
+        name: &'a str,
+        lane: usize,
+        task: usize,
+        now: u64,
+        release: u64,
+        activation: u64,
+        run: u32,
+        wake: Wake,
+    ) -> Context<'a> {
+        Context {
+            task,
+            name,
+            clock: ClockSource::Virtual,
+            start: now,
+            release,
+            activation,
+            run,
+            wake,
+            consumed: 0,
+            lane: &recording.lanes[lane],
+            monitor: &recording.monitor,
+        }
+    }
+
+    fn start_thread_step(&mut self, i: usize) {
+        let now = self.now;
+        let th = &mut self.threads[i];
+        let Some(cycle) = th.cycle.as_mut() else {
+            return;
+        };
+        // Skip tasks asked to stop: they stop themselves at the start of their cycle.
+        while let Some(&task) = th.spec.tasks.get(cycle.pos) {
+            if cycle.checked || self.tasks[task].control.is_set() {
+                cycle.checked = true;
+                break;
+            }
+            if let Some(m) = self.recording.monitor.task_at(task) {
+                m.set_state(TaskState::Stopped);
+            }
+            cycle.pos += 1;
+        }
+        let Some(&task) = th.spec.tasks.get(cycle.pos) else {
+            self.finish_cycle(i);
+            return;
+        };
+        let TaskSpec {
+            name, body, lane, ..
+        } = &mut self.tasks[task];
+        let mut ctx = Self::context(
+            &self.recording,
+            name,
+            *lane,
+            task,
+            now,
+            cycle.release,
+            cycle.activation,
+            cycle.run,
+            Wake::Period,
+        );
+        if let Some(m) = self.recording.monitor.task_at(task) {
+            m.set_state(TaskState::Running);
+        }
+        set_in_task_body(true);
+        if let Body::Periodic(body) = body {
+            body(&mut ctx);
+        }
+        set_in_task_body(false);
+        self.dirty = true;
+        let cost = ctx.consumed;
+        cycle.step = Some(Step {
+            task,
+            start: now,
+            remaining: cost,
+            lateness: Some(now - cycle.release),
+            next: None,
+        });
+        if cost == 0 {
+            self.finish_thread_step(i);
+        }
+    }
+
+    fn finish_thread_step(&mut self, i: usize) {
+        let now = self.now;
+        let th = &mut self.threads[i];
+        let Some(cycle) = th.cycle.as_mut() else {
+            return;
+        };
+        let Some(step) = cycle.step.take() else {
+            return;
+        };
+        let recording = &self.recording;
+        let spec = &self.tasks[step.task];
+        if let Some(m) = recording.monitor.task_at(step.task) {
+            m.record_run(step.lateness, now - step.start);
+        }
+        recording.lanes[spec.lane].push(TraceEvent {
+            time: step.start,
+            kind: EventKind::Span,
+            task: step.task as u32,
+            label: "",
+            arg: now - step.start,
+        });
+        let deadline = cycle.release + th.spec.period_ns;
+        if now > deadline && cycle.missed.is_none() {
+            cycle.missed = Some(step.task);
+            let fault = Fault {
+                time: Time::from_nanos(now),
+                task: step.task,
+                code: FaultCode::DeadlineMiss,
+                detail: now - deadline,
+                message: "",
+            };
+            recording.monitor.push_fault(fault);
+            if let Some(m) = recording.monitor.task_at(step.task) {
+                m.record_miss(0);
+            }
+            recording.lanes[spec.lane].push(TraceEvent {
+                time: now,
+                kind: EventKind::Fault,
+                task: step.task as u32,
+                label: FaultCode::DeadlineMiss.as_str(),
+                arg: now - deadline,
+            });
+            react_to_miss(
+                &spec.reaction,
+                &fault,
+                || recording.monitor.describe(&fault).to_string(),
+                true,
+            );
+        }
+        let runs = match spec.kind {
+            DeclKind::Periodic { runs, .. } => runs,
+            _ => 1,
+        };
+        cycle.run += 1;
+        if cycle.run >= runs {
+            cycle.run = 0;
+            cycle.pos += 1;
+            cycle.checked = false;
+            if let Some(m) = recording.monitor.task_at(step.task) {
+                m.set_state(TaskState::Waiting);
+            }
+        }
+        if cycle.pos >= th.spec.tasks.len() {
+            self.finish_cycle(i);
+        }
+    }
+
+    fn finish_cycle(&mut self, i: usize) {
+        let now = self.now;
+        let th = &mut self.threads[i];
+        let Some(cycle) = th.cycle.take() else {
+            return;
+        };
+        let (next, skipped) = next_release(cycle.release, th.spec.period_ns, now);
+        th.next_release = next;
+        if skipped > 0 {
+            if let Some(m) = cycle.missed.and_then(|t| self.recording.monitor.task_at(t)) {
+                m.record_skipped(skipped);
+            }
+        }
+    }
+
+    fn start_reactive_step(&mut self, i: usize) {
+        let now = self.now;
+        let r = &mut self.reactive[i];
+        let task = r.task;
+        let wake = match r.state {
+            RState::Ready(w) => w,
+            _ => return,
+        };
+        let spec = &mut self.tasks[task];
+        if !spec.control.is_set() {
+            r.state = RState::Parked;
+            if let Some(m) = self.recording.monitor.task_at(task) {
+                m.set_state(TaskState::Stopped);
+            }
+            return;
+        }
+        if let Some(t) = &r.trigger {
+            r.own_token = t.source.arm();
+        }
+        let TaskSpec {
+            name,
+            body,
+            lane,
+            kind,
+            ..
+        } = spec;
+        let mut ctx = Self::context(
+            &self.recording,
+            name,
+            *lane,
+            task,
+            now,
+            now,
+            r.activation,
+            0,
+            wake,
+        );
+        r.activation += 1;
+        r.state = RState::Running;
+        if let Some(m) = self.recording.monitor.task_at(task) {
+            m.set_state(TaskState::Running);
+        }
+        set_in_task_body(true);
+        let next = match body {
+            Body::Reactive(body) => body(&mut ctx),
+            Body::Periodic(_) => Next::Done,
+        };
+        set_in_task_body(false);
+        self.dirty = true;
+        let mut cost = ctx.consumed;
+        if matches!(kind, DeclKind::Background) {
+            cost = cost.max(self.background_step_ns);
+        }
+        r.step = Some(Step {
+            task,
+            start: now,
+            remaining: cost,
+            lateness: None,
+            next: Some(next),
+        });
+        if cost == 0 {
+            self.finish_reactive_step(i);
+        }
+    }
+
+    fn finish_reactive_step(&mut self, i: usize) {
+        let now = self.now;
+        let seq = self.next_seq();
+        let r = &mut self.reactive[i];
+        let Some(step) = r.step.take() else {
+            return;
+        };
+        let spec = &self.tasks[step.task];
+        if let Some(m) = self.recording.monitor.task_at(step.task) {
+            m.record_run(None, now - step.start);
+        }
+        self.recording.lanes[spec.lane].push(TraceEvent {
+            time: step.start,
+            kind: EventKind::Span,
+            task: step.task as u32,
+            label: "",
+            arg: now - step.start,
+        });
+        let (state, shown) = match step.next.unwrap_or(Next::Done) {
+            Next::Done => match &r.trigger {
+                Some(_) => (
+                    RState::WaitTrigger { token: r.own_token },
+                    TaskState::Stopped,
+                ),
+                None => (RState::Finished, TaskState::Stopped),
+            },
+            Next::Continue => {
+                r.seq = seq;
+                (RState::Ready(Wake::Scheduled), TaskState::Ready)
+            }
+            Next::WaitFor { trigger, timeout } => {
+                let token = trigger.source.arm();
+                (
+                    RState::Suspended {
+                        trigger: Some(trigger),
+                        token,
+                        deadline: timeout.map(|d| now.saturating_add(duration_ns(d))),
+                    },
+                    TaskState::Suspended,
+                )
+            }
+            Next::Sleep(d) => (
+                RState::Suspended {
+                    trigger: None,
+                    token: 0,
+                    deadline: Some(now.saturating_add(duration_ns(d))),
+                },
+                TaskState::Suspended,
+            ),
+        };
+        r.state = state;
+        if let Some(m) = self.recording.monitor.task_at(step.task) {
+            m.set_state(shown);
+        }
+        self.dirty = true;
+    }
+}
