@@ -456,6 +456,8 @@ pub enum CanonCommand {
     PalletShuttle,
     /// M2 / M30.
     ProgramEnd,
+    /// The program ended at its closing `%` (no M2 resets): finish queued motion.
+    Finish,
 }
 
 /// A canonical command with the place in the program it came from.
@@ -743,6 +745,7 @@ impl Canon {
             C::OptionalProgramStop => o.extend_from_slice(b"OPTIONAL_PROGRAM_STOP()"),
             C::PalletShuttle => o.extend_from_slice(b"PALLET_SHUTTLE()"),
             C::ProgramEnd => o.extend_from_slice(b"PROGRAM_END()"),
+            C::Finish => o.extend_from_slice(b"FINISH()"),
         }
         o.push(b'\n');
         true
