@@ -170,7 +170,8 @@ impl ModalState {
             current_tool: 0,
             current_pocket: 0,
             selected_tool: -1,
-            selected_pocket: -1,
+            // As in LinuxCNC, M6 with no T changes to pocket 0 (no tool).
+            selected_pocket: 0,
         }
     }
 }
@@ -1232,8 +1233,8 @@ impl Interpreter {
         let b = |c: bool| if c { 1.0 } else { 0.0 };
         let m = || self.machine_position();
         Some(match name {
-            "vmajor" => 2.0,
-            "vminor" => 9.0,
+            "vmajor" => 2.9,
+            "vminor" => 0.0,
             "line" => f64::from(self.source.line),
             "motion_mode" => f64::from(s.motion),
             "plane" => match s.plane {
