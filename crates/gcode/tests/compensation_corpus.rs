@@ -366,3 +366,41 @@ fn stage_output_matches_rs274_on_the_corpus() {
     }
     assert!(problems.is_empty(), "{}", problems.join("\n"));
 }
+
+/// The whole chain: our interpreter reads the program, the stage compensates, the printer
+/// writes rs274's text. rs274 reads its tool table in inches, so the interpreter does too.
+#[test]
+fn interpreter_and_stage_match_rs274_on_the_corpus() {
+    use rtcnc_gcode::{Interpreter, Parameters, Settings, ToolTable};
+    let dir = corpus_dir();
+    let tools = ToolTable::load(&dir.join("canon.tbl")).expect("tool table");
+    let mut problems = Vec::new();
+    for name in programs() {
+        let mut interp = Interpreter::new(Settings::rs274(), tools.clone(), Parameters::new());
+        interp
+            .open(dir.join(format!("{name}.ngc")))
+            .expect("open program");
+        let mut stream = Vec::new();
+        let mut interp_error = None;
+        for c in &mut interp {
+            match c {
+                Ok(c) => stream.push(c),
+                Err(e) => {
+                    interp_error = Some(e);
+                    break;
+                }
+            }
+        }
+        if let Some(e) = interp_error {
+            problems.push(format!("{name}: interpreter error {e}"));
+            continue;
+        }
+        // rs274 resets the interpreter as it exits (the CLI prints it the same way).
+        stream.push(Canon {
+            source: Source::default(),
+            command: CanonCommand::OnReset,
+        });
+        problems.extend(check_program(&name, stream));
+    }
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
