@@ -8,7 +8,11 @@ use clap::{Parser, Subcommand};
 mod commands;
 
 #[derive(Debug, Parser)]
-#[command(name = "rtcnc", version, about = "Open software CNC and motion controller")]
+#[command(
+    name = "rtcnc",
+    version,
+    about = "Open software CNC and motion controller"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
