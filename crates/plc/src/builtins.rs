@@ -200,10 +200,16 @@ pub(crate) fn call(
     }
     let args = ordered(c, f, args)?;
     let mut a = c.b_args(&args, sc, f)?;
-    let _ = expect;
     match f {
         "ABS" => {
             count(c, f, &a, 1, 1, pos)?;
+            match a[0].0.ty {
+                Ty::AnyInt(v) => return Ok(Compiler::te(Ty::AnyInt(v.abs()), vm::Expr::Const(0))),
+                Ty::AnyReal(v) => {
+                    return Ok(Compiler::te(Ty::AnyReal(v.abs()), vm::Expr::Const(0)));
+                }
+                Ty::T(_) => {}
+            }
             let (t, p) = (a[0].0.ty.clone(), a[0].1);
             let ty = match &t {
                 Ty::AnyInt(_) => Type::Elem(Elem::DInt),
@@ -228,6 +234,27 @@ pub(crate) fn call(
         }
         "SQRT" | "LN" | "LOG" | "EXP" | "SIN" | "COS" | "TAN" | "ASIN" | "ACOS" | "ATAN" => {
             count(c, f, &a, 1, 1, pos)?;
+            let literal = match a[0].0.ty {
+                Ty::AnyInt(v) => Some(v as f64),
+                Ty::AnyReal(v) => Some(v),
+                Ty::T(_) => None,
+            };
+            if let Some(x) = literal {
+                // A function of a literal is a literal (and takes the type it is used as).
+                let v = match f {
+                    "SQRT" => x.sqrt(),
+                    "LN" => x.ln(),
+                    "LOG" => x.log10(),
+                    "EXP" => x.exp(),
+                    "SIN" => x.sin(),
+                    "COS" => x.cos(),
+                    "TAN" => x.tan(),
+                    "ASIN" => x.asin(),
+                    "ACOS" => x.acos(),
+                    _ => x.atan(),
+                };
+                return Ok(Compiler::te(Ty::AnyReal(v), vm::Expr::Const(0)));
+            }
             let p = a[0].1;
             let e = real_type(&a[0].0.ty).ok_or_else(|| wrong(c, f, &a[0].0.ty, p, "a real"))?;
             let x = c.coerce_to(a.remove(0).0, &Type::Elem(e), p)?;
@@ -251,6 +278,15 @@ pub(crate) fn call(
         }
         "ATAN2" | "EXPT" => {
             count(c, f, &a, 2, 2, pos)?;
+            let lit = |t: &Ty| match t {
+                Ty::AnyInt(v) => Some(*v as f64),
+                Ty::AnyReal(v) => Some(*v),
+                Ty::T(_) => None,
+            };
+            if let (Some(x), Some(y)) = (lit(&a[0].0.ty), lit(&a[1].0.ty)) {
+                let v = if f == "EXPT" { x.powf(y) } else { x.atan2(y) };
+                return Ok(Compiler::te(Ty::AnyReal(v), vm::Expr::Const(0)));
+            }
             let p0 = a[0].1;
             let e = real_type(&a[0].0.ty).ok_or_else(|| wrong(c, f, &a[0].0.ty, p0, "a real"))?;
             let t = Type::Elem(e);
@@ -335,7 +371,7 @@ pub(crate) fn call(
             let ge = c.coerce_to(g.0, &Type::BOOL, g.1).map_err(|_| {
                 c.err_at(g.1, ErrorKind::WrongArgument, "SEL needs a BOOL selector G")
             })?;
-            let (ty, vals) = common_values(c, f, a, pos)?;
+            let (ty, vals) = common_values(c, f, a, pos, expect)?;
             let mut v = vec![ge];
             v.extend(vals);
             Ok(Compiler::te(Ty::T(ty), builtin_expr(Builtin::Sel, v, 0)))
@@ -344,7 +380,7 @@ pub(crate) fn call(
             count(c, f, &a, 2, usize::MAX, pos)?;
             let k = a.remove(0);
             let ke = int_arg(c, f, k)?;
-            let (ty, vals) = common_values(c, f, a, pos)?;
+            let (ty, vals) = common_values(c, f, a, pos, expect)?;
             let mut v = vec![ke];
             v.extend(vals);
             Ok(Compiler::te(Ty::T(ty), builtin_expr(Builtin::Mux, v, 0)))
@@ -355,7 +391,7 @@ pub(crate) fn call(
             } else {
                 count(c, f, &a, 2, usize::MAX, pos)?;
             }
-            let (ty, vals) = common_values(c, f, a, pos)?;
+            let (ty, vals) = common_values(c, f, a, pos, expect)?;
             let Some(e) = ty
                 .elem()
                 .filter(|e| e.is_num() || e.is_bit() || *e == Elem::Time)
@@ -474,6 +510,7 @@ fn common_values(
     f: &str,
     a: Vec<(TE, Pos)>,
     pos: Pos,
+    expect: Option<&Type>,
 ) -> R<(Type, Vec<vm::Expr>)> {
     let mut ty: Option<Ty> = None;
     for (x, p) in &a {
@@ -494,8 +531,15 @@ fn common_values(
     }
     let ty = match ty {
         Some(Ty::T(t)) => t,
-        Some(Ty::AnyInt(_)) => Type::Elem(Elem::DInt),
-        Some(Ty::AnyReal(_)) => Type::Elem(Elem::LReal),
+        // Only literals: they take the type the result is used as, when it is numeric.
+        Some(Ty::AnyInt(_)) => match expect.and_then(|t| t.elem()) {
+            Some(e) if e.is_num() => Type::Elem(e),
+            _ => Type::Elem(Elem::DInt),
+        },
+        Some(Ty::AnyReal(_)) => match expect.and_then(|t| t.elem()) {
+            Some(e) if e.is_real() => Type::Elem(e),
+            _ => Type::Elem(Elem::LReal),
+        },
         None => {
             return Err(c.err_at(
                 pos,

@@ -966,10 +966,13 @@ fn resolve(p: &Program, path: &str) -> Result<VarRef, MonitorError> {
         .find(|g| g.name == first)
         .map(|g| (g.ty.clone(), g.addr));
     if cur.is_none() {
-        if let Some(inst) = p.instances.iter().find(|i| i.name == first) {
-            if it.next() != Some(&Tok::Dot) {
-                return Err(bad());
-            }
+        let instance = p
+            .instances
+            .iter()
+            .find(|i| i.name == first)
+            .filter(|_| it.peek() == Some(&&Tok::Dot));
+        if let Some(inst) = instance {
+            it.next();
             let Some(Tok::Ident(v)) = it.next() else {
                 return Err(bad());
             };

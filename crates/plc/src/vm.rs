@@ -868,11 +868,18 @@ impl Vm {
             StmtKind::Store(p, e, st) => {
                 let v = self.eval(c, e);
                 let a = self.addr(c, p);
+                if self.budget == 0 {
+                    // A fault in the value or the index: the assignment does not happen.
+                    return Flow::Fault;
+                }
                 self.store_at(a, v, *st);
             }
             StmtKind::StoreBit(p, bit, e) => {
                 let v = self.eval(c, e);
                 let a = self.addr(c, p);
+                if self.budget == 0 {
+                    return Flow::Fault;
+                }
                 let old = self.ld(a);
                 let m = 1u64 << bit;
                 self.st(a, if v & 1 != 0 { old | m } else { old & !m });
@@ -965,11 +972,14 @@ impl Vm {
             return Flow::Fault;
         }
         loop {
+            // The control variable holds every value tested, including the one that ends
+            // the loop; the test runs on the unwrapped counter, so a loop up to the type's
+            // maximum still ends.
+            let a = self.addr(c, &l.var);
+            self.st(a, l.kind.wrap(i as u64));
             if (step > 0 && i > end) || (step < 0 && i < end) {
                 return Flow::Next;
             }
-            let a = self.addr(c, &l.var);
-            self.st(a, l.kind.wrap(i as u64));
             if !self.tick(line) {
                 return Flow::Fault;
             }
