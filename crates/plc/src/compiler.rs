@@ -1830,6 +1830,12 @@ impl<'a> Compiler<'a> {
     }
 
     fn access(&mut self, a: &Access, sc: &mut Scope) -> R<Lv> {
+        if a.root.text.starts_with('%') && self.lookup(&a.root, sc).is_none() {
+            let toks = crate::lexer::tokenize(&a.root.text, self.file)?;
+            if let Some(crate::lexer::Tok::Direct(d)) = toks.first().map(|t| &t.kind) {
+                self.direct_var(d, a.root.pos)?;
+            }
+        }
         let Some(v) = self.lookup(&a.root, sc) else {
             return Err(self.e(
                 a.root.pos,
@@ -2201,47 +2207,13 @@ impl<'a> Compiler<'a> {
             }
             AExpr::Direct(d, pos) => {
                 let name = d.to_string();
-                if !self.globals.contains_key(&name) {
-                    let e = match d.size {
-                        AddrSize::Bit => Elem::Bool,
-                        AddrSize::Byte => Elem::Byte,
-                        AddrSize::Word => Elem::Word,
-                        AddrSize::Double => Elem::DWord,
-                        AddrSize::Long => Elem::LWord,
-                    };
-                    let a = self.alloc(1, *pos)?;
-                    self.located.push(Located {
-                        at: *d,
-                        slot: a,
-                        elem: e,
-                    });
-                    self.globals.insert(
-                        name.clone(),
-                        VarInfo {
-                            ty: Type::Elem(e),
-                            loc: Loc::Abs(a),
-                            kind: VarKind::Global,
-                            constant: false,
-                            const_val: None,
-                            input_area: d.area == Area::Input,
-                        },
-                    );
-                    self.global_syms.push(Symbol {
-                        name: name.clone(),
-                        ty: Type::Elem(e),
-                        addr: a,
-                        kind: VarKind::Global,
-                        constant: false,
-                        retain: false,
-                        indirect: false,
-                    });
-                }
+                let root = Name {
+                    text: name,
+                    pos: *pos,
+                };
                 let lv = self.access(
                     &Access {
-                        root: Name {
-                            text: name,
-                            pos: *pos,
-                        },
+                        root,
                         parts: Vec::new(),
                     },
                     sc,
@@ -3095,6 +3067,46 @@ struct Lv {
 }
 
 impl Compiler<'_> {
+    /// Declares the implicit global behind a directly represented variable (`%IX0.0`).
+    fn direct_var(&mut self, d: &DirectAddr, pos: Pos) -> R<()> {
+        let name = d.to_string();
+        if self.globals.contains_key(&name) {
+            return Ok(());
+        }
+        let e = match d.size {
+            AddrSize::Bit => Elem::Bool,
+            AddrSize::Byte => Elem::Byte,
+            AddrSize::Word => Elem::Word,
+            AddrSize::Double => Elem::DWord,
+            AddrSize::Long => Elem::LWord,
+        };
+        let a = self.alloc(1, pos)?;
+        self.located.push(Located {
+            at: *d,
+            slot: a,
+            elem: e,
+        });
+        let info = VarInfo {
+            ty: Type::Elem(e),
+            loc: Loc::Abs(a),
+            kind: VarKind::Global,
+            constant: false,
+            const_val: None,
+            input_area: d.area == Area::Input,
+        };
+        self.globals.insert(name.clone(), info);
+        self.global_syms.push(Symbol {
+            name,
+            ty: Type::Elem(e),
+            addr: a,
+            kind: VarKind::Global,
+            constant: false,
+            retain: false,
+            indirect: false,
+        });
+        Ok(())
+    }
+
     pub(crate) fn err_at(&self, pos: Pos, kind: ErrorKind, msg: impl Into<String>) -> CompileError {
         self.e(pos, kind, msg)
     }

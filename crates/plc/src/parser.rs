@@ -650,6 +650,25 @@ impl Parser<'_> {
         }
         let kw = match self.peek() {
             Tok::Ident(s) => s.clone(),
+            Tok::Direct(d) => {
+                // `%QX0.4 := ...`: a directly represented variable as the target.
+                let root = Name {
+                    text: d.to_string(),
+                    pos,
+                };
+                self.bump();
+                self.expect(&Tok::Assign)?;
+                let e = self.expr()?;
+                self.expect(&Tok::Semi)?;
+                return Ok(Stmt::Assign(
+                    Access {
+                        root,
+                        parts: Vec::new(),
+                    },
+                    e,
+                    pos,
+                ));
+            }
             _ => return Err(self.unexpected("a statement")),
         };
         let s = match kw.as_str() {

@@ -726,7 +726,11 @@ impl Runtime {
                 report.skipped += 1;
                 continue;
             };
-            let Some(leaf) = self.retain.iter().find(|l| l.path == name.trim()) else {
+            let Some(leaf) = self
+                .retain
+                .iter()
+                .find(|l| l.path.eq_ignore_ascii_case(name.trim()))
+            else {
                 report.skipped += 1;
                 continue;
             };
