@@ -19,11 +19,16 @@ struct Cli {
 }
 
 #[derive(Debug, Subcommand)]
-enum Command {}
+enum Command {
+    /// Soft PLC: check or run a Structured Text program.
+    Plc(commands::plc::Args),
+}
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let result: anyhow::Result<ExitCode> = match cli.command {};
+    let result: anyhow::Result<ExitCode> = match cli.command {
+        Command::Plc(args) => commands::plc::run(args),
+    };
     match result {
         Ok(code) => code,
         Err(error) => {

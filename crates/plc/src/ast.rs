@@ -102,7 +102,6 @@ pub(crate) struct Pou {
     pub ret: Option<TypeSpec>,
     pub vars: Vec<VarBlock>,
     pub body: Vec<Stmt>,
-    pub end_pos: Pos,
 }
 
 #[derive(Debug)]
@@ -114,7 +113,6 @@ pub(crate) struct Config {
 
 #[derive(Debug)]
 pub(crate) struct Resource {
-    pub name: Name,
     pub tasks: Vec<TaskDecl>,
     pub programs: Vec<ProgramInst>,
 }

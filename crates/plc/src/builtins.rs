@@ -30,7 +30,7 @@ fn param_names(f: &str) -> &'static [&'static str] {
 }
 
 /// Puts named arguments in parameter order (`IN1`, `IN2`... for extensible functions).
-fn ordered<'a>(c: &Compiler, fname: &str, args: &'a [Arg]) -> R<Vec<Arg>> {
+fn ordered(c: &Compiler, fname: &str, args: &[Arg]) -> R<Vec<Arg>> {
     if args.iter().all(|a| matches!(a, Arg::Positional(_))) {
         return Ok(args.to_vec());
     }

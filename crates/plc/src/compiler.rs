@@ -505,13 +505,10 @@ impl<'a> Compiler<'a> {
                             ty: m.ty.clone(),
                             addr: m.offset,
                             kind: m.kind,
-                            constant: m.constant,
                             retain: m.retain,
                             indirect: m.kind == VarKind::InOut,
                         })
                         .collect(),
-                    size: f.size,
-                    std: f.std,
                 })
                 .collect(),
             located: std::mem::take(&mut self.located),
@@ -737,7 +734,7 @@ impl<'a> Compiler<'a> {
             TypeSpec::Struct { fields, pos } => {
                 let mut fs: Vec<Field> = Vec::new();
                 let mut off = 0u32;
-                let mut inits: Vec<(u32, Type, Option<Vec<u64>>, Option<&Init>)> = Vec::new();
+                let mut inits: Vec<FieldInit> = Vec::new();
                 for d in fields {
                     let (t, tpl) = self.type_spec(&d.ty, None, scope)?;
                     for n in &d.names {
@@ -1414,7 +1411,6 @@ impl<'a> Compiler<'a> {
             ty: t,
             addr: a,
             kind: b.kind,
-            constant: b.constant,
             retain: b.retain,
             indirect: false,
         };
@@ -1465,7 +1461,6 @@ impl<'a> Compiler<'a> {
         let body = self.block(&pou.body, &mut scope)?;
         Ok(ProgramInstance {
             name: inst.to_string(),
-            type_name: pou.name.text.clone(),
             pou: pou_id,
             vars: syms,
             body,
@@ -3054,6 +3049,9 @@ fn contains_user_call(e: &AExpr, c: &Compiler) -> bool {
     }
 }
 
+/// A structure field's offset, type, type template and initializer.
+type FieldInit<'i> = (u32, Type, Option<Vec<u64>>, Option<&'i Init>);
+
 /// An lvalue under construction.
 struct Lv {
     ty: Type,
@@ -3100,7 +3098,6 @@ impl Compiler<'_> {
             ty: Type::Elem(e),
             addr: a,
             kind: VarKind::Global,
-            constant: false,
             retain: false,
             indirect: false,
         });
@@ -3124,9 +3121,6 @@ impl Compiler<'_> {
     }
     pub(crate) fn type_label(&self, t: &Ty) -> String {
         self.ty_name(t)
-    }
-    pub(crate) fn named_type_of(&mut self, n: &Name) -> R<Type> {
-        self.named_type(n).map(|t| t.0)
     }
     pub(crate) fn common_type(&self, a: &Ty, b: &Ty, pos: Pos) -> R<Type> {
         self.common(a, b, pos)

@@ -488,7 +488,6 @@ impl Parser<'_> {
             vars.push(self.var_block()?);
         }
         let body = self.stmts(&[end])?;
-        let end_pos = self.pos();
         self.expect_kw(end)?;
         Ok(Pou {
             kind,
@@ -496,7 +495,6 @@ impl Parser<'_> {
             ret,
             vars,
             body,
-            end_pos,
         })
     }
 
@@ -509,12 +507,11 @@ impl Parser<'_> {
             if self.is_kw("VAR_GLOBAL") {
                 globals.push(self.var_block()?);
             } else if self.eat_kw("RESOURCE") {
-                let rname = self.name()?;
+                self.name()?;
                 if self.eat_kw("ON") {
                     self.name()?;
                 }
                 let mut res = Resource {
-                    name: rname,
                     tasks: Vec::new(),
                     programs: Vec::new(),
                 };
@@ -523,7 +520,6 @@ impl Parser<'_> {
             } else if self.is_kw("TASK") || self.is_kw("PROGRAM") {
                 // A configuration without a RESOURCE: one implicit resource.
                 let mut res = Resource {
-                    name: name.clone(),
                     tasks: Vec::new(),
                     programs: Vec::new(),
                 };

@@ -5,7 +5,6 @@ use std::time::Duration;
 
 use crate::ast::VarKind;
 use crate::lexer::{Area, DirectAddr};
-use crate::stdfb::StdFb;
 use crate::types::{Elem, EnumType, StructType, Type};
 use crate::vm::{Block, Code};
 
@@ -16,7 +15,6 @@ pub(crate) struct Symbol {
     pub ty: Type,
     pub addr: u32,
     pub kind: VarKind,
-    pub constant: bool,
     pub retain: bool,
     /// A VAR_IN_OUT: the slot holds the address of the actual variable.
     pub indirect: bool,
@@ -28,8 +26,6 @@ pub(crate) struct FbLayout {
     pub name: String,
     /// Members; `addr` is the offset in the instance.
     pub members: Vec<Symbol>,
-    pub size: u32,
-    pub std: Option<StdFb>,
 }
 
 /// A variable at a direct address, copied to or from an image every scan.
@@ -44,7 +40,6 @@ pub(crate) struct Located {
 #[derive(Debug)]
 pub(crate) struct ProgramInstance {
     pub name: String,
-    pub type_name: String,
     pub pou: u32,
     pub vars: Vec<Symbol>,
     pub body: Block,

@@ -865,7 +865,6 @@ fn member_symbols(p: &Program, ty: &Type) -> Option<Vec<Symbol>> {
                     ty: f.ty.clone(),
                     addr: f.offset,
                     kind: VarKind::Local,
-                    constant: false,
                     retain: false,
                     indirect: false,
                 })

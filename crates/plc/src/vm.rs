@@ -525,7 +525,7 @@ impl Vm {
     }
 
     fn builtin(&mut self, c: &Code, b: Builtin, args: &[Expr], dest: u32) -> u64 {
-        let mut arg = |vm: &mut Vm, i: usize| match args.get(i) {
+        let arg = |vm: &mut Vm, i: usize| match args.get(i) {
             Some(e) => vm.eval(c, e),
             None => 0,
         };
@@ -1033,11 +1033,10 @@ pub(crate) fn conv(cv: Conv, v: u64) -> u64 {
 }
 
 fn real_to_int(x: f64, k: IntKind) -> u64 {
-    if k.signed() {
-        x as i64 as u64
-    } else if x < 0.0 {
-        x as i64 as u64
-    } else {
+    // Saturating float-to-int casts; the caller wraps to the target width.
+    if !k.signed() && x >= 0.0 {
         x as u64
+    } else {
+        x as i64 as u64
     }
 }

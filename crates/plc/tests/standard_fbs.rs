@@ -151,7 +151,7 @@ fn ctud_up_down_reset_load() {
     let src = "PROGRAM P VAR cu : BOOL; cd : BOOL; r : BOOL; ld : BOOL; c : CTUD; END_VAR
         c(CU := cu, CD := cd, R := r, LD := ld, PV := 2); END_PROGRAM";
     let mut rt = plc(src);
-    let mut run = |rt: &mut rtcnc_plc::Runtime, cu, cd, r, ld| {
+    let run = |rt: &mut rtcnc_plc::Runtime, cu, cd, r, ld| {
         for (n, v) in [("cu", cu), ("cd", cd), ("r", r), ("ld", ld)] {
             set(rt, n, Value::Bool(v));
         }
@@ -198,7 +198,7 @@ fn r_trig_fires_on_a_true_first_input() {
 fn bistables_sr_set_dominant_rs_reset_dominant() {
     let src = "PROGRAM P VAR s : BOOL; r : BOOL; sr : SR; rs : RS; END_VAR sr(S1 := s, R := r); rs(S := s, R1 := r); END_PROGRAM";
     let mut rt = plc(src);
-    let mut step = |rt: &mut rtcnc_plc::Runtime, s, r| {
+    let step = |rt: &mut rtcnc_plc::Runtime, s, r| {
         set(rt, "s", Value::Bool(s));
         set(rt, "r", Value::Bool(r));
         rt.scan(ms(0)).unwrap();
