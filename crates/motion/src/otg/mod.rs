@@ -15,10 +15,12 @@ mod limits;
 mod position;
 mod profile;
 mod roots;
+mod sync;
 mod velocity;
 
 pub use error::OtgError;
 pub use limits::{Limits, State};
 pub use position::{Block, position_block, position_profile};
 pub use profile::{MAX_PHASES, Phase, Profile, Sample};
+pub use sync::{Synchronized, position_profile_with_duration, synchronize};
 pub use velocity::velocity_profile;

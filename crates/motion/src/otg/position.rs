@@ -108,9 +108,29 @@ pub(crate) struct Step1 {
     pub(crate) brake: Brake,
     pub(crate) best: Candidate,
     pub(crate) block: Block,
+    /// The distinct valid profiles, shortest first: they bound the blocked intervals.
+    pub(crate) extremal: [Candidate; 5],
+    pub(crate) extremal_len: usize,
 }
 
 impl Step1 {
+    pub(crate) fn brake_duration(&self) -> f64 {
+        self.brake.phases.iter().map(|p| p.duration).sum()
+    }
+
+    /// State after the brake pre-trajectory.
+    pub(crate) fn after_brake(&self) -> State {
+        let (mut p, mut v, mut a) = (self.start.p, self.start.v, self.start.a);
+        for phase in &self.brake.phases {
+            (p, v, a) = integrate(p, v, a, phase.jerk, phase.duration);
+        }
+        State::new(p, v, a)
+    }
+
+    pub(crate) fn extremal(&self) -> &[Candidate] {
+        &self.extremal[..self.extremal_len]
+    }
+
     /// Builds the full profile (brake + main phases) for a main part.
     pub(crate) fn profile_with(&self, main: &[Phase]) -> Profile {
         let mut all = [Phase::default(); 9];
@@ -234,6 +254,8 @@ pub(crate) fn solve_position(
             t_min: best.duration + brake_duration,
             blocked,
         },
+        extremal: distinct,
+        extremal_len: n,
     })
 }
 

@@ -21,7 +21,14 @@ import random
 import ruckig
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, Synchronization, Trajectory
 
-SEED = 20261122
+import argparse
+
+ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+ap.add_argument("--seed", type=int, default=20261122)
+ap.add_argument("--scale", type=int, default=1, help="multiply the number of cases (stress runs)")
+ap.add_argument("--out", default=None, help="output file (default: otg_state_cases.json here)")
+ARGS = ap.parse_args()
+SEED = ARGS.seed
 rng = random.Random(SEED)
 
 
@@ -132,7 +139,9 @@ def three_axes():
 
 
 def main():
-    counts = dict(inside=60, target_v=60, target_va=60, violating=60, asymmetric=60, velocity=60)
+    k = ARGS.scale
+    counts = dict(inside=60 * k, target_v=60 * k, target_va=60 * k, violating=60 * k, asymmetric=60 * k,
+                  velocity=60 * k)
     cases, skipped = [], 0
     for kind, n in counts.items():
         made = 0
@@ -144,7 +153,7 @@ def main():
             cases.append(c)
             made += 1
     sync = []
-    while len(sync) < 60:
+    while len(sync) < 60 * k:
         c = three_axes()
         if c is None:
             skipped += 1
@@ -159,7 +168,7 @@ def main():
         "cases": cases,
         "sync3": sync,
     }
-    out = os.path.join(os.path.dirname(os.path.abspath(__file__)), "otg_state_cases.json")
+    out = ARGS.out or os.path.join(os.path.dirname(os.path.abspath(__file__)), "otg_state_cases.json")
     with open(out, "w") as f:
         json.dump(doc, f, indent=1)
     print(f"wrote {out}: {len(cases)} single-axis, {len(sync)} three-axis cases, {skipped} skipped")

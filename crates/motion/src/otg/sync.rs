@@ -1,0 +1,316 @@
+//! Profiles of a prescribed duration (position interface, step two) and the time
+//! synchronisation of several axes: all axes start together and reach their targets at the
+//! same instant, the earliest instant every axis can make.
+//!
+//! The common duration is the smallest duration at least every axis's minimum that no axis
+//! has blocked (step one reports each axis's blocked intervals, as in ruckig). Each axis then
+//! needs a profile of exactly that duration. Where the duration is one of the axis's own
+//! extremal profiles, that profile is used. Otherwise the axis gets a "cruise" profile: the
+//! time-optimal velocity change to a cruise velocity `vc`, a cruise at `vc` and the
+//! time-optimal velocity change to the target, with `vc` solved so that the distance comes
+//! out right. This family covers every duration longer than the axis needs in practice (any
+//! duration once the cruise is slower than the fastest move); where it has no solution for a
+//! duration (a narrow band just above some minimum-time profiles without a zero-acceleration
+//! point), the common duration is lengthened step by step until every axis has a profile.
+//! That is conservative (a little slower than ruckig in such cases), never wrong: every
+//! profile is validated against the limits and the target before it is used.
+
+use super::check::{Bounds, Problem, check};
+use super::position::{Step1, solve_position};
+use super::profile::{Phase, Profile, Sample, integrate};
+use super::velocity::velocity_change;
+use super::{Limits, OtgError, State};
+
+const GRID: usize = 48;
+
+/// Relative tolerance for "this duration is that profile's duration".
+const SAME_DURATION: f64 = 1e-12;
+
+/// A profile for one axis of exactly `duration` (brake pre-trajectory included), from
+/// `start` to `target`; `duration` must be one the axis can take (see
+/// [`position_block`](super::position_block)).
+pub fn position_profile_with_duration(
+    start: State,
+    target: State,
+    limits: &Limits,
+    duration: f64,
+) -> Result<Profile, OtgError> {
+    if !duration.is_finite() {
+        return Err(OtgError::NonFiniteInput {
+            name: "duration",
+            value: duration,
+        });
+    }
+    let step = solve_position(start, target, limits)?;
+    if duration < step.block.t_min * (1.0 - SAME_DURATION) {
+        return Err(OtgError::DurationTooShort {
+            requested: duration,
+            minimum: step.block.t_min,
+        });
+    }
+    profile_of_duration(&step, limits, duration)
+        .ok_or(OtgError::SynchronizationFailed { axis: 0, duration })
+}
+
+pub(crate) fn profile_of_duration(step: &Step1, limits: &Limits, duration: f64) -> Option<Profile> {
+    let brake = step.brake_duration();
+    for candidate in step.extremal() {
+        let t = candidate.duration + brake;
+        if (t - duration).abs() <= SAME_DURATION * duration.max(f64::MIN_POSITIVE) {
+            return Some(step.profile_with(&candidate.phases));
+        }
+    }
+    let main = cruise_profile(step, limits, duration - brake)?;
+    Some(step.profile_with(&main))
+}
+
+#[derive(Clone, Copy, Default)]
+struct Sample1 {
+    vc: f64,
+    cruise: f64,
+    residual: f64,
+}
+
+/// Phases and distance error of the cruise profile through `vc` lasting `duration`.
+fn cruise_through(
+    after: State,
+    target: State,
+    limits: &Limits,
+    duration: f64,
+    vc: f64,
+) -> Option<([Phase; 7], Sample1)> {
+    let (a_max, a_min, j) = (
+        limits.max_acceleration,
+        limits.min_acceleration,
+        limits.max_jerk,
+    );
+    let up = velocity_change(after.v, after.a, vc, 0.0, a_max, a_min, j)?;
+    let down = velocity_change(vc, 0.0, target.v, target.a, a_max, a_min, j)?;
+    let cruise = duration - up.duration() - down.duration();
+    let mut phases = [Phase::default(); 7];
+    phases[..3].copy_from_slice(&up.phases);
+    phases[3] = Phase {
+        duration: cruise.max(0.0),
+        jerk: 0.0,
+    };
+    phases[4..].copy_from_slice(&down.phases);
+    let (mut p, mut v, mut a) = (after.p, after.v, after.a);
+    for phase in &phases {
+        (p, v, a) = integrate(p, v, a, phase.jerk, phase.duration);
+    }
+    let _ = (v, a);
+    // A negative cruise is not a profile; its residual still guides the search.
+    let residual = p + vc * cruise.min(0.0) - target.p;
+    Some((
+        phases,
+        Sample1 {
+            vc,
+            cruise,
+            residual,
+        },
+    ))
+}
+
+fn cruise_profile(step: &Step1, limits: &Limits, duration: f64) -> Option<[Phase; 7]> {
+    if duration.is_nan() || duration < 0.0 {
+        return None;
+    }
+    let after = step.after_brake();
+    let target = step.target;
+    let eval = |vc: f64| cruise_through(after, target, limits, duration, vc);
+    let (lo, hi) = (limits.min_velocity, limits.max_velocity);
+    // Samples over the cruise velocity range, with the edges of the region where the cruise
+    // time is not negative refined in between.
+    let mut samples = [Sample1::default(); 2 * GRID];
+    let mut n = 0;
+    let mut previous: Option<Sample1> = None;
+    for i in 0..GRID {
+        let vc = lo + (hi - lo) * i as f64 / (GRID - 1) as f64;
+        let (_, s) = eval(vc)?;
+        if let Some(prev) = previous {
+            if (prev.cruise >= 0.0) != (s.cruise >= 0.0) {
+                let (mut a, mut b) = (prev.vc, s.vc);
+                let a_valid = prev.cruise >= 0.0;
+                for _ in 0..60 {
+                    let mid = 0.5 * (a + b);
+                    let (_, m) = eval(mid)?;
+                    if (m.cruise >= 0.0) == a_valid {
+                        a = mid;
+                    } else {
+                        b = mid;
+                    }
+                }
+                let edge = if a_valid { a } else { b };
+                let (_, e) = eval(edge)?;
+                samples[n] = Sample1 {
+                    cruise: e.cruise.max(0.0),
+                    ..e
+                };
+                n += 1;
+            }
+        }
+        samples[n] = s;
+        n += 1;
+        previous = Some(s);
+    }
+    let problem = Problem {
+        v0: after.v,
+        a0: after.a,
+        pd: target.p - after.p,
+        vf: target.v,
+        af: target.a,
+    };
+    let bounds = Bounds {
+        v_max: limits.max_velocity,
+        v_min: limits.min_velocity,
+        a_max: limits.max_acceleration,
+        a_min: limits.min_acceleration,
+        j: limits.max_jerk,
+    };
+    for pair in samples[..n].windows(2) {
+        let (l, r) = (pair[0], pair[1]);
+        if l.cruise < 0.0 || r.cruise < 0.0 {
+            continue;
+        }
+        if l.residual.signum() == r.residual.signum() && l.residual != 0.0 && r.residual != 0.0 {
+            continue;
+        }
+        let (mut a, mut b) = (l, r);
+        for _ in 0..100 {
+            if a.residual == 0.0 {
+                b = a;
+                break;
+            }
+            let mid = 0.5 * (a.vc + b.vc);
+            if mid <= a.vc.min(b.vc) || mid >= a.vc.max(b.vc) {
+                break;
+            }
+            let (_, m) = eval(mid)?;
+            if m.residual.signum() == a.residual.signum() {
+                a = m;
+            } else {
+                b = m;
+            }
+        }
+        let best = if a.residual.abs() < b.residual.abs() {
+            a
+        } else {
+            b
+        };
+        let (mut phases, s) = eval(best.vc)?;
+        if s.cruise < -SAME_DURATION * duration {
+            continue;
+        }
+        let relative = Problem {
+            pd: problem.pd,
+            ..problem
+        };
+        if check(&relative, &bounds, &mut phases, true, 3).is_some() {
+            return Some(phases);
+        }
+    }
+    None
+}
+
+/// Profiles of several axes that start together and reach their targets at the same time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Synchronized<const N: usize> {
+    /// One profile per axis, all of the same duration.
+    pub profiles: [Profile; N],
+}
+
+impl<const N: usize> Synchronized<N> {
+    /// Common duration of all axes.
+    pub fn duration(&self) -> f64 {
+        self.profiles.first().map_or(0.0, Profile::duration)
+    }
+
+    /// Every axis's sample at time `t`.
+    pub fn at(&self, t: f64) -> [Sample; N] {
+        let mut out = [Sample::default(); N];
+        for (slot, profile) in out.iter_mut().zip(&self.profiles) {
+            *slot = profile.at(t);
+        }
+        out
+    }
+}
+
+/// Time-synchronised profiles: every axis goes from `start[i]` to `target[i]` within
+/// `limits[i]`, all arriving at the same time, as early as the slowest axis allows.
+///
+/// Cost: step one for every axis, then for each axis that is not the slowest a
+/// one-dimensional search (some tens of closed-form evaluations); no allocation.
+pub fn synchronize<const N: usize>(
+    start: &[State; N],
+    target: &[State; N],
+    limits: &[Limits; N],
+) -> Result<Synchronized<N>, OtgError> {
+    let mut steps = [None; N];
+    for (i, slot) in steps.iter_mut().enumerate() {
+        *slot = Some(solve_position(start[i], target[i], &limits[i])?);
+    }
+    let steps = steps.map(|s| s.expect("every axis was solved above"));
+    let t_lower = steps.iter().map(|s| s.block.t_min).fold(0.0, f64::max);
+    // Candidate durations: the slowest minimum, then the right ends of blocked intervals.
+    let mut candidates = [f64::INFINITY; 64];
+    let mut n = 0;
+    let mut push = |t: f64| {
+        if t >= t_lower && n < candidates.len() {
+            candidates[n] = t;
+            n += 1;
+        }
+    };
+    push(t_lower);
+    for step in &steps {
+        for &(_, right) in step.block.blocked.iter().flatten() {
+            push(right);
+        }
+    }
+    candidates[..n].sort_by(f64::total_cmp);
+    let mut last = t_lower;
+    for &t in &candidates[..n] {
+        if steps.iter().any(|s| s.block.is_blocked(t)) {
+            continue;
+        }
+        if let Some(profiles) = try_duration(&steps, limits, t) {
+            return Ok(Synchronized { profiles });
+        }
+        last = t;
+    }
+    // Conservative fallback: lengthen the duration until every axis has a profile.
+    let mut failed_axis = 0;
+    for k in 0..40 {
+        let t = last * (1.0 + 1e-9 * 2f64.powi(k));
+        if steps.iter().any(|s| s.block.is_blocked(t)) {
+            continue;
+        }
+        match try_duration_axis(&steps, limits, t) {
+            Ok(profiles) => return Ok(Synchronized { profiles }),
+            Err(axis) => failed_axis = axis,
+        }
+    }
+    Err(OtgError::SynchronizationFailed {
+        axis: failed_axis,
+        duration: last,
+    })
+}
+
+fn try_duration<const N: usize>(
+    steps: &[Step1; N],
+    limits: &[Limits; N],
+    t: f64,
+) -> Option<[Profile; N]> {
+    try_duration_axis(steps, limits, t).ok()
+}
+
+fn try_duration_axis<const N: usize>(
+    steps: &[Step1; N],
+    limits: &[Limits; N],
+    t: f64,
+) -> Result<[Profile; N], usize> {
+    let mut profiles = [Profile::hold(State::default()); N];
+    for (i, slot) in profiles.iter_mut().enumerate() {
+        *slot = profile_of_duration(&steps[i], &limits[i], t).ok_or(i)?;
+    }
+    Ok(profiles)
+}
