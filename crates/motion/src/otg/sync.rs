@@ -60,8 +60,179 @@ pub(crate) fn profile_of_duration(step: &Step1, limits: &Limits, duration: f64) 
             return Some(step.profile_with(&candidate.phases));
         }
     }
-    let main = cruise_profile(step, limits, duration - brake)?;
+    let main = cruise_profile(step, limits, duration - brake)
+        .or_else(|| two_pulse_profile(step, limits, duration - brake))?;
     Some(step.profile_with(&main))
+}
+
+/// Jerk signs of a profile made of two upward acceleration pulses (no cruise between).
+const UP_DOWN_UP_DOWN: [f64; 7] = [1.0, 0.0, -1.0, 0.0, 1.0, 0.0, -1.0];
+
+/// Two acceleration pulses of the same direction meeting at the acceleration `a_m`, lasting
+/// `duration` in total, in the frame of `b` (upward pulses). `branch` picks which pulse gets
+/// the higher peak. A peak above the acceleration limit becomes a hold at the limit.
+/// Returns the phases (durations may be negative: the caller's check rejects those) and the
+/// position error at the end.
+fn two_pulses(
+    pr: &Problem,
+    b: &Bounds,
+    duration: f64,
+    a_m: f64,
+    branch: bool,
+) -> Option<([Phase; 7], f64)> {
+    let Problem { v0, a0, pd, vf, af } = *pr;
+    let (j, a_max) = (b.j, b.a_max);
+    let dv2j = 2.0 * j * (vf - v0);
+    // Ramp times add up to the duration, velocity gains add up to the velocity change.
+    let s = 0.5 * (j * duration + a0 + 2.0 * a_m + af);
+    let q = 0.5 * (dv2j + a0 * a0 + 2.0 * a_m * a_m + af * af);
+    let disc = 2.0 * q - s * s;
+    if disc < 0.0 {
+        return None;
+    }
+    let root = disc.sqrt();
+    let (mut p1, mut p2) = if branch {
+        (0.5 * (s + root), 0.5 * (s - root))
+    } else {
+        (0.5 * (s - root), 0.5 * (s + root))
+    };
+    let (mut h1, mut h2) = (0.0, 0.0);
+    if p1 > a_max || p2 > a_max {
+        if p1 > a_max && p2 > a_max {
+            return None;
+        }
+        let r = j * duration - 2.0 * a_max + a0 + 2.0 * a_m + af;
+        let e = 0.5
+            * (2.0 * a_max * a_max - a0 * a0 - 2.0 * a_m * a_m - af * af + 2.0 * a_max * r - dv2j);
+        let d = a_max * a_max - e;
+        if d < 0.0 {
+            return None;
+        }
+        let free = a_max - d.sqrt();
+        if p1 > a_max {
+            p1 = a_max;
+            p2 = free;
+            h1 = (r - 2.0 * free) / j;
+        } else {
+            p2 = a_max;
+            p1 = free;
+            h2 = (r - 2.0 * free) / j;
+        }
+    }
+    let t = [
+        (p1 - a0) / j,
+        h1,
+        (p1 - a_m) / j,
+        0.0,
+        (p2 - a_m) / j,
+        h2,
+        (p2 - af) / j,
+    ];
+    let mut phases = [Phase::default(); 7];
+    let (mut p, mut v, mut a) = (0.0, v0, a0);
+    for (i, phase) in phases.iter_mut().enumerate() {
+        *phase = Phase {
+            duration: t[i],
+            jerk: UP_DOWN_UP_DOWN[i] * j,
+        };
+        (p, v, a) = integrate(p, v, a, phase.jerk, phase.duration);
+    }
+    let _ = (v, a);
+    Some((phases, p - pd))
+}
+
+/// Profiles of two same-direction acceleration pulses (up-down-up-down and its mirror
+/// image), searched over the acceleration where the pulses meet. These are the profiles of
+/// a prescribed duration that pass no point of zero acceleration, which the cruise family
+/// cannot represent.
+fn two_pulse_profile(step: &Step1, limits: &Limits, duration: f64) -> Option<[Phase; 7]> {
+    if duration.is_nan() || duration < 0.0 {
+        return None;
+    }
+    let after = step.after_brake();
+    let target = step.target;
+    let problem = Problem {
+        v0: after.v,
+        a0: after.a,
+        pd: target.p - after.p,
+        vf: target.v,
+        af: target.a,
+    };
+    let bounds = bounds_of(limits);
+    for (pr, b, sign) in [
+        (problem, bounds, 1.0),
+        (problem.mirrored(), bounds.mirrored(), -1.0),
+    ] {
+        for branch in [false, true] {
+            let eval = |a_m: f64| two_pulses(&pr, &b, duration, a_m, branch);
+            let mut previous: Option<(f64, f64)> = None;
+            // Where the pulses can meet: going down from a0 to a_m and back up to af must
+            // fit in the duration, and a_m cannot be above a peak.
+            let lo = b.a_min.max(0.5 * (pr.a0 + pr.af - b.j * duration));
+            let hi = b.a_max.min(pr.a0.min(pr.af) + b.j * duration);
+            if lo > hi {
+                continue;
+            }
+            for i in 0..GRID {
+                let a_m = lo + (hi - lo) * i as f64 / (GRID - 1) as f64;
+                let Some((_, residual)) = eval(a_m) else {
+                    previous = None;
+                    continue;
+                };
+                if let Some((prev_a, prev_r)) = previous {
+                    if prev_r.signum() != residual.signum() || residual == 0.0 {
+                        if let Some(mut phases) = bisect(&eval, (prev_a, prev_r), (a_m, residual)) {
+                            if check(&pr, &b, &mut phases, true, 3).is_some() {
+                                for phase in &mut phases {
+                                    phase.jerk *= sign;
+                                }
+                                return Some(phases);
+                            }
+                        }
+                    }
+                }
+                previous = Some((a_m, residual));
+            }
+        }
+    }
+    None
+}
+
+/// Bisection of a continuous residual between two parameters of opposite sign.
+fn bisect(
+    eval: &dyn Fn(f64) -> Option<([Phase; 7], f64)>,
+    left: (f64, f64),
+    right: (f64, f64),
+) -> Option<[Phase; 7]> {
+    let (mut a, mut b) = (left, right);
+    for _ in 0..100 {
+        if a.1 == 0.0 {
+            b = a;
+            break;
+        }
+        let mid = 0.5 * (a.0 + b.0);
+        if mid <= a.0.min(b.0) || mid >= a.0.max(b.0) {
+            break;
+        }
+        let (_, r) = eval(mid)?;
+        if r.signum() == a.1.signum() {
+            a = (mid, r);
+        } else {
+            b = (mid, r);
+        }
+    }
+    let best = if a.1.abs() < b.1.abs() { a } else { b };
+    eval(best.0).map(|(phases, _)| phases)
+}
+
+fn bounds_of(limits: &Limits) -> Bounds {
+    Bounds {
+        v_max: limits.max_velocity,
+        v_min: limits.min_velocity,
+        a_max: limits.max_acceleration,
+        a_min: limits.min_acceleration,
+        j: limits.max_jerk,
+    }
 }
 
 #[derive(Clone, Copy, Default)]
@@ -121,14 +292,28 @@ fn cruise_profile(step: &Step1, limits: &Limits, duration: f64) -> Option<[Phase
     let (lo, hi) = (limits.min_velocity, limits.max_velocity);
     // Samples over the cruise velocity range, with the edges of the region where the cruise
     // time is not negative refined in between.
-    let mut samples = [Sample1::default(); 2 * GRID];
+    let mut samples = [Sample1::default(); 3 * GRID];
     let mut n = 0;
     let mut previous: Option<Sample1> = None;
-    for i in 0..GRID {
-        let vc = lo + (hi - lo) * i as f64 / (GRID - 1) as f64;
+    // A uniform grid plus the velocities where the profile is shortest (the start and end
+    // velocities reached by ramping the acceleration to zero): a short duration leaves a
+    // narrow band of cruise velocities around them that a coarse grid would miss.
+    let j = limits.max_jerk;
+    let mut grid = [0.0; GRID + 4];
+    for (i, slot) in grid.iter_mut().take(GRID).enumerate() {
+        *slot = lo + (hi - lo) * i as f64 / (GRID - 1) as f64;
+    }
+    let natural_start = after.v + after.a * after.a.abs() / (2.0 * j);
+    let natural_end = target.v - target.a * target.a.abs() / (2.0 * j);
+    grid[GRID] = natural_start.clamp(lo, hi);
+    grid[GRID + 1] = natural_end.clamp(lo, hi);
+    grid[GRID + 2] = (0.5 * (natural_start + natural_end)).clamp(lo, hi);
+    grid[GRID + 3] = after.v.clamp(lo, hi);
+    grid.sort_by(f64::total_cmp);
+    for &vc in &grid {
         let (_, s) = eval(vc)?;
         if let Some(prev) = previous {
-            if (prev.cruise >= 0.0) != (s.cruise >= 0.0) {
+            if (prev.cruise >= 0.0) != (s.cruise >= 0.0) && n + 2 < samples.len() {
                 let (mut a, mut b) = (prev.vc, s.vc);
                 let a_valid = prev.cruise >= 0.0;
                 for _ in 0..60 {
@@ -149,8 +334,10 @@ fn cruise_profile(step: &Step1, limits: &Limits, duration: f64) -> Option<[Phase
                 n += 1;
             }
         }
-        samples[n] = s;
-        n += 1;
+        if n < samples.len() {
+            samples[n] = s;
+            n += 1;
+        }
         previous = Some(s);
     }
     let problem = Problem {
