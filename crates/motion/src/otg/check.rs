@@ -103,12 +103,16 @@ pub(crate) fn check(
         .max(problem.af.abs());
     let a_lim_tol = LIMIT_TOL * a_scale;
     let v_lim_tol = LIMIT_TOL * v_scale;
+    let snap = snap_tolerance(problem.a0, phases);
     let (mut p, mut v, mut a) = (0.0, problem.v0, problem.a0);
     for (index, phase) in phases.iter().enumerate() {
         if phase.duration == 0.0 {
             continue;
         }
         let j = phase.jerk;
+        if j == 0.0 && a.abs() <= snap {
+            a = 0.0;
+        }
         let check_velocity = index >= velocity_free;
         if j != 0.0 && check_velocity {
             let tz = -a / j;
@@ -135,4 +139,12 @@ pub(crate) fn check(
         && (v - problem.vf).abs() <= v_tol
         && (!check_target_position || (p - problem.pd).abs() <= p_tol);
     reached.then_some(duration)
+}
+
+/// Below this magnitude the acceleration at the start of a constant-acceleration phase is
+/// rounding noise of a ramp meant to end at zero: a cruise. Left alone it would make the
+/// velocity drift over a long cruise; the profile builder snaps it to zero the same way.
+pub(crate) fn snap_tolerance(a0: f64, phases: &[Phase]) -> f64 {
+    let swing: f64 = phases.iter().map(|p| (p.jerk * p.duration).abs()).sum();
+    1e-12 * (a0.abs() + swing)
 }

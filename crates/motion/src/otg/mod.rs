@@ -12,6 +12,7 @@ mod brake;
 mod check;
 mod error;
 mod limits;
+mod online;
 mod position;
 mod profile;
 mod roots;
@@ -20,7 +21,8 @@ mod velocity;
 
 pub use error::OtgError;
 pub use limits::{Limits, State};
-pub use position::{Block, position_block, position_profile};
+pub use online::{OnlineAxis, OnlineGroup};
+pub use position::{Block, along_path, position_block, position_profile};
 pub use profile::{MAX_PHASES, Phase, Profile, Sample};
 pub use sync::{Synchronized, position_profile_with_duration, synchronize};
 pub use velocity::velocity_profile;

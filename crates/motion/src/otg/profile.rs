@@ -2,6 +2,7 @@
 //! form. Evaluation allocates nothing and scans at most [`MAX_PHASES`] phase starts.
 
 use super::State;
+use super::check::snap_tolerance;
 
 /// Most phases a profile can have: a brake pre-trajectory of up to two phases followed by
 /// up to seven phases (the classic jerk-limited "S-curve").
@@ -76,10 +77,14 @@ impl Profile {
         exact_end: Option<State>,
     ) -> Self {
         let mut profile = Self::hold(start);
+        let snap = snap_tolerance(start.a, phases);
         let (mut p, mut v, mut a, mut t) = (start.p, start.v, start.a, 0.0);
         for (index, phase) in phases.iter().take(MAX_PHASES).enumerate() {
             if phase.duration <= 0.0 {
                 continue;
+            }
+            if phase.jerk == 0.0 && a.abs() <= snap {
+                a = 0.0;
             }
             let i = profile.count;
             profile.begin[i] = t;
@@ -201,6 +206,38 @@ impl Profile {
             }
         }
         (vpk, apk, jpk)
+    }
+}
+
+impl Profile {
+    /// Lowest and highest position over the profile, found exactly (inside a phase the
+    /// position has an extremum where the velocity crosses zero).
+    pub fn position_extrema(&self) -> (f64, f64) {
+        let mut lo = self.start.p.min(self.end.p);
+        let mut hi = self.start.p.max(self.end.p);
+        for i in 0..self.count {
+            let (p, v, a, j) = (self.p[i], self.v[i], self.a[i], self.jerk[i]);
+            let d = self.begin[i + 1] - self.begin[i];
+            // v(t) = v + a t + j t²/2 = 0
+            let mut roots = [f64::NAN; 2];
+            if j != 0.0 {
+                let disc = a * a - 2.0 * j * v;
+                if disc >= 0.0 {
+                    let s = disc.sqrt();
+                    roots = [(-a + s) / j, (-a - s) / j];
+                }
+            } else if a != 0.0 {
+                roots[0] = -v / a;
+            }
+            for t in roots {
+                if t > 0.0 && t < d {
+                    let (pe, _, _) = integrate(p, v, a, j, t);
+                    lo = lo.min(pe);
+                    hi = hi.max(pe);
+                }
+            }
+        }
+        (lo, hi)
     }
 }
 
