@@ -224,14 +224,25 @@ pub(crate) fn solve_position(
     if problem.pd == 0.0 && problem.v0 == problem.vf && problem.a0 == problem.af {
         candidates.items[0] = Candidate::default();
         candidates.len = 1;
+    } else if problem.vf == 0.0 && problem.af == 0.0 {
+        // Arriving at rest, the valid profile is unique and no duration is blocked (as in
+        // ruckig): stop at the first one, trying the direction of the move first.
+        let (first, second) = if problem.pd >= 0.0 {
+            (1.0, -1.0)
+        } else {
+            (-1.0, 1.0)
+        };
+        for sign in [first, second] {
+            let (pr, b) = oriented(&problem, &bounds, sign);
+            if solve_oriented(&pr, &b, sign, &mut candidates, true) {
+                break;
+            }
+        }
     } else {
-        solve_oriented(&problem, &bounds, 1.0, &mut candidates);
-        solve_oriented(
-            &problem.mirrored(),
-            &bounds.mirrored(),
-            -1.0,
-            &mut candidates,
-        );
+        for sign in [1.0, -1.0] {
+            let (pr, b) = oriented(&problem, &bounds, sign);
+            solve_oriented(&pr, &b, sign, &mut candidates, false);
+        }
     }
     let brake_duration: f64 = brake.phases.iter().map(|p| p.duration).sum();
     let mut sorted = candidates;
@@ -280,12 +291,41 @@ pub(crate) fn solve_position(
 }
 
 /// All candidate families in the frame where the profile starts with `+j`.
-fn solve_oriented(problem: &Problem, bounds: &Bounds, sign: f64, out: &mut Candidates) {
-    cruise_family(problem, bounds, sign, out);
-    both_accelerations_family(problem, bounds, sign, out);
-    upper_acceleration_family(problem, bounds, sign, out);
-    lower_acceleration_family(problem, bounds, sign, out);
-    no_limit_family(problem, bounds, sign, out);
+/// The problem seen in the frame where the profile starts with `+j` (`sign` -1 mirrors it).
+fn oriented(problem: &Problem, bounds: &Bounds, sign: f64) -> (Problem, Bounds) {
+    if sign > 0.0 {
+        (*problem, *bounds)
+    } else {
+        (problem.mirrored(), bounds.mirrored())
+    }
+}
+
+type Family = fn(&Problem, &Bounds, f64, &mut Candidates);
+
+/// Tries every family; with `first_only`, stops at the first valid profile. Returns whether
+/// any was found.
+fn solve_oriented(
+    problem: &Problem,
+    bounds: &Bounds,
+    sign: f64,
+    out: &mut Candidates,
+    first_only: bool,
+) -> bool {
+    let before = out.len;
+    let families: [Family; 5] = [
+        cruise_family,
+        both_accelerations_family,
+        upper_acceleration_family,
+        lower_acceleration_family,
+        no_limit_family,
+    ];
+    for family in families {
+        family(problem, bounds, sign, out);
+        if first_only && out.len > before {
+            return true;
+        }
+    }
+    out.len > before
 }
 
 /// Velocity limit reached: up-pulse to `v_max`, cruise, down-pulse to the target.

@@ -136,7 +136,8 @@ fn bracket(c: &[f64], a: f64, b: f64, out: &mut Roots) {
     let n = c.len() - 1;
     for _ in 0..200 {
         let f = eval(c, x);
-        if f == 0.0 {
+        // Below the rounding noise of the evaluation the sign means nothing: done.
+        if f.abs() <= 4.0 * f64::EPSILON * magnitude(c, x) {
             break;
         }
         if f < 0.0 {
