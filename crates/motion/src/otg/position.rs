@@ -23,7 +23,7 @@
 use super::brake::{Brake, position_brake};
 use super::check::{Bounds, Problem, check};
 use super::limits::{Which, check_target};
-use super::profile::{Phase, Profile, integrate};
+use super::profile::{Phase, Profile, travel};
 use super::roots::real_roots_in;
 use super::{Limits, OtgError, State};
 
@@ -120,11 +120,7 @@ impl Step1 {
 
     /// State after the brake pre-trajectory.
     pub(crate) fn after_brake(&self) -> State {
-        let (mut p, mut v, mut a) = (self.start.p, self.start.v, self.start.a);
-        for phase in &self.brake.phases {
-            (p, v, a) = integrate(p, v, a, phase.jerk, phase.duration);
-        }
-        State::new(p, v, a)
+        travel(self.start, &self.brake.phases)
     }
 
     pub(crate) fn extremal(&self) -> &[Candidate] {
@@ -202,14 +198,11 @@ pub(crate) fn solve_position(
 ) -> Result<Step1, OtgError> {
     validate(start, target, limits)?;
     let brake = position_brake(start.v, start.a, limits);
-    let (mut p, mut v, mut a) = (start.p, start.v, start.a);
-    for phase in &brake.phases {
-        (p, v, a) = integrate(p, v, a, phase.jerk, phase.duration);
-    }
+    let after = travel(start, &brake.phases);
     let problem = Problem {
-        v0: v,
-        a0: a,
-        pd: target.p - p,
+        v0: after.v,
+        a0: after.a,
+        pd: target.p - after.p,
         vf: target.v,
         af: target.a,
     };
@@ -358,18 +351,16 @@ fn cruise_family(pr: &Problem, b: &Bounds, sign: f64, out: &mut Candidates) {
         hold1,
         (pr.af - trough) / j,
     ];
-    let mut p = 0.0;
-    let (mut v, mut a) = (pr.v0, pr.a0);
-    for (i, ti) in t.iter().enumerate().take(3) {
-        (p, v, a) = integrate(p, v, a, UP_DOWN_DOWN_UP[i] * j, *ti);
-    }
-    let d_rise = p;
-    let (mut p, mut v, mut a) = (0.0, v_max, 0.0);
-    for (i, ti) in t.iter().enumerate().skip(4) {
-        (p, v, a) = integrate(p, v, a, UP_DOWN_DOWN_UP[i] * j, *ti);
-    }
-    let _ = (v, a);
-    t[3] = (pr.pd - d_rise - p) / v_max;
+    let phase = |i: usize| Phase {
+        duration: t[i],
+        jerk: UP_DOWN_DOWN_UP[i] * j,
+    };
+    let rise = travel(
+        State::new(0.0, pr.v0, pr.a0),
+        &[phase(0), phase(1), phase(2)],
+    );
+    let fall = travel(State::new(0.0, v_max, 0.0), &[phase(4), phase(5), phase(6)]);
+    t[3] = (pr.pd - rise.p - fall.p) / v_max;
     out.try_push(pr, b, sign, t);
 }
 

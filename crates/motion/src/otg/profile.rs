@@ -241,6 +241,15 @@ impl Profile {
     }
 }
 
+/// Moves a state on through a list of phases.
+pub(crate) fn travel(state: State, phases: &[Phase]) -> State {
+    let (mut p, mut v, mut a) = (state.p, state.v, state.a);
+    for phase in phases {
+        (p, v, a) = integrate(p, v, a, phase.jerk, phase.duration);
+    }
+    State { p, v, a }
+}
+
 /// Moves a state on by `t` under constant jerk `j`.
 #[inline]
 pub(crate) fn integrate(p: f64, v: f64, a: f64, j: f64, t: f64) -> (f64, f64, f64) {

@@ -17,7 +17,7 @@
 
 use super::check::{Bounds, Problem, check};
 use super::position::{Step1, solve_position};
-use super::profile::{Phase, Profile, Sample, integrate};
+use super::profile::{Phase, Profile, Sample, travel};
 use super::velocity::velocity_change;
 use super::{Limits, OtgError, State};
 
@@ -128,17 +128,12 @@ fn two_pulses(
         h2,
         (p2 - af) / j,
     ];
-    let mut phases = [Phase::default(); 7];
-    let (mut p, mut v, mut a) = (0.0, v0, a0);
-    for (i, phase) in phases.iter_mut().enumerate() {
-        *phase = Phase {
-            duration: t[i],
-            jerk: UP_DOWN_UP_DOWN[i] * j,
-        };
-        (p, v, a) = integrate(p, v, a, phase.jerk, phase.duration);
-    }
-    let _ = (v, a);
-    Some((phases, p - pd))
+    let phases: [Phase; 7] = std::array::from_fn(|i| Phase {
+        duration: t[i],
+        jerk: UP_DOWN_UP_DOWN[i] * j,
+    });
+    let end = travel(State::new(0.0, v0, a0), &phases);
+    Some((phases, end.p - pd))
 }
 
 /// Profiles of two same-direction acceleration pulses (up-down-up-down and its mirror
@@ -236,7 +231,7 @@ fn bounds_of(limits: &Limits) -> Bounds {
 }
 
 #[derive(Clone, Copy, Default)]
-struct Sample1 {
+struct CruiseSample {
     vc: f64,
     cruise: f64,
     residual: f64,
@@ -249,7 +244,7 @@ fn cruise_through(
     limits: &Limits,
     duration: f64,
     vc: f64,
-) -> Option<([Phase; 7], Sample1)> {
+) -> Option<([Phase; 7], CruiseSample)> {
     let (a_max, a_min, j) = (
         limits.max_acceleration,
         limits.min_acceleration,
@@ -265,16 +260,11 @@ fn cruise_through(
         jerk: 0.0,
     };
     phases[4..].copy_from_slice(&down.phases);
-    let (mut p, mut v, mut a) = (after.p, after.v, after.a);
-    for phase in &phases {
-        (p, v, a) = integrate(p, v, a, phase.jerk, phase.duration);
-    }
-    let _ = (v, a);
     // A negative cruise is not a profile; its residual still guides the search.
-    let residual = p + vc * cruise.min(0.0) - target.p;
+    let residual = travel(after, &phases).p + vc * cruise.min(0.0) - target.p;
     Some((
         phases,
-        Sample1 {
+        CruiseSample {
             vc,
             cruise,
             residual,
@@ -292,9 +282,9 @@ fn cruise_profile(step: &Step1, limits: &Limits, duration: f64) -> Option<[Phase
     let (lo, hi) = (limits.min_velocity, limits.max_velocity);
     // Samples over the cruise velocity range, with the edges of the region where the cruise
     // time is not negative refined in between.
-    let mut samples = [Sample1::default(); 3 * GRID];
+    let mut samples = [CruiseSample::default(); 3 * GRID];
     let mut n = 0;
-    let mut previous: Option<Sample1> = None;
+    let mut previous: Option<CruiseSample> = None;
     // A uniform grid plus the velocities where the profile is shortest (the start and end
     // velocities reached by ramping the acceleration to zero): a short duration leaves a
     // narrow band of cruise velocities around them that a coarse grid would miss.
@@ -327,7 +317,7 @@ fn cruise_profile(step: &Step1, limits: &Limits, duration: f64) -> Option<[Phase
                 }
                 let edge = if a_valid { a } else { b };
                 let (_, e) = eval(edge)?;
-                samples[n] = Sample1 {
+                samples[n] = CruiseSample {
                     cruise: e.cruise.max(0.0),
                     ..e
                 };

@@ -5,7 +5,7 @@
 use super::brake::velocity_brake_phase;
 use super::check::{Bounds, Problem, check};
 use super::limits::{Which, check_target};
-use super::profile::{Phase, Profile, integrate};
+use super::profile::{Phase, Profile, travel};
 use super::{Limits, OtgError, State};
 
 /// A time-optimal change of velocity: a jerk ramp, a hold, a ramp with the opposite jerk.
@@ -115,10 +115,8 @@ pub fn velocity_profile(
     State::new(0.0, vf, af).check_finite(Which::Target)?;
     check_target(vf, af, limits)?;
     let brake = velocity_brake_phase(start.a, limits);
-    let (mut v, mut a) = (start.v, start.a);
-    for ph in &brake.phases {
-        (_, v, a) = integrate(0.0, v, a, ph.jerk, ph.duration);
-    }
+    let after = travel(start, &brake.phases);
+    let (v, mut a) = (after.v, after.a);
     if let Some(ph) = brake.phases.first().filter(|ph| ph.duration > 0.0) {
         // Land exactly on the limit the brake ramp aims at.
         a = if ph.jerk < 0.0 {
