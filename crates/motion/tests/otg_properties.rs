@@ -8,7 +8,7 @@ use rtcnc_motion::otg::{Limits, Profile, State, position_profile, synchronize, v
 const SLACK: f64 = 1.0 + 1e-9;
 
 fn cases() -> u32 {
-    if cfg!(debug_assertions) { 200 } else { 5000 }
+    if cfg!(debug_assertions) { 200 } else { 20_000 }
 }
 
 /// Log-uniform limits over several decades, optionally asymmetric.

@@ -305,12 +305,13 @@ fn solve_oriented(
     first_only: bool,
 ) -> bool {
     let before = out.len;
+    // Cheapest first: closed form, quadratic, then the quartics.
     let families: [Family; 5] = [
         cruise_family,
         both_accelerations_family,
+        no_limit_family,
         upper_acceleration_family,
         lower_acceleration_family,
-        no_limit_family,
     ];
     for family in families {
         family(problem, bounds, sign, out);

@@ -117,6 +117,18 @@ pub(crate) fn real_roots_in(c: &[f64], lo: f64, hi: f64) -> Roots {
     }
 }
 
+/// Value and derivative in one Horner pass.
+#[inline]
+fn eval_with_derivative(c: &[f64], x: f64) -> (f64, f64) {
+    let mut p = 0.0;
+    let mut dp = 0.0;
+    for &ci in c {
+        dp = dp * x + p;
+        p = p * x + ci;
+    }
+    (p, dp)
+}
+
 /// Solves a monotone bracket `[a, b]` if the sign changes over it.
 fn bracket(c: &[f64], a: f64, b: f64, out: &mut Roots) {
     let (fa, fb) = (eval(c, a), eval(c, b));
@@ -131,13 +143,19 @@ fn bracket(c: &[f64], a: f64, b: f64, out: &mut Roots) {
     if fa.signum() == fb.signum() {
         return;
     }
+    // Below the rounding noise at x the sign of the evaluation means nothing: the root is as
+    // good as the polynomial allows. The term magnitudes grow with |x|, so the ends give a
+    // cheap first bound before the exact one is computed.
+    let noise = 4.0 * f64::EPSILON * magnitude(c, a).max(magnitude(c, b));
     let (mut lo, mut hi) = if fa < 0.0 { (a, b) } else { (b, a) };
-    let mut x = 0.5 * (a + b);
-    let n = c.len() - 1;
-    for _ in 0..200 {
-        let f = eval(c, x);
-        // Below the rounding noise of the evaluation the sign means nothing: done.
-        if f.abs() <= 4.0 * f64::EPSILON * magnitude(c, x) {
+    // In a monotone bracket the secant point is a good start for Newton.
+    let mut x = a - fa * (b - a) / (fb - fa);
+    if !(x > a.min(b) && x < a.max(b)) {
+        x = 0.5 * (a + b);
+    }
+    for _ in 0..100 {
+        let (f, df) = eval_with_derivative(c, x);
+        if f.abs() <= noise && f.abs() <= 4.0 * f64::EPSILON * magnitude(c, x) {
             break;
         }
         if f < 0.0 {
@@ -145,19 +163,16 @@ fn bracket(c: &[f64], a: f64, b: f64, out: &mut Roots) {
         } else {
             hi = x;
         }
-        let df = c
-            .iter()
-            .take(n)
-            .enumerate()
-            .fold(0.0, |acc, (i, ci)| acc * x + ci * (n - i) as f64);
+        if (hi - lo).abs() <= 2.0 * f64::EPSILON * lo.abs().max(hi.abs()) {
+            break;
+        }
         let newton = x - f / df;
-        let inside = (newton - lo) * (newton - hi) < 0.0;
-        let next = if df != 0.0 && inside {
+        let next = if df != 0.0 && (newton - lo) * (newton - hi) < 0.0 {
             newton
         } else {
             0.5 * (lo + hi)
         };
-        if (next - x).abs() <= 4.0 * f64::EPSILON * x.abs().max(f64::MIN_POSITIVE) {
+        if (next - x).abs() <= 2.0 * f64::EPSILON * x.abs() {
             x = next;
             break;
         }
