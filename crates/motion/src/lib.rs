@@ -1,4 +1,6 @@
 //! rtcnc motion library: look-ahead path planning, jerk-limited path speed and interpolation.
+//! [`otg`] holds the time-optimal jerk-limited state-to-state trajectory generator (jog,
+//! homing, independent axes).
 //!
 //! Feed [`Planner::push`] with [`Move`]s (mm and seconds), call [`Planner::next`] once per
 //! servo period to get joint set-points. No threads, no allocation in [`Planner::next`].
@@ -9,6 +11,7 @@
 #![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
 
 mod axes;
+pub mod otg;
 mod builder;
 mod error;
 mod geometry;
