@@ -963,3 +963,28 @@ fn junction(a: &mut Piece, b: &mut Piece, lim: &Lim, period: f64) {
     a.smp[ea].v_curve = a.smp[ea].v_curve.min(vj);
     b.smp[0].v_curve = b.smp[0].v_curve.min(vj);
 }
+
+impl<K: Kinematics> Planner<K> {
+    /// Places the planner at rest at axis position `position`, dropping every queued move and
+    /// any hold: for a kernel whose machine was moved by other means (jog, homing, a stop
+    /// outside the path). Allocation-free. Refuses a non-finite position.
+    pub fn reset_at(&mut self, position: AxisVec) -> Result<(), MotionError> {
+        if !position.iter().all(|x| x.is_finite()) {
+            return Err(MotionError::InvalidLimit {
+                what: "start position".into(),
+                value: f64::NAN,
+            });
+        }
+        self.q.clear();
+        self.builder.clear(position);
+        self.hold = None;
+        self.dwell_left = None;
+        self.s = 0.0;
+        self.v = 0.0;
+        self.a = 0.0;
+        self.stop_cum = 0.0;
+        self.stop_idx = 0;
+        self.hist = [position; 3];
+        Ok(())
+    }
+}

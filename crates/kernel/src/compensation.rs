@@ -1,0 +1,169 @@
+//! The tool-compensation task: applies the tool length offset, the work offsets (G54..,
+//! G92, XY rotation) and the length units to the interpreter's blocks, and turns them into
+//! the planner's moves in machine millimetres and seconds. (Cutter radius compensation
+//! runs inside the interpreter task, on the canonical stream it works on.) Event task,
+//! woken by blocks from the interpreter; allocation-free.
+
+use rtcnc_motion::{AXES, Feed, Move, MoveKind, PathMode};
+use rtcnc_rt::{Context, Next};
+
+use crate::messages::{Aux, MachineBlock, ProgramBlock};
+use crate::shared::{Shared, Tagged};
+
+pub(crate) struct CompensationStage {
+    shared: Shared,
+    mm_per_unit: f64,
+    work: [f64; AXES],
+    g92: [f64; AXES],
+    rotation_deg: f64,
+    tool: [f64; AXES],
+    feed_per_minute: f64,
+    per_revolution: bool,
+    spindle_rpm: f64,
+    mode: PathMode,
+    pending: Option<Tagged<MachineBlock>>,
+}
+
+impl CompensationStage {
+    pub(crate) fn new(shared: Shared) -> Self {
+        CompensationStage {
+            shared,
+            mm_per_unit: 1.0,
+            work: [0.0; AXES],
+            g92: [0.0; AXES],
+            rotation_deg: 0.0,
+            tool: [0.0; AXES],
+            feed_per_minute: 0.0,
+            per_revolution: false,
+            spindle_rpm: 0.0,
+            mode: PathMode::ExactPath,
+            pending: None,
+        }
+    }
+
+    pub(crate) fn body(&mut self, _ctx: &mut Context<'_>) -> Next {
+        loop {
+            if let Some(out) = self.pending.take() {
+                if let Err(rejected) = self.shared.machine_blocks.try_put(out) {
+                    self.pending = Some(rejected.value);
+                    return Next::WaitFor {
+                        trigger: self.shared.machine_blocks.space_trigger(),
+                        timeout: None,
+                    };
+                }
+            }
+            let Some(Tagged { epoch, block }) = self.shared.program_blocks.try_get() else {
+                return Next::Done;
+            };
+            if let Some(out) = self.convert(block) {
+                self.pending = Some(Tagged { epoch, block: out });
+            }
+        }
+    }
+
+    /// Machine position (mm) of a program position.
+    fn to_machine(&self, p: &[f64; AXES]) -> [f64; AXES] {
+        let mut m = [0.0; AXES];
+        for i in 0..AXES {
+            m[i] = p[i] + self.g92[i];
+        }
+        if self.rotation_deg != 0.0 {
+            let (s, c) = self.rotation_deg.to_radians().sin_cos();
+            let (x, y) = (m[0], m[1]);
+            m[0] = c * x - s * y;
+            m[1] = s * x + c * y;
+        }
+        for i in 0..AXES {
+            let linear = !(3..6).contains(&i);
+            let scale = if linear { self.mm_per_unit } else { 1.0 };
+            m[i] = (m[i] + self.work[i] + self.tool[i]) * scale;
+        }
+        m
+    }
+
+    fn feed(&self) -> Feed {
+        let mm = self.feed_per_minute * self.mm_per_unit;
+        if self.per_revolution {
+            Feed::PerRevolution {
+                mm_per_rev: mm,
+                spindle_rev_per_s: self.spindle_rpm.abs() / 60.0,
+            }
+        } else {
+            Feed::UnitsPerSecond(mm / 60.0)
+        }
+    }
+
+    fn convert(&mut self, block: ProgramBlock) -> Option<MachineBlock> {
+        match block {
+            ProgramBlock::Units(mm) => self.mm_per_unit = mm,
+            ProgramBlock::WorkOffset(o) => self.work = o,
+            ProgramBlock::G92Offset(o) => self.g92 = o,
+            ProgramBlock::Rotation(r) => self.rotation_deg = r,
+            ProgramBlock::ToolOffset(o) => self.tool = o,
+            ProgramBlock::FeedRate {
+                rate,
+                per_revolution,
+            } => {
+                self.feed_per_minute = rate;
+                self.per_revolution = per_revolution;
+            }
+            ProgramBlock::PathMode(m) => self.mode = m,
+            ProgramBlock::Line { line, end, rapid } => {
+                let end = self.to_machine(&end);
+                return Some(MachineBlock::Motion(Move {
+                    kind: MoveKind::Line { end, rapid },
+                    feed: if rapid {
+                        Feed::UnitsPerSecond(f64::INFINITY)
+                    } else {
+                        self.feed()
+                    },
+                    mode: self.mode,
+                    line,
+                }));
+            }
+            ProgramBlock::Arc {
+                line,
+                end,
+                centre,
+                normal,
+                turns,
+            } => {
+                let end_m = self.to_machine(&end);
+                let mut c = [0.0; AXES];
+                c[..3].copy_from_slice(&centre);
+                let c = self.to_machine(&c);
+                let mut n = normal;
+                if self.rotation_deg != 0.0 {
+                    let (s, co) = self.rotation_deg.to_radians().sin_cos();
+                    n = [co * normal[0] - s * normal[1], s * normal[0] + co * normal[1], normal[2]];
+                }
+                return Some(MachineBlock::Motion(Move {
+                    kind: MoveKind::Arc {
+                        end: end_m,
+                        centre: [c[0], c[1], c[2]],
+                        normal: n,
+                        turns,
+                    },
+                    feed: self.feed(),
+                    mode: self.mode,
+                    line,
+                }));
+            }
+            ProgramBlock::Dwell { line, seconds } => {
+                return Some(MachineBlock::Motion(Move::dwell(seconds, line)));
+            }
+            ProgramBlock::Aux { line, aux } => {
+                match aux {
+                    Aux::SpindleOn { rpm } | Aux::SpindleSpeed { rpm } => self.spindle_rpm = rpm,
+                    Aux::SpindleOff => self.spindle_rpm = 0.0,
+                    _ => {}
+                }
+                return Some(MachineBlock::Aux { line, aux });
+            }
+            ProgramBlock::End { line } => return Some(MachineBlock::End { line }),
+            ProgramBlock::Error { line, code } => return Some(MachineBlock::Error { line, code }),
+            ProgramBlock::MdiDone => return Some(MachineBlock::MdiDone),
+        }
+        None
+    }
+}

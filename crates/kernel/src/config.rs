@@ -1,0 +1,869 @@
+//! The machine configuration: one TOML file (schema in `docs/configuration.md`).
+//!
+//! [`MachineConfig::load`] reads, parses (unknown keys are refused) and validates it; a
+//! refusal names the key and the reason, e.g. `axes.x.max_velocity: must be greater than
+//! zero`. Paths inside the file are relative to the file's folder.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use rtcnc_fieldbus::sim::{
+    IoConfig, SimulatedJointConfig, SimulatedMachineConfig, SpindleConfig, ToolChangerConfig,
+};
+use rtcnc_motion::Axis;
+use rtcnc_servo::ServoLoopConfig;
+use serde::Deserialize;
+
+/// Most joints a machine may have (fixed-size messages carry this many).
+pub const MAX_JOINTS: usize = 16;
+
+/// A configuration was refused.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// The file could not be read.
+    #[error("{path}: {source}")]
+    Read {
+        /// The file.
+        path: String,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// TOML syntax, an unknown key, or a value of the wrong type (the message names the key
+    /// and the line).
+    #[error("{path}: {message}")]
+    Parse {
+        /// The file.
+        path: String,
+        /// The parser's message.
+        message: String,
+    },
+    /// A value is out of range or inconsistent.
+    #[error("{key}: {reason}")]
+    Invalid {
+        /// Dotted key, e.g. `axes.x.max_velocity`.
+        key: String,
+        /// Why.
+        reason: String,
+    },
+}
+
+impl ConfigError {
+    /// Stable code.
+    pub fn code(&self) -> &'static str {
+        match self {
+            ConfigError::Read { .. } => "config.read",
+            ConfigError::Parse { .. } => "config.parse",
+            ConfigError::Invalid { .. } => "config.invalid",
+        }
+    }
+
+    fn invalid(key: impl Into<String>, reason: impl Into<String>) -> Self {
+        ConfigError::Invalid {
+            key: key.into(),
+            reason: reason.into(),
+        }
+    }
+}
+
+/// Milling or turning machine.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum MachineKind {
+    /// A mill, router or gantry.
+    #[default]
+    Mill,
+    /// A lathe (X and Z).
+    Lathe,
+}
+
+/// Length units a program starts in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum LengthUnits {
+    /// Millimetres (G21).
+    #[default]
+    Mm,
+    /// Inches (G20).
+    Inch,
+}
+
+/// `[machine]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MachineSection {
+    /// Shown to the operator.
+    pub name: String,
+    /// Mill or lathe.
+    #[serde(default)]
+    pub kind: MachineKind,
+    /// Lathe: X words are diameters (G7).
+    #[serde(default)]
+    pub diameter_mode: bool,
+    /// Units a program starts in.
+    #[serde(default)]
+    pub units: LengthUnits,
+}
+
+/// `[axes.<letter>]`: one axis of the program (mm, or degrees for A B C).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AxisConfig {
+    /// Names of the joints this axis drives (a gantry axis lists several).
+    pub joints: Vec<String>,
+    /// Lower soft limit (machine coordinates).
+    pub min_position: f64,
+    /// Upper soft limit.
+    pub max_position: f64,
+    /// Units/s.
+    pub max_velocity: f64,
+    /// Units/s².
+    pub max_acceleration: f64,
+    /// Units/s³.
+    pub max_jerk: f64,
+    /// Deceleration of a quick stop (e-stop, hard limit); default `max_acceleration`.
+    #[serde(default)]
+    pub quick_stop_acceleration: Option<f64>,
+    /// Jerk of a quick stop; default `max_jerk`.
+    #[serde(default)]
+    pub quick_stop_jerk: Option<f64>,
+    /// Jog speed (units/s); default a tenth of `max_velocity`.
+    #[serde(default)]
+    pub jog_velocity: Option<f64>,
+}
+
+/// A joint's homing sequence (LinuxCNC's order: search the switch, back off, latch on the
+/// index, move to the home position).
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HomingConfig {
+    /// Joints with a lower sequence number home first; joints of one gantry axis share one.
+    #[serde(default)]
+    pub sequence: u8,
+    /// Velocity of the switch search (its sign is the direction towards the switch).
+    pub search_velocity: f64,
+    /// Speed of the back-off and of the index search (positive).
+    pub latch_velocity: f64,
+    /// Latch on the encoder index after backing off the switch (else on the switch edge).
+    #[serde(default = "yes")]
+    pub use_index: bool,
+    /// Machine position the latched point gets.
+    #[serde(default)]
+    pub latch_position: f64,
+    /// Where the joint goes after homing (machine position).
+    #[serde(default)]
+    pub home_position: f64,
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// `[[joints]]`: one drive.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointConfig {
+    /// Name (faults name it), e.g. `X0`.
+    pub name: String,
+    /// Position loop (rtcnc-servo): `loop = "pid"` or `"csp"`.
+    pub servo: ServoLoopConfig,
+    /// The simulated drive (rtcnc-fieldbus) when `fieldbus.kind = "sim"`.
+    pub sim: SimulatedJointConfig,
+    /// Homing sequence; absent: the joint is homed where it stands.
+    #[serde(default)]
+    pub homing: Option<HomingConfig>,
+    /// Limits of a joint no axis drives (an independent joint); required for such a joint.
+    #[serde(default)]
+    pub limits: Option<JointLimitsConfig>,
+}
+
+/// Limits of an independent joint.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointLimitsConfig {
+    /// Lower position limit.
+    pub min_position: f64,
+    /// Upper position limit.
+    pub max_position: f64,
+    /// Units/s.
+    pub max_velocity: f64,
+    /// Units/s².
+    pub max_acceleration: f64,
+    /// Units/s³.
+    pub max_jerk: f64,
+}
+
+/// One thread of the task table.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ThreadConfig {
+    /// Period, e.g. `"1ms"`, `"100us"`.
+    pub period: String,
+    /// Executive priority 0..=127, higher first.
+    pub priority: i32,
+    /// Runs per activation.
+    #[serde(default = "one")]
+    pub runs: u32,
+}
+
+/// An event-triggered task.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EventTaskConfig {
+    /// Executive priority 0..=127.
+    pub priority: i32,
+}
+
+fn one() -> u32 {
+    1
+}
+
+/// `[tasks]`: periods, priorities and runs per activation. The defaults are the RTX64 table
+/// of the seeds at a 1 ms servo period, with the PLC above interpolation as the RT-Linux
+/// table puts it.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TasksConfig {
+    /// Position control and drive I/O; its period is the servo period.
+    pub fieldbus: ThreadConfig,
+    /// Machine logic (PLC scan).
+    pub machine_logic: ThreadConfig,
+    /// Interpolation: one set-point per run; its period must equal the servo period.
+    pub interpolation: ThreadConfig,
+    /// Look-ahead: feeds the planner's window.
+    pub look_ahead: ThreadConfig,
+    /// Operator command parsing (urgent channel first).
+    pub command_parsing: ThreadConfig,
+    /// Status feedback snapshot.
+    pub status_feedback: ThreadConfig,
+    /// Tool compensation (woken by blocks from the interpreter).
+    pub tool_compensation: EventTaskConfig,
+    /// Interpreter (woken by a program start, runs while there is room ahead).
+    pub interpreter: EventTaskConfig,
+}
+
+impl Default for TasksConfig {
+    fn default() -> Self {
+        let t = |period: &str, priority, runs| ThreadConfig {
+            period: period.into(),
+            priority,
+            runs,
+        };
+        TasksConfig {
+            fieldbus: t("1ms", 126, 1),
+            machine_logic: t("1ms", 125, 1),
+            interpolation: t("1ms", 124, 1),
+            look_ahead: t("1ms", 120, 4),
+            command_parsing: t("1ms", 117, 4),
+            status_feedback: t("1ms", 110, 1),
+            tool_compensation: EventTaskConfig { priority: 119 },
+            interpreter: EventTaskConfig { priority: 20 },
+        }
+    }
+}
+
+/// `[fieldbus]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FieldbusConfig {
+    /// `sim` (the in-process simulated machine) or `ethercat` (refused: not available yet).
+    pub kind: FieldbusKind,
+    /// Simulated machine: longest integration step (s).
+    #[serde(default)]
+    pub substep_s: Option<f64>,
+    /// Simulated machine: computation + DAC delay of velocity and torque commands (s).
+    #[serde(default)]
+    pub command_delay_s: Option<f64>,
+    /// Simulated machine: the e-stop input removes drive power.
+    #[serde(default)]
+    pub estop_removes_power: Option<bool>,
+    /// Simulated machine: communication watchdog of the drives (s).
+    #[serde(default)]
+    pub communication_watchdog_s: Option<f64>,
+}
+
+/// Which fieldbus back-end.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FieldbusKind {
+    /// Simulated machine in the process.
+    Sim,
+    /// EtherCAT with CiA 402 drives.
+    Ethercat,
+}
+
+/// `[spindle]`.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpindleSection {
+    /// Highest speed (rpm).
+    pub max_speed_rpm: f64,
+    /// Simulated spindle: ramp (rpm/s).
+    #[serde(default = "spindle_ramp")]
+    pub acceleration_rpm_per_s: f64,
+    /// At-speed window, fraction of the command.
+    #[serde(default = "spindle_tolerance")]
+    pub at_speed_tolerance: f64,
+}
+
+fn spindle_ramp() -> f64 {
+    SpindleConfig::default().acceleration_rpm_per_s
+}
+fn spindle_tolerance() -> f64 {
+    SpindleConfig::default().at_speed_tolerance
+}
+
+/// `[tool_changer]`.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ToolChangerSection {
+    /// Time one change takes (s, simulated changer).
+    pub change_time_s: f64,
+    /// Tool in the spindle at power-up.
+    #[serde(default)]
+    pub initial_tool: u32,
+}
+
+/// `[io]`: process-image sizes and the map from program I/O numbers to image points.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IoSection {
+    /// Digital inputs in the image.
+    #[serde(default = "sixteen")]
+    pub digital_inputs: usize,
+    /// Digital outputs in the image.
+    #[serde(default = "sixteen")]
+    pub digital_outputs: usize,
+    /// Analogue inputs.
+    #[serde(default = "four")]
+    pub analog_inputs: usize,
+    /// Analogue outputs.
+    #[serde(default = "four")]
+    pub analog_outputs: usize,
+    /// M62..M65 `P n` drive digital output `program_outputs[n]`.
+    #[serde(default)]
+    pub program_outputs: Vec<usize>,
+    /// M66 `P n` reads digital input `program_inputs[n]`.
+    #[serde(default)]
+    pub program_inputs: Vec<usize>,
+}
+
+fn sixteen() -> usize {
+    16
+}
+fn four() -> usize {
+    4
+}
+
+impl Default for IoSection {
+    fn default() -> Self {
+        IoSection {
+            digital_inputs: 16,
+            digital_outputs: 16,
+            analog_inputs: 4,
+            analog_outputs: 4,
+            program_outputs: Vec::new(),
+            program_inputs: Vec::new(),
+        }
+    }
+}
+
+/// `[plc]`: the machine logic program and its signal map (rtcnc-plc's `PlcConfig`).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlcSection {
+    /// Structured Text file, relative to the configuration file.
+    pub program: PathBuf,
+    /// Machine-interface signal name → PLC variable.
+    #[serde(default)]
+    pub signals: BTreeMap<String, String>,
+    /// PLC variable → value on a PLC fault.
+    #[serde(default)]
+    pub safe_values: BTreeMap<String, String>,
+}
+
+/// What a deadline miss of a real-time task triggers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum MissReactionConfig {
+    /// Record and count.
+    Count,
+    /// Record and print a warning.
+    #[default]
+    Warn,
+    /// Feed hold.
+    FeedHold,
+    /// Emergency stop.
+    Estop,
+}
+
+/// `[safety]`.
+#[derive(Debug, Clone, Copy, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct SafetySection {
+    /// Reaction to a deadline miss.
+    #[serde(default)]
+    pub deadline_miss: MissReactionConfig,
+}
+
+/// `[files]`: persistent state, relative to the configuration file.
+#[derive(Debug, Clone, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct FilesSection {
+    /// LinuxCNC-style `.var` parameter file (work offsets, #5161..).
+    #[serde(default)]
+    pub parameters: Option<PathBuf>,
+    /// LinuxCNC-style `.tbl` tool table.
+    #[serde(default)]
+    pub tool_table: Option<PathBuf>,
+}
+
+/// `[handwheel]`.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HandwheelSection {
+    /// Travel per handwheel count at increment ×1 (units).
+    pub units_per_count: f64,
+}
+
+impl Default for HandwheelSection {
+    fn default() -> Self {
+        HandwheelSection {
+            units_per_count: 0.001,
+        }
+    }
+}
+
+/// The whole machine file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MachineConfig {
+    /// `[machine]`.
+    pub machine: MachineSection,
+    /// `[axes.<letter>]`, letters x y z a b c u v w.
+    pub axes: BTreeMap<String, AxisConfig>,
+    /// `[[joints]]`.
+    pub joints: Vec<JointConfig>,
+    /// `[tasks]`.
+    #[serde(default)]
+    pub tasks: TasksConfig,
+    /// `[fieldbus]`.
+    pub fieldbus: FieldbusConfig,
+    /// `[spindle]`; absent: no spindle (S words are refused at the PLC hand-shake).
+    #[serde(default)]
+    pub spindle: Option<SpindleSection>,
+    /// `[tool_changer]`; absent: a manual change that completes at once.
+    #[serde(default)]
+    pub tool_changer: Option<ToolChangerSection>,
+    /// `[io]`.
+    #[serde(default)]
+    pub io: IoSection,
+    /// `[plc]`; absent: the kernel's direct logic (spindle, coolant, tool change passed
+    /// straight to the machine, M100..M199 acknowledged at once).
+    #[serde(default)]
+    pub plc: Option<PlcSection>,
+    /// `[safety]`.
+    #[serde(default)]
+    pub safety: SafetySection,
+    /// `[files]`.
+    #[serde(default)]
+    pub files: FilesSection,
+    /// `[handwheel]`.
+    #[serde(default)]
+    pub handwheel: HandwheelSection,
+    /// Folder of the file (paths are relative to it); set by [`MachineConfig::load`].
+    #[serde(skip)]
+    pub base_dir: PathBuf,
+}
+
+/// One axis after validation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AxisPlan {
+    /// Which axis.
+    pub axis: Axis,
+    /// Joint indices it drives.
+    pub joints: Vec<usize>,
+}
+
+impl MachineConfig {
+    /// Reads, parses and validates a machine file.
+    pub fn load(path: &Path) -> Result<MachineConfig, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path.display().to_string(),
+            source,
+        })?;
+        let mut config = Self::parse(&text, &path.display().to_string())?;
+        config.base_dir = path
+            .parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_else(|| PathBuf::from("."));
+        Ok(config)
+    }
+
+    /// Parses and validates TOML text; `name` appears in parse errors.
+    pub fn parse(text: &str, name: &str) -> Result<MachineConfig, ConfigError> {
+        let config: MachineConfig = toml::from_str(text).map_err(|e| ConfigError::Parse {
+            path: name.to_string(),
+            message: e.to_string().trim_end().replace('\n', " "),
+        })?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// Checks every value; the error names the first refused key.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if self.joints.is_empty() {
+            return Err(ConfigError::invalid("joints", "at least one joint is needed"));
+        }
+        if self.joints.len() > MAX_JOINTS {
+            return Err(ConfigError::invalid(
+                "joints",
+                format!("at most {MAX_JOINTS} joints are supported"),
+            ));
+        }
+        if self.fieldbus.kind == FieldbusKind::Ethercat {
+            return Err(ConfigError::invalid(
+                "fieldbus.kind",
+                "\"ethercat\" is not available yet in this build; use \"sim\"",
+            ));
+        }
+        for (i, j) in self.joints.iter().enumerate() {
+            if j.name.is_empty() {
+                return Err(ConfigError::invalid(
+                    format!("joints[{i}].name"),
+                    "must not be empty",
+                ));
+            }
+            if self.joints[..i].iter().any(|o| o.name == j.name) {
+                return Err(ConfigError::invalid(
+                    format!("joints[{i}].name"),
+                    format!("duplicate joint name {:?}", j.name),
+                ));
+            }
+            j.servo
+                .validate()
+                .map_err(|e| ConfigError::invalid(format!("joints[{i}].servo.{}", e.field), e.reason))?;
+            if let Some(h) = &j.homing {
+                positive_finite(&format!("joints[{i}].homing.latch_velocity"), h.latch_velocity)?;
+                if !(h.search_velocity.is_finite() && h.search_velocity != 0.0) {
+                    return Err(ConfigError::invalid(
+                        format!("joints[{i}].homing.search_velocity"),
+                        "must be a finite non-zero number (its sign is the search direction)",
+                    ));
+                }
+                finite(&format!("joints[{i}].homing.latch_position"), h.latch_position)?;
+                finite(&format!("joints[{i}].homing.home_position"), h.home_position)?;
+            }
+        }
+        self.simulated_machine()?
+            .validate()
+            .map_err(|e| ConfigError::invalid(sim_key(&e.field), e.reason))?;
+        let mut driven = vec![None::<String>; self.joints.len()];
+        if self.axes.is_empty() {
+            return Err(ConfigError::invalid("axes", "at least one axis is needed"));
+        }
+        for (letter, a) in &self.axes {
+            let key = format!("axes.{letter}");
+            if axis_of(letter).is_none() {
+                return Err(ConfigError::invalid(
+                    key,
+                    "unknown axis letter (use x y z a b c u v w, lower case)",
+                ));
+            }
+            for (field, value) in [
+                ("max_velocity", a.max_velocity),
+                ("max_acceleration", a.max_acceleration),
+                ("max_jerk", a.max_jerk),
+            ] {
+                positive_finite(&format!("{key}.{field}"), value)?;
+            }
+            for (field, value) in [
+                ("quick_stop_acceleration", a.quick_stop_acceleration),
+                ("quick_stop_jerk", a.quick_stop_jerk),
+                ("jog_velocity", a.jog_velocity),
+            ] {
+                if let Some(v) = value {
+                    positive_finite(&format!("{key}.{field}"), v)?;
+                }
+            }
+            finite(&format!("{key}.min_position"), a.min_position)?;
+            finite(&format!("{key}.max_position"), a.max_position)?;
+            if a.min_position >= a.max_position {
+                return Err(ConfigError::invalid(
+                    format!("{key}.max_position"),
+                    "must be greater than min_position",
+                ));
+            }
+            if a.joints.is_empty() {
+                return Err(ConfigError::invalid(
+                    format!("{key}.joints"),
+                    "an axis drives at least one joint",
+                ));
+            }
+            for name in &a.joints {
+                let Some(index) = self.joints.iter().position(|j| &j.name == name) else {
+                    return Err(ConfigError::invalid(
+                        format!("{key}.joints"),
+                        format!("no joint named {name:?}"),
+                    ));
+                };
+                if let Some(other) = &driven[index] {
+                    return Err(ConfigError::invalid(
+                        format!("{key}.joints"),
+                        format!("joint {name:?} is already driven by axis {other}"),
+                    ));
+                }
+                driven[index] = Some(letter.clone());
+            }
+        }
+        // A joint no axis drives is an independent joint: it moves only by homing or an
+        // independent move (the seeds' gantry has three), and needs its own limits.
+        for (i, axis) in driven.iter().enumerate() {
+            let key = format!("joints[{i}].limits");
+            match (axis, &self.joints[i].limits) {
+                (None, None) => {
+                    return Err(ConfigError::invalid(
+                        key,
+                        "a joint that no axis drives needs its own limits",
+                    ));
+                }
+                (Some(a), Some(_)) => {
+                    return Err(ConfigError::invalid(
+                        key,
+                        format!("joint is driven by axis {a}, whose limits apply"),
+                    ));
+                }
+                (None, Some(l)) => {
+                    for (field, value) in [
+                        ("max_velocity", l.max_velocity),
+                        ("max_acceleration", l.max_acceleration),
+                        ("max_jerk", l.max_jerk),
+                    ] {
+                        positive_finite(&format!("{key}.{field}"), value)?;
+                    }
+                    if !(l.min_position.is_finite()
+                        && l.max_position.is_finite()
+                        && l.min_position < l.max_position)
+                    {
+                        return Err(ConfigError::invalid(
+                            format!("{key}.max_position"),
+                            "must be finite and greater than min_position",
+                        ));
+                    }
+                }
+                (Some(_), None) => {}
+            }
+        }
+        self.tasks_checked()?;
+        if let Some(s) = &self.spindle {
+            positive_finite("spindle.max_speed_rpm", s.max_speed_rpm)?;
+        }
+        if let Some(t) = &self.tool_changer {
+            if !(t.change_time_s.is_finite() && t.change_time_s >= 0.0) {
+                return Err(ConfigError::invalid(
+                    "tool_changer.change_time_s",
+                    "must be a finite number, not negative",
+                ));
+            }
+        }
+        for (list, size, key) in [
+            (&self.io.program_outputs, self.io.digital_outputs, "io.program_outputs"),
+            (&self.io.program_inputs, self.io.digital_inputs, "io.program_inputs"),
+        ] {
+            if let Some(bad) = list.iter().find(|&&i| i >= size) {
+                return Err(ConfigError::invalid(
+                    key,
+                    format!("point {bad} is outside the image of {size}"),
+                ));
+            }
+        }
+        positive_finite("handwheel.units_per_count", self.handwheel.units_per_count)?;
+        if self.machine.diameter_mode && self.machine.kind != MachineKind::Lathe {
+            return Err(ConfigError::invalid(
+                "machine.diameter_mode",
+                "only a lathe has a diameter mode",
+            ));
+        }
+        Ok(())
+    }
+
+    /// The servo period (the fieldbus thread's period).
+    pub fn servo_period(&self) -> Duration {
+        rtcnc_rt::parse_duration(&self.tasks.fieldbus.period).unwrap_or(Duration::from_millis(1))
+    }
+
+    /// Each thread with its parsed period, checked against the servo period.
+    pub fn tasks_checked(&self) -> Result<[(&'static str, Duration, &ThreadConfig); 6], ConfigError> {
+        let t = &self.tasks;
+        let mut out = [
+            ("fieldbus", Duration::ZERO, &t.fieldbus),
+            ("machine_logic", Duration::ZERO, &t.machine_logic),
+            ("interpolation", Duration::ZERO, &t.interpolation),
+            ("look_ahead", Duration::ZERO, &t.look_ahead),
+            ("command_parsing", Duration::ZERO, &t.command_parsing),
+            ("status_feedback", Duration::ZERO, &t.status_feedback),
+        ];
+        for (name, period, thread) in &mut out {
+            *period = rtcnc_rt::parse_duration(&thread.period)
+                .map_err(|e| ConfigError::invalid(format!("tasks.{name}.period"), e.to_string()))?;
+            if !rtcnc_rt::PRIORITY_RANGE.contains(&thread.priority) {
+                return Err(ConfigError::invalid(
+                    format!("tasks.{name}.priority"),
+                    "must be within 0..=127",
+                ));
+            }
+            if thread.runs == 0 {
+                return Err(ConfigError::invalid(
+                    format!("tasks.{name}.runs"),
+                    "must be at least 1",
+                ));
+            }
+        }
+        let servo = out[0].1;
+        if out[2].1 != servo || t.interpolation.runs != 1 {
+            return Err(ConfigError::invalid(
+                "tasks.interpolation.period",
+                "the interpolation gives one set-point per servo period: its period must equal tasks.fieldbus.period, with runs = 1",
+            ));
+        }
+        for (name, priority) in [
+            ("tool_compensation", t.tool_compensation.priority),
+            ("interpreter", t.interpreter.priority),
+        ] {
+            if !rtcnc_rt::PRIORITY_RANGE.contains(&priority) {
+                return Err(ConfigError::invalid(
+                    format!("tasks.{name}.priority"),
+                    "must be within 0..=127",
+                ));
+            }
+        }
+        Ok(out)
+    }
+
+    /// The axes in canonical order with their joint indices.
+    pub fn axis_plan(&self) -> Vec<AxisPlan> {
+        let mut plan: Vec<AxisPlan> = self
+            .axes
+            .iter()
+            .filter_map(|(letter, a)| {
+                Some(AxisPlan {
+                    axis: axis_of(letter)?,
+                    joints: a
+                        .joints
+                        .iter()
+                        .filter_map(|n| self.joints.iter().position(|j| &j.name == n))
+                        .collect(),
+                })
+            })
+            .collect();
+        plan.sort_by_key(|p| p.axis as usize);
+        plan
+    }
+
+    /// The axis a joint follows, if any (none: an independent joint).
+    pub fn joint_axis(&self, joint: usize) -> Option<Axis> {
+        self.axis_plan()
+            .into_iter()
+            .find(|p| p.joints.contains(&joint))
+            .map(|p| p.axis)
+    }
+
+    /// Limits of an axis by letter.
+    pub fn axis(&self, axis: Axis) -> Option<&AxisConfig> {
+        self.axes
+            .iter()
+            .find(|(l, _)| axis_of(l) == Some(axis))
+            .map(|(_, a)| a)
+    }
+
+    /// The simulated machine this file describes.
+    pub fn simulated_machine(&self) -> Result<SimulatedMachineConfig, ConfigError> {
+        let mut sim: SimulatedMachineConfig =
+            toml::from_str("joints = []").map_err(|e| ConfigError::invalid("fieldbus", e.to_string()))?;
+        if let Some(v) = self.fieldbus.substep_s {
+            sim.substep_s = v;
+        }
+        if let Some(v) = self.fieldbus.command_delay_s {
+            sim.command_delay_s = v;
+        }
+        if let Some(v) = self.fieldbus.estop_removes_power {
+            sim.estop_removes_power = v;
+        }
+        if let Some(v) = self.fieldbus.communication_watchdog_s {
+            sim.communication_watchdog_s = v;
+        }
+        sim.joints = self.joints.iter().map(|j| j.sim.clone()).collect();
+        if let Some(s) = &self.spindle {
+            sim.spindle = SpindleConfig {
+                max_speed_rpm: s.max_speed_rpm,
+                acceleration_rpm_per_s: s.acceleration_rpm_per_s,
+                at_speed_tolerance: s.at_speed_tolerance,
+            };
+        }
+        if let Some(t) = &self.tool_changer {
+            sim.tool_changer = ToolChangerConfig {
+                change_time_s: t.change_time_s,
+                initial_tool: t.initial_tool,
+            };
+        }
+        sim.io = IoConfig {
+            digital_inputs: self.io.digital_inputs,
+            digital_outputs: self.io.digital_outputs,
+            analog_inputs: self.io.analog_inputs,
+            analog_outputs: self.io.analog_outputs,
+        };
+        Ok(sim)
+    }
+
+    /// A path of the file resolved against the file's folder.
+    pub fn resolve(&self, path: &Path) -> PathBuf {
+        if path.is_absolute() {
+            path.to_path_buf()
+        } else {
+            self.base_dir.join(path)
+        }
+    }
+}
+
+/// The axis of a lower-case letter.
+pub fn axis_of(letter: &str) -> Option<Axis> {
+    let mut chars = letter.chars();
+    let c = chars.next()?;
+    if chars.next().is_some() || !c.is_ascii_lowercase() {
+        return None;
+    }
+    Axis::from_letter(c.to_ascii_uppercase())
+}
+
+/// The simulated machine's field names become keys of this file.
+fn sim_key(field: &str) -> String {
+    // "joints[2].motor.inertia" -> "joints[2].sim.motor.inertia"
+    if let Some(rest) = field.strip_prefix("joints[") {
+        if let Some(close) = rest.find(']') {
+            return format!("joints[{}].sim{}", &rest[..close], &rest[close + 1..]);
+        }
+    }
+    match field.split_once('.') {
+        Some(("spindle", f)) => format!("spindle.{f}"),
+        Some(("tool_changer", f)) => format!("tool_changer.{f}"),
+        Some(("io", f)) => format!("io.{f}"),
+        _ => format!("fieldbus.{field}"),
+    }
+}
+
+fn finite(key: &str, v: f64) -> Result<(), ConfigError> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(ConfigError::invalid(key, "must be a finite number"))
+    }
+}
+
+fn positive_finite(key: &str, v: f64) -> Result<(), ConfigError> {
+    finite(key, v)?;
+    if v > 0.0 {
+        Ok(())
+    } else {
+        Err(ConfigError::invalid(key, "must be greater than zero"))
+    }
+}

@@ -1,0 +1,176 @@
+//! Runtime faults: a code, a message, a time and the task that raised them (plain data).
+
+/// Which kernel task raised a fault.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TaskName {
+    /// Power-up self-test.
+    SelfTest,
+    /// Operator command parsing.
+    CommandParsing,
+    /// The G-code interpreter.
+    Interpreter,
+    /// Tool compensation.
+    ToolCompensation,
+    /// Look-ahead.
+    LookAhead,
+    /// Interpolation.
+    Interpolation,
+    /// Position control.
+    PositionControl,
+    /// Drive I/O.
+    DriveIo,
+    /// Machine logic (PLC).
+    MachineLogic,
+    /// The executive's timing monitor.
+    Monitor,
+}
+
+impl TaskName {
+    /// The executive's name of the task.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            TaskName::SelfTest => "self test",
+            TaskName::CommandParsing => "command parsing",
+            TaskName::Interpreter => "interpreter",
+            TaskName::ToolCompensation => "tool compensation",
+            TaskName::LookAhead => "look-ahead",
+            TaskName::Interpolation => "interpolation",
+            TaskName::PositionControl => "position control",
+            TaskName::DriveIo => "drive io",
+            TaskName::MachineLogic => "machine logic",
+            TaskName::Monitor => "monitor",
+        }
+    }
+}
+
+/// What went wrong.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FaultCode {
+    /// The e-stop was pressed (urgent command or the e-stop input).
+    EStop,
+    /// A hard limit switch tripped on a joint.
+    HardLimit,
+    /// A joint's following error exceeded its limit.
+    FollowingError,
+    /// A drive reported a fault.
+    DriveFault,
+    /// The fieldbus exchange failed.
+    Communication,
+    /// A real-time task missed its deadline.
+    DeadlineMiss,
+    /// The interpreter refused a block ("error in program").
+    ProgramError,
+    /// Tool compensation refused a block.
+    CompensationError,
+    /// The planner refused a move (soft limit, bad geometry).
+    MotionError,
+    /// The PLC stopped with a runtime fault, or reported a machine fault.
+    LogicFault,
+    /// An M/S/T function was refused (no spindle, unknown output).
+    AuxRefused,
+    /// Homing could not find its switch or index.
+    HomingFailed,
+    /// A command was not allowed in the current state (logged, not stopping).
+    CommandRefused,
+}
+
+impl FaultCode {
+    /// Stable code.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            FaultCode::EStop => "kernel.estop",
+            FaultCode::HardLimit => "kernel.hard_limit",
+            FaultCode::FollowingError => "kernel.following_error",
+            FaultCode::DriveFault => "kernel.drive_fault",
+            FaultCode::Communication => "kernel.communication",
+            FaultCode::DeadlineMiss => "kernel.deadline_miss",
+            FaultCode::ProgramError => "kernel.program_error",
+            FaultCode::CompensationError => "kernel.compensation_error",
+            FaultCode::MotionError => "kernel.motion_error",
+            FaultCode::LogicFault => "kernel.logic_fault",
+            FaultCode::AuxRefused => "kernel.aux_refused",
+            FaultCode::HomingFailed => "kernel.homing_failed",
+            FaultCode::CommandRefused => "kernel.command_refused",
+        }
+    }
+
+    /// Number for the executive's fault log and trace.
+    pub fn number(self) -> u32 {
+        self as u32 + 100
+    }
+
+    /// Plain message.
+    pub fn message(self) -> &'static str {
+        match self {
+            FaultCode::EStop => "emergency stop",
+            FaultCode::HardLimit => "hard limit switch",
+            FaultCode::FollowingError => "following error",
+            FaultCode::DriveFault => "drive fault",
+            FaultCode::Communication => "fieldbus communication lost",
+            FaultCode::DeadlineMiss => "deadline miss",
+            FaultCode::ProgramError => "error in program",
+            FaultCode::CompensationError => "error in program (tool compensation)",
+            FaultCode::MotionError => "error in program (motion)",
+            FaultCode::LogicFault => "machine logic fault",
+            FaultCode::AuxRefused => "machine function refused",
+            FaultCode::HomingFailed => "homing failed",
+            FaultCode::CommandRefused => "command refused",
+        }
+    }
+
+    /// Whether the fault stops the machine at once (quick stop, then the drives are
+    /// disabled until a reset). Program errors stop the program instead: the look-ahead
+    /// lets the machine finish the blocks before the bad one.
+    pub fn stops_machine(self) -> bool {
+        matches!(
+            self,
+            FaultCode::EStop
+                | FaultCode::HardLimit
+                | FaultCode::FollowingError
+                | FaultCode::DriveFault
+                | FaultCode::Communication
+                | FaultCode::LogicFault
+                | FaultCode::HomingFailed
+        )
+    }
+}
+
+/// One fault.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Fault {
+    /// What.
+    pub code: FaultCode,
+    /// When (ns since the start of the run, the executive's clock).
+    pub time_ns: u64,
+    /// Raised by.
+    pub task: TaskName,
+    /// Joint concerned, if any.
+    pub joint: Option<u8>,
+    /// Program line concerned (0: none).
+    pub line: u32,
+    /// A value (the following error, the drive's error code, ...).
+    pub value: f64,
+}
+
+impl Fault {
+    /// Text for the operator; `joint_name` gives a joint's configured name.
+    pub fn describe(&self, joint_name: impl Fn(usize) -> String) -> String {
+        let mut s = format!(
+            "{} [{}] at {:.6} s in {}",
+            self.code.message(),
+            self.code.as_str(),
+            self.time_ns as f64 * 1e-9,
+            self.task.as_str()
+        );
+        if let Some(j) = self.joint {
+            s.push_str(&format!(", joint {}", joint_name(usize::from(j))));
+        }
+        if self.line > 0 {
+            s.push_str(&format!(", line {}", self.line));
+        }
+        if self.value != 0.0 && self.value.is_finite() {
+            s.push_str(&format!(" ({})", self.value));
+        }
+        s
+    }
+}

@@ -1,0 +1,387 @@
+//! The interpreter task: reads the program (or an MDI line) with the G-code interpreter and
+//! the cutter-radius compensation stage, and sends plain-data blocks ahead while the channel
+//! has room. It is an event task below the real-time ones: it may allocate (the interpreter
+//! does), it never blocks, and it yields when the channel is full.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use rtcnc_gcode::canon::{Arc as CanonArc, CanonCommand, FeedMode, Plane, SpindleDirection, Units};
+use rtcnc_gcode::compensation::Compensator;
+use rtcnc_gcode::{Canon, Interpreter, Parameters, Settings, ToolTable};
+use rtcnc_motion::PathMode;
+use rtcnc_rt::{Context, Next};
+
+use crate::fault::FaultCode;
+use crate::messages::{Aux, ProgramBlock};
+use crate::shared::{InterpreterRequest, Shared, Tagged};
+
+/// Blocks handled per activation before giving the processor back.
+const BLOCKS_PER_ACTIVATION: usize = 64;
+
+/// Declared processor time per canonical command (virtual time charges it).
+const COST_PER_COMMAND: Duration = Duration::from_micros(2);
+
+pub(crate) struct InterpreterStage {
+    shared: Shared,
+    program: Option<PathBuf>,
+    settings: Settings,
+    tools: ToolTable,
+    parameters: Parameters,
+    interp: Option<Interpreter>,
+    comp: Compensator,
+    epoch: u32,
+    active: bool,
+    mdi: bool,
+    /// Blocks converted but not yet sent (the channel was full).
+    outbox: std::collections::VecDeque<ProgramBlock>,
+    /// Program position, for arcs (program coordinates).
+    position: [f64; 9],
+    plane: Plane,
+    selected_tool: i32,
+    spindle_rpm: f64,
+    spindle_on: Option<SpindleDirection>,
+    diameter_mode: bool,
+}
+
+impl InterpreterStage {
+    pub(crate) fn new(
+        shared: Shared,
+        program: Option<PathBuf>,
+        settings: Settings,
+        tools: ToolTable,
+        parameters: Parameters,
+        diameter_mode: bool,
+    ) -> Self {
+        InterpreterStage {
+            shared,
+            program,
+            settings,
+            tools,
+            parameters,
+            interp: None,
+            comp: Compensator::new(),
+            epoch: 0,
+            active: false,
+            mdi: false,
+            outbox: std::collections::VecDeque::with_capacity(256),
+            position: [0.0; 9],
+            plane: Plane::XY,
+            selected_tool: 0,
+            spindle_rpm: 0.0,
+            spindle_on: None,
+            diameter_mode,
+        }
+    }
+
+    fn fresh_interpreter(&mut self) -> Interpreter {
+        let parameters = self
+            .interp
+            .as_ref()
+            .map(|i| i.parameters().clone())
+            .unwrap_or_else(|| self.parameters.clone());
+        let tools = self
+            .interp
+            .as_ref()
+            .map(|i| i.tool_table().clone())
+            .unwrap_or_else(|| self.tools.clone());
+        let mut interp = Interpreter::new(self.settings.clone(), tools, parameters);
+        if self.diameter_mode {
+            // A lathe in diameter mode: G18 and G7 before the program, as LinuxCNC's
+            // RS274NGC_STARTUP_CODE does on such a machine.
+            let _ = interp.execute_mdi("G18 G7");
+            while let Some(Ok(_)) = interp.next_canon() {}
+        }
+        interp
+    }
+
+    pub(crate) fn body(&mut self, ctx: &mut Context<'_>) -> Next {
+        while let Some(request) = self.shared.interpreter_requests.try_get() {
+            match request {
+                InterpreterRequest::Run { epoch } => {
+                    self.epoch = epoch;
+                    self.outbox.clear();
+                    self.comp = Compensator::new();
+                    let mut interp = self.fresh_interpreter();
+                    let opened = match &self.program {
+                        Some(path) => interp.open(path).map_err(|e| (e.line, e.to_string())),
+                        None => Err((0, "no program loaded".to_string())),
+                    };
+                    self.interp = Some(interp);
+                    self.mdi = false;
+                    match opened {
+                        Ok(()) => self.active = true,
+                        Err((line, text)) => {
+                            *self.shared.error_text.lock() = Some(text);
+                            self.outbox.push_back(ProgramBlock::Error {
+                                line,
+                                code: FaultCode::ProgramError,
+                            });
+                            self.active = false;
+                        }
+                    }
+                }
+                InterpreterRequest::Mdi { epoch, line } => {
+                    self.epoch = epoch;
+                    self.outbox.clear();
+                    if self.interp.is_none() {
+                        self.interp = Some(self.fresh_interpreter());
+                    }
+                    if let Some(interp) = self.interp.as_mut() {
+                        if let Err(e) = interp.execute_mdi(line.as_str()) {
+                            *self.shared.error_text.lock() = Some(e.to_string());
+                            self.outbox.push_back(ProgramBlock::Error {
+                                line: 0,
+                                code: FaultCode::ProgramError,
+                            });
+                        }
+                    }
+                    self.mdi = true;
+                    self.active = true;
+                }
+                InterpreterRequest::Stop => {
+                    self.active = false;
+                    self.outbox.clear();
+                }
+                InterpreterRequest::BlockDelete(on) => self.settings.block_delete = on,
+            }
+        }
+        for _ in 0..BLOCKS_PER_ACTIVATION {
+            if let Some(block) = self.outbox.front().copied() {
+                let tagged = Tagged {
+                    epoch: self.epoch,
+                    block,
+                };
+                if self.shared.program_blocks.try_put(tagged).is_err() {
+                    return Next::WaitFor {
+                        trigger: self.shared.program_blocks.space_trigger(),
+                        timeout: None,
+                    };
+                }
+                self.outbox.pop_front();
+                continue;
+            }
+            if !self.active {
+                return Next::Done;
+            }
+            ctx.consume(COST_PER_COMMAND);
+            self.pull_one();
+        }
+        Next::Continue
+    }
+
+    /// Pulls one canonical command through compensation and converts what comes out.
+    fn pull_one(&mut self) {
+        if let Some(c) = self.comp.pop() {
+            self.convert(c);
+            return;
+        }
+        let Some(interp) = self.interp.as_mut() else {
+            self.active = false;
+            return;
+        };
+        match interp.next_canon() {
+            Some(Ok(canon)) => {
+                if let Err(e) = self.comp.push(canon) {
+                    while let Some(c) = self.comp.pop() {
+                        self.convert(c);
+                    }
+                    *self.shared.error_text.lock() = Some(e.to_string());
+                    self.outbox.push_back(ProgramBlock::Error {
+                        line: e.at.line,
+                        code: FaultCode::CompensationError,
+                    });
+                    self.active = false;
+                }
+            }
+            Some(Err(e)) => {
+                self.comp.finish();
+                while let Some(c) = self.comp.pop() {
+                    self.convert(c);
+                }
+                *self.shared.error_text.lock() = Some(e.to_string());
+                self.outbox.push_back(ProgramBlock::Error {
+                    line: e.line,
+                    code: FaultCode::ProgramError,
+                });
+                self.active = false;
+            }
+            None => {
+                self.comp.finish();
+                while let Some(c) = self.comp.pop() {
+                    self.convert(c);
+                }
+                if self.mdi {
+                    self.outbox.push_back(ProgramBlock::MdiDone);
+                } else {
+                    self.outbox.push_back(ProgramBlock::End { line: 0 });
+                }
+                self.active = false;
+            }
+        }
+    }
+
+    fn convert(&mut self, canon: Canon) {
+        use CanonCommand as C;
+        let line = canon.source.line;
+        let out = &mut self.outbox;
+        let aux = |aux| ProgramBlock::Aux { line, aux };
+        match canon.command {
+            C::UseLengthUnits(u) => out.push_back(ProgramBlock::Units(match u {
+                Units::Mm => 1.0,
+                Units::Inches => 25.4,
+            })),
+            C::SetG5xOffset { offset, .. } => {
+                out.push_back(ProgramBlock::WorkOffset(offset.to_array()))
+            }
+            C::SetG92Offset(p) => out.push_back(ProgramBlock::G92Offset(p.to_array())),
+            C::SetXyRotation(r) => out.push_back(ProgramBlock::Rotation(r)),
+            C::UseToolLengthOffset(p) => out.push_back(ProgramBlock::ToolOffset(p.to_array())),
+            C::SelectPlane(p) => self.plane = p,
+            C::SetMotionControlMode(mode) => out.push_back(ProgramBlock::PathMode(match mode {
+                rtcnc_gcode::canon::PathMode::ExactStop => PathMode::ExactStop,
+                rtcnc_gcode::canon::PathMode::ExactPath => PathMode::ExactPath,
+                rtcnc_gcode::canon::PathMode::Continuous { tolerance } => PathMode::Blend {
+                    tolerance,
+                    merge_tolerance: 0.0,
+                },
+            })),
+            C::SetFeedMode { mode, .. } => {
+                let _ = mode == FeedMode::UnitsPerRevolution;
+            }
+            C::SetFeedRate(rate) => {
+                let per_revolution = self
+                    .interp
+                    .as_ref()
+                    .is_some_and(|i| i.modal_state().feed_mode == FeedMode::UnitsPerRevolution);
+                out.push_back(ProgramBlock::FeedRate {
+                    rate,
+                    per_revolution,
+                })
+            }
+            C::SetSpindleSpeed { speed, .. } => {
+                self.spindle_rpm = speed;
+                if let Some(d) = self.spindle_on {
+                    out.push_back(aux(Aux::SpindleOn {
+                        rpm: signed(speed, d),
+                    }));
+                } else {
+                    out.push_back(aux(Aux::SpindleSpeed { rpm: speed }));
+                }
+            }
+            C::StartSpindle { direction, .. } => {
+                self.spindle_on = Some(direction);
+                out.push_back(aux(Aux::SpindleOn {
+                    rpm: signed(self.spindle_rpm, direction),
+                }));
+            }
+            C::StopSpindle { .. } => {
+                self.spindle_on = None;
+                out.push_back(aux(Aux::SpindleOff));
+            }
+            C::SelectTool(t) => self.selected_tool = t,
+            C::ChangeTool(_) => out.push_back(aux(Aux::ToolChange {
+                tool: u32::try_from(self.selected_tool).unwrap_or(0),
+            })),
+            C::ChangeToolNumber(_) => {}
+            C::Dwell(seconds) => out.push_back(ProgramBlock::Dwell { line, seconds }),
+            C::StraightTraverse(p) => {
+                self.position = p.to_array();
+                out.push_back(ProgramBlock::Line {
+                    line,
+                    end: self.position,
+                    rapid: true,
+                });
+            }
+            C::StraightFeed(p) | C::StraightProbe { end: p, .. } => {
+                self.position = p.to_array();
+                out.push_back(ProgramBlock::Line {
+                    line,
+                    end: self.position,
+                    rapid: false,
+                });
+            }
+            C::ArcFeed(arc) => {
+                let (end, centre, normal, turns) = arc_geometry(&arc, self.plane, &self.position);
+                self.position = end;
+                out.push_back(ProgramBlock::Arc {
+                    line,
+                    end,
+                    centre,
+                    normal,
+                    turns,
+                });
+            }
+            C::SplineFeed(s) => {
+                // Splines are followed through their control polygon's end point as a line:
+                // the planner has no spline segment yet.
+                self.position[0] = s.end[0];
+                self.position[1] = s.end[1];
+                out.push_back(ProgramBlock::Line {
+                    line,
+                    end: self.position,
+                    rapid: false,
+                });
+            }
+            C::SetDigitalOutput { index, on, .. } => {
+                out.push_back(aux(Aux::DigitalOutput { index, on }))
+            }
+            C::MistOn => out.push_back(aux(Aux::Mist(true))),
+            C::MistOff => out.push_back(aux(Aux::Mist(false))),
+            C::FloodOn => out.push_back(aux(Aux::Flood(true))),
+            C::FloodOff => out.push_back(aux(Aux::Flood(false))),
+            C::UserMCode { code, p, q } => out.push_back(aux(Aux::UserM {
+                code,
+                p: p.unwrap_or(f64::NAN),
+                q: q.unwrap_or(f64::NAN),
+            })),
+            C::ProgramStop | C::PalletShuttle => out.push_back(aux(Aux::ProgramStop)),
+            C::OptionalProgramStop => out.push_back(aux(Aux::OptionalStop)),
+            C::ProgramEnd | C::Finish => {
+                out.push_back(ProgramBlock::End { line });
+                self.active = false;
+            }
+            _ => {}
+        }
+    }
+}
+
+fn signed(rpm: f64, direction: SpindleDirection) -> f64 {
+    match direction {
+        SpindleDirection::Clockwise => rpm.abs(),
+        SpindleDirection::CounterClockwise => -rpm.abs(),
+    }
+}
+
+/// The end point (nine axes), centre and plane normal of a canonical arc. The normal points
+/// so that a counter-clockwise arc (positive rotation) turns right-handed about it.
+fn arc_geometry(
+    arc: &CanonArc,
+    plane: Plane,
+    from: &[f64; 9],
+) -> ([f64; 9], [f64; 3], [f64; 3], u32) {
+    let mut end = *from;
+    end[3] = arc.a;
+    end[4] = arc.b;
+    end[5] = arc.c;
+    end[6] = arc.u;
+    end[7] = arc.v;
+    end[8] = arc.w;
+    // (first, second, normal axis) indices.
+    let (f, s, n) = match plane {
+        Plane::XY | Plane::UV => (0, 1, 2),
+        Plane::XZ | Plane::WU => (2, 0, 1),
+        Plane::YZ | Plane::VW => (1, 2, 0),
+    };
+    end[f] = arc.first_end;
+    end[s] = arc.second_end;
+    end[n] = arc.axis_end_point;
+    let mut centre = [0.0; 3];
+    centre[f] = arc.first_axis;
+    centre[s] = arc.second_axis;
+    centre[n] = from[n];
+    let mut normal = [0.0; 3];
+    normal[n] = if arc.rotation >= 0 { 1.0 } else { -1.0 };
+    let turns = arc.rotation.unsigned_abs().saturating_sub(1);
+    (end, centre, normal, turns)
+}

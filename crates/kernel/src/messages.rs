@@ -1,0 +1,373 @@
+//! The messages between the kernel's stages and with the operator: plain data only (fixed
+//! sizes, no pointers, no heap), so that a later step can move the channels into shared
+//! memory between processes.
+
+use rtcnc_motion::{AXES, Move};
+
+use crate::config::MAX_JOINTS;
+
+/// A short text (an MDI line, a program path) in a fixed buffer.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub struct FixedText {
+    len: u16,
+    bytes: [u8; FixedText::CAPACITY],
+}
+
+impl FixedText {
+    /// Longest text, in bytes.
+    pub const CAPACITY: usize = 256;
+
+    /// The text, or `None` when it does not fit.
+    pub fn new(text: &str) -> Option<FixedText> {
+        if text.len() > Self::CAPACITY {
+            return None;
+        }
+        let mut bytes = [0u8; Self::CAPACITY];
+        bytes[..text.len()].copy_from_slice(text.as_bytes());
+        Some(FixedText {
+            len: text.len() as u16,
+            bytes,
+        })
+    }
+
+    /// The text.
+    pub fn as_str(&self) -> &str {
+        let len = usize::from(self.len).min(Self::CAPACITY);
+        std::str::from_utf8(&self.bytes[..len]).unwrap_or("")
+    }
+}
+
+impl std::fmt::Debug for FixedText {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{:?}", self.as_str())
+    }
+}
+
+/// Commands of the urgent channel: read first, every cycle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Urgent {
+    /// Emergency stop: quick stop along the path, then the drives are disabled.
+    EStop,
+    /// Feed hold: decelerate along the path and wait.
+    FeedHold,
+    /// Resume after a feed hold (or continue after M0/M1/single block).
+    Resume,
+    /// Stop the program: decelerate along the path, drop what is queued.
+    Abort,
+    /// Feed override, 0..=2.
+    FeedOverride(f64),
+    /// Rapid override, 0..=1.
+    RapidOverride(f64),
+    /// Spindle override, 0.5..=1.5 of the programmed speed.
+    SpindleOverride(f64),
+}
+
+/// Operating modes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Mode {
+    /// Manual: jog, handwheel, homing.
+    #[default]
+    Manual,
+    /// A program runs (or is paused).
+    Auto,
+    /// MDI lines.
+    Mdi,
+}
+
+/// Commands of the normal channel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Command {
+    /// Leave e-stop or fault: reset the faults, enable the drives.
+    Reset,
+    /// Run the loaded program (auto mode), from its start or from a line (motion before the
+    /// line is skipped; the machine goes to where that line starts at rapid).
+    Start {
+        /// First program line whose motion is executed (0 or 1: from the start).
+        from_line: u32,
+    },
+    /// One MDI line.
+    Mdi(FixedText),
+    /// Continuous jog of an axis (index in X..W order) at `velocity` (signed, units/s).
+    JogContinuous {
+        /// Axis index.
+        axis: u8,
+        /// Signed velocity.
+        velocity: f64,
+    },
+    /// Incremental jog by `distance`.
+    JogIncrement {
+        /// Axis index.
+        axis: u8,
+        /// Signed distance.
+        distance: f64,
+    },
+    /// Stop a jog.
+    JogStop {
+        /// Axis index.
+        axis: u8,
+    },
+    /// Handwheel on an axis (or off with `None`), `scale` units per count multiplier
+    /// (×1, ×10, ×100).
+    Handwheel {
+        /// Axis index, or none to release the handwheel.
+        axis: Option<u8>,
+        /// Multiplier of `handwheel.units_per_count`.
+        scale: f64,
+    },
+    /// Home every joint with a homing sequence (in sequence order).
+    HomeAll,
+    /// Move an independent joint (one no axis drives) to `position`.
+    JointMove {
+        /// Joint index.
+        joint: u8,
+        /// Target position.
+        position: f64,
+    },
+    /// Single block on/off.
+    SingleBlock(bool),
+    /// Optional stop (M1) on/off.
+    OptionalStop(bool),
+    /// Block delete (`/`) on/off; takes effect at the next program start.
+    BlockDelete(bool),
+}
+
+/// Machine functions the machine logic acknowledges before motion continues past them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Aux {
+    /// Spindle on at `rpm` (negative: counter-clockwise).
+    SpindleOn {
+        /// Signed speed.
+        rpm: f64,
+    },
+    /// Spindle off.
+    SpindleOff,
+    /// Spindle speed change while on (or preset).
+    SpindleSpeed {
+        /// Speed, rpm.
+        rpm: f64,
+    },
+    /// Mist coolant.
+    Mist(bool),
+    /// Flood coolant.
+    Flood(bool),
+    /// M6 with the prepared tool.
+    ToolChange {
+        /// Tool number.
+        tool: u32,
+    },
+    /// M100..M199.
+    UserM {
+        /// Code.
+        code: u16,
+        /// P word (NaN when absent).
+        p: f64,
+        /// Q word (NaN when absent).
+        q: f64,
+    },
+    /// M62..M65 digital output.
+    DigitalOutput {
+        /// Program output number.
+        index: u32,
+        /// Value.
+        on: bool,
+    },
+    /// M0.
+    ProgramStop,
+    /// M1.
+    OptionalStop,
+}
+
+/// What the tool-compensation stage sends to look-ahead (machine coordinates, mm, s).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MachineBlock {
+    /// A move for the planner.
+    Motion(Move),
+    /// A machine function (the look-ahead waits for the machine to stop first).
+    Aux {
+        /// Program line.
+        line: u32,
+        /// What.
+        aux: Aux,
+    },
+    /// The program ended (M2/M30 or `%`).
+    End {
+        /// Program line.
+        line: u32,
+    },
+    /// The interpreter or a stage found an error at `line`: stop before it.
+    Error {
+        /// Program line.
+        line: u32,
+        /// Stable code of the error (see [`crate::Fault`]).
+        code: crate::FaultCode,
+    },
+    /// An MDI line is done (everything it queued is in the pipeline).
+    MdiDone,
+}
+
+/// What the interpreter sends to tool compensation: the program's own coordinates (current
+/// work coordinate system, program units) with the offsets as they change.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ProgramBlock {
+    /// Length units (mm per unit).
+    Units(f64),
+    /// Active G54.. offset (program units).
+    WorkOffset([f64; AXES]),
+    /// G92 offset.
+    G92Offset([f64; AXES]),
+    /// XY rotation of the work system, degrees.
+    Rotation(f64),
+    /// Tool length offset.
+    ToolOffset([f64; AXES]),
+    /// Feed for the following feed moves.
+    FeedRate {
+        /// Units per minute (per revolution in G95).
+        rate: f64,
+        /// G95.
+        per_revolution: bool,
+    },
+    /// Path mode of the following moves.
+    PathMode(rtcnc_motion::PathMode),
+    /// Straight move to `end` (program coordinates).
+    Line {
+        /// Line.
+        line: u32,
+        /// End.
+        end: [f64; AXES],
+        /// G0.
+        rapid: bool,
+    },
+    /// Arc: end, centre and normal in program coordinates.
+    Arc {
+        /// Line.
+        line: u32,
+        /// End.
+        end: [f64; AXES],
+        /// Centre (X Y Z).
+        centre: [f64; 3],
+        /// Normal of the plane (right hand: counter-clockwise).
+        normal: [f64; 3],
+        /// Extra turns.
+        turns: u32,
+    },
+    /// Dwell, seconds.
+    Dwell {
+        /// Line.
+        line: u32,
+        /// Seconds.
+        seconds: f64,
+    },
+    /// A machine function.
+    Aux {
+        /// Line.
+        line: u32,
+        /// What.
+        aux: Aux,
+    },
+    /// End of program.
+    End {
+        /// Line.
+        line: u32,
+    },
+    /// Error at a line.
+    Error {
+        /// Line.
+        line: u32,
+        /// Code.
+        code: crate::FaultCode,
+    },
+    /// An MDI line has been interpreted.
+    MdiDone,
+}
+
+/// One servo period's set-points of every joint, with the axis position they come from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JointSetpoints {
+    /// Servo cycle the set-point is for.
+    pub cycle: u64,
+    /// Joint positions.
+    pub joints: [f64; MAX_JOINTS],
+    /// Axis positions (X..W).
+    pub axes: [f64; AXES],
+    /// Program line being executed (0: none).
+    pub line: u32,
+    /// Path speed (units/s).
+    pub path_speed: f64,
+}
+
+/// What the status snapshot says the machine is doing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum MachineState {
+    /// Power-up: self-test not finished.
+    #[default]
+    Starting,
+    /// E-stop (or after power-up): drives disabled; needs a reset.
+    EStop,
+    /// Ready for a command.
+    Idle,
+    /// Moving (program, MDI, jog, homing).
+    Running,
+    /// Feed hold (decelerating or stopped on the path).
+    Held,
+    /// Program paused at M0/M1/single block; Resume continues.
+    Paused,
+    /// Waiting for the machine logic to acknowledge an M/S/T function.
+    WaitingForLogic,
+    /// A fault stopped the machine; needs a reset.
+    Fault,
+}
+
+impl MachineState {
+    /// Lower-case name.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            MachineState::Starting => "starting",
+            MachineState::EStop => "estop",
+            MachineState::Idle => "idle",
+            MachineState::Running => "running",
+            MachineState::Held => "held",
+            MachineState::Paused => "paused",
+            MachineState::WaitingForLogic => "waiting for logic",
+            MachineState::Fault => "fault",
+        }
+    }
+}
+
+/// The feedback snapshot, published every servo cycle.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Status {
+    /// Servo cycles run.
+    pub cycle: u64,
+    /// Time of the snapshot (ns since start).
+    pub time_ns: u64,
+    /// State.
+    pub state: MachineState,
+    /// Mode.
+    pub mode: Mode,
+    /// Program line being executed.
+    pub line: u32,
+    /// Axis set-point (X..W).
+    pub axes: [f64; AXES],
+    /// Joint set-points.
+    pub joint_setpoints: [f64; MAX_JOINTS],
+    /// Joint feedback positions.
+    pub joint_feedback: [f64; MAX_JOINTS],
+    /// Path speed, units/s.
+    pub path_speed: f64,
+    /// Feed override.
+    pub feed_override: f64,
+    /// Bit n: joint n is homed.
+    pub homed: u32,
+    /// Faults raised so far.
+    pub fault_count: u32,
+    /// The last fault.
+    pub last_fault: Option<crate::Fault>,
+    /// The program reached its end.
+    pub program_ended: bool,
+    /// Tool in the spindle.
+    pub tool: u32,
+    /// Spindle speed, rpm.
+    pub spindle_rpm: f64,
+    /// The self-test passed and the drives are enabled.
+    pub ready: bool,
+}

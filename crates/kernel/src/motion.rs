@@ -1,0 +1,1259 @@
+//! The motion core: machine state and modes, the planner (program and MDI motion), the
+//! on-line trajectory generators (jog, handwheel, homing, independent joints) and the
+//! program sequencer. Three tasks work on it under one priority-inheritance mutex, each
+//! doing its own part: command parsing ([`MotionCore::urgent`], [`MotionCore::command`]),
+//! look-ahead ([`MotionCore::look_ahead`]) and interpolation ([`MotionCore::interpolate`]).
+//! Nothing here allocates after construction.
+
+use rtcnc_motion::otg::{Limits, OnlineAxis, State};
+use rtcnc_motion::{AXES, MotionError, MotionState, Move, Planner, TrivialKinematics};
+use rtcnc_rt::{Context, RingProducer};
+
+use crate::config::{MAX_JOINTS, MachineConfig};
+use crate::fault::{Fault, FaultCode, TaskName};
+use crate::messages::{
+    Aux, Command, JointSetpoints, MachineBlock, MachineState, Mode, Status, Urgent,
+};
+use crate::shared::{Feedback, InterpreterRequest, Shared, Tagged};
+
+/// Latch requests carried with a set-point (bit n for joint n).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LatchRequest {
+    /// Arm the index latch.
+    pub index: u32,
+    /// Arm the home-switch latch.
+    pub switch: u32,
+}
+
+/// What position control receives every servo period.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ServoTarget {
+    /// The set-points.
+    pub setpoints: JointSetpoints,
+    /// Homing offsets: raw joint position = machine position − offset.
+    pub offsets: [f64; MAX_JOINTS],
+    /// Drives enabled.
+    pub enable: bool,
+    /// Incremented by every reset: position control clears its latched faults.
+    pub reset_count: u32,
+    /// Latches to arm.
+    pub latch: LatchRequest,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Source {
+    Path,
+    Manual,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Then {
+    Aux(Aux),
+    Error(FaultCode),
+    End,
+    MdiDone,
+    SingleBlockPause,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Phase {
+    /// No program or MDI.
+    Idle,
+    /// Moving blocks into the planner.
+    Feeding,
+    /// Waiting for the planner to stop, then doing `then` for `line`.
+    Draining { then: Then, line: u32 },
+    /// Waiting for the machine logic's acknowledgement of `aux`.
+    Logic { aux: Aux, line: u32, released: bool },
+    /// Paused at M0/M1/single block until resume.
+    Paused { start_count: u32 },
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum HomingStep {
+    Search,
+    SearchStop,
+    BackOff,
+    BackOffStop,
+    Latch,
+    LatchStop,
+    MoveHome,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Homing {
+    sequence: u8,
+    /// Joints of the current group with their step.
+    step: [Option<HomingStep>; MAX_JOINTS],
+}
+
+/// One joint's data for the core, taken from the configuration.
+#[derive(Debug, Clone, Copy)]
+struct JointInfo {
+    axis: Option<usize>,
+    homing: Option<crate::config::HomingConfig>,
+    limits: Limits,
+    quick: Limits,
+    min: f64,
+    max: f64,
+}
+
+/// The motion core. See the module documentation.
+pub struct MotionCore {
+    planner: Planner<TrivialKinematics>,
+    planner_joints: [usize; MAX_JOINTS],
+    planner_joint_count: usize,
+    planner_buf: [f64; MAX_JOINTS],
+    joints: [JointInfo; MAX_JOINTS],
+    joint_count: usize,
+    axis_present: [bool; AXES],
+    axis_limits: [Limits; AXES],
+    axis_quick: [Limits; AXES],
+    axis_min: [f64; AXES],
+    axis_max: [f64; AXES],
+    jog_velocity: [f64; AXES],
+    axis_otg: [OnlineAxis; AXES],
+    joint_otg: [OnlineAxis; MAX_JOINTS],
+    /// Bit n: joint n follows its own generator (homing, independent joint).
+    joint_manual: u32,
+    source: Source,
+    period_s: f64,
+    cycle: u64,
+    offsets: [f64; MAX_JOINTS],
+    last: JointSetpoints,
+    last_state: MotionState,
+    latch: LatchRequest,
+    mode: Mode,
+    phase: Phase,
+    epoch: u32,
+    pending: Option<MachineBlock>,
+    start_count: u32,
+    single_block: bool,
+    optional_stop: bool,
+    run_from_line: u32,
+    skipped_to: Option<[f64; AXES]>,
+    estop: bool,
+    fault: bool,
+    stopping: bool,
+    enable: bool,
+    reset_count: u32,
+    ready: bool,
+    held: bool,
+    homed: u32,
+    homing: Option<Homing>,
+    handwheel: Option<(usize, f64)>,
+    handwheel_counts: Option<i64>,
+    handwheel_units_per_count: f64,
+    feed_override: f64,
+    spindle_override: f64,
+    program_ended: bool,
+    tool: u32,
+    last_fault: Option<Fault>,
+    offsets_known: bool,
+    has_program: bool,
+    estop_feed_hold_from_logic: bool,
+}
+
+fn limits_of(v: f64, a: f64, j: f64) -> Limits {
+    Limits::symmetric(v, a, j)
+}
+
+impl MotionCore {
+    /// The core for a validated configuration, at rest at the joints' initial positions.
+    pub fn new(config: &MachineConfig) -> Result<MotionCore, MotionError> {
+        let period_s = config.servo_period().as_secs_f64();
+        let plan = config.axis_plan();
+        let mut limits = rtcnc_motion::MachineLimits {
+            axes: [None; AXES],
+        };
+        let mut axis_present = [false; AXES];
+        let mut axis_limits = [limits_of(1.0, 1.0, 1.0); AXES];
+        let mut axis_quick = axis_limits;
+        let mut axis_min = [0.0; AXES];
+        let mut axis_max = [0.0; AXES];
+        let mut jog_velocity = [0.0; AXES];
+        for p in &plan {
+            let Some(a) = config.axis(p.axis) else {
+                continue;
+            };
+            let i = p.axis as usize;
+            let qa = a.quick_stop_acceleration.unwrap_or(a.max_acceleration);
+            let qj = a.quick_stop_jerk.unwrap_or(a.max_jerk);
+            limits.axes[i] = Some(rtcnc_motion::AxisLimits {
+                max_velocity: a.max_velocity,
+                max_acceleration: a.max_acceleration,
+                max_jerk: a.max_jerk,
+                min_position: a.min_position,
+                max_position: a.max_position,
+                quick_stop_acceleration: qa,
+                quick_stop_jerk: qj,
+            });
+            axis_present[i] = true;
+            axis_limits[i] = limits_of(a.max_velocity, a.max_acceleration, a.max_jerk);
+            axis_quick[i] = limits_of(a.max_velocity, qa, qj);
+            axis_min[i] = a.min_position;
+            axis_max[i] = a.max_position;
+            jog_velocity[i] = a.jog_velocity.unwrap_or(a.max_velocity / 10.0);
+        }
+        let joint_count = config.joints.len().min(MAX_JOINTS);
+        let mut joints = [JointInfo {
+            axis: None,
+            homing: None,
+            limits: limits_of(1.0, 1.0, 1.0),
+            quick: limits_of(1.0, 1.0, 1.0),
+            min: 0.0,
+            max: 0.0,
+        }; MAX_JOINTS];
+        let mut kin = Vec::new();
+        let mut planner_joints = [0usize; MAX_JOINTS];
+        let mut start = [0.0; AXES];
+        let mut initial = [0.0; MAX_JOINTS];
+        for (j, jc) in config.joints.iter().enumerate().take(joint_count) {
+            initial[j] = jc.sim.initial_position;
+            let axis = plan.iter().find(|p| p.joints.contains(&j)).map(|p| p.axis);
+            let info = &mut joints[j];
+            info.homing = jc.homing;
+            match axis {
+                Some(a) => {
+                    let i = a as usize;
+                    info.axis = Some(i);
+                    info.limits = axis_limits[i];
+                    info.quick = axis_quick[i];
+                    info.min = axis_min[i];
+                    info.max = axis_max[i];
+                    // The axis starts where its first joint stands; the others are made to
+                    // agree through their offsets until homing squares them.
+                    if !kin.iter().any(|(axis, _)| *axis == a) {
+                        start[i] = jc.sim.initial_position;
+                    }
+                    planner_joints[kin.len()] = j;
+                    kin.push((a, None));
+                }
+                None => {
+                    let l = jc.limits.unwrap_or(crate::config::JointLimitsConfig {
+                        min_position: -1.0,
+                        max_position: 1.0,
+                        max_velocity: 1.0,
+                        max_acceleration: 1.0,
+                        max_jerk: 1.0,
+                    });
+                    info.limits = limits_of(l.max_velocity, l.max_acceleration, l.max_jerk);
+                    info.quick = info.limits;
+                    info.min = l.min_position;
+                    info.max = l.max_position;
+                }
+            }
+        }
+        let planner_joint_count = kin.len();
+        let kinematics = TrivialKinematics::new(kin)?;
+        let planner = Planner::new(&limits, kinematics, period_s, 256, start)?;
+        let otg = |p: f64, l: Limits| OnlineAxis::new(State::at_rest(p), l);
+        let mut axis_otg = [otg(0.0, limits_of(1.0, 1.0, 1.0)).map_err(otg_error)?; AXES];
+        for i in 0..AXES {
+            axis_otg[i] = otg(start[i], axis_limits[i]).map_err(otg_error)?;
+        }
+        let mut joint_otg = [axis_otg[0]; MAX_JOINTS];
+        let mut joint_manual = 0u32;
+        for j in 0..joint_count {
+            joint_otg[j] = otg(initial[j], joints[j].limits).map_err(otg_error)?;
+            if joints[j].axis.is_none() {
+                joint_manual |= 1 << j;
+            }
+        }
+        let mut last = JointSetpoints {
+            cycle: 0,
+            joints: [0.0; MAX_JOINTS],
+            axes: start,
+            line: 0,
+            path_speed: 0.0,
+        };
+        for j in 0..joint_count {
+            last.joints[j] = match joints[j].axis {
+                Some(i) => start[i],
+                None => initial[j],
+            };
+        }
+        for j in 0..joint_count {
+            if let Some(i) = joints[j].axis {
+                joint_otg[j] = otg(start[i], joints[j].limits).map_err(otg_error)?;
+            }
+        }
+        Ok(MotionCore {
+            planner,
+            planner_joints,
+            planner_joint_count,
+            planner_buf: [0.0; MAX_JOINTS],
+            joints,
+            joint_count,
+            axis_present,
+            axis_limits,
+            axis_quick,
+            axis_min,
+            axis_max,
+            jog_velocity,
+            axis_otg,
+            joint_otg,
+            joint_manual,
+            source: Source::Path,
+            period_s,
+            cycle: 0,
+            offsets: [0.0; MAX_JOINTS],
+            last,
+            last_state: MotionState::Idle,
+            latch: LatchRequest::default(),
+            mode: Mode::Manual,
+            phase: Phase::Idle,
+            epoch: 0,
+            pending: None,
+            start_count: 0,
+            single_block: false,
+            optional_stop: false,
+            run_from_line: 0,
+            skipped_to: None,
+            estop: true,
+            fault: false,
+            stopping: false,
+            enable: false,
+            reset_count: 0,
+            ready: false,
+            held: false,
+            homed: 0,
+            homing: None,
+            handwheel: None,
+            handwheel_counts: None,
+            handwheel_units_per_count: config.handwheel.units_per_count,
+            feed_override: 1.0,
+            spindle_override: 1.0,
+            program_ended: false,
+            tool: config.tool_changer.map_or(0, |t| t.initial_tool),
+            last_fault: None,
+            offsets_known: false,
+            has_program: false,
+            estop_feed_hold_from_logic: false,
+        })
+    }
+
+    /// The self-test passed: the machine may be reset into operation.
+    pub fn set_ready(&mut self, ready: bool) {
+        self.ready = ready;
+    }
+
+    /// A program is loaded (auto mode can start).
+    pub fn set_has_program(&mut self, has: bool) {
+        self.has_program = has;
+    }
+
+    fn moving(&self) -> bool {
+        match self.source {
+            Source::Path => self.last_state != MotionState::Idle || self.planner.window_len() > 0,
+            Source::Manual => self.manual_moving(),
+        }
+    }
+
+    fn manual_moving(&self) -> bool {
+        (0..AXES).any(|i| self.axis_present[i] && !self.axis_otg[i].is_finished())
+            || (0..self.joint_count).any(|j| !self.joint_otg[j].is_finished())
+    }
+
+    fn operational(&self) -> bool {
+        self.ready && !self.estop && !self.fault && self.enable
+    }
+
+    /// The machine state as the status shows it.
+    pub fn state(&self) -> MachineState {
+        if !self.ready {
+            return MachineState::Starting;
+        }
+        if self.estop {
+            return MachineState::EStop;
+        }
+        if self.fault {
+            return MachineState::Fault;
+        }
+        match self.phase {
+            Phase::Logic { .. } => return MachineState::WaitingForLogic,
+            Phase::Paused { .. } => return MachineState::Paused,
+            _ => {}
+        }
+        if self.held {
+            return MachineState::Held;
+        }
+        if self.moving() || self.homing.is_some() || self.phase != Phase::Idle {
+            MachineState::Running
+        } else {
+            MachineState::Idle
+        }
+    }
+
+    // ----- command parsing -------------------------------------------------------------
+
+    /// An urgent command (e-stop, hold, resume, abort, overrides).
+    pub fn urgent(&mut self, ctx: &mut Context<'_>, shared: &Shared, command: Urgent) {
+        match command {
+            Urgent::EStop => {
+                shared.raise(ctx, FaultCode::EStop, TaskName::CommandParsing, None, 0, 0.0);
+            }
+            Urgent::FeedHold => self.hold(),
+            Urgent::Resume => {
+                if self.held {
+                    self.held = false;
+                    self.planner.resume();
+                } else if matches!(self.phase, Phase::Paused { .. }) {
+                    self.start_count = self.start_count.wrapping_add(1);
+                }
+            }
+            Urgent::Abort => self.abort(shared),
+            Urgent::FeedOverride(f) => {
+                self.feed_override = if f.is_finite() { f.clamp(0.0, 2.0) } else { 0.0 };
+                self.planner.set_feed_override(self.feed_override);
+            }
+            Urgent::RapidOverride(f) => self.planner.set_rapid_override(f),
+            Urgent::SpindleOverride(f) => {
+                self.spindle_override = if f.is_finite() { f.clamp(0.5, 1.5) } else { 1.0 };
+                let mut mi = shared.machine_interface.lock();
+                if mi.spindle_on {
+                    mi.spindle_rpm = mi.spindle_rpm.abs() * self.spindle_override;
+                }
+            }
+        }
+    }
+
+    fn hold(&mut self) {
+        match self.source {
+            Source::Path => {
+                if self.moving() {
+                    self.held = true;
+                    self.planner.hold();
+                }
+            }
+            Source::Manual => {
+                for i in 0..AXES {
+                    if self.axis_present[i] {
+                        let _ = self.axis_otg[i].stop();
+                    }
+                }
+            }
+        }
+    }
+
+    fn abort(&mut self, shared: &Shared) {
+        self.epoch = self.epoch.wrapping_add(1);
+        let _ = shared.interpreter_requests.try_put(InterpreterRequest::Stop);
+        shared.interpreter_wake.signal();
+        self.pending = None;
+        self.phase = Phase::Idle;
+        self.held = false;
+        self.homing = None;
+        match self.source {
+            Source::Path => self.planner.abort(),
+            Source::Manual => self.stop_manual(false),
+        }
+        let mut mi = shared.machine_interface.lock();
+        mi.tool_change_request = false;
+        mi.m_code_request = false;
+        mi.program_running = false;
+    }
+
+    fn stop_manual(&mut self, quick: bool) {
+        for i in 0..AXES {
+            if self.axis_present[i] {
+                if quick {
+                    let _ = self.axis_otg[i].set_limits(self.axis_quick[i]);
+                }
+                let _ = self.axis_otg[i].stop();
+            }
+        }
+        for j in 0..self.joint_count {
+            if quick {
+                let _ = self.joint_otg[j].set_limits(self.joints[j].quick);
+            }
+            let _ = self.joint_otg[j].stop();
+        }
+    }
+
+    /// A normal command. Returns false when it was refused in this state.
+    pub fn command(&mut self, ctx: &mut Context<'_>, shared: &Shared, command: Command) -> bool {
+        let idle = self.operational() && !self.moving() && self.phase == Phase::Idle
+            && self.homing.is_none();
+        let ok = match command {
+            Command::Reset => {
+                let estop_input = shared.feedback.lock().estop;
+                if !self.ready || estop_input || self.stopping {
+                    false
+                } else {
+                    self.estop = false;
+                    self.fault = false;
+                    self.enable = true;
+                    self.reset_count = self.reset_count.wrapping_add(1);
+                    shared.machine_interface.lock().estop_reset = true;
+                    true
+                }
+            }
+            Command::Start { from_line } => {
+                if idle && self.has_program {
+                    self.begin(shared, Mode::Auto, from_line);
+                    let _ = shared
+                        .interpreter_requests
+                        .try_put(InterpreterRequest::Run { epoch: self.epoch });
+                    shared.interpreter_wake.signal();
+                    true
+                } else if matches!(self.phase, Phase::Paused { .. }) {
+                    self.start_count = self.start_count.wrapping_add(1);
+                    true
+                } else {
+                    false
+                }
+            }
+            Command::Mdi(line) => {
+                if idle {
+                    self.begin(shared, Mode::Mdi, 0);
+                    let _ = shared.interpreter_requests.try_put(InterpreterRequest::Mdi {
+                        epoch: self.epoch,
+                        line,
+                    });
+                    shared.interpreter_wake.signal();
+                    true
+                } else {
+                    false
+                }
+            }
+            Command::JogContinuous { axis, velocity } => {
+                let i = usize::from(axis);
+                if idle && i < AXES && self.axis_present[i] && velocity.is_finite() && velocity != 0.0
+                {
+                    self.enter_manual();
+                    let speed = velocity.abs().min(self.axis_limits[i].max_velocity);
+                    let target = if velocity > 0.0 {
+                        self.axis_max[i]
+                    } else {
+                        self.axis_min[i]
+                    };
+                    let l = Limits::symmetric(
+                        speed,
+                        self.axis_limits[i].max_acceleration,
+                        self.axis_limits[i].max_jerk,
+                    );
+                    self.axis_otg[i].set_limits(l).is_ok()
+                        && self.axis_otg[i].set_target(State::at_rest(target)).is_ok()
+                } else {
+                    false
+                }
+            }
+            Command::JogIncrement { axis, distance } => {
+                let i = usize::from(axis);
+                if idle && i < AXES && self.axis_present[i] && distance.is_finite() {
+                    self.enter_manual();
+                    let from = self.axis_otg[i].sample().p;
+                    let target = (from + distance).clamp(self.axis_min[i], self.axis_max[i]);
+                    let l = Limits::symmetric(
+                        self.jog_velocity[i],
+                        self.axis_limits[i].max_acceleration,
+                        self.axis_limits[i].max_jerk,
+                    );
+                    self.axis_otg[i].set_limits(l).is_ok()
+                        && self.axis_otg[i].set_target(State::at_rest(target)).is_ok()
+                } else {
+                    false
+                }
+            }
+            Command::JogStop { axis } => {
+                let i = usize::from(axis);
+                if self.source == Source::Manual && i < AXES && self.axis_present[i] {
+                    self.axis_otg[i].stop().is_ok()
+                } else {
+                    false
+                }
+            }
+            Command::Handwheel { axis, scale } => match axis {
+                None => {
+                    self.handwheel = None;
+                    true
+                }
+                Some(a) => {
+                    let i = usize::from(a);
+                    if idle && i < AXES && self.axis_present[i] && scale.is_finite() && scale > 0.0
+                    {
+                        self.enter_manual();
+                        let _ = self.axis_otg[i].set_limits(self.axis_limits[i]);
+                        self.handwheel = Some((i, scale * self.handwheel_units_per_count));
+                        self.handwheel_counts = None;
+                        true
+                    } else {
+                        false
+                    }
+                }
+            },
+            Command::HomeAll => {
+                if idle {
+                    self.enter_manual();
+                    self.homed = 0;
+                    self.homing = self.next_homing_group(None);
+                    if self.homing.is_none() {
+                        self.homed = (1u32 << self.joint_count) - 1;
+                    }
+                    true
+                } else {
+                    false
+                }
+            }
+            Command::JointMove { joint, position } => {
+                let j = usize::from(joint);
+                if idle && j < self.joint_count && self.joints[j].axis.is_none() && position.is_finite()
+                {
+                    let info = self.joints[j];
+                    let target = position.clamp(info.min, info.max);
+                    let _ = self.joint_otg[j].set_limits(info.limits);
+                    self.joint_otg[j].set_target(State::at_rest(target)).is_ok()
+                } else {
+                    false
+                }
+            }
+            Command::SingleBlock(on) => {
+                self.single_block = on;
+                true
+            }
+            Command::OptionalStop(on) => {
+                self.optional_stop = on;
+                true
+            }
+            Command::BlockDelete(on) => shared
+                .interpreter_requests
+                .try_put(InterpreterRequest::BlockDelete(on))
+                .is_ok(),
+        };
+        if !ok {
+            shared.raise(ctx, FaultCode::CommandRefused, TaskName::CommandParsing, None, 0, 0.0);
+        }
+        ok
+    }
+
+    fn begin(&mut self, shared: &Shared, mode: Mode, from_line: u32) {
+        self.enter_path();
+        self.mode = mode;
+        self.epoch = self.epoch.wrapping_add(1);
+        self.phase = Phase::Feeding;
+        self.pending = None;
+        self.program_ended = false;
+        self.run_from_line = from_line;
+        self.skipped_to = None;
+        shared.machine_interface.lock().program_running = mode == Mode::Auto;
+    }
+
+    /// Hands motion to the on-line generators, from where the path stands.
+    fn enter_manual(&mut self) {
+        self.mode = Mode::Manual;
+        if self.source == Source::Manual {
+            return;
+        }
+        let axes = self.last.axes;
+        for i in 0..AXES {
+            if self.axis_present[i] {
+                if let Ok(o) = OnlineAxis::new(State::at_rest(axes[i]), self.axis_limits[i]) {
+                    self.axis_otg[i] = o;
+                }
+            }
+        }
+        self.source = Source::Manual;
+    }
+
+    /// Hands motion to the planner, from where the generators stand.
+    fn enter_path(&mut self) {
+        if self.source == Source::Path {
+            return;
+        }
+        let _ = self.planner.reset_at(self.last.axes);
+        self.handwheel = None;
+        self.source = Source::Path;
+    }
+
+    // ----- look-ahead --------------------------------------------------------------------
+
+    /// One run of the look-ahead: moves blocks into the planner's window while it has room,
+    /// stops the path before machine functions and errors, and sequences their hand-shakes.
+    pub fn look_ahead(&mut self, ctx: &mut Context<'_>, shared: &Shared) {
+        if !self.operational() || self.stopping {
+            return;
+        }
+        for _ in 0..64 {
+            match self.phase {
+                Phase::Idle => return,
+                Phase::Feeding => {
+                    if self.held {
+                        return;
+                    }
+                    let block = match self.pending.take() {
+                        Some(b) => b,
+                        None => match shared.machine_blocks.try_get() {
+                            Some(Tagged { epoch, block }) if epoch == self.epoch => block,
+                            Some(_) => continue,
+                            None => return,
+                        },
+                    };
+                    if !self.feed(ctx, shared, block) {
+                        return;
+                    }
+                }
+                Phase::Draining { then, line } => {
+                    if self.moving() {
+                        return;
+                    }
+                    self.after_drain(ctx, shared, then, line);
+                }
+                Phase::Logic {
+                    aux,
+                    line,
+                    released,
+                } => {
+                    if !self.logic_done(shared, aux, line, released) {
+                        return;
+                    }
+                }
+                Phase::Paused { start_count } => {
+                    if self.start_count == start_count {
+                        return;
+                    }
+                    self.phase = Phase::Feeding;
+                }
+            }
+        }
+    }
+
+    /// Returns false when the block could not be taken now (kept for the next run).
+    fn feed(&mut self, ctx: &mut Context<'_>, shared: &Shared, block: MachineBlock) -> bool {
+        match block {
+            MachineBlock::Motion(mv) => {
+                if self.run_from_line > 1 && mv.line < self.run_from_line {
+                    if let rtcnc_motion::MoveKind::Line { end, .. }
+                    | rtcnc_motion::MoveKind::Arc { end, .. } = mv.kind
+                    {
+                        self.skipped_to = Some(end);
+                    }
+                    return true;
+                }
+                if let Some(end) = self.skipped_to.take() {
+                    // Run from a line: go to where the first executed block starts, at rapid.
+                    let approach = Move::rapid(end, rtcnc_motion::PathMode::ExactStop, mv.line);
+                    if let Err(e) = self.planner.push(&approach) {
+                        self.skipped_to = Some(end);
+                        if matches!(e, MotionError::QueueFull) {
+                            self.pending = Some(block);
+                            return false;
+                        }
+                    }
+                }
+                match self.planner.push(&mv) {
+                    Ok(()) => {
+                        if self.single_block {
+                            self.planner.flush();
+                            self.phase = Phase::Draining {
+                                then: Then::SingleBlockPause,
+                                line: mv.line,
+                            };
+                        }
+                        true
+                    }
+                    Err(MotionError::QueueFull) => {
+                        self.pending = Some(block);
+                        false
+                    }
+                    Err(e) => {
+                        let _ = ctx;
+                        self.planner.flush();
+                        self.phase = Phase::Draining {
+                            then: Then::Error(FaultCode::MotionError),
+                            line: e.line().unwrap_or(mv.line),
+                        };
+                        true
+                    }
+                }
+            }
+            MachineBlock::Aux { line, aux } => {
+                self.planner.flush();
+                self.phase = Phase::Draining {
+                    then: Then::Aux(aux),
+                    line,
+                };
+                let _ = shared;
+                true
+            }
+            MachineBlock::End { line } => {
+                self.planner.flush();
+                self.phase = Phase::Draining {
+                    then: Then::End,
+                    line,
+                };
+                true
+            }
+            MachineBlock::Error { line, code } => {
+                self.planner.flush();
+                self.phase = Phase::Draining {
+                    then: Then::Error(code),
+                    line,
+                };
+                true
+            }
+            MachineBlock::MdiDone => {
+                self.planner.flush();
+                self.phase = Phase::Draining {
+                    then: Then::MdiDone,
+                    line: 0,
+                };
+                true
+            }
+        }
+    }
+
+    fn after_drain(&mut self, ctx: &mut Context<'_>, shared: &Shared, then: Then, line: u32) {
+        match then {
+            Then::SingleBlockPause => {
+                self.phase = Phase::Paused {
+                    start_count: self.start_count,
+                }
+            }
+            Then::End => {
+                self.phase = Phase::Idle;
+                self.program_ended = true;
+                shared.machine_interface.lock().program_running = false;
+            }
+            Then::MdiDone => self.phase = Phase::Idle,
+            Then::Error(code) => {
+                shared.raise(ctx, code, TaskName::LookAhead, None, line, 0.0);
+                self.phase = Phase::Idle;
+                self.epoch = self.epoch.wrapping_add(1);
+                let _ = shared.interpreter_requests.try_put(InterpreterRequest::Stop);
+                shared.machine_interface.lock().program_running = false;
+            }
+            Then::Aux(aux) => self.start_aux(shared, aux, line),
+        }
+    }
+
+    fn start_aux(&mut self, shared: &Shared, aux: Aux, line: u32) {
+        let mut mi = shared.machine_interface.lock();
+        match aux {
+            Aux::SpindleOn { rpm } => {
+                mi.spindle_on = rpm != 0.0;
+                mi.spindle_reverse = rpm < 0.0;
+                mi.spindle_rpm = rpm.abs() * self.spindle_override;
+            }
+            Aux::SpindleOff => {
+                mi.spindle_on = false;
+            }
+            Aux::SpindleSpeed { rpm } => mi.spindle_rpm = rpm.abs() * self.spindle_override,
+            Aux::Mist(on) => mi.mist = on,
+            Aux::Flood(on) => mi.flood = on,
+            Aux::ToolChange { tool } => {
+                mi.tool_number = tool;
+                mi.tool_change_request = true;
+            }
+            Aux::UserM { code, p, q } => {
+                mi.m_code = code;
+                mi.m_p = p;
+                mi.m_q = q;
+                mi.m_code_request = true;
+            }
+            Aux::DigitalOutput { index, on } => {
+                if index < 64 {
+                    if on {
+                        mi.program_outputs |= 1 << index;
+                    } else {
+                        mi.program_outputs &= !(1 << index);
+                    }
+                }
+            }
+            Aux::ProgramStop => {
+                drop(mi);
+                self.phase = Phase::Paused {
+                    start_count: self.start_count,
+                };
+                return;
+            }
+            Aux::OptionalStop => {
+                drop(mi);
+                self.phase = if self.optional_stop {
+                    Phase::Paused {
+                        start_count: self.start_count,
+                    }
+                } else {
+                    Phase::Feeding
+                };
+                return;
+            }
+        }
+        self.phase = Phase::Logic {
+            aux,
+            line,
+            released: false,
+        };
+    }
+
+    /// Whether the machine logic acknowledged `aux`; drops hand-shake requests once done.
+    fn logic_done(&mut self, shared: &Shared, aux: Aux, line: u32, released: bool) -> bool {
+        let mut mi = shared.machine_interface.lock();
+        let done = match aux {
+            Aux::SpindleOn { .. } | Aux::SpindleSpeed { .. } => !mi.spindle_on || mi.spindle_at_speed,
+            Aux::SpindleOff => true,
+            Aux::Mist(on) => mi.out_mist == on,
+            Aux::Flood(on) => mi.out_flood == on,
+            Aux::ToolChange { tool } => {
+                if !released {
+                    if mi.tool_change_done {
+                        mi.tool_change_request = false;
+                        self.tool = tool;
+                        self.phase = Phase::Logic {
+                            aux,
+                            line,
+                            released: true,
+                        };
+                    }
+                    false
+                } else {
+                    !mi.tool_change_done
+                }
+            }
+            Aux::UserM { .. } => {
+                if !released {
+                    if mi.m_code_done {
+                        mi.m_code_request = false;
+                        self.phase = Phase::Logic {
+                            aux,
+                            line,
+                            released: true,
+                        };
+                    }
+                    false
+                } else {
+                    !mi.m_code_done
+                }
+            }
+            Aux::DigitalOutput { .. } | Aux::ProgramStop | Aux::OptionalStop => true,
+        };
+        if done {
+            self.phase = Phase::Feeding;
+        }
+        done
+    }
+
+    // ----- interpolation -----------------------------------------------------------------
+
+    /// One servo period: reacts to stop requests first, then computes the set-point of
+    /// every joint and sends it to position control.
+    pub fn interpolate(
+        &mut self,
+        _ctx: &mut Context<'_>,
+        shared: &Shared,
+        out: &mut RingProducer<ServoTarget>,
+    ) {
+        while let Some(fault) = shared.stop_requests.try_get() {
+            self.on_fault(shared, fault);
+        }
+        let feedback = *shared.feedback.lock();
+        if !self.offsets_known && feedback.cycle > 0 {
+            // Before homing, a joint's machine position is where the kernel believed it
+            // was at power-up: the offsets make feedback and set-points agree.
+            self.offsets_known = true;
+            for j in 0..self.joint_count {
+                self.offsets[j] = self.last.joints[j] - feedback.position[j];
+            }
+        }
+        {
+            let mi = shared.machine_interface.lock();
+            if mi.feed_hold_request && !self.estop_feed_hold_from_logic {
+                self.hold();
+            }
+            self.estop_feed_hold_from_logic = mi.feed_hold_request;
+        }
+        self.cycle += 1;
+        let mut sp = self.last;
+        sp.cycle = self.cycle;
+        match self.source {
+            Source::Path => {
+                let n = self.planner_joint_count;
+                let status = self.planner.next(&mut self.planner_buf[..n]);
+                for k in 0..n {
+                    sp.joints[self.planner_joints[k]] = self.planner_buf[k];
+                }
+                sp.axes = status.axes;
+                sp.line = status.line;
+                sp.path_speed = status.path_speed;
+                if self.held && status.state == MotionState::Idle {
+                    self.held = false;
+                }
+                self.last_state = status.state;
+                if status.state == MotionState::Idle && self.phase == Phase::Idle {
+                    sp.line = 0;
+                }
+            }
+            Source::Manual => {
+                self.handwheel_step(&feedback);
+                let mut speed2 = 0.0;
+                for i in 0..AXES {
+                    if self.axis_present[i] {
+                        let s = self.axis_otg[i].step(self.period_s);
+                        sp.axes[i] = s.p;
+                        speed2 += s.v * s.v;
+                    }
+                }
+                sp.path_speed = speed2.sqrt();
+                for j in 0..self.joint_count {
+                    if let Some(i) = self.joints[j].axis {
+                        sp.joints[j] = sp.axes[i];
+                    }
+                }
+                self.homing_step(shared, &feedback);
+            }
+        }
+        // Joints on their own generator (homing, independent joints).
+        for j in 0..self.joint_count {
+            if self.joint_manual & (1 << j) != 0 {
+                sp.joints[j] = self.joint_otg[j].step(self.period_s).p;
+            }
+        }
+        if self.stopping && !self.moving() {
+            self.stopping = false;
+            if self.estop || self.fault {
+                self.enable = false;
+            }
+        }
+        self.last = sp;
+        let _ = out.push(ServoTarget {
+            setpoints: sp,
+            offsets: self.offsets,
+            enable: self.enable,
+            reset_count: self.reset_count,
+            latch: self.latch,
+        });
+    }
+
+    fn on_fault(&mut self, shared: &Shared, fault: Fault) {
+        self.last_fault = Some(fault);
+        if fault.code == FaultCode::EStop {
+            self.estop = true;
+        } else {
+            self.fault = true;
+        }
+        if !self.enable {
+            return;
+        }
+        // Quick stop of whatever moves, with the configured deceleration and jerk; the
+        // drives are disabled once it stands (see `interpolate`).
+        self.stopping = true;
+        self.epoch = self.epoch.wrapping_add(1);
+        let _ = shared.interpreter_requests.try_put(InterpreterRequest::Stop);
+        self.pending = None;
+        self.phase = Phase::Idle;
+        self.held = false;
+        self.homing = None;
+        self.latch = LatchRequest::default();
+        match self.source {
+            Source::Path => self.planner.quick_stop(),
+            Source::Manual => {
+                self.handwheel = None;
+                self.stop_manual(true);
+            }
+        }
+        let mut mi = shared.machine_interface.lock();
+        mi.tool_change_request = false;
+        mi.m_code_request = false;
+        mi.program_running = false;
+        mi.spindle_on = false;
+    }
+
+    fn handwheel_step(&mut self, feedback: &Feedback) {
+        let Some((i, per_count)) = self.handwheel else {
+            self.handwheel_counts = None;
+            return;
+        };
+        let counts = feedback.handwheel_counts;
+        let previous = self.handwheel_counts.replace(counts).unwrap_or(counts);
+        let delta = counts.wrapping_sub(previous);
+        if delta != 0 {
+            let target = self.handwheel_target(i) + delta as f64 * per_count;
+            let target = target.clamp(self.axis_min[i], self.axis_max[i]);
+            let _ = self.axis_otg[i].set_target(State::at_rest(target));
+        }
+    }
+
+    /// Where the axis generator is heading (its profile's end).
+    fn handwheel_target(&self, i: usize) -> f64 {
+        let (profile, _) = self.axis_otg[i].profile();
+        profile.at(profile.duration()).p
+    }
+
+    fn next_homing_group(&self, after: Option<u8>) -> Option<Homing> {
+        let sequence = (0..self.joint_count)
+            .filter_map(|j| self.joints[j].homing.map(|h| h.sequence))
+            .filter(|s| after.is_none_or(|a| *s > a))
+            .min()?;
+        let mut step = [None; MAX_JOINTS];
+        for (j, slot) in step.iter_mut().enumerate().take(self.joint_count) {
+            if self.joints[j].homing.is_some_and(|h| h.sequence == sequence) {
+                *slot = Some(HomingStep::Search);
+            }
+        }
+        Some(Homing { sequence, step })
+    }
+
+    /// One period of the homing sequence of the current group.
+    fn homing_step(&mut self, shared: &Shared, feedback: &Feedback) {
+        let Some(mut homing) = self.homing else {
+            return;
+        };
+        let mut all_done = true;
+        for j in 0..self.joint_count {
+            let Some(step) = homing.step[j] else {
+                continue;
+            };
+            let Some(h) = self.joints[j].homing else {
+                continue;
+            };
+            let bit = 1u32 << j;
+            let toward = h.search_velocity.signum();
+            let on_switch = feedback.home_switch & bit != 0;
+            let otg = &mut self.joint_otg[j];
+            let next = match step {
+                HomingStep::Search => {
+                    if self.joint_manual & bit == 0 {
+                        // Take the joint over from its axis, at rest where it stands.
+                        let p = self.last.joints[j];
+                        if let Ok(o) = OnlineAxis::new(State::at_rest(p), self.joints[j].limits) {
+                            *otg = o;
+                        }
+                        self.joint_manual |= bit;
+                        let _ = otg.set_velocity(h.search_velocity, 0.0);
+                        Some(HomingStep::Search)
+                    } else if on_switch {
+                        let _ = otg.stop();
+                        Some(HomingStep::SearchStop)
+                    } else {
+                        Some(HomingStep::Search)
+                    }
+                }
+                HomingStep::SearchStop => {
+                    if otg.is_finished() {
+                        let _ = otg.set_velocity(-toward * h.latch_velocity, 0.0);
+                        Some(HomingStep::BackOff)
+                    } else {
+                        Some(HomingStep::SearchStop)
+                    }
+                }
+                HomingStep::BackOff => {
+                    if !on_switch {
+                        let _ = otg.stop();
+                        Some(HomingStep::BackOffStop)
+                    } else {
+                        Some(HomingStep::BackOff)
+                    }
+                }
+                HomingStep::BackOffStop => {
+                    if otg.is_finished() {
+                        if h.use_index {
+                            self.latch.index |= bit;
+                        } else {
+                            self.latch.switch |= bit;
+                        }
+                        let _ = otg.set_velocity(toward * h.latch_velocity, 0.0);
+                        Some(HomingStep::Latch)
+                    } else {
+                        Some(HomingStep::BackOffStop)
+                    }
+                }
+                HomingStep::Latch => {
+                    if feedback.latched & bit != 0 && (self.latch.index | self.latch.switch) & bit != 0 {
+                        self.latch.index &= !bit;
+                        self.latch.switch &= !bit;
+                        // The latched raw position becomes `latch_position`.
+                        let new_offset = h.latch_position - feedback.latch_position[j];
+                        let shift = new_offset - self.offsets[j];
+                        self.offsets[j] = new_offset;
+                        let s = otg.sample();
+                        if let Ok(o) =
+                            OnlineAxis::new(State::new(s.p + shift, s.v, s.a), self.joints[j].limits)
+                        {
+                            *otg = o;
+                        }
+                        let _ = otg.stop();
+                        Some(HomingStep::LatchStop)
+                    } else {
+                        Some(HomingStep::Latch)
+                    }
+                }
+                HomingStep::LatchStop => {
+                    if otg.is_finished() {
+                        let _ = otg.set_target(State::at_rest(h.home_position));
+                        Some(HomingStep::MoveHome)
+                    } else {
+                        Some(HomingStep::LatchStop)
+                    }
+                }
+                HomingStep::MoveHome => {
+                    if otg.is_finished() {
+                        self.homed |= bit;
+                        None
+                    } else {
+                        Some(HomingStep::MoveHome)
+                    }
+                }
+            };
+            homing.step[j] = next;
+            if next.is_some() {
+                all_done = false;
+            }
+        }
+        if all_done {
+            // Hand the group's axis joints back to their axes, now squared.
+            for j in 0..self.joint_count {
+                if homing.step[j].is_none()
+                    && self.joints[j].homing.is_some_and(|h| h.sequence == homing.sequence)
+                {
+                    if let Some(i) = self.joints[j].axis {
+                        let p = self.joint_otg[j].sample().p;
+                        if let Ok(o) = OnlineAxis::new(State::at_rest(p), self.axis_limits[i]) {
+                            self.axis_otg[i] = o;
+                        }
+                        self.joint_manual &= !(1 << j);
+                    }
+                }
+            }
+            self.homing = self.next_homing_group(Some(homing.sequence));
+            if self.homing.is_none() {
+                // Joints without a sequence are homed where they stand.
+                for j in 0..self.joint_count {
+                    if self.joints[j].homing.is_none() {
+                        self.homed |= 1 << j;
+                    }
+                }
+                shared.machine_interface.lock().homed = true;
+            }
+        } else {
+            self.homing = Some(homing);
+        }
+    }
+
+    /// Fills the status snapshot (called by the status task).
+    pub fn status(&self, feedback: &Feedback, time_ns: u64, status: &mut Status) {
+        status.cycle = self.cycle;
+        status.time_ns = time_ns;
+        status.state = self.state();
+        status.mode = self.mode;
+        status.line = self.last.line;
+        status.axes = self.last.axes;
+        status.joint_setpoints = self.last.joints;
+        for j in 0..self.joint_count {
+            status.joint_feedback[j] = feedback.position[j] + self.offsets[j];
+        }
+        status.path_speed = self.last.path_speed;
+        status.feed_override = self.feed_override;
+        status.homed = self.homed;
+        status.program_ended = self.program_ended;
+        status.tool = self.tool;
+        status.spindle_rpm = feedback.spindle_rpm;
+        status.ready = self.ready && self.enable && feedback.enabled != 0;
+        if let Some(f) = self.last_fault {
+            status.last_fault = Some(f);
+        }
+    }
+}
+
+fn otg_error(e: rtcnc_motion::otg::OtgError) -> MotionError {
+    MotionError::Kinematics(format!("on-line generator: {e}"))
+}

@@ -1,0 +1,335 @@
+//! Position control and drive I/O: the two task functions of the fieldbus thread. Position
+//! control takes the newest set-point, runs every joint's servo loop on the feedback of the
+//! last exchange and writes the drive commands; drive I/O writes the machine interface's
+//! outputs, exchanges the process image, checks limit switches, drive faults and the
+//! e-stop input, and publishes the feedback image. Allocation-free per cycle.
+
+use rtcnc_fieldbus::{Cia402State, ControlWord, Fieldbus, LatchSource, ProcessInputs, ProcessOutputs};
+use rtcnc_rt::{Context, RingConsumer, RingProducer};
+use rtcnc_servo::{ServoCommand, ServoLoop, SetPointDifferentiator};
+
+use crate::config::MAX_JOINTS;
+use crate::fault::{FaultCode, TaskName};
+use crate::motion::ServoTarget;
+use crate::shared::{Feedback, Shared};
+
+/// One recorded servo cycle (for the CSV files, plots and summaries of `rtcnc sim`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    /// Servo cycle.
+    pub cycle: u64,
+    /// Time, ns.
+    pub time_ns: u64,
+    /// Joint set-points (machine coordinates).
+    pub setpoint: [f64; MAX_JOINTS],
+    /// Joint feedback (machine coordinates).
+    pub feedback: [f64; MAX_JOINTS],
+    /// Following error the servo loop saw.
+    pub following_error: [f64; MAX_JOINTS],
+    /// Axis set-point.
+    pub axes: [f64; rtcnc_motion::AXES],
+    /// Program line.
+    pub line: u32,
+    /// Path speed.
+    pub path_speed: f64,
+}
+
+pub(crate) struct ServoStage<B: Fieldbus> {
+    pub(crate) bus: B,
+    outputs: ProcessOutputs,
+    inputs: ProcessInputs,
+    loops: Vec<ServoLoop>,
+    differentiators: Vec<SetPointDifferentiator>,
+    joint_count: usize,
+    period_s: f64,
+    target: Option<ServoTarget>,
+    targets: RingConsumer<ServoTarget>,
+    recorder: Option<RingProducer<Sample>>,
+    shared: Shared,
+    was_enabled: u32,
+    servo_fault: bool,
+    reset_count: u32,
+    limit_latched: u32,
+    drive_fault_latched: u32,
+    comm_fault: bool,
+    estop_latched: bool,
+    exchanges: u64,
+    following_error: [f64; MAX_JOINTS],
+    program_outputs: Vec<usize>,
+}
+
+impl<B: Fieldbus> ServoStage<B> {
+    pub(crate) fn new(
+        bus: B,
+        loops: Vec<ServoLoop>,
+        period_s: f64,
+        targets: RingConsumer<ServoTarget>,
+        recorder: Option<RingProducer<Sample>>,
+        shared: Shared,
+        program_outputs: Vec<usize>,
+    ) -> Self {
+        let outputs = ProcessOutputs::new(bus.layout());
+        let inputs = ProcessInputs::new(bus.layout());
+        let joint_count = loops.len().min(MAX_JOINTS);
+        ServoStage {
+            bus,
+            outputs,
+            inputs,
+            differentiators: vec![SetPointDifferentiator::new(); joint_count],
+            loops,
+            joint_count,
+            period_s,
+            target: None,
+            targets,
+            recorder,
+            shared,
+            was_enabled: 0,
+            servo_fault: false,
+            reset_count: 0,
+            limit_latched: 0,
+            drive_fault_latched: 0,
+            comm_fault: false,
+            estop_latched: false,
+            exchanges: 0,
+            following_error: [0.0; MAX_JOINTS],
+            program_outputs,
+        }
+    }
+
+    /// Position control: one servo cycle.
+    pub(crate) fn position_control(&mut self, ctx: &mut Context<'_>) {
+        while let Some(t) = self.targets.pop() {
+            self.target = Some(t);
+        }
+        let Some(target) = self.target else {
+            // Nothing planned yet: keep the drives where they are.
+            for (command, feedback) in self.outputs.joints.iter_mut().zip(&self.inputs.joints) {
+                command.controlword = feedback.state().controlword_towards(false);
+            }
+            return;
+        };
+        if target.reset_count != self.reset_count {
+            self.reset_count = target.reset_count;
+            self.servo_fault = false;
+            // A switch still pressed stays latched, so the joint can be moved off it.
+            self.limit_latched = 0;
+            for (j, f) in self.inputs.joints.iter().enumerate().take(self.joint_count) {
+                if f.negative_limit || f.positive_limit {
+                    self.limit_latched |= 1 << j;
+                }
+            }
+            self.drive_fault_latched = 0;
+            self.comm_fault = false;
+            self.estop_latched = false;
+        }
+        let period = self.period_s;
+        for j in 0..self.joint_count {
+            let (Some(command), Some(feedback), Some(servo), Some(diff)) = (
+                self.outputs.joints.get_mut(j),
+                self.inputs.joints.get(j),
+                self.loops.get_mut(j),
+                self.differentiators.get_mut(j),
+            ) else {
+                continue;
+            };
+            let bit = 1u32 << j;
+            let state = feedback.state();
+            if state.is_fault() && target.enable {
+                // A drive fault is reset by the master's explicit decision: a reset command.
+                command.controlword = if self.was_enabled & bit == 0 {
+                    ControlWord::fault_reset()
+                } else {
+                    ControlWord::disable_voltage()
+                };
+                self.was_enabled &= !bit;
+                continue;
+            }
+            command.controlword = if self.servo_fault {
+                if state == Cia402State::OperationEnabled || state == Cia402State::QuickStopActive {
+                    ControlWord::quick_stop()
+                } else {
+                    state.controlword_towards(false)
+                }
+            } else {
+                state.controlword_towards(target.enable)
+            };
+            command.latch = if target.latch.index & bit != 0 {
+                Some(LatchSource::IndexPulse)
+            } else if target.latch.switch & bit != 0 {
+                Some(LatchSource::HomeSwitch)
+            } else {
+                None
+            };
+            let raw_target = target.setpoints.joints[j] - target.offsets[j];
+            if state != Cia402State::OperationEnabled || self.servo_fault {
+                // Not under control: hold the command at the actual position so that
+                // enabling does not jump.
+                self.was_enabled &= !bit;
+                command.target_velocity = 0.0;
+                command.target_position = feedback.position;
+                command.velocity_offset = 0.0;
+                command.torque_offset = 0.0;
+                continue;
+            }
+            if self.was_enabled & bit == 0 {
+                self.was_enabled |= bit;
+                servo.reset();
+                diff.reset();
+            }
+            let setpoint = diff.next(raw_target, period);
+            match servo.update(setpoint, feedback.position, period) {
+                Ok(ServoCommand::Velocity(v)) => command.target_velocity = v,
+                Ok(ServoCommand::Position(c)) => {
+                    command.target_position = c.position;
+                    command.velocity_offset = c.velocity_offset;
+                    command.torque_offset = c.torque_offset;
+                }
+                Err(fault) => {
+                    if !self.servo_fault {
+                        self.servo_fault = true;
+                        let value = match fault {
+                            rtcnc_servo::ServoFault::FollowingError { error, .. } => error,
+                            _ => f64::NAN,
+                        };
+                        self.shared.raise(
+                            ctx,
+                            FaultCode::FollowingError,
+                            TaskName::PositionControl,
+                            Some(fault.joint() as u8),
+                            target.setpoints.line,
+                            value,
+                        );
+                    }
+                    command.target_velocity = 0.0;
+                }
+            }
+            self.following_error[j] = servo.following_error().last_error();
+        }
+        if let Some(recorder) = self.recorder.as_mut() {
+            let mut feedback = [0.0; MAX_JOINTS];
+            for j in 0..self.joint_count {
+                if let Some(f) = self.inputs.joints.get(j) {
+                    feedback[j] = f.position + target.offsets[j];
+                }
+            }
+            let _ = recorder.push(Sample {
+                cycle: target.setpoints.cycle,
+                time_ns: ctx.release_time().as_nanos(),
+                setpoint: target.setpoints.joints,
+                feedback,
+                following_error: self.following_error,
+                axes: target.setpoints.axes,
+                line: target.setpoints.line,
+                path_speed: target.setpoints.path_speed,
+            });
+        }
+    }
+
+    /// Drive I/O: one exchange.
+    pub(crate) fn drive_io(&mut self, ctx: &mut Context<'_>) {
+        {
+            let mi = self.shared.machine_interface.lock();
+            self.outputs.spindle.enable = mi.out_spindle_enable;
+            self.outputs.spindle.speed_rpm = mi.out_spindle_rpm;
+            self.outputs.coolant.mist = mi.out_mist;
+            self.outputs.coolant.flood = mi.out_flood;
+            self.outputs.tool_changer.start = mi.out_tool_start;
+            self.outputs.tool_changer.tool = mi.out_tool_number;
+            for (n, &point) in self.program_outputs.iter().enumerate().take(64) {
+                if let Some(o) = self.outputs.digital.get_mut(point) {
+                    *o = mi.program_outputs & (1 << n) != 0;
+                }
+            }
+            for (i, o) in self.outputs.digital.iter_mut().enumerate().take(64) {
+                if mi.out_digital & (1 << i) != 0 {
+                    *o = true;
+                }
+            }
+        }
+        let result = self
+            .bus
+            .exchange(self.period_s, &self.outputs, &mut self.inputs);
+        self.exchanges += 1;
+        if result.is_err() && !self.comm_fault {
+            self.comm_fault = true;
+            self.shared
+                .raise(ctx, FaultCode::Communication, TaskName::DriveIo, None, 0, 0.0);
+        }
+        let mut fb = Feedback {
+            cycle: self.exchanges,
+            ..Feedback::default()
+        };
+        for (j, f) in self.inputs.joints.iter().enumerate().take(self.joint_count) {
+            let bit = 1u32 << j;
+            fb.position[j] = f.position;
+            fb.velocity[j] = f.velocity;
+            if f.negative_limit {
+                fb.negative_limit |= bit;
+            }
+            if f.positive_limit {
+                fb.positive_limit |= bit;
+            }
+            if f.home_switch {
+                fb.home_switch |= bit;
+            }
+            if f.latch.latched {
+                fb.latched |= bit;
+                fb.latch_position[j] = f.latch.position;
+            }
+            let state = f.state();
+            if state == Cia402State::OperationEnabled {
+                fb.enabled |= bit;
+            }
+            if state.is_fault() {
+                fb.faulted |= bit;
+            }
+            if (f.negative_limit || f.positive_limit) && self.limit_latched & bit == 0 {
+                self.limit_latched |= bit;
+                self.shared.raise(
+                    ctx,
+                    FaultCode::HardLimit,
+                    TaskName::DriveIo,
+                    Some(j as u8),
+                    0,
+                    f.position,
+                );
+            }
+            if state.is_fault() && self.drive_fault_latched & bit == 0 && self.was_enabled & bit != 0
+            {
+                self.drive_fault_latched |= bit;
+                self.shared.raise(
+                    ctx,
+                    FaultCode::DriveFault,
+                    TaskName::DriveIo,
+                    Some(j as u8),
+                    0,
+                    f64::from(f.error_code),
+                );
+            }
+        }
+        fb.estop = self.inputs.estop_active;
+        if fb.estop && !self.estop_latched {
+            self.estop_latched = true;
+            self.shared
+                .raise(ctx, FaultCode::EStop, TaskName::DriveIo, None, 0, 0.0);
+        }
+        fb.handwheel_counts = self.inputs.handwheel_counts;
+        fb.spindle_rpm = self.inputs.spindle.speed_rpm;
+        fb.spindle_at_speed = self.inputs.spindle.at_speed;
+        fb.tool = self.inputs.tool_changer.current_tool;
+        fb.tool_change_done = self.inputs.tool_changer.done;
+        for (i, &d) in self.inputs.digital.iter().enumerate().take(64) {
+            if d {
+                fb.digital_inputs |= 1 << i;
+            }
+        }
+        *self.shared.feedback.lock() = fb;
+    }
+
+    /// The largest following error seen per joint is in the recorded samples; this is the
+    /// last one.
+    #[allow(dead_code)]
+    pub(crate) fn following_error(&self) -> &[f64; MAX_JOINTS] {
+        &self.following_error
+    }
+}

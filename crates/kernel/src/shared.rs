@@ -1,0 +1,222 @@
+//! What the kernel's tasks share: the channels between stages and the few plain-data areas
+//! (feedback image, machine interface, status) guarded by priority-inheritance mutexes.
+
+use rtcnc_rt::{BinarySemaphore, Context, Mailbox, PiMutex};
+
+use crate::config::MAX_JOINTS;
+use crate::fault::{Fault, FaultCode, TaskName};
+use crate::messages::{Command, FixedText, MachineBlock, ProgramBlock, Status, Urgent};
+
+/// A pipeline message tagged with the program run it belongs to, so that an abort can drop
+/// whatever of an old run is still in the channels.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tagged<T> {
+    /// Program run.
+    pub epoch: u32,
+    /// The message.
+    pub block: T,
+}
+
+/// What the command parser asks of the interpreter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum InterpreterRequest {
+    /// Run the loaded program.
+    Run {
+        /// Program run.
+        epoch: u32,
+    },
+    /// Interpret one MDI line.
+    Mdi {
+        /// Program run.
+        epoch: u32,
+        /// The line.
+        line: FixedText,
+    },
+    /// Stop reading.
+    Stop,
+    /// Block delete setting for the next run.
+    BlockDelete(bool),
+}
+
+/// The feedback image, published by drive I/O after every exchange (raw joint positions,
+/// before homing offsets).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Feedback {
+    /// Exchanges done.
+    pub cycle: u64,
+    /// Raw joint positions.
+    pub position: [f64; MAX_JOINTS],
+    /// Joint velocities.
+    pub velocity: [f64; MAX_JOINTS],
+    /// Bit n: negative limit switch of joint n.
+    pub negative_limit: u32,
+    /// Bit n: positive limit switch of joint n.
+    pub positive_limit: u32,
+    /// Bit n: home switch of joint n.
+    pub home_switch: u32,
+    /// Bit n: the latch of joint n has caught its edge.
+    pub latched: u32,
+    /// Latched raw positions.
+    pub latch_position: [f64; MAX_JOINTS],
+    /// Bit n: drive n is in operation enabled.
+    pub enabled: u32,
+    /// Bit n: drive n is faulted.
+    pub faulted: u32,
+    /// The e-stop input.
+    pub estop: bool,
+    /// Handwheel counter.
+    pub handwheel_counts: i64,
+    /// Spindle speed, rpm.
+    pub spindle_rpm: f64,
+    /// Spindle at speed.
+    pub spindle_at_speed: bool,
+    /// Tool in the spindle.
+    pub tool: u32,
+    /// Tool change finished (held until the request drops).
+    pub tool_change_done: bool,
+    /// Digital inputs, bit n = input n (first 64).
+    pub digital_inputs: u64,
+}
+
+/// The machine interface between the kernel and the machine logic (the PLC's signals).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct MachineInterface {
+    // Kernel -> logic.
+    /// Spindle commanded on.
+    pub spindle_on: bool,
+    /// Counter-clockwise.
+    pub spindle_reverse: bool,
+    /// Commanded speed after the override, rpm.
+    pub spindle_rpm: f64,
+    /// M7.
+    pub mist: bool,
+    /// M8.
+    pub flood: bool,
+    /// M6 requested.
+    pub tool_change_request: bool,
+    /// Tool to load.
+    pub tool_number: u32,
+    /// M100..M199 requested.
+    pub m_code_request: bool,
+    /// The code.
+    pub m_code: u16,
+    /// P.
+    pub m_p: f64,
+    /// Q.
+    pub m_q: f64,
+    /// A program runs.
+    pub program_running: bool,
+    /// Every joint homed.
+    pub homed: bool,
+    /// Operator reset (held for one scan by the logic task).
+    pub estop_reset: bool,
+    /// Program digital outputs (M62..M65), bit n = program output n.
+    pub program_outputs: u64,
+    // Logic -> kernel.
+    /// Spindle at speed.
+    pub spindle_at_speed: bool,
+    /// Tool change done.
+    pub tool_change_done: bool,
+    /// User M code done.
+    pub m_code_done: bool,
+    /// The logic asks for a feed hold.
+    pub feed_hold_request: bool,
+    /// The logic reports a machine fault.
+    pub machine_fault: bool,
+    /// Its code.
+    pub machine_fault_code: i64,
+    // Logic -> machine.
+    /// Spindle drive enabled.
+    pub out_spindle_enable: bool,
+    /// Signed spindle speed set-point.
+    pub out_spindle_rpm: f64,
+    /// Mist valve.
+    pub out_mist: bool,
+    /// Flood pump.
+    pub out_flood: bool,
+    /// Tool changer start.
+    pub out_tool_start: bool,
+    /// Tool changer target.
+    pub out_tool_number: u32,
+    /// Digital outputs, bit n = output n.
+    pub out_digital: u64,
+}
+
+/// Everything the tasks share. Built once; cloned handles go into the task closures.
+#[derive(Clone)]
+pub struct Shared {
+    /// Operator: urgent commands.
+    pub urgent: Mailbox<Urgent>,
+    /// Operator: normal commands.
+    pub normal: Mailbox<Command>,
+    /// Command parser -> interpreter.
+    pub interpreter_requests: Mailbox<InterpreterRequest>,
+    /// Wakes the interpreter.
+    pub interpreter_wake: BinarySemaphore,
+    /// Interpreter -> tool compensation.
+    pub program_blocks: Mailbox<Tagged<ProgramBlock>>,
+    /// Tool compensation -> look-ahead.
+    pub machine_blocks: Mailbox<Tagged<MachineBlock>>,
+    /// Faults for the operator and the log.
+    pub faults: Mailbox<Fault>,
+    /// Faults that must stop motion, for the interpolation task (read first every cycle).
+    pub stop_requests: Mailbox<Fault>,
+    /// The feedback image.
+    pub feedback: std::sync::Arc<PiMutex<Feedback>>,
+    /// The machine interface.
+    pub machine_interface: std::sync::Arc<PiMutex<MachineInterface>>,
+    /// The status snapshot.
+    pub status: std::sync::Arc<PiMutex<Status>>,
+    /// The last interpreter error in words (non-real-time side only).
+    pub error_text: std::sync::Arc<PiMutex<Option<String>>>,
+}
+
+impl Shared {
+    pub(crate) fn new() -> Shared {
+        Shared {
+            urgent: Mailbox::new("urgent commands", 32).expect("capacity > 0"),
+            normal: Mailbox::new("normal commands", 64).expect("capacity > 0"),
+            interpreter_requests: Mailbox::new("interpreter requests", 8).expect("capacity > 0"),
+            interpreter_wake: BinarySemaphore::new("interpreter wake"),
+            program_blocks: Mailbox::new("program blocks", 128).expect("capacity > 0"),
+            machine_blocks: Mailbox::new("machine blocks", 128).expect("capacity > 0"),
+            faults: Mailbox::new("faults", 1024).expect("capacity > 0"),
+            stop_requests: Mailbox::new("stop requests", 64).expect("capacity > 0"),
+            feedback: std::sync::Arc::new(PiMutex::new(Feedback::default())),
+            machine_interface: std::sync::Arc::new(PiMutex::new(MachineInterface::default())),
+            status: std::sync::Arc::new(PiMutex::new(Status::default())),
+            error_text: std::sync::Arc::new(PiMutex::new(None)),
+        }
+    }
+
+    /// Records a fault: the fault channel, the executive's fault log and trace, and (when it
+    /// stops the machine) the interpolation's stop channel. Real-time safe.
+    pub fn raise(
+        &self,
+        ctx: &mut Context<'_>,
+        code: FaultCode,
+        task: TaskName,
+        joint: Option<u8>,
+        line: u32,
+        value: f64,
+    ) -> Fault {
+        let fault = Fault {
+            code,
+            time_ns: ctx.now().as_nanos(),
+            task,
+            joint,
+            line,
+            value,
+        };
+        ctx.raise_fault(
+            code.number(),
+            code.message(),
+            joint.map_or(u64::from(line), u64::from),
+        );
+        let _ = self.faults.try_put(fault);
+        if code.stops_machine() {
+            let _ = self.stop_requests.try_put(fault);
+        }
+        fault
+    }
+}

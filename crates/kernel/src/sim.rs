@@ -1,0 +1,89 @@
+//! Running a kernel in virtual time: what `rtcnc sim` and the whole-machine tests use.
+
+use std::time::Duration;
+
+use rtcnc_rt::{RingConsumer, RunError, VirtualRunner};
+
+use crate::kernel::{Kernel, KernelHandle};
+use crate::messages::Status;
+use crate::servo::Sample;
+
+/// A kernel on the virtual-time runner.
+pub struct Simulation {
+    runner: VirtualRunner,
+    handle: KernelHandle,
+    samples: Option<RingConsumer<Sample>>,
+    period: Duration,
+}
+
+impl Simulation {
+    /// Puts a built kernel on the virtual-time runner.
+    pub fn new(kernel: Kernel) -> Simulation {
+        let period = kernel.handle.config().servo_period();
+        Simulation {
+            runner: VirtualRunner::new(kernel.tasks),
+            handle: kernel.handle,
+            samples: kernel.samples,
+            period,
+        }
+    }
+
+    /// The operator side.
+    pub fn handle(&self) -> &KernelHandle {
+        &self.handle
+    }
+
+    /// The runner (monitor, trace).
+    pub fn runner(&self) -> &VirtualRunner {
+        &self.runner
+    }
+
+    /// The servo period.
+    pub fn period(&self) -> Duration {
+        self.period
+    }
+
+    /// Virtual time now.
+    pub fn now(&self) -> Duration {
+        Duration::from_nanos(self.runner.now().as_nanos())
+    }
+
+    /// Runs `cycles` servo periods, handing every recorded sample to `sink`.
+    pub fn run_cycles(
+        &mut self,
+        cycles: u64,
+        sink: &mut dyn FnMut(&Sample),
+    ) -> Result<(), RunError> {
+        for _ in 0..cycles {
+            self.runner.run_for(self.period)?;
+            if let Some(samples) = self.samples.as_mut() {
+                while let Some(s) = samples.pop() {
+                    sink(&s);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Runs until `done(status)` holds or `limit` has passed; returns whether it held.
+    pub fn run_until(
+        &mut self,
+        limit: Duration,
+        sink: &mut dyn FnMut(&Sample),
+        mut done: impl FnMut(&Status) -> bool,
+    ) -> Result<bool, RunError> {
+        let end = self.now() + limit;
+        while self.now() < end {
+            self.run_cycles(1, sink)?;
+            if done(&self.handle.status()) {
+                return Ok(true);
+            }
+        }
+        Ok(false)
+    }
+
+    /// Gives the runner back (for its recording).
+    pub fn into_runner(self) -> VirtualRunner {
+        self.runner
+    }
+}

@@ -1,0 +1,80 @@
+//! Helpers of the whole-machine tests: build a kernel from a configuration in `configs/`
+//! (or TOML text), run it in virtual time, collect samples and faults.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use rtcnc_kernel::{Command, Fault, Kernel, KernelOptions, MachineConfig, Sample, Simulation, Status};
+
+pub fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+pub fn config(name: &str) -> MachineConfig {
+    MachineConfig::load(&repo().join("configs").join(name)).expect("configuration loads")
+}
+
+pub fn program(text: &str, name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("rtcnc-kernel-tests-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+pub struct Machine {
+    pub sim: Simulation,
+    pub samples: Vec<Sample>,
+    pub faults: Vec<Fault>,
+}
+
+impl Machine {
+    pub fn new(config: &MachineConfig, program: Option<PathBuf>) -> Machine {
+        let kernel = Kernel::build(
+            config,
+            KernelOptions {
+                program,
+                record_capacity: 1 << 14,
+                trace_capacity: None,
+            },
+        )
+        .expect("kernel builds");
+        Machine {
+            sim: Simulation::new(kernel),
+            samples: Vec::new(),
+            faults: Vec::new(),
+        }
+    }
+
+    pub fn command(&mut self, c: Command) {
+        assert!(self.sim.handle().command(c));
+    }
+
+    pub fn cycles(&mut self, n: u64) {
+        let samples = &mut self.samples;
+        self.sim.run_cycles(n, &mut |s| samples.push(*s)).expect("runs");
+        self.faults.extend(self.sim.handle().take_faults());
+    }
+
+    pub fn until(&mut self, limit_s: f64, done: impl FnMut(&Status) -> bool) -> bool {
+        let samples = &mut self.samples;
+        let ok = self
+            .sim
+            .run_until(Duration::from_secs_f64(limit_s), &mut |s| samples.push(*s), done)
+            .expect("runs");
+        self.faults.extend(self.sim.handle().take_faults());
+        ok
+    }
+
+    pub fn status(&self) -> Status {
+        self.sim.handle().status()
+    }
+
+    /// Reset and wait until the drives are enabled.
+    pub fn power_on(&mut self) {
+        self.cycles(2);
+        self.command(Command::Reset);
+        assert!(self.until(0.1, |s| s.ready), "drives enable");
+    }
+}
