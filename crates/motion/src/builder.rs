@@ -359,12 +359,20 @@ impl Builder {
                             t: lp.dir,
                             k: [0.0; AXES],
                         });
-                        if let Some(pc) = span(&lp, &start, &vs, tolerance, lim) {
-                            out.push(pc);
-                            self.stats.smoothed += 1;
-                            self.prev = Some(cur);
-                            self.prev_state = Some(vs);
-                            return;
+                        // The vertex curvature comes from the circle through three points;
+                        // a slightly smaller one keeps a span that bulges too far within P.
+                        for scale_k in [1.0, 0.95, 0.9, 0.8, 0.65] {
+                            let vk = State {
+                                k: scale(&vs.k, scale_k),
+                                ..vs
+                            };
+                            if let Some(pc) = span(&lp, &start, &vk, tolerance, lim) {
+                                out.push(pc);
+                                self.stats.smoothed += 1;
+                                self.prev = Some(cur);
+                                self.prev_state = Some(vk);
+                                return;
+                            }
                         }
                     }
                     // Corner blend.
@@ -425,7 +433,7 @@ impl Builder {
             return None;
         }
         let (la, lb) = (lp.len, lc.len);
-        if la > 3.0 * lb || lb > 3.0 * la || la.max(lb) * theta > 8.0 * tol {
+        if la > 3.0 * lb || lb > 3.0 * la || la.max(lb) * theta > 16.0 * tol {
             return None;
         }
         let a = sub(&lp.b, &lp.a);

@@ -9,7 +9,7 @@ pub(crate) const NS_MAX: usize = 4;
 
 /// Share of each axis's jerk the velocity limit leaves to the curvature-change term
 /// v³·|dK/ds| (the rest serves the tangential jerk and the 3·v·a·K coupling).
-pub(crate) const JERK_SHARE_CURVATURE: f64 = 0.3;
+pub(crate) const JERK_SHARE_CURVATURE: f64 = 0.6;
 /// Share of J·T an acceleration step at a curvature discontinuity may use (a step Δa
 /// shows up as Δa/T in the sampled jerk).
 pub(crate) const JERK_SHARE_JUMP: f64 = 0.5;
@@ -159,6 +159,15 @@ impl Piece {
             d.p
         };
         (p, t)
+    }
+
+    /// Tangent, curvature vector and its derivative at local arc length `s`.
+    #[inline]
+    pub fn geo_at(&self, s: f64) -> (AxisVec, AxisVec, AxisVec) {
+        if let Shape::Line { dir, .. } = &self.shape {
+            return (*dir, [0.0; AXES], [0.0; AXES]);
+        }
+        arc_derivs(&self.shape.eval(self.map.u(s.clamp(0.0, self.len))))
     }
 
     /// Fills the samples (geometry and speed bounds) from the machine limits.

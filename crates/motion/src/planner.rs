@@ -326,6 +326,23 @@ impl<K: Kinematics> Planner<K> {
         self.q.len
     }
 
+    /// Diagnostics: per piece of the window, (length, braking curve, axis-speed bound,
+    /// curvature bound) at its samples.
+    #[doc(hidden)]
+    pub fn debug_window(&self) -> Vec<(f64, Vec<f64>, Vec<f64>, Vec<f64>)> {
+        (0..self.q.len)
+            .map(|i| {
+                let p = self.q.get(i);
+                (
+                    p.len,
+                    p.w[..=p.ns].to_vec(),
+                    p.smp[..=p.ns].iter().map(|s| s.v_axis).collect(),
+                    p.smp[..=p.ns].iter().map(|s| s.v_curve).collect(),
+                )
+            })
+            .collect()
+    }
+
     /// The kinematics.
     pub fn kinematics(&self) -> &K {
         &self.kin
@@ -419,6 +436,7 @@ impl<K: Kinematics> Planner<K> {
         let mut next_w: f64 = 0.0;
         let mut run_a = f64::INFINITY;
         let mut run_j = f64::INFINITY;
+        let v_jerk = 2.0 * self.a_min * self.a_min / self.j_min;
         for i in (0..n).rev() {
             let p = self.q.get_mut(i);
             let is_stop = p.stop_at_end || i + 1 == n;
@@ -451,7 +469,10 @@ impl<K: Kinematics> Planner<K> {
                     p.a_sub[k] = acc;
                     let wfull = (w1 * w1 + 2.0 * h * acc).sqrt();
                     p.w[k] = vl.min(wfull);
-                    if w1 < vl {
+                    // The stop model of the controller (constant deceleration, jerk-limited
+                    // ends) matters where the stop is jerk-dominated, at low speed; above, the
+                    // braking curve with its varying deceleration governs.
+                    if w1 <= v_jerk {
                         run_a = run_a.min(acc);
                         run_j = run_j.min(p.j_brake);
                     }
@@ -580,6 +601,63 @@ impl<K: Kinematics> Planner<K> {
         (w, aw, p.j_brake)
     }
 
+    /// Whether the speed controller, from (`v1`, `a1`) at distance `d1` ahead, can follow the
+    /// braking curve: ramps the acceleration with jerk `jb` towards the curve's slope where
+    /// it is and checks the speed against the curve at the end of each chunk.
+    fn join_ok(&self, d1: f64, v1: f64, a1: f64, jb: f64, a_full: f64, t: f64) -> bool {
+        let horizon = (a1.max(0.0) + a_full) / jb + 2.0 * t;
+        let dt = (horizon / 12.0).max(0.5 * t);
+        let (mut d, mut v, mut a) = (d1, v1, a1);
+        let mut time = 0.0;
+        while time < horizon {
+            let (_, aw, _) = self.w_ahead(d);
+            let target = -aw;
+            let j = ((target - a) / dt).clamp(-jb, jb);
+            let (dd, v2, a2) = advance(0.0, v, a, j, dt);
+            // Discrete-time lag of the ramp (the jerk changes only at period boundaries).
+            let lag = 0.5 * (a - target).max(0.0) * t;
+            d += dd;
+            v = v2;
+            a = a2;
+            time += dt;
+            if v <= 0.0 {
+                return true;
+            }
+            let (w, _, _) = self.w_ahead(d);
+            if v + lag > w * (1.0 + 1e-12) + 1e-12 {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// Whether ramping the path acceleration `a1` down to zero with jerk `jr`, from speed
+    /// `v1` at distance `d1` ahead, keeps every axis's acceleration within its limit
+    /// (checked at three points of the ramp).
+    fn accel_ramp_ok(&self, d1: f64, v1: f64, a1: f64, jr: f64, quick: bool) -> bool {
+        let tau = a1 / jr;
+        for k in 1..=5 {
+            let (dd, vk, ak) = advance(0.0, v1, a1, -jr, tau * k as f64 / 5.0);
+            let (i, sl) = self.locate(d1 + dd);
+            let (tan, kv, _) = self.q.get(i).geo_at(sl);
+            for ax in 0..AXES {
+                if !self.lim.present[ax] {
+                    continue;
+                }
+                let am = CONTROL_SHARE
+                    * if quick {
+                        self.lim.qa[ax]
+                    } else {
+                        self.lim.a[ax]
+                    };
+                if (tan[ax] * ak + kv[ax] * vk * vk).abs() > am {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
     /// Smallest braking-curve speed between distances `d0` and `d1` ahead (the curve is
     /// non-increasing inside each sub-interval, so its minimum lies at `d1` or at a sample).
     fn w_min_between(&self, d0: f64, d1: f64) -> f64 {
@@ -641,15 +719,54 @@ impl<K: Kinematics> Planner<K> {
             } else {
                 head.j_brake / BRAKE_SHARE_CURVED
             };
-        let a_full = CONTROL_SHARE * head_accel(&head, &self.lim, quick);
         let (v, a) = (self.v, self.a);
+        // Exact bounds of the path acceleration and jerk at the current point: every axis's
+        // |T a + K v²| ≤ A and |T j + 3 K v a + K' v³| ≤ J.
+        let (tan, kv, kp) = head.geo_at(self.s);
+        let (mut a_lo, mut a_hi) = (f64::NEG_INFINITY, f64::INFINITY);
+        let (mut j_lo, mut j_hi) = (f64::NEG_INFINITY, f64::INFINITY);
+        for i in 0..AXES {
+            if !self.lim.present[i] || tan[i].abs() < 1e-9 {
+                continue;
+            }
+            let (am, jmx) = if quick {
+                (self.lim.qa[i], self.lim.qj[i])
+            } else {
+                (self.lim.a[i], self.lim.j[i])
+            };
+            let (am, jmx) = (CONTROL_SHARE * am, CONTROL_SHARE * jmx);
+            let ca = kv[i] * v * v;
+            let cj = 3.0 * kv[i] * v * a + kp[i] * v * v * v;
+            let (x0, x1) = ((-am - ca) / tan[i], (am - ca) / tan[i]);
+            a_lo = a_lo.max(x0.min(x1));
+            a_hi = a_hi.min(x0.max(x1));
+            let (y0, y1) = ((-jmx - cj) / tan[i], (jmx - cj) / tan[i]);
+            j_lo = j_lo.max(y0.min(y1));
+            j_hi = j_hi.min(y0.max(y1));
+        }
+        let a_full = CONTROL_SHARE * head_accel(&head, &self.lim, quick);
+        if !(a_lo < a_hi) {
+            (a_lo, a_hi) = (-a_full, a_full);
+        }
+        if !(j_lo < j_hi) {
+            (j_lo, j_hi) = (-jm, jm);
+        }
+        let (a_lo, a_hi) = (a_lo.max(-a_full), a_hi.min(a_full));
+        let (j_lo, j_hi) = (j_lo.max(-jm), j_hi.min(jm));
+        let jr = 0.5 * (-j_lo).max(0.1 * jm);
         // 0: safe; 1: violates the stop (distance or undershoot); 2: violates the braking curve.
         let check = |j: f64| -> u8 {
             let (ds, v1, a1) = advance(0.0, v, a, j, t);
-            if v1 < -1e-9 || ds < 0.0 || ds > rem + 1e-12 || a1 < -a_full * (1.0 + 1e-9) {
+            if v1 < -1e-9 || ds < 0.0 || ds > rem + 1e-12 || a1 < a_lo.min(-1e-9) - 1e-9 {
                 return 1;
             }
-            if a1 > a_full * (1.0 + 1e-9) {
+            if a1 > a_hi.max(0.0) + 1e-9 {
+                return 2;
+            }
+            // Bringing a positive acceleration back to zero must keep every axis's acceleration
+            // (tangential plus centripetal, which grows with speed and turns with the path)
+            // within its limit.
+            if a1 > 0.0 && !self.accel_ramp_ok(ds, v1, a1, jr, quick) {
                 return 2;
             }
             // A state that decelerates so hard that the speed would reach zero before the
@@ -664,7 +781,7 @@ impl<K: Kinematics> Planner<K> {
             if hold.is_some() && !real_stop {
                 return 0;
             }
-            let (w1, aw1, jb) = self.w_ahead(ds);
+            let (w1, _, jb) = self.w_ahead(ds);
             if v1 > w1 * (1.0 + 1e-12) + 1e-12 {
                 return 2;
             }
@@ -677,28 +794,10 @@ impl<K: Kinematics> Planner<K> {
                     return 2;
                 }
             }
-            // Joining the braking curve: ramp the acceleration to the curve's slope; the slope
-            // is taken where the join happens (two passes).
-            let mut aw = aw1;
-            for _ in 0..2 {
-                if a1 <= -aw {
-                    break;
-                }
-                let tau = (a1 + aw) / jb;
-                let (dj, mut vj, _) = advance(0.0, v1, a1, -jb, tau);
-                // Discrete-time lag of the ramp (the jerk changes only at period boundaries).
-                vj += 0.5 * (a1 + aw) * t;
-                if vj <= 0.0 {
-                    break;
-                }
-                let (wj, awj, _) = self.w_ahead(ds + dj);
-                if vj > wj * (1.0 + 1e-12) + 1e-12 {
-                    return 2;
-                }
-                if awj <= aw {
-                    break;
-                }
-                aw = awj;
+            // Joining the braking curve: simulate the jerk-limited ramp of the acceleration
+            // towards the curve's local slope, in chunks, over the time the longest ramp takes.
+            if !self.join_ok(ds, v1, a1, jb, a_full, t) {
+                return 2;
             }
             0
         };
@@ -717,15 +816,15 @@ impl<K: Kinematics> Planner<K> {
             rem
         } else {
             let mut choice = None;
-            if safe(jm) {
-                choice = Some(jm);
+            if safe(j_hi) {
+                choice = Some(j_hi);
             } else {
-                let mut lo = (-jm).max((-a_full - a) / t);
+                let mut lo = j_lo.max((a_lo - a) / t).min(j_hi);
                 if !safe(lo) {
                     lo = brake_jerk(v, a, a_stop, j_stop, t);
                 }
                 if safe(lo) {
-                    let mut hi = jm;
+                    let mut hi = j_hi;
                     for _ in 0..14 {
                         let mid = 0.5 * (lo + hi);
                         if safe(mid) {
@@ -739,7 +838,7 @@ impl<K: Kinematics> Planner<K> {
             }
             if choice.is_none() {
                 // Behind the braking curve but not the stop: brake as hard as allowed.
-                let lo = (-jm).max((-a_full - a) / t);
+                let lo = j_lo.max((a_lo - a) / t).min(j_hi);
                 if check(lo) == 2 {
                     choice = Some(lo);
                     emergency = true;
@@ -879,6 +978,15 @@ impl<K: Kinematics> Planner<K> {
         let x = self.q.get(k).pos(sl);
         if !inside(&x) {
             self.stats.limit_violations += 1;
+            if std::env::var("RTCNC_DEBUG").is_ok() {
+                eprintln!(
+                    "VIOL period={} ds0={ds0} ds={ds} rem={rem} x={:?} lo={:?} hi={:?}",
+                    self.stats.periods,
+                    &x[..3],
+                    &lo[..3],
+                    &hi[..3]
+                );
+            }
         }
         (ds, x)
     }
