@@ -66,6 +66,10 @@ struct Hold {
     kind: StopKind,
 }
 
+/// Diagnostic dump of one piece: length, braking curve, axis-speed and curvature bounds.
+#[doc(hidden)]
+pub type PieceDump = (f64, Vec<f64>, Vec<f64>, Vec<f64>);
+
 /// Fixed-capacity ring of pieces.
 struct Ring {
     buf: Vec<Piece>,
@@ -329,7 +333,7 @@ impl<K: Kinematics> Planner<K> {
     /// Diagnostics: per piece of the window, (length, braking curve, axis-speed bound,
     /// curvature bound) at its samples.
     #[doc(hidden)]
-    pub fn debug_window(&self) -> Vec<(f64, Vec<f64>, Vec<f64>, Vec<f64>)> {
+    pub fn debug_window(&self) -> Vec<PieceDump> {
         (0..self.q.len)
             .map(|i| {
                 let p = self.q.get(i);
