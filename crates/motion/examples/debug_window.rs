@@ -1,3 +1,4 @@
+#![allow(clippy::needless_range_loop)]
 use rtcnc_motion::*;
 fn main() {
     let lim = AxisLimits::new(100.0, 1000.0, 50_000.0, -1000.0, 1000.0);
@@ -32,8 +33,12 @@ fn main() {
             break;
         }
     }
-    if std::env::args().nth(2).is_none() {
-        for (i, (len, w, va, vc)) in pl.debug_window().iter().enumerate().take(30) {
+    if std::env::args().nth(2).as_deref() != Some("run") {
+        let from: usize = std::env::args()
+            .nth(3)
+            .and_then(|x| x.parse().ok())
+            .unwrap_or(0);
+        for (i, (len, w, va, vc)) in pl.debug_window().iter().enumerate().skip(from).take(30) {
             println!("{i} len={len:.4} w={w:.1?} vaxis={va:.1?} vcurve={vc:.1?}");
         }
         return;

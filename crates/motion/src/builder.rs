@@ -99,6 +99,8 @@ pub struct GeometryStats {
     pub stops: u64,
     /// Smoothing spans that could not be kept within the blend tolerance (see docs).
     pub tolerance_exceeded: u64,
+    /// Smoothed vertices whose curvature was reduced to keep the span within P.
+    pub curvature_backoffs: u64,
 }
 
 pub(crate) struct Builder {
@@ -369,6 +371,9 @@ impl Builder {
                             if let Some(pc) = span(&lp, &start, &vk, tolerance, lim) {
                                 out.push(pc);
                                 self.stats.smoothed += 1;
+                                if scale_k < 1.0 {
+                                    self.stats.curvature_backoffs += 1;
+                                }
                                 self.prev = Some(cur);
                                 self.prev_state = Some(vk);
                                 return;

@@ -59,6 +59,8 @@ pub(crate) struct Piece {
     pub w: [f64; NS_MAX + 1],
     /// Deceleration the braking curve uses on each sub-interval.
     pub a_sub: [f64; NS_MAX],
+    /// Acceleration the forward pass allows on each sub-interval.
+    pub acc_sub: [f64; NS_MAX],
     /// Smallest deceleration from this piece to the next stop, within the stop's reach.
     pub a_to_stop: f64,
     /// Smallest braking jerk from this piece to the next stop.
@@ -110,6 +112,7 @@ impl Piece {
             smp: [Sample::default(); NS_MAX + 1],
             w: [0.0; NS_MAX + 1],
             a_sub: [0.0; NS_MAX],
+            acc_sub: [f64::INFINITY; NS_MAX],
             a_to_stop: f64::INFINITY,
             j_to_stop: f64::INFINITY,
             j_brake: f64::INFINITY,
@@ -266,6 +269,29 @@ impl Piece {
         d.max(0.0) * share
     }
 
+    /// Largest tangential acceleration available at sample `k` at speed `v`, scaled like
+    /// the deceleration.
+    pub fn accel_available(&self, k: usize, v: f64, lim: &Lim) -> f64 {
+        let sm = &self.smp[k];
+        let mut d = f64::INFINITY;
+        for i in 0..AXES {
+            if !lim.present[i] {
+                continue;
+            }
+            let ti = sm.t[i];
+            let c = v * v * sm.k[i];
+            let bound = if ti > 1e-12 {
+                (lim.a[i] - c) / ti
+            } else if ti < -1e-12 {
+                (lim.a[i] + c) / -ti
+            } else {
+                f64::INFINITY
+            };
+            d = d.min(bound);
+        }
+        d.max(0.0) * BRAKE_SHARE_STRAIGHT
+    }
+
     /// Largest tangential jerk the braking model may use on this piece.
     pub fn jerk_available(&self, lim: &Lim) -> f64 {
         let mut jm = f64::INFINITY;
@@ -311,10 +337,13 @@ impl Piece {
         let wn = self.w[k + 1];
         let d = (s1 - s).max(0.0);
         let wb = (wn * wn + 2.0 * self.a_sub[k] * d).sqrt();
-        if wb < vl {
+        let w0 = self.w[k];
+        let wf = (w0 * w0 + 2.0 * self.acc_sub[k] * (s - h * k as f64).max(0.0)).sqrt();
+        let cap = vl.min(wf);
+        if wb < cap {
             (wb, self.a_sub[k])
         } else {
-            (vl, 0.0)
+            (cap, 0.0)
         }
     }
 }

@@ -119,6 +119,9 @@ impl Ring {
 /// check allows the rest; the margin absorbs the rounding of the check).
 const CONTROL_SHARE: f64 = 0.9999;
 
+/// Share of the stop model's deceleration and jerk the controller plans its stops with.
+const STOP_CHECK_SHARE: f64 = 0.95;
+
 /// Pieces one move can produce at most (line span, blend, dwell after a flush).
 const PIECES_PER_MOVE: usize = 4;
 
@@ -441,6 +444,7 @@ impl<K: Kinematics> Planner<K> {
         let mut run_a = f64::INFINITY;
         let mut run_j = f64::INFINITY;
         let v_jerk = 2.0 * self.a_min * self.a_min / self.j_min;
+        let mut lowest = n;
         for i in (0..n).rev() {
             let p = self.q.get_mut(i);
             let is_stop = p.stop_at_end || i + 1 == n;
@@ -485,9 +489,35 @@ impl<K: Kinematics> Planner<K> {
             p.a_to_stop = run_a;
             p.j_to_stop = run_j;
             next_w = p.w[0];
+            lowest = i;
             if i < first_new && (p.w[0] - old.0).abs() <= 1e-12 && p.a_to_stop == old.1 {
                 break;
             }
+        }
+        // Forward pass: a rise of the curve is capped by the acceleration available, so that
+        // the curve has no notches finer than the controller can follow.
+        let mut wf = if lowest > 0 {
+            let p = self.q.get(lowest - 1);
+            p.w[p.ns]
+        } else {
+            f64::INFINITY
+        };
+        for i in lowest..n {
+            let p = self.q.get_mut(i);
+            let ns = p.ns;
+            p.w[0] = p.w[0].min(wf);
+            if p.len > 0.0 {
+                let h = p.len / ns as f64;
+                for k in 0..ns {
+                    let w0 = p.w[k];
+                    let acc =
+                        p.accel_available(k, w0, &lim)
+                            .min(p.accel_available(k + 1, w0, &lim));
+                    p.acc_sub[k] = acc;
+                    p.w[k + 1] = p.w[k + 1].min((w0 * w0 + 2.0 * h * acc).sqrt());
+                }
+            }
+            wf = p.w[ns];
         }
     }
 
@@ -778,7 +808,9 @@ impl<K: Kinematics> Planner<K> {
             if a1 < 0.0 && a1 * a1 > 2.0 * j_stop * v1.max(0.0) * (1.0 + 1e-9) + 1e-12 {
                 return 1;
             }
-            let (dst, _) = stop(v1, a1, a_stop, j_stop);
+            // The check uses a softer stop than the fallback follows, so that the fallback
+            // regains the margin when the per-sample limits slowed the braking down.
+            let (dst, _) = stop(v1, a1, STOP_CHECK_SHARE * a_stop, STOP_CHECK_SHARE * j_stop);
             if ds + dst > rem * (1.0 + 1e-12) + 1e-12 {
                 return 1;
             }
