@@ -14,6 +14,10 @@ use crate::piece::Piece;
 pub(crate) const KINK: f64 = 1e-4;
 /// Largest direction change at a vertex that may be smoothed through (rad).
 const SMOOTH_MAX_ANGLE: f64 = 0.35;
+/// A corner blend whose speed limit is below this share of the feed becomes an exact stop.
+const MIN_BLEND_SPEED_SHARE: f64 = 0.05;
+/// Feed used for that comparison on rapids (mm/s).
+const V_RAPID_REF: f64 = 1e3;
 /// Longest run of collinear segments merged into one.
 const MERGE_MAX: usize = 64;
 /// Relative tolerance of arc radii (plus an absolute 1e-6 mm).
@@ -399,11 +403,7 @@ impl Builder {
                             t: lp.dir,
                             k: [0.0; AXES],
                         });
-                        if let Some(pc) =
-                            self.span_or_exceed(&lp, &start, &end_state, tolerance, lim)
-                        {
-                            out.push(pc);
-                        }
+                        let first = self.span_or_exceed(&lp, &start, &end_state, tolerance, lim);
                         let shape = corner_bezier(&p0, &v, &p3);
                         let mut b = Piece::new(
                             shape,
@@ -414,6 +414,23 @@ impl Builder {
                             lp.line,
                         );
                         b.stop_at_end = false;
+                        // A blend that would have to be passed at a crawl (tiny tolerance on a
+                        // sharp corner) is no faster than a stop and much harder to follow
+                        // with jerk limits: stop at the corner instead.
+                        b.sample(lim);
+                        let v_blend = b.smp[..=b.ns]
+                            .iter()
+                            .fold(f64::INFINITY, |m, x| m.min(x.v_curve));
+                        if v_blend < MIN_BLEND_SPEED_SHARE * lp.feed.min(lc.feed).min(V_RAPID_REF) {
+                            self.stats.stops += 1;
+                            self.emit_prim_to_end(&prev, st, true, lim, out);
+                            self.prev = Some(cur);
+                            self.prev_state = None;
+                            return;
+                        }
+                        if let Some(pc) = first {
+                            out.push(pc);
+                        }
                         out.push(b);
                         self.stats.blends += 1;
                         self.prev = Some(cur);

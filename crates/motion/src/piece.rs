@@ -67,6 +67,14 @@ pub(crate) struct Piece {
     pub j_to_stop: f64,
     /// Braking jerk of this piece.
     pub j_brake: f64,
+    /// Path length from the start of the program to the start of this piece.
+    pub cum_start: f64,
+    /// First valley of the braking curve inside this piece: (local s, speed), where a
+    /// braking section ends on a lower limit; the controller must arrive there with its
+    /// deceleration released.
+    pub valley_in: Option<(f64, f64)>,
+    /// The next valley after this piece: (path length from the program start, speed).
+    pub valley_next: Option<(f64, f64)>,
 }
 
 impl Piece {
@@ -116,6 +124,9 @@ impl Piece {
             a_to_stop: f64::INFINITY,
             j_to_stop: f64::INFINITY,
             j_brake: f64::INFINITY,
+            cum_start: 0.0,
+            valley_in: None,
+            valley_next: None,
         }
     }
 

@@ -148,6 +148,8 @@ pub struct Planner<K: Kinematics> {
     j_min: f64,
     qa_min: f64,
     qj_min: f64,
+    /// Path length from the program start to the end of the window.
+    cum_end: f64,
 }
 
 impl<K: Kinematics> Planner<K> {
@@ -230,6 +232,7 @@ impl<K: Kinematics> Planner<K> {
             j_min,
             qa_min,
             qj_min,
+            cum_end: 0.0,
         })
     }
 
@@ -390,6 +393,8 @@ impl<K: Kinematics> Planner<K> {
                     junction(last, &mut p, &lim, period);
                 }
             }
+            p.cum_start = self.cum_end;
+            self.cum_end += p.len;
             if self.q.len == 0 {
                 self.stop_idx = 0;
                 self.stop_cum = p.len - self.s;
@@ -445,6 +450,10 @@ impl<K: Kinematics> Planner<K> {
         let mut run_j = f64::INFINITY;
         let v_jerk = 2.0 * self.a_min * self.a_min / self.j_min;
         let mut lowest = n;
+        // Whether the curve at the sample after the current one is braking-determined, and
+        // the nearest valley ahead.
+        let mut next_braking = true;
+        let mut valley: Option<(f64, f64)> = None;
         for i in (0..n).rev() {
             let p = self.q.get_mut(i);
             let is_stop = p.stop_at_end || i + 1 == n;
@@ -452,9 +461,14 @@ impl<K: Kinematics> Planner<K> {
                 next_w = 0.0;
                 run_a = f64::INFINITY;
                 run_j = f64::INFINITY;
+                next_braking = true;
+                valley = None;
             }
             let old = (p.w[0], p.a_to_stop);
+            let old_valley = p.valley_next;
             let ns = p.ns;
+            p.valley_next = valley;
+            p.valley_in = None;
             p.w[ns] = next_w.min(p.vlc(ns, fo, ro));
             if p.len <= 0.0 {
                 for k in 0..ns {
@@ -477,6 +491,14 @@ impl<K: Kinematics> Planner<K> {
                     p.a_sub[k] = acc;
                     let wfull = (w1 * w1 + 2.0 * h * acc).sqrt();
                     p.w[k] = vl.min(wfull);
+                    // A braking section that ends at sample k+1 on a limit (not at a stop).
+                    let braking_here = wfull < vl;
+                    if braking_here && !next_braking && w1 > 0.0 {
+                        let sv = h * (k + 1) as f64;
+                        p.valley_in = Some((sv, w1));
+                        valley = Some((p.cum_start + sv, w1));
+                    }
+                    next_braking = braking_here;
                     // The stop model of the controller (constant deceleration, jerk-limited
                     // ends) matters where the stop is jerk-dominated, at low speed; above, the
                     // braking curve with its varying deceleration governs.
@@ -490,7 +512,11 @@ impl<K: Kinematics> Planner<K> {
             p.j_to_stop = run_j;
             next_w = p.w[0];
             lowest = i;
-            if i < first_new && (p.w[0] - old.0).abs() <= 1e-12 && p.a_to_stop == old.1 {
+            if i < first_new
+                && (p.w[0] - old.0).abs() <= 1e-12
+                && p.a_to_stop == old.1
+                && p.valley_next == old_valley
+            {
                 break;
             }
         }
@@ -650,6 +676,8 @@ impl<K: Kinematics> Planner<K> {
             let (dd, v2, a2) = advance(0.0, v, a, j, dt);
             // Discrete-time lag of the ramp (the jerk changes only at period boundaries).
             let lag = 0.5 * (a - target).max(0.0) * t;
+            let vmax = v.max(v2);
+            let d_prev = d;
             d += dd;
             v = v2;
             a = a2;
@@ -657,8 +685,8 @@ impl<K: Kinematics> Planner<K> {
             if v <= 0.0 {
                 return true;
             }
-            let (w, _, _) = self.w_ahead(d);
-            if v + lag > w * (1.0 + 1e-12) + 1e-12 {
+            let w = self.w_min_between(d_prev, d);
+            if vmax.max(v + lag) > w * (1.0 + 1e-12) + 1e-12 {
                 return false;
             }
         }
@@ -788,6 +816,14 @@ impl<K: Kinematics> Planner<K> {
         let (a_lo, a_hi) = (a_lo.max(-a_full), a_hi.min(a_full));
         let (j_lo, j_hi) = (j_lo.max(-jm), j_hi.min(jm));
         let jr = 0.5 * (-j_lo).max(0.1 * jm);
+        // Distance to the next valley of the braking curve and its speed.
+        let valley_dist = match head.valley_in {
+            Some((sv, vm)) if sv > self.s => Some((sv - self.s, vm)),
+            _ => head
+                .valley_next
+                .map(|(c, vm)| (c - head.cum_start - self.s, vm)),
+        }
+        .filter(|(d, _)| *d > 0.0);
         // 0: safe; 1: violates the stop (distance or undershoot); 2: violates the braking curve.
         let check = |j: f64| -> u8 {
             let (ds, v1, a1) = advance(0.0, v, a, j, t);
@@ -817,8 +853,29 @@ impl<K: Kinematics> Planner<K> {
             if hold.is_some() && !real_stop {
                 return 0;
             }
-            let (w1, _, jb) = self.w_ahead(ds);
-            if v1 > w1 * (1.0 + 1e-12) + 1e-12 {
+            // The next valley of the braking curve: arrive there with the deceleration
+            // released (the speed profile is the valley speed plus a stop profile).
+            if let Some((dv, vm)) = valley_dist {
+                if v1 > vm {
+                    let rel = v1 - vm;
+                    if a1 < 0.0 && a1 * a1 > 2.0 * j_stop * rel * (1.0 + 1e-9) + 1e-12 {
+                        return 2;
+                    }
+                    let (dst, tst) = stop(
+                        rel,
+                        a1,
+                        STOP_CHECK_SHARE * a_stop,
+                        STOP_CHECK_SHARE * j_stop,
+                    );
+                    if ds + dst + vm * tst > dv {
+                        return 2;
+                    }
+                }
+            }
+            let (_, _, jb) = self.w_ahead(ds);
+            // Against the lowest point of the curve over this period, so that a short piece
+            // with a low limit is not jumped over.
+            if v1 > self.w_min_between(0.0, ds) * (1.0 + 1e-12) + 1e-12 {
                 return 2;
             }
             // Bringing the acceleration to zero must not exceed the curve anywhere before.
@@ -873,11 +930,15 @@ impl<K: Kinematics> Planner<K> {
                 }
             }
             if choice.is_none() {
-                // Behind the braking curve but not the stop: brake as hard as allowed.
+                // Behind the braking curve but not the stop: brake as hard as allowed while
+                // the deceleration can still be released before the speed reaches zero.
                 let lo = j_lo.max((a_lo - a) / t).min(j_hi);
-                if check(lo) == 2 {
-                    choice = Some(lo);
-                    emergency = true;
+                let bj = brake_jerk(v, a, -a_lo, j_stop, t).clamp(j_lo, j_hi);
+                for cand in [lo, bj] {
+                    if choice.is_none() && check(cand) == 2 {
+                        choice = Some(cand);
+                        emergency = true;
+                    }
                 }
             }
             match choice {
