@@ -65,6 +65,7 @@ struct Measured {
     violations: u64,
     plan_s: f64,
     segments: usize,
+    geo: String,
 }
 
 fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
@@ -103,6 +104,7 @@ fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
         jmax: [0.0; 3],
         end_err: 0.0,
         violations: pl.stats().limit_violations,
+        geo: format!("{:?} {:?}", pl.geometry_stats(), pl.stats()),
         plan_s: plan.as_secs_f64(),
         segments: moves.len(),
     };
@@ -193,6 +195,12 @@ fn main() {
             m.violations,
             m.segments as f64 / m.plan_s.max(1e-12)
         );
+        if std::env::var("RTCNC_DEBUG_GEO").is_ok() {
+            println!("  {}", m.geo);
+        }
+    }
+    if std::env::var("RTCNC_DEBUG_GEO").is_ok() {
+        println!("(set RTCNC_DEBUG_GEO to print geometry counters)");
     }
     println!("limits per axis: 100 mm/s, 1000 mm/s², 50000 mm/s³; servo period 1 ms");
 }

@@ -8,7 +8,10 @@ fn main() {
     let mut pl = Planner::new(&machine, kin, t, 64, [0.0; AXES]).unwrap();
     let which = std::env::args().nth(1).unwrap_or_default();
     let mode = PathMode::Blend {
-        tolerance: 0.01,
+        tolerance: std::env::var("P")
+            .ok()
+            .and_then(|p| p.parse().ok())
+            .unwrap_or(0.01),
         merge_tolerance: 0.0,
     };
     let mut e = [0.0; AXES];

@@ -14,6 +14,10 @@ use crate::piece::Piece;
 pub(crate) const KINK: f64 = 1e-4;
 /// Largest direction change at a vertex that may be smoothed through (rad).
 const SMOOTH_MAX_ANGLE: f64 = 0.35;
+/// A corner blend whose speed limit is below this share of the feed becomes an exact stop.
+const MIN_BLEND_SPEED_SHARE: f64 = 0.05;
+/// Feed used for that comparison on rapids (mm/s).
+const V_RAPID_REF: f64 = 1e3;
 /// Longest run of collinear segments merged into one.
 const MERGE_MAX: usize = 64;
 /// Relative tolerance of arc radii (plus an absolute 1e-6 mm).
@@ -99,6 +103,8 @@ pub struct GeometryStats {
     pub stops: u64,
     /// Smoothing spans that could not be kept within the blend tolerance (see docs).
     pub tolerance_exceeded: u64,
+    /// Smoothed vertices whose curvature was reduced to keep the span within P.
+    pub curvature_backoffs: u64,
 }
 
 pub(crate) struct Builder {
@@ -359,12 +365,23 @@ impl Builder {
                             t: lp.dir,
                             k: [0.0; AXES],
                         });
-                        if let Some(pc) = span(&lp, &start, &vs, tolerance, lim) {
-                            out.push(pc);
-                            self.stats.smoothed += 1;
-                            self.prev = Some(cur);
-                            self.prev_state = Some(vs);
-                            return;
+                        // The vertex curvature comes from the circle through three points;
+                        // a slightly smaller one keeps a span that bulges too far within P.
+                        for scale_k in [1.0, 0.95, 0.9, 0.8, 0.65] {
+                            let vk = State {
+                                k: scale(&vs.k, scale_k),
+                                ..vs
+                            };
+                            if let Some(pc) = span(&lp, &start, &vk, tolerance, lim) {
+                                out.push(pc);
+                                self.stats.smoothed += 1;
+                                if scale_k < 1.0 {
+                                    self.stats.curvature_backoffs += 1;
+                                }
+                                self.prev = Some(cur);
+                                self.prev_state = Some(vk);
+                                return;
+                            }
                         }
                     }
                     // Corner blend.
@@ -386,11 +403,7 @@ impl Builder {
                             t: lp.dir,
                             k: [0.0; AXES],
                         });
-                        if let Some(pc) =
-                            self.span_or_exceed(&lp, &start, &end_state, tolerance, lim)
-                        {
-                            out.push(pc);
-                        }
+                        let first = self.span_or_exceed(&lp, &start, &end_state, tolerance, lim);
                         let shape = corner_bezier(&p0, &v, &p3);
                         let mut b = Piece::new(
                             shape,
@@ -401,6 +414,23 @@ impl Builder {
                             lp.line,
                         );
                         b.stop_at_end = false;
+                        // A blend that would have to be passed at a crawl (tiny tolerance on a
+                        // sharp corner) is no faster than a stop and much harder to follow
+                        // with jerk limits: stop at the corner instead.
+                        b.sample(lim);
+                        let v_blend = b.smp[..=b.ns]
+                            .iter()
+                            .fold(f64::INFINITY, |m, x| m.min(x.v_curve));
+                        if v_blend < MIN_BLEND_SPEED_SHARE * lp.feed.min(lc.feed).min(V_RAPID_REF) {
+                            self.stats.stops += 1;
+                            self.emit_prim_to_end(&prev, st, true, lim, out);
+                            self.prev = Some(cur);
+                            self.prev_state = None;
+                            return;
+                        }
+                        if let Some(pc) = first {
+                            out.push(pc);
+                        }
                         out.push(b);
                         self.stats.blends += 1;
                         self.prev = Some(cur);
@@ -425,7 +455,7 @@ impl Builder {
             return None;
         }
         let (la, lb) = (lp.len, lc.len);
-        if la > 3.0 * lb || lb > 3.0 * la || la.max(lb) * theta > 8.0 * tol {
+        if la > 3.0 * lb || lb > 3.0 * la || la.max(lb) * theta > 16.0 * tol {
             return None;
         }
         let a = sub(&lp.b, &lp.a);

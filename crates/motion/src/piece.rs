@@ -9,7 +9,7 @@ pub(crate) const NS_MAX: usize = 4;
 
 /// Share of each axis's jerk the velocity limit leaves to the curvature-change term
 /// v³·|dK/ds| (the rest serves the tangential jerk and the 3·v·a·K coupling).
-pub(crate) const JERK_SHARE_CURVATURE: f64 = 0.3;
+pub(crate) const JERK_SHARE_CURVATURE: f64 = 0.6;
 /// Share of J·T an acceleration step at a curvature discontinuity may use (a step Δa
 /// shows up as Δa/T in the sampled jerk).
 pub(crate) const JERK_SHARE_JUMP: f64 = 0.5;
@@ -59,12 +59,22 @@ pub(crate) struct Piece {
     pub w: [f64; NS_MAX + 1],
     /// Deceleration the braking curve uses on each sub-interval.
     pub a_sub: [f64; NS_MAX],
+    /// Acceleration the forward pass allows on each sub-interval.
+    pub acc_sub: [f64; NS_MAX],
     /// Smallest deceleration from this piece to the next stop, within the stop's reach.
     pub a_to_stop: f64,
     /// Smallest braking jerk from this piece to the next stop.
     pub j_to_stop: f64,
     /// Braking jerk of this piece.
     pub j_brake: f64,
+    /// Path length from the start of the program to the start of this piece.
+    pub cum_start: f64,
+    /// First valley of the braking curve inside this piece: (local s, speed), where a
+    /// braking section ends on a lower limit; the controller must arrive there with its
+    /// deceleration released.
+    pub valley_in: Option<(f64, f64)>,
+    /// The next valley after this piece: (path length from the program start, speed).
+    pub valley_next: Option<(f64, f64)>,
 }
 
 impl Piece {
@@ -110,9 +120,13 @@ impl Piece {
             smp: [Sample::default(); NS_MAX + 1],
             w: [0.0; NS_MAX + 1],
             a_sub: [0.0; NS_MAX],
+            acc_sub: [f64::INFINITY; NS_MAX],
             a_to_stop: f64::INFINITY,
             j_to_stop: f64::INFINITY,
             j_brake: f64::INFINITY,
+            cum_start: 0.0,
+            valley_in: None,
+            valley_next: None,
         }
     }
 
@@ -159,6 +173,15 @@ impl Piece {
             d.p
         };
         (p, t)
+    }
+
+    /// Tangent, curvature vector and its derivative at local arc length `s`.
+    #[inline]
+    pub fn geo_at(&self, s: f64) -> (AxisVec, AxisVec, AxisVec) {
+        if let Shape::Line { dir, .. } = &self.shape {
+            return (*dir, [0.0; AXES], [0.0; AXES]);
+        }
+        arc_derivs(&self.shape.eval(self.map.u(s.clamp(0.0, self.len))))
     }
 
     /// Fills the samples (geometry and speed bounds) from the machine limits.
@@ -257,6 +280,29 @@ impl Piece {
         d.max(0.0) * share
     }
 
+    /// Largest tangential acceleration available at sample `k` at speed `v`, scaled like
+    /// the deceleration.
+    pub fn accel_available(&self, k: usize, v: f64, lim: &Lim) -> f64 {
+        let sm = &self.smp[k];
+        let mut d = f64::INFINITY;
+        for i in 0..AXES {
+            if !lim.present[i] {
+                continue;
+            }
+            let ti = sm.t[i];
+            let c = v * v * sm.k[i];
+            let bound = if ti > 1e-12 {
+                (lim.a[i] - c) / ti
+            } else if ti < -1e-12 {
+                (lim.a[i] + c) / -ti
+            } else {
+                f64::INFINITY
+            };
+            d = d.min(bound);
+        }
+        d.max(0.0) * BRAKE_SHARE_STRAIGHT
+    }
+
     /// Largest tangential jerk the braking model may use on this piece.
     pub fn jerk_available(&self, lim: &Lim) -> f64 {
         let mut jm = f64::INFINITY;
@@ -302,10 +348,13 @@ impl Piece {
         let wn = self.w[k + 1];
         let d = (s1 - s).max(0.0);
         let wb = (wn * wn + 2.0 * self.a_sub[k] * d).sqrt();
-        if wb < vl {
+        let w0 = self.w[k];
+        let wf = (w0 * w0 + 2.0 * self.acc_sub[k] * (s - h * k as f64).max(0.0)).sqrt();
+        let cap = vl.min(wf);
+        if wb < cap {
             (wb, self.a_sub[k])
         } else {
-            (vl, 0.0)
+            (cap, 0.0)
         }
     }
 }

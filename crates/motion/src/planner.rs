@@ -66,6 +66,10 @@ struct Hold {
     kind: StopKind,
 }
 
+/// Diagnostic dump of one piece: length, braking curve, axis-speed and curvature bounds.
+#[doc(hidden)]
+pub type PieceDump = (f64, Vec<f64>, Vec<f64>, Vec<f64>);
+
 /// Fixed-capacity ring of pieces.
 struct Ring {
     buf: Vec<Piece>,
@@ -115,6 +119,9 @@ impl Ring {
 /// check allows the rest; the margin absorbs the rounding of the check).
 const CONTROL_SHARE: f64 = 0.9999;
 
+/// Share of the stop model's deceleration and jerk the controller plans its stops with.
+const STOP_CHECK_SHARE: f64 = 0.95;
+
 /// Pieces one move can produce at most (line span, blend, dwell after a flush).
 const PIECES_PER_MOVE: usize = 4;
 
@@ -141,6 +148,8 @@ pub struct Planner<K: Kinematics> {
     j_min: f64,
     qa_min: f64,
     qj_min: f64,
+    /// Path length from the program start to the end of the window.
+    cum_end: f64,
 }
 
 impl<K: Kinematics> Planner<K> {
@@ -223,6 +232,7 @@ impl<K: Kinematics> Planner<K> {
             j_min,
             qa_min,
             qj_min,
+            cum_end: 0.0,
         })
     }
 
@@ -326,6 +336,23 @@ impl<K: Kinematics> Planner<K> {
         self.q.len
     }
 
+    /// Diagnostics: per piece of the window, (length, braking curve, axis-speed bound,
+    /// curvature bound) at its samples.
+    #[doc(hidden)]
+    pub fn debug_window(&self) -> Vec<PieceDump> {
+        (0..self.q.len)
+            .map(|i| {
+                let p = self.q.get(i);
+                (
+                    p.len,
+                    p.w[..=p.ns].to_vec(),
+                    p.smp[..=p.ns].iter().map(|s| s.v_axis).collect(),
+                    p.smp[..=p.ns].iter().map(|s| s.v_curve).collect(),
+                )
+            })
+            .collect()
+    }
+
     /// The kinematics.
     pub fn kinematics(&self) -> &K {
         &self.kin
@@ -366,6 +393,8 @@ impl<K: Kinematics> Planner<K> {
                     junction(last, &mut p, &lim, period);
                 }
             }
+            p.cum_start = self.cum_end;
+            self.cum_end += p.len;
             if self.q.len == 0 {
                 self.stop_idx = 0;
                 self.stop_cum = p.len - self.s;
@@ -419,6 +448,12 @@ impl<K: Kinematics> Planner<K> {
         let mut next_w: f64 = 0.0;
         let mut run_a = f64::INFINITY;
         let mut run_j = f64::INFINITY;
+        let v_jerk = 2.0 * self.a_min * self.a_min / self.j_min;
+        let mut lowest = n;
+        // Whether the curve at the sample after the current one is braking-determined, and
+        // the nearest valley ahead.
+        let mut next_braking = true;
+        let mut valley: Option<(f64, f64)> = None;
         for i in (0..n).rev() {
             let p = self.q.get_mut(i);
             let is_stop = p.stop_at_end || i + 1 == n;
@@ -426,9 +461,14 @@ impl<K: Kinematics> Planner<K> {
                 next_w = 0.0;
                 run_a = f64::INFINITY;
                 run_j = f64::INFINITY;
+                next_braking = true;
+                valley = None;
             }
             let old = (p.w[0], p.a_to_stop);
+            let old_valley = p.valley_next;
             let ns = p.ns;
+            p.valley_next = valley;
+            p.valley_in = None;
             p.w[ns] = next_w.min(p.vlc(ns, fo, ro));
             if p.len <= 0.0 {
                 for k in 0..ns {
@@ -451,7 +491,18 @@ impl<K: Kinematics> Planner<K> {
                     p.a_sub[k] = acc;
                     let wfull = (w1 * w1 + 2.0 * h * acc).sqrt();
                     p.w[k] = vl.min(wfull);
-                    if w1 < vl {
+                    // A braking section that ends at sample k+1 on a limit (not at a stop).
+                    let braking_here = wfull < vl;
+                    if braking_here && !next_braking && w1 > 0.0 {
+                        let sv = h * (k + 1) as f64;
+                        p.valley_in = Some((sv, w1));
+                        valley = Some((p.cum_start + sv, w1));
+                    }
+                    next_braking = braking_here;
+                    // The stop model of the controller (constant deceleration, jerk-limited
+                    // ends) matters where the stop is jerk-dominated, at low speed; above, the
+                    // braking curve with its varying deceleration governs.
+                    if w1 <= v_jerk {
                         run_a = run_a.min(acc);
                         run_j = run_j.min(p.j_brake);
                     }
@@ -460,9 +511,39 @@ impl<K: Kinematics> Planner<K> {
             p.a_to_stop = run_a;
             p.j_to_stop = run_j;
             next_w = p.w[0];
-            if i < first_new && (p.w[0] - old.0).abs() <= 1e-12 && p.a_to_stop == old.1 {
+            lowest = i;
+            if i < first_new
+                && (p.w[0] - old.0).abs() <= 1e-12
+                && p.a_to_stop == old.1
+                && p.valley_next == old_valley
+            {
                 break;
             }
+        }
+        // Forward pass: a rise of the curve is capped by the acceleration available, so that
+        // the curve has no notches finer than the controller can follow.
+        let mut wf = if lowest > 0 {
+            let p = self.q.get(lowest - 1);
+            p.w[p.ns]
+        } else {
+            f64::INFINITY
+        };
+        for i in lowest..n {
+            let p = self.q.get_mut(i);
+            let ns = p.ns;
+            p.w[0] = p.w[0].min(wf);
+            if p.len > 0.0 {
+                let h = p.len / ns as f64;
+                for k in 0..ns {
+                    let w0 = p.w[k];
+                    let acc =
+                        p.accel_available(k, w0, &lim)
+                            .min(p.accel_available(k + 1, w0, &lim));
+                    p.acc_sub[k] = acc;
+                    p.w[k + 1] = p.w[k + 1].min((w0 * w0 + 2.0 * h * acc).sqrt());
+                }
+            }
+            wf = p.w[ns];
         }
     }
 
@@ -580,6 +661,65 @@ impl<K: Kinematics> Planner<K> {
         (w, aw, p.j_brake)
     }
 
+    /// Whether the speed controller, from (`v1`, `a1`) at distance `d1` ahead, can follow the
+    /// braking curve: ramps the acceleration with jerk `jb` towards the curve's slope where
+    /// it is and checks the speed against the curve at the end of each chunk.
+    fn join_ok(&self, d1: f64, v1: f64, a1: f64, jb: f64, a_full: f64, t: f64) -> bool {
+        let horizon = (a1.max(0.0) + a_full) / jb + 2.0 * t;
+        let dt = (horizon / 12.0).max(0.5 * t);
+        let (mut d, mut v, mut a) = (d1, v1, a1);
+        let mut time = 0.0;
+        while time < horizon {
+            let (_, aw, _) = self.w_ahead(d);
+            let target = -aw;
+            let j = ((target - a) / dt).clamp(-jb, jb);
+            let (dd, v2, a2) = advance(0.0, v, a, j, dt);
+            // Discrete-time lag of the ramp (the jerk changes only at period boundaries).
+            let lag = 0.5 * (a - target).max(0.0) * t;
+            let vmax = v.max(v2);
+            let d_prev = d;
+            d += dd;
+            v = v2;
+            a = a2;
+            time += dt;
+            if v <= 0.0 {
+                return true;
+            }
+            let w = self.w_min_between(d_prev, d);
+            if vmax.max(v + lag) > w * (1.0 + 1e-12) + 1e-12 {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// Whether ramping the path acceleration `a1` down to zero with jerk `jr`, from speed
+    /// `v1` at distance `d1` ahead, keeps every axis's acceleration within its limit
+    /// (checked at three points of the ramp).
+    fn accel_ramp_ok(&self, d1: f64, v1: f64, a1: f64, jr: f64, quick: bool) -> bool {
+        let tau = a1 / jr;
+        for k in 1..=5 {
+            let (dd, vk, ak) = advance(0.0, v1, a1, -jr, tau * k as f64 / 5.0);
+            let (i, sl) = self.locate(d1 + dd);
+            let (tan, kv, _) = self.q.get(i).geo_at(sl);
+            for ax in 0..AXES {
+                if !self.lim.present[ax] {
+                    continue;
+                }
+                let am = CONTROL_SHARE
+                    * if quick {
+                        self.lim.qa[ax]
+                    } else {
+                        self.lim.a[ax]
+                    };
+                if (tan[ax] * ak + kv[ax] * vk * vk).abs() > am {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
     /// Smallest braking-curve speed between distances `d0` and `d1` ahead (the curve is
     /// non-increasing inside each sub-interval, so its minimum lies at `d1` or at a sample).
     fn w_min_between(&self, d0: f64, d1: f64) -> f64 {
@@ -641,15 +781,62 @@ impl<K: Kinematics> Planner<K> {
             } else {
                 head.j_brake / BRAKE_SHARE_CURVED
             };
-        let a_full = CONTROL_SHARE * head_accel(&head, &self.lim, quick);
         let (v, a) = (self.v, self.a);
+        // Exact bounds of the path acceleration and jerk at the current point: every axis's
+        // |T a + K v²| ≤ A and |T j + 3 K v a + K' v³| ≤ J.
+        let (tan, kv, kp) = head.geo_at(self.s);
+        let (mut a_lo, mut a_hi) = (f64::NEG_INFINITY, f64::INFINITY);
+        let (mut j_lo, mut j_hi) = (f64::NEG_INFINITY, f64::INFINITY);
+        for i in 0..AXES {
+            if !self.lim.present[i] || tan[i].abs() < 1e-9 {
+                continue;
+            }
+            let (am, jmx) = if quick {
+                (self.lim.qa[i], self.lim.qj[i])
+            } else {
+                (self.lim.a[i], self.lim.j[i])
+            };
+            let (am, jmx) = (CONTROL_SHARE * am, CONTROL_SHARE * jmx);
+            let ca = kv[i] * v * v;
+            let cj = 3.0 * kv[i] * v * a + kp[i] * v * v * v;
+            let (x0, x1) = ((-am - ca) / tan[i], (am - ca) / tan[i]);
+            a_lo = a_lo.max(x0.min(x1));
+            a_hi = a_hi.min(x0.max(x1));
+            let (y0, y1) = ((-jmx - cj) / tan[i], (jmx - cj) / tan[i]);
+            j_lo = j_lo.max(y0.min(y1));
+            j_hi = j_hi.min(y0.max(y1));
+        }
+        let a_full = CONTROL_SHARE * head_accel(&head, &self.lim, quick);
+        if !(a_lo < a_hi) {
+            (a_lo, a_hi) = (-a_full, a_full);
+        }
+        if !(j_lo < j_hi) {
+            (j_lo, j_hi) = (-jm, jm);
+        }
+        let (a_lo, a_hi) = (a_lo.max(-a_full), a_hi.min(a_full));
+        let (j_lo, j_hi) = (j_lo.max(-jm), j_hi.min(jm));
+        let jr = 0.5 * (-j_lo).max(0.1 * jm);
+        // Distance to the next valley of the braking curve and its speed.
+        let valley_dist = match head.valley_in {
+            Some((sv, vm)) if sv > self.s => Some((sv - self.s, vm)),
+            _ => head
+                .valley_next
+                .map(|(c, vm)| (c - head.cum_start - self.s, vm)),
+        }
+        .filter(|(d, _)| *d > 0.0);
         // 0: safe; 1: violates the stop (distance or undershoot); 2: violates the braking curve.
         let check = |j: f64| -> u8 {
             let (ds, v1, a1) = advance(0.0, v, a, j, t);
-            if v1 < -1e-9 || ds < 0.0 || ds > rem + 1e-12 || a1 < -a_full * (1.0 + 1e-9) {
+            if v1 < -1e-9 || ds < 0.0 || ds > rem + 1e-12 || a1 < a_lo.min(-1e-9) - 1e-9 {
                 return 1;
             }
-            if a1 > a_full * (1.0 + 1e-9) {
+            if a1 > a_hi.max(0.0) + 1e-9 {
+                return 2;
+            }
+            // Bringing a positive acceleration back to zero must keep every axis's acceleration
+            // (tangential plus centripetal, which grows with speed and turns with the path)
+            // within its limit.
+            if a1 > 0.0 && !self.accel_ramp_ok(ds, v1, a1, jr, quick) {
                 return 2;
             }
             // A state that decelerates so hard that the speed would reach zero before the
@@ -657,15 +844,38 @@ impl<K: Kinematics> Planner<K> {
             if a1 < 0.0 && a1 * a1 > 2.0 * j_stop * v1.max(0.0) * (1.0 + 1e-9) + 1e-12 {
                 return 1;
             }
-            let (dst, _) = stop(v1, a1, a_stop, j_stop);
+            // The check uses a softer stop than the fallback follows, so that the fallback
+            // regains the margin when the per-sample limits slowed the braking down.
+            let (dst, _) = stop(v1, a1, STOP_CHECK_SHARE * a_stop, STOP_CHECK_SHARE * j_stop);
             if ds + dst > rem * (1.0 + 1e-12) + 1e-12 {
                 return 1;
             }
             if hold.is_some() && !real_stop {
                 return 0;
             }
-            let (w1, aw1, jb) = self.w_ahead(ds);
-            if v1 > w1 * (1.0 + 1e-12) + 1e-12 {
+            // The next valley of the braking curve: arrive there with the deceleration
+            // released (the speed profile is the valley speed plus a stop profile).
+            if let Some((dv, vm)) = valley_dist {
+                if v1 > vm {
+                    let rel = v1 - vm;
+                    if a1 < 0.0 && a1 * a1 > 2.0 * j_stop * rel * (1.0 + 1e-9) + 1e-12 {
+                        return 2;
+                    }
+                    let (dst, tst) = stop(
+                        rel,
+                        a1,
+                        STOP_CHECK_SHARE * a_stop,
+                        STOP_CHECK_SHARE * j_stop,
+                    );
+                    if ds + dst + vm * tst > dv {
+                        return 2;
+                    }
+                }
+            }
+            let (_, _, jb) = self.w_ahead(ds);
+            // Against the lowest point of the curve over this period, so that a short piece
+            // with a low limit is not jumped over.
+            if v1 > self.w_min_between(0.0, ds) * (1.0 + 1e-12) + 1e-12 {
                 return 2;
             }
             // Bringing the acceleration to zero must not exceed the curve anywhere before.
@@ -677,28 +887,10 @@ impl<K: Kinematics> Planner<K> {
                     return 2;
                 }
             }
-            // Joining the braking curve: ramp the acceleration to the curve's slope; the slope
-            // is taken where the join happens (two passes).
-            let mut aw = aw1;
-            for _ in 0..2 {
-                if a1 <= -aw {
-                    break;
-                }
-                let tau = (a1 + aw) / jb;
-                let (dj, mut vj, _) = advance(0.0, v1, a1, -jb, tau);
-                // Discrete-time lag of the ramp (the jerk changes only at period boundaries).
-                vj += 0.5 * (a1 + aw) * t;
-                if vj <= 0.0 {
-                    break;
-                }
-                let (wj, awj, _) = self.w_ahead(ds + dj);
-                if vj > wj * (1.0 + 1e-12) + 1e-12 {
-                    return 2;
-                }
-                if awj <= aw {
-                    break;
-                }
-                aw = awj;
+            // Joining the braking curve: simulate the jerk-limited ramp of the acceleration
+            // towards the curve's local slope, in chunks, over the time the longest ramp takes.
+            if !self.join_ok(ds, v1, a1, jb, a_full, t) {
+                return 2;
             }
             0
         };
@@ -717,15 +909,15 @@ impl<K: Kinematics> Planner<K> {
             rem
         } else {
             let mut choice = None;
-            if safe(jm) {
-                choice = Some(jm);
+            if safe(j_hi) {
+                choice = Some(j_hi);
             } else {
-                let mut lo = (-jm).max((-a_full - a) / t);
+                let mut lo = j_lo.max((a_lo - a) / t).min(j_hi);
                 if !safe(lo) {
                     lo = brake_jerk(v, a, a_stop, j_stop, t);
                 }
                 if safe(lo) {
-                    let mut hi = jm;
+                    let mut hi = j_hi;
                     for _ in 0..14 {
                         let mid = 0.5 * (lo + hi);
                         if safe(mid) {
@@ -738,11 +930,15 @@ impl<K: Kinematics> Planner<K> {
                 }
             }
             if choice.is_none() {
-                // Behind the braking curve but not the stop: brake as hard as allowed.
-                let lo = (-jm).max((-a_full - a) / t);
-                if check(lo) == 2 {
-                    choice = Some(lo);
-                    emergency = true;
+                // Behind the braking curve but not the stop: brake as hard as allowed while
+                // the deceleration can still be released before the speed reaches zero.
+                let lo = j_lo.max((a_lo - a) / t).min(j_hi);
+                let bj = brake_jerk(v, a, -a_lo, j_stop, t).clamp(j_lo, j_hi);
+                for cand in [lo, bj] {
+                    if choice.is_none() && check(cand) == 2 {
+                        choice = Some(cand);
+                        emergency = true;
+                    }
                 }
             }
             match choice {
@@ -879,6 +1075,15 @@ impl<K: Kinematics> Planner<K> {
         let x = self.q.get(k).pos(sl);
         if !inside(&x) {
             self.stats.limit_violations += 1;
+            if std::env::var("RTCNC_DEBUG").is_ok() {
+                eprintln!(
+                    "VIOL period={} ds0={ds0} ds={ds} rem={rem} x={:?} lo={:?} hi={:?}",
+                    self.stats.periods,
+                    &x[..3],
+                    &lo[..3],
+                    &hi[..3]
+                );
+            }
         }
         (ds, x)
     }
