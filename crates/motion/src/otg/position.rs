@@ -85,7 +85,7 @@ impl Candidates {
 }
 
 /// Durations an axis can take: `[t_min, ∞)` minus up to two open intervals.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Block {
     /// Minimum duration (brake pre-trajectory included).
     pub t_min: f64,
@@ -101,7 +101,7 @@ impl Block {
 }
 
 /// Result of step one for one axis.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct Step1 {
     pub(crate) start: State,
     pub(crate) target: State,

@@ -526,11 +526,10 @@ pub fn synchronize<const N: usize>(
     target: &[State; N],
     limits: &[Limits; N],
 ) -> Result<Synchronized<N>, OtgError> {
-    let mut steps = [None; N];
+    let mut steps = [Step1::default(); N];
     for (i, slot) in steps.iter_mut().enumerate() {
-        *slot = Some(solve_position(start[i], target[i], &limits[i])?);
+        *slot = solve_position(start[i], target[i], &limits[i])?;
     }
-    let steps = steps.map(|s| s.expect("every axis was solved above"));
     let t_lower = steps.iter().map(|s| s.block.t_min).fold(0.0, f64::max);
     // Candidate durations: the slowest minimum, then the right ends of blocked intervals.
     let mut candidates = [f64::INFINITY; 64];
