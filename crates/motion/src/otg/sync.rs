@@ -303,25 +303,47 @@ fn bisect(
     left: (f64, f64),
     right: (f64, f64),
 ) -> Option<[Phase; 7]> {
+    let x = illinois(&|x| eval(x).map(|(_, r)| r), left, right)?;
+    eval(x).map(|(phases, _)| phases)
+}
+
+/// Root of a continuous function between two points where it has opposite signs, by the
+/// Illinois variant of regula falsi: superlinear, never leaves the bracket, at most 100
+/// evaluations. Returns the bracket end with the smaller residual.
+fn illinois(f: &dyn Fn(f64) -> Option<f64>, left: (f64, f64), right: (f64, f64)) -> Option<f64> {
     let (mut a, mut b) = (left, right);
+    let tol = 4.0 * f64::EPSILON * a.0.abs().max(b.0.abs()) + 1e-15 * (b.0 - a.0).abs();
+    let mut side = 0;
     for _ in 0..100 {
         if a.1 == 0.0 {
-            b = a;
+            return Some(a.0);
+        }
+        if b.1 == 0.0 {
+            return Some(b.0);
+        }
+        if (b.0 - a.0).abs() <= tol {
             break;
         }
-        let mid = 0.5 * (a.0 + b.0);
-        if mid <= a.0.min(b.0) || mid >= a.0.max(b.0) {
-            break;
+        let mut x = (a.0 * b.1 - b.0 * a.1) / (b.1 - a.1);
+        if !(x > a.0.min(b.0) && x < a.0.max(b.0)) {
+            x = 0.5 * (a.0 + b.0);
         }
-        let (_, r) = eval(mid)?;
-        if r.signum() == a.1.signum() {
-            a = (mid, r);
+        let fx = f(x)?;
+        if fx.signum() == b.1.signum() {
+            b = (x, fx);
+            if side == -1 {
+                a.1 *= 0.5;
+            }
+            side = -1;
         } else {
-            b = (mid, r);
+            a = (x, fx);
+            if side == 1 {
+                b.1 *= 0.5;
+            }
+            side = 1;
         }
     }
-    let best = if a.1.abs() < b.1.abs() { a } else { b };
-    eval(best.0).map(|(phases, _)| phases)
+    Some(if a.1.abs() < b.1.abs() { a.0 } else { b.0 })
 }
 
 fn bounds_of(limits: &Limits) -> Bounds {
@@ -376,10 +398,23 @@ fn cruise_through(
     ))
 }
 
+/// The cruise family, searched on a coarse grid first (enough almost always), then on a
+/// fine one.
 fn cruise_profile(step: &Step1, limits: &Limits, duration: f64) -> Option<[Phase; 7]> {
     if duration.is_nan() || duration < 0.0 {
         return None;
     }
+    cruise_profile_on(step, limits, duration, 12)
+        .or_else(|| cruise_profile_on(step, limits, duration, GRID))
+}
+
+fn cruise_profile_on(
+    step: &Step1,
+    limits: &Limits,
+    duration: f64,
+    points: usize,
+) -> Option<[Phase; 7]> {
+    let points = points.clamp(2, GRID);
     let after = step.after_brake();
     let target = step.target;
     let eval = |vc: f64| cruise_through(after, target, limits, duration, vc);
@@ -394,32 +429,23 @@ fn cruise_profile(step: &Step1, limits: &Limits, duration: f64) -> Option<[Phase
     // narrow band of cruise velocities around them that a coarse grid would miss.
     let j = limits.max_jerk;
     let mut grid = [0.0; GRID + 4];
-    for (i, slot) in grid.iter_mut().take(GRID).enumerate() {
-        *slot = lo + (hi - lo) * i as f64 / (GRID - 1) as f64;
+    for (i, slot) in grid.iter_mut().take(points).enumerate() {
+        *slot = lo + (hi - lo) * i as f64 / (points - 1) as f64;
     }
     let natural_start = after.v + after.a * after.a.abs() / (2.0 * j);
     let natural_end = target.v - target.a * target.a.abs() / (2.0 * j);
-    grid[GRID] = natural_start.clamp(lo, hi);
-    grid[GRID + 1] = natural_end.clamp(lo, hi);
-    grid[GRID + 2] = (0.5 * (natural_start + natural_end)).clamp(lo, hi);
-    grid[GRID + 3] = after.v.clamp(lo, hi);
+    grid[points] = natural_start.clamp(lo, hi);
+    grid[points + 1] = natural_end.clamp(lo, hi);
+    grid[points + 2] = (0.5 * (natural_start + natural_end)).clamp(lo, hi);
+    grid[points + 3] = after.v.clamp(lo, hi);
+    let grid = &mut grid[..points + 4];
     grid.sort_by(f64::total_cmp);
-    for &vc in &grid {
+    for &vc in grid.iter() {
         let (_, s) = eval(vc)?;
         if let Some(prev) = previous {
             if (prev.cruise >= 0.0) != (s.cruise >= 0.0) && n + 2 < samples.len() {
-                let (mut a, mut b) = (prev.vc, s.vc);
-                let a_valid = prev.cruise >= 0.0;
-                for _ in 0..60 {
-                    let mid = 0.5 * (a + b);
-                    let (_, m) = eval(mid)?;
-                    if (m.cruise >= 0.0) == a_valid {
-                        a = mid;
-                    } else {
-                        b = mid;
-                    }
-                }
-                let edge = if a_valid { a } else { b };
+                let cruise = |vc: f64| eval(vc).map(|(_, c)| c.cruise);
+                let edge = illinois(&cruise, (prev.vc, prev.cruise), (s.vc, s.cruise))?;
                 let (_, e) = eval(edge)?;
                 samples[n] = CruiseSample {
                     cruise: e.cruise.max(0.0),
@@ -456,29 +482,9 @@ fn cruise_profile(step: &Step1, limits: &Limits, duration: f64) -> Option<[Phase
         if l.residual.signum() == r.residual.signum() && l.residual != 0.0 && r.residual != 0.0 {
             continue;
         }
-        let (mut a, mut b) = (l, r);
-        for _ in 0..100 {
-            if a.residual == 0.0 {
-                b = a;
-                break;
-            }
-            let mid = 0.5 * (a.vc + b.vc);
-            if mid <= a.vc.min(b.vc) || mid >= a.vc.max(b.vc) {
-                break;
-            }
-            let (_, m) = eval(mid)?;
-            if m.residual.signum() == a.residual.signum() {
-                a = m;
-            } else {
-                b = m;
-            }
-        }
-        let best = if a.residual.abs() < b.residual.abs() {
-            a
-        } else {
-            b
-        };
-        let (mut phases, s) = eval(best.vc)?;
+        let residual = |vc: f64| eval(vc).map(|(_, c)| c.residual);
+        let root = illinois(&residual, (l.vc, l.residual), (r.vc, r.residual))?;
+        let (mut phases, s) = eval(root)?;
         if s.cruise < -SAME_DURATION * duration {
             continue;
         }
