@@ -94,6 +94,23 @@ fn assert_within_limits(profile: &Profile, l: &Limits, from: f64) -> Result<(), 
         );
         prop_assert!(s.j.abs() <= l.max_jerk * SLACK);
     }
+    // Finite differences at a servo-like period agree: the set-points themselves, not only
+    // the phase description, respect the acceleration and jerk limits.
+    let dt = t_end / 400.0;
+    let a_abs = l.max_acceleration.max(-l.min_acceleration);
+    let mut previous = profile.at(from);
+    for k in 1..=400 {
+        let t = t_end * k as f64 / 400.0;
+        if t <= from {
+            continue;
+        }
+        let s = profile.at(t);
+        let step = t - (t - dt).max(from);
+        let tol = 1e-9 * (1.0 + previous.v.abs() + previous.a.abs());
+        prop_assert!((s.a - previous.a).abs() <= l.max_jerk * step * SLACK + tol);
+        prop_assert!((s.v - previous.v).abs() <= a_abs * step * SLACK + tol);
+        previous = s;
+    }
     Ok(())
 }
 
