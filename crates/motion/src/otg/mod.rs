@@ -24,5 +24,5 @@ pub use limits::{Limits, State};
 pub use online::{OnlineAxis, OnlineGroup};
 pub use position::{Block, along_path, position_block, position_profile};
 pub use profile::{MAX_PHASES, Phase, Profile, Sample};
-pub use sync::{Synchronized, position_profile_with_duration, synchronize};
+pub use sync::{Synchronized, position_profile_with_duration, synchronize, synchronize_on_period};
 pub use velocity::velocity_profile;

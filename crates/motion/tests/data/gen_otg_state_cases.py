@@ -14,6 +14,8 @@ The tests only read the JSON; they never call ruckig. Families of cases:
   sync3         three axes, time synchronisation (all finish together)
   sync3_blocked three axes where ruckig's common duration is longer than every axis's
                 minimum: an axis's blocked duration interval decides (rare: searched for)
+  sync3_period  three axes, duration rounded up to a whole number of control periods
+                (ruckig's discrete duration), period in the field "period"
 """
 import json
 import math
@@ -21,7 +23,8 @@ import os
 import random
 
 import ruckig
-from ruckig import ControlInterface, InputParameter, Result, Ruckig, Synchronization, Trajectory
+from ruckig import (ControlInterface, DurationDiscretization, InputParameter, Result, Ruckig,
+                    Synchronization, Trajectory)
 
 import argparse
 
@@ -84,7 +87,7 @@ def start_state(lim, violating):
     return v0, a0
 
 
-def calc(n, p0, v0, a0, pf, vf, af, lims, interface=ControlInterface.Position):
+def calc(n, p0, v0, a0, pf, vf, af, lims, interface=ControlInterface.Position, period=None):
     inp = InputParameter(n)
     inp.current_position, inp.current_velocity, inp.current_acceleration = p0, v0, a0
     inp.target_position, inp.target_velocity, inp.target_acceleration = pf, vf, af
@@ -95,9 +98,11 @@ def calc(n, p0, v0, a0, pf, vf, af, lims, interface=ControlInterface.Position):
     inp.max_jerk = [l["jmax"] for l in lims]
     inp.control_interface = interface
     inp.synchronization = Synchronization.Time
+    if period is not None:
+        inp.duration_discretization = DurationDiscretization.Discrete
     tr = Trajectory(n)
     try:
-        res = Ruckig(n).calculate(inp, tr)
+        res = (Ruckig(n, period) if period is not None else Ruckig(n)).calculate(inp, tr)
     except ruckig.RuckigError:
         return None
     if res not in (Result.Working, Result.Finished):
@@ -125,18 +130,19 @@ def one_axis(kind):
     return case
 
 
-def three_axes():
+def three_axes(period=None):
     lims = [limits() for _ in range(3)]
     starts = [start_state(l, violating=False) for l in lims]
     targets = [target_state(l, rng.random() < 0.5, rng.random() < 0.3) for l in lims]
     p0 = [rng.uniform(-10, 10) for _ in range(3)]
     pf = [p + rng.choice([-1, 1]) * lu(1e-3, 50.0) for p in p0]
     tr = calc(3, p0, [s[0] for s in starts], [s[1] for s in starts], pf,
-              [t[0] for t in targets], [t[1] for t in targets], lims)
+              [t[0] for t in targets], [t[1] for t in targets], lims, period=period)
     if tr is None:
         return None
     blocked = tr.duration > max(tr.independent_min_durations) * (1 + 1e-9)
-    return dict(kind="sync3_blocked" if blocked else "sync3", p0=p0, v0=[s[0] for s in starts], a0=[s[1] for s in starts], pf=pf,
+    kind = "sync3_period" if period is not None else "sync3_blocked" if blocked else "sync3"
+    return dict(kind=kind, period=period, p0=p0, v0=[s[0] for s in starts], a0=[s[1] for s in starts], pf=pf,
                 vf=[t[0] for t in targets], af=[t[1] for t in targets], limits=lims,
                 duration=tr.duration, independent_min_durations=list(tr.independent_min_durations))
 
@@ -169,6 +175,12 @@ def main():
         if c is not None and c["kind"] == "sync3_blocked":
             blocked.append(c)
     sync += blocked
+    made = 0
+    while made < 12 * k:
+        c = three_axes(period=rng.choice([1e-3, 2e-3, 4e-3, 1e-2]))
+        if c is not None:
+            sync.append(c)
+            made += 1
     doc = {
         "tool": "ruckig", "ruckig_version": ruckig.__version__, "seed": SEED,
         "generator": "crates/motion/tests/data/gen_otg_state_cases.py",
