@@ -204,8 +204,8 @@ fn other_profiles(step: &Step1, limits: &Limits, duration: f64) -> Option<[Phase
     None
 }
 
-/// Grid search with bisection: the first root of the residual in `[lo, hi]` whose phases
-/// `accept` takes.
+/// Grid search with root refinement: the first root of the residual in `[lo, hi]` whose
+/// phases `accept` takes.
 fn search(
     eval: &dyn Fn(f64) -> Option<([Phase; 7], f64)>,
     lo: f64,
@@ -234,7 +234,7 @@ fn search(
         };
         if let Some((prev_x, prev_r)) = previous {
             if prev_r.signum() != residual.signum() || residual == 0.0 {
-                if let Some(mut phases) = bisect(eval, (prev_x, prev_r), (x, residual)) {
+                if let Some(mut phases) = refine(eval, (prev_x, prev_r), (x, residual)) {
                     if accept(&mut phases) {
                         return Some(phases);
                     }
@@ -310,8 +310,8 @@ fn with_residual(pr: &Problem, b: &Bounds, t: [f64; 7], pd: f64) -> Option<([Pha
     Some((phases, end.p - pd))
 }
 
-/// Bisection of a continuous residual between two parameters of opposite sign.
-fn bisect(
+/// Refines a root of a continuous residual between two parameters of opposite sign.
+fn refine(
     eval: &dyn Fn(f64) -> Option<([Phase; 7], f64)>,
     left: (f64, f64),
     right: (f64, f64),
