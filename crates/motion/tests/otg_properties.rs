@@ -139,6 +139,23 @@ fn assert_reaches(profile: &Profile, target: State, l: &Limits) -> Result<(), Te
     Ok(())
 }
 
+/// Limits over extreme scales: micrometre jogs to metre-per-second rapids, soft to very
+/// stiff jerk limits.
+fn wide_limits() -> impl Strategy<Value = Limits> {
+    (-3.0f64..4.0, -2.0f64..6.0, -1.0f64..9.0)
+        .prop_map(|(v, a, j)| Limits::symmetric(10f64.powf(v), 10f64.powf(a), 10f64.powf(j)))
+}
+
+fn wide_distance() -> impl Strategy<Value = f64> {
+    (-7.0f64..4.0, any::<bool>()).prop_map(|(d, negative)| {
+        if negative {
+            -10f64.powf(d)
+        } else {
+            10f64.powf(d)
+        }
+    })
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: cases(), failure_persistence: None, ..ProptestConfig::default() })]
 
@@ -253,6 +270,29 @@ proptest! {
         if let Ok(profile) = velocity_profile(State::new(p0, v0, a0), vf, af, &l) {
             let s = profile.at(profile.duration());
             prop_assert!(!(s.p.is_nan() || s.v.is_nan() || s.a.is_nan()));
+        }
+    }
+
+    #[test]
+    fn extreme_scales_solve_keep_limits_and_reach_target(
+        l in [wide_limits(), wide_limits(), wide_limits()],
+        d in [wide_distance(), wide_distance(), wide_distance()],
+        f in [(-1.0f64..1.0, -1.0f64..1.0), (-1.0f64..1.0, -1.0f64..1.0), (-1.0f64..1.0, -1.0f64..1.0)],
+        moving in [any::<bool>(), any::<bool>(), any::<bool>()],
+    ) {
+        let start: [State; 3] = std::array::from_fn(|i| safe_state(&l[i], 0.0, f[i].0, f[i].1));
+        let target: [State; 3] = std::array::from_fn(|i| {
+            if moving[i] { target_state(&l[i], d[i], f[i].1, f[i].0) } else { State::at_rest(d[i]) }
+        });
+        for i in 0..3 {
+            let profile = position_profile(start[i], target[i], &l[i]).map_err(|e| TestCaseError::fail(e.to_string()))?;
+            assert_within_limits(&profile, &l[i], 0.0)?;
+            assert_reaches(&profile, target[i], &l[i])?;
+        }
+        let sync = synchronize(&start, &target, &l).map_err(|e| TestCaseError::fail(e.to_string()))?;
+        for i in 0..3 {
+            assert_within_limits(&sync.profiles[i], &l[i], 0.0)?;
+            assert_reaches(&sync.profiles[i], target[i], &l[i])?;
         }
     }
 }
