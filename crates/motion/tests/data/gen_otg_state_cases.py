@@ -10,6 +10,7 @@ The tests only read the JSON; they never call ruckig. Families of cases:
   target_va     non-zero target velocity and acceleration
   violating     start velocity and/or acceleration outside the limits (brake first)
   asymmetric    min limits different from -max limits
+  asym_violating asymmetric limits and a start outside them
   velocity      velocity interface (no position target)
   sync3         three axes, time synchronisation (all finish together)
   sync3_blocked three axes where ruckig's common duration is longer than every axis's
@@ -111,10 +112,10 @@ def calc(n, p0, v0, a0, pf, vf, af, lims, interface=ControlInterface.Position, p
 
 
 def one_axis(kind):
-    lim = limits(asymmetric=(kind == "asymmetric"))
-    v0, a0 = start_state(lim, violating=(kind == "violating"))
-    with_v = kind in ("target_v", "target_va", "asymmetric", "violating", "velocity")
-    with_a = kind in ("target_va", "velocity") or (kind == "asymmetric" and rng.random() < 0.5)
+    lim = limits(asymmetric=kind in ("asymmetric", "asym_violating"))
+    v0, a0 = start_state(lim, violating=kind in ("violating", "asym_violating"))
+    with_v = kind in ("target_v", "target_va", "asymmetric", "violating", "velocity", "asym_violating")
+    with_a = kind in ("target_va", "velocity") or (kind in ("asymmetric", "asym_violating") and rng.random() < 0.5)
     vf, af = target_state(lim, with_v, with_a)
     if kind == "velocity" and rng.random() < 0.3:
         a0 = rng.choice([lim["amax"], lim["amin"]]) * rng.uniform(1.05, 2.0)
@@ -150,7 +151,7 @@ def three_axes(period=None):
 def main():
     k = ARGS.scale
     counts = dict(inside=60 * k, target_v=60 * k, target_va=60 * k, violating=60 * k, asymmetric=60 * k,
-                  velocity=60 * k)
+                  velocity=60 * k, asym_violating=60 * k)
     cases, skipped = [], 0
     for kind, n in counts.items():
         made = 0
