@@ -11,7 +11,9 @@
 
 use std::collections::BTreeMap;
 
-use rtcnc_motion::otg::{Limits, State, position_profile, synchronize, velocity_profile};
+use rtcnc_motion::otg::{
+    Limits, State, position_profile, synchronize, synchronize_on_period, velocity_profile,
+};
 use serde_json::Value;
 
 fn f(v: &Value, key: &str) -> f64 {
@@ -80,9 +82,14 @@ fn main() {
         let target: [State; 3] = std::array::from_fn(|k| State::new(pf[k], vf[k], af[k]));
         let limits: [Limits; 3] = std::array::from_fn(|k| limits_of(&c["limits"][k]));
         let want = f(c, "duration");
-        let entry = stats.entry("sync3".to_string()).or_default();
+        let kind = c["kind"].as_str().unwrap_or("sync3").to_string();
+        let entry = stats.entry(kind).or_default();
         entry.0 += 1;
-        let bad = match synchronize(&start, &target, &limits) {
+        let result = match c["period"].as_f64() {
+            Some(period) => synchronize_on_period(&start, &target, &limits, period),
+            None => synchronize(&start, &target, &limits),
+        };
+        let bad = match result {
             Ok(s) => {
                 let rel = (s.duration() - want) / want;
                 (rel.abs() > 1e-6)

@@ -1,8 +1,8 @@
 //! Closed-form cases worked out by hand, and the behaviour on bad input.
 
 use rtcnc_motion::otg::{
-    Limits, OnlineAxis, State, along_path, position_profile, position_profile_with_duration,
-    velocity_profile,
+    Limits, OnlineAxis, OnlineGroup, State, along_path, position_profile,
+    position_profile_with_duration, velocity_profile,
 };
 
 fn close(a: f64, b: f64, rel: f64) -> bool {
@@ -273,4 +273,62 @@ fn evaluation_never_returns_nan() {
             "t = {t}"
         );
     }
+}
+
+/// Three axes driven on line on a 1 ms servo period (mm, s): a target change mid-move, and
+/// with period rounding the move ends exactly on a tick with every axis on its target.
+#[test]
+fn online_group_retargets_and_ends_on_a_tick() {
+    let limits = [
+        Limits::symmetric(100.0, 1000.0, 50_000.0),
+        Limits::symmetric(80.0, 800.0, 40_000.0),
+        Limits::symmetric(50.0, 500.0, 20_000.0),
+    ];
+    let mut group = OnlineGroup::new([State::at_rest(0.0); 3], limits).unwrap();
+    group.set_period(Some(1e-3)).unwrap();
+    group
+        .set_targets(&[
+            State::at_rest(10.0),
+            State::at_rest(-5.0),
+            State::at_rest(2.0),
+        ])
+        .unwrap();
+    let targets = [
+        State::at_rest(3.0),
+        State::at_rest(4.0),
+        State::at_rest(-1.0),
+    ];
+    let mut ticks_after_change = 0;
+    for tick in 1..=10_000 {
+        if tick == 40 {
+            group.set_targets(&targets).unwrap();
+            let ticks = group.duration() / 1e-3;
+            assert!(
+                (ticks - ticks.round()).abs() < 1e-6,
+                "duration {} is not on a tick",
+                group.duration()
+            );
+        }
+        let samples = group.step(1e-3);
+        for (s, l) in samples.iter().zip(&limits) {
+            assert!(s.v.abs() <= l.max_velocity * (1.0 + 1e-9));
+            assert!(s.a.abs() <= l.max_acceleration * (1.0 + 1e-9));
+        }
+        if tick >= 40 {
+            ticks_after_change += 1;
+        }
+        if tick > 40 && group.is_finished() {
+            break;
+        }
+    }
+    assert!(group.is_finished());
+    // Finished on the very tick the planned duration ends on.
+    assert!((f64::from(ticks_after_change) * 1e-3 - group.duration()).abs() < 1e-9);
+    for (s, t) in group.sample().iter().zip(&targets) {
+        assert_eq!((s.p, s.v, s.a), (t.p, 0.0, 0.0));
+    }
+    assert_eq!(
+        group.set_period(Some(0.0)).unwrap_err().code(),
+        "otg-invalid-limit"
+    );
 }

@@ -94,6 +94,23 @@ fn assert_within_limits(profile: &Profile, l: &Limits, from: f64) -> Result<(), 
         );
         prop_assert!(s.j.abs() <= l.max_jerk * SLACK);
     }
+    // Finite differences at a servo-like period agree: the set-points themselves, not only
+    // the phase description, respect the acceleration and jerk limits.
+    let dt = t_end / 400.0;
+    let a_abs = l.max_acceleration.max(-l.min_acceleration);
+    let mut previous = profile.at(from);
+    for k in 1..=400 {
+        let t = t_end * k as f64 / 400.0;
+        if t <= from {
+            continue;
+        }
+        let s = profile.at(t);
+        let step = t - (t - dt).max(from);
+        let tol = 1e-9 * (1.0 + previous.v.abs() + previous.a.abs());
+        prop_assert!((s.a - previous.a).abs() <= l.max_jerk * step * SLACK + tol);
+        prop_assert!((s.v - previous.v).abs() <= a_abs * step * SLACK + tol);
+        previous = s;
+    }
     Ok(())
 }
 
@@ -120,6 +137,23 @@ fn assert_reaches(profile: &Profile, target: State, l: &Limits) -> Result<(), Te
         target.v
     );
     Ok(())
+}
+
+/// Limits over extreme scales: micrometre jogs to metre-per-second rapids, soft to very
+/// stiff jerk limits.
+fn wide_limits() -> impl Strategy<Value = Limits> {
+    (-3.0f64..4.0, -2.0f64..6.0, -1.0f64..9.0)
+        .prop_map(|(v, a, j)| Limits::symmetric(10f64.powf(v), 10f64.powf(a), 10f64.powf(j)))
+}
+
+fn wide_distance() -> impl Strategy<Value = f64> {
+    (-7.0f64..4.0, any::<bool>()).prop_map(|(d, negative)| {
+        if negative {
+            -10f64.powf(d)
+        } else {
+            10f64.powf(d)
+        }
+    })
 }
 
 proptest! {
@@ -150,10 +184,10 @@ proptest! {
         fv0 in -3.0f64..3.0, fa0 in -3.0f64..3.0,
         pf in -100.0f64..100.0,
     ) {
-        // Inside the numeric envelope: the start acceleration cannot throw the velocity
-        // thousands of times past its limit before the jerk limit brings it back.
-        let start = State::new(0.0, fv0 * l.max_velocity, fa0 * l.max_acceleration);
-        prop_assume!(start.a.powi(2) / (2.0 * l.max_jerk) <= 100.0 * l.max_velocity);
+        // Inside the numeric envelope: the start acceleration cannot throw the velocity more
+        // than a hundred times past its limit before the jerk limit brings it back.
+        let a_cap = (200.0 * l.max_jerk * l.max_velocity).sqrt();
+        let start = State::new(0.0, fv0 * l.max_velocity, (fa0 * l.max_acceleration).clamp(-a_cap, a_cap));
         let target = State::at_rest(pf);
         let profile = position_profile(start, target, &l).map_err(|e| TestCaseError::fail(e.to_string()))?;
         // First sample inside the limits and not bound to leave them (ramping the
@@ -196,9 +230,13 @@ proptest! {
         p0 in [-50.0f64..50.0, -50.0f64..50.0, -50.0f64..50.0],
         pf in [-50.0f64..50.0, -50.0f64..50.0, -50.0f64..50.0],
         f in [(-1.0f64..1.0, -1.0f64..1.0), (-1.0f64..1.0, -1.0f64..1.0), (-1.0f64..1.0, -1.0f64..1.0)],
+        moving in [any::<bool>(), any::<bool>(), any::<bool>()],
     ) {
         let start: [State; 3] = std::array::from_fn(|i| safe_state(&l[i], p0[i], f[i].0, f[i].1));
-        let target: [State; 3] = std::array::from_fn(|i| State::at_rest(pf[i]));
+        // Half the targets are moving: their blocked duration intervals then matter.
+        let target: [State; 3] = std::array::from_fn(|i| {
+            if moving[i] { target_state(&l[i], pf[i], f[i].1, f[i].0) } else { State::at_rest(pf[i]) }
+        });
         let sync = synchronize(&start, &target, &l).map_err(|e| TestCaseError::fail(e.to_string()))?;
         let t = sync.duration();
         let slowest = (0..3)
@@ -232,6 +270,29 @@ proptest! {
         if let Ok(profile) = velocity_profile(State::new(p0, v0, a0), vf, af, &l) {
             let s = profile.at(profile.duration());
             prop_assert!(!(s.p.is_nan() || s.v.is_nan() || s.a.is_nan()));
+        }
+    }
+
+    #[test]
+    fn extreme_scales_solve_keep_limits_and_reach_target(
+        l in [wide_limits(), wide_limits(), wide_limits()],
+        d in [wide_distance(), wide_distance(), wide_distance()],
+        f in [(-1.0f64..1.0, -1.0f64..1.0), (-1.0f64..1.0, -1.0f64..1.0), (-1.0f64..1.0, -1.0f64..1.0)],
+        moving in [any::<bool>(), any::<bool>(), any::<bool>()],
+    ) {
+        let start: [State; 3] = std::array::from_fn(|i| safe_state(&l[i], 0.0, f[i].0, f[i].1));
+        let target: [State; 3] = std::array::from_fn(|i| {
+            if moving[i] { target_state(&l[i], d[i], f[i].1, f[i].0) } else { State::at_rest(d[i]) }
+        });
+        for i in 0..3 {
+            let profile = position_profile(start[i], target[i], &l[i]).map_err(|e| TestCaseError::fail(e.to_string()))?;
+            assert_within_limits(&profile, &l[i], 0.0)?;
+            assert_reaches(&profile, target[i], &l[i])?;
+        }
+        let sync = synchronize(&start, &target, &l).map_err(|e| TestCaseError::fail(e.to_string()))?;
+        for i in 0..3 {
+            assert_within_limits(&sync.profiles[i], &l[i], 0.0)?;
+            assert_reaches(&sync.profiles[i], target[i], &l[i])?;
         }
     }
 }

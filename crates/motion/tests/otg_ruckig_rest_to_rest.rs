@@ -2,7 +2,7 @@
 //! cases written by the peer script `ruckig_profile.py random --seed 20240601`), and the
 //! seeds' 6000-pulse S-curve experiment.
 
-use rtcnc_motion::otg::{Limits, State, position_profile};
+use rtcnc_motion::otg::{Limits, State, position_profile, synchronize_on_period};
 use serde::Deserialize;
 
 #[derive(Deserialize)]
@@ -98,4 +98,29 @@ fn seeds_6000_pulse_experiment_matches_ruckig() {
     }
     let end = profile.at(profile.duration());
     assert_eq!((end.p, end.v, end.a), (6000.0, 0.0, 0.0));
+}
+
+/// The same move rounded up to whole 1 ms servo periods (ruckig's discrete duration, printed
+/// by `ruckig_profile.py paper` as `discrete_1ms_cycle`): 268 ms, peak 44.66309969706033.
+#[test]
+fn seeds_experiment_on_a_1_ms_period_matches_ruckig() {
+    let limits = [Limits::symmetric(50.0, 1.0, 0.01)];
+    let sync = synchronize_on_period(
+        &[State::at_rest(0.0)],
+        &[State::at_rest(6000.0)],
+        &limits,
+        1.0,
+    )
+    .unwrap();
+    assert!((sync.duration() - 268.0).abs() < 1e-9);
+    let (v, a, _) = sync.profiles[0].peaks();
+    assert!(
+        (v - 44.66309969706033).abs() < 1e-9 * 44.66309969706033,
+        "{v}"
+    );
+    assert!(a <= 1.0);
+    let end = sync.at(268.0)[0];
+    assert_eq!((end.p, end.v, end.a), (6000.0, 0.0, 0.0));
+    let near = sync.profiles[0].at(268.0 - 1e-9);
+    assert!((near.p - 6000.0).abs() < 1e-9);
 }

@@ -114,6 +114,11 @@ fn asymmetric_limits() {
 }
 
 #[test]
+fn asymmetric_limits_and_start_outside_them() {
+    assert_family("asym_violating");
+}
+
+#[test]
 fn velocity_interface() {
     assert_family("velocity");
 }

@@ -1,9 +1,11 @@
 //! Multi-axis time synchronisation against ruckig 0.19.4 (`sync3` cases of
 //! `tests/data/otg_state_cases.json`): the common duration equals ruckig's, and every axis
 //! reaches its own target at that instant. Twelve of the cases are ones where an axis's
-//! blocked duration interval makes the common duration longer than every axis's minimum.
+//! blocked duration interval makes the common duration longer than every axis's minimum;
+//! twelve round the duration up to a whole number of control periods (ruckig's discrete
+//! duration).
 
-use rtcnc_motion::otg::{Limits, State, position_block, synchronize};
+use rtcnc_motion::otg::{Limits, State, position_block, synchronize, synchronize_on_period};
 use serde::Deserialize;
 
 #[derive(Deserialize)]
@@ -23,6 +25,7 @@ struct AxisLimits {
 #[derive(Deserialize)]
 struct SyncCase {
     kind: String,
+    period: Option<f64>,
     p0: [f64; 3],
     v0: [f64; 3],
     a0: [f64; 3],
@@ -77,10 +80,19 @@ fn synchronised_duration_equals_ruckig_and_all_axes_arrive_together() {
         blocked >= 10,
         "only {blocked} cases decided by a blocked interval"
     );
+    let on_period = cases.iter().filter(|c| c.period.is_some()).count();
+    assert!(
+        on_period >= 10,
+        "only {on_period} cases on a control period"
+    );
     let mut failures = Vec::new();
     for (k, c) in cases.iter().enumerate() {
         let (start, target, limits) = inputs(c);
-        let sync = match synchronize(&start, &target, &limits) {
+        let result = match c.period {
+            Some(period) => synchronize_on_period(&start, &target, &limits, period),
+            None => synchronize(&start, &target, &limits),
+        };
+        let sync = match result {
             Ok(sync) => sync,
             Err(e) => {
                 failures.push(format!("case {k}: {e}"));

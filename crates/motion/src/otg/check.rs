@@ -59,11 +59,10 @@ const TIME_TOL: f64 = 1e-12;
 /// Clamps tiny negative durations to zero and checks the phases. Returns the total duration
 /// if the candidate is valid. `check_target_position` is off for pure velocity changes.
 ///
-/// The velocity limits are not checked during the first `velocity_free` phases: after a
-/// brake pre-trajectory the state may still be outside them and the first phases are
-/// bringing it back (as in ruckig). A profile that left the limits from a safe start would
-/// still be caught, since the velocity keeps moving the same way until the acceleration
-/// changes sign in a later, checked phase.
+/// When the start state is outside the velocity limits or bound to leave them (possible
+/// right after a brake pre-trajectory), the velocity limits are not checked during the
+/// first `velocity_free` phases, which are bringing it back (as in ruckig). From a safe
+/// start every phase is checked.
 pub(crate) fn check(
     problem: &Problem,
     bounds: &Bounds,
@@ -103,6 +102,13 @@ pub(crate) fn check(
         .max(problem.af.abs());
     let a_lim_tol = LIMIT_TOL * a_scale;
     let v_lim_tol = LIMIT_TOL * v_scale;
+    let settled = problem.v0 + problem.a0 * problem.a0.abs() / (2.0 * bounds.j);
+    let inside = |v: f64| v <= bounds.v_max + v_lim_tol && v >= bounds.v_min - v_lim_tol;
+    let velocity_free = if inside(problem.v0) && inside(settled) {
+        0
+    } else {
+        velocity_free
+    };
     let snap = snap_tolerance(problem.a0, phases);
     let (mut p, mut v, mut a) = (0.0, problem.v0, problem.a0);
     for (index, phase) in phases.iter().enumerate() {

@@ -7,7 +7,7 @@
 use super::limits::Which;
 use super::{
     Limits, OtgError, Profile, Sample, State, Synchronized, position_profile, synchronize,
-    velocity_profile,
+    synchronize_on_period, velocity_profile,
 };
 
 /// One axis under on-line control.
@@ -88,9 +88,7 @@ impl OnlineAxis {
     /// negative `dt` does not move the clock.
     #[inline]
     pub fn step(&mut self, dt: f64) -> Sample {
-        if dt > 0.0 {
-            self.time += dt;
-        }
+        self.time = advance_clock(self.time, dt, self.profile.duration());
         self.sample()
     }
 
@@ -111,6 +109,7 @@ pub struct OnlineGroup<const N: usize> {
     limits: [Limits; N],
     motion: Synchronized<N>,
     time: f64,
+    period: Option<f64>,
 }
 
 impl<const N: usize> OnlineGroup<N> {
@@ -126,7 +125,24 @@ impl<const N: usize> OnlineGroup<N> {
                 profiles: states.map(Profile::hold),
             },
             time: 0.0,
+            period: None,
         })
+    }
+
+    /// Rounds the duration of every following move up to a whole number of servo
+    /// `period`s, so that moves end exactly on a tick (`None`: no rounding).
+    pub fn set_period(&mut self, period: Option<f64>) -> Result<(), OtgError> {
+        if let Some(p) = period {
+            if !(p.is_finite() && p > 0.0) {
+                return Err(OtgError::InvalidLimit {
+                    name: "period",
+                    requirement: "greater than zero",
+                    value: p,
+                });
+            }
+        }
+        self.period = period;
+        Ok(())
     }
 
     /// Current set-points.
@@ -137,16 +153,17 @@ impl<const N: usize> OnlineGroup<N> {
     /// Moves every axis to its target from the current set-points, all arriving together.
     pub fn set_targets(&mut self, targets: &[State; N]) -> Result<(), OtgError> {
         let now = self.sample().map(|s| State::new(s.p, s.v, s.a));
-        self.motion = synchronize(&now, targets, &self.limits)?;
+        self.motion = match self.period {
+            Some(period) => synchronize_on_period(&now, targets, &self.limits, period)?,
+            None => synchronize(&now, targets, &self.limits)?,
+        };
         self.time = 0.0;
         Ok(())
     }
 
     /// Advances the clock by `dt` and returns the new set-points.
     pub fn step(&mut self, dt: f64) -> [Sample; N] {
-        if dt > 0.0 {
-            self.time += dt;
-        }
+        self.time = advance_clock(self.time, dt, self.motion.duration());
         self.sample()
     }
 
@@ -158,5 +175,20 @@ impl<const N: usize> OnlineGroup<N> {
     /// Common duration of the current motion.
     pub fn duration(&self) -> f64 {
         self.motion.duration()
+    }
+}
+
+/// Moves the clock on by `dt` (ignored unless positive). A sum of periods that lands within
+/// rounding of the end of the motion is the end: a move planned to end on a tick ends on
+/// that tick, not one period later.
+fn advance_clock(time: f64, dt: f64, end: f64) -> f64 {
+    if dt.is_nan() || dt <= 0.0 {
+        return time;
+    }
+    let next = time + dt;
+    if (next - end).abs() <= 1e-6 * dt {
+        end
+    } else {
+        next
     }
 }

@@ -30,7 +30,10 @@ use super::{Limits, OtgError, State};
 /// Jerk signs of the seven phases of an upward time-optimal profile.
 const UP_DOWN_DOWN_UP: [f64; 7] = [1.0, 0.0, -1.0, 0.0, -1.0, 0.0, 1.0];
 
-const MAX_CANDIDATES: usize = 32;
+/// Valid candidates kept. Only valid profiles are kept, and there are at most five distinct
+/// ones (plus the same profile found by two neighbouring families); when full, a new one
+/// replaces the longest if it is shorter.
+const MAX_CANDIDATES: usize = 12;
 
 /// One valid seven-phase profile (jerks signed for the real direction).
 #[derive(Debug, Clone, Copy, Default)]
@@ -73,19 +76,27 @@ impl Candidates {
             };
         }
         if let Some(duration) = check(problem, bounds, &mut phases, true, 2) {
+            for phase in &mut phases {
+                phase.jerk *= sign;
+            }
+            let candidate = Candidate { phases, duration };
             if self.len < MAX_CANDIDATES {
-                for phase in &mut phases {
-                    phase.jerk *= sign;
-                }
-                self.items[self.len] = Candidate { phases, duration };
+                self.items[self.len] = candidate;
                 self.len += 1;
+            } else if let Some(longest) = self
+                .items
+                .iter_mut()
+                .max_by(|x, y| x.duration.total_cmp(&y.duration))
+                .filter(|c| c.duration > duration)
+            {
+                *longest = candidate;
             }
         }
     }
 }
 
 /// Durations an axis can take: `[t_min, ∞)` minus up to two open intervals.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Block {
     /// Minimum duration (brake pre-trajectory included).
     pub t_min: f64,
@@ -101,7 +112,7 @@ impl Block {
 }
 
 /// Result of step one for one axis.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct Step1 {
     pub(crate) start: State,
     pub(crate) target: State,
@@ -238,8 +249,7 @@ pub(crate) fn solve_position(
         }
     }
     let brake_duration: f64 = brake.phases.iter().map(|p| p.duration).sum();
-    let mut sorted = candidates;
-    let items = &mut sorted.items[..sorted.len];
+    let items = &mut candidates.items[..candidates.len];
     items.sort_by(|x, y| x.duration.total_cmp(&y.duration));
     // The same profile may be found by two neighbouring families: keep one.
     let mut distinct = [Candidate::default(); 5];

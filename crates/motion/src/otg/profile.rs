@@ -241,10 +241,16 @@ impl Profile {
     }
 }
 
-/// Moves a state on through a list of phases.
+/// Moves a state on through a list of phases, snapping rounding-noise acceleration at the
+/// start of a constant-acceleration phase to zero exactly as the profile builder and the
+/// validator do (so a root found with this agrees with the profile that is built).
 pub(crate) fn travel(state: State, phases: &[Phase]) -> State {
+    let snap = snap_tolerance(state.a, phases);
     let (mut p, mut v, mut a) = (state.p, state.v, state.a);
     for phase in phases {
+        if phase.jerk == 0.0 && phase.duration > 0.0 && a.abs() <= snap {
+            a = 0.0;
+        }
         (p, v, a) = integrate(p, v, a, phase.jerk, phase.duration);
     }
     State { p, v, a }

@@ -47,6 +47,12 @@ fn magnitude(c: &[f64], x: f64) -> f64 {
 /// degree at most 4). Tangent (double) roots are reported when the polynomial comes within
 /// rounding distance of zero at a critical point.
 pub(crate) fn real_roots_in(c: &[f64], lo: f64, hi: f64) -> Roots {
+    roots_to(c, lo, hi, 2.0 * f64::EPSILON)
+}
+
+/// Roots to a relative precision `tol`. The critical points that split the interval into
+/// monotone pieces need far less precision than the roots themselves.
+fn roots_to(c: &[f64], lo: f64, hi: f64, tol: f64) -> Roots {
     let mut out = Roots::default();
     if lo.is_nan() || hi.is_nan() || lo > hi || c.len() > 5 || c.iter().any(|x| !x.is_finite()) {
         return out;
@@ -100,12 +106,12 @@ pub(crate) fn real_roots_in(c: &[f64], lo: f64, hi: f64) -> Roots {
             for (i, ci) in c.iter().take(n).enumerate() {
                 derivative[i] = ci * (n - i) as f64;
             }
-            let critical = real_roots_in(&derivative[..n], lo, hi);
+            let critical = roots_to(&derivative[..n], lo, hi, 1e-9);
             let mut left = lo;
             for &point in critical.as_slice().iter().chain(std::iter::once(&hi)) {
                 let right = point;
                 if right > left || (right == left && left == lo) {
-                    bracket(c, left, right, &mut out);
+                    bracket(c, left, right, tol, &mut out);
                 }
                 if right < hi && eval(c, right).abs() <= 1e-13 * magnitude(c, right) {
                     out.push(right);
@@ -130,7 +136,7 @@ fn eval_with_derivative(c: &[f64], x: f64) -> (f64, f64) {
 }
 
 /// Solves a monotone bracket `[a, b]` if the sign changes over it.
-fn bracket(c: &[f64], a: f64, b: f64, out: &mut Roots) {
+fn bracket(c: &[f64], a: f64, b: f64, tol: f64, out: &mut Roots) {
     let (fa, fb) = (eval(c, a), eval(c, b));
     if fa == 0.0 {
         out.push(a);
@@ -163,7 +169,7 @@ fn bracket(c: &[f64], a: f64, b: f64, out: &mut Roots) {
         } else {
             hi = x;
         }
-        if (hi - lo).abs() <= 2.0 * f64::EPSILON * lo.abs().max(hi.abs()) {
+        if (hi - lo).abs() <= tol * lo.abs().max(hi.abs()) {
             break;
         }
         let newton = x - f / df;
@@ -172,7 +178,7 @@ fn bracket(c: &[f64], a: f64, b: f64, out: &mut Roots) {
         } else {
             0.5 * (lo + hi)
         };
-        if (next - x).abs() <= 2.0 * f64::EPSILON * x.abs() {
+        if (next - x).abs() <= tol * x.abs() {
             x = next;
             break;
         }

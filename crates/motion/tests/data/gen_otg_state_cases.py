@@ -10,10 +10,13 @@ The tests only read the JSON; they never call ruckig. Families of cases:
   target_va     non-zero target velocity and acceleration
   violating     start velocity and/or acceleration outside the limits (brake first)
   asymmetric    min limits different from -max limits
+  asym_violating asymmetric limits and a start outside them
   velocity      velocity interface (no position target)
   sync3         three axes, time synchronisation (all finish together)
   sync3_blocked three axes where ruckig's common duration is longer than every axis's
                 minimum: an axis's blocked duration interval decides (rare: searched for)
+  sync3_period  three axes, duration rounded up to a whole number of control periods
+                (ruckig's discrete duration), period in the field "period"
 """
 import json
 import math
@@ -21,7 +24,8 @@ import os
 import random
 
 import ruckig
-from ruckig import ControlInterface, InputParameter, Result, Ruckig, Synchronization, Trajectory
+from ruckig import (ControlInterface, DurationDiscretization, InputParameter, Result, Ruckig,
+                    Synchronization, Trajectory)
 
 import argparse
 
@@ -84,7 +88,7 @@ def start_state(lim, violating):
     return v0, a0
 
 
-def calc(n, p0, v0, a0, pf, vf, af, lims, interface=ControlInterface.Position):
+def calc(n, p0, v0, a0, pf, vf, af, lims, interface=ControlInterface.Position, period=None):
     inp = InputParameter(n)
     inp.current_position, inp.current_velocity, inp.current_acceleration = p0, v0, a0
     inp.target_position, inp.target_velocity, inp.target_acceleration = pf, vf, af
@@ -95,9 +99,11 @@ def calc(n, p0, v0, a0, pf, vf, af, lims, interface=ControlInterface.Position):
     inp.max_jerk = [l["jmax"] for l in lims]
     inp.control_interface = interface
     inp.synchronization = Synchronization.Time
+    if period is not None:
+        inp.duration_discretization = DurationDiscretization.Discrete
     tr = Trajectory(n)
     try:
-        res = Ruckig(n).calculate(inp, tr)
+        res = (Ruckig(n, period) if period is not None else Ruckig(n)).calculate(inp, tr)
     except ruckig.RuckigError:
         return None
     if res not in (Result.Working, Result.Finished):
@@ -106,10 +112,10 @@ def calc(n, p0, v0, a0, pf, vf, af, lims, interface=ControlInterface.Position):
 
 
 def one_axis(kind):
-    lim = limits(asymmetric=(kind == "asymmetric"))
-    v0, a0 = start_state(lim, violating=(kind == "violating"))
-    with_v = kind in ("target_v", "target_va", "asymmetric", "violating", "velocity")
-    with_a = kind in ("target_va", "velocity") or (kind == "asymmetric" and rng.random() < 0.5)
+    lim = limits(asymmetric=kind in ("asymmetric", "asym_violating"))
+    v0, a0 = start_state(lim, violating=kind in ("violating", "asym_violating"))
+    with_v = kind in ("target_v", "target_va", "asymmetric", "violating", "velocity", "asym_violating")
+    with_a = kind in ("target_va", "velocity") or (kind in ("asymmetric", "asym_violating") and rng.random() < 0.5)
     vf, af = target_state(lim, with_v, with_a)
     if kind == "velocity" and rng.random() < 0.3:
         a0 = rng.choice([lim["amax"], lim["amin"]]) * rng.uniform(1.05, 2.0)
@@ -125,18 +131,19 @@ def one_axis(kind):
     return case
 
 
-def three_axes():
+def three_axes(period=None):
     lims = [limits() for _ in range(3)]
     starts = [start_state(l, violating=False) for l in lims]
     targets = [target_state(l, rng.random() < 0.5, rng.random() < 0.3) for l in lims]
     p0 = [rng.uniform(-10, 10) for _ in range(3)]
     pf = [p + rng.choice([-1, 1]) * lu(1e-3, 50.0) for p in p0]
     tr = calc(3, p0, [s[0] for s in starts], [s[1] for s in starts], pf,
-              [t[0] for t in targets], [t[1] for t in targets], lims)
+              [t[0] for t in targets], [t[1] for t in targets], lims, period=period)
     if tr is None:
         return None
     blocked = tr.duration > max(tr.independent_min_durations) * (1 + 1e-9)
-    return dict(kind="sync3_blocked" if blocked else "sync3", p0=p0, v0=[s[0] for s in starts], a0=[s[1] for s in starts], pf=pf,
+    kind = "sync3_period" if period is not None else "sync3_blocked" if blocked else "sync3"
+    return dict(kind=kind, period=period, p0=p0, v0=[s[0] for s in starts], a0=[s[1] for s in starts], pf=pf,
                 vf=[t[0] for t in targets], af=[t[1] for t in targets], limits=lims,
                 duration=tr.duration, independent_min_durations=list(tr.independent_min_durations))
 
@@ -144,7 +151,7 @@ def three_axes():
 def main():
     k = ARGS.scale
     counts = dict(inside=60 * k, target_v=60 * k, target_va=60 * k, violating=60 * k, asymmetric=60 * k,
-                  velocity=60 * k)
+                  velocity=60 * k, asym_violating=60 * k)
     cases, skipped = [], 0
     for kind, n in counts.items():
         made = 0
@@ -169,6 +176,12 @@ def main():
         if c is not None and c["kind"] == "sync3_blocked":
             blocked.append(c)
     sync += blocked
+    made = 0
+    while made < 12 * k:
+        c = three_axes(period=rng.choice([1e-3, 2e-3, 4e-3, 1e-2]))
+        if c is not None:
+            sync.append(c)
+            made += 1
     doc = {
         "tool": "ruckig", "ruckig_version": ruckig.__version__, "seed": SEED,
         "generator": "crates/motion/tests/data/gen_otg_state_cases.py",
