@@ -2234,10 +2234,28 @@ impl<'a> Compiler<'a> {
 
     /// Folds an expression whose operands are all constants.
     fn fold(&self, e: vm::Expr) -> vm::Expr {
+        let e = self.fold_constants(e);
+        match e {
+            vm::Expr::Un(Un::NotBool, a) => match *a {
+                vm::Expr::LoadAbs(s) => vm::Expr::NotAbs(s),
+                other => vm::Expr::Un(Un::NotBool, Box::new(other)),
+            },
+            vm::Expr::Bin(op, ab) => match *ab {
+                (vm::Expr::LoadAbs(x), vm::Expr::LoadAbs(y)) => vm::Expr::BinAbs(op, x, y),
+                (a, vm::Expr::Const(k)) if !matches!(a, vm::Expr::Const(_)) => {
+                    vm::Expr::BinK(op, Box::new(a), k)
+                }
+                pair => vm::Expr::Bin(op, Box::new(pair)),
+            },
+            other => other,
+        }
+    }
+
+    fn fold_constants(&self, e: vm::Expr) -> vm::Expr {
         let all_const = match &e {
             vm::Expr::Un(_, a) | vm::Expr::Conv(_, a) => matches!(**a, vm::Expr::Const(_)),
-            vm::Expr::Bin(_, a, b) => {
-                matches!(**a, vm::Expr::Const(_)) && matches!(**b, vm::Expr::Const(_))
+            vm::Expr::Bin(_, ab) => {
+                matches!(ab.0, vm::Expr::Const(_)) && matches!(ab.1, vm::Expr::Const(_))
             }
             _ => false,
         };
@@ -2486,7 +2504,7 @@ impl<'a> Compiler<'a> {
                 };
                 return Ok(TE {
                     ty: Ty::T(time),
-                    e: self.fold(vm::Expr::Bin(bin, Box::new(l.e), Box::new(rv))),
+                    e: self.fold(vm::Expr::Bin(bin, Box::new((l.e, rv)))),
                 });
             }
         }
@@ -2519,7 +2537,7 @@ impl<'a> Compiler<'a> {
                 BinOp::Gt => (Bin::CmpS(Greater, false), false),
                 _ => (Bin::CmpS(Greater, true), false),
             };
-            let e = vm::Expr::Bin(bin, Box::new(le), Box::new(re));
+            let e = vm::Expr::Bin(bin, Box::new((le, re)));
             let e = if swap_not {
                 vm::Expr::Un(Un::NotBool, Box::new(e))
             } else {
@@ -2587,7 +2605,7 @@ impl<'a> Compiler<'a> {
         let ty = if is_cmp { Type::BOOL } else { ct };
         Ok(TE {
             ty: Ty::T(ty),
-            e: self.fold(vm::Expr::Bin(bin, Box::new(le), Box::new(re))),
+            e: self.fold(vm::Expr::Bin(bin, Box::new((le, re)))),
         })
     }
 

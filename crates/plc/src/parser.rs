@@ -6,7 +6,7 @@ use crate::lexer::{Tok, Token};
 
 /// Deepest nesting of expressions and statements accepted; keeps the recursion (and the
 /// compiled tree) shallow enough for any stack.
-const MAX_DEPTH: u32 = 200;
+const MAX_DEPTH: u32 = 96;
 
 pub(crate) struct Parser<'a> {
     toks: &'a [Token],
