@@ -188,6 +188,10 @@ pub(crate) fn compile(src: &str, file: &str) -> Result<Program, CompileErrors> {
         string_lits: HashMap::new(),
     };
     let program = c.unit(&unit);
+    // A program instantiated twice reports its body's errors once.
+    let mut seen = HashSet::new();
+    c.errors
+        .retain(|e| seen.insert((e.pos.line, e.pos.col, e.message.clone())));
     match program {
         Ok(p) if c.errors.is_empty() => Ok(p),
         Ok(_) => Err(CompileErrors(c.errors)),
@@ -449,6 +453,14 @@ impl<'a> Compiler<'a> {
                 let idx = instances.len();
                 instances.push(self.program_instance(p, &p.name.text)?);
                 default_task.push(idx);
+            }
+        }
+        // A PROGRAM the configuration does not instantiate is still checked: it gets an
+        // instance of its own name that no task runs.
+        for p in &programs {
+            let used = instances.iter().any(|i| i.pou_type == p.name.text);
+            if !used && !instances.iter().any(|i| i.name == p.name.text) {
+                instances.push(self.program_instance(p, &p.name.text)?);
             }
         }
         if !default_task.is_empty() {
@@ -1461,6 +1473,7 @@ impl<'a> Compiler<'a> {
         let body = self.block(&pou.body, &mut scope)?;
         Ok(ProgramInstance {
             name: inst.to_string(),
+            pou_type: pou.name.text.clone(),
             pou: pou_id,
             vars: syms,
             body,
@@ -1849,7 +1862,7 @@ impl<'a> Compiler<'a> {
                 ErrorKind::AssignToConstant,
                 format!("'{}' is a CONSTANT", a.root.text),
             ))
-        } else if v.kind == VarKind::Input && sc.kind != PouKind::Program {
+        } else if v.kind == VarKind::Input {
             Some((
                 ErrorKind::AssignToInput,
                 format!("'{}' is an input of this POU", a.root.text),
