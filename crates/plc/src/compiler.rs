@@ -2241,7 +2241,23 @@ impl<'a> Compiler<'a> {
                 let rt = self.expr(r, sc, hint.as_ref())?;
                 self.binary(*op, lt, rt, *pos)
             }
-            AExpr::Call(name, args, pos) => self.call_expr(name, args, sc, *pos, expect),
+            AExpr::Call(name, args, pos) => {
+                let te = self.call_expr(name, args, sc, *pos, expect)?;
+                if let (Ty::T(Type::Elem(Elem::Bool)), vm::Expr::Call(call)) = (&te.ty, &te.e) {
+                    if self
+                        .funcs
+                        .get(call.func as usize)
+                        .is_some_and(|f| f.ret.is_none())
+                    {
+                        return Err(self.e(
+                            *pos,
+                            ErrorKind::TypeMismatch,
+                            format!("function '{}' returns no value", name.text),
+                        ));
+                    }
+                }
+                Ok(te)
+            }
         }
     }
 

@@ -478,8 +478,12 @@ impl Parser<'_> {
         self.bump();
         let name = self.name()?;
         let ret = if kind == PouKind::Function {
-            self.expect(&Tok::Colon)?;
-            Some(self.type_spec()?)
+            // A function without `: type` returns nothing (3rd edition).
+            if self.eat(&Tok::Colon) {
+                Some(self.type_spec()?)
+            } else {
+                None
+            }
         } else {
             None
         };

@@ -624,3 +624,15 @@ fn numeric_functions_at_run_time_match_the_compile_time_folding() {
     assert_eq!(int(&rt, "g"), 9);
     assert_eq!(real(&rt, "h"), 2.0);
 }
+
+#[test]
+fn functions_without_a_result_are_statements() {
+    let src = "FUNCTION Log2 VAR_IN_OUT acc : INT; END_VAR VAR_INPUT v : INT; END_VAR acc := acc + v; END_FUNCTION
+        PROGRAM P VAR total : INT; END_VAR Log2(acc := total, v := 3); Log2(total, 4); END_PROGRAM";
+    let mut rt = plc(src);
+    rt.scan(ms(0)).unwrap();
+    assert_eq!(int(&rt, "total"), 7);
+    let bad = "FUNCTION F VAR_INPUT v : INT; END_VAR END_FUNCTION
+        PROGRAM P VAR x : BOOL; END_VAR x := F(1); END_PROGRAM";
+    assert_eq!(compile_error(bad).2, "type-mismatch");
+}
