@@ -102,6 +102,8 @@ enum Lookup<T> {
 
 pub(crate) struct Compiler<'a> {
     file: &'a str,
+    /// Upper-case name -> its first spelling in the source, for messages.
+    spelling: HashMap<String, String>,
     errors: Vec<CompileError>,
     image: Vec<u64>,
     type_asts: HashMap<String, &'a ast::TypeDecl>,
@@ -162,7 +164,9 @@ const MAX_SLOTS: u64 = 16 << 20;
 pub(crate) fn compile(src: &str, file: &str) -> Result<Program, CompileErrors> {
     let toks = crate::lexer::tokenize(src, file)?;
     let unit = crate::parser::parse(&toks, file)?;
+    let spelling = spellings(src, &toks);
     let mut c = Compiler {
+        spelling,
         file,
         errors: Vec::new(),
         image: Vec::new(),
@@ -205,7 +209,25 @@ pub(crate) fn compile(src: &str, file: &str) -> Result<Program, CompileErrors> {
 
 impl<'a> Compiler<'a> {
     fn e(&self, pos: Pos, kind: ErrorKind, msg: impl Into<String>) -> CompileError {
-        err(self.file, pos, kind, msg)
+        err(self.file, pos, kind, self.respell(&msg.into()))
+    }
+
+    /// Shows quoted names in messages as the source spells them.
+    fn respell(&self, msg: &str) -> String {
+        let mut out = String::with_capacity(msg.len());
+        let mut parts = msg.split('\'');
+        if let Some(first) = parts.next() {
+            out.push_str(first);
+        }
+        for (i, part) in parts.enumerate() {
+            out.push('\'');
+            if i % 2 == 0 {
+                out.push_str(self.spelling.get(part).map_or(part, String::as_str));
+            } else {
+                out.push_str(part);
+            }
+        }
+        out
     }
 
     fn alloc(&mut self, n: u32, pos: Pos) -> R<u32> {
@@ -241,7 +263,8 @@ impl<'a> Compiler<'a> {
     }
 
     fn new_pou_name(&mut self, name: &str) -> u32 {
-        self.pou_names.push(Arc::from(name));
+        let shown = self.spelling.get(name).map_or(name, String::as_str);
+        self.pou_names.push(Arc::from(shown));
         (self.pou_names.len() - 1) as u32
     }
 
@@ -2492,6 +2515,14 @@ impl<'a> Compiler<'a> {
                 match (x.elem(), y.elem()) {
                     (Some(p), Some(q)) if widens(p, q) => Ok(y),
                     (Some(p), Some(q)) if widens(q, p) => Ok(x),
+                    // Neither widens to the other (INT and UINT): the smallest type both
+                    // widen to (DINT).
+                    (Some(p), Some(q))
+                        if Elem::ALL.iter().any(|t| widens(p, *t) && widens(q, *t)) =>
+                    {
+                        let t = Elem::ALL.iter().find(|t| widens(p, **t) && widens(q, **t));
+                        Ok(Type::Elem(*t.unwrap_or(&Elem::LReal)))
+                    }
                     _ => Err(self.e(
                         pos,
                         ErrorKind::TypeMismatch,
@@ -3072,6 +3103,28 @@ impl<'a> Compiler<'a> {
         }
         Ok(out)
     }
+}
+
+/// First spelling of every identifier (identifiers are ASCII, so the upper-case text has
+/// the length of the original).
+fn spellings(src: &str, toks: &[crate::lexer::Token]) -> HashMap<String, String> {
+    let mut line_starts = vec![0usize];
+    line_starts.extend(src.match_indices('\n').map(|(i, _)| i + 1));
+    let mut map = HashMap::new();
+    for t in toks {
+        if let crate::lexer::Tok::Ident(up) = &t.kind {
+            if map.contains_key(up) {
+                continue;
+            }
+            let start = line_starts
+                .get(t.pos.line as usize - 1)
+                .map(|s| s + t.pos.col as usize - 1);
+            if let Some(raw) = start.and_then(|s| src.get(s..s + up.len())) {
+                map.insert(up.clone(), raw.to_string());
+            }
+        }
+    }
+    map
 }
 
 fn t_root(t: &Option<Access>) -> Pos {

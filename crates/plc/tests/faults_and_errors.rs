@@ -174,7 +174,7 @@ fn index_out_of_range_faults_inside_a_function_block() {
             high: 3
         }
     );
-    assert_eq!((&*f.pou, f.line), ("TABLE", 4));
+    assert_eq!((&*f.pou, f.line), ("Table", 4));
 }
 
 #[test]
@@ -221,7 +221,7 @@ fn endless_repeat_in_a_function_is_caught_too() {
     let mut rt = faulting(src);
     let f = rt.scan(ms(0)).unwrap_err();
     assert!(matches!(f.kind, FaultKind::WatchdogExceeded { .. }));
-    assert_eq!(&*f.pou, "SPIN");
+    assert_eq!(&*f.pou, "Spin");
 }
 
 #[test]

@@ -636,3 +636,16 @@ fn functions_without_a_result_are_statements() {
         PROGRAM P VAR x : BOOL; END_VAR x := F(1); END_PROGRAM";
     assert_eq!(compile_error(bad).2, "type-mismatch");
 }
+
+#[test]
+fn mixed_operands_meet_at_the_smallest_common_type() {
+    let rt = eval(
+        "i : INT := -1; u : UINT := 1; b : BOOL; s : DINT; d : DINT := 3; r : REAL := 0.5; x : LREAL;",
+        "b := i < u; s := i + u; x := d * r;",
+    );
+    // INT and UINT meet at DINT: -1 < 1.
+    assert!(boolean(&rt, "b"));
+    assert_eq!(int(&rt, "s"), 0);
+    // DINT and REAL meet at LREAL.
+    assert_eq!(real(&rt, "x"), 1.5);
+}
