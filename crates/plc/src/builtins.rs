@@ -302,7 +302,7 @@ pub(crate) fn call(
             let s = e == Elem::Real;
             if f == "EXPT" {
                 let xl = c.conversion(xe, e, Elem::LReal);
-                let r = vm::Expr::Bin(vm::Bin::PowR(s), Box::new(xl), Box::new(ye));
+                let r = vm::Expr::Bin(vm::Bin::PowR(s), Box::new((xl, ye)));
                 Ok(Compiler::te(Ty::T(t), c.folded(r)))
             } else {
                 Ok(Compiler::te(

@@ -102,6 +102,8 @@ enum Lookup<T> {
 
 pub(crate) struct Compiler<'a> {
     file: &'a str,
+    /// Upper-case name -> its first spelling in the source, for messages.
+    spelling: HashMap<String, String>,
     errors: Vec<CompileError>,
     image: Vec<u64>,
     type_asts: HashMap<String, &'a ast::TypeDecl>,
@@ -162,7 +164,9 @@ const MAX_SLOTS: u64 = 16 << 20;
 pub(crate) fn compile(src: &str, file: &str) -> Result<Program, CompileErrors> {
     let toks = crate::lexer::tokenize(src, file)?;
     let unit = crate::parser::parse(&toks, file)?;
+    let spelling = spellings(src, &toks);
     let mut c = Compiler {
+        spelling,
         file,
         errors: Vec::new(),
         image: Vec::new(),
@@ -188,6 +192,10 @@ pub(crate) fn compile(src: &str, file: &str) -> Result<Program, CompileErrors> {
         string_lits: HashMap::new(),
     };
     let program = c.unit(&unit);
+    // A program instantiated twice reports its body's errors once.
+    let mut seen = HashSet::new();
+    c.errors
+        .retain(|e| seen.insert((e.pos.line, e.pos.col, e.message.clone())));
     match program {
         Ok(p) if c.errors.is_empty() => Ok(p),
         Ok(_) => Err(CompileErrors(c.errors)),
@@ -201,7 +209,25 @@ pub(crate) fn compile(src: &str, file: &str) -> Result<Program, CompileErrors> {
 
 impl<'a> Compiler<'a> {
     fn e(&self, pos: Pos, kind: ErrorKind, msg: impl Into<String>) -> CompileError {
-        err(self.file, pos, kind, msg)
+        err(self.file, pos, kind, self.respell(&msg.into()))
+    }
+
+    /// Shows quoted names in messages as the source spells them.
+    fn respell(&self, msg: &str) -> String {
+        let mut out = String::with_capacity(msg.len());
+        let mut parts = msg.split('\'');
+        if let Some(first) = parts.next() {
+            out.push_str(first);
+        }
+        for (i, part) in parts.enumerate() {
+            out.push('\'');
+            if i % 2 == 0 {
+                out.push_str(self.spelling.get(part).map_or(part, String::as_str));
+            } else {
+                out.push_str(part);
+            }
+        }
+        out
     }
 
     fn alloc(&mut self, n: u32, pos: Pos) -> R<u32> {
@@ -237,7 +263,8 @@ impl<'a> Compiler<'a> {
     }
 
     fn new_pou_name(&mut self, name: &str) -> u32 {
-        self.pou_names.push(Arc::from(name));
+        let shown = self.spelling.get(name).map_or(name, String::as_str);
+        self.pou_names.push(Arc::from(shown));
         (self.pou_names.len() - 1) as u32
     }
 
@@ -449,6 +476,14 @@ impl<'a> Compiler<'a> {
                 let idx = instances.len();
                 instances.push(self.program_instance(p, &p.name.text)?);
                 default_task.push(idx);
+            }
+        }
+        // A PROGRAM the configuration does not instantiate is still checked: it gets an
+        // instance of its own name that no task runs.
+        for p in &programs {
+            let used = instances.iter().any(|i| i.pou_type == p.name.text);
+            if !used && !instances.iter().any(|i| i.name == p.name.text) {
+                instances.push(self.program_instance(p, &p.name.text)?);
             }
         }
         if !default_task.is_empty() {
@@ -1461,6 +1496,7 @@ impl<'a> Compiler<'a> {
         let body = self.block(&pou.body, &mut scope)?;
         Ok(ProgramInstance {
             name: inst.to_string(),
+            pou_type: pou.name.text.clone(),
             pou: pou_id,
             vars: syms,
             body,
@@ -1849,7 +1885,7 @@ impl<'a> Compiler<'a> {
                 ErrorKind::AssignToConstant,
                 format!("'{}' is a CONSTANT", a.root.text),
             ))
-        } else if v.kind == VarKind::Input && sc.kind != PouKind::Program {
+        } else if v.kind == VarKind::Input {
             Some((
                 ErrorKind::AssignToInput,
                 format!("'{}' is an input of this POU", a.root.text),
@@ -2228,16 +2264,50 @@ impl<'a> Compiler<'a> {
                 let rt = self.expr(r, sc, hint.as_ref())?;
                 self.binary(*op, lt, rt, *pos)
             }
-            AExpr::Call(name, args, pos) => self.call_expr(name, args, sc, *pos, expect),
+            AExpr::Call(name, args, pos) => {
+                let te = self.call_expr(name, args, sc, *pos, expect)?;
+                if let (Ty::T(Type::Elem(Elem::Bool)), vm::Expr::Call(call)) = (&te.ty, &te.e) {
+                    if self
+                        .funcs
+                        .get(call.func as usize)
+                        .is_some_and(|f| f.ret.is_none())
+                    {
+                        return Err(self.e(
+                            *pos,
+                            ErrorKind::TypeMismatch,
+                            format!("function '{}' returns no value", name.text),
+                        ));
+                    }
+                }
+                Ok(te)
+            }
         }
     }
 
     /// Folds an expression whose operands are all constants.
     fn fold(&self, e: vm::Expr) -> vm::Expr {
+        let e = self.fold_constants(e);
+        match e {
+            vm::Expr::Un(Un::NotBool, a) => match *a {
+                vm::Expr::LoadAbs(s) => vm::Expr::NotAbs(s),
+                other => vm::Expr::Un(Un::NotBool, Box::new(other)),
+            },
+            vm::Expr::Bin(op, ab) => match *ab {
+                (vm::Expr::LoadAbs(x), vm::Expr::LoadAbs(y)) => vm::Expr::BinAbs(op, x, y),
+                (a, vm::Expr::Const(k)) if !matches!(a, vm::Expr::Const(_)) => {
+                    vm::Expr::BinK(op, Box::new(a), k)
+                }
+                pair => vm::Expr::Bin(op, Box::new(pair)),
+            },
+            other => other,
+        }
+    }
+
+    fn fold_constants(&self, e: vm::Expr) -> vm::Expr {
         let all_const = match &e {
             vm::Expr::Un(_, a) | vm::Expr::Conv(_, a) => matches!(**a, vm::Expr::Const(_)),
-            vm::Expr::Bin(_, a, b) => {
-                matches!(**a, vm::Expr::Const(_)) && matches!(**b, vm::Expr::Const(_))
+            vm::Expr::Bin(_, ab) => {
+                matches!(ab.0, vm::Expr::Const(_)) && matches!(ab.1, vm::Expr::Const(_))
             }
             _ => false,
         };
@@ -2445,6 +2515,14 @@ impl<'a> Compiler<'a> {
                 match (x.elem(), y.elem()) {
                     (Some(p), Some(q)) if widens(p, q) => Ok(y),
                     (Some(p), Some(q)) if widens(q, p) => Ok(x),
+                    // Neither widens to the other (INT and UINT): the smallest type both
+                    // widen to (DINT).
+                    (Some(p), Some(q))
+                        if Elem::ALL.iter().any(|t| widens(p, *t) && widens(q, *t)) =>
+                    {
+                        let t = Elem::ALL.iter().find(|t| widens(p, **t) && widens(q, **t));
+                        Ok(Type::Elem(*t.unwrap_or(&Elem::LReal)))
+                    }
                     _ => Err(self.e(
                         pos,
                         ErrorKind::TypeMismatch,
@@ -2486,7 +2564,7 @@ impl<'a> Compiler<'a> {
                 };
                 return Ok(TE {
                     ty: Ty::T(time),
-                    e: self.fold(vm::Expr::Bin(bin, Box::new(l.e), Box::new(rv))),
+                    e: self.fold(vm::Expr::Bin(bin, Box::new((l.e, rv)))),
                 });
             }
         }
@@ -2519,7 +2597,7 @@ impl<'a> Compiler<'a> {
                 BinOp::Gt => (Bin::CmpS(Greater, false), false),
                 _ => (Bin::CmpS(Greater, true), false),
             };
-            let e = vm::Expr::Bin(bin, Box::new(le), Box::new(re));
+            let e = vm::Expr::Bin(bin, Box::new((le, re)));
             let e = if swap_not {
                 vm::Expr::Un(Un::NotBool, Box::new(e))
             } else {
@@ -2587,7 +2665,7 @@ impl<'a> Compiler<'a> {
         let ty = if is_cmp { Type::BOOL } else { ct };
         Ok(TE {
             ty: Ty::T(ty),
-            e: self.fold(vm::Expr::Bin(bin, Box::new(le), Box::new(re))),
+            e: self.fold(vm::Expr::Bin(bin, Box::new((le, re)))),
         })
     }
 
@@ -3025,6 +3103,28 @@ impl<'a> Compiler<'a> {
         }
         Ok(out)
     }
+}
+
+/// First spelling of every identifier (identifiers are ASCII, so the upper-case text has
+/// the length of the original).
+fn spellings(src: &str, toks: &[crate::lexer::Token]) -> HashMap<String, String> {
+    let mut line_starts = vec![0usize];
+    line_starts.extend(src.match_indices('\n').map(|(i, _)| i + 1));
+    let mut map = HashMap::new();
+    for t in toks {
+        if let crate::lexer::Tok::Ident(up) = &t.kind {
+            if map.contains_key(up) {
+                continue;
+            }
+            let start = line_starts
+                .get(t.pos.line as usize - 1)
+                .map(|s| s + t.pos.col as usize - 1);
+            if let Some(raw) = start.and_then(|s| src.get(s..s + up.len())) {
+                map.insert(up.clone(), raw.to_string());
+            }
+        }
+    }
+    map
 }
 
 fn t_root(t: &Option<Access>) -> Pos {

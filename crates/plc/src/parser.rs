@@ -6,7 +6,7 @@ use crate::lexer::{Tok, Token};
 
 /// Deepest nesting of expressions and statements accepted; keeps the recursion (and the
 /// compiled tree) shallow enough for any stack.
-const MAX_DEPTH: u32 = 200;
+const MAX_DEPTH: u32 = 96;
 
 pub(crate) struct Parser<'a> {
     toks: &'a [Token],
@@ -478,8 +478,12 @@ impl Parser<'_> {
         self.bump();
         let name = self.name()?;
         let ret = if kind == PouKind::Function {
-            self.expect(&Tok::Colon)?;
-            Some(self.type_spec()?)
+            // A function without `: type` returns nothing (3rd edition).
+            if self.eat(&Tok::Colon) {
+                Some(self.type_spec()?)
+            } else {
+                None
+            }
         } else {
             None
         };

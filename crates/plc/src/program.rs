@@ -40,6 +40,7 @@ pub(crate) struct Located {
 #[derive(Debug)]
 pub(crate) struct ProgramInstance {
     pub name: String,
+    pub pou_type: String,
     pub pou: u32,
     pub vars: Vec<Symbol>,
     pub body: Block,

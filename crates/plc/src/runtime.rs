@@ -516,13 +516,17 @@ impl Runtime {
     /// scan (so a forced input is what the program reads, a forced output is what the
     /// output image gets) until unforced.
     pub fn force(&mut self, var: &VarRef, value: &Value) -> Result<(), MonitorError> {
-        let name = format!("slot {}", var.slot);
+        // Error texts are built only on error: forcing itself does not allocate.
+        let name = || format!("slot {}", var.slot);
         if var.bit.is_some() || var.elem().is_none() {
-            return Err(MonitorError::NotScalar(name));
+            return Err(MonitorError::NotScalar(name()));
         }
         let v = self
             .encode(var, value)
-            .map_err(|error| MonitorError::Value { name, error })?;
+            .map_err(|error| MonitorError::Value {
+                name: name(),
+                error,
+            })?;
         match self.forces.iter_mut().find(|(s, _)| *s == var.slot) {
             Some(f) => f.1 = v,
             None => {
@@ -969,21 +973,21 @@ fn resolve(p: &Program, path: &str) -> Result<VarRef, MonitorError> {
         .find(|g| g.name == first)
         .map(|g| (g.ty.clone(), g.addr));
     if cur.is_none() {
-        let instance = p
-            .instances
-            .iter()
-            .find(|i| i.name == first)
-            .filter(|_| it.peek() == Some(&&Tok::Dot));
-        if let Some(inst) = instance {
-            it.next();
-            let Some(Tok::Ident(v)) = it.next() else {
-                return Err(bad());
-            };
-            let s = inst
-                .vars
+        // `Instance.var` when the instance has that variable, else a variable of the one
+        // instance that declares `first` (a variable may share its program's name).
+        let second = match (it.clone().next(), it.clone().nth(1)) {
+            (Some(Tok::Dot), Some(Tok::Ident(v))) => Some(v.clone()),
+            _ => None,
+        };
+        let qualified = second.as_ref().and_then(|v| {
+            p.instances
                 .iter()
-                .find(|s| &s.name == v)
-                .ok_or_else(|| MonitorError::Unknown(path.to_string()))?;
+                .find(|i| i.name == first)
+                .and_then(|i| i.vars.iter().find(|s| &s.name == v))
+        });
+        if let Some(s) = qualified {
+            it.next();
+            it.next();
             cur = Some((s.ty.clone(), s.addr));
         } else {
             let hits: Vec<&Symbol> = p

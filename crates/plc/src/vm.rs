@@ -176,7 +176,13 @@ pub(crate) enum Expr {
     /// Address of an aggregate (STRING, array, structure) or the target of a VAR_IN_OUT.
     AddrOf(Place),
     Un(Un, Box<Expr>),
-    Bin(Bin, Box<Expr>, Box<Expr>),
+    /// Both operands in one allocation, next to each other in memory.
+    Bin(Bin, Box<(Expr, Expr)>),
+    /// Specialised shapes of the commonest PLC expressions (contacts and comparisons):
+    /// `NOT a`, `a op b` on two absolute slots, `e op constant`.
+    NotAbs(u32),
+    BinAbs(Bin, u32, u32),
+    BinK(Bin, Box<Expr>, u64),
     Conv(Conv, Box<Expr>),
     /// A built-in; string results go to the static temporary at `dest`.
     Builtin(Builtin, Box<[Expr]>, u32),
@@ -431,10 +437,20 @@ impl Vm {
                     Un::Bit(n) => (v >> n) & 1,
                 }
             }
-            Expr::Bin(op, a, b) => {
-                let x = self.eval(c, a);
-                let y = self.eval(c, b);
+            Expr::Bin(op, ab) => {
+                let x = self.eval(c, &ab.0);
+                let y = self.eval(c, &ab.1);
                 self.bin(*op, x, y)
+            }
+            Expr::NotAbs(a) => self.ld(*a as usize) ^ 1,
+            Expr::BinAbs(op, a, b) => {
+                let x = self.ld(*a as usize);
+                let y = self.ld(*b as usize);
+                self.bin(*op, x, y)
+            }
+            Expr::BinK(op, a, k) => {
+                let x = self.eval(c, a);
+                self.bin(*op, x, *k)
             }
             Expr::Conv(cv, a) => {
                 let v = self.eval(c, a);

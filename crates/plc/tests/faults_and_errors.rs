@@ -174,7 +174,7 @@ fn index_out_of_range_faults_inside_a_function_block() {
             high: 3
         }
     );
-    assert_eq!((&*f.pou, f.line), ("TABLE", 4));
+    assert_eq!((&*f.pou, f.line), ("Table", 4));
 }
 
 #[test]
@@ -221,7 +221,7 @@ fn endless_repeat_in_a_function_is_caught_too() {
     let mut rt = faulting(src);
     let f = rt.scan(ms(0)).unwrap_err();
     assert!(matches!(f.kind, FaultKind::WatchdogExceeded { .. }));
-    assert_eq!(&*f.pou, "SPIN");
+    assert_eq!(&*f.pou, "Spin");
 }
 
 #[test]
@@ -257,4 +257,19 @@ fn a_fault_drives_outputs_to_safe_values_and_restart_recovers() {
     assert!(rt.fault().is_none());
     rt.scan(ms(8)).unwrap();
     assert_eq!(rt.output_image(), &[0b01, 0, 0xB0, 0x04]);
+}
+
+#[test]
+fn programs_outside_the_configuration_are_still_checked() {
+    let src = "PROGRAM Used VAR x : INT; END_VAR x := 1; END_PROGRAM
+        PROGRAM Unused VAR x : INT; END_VAR\n x := nothing;\nEND_PROGRAM
+        CONFIGURATION C RESOURCE R ON PLC TASK T (INTERVAL := T#10ms); PROGRAM u WITH T : Used; END_RESOURCE END_CONFIGURATION";
+    let (line, _, code, _) = compile_error(src);
+    assert_eq!((line, code), (3, "undeclared"));
+}
+
+#[test]
+fn program_inputs_are_read_only_too() {
+    let src = "PROGRAM P\nVAR_INPUT start : BOOL; END_VAR\n  start := FALSE;\nEND_PROGRAM";
+    assert_eq!(compile_error(src).2, "assign-to-input");
 }

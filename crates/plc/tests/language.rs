@@ -591,3 +591,61 @@ fn string_functions_returning_and_taking_strings() {
     assert_eq!(string(&rt, "s"), "hi bob");
     assert_eq!(int(&rt, "n"), 8);
 }
+
+#[test]
+fn function_block_in_out_and_struct_returning_function() {
+    let src = "TYPE Pt : STRUCT x : INT; y : INT; END_STRUCT; END_TYPE
+        FUNCTION Mk : Pt VAR_INPUT x : INT; y : INT; END_VAR Mk.x := x; Mk.y := y; END_FUNCTION
+        FUNCTION_BLOCK Bump VAR_IN_OUT target : INT; END_VAR VAR_INPUT step : INT; END_VAR target := target + step; END_FUNCTION_BLOCK
+        PROGRAM P VAR p : Pt; b : Bump; v : INT := 10; arr : ARRAY[1..2] OF INT; END_VAR
+          p := Mk(3, 4);
+          b(target := v, step := 5);
+          b(target := arr[2], step := 7);
+        END_PROGRAM";
+    let mut rt = plc(src);
+    rt.scan(ms(0)).unwrap();
+    assert_eq!((int(&rt, "p.x"), int(&rt, "p.y")), (3, 4));
+    assert_eq!(int(&rt, "v"), 15);
+    assert_eq!(int(&rt, "arr[2]"), 7);
+}
+
+#[test]
+fn numeric_functions_at_run_time_match_the_compile_time_folding() {
+    let rt = eval(
+        "x : LREAL := 2.0; r : REAL := 0.5; a : LREAL; b : REAL; c : LREAL; d : LREAL; e : LREAL; f : LREAL; i : DINT := -9; g : DINT; h : LREAL;",
+        "a := SQRT(x); b := SIN(r); c := EXP(x); d := LN(x); e := EXPT(x, 10); f := ATAN2(x, x); g := ABS(i); h := LOG(x * 50.0);",
+    );
+    assert_eq!(real(&rt, "a"), 2f64.sqrt());
+    assert_eq!(real(&rt, "b"), 0.5f32.sin() as f64);
+    assert_eq!(real(&rt, "c"), 2f64.exp());
+    assert_eq!(real(&rt, "d"), std::f64::consts::LN_2);
+    assert_eq!(real(&rt, "e"), 1024.0);
+    assert_eq!(real(&rt, "f"), std::f64::consts::FRAC_PI_4);
+    assert_eq!(int(&rt, "g"), 9);
+    assert_eq!(real(&rt, "h"), 2.0);
+}
+
+#[test]
+fn functions_without_a_result_are_statements() {
+    let src = "FUNCTION Log2 VAR_IN_OUT acc : INT; END_VAR VAR_INPUT v : INT; END_VAR acc := acc + v; END_FUNCTION
+        PROGRAM P VAR total : INT; END_VAR Log2(acc := total, v := 3); Log2(total, 4); END_PROGRAM";
+    let mut rt = plc(src);
+    rt.scan(ms(0)).unwrap();
+    assert_eq!(int(&rt, "total"), 7);
+    let bad = "FUNCTION F VAR_INPUT v : INT; END_VAR END_FUNCTION
+        PROGRAM P VAR x : BOOL; END_VAR x := F(1); END_PROGRAM";
+    assert_eq!(compile_error(bad).2, "type-mismatch");
+}
+
+#[test]
+fn mixed_operands_meet_at_the_smallest_common_type() {
+    let rt = eval(
+        "i : INT := -1; u : UINT := 1; b : BOOL; s : DINT; d : DINT := 3; r : REAL := 0.5; x : LREAL;",
+        "b := i < u; s := i + u; x := d * r;",
+    );
+    // INT and UINT meet at DINT: -1 < 1.
+    assert!(boolean(&rt, "b"));
+    assert_eq!(int(&rt, "s"), 0);
+    // DINT and REAL meet at LREAL.
+    assert_eq!(real(&rt, "x"), 1.5);
+}
