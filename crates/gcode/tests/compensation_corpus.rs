@@ -220,11 +220,19 @@ fn is_motion(c: &CanonCommand) -> bool {
 }
 
 /// The uncompensated stream: rs274's lines with the markers turned into compensation
-/// commands placed before the first motion of their block (or at the block's end).
+/// commands placed before the first motion of their block (or at the block's end). In
+/// inverse time (G93) the block's SET_FEED_RATE belongs to its motion and comes after.
 fn input_stream(reference: &Reference) -> Vec<Canon> {
     let mut out = Vec::new();
     let mut held: Option<(Option<u32>, CanonCommand)> = None;
+    let mut inverse_time = false;
     for line in &reference.lines {
+        if line
+            .text
+            .starts_with("COMMENT(\"interpreter: feed mode set to")
+        {
+            inverse_time = line.text.contains("inverse time");
+        }
         let source = Source {
             file: 0,
             line: line.n.unwrap_or(0),
@@ -236,7 +244,8 @@ fn input_stream(reference: &Reference) -> Vec<Canon> {
         }
         let command = parse_canon(&line.text);
         if let Some((n, _)) = &held {
-            if *n != line.n || is_motion(&command) {
+            let feed_of_motion = inverse_time && matches!(command, CanonCommand::SetFeedRate(_));
+            if *n != line.n || is_motion(&command) || feed_of_motion {
                 let (n, m) = held.take().expect("held marker");
                 out.push(Canon {
                     source: Source {
@@ -281,10 +290,30 @@ fn same_line(ours: &str, theirs: &str) -> bool {
         })
 }
 
+/// Deliberate differences from rs274: (program, 1-based line of the expected output, the
+/// line rtcnc prints instead). Each is hand-computed and explained in docs/gcode.md.
+const DIFFERENCES: &[(&str, usize, &str)] = &[
+    // Compensation starts on an arc with a lathe tool of orientation 2 (nose radius 0.4):
+    // LinuxCNC first moves the tool origin to the start point (Z0 X30) shifted by the
+    // orientation (-0.4 in X and Z), but when the next corner is concave it moves that
+    // positioning move's end to the corner too, so the tool goes straight to the corner and
+    // the entry arc turns a full circle. rtcnc keeps the positioning move where it was.
+    (
+        "lathe_entry_arc",
+        16,
+        "STRAIGHT_FEED(29.6000, 0.0000, -0.4000, 0.0000, 0.0000, 0.0000)",
+    ),
+];
+
 /// Runs one corpus program through the stage; returns a description of every difference.
 fn check_program(name: &str, stream: Vec<Canon>) -> Vec<String> {
     let dir = corpus_dir();
-    let expected = read_reference(&dir.join(format!("{name}.expected")));
+    let mut expected = read_reference(&dir.join(format!("{name}.expected")));
+    for (program, line, text) in DIFFERENCES {
+        if *program == name {
+            expected.lines[line - 1].text = (*text).to_string();
+        }
+    }
     let mut stage = Compensator::new();
     let mut ours = Vec::new();
     let mut error = None;
