@@ -487,8 +487,7 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
                 }
                 b'g' => {
                     self.i += 1;
-                    let v = self.real_value()?;
-                    let code = self.code_tenths(v, col, b'g')?;
+                    let code = self.code(col, b'g')?;
                     let Some(group) = g_group(code) else {
                         return err(
                             ErrorKind::UnknownWord,
@@ -513,8 +512,7 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
                 }
                 b'm' => {
                     self.i += 1;
-                    let v = self.real_value()?;
-                    let code = self.code_tenths(v, col, b'm')?;
+                    let code = self.code(col, b'm')?;
                     if code % 10 != 0 {
                         return err(
                             ErrorKind::UnknownWord,
@@ -750,6 +748,13 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
     /// A real value: number, `[expression]`, `#parameter`, or a function call.
     fn real_value(&mut self) -> Res<f64> {
         let col = self.i;
+        if self
+            .s
+            .get(self.i)
+            .is_some_and(|c| c.is_ascii_digit() || *c == b'.')
+        {
+            return self.number(col);
+        }
         match self.peek() {
             None => err(ErrorKind::Syntax, col, "value expected at end of line"),
             Some(b'[') => {
@@ -802,56 +807,150 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
         }
     }
 
-    /// Unsigned decimal number (the sign was read by the caller), fast path.
+    /// Unsigned decimal number (the sign was read by the caller). Spaces may appear
+    /// anywhere inside it. The value is exact-rounded for up to 15 significant digits.
     fn number(&mut self, col: usize) -> Res<f64> {
+        if let Some(v) = self.plain_number() {
+            return Ok(v);
+        }
+        let s = self.s;
+        let mut i = self.i;
         let mut mant: u64 = 0;
-        let mut digits = 0u32;
+        let mut significant = 0u32;
         let mut frac = 0i32;
+        let mut dropped = 0i32;
         let mut seen_point = false;
         let mut any = false;
-        let mut overflow = false;
-        while let Some(c) = self.peek() {
-            if c.is_ascii_digit() {
+        while i < s.len() {
+            let c = s[i];
+            let d = c.wrapping_sub(b'0');
+            if d < 10 {
                 any = true;
-                if digits < 19 {
-                    mant = mant * 10 + u64::from(c - b'0');
+                if significant < 18 {
+                    mant = mant * 10 + u64::from(d);
                     if mant != 0 {
-                        digits += 1;
+                        significant += 1;
                     }
                     if seen_point {
                         frac += 1;
                     }
-                } else {
-                    overflow = true;
-                    if !seen_point {
-                        frac -= 1;
-                    }
+                } else if !seen_point {
+                    dropped += 1;
                 }
-                self.i += 1;
             } else if c == b'.' && !seen_point {
                 seen_point = true;
-                self.i += 1;
-            } else {
+            } else if c != b' ' && c != b'\t' && c != b'\r' {
                 break;
             }
+            i += 1;
         }
+        self.i = i;
         if !any {
             return err(ErrorKind::Syntax, col, "number expected");
         }
-        let _ = overflow;
         const POW10: [f64; 23] = [
             1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
             1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
         ];
         let m = mant as f64;
+        let exp = dropped - frac;
         // Exact when the mantissa fits 53 bits and the power of ten is exact.
-        Ok(if frac >= 0 && (frac as usize) < POW10.len() {
-            m / POW10[frac as usize]
-        } else if frac < 0 && ((-frac) as usize) < POW10.len() {
-            m * POW10[(-frac) as usize]
+        Ok(if exp <= 0 && ((-exp) as usize) < POW10.len() {
+            m / POW10[(-exp) as usize]
+        } else if exp > 0 && (exp as usize) < POW10.len() {
+            m * POW10[exp as usize]
         } else {
-            m * 10f64.powi(-frac)
+            m * 10f64.powi(exp)
         })
+    }
+
+    /// Fast path of [`Reader::number`] for the common `123.456` form (no spaces, at most 15
+    /// digits); `None` (cursor unchanged) for anything else.
+    #[inline]
+    fn plain_number(&mut self) -> Option<f64> {
+        const POW10: [f64; 16] = [
+            1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
+        ];
+        let s = self.s;
+        let mut i = self.i;
+        let mut mant: u64 = 0;
+        let start = i;
+        while i < s.len() {
+            let d = s[i].wrapping_sub(b'0');
+            if d >= 10 {
+                break;
+            }
+            mant = mant * 10 + u64::from(d);
+            i += 1;
+        }
+        let int_digits = i - start;
+        let mut frac = 0;
+        if i < s.len() && s[i] == b'.' {
+            i += 1;
+            let fstart = i;
+            while i < s.len() {
+                let d = s[i].wrapping_sub(b'0');
+                if d >= 10 {
+                    break;
+                }
+                mant = mant * 10 + u64::from(d);
+                i += 1;
+            }
+            frac = i - fstart;
+        }
+        let digits = int_digits + frac;
+        if digits == 0 || digits > 15 {
+            return None;
+        }
+        // A space may continue the number ("1 2.5" is 12.5): look past blanks.
+        let mut j = i;
+        while j < s.len() && matches!(s[j], b' ' | b'\t' | b'\r') {
+            j += 1;
+        }
+        if j < s.len() && (s[j].is_ascii_digit() || s[j] == b'.') {
+            return None;
+        }
+        self.i = j;
+        Some(mant as f64 / POW10[frac])
+    }
+
+    /// The value of a G or M word in tenths. Plain codes (`1`, `38.2`) are read directly;
+    /// anything else (expressions, parameters, spaces) goes through [`Reader::real_value`].
+    fn code(&mut self, col: usize, letter: u8) -> Res<i32> {
+        let s = self.s;
+        let mut i = self.i;
+        let mut v: i32 = 0;
+        let mut n = 0;
+        while i < s.len() && s[i].is_ascii_digit() && n < 5 {
+            v = v * 10 + i32::from(s[i] - b'0');
+            i += 1;
+            n += 1;
+        }
+        let mut fast = n > 0;
+        let mut tenths = v * 10;
+        if fast && i < s.len() && s[i] == b'.' {
+            i += 1;
+            if i < s.len() && s[i].is_ascii_digit() {
+                tenths += i32::from(s[i] - b'0');
+                i += 1;
+            }
+        }
+        if fast && i < s.len() && matches!(s[i], b'0'..=b'9' | b'.') {
+            fast = false;
+        }
+        if fast {
+            // A space may continue the number ("G 1 7" is G17): look past blanks.
+            let mut j = i;
+            while j < s.len() && matches!(s[j], b' ' | b'\t' | b'\r') {
+                j += 1;
+            }
+            if j >= s.len() || !(s[j].is_ascii_digit() || s[j] == b'.') {
+                self.i = j;
+                return Ok(tenths);
+            }
+        }
+        let v = self.real_value()?;
+        self.code_tenths(v, col, letter)
     }
 
     fn function(&mut self) -> Res<f64> {

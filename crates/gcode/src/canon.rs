@@ -807,7 +807,17 @@ pub(crate) fn push_int(o: &mut Vec<u8>, v: i64) {
     if v < 0 {
         o.push(b'-');
     }
-    o.extend_from_slice(&digits[i..]);
+    push_small(o, &digits[i..]);
+}
+
+/// Appends a few bytes one by one: for the short pieces of a number this is faster than
+/// a call to `memcpy`.
+#[inline]
+fn push_small(o: &mut Vec<u8>, bytes: &[u8]) {
+    o.reserve(bytes.len());
+    for &b in bytes {
+        o.push(b);
+    }
 }
 
 /// Appends `v` with `decimals` digits after the point, like C's `%.Nf`, except that a value
@@ -823,22 +833,45 @@ pub(crate) fn push_fixed(o: &mut Vec<u8>, v: f64, decimals: u32) {
         return;
     }
     let n = scaled.round() as i64;
-    if n < 0 {
-        o.push(b'-');
+    if n == 0 {
+        const ZEROS: [&[u8]; 7] = [
+            b"0",
+            b"0.0",
+            b"0.00",
+            b"0.000",
+            b"0.0000",
+            b"0.00000",
+            b"0.000000",
+        ];
+        o.extend_from_slice(ZEROS[d]);
+        return;
     }
-    let m = n.unsigned_abs();
-    let pow = SCALE[d] as u64;
-    push_int(o, (m / pow) as i64);
+    // Digits are written backwards into a small buffer: fraction, point, integer, sign.
+    let mut buf = [0u8; 32];
+    let mut i = buf.len();
+    let mut m = n.unsigned_abs();
+    for _ in 0..d {
+        i -= 1;
+        buf[i] = b'0' + (m % 10) as u8;
+        m /= 10;
+    }
     if d > 0 {
-        o.push(b'.');
-        let mut frac = m % pow;
-        let mut digits = [b'0'; 6];
-        for k in (0..d).rev() {
-            digits[k] = b'0' + (frac % 10) as u8;
-            frac /= 10;
-        }
-        o.extend_from_slice(&digits[..d]);
+        i -= 1;
+        buf[i] = b'.';
     }
+    loop {
+        i -= 1;
+        buf[i] = b'0' + (m % 10) as u8;
+        m /= 10;
+        if m == 0 {
+            break;
+        }
+    }
+    if n < 0 {
+        i -= 1;
+        buf[i] = b'-';
+    }
+    push_small(o, &buf[i..]);
 }
 
 #[cfg(test)]

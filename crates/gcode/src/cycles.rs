@@ -180,7 +180,22 @@ impl Interpreter {
                 ),
             ));
         }
-        // Per-cycle words checked before any motion.
+        if old_cc < r {
+            let mut p = self.state.position.to_array();
+            p[ax.c] = r;
+            let p = Pose::from_array(p);
+            self.emit(C::StraightTraverse(p));
+            self.state.position = p;
+            old_cc = r;
+            current_cc = old_cc;
+        }
+        let clear_cc = if self.state.retract_old_z { old_cc } else { r };
+        let saved_mode = self.state.path_mode;
+        let saved_naive = self.state.naivecam_tolerance;
+        if saved_mode != PathMode::ExactPath {
+            self.emit(C::SetMotionControlMode(PathMode::ExactPath));
+        }
+        // Per-cycle words, checked where LinuxCNC checks them (after the move to R).
         let p_word = b.get(b'p');
         let q_word = b.get(b'q');
         let needs_p = matches!(motion, 820 | 860 | 880 | 890);
@@ -208,24 +223,6 @@ impl Interpreter {
                 "negative or zero Q value in peck cycle",
             ));
         }
-        let direction = self.state.spindle;
-        match motion {
-            840 if direction != Some(SpindleDirection::Clockwise) => {
-                return Err(self.cycle_err(
-                    b,
-                    ErrorKind::State,
-                    "spindle not turning clockwise in G84",
-                ));
-            }
-            860 | 870 | 880 if direction.is_none() => {
-                return Err(self.cycle_err(
-                    b,
-                    ErrorKind::State,
-                    format!("spindle not turning in G{}", motion / 10),
-                ));
-            }
-            _ => {}
-        }
         let (ci, cj, ck) = if motion == 870 {
             let i = b.get(b'i').or(same.then_some(self.cycle.i));
             let j = b.get(b'j').or(same.then_some(self.cycle.j));
@@ -243,21 +240,7 @@ impl Interpreter {
         } else {
             (0.0, 0.0, 0.0)
         };
-        if old_cc < r {
-            let mut p = self.state.position.to_array();
-            p[ax.c] = r;
-            let p = Pose::from_array(p);
-            self.emit(C::StraightTraverse(p));
-            self.state.position = p;
-            old_cc = r;
-            current_cc = old_cc;
-        }
-        let clear_cc = if self.state.retract_old_z { old_cc } else { r };
-        let saved_mode = self.state.path_mode;
-        let saved_naive = self.state.naivecam_tolerance;
-        if saved_mode != PathMode::ExactPath {
-            self.emit(C::SetMotionControlMode(PathMode::ExactPath));
-        }
+        let direction = self.state.spindle;
         let rapid_delta = if self.state.units == Units::Mm {
             0.254
         } else {
@@ -273,6 +256,28 @@ impl Interpreter {
                 self.cycle_move(&ax, false, aa, bb, clear_cc);
                 if clear_cc > r {
                     self.cycle_move(&ax, false, aa, bb, r);
+                }
+            }
+            if repeat == repeats {
+                match motion {
+                    840 if direction != Some(SpindleDirection::Clockwise) => {
+                        return Err(self.cycle_err(
+                            b,
+                            ErrorKind::State,
+                            match direction {
+                                None => "spindle not turning in G84",
+                                _ => "spindle turning counter-clockwise in G84",
+                            },
+                        ));
+                    }
+                    860 | 870 | 880 if direction.is_none() => {
+                        return Err(self.cycle_err(
+                            b,
+                            ErrorKind::State,
+                            format!("spindle not turning in G{}", motion / 10),
+                        ));
+                    }
+                    _ => {}
                 }
             }
             match motion {
@@ -413,9 +418,10 @@ impl Interpreter {
         self.emit(C::OrientSpindle {
             spindle: 0,
             angle: 0.0,
+            // LinuxCNC passes its direction code here: 2 clockwise, 3 counter-clockwise.
             mode: match direction {
-                Some(SpindleDirection::CounterClockwise) => 2,
-                _ => 1,
+                Some(SpindleDirection::CounterClockwise) => 3,
+                _ => 2,
             },
         });
     }

@@ -398,7 +398,10 @@ impl Interpreter {
 
     fn comment(&mut self, b: &Block) {
         match b.comment_kind {
-            Comment::Plain => self.emit(C::Comment(b.comment.clone().into())),
+            Comment::Plain => {
+                let t = b.comment.trim_start_matches([' ', '\t']).to_string();
+                self.emit(C::Comment(t.into()));
+            }
             Comment::Msg => self.emit(C::Message(b.comment.clone().into())),
             Comment::Debug => {
                 if self.params.get(5599) > 0.0 {
@@ -563,7 +566,7 @@ impl Interpreter {
                 self.emit(C::StopSpindle { spindle: 0 });
                 self.state.spindle = None;
                 self.emit(C::ChangeTool(self.state.selected_pocket));
-                self.state.current_tool = self.state.selected_tool;
+                self.state.current_tool = self.state.selected_tool.max(0);
                 self.state.current_pocket = self.state.selected_pocket;
                 self.set_tool_params();
             }
@@ -1405,25 +1408,26 @@ impl Interpreter {
             }
         } else {
             // L10: offset such that the current point would read the given value with this
-            // tool's offset in force; L11: the same relative to G59.3.
-            let machine = self.machine_position().to_array();
-            let sys_off = if l == 11 {
-                self.coord_system_from_params(9)
-            } else {
-                self.state.g5x
+            // tool's offset in force; L11: the same in G59.3 (LinuxCNC's fixture system).
+            let system = if l == 11 { 9 } else { self.state.origin_index };
+            let base = sys::G54 + 20 * usize::from(system - 1);
+            let sys_off = self.coord_system_from_params(system).to_array();
+            let mut t = self.machine_position().to_array();
+            for i in 0..9 {
+                t[i] -= sys_off[i];
             }
-            .to_array();
-            let g92 = if l == 11 {
-                [0.0; 9]
-            } else {
-                self.state.g92.to_array()
-            };
-            let tool_now = self.state.tool_offset.to_array();
+            let (x, y) = rotate(t[0], t[1], -self.params.get(base + 9));
+            t[0] = x;
+            t[1] = y;
+            if l == 10 && self.params.get(sys::G92_APPLIED) != 0.0 {
+                let g92 = self.pose_from_params(sys::G92).to_array();
+                for i in 0..9 {
+                    t[i] -= g92[i];
+                }
+            }
             for (i, letter) in AXES.iter().enumerate() {
                 if let Some(v) = b.get(*letter) {
-                    // Position without any tool offset, in the chosen system.
-                    let bare = machine[i] - tool_now[i] - sys_off[i] - g92[i];
-                    let o = bare - v;
+                    let o = t[i] - v;
                     off[i] = if (3..6).contains(&i) {
                         o
                     } else {
@@ -1454,10 +1458,13 @@ impl Interpreter {
             back_angle: tool.back_angle,
             orientation: tool.orientation,
         };
+        let loaded = tool.pocket == self.state.current_pocket;
         self.tools.set(tool);
         self.emit(C::SetToolTableEntry(entry));
-        // rs274 also reports the spindle's copy (pocket 0).
-        self.emit(C::SetToolTableEntry(ToolEntry { pocket: 0, ..entry }));
+        if loaded {
+            // The spindle's copy (pocket 0) changes too.
+            self.emit(C::SetToolTableEntry(ToolEntry { pocket: 0, ..entry }));
+        }
         if tool_no == self.state.current_tool {
             self.set_tool_params();
         }
@@ -1674,26 +1681,6 @@ impl Interpreter {
 
     fn arc(&mut self, b: &Block, motion: i32) -> Res<()> {
         let s = &self.state;
-        match s.feed_mode {
-            FeedMode::InverseTime if !b.has(b'f') => {
-                return Err(self.g_err(
-                    b,
-                    gg::MOTION,
-                    ErrorKind::MissingWord,
-                    "F word missing with inverse time (G93) arc move",
-                ));
-            }
-            FeedMode::InverseTime => {}
-            _ if s.feed_rate == 0.0 => {
-                return Err(self.g_err(
-                    b,
-                    gg::MOTION,
-                    ErrorKind::State,
-                    "cannot make an arc with zero feed rate",
-                ));
-            }
-            _ => {}
-        }
         // Plane axes: first, second, normal (indices into the pose), and the IJK letters.
         let (a1, a2, a3, l1, l2, n1, n2) = match s.plane {
             Plane::XY => (0, 1, 2, b'x', b'y', b'i', b'j'),
@@ -1714,18 +1701,6 @@ impl Interpreter {
             _ => b'i',
         };
         let r_word = b.get(b'r');
-        if !b.has(l1) && !b.has(l2) {
-            return Err(self.g_err(
-                b,
-                gg::MOTION,
-                ErrorKind::MissingWord,
-                format!(
-                    "{} and {} words both missing for an arc in this plane",
-                    l1.to_ascii_uppercase() as char,
-                    l2.to_ascii_uppercase() as char
-                ),
-            ));
-        }
         if r_word.is_some() {
             if b.has(b'i') || b.has(b'j') || b.has(b'k') {
                 return Err(self.err(
@@ -1736,6 +1711,14 @@ impl Interpreter {
                 ));
             }
         } else {
+            if !b.has(b'i') && !b.has(b'j') && !b.has(b'k') {
+                return Err(self.g_err(
+                    b,
+                    gg::MOTION,
+                    ErrorKind::MissingWord,
+                    "R, I, J and K words all missing for the arc",
+                ));
+            }
             if b.has(wrong_offset) {
                 return Err(self.err(
                     b,
@@ -1747,14 +1730,41 @@ impl Interpreter {
                     ),
                 ));
             }
-            if !b.has(n1) && !b.has(n2) {
+            if s.ijk_absolute {
+                for n in [n1, n2] {
+                    if !b.has(n) {
+                        return Err(self.g_err(
+                            b,
+                            gg::MOTION,
+                            ErrorKind::MissingWord,
+                            format!(
+                                "{} word missing in absolute centre arc (G90.1)",
+                                n.to_ascii_uppercase() as char
+                            ),
+                        ));
+                    }
+                }
+            }
+        }
+        match s.feed_mode {
+            FeedMode::InverseTime if !b.has(b'f') => {
                 return Err(self.g_err(
                     b,
                     gg::MOTION,
                     ErrorKind::MissingWord,
-                    "R, I, J and K words all missing for the arc",
+                    "F word missing with inverse time (G93) arc move",
                 ));
             }
+            FeedMode::InverseTime => {}
+            _ if s.feed_rate == 0.0 => {
+                return Err(self.g_err(
+                    b,
+                    gg::MOTION,
+                    ErrorKind::State,
+                    "cannot make an arc with zero feed rate",
+                ));
+            }
+            _ => {}
         }
         if s.motion != motion {
             self.cycle.initial_level = None;
@@ -1988,12 +1998,13 @@ impl Interpreter {
         self.emit(C::TurnProbeOff);
         self.state.motion = motion;
         self.cycle.initial_level = None;
-        // Without a machine the probe is taken to trip at the end point; the tool then
-        // backs off a little, as LinuxCNC's stand-alone interpreter models it.
+        // Without a machine the probe result is the programmed end (not tripped, #5070 = 0)
+        // and the tool backs off a little from it, as LinuxCNC's stand-alone interpreter
+        // models it; a machine reports the real result with `set_probe_result`.
         for (i, v) in end.to_array().iter().enumerate() {
             self.params.set(sys::PROBE + i, *v);
         }
-        self.params.set(sys::PROBE_OK, 1.0);
+        self.params.set(sys::PROBE_OK, 0.0);
         let (dx, dy, dz) = (cur.x - end.x, cur.y - end.y, cur.z - end.z);
         let dist = (dx * dx + dy * dy + dz * dz).sqrt();
         let mut after = end;
@@ -2089,67 +2100,113 @@ impl Interpreter {
         0.0
     }
 
-    /// M72 (or return from a subroutine after M73): bring back a saved modal state,
-    /// issuing the commands for what differs.
+    /// M72 (or return from a subroutine after M73): bring back a saved modal state the way
+    /// LinuxCNC does it, by executing the codes that differ: units first, then one block
+    /// with F, S and the G codes, then the M codes one per block.
     pub(crate) fn restore_state(&mut self, saved: &ModalState) -> Res<()> {
-        if saved.units != self.state.units {
-            self.set_units(saved.units);
+        use std::fmt::Write;
+        let cur = self.state.clone();
+        if saved.units != cur.units {
+            self.execute_text(if saved.units == Units::Inches {
+                "G20"
+            } else {
+                "G21"
+            })?;
         }
-        if saved.plane != self.state.plane {
-            self.emit(C::SelectPlane(saved.plane));
-            self.state.plane = saved.plane;
+        let mut cmd = String::new();
+        if saved.feed_rate != cur.feed_rate {
+            let _ = write!(cmd, " F{:.1}", saved.feed_rate);
         }
-        if saved.origin_index != self.state.origin_index {
-            self.select_coord_system(saved.origin_index);
+        if saved.speed != cur.speed {
+            let _ = write!(cmd, " S{:.0}", saved.speed);
         }
-        if saved.path_mode != self.state.path_mode
-            || saved.naivecam_tolerance != self.state.naivecam_tolerance
-        {
-            let naive = matches!(saved.path_mode, PathMode::Continuous { .. })
-                .then_some(saved.naivecam_tolerance);
-            self.set_path_mode(saved.path_mode, naive);
+        let plane = |p: Plane| match p {
+            Plane::XY => "G17",
+            Plane::XZ => "G18",
+            Plane::YZ => "G19",
+            Plane::UV => "G17.1",
+            Plane::WU => "G18.1",
+            Plane::VW => "G19.1",
+        };
+        if saved.plane != cur.plane {
+            let _ = write!(cmd, " {}", plane(saved.plane));
         }
-        self.state.absolute = saved.absolute;
-        self.state.ijk_absolute = saved.ijk_absolute;
-        self.state.retract_old_z = saved.retract_old_z;
-        self.state.motion = saved.motion;
-        if saved.feed_mode != self.state.feed_mode {
-            self.state.feed_mode = saved.feed_mode;
-            self.emit(C::SetFeedMode {
-                spindle: 0,
-                mode: saved.feed_mode,
+        if saved.cutter_gcode != cur.cutter_gcode {
+            let _ = write!(cmd, " G{}", fmt_code(saved.cutter_gcode));
+        }
+        if saved.absolute != cur.absolute {
+            cmd.push_str(if saved.absolute { " G90" } else { " G91" });
+        }
+        if saved.feed_mode != cur.feed_mode {
+            cmd.push_str(match saved.feed_mode {
+                FeedMode::InverseTime => " G93",
+                FeedMode::UnitsPerMinute => " G94",
+                FeedMode::UnitsPerRevolution => " G95",
             });
         }
-        if saved.feed_rate != self.state.feed_rate {
-            self.state.feed_rate = saved.feed_rate;
-            self.emit(C::SetFeedRate(saved.feed_rate));
+        if saved.origin_index != cur.origin_index {
+            let code = match saved.origin_index {
+                i @ 1..=6 => 530 + 10 * i32::from(i),
+                i => 590 + i32::from(i) - 6,
+            };
+            let _ = write!(cmd, " G{}", fmt_code(code));
         }
-        if saved.speed != self.state.speed {
-            self.state.speed = saved.speed;
-            self.emit(C::SetSpindleSpeed {
-                spindle: 0,
-                speed: saved.speed,
+        if saved.length_gcode != cur.length_gcode {
+            let _ = write!(cmd, " G{}", fmt_code(saved.length_gcode));
+        }
+        if saved.retract_old_z != cur.retract_old_z {
+            cmd.push_str(if saved.retract_old_z { " G98" } else { " G99" });
+        }
+        if saved.css != cur.css {
+            cmd.push_str(if saved.css { " G96" } else { " G97" });
+        }
+        if saved.ijk_absolute != cur.ijk_absolute {
+            cmd.push_str(if saved.ijk_absolute {
+                " G90.1"
+            } else {
+                " G91.1"
             });
         }
-        if saved.spindle != self.state.spindle {
-            match saved.spindle {
-                Some(direction) => self.emit(C::StartSpindle {
-                    spindle: 0,
-                    direction,
-                }),
-                None => self.emit(C::StopSpindle { spindle: 0 }),
+        if saved.lathe_diameter != cur.lathe_diameter {
+            cmd.push_str(if saved.lathe_diameter { " G7" } else { " G8" });
+        }
+        match (saved.path_mode, cur.path_mode) {
+            (a, b) if a == b && saved.naivecam_tolerance == cur.naivecam_tolerance => {}
+            (PathMode::ExactPath, _) => cmd.push_str(" G61"),
+            (PathMode::ExactStop, _) => cmd.push_str(" G61.1"),
+            (PathMode::Continuous { tolerance }, _) => {
+                let _ = write!(cmd, " G64 P{tolerance:.6} Q{:.6}", saved.naivecam_tolerance);
             }
-            self.state.spindle = saved.spindle;
         }
-        if saved.mist != self.state.mist {
-            self.emit(if saved.mist { C::MistOn } else { C::MistOff });
-            self.state.mist = saved.mist;
+        if !cmd.is_empty() {
+            self.execute_text(&cmd)?;
         }
-        if saved.flood != self.state.flood {
-            self.emit(if saved.flood { C::FloodOn } else { C::FloodOff });
-            self.state.flood = saved.flood;
+        if saved.spindle != cur.spindle {
+            self.execute_text(match saved.spindle {
+                Some(SpindleDirection::Clockwise) => "M3",
+                Some(SpindleDirection::CounterClockwise) => "M4",
+                None => "M5",
+            })?;
+        }
+        if saved.mist != cur.mist {
+            self.execute_text(if saved.mist { "M7" } else { "M9" })?;
+        }
+        if saved.flood != cur.flood {
+            self.execute_text(if saved.flood { "M8" } else { "M9" })?;
+        }
+        if saved.feed_override != cur.feed_override {
+            self.execute_text(if saved.feed_override { "M48" } else { "M49" })?;
         }
         Ok(())
+    }
+
+    /// Executes a block given as text (used to restore modal state).
+    fn execute_text(&mut self, text: &str) -> Res<()> {
+        let mut b = Block::default();
+        if let Err(e) = crate::block::read_block(text.as_bytes(), &*self, &mut b) {
+            return Err(self.error_at(e.kind, 0, format!("restoring state: {}", e.message)));
+        }
+        self.execute(&mut b).map(|_| ())
     }
 }
 

@@ -170,7 +170,8 @@ impl ModalState {
             current_tool: 0,
             current_pocket: 0,
             selected_tool: -1,
-            selected_pocket: -1,
+            // As in LinuxCNC, M6 with no T changes to pocket 0 (no tool).
+            selected_pocket: 0,
         }
     }
 }
@@ -237,7 +238,8 @@ pub struct Interpreter {
     pub(crate) source: Source,
     /// Column of the word being executed (for errors).
     pub(crate) src: Sources,
-    block: Block,
+    /// The block being executed; boxed so that taking it out to execute moves a pointer.
+    block: Option<Box<Block>>,
     line_label: String,
     subs: HashMap<Box<str>, SubDef>,
     calls: Vec<CallFrame>,
@@ -273,7 +275,7 @@ impl Interpreter {
             out: VecDeque::with_capacity(64),
             source: Source::default(),
             src: Sources::new(),
-            block: Block::default(),
+            block: Some(Box::default()),
             line_label: String::new(),
             subs: HashMap::new(),
             calls: Vec::new(),
@@ -487,17 +489,13 @@ impl Interpreter {
     /// Reads the current line into the block and runs it. Returns false if the line was
     /// skipped.
     fn run_line(&mut self) -> Result<bool, GcodeError> {
-        let mut block = std::mem::take(&mut self.block);
+        let mut block = self.block.take().unwrap_or_default();
         let r = self.run_block(&mut block);
-        self.block = block;
+        self.block = Some(block);
         r
     }
 
     fn run_block(&mut self, b: &mut Block) -> Result<bool, GcodeError> {
-        // Fast skip of lines holding only blanks.
-        if self.src.line.iter().all(|c| c.is_ascii_whitespace()) {
-            return Ok(false);
-        }
         let line = std::mem::take(&mut self.src.line);
         let r = block::read_block(&line, &*self, b);
         self.src.line = line;
@@ -529,17 +527,23 @@ impl Interpreter {
             self.m98(b)?;
         }
         // Parameter settings take effect after the whole line is read, before it runs.
-        for (target, value) in b.assigns.drain(..) {
-            match target {
-                ParamRef::Numbered(i) => self.params.set(i, value),
-                ParamRef::Named(name) => self.params.set_named(&name, value),
-            }
+        if !b.assigns.is_empty() {
+            self.assign(b);
         }
         let more = self.execute(b)?;
         if !more {
             self.program_ended()?;
         }
         Ok(true)
+    }
+
+    fn assign(&mut self, b: &mut Block) {
+        for (target, value) in b.assigns.drain(..) {
+            match target {
+                ParamRef::Numbered(i) => self.params.set(i, value),
+                ParamRef::Named(name) => self.params.set_named(&name, value),
+            }
+        }
     }
 
     /// After M2/M30 (or M99 at the top level): stop, and note a missing closing `%`.
@@ -785,12 +789,12 @@ impl Interpreter {
                         line: loc.line,
                         n: None,
                     };
-                    let mut b = std::mem::take(&mut self.block);
+                    let mut b = self.block.take().unwrap_or_default();
                     let line = std::mem::take(&mut self.src.line);
                     let r = block::read_block(&line, &*self, &mut b);
                     self.src.line = line;
                     let cond = b.o_args.first().copied().unwrap_or(0.0);
-                    self.block = b;
+                    self.block = Some(b);
                     if let Err(e) = r {
                         return Err(self.error_at(e.kind, e.column + 1, e.message));
                     }
@@ -1232,8 +1236,8 @@ impl Interpreter {
         let b = |c: bool| if c { 1.0 } else { 0.0 };
         let m = || self.machine_position();
         Some(match name {
-            "vmajor" => 2.0,
-            "vminor" => 9.0,
+            "vmajor" => 2.9,
+            "vminor" => 0.0,
             "line" => f64::from(self.source.line),
             "motion_mode" => f64::from(s.motion),
             "plane" => match s.plane {
