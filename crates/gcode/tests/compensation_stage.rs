@@ -362,6 +362,19 @@ fn program_stop_releases_the_held_move_and_a_concave_corner_after_it_is_refused(
 }
 
 #[test]
+fn closing_percent_releases_the_last_move() {
+    // rs274 prints FINISH() and drops the held move; the stage keeps it.
+    let (out, err) = run(vec![
+        start(CompensationSide::Left, 2.0),
+        feed(10.0, 0.0),
+        C::Finish,
+    ]);
+    assert!(err.is_none());
+    assert_feed(&out[1].command, 10.0, 2.0);
+    assert_eq!(out[2].command, C::Finish);
+}
+
+#[test]
 fn adapter_yields_in_order_and_maps_errors() {
     let input: Vec<Result<Canon, String>> = vec![
         Ok(at(1, start(CompensationSide::Left, 1.0))),
