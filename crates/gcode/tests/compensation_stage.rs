@@ -455,3 +455,30 @@ proptest! {
         prop_assert_eq!(stage.held(), 0);
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig {
+        cases: if cfg!(debug_assertions) { 128 } else { 2048 },
+        ..ProptestConfig::default()
+    })]
+
+    /// Without G41/G42 the stage is transparent: every command comes out unchanged, in order,
+    /// at once.
+    #[test]
+    fn stage_is_transparent_without_compensation(
+        commands in prop::collection::vec(
+            any_command().prop_filter("no compensation start", |c| {
+                !matches!(c, C::StartCutterRadiusCompensation { .. })
+            }),
+            0..60,
+        )
+    ) {
+        let mut stage = Compensator::new();
+        for (i, c) in commands.into_iter().enumerate() {
+            let canon = at(i as u32, c);
+            prop_assert!(stage.push(canon.clone()).is_ok());
+            prop_assert_eq!(stage.pop(), Some(canon));
+            prop_assert_eq!(stage.pop(), None);
+        }
+    }
+}
