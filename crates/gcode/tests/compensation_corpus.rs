@@ -12,8 +12,8 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use rtcnc_gcode::canon::{
-    Arc, Canon, CanonCommand, CompensationSide, FeedMode, Plane, Pose, Source, SpindleDirection,
-    Units,
+    Arc, Canon, CanonCommand, CompensationSide, FeedMode, Plane, Pose, ProbeKind, Source,
+    SpindleDirection, Units,
 };
 use rtcnc_gcode::compensation::Compensator;
 
@@ -166,6 +166,12 @@ fn parse_canon(text: &str) -> CanonCommand {
         "PROGRAM_STOP" => C::ProgramStop,
         "OPTIONAL_PROGRAM_STOP" => C::OptionalProgramStop,
         "PROGRAM_END" => C::ProgramEnd,
+        "TURN_PROBE_ON" => C::TurnProbeOn,
+        "TURN_PROBE_OFF" => C::TurnProbeOff,
+        "STRAIGHT_PROBE" => C::StraightProbe {
+            end: pose(&num()),
+            kind: ProbeKind::TowardError,
+        },
         "STRAIGHT_TRAVERSE" => C::StraightTraverse(pose(&num())),
         "STRAIGHT_FEED" => C::StraightFeed(pose(&num())),
         "ARC_FEED" => {
@@ -220,11 +226,19 @@ fn is_motion(c: &CanonCommand) -> bool {
 }
 
 /// The uncompensated stream: rs274's lines with the markers turned into compensation
-/// commands placed before the first motion of their block (or at the block's end).
+/// commands placed before the first motion of their block (or at the block's end). In
+/// inverse time (G93) the block's SET_FEED_RATE belongs to its motion and comes after.
 fn input_stream(reference: &Reference) -> Vec<Canon> {
     let mut out = Vec::new();
     let mut held: Option<(Option<u32>, CanonCommand)> = None;
+    let mut inverse_time = false;
     for line in &reference.lines {
+        if line
+            .text
+            .starts_with("COMMENT(\"interpreter: feed mode set to")
+        {
+            inverse_time = line.text.contains("inverse time");
+        }
         let source = Source {
             file: 0,
             line: line.n.unwrap_or(0),
@@ -236,7 +250,8 @@ fn input_stream(reference: &Reference) -> Vec<Canon> {
         }
         let command = parse_canon(&line.text);
         if let Some((n, _)) = &held {
-            if *n != line.n || is_motion(&command) {
+            let feed_of_motion = inverse_time && matches!(command, CanonCommand::SetFeedRate(_));
+            if *n != line.n || is_motion(&command) || feed_of_motion {
                 let (n, m) = held.take().expect("held marker");
                 out.push(Canon {
                     source: Source {
@@ -281,10 +296,30 @@ fn same_line(ours: &str, theirs: &str) -> bool {
         })
 }
 
+/// Deliberate differences from rs274: (program, 1-based line of the expected output, the
+/// line rtcnc prints instead). Each is hand-computed and explained in docs/gcode.md.
+const DIFFERENCES: &[(&str, usize, &str)] = &[
+    // Compensation starts on an arc with a lathe tool of orientation 2 (nose radius 0.4):
+    // LinuxCNC first moves the tool origin to the start point (Z0 X30) shifted by the
+    // orientation (-0.4 in X and Z), but when the next corner is concave it moves that
+    // positioning move's end to the corner too, so the tool goes straight to the corner and
+    // the entry arc turns a full circle. rtcnc keeps the positioning move where it was.
+    (
+        "lathe_entry_arc",
+        16,
+        "STRAIGHT_FEED(29.6000, 0.0000, -0.4000, 0.0000, 0.0000, 0.0000)",
+    ),
+];
+
 /// Runs one corpus program through the stage; returns a description of every difference.
 fn check_program(name: &str, stream: Vec<Canon>) -> Vec<String> {
     let dir = corpus_dir();
-    let expected = read_reference(&dir.join(format!("{name}.expected")));
+    let mut expected = read_reference(&dir.join(format!("{name}.expected")));
+    for (program, line, text) in DIFFERENCES {
+        if *program == name {
+            expected.lines[line - 1].text = (*text).to_string();
+        }
+    }
     let mut stage = Compensator::new();
     let mut ours = Vec::new();
     let mut error = None;
@@ -392,7 +427,9 @@ fn interpreter_and_stage_match_rs274_on_the_corpus() {
             }
         }
         if let Some(e) = interp_error {
-            problems.push(format!("{name}: interpreter error {e}"));
+            // The interpreter refuses what LinuxCNC refuses with compensation on (in its own
+            // words): the output before it and the block must be rs274's.
+            problems.extend(check_interpreter_error(&name, stream, &e));
             continue;
         }
         // rs274 resets the interpreter as it exits (the CLI prints it the same way).
@@ -403,4 +440,54 @@ fn interpreter_and_stage_match_rs274_on_the_corpus() {
         problems.extend(check_program(&name, stream));
     }
     assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+/// An interpreter error in the end-to-end run: what was released before it must be rs274's
+/// output, and rs274 must stop at the same block (same N word).
+fn check_interpreter_error(
+    name: &str,
+    stream: Vec<Canon>,
+    error: &rtcnc_gcode::GcodeError,
+) -> Vec<String> {
+    let dir = corpus_dir();
+    let expected = read_reference(&dir.join(format!("{name}.expected")));
+    let Some((_, block)) = &expected.error else {
+        return vec![format!("{name}: interpreter error {error}, rs274 none")];
+    };
+    let program = fs::read_to_string(dir.join(format!("{name}.ngc"))).expect("program");
+    let our_block = program
+        .lines()
+        .nth(error.line as usize - 1)
+        .unwrap_or("")
+        .trim();
+    let mut problems = Vec::new();
+    if our_block != block.trim() {
+        problems.push(format!(
+            "{name}: interpreter error at {our_block:?}, rs274 at {block:?}"
+        ));
+    }
+    let mut stage = Compensator::new();
+    let mut ours = Vec::new();
+    let mut text = Vec::new();
+    for c in stream {
+        if let Err(e) = stage.push(c) {
+            problems.push(format!("{name}: stage error {e} before the interpreter's"));
+            break;
+        }
+        while let Some(c) = stage.pop() {
+            text.clear();
+            if c.write_rs274(&mut text, false) {
+                ours.push(String::from_utf8_lossy(&text).trim_end().to_string());
+            }
+        }
+    }
+    for i in 0..ours.len().max(expected.lines.len()) {
+        let o = ours.get(i).map_or("<none>", String::as_str);
+        let t = expected.lines.get(i).map_or("<none>", |l| l.text.as_str());
+        if !same_line(o, t) {
+            problems.push(format!("{name}: line {}: ours {o:?}, rs274 {t:?}", i + 1));
+            break;
+        }
+    }
+    problems
 }

@@ -38,6 +38,8 @@ enum Pending {
         end: [f64; 3],
         /// The other axes of the end pose.
         pose: Pose,
+        /// A positioning move whose end a concave corner must not move.
+        fixed: bool,
     },
     Arc {
         source: Source,
@@ -463,6 +465,9 @@ impl Compensator {
                     }
                     *end = to;
                 }
+                // LinuxCNC moves this one too, so that the tool goes straight to the corner
+                // and the entry arc becomes a full circle: keep it where it is.
+                Pending::Line { fixed: true, .. } => {}
                 Pending::Line {
                     traverse, dir, end, ..
                 } => {
@@ -517,6 +522,7 @@ impl Compensator {
                 dir: [alpha.cos(), alpha.sin()],
                 end: [end[0], end[1], pz],
                 pose: p,
+                fixed: false,
             })?;
             self.first_move = false;
             self.current = [end[0], end[1], pz];
@@ -535,6 +541,7 @@ impl Compensator {
                 dir: [0.0, 0.0],
                 end: [c[0], c[1], pz],
                 pose: p,
+                fixed: false,
             })?;
             self.current[2] = pz;
             return Ok(());
@@ -578,6 +585,7 @@ impl Compensator {
                     dir: [0.0, 0.0],
                     end: [mid[0], mid[1], c[2]],
                     pose: p,
+                    fixed: false,
                 })?;
             } else {
                 self.hold(Pending::Arc {
@@ -646,6 +654,7 @@ impl Compensator {
             dir: [px - op[0], py - op[1]],
             end: [end[0], end[1], pz],
             pose: p,
+            fixed: false,
         })?;
         self.current = [end[0], end[1], pz];
         Ok(())
@@ -704,6 +713,7 @@ impl Compensator {
                     dir: [0.0, 0.0],
                     end: c,
                     pose,
+                    fixed: true,
                 })?;
                 self.set_endpoint(c2);
             }
