@@ -25,6 +25,8 @@ enum Command {
     Check(commands::check::Args),
     /// Soft PLC: check or run a Structured Text program.
     Plc(commands::plc::Args),
+    /// Run a program on a simulated machine in virtual time.
+    Sim(commands::sim::Args),
 }
 
 fn main() -> ExitCode {
@@ -33,6 +35,7 @@ fn main() -> ExitCode {
         Command::Latency(args) => commands::latency::run(args),
         Command::Check(args) => commands::check::run(args),
         Command::Plc(args) => commands::plc::run(args),
+        Command::Sim(args) => commands::sim::run(args),
     };
     match result {
         Ok(code) => code,

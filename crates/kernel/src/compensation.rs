@@ -135,7 +135,11 @@ impl CompensationStage {
                 let mut n = normal;
                 if self.rotation_deg != 0.0 {
                     let (s, co) = self.rotation_deg.to_radians().sin_cos();
-                    n = [co * normal[0] - s * normal[1], s * normal[0] + co * normal[1], normal[2]];
+                    n = [
+                        co * normal[0] - s * normal[1],
+                        s * normal[0] + co * normal[1],
+                        normal[2],
+                    ];
                 }
                 return Some(MachineBlock::Motion(Move {
                     kind: MoveKind::Arc {

@@ -513,7 +513,10 @@ impl MachineConfig {
     /// Checks every value; the error names the first refused key.
     pub fn validate(&self) -> Result<(), ConfigError> {
         if self.joints.is_empty() {
-            return Err(ConfigError::invalid("joints", "at least one joint is needed"));
+            return Err(ConfigError::invalid(
+                "joints",
+                "at least one joint is needed",
+            ));
         }
         if self.joints.len() > MAX_JOINTS {
             return Err(ConfigError::invalid(
@@ -540,19 +543,28 @@ impl MachineConfig {
                     format!("duplicate joint name {:?}", j.name),
                 ));
             }
-            j.servo
-                .validate()
-                .map_err(|e| ConfigError::invalid(format!("joints[{i}].servo.{}", e.field), e.reason))?;
+            j.servo.validate().map_err(|e| {
+                ConfigError::invalid(format!("joints[{i}].servo.{}", e.field), e.reason)
+            })?;
             if let Some(h) = &j.homing {
-                positive_finite(&format!("joints[{i}].homing.latch_velocity"), h.latch_velocity)?;
+                positive_finite(
+                    &format!("joints[{i}].homing.latch_velocity"),
+                    h.latch_velocity,
+                )?;
                 if !(h.search_velocity.is_finite() && h.search_velocity != 0.0) {
                     return Err(ConfigError::invalid(
                         format!("joints[{i}].homing.search_velocity"),
                         "must be a finite non-zero number (its sign is the search direction)",
                     ));
                 }
-                finite(&format!("joints[{i}].homing.latch_position"), h.latch_position)?;
-                finite(&format!("joints[{i}].homing.home_position"), h.home_position)?;
+                finite(
+                    &format!("joints[{i}].homing.latch_position"),
+                    h.latch_position,
+                )?;
+                finite(
+                    &format!("joints[{i}].homing.home_position"),
+                    h.home_position,
+                )?;
             }
         }
         self.simulated_machine()?
@@ -667,8 +679,16 @@ impl MachineConfig {
             }
         }
         for (list, size, key) in [
-            (&self.io.program_outputs, self.io.digital_outputs, "io.program_outputs"),
-            (&self.io.program_inputs, self.io.digital_inputs, "io.program_inputs"),
+            (
+                &self.io.program_outputs,
+                self.io.digital_outputs,
+                "io.program_outputs",
+            ),
+            (
+                &self.io.program_inputs,
+                self.io.digital_inputs,
+                "io.program_inputs",
+            ),
         ] {
             if let Some(bad) = list.iter().find(|&&i| i >= size) {
                 return Err(ConfigError::invalid(
@@ -693,7 +713,9 @@ impl MachineConfig {
     }
 
     /// Each thread with its parsed period, checked against the servo period.
-    pub fn tasks_checked(&self) -> Result<[(&'static str, Duration, &ThreadConfig); 6], ConfigError> {
+    pub fn tasks_checked(
+        &self,
+    ) -> Result<[(&'static str, Duration, &ThreadConfig); 6], ConfigError> {
         let t = &self.tasks;
         let mut out = [
             ("fieldbus", Duration::ZERO, &t.fieldbus),
@@ -778,8 +800,8 @@ impl MachineConfig {
 
     /// The simulated machine this file describes.
     pub fn simulated_machine(&self) -> Result<SimulatedMachineConfig, ConfigError> {
-        let mut sim: SimulatedMachineConfig =
-            toml::from_str("joints = []").map_err(|e| ConfigError::invalid("fieldbus", e.to_string()))?;
+        let mut sim: SimulatedMachineConfig = toml::from_str("joints = []")
+            .map_err(|e| ConfigError::invalid("fieldbus", e.to_string()))?;
         if let Some(v) = self.fieldbus.substep_s {
             sim.substep_s = v;
         }

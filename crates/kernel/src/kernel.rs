@@ -213,8 +213,7 @@ impl Kernel {
             config.io.program_outputs.clone(),
         )));
 
-        let mut core =
-            MotionCore::new(&config).map_err(|e| KernelError::Motion(e.to_string()))?;
+        let mut core = MotionCore::new(&config).map_err(|e| KernelError::Motion(e.to_string()))?;
         core.set_has_program(options.program.is_some());
         core.set_ready(true);
         let core = Arc::new(PiMutex::new(core));
@@ -314,7 +313,8 @@ impl Kernel {
             }
             let feedback = *sh.feedback.lock();
             let mut status = *sh.status.lock();
-            c.lock().status(&feedback, ctx.now().as_nanos(), &mut status);
+            c.lock()
+                .status(&feedback, ctx.now().as_nanos(), &mut status);
             *sh.status.lock() = status;
         });
         b.on_deadline_miss(id, miss);

@@ -32,6 +32,7 @@ mod kernel;
 mod logic;
 pub mod messages;
 mod motion;
+pub mod report;
 mod servo;
 mod shared;
 mod sim;

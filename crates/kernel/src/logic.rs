@@ -69,8 +69,14 @@ impl LogicStage {
         let faulted = fault.is_some() || mi.machine_fault;
         if faulted && !self.fault_latched {
             let code = fault.unwrap_or(mi.machine_fault_code as f64);
-            self.shared
-                .raise(ctx, FaultCode::LogicFault, TaskName::MachineLogic, None, 0, code);
+            self.shared.raise(
+                ctx,
+                FaultCode::LogicFault,
+                TaskName::MachineLogic,
+                None,
+                0,
+                code,
+            );
         }
         self.fault_latched = faulted;
     }
@@ -122,8 +128,14 @@ fn plc_scan(
         (Signal::ToolNumber, f64::from(mi.tool_number)),
         (Signal::MCodeRequest, b(mi.m_code_request)),
         (Signal::MCodeNumber, f64::from(mi.m_code)),
-        (Signal::MCodeP, if mi.m_p.is_finite() { mi.m_p } else { 0.0 }),
-        (Signal::MCodeQ, if mi.m_q.is_finite() { mi.m_q } else { 0.0 }),
+        (
+            Signal::MCodeP,
+            if mi.m_p.is_finite() { mi.m_p } else { 0.0 },
+        ),
+        (
+            Signal::MCodeQ,
+            if mi.m_q.is_finite() { mi.m_q } else { 0.0 },
+        ),
         (Signal::LimitMin, 0.0),
         (Signal::LimitMax, 0.0),
     ];

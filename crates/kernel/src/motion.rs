@@ -163,9 +163,7 @@ impl MotionCore {
     pub fn new(config: &MachineConfig) -> Result<MotionCore, MotionError> {
         let period_s = config.servo_period().as_secs_f64();
         let plan = config.axis_plan();
-        let mut limits = rtcnc_motion::MachineLimits {
-            axes: [None; AXES],
-        };
+        let mut limits = rtcnc_motion::MachineLimits { axes: [None; AXES] };
         let mut axis_present = [false; AXES];
         let mut axis_limits = [limits_of(1.0, 1.0, 1.0); AXES];
         let mut axis_quick = axis_limits;
@@ -391,7 +389,14 @@ impl MotionCore {
     pub fn urgent(&mut self, ctx: &mut Context<'_>, shared: &Shared, command: Urgent) {
         match command {
             Urgent::EStop => {
-                shared.raise(ctx, FaultCode::EStop, TaskName::CommandParsing, None, 0, 0.0);
+                shared.raise(
+                    ctx,
+                    FaultCode::EStop,
+                    TaskName::CommandParsing,
+                    None,
+                    0,
+                    0.0,
+                );
             }
             Urgent::FeedHold => self.hold(),
             Urgent::Resume => {
@@ -404,12 +409,20 @@ impl MotionCore {
             }
             Urgent::Abort => self.abort(shared),
             Urgent::FeedOverride(f) => {
-                self.feed_override = if f.is_finite() { f.clamp(0.0, 2.0) } else { 0.0 };
+                self.feed_override = if f.is_finite() {
+                    f.clamp(0.0, 2.0)
+                } else {
+                    0.0
+                };
                 self.planner.set_feed_override(self.feed_override);
             }
             Urgent::RapidOverride(f) => self.planner.set_rapid_override(f),
             Urgent::SpindleOverride(f) => {
-                self.spindle_override = if f.is_finite() { f.clamp(0.5, 1.5) } else { 1.0 };
+                self.spindle_override = if f.is_finite() {
+                    f.clamp(0.5, 1.5)
+                } else {
+                    1.0
+                };
                 let mut mi = shared.machine_interface.lock();
                 if mi.spindle_on {
                     mi.spindle_rpm = mi.spindle_rpm.abs() * self.spindle_override;
@@ -438,7 +451,9 @@ impl MotionCore {
 
     fn abort(&mut self, shared: &Shared) {
         self.epoch = self.epoch.wrapping_add(1);
-        let _ = shared.interpreter_requests.try_put(InterpreterRequest::Stop);
+        let _ = shared
+            .interpreter_requests
+            .try_put(InterpreterRequest::Stop);
         shared.interpreter_wake.signal();
         self.pending = None;
         self.phase = Phase::Idle;
@@ -473,7 +488,9 @@ impl MotionCore {
 
     /// A normal command. Returns false when it was refused in this state.
     pub fn command(&mut self, ctx: &mut Context<'_>, shared: &Shared, command: Command) -> bool {
-        let idle = self.operational() && !self.moving() && self.phase == Phase::Idle
+        let idle = self.operational()
+            && !self.moving()
+            && self.phase == Phase::Idle
             && self.homing.is_none();
         let ok = match command {
             Command::Reset => {
@@ -507,10 +524,12 @@ impl MotionCore {
             Command::Mdi(line) => {
                 if idle {
                     self.begin(shared, Mode::Mdi, 0);
-                    let _ = shared.interpreter_requests.try_put(InterpreterRequest::Mdi {
-                        epoch: self.epoch,
-                        line,
-                    });
+                    let _ = shared
+                        .interpreter_requests
+                        .try_put(InterpreterRequest::Mdi {
+                            epoch: self.epoch,
+                            line,
+                        });
                     shared.interpreter_wake.signal();
                     true
                 } else {
@@ -519,7 +538,11 @@ impl MotionCore {
             }
             Command::JogContinuous { axis, velocity } => {
                 let i = usize::from(axis);
-                if idle && i < AXES && self.axis_present[i] && velocity.is_finite() && velocity != 0.0
+                if idle
+                    && i < AXES
+                    && self.axis_present[i]
+                    && velocity.is_finite()
+                    && velocity != 0.0
                 {
                     self.enter_manual();
                     let speed = velocity.abs().min(self.axis_limits[i].max_velocity);
@@ -598,7 +621,10 @@ impl MotionCore {
             }
             Command::JointMove { joint, position } => {
                 let j = usize::from(joint);
-                if idle && j < self.joint_count && self.joints[j].axis.is_none() && position.is_finite()
+                if idle
+                    && j < self.joint_count
+                    && self.joints[j].axis.is_none()
+                    && position.is_finite()
                 {
                     let info = self.joints[j];
                     let target = position.clamp(info.min, info.max);
@@ -622,7 +648,14 @@ impl MotionCore {
                 .is_ok(),
         };
         if !ok {
-            shared.raise(ctx, FaultCode::CommandRefused, TaskName::CommandParsing, None, 0, 0.0);
+            shared.raise(
+                ctx,
+                FaultCode::CommandRefused,
+                TaskName::CommandParsing,
+                None,
+                0,
+                0.0,
+            );
         }
         ok
     }
@@ -820,7 +853,9 @@ impl MotionCore {
                 shared.raise(ctx, code, TaskName::LookAhead, None, line, 0.0);
                 self.phase = Phase::Idle;
                 self.epoch = self.epoch.wrapping_add(1);
-                let _ = shared.interpreter_requests.try_put(InterpreterRequest::Stop);
+                let _ = shared
+                    .interpreter_requests
+                    .try_put(InterpreterRequest::Stop);
                 shared.machine_interface.lock().program_running = false;
             }
             Then::Aux(aux) => self.start_aux(shared, aux, line),
@@ -890,7 +925,9 @@ impl MotionCore {
     fn logic_done(&mut self, shared: &Shared, aux: Aux, line: u32, released: bool) -> bool {
         let mut mi = shared.machine_interface.lock();
         let done = match aux {
-            Aux::SpindleOn { .. } | Aux::SpindleSpeed { .. } => !mi.spindle_on || mi.spindle_at_speed,
+            Aux::SpindleOn { .. } | Aux::SpindleSpeed { .. } => {
+                !mi.spindle_on || mi.spindle_at_speed
+            }
             Aux::SpindleOff => true,
             Aux::Mist(on) => mi.out_mist == on,
             Aux::Flood(on) => mi.out_flood == on,
@@ -1038,7 +1075,9 @@ impl MotionCore {
         // drives are disabled once it stands (see `interpolate`).
         self.stopping = true;
         self.epoch = self.epoch.wrapping_add(1);
-        let _ = shared.interpreter_requests.try_put(InterpreterRequest::Stop);
+        let _ = shared
+            .interpreter_requests
+            .try_put(InterpreterRequest::Stop);
         self.pending = None;
         self.phase = Phase::Idle;
         self.held = false;
@@ -1086,7 +1125,10 @@ impl MotionCore {
             .min()?;
         let mut step = [None; MAX_JOINTS];
         for (j, slot) in step.iter_mut().enumerate().take(self.joint_count) {
-            if self.joints[j].homing.is_some_and(|h| h.sequence == sequence) {
+            if self.joints[j]
+                .homing
+                .is_some_and(|h| h.sequence == sequence)
+            {
                 *slot = Some(HomingStep::Search);
             }
         }
@@ -1158,7 +1200,9 @@ impl MotionCore {
                     }
                 }
                 HomingStep::Latch => {
-                    if feedback.latched & bit != 0 && (self.latch.index | self.latch.switch) & bit != 0 {
+                    if feedback.latched & bit != 0
+                        && (self.latch.index | self.latch.switch) & bit != 0
+                    {
                         self.latch.index &= !bit;
                         self.latch.switch &= !bit;
                         // The latched raw position becomes `latch_position`.
@@ -1166,9 +1210,10 @@ impl MotionCore {
                         let shift = new_offset - self.offsets[j];
                         self.offsets[j] = new_offset;
                         let s = otg.sample();
-                        if let Ok(o) =
-                            OnlineAxis::new(State::new(s.p + shift, s.v, s.a), self.joints[j].limits)
-                        {
+                        if let Ok(o) = OnlineAxis::new(
+                            State::new(s.p + shift, s.v, s.a),
+                            self.joints[j].limits,
+                        ) {
                             *otg = o;
                         }
                         let _ = otg.stop();
@@ -1203,7 +1248,9 @@ impl MotionCore {
             // Hand the group's axis joints back to their axes, now squared.
             for j in 0..self.joint_count {
                 if homing.step[j].is_none()
-                    && self.joints[j].homing.is_some_and(|h| h.sequence == homing.sequence)
+                    && self.joints[j]
+                        .homing
+                        .is_some_and(|h| h.sequence == homing.sequence)
                 {
                     if let Some(i) = self.joints[j].axis {
                         let p = self.joint_otg[j].sample().p;

@@ -4,7 +4,9 @@
 //! outputs, exchanges the process image, checks limit switches, drive faults and the
 //! e-stop input, and publishes the feedback image. Allocation-free per cycle.
 
-use rtcnc_fieldbus::{Cia402State, ControlWord, Fieldbus, LatchSource, ProcessInputs, ProcessOutputs};
+use rtcnc_fieldbus::{
+    Cia402State, ControlWord, Fieldbus, LatchSource, ProcessInputs, ProcessOutputs,
+};
 use rtcnc_rt::{Context, RingConsumer, RingProducer};
 use rtcnc_servo::{ServoCommand, ServoLoop, SetPointDifferentiator};
 
@@ -252,8 +254,14 @@ impl<B: Fieldbus> ServoStage<B> {
         self.exchanges += 1;
         if result.is_err() && !self.comm_fault {
             self.comm_fault = true;
-            self.shared
-                .raise(ctx, FaultCode::Communication, TaskName::DriveIo, None, 0, 0.0);
+            self.shared.raise(
+                ctx,
+                FaultCode::Communication,
+                TaskName::DriveIo,
+                None,
+                0,
+                0.0,
+            );
         }
         let mut fb = Feedback {
             cycle: self.exchanges,
@@ -294,7 +302,9 @@ impl<B: Fieldbus> ServoStage<B> {
                     f.position,
                 );
             }
-            if state.is_fault() && self.drive_fault_latched & bit == 0 && self.was_enabled & bit != 0
+            if state.is_fault()
+                && self.drive_fault_latched & bit == 0
+                && self.was_enabled & bit != 0
             {
                 self.drive_fault_latched |= bit;
                 self.shared.raise(

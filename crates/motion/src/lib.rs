@@ -11,13 +11,13 @@
 #![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
 
 mod axes;
-pub mod otg;
 mod builder;
 mod error;
 mod geometry;
 mod input;
 mod kinematics;
 mod limits;
+pub mod otg;
 mod piece;
 mod planner;
 mod scurve;

@@ -1,4 +1,5 @@
 //! One module per subcommand.
-pub mod latency;
 pub mod check;
+pub mod latency;
 pub mod plc;
+pub mod sim;

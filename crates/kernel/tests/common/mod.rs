@@ -5,7 +5,9 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use rtcnc_kernel::{Command, Fault, Kernel, KernelOptions, MachineConfig, Sample, Simulation, Status};
+use rtcnc_kernel::{
+    Command, Fault, Kernel, KernelOptions, MachineConfig, Sample, Simulation, Status,
+};
 
 pub fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
@@ -53,7 +55,9 @@ impl Machine {
 
     pub fn cycles(&mut self, n: u64) {
         let samples = &mut self.samples;
-        self.sim.run_cycles(n, &mut |s| samples.push(*s)).expect("runs");
+        self.sim
+            .run_cycles(n, &mut |s| samples.push(*s))
+            .expect("runs");
         self.faults.extend(self.sim.handle().take_faults());
     }
 
@@ -61,7 +65,11 @@ impl Machine {
         let samples = &mut self.samples;
         let ok = self
             .sim
-            .run_until(Duration::from_secs_f64(limit_s), &mut |s| samples.push(*s), done)
+            .run_until(
+                Duration::from_secs_f64(limit_s),
+                &mut |s| samples.push(*s),
+                done,
+            )
             .expect("runs");
         self.faults.extend(self.sim.handle().take_faults());
         ok

@@ -1,0 +1,539 @@
+//! `rtcnc sim`: runs a part program on a machine configuration in virtual time (as fast as
+//! the processor allows, the same result every run) and reports what the machine did:
+//! cycle time, limits, following errors, faults; with `--out` also the set-points and
+//! feedback as CSV, an SVG plot, the executive's trace and `summary.json`.
+
+use std::fmt::Write as _;
+use std::io::{BufWriter, Write as _};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, bail};
+use rtcnc_kernel::report::RunStats;
+use rtcnc_kernel::{
+    Command, Fault, Kernel, KernelOptions, MachineConfig, MachineState, Sample, Simulation,
+};
+
+/// Run a G-code program on a simulated machine in virtual time.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The part program.
+    program: PathBuf,
+    /// Machine configuration (TOML).
+    #[arg(long, default_value = "configs/sim-mill.toml")]
+    machine: PathBuf,
+    /// Write CSV files, plot, trace and summary.json into this folder.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Give up after this much machine time, in seconds.
+    #[arg(long, default_value_t = 3600.0)]
+    limit: f64,
+    /// Home the machine before the program starts.
+    #[arg(long)]
+    home: bool,
+    /// No progress bar.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+/// What `summary.json` holds.
+pub struct Summary {
+    pub cycle_time_s: f64,
+    pub ended: bool,
+    pub limits_exceeded: bool,
+    pub faults: Vec<String>,
+}
+
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let config = MachineConfig::load(&args.machine)
+        .with_context(|| format!("machine configuration {}", args.machine.display()))?;
+    if !args.program.is_file() {
+        bail!("{}: no such program file", args.program.display());
+    }
+    let kernel = Kernel::build(
+        &config,
+        KernelOptions {
+            program: Some(args.program.clone()),
+            record_capacity: 1 << 16,
+            trace_capacity: Some(1 << 16),
+        },
+    )?;
+    let period = config.servo_period();
+    let period_s = period.as_secs_f64();
+    let mut sim = Simulation::new(kernel);
+    let handle = sim.handle().clone();
+
+    let mut writers = match &args.out {
+        Some(dir) => Some(Outputs::create(dir, &config)?),
+        None => None,
+    };
+    let mut stats = RunStats::new();
+    let mut plot = PlotData::default();
+    let mut faults: Vec<Fault> = Vec::new();
+    let mut io_error: Option<std::io::Error> = None;
+    let mut sink = |s: &Sample| {
+        stats.add(s, period_s);
+        plot.add(s);
+        if let Some(w) = writers.as_mut() {
+            if let Err(e) = w.write(s, config.joints.len()) {
+                io_error.get_or_insert(e);
+            }
+        }
+    };
+
+    // Power up, reset, optionally home, start.
+    sim.run_cycles(2, &mut sink)?;
+    handle.command(Command::Reset);
+    if !sim.run_until(Duration::from_secs(1), &mut sink, |s| s.ready)? {
+        bail!("the drives did not enable within 1 s");
+    }
+    if args.home {
+        handle.command(Command::HomeAll);
+        sim.run_cycles(3, &mut sink)?;
+        sim.run_until(Duration::from_secs(600), &mut sink, |s| {
+            s.state != MachineState::Running
+        })?;
+    }
+    handle.command(Command::Start { from_line: 0 });
+    sim.run_cycles(2, &mut sink)?;
+    let start = sim.now();
+    let wall = Instant::now();
+    let bar = progress_bar(args.quiet);
+    let limit = Duration::from_secs_f64(args.limit.max(0.001));
+    let mut ended = false;
+    loop {
+        let done = sim.run_until(Duration::from_millis(100), &mut sink, |s| {
+            (s.program_ended && s.state == MachineState::Idle)
+                || matches!(s.state, MachineState::Fault | MachineState::EStop)
+        })?;
+        let status = handle.status();
+        faults.extend(handle.take_faults());
+        if let Some(bar) = &bar {
+            bar.set_message(format!(
+                "t {:.1} s  line {}  X{:.3} Y{:.3} Z{:.3}  {:.1} mm/s  {}",
+                (sim.now() - start).as_secs_f64(),
+                status.line,
+                status.axes[0],
+                status.axes[1],
+                status.axes[2],
+                status.path_speed,
+                status.state.as_str()
+            ));
+            bar.tick();
+        }
+        if done {
+            ended = status.program_ended && status.state == MachineState::Idle;
+            break;
+        }
+        if sim.now() - start > limit {
+            break;
+        }
+        // A program error stops the program and leaves the machine idle.
+        if status.state == MachineState::Idle
+            && faults.iter().any(|f| {
+                f.code.as_str().starts_with("kernel.program")
+                    || f.code.as_str().starts_with("kernel.compensation")
+                    || f.code.as_str().starts_with("kernel.motion")
+            })
+        {
+            break;
+        }
+    }
+    let cycle_time = (sim.now() - start).as_secs_f64();
+    // Let the machine settle a moment so the feedback of the last move is recorded.
+    sim.run_cycles(20, &mut sink)?;
+    faults.extend(handle.take_faults());
+    if let Some(bar) = bar {
+        bar.finish_and_clear();
+    }
+    let wall_s = wall.elapsed().as_secs_f64();
+    drop(sink);
+    if let Some(e) = io_error {
+        return Err(e).context("writing the CSV files");
+    }
+
+    // Report.
+    let plan = config.axis_plan();
+    let mut exceeded = Vec::new();
+    for p in &plan {
+        let i = p.axis as usize;
+        let Some(a) = config.axis(p.axis) else {
+            continue;
+        };
+        let tol = 1.0 + 1e-6;
+        for (what, got, limit) in [
+            ("velocity", stats.max_velocity[i], a.max_velocity),
+            (
+                "acceleration",
+                stats.max_acceleration[i],
+                a.max_acceleration,
+            ),
+            ("jerk", stats.max_jerk[i], a.max_jerk),
+        ] {
+            if got > limit * tol {
+                exceeded.push(format!(
+                    "axis {}: {what} {got:.6} > limit {limit}",
+                    p.axis.letter()
+                ));
+            }
+        }
+    }
+    let fault_texts: Vec<String> = faults
+        .iter()
+        .filter(|f| f.code != rtcnc_kernel::FaultCode::CommandRefused)
+        .map(|f| handle.describe(f))
+        .collect();
+    let error_text = handle.error_text();
+    println!("program     {}", args.program.display());
+    println!(
+        "machine     {} ({})",
+        config.machine.name,
+        args.machine.display()
+    );
+    println!(
+        "cycle time  {cycle_time:.3} s{}",
+        if ended {
+            ""
+        } else {
+            " (did not reach the end)"
+        }
+    );
+    println!(
+        "simulated   {:.3} s in {wall_s:.3} s of wall time ({:.0}× real time)",
+        sim.now().as_secs_f64(),
+        sim.now().as_secs_f64() / wall_s.max(1e-9)
+    );
+    println!("axis  max |v| (limit)          max |a| (limit)            max |j| (limit)");
+    for p in &plan {
+        let i = p.axis as usize;
+        if let Some(a) = config.axis(p.axis) {
+            println!(
+                "{}     {:9.3} ({:8.1})   {:11.3} ({:9.1})   {:13.1} ({:10.1})",
+                p.axis.letter(),
+                stats.max_velocity[i],
+                a.max_velocity,
+                stats.max_acceleration[i],
+                a.max_acceleration,
+                stats.max_jerk[i],
+                a.max_jerk
+            );
+        }
+    }
+    println!("joint  max following error");
+    for (j, jc) in config.joints.iter().enumerate() {
+        println!("{:6} {:.6}", jc.name, stats.max_following_error[j]);
+    }
+    if exceeded.is_empty() {
+        println!("limits      respected");
+    } else {
+        println!("limits      EXCEEDED");
+        for e in &exceeded {
+            println!("  {e}");
+        }
+    }
+    if fault_texts.is_empty() {
+        println!("faults      none");
+    } else {
+        println!("faults");
+        for f in &fault_texts {
+            println!("  {f}");
+        }
+        if let Some(t) = &error_text {
+            println!("  {t}");
+        }
+    }
+
+    if let Some(dir) = &args.out {
+        if let Some(w) = writers.take() {
+            w.finish()?;
+        }
+        write_summary(
+            &dir.join("summary.json"),
+            &config,
+            &stats,
+            &Summary {
+                cycle_time_s: cycle_time,
+                ended,
+                limits_exceeded: !exceeded.is_empty(),
+                faults: fault_texts.clone(),
+            },
+            error_text.as_deref(),
+        )?;
+        std::fs::write(dir.join("plot.svg"), plot.svg(&config))
+            .with_context(|| format!("{}", dir.join("plot.svg").display()))?;
+        let runner = sim.into_runner();
+        runner
+            .recording()
+            .trace()
+            .write_chrome_json(&dir.join("trace.json"))
+            .context("trace.json")?;
+        println!(
+            "wrote       {}/{{setpoints.csv, feedback.csv, plot.svg, trace.json, summary.json}}",
+            dir.display()
+        );
+    }
+    Ok(if ended && exceeded.is_empty() && fault_texts.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
+fn progress_bar(quiet: bool) -> Option<indicatif::ProgressBar> {
+    if quiet {
+        return None;
+    }
+    let bar = indicatif::ProgressBar::new_spinner();
+    bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+    if let Ok(style) = indicatif::ProgressStyle::with_template("{spinner} {elapsed} {msg}") {
+        bar.set_style(style);
+    }
+    Some(bar)
+}
+
+struct Outputs {
+    setpoints: BufWriter<std::fs::File>,
+    feedback: BufWriter<std::fs::File>,
+    line: String,
+    axes: Vec<usize>,
+}
+
+impl Outputs {
+    fn create(dir: &Path, config: &MachineConfig) -> anyhow::Result<Outputs> {
+        std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
+        let open = |name: &str| -> anyhow::Result<BufWriter<std::fs::File>> {
+            let path = dir.join(name);
+            Ok(BufWriter::new(
+                std::fs::File::create(&path).with_context(|| format!("{}", path.display()))?,
+            ))
+        };
+        let mut setpoints = open("setpoints.csv")?;
+        let mut feedback = open("feedback.csv")?;
+        let mut head = String::from("time_s,cycle,line,path_speed");
+        for p in config.axis_plan() {
+            let _ = write!(head, ",{}", p.axis.letter());
+        }
+        for j in &config.joints {
+            let _ = write!(head, ",{}_setpoint", j.name);
+        }
+        writeln!(setpoints, "{head}")?;
+        let mut head = String::from("time_s,cycle");
+        for j in &config.joints {
+            let _ = write!(head, ",{}_feedback,{}_following_error", j.name, j.name);
+        }
+        writeln!(feedback, "{head}")?;
+        Ok(Outputs {
+            setpoints,
+            feedback,
+            line: String::with_capacity(512),
+            axes: config.axis_plan().iter().map(|p| p.axis as usize).collect(),
+        })
+    }
+
+    fn write(&mut self, s: &Sample, joints: usize) -> std::io::Result<()> {
+        let t = s.time_ns as f64 * 1e-9;
+        self.line.clear();
+        let _ = write!(
+            self.line,
+            "{t:.6},{},{},{:.6}",
+            s.cycle, s.line, s.path_speed
+        );
+        for &i in &self.axes {
+            let _ = write!(self.line, ",{:.6}", s.axes[i]);
+        }
+        for j in 0..joints {
+            let _ = write!(self.line, ",{:.6}", s.setpoint[j]);
+        }
+        writeln!(self.setpoints, "{}", self.line)?;
+        self.line.clear();
+        let _ = write!(self.line, "{t:.6},{}", s.cycle);
+        for j in 0..joints {
+            let _ = write!(
+                self.line,
+                ",{:.6},{:.7}",
+                s.feedback[j], s.following_error[j]
+            );
+        }
+        writeln!(self.feedback, "{}", self.line)
+    }
+
+    fn finish(mut self) -> anyhow::Result<()> {
+        self.setpoints.flush()?;
+        self.feedback.flush()?;
+        Ok(())
+    }
+}
+
+#[derive(Default)]
+struct PlotData {
+    points: Vec<(f64, f64, f64, f64)>,
+}
+
+impl PlotData {
+    fn add(&mut self, s: &Sample) {
+        self.points
+            .push((s.time_ns as f64 * 1e-9, s.axes[0], s.axes[1], s.path_speed));
+    }
+
+    /// Tool path (X-Y, or Z-X on a lathe) and path speed over time, hand-written SVG.
+    fn svg(&self, config: &MachineConfig) -> String {
+        let lathe = config.machine.kind == rtcnc_kernel::config::MachineKind::Lathe;
+        let stride = (self.points.len() / 20_000).max(1);
+        let pts: Vec<_> = self.points.iter().step_by(stride).copied().collect();
+        let (w, h) = (520.0, 420.0);
+        let mut out = String::new();
+        let _ = write!(
+            out,
+            r#"<svg xmlns="http://www.w3.org/2000/svg" width="1100" height="480" font-family="sans-serif" font-size="12">
+<rect width="1100" height="480" fill="white"/>
+"#
+        );
+        // Tool path.
+        let xy: Vec<(f64, f64)> = pts
+            .iter()
+            .map(|p| if lathe { (p.2, p.1) } else { (p.1, p.2) })
+            .collect();
+        let (label_x, label_y) = if lathe { ("Z", "X") } else { ("X", "Y") };
+        panel(
+            &mut out,
+            40.0,
+            30.0,
+            w,
+            h,
+            &xy,
+            label_x,
+            label_y,
+            "tool path",
+            true,
+        );
+        let speed: Vec<(f64, f64)> = pts.iter().map(|p| (p.0, p.3)).collect();
+        panel(
+            &mut out,
+            600.0,
+            30.0,
+            w - 40.0,
+            h,
+            &speed,
+            "t (s)",
+            "path speed (mm/s)",
+            "velocity over time",
+            false,
+        );
+        out.push_str("</svg>\n");
+        out
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn panel(
+    out: &mut String,
+    x0: f64,
+    y0: f64,
+    w: f64,
+    h: f64,
+    pts: &[(f64, f64)],
+    label_x: &str,
+    label_y: &str,
+    title: &str,
+    equal: bool,
+) {
+    let finite = pts.iter().filter(|p| p.0.is_finite() && p.1.is_finite());
+    let (mut xmin, mut xmax, mut ymin, mut ymax) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for p in finite {
+        xmin = xmin.min(p.0);
+        xmax = xmax.max(p.0);
+        ymin = ymin.min(p.1);
+        ymax = ymax.max(p.1);
+    }
+    if xmin > xmax {
+        (xmin, xmax, ymin, ymax) = (0.0, 1.0, 0.0, 1.0);
+    }
+    if xmax - xmin < 1e-9 {
+        xmax = xmin + 1.0;
+    }
+    if ymax - ymin < 1e-9 {
+        ymax = ymin + 1.0;
+    }
+    let (mut sx, mut sy) = (w / (xmax - xmin), h / (ymax - ymin));
+    if equal {
+        let s = sx.min(sy);
+        sx = s;
+        sy = s;
+    }
+    let _ = writeln!(
+        out,
+        r##"<g><rect x="{x0}" y="{y0}" width="{w}" height="{h}" fill="none" stroke="#999"/>
+<text x="{}" y="{}" text-anchor="middle" font-weight="bold">{title}</text>
+<text x="{}" y="{}" text-anchor="middle">{label_x}: {xmin:.2} … {xmax:.2}</text>
+<text x="{}" y="{}" text-anchor="middle" transform="rotate(-90 {} {})">{label_y}: {ymin:.2} … {ymax:.2}</text>"##,
+        x0 + w / 2.0,
+        y0 - 10.0,
+        x0 + w / 2.0,
+        y0 + h + 18.0,
+        x0 - 12.0,
+        y0 + h / 2.0,
+        x0 - 12.0,
+        y0 + h / 2.0
+    );
+    out.push_str(r##"<polyline fill="none" stroke="#1565c0" stroke-width="1" points=""##);
+    for p in pts {
+        if p.0.is_finite() && p.1.is_finite() {
+            let _ = write!(
+                out,
+                "{:.2},{:.2} ",
+                x0 + (p.0 - xmin) * sx,
+                y0 + h - (p.1 - ymin) * sy
+            );
+        }
+    }
+    out.push_str("\"/></g>\n");
+}
+
+fn write_summary(
+    path: &Path,
+    config: &MachineConfig,
+    stats: &RunStats,
+    summary: &Summary,
+    error_text: Option<&str>,
+) -> anyhow::Result<()> {
+    use serde_json::{Map, Value, json};
+    let mut axes = Map::new();
+    for p in config.axis_plan() {
+        let i = p.axis as usize;
+        if let Some(a) = config.axis(p.axis) {
+            axes.insert(
+                p.axis.letter().to_string(),
+                json!({
+                    "max_velocity": stats.max_velocity[i],
+                    "max_acceleration": stats.max_acceleration[i],
+                    "max_jerk": stats.max_jerk[i],
+                    "limit_velocity": a.max_velocity,
+                    "limit_acceleration": a.max_acceleration,
+                    "limit_jerk": a.max_jerk,
+                }),
+            );
+        }
+    }
+    let mut joints = Map::new();
+    for (j, jc) in config.joints.iter().enumerate() {
+        joints.insert(
+            jc.name.clone(),
+            json!({ "max_following_error": stats.max_following_error[j] }),
+        );
+    }
+    let value = json!({
+        "machine": config.machine.name,
+        "cycle_time_s": summary.cycle_time_s,
+        "ended": summary.ended,
+        "servo_period_s": config.servo_period().as_secs_f64(),
+        "limits_exceeded": summary.limits_exceeded,
+        "axes": Value::Object(axes),
+        "joints": Value::Object(joints),
+        "faults": summary.faults,
+        "program_error": error_text,
+    });
+    std::fs::write(path, serde_json::to_string_pretty(&value)? + "\n")
+        .with_context(|| format!("{}", path.display()))?;
+    Ok(())
+}
