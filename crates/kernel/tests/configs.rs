@@ -1,0 +1,132 @@
+//! Every shipped machine file loads, validates and passes the power-up self-test; bad files
+//! are refused naming the key and the reason.
+
+mod common;
+use common::repo;
+use rtcnc_kernel::{Kernel, KernelOptions, MachineConfig};
+
+#[test]
+fn every_shipped_configuration_builds_a_kernel() {
+    let mut names = Vec::new();
+    for entry in std::fs::read_dir(repo().join("configs")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "toml") {
+            let config =
+                MachineConfig::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            let kernel = Kernel::build(&config, KernelOptions::default())
+                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            assert!(kernel.self_test.checks.iter().any(|(c, _)| *c == "ready"));
+            names.push(path.file_name().unwrap().to_string_lossy().into_owned());
+        }
+    }
+    names.sort();
+    assert_eq!(
+        names,
+        [
+            "bench-xyz.toml",
+            "experiment-1.toml",
+            "sim-gantry-12.toml",
+            "sim-lathe.toml",
+            "sim-mill.toml"
+        ]
+    );
+}
+
+fn mill_text() -> String {
+    std::fs::read_to_string(repo().join("configs/sim-mill.toml")).unwrap()
+}
+
+fn refusal(text: &str) -> String {
+    match MachineConfig::parse(text, "test.toml") {
+        Ok(_) => panic!("accepted"),
+        Err(e) => e.to_string(),
+    }
+}
+
+#[test]
+fn a_zero_limit_is_refused_naming_the_key() {
+    let text = mill_text().replacen("max_velocity = 100.0", "max_velocity = 0.0", 1);
+    assert_eq!(
+        refusal(&text),
+        "axes.x.max_velocity: must be greater than zero"
+    );
+}
+
+#[test]
+fn an_unknown_key_is_refused_naming_it() {
+    let text = mill_text().replacen(
+        "max_jerk = 50000.0",
+        "max_jerk = 50000.0\nmax_jerks = 1.0",
+        1,
+    );
+    let e = refusal(&text);
+    assert!(e.contains("unknown field `max_jerks`"), "{e}");
+    assert!(e.starts_with("test.toml:"), "{e}");
+}
+
+#[test]
+fn ethercat_is_refused_as_not_available() {
+    let text = mill_text().replace("kind = \"sim\"", "kind = \"ethercat\"");
+    assert_eq!(
+        refusal(&text),
+        "fieldbus.kind: \"ethercat\" is not available yet in this build; use \"sim\""
+    );
+}
+
+#[test]
+fn an_axis_naming_a_missing_joint_is_refused() {
+    let text = mill_text().replacen("joints = [\"Y\"]", "joints = [\"Q\"]", 1);
+    assert_eq!(refusal(&text), "axes.y.joints: no joint named \"Q\"");
+}
+
+#[test]
+fn interpolation_must_run_at_the_servo_period() {
+    let text = mill_text().replace(
+        "interpolation = { period = \"1ms\", priority = 124 }",
+        "interpolation = { period = \"2ms\", priority = 124 }",
+    );
+    assert!(refusal(&text).starts_with("tasks.interpolation.period: "));
+}
+
+#[test]
+fn a_servo_gain_is_checked_by_the_servo_library_and_named_in_full() {
+    let text = mill_text().replacen(
+        "acceleration_ff = 0.001",
+        "acceleration_ff = 0.001, p = -1.0",
+        1,
+    );
+    assert_eq!(
+        refusal(&text),
+        "joints[0].servo.gains.p: must not be negative"
+    );
+}
+
+#[test]
+fn a_simulated_drive_value_is_named_in_full() {
+    let text = mill_text().replacen(
+        "sim = { drive = \"velocity\", ",
+        "sim = { drive = \"velocity\", units_per_revolution = -5.0, ",
+        1,
+    );
+    assert_eq!(
+        refusal(&text),
+        "joints[0].sim.units_per_revolution: must be greater than zero"
+    );
+}
+
+#[test]
+fn a_100_microsecond_servo_period_is_accepted() {
+    let text = mill_text()
+        .replace(
+            "fieldbus = { period = \"1ms\"",
+            "fieldbus = { period = \"100us\"",
+        )
+        .replace(
+            "interpolation = { period = \"1ms\"",
+            "interpolation = { period = \"100us\"",
+        );
+    let mut config = MachineConfig::parse(&text, "t").unwrap();
+    config.base_dir = repo().join("configs");
+    assert_eq!(config.servo_period(), std::time::Duration::from_micros(100));
+    Kernel::build(&config, KernelOptions::default()).unwrap();
+}
