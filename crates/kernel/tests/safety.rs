@@ -1,0 +1,200 @@
+//! Safety on the whole machine, in virtual time: e-stop, hard limit, following error, an
+//! error in a block ahead, machine functions waiting for the logic.
+
+mod common;
+use common::*;
+use rtcnc_fieldbus::sim::InjectedFault;
+use rtcnc_kernel::{Command, FaultCode, MachineState, TaskName, Urgent};
+
+const LONG_LINE: &str = "G21 G90 G61.1\nG1 X200 F3000\nM2\n";
+
+/// Runs the long line, optionally pressing e-stop on the urgent channel after `at` cycles.
+fn long_line(estop_after: Option<u64>) -> (Machine, u64) {
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::new(&cfg, Some(program(LONG_LINE, "long-line.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    let mut put_period = 0;
+    match estop_after {
+        Some(n) => {
+            m.cycles(n);
+            put_period = m.sim.now().as_millis() as u64;
+            assert!(m.sim.handle().urgent(Urgent::EStop));
+            m.cycles(600);
+        }
+        None => m.cycles(n_cycles_for_reference()),
+    }
+    (m, put_period)
+}
+
+fn n_cycles_for_reference() -> u64 {
+    1100
+}
+
+#[test]
+fn estop_starts_the_stop_one_cycle_after_the_command_is_read_then_disables_the_drives() {
+    let (reference, _) = long_line(None);
+    let (stopped, put) = long_line(Some(500));
+    // The e-stop was put into the urgent channel between periods `put - 1` and `put`. The
+    // command parser reads it in period `put` (it runs after
+    // interpolation within a period) and raises the stop; interpolation in period 501
+    // computes the first set-point of the quick stop. Set-points carry the cycle number of
+    // the interpolation run that made them (period p makes cycle p + 1).
+    let first_difference = reference
+        .samples
+        .iter()
+        .zip(&stopped.samples)
+        .find(|(a, b)| a.setpoint[0] != b.setpoint[0])
+        .map(|(_, b)| b.cycle)
+        .expect("the stop changes the set-points");
+    let received = stopped
+        .faults
+        .iter()
+        .find(|f| f.code == FaultCode::EStop)
+        .expect("e-stop fault");
+    assert_eq!(received.task, TaskName::CommandParsing);
+    let received_period = received.time_ns / 1_000_000;
+    assert_eq!(received_period, put);
+    assert_eq!(first_difference, received_period + 2);
+    // It is a stop: the speed falls monotonically to zero, and the drives are disabled.
+    let v: Vec<f64> = stopped
+        .samples
+        .windows(2)
+        .filter(|w| w[1].cycle > first_difference)
+        .map(|w| (w[1].setpoint[0] - w[0].setpoint[0]) / 0.001)
+        .collect();
+    assert!(v.windows(2).all(|w| w[1] <= w[0] + 1e-9));
+    assert_eq!(*v.last().unwrap(), 0.0);
+    let status = stopped.status();
+    assert_eq!(status.state, MachineState::EStop);
+    assert!(!status.ready);
+    stopped.sim.handle().with_machine(|machine| {
+        assert!((0..3).all(|j| machine.true_state(j).unwrap().1.abs() < 1e-3))
+    });
+}
+
+#[test]
+fn a_hard_limit_switch_stops_the_machine_with_a_fault_naming_the_joint() {
+    let text = std::fs::read_to_string(repo().join("configs/sim-mill.toml"))
+        .unwrap()
+        .replacen(
+            "positive_limit_switch = 312.0",
+            "positive_limit_switch = 50.0",
+            1,
+        );
+    let mut cfg = rtcnc_kernel::MachineConfig::parse(&text, "limit.toml").unwrap();
+    cfg.base_dir = repo().join("configs");
+    let mut m = Machine::new(&cfg, Some(program(LONG_LINE, "long-line.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(5.0, |s| s.state == MachineState::Fault));
+    m.cycles(500);
+    let f = m
+        .faults
+        .iter()
+        .find(|f| f.code == FaultCode::HardLimit)
+        .expect("hard limit fault");
+    assert_eq!(f.joint, Some(0));
+    assert_eq!(f.task, TaskName::DriveIo);
+    assert!(f.value >= 50.0 && f.value < 50.2, "tripped at {}", f.value);
+    let text = m.sim.handle().describe(f);
+    assert!(
+        text.starts_with("hard limit switch [kernel.hard_limit]"),
+        "{text}"
+    );
+    assert!(text.contains("joint X"), "{text}");
+    // Stopped: the load is at rest past the switch, the drives are off.
+    let status = m.status();
+    assert_eq!(status.state, MachineState::Fault);
+    assert!(!status.ready);
+    m.sim.handle().with_machine(|machine| {
+        let (x, v) = machine.true_state(0).unwrap();
+        assert!(v.abs() < 1e-3 && x > 50.0 && x < 55.0, "x {x} v {v}");
+    });
+}
+
+#[test]
+fn a_following_error_stops_the_machine_with_a_fault_naming_the_joint() {
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::new(
+        &cfg,
+        Some(program(
+            "G21 G90 G61.1\nG1 X100 Y100 F3000\nM2\n",
+            "diag.ngc",
+        )),
+    );
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    m.cycles(800);
+    m.sim.handle().with_machine(|machine| {
+        machine
+            .inject(InjectedFault::EncoderLoss { joint: 1 })
+            .unwrap()
+    });
+    assert!(m.until(1.0, |s| s.state == MachineState::Fault));
+    m.cycles(1000);
+    let f = m
+        .faults
+        .iter()
+        .find(|f| f.code == FaultCode::FollowingError)
+        .expect("following-error fault");
+    assert_eq!(f.joint, Some(1));
+    assert_eq!(f.task, TaskName::PositionControl);
+    assert_eq!(f.line, 2);
+    assert!(m.sim.handle().describe(f).contains("joint Y"));
+    // The drives were quick-stopped: the table stands.
+    m.sim.handle().with_machine(|machine| {
+        assert!((0..3).all(|j| machine.true_state(j).unwrap().1.abs() < 1e-3));
+    });
+    assert!(!m.status().ready);
+}
+
+#[test]
+fn an_error_in_a_block_ahead_stops_the_machine_before_that_block_naming_its_line() {
+    let text = "G21 G90 G61.1\nG1 X10 F3000\nG1 Y10\nG1 X0\nG1 Y0\nG1 X5 Y5 Z-1 Q\nG1 X50\nM2\n";
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::new(&cfg, Some(program(text, "bad-line-6.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    m.cycles(20);
+    // The interpreter is far ahead: the error is already known while line 2 moves.
+    assert!(m.samples.last().unwrap().line == 2);
+    assert!(m.until(5.0, |s| s.state == MachineState::Idle && s.line == 0));
+    let f = m
+        .faults
+        .iter()
+        .find(|f| f.code == FaultCode::ProgramError)
+        .expect("error in program");
+    assert_eq!(f.line, 6);
+    assert_eq!(f.task, TaskName::LookAhead);
+    let text = m.sim.handle().describe(f);
+    assert!(text.starts_with("error in program"), "{text}");
+    assert!(text.contains("line 6"), "{text}");
+    // Lines 2 to 5 ran to their ends; nothing of line 6 moved.
+    assert!(m.samples.iter().all(|s| s.line <= 5));
+    let last = m.samples.last().unwrap();
+    assert_eq!(&last.axes[..3], &[0.0, 0.0, 0.0]);
+    let words = m.sim.handle().error_text().unwrap();
+    assert!(words.contains(":6:"), "{words}");
+}
+
+#[test]
+fn a_tool_change_waits_for_the_machine_logic_before_motion_continues() {
+    // The simulated changer takes 1.5 s (configs/sim-mill.toml).
+    let text = "G21 G90 G61.1\nG1 X10 F3000\nT2 M6\nG1 X20\nM2\n";
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::new(&cfg, Some(program(text, "tool.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(10.0, |s| s.program_ended && s.state == MachineState::Idle));
+    let arrived = m.samples.iter().position(|s| s.axes[0] == 10.0).unwrap();
+    let left = m.samples.iter().position(|s| s.axes[0] > 10.0).unwrap();
+    let waited = (left - arrived) as f64 * 0.001;
+    assert!((1.5..1.6).contains(&waited), "waited {waited} s");
+    assert_eq!(m.status().tool, 2);
+    assert!(
+        m.faults.iter().all(|f| f.code == FaultCode::CommandRefused),
+        "{:?}",
+        m.faults
+    );
+}
