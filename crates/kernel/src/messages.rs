@@ -75,6 +75,8 @@ pub enum Mode {
 }
 
 /// Commands of the normal channel.
+// Plain data with a fixed size (no Box): the MDI line is carried inline.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Command {
     /// Leave e-stop or fault: reset the faults, enable the drives.

@@ -621,7 +621,10 @@ impl MotionCore {
             }
             Command::JointMove { joint, position } => {
                 let j = usize::from(joint);
-                if idle
+                // Independent joints move beside whatever the axes do (the seeds' 12-drive
+                // test: independent moves during three-axis interpolation).
+                if self.operational()
+                    && self.homing.is_none()
                     && j < self.joint_count
                     && self.joints[j].axis.is_none()
                     && position.is_finite()

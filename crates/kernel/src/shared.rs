@@ -18,6 +18,8 @@ pub struct Tagged<T> {
 }
 
 /// What the command parser asks of the interpreter.
+// Plain data with a fixed size (no Box): the MDI line is carried inline.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum InterpreterRequest {
     /// Run the loaded program.

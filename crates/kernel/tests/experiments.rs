@@ -128,3 +128,47 @@ fn experiment_1_as_a_program_takes_ruckigs_time() {
         mv.peak
     );
 }
+
+/// Experiment 2: twelve drives at once. X, Y and Z interpolate together (X driving X0..X3,
+/// Y driving Y0..Y3) while the three independent joints make their own moves; after homing
+/// has squared the gantry, its joints stay within 1 µm of each other all the way.
+#[test]
+fn experiment_2_twelve_drives_gantry_joints_stay_within_1_um() {
+    let cfg = config("sim-gantry-12.toml");
+    let mut m = Machine::new(&cfg, Some(repo().join("examples/gantry-12.ngc")));
+    m.power_on();
+    m.command(Command::HomeAll);
+    m.cycles(5);
+    assert!(m.until(300.0, |s| s.state == MachineState::Idle));
+    m.samples.clear();
+    m.command(Command::Start { from_line: 0 });
+    m.cycles(100);
+    for (joint, position) in [(9u8, 40.0), (10, -25.0), (11, 60.0)] {
+        m.command(Command::JointMove { joint, position });
+        m.cycles(1);
+    }
+    assert!(m.until(60.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    let range = |j: usize| {
+        let (lo, hi) = m.samples.iter().fold((f64::MAX, f64::MIN), |(lo, hi), s| {
+            (lo.min(s.feedback[j]), hi.max(s.feedback[j]))
+        });
+        hi - lo
+    };
+    for j in 0..12 {
+        assert!(range(j) > 5.0, "joint {j} moved {} mm", range(j));
+    }
+    let last = m.samples.last().unwrap();
+    assert_eq!(&last.setpoint[9..12], &[40.0, -25.0, 60.0]);
+    for s in &m.samples {
+        for group in [&s.feedback[0..4], &s.feedback[4..8]] {
+            let hi = group.iter().fold(f64::MIN, |a, &b| a.max(b));
+            let lo = group.iter().fold(f64::MAX, |a, &b| a.min(b));
+            assert!(
+                hi - lo <= 1e-3,
+                "cycle {}: gantry joints {group:?}",
+                s.cycle
+            );
+        }
+    }
+}

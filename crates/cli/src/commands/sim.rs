@@ -148,7 +148,6 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         bar.finish_and_clear();
     }
     let wall_s = wall.elapsed().as_secs_f64();
-    drop(sink);
     if let Some(e) = io_error {
         return Err(e).context("writing the CSV files");
     }

@@ -1,0 +1,183 @@
+//! Modes and operator commands on the whole machine, in virtual time.
+
+mod common;
+use common::*;
+use rtcnc_kernel::{Command, FixedText, MachineState, Urgent};
+
+#[test]
+fn a_program_ends_exactly_at_its_programmed_end_point() {
+    let text =
+        "G21 G90 G61.1\nG0 X3 Y4 Z-1\nG1 X12.5 Y7.25 F1500\nG2 X22.5 Y7.25 I5 J0\nG1 Z-2.125\nM2\n";
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::new(&cfg, Some(program(text, "end.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(10.0, |s| s.program_ended && s.state == MachineState::Idle));
+    m.cycles(200);
+    let last = m.samples.last().unwrap();
+    assert_eq!(&last.axes[..3], &[22.5, 7.25, -2.125]);
+    assert_eq!(&last.setpoint[..3], &[22.5, 7.25, -2.125]);
+    for j in 0..3 {
+        assert!(
+            (last.feedback[j] - last.setpoint[j]).abs() < 1e-4,
+            "joint {j}"
+        );
+    }
+    // The arc passed through its top, 5 mm above the chord.
+    let top = m.samples.iter().map(|s| s.axes[1]).fold(f64::MIN, f64::max);
+    assert!((top - 12.25).abs() < 1e-3, "top {top}");
+}
+
+#[test]
+fn feed_hold_stops_on_the_path_and_resume_continues_to_the_end() {
+    let text = "G21 G90 G61.1\nG1 X100 Y50 F3000\nM2\n";
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::new(&cfg, Some(program(text, "hold.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    m.cycles(600);
+    assert!(m.sim.handle().urgent(Urgent::FeedHold));
+    assert!(m.until(2.0, |s| s.state == MachineState::Held
+        && s.path_speed == 0.0));
+    let held_at = m.samples.last().unwrap().axes;
+    m.cycles(500);
+    // Held: not a micrometre of motion, and still on the line (y = x / 2).
+    assert_eq!(m.samples.last().unwrap().axes, held_at);
+    assert!((held_at[1] - held_at[0] / 2.0).abs() < 1e-9);
+    assert!(held_at[0] > 20.0 && held_at[0] < 100.0);
+    assert!(m.sim.handle().urgent(Urgent::Resume));
+    assert!(m.until(10.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert_eq!(&m.samples.last().unwrap().axes[..3], &[100.0, 50.0, 0.0]);
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+}
+
+#[test]
+fn mdi_lines_move_the_machine() {
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::new(&cfg, None);
+    m.power_on();
+    m.command(Command::Mdi(FixedText::new("G21 G90 G0 X5 Y6").unwrap()));
+    m.cycles(5);
+    assert!(m.until(5.0, |s| s.state == MachineState::Idle));
+    m.command(Command::Mdi(FixedText::new("G91 G1 Z-1.5 F600").unwrap()));
+    m.cycles(5);
+    assert!(m.until(5.0, |s| s.state == MachineState::Idle));
+    assert_eq!(&m.status().axes[..3], &[5.0, 6.0, -1.5]);
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+}
+
+#[test]
+fn jog_increments_and_the_handwheel_move_the_axes_by_exact_amounts() {
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::new(&cfg, None);
+    m.power_on();
+    m.command(Command::JogIncrement {
+        axis: 0,
+        distance: 10.0,
+    });
+    m.cycles(5);
+    assert!(m.until(5.0, |s| s.state == MachineState::Idle));
+    assert_eq!(m.status().axes[0], 10.0);
+    // Continuous jog at 20 mm/s, stopped 300 ms later: the stop ramp mirrors the start
+    // ramp, so the axis travels exactly 20 mm/s × 0.3 s.
+    m.command(Command::JogContinuous {
+        axis: 1,
+        velocity: 20.0,
+    });
+    m.cycles(300);
+    m.command(Command::JogStop { axis: 1 });
+    m.cycles(5);
+    assert!(m.until(5.0, |s| s.state == MachineState::Idle));
+    let y = m.status().axes[1];
+    assert!((y - 6.0).abs() < 1e-9, "y {y}");
+    // Handwheel on Z at ×10: 0.01 mm per count; 250 counts down.
+    m.command(Command::Handwheel {
+        axis: Some(2),
+        scale: 10.0,
+    });
+    m.cycles(5);
+    m.sim
+        .handle()
+        .with_machine(|machine| machine.turn_handwheel(-250));
+    m.cycles(5);
+    assert!(m.until(5.0, |s| s.state == MachineState::Idle));
+    assert!(
+        (m.status().axes[2] - -2.5).abs() < 1e-12,
+        "z {}",
+        m.status().axes[2]
+    );
+    // A program afterwards starts from where the jogs left the machine.
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+}
+
+#[test]
+fn homing_finds_switch_and_index_and_ends_at_the_home_positions() {
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::new(&cfg, None);
+    m.power_on();
+    m.command(Command::HomeAll);
+    m.cycles(5);
+    assert!(m.until(120.0, |s| s.state == MachineState::Idle));
+    assert_eq!(m.status().homed, 0b111);
+    assert_eq!(&m.status().axes[..3], &[0.0, 0.0, 0.0]);
+    // The index pulses are at multiples of 5 mm of the raw (motor) position and the
+    // latched one is declared 305 / 205 / 10: the raw frame agrees with the machine one.
+    m.sim.handle().with_machine(|machine| {
+        for j in 0..3 {
+            let (x, _) = machine.true_state(j).unwrap();
+            assert!(x.abs() < 1e-3, "joint {j} at {x}");
+        }
+    });
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+}
+
+#[test]
+fn gantry_joints_are_homed_together_and_squared() {
+    let cfg = config("sim-gantry-12.toml");
+    let mut m = Machine::new(&cfg, None);
+    m.power_on();
+    let true_x = |m: &Machine| -> Vec<f64> {
+        m.sim
+            .handle()
+            .with_machine(|machine| (0..8).map(|j| machine.true_state(j).unwrap().0).collect())
+    };
+    // Racked at power-up: X1 stands 0.3 mm ahead of X0, Y2 0.2 mm ahead of Y0.
+    let before = true_x(&m);
+    assert!((before[1] - before[0] - 0.3).abs() < 1e-6);
+    m.command(Command::HomeAll);
+    m.cycles(5);
+    assert!(m.until(300.0, |s| s.state == MachineState::Idle));
+    assert_eq!(m.status().homed, (1 << 12) - 1);
+    let after = true_x(&m);
+    for (j, x) in after.iter().enumerate() {
+        assert!(x.abs() < 1e-3, "joint {j} at {x}");
+    }
+    for g in [&after[0..4], &after[4..8]] {
+        let spread =
+            g.iter().fold(f64::MIN, |a, &b| a.max(b)) - g.iter().fold(f64::MAX, |a, &b| a.min(b));
+        // Within 1 µm of each other (the encoder count is 38 nm).
+        assert!(spread < 1e-3, "gantry joints {g:?}");
+    }
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+}
+
+#[test]
+fn two_runs_give_byte_identical_traces() {
+    let run = || {
+        let cfg = config("sim-mill.toml");
+        let mut m = Machine::new(&cfg, Some(repo().join("examples/bracket.ngc")));
+        m.power_on();
+        m.command(Command::Start { from_line: 0 });
+        m.cycles(3000);
+        let samples = m.samples.len();
+        (
+            m.sim.into_runner().recording().trace().to_chrome_json(),
+            samples,
+        )
+    };
+    let (a, n) = run();
+    let (b, _) = run();
+    assert!(n > 2900);
+    assert!(a.len() > 100_000);
+    assert!(a == b, "traces differ");
+}
