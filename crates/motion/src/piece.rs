@@ -69,12 +69,14 @@ pub(crate) struct Piece {
     pub j_brake: f64,
     /// Path length from the start of the program to the start of this piece.
     pub cum_start: f64,
-    /// First valley of the braking curve inside this piece: (local s, speed), where a
+    /// First valley of the braking curve inside this piece: (local s, speed, deceleration
+    /// and jerk of the braking before it), where a
     /// braking section ends on a lower limit; the controller must arrive there with its
     /// deceleration released.
-    pub valley_in: Option<(f64, f64)>,
-    /// The next valley after this piece: (path length from the program start, speed).
-    pub valley_next: Option<(f64, f64)>,
+    pub valley_in: Option<(f64, f64, f64, f64)>,
+    /// The next valley after this piece: (path length from the program start, speed,
+    /// deceleration, jerk).
+    pub valley_next: Option<(f64, f64, f64, f64)>,
 }
 
 impl Piece {

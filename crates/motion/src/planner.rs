@@ -121,6 +121,9 @@ const CONTROL_SHARE: f64 = 0.9999;
 
 /// Share of the stop model's deceleration and jerk the controller plans its stops with.
 const STOP_CHECK_SHARE: f64 = 0.95;
+/// The same for the jerk: the discrete landing on the stop needs more jerk than the
+/// continuous profile it follows.
+const STOP_CHECK_JERK_SHARE: f64 = 0.8;
 
 /// Pieces one move can produce at most (line span, blend, dwell after a flush).
 const PIECES_PER_MOVE: usize = 4;
@@ -150,6 +153,8 @@ pub struct Planner<K: Kinematics> {
     qj_min: f64,
     /// Path length from the program start to the end of the window.
     cum_end: f64,
+    /// The last two path steps (oldest first), for the landing on a stop.
+    ds_hist: [f64; 2],
 }
 
 impl<K: Kinematics> Planner<K> {
@@ -233,6 +238,7 @@ impl<K: Kinematics> Planner<K> {
             qa_min,
             qj_min,
             cum_end: 0.0,
+            ds_hist: [0.0; 2],
         })
     }
 
@@ -453,7 +459,7 @@ impl<K: Kinematics> Planner<K> {
         // Whether the curve at the sample after the current one is braking-determined, and
         // the nearest valley ahead.
         let mut next_braking = true;
-        let mut valley: Option<(f64, f64)> = None;
+        let mut valley: Option<(f64, f64, f64, f64)> = None;
         for i in (0..n).rev() {
             let p = self.q.get_mut(i);
             let is_stop = p.stop_at_end || i + 1 == n;
@@ -495,8 +501,8 @@ impl<K: Kinematics> Planner<K> {
                     let braking_here = wfull < vl;
                     if braking_here && !next_braking && w1 > 0.0 {
                         let sv = h * (k + 1) as f64;
-                        p.valley_in = Some((sv, w1));
-                        valley = Some((p.cum_start + sv, w1));
+                        p.valley_in = Some((sv, w1, acc, p.j_brake));
+                        valley = Some((p.cum_start + sv, w1, acc, p.j_brake));
                     }
                     next_braking = braking_here;
                     // The stop model of the controller (constant deceleration, jerk-limited
@@ -505,6 +511,11 @@ impl<K: Kinematics> Planner<K> {
                     if w1 <= v_jerk {
                         run_a = run_a.min(acc);
                         run_j = run_j.min(p.j_brake);
+                    } else if w1 > 2.0 * v_jerk {
+                        // Far from the stop: the braking curve governs; keeping the value
+                        // local also keeps the backward pass short when moves are appended.
+                        run_a = f64::INFINITY;
+                        run_j = f64::INFINITY;
                     }
                 }
             }
@@ -556,7 +567,15 @@ impl<K: Kinematics> Planner<K> {
             StopKind::Quick => (a * BRAKE_SHARE_STRAIGHT, j * BRAKE_SHARE_STRAIGHT),
             _ => (a, j),
         };
-        let (d, _) = stop(self.v, self.a.max(-a), a, j);
+        // The hold point is where the controller's own (softer) stop check ends, plus one
+        // period's travel of slack for the discrete landing.
+        let (d, _) = stop(
+            self.v,
+            self.a.max(-a),
+            STOP_CHECK_SHARE * a,
+            STOP_CHECK_JERK_SHARE * j,
+        );
+        let d = d + self.v * self.period;
         self.hold = Some(Hold {
             cum: self.s + d,
             a,
@@ -573,6 +592,7 @@ impl<K: Kinematics> Planner<K> {
         let x = if state == MotionState::Moving || (state == MotionState::Holding && self.v > 0.0) {
             self.control()
         } else {
+            self.ds_hist = [self.ds_hist[1], 0.0];
             self.hist[0]
         };
         self.hist = [x, self.hist[0], self.hist[1]];
@@ -775,12 +795,7 @@ impl<K: Kinematics> Planner<K> {
                 real_stop = false;
             }
         }
-        let jm = CONTROL_SHARE
-            * if head.straight {
-                head.j_brake / BRAKE_SHARE_STRAIGHT
-            } else {
-                head.j_brake / BRAKE_SHARE_CURVED
-            };
+        let jm = CONTROL_SHARE * head_jerk(&head, &self.lim, quick);
         let (v, a) = (self.v, self.a);
         // Exact bounds of the path acceleration and jerk at the current point: every axis's
         // |T a + K v²| ≤ A and |T j + 3 K v a + K' v³| ≤ J.
@@ -816,14 +831,15 @@ impl<K: Kinematics> Planner<K> {
         let (a_lo, a_hi) = (a_lo.max(-a_full), a_hi.min(a_full));
         let (j_lo, j_hi) = (j_lo.max(-jm), j_hi.min(jm));
         let jr = 0.5 * (-j_lo).max(0.1 * jm);
+        let jr_down = 0.8 * (-j_lo).max(0.1 * jm);
         // Distance to the next valley of the braking curve and its speed.
         let valley_dist = match head.valley_in {
-            Some((sv, vm)) if sv > self.s => Some((sv - self.s, vm)),
+            Some((sv, vm, av, jv)) if sv > self.s => Some((sv - self.s, vm, av, jv)),
             _ => head
                 .valley_next
-                .map(|(c, vm)| (c - head.cum_start - self.s, vm)),
+                .map(|(c, vm, av, jv)| (c - head.cum_start - self.s, vm, av, jv)),
         }
-        .filter(|(d, _)| *d > 0.0);
+        .filter(|(d, ..)| *d > 0.0);
         // 0: safe; 1: violates the stop (distance or undershoot); 2: violates the braking curve.
         let check = |j: f64| -> u8 {
             let (ds, v1, a1) = advance(0.0, v, a, j, t);
@@ -846,7 +862,12 @@ impl<K: Kinematics> Planner<K> {
             }
             // The check uses a softer stop than the fallback follows, so that the fallback
             // regains the margin when the per-sample limits slowed the braking down.
-            let (dst, _) = stop(v1, a1, STOP_CHECK_SHARE * a_stop, STOP_CHECK_SHARE * j_stop);
+            let (dst, _) = stop(
+                v1,
+                a1,
+                STOP_CHECK_SHARE * a_stop,
+                STOP_CHECK_JERK_SHARE * j_stop,
+            );
             if ds + dst > rem * (1.0 + 1e-12) + 1e-12 {
                 return 1;
             }
@@ -855,24 +876,23 @@ impl<K: Kinematics> Planner<K> {
             }
             // The next valley of the braking curve: arrive there with the deceleration
             // released (the speed profile is the valley speed plus a stop profile).
-            if let Some((dv, vm)) = valley_dist {
+            if let Some((dv, vm, av, jv)) = valley_dist {
                 if v1 > vm {
                     let rel = v1 - vm;
-                    if a1 < 0.0 && a1 * a1 > 2.0 * j_stop * rel * (1.0 + 1e-9) + 1e-12 {
+                    if a1 < 0.0 && a1 * a1 > 2.0 * jv * rel * (1.0 + 1e-9) + 1e-12 {
                         return 2;
                     }
-                    let (dst, tst) = stop(
-                        rel,
-                        a1,
-                        STOP_CHECK_SHARE * a_stop,
-                        STOP_CHECK_SHARE * j_stop,
-                    );
+                    let (dst, tst) =
+                        stop(rel, a1, STOP_CHECK_SHARE * av, STOP_CHECK_JERK_SHARE * jv);
                     if ds + dst + vm * tst > dv {
                         return 2;
                     }
                 }
             }
             let (_, _, jb) = self.w_ahead(ds);
+            // The jerk left for ramping the acceleration down once the curvature terms
+            // (3·K·v·a + K'·v³) took their share.
+            let jb = jb.min(jr_down);
             // Against the lowest point of the curve over this period, so that a short piece
             // with a low limit is not jumped over.
             if v1 > self.w_min_between(0.0, ds) * (1.0 + 1e-12) + 1e-12 {
@@ -899,14 +919,32 @@ impl<K: Kinematics> Planner<K> {
         // Landing on a stop: the remaining stop takes less than a period.
         let (dst0, tst0) = stop(v, a, a_stop, j_stop);
         let tiny = 0.3 * if quick { self.qj_min } else { self.j_min } * t * t * t;
-        let land = rem >= 0.0
-            && ((tst0 <= t && (rem - dst0).abs() <= tiny.max(1e-12))
-                || (v.abs() <= 1e-9 && a.abs() <= 1e-6 && rem <= tiny));
+        // Landing: when the stop is a few periods away, plan the last steps exactly (the
+        // smoothest sequence of steps that ends at the stop and stays there).
+        let landing = if rem >= 0.0 && tst0 <= 5.0 * t && dst0 <= rem * 1.5 + tiny {
+            let jl = j_stop.min(-j_lo).min(j_hi).max(0.0);
+            let al = a_stop.min(-a_lo).min(a_hi).max(0.0);
+            let n0 = ((tst0 / t).ceil() as usize).clamp(1, LAND_MAX);
+            (n0..=LAND_MAX)
+                .find_map(|n| land_steps(self.ds_hist, rem, n, jl * t * t * t, al * t * t))
+        } else {
+            None
+        };
+        if std::env::var("RTCNC_DEBUG").is_ok() && tst0 <= 6.0 * t {
+            eprintln!(
+                "LAND? tst0={tst0} dst0={dst0} rem={rem} hist={:?} landing={landing:?}",
+                self.ds_hist
+            );
+        }
+        let land = landing.is_some_and(|d1| d1 == rem)
+            || (v.abs() <= 1e-9 && a.abs() <= 1e-6 && rem <= tiny && rem >= 0.0);
         let mut emergency = false;
         // Model state at the end of the period, when it is not the constant-jerk one.
         let mut model: Option<(f64, f64)> = None;
         let ds_target = if land {
             rem
+        } else if let Some(d1) = landing {
+            d1
         } else {
             let mut choice = None;
             if safe(j_hi) {
@@ -947,6 +985,15 @@ impl<K: Kinematics> Planner<K> {
                     ds.clamp(0.0, rem.max(0.0))
                 }
                 None => {
+                    if std::env::var("RTCNC_DEBUG").is_ok() {
+                        let lo = j_lo.max((a_lo - a) / t).min(j_hi);
+                        eprintln!(
+                            "FALLBACK v={v} a={a} j_lo={j_lo} j_hi={j_hi} a_lo={a_lo} a_hi={a_hi} check(lo)={} check(0)={} check(hi)={}",
+                            check(lo),
+                            check(0.0),
+                            check(j_hi)
+                        );
+                    }
                     // No constant jerk over the period is safe (a switch of the stop
                     // profile falls inside the period): follow the stop profile exactly.
                     let (ds, v1, a1) = stop_advance(v, a, a_stop, j_stop, t);
@@ -977,6 +1024,10 @@ impl<K: Kinematics> Planner<K> {
         if land && ds == rem {
             self.v = 0.0;
             self.a = 0.0;
+        } else if landing.is_some() {
+            // Speed and acceleration of the step sequence (backward differences).
+            self.v = ds / t;
+            self.a = (ds - self.ds_hist[1]) / (t * t);
         } else if let (Some((v1, a1)), true) = (model, ds == ds_target) {
             self.v = v1;
             self.a = a1;
@@ -990,6 +1041,7 @@ impl<K: Kinematics> Planner<K> {
             self.a = a1;
         }
         // Commit the position.
+        self.ds_hist = [self.ds_hist[1], ds];
         self.s += ds;
         let mut guard = 0;
         while self.q.len > 1 && guard < self.q.cap() {
@@ -1105,6 +1157,99 @@ fn head_accel(p: &Piece, lim: &Lim, quick: bool) -> f64 {
         }
     }
     if am.is_finite() { am } else { 1.0 }
+}
+
+/// Most steps the landing on a stop plans ahead.
+const LAND_MAX: usize = 8;
+
+/// The first of `n` path steps that end exactly `rem` further and at rest, after the steps
+/// `hist` (oldest first): the sequence with the smallest sum of squared third differences
+/// (jerk). None when a third difference exceeds `j_step` (J·T³), a second difference
+/// exceeds `a_step` (A·T²) or a step is negative.
+fn land_steps(hist: [f64; 2], rem: f64, n: usize, j_step: f64, a_step: f64) -> Option<f64> {
+    const M: usize = LAND_MAX + 1;
+    // Steps: hist[0], hist[1], x_1..x_n, 0, 0. Third differences of positions are second
+    // differences of steps: d_m = D[m] - 2 D[m-1] + D[m-2], m = 2..n+3.
+    let len = n + 4;
+    let rows = n + 2;
+    // d = Mx + c.
+    let mut mm = [[0.0; LAND_MAX]; LAND_MAX + 2];
+    let mut c = [0.0; LAND_MAX + 2];
+    for (r, m) in (2..len).enumerate() {
+        for (off, w) in [(0usize, 1.0), (1, -2.0), (2, 1.0)] {
+            let idx = m - off;
+            if idx < 2 {
+                c[r] += w * hist[idx];
+            } else if idx < 2 + n {
+                mm[r][idx - 2] += w;
+            }
+        }
+    }
+    // KKT system: [2 MᵀM  1; 1ᵀ 0] [x; λ] = [-2 Mᵀc; rem].
+    let mut k = [[0.0; M + 1]; M];
+    for i in 0..n {
+        for j in 0..n {
+            k[i][j] = 2.0 * (0..rows).map(|r| mm[r][i] * mm[r][j]).sum::<f64>();
+        }
+        k[i][n] = 1.0;
+        k[i][n + 1] = -2.0 * (0..rows).map(|r| mm[r][i] * c[r]).sum::<f64>();
+    }
+    for j in 0..n {
+        k[n][j] = 1.0;
+    }
+    k[n][n] = 0.0;
+    k[n][n + 1] = rem;
+    // Gaussian elimination with partial pivoting on the (n+1) x (n+2) matrix.
+    let sz = n + 1;
+    for col in 0..sz {
+        let piv = (col..sz).max_by(|a, b| k[*a][col].abs().total_cmp(&k[*b][col].abs()))?;
+        if k[piv][col].abs() < 1e-300 {
+            return None;
+        }
+        k.swap(col, piv);
+        for r in 0..sz {
+            if r != col {
+                let f = k[r][col] / k[col][col];
+                for cc in col..=sz {
+                    k[r][cc] -= f * k[col][cc];
+                }
+            }
+        }
+    }
+    let mut x = [0.0; LAND_MAX];
+    for i in 0..n {
+        x[i] = k[i][sz] / k[i][i];
+    }
+    if x[..n].iter().any(|v| !(*v >= 0.0)) {
+        return None;
+    }
+    let mut d = [0.0; LAND_MAX + 4];
+    d[0] = hist[0];
+    d[1] = hist[1];
+    d[2..2 + n].copy_from_slice(&x[..n]);
+    for m in 2..len {
+        if (d[m] - 2.0 * d[m - 1] + d[m - 2]).abs() > j_step || (d[m] - d[m - 1]).abs() > a_step {
+            return None;
+        }
+    }
+    Some(if n == 1 { rem } else { x[0] })
+}
+
+/// Largest tangential jerk on a piece (axis jerk limits projected on the tangent).
+fn head_jerk(p: &Piece, lim: &Lim, quick: bool) -> f64 {
+    let mut jm = f64::INFINITY;
+    for k in 0..=p.ns {
+        for i in 0..AXES {
+            if lim.present[i] {
+                let ti = p.smp[k].t[i].abs();
+                let ji = if quick { lim.qj[i] } else { lim.j[i] };
+                if ti > 1e-12 {
+                    jm = jm.min(ji / ti);
+                }
+            }
+        }
+    }
+    if jm.is_finite() { jm } else { 1.0 }
 }
 
 /// Jerk of the fastest stop: brake with -J until the speed left equals what releasing the
