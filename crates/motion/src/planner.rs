@@ -7,7 +7,7 @@ use crate::error::MotionError;
 use crate::input::Move;
 use crate::kinematics::Kinematics;
 use crate::limits::{Lim, MachineLimits};
-use crate::piece::{BRAKE_SHARE_CURVED, BRAKE_SHARE_STRAIGHT, JERK_SHARE_JUMP, Piece};
+use crate::piece::{BRAKE_SHARE_STRAIGHT, JERK_SHARE_JUMP, Piece};
 use crate::scurve::{advance, stop, stop_advance};
 
 /// What the interpolator is doing.
