@@ -20,7 +20,64 @@ fn main() {
         merge_tolerance: 0.0,
     };
     let mut e = [0.0; AXES];
-    if which == "arc" {
+    if which == "case3" {
+        let pt = |x: f64, y: f64| {
+            let mut e = [0.0; AXES];
+            e[0] = x;
+            e[1] = y;
+            e
+        };
+        let p3: f64 = std::env::var("P3")
+            .ok()
+            .and_then(|x| x.parse().ok())
+            .unwrap_or(0.001);
+        let f3: f64 = std::env::var("F3")
+            .ok()
+            .and_then(|x| x.parse().ok())
+            .unwrap_or(5.0);
+        pl.push(&Move::line(
+            pt(-12.169652098472351, 17.75586651294959),
+            5.0,
+            PathMode::ExactStop,
+            1,
+        ))
+        .unwrap();
+        pl.push(&Move::line(
+            pt(0.0, 7.2583090811502835),
+            141.60641655360988,
+            PathMode::Blend {
+                tolerance: p3,
+                merge_tolerance: 0.0,
+            },
+            2,
+        ))
+        .unwrap();
+        pl.push(&Move::line(
+            pt(15.105943779691847, 6.863001365966919),
+            f3,
+            PathMode::ExactStop,
+            3,
+        ))
+        .unwrap();
+    } else if which == "arc2" {
+        let r: f64 = 0.38337396818471536;
+        let (cx, cy) = (0.0, r);
+        let a0 = (0.0 - cy as f64).atan2(0.0 - cx);
+        let a1 = a0 + 4.89908394343943;
+        let mut end = [0.0; AXES];
+        end[0] = cx + r * a1.cos();
+        end[1] = cy + r * a1.sin();
+        pl.push(&Move::arc(
+            end,
+            [cx, cy, 0.0],
+            [0.0, 0.0, 1.0],
+            0,
+            68.29212730038314,
+            PathMode::ExactStop,
+            1,
+        ))
+        .unwrap();
+    } else if which == "arc" {
         e[0] = 5.0;
         pl = Planner::new(
             &machine,
@@ -60,7 +117,7 @@ fn main() {
         .ok()
         .and_then(|x| x.parse().ok())
         .unwrap_or(usize::MAX);
-    for k in 0..3000 {
+    for k in 0..20000 {
         if k == 150 && std::env::var("FO").is_ok() {
             pl.set_feed_override(0.5);
         }

@@ -155,6 +155,11 @@ pub struct Planner<K: Kinematics> {
     cum_end: f64,
     /// The last two path steps (oldest first), for the landing on a stop.
     ds_hist: [f64; 2],
+    /// Steps left in the landing on a stop in progress.
+    land_n: Option<usize>,
+    /// Diagnostic trace of the speed controller on stderr (`RTCNC_MOTION_TRACE` set when
+    /// the planner is built); never enable on a real-time thread.
+    trace: bool,
 }
 
 impl<K: Kinematics> Planner<K> {
@@ -239,6 +244,8 @@ impl<K: Kinematics> Planner<K> {
             qj_min,
             cum_end: 0.0,
             ds_hist: [0.0; 2],
+            land_n: None,
+            trace: std::env::var_os("RTCNC_MOTION_TRACE").is_some(),
         })
     }
 
@@ -460,10 +467,23 @@ impl<K: Kinematics> Planner<K> {
         // the nearest valley ahead.
         let mut next_braking = true;
         let mut valley: Option<(f64, f64, f64, f64)> = None;
+        let mut stop_ahead = (f64::INFINITY, 0.0, 0.0);
         for i in (0..n).rev() {
             let p = self.q.get_mut(i);
             let is_stop = p.stop_at_end || i + 1 == n;
             if is_stop {
+                // Braking into the stop: the deceleration of its last sub-interval at rest.
+                let ns_last = p.ns;
+                let a_end = if p.len > 0.0 {
+                    p.decel_available(ns_last, 0.0, &lim).min(p.decel_available(
+                        ns_last.saturating_sub(1),
+                        0.0,
+                        &lim,
+                    ))
+                } else {
+                    0.0
+                };
+                stop_ahead = (p.cum_start + p.len, a_end, p.j_brake);
                 next_w = 0.0;
                 run_a = f64::INFINITY;
                 run_j = f64::INFINITY;
@@ -475,6 +495,7 @@ impl<K: Kinematics> Planner<K> {
             let ns = p.ns;
             p.valley_next = valley;
             p.valley_in = None;
+            p.stop_ahead = stop_ahead;
             p.w[ns] = next_w.min(p.vlc(ns, fo, ro));
             if p.len <= 0.0 {
                 for k in 0..ns {
@@ -684,7 +705,8 @@ impl<K: Kinematics> Planner<K> {
     /// Whether the speed controller, from (`v1`, `a1`) at distance `d1` ahead, can follow the
     /// braking curve: ramps the acceleration with jerk `jb` towards the curve's slope where
     /// it is and checks the speed against the curve at the end of each chunk.
-    fn join_ok(&self, d1: f64, v1: f64, a1: f64, jb: f64, a_full: f64, t: f64) -> bool {
+    #[allow(clippy::too_many_arguments)]
+    fn join_ok(&self, d1: f64, v1: f64, a1: f64, jb: f64, a_full: f64, t: f64, rem: f64) -> bool {
         let horizon = (a1.max(0.0) + a_full) / jb + 2.0 * t;
         let dt = (horizon / 12.0).max(0.5 * t);
         let (mut d, mut v, mut a) = (d1, v1, a1);
@@ -692,7 +714,7 @@ impl<K: Kinematics> Planner<K> {
         while time < horizon {
             let (_, aw, _) = self.w_ahead(d);
             let target = -aw;
-            let j = ((target - a) / dt).clamp(-jb, jb);
+            let j = clampf((target - a) / dt, -jb, jb);
             let (dd, v2, a2) = advance(0.0, v, a, j, dt);
             // Discrete-time lag of the ramp (the jerk changes only at period boundaries).
             let lag = 0.5 * (a - target).max(0.0) * t;
@@ -702,7 +724,8 @@ impl<K: Kinematics> Planner<K> {
             v = v2;
             a = a2;
             time += dt;
-            if v <= 0.0 {
+            // Reaching the stop (or the speed zero) ends the check: the stop check covers it.
+            if v <= 0.0 || d >= rem {
                 return true;
             }
             let w = self.w_min_between(d_prev, d);
@@ -713,26 +736,32 @@ impl<K: Kinematics> Planner<K> {
         true
     }
 
-    /// Whether ramping the path acceleration `a1` down to zero with jerk `jr`, from speed
-    /// `v1` at distance `d1` ahead, keeps every axis's acceleration within its limit
-    /// (checked at three points of the ramp).
+    /// Whether ramping the path acceleration `a1` back to zero with jerk `jr`, from speed
+    /// `v1` at distance `d1` ahead, keeps every axis's acceleration within its limit and the
+    /// acceleration within the share the curvature leaves it (checked at five points of the
+    /// ramp): the curvature may rise ahead faster than the acceleration can follow.
     fn accel_ramp_ok(&self, d1: f64, v1: f64, a1: f64, jr: f64, quick: bool) -> bool {
-        let tau = a1 / jr;
+        let tau = a1.abs() / jr;
+        let jerk = -a1.signum() * jr;
         for k in 1..=5 {
-            let (dd, vk, ak) = advance(0.0, v1, a1, -jr, tau * k as f64 / 5.0);
-            let (i, sl) = self.locate(d1 + dd);
-            let (tan, kv, _) = self.q.get(i).geo_at(sl);
+            let (dd, vk, ak) = advance(0.0, v1, a1, jerk, tau * k as f64 / 5.0);
+            let vk = vk.max(0.0);
+            let (i, sl) = self.locate(d1 + dd.max(0.0));
+            let (tan, kv, kp) = self.q.get(i).geo_at(sl);
             for ax in 0..AXES {
                 if !self.lim.present[ax] {
                     continue;
                 }
-                let am = CONTROL_SHARE
-                    * if quick {
-                        self.lim.qa[ax]
-                    } else {
-                        self.lim.a[ax]
-                    };
-                if (tan[ax] * ak + kv[ax] * vk * vk).abs() > am {
+                let (am, jm) = if quick {
+                    (self.lim.qa[ax], self.lim.qj[ax])
+                } else {
+                    (self.lim.a[ax], self.lim.j[ax])
+                };
+                if (tan[ax] * ak + kv[ax] * vk * vk).abs() > CONTROL_SHARE * am {
+                    return false;
+                }
+                let room = (CONTROL_SHARE * jm - (kp[ax] * vk * vk * vk).abs()).max(0.0);
+                if 3.0 * kv[ax].abs() * vk * ak.abs() > 0.5 * room * 1.05 {
                     return false;
                 }
             }
@@ -817,6 +846,16 @@ impl<K: Kinematics> Planner<K> {
             let (x0, x1) = ((-am - ca) / tan[i], (am - ca) / tan[i]);
             a_lo = a_lo.max(x0.min(x1));
             a_hi = a_hi.min(x0.max(x1));
+            // The 3·K·v·a term of the jerk grows with the acceleration: keep it within half
+            // of what the curvature change leaves, so that the acceleration can always be
+            // ramped back with the other half.
+            let k3v = 3.0 * kv[i].abs() * v;
+            if k3v > 0.0 {
+                let room = (jmx - (kp[i] * v * v * v).abs()).max(0.0);
+                let a_cap = 0.5 * room / k3v;
+                a_lo = a_lo.max(-a_cap);
+                a_hi = a_hi.min(a_cap);
+            }
             let (y0, y1) = ((-jmx - cj) / tan[i], (jmx - cj) / tan[i]);
             j_lo = j_lo.max(y0.min(y1));
             j_hi = j_hi.min(y0.max(y1));
@@ -832,6 +871,7 @@ impl<K: Kinematics> Planner<K> {
         let (j_lo, j_hi) = (j_lo.max(-jm), j_hi.min(jm));
         let jr = 0.5 * (-j_lo).max(0.1 * jm);
         let jr_down = 0.8 * (-j_lo).max(0.1 * jm);
+        let jr_up = 0.5 * j_hi.max(0.1 * jm);
         // Distance to the next valley of the braking curve and its speed.
         let valley_dist = match head.valley_in {
             Some((sv, vm, av, jv)) if sv > self.s => Some((sv - self.s, vm, av, jv)),
@@ -841,19 +881,21 @@ impl<K: Kinematics> Planner<K> {
         }
         .filter(|(d, ..)| *d > 0.0);
         // 0: safe; 1: violates the stop (distance or undershoot); 2: violates the braking curve.
-        let check = |j: f64| -> u8 {
+        let check_detail = |j: f64| -> u8 {
             let (ds, v1, a1) = advance(0.0, v, a, j, t);
             if v1 < -1e-9 || ds < 0.0 || ds > rem + 1e-12 || a1 < a_lo.min(-1e-9) - 1e-9 {
                 return 1;
             }
             if a1 > a_hi.max(0.0) + 1e-9 {
-                return 2;
+                return 20;
             }
             // Bringing a positive acceleration back to zero must keep every axis's acceleration
             // (tangential plus centripetal, which grows with speed and turns with the path)
             // within its limit.
-            if a1 > 0.0 && !self.accel_ramp_ok(ds, v1, a1, jr, quick) {
-                return 2;
+            if a1 != 0.0
+                && !self.accel_ramp_ok(ds, v1, a1, if a1 > 0.0 { jr } else { jr_up }, quick)
+            {
+                return 21;
             }
             // A state that decelerates so hard that the speed would reach zero before the
             // deceleration can be released cannot stop smoothly.
@@ -880,12 +922,12 @@ impl<K: Kinematics> Planner<K> {
                 if v1 > vm {
                     let rel = v1 - vm;
                     if a1 < 0.0 && a1 * a1 > 2.0 * jv * rel * (1.0 + 1e-9) + 1e-12 {
-                        return 2;
+                        return 22;
                     }
                     let (dst, tst) =
                         stop(rel, a1, STOP_CHECK_SHARE * av, STOP_CHECK_JERK_SHARE * jv);
                     if ds + dst + vm * tst > dv {
-                        return 2;
+                        return 23;
                     }
                 }
             }
@@ -896,7 +938,7 @@ impl<K: Kinematics> Planner<K> {
             // Against the lowest point of the curve over this period, so that a short piece
             // with a low limit is not jumped over.
             if v1 > self.w_min_between(0.0, ds) * (1.0 + 1e-12) + 1e-12 {
-                return 2;
+                return 24;
             }
             // Bringing the acceleration to zero must not exceed the curve anywhere before.
             if a1 > 0.0 {
@@ -904,15 +946,22 @@ impl<K: Kinematics> Planner<K> {
                 let (dp, mut vp, _) = advance(0.0, v1, a1, -jb, tau);
                 vp += 0.5 * a1 * t;
                 if vp > self.w_min_between(ds, ds + dp) * (1.0 + 1e-12) + 1e-12 {
-                    return 2;
+                    return 25;
                 }
             }
             // Joining the braking curve: simulate the jerk-limited ramp of the acceleration
             // towards the curve's local slope, in chunks, over the time the longest ramp takes.
-            if !self.join_ok(ds, v1, a1, jb, a_full, t) {
-                return 2;
+            if !self.join_ok(ds, v1, a1, jb, a_full, t, rem) {
+                return 26;
             }
             0
+        };
+        let check = |j: f64| -> u8 {
+            match check_detail(j) {
+                0 => 0,
+                1 => 1,
+                _ => 2,
+            }
         };
         let safe = |j: f64| check(j) == 0;
 
@@ -921,21 +970,24 @@ impl<K: Kinematics> Planner<K> {
         let tiny = 0.3 * if quick { self.qj_min } else { self.j_min } * t * t * t;
         // Landing: when the stop is a few periods away, plan the last steps exactly (the
         // smoothest sequence of steps that ends at the stop and stays there).
-        let landing = if rem >= 0.0 && tst0 <= 5.0 * t && dst0 <= rem * 1.5 + tiny {
-            let jl = j_stop.min(-j_lo).min(j_hi).max(0.0);
-            let al = a_stop.min(-a_lo).min(a_hi).max(0.0);
-            let n0 = ((tst0 / t).ceil() as usize).clamp(1, LAND_MAX);
-            (n0..=LAND_MAX)
-                .find_map(|n| land_steps(self.ds_hist, rem, n, jl * t * t * t, al * t * t))
-        } else {
-            None
+        let jl = j_stop.min(-j_lo).min(j_hi).max(0.0);
+        let al = a_stop.min(-a_lo).min(a_hi).max(0.0);
+        let (js, as_) = (jl * t * t * t, al * t * t);
+        // A landing in progress continues with one step fewer (the tail of the smoothest
+        // sequence is the smoothest for what is left).
+        let mut landing = match self.land_n {
+            Some(n) if n >= 2 && rem >= 0.0 => {
+                land_steps(self.ds_hist, rem, n - 1, js, as_).map(|d| (d, n - 1))
+            }
+            _ => None,
         };
-        if std::env::var("RTCNC_DEBUG").is_ok() && tst0 <= 6.0 * t {
-            eprintln!(
-                "LAND? tst0={tst0} dst0={dst0} rem={rem} hist={:?} landing={landing:?}",
-                self.ds_hist
-            );
+        if landing.is_none() && rem >= 0.0 && tst0 <= 5.0 * t && dst0 <= rem * 1.5 + tiny {
+            let n0 = ((tst0 / t).ceil() as usize).clamp(1, LAND_MAX);
+            landing = (n0..=LAND_MAX)
+                .find_map(|n| land_steps(self.ds_hist, rem, n, js, as_).map(|d| (d, n)));
         }
+        let new_land_n = landing.map(|(_, n)| n);
+        let landing = landing.map(|(d, _)| d);
         let land = landing.is_some_and(|d1| d1 == rem)
             || (v.abs() <= 1e-9 && a.abs() <= 1e-6 && rem <= tiny && rem >= 0.0);
         let mut emergency = false;
@@ -971,7 +1023,7 @@ impl<K: Kinematics> Planner<K> {
                 // Behind the braking curve but not the stop: brake as hard as allowed while
                 // the deceleration can still be released before the speed reaches zero.
                 let lo = j_lo.max((a_lo - a) / t).min(j_hi);
-                let bj = brake_jerk(v, a, -a_lo, j_stop, t).clamp(j_lo, j_hi);
+                let bj = clampf(brake_jerk(v, a, -a_lo, j_stop, t), j_lo, j_hi);
                 for cand in [lo, bj] {
                     if choice.is_none() && check(cand) == 2 {
                         choice = Some(cand);
@@ -982,10 +1034,10 @@ impl<K: Kinematics> Planner<K> {
             match choice {
                 Some(j) => {
                     let (ds, _, _) = advance(0.0, v, a, j, t);
-                    ds.clamp(0.0, rem.max(0.0))
+                    clampf(ds, 0.0, rem.max(0.0))
                 }
                 None => {
-                    if std::env::var("RTCNC_DEBUG").is_ok() {
+                    if self.trace {
                         let lo = j_lo.max((a_lo - a) / t).min(j_hi);
                         eprintln!(
                             "FALLBACK v={v} a={a} j_lo={j_lo} j_hi={j_hi} a_lo={a_lo} a_hi={a_hi} check(lo)={} check(0)={} check(hi)={}",
@@ -1002,21 +1054,28 @@ impl<K: Kinematics> Planner<K> {
                         emergency = true;
                     }
                     model = Some((v1, a1));
-                    ds.clamp(0.0, rem.max(0.0))
+                    clampf(ds, 0.0, rem.max(0.0))
                 }
             }
         };
         if emergency {
-            self.stats.emergency_brakes += 1;
-            if std::env::var("RTCNC_DEBUG").is_ok() {
+            if self.trace {
+                eprintln!(
+                    "EMERG detail lo={} 0={} hi={}",
+                    check_detail(j_lo.max((a_lo - a) / t)),
+                    check_detail(0.0),
+                    check_detail(j_hi)
+                );
                 let (dst, tst) = stop(v, a, a_stop, j_stop);
                 eprintln!(
                     "EMERG v={v} a={a} rem={rem} dst={dst} tst={tst} A={a_stop} J={j_stop} jm={jm} afull={a_full}"
                 );
             }
+            self.stats.emergency_brakes += 1;
         }
         let (ds, x) = self.exact(ds_target, rem.max(0.0), quick);
-        if std::env::var("RTCNC_DEBUG").is_ok() {
+        self.land_n = if ds == ds_target { new_land_n } else { None };
+        if self.trace {
             eprintln!(
                 "CTRL v={v:.4} a={a:.2} rem={rem:.6} land={land} model={model:?} ds_t={ds_target:.9} ds={ds:.9} A={a_stop} J={j_stop}"
             );
@@ -1034,8 +1093,11 @@ impl<K: Kinematics> Planner<K> {
         } else {
             // The set-point check may have moved the point: the model follows, within its
             // own jerk bound.
-            let j_eff =
-                (6.0 * (ds - v * t - 0.5 * a * t * t) / (t * t * t)).clamp(-2.0 * jm, 2.0 * jm);
+            let j_eff = clampf(
+                6.0 * (ds - v * t - 0.5 * a * t * t) / (t * t * t),
+                -2.0 * jm,
+                2.0 * jm,
+            );
             let (_, v1, a1) = advance(0.0, v, a, j_eff, t);
             self.v = v1.max(0.0);
             self.a = a1;
@@ -1117,17 +1179,17 @@ impl<K: Kinematics> Planner<K> {
             let delta = if dlo <= dhi {
                 // Aim slightly inside the admissible interval against the curve's bending.
                 let m = 1e-3 * (dhi - dlo);
-                0.0f64.clamp(dlo + m, dhi - m)
+                clampf(0.0, dlo + m, dhi - m)
             } else {
                 0.5 * (dlo + dhi)
             };
-            ds = (ds + delta).clamp(0.0, rem);
+            ds = clampf(ds + delta, 0.0, rem);
         }
         let (k, sl) = self.locate(ds);
         let x = self.q.get(k).pos(sl);
         if !inside(&x) {
             self.stats.limit_violations += 1;
-            if std::env::var("RTCNC_DEBUG").is_ok() {
+            if self.trace {
                 eprintln!(
                     "VIOL period={} ds0={ds0} ds={ds} rem={rem} x={:?} lo={:?} hi={:?}",
                     self.stats.periods,
@@ -1157,6 +1219,21 @@ fn head_accel(p: &Piece, lim: &Lim, quick: bool) -> f64 {
         }
     }
     if am.is_finite() { am } else { 1.0 }
+}
+
+/// `x` limited to [lo, hi]; never panics: an empty range gives its middle, NaN gives `lo`
+/// (or 0 when both bounds are NaN).
+#[inline]
+fn clampf(x: f64, lo: f64, hi: f64) -> f64 {
+    if !(lo <= hi) {
+        let m = 0.5 * (lo + hi);
+        return if m.is_nan() {
+            if lo.is_nan() { 0.0 } else { lo }
+        } else {
+            m
+        };
+    }
+    if x.is_nan() { lo } else { x.max(lo).min(hi) }
 }
 
 /// Most steps the landing on a stop plans ahead.

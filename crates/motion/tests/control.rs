@@ -33,10 +33,11 @@ fn single_line_rest_to_rest_matches_the_closed_form_s_curve() {
         let t_ref = scurve_time(d, f, A, J);
         let t = cycle_time(&tr);
         // Never faster than the time-optimal profile (that would break a limit); slower by
-        // at most the braking margin (1 % of a and j, 5 % in the final stop check) and the
+        // at most the braking margins (1 % of a and j; 5 % of a and 20 % of j in the final
+        // stop check, which leave room for the discrete landing) and the
         // rounding of the end to whole periods.
         assert!(t >= t_ref - T, "{t} < {t_ref}");
-        assert!(t <= t_ref * 1.03 + 2.0 * T, "{t} vs closed form {t_ref}");
+        assert!(t <= t_ref * 1.05 + 2.0 * T, "{t} vs closed form {t_ref}");
         // The cruise speed is the feed.
         let peak = tr.speed.iter().cloned().fold(0.0, f64::max);
         assert!((peak - f).abs() <= 1e-6 * f, "peak {peak}");
@@ -64,7 +65,7 @@ fn diagonal_line_uses_the_projected_axis_limits() {
     let t_ref = scurve_time(30.0 * s2, 120.0, A * s2, J * s2);
     let t = cycle_time(&tr);
     assert!(
-        t >= t_ref - T && t <= t_ref * 1.03 + 2.0 * T,
+        t >= t_ref - T && t <= t_ref * 1.05 + 2.0 * T,
         "{t} vs {t_ref}"
     );
 }
