@@ -62,7 +62,7 @@ fn main() {
     } else if which == "arc2" {
         let r: f64 = 0.38337396818471536;
         let (cx, cy) = (0.0, r);
-        let a0 = (0.0 - cy as f64).atan2(0.0 - cx);
+        let a0 = (0.0 - cy).atan2(0.0 - cx);
         let a1 = a0 + 4.89908394343943;
         let mut end = [0.0; AXES];
         end[0] = cx + r * a1.cos();
