@@ -1,10 +1,17 @@
-//! rtcnc motion library: look-ahead path planning, jerk-limited path speed and interpolation.
-//! [`otg`] holds the time-optimal jerk-limited state-to-state trajectory generator (jog,
-//! homing, independent axes).
+//! rtcnc motion: motion planning and interpolation for CNC machines.
 //!
-//! Feed [`Planner::push`] with [`Move`]s (mm and seconds), call [`Planner::next`] once per
-//! servo period to get joint set-points. No threads, no allocation in [`Planner::next`].
-//! See `docs/motion.md` for the method and its guarantees.
+//! This crate is a layer-2 library of rtcnc: no threads, no I/O, no dependency on the other
+//! rtcnc crates.
+//!
+//! - [`Planner`]: look-ahead path planning (corner blends and smoothing of dense polylines
+//!   within the G64 tolerance, exact stops), jerk-limited path speed under every axis's
+//!   velocity, acceleration and jerk limit, and interpolation: feed it [`Move`]s (mm and
+//!   seconds), call [`Planner::next`] once per servo period to get joint set-points. No
+//!   allocation in [`Planner::next`].
+//! - [`otg`]: the time-optimal jerk-limited state-to-state trajectory generator (jog,
+//!   point-to-point moves).
+//!
+//! See `docs/motion.md` for the methods and their guarantees.
 #![warn(missing_docs)]
 // Numeric code over fixed 9-axis arrays reads best with index loops; negated comparisons are
 // how NaN is refused (`!(x > 0.0)` is true for NaN).

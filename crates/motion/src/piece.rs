@@ -69,12 +69,17 @@ pub(crate) struct Piece {
     pub j_brake: f64,
     /// Path length from the start of the program to the start of this piece.
     pub cum_start: f64,
-    /// First valley of the braking curve inside this piece: (local s, speed), where a
+    /// The next stop at or after this piece: (path length from the program start,
+    /// deceleration and jerk of the braking into it).
+    pub stop_ahead: (f64, f64, f64),
+    /// First valley of the braking curve inside this piece: (local s, speed, deceleration
+    /// and jerk of the braking before it), where a
     /// braking section ends on a lower limit; the controller must arrive there with its
     /// deceleration released.
-    pub valley_in: Option<(f64, f64)>,
-    /// The next valley after this piece: (path length from the program start, speed).
-    pub valley_next: Option<(f64, f64)>,
+    pub valley_in: Option<(f64, f64, f64, f64)>,
+    /// The next valley after this piece: (path length from the program start, speed,
+    /// deceleration, jerk).
+    pub valley_next: Option<(f64, f64, f64, f64)>,
 }
 
 impl Piece {
@@ -125,6 +130,7 @@ impl Piece {
             j_to_stop: f64::INFINITY,
             j_brake: f64::INFINITY,
             cum_start: 0.0,
+            stop_ahead: (f64::INFINITY, 0.0, 0.0),
             valley_in: None,
             valley_next: None,
         }
@@ -351,10 +357,38 @@ impl Piece {
         let w0 = self.w[k];
         let wf = (w0 * w0 + 2.0 * self.acc_sub[k] * (s - h * k as f64).max(0.0)).sqrt();
         let cap = vl.min(wf);
-        if wb < cap {
+        let (mut w, mut slope) = if wb < cap {
             (wb, self.a_sub[k])
         } else {
             (cap, 0.0)
+        };
+        // Near a stop the curve follows the jerk-limited stop, whose deceleration returns
+        // to zero at the stop (an acceleration-limited curve cannot be followed there).
+        let (stop_pos, sa, sj) = self.stop_ahead;
+        if stop_pos.is_finite() && sa > 0.0 && sj > 0.0 {
+            let dist = stop_pos - (self.cum_start + s);
+            if dist >= 0.0 {
+                let (wj, aj) = jerk_stop_speed(dist, sa, sj);
+                if wj < w {
+                    w = wj;
+                    slope = aj;
+                }
+            }
         }
+        (w, slope)
+    }
+}
+
+/// Speed of the time-optimal jerk-limited stop (deceleration `a`, jerk `j`) at distance `d`
+/// before the stop, and its deceleration there.
+pub(crate) fn jerk_stop_speed(d: f64, a: f64, j: f64) -> (f64, f64) {
+    // Final jerk phase (deceleration falling from a to 0): d = j τ³ / 6, v = j τ² / 2.
+    let d3 = a * a * a / (6.0 * j * j);
+    if d <= d3 {
+        let tau = (6.0 * d / j).cbrt();
+        (0.5 * j * tau * tau, j * tau)
+    } else {
+        let v3 = a * a / (2.0 * j);
+        ((v3 * v3 + 2.0 * a * (d - d3)).sqrt(), a)
     }
 }

@@ -7,7 +7,7 @@ use crate::error::MotionError;
 use crate::input::Move;
 use crate::kinematics::Kinematics;
 use crate::limits::{Lim, MachineLimits};
-use crate::piece::{BRAKE_SHARE_CURVED, BRAKE_SHARE_STRAIGHT, JERK_SHARE_JUMP, Piece};
+use crate::piece::{BRAKE_SHARE_STRAIGHT, JERK_SHARE_JUMP, Piece};
 use crate::scurve::{advance, stop, stop_advance};
 
 /// What the interpolator is doing.
@@ -121,6 +121,9 @@ const CONTROL_SHARE: f64 = 0.9999;
 
 /// Share of the stop model's deceleration and jerk the controller plans its stops with.
 const STOP_CHECK_SHARE: f64 = 0.95;
+/// The same for the jerk: the discrete landing on the stop needs more jerk than the
+/// continuous profile it follows.
+const STOP_CHECK_JERK_SHARE: f64 = 0.8;
 
 /// Pieces one move can produce at most (line span, blend, dwell after a flush).
 const PIECES_PER_MOVE: usize = 4;
@@ -150,6 +153,13 @@ pub struct Planner<K: Kinematics> {
     qj_min: f64,
     /// Path length from the program start to the end of the window.
     cum_end: f64,
+    /// The last two path steps (oldest first), for the landing on a stop.
+    ds_hist: [f64; 2],
+    /// Steps left in the landing on a stop in progress.
+    land_n: Option<usize>,
+    /// Diagnostic trace of the speed controller on stderr (`RTCNC_MOTION_TRACE` set when
+    /// the planner is built); never enable on a real-time thread.
+    trace: bool,
 }
 
 impl<K: Kinematics> Planner<K> {
@@ -233,6 +243,9 @@ impl<K: Kinematics> Planner<K> {
             qa_min,
             qj_min,
             cum_end: 0.0,
+            ds_hist: [0.0; 2],
+            land_n: None,
+            trace: std::env::var_os("RTCNC_MOTION_TRACE").is_some(),
         })
     }
 
@@ -453,11 +466,24 @@ impl<K: Kinematics> Planner<K> {
         // Whether the curve at the sample after the current one is braking-determined, and
         // the nearest valley ahead.
         let mut next_braking = true;
-        let mut valley: Option<(f64, f64)> = None;
+        let mut valley: Option<(f64, f64, f64, f64)> = None;
+        let mut stop_ahead = (f64::INFINITY, 0.0, 0.0);
         for i in (0..n).rev() {
             let p = self.q.get_mut(i);
             let is_stop = p.stop_at_end || i + 1 == n;
             if is_stop {
+                // Braking into the stop: the deceleration of its last sub-interval at rest.
+                let ns_last = p.ns;
+                let a_end = if p.len > 0.0 {
+                    p.decel_available(ns_last, 0.0, &lim).min(p.decel_available(
+                        ns_last.saturating_sub(1),
+                        0.0,
+                        &lim,
+                    ))
+                } else {
+                    0.0
+                };
+                stop_ahead = (p.cum_start + p.len, a_end, p.j_brake);
                 next_w = 0.0;
                 run_a = f64::INFINITY;
                 run_j = f64::INFINITY;
@@ -469,6 +495,7 @@ impl<K: Kinematics> Planner<K> {
             let ns = p.ns;
             p.valley_next = valley;
             p.valley_in = None;
+            p.stop_ahead = stop_ahead;
             p.w[ns] = next_w.min(p.vlc(ns, fo, ro));
             if p.len <= 0.0 {
                 for k in 0..ns {
@@ -495,8 +522,8 @@ impl<K: Kinematics> Planner<K> {
                     let braking_here = wfull < vl;
                     if braking_here && !next_braking && w1 > 0.0 {
                         let sv = h * (k + 1) as f64;
-                        p.valley_in = Some((sv, w1));
-                        valley = Some((p.cum_start + sv, w1));
+                        p.valley_in = Some((sv, w1, acc, p.j_brake));
+                        valley = Some((p.cum_start + sv, w1, acc, p.j_brake));
                     }
                     next_braking = braking_here;
                     // The stop model of the controller (constant deceleration, jerk-limited
@@ -505,6 +532,11 @@ impl<K: Kinematics> Planner<K> {
                     if w1 <= v_jerk {
                         run_a = run_a.min(acc);
                         run_j = run_j.min(p.j_brake);
+                    } else if w1 > 2.0 * v_jerk {
+                        // Far from the stop: the braking curve governs; keeping the value
+                        // local also keeps the backward pass short when moves are appended.
+                        run_a = f64::INFINITY;
+                        run_j = f64::INFINITY;
                     }
                 }
             }
@@ -556,7 +588,15 @@ impl<K: Kinematics> Planner<K> {
             StopKind::Quick => (a * BRAKE_SHARE_STRAIGHT, j * BRAKE_SHARE_STRAIGHT),
             _ => (a, j),
         };
-        let (d, _) = stop(self.v, self.a.max(-a), a, j);
+        // The hold point is where the controller's own (softer) stop check ends, plus one
+        // period's travel of slack for the discrete landing.
+        let (d, _) = stop(
+            self.v,
+            self.a.max(-a),
+            STOP_CHECK_SHARE * a,
+            STOP_CHECK_JERK_SHARE * j,
+        );
+        let d = d + self.v * self.period;
         self.hold = Some(Hold {
             cum: self.s + d,
             a,
@@ -573,6 +613,7 @@ impl<K: Kinematics> Planner<K> {
         let x = if state == MotionState::Moving || (state == MotionState::Holding && self.v > 0.0) {
             self.control()
         } else {
+            self.ds_hist = [self.ds_hist[1], 0.0];
             self.hist[0]
         };
         self.hist = [x, self.hist[0], self.hist[1]];
@@ -664,7 +705,8 @@ impl<K: Kinematics> Planner<K> {
     /// Whether the speed controller, from (`v1`, `a1`) at distance `d1` ahead, can follow the
     /// braking curve: ramps the acceleration with jerk `jb` towards the curve's slope where
     /// it is and checks the speed against the curve at the end of each chunk.
-    fn join_ok(&self, d1: f64, v1: f64, a1: f64, jb: f64, a_full: f64, t: f64) -> bool {
+    #[allow(clippy::too_many_arguments)]
+    fn join_ok(&self, d1: f64, v1: f64, a1: f64, jb: f64, a_full: f64, t: f64, rem: f64) -> bool {
         let horizon = (a1.max(0.0) + a_full) / jb + 2.0 * t;
         let dt = (horizon / 12.0).max(0.5 * t);
         let (mut d, mut v, mut a) = (d1, v1, a1);
@@ -672,7 +714,7 @@ impl<K: Kinematics> Planner<K> {
         while time < horizon {
             let (_, aw, _) = self.w_ahead(d);
             let target = -aw;
-            let j = ((target - a) / dt).clamp(-jb, jb);
+            let j = clampf((target - a) / dt, -jb, jb);
             let (dd, v2, a2) = advance(0.0, v, a, j, dt);
             // Discrete-time lag of the ramp (the jerk changes only at period boundaries).
             let lag = 0.5 * (a - target).max(0.0) * t;
@@ -682,7 +724,8 @@ impl<K: Kinematics> Planner<K> {
             v = v2;
             a = a2;
             time += dt;
-            if v <= 0.0 {
+            // Reaching the stop (or the speed zero) ends the check: the stop check covers it.
+            if v <= 0.0 || d >= rem {
                 return true;
             }
             let w = self.w_min_between(d_prev, d);
@@ -693,26 +736,32 @@ impl<K: Kinematics> Planner<K> {
         true
     }
 
-    /// Whether ramping the path acceleration `a1` down to zero with jerk `jr`, from speed
-    /// `v1` at distance `d1` ahead, keeps every axis's acceleration within its limit
-    /// (checked at three points of the ramp).
+    /// Whether ramping the path acceleration `a1` back to zero with jerk `jr`, from speed
+    /// `v1` at distance `d1` ahead, keeps every axis's acceleration within its limit and the
+    /// acceleration within the share the curvature leaves it (checked at five points of the
+    /// ramp): the curvature may rise ahead faster than the acceleration can follow.
     fn accel_ramp_ok(&self, d1: f64, v1: f64, a1: f64, jr: f64, quick: bool) -> bool {
-        let tau = a1 / jr;
+        let tau = a1.abs() / jr;
+        let jerk = -a1.signum() * jr;
         for k in 1..=5 {
-            let (dd, vk, ak) = advance(0.0, v1, a1, -jr, tau * k as f64 / 5.0);
-            let (i, sl) = self.locate(d1 + dd);
-            let (tan, kv, _) = self.q.get(i).geo_at(sl);
+            let (dd, vk, ak) = advance(0.0, v1, a1, jerk, tau * k as f64 / 5.0);
+            let vk = vk.max(0.0);
+            let (i, sl) = self.locate(d1 + dd.max(0.0));
+            let (tan, kv, kp) = self.q.get(i).geo_at(sl);
             for ax in 0..AXES {
                 if !self.lim.present[ax] {
                     continue;
                 }
-                let am = CONTROL_SHARE
-                    * if quick {
-                        self.lim.qa[ax]
-                    } else {
-                        self.lim.a[ax]
-                    };
-                if (tan[ax] * ak + kv[ax] * vk * vk).abs() > am {
+                let (am, jm) = if quick {
+                    (self.lim.qa[ax], self.lim.qj[ax])
+                } else {
+                    (self.lim.a[ax], self.lim.j[ax])
+                };
+                if (tan[ax] * ak + kv[ax] * vk * vk).abs() > CONTROL_SHARE * am {
+                    return false;
+                }
+                let room = (CONTROL_SHARE * jm - (kp[ax] * vk * vk * vk).abs()).max(0.0);
+                if 3.0 * kv[ax].abs() * vk * ak.abs() > 0.5 * room * 1.05 {
                     return false;
                 }
             }
@@ -775,12 +824,7 @@ impl<K: Kinematics> Planner<K> {
                 real_stop = false;
             }
         }
-        let jm = CONTROL_SHARE
-            * if head.straight {
-                head.j_brake / BRAKE_SHARE_STRAIGHT
-            } else {
-                head.j_brake / BRAKE_SHARE_CURVED
-            };
+        let jm = CONTROL_SHARE * head_jerk(&head, &self.lim, quick);
         let (v, a) = (self.v, self.a);
         // Exact bounds of the path acceleration and jerk at the current point: every axis's
         // |T a + K v²| ≤ A and |T j + 3 K v a + K' v³| ≤ J.
@@ -802,6 +846,16 @@ impl<K: Kinematics> Planner<K> {
             let (x0, x1) = ((-am - ca) / tan[i], (am - ca) / tan[i]);
             a_lo = a_lo.max(x0.min(x1));
             a_hi = a_hi.min(x0.max(x1));
+            // The 3·K·v·a term of the jerk grows with the acceleration: keep it within half
+            // of what the curvature change leaves, so that the acceleration can always be
+            // ramped back with the other half.
+            let k3v = 3.0 * kv[i].abs() * v;
+            if k3v > 0.0 {
+                let room = (jmx - (kp[i] * v * v * v).abs()).max(0.0);
+                let a_cap = 0.5 * room / k3v;
+                a_lo = a_lo.max(-a_cap);
+                a_hi = a_hi.min(a_cap);
+            }
             let (y0, y1) = ((-jmx - cj) / tan[i], (jmx - cj) / tan[i]);
             j_lo = j_lo.max(y0.min(y1));
             j_hi = j_hi.min(y0.max(y1));
@@ -816,28 +870,32 @@ impl<K: Kinematics> Planner<K> {
         let (a_lo, a_hi) = (a_lo.max(-a_full), a_hi.min(a_full));
         let (j_lo, j_hi) = (j_lo.max(-jm), j_hi.min(jm));
         let jr = 0.5 * (-j_lo).max(0.1 * jm);
+        let jr_down = 0.8 * (-j_lo).max(0.1 * jm);
+        let jr_up = 0.5 * j_hi.max(0.1 * jm);
         // Distance to the next valley of the braking curve and its speed.
         let valley_dist = match head.valley_in {
-            Some((sv, vm)) if sv > self.s => Some((sv - self.s, vm)),
+            Some((sv, vm, av, jv)) if sv > self.s => Some((sv - self.s, vm, av, jv)),
             _ => head
                 .valley_next
-                .map(|(c, vm)| (c - head.cum_start - self.s, vm)),
+                .map(|(c, vm, av, jv)| (c - head.cum_start - self.s, vm, av, jv)),
         }
-        .filter(|(d, _)| *d > 0.0);
+        .filter(|(d, ..)| *d > 0.0);
         // 0: safe; 1: violates the stop (distance or undershoot); 2: violates the braking curve.
-        let check = |j: f64| -> u8 {
+        let check_detail = |j: f64| -> u8 {
             let (ds, v1, a1) = advance(0.0, v, a, j, t);
             if v1 < -1e-9 || ds < 0.0 || ds > rem + 1e-12 || a1 < a_lo.min(-1e-9) - 1e-9 {
                 return 1;
             }
             if a1 > a_hi.max(0.0) + 1e-9 {
-                return 2;
+                return 20;
             }
             // Bringing a positive acceleration back to zero must keep every axis's acceleration
             // (tangential plus centripetal, which grows with speed and turns with the path)
             // within its limit.
-            if a1 > 0.0 && !self.accel_ramp_ok(ds, v1, a1, jr, quick) {
-                return 2;
+            if a1 != 0.0
+                && !self.accel_ramp_ok(ds, v1, a1, if a1 > 0.0 { jr } else { jr_up }, quick)
+            {
+                return 21;
             }
             // A state that decelerates so hard that the speed would reach zero before the
             // deceleration can be released cannot stop smoothly.
@@ -846,7 +904,12 @@ impl<K: Kinematics> Planner<K> {
             }
             // The check uses a softer stop than the fallback follows, so that the fallback
             // regains the margin when the per-sample limits slowed the braking down.
-            let (dst, _) = stop(v1, a1, STOP_CHECK_SHARE * a_stop, STOP_CHECK_SHARE * j_stop);
+            let (dst, _) = stop(
+                v1,
+                a1,
+                STOP_CHECK_SHARE * a_stop,
+                STOP_CHECK_JERK_SHARE * j_stop,
+            );
             if ds + dst > rem * (1.0 + 1e-12) + 1e-12 {
                 return 1;
             }
@@ -855,28 +918,27 @@ impl<K: Kinematics> Planner<K> {
             }
             // The next valley of the braking curve: arrive there with the deceleration
             // released (the speed profile is the valley speed plus a stop profile).
-            if let Some((dv, vm)) = valley_dist {
+            if let Some((dv, vm, av, jv)) = valley_dist {
                 if v1 > vm {
                     let rel = v1 - vm;
-                    if a1 < 0.0 && a1 * a1 > 2.0 * j_stop * rel * (1.0 + 1e-9) + 1e-12 {
-                        return 2;
+                    if a1 < 0.0 && a1 * a1 > 2.0 * jv * rel * (1.0 + 1e-9) + 1e-12 {
+                        return 22;
                     }
-                    let (dst, tst) = stop(
-                        rel,
-                        a1,
-                        STOP_CHECK_SHARE * a_stop,
-                        STOP_CHECK_SHARE * j_stop,
-                    );
+                    let (dst, tst) =
+                        stop(rel, a1, STOP_CHECK_SHARE * av, STOP_CHECK_JERK_SHARE * jv);
                     if ds + dst + vm * tst > dv {
-                        return 2;
+                        return 23;
                     }
                 }
             }
             let (_, _, jb) = self.w_ahead(ds);
+            // The jerk left for ramping the acceleration down once the curvature terms
+            // (3·K·v·a + K'·v³) took their share.
+            let jb = jb.min(jr_down);
             // Against the lowest point of the curve over this period, so that a short piece
             // with a low limit is not jumped over.
             if v1 > self.w_min_between(0.0, ds) * (1.0 + 1e-12) + 1e-12 {
-                return 2;
+                return 24;
             }
             // Bringing the acceleration to zero must not exceed the curve anywhere before.
             if a1 > 0.0 {
@@ -884,29 +946,57 @@ impl<K: Kinematics> Planner<K> {
                 let (dp, mut vp, _) = advance(0.0, v1, a1, -jb, tau);
                 vp += 0.5 * a1 * t;
                 if vp > self.w_min_between(ds, ds + dp) * (1.0 + 1e-12) + 1e-12 {
-                    return 2;
+                    return 25;
                 }
             }
             // Joining the braking curve: simulate the jerk-limited ramp of the acceleration
             // towards the curve's local slope, in chunks, over the time the longest ramp takes.
-            if !self.join_ok(ds, v1, a1, jb, a_full, t) {
-                return 2;
+            if !self.join_ok(ds, v1, a1, jb, a_full, t, rem) {
+                return 26;
             }
             0
+        };
+        let check = |j: f64| -> u8 {
+            match check_detail(j) {
+                0 => 0,
+                1 => 1,
+                _ => 2,
+            }
         };
         let safe = |j: f64| check(j) == 0;
 
         // Landing on a stop: the remaining stop takes less than a period.
         let (dst0, tst0) = stop(v, a, a_stop, j_stop);
         let tiny = 0.3 * if quick { self.qj_min } else { self.j_min } * t * t * t;
-        let land = rem >= 0.0
-            && ((tst0 <= t && (rem - dst0).abs() <= tiny.max(1e-12))
-                || (v.abs() <= 1e-9 && a.abs() <= 1e-6 && rem <= tiny));
+        // Landing: when the stop is a few periods away, plan the last steps exactly (the
+        // smoothest sequence of steps that ends at the stop and stays there).
+        let jl = j_stop.min(-j_lo).min(j_hi).max(0.0);
+        let al = a_stop.min(-a_lo).min(a_hi).max(0.0);
+        let (js, as_) = (jl * t * t * t, al * t * t);
+        // A landing in progress continues with one step fewer (the tail of the smoothest
+        // sequence is the smoothest for what is left).
+        let mut landing = match self.land_n {
+            Some(n) if n >= 2 && rem >= 0.0 => {
+                land_steps(self.ds_hist, rem, n - 1, js, as_).map(|d| (d, n - 1))
+            }
+            _ => None,
+        };
+        if landing.is_none() && rem >= 0.0 && tst0 <= 5.0 * t && dst0 <= rem * 1.5 + tiny {
+            let n0 = ((tst0 / t).ceil() as usize).clamp(1, LAND_MAX);
+            landing = (n0..=LAND_MAX)
+                .find_map(|n| land_steps(self.ds_hist, rem, n, js, as_).map(|d| (d, n)));
+        }
+        let new_land_n = landing.map(|(_, n)| n);
+        let landing = landing.map(|(d, _)| d);
+        let land = landing.is_some_and(|d1| d1 == rem)
+            || (v.abs() <= 1e-9 && a.abs() <= 1e-6 && rem <= tiny && rem >= 0.0);
         let mut emergency = false;
         // Model state at the end of the period, when it is not the constant-jerk one.
         let mut model: Option<(f64, f64)> = None;
         let ds_target = if land {
             rem
+        } else if let Some(d1) = landing {
+            d1
         } else {
             let mut choice = None;
             if safe(j_hi) {
@@ -933,7 +1023,7 @@ impl<K: Kinematics> Planner<K> {
                 // Behind the braking curve but not the stop: brake as hard as allowed while
                 // the deceleration can still be released before the speed reaches zero.
                 let lo = j_lo.max((a_lo - a) / t).min(j_hi);
-                let bj = brake_jerk(v, a, -a_lo, j_stop, t).clamp(j_lo, j_hi);
+                let bj = clampf(brake_jerk(v, a, -a_lo, j_stop, t), j_lo, j_hi);
                 for cand in [lo, bj] {
                     if choice.is_none() && check(cand) == 2 {
                         choice = Some(cand);
@@ -944,9 +1034,18 @@ impl<K: Kinematics> Planner<K> {
             match choice {
                 Some(j) => {
                     let (ds, _, _) = advance(0.0, v, a, j, t);
-                    ds.clamp(0.0, rem.max(0.0))
+                    clampf(ds, 0.0, rem.max(0.0))
                 }
                 None => {
+                    if self.trace {
+                        let lo = j_lo.max((a_lo - a) / t).min(j_hi);
+                        eprintln!(
+                            "FALLBACK v={v} a={a} j_lo={j_lo} j_hi={j_hi} a_lo={a_lo} a_hi={a_hi} check(lo)={} check(0)={} check(hi)={}",
+                            check(lo),
+                            check(0.0),
+                            check(j_hi)
+                        );
+                    }
                     // No constant jerk over the period is safe (a switch of the stop
                     // profile falls inside the period): follow the stop profile exactly.
                     let (ds, v1, a1) = stop_advance(v, a, a_stop, j_stop, t);
@@ -955,21 +1054,28 @@ impl<K: Kinematics> Planner<K> {
                         emergency = true;
                     }
                     model = Some((v1, a1));
-                    ds.clamp(0.0, rem.max(0.0))
+                    clampf(ds, 0.0, rem.max(0.0))
                 }
             }
         };
         if emergency {
-            self.stats.emergency_brakes += 1;
-            if std::env::var("RTCNC_DEBUG").is_ok() {
+            if self.trace {
+                eprintln!(
+                    "EMERG detail lo={} 0={} hi={}",
+                    check_detail(j_lo.max((a_lo - a) / t)),
+                    check_detail(0.0),
+                    check_detail(j_hi)
+                );
                 let (dst, tst) = stop(v, a, a_stop, j_stop);
                 eprintln!(
                     "EMERG v={v} a={a} rem={rem} dst={dst} tst={tst} A={a_stop} J={j_stop} jm={jm} afull={a_full}"
                 );
             }
+            self.stats.emergency_brakes += 1;
         }
         let (ds, x) = self.exact(ds_target, rem.max(0.0), quick);
-        if std::env::var("RTCNC_DEBUG").is_ok() {
+        self.land_n = if ds == ds_target { new_land_n } else { None };
+        if self.trace {
             eprintln!(
                 "CTRL v={v:.4} a={a:.2} rem={rem:.6} land={land} model={model:?} ds_t={ds_target:.9} ds={ds:.9} A={a_stop} J={j_stop}"
             );
@@ -977,19 +1083,27 @@ impl<K: Kinematics> Planner<K> {
         if land && ds == rem {
             self.v = 0.0;
             self.a = 0.0;
+        } else if landing.is_some() {
+            // Speed and acceleration of the step sequence (backward differences).
+            self.v = ds / t;
+            self.a = (ds - self.ds_hist[1]) / (t * t);
         } else if let (Some((v1, a1)), true) = (model, ds == ds_target) {
             self.v = v1;
             self.a = a1;
         } else {
             // The set-point check may have moved the point: the model follows, within its
             // own jerk bound.
-            let j_eff =
-                (6.0 * (ds - v * t - 0.5 * a * t * t) / (t * t * t)).clamp(-2.0 * jm, 2.0 * jm);
+            let j_eff = clampf(
+                6.0 * (ds - v * t - 0.5 * a * t * t) / (t * t * t),
+                -2.0 * jm,
+                2.0 * jm,
+            );
             let (_, v1, a1) = advance(0.0, v, a, j_eff, t);
             self.v = v1.max(0.0);
             self.a = a1;
         }
         // Commit the position.
+        self.ds_hist = [self.ds_hist[1], ds];
         self.s += ds;
         let mut guard = 0;
         while self.q.len > 1 && guard < self.q.cap() {
@@ -1065,17 +1179,17 @@ impl<K: Kinematics> Planner<K> {
             let delta = if dlo <= dhi {
                 // Aim slightly inside the admissible interval against the curve's bending.
                 let m = 1e-3 * (dhi - dlo);
-                0.0f64.clamp(dlo + m, dhi - m)
+                clampf(0.0, dlo + m, dhi - m)
             } else {
                 0.5 * (dlo + dhi)
             };
-            ds = (ds + delta).clamp(0.0, rem);
+            ds = clampf(ds + delta, 0.0, rem);
         }
         let (k, sl) = self.locate(ds);
         let x = self.q.get(k).pos(sl);
         if !inside(&x) {
             self.stats.limit_violations += 1;
-            if std::env::var("RTCNC_DEBUG").is_ok() {
+            if self.trace {
                 eprintln!(
                     "VIOL period={} ds0={ds0} ds={ds} rem={rem} x={:?} lo={:?} hi={:?}",
                     self.stats.periods,
@@ -1105,6 +1219,114 @@ fn head_accel(p: &Piece, lim: &Lim, quick: bool) -> f64 {
         }
     }
     if am.is_finite() { am } else { 1.0 }
+}
+
+/// `x` limited to [lo, hi]; never panics: an empty range gives its middle, NaN gives `lo`
+/// (or 0 when both bounds are NaN).
+#[inline]
+fn clampf(x: f64, lo: f64, hi: f64) -> f64 {
+    if !(lo <= hi) {
+        let m = 0.5 * (lo + hi);
+        return if m.is_nan() {
+            if lo.is_nan() { 0.0 } else { lo }
+        } else {
+            m
+        };
+    }
+    if x.is_nan() { lo } else { x.max(lo).min(hi) }
+}
+
+/// Most steps the landing on a stop plans ahead.
+const LAND_MAX: usize = 8;
+
+/// The first of `n` path steps that end exactly `rem` further and at rest, after the steps
+/// `hist` (oldest first): the sequence with the smallest sum of squared third differences
+/// (jerk). None when a third difference exceeds `j_step` (J·T³), a second difference
+/// exceeds `a_step` (A·T²) or a step is negative.
+fn land_steps(hist: [f64; 2], rem: f64, n: usize, j_step: f64, a_step: f64) -> Option<f64> {
+    const M: usize = LAND_MAX + 1;
+    // Steps: hist[0], hist[1], x_1..x_n, 0, 0. Third differences of positions are second
+    // differences of steps: d_m = D[m] - 2 D[m-1] + D[m-2], m = 2..n+3.
+    let len = n + 4;
+    let rows = n + 2;
+    // d = Mx + c.
+    let mut mm = [[0.0; LAND_MAX]; LAND_MAX + 2];
+    let mut c = [0.0; LAND_MAX + 2];
+    for (r, m) in (2..len).enumerate() {
+        for (off, w) in [(0usize, 1.0), (1, -2.0), (2, 1.0)] {
+            let idx = m - off;
+            if idx < 2 {
+                c[r] += w * hist[idx];
+            } else if idx < 2 + n {
+                mm[r][idx - 2] += w;
+            }
+        }
+    }
+    // KKT system: [2 MᵀM  1; 1ᵀ 0] [x; λ] = [-2 Mᵀc; rem].
+    let mut k = [[0.0; M + 1]; M];
+    for i in 0..n {
+        for j in 0..n {
+            k[i][j] = 2.0 * (0..rows).map(|r| mm[r][i] * mm[r][j]).sum::<f64>();
+        }
+        k[i][n] = 1.0;
+        k[i][n + 1] = -2.0 * (0..rows).map(|r| mm[r][i] * c[r]).sum::<f64>();
+    }
+    for j in 0..n {
+        k[n][j] = 1.0;
+    }
+    k[n][n] = 0.0;
+    k[n][n + 1] = rem;
+    // Gaussian elimination with partial pivoting on the (n+1) x (n+2) matrix.
+    let sz = n + 1;
+    for col in 0..sz {
+        let piv = (col..sz).max_by(|a, b| k[*a][col].abs().total_cmp(&k[*b][col].abs()))?;
+        if k[piv][col].abs() < 1e-300 {
+            return None;
+        }
+        k.swap(col, piv);
+        for r in 0..sz {
+            if r != col {
+                let f = k[r][col] / k[col][col];
+                for cc in col..=sz {
+                    k[r][cc] -= f * k[col][cc];
+                }
+            }
+        }
+    }
+    let mut x = [0.0; LAND_MAX];
+    for i in 0..n {
+        x[i] = k[i][sz] / k[i][i];
+    }
+    if x[..n].iter().any(|v| !(*v >= 0.0)) {
+        return None;
+    }
+    let mut d = [0.0; LAND_MAX + 4];
+    d[0] = hist[0];
+    d[1] = hist[1];
+    d[2..2 + n].copy_from_slice(&x[..n]);
+    for m in 2..len {
+        if (d[m] - 2.0 * d[m - 1] + d[m - 2]).abs() > j_step || (d[m] - d[m - 1]).abs() > a_step {
+            return None;
+        }
+    }
+    Some(if n == 1 { rem } else { x[0] })
+}
+
+/// Largest tangential jerk on a piece (axis jerk limits projected on the tangent).
+fn head_jerk(p: &Piece, lim: &Lim, quick: bool) -> f64 {
+    let mut jm = f64::INFINITY;
+    for k in 0..=p.ns {
+        for i in 0..AXES {
+            if lim.present[i] {
+                let ti = p.smp[k].t[i].abs();
+                let ji = if quick { lim.qj[i] } else { lim.j[i] };
+                if ti > 1e-12 {
+                    jm = jm.min(ji / ti);
+                }
+            }
+        }
+    }
+    if jm.is_finite() { jm } else { 1.0 }
 }
 
 /// Jerk of the fastest stop: brake with -J until the speed left equals what releasing the
