@@ -292,15 +292,10 @@ impl Kernel {
         let th = thread(&mut b, "command parsing", 4);
         let (c, sh) = (core.clone(), shared.clone());
         let id = b.periodic(th, "command parsing", t.command_parsing.runs, move |ctx| {
-            let mut core = c.lock();
-            if ctx.run() == 0 {
-                // The urgent channel first, all of it, every cycle.
-                while let Some(u) = sh.urgent.try_get() {
-                    core.urgent(ctx, &sh, u);
-                }
-            }
+            // The urgent channel is read before this, at the start of every interpolation
+            // cycle; here the normal one, a command per run.
             if let Some(command) = sh.normal.try_get() {
-                core.command(ctx, &sh, command);
+                c.lock().command(ctx, &sh, command);
             }
         });
         b.on_deadline_miss(id, miss.clone());

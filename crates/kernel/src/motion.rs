@@ -389,14 +389,7 @@ impl MotionCore {
     pub fn urgent(&mut self, ctx: &mut Context<'_>, shared: &Shared, command: Urgent) {
         match command {
             Urgent::EStop => {
-                shared.raise(
-                    ctx,
-                    FaultCode::EStop,
-                    TaskName::CommandParsing,
-                    None,
-                    0,
-                    0.0,
-                );
+                shared.raise(ctx, FaultCode::EStop, TaskName::Interpolation, None, 0, 0.0);
             }
             Urgent::FeedHold => self.hold(),
             Urgent::Resume => {
@@ -979,10 +972,15 @@ impl MotionCore {
     /// every joint and sends it to position control.
     pub fn interpolate(
         &mut self,
-        _ctx: &mut Context<'_>,
+        ctx: &mut Context<'_>,
         shared: &Shared,
         out: &mut RingProducer<ServoTarget>,
     ) {
+        // The urgent channel first, all of it, every servo cycle: an e-stop read here stops
+        // the set-points computed in this very cycle.
+        while let Some(u) = shared.urgent.try_get() {
+            self.urgent(ctx, shared, u);
+        }
         while let Some(fault) = shared.stop_requests.try_get() {
             self.on_fault(shared, fault);
         }

@@ -52,10 +52,16 @@ fn estop_starts_the_stop_one_cycle_after_the_command_is_read_then_disables_the_d
         .iter()
         .find(|f| f.code == FaultCode::EStop)
         .expect("e-stop fault");
-    assert_eq!(received.task, TaskName::CommandParsing);
-    let received_period = received.time_ns / 1_000_000;
-    assert_eq!(received_period, put);
-    assert_eq!(first_difference, received_period + 2);
+    // Interpolation reads the urgent channel first thing in every period: the e-stop put
+    // between periods `put - 1` and `put` is received in period `put`.
+    assert_eq!(received.task, TaskName::Interpolation);
+    assert_eq!(received.time_ns, put * 1_000_000);
+    // The planner puts the stop's hold point one period's travel beyond its braking
+    // distance, so the set-point computed in period `put` is still the unchanged one and
+    // the first braking set-point is computed in period `put + 1`, within one servo cycle
+    // of receipt. Period p computes the set-point numbered p + 1, applied by position
+    // control in period p + 1.
+    assert_eq!(first_difference, put + 2);
     // It is a stop: the speed falls monotonically to zero, and the drives are disabled.
     let v: Vec<f64> = stopped
         .samples
