@@ -27,6 +27,8 @@ enum Command {
     Plc(commands::plc::Args),
     /// Run a program on a simulated machine in virtual time.
     Sim(commands::sim::Args),
+    /// Run a program in real time on the configured machine.
+    Run(commands::run::Args),
 }
 
 fn main() -> ExitCode {
@@ -36,6 +38,7 @@ fn main() -> ExitCode {
         Command::Check(args) => commands::check::run(args),
         Command::Plc(args) => commands::plc::run(args),
         Command::Sim(args) => commands::sim::run(args),
+        Command::Run(args) => commands::run::run(args),
     };
     match result {
         Ok(code) => code,

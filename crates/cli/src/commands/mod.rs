@@ -3,3 +3,4 @@ pub mod check;
 pub mod latency;
 pub mod plc;
 pub mod sim;
+pub mod run;
