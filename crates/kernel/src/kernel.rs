@@ -128,6 +128,12 @@ impl KernelHandle {
         f(&mut self.servo.lock().bus)
     }
 
+    /// Servo periods in which position control had no fresh set-point (real-time overruns
+    /// of interpolation) and extrapolated.
+    pub fn setpoint_underruns(&self) -> u64 {
+        self.servo.lock().underruns()
+    }
+
     /// The configuration.
     pub fn config(&self) -> &MachineConfig {
         &self.config

@@ -1000,6 +1000,29 @@ impl MotionCore {
             }
             self.estop_feed_hold_from_logic = mi.feed_hold_request;
         }
+        // One set-point per servo period of the drives: after a late activation (a real-time
+        // overrun) the missed periods are computed now, at most four.
+        let steps = feedback.cycle.saturating_sub(self.cycle).clamp(1, 4);
+        for _ in 0..steps {
+            self.step(shared, &feedback);
+        }
+        if self.stopping && !self.moving() {
+            self.stopping = false;
+            if self.estop || self.fault {
+                self.enable = false;
+            }
+        }
+        let _ = out.push(ServoTarget {
+            setpoints: self.last,
+            offsets: self.offsets,
+            enable: self.enable,
+            reset_count: self.reset_count,
+            latch: self.latch,
+        });
+    }
+
+    /// One servo period of the set-point generators.
+    fn step(&mut self, shared: &Shared, feedback: &Feedback) {
         self.cycle += 1;
         let mut sp = self.last;
         sp.cycle = self.cycle;
@@ -1022,7 +1045,7 @@ impl MotionCore {
                 }
             }
             Source::Manual => {
-                self.handwheel_step(&feedback);
+                self.handwheel_step(feedback);
                 let mut speed2 = 0.0;
                 for i in 0..AXES {
                     if self.axis_present[i] {
@@ -1037,7 +1060,7 @@ impl MotionCore {
                         sp.joints[j] = sp.axes[i];
                     }
                 }
-                self.homing_step(shared, &feedback);
+                self.homing_step(shared, feedback);
             }
         }
         // Joints on their own generator (homing, independent joints).
@@ -1046,20 +1069,7 @@ impl MotionCore {
                 sp.joints[j] = self.joint_otg[j].step(self.period_s).p;
             }
         }
-        if self.stopping && !self.moving() {
-            self.stopping = false;
-            if self.estop || self.fault {
-                self.enable = false;
-            }
-        }
         self.last = sp;
-        let _ = out.push(ServoTarget {
-            setpoints: sp,
-            offsets: self.offsets,
-            enable: self.enable,
-            reset_count: self.reset_count,
-            latch: self.latch,
-        });
     }
 
     fn on_fault(&mut self, shared: &Shared, fault: Fault) {

@@ -58,6 +58,8 @@ pub(crate) struct ServoStage<B: Fieldbus> {
     exchanges: u64,
     following_error: [f64; MAX_JOINTS],
     program_outputs: Vec<usize>,
+    previous_joints: [f64; MAX_JOINTS],
+    underruns: u64,
 }
 
 impl<B: Fieldbus> ServoStage<B> {
@@ -95,15 +97,28 @@ impl<B: Fieldbus> ServoStage<B> {
             exchanges: 0,
             following_error: [0.0; MAX_JOINTS],
             program_outputs,
+            previous_joints: [0.0; MAX_JOINTS],
+            underruns: 0,
         }
     }
 
     /// Position control: one servo cycle.
     pub(crate) fn position_control(&mut self, ctx: &mut Context<'_>) {
-        while let Some(t) = self.targets.pop() {
+        // Take the set-points up to this period's, not beyond: on a multi-core machine the
+        // interpolation thread may already have made the next one.
+        while let Some(cycle) = self.targets.peek().map(|t| t.setpoints.cycle) {
+            if cycle > self.exchanges && self.target.is_some() {
+                break;
+            }
+            let Some(t) = self.targets.pop() else {
+                break;
+            };
+            if let Some(previous) = self.target {
+                self.previous_joints = previous.setpoints.joints;
+            }
             self.target = Some(t);
         }
-        let Some(target) = self.target else {
+        let Some(mut target) = self.target else {
             // Nothing planned yet: keep the drives where they are.
             for (command, feedback) in self.outputs.joints.iter_mut().zip(&self.inputs.joints) {
                 command.controlword = feedback.state().controlword_towards(false);
@@ -123,6 +138,18 @@ impl<B: Fieldbus> ServoStage<B> {
             self.drive_fault_latched = 0;
             self.comm_fault = false;
             self.estop_latched = false;
+        }
+        // Interpolation made the set-point for this period in the previous one. When it was
+        // late (a real-time overrun), go on along the last two set-points for up to four
+        // periods instead of standing still; it catches up by computing the missed ones.
+        let missing = self.exchanges.saturating_sub(target.setpoints.cycle);
+        if missing > 0 && missing <= 4 && target.enable {
+            self.underruns += 1;
+            let k = missing as f64;
+            for j in 0..self.joint_count {
+                let v = target.setpoints.joints[j] - self.previous_joints[j];
+                target.setpoints.joints[j] += v * k;
+            }
         }
         let period = self.period_s;
         for j in 0..self.joint_count {
@@ -336,10 +363,8 @@ impl<B: Fieldbus> ServoStage<B> {
         *self.shared.feedback.lock() = fb;
     }
 
-    /// The largest following error seen per joint is in the recorded samples; this is the
-    /// last one.
-    #[allow(dead_code)]
-    pub(crate) fn following_error(&self) -> &[f64; MAX_JOINTS] {
-        &self.following_error
+    /// Periods in which position control had to go on without a fresh set-point.
+    pub(crate) fn underruns(&self) -> u64 {
+        self.underruns
     }
 }

@@ -2,5 +2,5 @@
 pub mod check;
 pub mod latency;
 pub mod plc;
-pub mod sim;
 pub mod run;
+pub mod sim;

@@ -164,14 +164,24 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if args.program.is_some() {
         println!(
             "{} in {elapsed:.3} s",
-            if ended { "program ended" } else { "program stopped" }
+            if ended {
+                "program ended"
+            } else {
+                "program stopped"
+            }
         );
     }
     println!(
         "scheduling  {}",
-        if fifo { "SCHED_FIFO" } else { "normal threads (no SCHED_FIFO permission)" }
+        if fifo {
+            "SCHED_FIFO"
+        } else {
+            "normal threads (no SCHED_FIFO permission)"
+        }
     );
-    println!("task                 runs     mean µs   p99 µs   max µs   CPU share of its period   misses");
+    println!(
+        "task                 runs     mean µs   p99 µs   max µs   CPU share of its period   misses"
+    );
     let t = &config.tasks;
     let period_of = |task: &str| -> Option<(Duration, u32)> {
         let (p, runs) = match task {
@@ -202,6 +212,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             stats.deadline_misses
         );
     }
+    println!(
+        "set-point underruns (extrapolated periods): {}",
+        handle.setpoint_underruns()
+    );
     for f in faults
         .iter()
         .filter(|f| f.code != rtcnc_kernel::FaultCode::CommandRefused)
