@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
-# Sets up, builds and runs the main job: for now the executive's wake-up latency
-# measurement (1 ms period, 10 s), with a histogram written to out/latency.svg.
+# Sets up, builds and runs the main job: the example part program examples/bracket.ngc on
+# the simulated 3-axis mill (configs/sim-mill.toml) in virtual time. Prints cycle time,
+# limits, following errors and faults; writes CSV, an SVG plot, the trace and summary.json
+# into out/demo.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
 cargo build --release --locked -p rtcnc
-mkdir -p out
-exec target/release/rtcnc latency --period 1ms --duration 10s --svg out/latency.svg "$@"
+exec target/release/rtcnc sim examples/bracket.ngc --out out/demo "$@"

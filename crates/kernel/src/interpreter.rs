@@ -42,6 +42,7 @@ pub(crate) struct InterpreterStage {
     spindle_rpm: f64,
     spindle_on: Option<SpindleDirection>,
     diameter_mode: bool,
+    parameter_file: Option<PathBuf>,
 }
 
 impl InterpreterStage {
@@ -71,7 +72,14 @@ impl InterpreterStage {
             spindle_rpm: 0.0,
             spindle_on: None,
             diameter_mode,
+            parameter_file: None,
         }
+    }
+
+    /// Where the parameters (work offsets, #5161..) are saved at the end of every program.
+    pub(crate) fn with_parameter_file(mut self, path: Option<PathBuf>) -> Self {
+        self.parameter_file = path;
+        self
     }
 
     fn fresh_interpreter(&mut self) -> Interpreter {
@@ -216,6 +224,7 @@ impl InterpreterStage {
                 } else {
                     self.outbox.push_back(ProgramBlock::End { line: 0 });
                 }
+                self.save_parameters();
                 self.active = false;
             }
         }
@@ -340,8 +349,20 @@ impl InterpreterStage {
             C::ProgramEnd | C::Finish => {
                 out.push_back(ProgramBlock::End { line });
                 self.active = false;
+                self.save_parameters();
             }
             _ => {}
+        }
+    }
+}
+
+impl InterpreterStage {
+    /// Writes the parameter file (atomically: the interpreter's `Parameters::save`).
+    fn save_parameters(&mut self) {
+        if let (Some(path), Some(interp)) = (&self.parameter_file, &self.interp) {
+            if let Err(e) = interp.parameters().save(path) {
+                *self.shared.error_text.lock() = Some(format!("{}: {e}", path.display()));
+            }
         }
     }
 }

@@ -249,7 +249,8 @@ impl Kernel {
             tools,
             parameters,
             config.machine.diameter_mode,
-        );
+        )
+        .with_parameter_file(config.files.parameters.as_ref().map(|p| config.resolve(p)));
         let mut compensation = CompensationStage::new(shared.clone());
 
         let mut b = TaskSet::builder();

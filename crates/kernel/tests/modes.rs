@@ -183,3 +183,25 @@ fn two_runs_give_byte_identical_traces() {
     assert!(a.len() > 100_000);
     assert!(a == b, "traces differ");
 }
+
+#[test]
+fn work_offsets_persist_in_the_parameter_file_across_runs() {
+    let dir = std::env::temp_dir().join(format!("rtcnc-params-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let var = dir.join("mill.var");
+    let _ = std::fs::remove_file(&var);
+    let mut cfg = config("sim-mill.toml");
+    cfg.files.parameters = Some(var.clone());
+    // First run: set G54's X offset to 12.5.
+    let mut m = Machine::new(&cfg, Some(program("G10 L2 P1 X12.5\nM2\n", "set.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(2.0, |s| s.program_ended));
+    assert!(var.exists());
+    // A new kernel (a restart) reads it: X0 in G54 is machine X12.5.
+    let mut m = Machine::new(&cfg, Some(program("G21 G90 G54 G0 X0\nM2\n", "use.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(5.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert_eq!(m.status().axes[0], 12.5);
+}
