@@ -152,16 +152,24 @@ fn plc_scan(
         digital |= u64::from(v) << (8 * byte);
     }
     mi.out_digital = digital;
-    mi.out_spindle_enable = plc.signal_bool(Signal::SpindleEnable);
-    mi.out_spindle_rpm = plc.signal(Signal::SpindleSpeedOut).unwrap_or(0.0);
-    mi.spindle_at_speed = plc.signal_bool(Signal::SpindleAtSpeed);
-    mi.out_mist = plc.signal_bool(Signal::CoolantMistOn);
-    mi.out_flood = plc.signal_bool(Signal::CoolantFloodOn);
-    mi.feed_hold_request = plc.signal_bool(Signal::FeedHoldRequest);
-    mi.tool_change_done = plc.signal_bool(Signal::ToolChangeDone);
-    mi.m_code_done = plc.signal_bool(Signal::MCodeDone);
-    mi.machine_fault = plc.signal_bool(Signal::MachineFault);
-    mi.machine_fault_code = plc.signal(Signal::MachineFaultCode).unwrap_or(0.0) as i64;
+    // Unmapped signals from the PLC keep the kernel's neutral value (not the signal's
+    // safe value, which is for a faulted PLC).
+    let flag = |s: Signal| plc.signal(s).is_some_and(|v| v != 0.0);
+    let number = |s: Signal| plc.signal(s).unwrap_or(0.0);
+    mi.out_spindle_enable = flag(Signal::SpindleEnable);
+    mi.out_spindle_rpm = number(Signal::SpindleSpeedOut);
+    mi.spindle_at_speed = flag(Signal::SpindleAtSpeed);
+    mi.out_mist = flag(Signal::CoolantMistOn);
+    mi.out_flood = flag(Signal::CoolantFloodOn);
+    mi.feed_hold_request = flag(Signal::FeedHoldRequest);
+    mi.tool_change_done = flag(Signal::ToolChangeDone);
+    mi.m_code_done = flag(Signal::MCodeDone);
+    mi.machine_fault = flag(Signal::MachineFault);
+    mi.machine_fault_code = number(Signal::MachineFaultCode) as i64;
+    if result.is_err() {
+        // A faulted PLC has driven its outputs to their safe values: hold the feed.
+        mi.feed_hold_request = true;
+    }
     // The simulated tool changer follows the kernel's request; the PLC acknowledges it.
     mi.out_tool_start = mi.tool_change_request;
     mi.out_tool_number = mi.tool_number;

@@ -205,3 +205,81 @@ fn work_offsets_persist_in_the_parameter_file_across_runs() {
     assert!(m.until(5.0, |s| s.program_ended && s.state == MachineState::Idle));
     assert_eq!(m.status().axes[0], 12.5);
 }
+
+#[test]
+fn single_block_optional_stop_and_run_from_line() {
+    let text = "G21 G90 G61.1\nG1 X10 F3000\nG1 Y10\nM1\nG1 X0\nG1 Y0\nM2\n";
+    let cfg = config("sim-mill.toml");
+    // Single block: the machine stops after each motion block until Resume.
+    let mut m = Machine::new(&cfg, Some(program(text, "blocks.ngc")));
+    m.power_on();
+    m.command(Command::SingleBlock(true));
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(3.0, |s| s.state == MachineState::Paused));
+    assert_eq!(&m.status().axes[..2], &[10.0, 0.0]);
+    m.cycles(300);
+    assert_eq!(&m.status().axes[..2], &[10.0, 0.0]);
+    assert!(m.sim.handle().urgent(Urgent::Resume));
+    m.cycles(3);
+    assert!(m.until(3.0, |s| s.state == MachineState::Paused));
+    assert_eq!(&m.status().axes[..2], &[10.0, 10.0]);
+    // Optional stop on: M1 pauses too (single block off from here on).
+    m.command(Command::SingleBlock(false));
+    m.command(Command::OptionalStop(true));
+    m.cycles(3);
+    assert!(m.sim.handle().urgent(Urgent::Resume));
+    m.cycles(3);
+    assert!(m.until(3.0, |s| s.state == MachineState::Paused));
+    assert_eq!(&m.status().axes[..2], &[10.0, 10.0]);
+    assert!(m.sim.handle().urgent(Urgent::Resume));
+    assert!(m.until(5.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert_eq!(&m.status().axes[..2], &[0.0, 0.0]);
+
+    // Run from line 6 (G1 Y0): the motion before it is skipped; the machine goes at rapid
+    // to where line 6 starts (X0 Y10, the end of line 5), then runs line 6.
+    let mut m = Machine::new(&cfg, Some(program(text, "blocks.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 6 });
+    assert!(m.until(5.0, |s| s.program_ended && s.state == MachineState::Idle));
+    let max_x = m.samples.iter().map(|s| s.axes[0]).fold(f64::MIN, f64::max);
+    assert_eq!(max_x, 0.0, "never went to X10");
+    let max_y = m.samples.iter().map(|s| s.axes[1]).fold(f64::MIN, f64::max);
+    assert_eq!(max_y, 10.0);
+    assert_eq!(&m.status().axes[..2], &[0.0, 0.0]);
+}
+
+#[test]
+fn block_delete_skips_slashed_lines() {
+    let text = "G21 G90 G61.1\n/G1 X10 F3000\nG1 Y5 F3000\nM2\n";
+    let cfg = config("sim-mill.toml");
+    for (on, x) in [(false, 10.0), (true, 0.0)] {
+        let mut m = Machine::new(&cfg, Some(program(text, "slash.ngc")));
+        m.power_on();
+        m.command(Command::BlockDelete(on));
+        m.cycles(2);
+        m.command(Command::Start { from_line: 0 });
+        assert!(m.until(5.0, |s| s.program_ended && s.state == MachineState::Idle));
+        let max_x = m.samples.iter().map(|s| s.axes[0]).fold(f64::MIN, f64::max);
+        assert_eq!(max_x, x, "block delete {on}");
+        assert_eq!(m.status().axes[1], 5.0);
+    }
+}
+
+#[test]
+fn feed_override_scales_the_path_speed() {
+    // 600 mm/min = 10 mm/s; at 50 % override the cruise is 5 mm/s.
+    let text = "G21 G90 G61.1\nG1 X20 F600\nM2\n";
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::new(&cfg, Some(program(text, "slow.ngc")));
+    m.power_on();
+    assert!(m.sim.handle().urgent(Urgent::FeedOverride(0.5)));
+    m.command(Command::Start { from_line: 0 });
+    m.cycles(1500);
+    // The planner cruises a few parts per million under the programmed feed.
+    let v = m.status().path_speed;
+    assert!((v - 5.0).abs() < 5e-5 * 5.0, "path speed {v}");
+    assert!(m.sim.handle().urgent(Urgent::FeedOverride(1.0)));
+    m.cycles(500);
+    let v = m.status().path_speed;
+    assert!((v - 10.0).abs() < 5e-5 * 10.0, "path speed {v}");
+}

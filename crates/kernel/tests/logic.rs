@@ -1,0 +1,77 @@
+//! The machine logic as a Structured Text program: M-code and spindle hand-shakes go through
+//! the PLC's signals, its outputs reach the machine's I/O image.
+
+mod common;
+use common::*;
+use rtcnc_kernel::config::PlcSection;
+use rtcnc_kernel::{Command, MachineState};
+
+fn plc_mill() -> rtcnc_kernel::MachineConfig {
+    let mut cfg = config("sim-mill.toml");
+    let signals = [
+        ("m_code_request", "Logic.m_req"),
+        ("m_code_done", "Logic.m_done"),
+        ("spindle_on", "Logic.sp_on"),
+        ("spindle_speed_command", "Logic.sp_cmd"),
+        ("spindle_speed_actual", "Logic.sp_act"),
+        ("spindle_enable", "Logic.sp_en"),
+        ("spindle_speed_out", "Logic.sp_out"),
+        ("spindle_at_speed", "Logic.at_speed"),
+        ("tool_change_request", "Logic.tc_req"),
+        ("tool_change_done", "Logic.tc_done"),
+    ];
+    cfg.plc = Some(PlcSection {
+        program: repo().join("crates/kernel/tests/data/handshake.st"),
+        signals: signals
+            .iter()
+            .map(|(s, v)| (s.to_string(), v.to_string()))
+            .collect(),
+        safe_values: Default::default(),
+    });
+    cfg
+}
+
+#[test]
+fn a_user_m_code_waits_for_the_plc_acknowledgement() {
+    let text = "G21 G90 G61.1\nM100 P1\nG1 X1 F600\nM2\n";
+    let mut m = Machine::new(&plc_mill(), Some(program(text, "m100.ngc")));
+    m.power_on();
+    m.samples.clear();
+    m.command(Command::Start { from_line: 0 });
+    let mut lamp_seen = false;
+    for _ in 0..100 {
+        m.cycles(1);
+        lamp_seen |= m
+            .sim
+            .handle()
+            .with_machine(|machine| machine.digital_output(0) == Some(true));
+    }
+    assert!(lamp_seen, "the PLC's %QX0.0 reaches digital output 0");
+    assert!(m.until(5.0, |s| s.program_ended && s.state == MachineState::Idle));
+    // The request goes out in the period after the start; the PLC's TON (20 ms) then
+    // acknowledges; the look-ahead releases the move on the next runs.
+    let moved = m.samples.iter().position(|s| s.axes[0] > 0.0).unwrap();
+    assert!(
+        (22..=30).contains(&moved),
+        "motion began {moved} periods after the start"
+    );
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+}
+
+#[test]
+fn the_spindle_at_speed_comes_from_the_plc() {
+    // 12 000 rpm/s ramp: 6000 rpm takes 0.5 s; the PLC says at speed within 2 %.
+    let text = "G21 G90 G61.1\nS6000 M3\nG1 X1 F600\nM2\n";
+    let mut m = Machine::new(&plc_mill(), Some(program(text, "spindle.ngc")));
+    m.power_on();
+    m.samples.clear();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(5.0, |s| s.program_ended && s.state == MachineState::Idle));
+    let moved = m.samples.iter().position(|s| s.axes[0] > 0.0).unwrap();
+    // 98 % of 6000 rpm at 12 000 rpm/s: 0.49 s.
+    assert!(
+        (490..=500).contains(&moved),
+        "motion began {moved} periods after the start"
+    );
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+}
