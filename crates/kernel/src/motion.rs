@@ -785,6 +785,9 @@ impl MotionCore {
                         self.pending = Some(block);
                         false
                     }
+                    // A move to where the machine already is: nothing to do (LinuxCNC drops
+                    // such moves too).
+                    Err(MotionError::ZeroLength { .. }) => true,
                     Err(e) => {
                         let _ = ctx;
                         self.planner.flush();
