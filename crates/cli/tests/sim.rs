@@ -29,7 +29,11 @@ fn sim_runs_experiment_1_and_writes_its_report() {
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(stdout.contains("limits      respected"), "{stdout}");
     assert!(stdout.contains("faults      none"), "{stdout}");
     let summary: serde_json::Value =
@@ -39,7 +43,9 @@ fn sim_runs_experiment_1_and_writes_its_report() {
     assert_eq!(summary["axes"]["X"]["limit_jerk"], 10000.0);
     let v = summary["axes"]["X"]["max_velocity"].as_f64().unwrap();
     assert!(v > 0.0 && v <= 50.0, "max velocity {v}");
-    let fe = summary["joints"]["X"]["max_following_error"].as_f64().unwrap();
+    let fe = summary["joints"]["X"]["max_following_error"]
+        .as_f64()
+        .unwrap();
     assert!(fe < 0.01, "following error {fe}");
     let t = summary["cycle_time_s"].as_f64().unwrap();
     assert!(t > 0.2678 && t < 0.5, "cycle time {t}");
@@ -49,7 +55,9 @@ fn sim_runs_experiment_1_and_writes_its_report() {
     let last = csv.lines().last().unwrap();
     assert!(last.ends_with(",6.000000,6.000000"), "{last}");
     let svg = std::fs::read_to_string(dir.join("plot.svg")).unwrap();
-    assert!(svg.starts_with("<svg") && svg.contains("tool path") && svg.contains("velocity over time"));
+    assert!(
+        svg.starts_with("<svg") && svg.contains("tool path") && svg.contains("velocity over time")
+    );
     let trace: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("trace.json")).unwrap()).unwrap();
     assert!(trace.to_string().contains("interpolation"));
@@ -71,7 +79,10 @@ fn a_bad_machine_file_is_refused_naming_the_key() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stderr.contains("axes.x.max_jerk: must be greater than zero"), "{stderr}");
+    assert!(
+        stderr.contains("axes.x.max_jerk: must be greater than zero"),
+        "{stderr}"
+    );
 }
 
 #[test]
