@@ -118,9 +118,16 @@ impl KernelHandle {
         std::iter::from_fn(|| self.shared.faults.try_get()).collect()
     }
 
-    /// The interpreter's last error in words.
+    /// The last program error in words: the interpreter's or tool compensation's, else the
+    /// planner's (a soft limit, a bad arc).
     pub fn error_text(&self) -> Option<String> {
-        self.shared.error_text.lock().clone()
+        self.shared.error_text.lock().clone().or_else(|| {
+            self.shared
+                .motion_error
+                .lock()
+                .as_ref()
+                .map(|e| format!("planner: {e}"))
+        })
     }
 
     /// Acts on the simulated machine (press the e-stop, turn the handwheel, inject faults).

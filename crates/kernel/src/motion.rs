@@ -795,6 +795,7 @@ impl MotionCore {
                             then: Then::Error(FaultCode::MotionError),
                             line: e.line().unwrap_or(mv.line),
                         };
+                        *shared.motion_error.lock() = Some(e);
                         true
                     }
                 }

@@ -171,6 +171,8 @@ pub struct Shared {
     pub status: std::sync::Arc<PiMutex<Status>>,
     /// The last interpreter error in words (non-real-time side only).
     pub error_text: std::sync::Arc<PiMutex<Option<String>>>,
+    /// The last move the planner refused (moved in, not formatted, by the look-ahead).
+    pub motion_error: std::sync::Arc<PiMutex<Option<rtcnc_motion::MotionError>>>,
 }
 
 impl Shared {
@@ -188,6 +190,7 @@ impl Shared {
             machine_interface: std::sync::Arc::new(PiMutex::new(MachineInterface::default())),
             status: std::sync::Arc::new(PiMutex::new(Status::default())),
             error_text: std::sync::Arc::new(PiMutex::new(None)),
+            motion_error: std::sync::Arc::new(PiMutex::new(None)),
         }
     }
 

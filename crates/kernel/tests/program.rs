@@ -66,3 +66,39 @@ fn the_shaft_runs_on_the_lathe_in_diameter_mode() {
     let min_z = m.samples.iter().map(|s| s.axes[2]).fold(f64::MAX, f64::min);
     assert!((min_z - -40.0).abs() < 1e-9, "min Z {min_z}");
 }
+
+#[test]
+fn tool_length_and_cutter_radius_compensation_shape_the_path() {
+    let dir = std::env::temp_dir().join(format!("rtcnc-tools-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let table = dir.join("tools.tbl");
+    std::fs::write(&table, "T1 P1 Z+10.0 D6.0 ;6 mm cutter, 10 mm long\n").unwrap();
+    let mut cfg = config("sim-mill.toml");
+    cfg.files.tool_table = Some(table);
+    // G43: Z-20 in the program is Z-10 on the machine with the 10 mm tool.
+    // G41 on a 20 mm square traversed counter-clockwise: the cutter (radius 3) keeps to
+    // the left, inside the square, so its centre never passes X17 or Y17.
+    let text = "G21 G90 G61.1\nT1 M6\nG43 H1\nG0 X-4 Y-4 Z-20\nG41\nG1 X0 Y0 F600\nG1 X20\nG1 Y20\nG1 X0\nG1 Y0\nG40\nG1 X-4 Y-4\nM2\n";
+    let mut m = Machine::new(&cfg, Some(program(text, "comp.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    let ended = m.until(30.0, |s| s.program_ended && s.state == MachineState::Idle);
+    assert!(
+        ended,
+        "{:?} {:?} {:?}",
+        m.faults,
+        m.sim.handle().error_text(),
+        m.status()
+    );
+    assert!(
+        m.faults.is_empty(),
+        "{:?} {:?}",
+        m.faults,
+        m.sim.handle().error_text()
+    );
+    let max = |i: usize| m.samples.iter().map(|s| s.axes[i]).fold(f64::MIN, f64::max);
+    let min_z = m.samples.iter().map(|s| s.axes[2]).fold(f64::MAX, f64::min);
+    assert!((min_z - -10.0).abs() < 1e-12, "min Z {min_z}");
+    assert!((max(0) - 17.0).abs() < 1e-9, "max X {}", max(0));
+    assert!((max(1) - 17.0).abs() < 1e-9, "max Y {}", max(1));
+}

@@ -204,3 +204,24 @@ fn a_tool_change_waits_for_the_machine_logic_before_motion_continues() {
         m.faults
     );
 }
+
+#[test]
+fn a_move_beyond_a_soft_limit_is_refused_before_the_machine_gets_there() {
+    let text = "G21 G90 G61.1\nG1 X50 F3000\nG1 X400\nM2\n";
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::new(&cfg, Some(program(text, "far.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    m.cycles(50);
+    assert!(m.until(5.0, |s| s.state == MachineState::Idle && s.line == 0));
+    let f = m
+        .faults
+        .iter()
+        .find(|f| f.code == FaultCode::MotionError)
+        .expect("refused move");
+    assert_eq!(f.line, 3);
+    let words = m.sim.handle().error_text().unwrap();
+    assert!(words.contains("soft limit"), "{words}");
+    let max_x = m.samples.iter().map(|s| s.axes[0]).fold(f64::MIN, f64::max);
+    assert_eq!(max_x, 50.0);
+}
