@@ -707,12 +707,18 @@ impl<K: Kinematics> Planner<K> {
     /// it is and checks the speed against the curve at the end of each chunk.
     #[allow(clippy::too_many_arguments)]
     fn join_ok(&self, d1: f64, v1: f64, a1: f64, jb: f64, a_full: f64, t: f64, rem: f64) -> bool {
-        let horizon = (a1.max(0.0) + a_full) / jb + 2.0 * t;
-        let dt = (horizon / 12.0).max(0.5 * t);
+        let horizon = 3.0 * (a1.max(0.0) + a_full) / jb + 2.0 * t;
+        let dt = (horizon / 24.0).max(0.5 * t);
         let (mut d, mut v, mut a) = (d1, v1, a1);
         let mut time = 0.0;
         while time < horizon {
-            let (_, aw, _) = self.w_ahead(d);
+            // Aim at the steepest slope the curve takes within one full ramp's travel, so
+            // that a kink where the curve starts to fall is anticipated.
+            let reach = v.max(0.0) * (a.max(0.0) + a_full) / jb;
+            let mut aw = 0.0f64;
+            for f in [0.0, 0.5, 1.0] {
+                aw = aw.max(self.w_ahead(d + f * reach).1);
+            }
             let target = -aw;
             let j = clampf((target - a) / dt, -jb, jb);
             let (dd, v2, a2) = advance(0.0, v, a, j, dt);
@@ -804,7 +810,7 @@ impl<K: Kinematics> Planner<K> {
             None => (false, None),
         };
         let mut rem = self.stop_cum - self.s;
-        let mut a_stop = if head.a_to_stop.is_finite() {
+        let mut a_stop = if head.a_to_stop.is_finite() && head.a_to_stop > 1e-3 * self.a_min {
             head.a_to_stop
         } else {
             head.a_sub[0].min(self.a_min * BRAKE_SHARE_STRAIGHT)
