@@ -707,8 +707,8 @@ impl<K: Kinematics> Planner<K> {
     /// it is and checks the speed against the curve at the end of each chunk.
     #[allow(clippy::too_many_arguments)]
     fn join_ok(&self, d1: f64, v1: f64, a1: f64, jb: f64, a_full: f64, t: f64, rem: f64) -> bool {
-        let horizon = 3.0 * (a1.max(0.0) + a_full) / jb + 2.0 * t;
-        let dt = (horizon / 24.0).max(0.5 * t);
+        let horizon = (a1.max(0.0) + a_full) / jb + 2.0 * t;
+        let dt = (horizon / 12.0).max(0.5 * t);
         let (mut d, mut v, mut a) = (d1, v1, a1);
         let mut time = 0.0;
         while time < horizon {
