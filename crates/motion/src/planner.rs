@@ -258,16 +258,42 @@ impl<K: Kinematics> Planner<K> {
     /// line; the move is then not taken and the planner state is unchanged. `QueueFull`: try
     /// again after some periods.
     pub fn push(&mut self, mv: &Move) -> Result<(), MotionError> {
-        if self.free() == 0 {
-            return Err(MotionError::QueueFull);
-        }
+        self.push_all(std::slice::from_ref(mv)).and_then(|n| {
+            if n == 1 {
+                Ok(())
+            } else {
+                Err(MotionError::QueueFull)
+            }
+        })
+    }
+
+    /// Adds as many of `moves` as there is room for and returns how many were taken; the
+    /// braking curve is updated once for all of them (cheaper than one [`Planner::push`]
+    /// each). Stops at the first bad move and returns its error (the moves before it are
+    /// taken).
+    pub fn push_all(&mut self, moves: &[Move]) -> Result<usize, MotionError> {
         if matches!(self.hold, Some(h) if h.kind != StopKind::Hold) {
             return Err(MotionError::Busy("stopping"));
         }
-        self.scratch.clear();
-        self.builder.push(mv, &self.lim, &mut self.scratch)?;
-        self.append_scratch();
-        Ok(())
+        let first_new = self.q.len;
+        let mut taken = 0;
+        let mut result = Ok(());
+        for mv in moves {
+            if self.free() == 0 {
+                break;
+            }
+            self.scratch.clear();
+            if let Err(e) = self.builder.push(mv, &self.lim, &mut self.scratch) {
+                result = Err(e);
+                break;
+            }
+            self.append_scratch(false);
+            taken += 1;
+        }
+        if self.q.len > first_new {
+            self.backward(first_new);
+        }
+        result.map(|()| taken)
     }
 
     /// Emits the moves held back for blending; the path then ends with a stop. Call at
@@ -275,7 +301,7 @@ impl<K: Kinematics> Planner<K> {
     pub fn flush(&mut self) {
         self.scratch.clear();
         self.builder.flush(&self.lim, &mut self.scratch);
-        self.append_scratch();
+        self.append_scratch(true);
     }
 
     /// Feed override, 0..=2 (clamped). Takes effect at once with a jerk-limited speed change.
@@ -390,7 +416,7 @@ impl<K: Kinematics> Planner<K> {
 
     // ---------------------------------------------------------------- window
 
-    fn append_scratch(&mut self) {
+    fn append_scratch(&mut self, update: bool) {
         let first_new = self.q.len;
         let n = self.scratch.len();
         for k in 0..n {
@@ -419,7 +445,7 @@ impl<K: Kinematics> Planner<K> {
             }
             self.q.push(p);
         }
-        if n > 0 {
+        if n > 0 && update {
             self.backward(first_new);
         }
     }
@@ -551,6 +577,9 @@ impl<K: Kinematics> Planner<K> {
             {
                 break;
             }
+        }
+        if self.trace {
+            eprintln!("BACKWARD n={n} first_new={first_new} lowest={lowest}");
         }
         // Forward pass: a rise of the curve is capped by the acceleration available, so that
         // the curve has no notches finer than the controller can follow.
