@@ -157,6 +157,8 @@ pub struct Planner<K: Kinematics> {
     ds_hist: [f64; 2],
     /// Steps left in the landing on a stop in progress.
     land_n: Option<usize>,
+    /// Path jerk of the last period (warm start of the next search).
+    j_last: f64,
     /// Diagnostic trace of the speed controller on stderr (`RTCNC_MOTION_TRACE` set when
     /// the planner is built); never enable on a real-time thread.
     trace: bool,
@@ -245,6 +247,7 @@ impl<K: Kinematics> Planner<K> {
             cum_end: 0.0,
             ds_hist: [0.0; 2],
             land_n: None,
+            j_last: 0.0,
             trace: std::env::var_os("RTCNC_MOTION_TRACE").is_some(),
         })
     }
@@ -1034,8 +1037,23 @@ impl<K: Kinematics> Planner<K> {
             d1
         } else {
             let mut choice = None;
+            // Warm start: the jerk of the last period is usually close to this one's, so
+            // the search starts from a narrow bracket around it.
+            let j_prev = clampf(self.j_last, j_lo, j_hi);
+            let step = 0.02 * (j_hi - j_lo).max(0.0);
             if safe(j_hi) {
                 choice = Some(j_hi);
+            } else if step > 0.0 && safe(j_prev) && !safe((j_prev + step).min(j_hi)) {
+                let (mut lo, mut hi) = (j_prev, (j_prev + step).min(j_hi));
+                for _ in 0..6 {
+                    let mid = 0.5 * (lo + hi);
+                    if safe(mid) {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                choice = Some(lo);
             } else {
                 let mut lo = j_lo.max((a_lo - a) / t).min(j_hi);
                 if !safe(lo) {
@@ -1043,7 +1061,7 @@ impl<K: Kinematics> Planner<K> {
                 }
                 if safe(lo) {
                     let mut hi = j_hi;
-                    for _ in 0..14 {
+                    for _ in 0..12 {
                         let mid = 0.5 * (lo + hi);
                         if safe(mid) {
                             lo = mid;
@@ -1133,6 +1151,7 @@ impl<K: Kinematics> Planner<K> {
                 -2.0 * jm,
                 2.0 * jm,
             );
+            self.j_last = j_eff;
             let (_, v1, a1) = advance(0.0, v, a, j_eff, t);
             self.v = v1.max(0.0);
             self.a = a1;
