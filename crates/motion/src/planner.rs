@@ -68,7 +68,7 @@ struct Hold {
 
 /// Diagnostic dump of one piece: length, braking curve, axis-speed and curvature bounds.
 #[doc(hidden)]
-pub type PieceDump = (f64, Vec<f64>, Vec<f64>, Vec<f64>);
+pub type PieceDump = (f64, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
 
 /// Fixed-capacity ring of pieces.
 struct Ring {
@@ -390,6 +390,10 @@ impl<K: Kinematics> Planner<K> {
                     p.w[..=p.ns].to_vec(),
                     p.smp[..=p.ns].iter().map(|s| s.v_axis).collect(),
                     p.smp[..=p.ns].iter().map(|s| s.v_curve).collect(),
+                    p.smp[..=p.ns]
+                        .iter()
+                        .map(|s| crate::axes::norm(&s.k))
+                        .collect(),
                 )
             })
             .collect()
