@@ -744,7 +744,7 @@ impl<K: Kinematics> Planner<K> {
     #[allow(clippy::too_many_arguments)]
     fn join_ok(&self, d1: f64, v1: f64, a1: f64, jb: f64, a_full: f64, t: f64, rem: f64) -> bool {
         let horizon = (a1.max(0.0) + a_full) / jb + 2.0 * t;
-        let dt = (horizon / 12.0).max(0.5 * t);
+        let dt = (horizon / 8.0).max(0.5 * t);
         let (mut d, mut v, mut a) = (d1, v1, a1);
         let mut time = 0.0;
         while time < horizon {
@@ -1065,7 +1065,7 @@ impl<K: Kinematics> Planner<K> {
                 }
                 if safe(lo) {
                     let mut hi = j_hi;
-                    for _ in 0..12 {
+                    for _ in 0..10 {
                         let mid = 0.5 * (lo + hi);
                         if safe(mid) {
                             lo = mid;
