@@ -1,1 +1,106 @@
-fn main() {}
+//! Cost of the path planner: look-ahead throughput (segments per second through geometry,
+//! speed-limit sampling and the braking-curve passes) and interpolation cost per servo period
+//! per axis, on a CAM-like polyline (a circle of R 10 in 0.28 mm chords, 1 µm chord
+//! tolerance, G64 P0.001, F 100 mm/s, 100 mm/s, 1000 mm/s², 50 000 mm/s³ per axis).
+//!
+//! `cargo bench -p rtcnc-motion --bench planner`; goals: ≥ 500 000 segments/s, ≤ 50 ns per
+//! axis per period.
+
+use std::hint::black_box;
+use std::time::Duration;
+
+use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
+use rtcnc_motion::{
+    AXES, Axis, AxisLimits, AxisVec, MachineLimits, Move, PathMode, Planner, TrivialKinematics,
+};
+
+fn polyline(turns: f64) -> (AxisVec, Vec<Move>) {
+    let (r, tol): (f64, f64) = (10.0, 0.001);
+    let phi = 2.0 * (1.0 - tol / r).acos();
+    let total = 2.0 * std::f64::consts::PI * turns;
+    let n = (total / phi).ceil() as usize;
+    let mode = PathMode::Blend {
+        tolerance: 0.001,
+        merge_tolerance: 0.001,
+    };
+    let pt = |k: usize| {
+        let th = total * k as f64 / n as f64;
+        let mut p = [0.0; AXES];
+        p[0] = r * th.cos();
+        p[1] = r * th.sin();
+        p
+    };
+    (
+        pt(0),
+        (1..=n)
+            .map(|k| Move::line(pt(k), 100.0, mode, k as u32))
+            .collect(),
+    )
+}
+
+fn planner(start: AxisVec, window: usize) -> Planner<TrivialKinematics> {
+    let lim = MachineLimits::uniform(
+        &[Axis::X, Axis::Y, Axis::Z],
+        AxisLimits::new(100.0, 1000.0, 50_000.0, -1000.0, 1000.0),
+    );
+    Planner::new(
+        &lim,
+        TrivialKinematics::identity(&[Axis::X, Axis::Y, Axis::Z]),
+        1e-3,
+        window,
+        start,
+    )
+    .unwrap()
+}
+
+fn bench(c: &mut Criterion) {
+    let (start, moves) = polyline(4.0);
+    let mut g = c.benchmark_group("planner");
+    g.measurement_time(Duration::from_secs(3)).sample_size(20);
+    g.throughput(Throughput::Elements(moves.len() as u64));
+    g.bench_function("look-ahead: push segments", |b| {
+        b.iter_batched(
+            || planner(start, 4 * moves.len() + 16),
+            |mut pl| {
+                let mut k = 0;
+                while k < moves.len() {
+                    k += pl.push_all(black_box(&moves[k..])).unwrap();
+                }
+                pl.flush();
+                pl
+            },
+            BatchSize::LargeInput,
+        )
+    });
+    // Interpolation: 200 periods at speed in the middle of the program.
+    const PERIODS: u64 = 200;
+    g.throughput(Throughput::Elements(PERIODS));
+    g.bench_function("interpolate: one servo period (3 axes)", |b| {
+        b.iter_batched(
+            || {
+                let mut pl = planner(start, 4 * moves.len() + 16);
+                for m in &moves {
+                    pl.push(m).unwrap();
+                }
+                pl.flush();
+                let mut j = [0.0; 3];
+                for _ in 0..300 {
+                    pl.next(&mut j);
+                }
+                pl
+            },
+            |mut pl| {
+                let mut j = [0.0; 3];
+                for _ in 0..PERIODS {
+                    black_box(pl.next(&mut j));
+                }
+                pl
+            },
+            BatchSize::LargeInput,
+        )
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -81,9 +81,8 @@ fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
     let mut moving_periods = 0usize;
     for _ in 0..10_000_000 {
         let t0 = std::time::Instant::now();
-        while k < moves.len() && pl.free() > 0 {
-            pl.push(&moves[k]).expect("push");
-            k += 1;
+        if k < moves.len() && pl.free() > 0 {
+            k += pl.push_all(&moves[k..]).expect("push");
         }
         if k == moves.len() && !flushed {
             pl.flush();

@@ -20,7 +20,29 @@ fn main() {
         merge_tolerance: 0.0,
     };
     let mut e = [0.0; AXES];
-    if which == "case3" {
+    if which == "spec" {
+        // SPEC="x y z feed mode P; ..." with mode S (G61.1), E (G61) or B (G64 P).
+        for (n, item) in std::env::var("SPEC").unwrap().split(';').enumerate() {
+            let f: Vec<&str> = item.split_whitespace().collect();
+            if f.len() < 5 {
+                continue;
+            }
+            let mut e = [0.0; AXES];
+            for i in 0..3 {
+                e[i] = f[i].parse().unwrap();
+            }
+            let feed: f64 = f[3].parse().unwrap();
+            let mode = match f[4] {
+                "S" => PathMode::ExactStop,
+                "E" => PathMode::ExactPath,
+                _ => PathMode::Blend {
+                    tolerance: f[5].parse().unwrap(),
+                    merge_tolerance: 0.0,
+                },
+            };
+            pl.push(&Move::line(e, feed, mode, n as u32 + 1)).unwrap();
+        }
+    } else if which == "case3" {
         let pt = |x: f64, y: f64| {
             let mut e = [0.0; AXES];
             e[0] = x;
@@ -60,10 +82,16 @@ fn main() {
         ))
         .unwrap();
     } else if which == "arc2" {
-        let r: f64 = 0.38337396818471536;
-        let (cx, cy) = (0.0, r);
+        let envf = |k: &str, d: f64| {
+            std::env::var(k)
+                .ok()
+                .and_then(|x| x.parse().ok())
+                .unwrap_or(d)
+        };
+        let r: f64 = envf("R", 0.38337396818471536);
+        let (cx, cy) = (0.0, envf("CY", r));
         let a0 = (0.0 - cy).atan2(0.0 - cx);
-        let a1 = a0 + 4.89908394343943;
+        let a1 = a0 + envf("SWEEP", 4.89908394343943);
         let mut end = [0.0; AXES];
         end[0] = cx + r * a1.cos();
         end[1] = cy + r * a1.sin();

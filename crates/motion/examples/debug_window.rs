@@ -4,7 +4,23 @@ fn main() {
     let lim = AxisLimits::new(100.0, 1000.0, 50_000.0, -1000.0, 1000.0);
     let machine = MachineLimits::uniform(&[Axis::X, Axis::Y, Axis::Z], lim);
     let kin = TrivialKinematics::identity(&[Axis::X, Axis::Y, Axis::Z]);
-    let mut pl = Planner::new(&machine, kin, 1e-3, 4096, [0.0; AXES]).unwrap();
+    let mut start = [0.0; AXES];
+    if let Some(l) = std::fs::read_to_string(std::env::args().nth(1).unwrap())
+        .unwrap()
+        .lines()
+        .find(|l| l.starts_with("G0 "))
+    {
+        for w in l.split_whitespace() {
+            let v: f64 = w[1..].parse().unwrap_or(0.0);
+            match &w[..1] {
+                "X" => start[0] = v,
+                "Y" => start[1] = v,
+                "Z" => start[2] = v,
+                _ => {}
+            }
+        }
+    }
+    let mut pl = Planner::new(&machine, kin, 1e-3, 4096, start).unwrap();
     let text = std::fs::read_to_string(std::env::args().nth(1).unwrap()).unwrap();
     let mut n = 0;
     for l in text.lines().filter(|l| l.starts_with("G1 ")) {
@@ -38,8 +54,8 @@ fn main() {
             .nth(3)
             .and_then(|x| x.parse().ok())
             .unwrap_or(0);
-        for (i, (len, w, va, vc)) in pl.debug_window().iter().enumerate().skip(from).take(30) {
-            println!("{i} len={len:.4} w={w:.1?} vaxis={va:.1?} vcurve={vc:.1?}");
+        for (i, (len, w, va, vc, kk)) in pl.debug_window().iter().enumerate().skip(from).take(30) {
+            println!("{i} len={len:.4} w={w:.1?} vaxis={va:.1?} vcurve={vc:.1?} k={kk:.4?}");
         }
         return;
     }

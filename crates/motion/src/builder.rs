@@ -414,6 +414,7 @@ impl Builder {
                             lp.line,
                         );
                         b.stop_at_end = false;
+                        b.corner_blend = true;
                         // A blend that would have to be passed at a crawl (tiny tolerance on a
                         // sharp corner) is no faster than a stop and much harder to follow
                         // with jerk limits: stop at the corner instead.

@@ -10,6 +10,8 @@ pub(crate) const NS_MAX: usize = 4;
 /// Share of each axis's jerk the velocity limit leaves to the curvature-change term
 /// v³·|dK/ds| (the rest serves the tangential jerk and the 3·v·a·K coupling).
 pub(crate) const JERK_SHARE_CURVATURE: f64 = 0.6;
+/// The same on corner blends, whose curvature rises and falls within a short length.
+pub(crate) const JERK_SHARE_CURVATURE_BLEND: f64 = 0.4;
 /// Share of J·T an acceleration step at a curvature discontinuity may use (a step Δa
 /// shows up as Δa/T in the sampled jerk).
 pub(crate) const JERK_SHARE_JUMP: f64 = 0.5;
@@ -53,6 +55,8 @@ pub(crate) struct Piece {
     /// Dwell time (the piece has zero length).
     pub dwell: f64,
     pub straight: bool,
+    /// A corner blend (as opposed to a line, arc or smoothing span).
+    pub corner_blend: bool,
     pub ns: usize,
     pub smp: [Sample; NS_MAX + 1],
     /// Braking curve (maximal speed) at the samples.
@@ -121,6 +125,7 @@ impl Piece {
             stop_at_end: false,
             dwell: 0.0,
             straight,
+            corner_blend: false,
             ns: if straight { 1 } else { NS_MAX },
             smp: [Sample::default(); NS_MAX + 1],
             w: [0.0; NS_MAX + 1],
@@ -222,7 +227,12 @@ impl Piece {
                     v_curve = v_curve.min((lim.a[i] / ki).sqrt());
                 }
                 if kpi > 0.0 {
-                    v_curve = v_curve.min((JERK_SHARE_CURVATURE * lim.j[i] / kpi).cbrt());
+                    let share = if self.corner_blend {
+                        JERK_SHARE_CURVATURE_BLEND
+                    } else {
+                        JERK_SHARE_CURVATURE
+                    };
+                    v_curve = v_curve.min((share * lim.j[i] / kpi).cbrt());
                 }
             }
             self.smp[k] = Sample {

@@ -68,7 +68,7 @@ struct Hold {
 
 /// Diagnostic dump of one piece: length, braking curve, axis-speed and curvature bounds.
 #[doc(hidden)]
-pub type PieceDump = (f64, Vec<f64>, Vec<f64>, Vec<f64>);
+pub type PieceDump = (f64, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
 
 /// Fixed-capacity ring of pieces.
 struct Ring {
@@ -157,6 +157,8 @@ pub struct Planner<K: Kinematics> {
     ds_hist: [f64; 2],
     /// Steps left in the landing on a stop in progress.
     land_n: Option<usize>,
+    /// Path jerk of the last period (warm start of the next search).
+    j_last: f64,
     /// Diagnostic trace of the speed controller on stderr (`RTCNC_MOTION_TRACE` set when
     /// the planner is built); never enable on a real-time thread.
     trace: bool,
@@ -245,6 +247,7 @@ impl<K: Kinematics> Planner<K> {
             cum_end: 0.0,
             ds_hist: [0.0; 2],
             land_n: None,
+            j_last: 0.0,
             trace: std::env::var_os("RTCNC_MOTION_TRACE").is_some(),
         })
     }
@@ -258,16 +261,42 @@ impl<K: Kinematics> Planner<K> {
     /// line; the move is then not taken and the planner state is unchanged. `QueueFull`: try
     /// again after some periods.
     pub fn push(&mut self, mv: &Move) -> Result<(), MotionError> {
-        if self.free() == 0 {
-            return Err(MotionError::QueueFull);
-        }
+        self.push_all(std::slice::from_ref(mv)).and_then(|n| {
+            if n == 1 {
+                Ok(())
+            } else {
+                Err(MotionError::QueueFull)
+            }
+        })
+    }
+
+    /// Adds as many of `moves` as there is room for and returns how many were taken; the
+    /// braking curve is updated once for all of them (cheaper than one [`Planner::push`]
+    /// each). Stops at the first bad move and returns its error (the moves before it are
+    /// taken).
+    pub fn push_all(&mut self, moves: &[Move]) -> Result<usize, MotionError> {
         if matches!(self.hold, Some(h) if h.kind != StopKind::Hold) {
             return Err(MotionError::Busy("stopping"));
         }
-        self.scratch.clear();
-        self.builder.push(mv, &self.lim, &mut self.scratch)?;
-        self.append_scratch();
-        Ok(())
+        let first_new = self.q.len;
+        let mut taken = 0;
+        let mut result = Ok(());
+        for mv in moves {
+            if self.free() == 0 {
+                break;
+            }
+            self.scratch.clear();
+            if let Err(e) = self.builder.push(mv, &self.lim, &mut self.scratch) {
+                result = Err(e);
+                break;
+            }
+            self.append_scratch(false);
+            taken += 1;
+        }
+        if self.q.len > first_new {
+            self.backward(first_new);
+        }
+        result.map(|()| taken)
     }
 
     /// Emits the moves held back for blending; the path then ends with a stop. Call at
@@ -275,7 +304,7 @@ impl<K: Kinematics> Planner<K> {
     pub fn flush(&mut self) {
         self.scratch.clear();
         self.builder.flush(&self.lim, &mut self.scratch);
-        self.append_scratch();
+        self.append_scratch(true);
     }
 
     /// Feed override, 0..=2 (clamped). Takes effect at once with a jerk-limited speed change.
@@ -361,6 +390,10 @@ impl<K: Kinematics> Planner<K> {
                     p.w[..=p.ns].to_vec(),
                     p.smp[..=p.ns].iter().map(|s| s.v_axis).collect(),
                     p.smp[..=p.ns].iter().map(|s| s.v_curve).collect(),
+                    p.smp[..=p.ns]
+                        .iter()
+                        .map(|s| crate::axes::norm(&s.k))
+                        .collect(),
                 )
             })
             .collect()
@@ -390,7 +423,7 @@ impl<K: Kinematics> Planner<K> {
 
     // ---------------------------------------------------------------- window
 
-    fn append_scratch(&mut self) {
+    fn append_scratch(&mut self, update: bool) {
         let first_new = self.q.len;
         let n = self.scratch.len();
         for k in 0..n {
@@ -419,7 +452,7 @@ impl<K: Kinematics> Planner<K> {
             }
             self.q.push(p);
         }
-        if n > 0 {
+        if n > 0 && update {
             self.backward(first_new);
         }
     }
@@ -551,6 +584,9 @@ impl<K: Kinematics> Planner<K> {
             {
                 break;
             }
+        }
+        if self.trace {
+            eprintln!("BACKWARD n={n} first_new={first_new} lowest={lowest}");
         }
         // Forward pass: a rise of the curve is capped by the acceleration available, so that
         // the curve has no notches finer than the controller can follow.
@@ -708,11 +744,17 @@ impl<K: Kinematics> Planner<K> {
     #[allow(clippy::too_many_arguments)]
     fn join_ok(&self, d1: f64, v1: f64, a1: f64, jb: f64, a_full: f64, t: f64, rem: f64) -> bool {
         let horizon = (a1.max(0.0) + a_full) / jb + 2.0 * t;
-        let dt = (horizon / 12.0).max(0.5 * t);
+        let dt = (horizon / 8.0).max(0.5 * t);
         let (mut d, mut v, mut a) = (d1, v1, a1);
         let mut time = 0.0;
         while time < horizon {
-            let (_, aw, _) = self.w_ahead(d);
+            // Aim at the steepest slope the curve takes within one full ramp's travel, so
+            // that a kink where the curve starts to fall is anticipated.
+            let reach = v.max(0.0) * (a.max(0.0) + a_full) / jb;
+            let mut aw = 0.0f64;
+            for f in [0.0, 0.5, 1.0] {
+                aw = aw.max(self.w_ahead(d + f * reach).1);
+            }
             let target = -aw;
             let j = clampf((target - a) / dt, -jb, jb);
             let (dd, v2, a2) = advance(0.0, v, a, j, dt);
@@ -804,7 +846,7 @@ impl<K: Kinematics> Planner<K> {
             None => (false, None),
         };
         let mut rem = self.stop_cum - self.s;
-        let mut a_stop = if head.a_to_stop.is_finite() {
+        let mut a_stop = if head.a_to_stop.is_finite() && head.a_to_stop > 1e-3 * self.a_min {
             head.a_to_stop
         } else {
             head.a_sub[0].min(self.a_min * BRAKE_SHARE_STRAIGHT)
@@ -999,8 +1041,23 @@ impl<K: Kinematics> Planner<K> {
             d1
         } else {
             let mut choice = None;
+            // Warm start: the jerk of the last period is usually close to this one's, so
+            // the search starts from a narrow bracket around it.
+            let j_prev = clampf(self.j_last, j_lo, j_hi);
+            let step = 0.02 * (j_hi - j_lo).max(0.0);
             if safe(j_hi) {
                 choice = Some(j_hi);
+            } else if step > 0.0 && safe(j_prev) && !safe((j_prev + step).min(j_hi)) {
+                let (mut lo, mut hi) = (j_prev, (j_prev + step).min(j_hi));
+                for _ in 0..6 {
+                    let mid = 0.5 * (lo + hi);
+                    if safe(mid) {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                choice = Some(lo);
             } else {
                 let mut lo = j_lo.max((a_lo - a) / t).min(j_hi);
                 if !safe(lo) {
@@ -1008,7 +1065,7 @@ impl<K: Kinematics> Planner<K> {
                 }
                 if safe(lo) {
                     let mut hi = j_hi;
-                    for _ in 0..14 {
+                    for _ in 0..10 {
                         let mid = 0.5 * (lo + hi);
                         if safe(mid) {
                             lo = mid;
@@ -1098,6 +1155,7 @@ impl<K: Kinematics> Planner<K> {
                 -2.0 * jm,
                 2.0 * jm,
             );
+            self.j_last = j_eff;
             let (_, v1, a1) = advance(0.0, v, a, j_eff, t);
             self.v = v1.max(0.0);
             self.a = a1;

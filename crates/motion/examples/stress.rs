@@ -1,0 +1,112 @@
+//! Runs random move lists (lines in three modes, random feeds and blend tolerances) and
+//! counts those whose set-points exceed a limit. Prints failing programs in the format of
+//! the `debug_line spec` example. Usage: stress [N] [SEED].
+#![allow(clippy::needless_range_loop)]
+use rtcnc_motion::*;
+
+struct Lcg(u64);
+impl Lcg {
+    fn f(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+fn main() {
+    let n: usize = std::env::args()
+        .nth(1)
+        .and_then(|x| x.parse().ok())
+        .unwrap_or(200);
+    let seed: u64 = std::env::args()
+        .nth(2)
+        .and_then(|x| x.parse().ok())
+        .unwrap_or(1);
+    let mut rng = Lcg(seed);
+    let (vm, am, jm, t) = (100.0, 1000.0, 50_000.0, 1e-3);
+    let mut failures = 0;
+    for case in 0..n {
+        let k = 1 + (rng.f() * 8.0) as usize;
+        let mut spec = String::new();
+        let mut moves = Vec::new();
+        let mut pos = [0.0; AXES];
+        for i in 0..k {
+            let mut e = [0.0; AXES];
+            for a in 0..3 {
+                e[a] = rng.f() * 40.0 - 20.0;
+            }
+            if rng.f() < 0.3 {
+                e[2] = pos[2];
+            }
+            let feed = 5.0 + rng.f() * 145.0;
+            let r = rng.f();
+            let (mode, ms) = if r < 0.2 {
+                (PathMode::ExactStop, "S".to_string())
+            } else if r < 0.4 {
+                (PathMode::ExactPath, "E".to_string())
+            } else {
+                let p = [0.001, 0.01, 0.1][(rng.f() * 3.0) as usize % 3];
+                (
+                    PathMode::Blend {
+                        tolerance: p,
+                        merge_tolerance: 0.0,
+                    },
+                    format!("B {p}"),
+                )
+            };
+            spec += &format!("{} {} {} {} {}; ", e[0], e[1], e[2], feed, ms);
+            moves.push(Move::line(e, feed, mode, i as u32 + 1));
+            pos = e;
+        }
+        let lim = MachineLimits::uniform(
+            &[Axis::X, Axis::Y, Axis::Z],
+            AxisLimits::new(vm, am, jm, -1000.0, 1000.0),
+        );
+        let mut pl = Planner::new(
+            &lim,
+            TrivialKinematics::identity(&[Axis::X, Axis::Y, Axis::Z]),
+            t,
+            256,
+            [0.0; AXES],
+        )
+        .unwrap();
+        for m in &moves {
+            pl.push(m).unwrap();
+        }
+        pl.flush();
+        let mut h = vec![[0.0; AXES]; 3];
+        let mut j = [0.0; 3];
+        let mut worst = (0.0f64, 0.0f64, 0.0f64);
+        for _ in 0..2_000_000 {
+            let st = pl.next(&mut j);
+            h.push(st.axes);
+            let w = &h[h.len() - 4..];
+            for i in 0..3 {
+                let v = ((w[3][i] - w[2][i]) / t).abs() / vm;
+                let a = ((w[3][i] - 2.0 * w[2][i] + w[1][i]) / (t * t)).abs() / am;
+                let jj =
+                    ((w[3][i] - 3.0 * w[2][i] + 3.0 * w[1][i] - w[0][i]) / (t * t * t)).abs() / jm;
+                worst = (worst.0.max(v), worst.1.max(a), worst.2.max(jj));
+            }
+            if st.state == MotionState::Idle {
+                break;
+            }
+        }
+        if worst.0 > 1.0 + 1e-9 || worst.1 > 1.0 + 1e-9 || worst.2 > 1.0 + 1e-9 {
+            failures += 1;
+            if failures <= 5 {
+                println!(
+                    "case {case}: v {:.3} a {:.3} j {:.3} stats {:?}\n  SPEC=\"{}\"",
+                    worst.0,
+                    worst.1,
+                    worst.2,
+                    pl.stats(),
+                    spec
+                );
+            }
+        }
+    }
+    println!("{failures} of {n} programs exceeded a limit");
+}
