@@ -20,7 +20,8 @@ use crate::vm::{Flow, Vm};
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct RuntimeOptions {
     /// Statements plus loop iterations one scan may execute before the watchdog stops
-    /// the PLC. Counting work instead of time makes the watchdog deterministic.
+    /// the PLC. Counting work instead of time makes the watchdog deterministic. The
+    /// default, 200 000, is a few milliseconds of work at ~15 ns per statement.
     pub watchdog_budget: u64,
     /// Most variables that can be forced at once (the force table is preallocated).
     pub max_forces: usize,
