@@ -129,6 +129,8 @@ const RESERVED: &[&str] = &[
     "CONSTANT",
     "RETAIN",
     "NON_RETAIN",
+    "METHOD",
+    "END_METHOD",
 ];
 
 impl Parser<'_> {
@@ -491,6 +493,10 @@ impl Parser<'_> {
         while self.is_var_block_start() {
             vars.push(self.var_block()?);
         }
+        let mut methods = Vec::new();
+        while kind == PouKind::FunctionBlock && self.is_kw("METHOD") {
+            methods.push(self.method()?);
+        }
         let body = self.stmts(&[end])?;
         self.expect_kw(end)?;
         Ok(Pou {
@@ -498,7 +504,42 @@ impl Parser<'_> {
             name,
             ret,
             vars,
+            methods,
             body,
+        })
+    }
+
+    fn method(&mut self) -> PResult<Method> {
+        self.bump();
+        let mut private = false;
+        loop {
+            if self.eat_kw("PUBLIC") || self.eat_kw("INTERNAL") || self.eat_kw("FINAL") {
+                continue;
+            }
+            if self.eat_kw("PRIVATE") || self.eat_kw("PROTECTED") {
+                private = true;
+                continue;
+            }
+            break;
+        }
+        let name = self.name()?;
+        let ret = if self.eat(&Tok::Colon) {
+            Some(self.type_spec()?)
+        } else {
+            None
+        };
+        let mut vars = Vec::new();
+        while self.is_var_block_start() {
+            vars.push(self.var_block()?);
+        }
+        let body = self.stmts(&["END_METHOD"])?;
+        self.expect_kw("END_METHOD")?;
+        Ok(Method {
+            name,
+            ret,
+            vars,
+            body,
+            private,
         })
     }
 
@@ -1069,11 +1110,16 @@ impl Parser<'_> {
             Tok::Ident(_) => {
                 let a = self.access()?;
                 if self.peek() == &Tok::LParen {
-                    if !a.parts.is_empty() {
-                        return Err(self.err("only functions can be called inside an expression"));
-                    }
-                    let args = self.args()?;
-                    return Ok(Expr::Call(a.root, args, pos));
+                    let mut a = a;
+                    return match a.parts.pop() {
+                        None => Ok(Expr::Call(a.root, self.args()?, pos)),
+                        Some(Part::Field(m)) => {
+                            let args = self.args()?;
+                            Ok(Expr::MethodCall(Box::new((a, m)), args, pos))
+                        }
+                        Some(_) => Err(self
+                            .err("only functions and methods can be called inside an expression")),
+                    };
                 }
                 Ok(Expr::Var(a))
             }

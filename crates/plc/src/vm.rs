@@ -187,6 +187,7 @@ pub(crate) enum Expr {
     /// A built-in; string results go to the static temporary at `dest`.
     Builtin(Builtin, Box<[Expr]>, u32),
     Call(Box<FnCall>),
+    CallMethod(Box<MethodCall>),
 }
 
 /// How a value is stored into a location.
@@ -224,6 +225,13 @@ pub(crate) struct FnCall {
     pub direct: bool,
     pub args: Box<[ArgIn]>,
     pub outs: Box<[ArgOut]>,
+}
+
+/// A METHOD call: a function-like call whose body addresses the instance.
+#[derive(Debug)]
+pub(crate) struct MethodCall {
+    pub instance: Place,
+    pub call: FnCall,
 }
 
 #[derive(Debug)]
@@ -458,6 +466,10 @@ impl Vm {
             }
             Expr::Builtin(b, args, dest) => self.builtin(c, *b, args, *dest),
             Expr::Call(call) => self.call_fn(c, call),
+            Expr::CallMethod(m) => {
+                let inst = self.addr(c, &m.instance);
+                self.call_fn_in(c, &m.call, Some(inst))
+            }
         }
     }
 
@@ -792,6 +804,12 @@ impl Vm {
     }
 
     fn call_fn(&mut self, c: &Code, call: &FnCall) -> u64 {
+        self.call_fn_in(c, call, None)
+    }
+
+    /// Calls a function, or a method on the instance at `instance`: arguments and outputs
+    /// are evaluated in the caller's frame, the body runs in the instance's.
+    fn call_fn_in(&mut self, c: &Code, call: &FnCall, instance: Option<usize>) -> u64 {
         let Some(func) = c.functions.get(call.func as usize) else {
             return 0;
         };
@@ -800,10 +818,14 @@ impl Vm {
         if self.budget == 0 {
             return 0;
         }
-        let saved = self.pou;
+        let (saved_pou, saved_frame) = (self.pou, self.frame);
         self.pou = func.body.pou;
+        if let Some(inst) = instance {
+            self.frame = inst as u32;
+        }
         let _ = self.exec_block(c, &func.body.stmts);
-        self.pou = saved;
+        self.pou = saved_pou;
+        self.frame = saved_frame;
         if self.budget == 0 {
             return 0;
         }

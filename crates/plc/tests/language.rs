@@ -649,3 +649,61 @@ fn mixed_operands_meet_at_the_smallest_common_type() {
     // DINT and REAL meet at LREAL.
     assert_eq!(real(&rt, "x"), 1.5);
 }
+
+#[test]
+fn methods_of_function_blocks() {
+    let src = "
+        FUNCTION_BLOCK Axis
+          VAR_INPUT enable : BOOL; END_VAR
+          VAR_OUTPUT pos : LREAL; moves : INT; END_VAR
+          VAR target : LREAL; END_VAR
+          METHOD PUBLIC MoveTo : BOOL
+            VAR_INPUT where : LREAL; END_VAR
+            VAR scratch : INT; END_VAR
+            scratch := scratch + 1;
+            IF NOT enable THEN MoveTo := FALSE; RETURN; END_IF;
+            target := where; moves := moves + scratch; MoveTo := TRUE;
+          END_METHOD
+          METHOD PRIVATE Step
+            pos := pos + LIMIT(-1.0, target - pos, 1.0);
+          END_METHOD
+          METHOD Distance : LREAL
+            Distance := ABS(target - pos);
+          END_METHOD
+          Step();
+        END_FUNCTION_BLOCK
+        PROGRAM P VAR x : Axis; y : Axis; ok1 : BOOL; ok2 : BOOL; d : LREAL; temps_ok : BOOL; END_VAR
+          ok1 := x.MoveTo(2.5);
+          y.enable := TRUE;
+          ok2 := y.MoveTo(where := 3.0);
+          y.MoveTo(-1.0);
+          y.MoveTo(3.0);
+          x(); y();
+          d := y.Distance();
+        END_PROGRAM";
+    let mut rt = plc(src);
+    rt.scan(ms(0)).unwrap();
+    assert!(!boolean(&rt, "ok1"));
+    assert!(boolean(&rt, "ok2"));
+    // Method variables restart on every call: each call adds 1 to moves.
+    assert_eq!(int(&rt, "y.moves"), 3);
+    assert_eq!(int(&rt, "x.moves"), 0);
+    assert_eq!(real(&rt, "y.pos"), 1.0);
+    assert_eq!(real(&rt, "x.pos"), 0.0);
+    assert_eq!(real(&rt, "d"), 2.0);
+    rt.scan(ms(4)).unwrap();
+    assert_eq!(real(&rt, "y.pos"), 2.0);
+}
+
+#[test]
+fn method_errors() {
+    let fb = "FUNCTION_BLOCK B METHOD PRIVATE Hidden : INT Hidden := 1; END_METHOD METHOD Act Hidden(); END_METHOD END_FUNCTION_BLOCK\n";
+    let src = format!("{fb}PROGRAM P VAR b : B; x : INT; END_VAR\n  x := b.Hidden();\nEND_PROGRAM");
+    assert_eq!(compile_error(&src).2, "invalid");
+    let src = format!("{fb}PROGRAM P VAR b : B; END_VAR\n  b.Nothing();\nEND_PROGRAM");
+    assert_eq!(compile_error(&src).2, "undeclared");
+    let src = format!("{fb}PROGRAM P VAR b : B; x : INT; END_VAR\n  x := b.Act();\nEND_PROGRAM");
+    assert_eq!(compile_error(&src).2, "type-mismatch");
+    let src = "FUNCTION_BLOCK R METHOD Again : INT Again := Again(); END_METHOD END_FUNCTION_BLOCK";
+    assert_eq!(compile_error(src).2, "invalid");
+}

@@ -16,6 +16,23 @@ impl<'a> Compiler<'a> {
             let te = self.call_expr(&target.root, args, sc, pos, None)?;
             return Ok(StmtKind::Eval(te.e));
         }
+        // `instance.method(...)` as a statement.
+        if let Some(ast::Part::Field(m)) = target.parts.last() {
+            let prefix = Access {
+                root: target.root.clone(),
+                parts: target.parts[..target.parts.len() - 1].to_vec(),
+            };
+            let is_method = match self.access(&prefix, sc) {
+                Ok(lv) => {
+                    matches!(lv.ty, Type::Fb(id) if self.fbs[id as usize].methods.iter().any(|x| x.0 == m.text))
+                }
+                Err(_) => false,
+            };
+            if is_method {
+                let te = self.method_call(&prefix, m, args, sc, pos)?;
+                return Ok(StmtKind::Eval(te.e));
+            }
+        }
         let lv = self.access(target, sc)?;
         let Type::Fb(id) = lv.ty else {
             return Err(self.e(
@@ -298,7 +315,88 @@ impl<'a> Compiler<'a> {
                 ),
             ));
         }
+        // A method of the function block this body belongs to, called without instance.
+        if let Some(fb) = sc.fb {
+            if let Some(&(_, fid, _)) = self.fbs[fb as usize]
+                .methods
+                .iter()
+                .find(|x| x.0 == name.text)
+            {
+                return self.method_call_on(Place::Rel(0), fb, fid, name, args, sc, pos);
+            }
+        }
         crate::builtins::call(self, name, args, sc, pos, expect)
+    }
+
+    /// `prefix.method(args)`: prefix must be an instance of a function block with that
+    /// method (PRIVATE methods only from inside the block).
+    pub(super) fn method_call(
+        &mut self,
+        prefix: &Access,
+        m: &Name,
+        args: &[Arg],
+        sc: &mut Scope,
+        pos: Pos,
+    ) -> R<TE> {
+        let lv = self.access(prefix, sc)?;
+        let Type::Fb(fb) = lv.ty else {
+            return Err(self.e(
+                m.pos,
+                ErrorKind::TypeMismatch,
+                format!("'{}' is not a function block instance", prefix.root.text),
+            ));
+        };
+        let Some(&(_, fid, private)) = self.fbs[fb as usize].methods.iter().find(|x| x.0 == m.text)
+        else {
+            return Err(self.e(
+                m.pos,
+                ErrorKind::Undeclared,
+                format!("{} has no method '{}'", self.fbs[fb as usize].name, m.text),
+            ));
+        };
+        if private && sc.fb != Some(fb) {
+            return Err(self.e(
+                m.pos,
+                ErrorKind::Invalid,
+                format!(
+                    "method '{}' is PRIVATE to {}",
+                    m.text, self.fbs[fb as usize].name
+                ),
+            ));
+        }
+        let instance = self.place(lv);
+        self.method_call_on(instance, fb, fid, m, args, sc, pos)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn method_call_on(
+        &mut self,
+        instance: Place,
+        fb: u32,
+        fid: u32,
+        m: &Name,
+        args: &[Arg],
+        sc: &mut Scope,
+        pos: Pos,
+    ) -> R<TE> {
+        let (params, ret) = {
+            let f = &self.funcs[fid as usize];
+            (f.params.clone(), f.ret.clone())
+        };
+        let shown = format!("{}.{}", self.fbs[fb as usize].name, m.text);
+        let (direct, ins, outs) = self.bind_args(&shown, &params, args, sc, pos, false)?;
+        sc.calls.push(fid);
+        let call = FnCall {
+            func: fid,
+            direct,
+            args: ins,
+            outs,
+        };
+        let e = vm::Expr::CallMethod(Box::new(vm::MethodCall { instance, call }));
+        Ok(TE {
+            ty: Ty::T(ret.unwrap_or(Type::BOOL)),
+            e,
+        })
     }
 
     // Hooks for the builtins module.

@@ -80,6 +80,8 @@ struct FbInfo {
     template: Vec<u64>,
     std: Option<StdFb>,
     body: u32,
+    /// METHODs: name, function id, private.
+    methods: Vec<(String, u32, bool)>,
 }
 
 struct FuncInfo {
@@ -97,8 +99,10 @@ pub(crate) struct Scope {
     kind: PouKind,
     pou: u32,
     loops: u32,
-    /// Functions called from this body (recursion check).
+    /// Functions and methods called from this body (recursion check).
     calls: Vec<u32>,
+    /// The function block whose body or method this is: its methods can be called bare.
+    fb: Option<u32>,
 }
 
 enum Lookup<T> {
@@ -126,6 +130,9 @@ pub(crate) struct Compiler<'a> {
     funcs: Vec<FuncInfo>,
     fn_by_name: HashMap<String, Lookup<u32>>,
     fn_calls: Vec<Vec<u32>>,
+    /// Method function id -> its function block and declaration.
+    method_asts: HashMap<u32, (u32, &'a ast::Method)>,
+    method_names: HashSet<String>,
     globals: HashMap<String, VarInfo>,
     global_syms: Vec<Symbol>,
     located: Vec<Located>,
@@ -190,6 +197,8 @@ pub(crate) fn compile(src: &str, file: &str) -> Result<Program, CompileErrors> {
         funcs: Vec::new(),
         fn_by_name: HashMap::new(),
         fn_calls: Vec::new(),
+        method_asts: HashMap::new(),
+        method_names: HashSet::new(),
         globals: HashMap::new(),
         global_syms: Vec::new(),
         located: Vec::new(),
@@ -332,6 +341,11 @@ impl<'a> Compiler<'a> {
                 self.errors.push(e);
             }
         }
+        for n in &fb_names {
+            if let Err(e) = self.declare_methods(n) {
+                self.errors.push(e);
+            }
+        }
         let fn_names: Vec<Name> = u
             .pous
             .iter()
@@ -355,6 +369,7 @@ impl<'a> Compiler<'a> {
                 pou: 0,
                 loops: 0,
                 calls: Vec::new(),
+                fb: None,
             };
             for d in &b.decls {
                 if let Err(e) = self.declare_global(b, d, &scope) {
@@ -368,6 +383,12 @@ impl<'a> Compiler<'a> {
         // Bodies of function blocks and functions.
         for n in &fb_names {
             if let Err(e) = self.fb_body(n) {
+                self.errors.push(e);
+            }
+        }
+        let methods: Vec<u32> = self.method_asts.keys().copied().collect();
+        for id in methods {
+            if let Err(e) = self.method_body(id) {
                 self.errors.push(e);
             }
         }
@@ -580,10 +601,13 @@ impl<'a> Compiler<'a> {
         for i in 0..self.fn_calls.len() {
             if visit(&self.fn_calls, i as u32, &mut state) {
                 let name = &self.funcs[i].name;
-                let pos = names
-                    .iter()
-                    .find(|n| &n.text == name)
-                    .map_or(Pos::default(), |n| n.pos);
+                let pos = match self.method_asts.get(&(i as u32)) {
+                    Some((_, m)) => m.name.pos,
+                    None => names
+                        .iter()
+                        .find(|n| &n.text == name)
+                        .map_or(Pos::default(), |n| n.pos),
+                };
                 return Err(self.e(
                     pos,
                     ErrorKind::Invalid,
@@ -603,6 +627,7 @@ impl<'a> Compiler<'a> {
             pou: scope.pou,
             loops: 0,
             calls: Vec::new(),
+            fb: None,
         };
         let te = self.expr(e, &mut sc, None)?;
         match (&te.ty, &te.e) {
@@ -648,6 +673,7 @@ impl<'a> Compiler<'a> {
             pou: 0,
             loops: 0,
             calls: Vec::new(),
+            fb: None,
         };
         self.const_int_in(e, &scope)
     }
@@ -659,6 +685,7 @@ impl<'a> Compiler<'a> {
             pou: 0,
             loops: 0,
             calls: Vec::new(),
+            fb: None,
         };
         let te = self.const_value(e, &scope)?;
         match (&te.ty, &te.e) {
@@ -700,8 +727,11 @@ fn t_root(t: &Option<Access>) -> Pos {
 
 fn contains_user_call(e: &AExpr, c: &Compiler) -> bool {
     match e {
+        // Methods use static frames like functions.
+        AExpr::MethodCall(..) => true,
         AExpr::Call(n, args, _) => {
             c.fn_asts.contains_key(&n.text)
+                || c.method_names.contains(&n.text)
                 || args.iter().any(|a| match a {
                     Arg::Positional(e) | Arg::Input(_, e) => contains_user_call(e, c),
                     Arg::Output(..) => false,
