@@ -4,15 +4,18 @@ use crate::ast::*;
 use crate::error::{CompileError, ErrorKind, Pos};
 use crate::lexer::{Tok, Token};
 
-/// Deepest nesting of expressions and statements accepted; keeps the recursion (and the
-/// compiled tree) shallow enough for any stack.
-const MAX_DEPTH: u32 = 96;
+/// Deepest nesting of sub-expressions, and of statements, accepted. Parsing, compiling
+/// and running recurse along the nesting; these limits keep the worst case inside 1 MiB
+/// of stack even in debug builds (tests/fuzz.rs checks it).
+const MAX_EXPR_DEPTH: u32 = 64;
+const MAX_STMT_DEPTH: u32 = 32;
 
 pub(crate) struct Parser<'a> {
     toks: &'a [Token],
     i: usize,
     file: &'a str,
     depth: u32,
+    stmt_depth: u32,
 }
 
 type PResult<T> = Result<T, CompileError>;
@@ -23,6 +26,7 @@ pub(crate) fn parse(toks: &[Token], file: &str) -> PResult<Unit> {
         i: 0,
         file,
         depth: 0,
+        stmt_depth: 0,
     };
     p.unit()
 }
@@ -205,8 +209,8 @@ impl Parser<'_> {
     }
     fn enter(&mut self) -> PResult<()> {
         self.depth += 1;
-        if self.depth > MAX_DEPTH {
-            return Err(self.err("nesting is too deep"));
+        if self.depth > MAX_EXPR_DEPTH {
+            return Err(self.err(format!("expression nested more than {MAX_EXPR_DEPTH} deep")));
         }
         Ok(())
     }
@@ -678,9 +682,12 @@ impl Parser<'_> {
     }
 
     fn stmt(&mut self) -> PResult<Stmt> {
-        self.enter()?;
+        self.stmt_depth += 1;
+        if self.stmt_depth > MAX_STMT_DEPTH {
+            return Err(self.err(format!("statements nested more than {MAX_STMT_DEPTH} deep")));
+        }
         let r = self.stmt_inner();
-        self.depth -= 1;
+        self.stmt_depth -= 1;
         r
     }
 
@@ -1001,28 +1008,57 @@ impl Parser<'_> {
         }
     }
 
-    fn binary(&mut self, level: u8) -> PResult<Expr> {
-        if level == 8 {
-            return self.unary();
-        }
-        let mut lhs = self.binary(level + 1)?;
+    /// The binary operator at the cursor and its precedence (0 = OR ... 7 = **).
+    fn binop(&self) -> Option<(BinOp, u8)> {
+        (0..8).find_map(|level| self.binop_at(level).map(|op| (op, level)))
+    }
+
+    /// Precedence climbing: one stack frame per nesting level, not per precedence level.
+    fn binary(&mut self, min_level: u8) -> PResult<Expr> {
+        let mut lhs = self.unary()?;
         let depth_before = self.depth;
-        while let Some(op) = self.binop_at(level) {
+        let result = loop {
+            let Some((op, level)) = self.binop().filter(|(_, l)| *l >= min_level) else {
+                break Ok(lhs);
+            };
             let pos = self.pos();
             self.bump();
-            // A long left-leaning chain builds a tree as deep as nesting does.
+            if matches!(op, BinOp::And | BinOp::Or | BinOp::Xor) {
+                // Long AND/OR/XOR chains (ladder rungs) become balanced trees: same
+                // left-to-right evaluation, logarithmic depth.
+                let mut operands = vec![lhs];
+                match self.binary(level + 1) {
+                    Ok(e) => operands.push(e),
+                    Err(e) => break Err(e),
+                }
+                let mut failed = None;
+                while self.binop() == Some((op, level)) {
+                    self.bump();
+                    match self.binary(level + 1) {
+                        Ok(e) => operands.push(e),
+                        Err(e) => {
+                            failed = Some(e);
+                            break;
+                        }
+                    }
+                }
+                if let Some(e) = failed {
+                    break Err(e);
+                }
+                lhs = balanced(op, operands, pos);
+                continue;
+            }
+            // Other chains build a tree as deep as nesting does.
             if let Err(e) = self.enter() {
-                self.depth = depth_before;
-                return Err(e);
+                break Err(e);
             }
-            let rhs = self.binary(level + 1);
-            if rhs.is_err() {
-                self.depth = depth_before;
+            match self.binary(level + 1) {
+                Ok(rhs) => lhs = Expr::Binary(op, Box::new(lhs), Box::new(rhs), pos),
+                Err(e) => break Err(e),
             }
-            lhs = Expr::Binary(op, Box::new(lhs), Box::new(rhs?), pos);
-        }
+        };
         self.depth = depth_before;
-        Ok(lhs)
+        result
     }
 
     fn unary(&mut self) -> PResult<Expr> {
@@ -1126,4 +1162,18 @@ impl Parser<'_> {
             _ => Err(self.unexpected("an expression")),
         }
     }
+}
+
+/// `op` over `operands` as a balanced tree, operands kept in order.
+fn balanced(op: BinOp, mut operands: Vec<Expr>, pos: Pos) -> Expr {
+    if operands.len() == 1 {
+        return operands.pop().expect("one operand");
+    }
+    let right = operands.split_off(operands.len() / 2);
+    Expr::Binary(
+        op,
+        Box::new(balanced(op, operands, pos)),
+        Box::new(balanced(op, right, pos)),
+        pos,
+    )
 }
