@@ -7,7 +7,6 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::Duration;
 
-use crate::ast::VarKind;
 use crate::error::{Fault, FaultKind};
 use crate::lexer::{AddrSize, Area, Tok};
 use crate::program::{Program, Symbol};
@@ -860,100 +859,16 @@ fn slots_of(t: &Type) -> u32 {
     }
 }
 
-fn member_symbols(p: &Program, ty: &Type) -> Option<Vec<Symbol>> {
-    match ty {
-        Type::Struct(id) => p.structs.get(*id as usize).map(|s| {
-            s.fields
-                .iter()
-                .map(|f| Symbol {
-                    name: f.name.clone(),
-                    ty: f.ty.clone(),
-                    addr: f.offset,
-                    kind: VarKind::Local,
-                    retain: false,
-                    indirect: false,
-                })
-                .collect()
-        }),
-        Type::Fb(id) => p.fbs.get(*id as usize).map(|f| f.members.clone()),
-        _ => None,
-    }
-}
-
 fn retain_leaves(p: &Program) -> Vec<RetainLeaf> {
-    fn walk(
-        p: &Program,
-        path: String,
-        ty: &Type,
-        slot: u32,
-        retained: bool,
-        out: &mut Vec<RetainLeaf>,
-    ) {
-        match ty {
-            Type::Array(a) => {
-                let mut idx: Vec<i64> = a.dims.iter().map(|(l, _)| *l).collect();
-                for k in 0..a.len() {
-                    let label: Vec<String> = idx.iter().map(|i| i.to_string()).collect();
-                    walk(
-                        p,
-                        format!("{path}[{}]", label.join(",")),
-                        &a.elem,
-                        slot + k as u32 * a.elem_size,
-                        retained,
-                        out,
-                    );
-                    for d in (0..idx.len()).rev() {
-                        idx[d] += 1;
-                        if idx[d] <= a.dims[d].1 {
-                            break;
-                        }
-                        idx[d] = a.dims[d].0;
-                    }
-                }
-            }
-            Type::Struct(_) | Type::Fb(_) => {
-                for m in member_symbols(p, ty).unwrap_or_default() {
-                    if m.indirect || m.kind == VarKind::Temp {
-                        continue;
-                    }
-                    walk(
-                        p,
-                        format!("{path}.{}", m.name),
-                        &m.ty,
-                        slot + m.addr,
-                        retained || m.retain,
-                        out,
-                    );
-                }
-            }
-            t => {
-                if retained {
-                    out.push(RetainLeaf {
-                        path,
-                        slot,
-                        ty: t.clone(),
-                    });
-                }
-            }
-        }
-    }
-    let mut out = Vec::new();
-    for g in &p.globals {
-        walk(p, g.name.clone(), &g.ty, g.addr, g.retain, &mut out);
-    }
-    for i in &p.instances {
-        for v in &i.vars {
-            walk(
-                p,
-                format!("{}.{}", i.name, v.name),
-                &v.ty,
-                v.addr,
-                v.retain,
-                &mut out,
-            );
-        }
-    }
-    out
+    p.leaves()
+        .into_iter()
+        .filter(|l| l.retain)
+        .map(|l| RetainLeaf {
+            path: l.path,
+            slot: l.slot,
+            ty: l.ty,
+        })
+        .collect()
 }
 
 fn resolve(p: &Program, path: &str) -> Result<VarRef, MonitorError> {
@@ -1012,7 +927,7 @@ fn resolve(p: &Program, path: &str) -> Result<VarRef, MonitorError> {
         match t {
             Tok::Dot => match it.next() {
                 Some(Tok::Ident(m)) => {
-                    let members = member_symbols(p, &ty).ok_or_else(bad)?;
+                    let members = p.member_symbols(&ty).ok_or_else(bad)?;
                     let s = members
                         .iter()
                         .find(|s| &s.name == m)

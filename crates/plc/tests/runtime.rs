@@ -292,3 +292,29 @@ fn warm_restart_keeps_retain_cold_restart_does_not() {
     rt.restart(Restart::Cold);
     assert_eq!(get(&rt, "count"), Value::UInt(0));
 }
+
+#[test]
+fn variables_are_listed_for_browsing() {
+    let p = compile(RETAIN_SRC, "r.st").unwrap();
+    let vars = p.variables();
+    let paths: Vec<&str> = vars.iter().map(|v| v.path.as_str()).collect();
+    assert_eq!(
+        paths,
+        [
+            "HOURS",
+            "P.COUNT",
+            "P.NAME",
+            "P.TOOLS[1]",
+            "P.TOOLS[2]",
+            "P.TOOLS[3]",
+            "P.LAST",
+            "P.SCRATCH"
+        ]
+    );
+    assert_eq!(vars[2].type_name, "STRING[16]");
+    assert!(vars[3].retain && !vars[7].retain);
+    let rt = Runtime::new(Arc::new(p));
+    for v in &vars {
+        assert!(rt.read_name(&v.path).is_ok(), "{}", v.path);
+    }
+}
