@@ -1139,6 +1139,15 @@ impl Parser<'_> {
                 self.expect(&Tok::RParen)?;
                 Ok(e)
             }
+            // Operators in function form: AND(a, b, c), OR(...), XOR(...), MOD(a, b).
+            Tok::Ident(s)
+                if matches!(s.as_str(), "AND" | "OR" | "XOR" | "MOD")
+                    && self.peek_at(1) == &Tok::LParen =>
+            {
+                self.bump();
+                let args = self.args()?;
+                Ok(Expr::Call(Name { text: s, pos }, args, pos))
+            }
             Tok::Ident(s) if s == "TRUE" || s == "FALSE" => {
                 self.bump();
                 Ok(Expr::Lit(Literal::Bool(s == "TRUE"), pos))

@@ -165,6 +165,7 @@ pub(crate) enum Builtin {
     StrToInt(IntKind),
     StrToReal(bool),
     StrToBool,
+    StrToTime,
 }
 
 #[derive(Debug)]
@@ -702,7 +703,8 @@ impl Vm {
             | Builtin::BoolToStr
             | Builtin::StrToInt(_)
             | Builtin::StrToReal(_)
-            | Builtin::StrToBool => {
+            | Builtin::StrToBool
+            | Builtin::StrToTime => {
                 let mut vals = [0u64; 8];
                 // CONCAT is extensible: fold pairwise through the destination.
                 if matches!(b, Builtin::Concat) {

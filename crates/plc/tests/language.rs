@@ -707,3 +707,38 @@ fn method_errors() {
     let src = "FUNCTION_BLOCK R METHOD Again : INT Again := Again(); END_METHOD END_FUNCTION_BLOCK";
     assert_eq!(compile_error(src).2, "invalid");
 }
+
+#[test]
+fn extensible_comparisons_and_operator_functions() {
+    let rt = eval(
+        "a : BOOL; b : BOOL; c : BOOL; d : BOOL; w : WORD; x : BOOL; m : INT; t1 : TIME; t2 : TIME; t3 : TIME;",
+        "a := GT(3, 2, 1); b := GT(3, 2, 2); c := LE(1, 1, 2, 5); d := EQ(4, 4, 4);
+         w := AND(WORD#16#FF0F, WORD#16#0FFF, WORD#16#F0F0); x := XOR(TRUE, TRUE, TRUE); m := MOD(17, 5);
+         t1 := STRING_TO_TIME('T#1m2s500ms'); t2 := STRING_TO_TIME('250ms'); t3 := STRING_TO_TIME('nonsense');",
+    );
+    assert!(boolean(&rt, "a"));
+    assert!(!boolean(&rt, "b"));
+    assert!(boolean(&rt, "c"));
+    assert!(boolean(&rt, "d"));
+    assert_eq!(uint(&rt, "w"), 0x0000);
+    assert!(boolean(&rt, "x"));
+    assert_eq!(int(&rt, "m"), 2);
+    assert_eq!(time_ms(&rt, "t1"), 62_500.0);
+    assert_eq!(time_ms(&rt, "t2"), 250.0);
+    assert_eq!(time_ms(&rt, "t3"), 0.0);
+}
+
+#[test]
+fn var_temp_between_other_blocks_restarts_alone() {
+    let src = "FUNCTION_BLOCK B
+          VAR_TEMP t1 : INT := 5; END_VAR
+          VAR keep : INT; END_VAR
+          VAR_TEMP t2 : INT := 7; END_VAR
+          t1 := t1 + 1; t2 := t2 + 1; keep := keep + t1 + t2;
+        END_FUNCTION_BLOCK
+        PROGRAM P VAR b : B; END_VAR b(); b(); END_PROGRAM";
+    let mut rt = plc(src);
+    rt.scan(ms(0)).unwrap();
+    // Each call: t1 = 6, t2 = 8; keep accumulates across calls.
+    assert_eq!(int(&rt, "b.keep"), 28);
+}
