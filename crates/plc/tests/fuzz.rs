@@ -144,6 +144,13 @@ const VOCAB: &[&str] = &[
     "REAL_TO_INT",
     "LEN",
     "MID",
+    "METHOD",
+    "END_METHOD",
+    "PRIVATE",
+    "GT",
+    "STRING_TO_TIME",
+    "AND(",
+    "THIS",
 ];
 
 /// A skeleton that makes token soups land inside a POU body more often.
