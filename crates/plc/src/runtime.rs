@@ -105,6 +105,11 @@ impl VarRef {
     pub fn ty(&self) -> &Type {
         &self.ty
     }
+    /// True for a variable located in the input image: the next scan overwrites what
+    /// [`Runtime::write`] put there, so commissioning forces it instead.
+    pub fn is_located_input(&self) -> bool {
+        self.located_input
+    }
     /// The elementary type of a scalar variable (BOOL for a bit access).
     pub fn elem(&self) -> Option<Elem> {
         if self.bit.is_some() {
@@ -137,7 +142,7 @@ pub struct Runtime {
     next_due: Vec<Option<i64>>,
     signals: Vec<Option<(u32, Elem)>>,
     safe_slots: Vec<(u32, u64)>,
-    retain: Vec<RetainLeaf>,
+    retain: Arc<[RetainLeaf]>,
 }
 
 impl std::fmt::Debug for Vm {
@@ -157,7 +162,7 @@ impl Runtime {
     /// Creates an instance; all memory is allocated here, none during scans.
     pub fn with_options(program: Arc<Program>, options: RuntimeOptions) -> Runtime {
         let sizes = program.image_sizes;
-        let retain = retain_leaves(&program);
+        let retain: Arc<[RetainLeaf]> = retain_leaves(&program).into();
         let n_tasks = program.tasks.len();
         Runtime {
             vm: Vm {
@@ -202,7 +207,7 @@ impl Runtime {
     pub fn restart(&mut self, kind: Restart) {
         let mut kept: Vec<(u32, Vec<u64>)> = Vec::new();
         if kind == Restart::Warm {
-            for l in &self.retain {
+            for l in self.retain.iter() {
                 let n = slots_of(&l.ty) as usize;
                 let s = l.slot as usize;
                 kept.push((l.slot, self.vm.mem[s..s + n].to_vec()));
@@ -376,14 +381,7 @@ impl Runtime {
         if let Some(b) = var.bit {
             return Value::Bool((v >> b) & 1 != 0);
         }
-        match &var.ty {
-            Type::String(_) => {
-                let mut buf = [0u8; crate::types::MAX_STRING_LEN as usize + 1];
-                let n = crate::strings::read(&self.vm.mem, var.slot as usize, &mut buf);
-                Value::String(String::from_utf8_lossy(&buf[..n]).into_owned())
-            }
-            t => Value::from_slot(t.scalar().unwrap_or(Elem::LWord), v),
-        }
+        value_at(&self.vm.mem, var.slot as usize, &var.ty)
     }
 
     /// Reads a variable by path.
@@ -408,7 +406,8 @@ impl Runtime {
         self.read(var).to_string()
     }
 
-    /// Writes a scalar (or STRING) variable now; the next scan sees the value.
+    /// Writes a scalar (or STRING) variable now; the next scan sees the value (except a
+    /// located input, which the input image overwrites: force it instead).
     pub fn write(&mut self, var: &VarRef, value: &Value) -> Result<(), ValueError> {
         let v = self.encode(var, value)?;
         self.put(var, v, value);
@@ -666,48 +665,38 @@ impl Runtime {
 
     // ------------------------------------------------------------------ retain
 
-    /// Writes the RETAIN variables to `path` atomically: a temporary file in the same
-    /// directory, fsync, rename over the old file, fsync of the directory. A crash leaves
-    /// either the old or the new file, never a torn one.
+    /// Copies the RETAIN variables into a new snapshot (allocates: take one at start-up,
+    /// then refresh it with [`Runtime::update_retain_snapshot`]).
+    pub fn retain_snapshot(&self) -> RetainSnapshot {
+        let mut snap = RetainSnapshot {
+            leaves: Arc::clone(&self.retain),
+            values: vec![0; self.retain.iter().map(|l| slots_of(&l.ty) as usize).sum()],
+        };
+        self.update_retain_snapshot(&mut snap);
+        snap
+    }
+
+    /// Refreshes a snapshot taken from this runtime, without allocating: cheap enough for
+    /// the PLC task, which then hands the snapshot to a thread that may block on the disk.
+    pub fn update_retain_snapshot(&self, snap: &mut RetainSnapshot) {
+        let mut at = 0usize;
+        for l in self.retain.iter() {
+            let n = slots_of(&l.ty) as usize;
+            let src = l.slot as usize;
+            if let (Some(dst), Some(s)) = (
+                snap.values.get_mut(at..at + n),
+                self.vm.mem.get(src..src + n),
+            ) {
+                dst.copy_from_slice(s);
+            }
+            at += n;
+        }
+    }
+
+    /// Writes the RETAIN variables to `path` atomically (see [`RetainSnapshot::save`]).
+    /// Blocks on the disk: call it outside the real-time task.
     pub fn save_retain(&self, path: &Path) -> std::io::Result<()> {
-        let mut text = String::from("# rtcnc-plc retained variables v1\n");
-        for l in &self.retain {
-            let r = VarRef {
-                slot: l.slot,
-                ty: l.ty.clone(),
-                bit: None,
-                located_input: false,
-            };
-            let v = self.read(&r);
-            let shown = match &v {
-                Value::String(s) => format!(
-                    "'{}'",
-                    s.replace('$', "$$").replace('\'', "$'").replace('\n', "$N")
-                ),
-                Value::Real(x) => format!("{x:?}"),
-                v => v.to_string(),
-            };
-            text.push_str(&format!("{} = {}\n", l.path, shown));
-        }
-        let dir = path
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        let name = path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "retain".into());
-        let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
-        {
-            let mut f = fs::File::create(&tmp)?;
-            f.write_all(text.as_bytes())?;
-            f.sync_all()?;
-        }
-        fs::rename(&tmp, path)?;
-        if let Ok(d) = fs::File::open(dir) {
-            let _ = d.sync_all();
-        }
-        Ok(())
+        self.retain_snapshot().save(path)
     }
 
     /// Restores RETAIN variables from `path`. Entries whose name no longer exists or whose
@@ -765,6 +754,71 @@ impl Runtime {
             }
         }
         Ok(report)
+    }
+}
+
+/// The RETAIN variables at one moment, for writing to disk outside the PLC task.
+#[derive(Debug, Clone)]
+pub struct RetainSnapshot {
+    leaves: Arc<[RetainLeaf]>,
+    values: Vec<u64>,
+}
+
+impl RetainSnapshot {
+    /// Writes `name = value` lines to a temporary file in the same directory, fsyncs it,
+    /// renames it over `path` and fsyncs the directory: a crash leaves either the old or
+    /// the new file, never a torn one.
+    pub fn save(&self, path: &Path) -> std::io::Result<()> {
+        let mut text = String::from("# rtcnc-plc retained variables v1\n");
+        let mut at = 0usize;
+        for l in self.leaves.iter() {
+            let shown = match value_at(&self.values, at, &l.ty) {
+                Value::String(s) => {
+                    format!(
+                        "'{}'",
+                        s.replace('$', "$$").replace('\'', "$'").replace('\n', "$N")
+                    )
+                }
+                Value::Real(x) => format!("{x:?}"),
+                v => v.to_string(),
+            };
+            text.push_str(&format!("{} = {}\n", l.path, shown));
+            at += slots_of(&l.ty) as usize;
+        }
+        let dir = path
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "retain".into());
+        let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
+        {
+            let mut f = fs::File::create(&tmp)?;
+            f.write_all(text.as_bytes())?;
+            f.sync_all()?;
+        }
+        fs::rename(&tmp, path)?;
+        if let Ok(d) = fs::File::open(dir) {
+            let _ = d.sync_all();
+        }
+        Ok(())
+    }
+}
+
+/// Decodes the value of type `ty` stored at `slot`.
+fn value_at(mem: &[u64], slot: usize, ty: &Type) -> Value {
+    match ty {
+        Type::String(_) => {
+            let mut buf = [0u8; crate::types::MAX_STRING_LEN as usize + 1];
+            let n = crate::strings::read(mem, slot, &mut buf);
+            Value::String(String::from_utf8_lossy(&buf[..n]).into_owned())
+        }
+        t => Value::from_slot(
+            t.scalar().unwrap_or(Elem::LWord),
+            mem.get(slot).copied().unwrap_or(0),
+        ),
     }
 }
 

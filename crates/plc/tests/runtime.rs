@@ -318,3 +318,26 @@ fn variables_are_listed_for_browsing() {
         assert!(rt.read_name(&v.path).is_ok(), "{}", v.path);
     }
 }
+
+#[test]
+fn retain_snapshot_is_taken_in_the_plc_task_and_written_elsewhere() {
+    let dir = std::env::temp_dir().join(format!("rtcnc-plc-retain3-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("retain.txt");
+    let program = Arc::new(compile(RETAIN_SRC, "r.st").unwrap());
+    let mut rt = Runtime::new(program.clone());
+    let mut snap = rt.retain_snapshot();
+    for k in 0..5 {
+        rt.scan(ms(k)).unwrap();
+    }
+    rt.update_retain_snapshot(&mut snap);
+    rt.scan(ms(5)).unwrap();
+    // The snapshot holds count = 5, taken before the sixth scan.
+    let writer = std::thread::spawn(move || snap.save(&path).map(|_| path));
+    let path = writer.join().unwrap().unwrap();
+    let mut fresh = Runtime::new(program);
+    fresh.load_retain(&path).unwrap();
+    assert_eq!(get(&fresh, "count"), Value::UInt(5));
+    assert_eq!(get(&fresh, "hours"), Value::Real(2.5));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
