@@ -39,6 +39,7 @@ impl<'a> Compiler<'a> {
             loops: 0,
             calls: Vec::new(),
             fb: None,
+            for_vars: Vec::new(),
         };
         let r = self.type_spec(&decl.spec, Some(&decl.name.text), &scope);
         self.resolving.remove(&n.text);
@@ -439,6 +440,7 @@ impl<'a> Compiler<'a> {
             loops: 0,
             calls: Vec::new(),
             fb: None,
+            for_vars: Vec::new(),
         };
         // VAR_TEMP members go last, so the slots re-initialised per call are contiguous.
         let ordered = pou
@@ -560,6 +562,7 @@ impl<'a> Compiler<'a> {
             loops: 0,
             calls: Vec::new(),
             fb: None,
+            for_vars: Vec::new(),
         };
         let ret = match ret_spec {
             Some(TypeSpec::Named(t)) if t.text == "VOID" => None,
@@ -829,6 +832,7 @@ impl<'a> Compiler<'a> {
             loops: 0,
             calls: Vec::new(),
             fb: None,
+            for_vars: Vec::new(),
         };
         let mut syms = Vec::new();
         for b in &pou.vars {
@@ -883,6 +887,7 @@ impl<'a> Compiler<'a> {
             loops: 0,
             calls: Vec::new(),
             fb: Some(id),
+            for_vars: Vec::new(),
         };
         for m in &members {
             let loc = if m.kind == VarKind::InOut {
@@ -917,6 +922,7 @@ impl<'a> Compiler<'a> {
             loops: 0,
             calls: Vec::new(),
             fb: None,
+            for_vars: Vec::new(),
         };
         for b in pou.vars.iter().filter(|b| b.kind == VarKind::External) {
             for d in &b.decls {
@@ -1054,6 +1060,7 @@ impl<'a> Compiler<'a> {
             loops: 0,
             calls: Vec::new(),
             fb: None,
+            for_vars: Vec::new(),
         };
         let stmts = self.block(&pou.body, &mut scope)?;
         self.fn_calls[id as usize] = std::mem::take(&mut scope.calls);

@@ -103,6 +103,8 @@ pub(crate) struct Scope {
     calls: Vec<u32>,
     /// The function block whose body or method this is: its methods can be called bare.
     fb: Option<u32>,
+    /// Control variables of the FOR loops being compiled: the body may not assign them.
+    for_vars: Vec<String>,
 }
 
 enum Lookup<T> {
@@ -370,6 +372,7 @@ impl<'a> Compiler<'a> {
                 loops: 0,
                 calls: Vec::new(),
                 fb: None,
+                for_vars: Vec::new(),
             };
             for d in &b.decls {
                 if let Err(e) = self.declare_global(b, d, &scope) {
@@ -628,6 +631,7 @@ impl<'a> Compiler<'a> {
             loops: 0,
             calls: Vec::new(),
             fb: None,
+            for_vars: Vec::new(),
         };
         let te = self.expr(e, &mut sc, None)?;
         match (&te.ty, &te.e) {
@@ -674,6 +678,7 @@ impl<'a> Compiler<'a> {
             loops: 0,
             calls: Vec::new(),
             fb: None,
+            for_vars: Vec::new(),
         };
         self.const_int_in(e, &scope)
     }
@@ -686,6 +691,7 @@ impl<'a> Compiler<'a> {
             loops: 0,
             calls: Vec::new(),
             fb: None,
+            for_vars: Vec::new(),
         };
         let te = self.const_value(e, &scope)?;
         match (&te.ty, &te.e) {
