@@ -1176,8 +1176,11 @@ impl Parser<'_> {
 /// `op` over `operands` as a balanced tree, operands kept in order.
 fn balanced(op: BinOp, mut operands: Vec<Expr>, pos: Pos) -> Expr {
     if operands.len() == 1 {
-        return operands.pop().expect("one operand");
+        if let Some(e) = operands.pop() {
+            return e;
+        }
     }
+    // Called with two or more operands: both halves are non-empty.
     let right = operands.split_off(operands.len() / 2);
     Expr::Binary(
         op,

@@ -538,16 +538,26 @@ impl<'a> Compiler<'a> {
             let a = area_index(l.at.area);
             sizes[a] = sizes[a].max(l.at.byte_offset() + l.at.byte_len());
         }
+        // Every body compiled when no error was reported; a missing one is reported, never
+        // run.
+        let missing = || {
+            err(
+                self.file,
+                Pos::default(),
+                ErrorKind::Invalid,
+                "a POU body failed to compile",
+            )
+        };
         let functions = self
             .code_fns
             .drain(..)
-            .map(|f| f.expect("every function body compiled"))
-            .collect();
+            .collect::<Option<Vec<_>>>()
+            .ok_or_else(missing)?;
         let fbs = self
             .code_fbs
             .drain(..)
-            .map(|f| f.expect("every function block body compiled"))
-            .collect();
+            .collect::<Option<Vec<_>>>()
+            .ok_or_else(missing)?;
         Ok(Program {
             file: self.file.to_string(),
             code: Code { functions, fbs },
