@@ -78,6 +78,10 @@ pub struct TaskDesc {
     pub interval: Option<Duration>,
     /// IEC priority: 0 is the most urgent.
     pub priority: u32,
+    /// For an event task (`SINGLE := var`): the BOOL global whose rising edge activates
+    /// it. [`crate::Runtime::scan`] runs it on the scan that sees the edge.
+    pub trigger: Option<String>,
+    pub(crate) trigger_slot: Option<u32>,
     /// Program instance names run by this task, in order.
     pub programs: Vec<String>,
     pub(crate) program_ids: Vec<usize>,

@@ -140,6 +140,8 @@ pub struct Runtime {
     fault: Option<Fault>,
     scans: u64,
     next_due: Vec<Option<i64>>,
+    /// Trigger values seen on the previous scan (event tasks).
+    trigger_prev: Vec<bool>,
     signals: Vec<Option<(u32, Elem)>>,
     safe_slots: Vec<(u32, u64)>,
     retain: Arc<[RetainLeaf]>,
@@ -181,6 +183,7 @@ impl Runtime {
             fault: None,
             scans: 0,
             next_due: vec![None; n_tasks],
+            trigger_prev: vec![false; n_tasks],
             signals: vec![None; Signal::ALL.len()],
             safe_slots: Vec::new(),
             retain,
@@ -223,6 +226,7 @@ impl Runtime {
         self.vm.fault_at = None;
         self.scans = 0;
         self.next_due.iter_mut().for_each(|d| *d = None);
+        self.trigger_prev.iter_mut().for_each(|p| *p = false);
     }
 
     /// The input image (`%I`), written by the caller before a scan.
@@ -246,10 +250,17 @@ impl Runtime {
         let now_ns = duration_ns(now);
         self.begin(now_ns)?;
         for t in 0..self.program.tasks.len() {
-            let due = match (self.program.tasks[t].interval, self.next_due[t]) {
-                (None, _) => true,
-                (Some(_), None) => true,
-                (Some(_), Some(d)) => now_ns >= d,
+            let task = &self.program.tasks[t];
+            let due = match (task.trigger_slot, task.interval, self.next_due[t]) {
+                (Some(slot), _, _) => {
+                    let now_set = self.vm.mem.get(slot as usize).is_some_and(|v| v & 1 != 0);
+                    let rising = now_set && !self.trigger_prev[t];
+                    self.trigger_prev[t] = now_set;
+                    rising
+                }
+                (None, None, _) => true,
+                (None, Some(_), None) => true,
+                (None, Some(_), Some(d)) => now_ns >= d,
             };
             if due {
                 if let Some(iv) = self.program.tasks[t].interval {

@@ -443,13 +443,20 @@ impl<'a> Compiler<'a> {
                         }
                         None => None,
                     };
-                    if let Some(s) = &t.single {
-                        return Err(self.e(
-                            s.pos(),
-                            ErrorKind::Invalid,
-                            "event tasks (SINGLE) are not supported; use INTERVAL",
-                        ));
-                    }
+                    let (trigger, trigger_slot) = match &t.single {
+                        Some(s) => {
+                            if interval.is_some() {
+                                return Err(self.e(
+                                    s.pos(),
+                                    ErrorKind::Invalid,
+                                    "a task has either INTERVAL (cyclic) or SINGLE (event), not both",
+                                ));
+                            }
+                            let (name, slot) = self.trigger_variable(s)?;
+                            (Some(name), Some(slot))
+                        }
+                        None => (None, None),
+                    };
                     let priority = match &t.priority {
                         Some(e) => {
                             let v = self.const_int(e)?;
@@ -463,6 +470,8 @@ impl<'a> Compiler<'a> {
                         name: t.name.text.clone(),
                         interval,
                         priority,
+                        trigger,
+                        trigger_slot,
                         programs: Vec::new(),
                         program_ids: Vec::new(),
                     });
@@ -522,6 +531,8 @@ impl<'a> Compiler<'a> {
                 name: "DEFAULT".into(),
                 interval: None,
                 priority: u32::MAX,
+                trigger: None,
+                trigger_slot: None,
                 programs: default_task
                     .iter()
                     .map(|i| instances[*i].name.clone())
@@ -591,6 +602,41 @@ impl<'a> Compiler<'a> {
             image_sizes: sizes,
             pou_count: u.pous.len(),
         })
+    }
+
+    /// The BOOL global (or `%IX`/`%QX`/`%MX` address) named by a task's SINGLE.
+    fn trigger_variable(&mut self, e: &AExpr) -> R<(String, u32)> {
+        let name = match e {
+            AExpr::Var(a) if a.parts.is_empty() => a.root.text.clone(),
+            AExpr::Direct(d, pos) => {
+                self.direct_var(d, *pos)?;
+                d.to_string()
+            }
+            _ => {
+                return Err(self.e(
+                    e.pos(),
+                    ErrorKind::Invalid,
+                    "SINGLE needs a BOOL global variable",
+                ));
+            }
+        };
+        match self.globals.get(&name) {
+            Some(VarInfo {
+                ty,
+                loc: Loc::Abs(slot),
+                ..
+            }) if ty.is_bool() => Ok((name, *slot)),
+            Some(_) => Err(self.e(
+                e.pos(),
+                ErrorKind::TypeMismatch,
+                "SINGLE needs a BOOL global variable",
+            )),
+            None => Err(self.e(
+                e.pos(),
+                ErrorKind::Undeclared,
+                format!("no global '{name}'"),
+            )),
+        }
     }
 
     fn check_recursion(&self, names: &[Name]) -> R<()> {
