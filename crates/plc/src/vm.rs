@@ -616,27 +616,30 @@ impl Vm {
                 }
             }
             Builtin::Sel => {
+                // Functions evaluate all their inputs (IEC has no lazy evaluation).
                 let g = arg(self, 0);
-                // Only the selected input is evaluated.
-                if g & 1 != 0 {
-                    arg(self, 2)
-                } else {
-                    arg(self, 1)
-                }
+                let in0 = arg(self, 1);
+                let in1 = arg(self, 2);
+                if g & 1 != 0 { in1 } else { in0 }
             }
             Builtin::Mux => {
                 let k = arg(self, 0) as i64;
                 let n = args.len() as i64 - 1;
+                let mut picked = 0;
+                for i in 0..n {
+                    let v = arg(self, i as usize + 1);
+                    if i == k {
+                        picked = v;
+                    }
+                }
                 if k < 0 || k >= n {
                     self.raise(FaultKind::IndexOutOfRange {
                         index: k,
                         low: 0,
                         high: n - 1,
                     });
-                    0
-                } else {
-                    arg(self, k as usize + 1)
                 }
+                picked
             }
             Builtin::MaxI(s) | Builtin::MinI(s) => {
                 let mut acc = arg(self, 0);

@@ -441,7 +441,7 @@ fn structs_nested_with_initial_values_and_whole_assignment() {
 #[test]
 fn enumerations_and_subranges() {
     let src = "TYPE Color : (RED, GREEN := 5, BLUE); Pct : INT (0..100) := 50; Level : (LOW, HIGH); END_TYPE
-        PROGRAM P VAR c : Color; d : Color := Color#BLUE; p : Pct; q : INT(10..20); same : BOOL; v : DINT; lvl : Level := HIGH; END_VAR
+        PROGRAM P VAR c : Color; d : Color := Color#BLUE; p : Pct; q : INT(10..20); r : SINT(-5..5); same : BOOL; v : DINT; lvl : Level := HIGH; END_VAR
         c := GREEN; same := c = Color#GREEN; v := TO_DINT(d);
         END_PROGRAM";
     let mut rt = plc(src);
@@ -450,8 +450,9 @@ fn enumerations_and_subranges() {
     assert!(boolean(&rt, "same"));
     assert_eq!(int(&rt, "v"), 6);
     assert_eq!(int(&rt, "p"), 50);
-    // A subrange that excludes 0 starts at its lower bound.
+    // A subrange starts at its lower limit.
     assert_eq!(int(&rt, "q"), 10);
+    assert_eq!(int(&rt, "r"), -5);
     assert_eq!(rt.format(&rt.resolve("lvl").unwrap()), "HIGH");
 }
 

@@ -225,7 +225,8 @@ impl<'a> Compiler<'a> {
             Type::Elem(_) => vec![0],
             Type::String(n) => vec![0; string_slots(*n) as usize],
             Type::Enum(id) => vec![self.enums[*id as usize].values[0].1 as u64],
-            Type::Subrange(_, l, h) => vec![if *l <= 0 && 0 <= *h { 0 } else { *l as u64 }],
+            // IEC: a subrange starts at its lower limit unless initialised.
+            Type::Subrange(_, l, _) => vec![*l as u64],
             Type::Array(a) => {
                 let e = self.template(&a.elem);
                 e.repeat(a.len() as usize)
