@@ -179,8 +179,11 @@ const MAX_SLOTS: u64 = 16 << 20;
 
 pub(crate) fn compile(src: &str, file: &str) -> Result<Program, CompileErrors> {
     let toks = crate::lexer::tokenize(src, file)?;
-    let unit = crate::parser::parse(&toks, file)?;
     let spelling = spellings(src, &toks);
+    let unit = crate::parser::parse(&toks, file).map_err(|mut e| {
+        e.message = respell(&spelling, &e.message);
+        e
+    })?;
     let mut c = Compiler {
         spelling,
         file,
@@ -232,20 +235,7 @@ impl<'a> Compiler<'a> {
 
     /// Shows quoted names in messages as the source spells them.
     fn respell(&self, msg: &str) -> String {
-        let mut out = String::with_capacity(msg.len());
-        let mut parts = msg.split('\'');
-        if let Some(first) = parts.next() {
-            out.push_str(first);
-        }
-        for (i, part) in parts.enumerate() {
-            out.push('\'');
-            if i % 2 == 0 {
-                out.push_str(self.spelling.get(part).map_or(part, String::as_str));
-            } else {
-                out.push_str(part);
-            }
-        }
-        out
+        respell(&self.spelling, msg)
     }
 
     fn alloc(&mut self, n: u32, pos: Pos) -> R<u32> {
@@ -759,6 +749,23 @@ impl<'a> Compiler<'a> {
             )),
         }
     }
+}
+
+/// Replaces every quoted upper-case name in `msg` by its spelling in the source.
+fn respell(spelling: &HashMap<String, String>, msg: &str) -> String {
+    let mut out = String::with_capacity(msg.len());
+    for (i, part) in msg.split('\'').enumerate() {
+        if i > 0 {
+            out.push('\'');
+        }
+        let quoted = i % 2 == 1;
+        out.push_str(if quoted {
+            spelling.get(part).map_or(part, String::as_str)
+        } else {
+            part
+        });
+    }
+    out
 }
 
 /// First spelling of every identifier (identifiers are ASCII, so the upper-case text has
