@@ -743,3 +743,29 @@ fn var_temp_between_other_blocks_restarts_alone() {
     // Each call: t1 = 6, t2 = 8; keep accumulates across calls.
     assert_eq!(int(&rt, "b.keep"), 28);
 }
+
+#[test]
+fn remaining_standard_functions_and_operators() {
+    let rt = eval(
+        "x : LREAL := 0.5; a : DINT; b : DINT; c : DINT; m : INT := 9; d : LREAL; e : LREAL; f : LREAL; g : LREAL; h : LREAL;
+         p : BOOL; q : BOOL; r : LREAL; s : REAL := -2.5; t : DINT; u : INT; v : LREAL := 3.0;",
+        "a := SUB(10, 3); b := DIV(7, 2); c := MOVE(m);
+         d := COS(x); e := TAN(x); f := ASIN(x); g := ACOS(x); h := ATAN(x);
+         p := TRUE & FALSE; q := NOT (1 > 2) & TRUE; r := v ** 2.0 - -v; t := TRUNC(s); u := REAL_TRUNC_INT(s);",
+    );
+    assert_eq!(int(&rt, "a"), 7);
+    assert_eq!(int(&rt, "b"), 3);
+    assert_eq!(int(&rt, "c"), 9);
+    assert_eq!(real(&rt, "d"), 0.5f64.cos());
+    assert_eq!(real(&rt, "e"), 0.5f64.tan());
+    assert_eq!(real(&rt, "f"), 0.5f64.asin());
+    assert_eq!(real(&rt, "g"), 0.5f64.acos());
+    assert_eq!(real(&rt, "h"), 0.5f64.atan());
+    assert!(!boolean(&rt, "p"));
+    assert!(boolean(&rt, "q"));
+    // 3 ** 2 - (-3) = 12
+    assert_eq!(real(&rt, "r"), 12.0);
+    // TRUNC goes toward zero.
+    assert_eq!(int(&rt, "t"), -2);
+    assert_eq!(int(&rt, "u"), -2);
+}
