@@ -2,6 +2,10 @@
 
 use super::*;
 
+/// Bound call arguments: whether they may be written straight into the parameters, the
+/// inputs and the `=>` outputs.
+type BoundArgs = (bool, Box<[ArgIn]>, Box<[ArgOut]>);
+
 impl<'a> Compiler<'a> {
     // ---------------------------------------------------------------- calls
 
@@ -43,7 +47,7 @@ impl<'a> Compiler<'a> {
         };
         let fb_name = self.fbs[id as usize].name.clone();
         let members = self.fbs[id as usize].members.clone();
-        let (direct, ins, outs) = self.bind_args(&fb_name, &members, args, sc, pos, true)?;
+        let (direct, ins, outs) = self.bind_args(&fb_name, &members, args, sc, pos)?;
         let kind = match self.fbs[id as usize].std {
             Some(s) => FbKind::Std(s),
             None => FbKind::User(self.fbs[id as usize].body),
@@ -59,7 +63,6 @@ impl<'a> Compiler<'a> {
     }
 
     /// Matches formal and informal arguments to parameters.
-    #[allow(clippy::type_complexity)]
     pub(super) fn bind_args(
         &mut self,
         pou: &str,
@@ -67,8 +70,7 @@ impl<'a> Compiler<'a> {
         args: &[Arg],
         sc: &mut Scope,
         pos: Pos,
-        is_fb: bool,
-    ) -> R<(bool, Box<[ArgIn]>, Box<[ArgOut]>)> {
+    ) -> R<BoundArgs> {
         let positional: Vec<&Member> = params
             .iter()
             .filter(|m| matches!(m.kind, VarKind::Input | VarKind::InOut))
@@ -206,7 +208,6 @@ impl<'a> Compiler<'a> {
                 ));
             }
         }
-        let _ = is_fb;
         Ok((!calls_user, ins.into_boxed_slice(), outs.into_boxed_slice()))
     }
 
@@ -281,7 +282,7 @@ impl<'a> Compiler<'a> {
                 let f = &self.funcs[id as usize];
                 (f.name.clone(), f.params.clone(), f.ret.clone(), f.result)
             };
-            let (direct, ins, outs) = self.bind_args(&fname, &params, args, sc, pos, false)?;
+            let (direct, ins, outs) = self.bind_args(&fname, &params, args, sc, pos)?;
             sc.calls.push(id);
             let call = vm::Expr::Call(Box::new(FnCall {
                 func: id,
@@ -384,7 +385,7 @@ impl<'a> Compiler<'a> {
             (f.params.clone(), f.ret.clone())
         };
         let shown = format!("{}.{}", self.fbs[fb as usize].name, m.text);
-        let (direct, ins, outs) = self.bind_args(&shown, &params, args, sc, pos, false)?;
+        let (direct, ins, outs) = self.bind_args(&shown, &params, args, sc, pos)?;
         sc.calls.push(fid);
         let call = FnCall {
             func: fid,
