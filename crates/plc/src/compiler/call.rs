@@ -278,9 +278,9 @@ impl<'a> Compiler<'a> {
         expect: Option<&Type>,
     ) -> R<TE> {
         if let Some(id) = self.func_id(name)? {
-            let (fname, params, ret, result) = {
+            let (fname, params, ret) = {
                 let f = &self.funcs[id as usize];
-                (f.name.clone(), f.params.clone(), f.ret.clone(), f.result)
+                (f.name.clone(), f.params.clone(), f.ret.clone())
             };
             let (direct, ins, outs) = self.bind_args(&fname, &params, args, sc, pos)?;
             sc.calls.push(id);
@@ -290,7 +290,6 @@ impl<'a> Compiler<'a> {
                 args: ins,
                 outs,
             }));
-            let _ = result;
             return Ok(match ret {
                 Some(t) => TE {
                     ty: Ty::T(t),
