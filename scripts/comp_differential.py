@@ -23,6 +23,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PEERS = os.environ.get("RTCNC_PEERS") or os.path.join(ROOT, "..", "shared", "peers")
 CANON = os.path.join(PEERS, "linuxcnc", "canon.sh")
 OUT = os.path.join(ROOT, "target", "comp-differential")
+TOOLS = os.path.join(ROOT, "crates", "gcode", "tests", "comp_corpus", "canon.tbl")
 
 
 def contour(rng):
@@ -56,7 +57,11 @@ def contour(rng):
     else:
         first = f"{code} D{2 * radius:g}{orientation} G1 {a}{x:.4f} {b}{y:.4f}"
     lines.append(first)
+    extras = ["F300", "F800", "S1000 M3", "M5", "M8", "M9", "M7", "G4 P0.1", "(note)",
+              "(MSG, hello)", "S500", "G64 P0.01", "T2"]
     for _ in range(rng.randint(2, 12)):
+        if rng.random() < 0.2:
+            lines.append(rng.choice(extras))
         heading += rng.uniform(-2.5, 2.5)
         if rng.random() < 0.1:
             lines.append(f"G1 {normal}{rng.uniform(-3, 3):.4f}")
@@ -122,8 +127,8 @@ def main():
         path = os.path.join(OUT, "case.ngc")
         with open(path, "w") as f:
             f.write(program)
-        ours = subprocess.run([comp, path], capture_output=True, text=True)
-        theirs = subprocess.run([CANON, "-e", path], capture_output=True, text=True)
+        ours = subprocess.run([comp, path, TOOLS], capture_output=True, text=True)
+        theirs = subprocess.run([CANON, "-e", "-t", TOOLS, path], capture_output=True, text=True)
         a = ours.stdout.splitlines()
         b = theirs.stdout.splitlines()
         their_error = next((l for l in b if l.startswith("ERROR: ")), None)
