@@ -126,6 +126,20 @@ fn entry_move_ends_one_radius_to_the_side_of_the_programmed_end() {
 }
 
 #[test]
+fn entry_starts_from_the_position_the_stage_is_given() {
+    let mut stage = Compensator::new();
+    stage.set_position(xy(10.0, -10.0));
+    stage
+        .push(at(1, start(CompensationSide::Left, 1.0)))
+        .expect("start");
+    stage.push(at(2, feed(10.0, 0.0))).expect("entry");
+    stage.finish();
+    let m = moves(&std::iter::from_fn(|| stage.pop()).collect::<Vec<_>>());
+    // Moving +Y from (10, -10): the left side is -X.
+    assert_feed(&m[0], 9.0, 0.0);
+}
+
+#[test]
 fn convex_corner_gets_an_arc_around_the_programmed_corner() {
     // Tool on the right, path +X then +Y: a left turn with the tool outside.
     let (out, err) = run(vec![

@@ -141,6 +141,16 @@ impl Compensator {
         }
     }
 
+    /// Tells the stage where the tool is, in program coordinates, when that is not the end
+    /// of the last move it saw: at start-up, or after the machine moved outside the program
+    /// (jog, MDI, a probe's actual trip point). The next compensation entry starts there.
+    /// Ignored while a compensated path is under way.
+    pub fn set_position(&mut self, programmed: Pose) {
+        if !(self.compensating() && !self.first_move) {
+            self.programmed = programmed;
+        }
+    }
+
     /// True while G41/G42 is in force.
     pub fn is_active(&self) -> bool {
         self.side.is_some()
