@@ -146,7 +146,7 @@ impl Compensator {
     /// (jog, MDI, a probe's actual trip point). The next compensation entry starts there.
     /// Ignored while a compensated path is under way.
     pub fn set_position(&mut self, programmed: Pose) {
-        if !(self.compensating() && !self.first_move) {
+        if !self.compensating() || self.first_move {
             self.programmed = programmed;
         }
     }
