@@ -34,6 +34,9 @@ pub struct Settings {
     pub block_delete: bool,
     /// Tolerance of the radius difference of centre-format arcs (mm).
     pub arc_radius_tolerance_mm: f64,
+    /// A program that runs this many lines without issuing any command is stopped with an
+    /// error (an endless o-word loop would otherwise never return).
+    pub max_lines_without_output: u64,
     /// The same in inches.
     pub arc_radius_tolerance_inch: f64,
 }
@@ -47,6 +50,7 @@ impl Default for Settings {
             block_delete: false,
             arc_radius_tolerance_mm: 2.0 * 0.01 * std::f64::consts::SQRT_2,
             arc_radius_tolerance_inch: 2.0 * 0.001 * std::f64::consts::SQRT_2,
+            max_lines_without_output: 10_000_000,
         }
     }
 }
@@ -252,6 +256,7 @@ pub struct Interpreter {
     running: bool,
     percent_seen: bool,
     failed: bool,
+    lines_without_output: u64,
     pending_error: Option<GcodeError>,
     at_eof: bool,
     pub(crate) value: f64,
@@ -285,6 +290,7 @@ impl Interpreter {
             running: false,
             percent_seen: false,
             failed: false,
+            lines_without_output: 0,
             pending_error: None,
             at_eof: false,
             value: 0.0,
@@ -327,15 +333,7 @@ impl Interpreter {
     /// Opens a program file to run. Lines are read as commands are pulled.
     pub fn open(&mut self, path: impl AsRef<Path>) -> Result<(), GcodeError> {
         let path = path.as_ref();
-        self.src.clear();
-        self.subs.clear();
-        self.calls.clear();
-        self.loops.clear();
-        self.ifs.clear();
-        self.params.reset_scopes();
-        self.failed = false;
-        self.at_eof = false;
-        self.percent_seen = false;
+        self.reset_run();
         let name = path.display().to_string();
         let id = self.src.open(path, &name).map_err(|e| GcodeError {
             kind: ErrorKind::Io,
@@ -355,6 +353,38 @@ impl Interpreter {
         Ok(())
     }
 
+    /// Runs a program held in memory; `name` is used in errors.
+    pub fn open_text(&mut self, name: &str, text: impl Into<Vec<u8>>) -> Result<(), GcodeError> {
+        self.reset_run();
+        let id = self
+            .src
+            .open_text(name, text.into())
+            .map_err(|e| self.io_error(e))?;
+        self.src
+            .jump(Location {
+                file: id,
+                offset: 0,
+                line: 1,
+            })
+            .map_err(|e| self.io_error(e))?;
+        self.running = true;
+        Ok(())
+    }
+
+    fn reset_run(&mut self) {
+        self.src.clear();
+        self.subs.clear();
+        self.calls.clear();
+        self.loops.clear();
+        self.ifs.clear();
+        self.params.reset_scopes();
+        self.failed = false;
+        self.pending_error = None;
+        self.at_eof = false;
+        self.percent_seen = false;
+        self.lines_without_output = 0;
+    }
+
     /// Executes one line of MDI. Its commands are queued for [`Interpreter::next_canon`].
     /// Subroutines may be called (from files on the subroutine path); other o-word control
     /// is refused.
@@ -363,6 +393,7 @@ impl Interpreter {
             return Err(self.error_at(ErrorKind::State, 0, "a program is running"));
         }
         self.failed = false;
+        self.lines_without_output = 0;
         self.src.set_mdi_line(line);
         self.source = Source {
             file: FileId::MAX,
@@ -382,6 +413,7 @@ impl Interpreter {
     pub fn next_canon(&mut self) -> Option<Result<Canon, GcodeError>> {
         loop {
             if let Some(c) = self.out.pop_front() {
+                self.lines_without_output = 0;
                 return Some(Ok(c));
             }
             if let Some(e) = self.pending_error.take() {
@@ -389,6 +421,19 @@ impl Interpreter {
             }
             if !self.running || self.failed {
                 return None;
+            }
+            self.lines_without_output += 1;
+            if self.lines_without_output > self.settings.max_lines_without_output {
+                self.failed = true;
+                self.running = false;
+                return Some(Err(self.error_at(
+                    ErrorKind::Flow,
+                    0,
+                    format!(
+                        "{} lines ran without producing any command: endless loop?",
+                        self.settings.max_lines_without_output
+                    ),
+                )));
             }
             if let Err(e) = self.step() {
                 // What the failing block issued before the error still comes out first,
