@@ -238,3 +238,62 @@ fn cutter_compensation_start_carries_the_radius() {
     use rtcnc_gcode::canon::CompensationSide::*;
     assert_eq!(starts, vec![(3.0, Left), (2.0, Right)]);
 }
+
+#[test]
+fn probing_waits_for_the_machine_when_asked_to() {
+    let mut it = Interpreter::new(
+        Settings {
+            wait_for_machine: true,
+            ..Settings::default()
+        },
+        ToolTable::new(),
+        Parameters::new(),
+    );
+    it.open_text(
+        "p.ngc",
+        "F100\nG38.2 Z-10\nG0 Z[#5063 + 1]\n(debug,#5070)\nM66 P1 L3 Q2\nG0 X#5399\nM2\n",
+    )
+    .unwrap();
+    let before: Vec<CanonCommand> = (&mut it).map(|c| c.unwrap().command).collect();
+    assert!(it.is_waiting());
+    assert_eq!(before.last(), Some(&CanonCommand::TurnProbeOff));
+    // The probe tripped at Z-4 (machine), the machine stopped at Z-3.9.
+    let z = |z| Pose { z, ..Pose::ZERO };
+    it.probe_result(z(-4.0), true, z(-3.9));
+    let after: Vec<CanonCommand> = (&mut it).map(|c| c.unwrap().command).collect();
+    assert_eq!(after[0], CanonCommand::StraightTraverse(z(-3.0)));
+    assert_eq!(after[1], CanonCommand::Message("1.000000".into()));
+    assert!(it.is_waiting());
+    it.input_result(7.0);
+    let rest: Vec<CanonCommand> = (&mut it).map(|c| c.unwrap().command).collect();
+    assert_eq!(
+        rest[0],
+        CanonCommand::StraightTraverse(Pose {
+            x: 7.0,
+            z: -3.0,
+            ..Pose::ZERO
+        })
+    );
+}
+
+#[test]
+fn g52_shifts_the_local_origin() {
+    let (out, err) = run("G52 X10\nG0 X1\nG52 X0\nG0 X1\nM2\n");
+    assert!(err.is_none());
+    let traverses: Vec<f64> = out
+        .iter()
+        .filter_map(|c| match c {
+            CanonCommand::StraightTraverse(p) => Some(p.x),
+            _ => None,
+        })
+        .collect();
+    // Program coordinates stay as written; the offset goes out as SET_G92_OFFSET(10, ...).
+    assert_eq!(traverses, vec![1.0, 1.0]);
+    assert_eq!(
+        out[0],
+        CanonCommand::SetG92Offset(Pose {
+            x: 10.0,
+            ..Pose::ZERO
+        })
+    );
+}
