@@ -58,7 +58,6 @@ impl Interpreter {
         if b.has_comment {
             self.comment(b);
         }
-        self.probe_pending = false;
         if b.g[gg::SPINDLE] != -1 {
             self.spindle_mode(b)?;
         }
@@ -128,12 +127,12 @@ impl Interpreter {
                         "axis words cannot be used with G80",
                     ));
                 }
-                if !axis && mode0 == 920 {
+                if !axis && matches!(mode0, 520 | 920) {
                     return Err(self.g_err(
                         b,
                         gg::NON_MODAL,
                         ErrorKind::MissingWord,
-                        "G92 needs at least one axis word",
+                        "G52 and G92 need at least one axis word",
                     ));
                 }
                 return Ok(800);
@@ -161,12 +160,12 @@ impl Interpreter {
             return Ok(mode1);
         }
         if covets {
-            if !axis && mode0 == 920 {
+            if !axis && matches!(mode0, 520 | 920) {
                 return Err(self.g_err(
                     b,
                     gg::NON_MODAL,
                     ErrorKind::MissingWord,
-                    "G92 needs at least one axis word",
+                    "G52 and G92 need at least one axis word",
                 ));
             }
             return Ok(-1);
@@ -786,6 +785,9 @@ impl Interpreter {
             mode,
             timeout: if digital && q > 0.0 { q } else { 0.0 },
         });
+        // Without a machine the input reads 0.
+        self.params.set(sys::INPUT, 0.0);
+        self.waiting = self.settings.wait_for_machine;
         Ok(())
     }
 
@@ -976,15 +978,7 @@ impl Interpreter {
                 };
                 self.pose_to_params(base, &m);
             }
-            920..=923 => self.g92(b)?,
-            520 => {
-                return Err(self.g_err(
-                    b,
-                    gg::NON_MODAL,
-                    ErrorKind::UnknownWord,
-                    "G52 is not supported: use G92 or G10 L2",
-                ));
-            }
+            520 | 920..=923 => self.g92(b)?,
             _ => {}
         }
         if motion != -1 {
@@ -1161,7 +1155,8 @@ impl Interpreter {
                                 format!("tool {t} is not in the tool table"),
                             ));
                         }
-                        t
+                        // H0 means the tool in the spindle.
+                        if t == 0 { self.state.current_tool } else { t }
                     }
                     None => self.state.current_tool,
                 };
@@ -1527,6 +1522,16 @@ impl Interpreter {
         let mut pos = self.state.position.to_array();
         let mut off = self.state.g92.to_array();
         match code {
+            520 => {
+                // G52: a local offset given directly (it shares the G92 offset).
+                self.params.set(sys::G92_APPLIED, 1.0);
+                for (i, letter) in AXES.iter().enumerate() {
+                    if let Some(v) = b.get(*letter) {
+                        pos[i] += off[i] - v;
+                        off[i] = v;
+                    }
+                }
+            }
             920 => {
                 self.params.set(sys::G92_APPLIED, 1.0);
                 for (i, letter) in AXES.iter().enumerate() {
@@ -1560,7 +1565,7 @@ impl Interpreter {
         self.state.position = Pose::from_array(pos);
         self.state.g92 = Pose::from_array(off);
         self.emit(C::SetG92Offset(self.state.g92));
-        if code == 920 {
+        if code == 920 || code == 520 {
             let g92 = self.state.g92;
             self.pose_to_params(sys::G92, &g92);
         }
@@ -2019,7 +2024,7 @@ impl Interpreter {
             after.z = end.z + backoff * dz / dist;
         }
         self.state.position = after;
-        self.probe_pending = true;
+        self.waiting = self.settings.wait_for_machine;
         Ok(())
     }
 

@@ -34,6 +34,14 @@ pub struct Settings {
     pub block_delete: bool,
     /// Tolerance of the radius difference of centre-format arcs (mm).
     pub arc_radius_tolerance_mm: f64,
+    /// After a probing move (G38.x) or an input wait (M66), stop reading the program until
+    /// the machine reports the result ([`Interpreter::probe_result`],
+    /// [`Interpreter::input_result`]), since later lines may read it (#5061-#5070, #5399).
+    /// When false the results are modelled as LinuxCNC's stand-alone interpreter does.
+    pub wait_for_machine: bool,
+    /// A program that runs this many lines without issuing any command is stopped with an
+    /// error (an endless o-word loop would otherwise never return).
+    pub max_lines_without_output: u64,
     /// The same in inches.
     pub arc_radius_tolerance_inch: f64,
 }
@@ -47,6 +55,8 @@ impl Default for Settings {
             block_delete: false,
             arc_radius_tolerance_mm: 2.0 * 0.01 * std::f64::consts::SQRT_2,
             arc_radius_tolerance_inch: 2.0 * 0.001 * std::f64::consts::SQRT_2,
+            max_lines_without_output: 10_000_000,
+            wait_for_machine: false,
         }
     }
 }
@@ -252,11 +262,13 @@ pub struct Interpreter {
     running: bool,
     percent_seen: bool,
     failed: bool,
+    /// Waiting for a probe or input result from the machine.
+    pub(crate) waiting: bool,
+    lines_without_output: u64,
     pending_error: Option<GcodeError>,
     at_eof: bool,
     pub(crate) value: f64,
     pub(crate) value_returned: bool,
-    pub(crate) probe_pending: bool,
     pub(crate) spline_last_pq: Option<[f64; 2]>,
 }
 
@@ -285,11 +297,12 @@ impl Interpreter {
             running: false,
             percent_seen: false,
             failed: false,
+            waiting: false,
+            lines_without_output: 0,
             pending_error: None,
             at_eof: false,
             value: 0.0,
             value_returned: false,
-            probe_pending: false,
             spline_last_pq: None,
         };
         // #5599 enables (DEBUG,...) messages.
@@ -327,15 +340,7 @@ impl Interpreter {
     /// Opens a program file to run. Lines are read as commands are pulled.
     pub fn open(&mut self, path: impl AsRef<Path>) -> Result<(), GcodeError> {
         let path = path.as_ref();
-        self.src.clear();
-        self.subs.clear();
-        self.calls.clear();
-        self.loops.clear();
-        self.ifs.clear();
-        self.params.reset_scopes();
-        self.failed = false;
-        self.at_eof = false;
-        self.percent_seen = false;
+        self.reset_run();
         let name = path.display().to_string();
         let id = self.src.open(path, &name).map_err(|e| GcodeError {
             kind: ErrorKind::Io,
@@ -355,6 +360,39 @@ impl Interpreter {
         Ok(())
     }
 
+    /// Runs a program held in memory; `name` is used in errors.
+    pub fn open_text(&mut self, name: &str, text: impl Into<Vec<u8>>) -> Result<(), GcodeError> {
+        self.reset_run();
+        let id = self
+            .src
+            .open_text(name, text.into())
+            .map_err(|e| self.io_error(e))?;
+        self.src
+            .jump(Location {
+                file: id,
+                offset: 0,
+                line: 1,
+            })
+            .map_err(|e| self.io_error(e))?;
+        self.running = true;
+        Ok(())
+    }
+
+    fn reset_run(&mut self) {
+        self.src.clear();
+        self.subs.clear();
+        self.calls.clear();
+        self.loops.clear();
+        self.ifs.clear();
+        self.params.reset_scopes();
+        self.failed = false;
+        self.pending_error = None;
+        self.at_eof = false;
+        self.percent_seen = false;
+        self.lines_without_output = 0;
+        self.waiting = false;
+    }
+
     /// Executes one line of MDI. Its commands are queued for [`Interpreter::next_canon`].
     /// Subroutines may be called (from files on the subroutine path); other o-word control
     /// is refused.
@@ -363,6 +401,7 @@ impl Interpreter {
             return Err(self.error_at(ErrorKind::State, 0, "a program is running"));
         }
         self.failed = false;
+        self.lines_without_output = 0;
         self.src.set_mdi_line(line);
         self.source = Source {
             file: FileId::MAX,
@@ -382,13 +421,27 @@ impl Interpreter {
     pub fn next_canon(&mut self) -> Option<Result<Canon, GcodeError>> {
         loop {
             if let Some(c) = self.out.pop_front() {
+                self.lines_without_output = 0;
                 return Some(Ok(c));
             }
             if let Some(e) = self.pending_error.take() {
                 return Some(Err(e));
             }
-            if !self.running || self.failed {
+            if !self.running || self.failed || self.waiting {
                 return None;
+            }
+            self.lines_without_output += 1;
+            if self.lines_without_output > self.settings.max_lines_without_output {
+                self.failed = true;
+                self.running = false;
+                return Some(Err(self.error_at(
+                    ErrorKind::Flow,
+                    0,
+                    format!(
+                        "{} lines ran without producing any command: endless loop?",
+                        self.settings.max_lines_without_output
+                    ),
+                )));
             }
             if let Err(e) = self.step() {
                 // What the failing block issued before the error still comes out first,
@@ -401,6 +454,33 @@ impl Interpreter {
                 self.pending_error = Some(e);
             }
         }
+    }
+
+    /// True when the interpreter waits for [`Interpreter::probe_result`] or
+    /// [`Interpreter::input_result`] before reading on (see [`Settings::wait_for_machine`]).
+    pub fn is_waiting(&self) -> bool {
+        self.waiting
+    }
+
+    /// The result of the last probing move: where the probe tripped (machine coordinates,
+    /// current length units) and whether it did. The controlled point is taken to be at
+    /// `stopped_at` (machine coordinates) afterwards. Reading resumes.
+    pub fn probe_result(&mut self, tripped_at: Pose, tripped: bool, stopped_at: Pose) {
+        let p = self.program_from_machine(&tripped_at).to_array();
+        for (i, v) in p.iter().enumerate() {
+            self.params.set(sys::PROBE + i, *v);
+        }
+        self.params
+            .set(sys::PROBE_OK, if tripped { 1.0 } else { 0.0 });
+        self.state.position = self.program_from_machine(&stopped_at);
+        self.waiting = false;
+    }
+
+    /// The result of the last M66 wait (the input's value, -1 on time-out): stored in
+    /// #5399. Reading resumes.
+    pub fn input_result(&mut self, value: f64) {
+        self.params.set(sys::INPUT, value);
+        self.waiting = false;
     }
 
     /// After an error from a program file, continue with the line after the one that
