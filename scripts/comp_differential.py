@@ -127,39 +127,10 @@ def main():
         path = os.path.join(OUT, "case.ngc")
         with open(path, "w") as f:
             f.write(program)
-        ours = subprocess.run([comp, path, TOOLS], capture_output=True, text=True)
-        theirs = subprocess.run([CANON, "-e", "-t", TOOLS, path], capture_output=True, text=True)
-        a = ours.stdout.splitlines()
-        b = theirs.stdout.splitlines()
-        their_error = next((l for l in b if l.startswith("ERROR: ")), None)
-        b = [l for l in b if not l.startswith("ERROR: ")]
-        problem = None
-        if their_error:
-            errors += 1
-            while b and b[-1] == "ON_RESET()":
-                b.pop()
-            a = a[:-1] if a and a[-1] == "ON_RESET()" else a
-            msg, _, block = their_error[len("ERROR: "):].partition(" | ")
-            m = re.match(r"^.*:(\d+):\d+: (.*)$", ours.stderr.strip().splitlines()[-1]) \
-                if ours.stderr.strip() else None
-            if not m:
-                problem = f"rs274 error {msg!r}, rtcnc none"
-            else:
-                our_block = program.splitlines()[int(m.group(1)) - 1].strip()
-                if our_block != block.strip():
-                    problem = f"error at {our_block!r}, rs274 at {block!r}"
-                elif msg.startswith(("Arc", "Straight", "Length", "Radius of", "Tool radius")) \
-                        and m.group(2) != msg:
-                    problem = f"error {m.group(2)!r}, rs274 {msg!r}"
-        elif ours.stderr.strip():
-            problem = f"rtcnc error {ours.stderr.strip()!r}, rs274 none"
-        if problem is None:
-            for k in range(max(len(a), len(b))):
-                x = a[k] if k < len(a) else "<end>"
-                y = b[k] if k < len(b) else "<end>"
-                if not same(x, y):
-                    problem = f"line {k + 1}: rtcnc {x!r}, rs274 {y!r}"
-                    break
+        problem, stopped = compare(program, path, comp)
+        if problem:
+            # rs274 runs on a busy machine now and then print nothing: ask once more.
+            problem, stopped = compare(program, path, comp)
         if problem and re.search(r"L[1-8] G[23] ", program):
             # Lathe entry on an arc: a deliberate difference (docs/gcode.md).
             known += 1
@@ -170,10 +141,50 @@ def main():
             with open(keep, "w") as f:
                 f.write(program)
             print(f"{keep}: {problem}")
+        if problem is None and stopped:
+            errors += 1
     print(f"{count} random contours (seed {seed}): {failures} differ from rs274, "
           f"{errors} stopped with an error in rs274, {known} lathe entry arcs differ as "
           f"documented")
     sys.exit(1 if failures else 0)
+
+
+def compare(program, path, comp):
+    """Runs both; returns (description of the first difference or None, rs274 stopped with
+    an error)."""
+    ours = subprocess.run([comp, path, TOOLS], capture_output=True, text=True)
+    theirs = subprocess.run([CANON, "-e", "-t", TOOLS, path], capture_output=True, text=True)
+    a = ours.stdout.splitlines()
+    b = theirs.stdout.splitlines()
+    their_error = next((l for l in b if l.startswith("ERROR: ")), None)
+    b = [l for l in b if not l.startswith("ERROR: ")]
+    problem = None
+    if their_error:
+        while b and b[-1] == "ON_RESET()":
+            b.pop()
+        a = a[:-1] if a and a[-1] == "ON_RESET()" else a
+        msg, _, block = their_error[len("ERROR: "):].partition(" | ")
+        m = re.match(r"^.*:(\d+):\d+: (.*)$", ours.stderr.strip().splitlines()[-1]) \
+            if ours.stderr.strip() else None
+        if not m:
+            problem = f"rs274 error {msg!r}, rtcnc none"
+        else:
+            our_block = program.splitlines()[int(m.group(1)) - 1].strip()
+            if our_block != block.strip():
+                problem = f"error at {our_block!r}, rs274 at {block!r}"
+            elif msg.startswith(("Arc", "Straight", "Length", "Radius of", "Tool radius")) \
+                    and m.group(2) != msg:
+                problem = f"error {m.group(2)!r}, rs274 {msg!r}"
+    elif ours.stderr.strip():
+        problem = f"rtcnc error {ours.stderr.strip()!r}, rs274 none"
+    if problem is None:
+        for k in range(max(len(a), len(b))):
+            x = a[k] if k < len(a) else "<end>"
+            y = b[k] if k < len(b) else "<end>"
+            if not same(x, y):
+                problem = f"line {k + 1}: rtcnc {x!r}, rs274 {y!r}"
+                break
+    return problem, their_error is not None
 
 
 if __name__ == "__main__":
