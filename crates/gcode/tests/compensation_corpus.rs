@@ -417,10 +417,17 @@ fn stage_output_matches_rs274_on_the_corpus() {
 fn interpreter_and_stage_match_rs274_on_the_corpus() {
     use rtcnc_gcode::{Interpreter, Parameters, Settings, ToolTable};
     let dir = corpus_dir();
-    let tools = ToolTable::load(&dir.join("canon.tbl")).expect("tool table");
     let mut problems = Vec::new();
     for name in programs() {
-        let mut interp = Interpreter::new(Settings::rs274(), tools.clone(), Parameters::new());
+        // PROGRAM.tbl if there is one, as regenerate.sh gives rs274.
+        let own = dir.join(format!("{name}.tbl"));
+        let table = if own.exists() {
+            own
+        } else {
+            dir.join("canon.tbl")
+        };
+        let tools = ToolTable::load(&table).expect("tool table");
+        let mut interp = Interpreter::new(Settings::rs274(), tools, Parameters::new());
         interp
             .open(dir.join(format!("{name}.ngc")))
             .expect("open program");
