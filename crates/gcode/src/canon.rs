@@ -371,6 +371,18 @@ pub enum CanonCommand {
     TurnProbeOn,
     /// After a G38 move.
     TurnProbeOff,
+    /// The following feed moves advance `feed_per_revolution` per spindle revolution
+    /// (G33, G76 threading).
+    StartSpeedFeedSync {
+        /// Spindle number.
+        spindle: u8,
+        /// Length units per revolution.
+        feed_per_revolution: f64,
+        /// True: velocity mode (G33.1 style), false: position synchronised.
+        velocity_mode: bool,
+    },
+    /// End of spindle-synchronised motion.
+    StopSpeedFeedSync,
     /// G38.2 - G38.5 straight probing move.
     StraightProbe {
         /// End point.
@@ -662,6 +674,18 @@ impl Canon {
                 push_int(o, i64::from(s.order));
                 o.extend_from_slice(b", ...)");
             }
+            C::StartSpeedFeedSync {
+                feed_per_revolution,
+                velocity_mode,
+                ..
+            } => {
+                o.extend_from_slice(b"START_SPEED_FEED_SYNC(");
+                push_fixed(o, *feed_per_revolution, 6);
+                o.push(b',');
+                o.push(if *velocity_mode { b'1' } else { b'0' });
+                o.push(b')');
+            }
+            C::StopSpeedFeedSync => o.extend_from_slice(b"STOP_SPEED_FEED_SYNCH()"),
             C::TurnProbeOn => o.extend_from_slice(b"TURN_PROBE_ON()"),
             C::TurnProbeOff => o.extend_from_slice(b"TURN_PROBE_OFF()"),
             C::StraightProbe { end, .. } => call_pose(o, b"STRAIGHT_PROBE(", end),
