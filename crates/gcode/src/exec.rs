@@ -1499,10 +1499,13 @@ impl Interpreter {
         };
         let loaded = tool.pocket == self.state.current_pocket;
         self.tools.set(tool);
-        self.emit(C::SetToolTableEntry(entry));
+        self.emit(C::SetToolTableEntry(Box::new(entry)));
         if loaded {
             // The spindle's copy (pocket 0) changes too.
-            self.emit(C::SetToolTableEntry(ToolEntry { pocket: 0, ..entry }));
+            self.emit(C::SetToolTableEntry(Box::new(ToolEntry {
+                pocket: 0,
+                ..entry
+            })));
         }
         if tool_no == self.state.current_tool {
             self.set_tool_params();
