@@ -1863,10 +1863,6 @@ impl Interpreter {
             let o1 = b.get(n1).unwrap_or(0.0);
             let o2 = b.get(n2).unwrap_or(0.0);
             let (cc1, cc2) = if self.state.ijk_absolute {
-                let mut o1 = o1;
-                if self.state.lathe_diameter && n1 == b'i' {
-                    o1 /= 1.0;
-                }
                 (o1, o2)
             } else {
                 (c1 + o1, c2 + o2)
