@@ -22,7 +22,13 @@ type Res<T> = Result<T, GcodeError>;
 const AXES: [u8; 9] = [b'x', b'y', b'z', b'a', b'b', b'c', b'u', b'v', b'w'];
 
 impl Interpreter {
-    fn err(&self, b: &Block, letter: u8, kind: ErrorKind, msg: impl Into<String>) -> GcodeError {
+    pub(crate) fn err(
+        &self,
+        b: &Block,
+        letter: u8,
+        kind: ErrorKind,
+        msg: impl Into<String>,
+    ) -> GcodeError {
         let col = if letter.is_ascii_lowercase() && b.has(letter) {
             b.column(letter) + 1
         } else {
@@ -244,7 +250,7 @@ impl Interpreter {
                 "D word with no G41, G41.1, G42, G42.1 or G96 to use it",
             ));
         }
-        if b.has(b'e') && !(m(mg::IO, 66) || m(mg::IO, 67) || m(mg::IO, 68)) {
+        if b.has(b'e') && !(motion == 760 || m(mg::IO, 66) || m(mg::IO, 67) || m(mg::IO, 68)) {
             return Err(self.err(
                 b,
                 b'e',
@@ -252,7 +258,7 @@ impl Interpreter {
                 "E word with no M66, M67 or M68 to use it",
             ));
         }
-        if b.has(b'h') && b.g[gg::LENGTH] != 430 {
+        if b.has(b'h') && b.g[gg::LENGTH] != 430 && motion != 760 {
             return Err(self.err(
                 b,
                 b'h',
@@ -260,7 +266,7 @@ impl Interpreter {
                 "H word with no G43 to use it",
             ));
         }
-        if b.has(b'i') && !(matches!(motion, 20 | 30 | 50 | 51 | 870) || g10) {
+        if b.has(b'i') && !(matches!(motion, 20 | 30 | 50 | 51 | 760 | 870) || g10) {
             return Err(self.err(
                 b,
                 b'i',
@@ -268,7 +274,7 @@ impl Interpreter {
                 "I word with no G2, G3, G5, G5.1, G10 or G87 to use it",
             ));
         }
-        if b.has(b'j') && !(matches!(motion, 20 | 30 | 50 | 51 | 870) || g10) {
+        if b.has(b'j') && !(matches!(motion, 20 | 30 | 50 | 51 | 760 | 870) || g10) {
             return Err(self.err(
                 b,
                 b'j',
@@ -276,7 +282,7 @@ impl Interpreter {
                 "J word with no G2, G3, G5, G5.1, G10 or G87 to use it",
             ));
         }
-        if b.has(b'k') && !matches!(motion, 20 | 30 | 870) {
+        if b.has(b'k') && !matches!(motion, 20 | 30 | 330 | 760 | 870) {
             return Err(self.err(
                 b,
                 b'k',
@@ -286,6 +292,7 @@ impl Interpreter {
         }
         if b.has(b'l')
             && !(cycle
+                || motion == 760
                 || g10
                 || matches!(b.g[gg::CUTTER], 410 | 420 | 411 | 421)
                 || m(mg::IO, 66)
@@ -302,7 +309,7 @@ impl Interpreter {
             let ok = g10
                 || mode0 == 40
                 || b.g[gg::CONTROL] == 640
-                || matches!(motion, 820 | 860 | 880 | 890 | 50 | 20 | 30 | 840)
+                || matches!(motion, 820 | 860 | 880 | 890 | 50 | 20 | 30 | 840 | 760)
                 || matches!(b.m[mg::OVERRIDE], 50..=53)
                 || matches!(b.m[mg::IO], 62..=66)
                 || m(mg::SPINDLE, 19)
@@ -337,7 +344,7 @@ impl Interpreter {
             }
         }
         if b.has(b'q') {
-            let ok = matches!(motion, 830 | 730 | 50)
+            let ok = matches!(motion, 830 | 730 | 50 | 760)
                 || user_m
                 || matches!(b.m[mg::IO], 66..=68)
                 || g10
@@ -349,7 +356,7 @@ impl Interpreter {
             }
         }
         if let Some(r) = b.get(b'r') {
-            let ok = matches!(motion, 20 | 30)
+            let ok = matches!(motion, 20 | 30 | 760)
                 || cycle
                 || g10
                 || m(mg::SPINDLE, 19)
@@ -371,6 +378,42 @@ impl Interpreter {
                 ));
             }
         }
+        if motion == 330 {
+            if !b.has(b'k') {
+                return Err(self.g_err(
+                    b,
+                    gg::MOTION,
+                    ErrorKind::MissingWord,
+                    "G33 needs a K word (pitch)",
+                ));
+            }
+            if b.has(b'f') {
+                return Err(self.err(
+                    b,
+                    b'f',
+                    ErrorKind::UnusedWord,
+                    "F word cannot be used with G33",
+                ));
+            }
+        }
+        if motion == 760 {
+            if !b.has(b'p') {
+                return Err(self.g_err(
+                    b,
+                    gg::MOTION,
+                    ErrorKind::MissingWord,
+                    "G76 needs a P word (pitch)",
+                ));
+            }
+            if !(b.has(b'i') && b.has(b'j') && b.has(b'k')) {
+                return Err(self.g_err(
+                    b,
+                    gg::MOTION,
+                    ErrorKind::MissingWord,
+                    "G76 needs I, J and K words",
+                ));
+            }
+        }
         if b.g[gg::SPINDLE] == 960 && !b.has(b's') {
             return Err(self.g_err(
                 b,
@@ -384,6 +427,7 @@ impl Interpreter {
                 || matches!(b.m[mg::SPINDLE], 3 | 4 | 5 | 19)
                 || b.g[gg::SPINDLE] != -1
                 || b.g[gg::FEED_MODE] == 950
+                || matches!(motion, 330 | 760)
                 || m(mg::OVERRIDE, 51))
         {
             return Err(self.error_at(
@@ -1455,10 +1499,13 @@ impl Interpreter {
         };
         let loaded = tool.pocket == self.state.current_pocket;
         self.tools.set(tool);
-        self.emit(C::SetToolTableEntry(entry));
+        self.emit(C::SetToolTableEntry(Box::new(entry)));
         if loaded {
             // The spindle's copy (pocket 0) changes too.
-            self.emit(C::SetToolTableEntry(ToolEntry { pocket: 0, ..entry }));
+            self.emit(C::SetToolTableEntry(Box::new(ToolEntry {
+                pocket: 0,
+                ..entry
+            })));
         }
         if tool_no == self.state.current_tool {
             self.set_tool_params();
@@ -1614,6 +1661,8 @@ impl Interpreter {
             20 | 30 => self.arc(b, motion),
             50 | 51 => self.spline(b, motion),
             382..=385 => self.probe(b, motion),
+            330 => self.g33(b),
+            760 => self.g76(b),
             800 => {
                 self.emit(C::Comment("interpreter: motion mode set to none".into()));
                 self.state.motion = 800;
@@ -1814,10 +1863,6 @@ impl Interpreter {
             let o1 = b.get(n1).unwrap_or(0.0);
             let o2 = b.get(n2).unwrap_or(0.0);
             let (cc1, cc2) = if self.state.ijk_absolute {
-                let mut o1 = o1;
-                if self.state.lathe_diameter && n1 == b'i' {
-                    o1 /= 1.0;
-                }
                 (o1, o2)
             } else {
                 (c1 + o1, c2 + o2)

@@ -456,6 +456,19 @@ impl Interpreter {
         }
     }
 
+    /// Stops the running program (operator abort): queued commands are dropped, open
+    /// subroutine calls and loops are forgotten. The modal state stays as it is.
+    pub fn abort(&mut self) {
+        self.out.clear();
+        self.pending_error = None;
+        self.running = false;
+        self.waiting = false;
+        self.calls.clear();
+        self.loops.clear();
+        self.ifs.clear();
+        self.params.reset_scopes();
+    }
+
     /// True when the interpreter waits for [`Interpreter::probe_result`] or
     /// [`Interpreter::input_result`] before reading on (see [`Settings::wait_for_machine`]).
     pub fn is_waiting(&self) -> bool {
@@ -905,6 +918,7 @@ impl Interpreter {
             match self.src.read_line() {
                 Ok(true) => {}
                 Ok(false) => {
+                    self.at_eof = true;
                     break Err(GcodeError {
                         kind: ErrorKind::Flow,
                         file: self.src.name(opened.file),
@@ -948,6 +962,7 @@ impl Interpreter {
             match self.src.read_line() {
                 Ok(true) => {}
                 Ok(false) => {
+                    self.at_eof = true;
                     return Err(GcodeError {
                         kind: ErrorKind::Flow,
                         file: self.src.name(opened.file),
@@ -1066,7 +1081,8 @@ impl Interpreter {
         if args.len() > 30 {
             return Err(self.error_at(ErrorKind::Flow, col, "more than 30 subroutine arguments"));
         }
-        let def = self.find_sub(label, false, col)?;
+        // Where to come back to (nowhere for an MDI call), taken before the search moves
+        // the reading position.
         let ret = match self.src.next_location() {
             Some(l) => l,
             None => Location {
@@ -1075,6 +1091,7 @@ impl Interpreter {
                 line: 0,
             },
         };
+        let def = self.find_sub(label, false, col)?;
         let mut saved = [0.0; 30];
         for (i, s) in saved.iter_mut().enumerate() {
             *s = self.params.get(i + 1);
@@ -1110,8 +1127,8 @@ impl Interpreter {
         if self.calls.len() >= MAX_CALL_DEPTH {
             return Err(self.error_at(ErrorKind::Flow, col, "subroutines nested too deeply"));
         }
-        let def = self.find_sub(&label, true, col)?;
         let ret = self.next_line_location()?;
+        let def = self.find_sub(&label, true, col)?;
         self.calls.push(CallFrame {
             label: label.into(),
             ret,

@@ -25,6 +25,7 @@ mod exec;
 mod interp;
 pub mod params;
 mod source;
+mod threading;
 pub mod tools;
 
 pub use canon::{Canon, CanonCommand, Pose, Source};

@@ -297,3 +297,47 @@ fn g52_shifts_the_local_origin() {
         })
     );
 }
+
+#[test]
+fn mdi_calls_subroutines_from_the_search_path_and_abort_stops_a_program() {
+    let dir = std::env::temp_dir().join(format!("rtcnc-gcode-mdi-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(
+        dir.join("probe_x.ngc"),
+        "o<probe_x> sub\nG0 X#1\nG0 Y#2\no<probe_x> endsub\n",
+    )
+    .unwrap();
+    let mut it = Interpreter::new(
+        Settings {
+            subroutine_path: vec![dir.clone()],
+            ..Settings::default()
+        },
+        ToolTable::new(),
+        Parameters::new(),
+    );
+    let _: Vec<_> = (&mut it).collect();
+    it.execute_mdi("o<probe_x> call [3] [4]").unwrap();
+    assert!(it.is_running());
+    let cmds: Vec<CanonCommand> = (&mut it).map(|c| c.unwrap().command).collect();
+    assert_eq!(
+        cmds,
+        vec![
+            CanonCommand::StraightTraverse(Pose {
+                x: 3.0,
+                ..Pose::ZERO
+            }),
+            CanonCommand::StraightTraverse(Pose {
+                x: 3.0,
+                y: 4.0,
+                ..Pose::ZERO
+            }),
+        ]
+    );
+    assert!(!it.is_running());
+    it.open_text("long.ngc", "G0 X1\nG0 X2\nG0 X3\nM2\n")
+        .unwrap();
+    assert!(it.next_canon().is_some());
+    it.abort();
+    assert!(it.next_canon().is_none());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
