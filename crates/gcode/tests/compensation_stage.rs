@@ -496,3 +496,30 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn a_long_contour_streams_through_one_held_move() {
+    // 20 000 moves, every corner alternately convex and concave: the stage never holds more
+    // than the move whose end the next move decides, and releases each move once.
+    let mut stage = Compensator::with_capacity(4);
+    stage
+        .push(at(0, start(CompensationSide::Left, 0.5)))
+        .expect("start");
+    let mut released = 0usize;
+    for i in 0..20_000u32 {
+        let t = f64::from(i) * std::f64::consts::TAU / 50.0;
+        let r = if i % 2 == 0 { 50.0 } else { 47.0 };
+        stage
+            .push(at(i + 1, feed(r * t.cos(), r * t.sin())))
+            .expect("compensable contour");
+        assert!(stage.held() <= 1, "holds {}", stage.held());
+        released += std::iter::from_fn(|| stage.pop())
+            .filter(|c| matches!(c.command, C::StraightFeed(_)))
+            .count();
+    }
+    stage.finish();
+    released += std::iter::from_fn(|| stage.pop())
+        .filter(|c| matches!(c.command, C::StraightFeed(_)))
+        .count();
+    assert_eq!(released, 20_000);
+}
