@@ -62,14 +62,17 @@ impl Interpreter {
         let label: Box<str> = b.o_label.as_str().into();
         let arg = b.o_args.first().copied();
         match kw {
-            OKeyword::Sub | OKeyword::Fanuc => {
+            OKeyword::Sub => {
                 // A definition met in the flow of the program: remember it, skip its body.
                 let body = self.next_line_location()?;
                 self.subs.insert(label.clone(), SubDef { body });
-                if kw == OKeyword::Fanuc {
-                    self.skip_fanuc_body(&label, col)?;
-                } else {
-                    self.skip_to(&label, &[OKeyword::EndSub], col)?;
+                self.skip_to(&label, &[OKeyword::EndSub], col)?;
+            }
+            OKeyword::Fanuc => {
+                // A bare O number (a Fanuc program or subprogram number): remembered for M98,
+                // otherwise the flow goes on through it, as in LinuxCNC.
+                if let Some(body) = self.src.next_location() {
+                    self.subs.insert(label.clone(), SubDef { body });
                 }
             }
             OKeyword::EndSub | OKeyword::Return => {
@@ -346,33 +349,6 @@ impl Interpreter {
         r
     }
 
-    /// Skips a Fanuc subprogram body (up to and including its M99 line).
-    pub(crate) fn skip_fanuc_body(&mut self, label: &str, col: usize) -> Result<(), GcodeError> {
-        let opened = self.src.line_start;
-        loop {
-            match self.src.read_line() {
-                Ok(true) => {}
-                Ok(false) => {
-                    self.at_eof = true;
-                    return Err(GcodeError {
-                        kind: ErrorKind::Flow,
-                        file: self.src.name(opened.file),
-                        line: opened.line,
-                        column: col as u32,
-                        message: format!("subprogram O{label} has no M99"),
-                    });
-                }
-                Err(ReadLineError::TooLong) => {
-                    return Err(self.error_at(ErrorKind::Syntax, 0, "line too long"));
-                }
-                Err(ReadLineError::Io(e)) => return Err(self.io_error(e)),
-            }
-            if has_m99(&self.src.line) {
-                return Ok(());
-            }
-        }
-    }
-
     pub(crate) fn next_line_location(&self) -> Result<Location, GcodeError> {
         self.src
             .next_location()
@@ -617,28 +593,4 @@ impl Interpreter {
             None => self.top_saved.as_deref().cloned(),
         }
     }
-}
-
-/// True if the line holds an M99 word outside comments.
-fn has_m99(line: &[u8]) -> bool {
-    let mut compact = [0u8; 3];
-    let mut n = 0;
-    let mut in_comment = false;
-    for &c in line {
-        match c {
-            b'(' => in_comment = true,
-            b')' => in_comment = false,
-            b';' if !in_comment => return false,
-            b' ' | b'\t' => {}
-            _ if in_comment => {}
-            _ => {
-                compact = [compact[1], compact[2], c.to_ascii_lowercase()];
-                n += 1;
-                if n >= 3 && &compact == b"m99" {
-                    return true;
-                }
-            }
-        }
-    }
-    false
 }
