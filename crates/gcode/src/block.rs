@@ -6,6 +6,9 @@
 
 use crate::error::ErrorKind;
 
+/// Axis word letters in pose order (X Y Z A B C U V W).
+pub(crate) const AXES: [u8; 9] = [b'x', b'y', b'z', b'a', b'b', b'c', b'u', b'v', b'w'];
+
 /// Highest numbered parameter.
 pub const MAX_PARAMETER: usize = 5602;
 
