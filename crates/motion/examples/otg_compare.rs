@@ -12,7 +12,8 @@
 use std::collections::BTreeMap;
 
 use rtcnc_motion::otg::{
-    Limits, State, position_profile, synchronize, synchronize_on_period, velocity_profile,
+    Limits, State, position_profile, synchronize, synchronize_on_period, synchronize_straight,
+    velocity_profile,
 };
 use serde_json::Value;
 
@@ -66,7 +67,9 @@ fn main() {
             entry.2.push(line);
         }
     }
-    for (i, c) in doc["sync3"].as_array().into_iter().flatten().enumerate() {
+    let sync_cases = doc["sync3"].as_array().into_iter().flatten();
+    let straight_cases = doc["straight3"].as_array().into_iter().flatten();
+    for (i, c) in sync_cases.chain(straight_cases).enumerate() {
         let arr = |key: &str| -> [f64; 3] {
             std::array::from_fn(|k| c[key][k].as_f64().unwrap_or(f64::NAN))
         };
@@ -85,9 +88,10 @@ fn main() {
         let kind = c["kind"].as_str().unwrap_or("sync3").to_string();
         let entry = stats.entry(kind).or_default();
         entry.0 += 1;
-        let result = match c["period"].as_f64() {
-            Some(period) => synchronize_on_period(&start, &target, &limits, period),
-            None => synchronize(&start, &target, &limits),
+        let result = match (c["period"].as_f64(), c["kind"].as_str()) {
+            (_, Some("straight3")) => synchronize_straight(&start, &target, &limits),
+            (Some(period), _) => synchronize_on_period(&start, &target, &limits, period),
+            (None, _) => synchronize(&start, &target, &limits),
         };
         let bad = match result {
             Ok(s) => {

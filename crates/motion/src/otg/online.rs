@@ -7,7 +7,7 @@
 use super::limits::Which;
 use super::{
     Limits, OtgError, Profile, Sample, State, Synchronized, position_profile, synchronize,
-    synchronize_on_period, velocity_profile,
+    synchronize_on_period, synchronize_straight, velocity_profile,
 };
 
 /// One axis under on-line control.
@@ -157,6 +157,16 @@ impl<const N: usize> OnlineGroup<N> {
             Some(period) => synchronize_on_period(&now, targets, &self.limits, period)?,
             None => synchronize(&now, targets, &self.limits)?,
         };
+        self.time = 0.0;
+        Ok(())
+    }
+
+    /// Moves every axis to its target along the straight line between the current and the
+    /// target positions (phase synchronisation; no period rounding). The current motion must
+    /// be at rest or along that line, else [`OtgError::NotCollinear`] and nothing changes.
+    pub fn set_targets_straight(&mut self, targets: &[State; N]) -> Result<(), OtgError> {
+        let now = self.sample().map(|s| State::new(s.p, s.v, s.a));
+        self.motion = synchronize_straight(&now, targets, &self.limits)?;
         self.time = 0.0;
         Ok(())
     }
