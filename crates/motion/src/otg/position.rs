@@ -293,7 +293,6 @@ pub(crate) fn solve_position(
     })
 }
 
-/// All candidate families in the frame where the profile starts with `+j`.
 /// The problem seen in the frame where the profile starts with `+j` (`sign` -1 mirrors it).
 fn oriented(problem: &Problem, bounds: &Bounds, sign: f64) -> (Problem, Bounds) {
     if sign > 0.0 {
@@ -305,8 +304,8 @@ fn oriented(problem: &Problem, bounds: &Bounds, sign: f64) -> (Problem, Bounds) 
 
 type Family = fn(&Problem, &Bounds, f64, &mut Candidates);
 
-/// Tries every family; with `first_only`, stops at the first valid profile. Returns whether
-/// any was found.
+/// Tries every candidate family in the frame where the profile starts with `+j`; with
+/// `first_only`, stops at the first valid profile. Returns whether any was found.
 fn solve_oriented(
     problem: &Problem,
     bounds: &Bounds,

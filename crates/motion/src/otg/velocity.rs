@@ -1,6 +1,6 @@
 //! Velocity interface: reach a target velocity and acceleration as fast as possible, with no
-//! position target (jogging, feed override, quick stops). Also the building block of the
-//! position interface's cruise profiles and of time synchronisation.
+//! position target (jogging, feed override, quick stops). Its time-optimal velocity change
+//! is also the building block of the cruise profiles of time synchronisation.
 
 use super::brake::velocity_brake_phase;
 use super::check::{Bounds, Problem, check};
