@@ -520,9 +520,12 @@ pub struct Synchronized<const N: usize> {
 }
 
 impl<const N: usize> Synchronized<N> {
-    /// Common duration of all axes.
+    /// Common duration of all axes (the longest, should they differ).
     pub fn duration(&self) -> f64 {
-        self.profiles.first().map_or(0.0, Profile::duration)
+        self.profiles
+            .iter()
+            .map(Profile::duration)
+            .fold(0.0, f64::max)
     }
 
     /// Every axis's sample at time `t`.
