@@ -13,7 +13,7 @@ use std::collections::BTreeMap;
 
 use rtcnc_motion::otg::{
     Limits, State, position_profile, synchronize, synchronize_on_period, synchronize_straight,
-    velocity_profile,
+    synchronize_velocity, velocity_profile,
 };
 use serde_json::Value;
 
@@ -94,6 +94,29 @@ fn main() {
             (None, _) => synchronize(&start, &target, &limits),
         };
         let bad = match result {
+            Ok(s) => {
+                let rel = (s.duration() - want) / want;
+                (rel.abs() > 1e-6)
+                    .then(|| format!("#{i}: {} vs {want} (rel {rel:+.2e})", s.duration()))
+            }
+            Err(e) => Some(format!("#{i}: {e}")),
+        };
+        if let Some(line) = bad {
+            entry.1 += 1;
+            entry.2.push(line);
+        }
+    }
+    for (i, c) in doc["vsync3"].as_array().into_iter().flatten().enumerate() {
+        let arr = |key: &str| -> [f64; 3] {
+            std::array::from_fn(|k| c[key][k].as_f64().unwrap_or(f64::NAN))
+        };
+        let (v0, a0, vf, af) = (arr("v0"), arr("a0"), arr("vf"), arr("af"));
+        let start: [State; 3] = std::array::from_fn(|k| State::new(0.0, v0[k], a0[k]));
+        let limits: [Limits; 3] = std::array::from_fn(|k| limits_of(&c["limits"][k]));
+        let want = f(c, "duration");
+        let entry = stats.entry("vsync3".to_string()).or_default();
+        entry.0 += 1;
+        let bad = match synchronize_velocity(&start, &vf, &af, &limits) {
             Ok(s) => {
                 let rel = (s.duration() - want) / want;
                 (rel.abs() > 1e-6)

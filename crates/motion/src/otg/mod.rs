@@ -3,7 +3,8 @@
 //!
 //! * [`position_profile`]: from any state `(p, v, a)` to a target state, time-optimal under
 //!   velocity, acceleration and jerk limits (a start outside the limits brakes first).
-//! * [`velocity_profile`]: reach a target velocity and acceleration (jog, override, stop).
+//! * [`velocity_profile`]: reach a target velocity and acceleration (jog, override, stop);
+//!   [`synchronize_velocity`]: several axes reaching theirs together.
 //! * [`synchronize`] / [`synchronize_on_period`]: several axes arriving together;
 //!   [`synchronize_straight`]: several axes along the straight line between the positions;
 //!   [`position_profile_with_duration`]: one axis, a prescribed duration.
@@ -51,4 +52,4 @@ pub use position::{Block, along_path, position_block, position_profile};
 pub use profile::{MAX_PHASES, Phase, Profile, Sample};
 pub use straight::synchronize_straight;
 pub use sync::{Synchronized, position_profile_with_duration, synchronize, synchronize_on_period};
-pub use velocity::velocity_profile;
+pub use velocity::{synchronize_velocity, velocity_profile};

@@ -16,7 +16,7 @@
 //! If none of these has a profile of the exact duration, the common duration is lengthened
 //! step by step until every axis has one: conservative (slower than ruckig), never wrong,
 //! since every profile is validated against the limits and the target before it is used.
-//! On 10 080 random three-axis cases against ruckig this fallback was never needed.
+//! On 12 600 random three-axis cases against ruckig this fallback was never needed.
 
 use super::check::{Bounds, Problem, check};
 use super::position::{Step1, solve_position};

@@ -20,6 +20,8 @@ The tests only read the JSON; they never call ruckig. Families of cases:
   straight3     three axes with the same limits, phase synchronisation (a straight line),
                 from rest or from a velocity and acceleration along the line, to rest
                 (in the list "straight3")
+  vsync3        three axes, velocity interface, time synchronisation (all reach their
+                target velocity and acceleration together; in the list "vsync3")
 """
 import json
 import math
@@ -177,6 +179,25 @@ def straight_axes(moving):
                 independent_min_durations=list(tr.independent_min_durations))
 
 
+def velocity_axes():
+    lims = [limits() for _ in range(3)]
+    starts = []
+    for l in lims:
+        v0, a0 = start_state(l, violating=False)
+        if rng.random() < 0.2:
+            a0 = rng.choice([l["amax"], l["amin"]]) * rng.uniform(1.05, 2.0)
+        starts.append((v0, a0))
+    targets = [target_state(l, True, rng.random() < 0.5) for l in lims]
+    z = [0.0] * 3
+    tr = calc(3, z, [s[0] for s in starts], [s[1] for s in starts], z, [t[0] for t in targets],
+              [t[1] for t in targets], lims, interface=ControlInterface.Velocity)
+    if tr is None:
+        return None
+    return dict(kind="vsync3", v0=[s[0] for s in starts], a0=[s[1] for s in starts],
+                vf=[t[0] for t in targets], af=[t[1] for t in targets], limits=lims,
+                duration=tr.duration, independent_min_durations=list(tr.independent_min_durations))
+
+
 def main():
     k = ARGS.scale
     counts = dict(inside=60 * k, target_v=60 * k, target_va=60 * k, violating=60 * k, asymmetric=60 * k,
@@ -218,6 +239,13 @@ def main():
             skipped += 1
             continue
         straight.append(c)
+    vsync = []
+    while len(vsync) < 24 * k:
+        c = velocity_axes()
+        if c is None:
+            skipped += 1
+            continue
+        vsync.append(c)
     doc = {
         "tool": "ruckig", "ruckig_version": ruckig.__version__, "seed": SEED,
         "generator": "crates/motion/tests/data/gen_otg_state_cases.py",
@@ -227,12 +255,13 @@ def main():
         "cases": cases,
         "sync3": sync,
         "straight3": straight,
+        "vsync3": vsync,
     }
     out = ARGS.out or os.path.join(os.path.dirname(os.path.abspath(__file__)), "otg_state_cases.json")
     with open(out, "w") as f:
         json.dump(doc, f, indent=1)
-    print(f"wrote {out}: {len(cases)} single-axis, {len(sync)} three-axis, {len(straight)} straight-line "
-          f"cases, {skipped} skipped")
+    print(f"wrote {out}: {len(cases)} single-axis, {len(sync)} three-axis, {len(straight)} straight-line, "
+          f"{len(vsync)} velocity-synchronised cases, {skipped} skipped")
 
 
 if __name__ == "__main__":
