@@ -16,7 +16,8 @@
 //! | `ACC1` | lower acceleration only | ramp time | quartic |
 //! | `NONE` | no limit | ramp time | quartic |
 //!
-//! Every family is solved for both directions; every root becomes a candidate that
+//! The polynomial coefficients below come from `derive_polynomials.py` (sympy) next to this
+//! file. Every family is solved for both directions; every root becomes a candidate that
 //! [`check`] validates (durations, limits, target). The shortest valid candidate is the
 //! time-optimal profile; the others bound the blocked duration intervals.
 
