@@ -32,7 +32,7 @@ fn n_cycles_for_reference() -> u64 {
 }
 
 #[test]
-fn estop_starts_the_stop_one_cycle_after_the_command_is_read_then_disables_the_drives() {
+fn estop_starts_the_stop_in_the_cycle_it_is_read_then_disables_the_drives() {
     let (reference, _) = long_line(None);
     let (stopped, put) = long_line(Some(500));
     // The e-stop was put into the urgent channel between periods `put - 1` and `put`. The
@@ -56,12 +56,11 @@ fn estop_starts_the_stop_one_cycle_after_the_command_is_read_then_disables_the_d
     // between periods `put - 1` and `put` is received in period `put`.
     assert_eq!(received.task, TaskName::Interpolation);
     assert_eq!(received.time_ns, put * 1_000_000);
-    // The planner puts the stop's hold point one period's travel beyond its braking
-    // distance, so the set-point computed in period `put` is still the unchanged one and
-    // the first braking set-point is computed in period `put + 1`, within one servo cycle
-    // of receipt. Period p computes the set-point numbered p + 1, applied by position
-    // control in period p + 1.
-    assert_eq!(first_difference, put + 2);
+    // The quick stop is requested before the planner computes period `put`'s set-point, so
+    // that set-point (numbered put + 1: period p computes the set-point numbered p + 1,
+    // which position control applies in period p + 1) is the first one of the stop: the
+    // stop starts in the very cycle the e-stop is read.
+    assert_eq!(first_difference, put + 1);
     // It is a stop: the speed falls monotonically to zero, and the drives are disabled.
     let v: Vec<f64> = stopped
         .samples
