@@ -1007,8 +1007,13 @@ impl MotionCore {
         // One set-point per servo period of the drives: after a late activation (a real-time
         // overrun) the missed periods are computed now, at most four.
         let steps = feedback.cycle.saturating_sub(self.cycle).clamp(1, 4);
+        let line = self.last.line;
         for _ in 0..steps {
             self.step(shared, &feedback);
+        }
+        if self.last.line != line {
+            // The program line in the trace, so a timeline shows which block ran when.
+            ctx.mark("line", u64::from(self.last.line));
         }
         if self.stopping && !self.moving() {
             self.stopping = false;

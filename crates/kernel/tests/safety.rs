@@ -224,3 +224,47 @@ fn a_move_beyond_a_soft_limit_is_refused_before_the_machine_gets_there() {
     let max_x = m.samples.iter().map(|s| s.axes[0]).fold(f64::MIN, f64::max);
     assert_eq!(max_x, 50.0);
 }
+
+/// The configured deadline-miss reaction: with `safety.deadline_miss = "feed_hold"`, an
+/// interpolation task that declares 1.2 ms of work per 1 ms period misses its deadlines,
+/// the misses are recorded, and the reaction holds the feed of the running program.
+#[test]
+fn a_deadline_miss_triggers_the_configured_reaction() {
+    let text = std::fs::read_to_string(repo().join("configs/sim-mill.toml"))
+        .unwrap()
+        .replace("deadline_miss = \"warn\"", "deadline_miss = \"feed_hold\"");
+    let mut cfg = rtcnc_kernel::MachineConfig::parse(&text, "miss.toml").unwrap();
+    cfg.base_dir = repo().join("configs");
+    let kernel = rtcnc_kernel::Kernel::build(
+        &cfg,
+        rtcnc_kernel::KernelOptions {
+            program: Some(program(LONG_LINE, "long-line.ngc")),
+            interpolation_load: Some(std::time::Duration::from_micros(1200)),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let mut sim = rtcnc_kernel::Simulation::new(kernel);
+    let handle = sim.handle().clone();
+    let mut none = |_: &rtcnc_kernel::Sample| {};
+    sim.run_cycles(2, &mut none).unwrap();
+    handle.command(Command::Reset);
+    sim.run_until(std::time::Duration::from_secs(1), &mut none, |s| s.ready)
+        .unwrap();
+    handle.command(Command::Start { from_line: 0 });
+    let held = sim
+        .run_until(std::time::Duration::from_secs(5), &mut none, |s| {
+            s.state == MachineState::Held
+        })
+        .unwrap();
+    assert!(held, "{:?}", handle.status());
+    let misses = sim
+        .runner()
+        .recording()
+        .monitor()
+        .task("interpolation")
+        .unwrap()
+        .stats()
+        .deadline_misses;
+    assert!(misses > 0);
+}

@@ -67,6 +67,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             program: args.program.clone(),
             record_capacity: 0,
             trace_capacity: Some(4096),
+            ..KernelOptions::default()
         },
     )?;
     let handle = kernel.handle.clone();

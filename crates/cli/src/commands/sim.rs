@@ -57,6 +57,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             program: Some(args.program.clone()),
             record_capacity: 1 << 16,
             trace_capacity: Some(1 << 16),
+            ..KernelOptions::default()
         },
     )?;
     let period = config.servo_period();

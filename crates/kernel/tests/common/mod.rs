@@ -38,7 +38,7 @@ impl Machine {
             KernelOptions {
                 program,
                 record_capacity: 1 << 14,
-                trace_capacity: None,
+                ..KernelOptions::default()
             },
         )
         .expect("kernel builds");
