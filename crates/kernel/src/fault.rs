@@ -23,6 +23,8 @@ pub enum TaskName {
     MachineLogic,
     /// The executive's timing monitor.
     Monitor,
+    /// Background checks while running.
+    BackgroundCheck,
 }
 
 impl TaskName {
@@ -39,6 +41,7 @@ impl TaskName {
             TaskName::DriveIo => "drive io",
             TaskName::MachineLogic => "machine logic",
             TaskName::Monitor => "monitor",
+            TaskName::BackgroundCheck => "self test",
         }
     }
 }
@@ -72,6 +75,9 @@ pub enum FaultCode {
     HomingFailed,
     /// A command was not allowed in the current state (logged, not stopping).
     CommandRefused,
+    /// A background check found a persistent file's folder gone or read-only, or the
+    /// drive exchange no longer advancing (logged, not stopping by itself).
+    BackgroundCheck,
 }
 
 impl FaultCode {
@@ -91,6 +97,7 @@ impl FaultCode {
             FaultCode::AuxRefused => "kernel.aux_refused",
             FaultCode::HomingFailed => "kernel.homing_failed",
             FaultCode::CommandRefused => "kernel.command_refused",
+            FaultCode::BackgroundCheck => "kernel.background_check",
         }
     }
 
@@ -115,6 +122,7 @@ impl FaultCode {
             FaultCode::AuxRefused => "machine function refused",
             FaultCode::HomingFailed => "homing failed",
             FaultCode::CommandRefused => "command refused",
+            FaultCode::BackgroundCheck => "background check failed",
         }
     }
 

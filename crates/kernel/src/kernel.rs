@@ -348,6 +348,41 @@ impl Kernel {
             shared.interpreter_wake.trigger(),
             move |ctx| interpreter.body(ctx),
         );
+        // Background checks while running, in what time is left: the drive exchange still
+        // advances, the persistent files' folders are still there and writable.
+        let sh = shared.clone();
+        let folders: Vec<PathBuf> = [&config.files.parameters, &config.files.tool_table]
+            .into_iter()
+            .flatten()
+            .map(|p| {
+                config
+                    .resolve(p)
+                    .parent()
+                    .map_or_else(|| PathBuf::from("."), Path::to_path_buf)
+            })
+            .collect();
+        let mut last_cycle = 0u64;
+        let mut reported = false;
+        b.background("self test", move |ctx| {
+            let cycle = sh.feedback.lock().cycle;
+            let stalled = ctx.activation() > 0 && cycle == last_cycle;
+            last_cycle = cycle;
+            let folder_bad = folders.iter().any(|f| {
+                std::fs::metadata(f).map_or(true, |m| !m.is_dir() || m.permissions().readonly())
+            });
+            if (stalled || folder_bad) && !reported {
+                sh.raise(
+                    ctx,
+                    crate::FaultCode::BackgroundCheck,
+                    crate::TaskName::BackgroundCheck,
+                    None,
+                    0,
+                    if stalled { 1.0 } else { 2.0 },
+                );
+            }
+            reported = stalled || folder_bad;
+            rtcnc_rt::Next::Sleep(Duration::from_millis(500))
+        });
         let tasks = b
             .build()
             .map_err(|e| KernelError::Executive(e.to_string()))?;

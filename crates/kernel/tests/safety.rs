@@ -268,3 +268,30 @@ fn a_deadline_miss_triggers_the_configured_reaction() {
         .deadline_misses;
     assert!(misses > 0);
 }
+
+#[test]
+fn a_background_check_notices_a_persistent_files_folder_that_went_away() {
+    let dir = std::env::temp_dir().join(format!("rtcnc-bg-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut cfg = config("sim-mill.toml");
+    cfg.files.parameters = Some(dir.join("mill.var"));
+    let mut m = Machine::new(&cfg, None);
+    m.power_on();
+    m.cycles(1200);
+    assert!(
+        m.faults
+            .iter()
+            .all(|f| f.code != FaultCode::BackgroundCheck)
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+    m.cycles(1200);
+    let f = m
+        .faults
+        .iter()
+        .find(|f| f.code == FaultCode::BackgroundCheck)
+        .expect("background check fault");
+    assert_eq!(f.task, TaskName::BackgroundCheck);
+    assert_eq!(f.value, 2.0);
+    // It is reported, not a reason to stop the machine.
+    assert_eq!(m.status().state, MachineState::Idle);
+}
