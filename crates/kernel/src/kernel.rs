@@ -305,18 +305,32 @@ impl Kernel {
 
         let th = thread(&mut b, "look-ahead", 3);
         let (c, sh) = (core.clone(), shared.clone());
+        let mut active = false;
         let id = b.periodic(th, "look-ahead", t.look_ahead.runs, move |ctx| {
-            c.lock().look_ahead(ctx, &sh)
+            // The runs after the first only when a program or MDI line is in progress.
+            if ctx.run() == 0 || active {
+                active = c.lock().look_ahead(ctx, &sh);
+            }
         });
         b.on_deadline_miss(id, miss.clone());
 
         let th = thread(&mut b, "command parsing", 4);
         let (c, sh) = (core.clone(), shared.clone());
+        let mut drained = false;
         let id = b.periodic(th, "command parsing", t.command_parsing.runs, move |ctx| {
             // The urgent channel is read before this, at the start of every interpolation
-            // cycle; here the normal one, a command per run.
-            if let Some(command) = sh.normal.try_get() {
-                c.lock().command(ctx, &sh, command);
+            // cycle; here the normal one, a command per run until it is empty.
+            if ctx.run() == 0 {
+                drained = false;
+            }
+            if drained {
+                return;
+            }
+            match sh.normal.try_get() {
+                Some(command) => {
+                    c.lock().command(ctx, &sh, command);
+                }
+                None => drained = true,
             }
         });
         b.on_deadline_miss(id, miss.clone());

@@ -699,7 +699,13 @@ impl MotionCore {
 
     /// One run of the look-ahead: moves blocks into the planner's window while it has room,
     /// stops the path before machine functions and errors, and sequences their hand-shakes.
-    pub fn look_ahead(&mut self, ctx: &mut Context<'_>, shared: &Shared) {
+    /// Returns whether a program or MDI line is in progress (more runs may have work).
+    pub fn look_ahead(&mut self, ctx: &mut Context<'_>, shared: &Shared) -> bool {
+        self.look_ahead_runs(ctx, shared);
+        self.phase != Phase::Idle
+    }
+
+    fn look_ahead_runs(&mut self, ctx: &mut Context<'_>, shared: &Shared) {
         if !self.operational() || self.stopping {
             return;
         }
