@@ -283,3 +283,53 @@ fn feed_override_scales_the_path_speed() {
     let v = m.status().path_speed;
     assert!((v - 10.0).abs() < 5e-5 * 10.0, "path speed {v}");
 }
+
+#[test]
+fn abort_stops_along_the_path_and_a_new_start_runs_the_program_again() {
+    let text = "G21 G90 G61.1\nG1 X100 Y50 F3000\nG1 X0 Y0\nM2\n";
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::new(&cfg, Some(program(text, "abort.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    m.cycles(800);
+    assert!(m.sim.handle().urgent(Urgent::Abort));
+    assert!(m.until(2.0, |s| s.state == MachineState::Idle && s.path_speed == 0.0));
+    m.cycles(300);
+    let at = m.samples.last().unwrap().axes;
+    // Stopped on the first line (y = x / 2), short of its end, and stays there.
+    assert!((at[1] - at[0] / 2.0).abs() < 1e-9);
+    assert!(at[0] > 10.0 && at[0] < 100.0);
+    assert!(!m.status().program_ended);
+    m.cycles(200);
+    assert_eq!(m.samples.last().unwrap().axes, at);
+    // Start again: the program runs from its first line, from where the machine stands.
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(10.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert_eq!(&m.status().axes[..2], &[0.0, 0.0]);
+    let max_x = m.samples.iter().map(|s| s.axes[0]).fold(f64::MIN, f64::max);
+    assert_eq!(max_x, 100.0);
+}
+
+#[test]
+fn after_an_estop_a_reset_enables_the_drives_again() {
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::new(&cfg, None);
+    m.power_on();
+    m.command(Command::JogIncrement {
+        axis: 0,
+        distance: 50.0,
+    });
+    m.cycles(500);
+    assert!(m.sim.handle().urgent(Urgent::EStop));
+    assert!(m.until(2.0, |s| s.state == MachineState::EStop && !s.ready));
+    // Commands other than reset are refused in e-stop.
+    m.command(Command::Mdi(FixedText::new("G0 X1").unwrap()));
+    m.cycles(5);
+    assert_eq!(m.status().state, MachineState::EStop);
+    m.command(Command::Reset);
+    assert!(m.until(1.0, |s| s.ready && s.state == MachineState::Idle));
+    m.command(Command::Mdi(FixedText::new("G21 G90 G0 X1 Y2").unwrap()));
+    m.cycles(5);
+    assert!(m.until(5.0, |s| s.state == MachineState::Idle));
+    assert_eq!(&m.status().axes[..2], &[1.0, 2.0]);
+}
