@@ -13,7 +13,7 @@ use rtcnc_motion::PathMode;
 use rtcnc_rt::{Context, Next};
 
 use crate::fault::FaultCode;
-use crate::messages::{Aux, ProgramBlock};
+use crate::messages::{Aux, ProgramBlock, WaitCondition};
 use crate::shared::{InterpreterRequest, Shared, Tagged};
 
 /// Blocks handled per activation before giving the processor back.
@@ -334,6 +334,26 @@ impl InterpreterStage {
             }
             C::SetDigitalOutput { index, on, .. } => {
                 out.push_back(aux(Aux::DigitalOutput { index, on }))
+            }
+            C::WaitInput {
+                digital: true,
+                index,
+                mode,
+                timeout,
+            } => {
+                use rtcnc_gcode::canon::WaitMode;
+                let condition = match mode {
+                    WaitMode::Immediate => WaitCondition::Immediate,
+                    WaitMode::Rise => WaitCondition::Rise,
+                    WaitMode::Fall => WaitCondition::Fall,
+                    WaitMode::High => WaitCondition::High,
+                    WaitMode::Low => WaitCondition::Low,
+                };
+                out.push_back(aux(Aux::WaitInput {
+                    index,
+                    condition,
+                    timeout,
+                }));
             }
             C::MistOn => out.push_back(aux(Aux::Mist(true))),
             C::MistOff => out.push_back(aux(Aux::Mist(false))),

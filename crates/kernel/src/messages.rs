@@ -173,10 +173,34 @@ pub enum Aux {
         /// Value.
         on: bool,
     },
+    /// M66 on a digital input: wait for a condition, at most `timeout` seconds.
+    WaitInput {
+        /// Program input number (P word), mapped by `io.program_inputs`.
+        index: u32,
+        /// The condition.
+        condition: WaitCondition,
+        /// Seconds; 0 reads the input and goes on.
+        timeout: f64,
+    },
     /// M0.
     ProgramStop,
     /// M1.
     OptionalStop,
+}
+
+/// What M66 waits for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WaitCondition {
+    /// L0: no wait.
+    Immediate,
+    /// L1: a rising edge.
+    Rise,
+    /// L2: a falling edge.
+    Fall,
+    /// L3: the input high.
+    High,
+    /// L4: the input low.
+    Low,
 }
 
 /// What the tool-compensation stage sends to look-ahead (machine coordinates, mm, s).

@@ -67,6 +67,13 @@ enum Phase {
     Logic { aux: Aux, line: u32, released: bool },
     /// Paused at M0/M1/single block until resume.
     Paused { start_count: u32 },
+    /// M66: waiting for a digital input until `deadline` (an interpolation cycle).
+    WaitInput {
+        bit: u64,
+        condition: crate::messages::WaitCondition,
+        deadline: u64,
+        previous: bool,
+    },
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -152,6 +159,8 @@ pub struct MotionCore {
     offsets_known: bool,
     has_program: bool,
     estop_feed_hold_from_logic: bool,
+    program_inputs: [usize; 16],
+    program_input_count: usize,
 }
 
 fn limits_of(v: f64, a: f64, j: f64) -> Limits {
@@ -328,6 +337,14 @@ impl MotionCore {
             offsets_known: false,
             has_program: false,
             estop_feed_hold_from_logic: false,
+            program_inputs: {
+                let mut p = [0usize; 16];
+                for (slot, &i) in p.iter_mut().zip(&config.io.program_inputs) {
+                    *slot = i;
+                }
+                p
+            },
+            program_input_count: config.io.program_inputs.len().min(16),
         })
     }
 
@@ -749,6 +766,33 @@ impl MotionCore {
                     }
                     self.phase = Phase::Feeding;
                 }
+                Phase::WaitInput {
+                    bit,
+                    condition,
+                    deadline,
+                    previous,
+                } => {
+                    use crate::messages::WaitCondition as W;
+                    let now = shared.feedback.lock().digital_inputs & bit != 0;
+                    let met = match condition {
+                        W::Immediate => true,
+                        W::Rise => now && !previous,
+                        W::Fall => !now && previous,
+                        W::High => now,
+                        W::Low => !now,
+                    };
+                    if met || self.cycle >= deadline {
+                        self.phase = Phase::Feeding;
+                    } else {
+                        self.phase = Phase::WaitInput {
+                            bit,
+                            condition,
+                            deadline,
+                            previous: now,
+                        };
+                        return;
+                    }
+                }
             }
         }
     }
@@ -901,6 +945,39 @@ impl MotionCore {
                     }
                 }
             }
+            Aux::WaitInput {
+                index,
+                condition,
+                timeout,
+            } => {
+                drop(mi);
+                let point = usize::try_from(index)
+                    .ok()
+                    .filter(|&i| i < self.program_input_count)
+                    .map(|i| self.program_inputs[i]);
+                let Some(point) = point.filter(|&p| p < 64) else {
+                    // An input the machine does not map: the program cannot wait on it.
+                    self.phase = Phase::Draining {
+                        then: Then::Error(FaultCode::AuxRefused),
+                        line,
+                    };
+                    return;
+                };
+                let periods = if timeout.is_finite() && timeout > 0.0 {
+                    (timeout / self.period_s).ceil() as u64
+                } else {
+                    0
+                };
+                let bit = 1u64 << point;
+                let previous = shared.feedback.lock().digital_inputs & bit != 0;
+                self.phase = Phase::WaitInput {
+                    bit,
+                    condition,
+                    deadline: self.cycle + periods,
+                    previous,
+                };
+                return;
+            }
             Aux::ProgramStop => {
                 drop(mi);
                 self.phase = Phase::Paused {
@@ -968,7 +1045,10 @@ impl MotionCore {
                     !mi.m_code_done
                 }
             }
-            Aux::DigitalOutput { .. } | Aux::ProgramStop | Aux::OptionalStop => true,
+            Aux::DigitalOutput { .. }
+            | Aux::ProgramStop
+            | Aux::OptionalStop
+            | Aux::WaitInput { .. } => true,
         };
         if done {
             self.phase = Phase::Feeding;

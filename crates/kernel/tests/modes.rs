@@ -293,7 +293,8 @@ fn abort_stops_along_the_path_and_a_new_start_runs_the_program_again() {
     m.command(Command::Start { from_line: 0 });
     m.cycles(800);
     assert!(m.sim.handle().urgent(Urgent::Abort));
-    assert!(m.until(2.0, |s| s.state == MachineState::Idle && s.path_speed == 0.0));
+    assert!(m.until(2.0, |s| s.state == MachineState::Idle
+        && s.path_speed == 0.0));
     m.cycles(300);
     let at = m.samples.last().unwrap().axes;
     // Stopped on the first line (y = x / 2), short of its end, and stays there.

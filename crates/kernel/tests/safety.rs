@@ -295,3 +295,33 @@ fn a_background_check_notices_a_persistent_files_folder_that_went_away() {
     // It is reported, not a reason to stop the machine.
     assert_eq!(m.status().state, MachineState::Idle);
 }
+
+#[test]
+fn m66_waits_for_a_digital_input_or_its_timeout() {
+    // P0 is digital input 8 (io.program_inputs of sim-mill.toml).
+    let text = "G21 G90 G61.1\nG1 X10 F3000\nM66 P0 L3 Q5\nG1 X20\nM66 P1 L3 Q0.5\nG1 X30\nM2\n";
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::new(&cfg, Some(program(text, "m66.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(3.0, |s| s.axes[0] == 10.0 && s.path_speed == 0.0));
+    m.cycles(1000);
+    // Still waiting for the input after a second.
+    assert_eq!(m.status().axes[0], 10.0);
+    m.sim
+        .handle()
+        .with_machine(|machine| machine.set_digital_input(8, true).unwrap());
+    assert!(m.until(3.0, |s| s.axes[0] == 20.0 && s.path_speed == 0.0));
+    // P1 (input 9) never comes: the program goes on after the 0.5 s timeout.
+    let arrived = m.samples.len();
+    assert!(m.until(5.0, |s| s.program_ended && s.state == MachineState::Idle));
+    let left = m.samples[arrived..]
+        .iter()
+        .position(|s| s.axes[0] > 20.0)
+        .unwrap();
+    assert!(
+        (500..520).contains(&left),
+        "left {left} periods after arriving"
+    );
+    assert_eq!(m.status().axes[0], 30.0);
+}
