@@ -22,6 +22,9 @@ pub(crate) struct LogicStage {
     logic: Logic,
     fault_latched: bool,
     has_tool_changer: bool,
+    /// A reset is held until this time, so that the PLC's task (which may run only every
+    /// few periods) sees it.
+    reset_until: Duration,
 }
 
 impl LogicStage {
@@ -31,6 +34,7 @@ impl LogicStage {
             logic,
             fault_latched: false,
             has_tool_changer,
+            reset_until: Duration::ZERO,
         }
     }
 
@@ -42,7 +46,18 @@ impl LogicStage {
         match &mut self.logic {
             Logic::Direct => direct(&mut mi, &fb, self.has_tool_changer),
             Logic::Plc(plc) => {
-                if let Err(f) = plc_scan(plc, &mut mi, &fb, now) {
+                if mi.estop_reset {
+                    let longest = plc
+                        .program()
+                        .tasks()
+                        .iter()
+                        .filter_map(|t| t.interval)
+                        .max()
+                        .unwrap_or(Duration::ZERO);
+                    self.reset_until = now + longest;
+                }
+                mi.estop_reset = now <= self.reset_until && self.reset_until > Duration::ZERO;
+                if let Err(f) = plc_scan(plc, &mut mi, &fb, now, self.has_tool_changer) {
                     fault = Some(f);
                 }
             }
@@ -56,6 +71,7 @@ impl LogicStage {
             shared.m_code_done = mi.m_code_done;
             shared.feed_hold_request = mi.feed_hold_request;
             shared.machine_fault = mi.machine_fault;
+            shared.estop_chain_ok = mi.estop_chain_ok;
             shared.machine_fault_code = mi.machine_fault_code;
             shared.out_spindle_enable = mi.out_spindle_enable;
             shared.out_spindle_rpm = mi.out_spindle_rpm;
@@ -102,6 +118,7 @@ fn direct(mi: &mut MachineInterface, fb: &Feedback, has_tool_changer: bool) {
     mi.m_code_done = mi.m_code_request;
     mi.feed_hold_request = false;
     mi.machine_fault = false;
+    mi.estop_chain_ok = !fb.estop;
 }
 
 /// One PLC scan on the machine interface; a runtime fault comes back as its code number.
@@ -110,12 +127,13 @@ fn plc_scan(
     mi: &mut MachineInterface,
     fb: &Feedback,
     now: Duration,
+    has_tool_changer: bool,
 ) -> Result<(), f64> {
     let b = |v: bool| if v { 1.0 } else { 0.0 };
     let to_plc = [
         (Signal::EstopChainIn, b(!fb.estop)),
         (Signal::EstopReset, b(mi.estop_reset)),
-        (Signal::MachineOnRequest, b(fb.enabled != 0)),
+        (Signal::MachineOnRequest, b(mi.machine_on_request)),
         (Signal::ProgramRunning, b(mi.program_running)),
         (Signal::AxesHomed, b(mi.homed)),
         (Signal::SpindleOn, b(mi.spindle_on)),
@@ -162,7 +180,16 @@ fn plc_scan(
     mi.out_mist = flag(Signal::CoolantMistOn);
     mi.out_flood = flag(Signal::CoolantFloodOn);
     mi.feed_hold_request = flag(Signal::FeedHoldRequest);
-    mi.tool_change_done = flag(Signal::ToolChangeDone);
+    // The PLC's acknowledgement is its interlock (e.g. the spindle has stopped): only then
+    // does the changer start, and the change is done when the changer says so.
+    let plc_done = flag(Signal::ToolChangeDone);
+    mi.out_tool_start = mi.tool_change_request && plc_done;
+    mi.out_tool_number = mi.tool_number;
+    mi.tool_change_done = plc_done && (!has_tool_changer || fb.tool_change_done);
+    mi.estop_chain_ok = match plc.signal(Signal::EstopChainOut) {
+        Some(v) => v != 0.0 && !fb.estop,
+        None => !fb.estop,
+    };
     mi.m_code_done = flag(Signal::MCodeDone);
     mi.machine_fault = flag(Signal::MachineFault);
     mi.machine_fault_code = number(Signal::MachineFaultCode) as i64;
@@ -170,9 +197,6 @@ fn plc_scan(
         // A faulted PLC has driven its outputs to their safe values: hold the feed.
         mi.feed_hold_request = true;
     }
-    // The simulated tool changer follows the kernel's request; the PLC acknowledges it.
-    mi.out_tool_start = mi.tool_change_request;
-    mi.out_tool_number = mi.tool_number;
     // The fault's details are in the PLC's own fault record; the kernel's fault says "logic".
     result.map_err(|_| -1.0)
 }

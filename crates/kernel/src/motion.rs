@@ -161,6 +161,8 @@ pub struct MotionCore {
     estop_feed_hold_from_logic: bool,
     program_inputs: [usize; 16],
     program_input_count: usize,
+    /// The logic's e-stop chain has been seen closed since the last reset.
+    chain_closed: bool,
 }
 
 fn limits_of(v: f64, a: f64, j: f64) -> Limits {
@@ -345,6 +347,7 @@ impl MotionCore {
                 p
             },
             program_input_count: config.io.program_inputs.len().min(16),
+            chain_closed: false,
         })
     }
 
@@ -504,15 +507,23 @@ impl MotionCore {
             && self.homing.is_none();
         let ok = match command {
             Command::Reset => {
-                let estop_input = shared.feedback.lock().estop;
-                if !self.ready || estop_input || self.stopping {
+                let feedback = *shared.feedback.lock();
+                if !self.ready || feedback.estop || self.stopping {
                     false
                 } else {
+                    if !self.enable && self.offsets_known {
+                        // The drives were off (the load may have coasted): the set-points
+                        // start again from where the machine stands.
+                        self.resync_to_feedback(&feedback);
+                    }
                     self.estop = false;
                     self.fault = false;
                     self.enable = true;
+                    self.chain_closed = false;
                     self.reset_count = self.reset_count.wrapping_add(1);
-                    shared.machine_interface.lock().estop_reset = true;
+                    let mut mi = shared.machine_interface.lock();
+                    mi.estop_reset = true;
+                    mi.machine_on_request = true;
                     true
                 }
             }
@@ -671,6 +682,55 @@ impl MotionCore {
             );
         }
         ok
+    }
+
+    /// Puts every set-point generator at rest on the measured positions. Joints of a
+    /// gantry axis that no longer agree lose their homed state (their offsets absorb the
+    /// difference; homing squares them again).
+    fn resync_to_feedback(&mut self, feedback: &Feedback) {
+        let mut axes = self.last.axes;
+        let mut axis_set = [false; AXES];
+        for j in 0..self.joint_count {
+            let machine = feedback.position[j] + self.offsets[j];
+            match self.joints[j].axis {
+                Some(i) if !axis_set[i] => {
+                    axis_set[i] = true;
+                    axes[i] = machine;
+                    self.last.joints[j] = machine;
+                }
+                Some(i) => {
+                    if (machine - axes[i]).abs() > 1e-3 {
+                        self.homed &= !(1 << j);
+                    }
+                    self.offsets[j] = axes[i] - feedback.position[j];
+                    self.last.joints[j] = axes[i];
+                }
+                None => {
+                    self.last.joints[j] = machine;
+                    if let Ok(o) = OnlineAxis::new(State::at_rest(machine), self.joints[j].limits) {
+                        self.joint_otg[j] = o;
+                    }
+                }
+            }
+        }
+        self.last.axes = axes;
+        for i in 0..AXES {
+            if self.axis_present[i] {
+                if let Ok(o) = OnlineAxis::new(State::at_rest(axes[i]), self.axis_limits[i]) {
+                    self.axis_otg[i] = o;
+                }
+            }
+        }
+        for j in 0..self.joint_count {
+            if self.joints[j].axis.is_some() && self.joint_manual & (1 << j) != 0 {
+                if let Ok(o) =
+                    OnlineAxis::new(State::at_rest(self.last.joints[j]), self.joints[j].limits)
+                {
+                    self.joint_otg[j] = o;
+                }
+            }
+        }
+        let _ = self.planner.reset_at(axes);
     }
 
     fn begin(&mut self, shared: &Shared, mode: Mode, from_line: u32) {
@@ -1083,12 +1143,23 @@ impl MotionCore {
                 self.offsets[j] = self.last.joints[j] - feedback.position[j];
             }
         }
-        {
+        let chain_ok = {
             let mi = shared.machine_interface.lock();
             if mi.feed_hold_request && !self.estop_feed_hold_from_logic {
                 self.hold();
             }
             self.estop_feed_hold_from_logic = mi.feed_hold_request;
+            mi.estop_chain_ok
+        };
+        // The machine logic's e-stop chain: once closed after a reset, its opening is an
+        // e-stop (the chain closes a scan or two after the reset).
+        if self.enable && !self.estop {
+            if chain_ok {
+                self.chain_closed = true;
+            } else if self.chain_closed {
+                self.chain_closed = false;
+                shared.raise(ctx, FaultCode::EStop, TaskName::MachineLogic, None, 0, 0.0);
+            }
         }
         // One set-point per servo period of the drives: after a late activation (a real-time
         // overrun) the missed periods are computed now, at most four.
@@ -1169,6 +1240,7 @@ impl MotionCore {
 
     fn on_fault(&mut self, shared: &Shared, fault: Fault) {
         self.last_fault = Some(fault);
+        shared.machine_interface.lock().machine_on_request = false;
         if fault.code == FaultCode::EStop {
             self.estop = true;
         } else {

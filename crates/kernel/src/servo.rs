@@ -213,6 +213,9 @@ impl<B: Fieldbus> ServoStage<B> {
                     command.velocity_offset = c.velocity_offset;
                     command.torque_offset = c.torque_offset;
                 }
+                // With the e-stop input pressed the drives lose power (or are about to): a
+                // following error then is its consequence, not a new fault.
+                Err(_) if self.estop_latched => command.target_velocity = 0.0,
                 Err(fault) => {
                     if !self.servo_fault {
                         self.servo_fault = true;

@@ -112,6 +112,8 @@ pub struct MachineInterface {
     pub homed: bool,
     /// Operator reset (held for one scan by the logic task).
     pub estop_reset: bool,
+    /// The operator asked for the machine to be on (from a reset until an e-stop or fault).
+    pub machine_on_request: bool,
     /// Program digital outputs (M62..M65), bit n = program output n.
     pub program_outputs: u64,
     // Logic -> kernel.
@@ -125,6 +127,8 @@ pub struct MachineInterface {
     pub feed_hold_request: bool,
     /// The logic reports a machine fault.
     pub machine_fault: bool,
+    /// The logic's e-stop chain is closed (motion allowed).
+    pub estop_chain_ok: bool,
     /// Its code.
     pub machine_fault_code: i64,
     // Logic -> machine.

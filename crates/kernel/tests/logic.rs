@@ -75,3 +75,70 @@ fn the_spindle_at_speed_comes_from_the_plc() {
     );
     assert!(m.faults.is_empty(), "{:?}", m.faults);
 }
+
+/// The simulated mill's own logic, examples/plc/sim-mill.st: its tool-change interlock
+/// waits for the spindle to stop before the changer may start.
+#[test]
+fn the_sim_mill_logic_stops_the_spindle_before_the_changer_starts() {
+    // M6 stops the spindle first (as LinuxCNC's M6 does). 6000 rpm at 12 000 rpm/s runs
+    // down to the logic's 10 rpm "stopped" in (6000 - 10) / 12 000 s = 0.49917 s; then the
+    // simulated changer takes 1.5 s.
+    let text = "G21 G90 G61.1\nS6000 M3\nG1 X1 F600\nT2 M6\nG1 X2\nM2\n";
+    let cfg = config("sim-mill.toml");
+    assert!(cfg.plc.is_some());
+    let mut m = Machine::new(&cfg, Some(program(text, "change.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(10.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    let arrived = m.samples.iter().position(|s| s.axes[0] == 1.0).unwrap();
+    let left = m.samples.iter().position(|s| s.axes[0] > 1.0).unwrap();
+    let waited = (left - arrived) as f64 * 0.001;
+    assert!((1.999..2.03).contains(&waited), "waited {waited} s");
+    assert_eq!(m.status().tool, 2);
+}
+
+/// Pressing the machine's e-stop button opens the logic's e-stop chain: an e-stop.
+#[test]
+fn the_e_stop_input_opens_the_chain_and_stops_the_machine() {
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::new(
+        &cfg,
+        Some(program("G21 G90 G61.1\nG1 X100 F3000\nM2\n", "l.ngc")),
+    );
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    m.cycles(500);
+    m.sim
+        .handle()
+        .with_machine(|machine| machine.set_estop(true));
+    assert!(m.until(2.0, |s| s.state == MachineState::EStop
+        && s.path_speed == 0.0));
+    m.cycles(5);
+    assert!(!m.status().ready);
+    // The e-stop, and nothing after it.
+    let codes: Vec<_> = m.faults.iter().map(|f| f.code).collect();
+    assert_eq!(codes, [rtcnc_kernel::FaultCode::EStop]);
+    // A reset is refused while the button is pressed, accepted once it is released.
+    m.command(Command::Reset);
+    m.cycles(20);
+    assert_eq!(m.status().state, MachineState::EStop);
+    m.sim
+        .handle()
+        .with_machine(|machine| machine.set_estop(false));
+    m.cycles(5);
+    m.command(Command::Reset);
+    let ok = m.until(1.0, |s| s.ready && s.state == MachineState::Idle);
+    assert!(ok, "{:?} {:?}", m.status(), m.faults);
+    // The power was off and the table coasted: the set-points start from where it stands,
+    // and the machine runs the program again.
+    m.cycles(100);
+    assert!(
+        m.faults
+            .iter()
+            .all(|f| f.code != rtcnc_kernel::FaultCode::FollowingError)
+    );
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(10.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert_eq!(m.status().axes[0], 100.0);
+}
