@@ -103,3 +103,34 @@ fn run_executes_experiment_1_in_real_time() {
     assert!(stdout.contains("interpolation"), "{stdout}");
     assert!(out.status.code().is_some());
 }
+
+#[test]
+fn ctrl_c_holds_the_feed_and_a_second_one_aborts() {
+    // A slow, long move on the ideal-drive machine: nothing but the two Ctrl-C can stop it
+    // early, even on a loaded machine without real-time scheduling.
+    let dir = std::env::temp_dir().join(format!("rtcnc-run-ctrlc-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let program = dir.join("slow.ngc");
+    std::fs::write(&program, "G21 G90 G1 X500 F600\nM2\n").unwrap();
+    let mut child = rtcnc()
+        .args(["run", "--machine", "configs/bench-xyz.toml"])
+        .arg(&program)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let pid = child.id() as libc::pid_t;
+    std::thread::sleep(std::time::Duration::from_millis(2500));
+    // SAFETY: signalling our own child process.
+    unsafe { libc::kill(pid, libc::SIGINT) };
+    std::thread::sleep(std::time::Duration::from_millis(800));
+    // SAFETY: as above.
+    unsafe { libc::kill(pid, libc::SIGINT) };
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stderr.contains("feed hold"), "{stderr}");
+    assert!(stderr.contains("abort"), "{stderr}");
+    assert!(stdout.contains("program stopped"), "{stdout}");
+    assert_eq!(out.status.code(), Some(1));
+}
