@@ -112,7 +112,7 @@ fn ctrl_c_holds_the_feed_and_a_second_one_aborts() {
     std::fs::create_dir_all(&dir).unwrap();
     let program = dir.join("slow.ngc");
     std::fs::write(&program, "G21 G90 G1 X500 F600\nM2\n").unwrap();
-    let mut child = rtcnc()
+    let child = rtcnc()
         .args(["run", "--machine", "configs/bench-xyz.toml"])
         .arg(&program)
         .stdout(std::process::Stdio::piped())
