@@ -334,3 +334,31 @@ fn after_an_estop_a_reset_enables_the_drives_again() {
     assert!(m.until(5.0, |s| s.state == MachineState::Idle));
     assert_eq!(&m.status().axes[..2], &[1.0, 2.0]);
 }
+
+#[test]
+fn rapid_and_spindle_overrides() {
+    let text = "G21 G90 G61.1\nS6000 M3\nG0 X200\nM2\n";
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::new(&cfg, Some(program(text, "rapid.ngc")));
+    m.power_on();
+    assert!(m.sim.handle().urgent(Urgent::RapidOverride(0.5)));
+    assert!(m.sim.handle().urgent(Urgent::SpindleOverride(1.2)));
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(10.0, |s| s.program_ended && s.state == MachineState::Idle));
+    // The rapid runs at half the X limit of 100 mm/s.
+    let mut stats = rtcnc_kernel::report::RunStats::new();
+    for s in &m.samples {
+        stats.add(s, 0.001);
+    }
+    assert!(
+        (stats.max_velocity[0] - 50.0).abs() < 0.01,
+        "{}",
+        stats.max_velocity[0]
+    );
+    // The spindle turns at 120 % of S6000.
+    assert!(
+        (m.status().spindle_rpm - 7200.0).abs() < 1e-6,
+        "{}",
+        m.status().spindle_rpm
+    );
+}
