@@ -323,14 +323,20 @@ impl Piece {
     }
 
     /// Largest tangential jerk the braking model may use on this piece: each axis's jerk
-    /// limit less what the curvature change takes at the piece's speed limit (K'·v³),
-    /// projected on the tangent.
+    /// limit (on arcs less what the curvature change takes at the piece's speed limit,
+    /// K'·v³), projected on the tangent.
     pub fn jerk_available(&self, lim: &Lim) -> f64 {
         let mut jm = f64::INFINITY;
         for k in 0..=self.ns {
             let sm = &self.smp[k];
+            // Only arcs and helices keep their curvature at speed; on blends and smoothing
+            // spans the per-period bounds take care of the curvature change.
             let vs = sm.v_axis.min(sm.v_curve);
-            let v3 = if vs.is_finite() { vs * vs * vs } else { 0.0 };
+            let v3 = if vs.is_finite() && matches!(self.shape, Shape::Helix(_)) {
+                vs * vs * vs
+            } else {
+                0.0
+            };
             for i in 0..AXES {
                 if lim.present[i] {
                     let ti = sm.t[i].abs();
