@@ -359,7 +359,7 @@ impl Builder {
                 } else {
                     let v = lp.b;
                     // Smoothing through the vertex (dense CAM polylines).
-                    if let Some(vs) = self.smooth_state(&lp, &lc, theta, tolerance) {
+                    if let Some(vs) = self.smooth_state(&lp, &lc, theta, tolerance, st.as_ref()) {
                         let start = st.unwrap_or(State {
                             p: lp.a,
                             t: lp.dir,
@@ -451,7 +451,14 @@ impl Builder {
 
     /// Tangent and curvature at the vertex between two short lines, from the circle through
     /// the three points, when the vertex qualifies for smoothing.
-    fn smooth_state(&self, lp: &LineP, lc: &LineP, theta: f64, tol: f64) -> Option<State> {
+    fn smooth_state(
+        &self,
+        lp: &LineP,
+        lc: &LineP,
+        theta: f64,
+        tol: f64,
+        before: Option<&State>,
+    ) -> Option<State> {
         if lp.rapid || lc.rapid || theta > SMOOTH_MAX_ANGLE || theta <= KINK {
             return None;
         }
@@ -470,6 +477,16 @@ impl Builder {
         // Curvature direction: the turn from a to b, orthogonal to t.
         let turn = sub(&unit(&b), &unit(&a));
         let nrm = unit(&add_scaled(&turn, &t, -dot(&turn, &t)));
+        // That tangent is off by κ'·la·lb/6 (towards the normal) where the curvature
+        // changes; κ' comes from the previous smoothed vertex (signed along this normal).
+        let t = match before {
+            Some(prev) if norm(&prev.k) > 0.0 => {
+                let kp = (kappa - dot(&prev.k, &nrm)) / la;
+                unit(&add_scaled(&t, &nrm, -kp * la * lb / 6.0))
+            }
+            _ => t,
+        };
+        let nrm = unit(&add_scaled(&nrm, &t, -dot(&nrm, &t)));
         Some(State {
             p: lp.b,
             t,

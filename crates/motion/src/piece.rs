@@ -30,6 +30,8 @@ pub(crate) struct Sample {
     pub t: AxisVec,
     /// Curvature vector (d² p / d s²).
     pub k: AxisVec,
+    /// Its derivative d K / d s.
+    pub kp: AxisVec,
     /// Speed bound from axis velocities.
     pub v_axis: f64,
     /// Speed bound from centripetal acceleration, curvature change and junction jumps.
@@ -238,6 +240,7 @@ impl Piece {
             self.smp[k] = Sample {
                 t,
                 k: kv,
+                kp,
                 v_axis,
                 v_curve,
                 t_xyz: norm_xyz(&t),
@@ -319,15 +322,27 @@ impl Piece {
         d.max(0.0) * BRAKE_SHARE_STRAIGHT
     }
 
-    /// Largest tangential jerk the braking model may use on this piece.
+    /// Largest tangential jerk the braking model may use on this piece: each axis's jerk
+    /// limit (on arcs less what the curvature change takes at the piece's speed limit,
+    /// K'·v³), projected on the tangent.
     pub fn jerk_available(&self, lim: &Lim) -> f64 {
         let mut jm = f64::INFINITY;
         for k in 0..=self.ns {
+            let sm = &self.smp[k];
+            // Only arcs and helices keep their curvature at speed; on blends and smoothing
+            // spans the per-period bounds take care of the curvature change.
+            let vs = sm.v_axis.min(sm.v_curve);
+            let v3 = if vs.is_finite() && matches!(self.shape, Shape::Helix(_)) {
+                vs * vs * vs
+            } else {
+                0.0
+            };
             for i in 0..AXES {
                 if lim.present[i] {
-                    let ti = self.smp[k].t[i].abs();
+                    let ti = sm.t[i].abs();
                     if ti > 1e-12 {
-                        jm = jm.min(lim.j[i] / ti);
+                        let room = (lim.j[i] - sm.kp[i].abs() * v3).max(0.1 * lim.j[i]);
+                        jm = jm.min(room / ti);
                     }
                 }
             }
