@@ -13,10 +13,10 @@ use std::time::Duration;
 
 use thiserror::Error;
 
-use crate::ipc::{Trigger, WaitResult};
+use crate::ipc::{EventSemaphore, Trigger, WaitResult};
 use crate::monitor::{Fault, FaultCode, MissReaction, Monitor, TaskState};
 use crate::sys::{
-    SchedOutcome, lock_all_memory, monotonic_ns, os_priority, prefault_stack,
+    SchedOutcome, lock_all_memory, may_lock_all_memory, monotonic_ns, os_priority, prefault_stack,
     set_current_thread_affinity, set_current_thread_fifo, set_in_task_body, sleep_until_monotonic,
     warn_once,
 };
@@ -51,7 +51,7 @@ pub struct RealTimeConfig {
     pub lock_memory: bool,
     /// CPUs the executive's threads may run on (`None`: any).
     pub cpus: Option<Vec<usize>>,
-    /// Time between `start` and the first release, for the threads to set up.
+    /// Time between the moment every thread is set up and the first release.
     pub start_delay: Duration,
 }
 
@@ -61,7 +61,7 @@ impl Default for RealTimeConfig {
             scheduling: SchedulingMode::BestEffort,
             lock_memory: true,
             cpus: None,
-            start_delay: Duration::from_millis(20),
+            start_delay: Duration::from_millis(5),
         }
     }
 }
@@ -101,7 +101,10 @@ pub struct RealTimeRunner;
 #[derive(Clone)]
 struct Shared {
     stop: Arc<AtomicBool>,
+    /// Monotonic time of release zero; known once every thread is set up (see `await_start`).
     epoch: u64,
+    epoch_cell: Arc<AtomicU64>,
+    go: EventSemaphore,
     monitor: Arc<Monitor>,
     lanes: Vec<Arc<Lane>>,
     warn_pending: Arc<AtomicU64>,
@@ -131,6 +134,19 @@ impl Shared {
             arg: end.saturating_sub(start),
         });
     }
+}
+
+/// Reports the thread ready, then waits until every thread is: the epoch is fixed only then,
+/// so a slow thread start cannot make another thread miss the first releases. False when
+/// the runner is being stopped instead.
+fn await_start(shared: &mut Shared, ready: mpsc::Sender<bool>, fifo: bool) -> bool {
+    let _ = ready.send(fifo);
+    drop(ready);
+    if !shared.go.wait_set_or_stop(&shared.stop) || shared.stop.load(Ordering::Acquire) {
+        return false;
+    }
+    shared.epoch = shared.epoch_cell.load(Ordering::Acquire);
+    true
 }
 
 /// Per-thread set-up: scheduling, affinity, pre-faulted stack. Reports whether SCHED_FIFO
@@ -191,7 +207,7 @@ fn run_body(
 }
 
 fn periodic_thread(
-    shared: Shared,
+    mut shared: Shared,
     mut tasks: Vec<(usize, TaskSpec)>,
     period: u64,
     ready: mpsc::Sender<bool>,
@@ -199,8 +215,9 @@ fn periodic_thread(
     config: RealTimeConfig,
 ) {
     let fifo = setup_thread(Some(priority), &config);
-    let _ = ready.send(fifo);
-    drop(ready);
+    if !await_start(&mut shared, ready, fifo) {
+        return;
+    }
     let mut release = 0u64;
     loop {
         sleep_until_monotonic(shared.epoch.saturating_add(release));
@@ -332,21 +349,22 @@ fn sleep_until_or_stop(shared: &Shared, t: u64) -> bool {
 }
 
 fn event_thread(
-    shared: Shared,
+    mut shared: Shared,
     task: usize,
     mut spec: TaskSpec,
     ready: mpsc::Sender<bool>,
     config: RealTimeConfig,
 ) {
     let fifo = setup_thread(Some(spec.priority), &config);
-    let _ = ready.send(fifo);
-    drop(ready);
     let trigger = match &spec.kind {
         DeclKind::Event { trigger } => trigger.clone(),
         _ => return,
     };
     // Armed before the first release, so edges from the first cycles are seen.
     let mut own_token = trigger.source.arm();
+    if !await_start(&mut shared, ready, fifo) {
+        return;
+    }
     sleep_until_monotonic(shared.epoch);
     let mut waiting = Waiting::OwnTrigger;
     let mut activation = 0u64;
@@ -419,14 +437,15 @@ fn event_thread(
 }
 
 fn background_thread(
-    shared: Shared,
+    mut shared: Shared,
     mut tasks: Vec<(usize, TaskSpec)>,
     ready: mpsc::Sender<bool>,
     config: RealTimeConfig,
 ) {
     setup_thread(None, &config);
-    let _ = ready.send(true);
-    drop(ready);
+    if !await_start(&mut shared, ready, true) {
+        return;
+    }
     sleep_until_monotonic(shared.epoch);
     let mut states: Vec<Waiting> = tasks
         .iter()
@@ -510,11 +529,15 @@ pub struct RealTimeHandle {
 impl RealTimeRunner {
     /// Starts every thread of `set`; the first release is `config.start_delay` from now.
     pub fn start(set: TaskSet, config: RealTimeConfig) -> Result<RealTimeHandle, RtStartError> {
-        if config.lock_memory && !lock_all_memory() {
-            warn_once(
-                &WARNED_NO_MLOCK,
-                "mlockall failed (needs root or a memlock limit); memory is not locked, page faults may delay cycles",
-            );
+        if config.lock_memory {
+            // With a finite RLIMIT_MEMLOCK, MCL_FUTURE would make later allocations (thread
+            // stacks, buffers) fail once the limit is reached: lock only without a limit.
+            if !may_lock_all_memory() || !lock_all_memory() {
+                warn_once(
+                    &WARNED_NO_MLOCK,
+                    "memory is not locked (needs CAP_IPC_LOCK or an unlimited memlock limit); page faults may delay cycles",
+                );
+            }
         }
         let TaskSet {
             threads,
@@ -537,7 +560,9 @@ impl RealTimeRunner {
             .collect();
         let shared = Shared {
             stop: Arc::new(AtomicBool::new(false)),
-            epoch: monotonic_ns() + duration_ns(config.start_delay),
+            epoch: 0,
+            epoch_cell: Arc::new(AtomicU64::new(0)),
+            go: EventSemaphore::new("executive start"),
             monitor: Arc::clone(&recording.monitor),
             lanes: recording.lanes.clone(),
             warn_pending: Arc::new(AtomicU64::new(0)),
@@ -608,8 +633,14 @@ impl RealTimeRunner {
             }
         }
         drop(tx);
-        let fifo = (0..spawned).all(|_| rx.recv().unwrap_or(false))
-            && config.scheduling != SchedulingMode::Normal;
+        // Hear from every thread (no short cut: a thread not yet heard from is not ready).
+        let answers: Vec<bool> = (0..spawned).map(|_| rx.recv().unwrap_or(false)).collect();
+        let granted = answers.iter().all(|&a| a);
+        let fifo = granted && config.scheduling != SchedulingMode::Normal;
+        // Every thread is set up and waiting: fix the epoch and let them go.
+        let mut shared = shared;
+        shared.epoch = monotonic_ns() + duration_ns(config.start_delay);
+        shared.epoch_cell.store(shared.epoch, Ordering::Release);
         let supervisor = warn_tasks.iter().any(|&w| w).then(|| {
             let sh = shared.clone();
             std::thread::spawn(move || supervise(sh, warn_tasks))
@@ -639,6 +670,7 @@ impl RealTimeRunner {
                 SchedulingMode::Normal => {}
             }
         }
+        handle.shared.go.set();
         Ok(handle)
     }
 }

@@ -215,6 +215,37 @@ pub(crate) fn set_current_thread_affinity(cpus: &[usize]) -> bool {
     }
 }
 
+/// True when locking all current and future memory cannot make later allocations fail: the
+/// memlock limit is infinite or the process has CAP_IPC_LOCK.
+pub(crate) fn may_lock_all_memory() -> bool {
+    let mut limit = libc::rlimit {
+        rlim_cur: 0,
+        rlim_max: 0,
+    };
+    // SAFETY: valid out-pointer.
+    let unlimited = unsafe { libc::getrlimit(libc::RLIMIT_MEMLOCK, &mut limit) } == 0
+        && limit.rlim_cur == libc::RLIM_INFINITY;
+    unlimited || has_effective_capability(CAP_IPC_LOCK)
+}
+
+/// Capability number of CAP_IPC_LOCK (linux/capability.h).
+const CAP_IPC_LOCK: u32 = 14;
+
+/// Reads an effective capability bit from /proc/self/status (start-up only).
+fn has_effective_capability(bit: u32) -> bool {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|status| {
+            let hex = status
+                .lines()
+                .find_map(|l| l.strip_prefix("CapEff:"))?
+                .trim()
+                .to_string();
+            u64::from_str_radix(&hex, 16).ok()
+        })
+        .is_some_and(|caps| caps & (1u64 << bit) != 0)
+}
+
 pub(crate) fn lock_all_memory() -> bool {
     // SAFETY: plain syscall.
     unsafe { libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) == 0 }

@@ -110,10 +110,11 @@ fn tasks_report_their_state_and_stop_at_their_next_cycle() {
         ..RealTimeConfig::default()
     };
     let handle = RealTimeRunner::start(b.build().unwrap(), config).unwrap();
-    std::thread::sleep(Duration::from_millis(60));
     let scan = handle.control("scan").unwrap();
+    wait_until(|| *counted.lock().unwrap() >= 5);
     scan.stop();
-    std::thread::sleep(Duration::from_millis(10)); // at least one cycle starts after the request
+    // Stopped is set at the start of a cycle that saw the request: no body runs after it.
+    wait_until(|| scan.state() == TaskState::Stopped);
     let frozen = *counted.lock().unwrap();
     std::thread::sleep(Duration::from_millis(20));
     assert_eq!(
@@ -131,13 +132,23 @@ fn tasks_report_their_state_and_stop_at_their_next_cycle() {
         TaskState::Stopped
     );
     scan.start();
-    std::thread::sleep(Duration::from_millis(20));
+    wait_until(|| *counted.lock().unwrap() > frozen);
     let rec = handle.stop();
-    assert!(*counted.lock().unwrap() > frozen, "restarted");
     let stats = rec.monitor().task("scan").unwrap().stats();
     assert_eq!(stats.activations, u64::from(*counted.lock().unwrap()));
     assert_eq!(
         rec.monitor().task("self test").unwrap().stats().activations,
         0
     );
+}
+
+/// Polls `condition` until it holds; gives up (failing) after 10 s.
+fn wait_until(condition: impl Fn() -> bool) {
+    for _ in 0..10_000 {
+        if condition() {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    panic!("condition not reached in 10 s");
 }
