@@ -289,7 +289,8 @@ fn svg_histogram(h: &LinearHistogram, summary: &Summary, args: &Args, fifo: bool
     let rows = histogram_rows(h, summary, 200);
     let plot_w = W - LEFT - RIGHT;
     let plot_h = HT - TOP - BOTTOM;
-    let x_max = rows.last().map_or(1, |r| r.1 + 1).max(1) as f64;
+    // 5 % room right of the largest value, so the max bar and its label stay visible.
+    let x_max = (rows.last().map_or(1, |r| r.1 + 1).max(1) as f64 * 1.05).ceil();
     let peak = rows.iter().map(|r| r.2).max().unwrap_or(1).max(1) as f64;
     let y_top = peak.log10().ceil().max(1.0);
     let x = |v: f64| LEFT + v / x_max * plot_w;
@@ -386,10 +387,14 @@ fn svg_histogram(h: &LinearHistogram, summary: &Summary, args: &Args, fifo: bool
         ("max", summary.max, "#c00000"),
     ] {
         let xx = x(us(value).min(x_max));
+        let (tx, anchor) = if xx > W - RIGHT - 40.0 {
+            (xx - 3.0, "end")
+        } else {
+            (xx + 3.0, "start")
+        };
         s.push_str(&format!(
-            "<line x1=\"{xx:.1}\" y1=\"{TOP}\" x2=\"{xx:.1}\" y2=\"{}\" stroke=\"{color}\" stroke-dasharray=\"4 3\"/><text x=\"{:.1}\" y=\"{}\" fill=\"{color}\">{label}</text>\n",
+            "<line x1=\"{xx:.1}\" y1=\"{TOP}\" x2=\"{xx:.1}\" y2=\"{}\" stroke=\"{color}\" stroke-dasharray=\"4 3\"/><text x=\"{tx:.1}\" y=\"{}\" fill=\"{color}\" text-anchor=\"{anchor}\">{label}</text>\n",
             TOP + plot_h,
-            xx + 3.0,
             TOP + 12.0
         ));
     }
