@@ -347,3 +347,91 @@ fn a_task_that_never_lets_time_pass_is_reported_as_a_livelock() {
     assert_eq!(e.code(), "livelock");
     assert!(e.to_string().contains("'stuck'"), "{e}");
 }
+
+#[test]
+fn background_tasks_run_in_what_is_left() {
+    let starts: Arc<Mutex<Vec<u64>>> = Arc::default();
+    let continued = Arc::new(AtomicU64::new(0));
+    let mut b = TaskSet::builder();
+    let thread = b.periodic_thread("servo", Duration::from_millis(1), 10);
+    b.periodic(thread, "control", 1, |ctx| {
+        ctx.consume(Duration::from_micros(100))
+    });
+    let s = Arc::clone(&starts);
+    b.background("self test", move |ctx| {
+        s.lock().unwrap().push(ctx.start_time().as_nanos());
+        Next::Sleep(Duration::from_millis(1))
+    });
+    let c = Arc::clone(&continued);
+    b.background("housekeeping", move |_| {
+        c.fetch_add(1, Ordering::Relaxed);
+        Next::Continue
+    });
+    let set = b.build().unwrap();
+    let control = set.control("housekeeping").unwrap();
+    let mut sim = VirtualRunner::new(set);
+    sim.run_for(Duration::from_millis(1)).unwrap();
+    // Each background run takes at least 10 µs. In the first millisecond the servo thread
+    // takes 0..100 µs; the self test runs at 100 µs (to 110 µs), housekeeping fills
+    // 110..1000 µs with 89 runs of 10 µs.
+    assert_eq!(continued.load(Ordering::Relaxed), 89);
+    control.stop();
+    sim.run_for(Duration::from_millis(4)).unwrap();
+    // The self test sleeps 1 ms after each 10 µs run: 100, 1110, 2120, 3130, 4140 µs (never
+    // inside the servo thread's first 100 µs of a millisecond).
+    assert_eq!(
+        *starts.lock().unwrap(),
+        vec![100 * US, 1_110 * US, 2_120 * US, 3_130 * US, 4_140 * US]
+    );
+    let monitor = sim.recording().monitor();
+    assert_eq!(
+        monitor.task("self test").unwrap().state(),
+        TaskState::Suspended
+    );
+    assert_eq!(
+        monitor.task("housekeeping").unwrap().state(),
+        TaskState::Stopped
+    );
+    // housekeeping saw its stop at its next run (at 1 ms, after the servo's 100 µs, the self
+    // test's turn is at 1110 µs): 89 runs in the first millisecond and none after.
+    assert_eq!(continued.load(Ordering::Relaxed), 89);
+}
+
+#[test]
+fn faults_raised_by_tasks_are_logged_and_traced_and_the_log_is_bounded() {
+    let mut b = TaskSet::builder();
+    b.fault_capacity(2).trace_capacity(8);
+    let thread = b.periodic_thread("plc", Duration::from_millis(1), 50);
+    b.periodic(thread, "scan", 1, |ctx| {
+        if ctx.activation() % 4 == 3 {
+            ctx.raise_fault(7, "limit switch X+", ctx.activation());
+        }
+    });
+    let mut sim = VirtualRunner::new(b.build().unwrap());
+    sim.run_for(Duration::from_millis(12)).unwrap();
+    let monitor = sim.recording().monitor();
+    // faults at 3, 7 and 11 ms; the log keeps two and counts three
+    assert_eq!(monitor.fault_count(), 3);
+    let faults = monitor.faults();
+    assert_eq!(faults.len(), 2);
+    assert_eq!(faults[1].time, Time::from_millis(7));
+    assert_eq!(faults[1].code, FaultCode::User(7));
+    assert_eq!(faults[1].message, "limit switch X+ (code 7, value 7)");
+    assert_eq!(faults[1].task, "scan");
+    // 12 spans + 3 faults in a lane of 8: the last 8 are kept, 7 dropped
+    let trace = sim.recording().trace();
+    assert_eq!(trace.event_count(), 8);
+    assert_eq!(trace.dropped(), 7);
+    let json: serde_json::Value = serde_json::from_str(&trace.to_chrome_json()).unwrap();
+    let last_fault = json["traceEvents"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e["cat"] == "fault")
+        .next_back()
+        .unwrap()
+        .clone();
+    assert_eq!(last_fault["name"], "limit switch X+");
+    assert_eq!(last_fault["ts"].as_f64(), Some(11_000.0));
+    assert_eq!(last_fault["args"]["value"], 11);
+}
