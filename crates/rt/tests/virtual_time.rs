@@ -427,8 +427,7 @@ fn faults_raised_by_tasks_are_logged_and_traced_and_the_log_is_bounded() {
         .as_array()
         .unwrap()
         .iter()
-        .filter(|e| e["cat"] == "fault")
-        .next_back()
+        .rfind(|e| e["cat"] == "fault")
         .unwrap()
         .clone();
     assert_eq!(last_fault["name"], "limit switch X+");
