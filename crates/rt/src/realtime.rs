@@ -51,6 +51,9 @@ pub struct RealTimeConfig {
     pub lock_memory: bool,
     /// CPUs the executive's threads may run on (`None`: any).
     pub cpus: Option<Vec<usize>>,
+    /// CPUs for single threads, by name (a periodic thread, an event task, or
+    /// "background"); these override `cpus` for that thread.
+    pub thread_cpus: Vec<(String, Vec<usize>)>,
     /// Time between the moment every thread is set up and the first release.
     pub start_delay: Duration,
 }
@@ -61,6 +64,7 @@ impl Default for RealTimeConfig {
             scheduling: SchedulingMode::BestEffort,
             lock_memory: true,
             cpus: None,
+            thread_cpus: Vec::new(),
             start_delay: Duration::from_millis(5),
         }
     }
@@ -151,8 +155,13 @@ fn await_start(shared: &mut Shared, ready: mpsc::Sender<bool>, fifo: bool) -> bo
 
 /// Per-thread set-up: scheduling, affinity, pre-faulted stack. Reports whether SCHED_FIFO
 /// was granted.
-fn setup_thread(priority: Option<i32>, config: &RealTimeConfig) -> bool {
-    if let Some(cpus) = &config.cpus {
+fn setup_thread(name: &str, priority: Option<i32>, config: &RealTimeConfig) -> bool {
+    let own = config
+        .thread_cpus
+        .iter()
+        .find(|(n, _)| n == name)
+        .map(|(_, cpus)| cpus);
+    if let Some(cpus) = own.or(config.cpus.as_ref()) {
         set_current_thread_affinity(cpus);
     }
     prefault_stack(64 * 1024);
@@ -206,15 +215,17 @@ fn run_body(
     next
 }
 
+#[allow(clippy::too_many_arguments)]
 fn periodic_thread(
     mut shared: Shared,
+    name: String,
     mut tasks: Vec<(usize, TaskSpec)>,
     period: u64,
     ready: mpsc::Sender<bool>,
     priority: i32,
     config: RealTimeConfig,
 ) {
-    let fifo = setup_thread(Some(priority), &config);
+    let fifo = setup_thread(&name, Some(priority), &config);
     if !await_start(&mut shared, ready, fifo) {
         return;
     }
@@ -355,7 +366,7 @@ fn event_thread(
     ready: mpsc::Sender<bool>,
     config: RealTimeConfig,
 ) {
-    let fifo = setup_thread(Some(spec.priority), &config);
+    let fifo = setup_thread(&spec.name, Some(spec.priority), &config);
     let trigger = match &spec.kind {
         DeclKind::Event { trigger } => trigger.clone(),
         _ => return,
@@ -442,7 +453,7 @@ fn background_thread(
     ready: mpsc::Sender<bool>,
     config: RealTimeConfig,
 ) {
-    setup_thread(None, &config);
+    setup_thread("background", None, &config);
     if !await_start(&mut shared, ready, true) {
         return;
     }
@@ -593,9 +604,10 @@ impl RealTimeRunner {
                 th.period_ns,
                 th.priority,
             );
+            let thread_name = th.name.clone();
             result = spawn(
                 th.name.clone(),
-                Box::new(move || periodic_thread(sh, group, period, tx, prio, cfg)),
+                Box::new(move || periodic_thread(sh, thread_name, group, period, tx, prio, cfg)),
             );
             if result.is_err() {
                 break;

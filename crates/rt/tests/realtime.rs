@@ -152,3 +152,32 @@ fn wait_until(condition: impl Fn() -> bool) {
     }
     panic!("condition not reached in 10 s");
 }
+
+#[test]
+fn threads_run_on_the_cpus_they_are_given() {
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let wanted = cpus - 1; // the last CPU
+    let seen: Arc<Mutex<Vec<i32>>> = Arc::default();
+    let mut b = TaskSet::builder();
+    let t = b.periodic_thread("pinned", Duration::from_millis(1), 20);
+    let s = Arc::clone(&seen);
+    b.periodic(t, "where", 1, move |_| {
+        // SAFETY: plain query.
+        s.lock().unwrap().push(unsafe { libc::sched_getcpu() });
+    });
+    let config = RealTimeConfig {
+        scheduling: SchedulingMode::BestEffort,
+        lock_memory: false,
+        cpus: Some(vec![0]),
+        thread_cpus: vec![("pinned".to_string(), vec![wanted])],
+        ..RealTimeConfig::default()
+    };
+    let handle = RealTimeRunner::start(b.build().unwrap(), config).unwrap();
+    wait_until(|| seen.lock().unwrap().len() >= 10);
+    drop(handle.stop());
+    let seen = seen.lock().unwrap();
+    assert!(
+        seen.iter().all(|&c| c == wanted as i32),
+        "{seen:?} (wanted {wanted})"
+    );
+}
