@@ -419,10 +419,6 @@ impl TaskSetBuilder {
                 tasks: Vec::new(),
             })
             .collect();
-        let has_background = self
-            .tasks
-            .iter()
-            .any(|t| matches!(t.kind, DeclKind::Background));
         let mut monitors = Vec::with_capacity(self.tasks.len());
         let mut tasks = Vec::with_capacity(self.tasks.len());
         let mut background_lane = None;
@@ -486,7 +482,6 @@ impl TaskSetBuilder {
                 lane,
             });
         }
-        let _ = has_background;
         let lanes = lane_names
             .into_iter()
             .map(|n| Arc::new(Lane::new(n, self.trace_capacity)))
