@@ -16,9 +16,9 @@ use thiserror::Error;
 use crate::ipc::{EventSemaphore, Trigger, WaitResult};
 use crate::monitor::{Fault, FaultCode, MissReaction, Monitor, TaskState};
 use crate::sys::{
-    SchedOutcome, lock_all_memory, may_lock_all_memory, monotonic_ns, os_priority, prefault_stack,
-    set_current_thread_affinity, set_current_thread_fifo, set_in_task_body, sleep_until_monotonic,
-    warn_once,
+    SchedOutcome, hold_cpu_dma_latency, lock_all_memory, may_lock_all_memory, monotonic_ns,
+    os_priority, prefault_stack, set_current_thread_affinity, set_current_thread_fifo,
+    set_in_task_body, sleep_until_monotonic, warn_once,
 };
 use crate::task::{
     Body, ClockSource, Context, DeclKind, Next, Recording, TaskControl, TaskSet, TaskSpec, Wake,
@@ -54,6 +54,10 @@ pub struct RealTimeConfig {
     /// CPUs for single threads, by name (a periodic thread, an event task, or
     /// "background"); these override `cpus` for that thread.
     pub thread_cpus: Vec<(String, Vec<usize>)>,
+    /// Keep CPUs out of idle states whose exit latency exceeds this many microseconds while
+    /// the executive runs (PM QoS via /dev/cpu_dma_latency, as cyclictest does; skipped
+    /// silently without permission). `None` leaves power management alone.
+    pub cpu_dma_latency_us: Option<u32>,
     /// Time between the moment every thread is set up and the first release.
     pub start_delay: Duration,
 }
@@ -65,6 +69,7 @@ impl Default for RealTimeConfig {
             lock_memory: true,
             cpus: None,
             thread_cpus: Vec::new(),
+            cpu_dma_latency_us: Some(0),
             start_delay: Duration::from_millis(5),
         }
     }
@@ -535,6 +540,8 @@ pub struct RealTimeHandle {
     recording: Option<Recording>,
     controls: Vec<(String, TaskControl)>,
     fifo: bool,
+    /// Open while the run lasts: the PM QoS latency request.
+    _pm_qos: Option<std::fs::File>,
 }
 
 impl RealTimeRunner {
@@ -664,6 +671,7 @@ impl RealTimeRunner {
             recording: Some(recording),
             controls,
             fifo,
+            _pm_qos: config.cpu_dma_latency_us.and_then(hold_cpu_dma_latency),
         };
         if let Err(e) = result {
             handle.stop();

@@ -282,3 +282,15 @@ pub(crate) fn warn_once(flag: &AtomicBool, message: &str) {
         eprintln!("rtcnc-rt: warning: {message}");
     }
 }
+
+/// Asks the kernel to keep CPUs out of power-saving states deeper than `us` microseconds of
+/// exit latency (PM QoS, as cyclictest does); the request holds while the file stays open.
+pub(crate) fn hold_cpu_dma_latency(us: u32) -> Option<std::fs::File> {
+    use std::io::Write;
+    let mut file = std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/cpu_dma_latency")
+        .ok()?;
+    file.write_all(&(us as i32).to_ne_bytes()).ok()?;
+    Some(file)
+}
