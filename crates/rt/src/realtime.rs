@@ -14,7 +14,7 @@ use std::time::Duration;
 use thiserror::Error;
 
 use crate::ipc::{EventSemaphore, Trigger, WaitResult};
-use crate::monitor::{Fault, FaultCode, MissReaction, Monitor, TaskState};
+use crate::monitor::{FaultCode, MissReaction, Monitor, TaskState};
 use crate::sys::{
     SchedOutcome, hold_cpu_dma_latency, lock_all_memory, may_lock_all_memory, monotonic_ns,
     os_priority, prefault_stack, set_current_thread_affinity, set_current_thread_fifo,
@@ -25,7 +25,7 @@ use crate::task::{
 };
 use crate::time::{Time, duration_ns};
 use crate::trace::{EventKind, Lane, TraceEvent};
-use crate::virtual_time::{next_release, react_to_miss};
+use crate::virtual_time::{next_release, periodic_miss, reactive_miss, record_miss};
 
 static WARNED_NO_FIFO: AtomicBool = AtomicBool::new(false);
 static WARNED_NO_MLOCK: AtomicBool = AtomicBool::new(false);
@@ -242,7 +242,6 @@ fn periodic_thread(
             break;
         }
         let activation = release / period.max(1);
-        let deadline = release + period;
         let mut missed: Option<usize> = None;
         let mut first = true;
         for (task, spec) in tasks.iter_mut() {
@@ -255,6 +254,7 @@ fn periodic_thread(
                 DeclKind::Periodic { runs, .. } => runs,
                 _ => 1,
             };
+            let mut task_missed = false;
             for run in 0..runs {
                 let start = if first { wake } else { shared.now() };
                 first = false;
@@ -277,9 +277,16 @@ fn periodic_thread(
                     );
                 }
                 shared.span(spec, task, start, end);
-                if end > deadline && missed.is_none() {
-                    missed = Some(task);
-                    raise_miss(&shared, spec, task, end, end - deadline);
+                if let Some(late) = periodic_miss(
+                    release,
+                    period,
+                    spec.deadline_ns,
+                    end,
+                    task,
+                    &mut task_missed,
+                    &mut missed,
+                ) {
+                    raise_miss(&shared, spec, task, end, late);
                 }
             }
             shared.state(task, TaskState::Waiting);
@@ -295,28 +302,18 @@ fn periodic_thread(
 }
 
 fn raise_miss(shared: &Shared, spec: &TaskSpec, task: usize, now: u64, late: u64) {
-    let fault = Fault {
-        time: Time::from_nanos(now),
+    record_miss(
+        &shared.monitor,
+        shared.lane(spec.lane),
+        spec,
         task,
-        code: FaultCode::DeadlineMiss,
-        detail: late,
-        message: "",
-    };
-    shared.monitor.push_fault(fault);
-    if let Some(m) = shared.monitor.task_at(task) {
-        m.record_miss(0);
-    }
-    shared.lane(spec.lane).push(TraceEvent {
-        time: now,
-        kind: EventKind::Fault,
-        task: task as u32,
-        label: FaultCode::DeadlineMiss.as_str(),
-        arg: late,
-    });
+        now,
+        late,
+        false,
+    );
     if matches!(spec.reaction, MissReaction::Warn) {
         shared.warn_pending.fetch_add(1, Ordering::Release);
     }
-    react_to_miss(&spec.reaction, &fault, String::new, false);
 }
 
 /// What a reactive (event or background) task waits for next.
@@ -448,6 +445,11 @@ fn event_thread(
             m.record_run(None, end.saturating_sub(start));
         }
         shared.span(&spec, task, start, end);
+        // The thread's wake-up is the start of the run here (the moment the trigger fired is
+        // not known without a time stamp in every IPC call).
+        if let Some(late) = reactive_miss(start, spec.deadline_ns, end) {
+            raise_miss(&shared, &spec, task, end, late);
+        }
         waiting = after_body(next, end, true);
     }
 }

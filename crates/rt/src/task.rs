@@ -204,6 +204,7 @@ struct TaskDecl {
     body: Body,
     reaction: MissReaction,
     start_stopped: bool,
+    deadline: Option<Duration>,
 }
 
 /// Declares threads and tasks; [`build`](Self::build) validates everything at once.
@@ -300,6 +301,7 @@ impl TaskSetBuilder {
             body,
             reaction: MissReaction::Count,
             start_stopped: false,
+            deadline: None,
         });
         TaskId(self.tasks.len() - 1)
     }
@@ -308,6 +310,17 @@ impl TaskSetBuilder {
     pub fn on_deadline_miss(&mut self, task: TaskId, reaction: MissReaction) -> &mut Self {
         if let Some(t) = self.tasks.get_mut(task.0) {
             t.reaction = reaction;
+        }
+        self
+    }
+
+    /// A relative deadline for `task`: for a periodic task, each run must end within
+    /// `deadline` of its cycle's release (without one, the cycle must end by the next
+    /// release); for an event task, each run must end within `deadline` of its wake-up.
+    /// A late run is a deadline-miss fault. Background tasks have no deadline.
+    pub fn deadline(&mut self, task: TaskId, deadline: Duration) -> &mut Self {
+        if let Some(t) = self.tasks.get_mut(task.0) {
+            t.deadline = Some(deadline);
         }
         self
     }
@@ -392,7 +405,18 @@ impl TaskSetBuilder {
                         });
                     }
                 }
-                DeclKind::Background => {}
+                DeclKind::Background => {
+                    if t.deadline.is_some() {
+                        return Err(ConfigError::DeadlineOnBackground {
+                            task: t.name.clone(),
+                        });
+                    }
+                }
+            }
+            if t.deadline.is_some_and(|d| d.is_zero()) {
+                return Err(ConfigError::ZeroDeadline {
+                    task: t.name.clone(),
+                });
             }
         }
         for (i, th) in self.threads.iter().enumerate() {
@@ -478,6 +502,7 @@ impl TaskSetBuilder {
                 kind: decl.kind,
                 body: decl.body,
                 reaction: decl.reaction,
+                deadline_ns: decl.deadline.map(duration_ns),
                 control: RunFlag::new(!decl.start_stopped),
                 lane,
             });
@@ -514,6 +539,8 @@ pub(crate) struct TaskSpec {
     pub kind: DeclKind,
     pub body: Body,
     pub reaction: MissReaction,
+    /// Relative deadline of each run (see `TaskSetBuilder::deadline`).
+    pub deadline_ns: Option<u64>,
     pub control: RunFlag,
     pub lane: usize,
 }

@@ -434,3 +434,73 @@ fn faults_raised_by_tasks_are_logged_and_traced_and_the_log_is_bounded() {
     assert_eq!(last_fault["ts"].as_f64(), Some(11_000.0));
     assert_eq!(last_fault["args"]["value"], 11);
 }
+
+#[test]
+fn own_deadlines_of_periodic_and_event_tasks_give_exactly_the_expected_misses() {
+    let setpoints: Mailbox<u64> = Mailbox::new("setpoints", 4).unwrap();
+    let mut b = TaskSet::builder();
+    let servo = b.periodic_thread("servo", Duration::from_millis(1), 100);
+    let read = b.periodic(servo, "read inputs", 1, |ctx| {
+        let cost = if ctx.activation() == 2 { 150 } else { 20 };
+        ctx.consume(Duration::from_micros(cost));
+    });
+    b.deadline(read, Duration::from_micros(100));
+    let out = setpoints.clone();
+    b.periodic(servo, "pid", 1, move |ctx| {
+        out.try_put(ctx.activation()).unwrap();
+        let cost = if ctx.activation() == 5 { 1_200 } else { 50 };
+        ctx.consume(Duration::from_micros(cost));
+    });
+    let inbox = setpoints.clone();
+    let interp = b.event("interp", 50, setpoints.data_trigger(), move |ctx| {
+        let mut cost = 100;
+        while let Some(v) = inbox.try_get() {
+            if v == 8 {
+                cost = 400;
+            }
+        }
+        ctx.consume(Duration::from_micros(cost));
+        Next::Done
+    });
+    b.deadline(interp, Duration::from_micros(300));
+    let mut sim = VirtualRunner::new(b.build().unwrap());
+    sim.run_for(Duration::from_millis(10)).unwrap();
+
+    // Worked out by hand (µs): activation 2: read inputs runs 2000..2150, its deadline is
+    // 2100. Activation 5: pid runs 5020..6220 past the period (6000) and release 6000 is
+    // skipped; interp, woken by pid's put at 5020, can only run 6220..6320 (deadline 5320).
+    // Activation 8: interp runs 8070..8470 (deadline 8020 + 300 = 8320).
+    let monitor = sim.recording().monitor();
+    let got: Vec<(u64, String, u64)> = monitor
+        .raw_faults()
+        .iter()
+        .map(|f| {
+            let name = monitor.tasks()[f.task].name().to_string();
+            (f.time.as_nanos() / US, name, f.detail / US)
+        })
+        .collect();
+    assert_eq!(
+        got,
+        vec![
+            (2_150, "read inputs".to_string(), 50),
+            (6_220, "pid".to_string(), 220),
+            (6_320, "interp".to_string(), 1_000),
+            (8_470, "interp".to_string(), 150),
+        ]
+    );
+    assert_eq!(monitor.task("pid").unwrap().stats().skipped_releases, 1);
+    assert_eq!(monitor.task("interp").unwrap().stats().deadline_misses, 2);
+
+    let mut b = TaskSet::builder();
+    let t = b.periodic_thread("servo", Duration::from_millis(1), 100);
+    let task = b.periodic(t, "pid", 1, |_| {});
+    b.deadline(task, Duration::ZERO);
+    assert_eq!(
+        b.build().err().unwrap().to_string(),
+        "task 'pid': deadline must be greater than zero"
+    );
+    let mut b = TaskSet::builder();
+    let task = b.background("self test", |_| Next::Done);
+    b.deadline(task, Duration::from_millis(1));
+    assert_eq!(b.build().err().unwrap().code(), "deadline_on_background");
+}
