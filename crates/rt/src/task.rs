@@ -185,6 +185,14 @@ pub struct ThreadId(usize);
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct TaskId(usize);
 
+impl TaskId {
+    /// Position of the task in declaration order: its index in [`Monitor::tasks`] and in
+    /// [`crate::Fault::task`].
+    pub fn index(self) -> usize {
+        self.0
+    }
+}
+
 struct ThreadDecl {
     name: String,
     period: Duration,
