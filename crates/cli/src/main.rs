@@ -21,12 +21,15 @@ struct Cli {
 #[derive(Debug, Subcommand)]
 enum Command {
     Latency(commands::latency::Args),
+    /// Interpret a G-code program: report errors or print the canonical commands.
+    Check(commands::check::Args),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result: anyhow::Result<ExitCode> = match cli.command {
         Command::Latency(args) => commands::latency::run(args),
+        Command::Check(args) => commands::check::run(args),
     };
     match result {
         Ok(code) => code,

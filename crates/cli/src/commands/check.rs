@@ -1,0 +1,125 @@
+//! `rtcnc check PROGRAM`: interpret a G-code program without a machine, report every error,
+//! or print the canonical command stream in the text form of LinuxCNC's `rs274`.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context;
+use rtcnc_gcode::canon::{CanonCommand, Units};
+use rtcnc_gcode::{Interpreter, Parameters, Settings, ToolTable};
+
+/// Arguments of `rtcnc check`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The G-code program.
+    program: PathBuf,
+    /// Tool table in LinuxCNC `.tbl` format.
+    #[arg(long, value_name = "FILE")]
+    tool_table: Option<PathBuf>,
+    /// Parameter file in LinuxCNC `.var` format (work offsets, G92, homes); read only.
+    #[arg(long, value_name = "FILE")]
+    params: Option<PathBuf>,
+    /// Print the canonical commands, one per line, as LinuxCNC's rs274 prints them.
+    #[arg(long)]
+    canon: bool,
+    /// Prefix every canonical line with rs274's N-word column.
+    #[arg(long, requires = "canon")]
+    line_numbers: bool,
+    /// Units of the tool table and parameter file (rs274 uses inches).
+    #[arg(long, value_name = "mm|inch", default_value = "mm")]
+    user_units: String,
+    /// Folder searched for subroutine files (repeatable).
+    #[arg(long = "subroutine-path", value_name = "DIR")]
+    subroutine_path: Vec<PathBuf>,
+    /// Skip lines that start with '/'.
+    #[arg(long)]
+    block_delete: bool,
+}
+
+/// Most errors reported before giving up.
+const MAX_ERRORS: usize = 100;
+
+/// Runs `rtcnc check`.
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let user_units = match args.user_units.as_str() {
+        "mm" => Units::Mm,
+        "inch" | "in" => Units::Inches,
+        other => anyhow::bail!("--user-units must be mm or inch, not {other}"),
+    };
+    let tools = match &args.tool_table {
+        Some(p) => ToolTable::load(p)?,
+        None => ToolTable::new(),
+    };
+    let params = match &args.params {
+        Some(p) => Parameters::load(p)?,
+        None => Parameters::new(),
+    };
+    let settings = Settings {
+        user_units,
+        subroutine_path: args.subroutine_path.clone(),
+        block_delete: args.block_delete,
+        ..Settings::default()
+    };
+    let mut interp = Interpreter::new(settings, tools, params);
+    let stdout = std::io::stdout();
+    let mut out = std::io::BufWriter::with_capacity(1 << 16, stdout.lock());
+    let mut buf = Vec::with_capacity(1 << 16);
+    let mut commands: u64 = 0;
+    let mut errors = 0usize;
+    interp
+        .open(&args.program)
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    loop {
+        match interp.next_canon() {
+            Some(Ok(c)) => {
+                commands += 1;
+                if let CanonCommand::Print(text) = &c.command {
+                    eprintln!("{text}");
+                }
+                if args.canon {
+                    c.write_rs274(&mut buf, args.line_numbers);
+                    if buf.len() >= 60 * 1024 {
+                        out.write_all(&buf)
+                            .context("writing the canonical output")?;
+                        buf.clear();
+                    }
+                }
+            }
+            Some(Err(e)) => {
+                errors += 1;
+                out.write_all(&buf)?;
+                buf.clear();
+                out.flush()?;
+                eprintln!("{e}");
+                // rs274 stops at the first error; without --canon keep looking for more.
+                if args.canon || errors >= MAX_ERRORS || !interp.resume_after_error() {
+                    break;
+                }
+            }
+            None => break,
+        }
+    }
+    if args.canon {
+        // rs274 resets the interpreter as it exits.
+        buf.extend_from_slice(b"ON_RESET()\n");
+    }
+    out.write_all(&buf)?;
+    out.flush()?;
+    drop(out);
+    if !args.canon {
+        if errors == 0 {
+            println!(
+                "{}: no errors, {commands} canonical commands",
+                args.program.display()
+            );
+        } else {
+            println!("{}: {errors} error(s)", args.program.display());
+        }
+    }
+    Ok(if errors == 0 {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}

@@ -1,0 +1,959 @@
+//! Canonical machining commands: what the interpreter emits, what tool compensation consumes
+//! and produces, and what the motion kernel executes.
+//!
+//! The vocabulary and argument order are those of LinuxCNC's canonical interface as its
+//! stand-alone interpreter `rs274` prints them, so that [`Canon::write_rs274`] output can be
+//! diffed line by line with `rs274`'s. Lengths are in the program's current length units
+//! (the last [`CanonCommand::UseLengthUnits`] says which), angles in degrees, feed rates in
+//! length units per minute (or per revolution in [`FeedMode::UnitsPerRevolution`]), times in
+//! seconds. Coordinates are in the current work coordinate system; the consumer applies the
+//! offsets it was told about: `machine = rotate(program + g92, rotation) + g5x`, and the tool
+//! length offset on top.
+
+use std::borrow::Cow;
+
+/// Identifies a source file of one interpreter run (0 is the main program; subroutine files
+/// get the next numbers, see `Interpreter::file_name`).
+pub type FileId = u16;
+
+/// Where a canonical command came from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Source {
+    /// File the block was read from.
+    pub file: FileId,
+    /// 1-based line number in that file (0 for commands that belong to no block, like the
+    /// start-up preamble).
+    pub line: u32,
+    /// The block's N word, if it had one.
+    pub n: Option<u32>,
+}
+
+/// A position of all nine axes (X Y Z linear, A B C rotary, U V W linear).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Pose {
+    /// X axis.
+    pub x: f64,
+    /// Y axis.
+    pub y: f64,
+    /// Z axis.
+    pub z: f64,
+    /// A axis (degrees).
+    pub a: f64,
+    /// B axis (degrees).
+    pub b: f64,
+    /// C axis (degrees).
+    pub c: f64,
+    /// U axis.
+    pub u: f64,
+    /// V axis.
+    pub v: f64,
+    /// W axis.
+    pub w: f64,
+}
+
+impl Pose {
+    /// All axes at zero.
+    pub const ZERO: Pose = Pose {
+        x: 0.0,
+        y: 0.0,
+        z: 0.0,
+        a: 0.0,
+        b: 0.0,
+        c: 0.0,
+        u: 0.0,
+        v: 0.0,
+        w: 0.0,
+    };
+
+    /// The nine coordinates in the order X Y Z A B C U V W.
+    pub fn to_array(&self) -> [f64; 9] {
+        [
+            self.x, self.y, self.z, self.a, self.b, self.c, self.u, self.v, self.w,
+        ]
+    }
+
+    /// Builds a pose from coordinates in the order X Y Z A B C U V W.
+    pub fn from_array(v: [f64; 9]) -> Pose {
+        Pose {
+            x: v[0],
+            y: v[1],
+            z: v[2],
+            a: v[3],
+            b: v[4],
+            c: v[5],
+            u: v[6],
+            v: v[7],
+            w: v[8],
+        }
+    }
+}
+
+/// Length units.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Units {
+    /// Millimetres (G21).
+    Mm,
+    /// Inches (G20).
+    Inches,
+}
+
+impl Units {
+    /// How many millimetres one unit is.
+    pub fn mm_per_unit(self) -> f64 {
+        match self {
+            Units::Mm => 1.0,
+            Units::Inches => 25.4,
+        }
+    }
+}
+
+/// The plane of arcs, canned cycles and cutter compensation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Plane {
+    /// G17.
+    XY,
+    /// G18 (arcs use Z as first and X as second axis).
+    XZ,
+    /// G19.
+    YZ,
+    /// G17.1.
+    UV,
+    /// G18.1.
+    WU,
+    /// G19.1.
+    VW,
+}
+
+/// Path control mode (G61, G61.1, G64).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PathMode {
+    /// G61.1: stop at the end of every move.
+    ExactStop,
+    /// G61: follow the path exactly, may keep speed through tangent corners.
+    ExactPath,
+    /// G64 P: blend corners within `tolerance` (0 = as fast as possible).
+    Continuous {
+        /// Maximum deviation from the programmed path.
+        tolerance: f64,
+    },
+}
+
+/// How F is to be read.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FeedMode {
+    /// G94: units per minute.
+    UnitsPerMinute,
+    /// G93: the interpreter already turned each move's inverse time into units per minute.
+    InverseTime,
+    /// G95: units per spindle revolution.
+    UnitsPerRevolution,
+}
+
+/// Spindle rotation direction.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SpindleDirection {
+    /// M3.
+    Clockwise,
+    /// M4.
+    CounterClockwise,
+}
+
+/// Side of the path the cutter keeps to under radius compensation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CompensationSide {
+    /// G41 / G41.1.
+    Left,
+    /// G42 / G42.1.
+    Right,
+}
+
+/// Which G38 probing move.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ProbeKind {
+    /// G38.2: towards the workpiece, error if the probe does not trip.
+    TowardError,
+    /// G38.3: towards the workpiece, no error.
+    Toward,
+    /// G38.4: away from the workpiece, error if the probe does not release.
+    AwayError,
+    /// G38.5: away from the workpiece, no error.
+    Away,
+}
+
+/// Condition of an M66 wait.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WaitMode {
+    /// L0: read the input now, no waiting.
+    Immediate,
+    /// L1: wait for a rising edge.
+    Rise,
+    /// L2: wait for a falling edge.
+    Fall,
+    /// L3: wait for the input to be high (analog: above 0... see M66 docs).
+    High,
+    /// L4: wait for the input to be low.
+    Low,
+}
+
+/// An arc (or helix) in the selected plane, in the argument order of LinuxCNC's `ARC_FEED`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Arc {
+    /// End point on the plane's first axis (X in G17, Z in G18, Y in G19).
+    pub first_end: f64,
+    /// End point on the plane's second axis (Y in G17, X in G18, Z in G19).
+    pub second_end: f64,
+    /// Centre on the first axis.
+    pub first_axis: f64,
+    /// Centre on the second axis.
+    pub second_axis: f64,
+    /// Turns: +n counter-clockwise, -n clockwise, |n| - 1 extra full turns.
+    pub rotation: i32,
+    /// End point on the axis normal to the plane (helix).
+    pub axis_end_point: f64,
+    /// A axis end.
+    pub a: f64,
+    /// B axis end.
+    pub b: f64,
+    /// C axis end.
+    pub c: f64,
+    /// U axis end.
+    pub u: f64,
+    /// V axis end.
+    pub v: f64,
+    /// W axis end.
+    pub w: f64,
+}
+
+/// A G5 (cubic) or G5.1 (quadratic) spline in the XY plane, as Bézier control points.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Spline {
+    /// 4 for a cubic (G5), 3 for a quadratic (G5.1) spline.
+    pub order: u8,
+    /// First control point after the start point (X, Y).
+    pub p1: [f64; 2],
+    /// Second control point (cubic only; equal to `p1` for a quadratic spline).
+    pub p2: [f64; 2],
+    /// End point (X, Y).
+    pub end: [f64; 2],
+}
+
+/// A tool table entry as G10 L1/L10/L11 sets it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ToolEntry {
+    /// Pocket number.
+    pub pocket: i32,
+    /// Tool number.
+    pub tool: i32,
+    /// Offsets of all nine axes, in the tool table's (user) units.
+    pub offset: Pose,
+    /// Diameter, in user units.
+    pub diameter: f64,
+    /// Lathe front angle.
+    pub front_angle: f64,
+    /// Lathe back angle.
+    pub back_angle: f64,
+    /// Lathe orientation (0-9).
+    pub orientation: i32,
+}
+
+/// Text carried by a command: most are fixed strings of the interpreter.
+pub type Text = Cow<'static, str>;
+
+/// One canonical machining command.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CanonCommand {
+    /// The following lengths are in these units.
+    UseLengthUnits(Units),
+    /// Offset of work coordinate system `index` (1 = G54 ... 9 = G59.3), now active.
+    SetG5xOffset {
+        /// 1..=9.
+        index: u8,
+        /// The offset, in the current length units.
+        offset: Pose,
+    },
+    /// G92 offset now in force.
+    SetG92Offset(Pose),
+    /// Rotation of the XY plane of the active work coordinate system, degrees.
+    SetXyRotation(f64),
+    /// Feed rates refer to the XYZ path (the only reference LinuxCNC uses).
+    SetFeedReference,
+    /// The interpreter was reset: all transient machine state returns to its default.
+    OnReset,
+    /// A program comment or an interpreter note.
+    Comment(Text),
+    /// An operator message: `(MSG,...)` or `(DEBUG,...)`.
+    Message(Text),
+    /// `(PRINT,...)` text: for a log, not for the operator (rs274 prints it outside its
+    /// canonical stream).
+    Print(Text),
+    /// Arc / canned cycle / compensation plane.
+    SelectPlane(Plane),
+    /// G61 / G61.1 / G64.
+    SetMotionControlMode(PathMode),
+    /// G64 Q: co-linear segments may be merged within this tolerance.
+    SetNaivecamTolerance(f64),
+    /// G93 / G94 / G95.
+    SetFeedMode {
+        /// Spindle the per-revolution mode refers to.
+        spindle: u8,
+        /// The mode.
+        mode: FeedMode,
+    },
+    /// Feed rate for the following feed moves.
+    SetFeedRate(f64),
+    /// Spindle speed (rpm, or surface speed in constant surface speed mode).
+    SetSpindleSpeed {
+        /// Spindle number.
+        spindle: u8,
+        /// Speed.
+        speed: f64,
+    },
+    /// M3 / M4.
+    StartSpindle {
+        /// Spindle number.
+        spindle: u8,
+        /// Direction.
+        direction: SpindleDirection,
+    },
+    /// M5 (also before a tool change).
+    StopSpindle {
+        /// Spindle number.
+        spindle: u8,
+    },
+    /// G96 (constant surface speed with a maximum rpm) or G97 (`max_rpm` 0: plain rpm).
+    SetSpindleMode {
+        /// Spindle number.
+        spindle: u8,
+        /// 0 for G97; the D word of G96 (0 = no limit) otherwise.
+        max_rpm: f64,
+        /// True in G96.
+        constant_surface_speed: bool,
+    },
+    /// M19: orient the spindle.
+    OrientSpindle {
+        /// Spindle number.
+        spindle: u8,
+        /// Angle, degrees.
+        angle: f64,
+        /// P: 0 shortest way, 1 clockwise, 2 counter-clockwise.
+        mode: i32,
+    },
+    /// M19 Q: wait (at most `timeout` seconds) for the orientation to finish.
+    WaitOrientComplete {
+        /// Spindle number.
+        spindle: u8,
+        /// Seconds.
+        timeout: f64,
+    },
+    /// T word: prepare this tool.
+    SelectTool(i32),
+    /// M6 begins.
+    StartChange,
+    /// M6: change to the tool of this pocket (0 = no tool).
+    ChangeTool(i32),
+    /// M61: the spindle now holds this tool (no motion).
+    ChangeToolNumber(i32),
+    /// G43 / G43.1 / G43.2 / G49: tool length offset now in force.
+    UseToolLengthOffset(Pose),
+    /// G10 L1 / L10 / L11: a tool table entry was changed.
+    SetToolTableEntry(ToolEntry),
+    /// G4.
+    Dwell(f64),
+    /// G0 and the rapid parts of cycles.
+    StraightTraverse(Pose),
+    /// G1 and the feed parts of cycles.
+    StraightFeed(Pose),
+    /// G2 / G3.
+    ArcFeed(Arc),
+    /// G5 / G5.1.
+    SplineFeed(Spline),
+    /// Before a G38 move.
+    TurnProbeOn,
+    /// After a G38 move.
+    TurnProbeOff,
+    /// G38.2 - G38.5 straight probing move.
+    StraightProbe {
+        /// End point.
+        end: Pose,
+        /// Which probe move.
+        kind: ProbeKind,
+    },
+    /// M62 / M63 (`synchronized`, with the next move) or M64 / M65 (at once).
+    SetDigitalOutput {
+        /// Output number.
+        index: u32,
+        /// On (M62/M64) or off (M63/M65).
+        on: bool,
+        /// True for M62/M63.
+        synchronized: bool,
+    },
+    /// M67 (`synchronized`) / M68 analog output.
+    SetAnalogOutput {
+        /// Output number.
+        index: u32,
+        /// Value.
+        value: f64,
+        /// True for M67.
+        synchronized: bool,
+    },
+    /// M66: wait for an input.
+    WaitInput {
+        /// Digital (P) or analog (E) input.
+        digital: bool,
+        /// Input number.
+        index: u32,
+        /// Condition.
+        mode: WaitMode,
+        /// Seconds (0 = do not wait).
+        timeout: f64,
+    },
+    /// M7.
+    MistOn,
+    /// M9.
+    MistOff,
+    /// M8.
+    FloodOn,
+    /// M9.
+    FloodOff,
+    /// M48 / M49 / M50.
+    FeedOverride(bool),
+    /// M48 / M49 / M51.
+    SpeedOverride {
+        /// Spindle number.
+        spindle: u8,
+        /// Enabled.
+        enable: bool,
+    },
+    /// M52.
+    AdaptiveFeed(bool),
+    /// M53.
+    FeedHold(bool),
+    /// G41 / G42 / G41.1 / G42.1: start cutter radius compensation.
+    StartCutterRadiusCompensation {
+        /// Side of the path.
+        side: CompensationSide,
+        /// Tool radius in the current length units (from the tool table or the D word).
+        radius: f64,
+        /// Lathe tool orientation (L word of G41.1/G42.1, or the tool table's).
+        orientation: i32,
+    },
+    /// G40.
+    StopCutterRadiusCompensation,
+    /// M100 - M199: passed on to the machine logic.
+    UserMCode {
+        /// 100..=199.
+        code: u16,
+        /// P word.
+        p: Option<f64>,
+        /// Q word.
+        q: Option<f64>,
+    },
+    /// M0 / M60 (after the shuttle).
+    ProgramStop,
+    /// M1.
+    OptionalProgramStop,
+    /// M60.
+    PalletShuttle,
+    /// M2 / M30.
+    ProgramEnd,
+    /// The program ended at its closing `%` (no M2 resets): finish queued motion.
+    Finish,
+}
+
+/// A canonical command with the place in the program it came from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Canon {
+    /// Where it came from.
+    pub source: Source,
+    /// What to do.
+    pub command: CanonCommand,
+}
+
+impl Canon {
+    /// Appends this command as `rs274` prints it (one line, with newline) to `out`, and
+    /// returns false (appending nothing) for commands `rs274` does not print: `(PRINT,...)`
+    /// text and M66 waits. `with_n` prefixes the `N.....` column of `rs274`.
+    ///
+    /// Differences: U/V/W coordinates are printed as three more numbers when any of them is
+    /// non-zero (rs274 has no U/V/W), M100-M199 print as `USER_M_CODE(code, p, q)`.
+    pub fn write_rs274(&self, out: &mut Vec<u8>, with_n: bool) -> bool {
+        use CanonCommand as C;
+        if matches!(self.command, C::Print(_) | C::WaitInput { .. }) {
+            return false;
+        }
+        if with_n {
+            match self.source.n {
+                Some(n) => {
+                    out.push(b'N');
+                    let start = out.len();
+                    push_int(out, i64::from(n));
+                    let width = out.len() - start;
+                    for _ in width..6 {
+                        out.push(b' ');
+                    }
+                }
+                None => out.extend_from_slice(b"N..... "),
+            }
+        }
+        let o = out;
+        match &self.command {
+            C::UseLengthUnits(u) => {
+                o.extend_from_slice(match u {
+                    Units::Mm => b"USE_LENGTH_UNITS(CANON_UNITS_MM)",
+                    Units::Inches => b"USE_LENGTH_UNITS(CANON_UNITS_INCHES)",
+                });
+            }
+            C::SetG5xOffset { index, offset } => {
+                o.extend_from_slice(b"SET_G5X_OFFSET(");
+                push_int(o, i64::from(*index));
+                o.extend_from_slice(b", ");
+                push_pose(o, offset);
+                o.push(b')');
+            }
+            C::SetG92Offset(p) => call_pose(o, b"SET_G92_OFFSET(", p),
+            C::SetXyRotation(r) => call_f4(o, b"SET_XY_ROTATION(", *r),
+            C::SetFeedReference => o.extend_from_slice(b"SET_FEED_REFERENCE(CANON_XYZ)"),
+            C::OnReset => o.extend_from_slice(b"ON_RESET()"),
+            C::Comment(t) => call_text(o, b"COMMENT(\"", t),
+            C::Message(t) => call_text(o, b"MESSAGE(\"", t),
+            C::Print(_) | C::WaitInput { .. } => {}
+            C::SelectPlane(p) => {
+                o.extend_from_slice(b"SELECT_PLANE(");
+                o.extend_from_slice(match p {
+                    Plane::XY => b"CANON_PLANE_XY".as_slice(),
+                    Plane::XZ => b"CANON_PLANE_XZ",
+                    Plane::YZ => b"CANON_PLANE_YZ",
+                    // rs274's printer knows only the three XYZ planes.
+                    Plane::UV | Plane::WU | Plane::VW => b"CANON_PLANE_UNKNOWN",
+                });
+                o.push(b')');
+            }
+            C::SetMotionControlMode(m) => match m {
+                PathMode::ExactStop => {
+                    o.extend_from_slice(b"SET_MOTION_CONTROL_MODE(CANON_EXACT_STOP)")
+                }
+                PathMode::ExactPath => {
+                    o.extend_from_slice(b"SET_MOTION_CONTROL_MODE(CANON_EXACT_PATH)")
+                }
+                PathMode::Continuous { tolerance } => {
+                    o.extend_from_slice(b"SET_MOTION_CONTROL_MODE(CANON_CONTINUOUS, ");
+                    push_fixed(o, *tolerance, 6);
+                    o.push(b')');
+                }
+            },
+            C::SetNaivecamTolerance(t) => call_f4(o, b"SET_NAIVECAM_TOLERANCE(", *t),
+            C::SetFeedMode { spindle, mode } => {
+                o.extend_from_slice(b"SET_FEED_MODE(");
+                push_int(o, i64::from(*spindle));
+                o.extend_from_slice(match mode {
+                    FeedMode::UnitsPerRevolution => b", 1)",
+                    FeedMode::UnitsPerMinute | FeedMode::InverseTime => b", 0)",
+                });
+            }
+            C::SetFeedRate(f) => call_f4(o, b"SET_FEED_RATE(", *f),
+            C::SetSpindleSpeed { spindle, speed } => {
+                o.extend_from_slice(b"SET_SPINDLE_SPEED(");
+                push_int(o, i64::from(*spindle));
+                o.extend_from_slice(b", ");
+                push_fixed(o, *speed, 4);
+                o.push(b')');
+            }
+            C::StartSpindle { spindle, direction } => {
+                o.extend_from_slice(match direction {
+                    SpindleDirection::Clockwise => b"START_SPINDLE_CLOCKWISE(".as_slice(),
+                    SpindleDirection::CounterClockwise => b"START_SPINDLE_COUNTERCLOCKWISE(",
+                });
+                push_int(o, i64::from(*spindle));
+                o.push(b')');
+            }
+            C::StopSpindle { spindle } => {
+                o.extend_from_slice(b"STOP_SPINDLE_TURNING(");
+                push_int(o, i64::from(*spindle));
+                o.push(b')');
+            }
+            C::SetSpindleMode {
+                spindle, max_rpm, ..
+            } => {
+                // rs274 prints no comma here.
+                o.extend_from_slice(b"SET_SPINDLE_MODE(");
+                push_int(o, i64::from(*spindle));
+                o.push(b' ');
+                push_fixed(o, *max_rpm, 4);
+                o.push(b')');
+            }
+            C::OrientSpindle {
+                spindle,
+                angle,
+                mode,
+            } => {
+                o.extend_from_slice(b"ORIENT_SPINDLE(");
+                push_int(o, i64::from(*spindle));
+                o.extend_from_slice(b", ");
+                push_fixed(o, *angle, 4);
+                o.extend_from_slice(b", ");
+                push_int(o, i64::from(*mode));
+                o.push(b')');
+            }
+            C::WaitOrientComplete { spindle, timeout } => {
+                o.extend_from_slice(b"SPINDLE.");
+                push_int(o, i64::from(*spindle));
+                call_f4(o, b".WAIT_ORIENT_COMPLETE(", *timeout);
+            }
+            C::SelectTool(t) => call_int(o, b"SELECT_TOOL(", i64::from(*t)),
+            C::StartChange => o.extend_from_slice(b"START_CHANGE()"),
+            C::ChangeTool(p) => call_int(o, b"CHANGE_TOOL(", i64::from(*p)),
+            C::ChangeToolNumber(t) => call_int(o, b"CHANGE_TOOL_NUMBER(", i64::from(*t)),
+            C::UseToolLengthOffset(p) => {
+                o.extend_from_slice(b"USE_TOOL_LENGTH_OFFSET(");
+                let v = p.to_array();
+                for (i, x) in v.iter().enumerate() {
+                    if i > 0 {
+                        o.extend_from_slice(if i % 3 == 0 { b", " } else { b" " });
+                    }
+                    push_fixed(o, *x, 4);
+                }
+                o.push(b')');
+            }
+            C::SetToolTableEntry(e) => {
+                o.extend_from_slice(b"SET_TOOL_TABLE_ENTRY(");
+                push_int(o, i64::from(e.pocket));
+                o.extend_from_slice(b", ");
+                push_int(o, i64::from(e.tool));
+                o.extend_from_slice(b", ");
+                for (i, x) in e.offset.to_array().iter().enumerate() {
+                    if i > 0 {
+                        o.push(b' ');
+                    }
+                    push_fixed(o, *x, 4);
+                }
+                o.extend_from_slice(b", ");
+                push_fixed(o, e.front_angle, 4);
+                o.extend_from_slice(b", ");
+                push_fixed(o, e.back_angle, 4);
+                o.extend_from_slice(b", ");
+                push_int(o, i64::from(e.orientation));
+                o.push(b')');
+            }
+            C::Dwell(t) => call_f4(o, b"DWELL(", *t),
+            C::StraightTraverse(p) => call_pose(o, b"STRAIGHT_TRAVERSE(", p),
+            C::StraightFeed(p) => call_pose(o, b"STRAIGHT_FEED(", p),
+            C::ArcFeed(a) => {
+                o.extend_from_slice(b"ARC_FEED(");
+                for x in [a.first_end, a.second_end, a.first_axis, a.second_axis] {
+                    push_fixed(o, x, 4);
+                    o.extend_from_slice(b", ");
+                }
+                push_int(o, i64::from(a.rotation));
+                for x in [a.axis_end_point, a.a, a.b, a.c] {
+                    o.extend_from_slice(b", ");
+                    push_fixed(o, x, 4);
+                }
+                if a.u != 0.0 || a.v != 0.0 || a.w != 0.0 {
+                    for x in [a.u, a.v, a.w] {
+                        o.extend_from_slice(b", ");
+                        push_fixed(o, x, 4);
+                    }
+                }
+                o.push(b')');
+            }
+            C::SplineFeed(s) => {
+                // rs274 prints only the order of the NURBS it builds.
+                o.extend_from_slice(b"NURBS_FEED(");
+                push_int(o, i64::from(s.order));
+                o.extend_from_slice(b", ...)");
+            }
+            C::TurnProbeOn => o.extend_from_slice(b"TURN_PROBE_ON()"),
+            C::TurnProbeOff => o.extend_from_slice(b"TURN_PROBE_OFF()"),
+            C::StraightProbe { end, .. } => call_pose(o, b"STRAIGHT_PROBE(", end),
+            C::SetDigitalOutput {
+                index,
+                on,
+                synchronized,
+            } => {
+                let name: &[u8] = match (on, synchronized) {
+                    (true, true) => b"SET_MOTION_OUTPUT_BIT(",
+                    (false, true) => b"CLEAR_MOTION_OUTPUT_BIT(",
+                    (true, false) => b"SET_AUX_OUTPUT_BIT(",
+                    (false, false) => b"CLEAR_AUX_OUTPUT_BIT(",
+                };
+                call_int(o, name, i64::from(*index));
+            }
+            C::SetAnalogOutput {
+                index,
+                value,
+                synchronized,
+            } => {
+                o.extend_from_slice(if *synchronized {
+                    b"SET_MOTION_OUTPUT_VALUE(".as_slice()
+                } else {
+                    b"SET_AUX_OUTPUT_VALUE("
+                });
+                push_int(o, i64::from(*index));
+                o.push(b',');
+                push_fixed(o, *value, 6);
+                o.push(b')');
+            }
+            C::MistOn => o.extend_from_slice(b"MIST_ON()"),
+            C::MistOff => o.extend_from_slice(b"MIST_OFF()"),
+            C::FloodOn => o.extend_from_slice(b"FLOOD_ON()"),
+            C::FloodOff => o.extend_from_slice(b"FLOOD_OFF()"),
+            C::FeedOverride(on) => o.extend_from_slice(if *on {
+                b"ENABLE_FEED_OVERRIDE()".as_slice()
+            } else {
+                b"DISABLE_FEED_OVERRIDE()"
+            }),
+            C::SpeedOverride { spindle, enable } => {
+                let name: &[u8] = if *enable {
+                    b"ENABLE_SPEED_OVERRIDE("
+                } else {
+                    b"DISABLE_SPEED_OVERRIDE("
+                };
+                call_int(o, name, i64::from(*spindle));
+            }
+            C::AdaptiveFeed(on) => o.extend_from_slice(if *on {
+                b"ENABLE_ADAPTIVE_FEED()".as_slice()
+            } else {
+                b"DISABLE_ADAPTIVE_FEED()"
+            }),
+            C::FeedHold(on) => o.extend_from_slice(if *on {
+                b"ENABLE_FEED_HOLD()".as_slice()
+            } else {
+                b"DISABLE_FEED_HOLD()"
+            }),
+            // LinuxCNC compensates inside its interpreter and only notes the change.
+            C::StartCutterRadiusCompensation { side, .. } => o.extend_from_slice(match side {
+                CompensationSide::Left => {
+                    b"COMMENT(\"interpreter: cutter radius compensation on left\")".as_slice()
+                }
+                CompensationSide::Right => {
+                    b"COMMENT(\"interpreter: cutter radius compensation on right\")"
+                }
+            }),
+            C::StopCutterRadiusCompensation => o.extend_from_slice(
+                b"COMMENT(\"interpreter: cutter radius compensation off\")".as_slice(),
+            ),
+            C::UserMCode { code, p, q } => {
+                o.extend_from_slice(b"USER_M_CODE(");
+                push_int(o, i64::from(*code));
+                for w in [p, q] {
+                    o.extend_from_slice(b", ");
+                    push_fixed(o, w.unwrap_or(0.0), 4);
+                }
+                o.push(b')');
+            }
+            C::ProgramStop => o.extend_from_slice(b"PROGRAM_STOP()"),
+            C::OptionalProgramStop => o.extend_from_slice(b"OPTIONAL_PROGRAM_STOP()"),
+            C::PalletShuttle => o.extend_from_slice(b"PALLET_SHUTTLE()"),
+            C::ProgramEnd => o.extend_from_slice(b"PROGRAM_END()"),
+            C::Finish => o.extend_from_slice(b"FINISH()"),
+        }
+        o.push(b'\n');
+        true
+    }
+}
+
+fn call_pose(o: &mut Vec<u8>, name: &[u8], p: &Pose) {
+    o.extend_from_slice(name);
+    push_pose(o, p);
+    o.push(b')');
+}
+
+fn call_f4(o: &mut Vec<u8>, name: &[u8], v: f64) {
+    o.extend_from_slice(name);
+    push_fixed(o, v, 4);
+    o.push(b')');
+}
+
+fn call_int(o: &mut Vec<u8>, name: &[u8], v: i64) {
+    o.extend_from_slice(name);
+    push_int(o, v);
+    o.push(b')');
+}
+
+fn call_text(o: &mut Vec<u8>, name: &[u8], t: &str) {
+    o.extend_from_slice(name);
+    o.extend_from_slice(t.as_bytes());
+    o.extend_from_slice(b"\")");
+}
+
+/// X, Y, Z, A, B, C (and U, V, W when any is non-zero), comma separated.
+fn push_pose(o: &mut Vec<u8>, p: &Pose) {
+    let n = if p.u != 0.0 || p.v != 0.0 || p.w != 0.0 {
+        9
+    } else {
+        6
+    };
+    for (i, x) in p.to_array()[..n].iter().enumerate() {
+        if i > 0 {
+            o.extend_from_slice(b", ");
+        }
+        push_fixed(o, *x, 4);
+    }
+}
+
+/// Appends a decimal integer.
+pub(crate) fn push_int(o: &mut Vec<u8>, v: i64) {
+    let mut digits = [0u8; 20];
+    let mut n = v.unsigned_abs();
+    let mut i = digits.len();
+    loop {
+        i -= 1;
+        digits[i] = b'0' + (n % 10) as u8;
+        n /= 10;
+        if n == 0 {
+            break;
+        }
+    }
+    if v < 0 {
+        o.push(b'-');
+    }
+    push_small(o, &digits[i..]);
+}
+
+/// Appends a few bytes one by one: for the short pieces of a number this is faster than
+/// a call to `memcpy`.
+#[inline]
+fn push_small(o: &mut Vec<u8>, bytes: &[u8]) {
+    o.reserve(bytes.len());
+    for &b in bytes {
+        o.push(b);
+    }
+}
+
+/// Appends `v` with `decimals` digits after the point, like C's `%.Nf`, except that a value
+/// that rounds to zero is printed without a minus sign.
+pub(crate) fn push_fixed(o: &mut Vec<u8>, v: f64, decimals: u32) {
+    const SCALE: [f64; 7] = [1.0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6];
+    let d = decimals.min(6) as usize;
+    let scaled = v * SCALE[d];
+    if !scaled.is_finite() || scaled.abs() >= 9.0e15 {
+        use std::io::Write;
+        // Rare: huge or non-finite values take the exact (slower) path.
+        let _ = write!(o, "{:.*}", d, v);
+        return;
+    }
+    let n = scaled.round() as i64;
+    if n == 0 {
+        const ZEROS: [&[u8]; 7] = [
+            b"0",
+            b"0.0",
+            b"0.00",
+            b"0.000",
+            b"0.0000",
+            b"0.00000",
+            b"0.000000",
+        ];
+        o.extend_from_slice(ZEROS[d]);
+        return;
+    }
+    // Digits are written backwards into a small buffer: fraction, point, integer, sign.
+    let mut buf = [0u8; 32];
+    let mut i = buf.len();
+    let mut m = n.unsigned_abs();
+    for _ in 0..d {
+        i -= 1;
+        buf[i] = b'0' + (m % 10) as u8;
+        m /= 10;
+    }
+    if d > 0 {
+        i -= 1;
+        buf[i] = b'.';
+    }
+    loop {
+        i -= 1;
+        buf[i] = b'0' + (m % 10) as u8;
+        m /= 10;
+        if m == 0 {
+            break;
+        }
+    }
+    if n < 0 {
+        i -= 1;
+        buf[i] = b'-';
+    }
+    push_small(o, &buf[i..]);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn line(c: CanonCommand) -> String {
+        let mut v = Vec::new();
+        Canon {
+            source: Source::default(),
+            command: c,
+        }
+        .write_rs274(&mut v, false);
+        String::from_utf8(v).unwrap()
+    }
+
+    #[test]
+    fn fixed_point_matches_printf() {
+        let mut v = Vec::new();
+        for (x, s) in [
+            (0.0, "0.0000"),
+            (-0.0, "0.0000"),
+            (-0.00001, "0.0000"),
+            (12.97940, "12.9794"),
+            (-1.5, "-1.5000"),
+            (0.123456, "0.1235"),
+            (1e17, "100000000000000000.0000"),
+        ] {
+            v.clear();
+            push_fixed(&mut v, x, 4);
+            assert_eq!(std::str::from_utf8(&v).unwrap(), s);
+        }
+    }
+
+    #[test]
+    fn lines_as_rs274_prints_them() {
+        // Expected texts are rs274 output lines (LinuxCNC 2.9).
+        assert_eq!(
+            line(CanonCommand::SetSpindleMode {
+                spindle: 0,
+                max_rpm: 2000.0,
+                constant_surface_speed: true
+            }),
+            "SET_SPINDLE_MODE(0 2000.0000)\n"
+        );
+        assert_eq!(
+            line(CanonCommand::UseToolLengthOffset(Pose {
+                z: 12.9794,
+                ..Pose::ZERO
+            })),
+            "USE_TOOL_LENGTH_OFFSET(0.0000 0.0000 12.9794, 0.0000 0.0000 0.0000, 0.0000 0.0000 0.0000)\n"
+        );
+        assert_eq!(
+            line(CanonCommand::SetMotionControlMode(PathMode::Continuous {
+                tolerance: 0.01
+            })),
+            "SET_MOTION_CONTROL_MODE(CANON_CONTINUOUS, 0.010000)\n"
+        );
+        assert_eq!(
+            line(CanonCommand::SetAnalogOutput {
+                index: 1,
+                value: 2.5,
+                synchronized: true
+            }),
+            "SET_MOTION_OUTPUT_VALUE(1,2.500000)\n"
+        );
+        assert_eq!(
+            line(CanonCommand::ArcFeed(Arc {
+                first_end: 2.0,
+                second_end: 1.0,
+                first_axis: 1.5,
+                second_axis: 0.5,
+                rotation: -1,
+                axis_end_point: 1.0,
+                a: 0.0,
+                b: 0.0,
+                c: 0.0,
+                u: 0.0,
+                v: 0.0,
+                w: 0.0
+            })),
+            "ARC_FEED(2.0000, 1.0000, 1.5000, 0.5000, -1, 1.0000, 0.0000, 0.0000, 0.0000)\n"
+        );
+    }
+}

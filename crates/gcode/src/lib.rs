@@ -1,0 +1,33 @@
+//! `rtcnc-gcode`: an RS274/NGC G-code interpreter in the dialect of LinuxCNC 2.9.
+//!
+//! The interpreter reads a program a line at a time (memory stays constant however long the
+//! program is: loops and subroutine calls remember file offsets, not lines) and yields
+//! [`Canon`] commands one at a time, each with the file and line it came from. Errors are
+//! [`GcodeError`] values naming file, line and column.
+//!
+//! ```no_run
+//! use rtcnc_gcode::{Interpreter, Parameters, Settings, ToolTable};
+//! let mut interp = Interpreter::new(Settings::default(), ToolTable::new(), Parameters::new());
+//! interp.open("part.ngc")?;
+//! for command in &mut interp {
+//!     let command = command?;
+//!     // hand `command` to the next stage (tool compensation, look-ahead)
+//! }
+//! # Ok::<(), rtcnc_gcode::GcodeError>(())
+//! ```
+
+mod block;
+pub mod canon;
+mod cycles;
+pub mod error;
+mod exec;
+mod interp;
+pub mod params;
+mod source;
+pub mod tools;
+
+pub use canon::{Canon, CanonCommand, Pose, Source};
+pub use error::{ErrorKind, GcodeError};
+pub use interp::{Interpreter, ModalState, Settings};
+pub use params::Parameters;
+pub use tools::{Tool, ToolTable};

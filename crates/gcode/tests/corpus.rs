@@ -1,0 +1,146 @@
+//! Runs every program of `tests/corpus/` and compares the canonical commands with the ones
+//! LinuxCNC 2.9's `rs274` printed for it (`NAME.canon`, made by `corpus/regenerate.sh`):
+//! same lines, same words, numbers equal within 1e-4; and an error exactly where rs274
+//! reported one (`NAME.err` not empty).
+
+use std::path::{Path, PathBuf};
+
+use rtcnc_gcode::{Interpreter, Parameters, Settings, ToolTable};
+
+fn corpus_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus")
+}
+
+/// Our output for one program, as rs274 (through canon.sh) would print it.
+fn run(program: &Path) -> (String, Option<String>) {
+    let dir = corpus_dir();
+    let settings = Settings {
+        subroutine_path: vec![dir.join("subs")],
+        ..Settings::rs274()
+    };
+    let tools = ToolTable::load(&dir.join("canon.tbl")).expect("canon.tbl");
+    let params = Parameters::load(&dir.join("canon.var")).expect("canon.var");
+    let mut interp = Interpreter::new(settings, tools, params);
+    interp.open(program).expect("open");
+    let mut out = Vec::new();
+    let mut error = None;
+    for c in &mut interp {
+        match c {
+            Ok(c) => {
+                c.write_rs274(&mut out, false);
+            }
+            Err(e) => {
+                error = Some(e.to_string());
+                break;
+            }
+        }
+    }
+    out.extend_from_slice(b"ON_RESET()\n");
+    (String::from_utf8(out).expect("utf8"), error)
+}
+
+/// Splits a line into text and numbers.
+fn tokens(line: &str) -> Vec<Result<f64, String>> {
+    let mut v = Vec::new();
+    let mut text = String::new();
+    let b = line.as_bytes();
+    let mut i = 0;
+    while i < b.len() {
+        let starts_number =
+            b[i].is_ascii_digit() || (b[i] == b'-' && i + 1 < b.len() && b[i + 1].is_ascii_digit());
+        if starts_number {
+            let start = i;
+            i += 1;
+            while i < b.len() && (b[i].is_ascii_digit() || b[i] == b'.') {
+                i += 1;
+            }
+            if !text.is_empty() {
+                v.push(Err(std::mem::take(&mut text)));
+            }
+            v.push(Ok(line[start..i].parse().unwrap_or(f64::NAN)));
+        } else {
+            text.push(b[i] as char);
+            i += 1;
+        }
+    }
+    if !text.is_empty() {
+        v.push(Err(text));
+    }
+    v
+}
+
+fn same_line(ours: &str, theirs: &str) -> bool {
+    let (a, b) = (tokens(ours), tokens(theirs));
+    a.len() == b.len()
+        && a.iter().zip(&b).all(|(x, y)| match (x, y) {
+            (Ok(x), Ok(y)) => (x - y).abs() <= 1e-4 + 1e-12 * y.abs(),
+            (Err(x), Err(y)) => x == y,
+            _ => false,
+        })
+}
+
+/// Compares one program; returns a description of the first difference.
+fn compare(program: &Path) -> Result<(), String> {
+    let expected =
+        std::fs::read_to_string(program.with_extension("canon")).map_err(|e| e.to_string())?;
+    let expected_err = std::fs::read_to_string(program.with_extension("err")).unwrap_or_default();
+    let (ours, error) = run(program);
+    let ours_lines: Vec<&str> = ours.lines().collect();
+    let their_lines: Vec<&str> = expected.lines().collect();
+    for (n, (a, b)) in ours_lines.iter().zip(&their_lines).enumerate() {
+        if !same_line(a, b) {
+            return Err(format!("line {}: ours `{a}`, rs274 `{b}`", n + 1));
+        }
+    }
+    if ours_lines.len() != their_lines.len() {
+        return Err(format!(
+            "{} lines, rs274 {} (first extra: ours `{}`, rs274 `{}`); our error: {:?}",
+            ours_lines.len(),
+            their_lines.len(),
+            ours_lines.get(their_lines.len()).unwrap_or(&""),
+            their_lines.get(ours_lines.len()).unwrap_or(&""),
+            error
+        ));
+    }
+    match (error, expected_err.trim().is_empty()) {
+        (Some(e), true) => Err(format!("we report `{e}`, rs274 reports no error")),
+        (None, false) => Err(format!(
+            "rs274 reports `{}`, we report no error",
+            expected_err.lines().next().unwrap_or("")
+        )),
+        _ => Ok(()),
+    }
+}
+
+#[test]
+fn corpus_matches_rs274() {
+    let mut programs: Vec<PathBuf> = std::fs::read_dir(corpus_dir())
+        .expect("corpus folder")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "ngc"))
+        .collect();
+    programs.sort();
+    assert!(
+        programs.len() >= 60,
+        "corpus has only {} programs",
+        programs.len()
+    );
+    let failures: Vec<String> = programs
+        .iter()
+        .filter_map(|p| {
+            compare(p).err().map(|e| {
+                format!(
+                    "{}: {e}",
+                    p.file_name().unwrap_or_default().to_string_lossy()
+                )
+            })
+        })
+        .collect();
+    assert!(
+        failures.is_empty(),
+        "{} of {} programs differ from rs274:\n{}",
+        failures.len(),
+        programs.len(),
+        failures.join("\n")
+    );
+}
