@@ -18,6 +18,7 @@
 
 mod block;
 pub mod canon;
+pub mod compensation;
 mod cycles;
 pub mod error;
 mod exec;
