@@ -23,6 +23,8 @@ enum Command {
     Latency(commands::latency::Args),
     /// Interpret a G-code program: report errors or print the canonical commands.
     Check(commands::check::Args),
+    /// Soft PLC: check or run a Structured Text program.
+    Plc(commands::plc::Args),
 }
 
 fn main() -> ExitCode {
@@ -30,6 +32,7 @@ fn main() -> ExitCode {
     let result: anyhow::Result<ExitCode> = match cli.command {
         Command::Latency(args) => commands::latency::run(args),
         Command::Check(args) => commands::check::run(args),
+        Command::Plc(args) => commands::plc::run(args),
     };
     match result {
         Ok(code) => code,

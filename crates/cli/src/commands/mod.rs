@@ -1,3 +1,4 @@
 //! One module per subcommand.
-pub mod latency;
 pub mod check;
+pub mod latency;
+pub mod plc;

@@ -1,0 +1,134 @@
+//! `rtcnc plc check` and `rtcnc plc run` as a user calls them.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn rtcnc(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rtcnc"))
+        .args(args)
+        .output()
+        .expect("rtcnc runs")
+}
+
+fn repo(path: &str) -> String {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .join(path)
+        .display()
+        .to_string()
+}
+
+fn temp_st(name: &str, text: &str) -> String {
+    let dir = std::env::temp_dir().join(format!("rtcnc-cli-plc-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p.display().to_string()
+}
+
+#[test]
+fn check_accepts_the_mill_logic_and_lists_its_task() {
+    let out = rtcnc(&["plc", "check", &repo("examples/plc/mill.st")]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains(": ok: "), "{stdout}");
+    assert!(
+        stdout.contains("task LOGIC (every T#4ms, priority 1): MILL"),
+        "{stdout}"
+    );
+}
+
+#[test]
+fn check_reports_errors_with_file_line_and_column() {
+    let file = temp_st(
+        "bad.st",
+        "PROGRAM P\nVAR x : INT; END_VAR\n  x := TRUE;\nEND_PROGRAM\n",
+    );
+    let out = rtcnc(&["plc", "check", &file]);
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains(&format!("{file}:3:8: error[type-mismatch]")),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn run_prints_watched_variables_per_scan() {
+    let file = temp_st(
+        "ton.st",
+        "PROGRAM P VAR go : BOOL; t : TON; END_VAR t(IN := go, PT := T#20ms); END_PROGRAM\n",
+    );
+    let out = rtcnc(&[
+        "plc",
+        "run",
+        &file,
+        "--scans",
+        "7",
+        "--period",
+        "4ms",
+        "--set",
+        "go=TRUE@2",
+        "--watch",
+        "t.Q",
+        "--watch",
+        "t.ET",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let rows: Vec<&str> = stdout.lines().collect();
+    // IN rises on scan 2 (t = 4 ms): ET reaches 20 ms and Q rises on scan 7 (t = 24 ms).
+    assert_eq!(
+        rows,
+        [
+            "scan\ttime\tt.Q\tt.ET",
+            "1\tT#0s\tFALSE\tT#0s",
+            "2\tT#4ms\tFALSE\tT#0s",
+            "3\tT#8ms\tFALSE\tT#4ms",
+            "4\tT#12ms\tFALSE\tT#8ms",
+            "5\tT#16ms\tFALSE\tT#12ms",
+            "6\tT#20ms\tFALSE\tT#16ms",
+            "7\tT#24ms\tTRUE\tT#20ms",
+        ]
+    );
+}
+
+#[test]
+fn run_stops_on_a_runtime_fault_with_its_location() {
+    let file = temp_st(
+        "div.st",
+        "PROGRAM P\nVAR a : INT := 1; b : INT := 3; END_VAR\n  b := b - 1;\n  a := a / b;\nEND_PROGRAM\n",
+    );
+    let out = rtcnc(&["plc", "run", &file, "--scans", "10", "--watch", "b"]);
+    assert_eq!(out.status.code(), Some(1));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(stdout.lines().count(), 1 + 3, "{stdout}");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("PLC fault [division-by-zero] in P line 4"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn run_rejects_unknown_watch_names() {
+    let out = rtcnc(&[
+        "plc",
+        "run",
+        &repo("examples/plc/mill.st"),
+        "--scans",
+        "1",
+        "--watch",
+        "no_such_var",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no variable 'no_such_var'"));
+}

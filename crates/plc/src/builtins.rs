@@ -1,0 +1,730 @@
+//! Standard functions: typing and code for conversions (`*_TO_*`, `TRUNC`, BCD), numeric,
+//! bit-string, selection, comparison and string functions.
+
+use crate::ast::{Arg, BinOp, Name};
+use crate::compiler::{Compiler, R, Scope, TE, Ty, builtin_expr, literal_elem};
+use crate::error::{ErrorKind, Pos};
+use crate::types::{Elem, IntKind, MAX_STRING_LEN, Type, widens};
+use crate::vm::{self, Builtin, Conv};
+
+fn ik(e: Elem) -> IntKind {
+    e.int_kind().unwrap_or(IntKind::I64)
+}
+
+/// Parameter names of the standard functions, for formal (named) calls.
+fn param_names(f: &str) -> &'static [&'static str] {
+    match f {
+        "LIMIT" => &["MN", "IN", "MX"],
+        "SEL" => &["G", "IN0", "IN1"],
+        "MUX" => &["K"],
+        "SHL" | "SHR" | "ROL" | "ROR" => &["IN", "N"],
+        "LEFT" | "RIGHT" => &["IN", "L"],
+        "MID" => &["IN", "L", "P"],
+        "INSERT" => &["IN1", "IN2", "P"],
+        "DELETE" => &["IN", "L", "P"],
+        "REPLACE" => &["IN1", "IN2", "L", "P"],
+        "FIND" => &["IN1", "IN2"],
+        "EXPT" | "ATAN2" => &["IN1", "IN2"],
+        _ => &["IN"],
+    }
+}
+
+/// Puts named arguments in parameter order (`IN1`, `IN2`... for extensible functions).
+fn ordered(c: &Compiler, fname: &str, args: &[Arg]) -> R<Vec<Arg>> {
+    if args.iter().all(|a| matches!(a, Arg::Positional(_))) {
+        return Ok(args.to_vec());
+    }
+    let names = param_names(fname);
+    let mut slots: Vec<Option<Arg>> = Vec::new();
+    for (i, a) in args.iter().enumerate() {
+        match a {
+            Arg::Positional(_) => {
+                if slots.len() <= i {
+                    slots.resize(i + 1, None);
+                }
+                slots[i] = Some(a.clone());
+            }
+            Arg::Input(n, e) => {
+                let idx = names.iter().position(|p| *p == n.text).or_else(|| {
+                    // IN1, IN2, ... of extensible functions; K then IN0.. for MUX.
+                    let digits = n.text.strip_prefix("IN")?;
+                    let k: usize = digits.parse().ok()?;
+                    Some(if fname == "MUX" {
+                        k + 1
+                    } else {
+                        k.checked_sub(1)?
+                    })
+                });
+                let Some(idx) = idx else {
+                    return Err(c.err_at(
+                        n.pos,
+                        ErrorKind::WrongArgument,
+                        format!("{fname} has no parameter '{}'", n.text),
+                    ));
+                };
+                if slots.len() <= idx {
+                    slots.resize(idx + 1, None);
+                }
+                if slots[idx].is_some() {
+                    return Err(c.err_at(
+                        n.pos,
+                        ErrorKind::WrongArgument,
+                        format!("'{}' is given twice", n.text),
+                    ));
+                }
+                slots[idx] = Some(Arg::Positional(e.clone()));
+            }
+            Arg::Output(n, _, _) => {
+                return Err(c.err_at(
+                    n.pos,
+                    ErrorKind::WrongArgument,
+                    format!("{fname} has no outputs"),
+                ));
+            }
+        }
+    }
+    slots
+        .into_iter()
+        .enumerate()
+        .map(|(i, s)| {
+            s.ok_or_else(|| {
+                c.err_at(
+                    Pos::default(),
+                    ErrorKind::WrongArgument,
+                    format!("argument {} of {fname} is missing", i + 1),
+                )
+            })
+        })
+        .collect()
+}
+
+fn count(c: &Compiler, fname: &str, args: &[(TE, Pos)], min: usize, max: usize, pos: Pos) -> R<()> {
+    if args.len() < min || args.len() > max {
+        let want = if min == max {
+            format!("{min}")
+        } else if max == usize::MAX {
+            format!("at least {min}")
+        } else {
+            format!("{min} to {max}")
+        };
+        return Err(c.err_at(
+            pos,
+            ErrorKind::WrongArgument,
+            format!("{fname} takes {want} arguments, {} given", args.len()),
+        ));
+    }
+    Ok(())
+}
+
+fn wrong(c: &Compiler, fname: &str, t: &Ty, pos: Pos, want: &str) -> crate::error::CompileError {
+    c.err_at(
+        pos,
+        ErrorKind::WrongArgument,
+        format!("{fname} needs {want}, not {}", c.type_label(t)),
+    )
+}
+
+/// The real type an argument of a real function is computed in.
+fn real_type(t: &Ty) -> Option<Elem> {
+    match t {
+        Ty::AnyInt(_) | Ty::AnyReal(_) => Some(Elem::LReal),
+        Ty::T(t) => {
+            let e = t.elem()?;
+            if e.is_real() {
+                Some(e)
+            } else if widens(e, Elem::Real) {
+                Some(Elem::Real)
+            } else if widens(e, Elem::LReal) {
+                Some(Elem::LReal)
+            } else {
+                None
+            }
+        }
+    }
+}
+
+fn int_or_lit(t: &Ty) -> bool {
+    match t {
+        Ty::AnyInt(_) => true,
+        Ty::T(t) => t.elem().is_some_and(|e| e.is_int()),
+        Ty::AnyReal(_) => false,
+    }
+}
+
+fn string_arg(c: &Compiler, fname: &str, a: (TE, Pos)) -> R<vm::Expr> {
+    match &a.0.ty {
+        Ty::T(Type::String(_)) => Ok(Compiler::te_parts(a.0).1),
+        t => Err(wrong(c, fname, t, a.1, "a STRING")),
+    }
+}
+
+fn int_arg(c: &Compiler, fname: &str, a: (TE, Pos)) -> R<vm::Expr> {
+    if !int_or_lit(&a.0.ty) {
+        return Err(wrong(c, fname, &a.0.ty, a.1, "an integer"));
+    }
+    let t = match &a.0.ty {
+        Ty::T(t) => t.clone(),
+        _ => Type::Elem(Elem::LInt),
+    };
+    let e = t.elem().unwrap_or(Elem::LInt);
+    let pos = a.1;
+    let x = c.coerce_to(a.0, &t, pos)?;
+    // Positions and lengths are evaluated as LINT.
+    Ok(c.conversion(x, e, Elem::LInt))
+}
+
+pub(crate) fn call(
+    c: &mut Compiler,
+    name: &Name,
+    args: &[Arg],
+    sc: &mut Scope,
+    pos: Pos,
+    expect: Option<&Type>,
+) -> R<TE> {
+    let f = name.text.as_str();
+    if let Some(te) = conversion(c, f, args, sc, pos)? {
+        return Ok(te);
+    }
+    let known = [
+        "ABS", "SQRT", "LN", "LOG", "EXP", "SIN", "COS", "TAN", "ASIN", "ACOS", "ATAN", "ATAN2",
+        "EXPT", "ADD", "SUB", "MUL", "DIV", "MOD", "MOVE", "SHL", "SHR", "ROL", "ROR", "SEL",
+        "MAX", "MIN", "LIMIT", "MUX", "GT", "GE", "EQ", "LE", "LT", "NE", "LEN", "LEFT", "RIGHT",
+        "MID", "CONCAT", "INSERT", "DELETE", "REPLACE", "FIND", "TRUNC",
+    ];
+    if !known.contains(&f) {
+        return Err(c.err_at(
+            name.pos,
+            ErrorKind::Undeclared,
+            format!("'{f}' is not a declared function"),
+        ));
+    }
+    let args = ordered(c, f, args)?;
+    let mut a = c.b_args(&args, sc, f)?;
+    match f {
+        "ABS" => {
+            count(c, f, &a, 1, 1, pos)?;
+            match a[0].0.ty {
+                Ty::AnyInt(v) => return Ok(Compiler::te(Ty::AnyInt(v.abs()), vm::Expr::Const(0))),
+                Ty::AnyReal(v) => {
+                    return Ok(Compiler::te(Ty::AnyReal(v.abs()), vm::Expr::Const(0)));
+                }
+                Ty::T(_) => {}
+            }
+            let (t, p) = (a[0].0.ty.clone(), a[0].1);
+            let ty = match &t {
+                Ty::AnyInt(_) => Type::Elem(Elem::DInt),
+                Ty::AnyReal(_) => Type::Elem(Elem::LReal),
+                Ty::T(t) => t
+                    .elem()
+                    .filter(|e| e.is_num())
+                    .map(Type::Elem)
+                    .ok_or_else(|| wrong(c, f, &Ty::T(t.clone()), p, "a number"))?,
+            };
+            let e = ty.elem().unwrap_or(Elem::DInt);
+            let x = c.coerce_to(a.remove(0).0, &ty, p)?;
+            let b = if e.is_real() {
+                Builtin::AbsR(e == Elem::Real)
+            } else {
+                Builtin::AbsI(ik(e))
+            };
+            Ok(Compiler::te(
+                Ty::T(ty),
+                c.folded(builtin_expr(b, vec![x], 0)),
+            ))
+        }
+        "SQRT" | "LN" | "LOG" | "EXP" | "SIN" | "COS" | "TAN" | "ASIN" | "ACOS" | "ATAN" => {
+            count(c, f, &a, 1, 1, pos)?;
+            let literal = match a[0].0.ty {
+                Ty::AnyInt(v) => Some(v as f64),
+                Ty::AnyReal(v) => Some(v),
+                Ty::T(_) => None,
+            };
+            if let Some(x) = literal {
+                // A function of a literal is a literal (and takes the type it is used as).
+                let v = match f {
+                    "SQRT" => x.sqrt(),
+                    "LN" => x.ln(),
+                    "LOG" => x.log10(),
+                    "EXP" => x.exp(),
+                    "SIN" => x.sin(),
+                    "COS" => x.cos(),
+                    "TAN" => x.tan(),
+                    "ASIN" => x.asin(),
+                    "ACOS" => x.acos(),
+                    _ => x.atan(),
+                };
+                return Ok(Compiler::te(Ty::AnyReal(v), vm::Expr::Const(0)));
+            }
+            let p = a[0].1;
+            let e = real_type(&a[0].0.ty).ok_or_else(|| wrong(c, f, &a[0].0.ty, p, "a real"))?;
+            let x = c.coerce_to(a.remove(0).0, &Type::Elem(e), p)?;
+            let s = e == Elem::Real;
+            let b = match f {
+                "SQRT" => Builtin::Sqrt(s),
+                "LN" => Builtin::Ln(s),
+                "LOG" => Builtin::Log(s),
+                "EXP" => Builtin::Exp(s),
+                "SIN" => Builtin::Sin(s),
+                "COS" => Builtin::Cos(s),
+                "TAN" => Builtin::Tan(s),
+                "ASIN" => Builtin::Asin(s),
+                "ACOS" => Builtin::Acos(s),
+                _ => Builtin::Atan(s),
+            };
+            Ok(Compiler::te(
+                Ty::T(Type::Elem(e)),
+                builtin_expr(b, vec![x], 0),
+            ))
+        }
+        "ATAN2" | "EXPT" => {
+            count(c, f, &a, 2, 2, pos)?;
+            let lit = |t: &Ty| match t {
+                Ty::AnyInt(v) => Some(*v as f64),
+                Ty::AnyReal(v) => Some(*v),
+                Ty::T(_) => None,
+            };
+            if let (Some(x), Some(y)) = (lit(&a[0].0.ty), lit(&a[1].0.ty)) {
+                let v = if f == "EXPT" { x.powf(y) } else { x.atan2(y) };
+                return Ok(Compiler::te(Ty::AnyReal(v), vm::Expr::Const(0)));
+            }
+            let p0 = a[0].1;
+            let e = real_type(&a[0].0.ty).ok_or_else(|| wrong(c, f, &a[0].0.ty, p0, "a real"))?;
+            let t = Type::Elem(e);
+            let (x, y) = (a.remove(0), a.remove(0));
+            let xe = c.coerce_to(x.0, &t, x.1)?;
+            let ye = if f == "EXPT" {
+                let ey = real_type(&y.0.ty).ok_or_else(|| wrong(c, f, &y.0.ty, y.1, "a number"))?;
+                let ee = c.coerce_to(y.0, &Type::Elem(ey), y.1)?;
+                c.conversion(ee, ey, Elem::LReal)
+            } else {
+                c.coerce_to(y.0, &t, y.1)?
+            };
+            let s = e == Elem::Real;
+            if f == "EXPT" {
+                let xl = c.conversion(xe, e, Elem::LReal);
+                let r = vm::Expr::Bin(vm::Bin::PowR(s), Box::new((xl, ye)));
+                Ok(Compiler::te(Ty::T(t), c.folded(r)))
+            } else {
+                Ok(Compiler::te(
+                    Ty::T(t),
+                    builtin_expr(Builtin::Atan2(s), vec![xe, ye], 0),
+                ))
+            }
+        }
+        "ADD" | "MUL" | "SUB" | "DIV" | "MOD" => {
+            let (min, max) = if matches!(f, "ADD" | "MUL") {
+                (2, usize::MAX)
+            } else {
+                (2, 2)
+            };
+            count(c, f, &a, min, max, pos)?;
+            let op = match f {
+                "ADD" => BinOp::Add,
+                "MUL" => BinOp::Mul,
+                "SUB" => BinOp::Sub,
+                "DIV" => BinOp::Div,
+                _ => BinOp::Mod,
+            };
+            let mut it = a.into_iter();
+            let Some((mut acc, _)) = it.next() else {
+                return Err(c.err_at(pos, ErrorKind::WrongArgument, "arguments missing"));
+            };
+            for (x, p) in it {
+                acc = c.binary_op(op, acc, x, p)?;
+            }
+            Ok(acc)
+        }
+        "MOVE" => {
+            count(c, f, &a, 1, 1, pos)?;
+            Ok(a.remove(0).0)
+        }
+        "SHL" | "SHR" | "ROL" | "ROR" => {
+            count(c, f, &a, 2, 2, pos)?;
+            let (x, n) = (a.remove(0), a.remove(0));
+            let ty = match &x.0.ty {
+                Ty::T(t) if t.elem().is_some_and(|e| e.is_bit()) => t.clone(),
+                Ty::AnyInt(_) => Type::Elem(Elem::DWord),
+                t => {
+                    return Err(wrong(
+                        c,
+                        f,
+                        t,
+                        x.1,
+                        "a bit string (BYTE, WORD, DWORD, LWORD)",
+                    ));
+                }
+            };
+            let k = ik(ty.elem().unwrap_or(Elem::DWord));
+            let xe = c.coerce_to(x.0, &ty, x.1)?;
+            let ne = int_arg(c, f, n)?;
+            let b = match f {
+                "SHL" => Builtin::Shl(k),
+                "SHR" => Builtin::Shr(k),
+                "ROL" => Builtin::Rol(k),
+                _ => Builtin::Ror(k),
+            };
+            Ok(Compiler::te(Ty::T(ty), builtin_expr(b, vec![xe, ne], 0)))
+        }
+        "SEL" => {
+            count(c, f, &a, 3, 3, pos)?;
+            let g = a.remove(0);
+            let ge = c.coerce_to(g.0, &Type::BOOL, g.1).map_err(|_| {
+                c.err_at(g.1, ErrorKind::WrongArgument, "SEL needs a BOOL selector G")
+            })?;
+            let (ty, vals) = common_values(c, f, a, pos, expect)?;
+            let mut v = vec![ge];
+            v.extend(vals);
+            Ok(Compiler::te(Ty::T(ty), builtin_expr(Builtin::Sel, v, 0)))
+        }
+        "MUX" => {
+            count(c, f, &a, 2, usize::MAX, pos)?;
+            let k = a.remove(0);
+            let ke = int_arg(c, f, k)?;
+            let (ty, vals) = common_values(c, f, a, pos, expect)?;
+            let mut v = vec![ke];
+            v.extend(vals);
+            Ok(Compiler::te(Ty::T(ty), builtin_expr(Builtin::Mux, v, 0)))
+        }
+        "MAX" | "MIN" | "LIMIT" => {
+            if f == "LIMIT" {
+                count(c, f, &a, 3, 3, pos)?;
+            } else {
+                count(c, f, &a, 2, usize::MAX, pos)?;
+            }
+            let (ty, vals) = common_values(c, f, a, pos, expect)?;
+            let Some(e) = ty
+                .elem()
+                .filter(|e| e.is_num() || e.is_bit() || *e == Elem::Time)
+            else {
+                return Err(c.err_at(
+                    pos,
+                    ErrorKind::WrongArgument,
+                    format!("{f} needs numbers, bit strings or TIME"),
+                ));
+            };
+            let b = match (f, e.is_real()) {
+                ("MAX", true) => Builtin::MaxR,
+                ("MIN", true) => Builtin::MinR,
+                ("LIMIT", true) => Builtin::LimitR,
+                ("MAX", false) => Builtin::MaxI(ik(e).signed()),
+                ("MIN", false) => Builtin::MinI(ik(e).signed()),
+                _ => Builtin::LimitI(ik(e).signed()),
+            };
+            Ok(Compiler::te(Ty::T(ty), builtin_expr(b, vals, 0)))
+        }
+        "GT" | "GE" | "EQ" | "LE" | "LT" | "NE" => {
+            let max = if f == "NE" { 2 } else { usize::MAX };
+            count(c, f, &a, 2, max, pos)?;
+            let op = match f {
+                "GT" => BinOp::Gt,
+                "GE" => BinOp::Ge,
+                "EQ" => BinOp::Eq,
+                "LE" => BinOp::Le,
+                "LT" => BinOp::Lt,
+                _ => BinOp::Ne,
+            };
+            // GT(a, b, c) = (a > b) AND (b > c); operands are re-evaluated per pair only
+            // when they are plain loads or constants, so side effects stay single.
+            if a.len() == 2 {
+                let (x, y) = (a.remove(0), a.remove(0));
+                return c.binary_op(op, x.0, y.0, y.1);
+            }
+            Err(c.err_at(
+                pos,
+                ErrorKind::WrongArgument,
+                format!(
+                    "{f} with more than two inputs is not supported; chain comparisons with AND"
+                ),
+            ))
+        }
+        "LEN" => {
+            count(c, f, &a, 1, 1, pos)?;
+            let s = string_arg(c, f, a.remove(0))?;
+            let e = builtin_expr(Builtin::Len, vec![s], 0);
+            Ok(Compiler::te(Ty::T(Type::Elem(Elem::Int)), e))
+        }
+        "FIND" => {
+            count(c, f, &a, 2, 2, pos)?;
+            let s1 = string_arg(c, f, a.remove(0))?;
+            let s2 = string_arg(c, f, a.remove(0))?;
+            Ok(Compiler::te(
+                Ty::T(Type::Elem(Elem::Int)),
+                builtin_expr(Builtin::Find, vec![s1, s2], 0),
+            ))
+        }
+        "LEFT" | "RIGHT" | "MID" | "CONCAT" | "INSERT" | "DELETE" | "REPLACE" => {
+            let (b, shape): (Builtin, &[bool]) = match f {
+                "LEFT" => (Builtin::Left, &[true, false]),
+                "RIGHT" => (Builtin::Right, &[true, false]),
+                "MID" => (Builtin::Mid, &[true, false, false]),
+                "INSERT" => (Builtin::Insert, &[true, true, false]),
+                "DELETE" => (Builtin::Delete, &[true, false, false]),
+                "REPLACE" => (Builtin::Replace, &[true, true, false, false]),
+                _ => (Builtin::Concat, &[]),
+            };
+            let mut vals = Vec::new();
+            if f == "CONCAT" {
+                count(c, f, &a, 2, usize::MAX, pos)?;
+                for x in a {
+                    vals.push(string_arg(c, f, x)?);
+                }
+            } else {
+                count(c, f, &a, shape.len(), shape.len(), pos)?;
+                for (x, is_str) in a.into_iter().zip(shape.iter()) {
+                    vals.push(if *is_str {
+                        string_arg(c, f, x)?
+                    } else {
+                        int_arg(c, f, x)?
+                    });
+                }
+            }
+            let dest = c.new_string_temp(pos)?;
+            Ok(Compiler::te(
+                Ty::T(Type::String(MAX_STRING_LEN)),
+                builtin_expr(b, vals, dest),
+            ))
+        }
+        "TRUNC" => {
+            count(c, f, &a, 1, 1, pos)?;
+            let p = a[0].1;
+            let e = real_type(&a[0].0.ty)
+                .filter(|e| e.is_real())
+                .ok_or_else(|| wrong(c, f, &a[0].0.ty, p, "a real"))?;
+            let x = c.coerce_to(a.remove(0).0, &Type::Elem(e), p)?;
+            Ok(Compiler::te(
+                Ty::T(Type::Elem(Elem::DInt)),
+                c.folded(vm::Expr::Conv(Conv::RealTrunc(IntKind::I32), Box::new(x))),
+            ))
+        }
+        _ => Err(c.err_at(
+            name.pos,
+            ErrorKind::Undeclared,
+            format!("'{f}' is not a declared function"),
+        )),
+    }
+}
+
+/// Brings value arguments of MAX/MIN/LIMIT/SEL/MUX to their common type.
+fn common_values(
+    c: &mut Compiler,
+    f: &str,
+    a: Vec<(TE, Pos)>,
+    pos: Pos,
+    expect: Option<&Type>,
+) -> R<(Type, Vec<vm::Expr>)> {
+    let mut ty: Option<Ty> = None;
+    for (x, p) in &a {
+        ty = Some(match ty {
+            None => x.ty.clone(),
+            Some(Ty::AnyInt(_)) if matches!(x.ty, Ty::AnyReal(_)) => x.ty.clone(),
+            Some(t @ (Ty::AnyInt(_) | Ty::AnyReal(_)))
+                if matches!(x.ty, Ty::AnyInt(_) | Ty::AnyReal(_)) =>
+            {
+                t
+            }
+            Some(t) => Ty::T(c.common_type(&t, &x.ty, *p).map_err(|mut e| {
+                e.kind = ErrorKind::WrongArgument;
+                e.message = format!("{f}: {}", e.message);
+                e
+            })?),
+        });
+    }
+    let ty = match ty {
+        Some(Ty::T(t)) => t,
+        // Only literals: they take the type the result is used as, when it is numeric.
+        Some(Ty::AnyInt(_)) => match expect.and_then(|t| t.elem()) {
+            Some(e) if e.is_num() => Type::Elem(e),
+            _ => Type::Elem(Elem::DInt),
+        },
+        Some(Ty::AnyReal(_)) => match expect.and_then(|t| t.elem()) {
+            Some(e) if e.is_real() => Type::Elem(e),
+            _ => Type::Elem(Elem::LReal),
+        },
+        None => {
+            return Err(c.err_at(
+                pos,
+                ErrorKind::WrongArgument,
+                format!("{f} needs arguments"),
+            ));
+        }
+    };
+    let ty = match ty {
+        Type::Subrange(e, _, _) => Type::Elem(e),
+        t => t,
+    };
+    if matches!(ty, Type::Array(_) | Type::Struct(_) | Type::Fb(_)) {
+        return Err(c.err_at(
+            pos,
+            ErrorKind::WrongArgument,
+            format!("{f} needs elementary values"),
+        ));
+    }
+    let mut out = Vec::new();
+    for (x, p) in a {
+        out.push(c.coerce_to(x, &ty, p)?);
+    }
+    Ok((ty, out))
+}
+
+fn elem_or_string(n: &str) -> Option<Option<Elem>> {
+    if n == "STRING" {
+        Some(None)
+    } else {
+        Elem::from_name(n).map(Some)
+    }
+}
+
+/// `X_TO_Y`, `TO_Y`, `X_TRUNC_Y`, `TRUNC_Y`, `X_BCD_TO_Y`, `X_TO_BCD_Y`.
+fn conversion(c: &mut Compiler, f: &str, args: &[Arg], sc: &mut Scope, pos: Pos) -> R<Option<TE>> {
+    enum Kind {
+        To,
+        Trunc,
+        FromBcd,
+        ToBcd,
+    }
+    let parse = || -> Option<(Option<String>, Kind, String)> {
+        if let Some((a, b)) = f.split_once("_BCD_TO_") {
+            return Some((Some(a.to_string()), Kind::FromBcd, b.to_string()));
+        }
+        if let Some((a, b)) = f.split_once("_TO_BCD_") {
+            return Some((Some(a.to_string()), Kind::ToBcd, b.to_string()));
+        }
+        if let Some(b) = f.strip_prefix("TO_").or_else(|| f.strip_prefix("ANY_TO_")) {
+            return Some((None, Kind::To, b.to_string()));
+        }
+        if let Some(b) = f.strip_prefix("TRUNC_") {
+            return Some((None, Kind::Trunc, b.to_string()));
+        }
+        if let Some((a, b)) = f.split_once("_TRUNC_") {
+            return Some((Some(a.to_string()), Kind::Trunc, b.to_string()));
+        }
+        if let Some((a, b)) = f.split_once("_TO_") {
+            return Some((Some(a.to_string()), Kind::To, b.to_string()));
+        }
+        None
+    };
+    let Some((from, kind, to)) = parse() else {
+        return Ok(None);
+    };
+    let Some(to_t) = elem_or_string(&to) else {
+        return Ok(None);
+    };
+    let from_t = match &from {
+        Some(n) => match elem_or_string(n) {
+            Some(t) => Some(t),
+            None => return Ok(None),
+        },
+        None => None,
+    };
+    let args = ordered(c, f, args)?;
+    let mut a = c.b_args(&args, sc, f)?;
+    count(c, f, &a, 1, 1, pos)?;
+    let (x, p) = a.remove(0);
+    // The argument's own type (or the declared source type, which it must widen to).
+    let src: Option<Elem>;
+    let xe: vm::Expr;
+    match from_t {
+        Some(Some(fe)) => {
+            xe = c.coerce_to(x, &Type::Elem(fe), p).map_err(|mut e| {
+                e.kind = ErrorKind::WrongArgument;
+                e.message = format!("{f}: {}", e.message);
+                e
+            })?;
+            src = Some(fe);
+        }
+        Some(None) => {
+            if !matches!(x.ty, Ty::T(Type::String(_))) {
+                return Err(wrong(c, f, &x.ty, p, "a STRING"));
+            }
+            xe = Compiler::te_parts(x).1;
+            src = None;
+        }
+        None => {
+            let t = x.ty.clone();
+            match &t {
+                Ty::T(Type::String(_)) => {
+                    xe = Compiler::te_parts(x).1;
+                    src = None;
+                }
+                Ty::T(Type::Enum(_)) => {
+                    xe = Compiler::te_parts(x).1;
+                    src = Some(Elem::DInt);
+                }
+                _ => {
+                    let e = literal_elem(&t).or(match t {
+                        Ty::AnyInt(_) => Some(Elem::LInt),
+                        Ty::AnyReal(_) => Some(Elem::LReal),
+                        _ => None,
+                    });
+                    let Some(e) = e else {
+                        return Err(wrong(c, f, &t, p, "an elementary value"));
+                    };
+                    xe = c.coerce_to(x, &Type::Elem(e), p)?;
+                    src = Some(e);
+                }
+            }
+        }
+    }
+    let result_ty = match to_t {
+        Some(e) => Type::Elem(e),
+        None => Type::String(MAX_STRING_LEN),
+    };
+    let out = match (kind, src, to_t) {
+        (Kind::Trunc, Some(s), Some(t)) if s.is_real() && t.is_int() => {
+            c.folded(vm::Expr::Conv(Conv::RealTrunc(ik(t)), Box::new(xe)))
+        }
+        (Kind::Trunc, ..) => {
+            return Err(c.err_at(
+                pos,
+                ErrorKind::WrongArgument,
+                format!("{f} converts a real to an integer"),
+            ));
+        }
+        (Kind::FromBcd, Some(s), Some(t)) if s.is_bit() && t.is_int() => c.folded(vm::Expr::Conv(
+            Conv::Int(ik(t)),
+            Box::new(vm::Expr::Conv(Conv::FromBcd, Box::new(xe))),
+        )),
+        (Kind::ToBcd, Some(s), Some(t)) if s.is_int() && t.is_bit() => {
+            c.folded(vm::Expr::Conv(Conv::ToBcd(ik(t)), Box::new(xe)))
+        }
+        (Kind::FromBcd | Kind::ToBcd, ..) => {
+            return Err(c.err_at(
+                pos,
+                ErrorKind::WrongArgument,
+                format!("{f}: BCD conversions go between bit strings and integers"),
+            ));
+        }
+        (Kind::To, Some(s), Some(t)) => c.conversion(xe, s, t),
+        (Kind::To, Some(s), None) => {
+            let dest = c.new_string_temp(pos)?;
+            let b = if s == Elem::Bool {
+                Builtin::BoolToStr
+            } else if s.is_real() {
+                Builtin::RealToStr(s == Elem::Real)
+            } else if s == Elem::Time {
+                Builtin::TimeToStr
+            } else {
+                Builtin::IntToStr(ik(s).signed())
+            };
+            builtin_expr(b, vec![xe], dest)
+        }
+        (Kind::To, None, Some(t)) => {
+            let b = if t == Elem::Bool {
+                Builtin::StrToBool
+            } else if t.is_real() {
+                Builtin::StrToReal(t == Elem::Real)
+            } else if t == Elem::Time {
+                return Err(c.err_at(
+                    pos,
+                    ErrorKind::WrongArgument,
+                    "STRING_TO_TIME is not supported",
+                ));
+            } else {
+                Builtin::StrToInt(ik(t))
+            };
+            builtin_expr(b, vec![xe], 0)
+        }
+        (Kind::To, None, None) => xe,
+    };
+    Ok(Some(Compiler::te(Ty::T(result_ty), out)))
+}

@@ -1,0 +1,965 @@
+//! Declarations: named types and their layout, initial values, function block and function signatures, globals, program instances and POU bodies.
+
+use super::*;
+
+impl<'a> Compiler<'a> {
+    // ---------------------------------------------------------------- types
+
+    pub(super) fn named_type(&mut self, n: &Name) -> R<(Type, Option<Vec<u64>>)> {
+        if let Some(t) = self.named.get(&n.text) {
+            return Ok(t.clone());
+        }
+        if let Some(e) = Elem::from_name(&n.text) {
+            return Ok((Type::Elem(e), None));
+        }
+        if n.text == "STRING" {
+            return Ok((Type::String(DEFAULT_STRING_LEN), None));
+        }
+        if let Some(id) = self.fb_id(n)? {
+            return Ok((Type::Fb(id), None));
+        }
+        let Some(decl) = self.type_asts.get(&n.text).copied() else {
+            return Err(self.e(
+                n.pos,
+                ErrorKind::Undeclared,
+                format!("unknown type '{}'", n.text),
+            ));
+        };
+        if !self.resolving.insert(n.text.clone()) {
+            return Err(self.e(
+                n.pos,
+                ErrorKind::Invalid,
+                format!("type '{}' is defined through itself", n.text),
+            ));
+        }
+        let scope = Scope {
+            vars: HashMap::new(),
+            kind: PouKind::Program,
+            pou: 0,
+            loops: 0,
+            calls: Vec::new(),
+        };
+        let r = self.type_spec(&decl.spec, Some(&decl.name.text), &scope);
+        self.resolving.remove(&n.text);
+        let (ty, mut tpl) = r?;
+        if let Some(init) = &decl.init {
+            let mut t = tpl.unwrap_or_else(|| self.template(&ty));
+            self.apply_init(&ty, init, &mut t, 0, &scope)?;
+            tpl = Some(t);
+        }
+        self.named.insert(n.text.clone(), (ty.clone(), tpl.clone()));
+        Ok((ty, tpl))
+    }
+
+    pub(super) fn type_spec(
+        &mut self,
+        spec: &TypeSpec,
+        name: Option<&str>,
+        scope: &Scope,
+    ) -> R<(Type, Option<Vec<u64>>)> {
+        match spec {
+            TypeSpec::Named(n) => self.named_type(n),
+            TypeSpec::String { len, pos } => {
+                let n = match len {
+                    Some(e) => self.const_int_in(e, scope)?,
+                    None => DEFAULT_STRING_LEN as i128,
+                };
+                if n < 1 || n > MAX_STRING_LEN as i128 {
+                    return Err(self.e(
+                        *pos,
+                        ErrorKind::Invalid,
+                        format!("STRING length must be 1..{MAX_STRING_LEN}"),
+                    ));
+                }
+                Ok((Type::String(n as u16), None))
+            }
+            TypeSpec::Array { dims, elem, pos } => {
+                let mut bounds = Vec::new();
+                for (lo, hi) in dims {
+                    let l = self.const_int_in(lo, scope)?;
+                    let h = self.const_int_in(hi, scope)?;
+                    if h < l
+                        || h - l >= MAX_SLOTS as i128
+                        || l < i64::MIN as i128 / 2
+                        || h > i64::MAX as i128 / 2
+                    {
+                        return Err(self.e(
+                            lo.pos(),
+                            ErrorKind::Invalid,
+                            format!("array bounds {l}..{h} are empty or too large"),
+                        ));
+                    }
+                    bounds.push((l as i64, h as i64));
+                }
+                let (et, etpl) = self.type_spec(elem, None, scope)?;
+                let elem_size = size_of(self, &et);
+                let count: u64 = bounds.iter().map(|(l, h)| (h - l + 1) as u64).product();
+                if count.saturating_mul(elem_size as u64) > MAX_SLOTS {
+                    return Err(self.e(*pos, ErrorKind::Invalid, "array is too large"));
+                }
+                let at = Type::Array(Arc::new(ArrayType {
+                    dims: bounds,
+                    elem: et,
+                    elem_size,
+                }));
+                let tpl = etpl.map(|t| t.repeat(count as usize));
+                Ok((at, tpl))
+            }
+            TypeSpec::Struct { fields, pos } => {
+                let mut fs: Vec<Field> = Vec::new();
+                let mut off = 0u32;
+                let mut inits: Vec<FieldInit> = Vec::new();
+                for d in fields {
+                    let (t, tpl) = self.type_spec(&d.ty, None, scope)?;
+                    for n in &d.names {
+                        if fs.iter().any(|f| f.name == n.text) {
+                            return Err(self.e(
+                                n.pos,
+                                ErrorKind::Duplicate,
+                                format!("field '{}' declared twice", n.text),
+                            ));
+                        }
+                        fs.push(Field {
+                            name: n.text.clone(),
+                            ty: t.clone(),
+                            offset: off,
+                        });
+                        inits.push((off, t.clone(), tpl.clone(), d.init.as_ref()));
+                        off = off.saturating_add(size_of(self, &t));
+                    }
+                }
+                if off as u64 > MAX_SLOTS {
+                    return Err(self.e(*pos, ErrorKind::Invalid, "structure is too large"));
+                }
+                let mut tpl = vec![0u64; off as usize];
+                for (o, t, ttpl, init) in inits {
+                    let sub = ttpl.unwrap_or_else(|| self.template(&t));
+                    tpl[o as usize..o as usize + sub.len()].copy_from_slice(&sub);
+                    if let Some(i) = init {
+                        self.apply_init(&t, i, &mut tpl, o as usize, scope)?;
+                    }
+                }
+                let id = self.structs.len() as u32;
+                let sname = name.map_or_else(|| format!("STRUCT#{id}"), str::to_string);
+                self.structs.push((
+                    StructType {
+                        name: sname,
+                        fields: fs,
+                        size: off,
+                    },
+                    tpl,
+                ));
+                Ok((Type::Struct(id), None))
+            }
+            TypeSpec::Enum { values, base, pos } => {
+                if let Some(b) = base {
+                    let ok = Elem::from_name(&b.text).is_some_and(|e| e.is_int() || e.is_bit());
+                    if !ok {
+                        return Err(self.e(
+                            b.pos,
+                            ErrorKind::TypeMismatch,
+                            "an enumeration's base type must be an integer type",
+                        ));
+                    }
+                }
+                let id = self.enums.len() as u32;
+                let mut vals: Vec<(String, i64)> = Vec::new();
+                let mut next = 0i64;
+                for (n, v) in values {
+                    let val = match v {
+                        Some(e) => self.const_int_in(e, scope)? as i64,
+                        None => next,
+                    };
+                    if vals.iter().any(|(x, _)| x == &n.text) {
+                        return Err(self.e(
+                            n.pos,
+                            ErrorKind::Duplicate,
+                            format!("enumeration value '{}' declared twice", n.text),
+                        ));
+                    }
+                    vals.push((n.text.clone(), val));
+                    next = val.wrapping_add(1);
+                    self.enum_values
+                        .entry(n.text.clone())
+                        .or_default()
+                        .push((id, val));
+                }
+                if vals.is_empty() {
+                    return Err(self.e(*pos, ErrorKind::Invalid, "empty enumeration"));
+                }
+                let ename = name.map_or_else(|| format!("ENUM#{id}"), str::to_string);
+                self.enums.push(EnumType {
+                    name: ename,
+                    values: vals,
+                });
+                Ok((Type::Enum(id), None))
+            }
+            TypeSpec::Subrange { base, low, high } => {
+                let Some(e) = Elem::from_name(&base.text).filter(|e| e.is_int()) else {
+                    return Err(self.e(
+                        base.pos,
+                        ErrorKind::TypeMismatch,
+                        "a subrange needs an integer base type",
+                    ));
+                };
+                let l = self.const_int_in(low, scope)?;
+                let h = self.const_int_in(high, scope)?;
+                let (tl, th) = e.int_range().unwrap_or((0, 0));
+                if l > h || l < tl || h > th {
+                    return Err(self.e(
+                        low.pos(),
+                        ErrorKind::Invalid,
+                        format!("subrange {l}..{h} does not fit {}", e.name()),
+                    ));
+                }
+                Ok((Type::Subrange(e, l as i64, h as i64), None))
+            }
+        }
+    }
+
+    /// Default initial slots of a type.
+    pub(super) fn template(&self, t: &Type) -> Vec<u64> {
+        match t {
+            Type::Elem(_) => vec![0],
+            Type::String(n) => vec![0; string_slots(*n) as usize],
+            Type::Enum(id) => vec![self.enums[*id as usize].values[0].1 as u64],
+            Type::Subrange(_, l, h) => vec![if *l <= 0 && 0 <= *h { 0 } else { *l as u64 }],
+            Type::Array(a) => {
+                let e = self.template(&a.elem);
+                e.repeat(a.len() as usize)
+            }
+            Type::Struct(id) => self.structs[*id as usize].1.clone(),
+            Type::Fb(id) => self.fbs[*id as usize].template.clone(),
+        }
+    }
+
+    /// Writes an initializer into `tpl` at `at`.
+    pub(super) fn apply_init(
+        &mut self,
+        t: &Type,
+        init: &Init,
+        tpl: &mut [u64],
+        at: usize,
+        scope: &Scope,
+    ) -> R<()> {
+        match (init, t) {
+            (Init::Expr(e), _) if t.scalar().is_some() => {
+                let te = self.const_value(e, scope)?;
+                let v = self.coerce(te, t, e.pos())?;
+                match v {
+                    vm::Expr::Const(v) => {
+                        if let Type::Subrange(_, l, h) = t {
+                            let x = v as i64;
+                            if x < *l || x > *h {
+                                return Err(self.e(
+                                    e.pos(),
+                                    ErrorKind::TypeMismatch,
+                                    format!("initial value {x} outside subrange {l}..{h}"),
+                                ));
+                            }
+                        }
+                        if let Some(s) = tpl.get_mut(at) {
+                            *s = v;
+                        }
+                        Ok(())
+                    }
+                    _ => Err(self.e(
+                        e.pos(),
+                        ErrorKind::Invalid,
+                        "initial value must be a constant",
+                    )),
+                }
+            }
+            (Init::Expr(AExpr::Lit(Literal::Str(s), _)), Type::String(cap)) => {
+                let mut tmp = vec![0u64; string_slots(*cap) as usize];
+                crate::strings::write(&mut tmp, 0, *cap, s);
+                tpl[at..at + tmp.len()].copy_from_slice(&tmp);
+                Ok(())
+            }
+            (Init::Array(items, pos), Type::Array(a)) => {
+                let mut k = 0u64;
+                let n = a.len();
+                for (count, item) in items {
+                    let reps = match count {
+                        Some(c) => self.const_int_in(c, scope)?.max(0) as u64,
+                        None => 1,
+                    };
+                    for _ in 0..reps {
+                        if k >= n {
+                            return Err(self.e(
+                                *pos,
+                                ErrorKind::Invalid,
+                                format!("more than {n} initial values for the array"),
+                            ));
+                        }
+                        if !matches!(item, Init::Array(v, _) if v.is_empty()) {
+                            self.apply_init(
+                                &a.elem,
+                                item,
+                                tpl,
+                                at + (k * a.elem_size as u64) as usize,
+                                scope,
+                            )?;
+                        }
+                        k += 1;
+                    }
+                }
+                Ok(())
+            }
+            (Init::Struct(items, _), Type::Struct(id)) => {
+                let fields = self.structs[*id as usize].0.fields.clone();
+                for (n, i) in items {
+                    let Some(f) = fields.iter().find(|f| f.name == n.text) else {
+                        return Err(self.e(
+                            n.pos,
+                            ErrorKind::Undeclared,
+                            format!("no field '{}'", n.text),
+                        ));
+                    };
+                    self.apply_init(&f.ty, i, tpl, at + f.offset as usize, scope)?;
+                }
+                Ok(())
+            }
+            (Init::Struct(items, _), Type::Fb(id)) => {
+                let members = self.fbs[*id as usize].members.clone();
+                for (n, i) in items {
+                    let Some(m) = members
+                        .iter()
+                        .find(|m| m.name == n.text && m.kind == VarKind::Input)
+                    else {
+                        return Err(self.e(
+                            n.pos,
+                            ErrorKind::Undeclared,
+                            format!("no input '{}'", n.text),
+                        ));
+                    };
+                    self.apply_init(&m.ty, i, tpl, at + m.offset as usize, scope)?;
+                }
+                Ok(())
+            }
+            (Init::Expr(e), _) => Err(self.e(
+                e.pos(),
+                ErrorKind::TypeMismatch,
+                format!("cannot initialise a {} with this value", self.type_name(t)),
+            )),
+            (Init::Array(_, p) | Init::Struct(_, p), _) => Err(self.e(
+                *p,
+                ErrorKind::TypeMismatch,
+                format!(
+                    "cannot initialise a {} with this initializer",
+                    self.type_name(t)
+                ),
+            )),
+        }
+    }
+
+    // ---------------------------------------------------------------- POU signatures
+
+    pub(super) fn fb_id(&mut self, n: &Name) -> R<Option<u32>> {
+        match self.fb_by_name.get(&n.text) {
+            Some(Lookup::Found(id)) => return Ok(Some(*id)),
+            Some(Lookup::Busy) => {
+                return Err(self.e(
+                    n.pos,
+                    ErrorKind::Invalid,
+                    format!("function block '{}' contains itself", n.text),
+                ));
+            }
+            _ => {}
+        }
+        if let Some(s) = StdFb::from_name(&n.text) {
+            let members: Vec<Member> = s
+                .members()
+                .iter()
+                .enumerate()
+                .map(|(i, (name, e, d))| Member {
+                    name: name.to_string(),
+                    ty: Type::Elem(*e),
+                    offset: i as u32,
+                    kind: if *d == Dir::In {
+                        VarKind::Input
+                    } else {
+                        VarKind::Output
+                    },
+                    constant: false,
+                    retain: false,
+                })
+                .collect();
+            let mut template = vec![0u64; s.size() as usize];
+            s.init_hidden(&mut template);
+            let id = self.fbs.len() as u32;
+            self.fbs.push(FbInfo {
+                name: s.name().into(),
+                members,
+                size: s.size(),
+                template,
+                std: Some(s),
+                body: 0,
+            });
+            self.fb_by_name.insert(n.text.clone(), Lookup::Found(id));
+            return Ok(Some(id));
+        }
+        if self.fb_asts.contains_key(&n.text) {
+            return self.fb_type(n).map(Some);
+        }
+        Ok(None)
+    }
+
+    pub(super) fn fb_type(&mut self, n: &Name) -> R<u32> {
+        if let Some(Lookup::Found(id)) = self.fb_by_name.get(&n.text) {
+            return Ok(*id);
+        }
+        let pou = self.fb_asts[&n.text];
+        self.fb_by_name.insert(n.text.clone(), Lookup::Busy);
+        let r = self.fb_layout(pou);
+        match r {
+            Ok(info) => {
+                let id = self.fbs.len() as u32;
+                self.fbs.push(info);
+                self.fb_by_name.insert(n.text.clone(), Lookup::Found(id));
+                Ok(id)
+            }
+            Err(e) => {
+                self.fb_by_name.insert(n.text.clone(), Lookup::Missing);
+                Err(e)
+            }
+        }
+    }
+
+    pub(super) fn fb_layout(&mut self, pou: &'a ast::Pou) -> R<FbInfo> {
+        let mut members: Vec<Member> = Vec::new();
+        let mut off = 0u32;
+        let mut template: Vec<u64> = Vec::new();
+        let scope = Scope {
+            vars: HashMap::new(),
+            kind: PouKind::FunctionBlock,
+            pou: 0,
+            loops: 0,
+            calls: Vec::new(),
+        };
+        for b in &pou.vars {
+            if matches!(b.kind, VarKind::Global) {
+                return Err(self.e(
+                    pou.name.pos,
+                    ErrorKind::Invalid,
+                    "VAR_GLOBAL is not allowed inside a function block",
+                ));
+            }
+            if b.kind == VarKind::External {
+                continue;
+            }
+            for d in &b.decls {
+                if let Some((_, p)) = d.at {
+                    return Err(self.e(
+                        p,
+                        ErrorKind::Invalid,
+                        "located variables belong in programs or VAR_GLOBAL",
+                    ));
+                }
+                let (t, tpl) = self.type_spec(&d.ty, None, &scope)?;
+                for n in &d.names {
+                    if members.iter().any(|m| m.name == n.text) {
+                        return Err(self.e(
+                            n.pos,
+                            ErrorKind::Duplicate,
+                            format!("'{}' is already declared", n.text),
+                        ));
+                    }
+                    let size = if b.kind == VarKind::InOut {
+                        1
+                    } else {
+                        size_of(self, &t)
+                    };
+                    let mut sub = if b.kind == VarKind::InOut {
+                        vec![0]
+                    } else {
+                        tpl.clone().unwrap_or_else(|| self.template(&t))
+                    };
+                    if let (Some(i), false) = (&d.init, b.kind == VarKind::InOut) {
+                        self.apply_init(&t, i, &mut sub, 0, &scope)?;
+                    }
+                    template.extend_from_slice(&sub);
+                    members.push(Member {
+                        name: n.text.clone(),
+                        ty: t.clone(),
+                        offset: off,
+                        kind: b.kind,
+                        constant: b.constant,
+                        retain: b.retain,
+                    });
+                    off = off.saturating_add(size);
+                }
+            }
+        }
+        if off as u64 > MAX_SLOTS {
+            return Err(self.e(
+                pou.name.pos,
+                ErrorKind::Invalid,
+                "function block is too large",
+            ));
+        }
+        let body = self.code_fbs.len() as u32;
+        self.code_fbs.push(None);
+        Ok(FbInfo {
+            name: pou.name.text.clone(),
+            members,
+            size: off,
+            template,
+            std: None,
+            body,
+        })
+    }
+
+    pub(super) fn func_id(&mut self, n: &Name) -> R<Option<u32>> {
+        match self.fn_by_name.get(&n.text) {
+            Some(Lookup::Found(id)) => return Ok(Some(*id)),
+            Some(Lookup::Busy) => return Ok(None),
+            _ => {}
+        }
+        if self.fn_asts.contains_key(&n.text) {
+            self.func(n).map(Some)
+        } else {
+            Ok(None)
+        }
+    }
+
+    pub(super) fn func(&mut self, n: &Name) -> R<u32> {
+        if let Some(Lookup::Found(id)) = self.fn_by_name.get(&n.text) {
+            return Ok(*id);
+        }
+        let pou = self.fn_asts[&n.text];
+        self.fn_by_name.insert(n.text.clone(), Lookup::Busy);
+        let scope = Scope {
+            vars: HashMap::new(),
+            kind: PouKind::Function,
+            pou: 0,
+            loops: 0,
+            calls: Vec::new(),
+        };
+        let ret = match &pou.ret {
+            Some(TypeSpec::Named(t)) if t.text == "VOID" => None,
+            Some(spec) => Some(self.type_spec(spec, None, &scope)?.0),
+            None => None,
+        };
+        if let Some(Type::Fb(_)) = ret {
+            return Err(self.e(
+                pou.name.pos,
+                ErrorKind::Invalid,
+                "a function cannot return a function block",
+            ));
+        }
+        let start = self.image.len() as u32;
+        let result = self.alloc(ret.as_ref().map_or(1, |t| size_of(self, t)), pou.name.pos)?;
+        if let Some(t) = &ret {
+            let tpl = self.template(t);
+            self.image[result as usize..result as usize + tpl.len()].copy_from_slice(&tpl);
+        }
+        let mut locals: HashMap<String, VarInfo> = HashMap::new();
+        let mut params: Vec<Member> = Vec::new();
+        if let Some(t) = &ret {
+            locals.insert(
+                pou.name.text.clone(),
+                VarInfo {
+                    ty: t.clone(),
+                    loc: Loc::Abs(result),
+                    kind: VarKind::Output,
+                    constant: false,
+                    const_val: None,
+                    input_area: false,
+                },
+            );
+        }
+        for b in &pou.vars {
+            if matches!(b.kind, VarKind::Global) {
+                return Err(self.e(
+                    pou.name.pos,
+                    ErrorKind::Invalid,
+                    "VAR_GLOBAL is not allowed inside a function",
+                ));
+            }
+            for d in &b.decls {
+                if b.kind == VarKind::External {
+                    for n in &d.names {
+                        let g = self.external(n, d, &scope)?;
+                        locals.insert(n.text.clone(), g);
+                    }
+                    continue;
+                }
+                if let Some((_, p)) = d.at {
+                    return Err(self.e(
+                        p,
+                        ErrorKind::Invalid,
+                        "located variables belong in programs or VAR_GLOBAL",
+                    ));
+                }
+                let (t, tpl) = self.type_spec(&d.ty, None, &scope)?;
+                for n in &d.names {
+                    if locals.contains_key(&n.text) {
+                        return Err(self.e(
+                            n.pos,
+                            ErrorKind::Duplicate,
+                            format!("'{}' is already declared", n.text),
+                        ));
+                    }
+                    let inout = b.kind == VarKind::InOut;
+                    let size = if inout { 1 } else { size_of(self, &t) };
+                    let a = self.alloc(size, n.pos)?;
+                    if !inout {
+                        let mut sub = tpl.clone().unwrap_or_else(|| self.template(&t));
+                        if let Some(i) = &d.init {
+                            self.apply_init(&t, i, &mut sub, 0, &scope)?;
+                        }
+                        self.image[a as usize..a as usize + sub.len()].copy_from_slice(&sub);
+                    }
+                    let const_val = if b.constant && t.scalar().is_some() {
+                        Some(self.image[a as usize])
+                    } else {
+                        None
+                    };
+                    let loc = if inout { Loc::IndAbs(a) } else { Loc::Abs(a) };
+                    locals.insert(
+                        n.text.clone(),
+                        VarInfo {
+                            ty: t.clone(),
+                            loc,
+                            kind: b.kind,
+                            constant: b.constant,
+                            const_val,
+                            input_area: false,
+                        },
+                    );
+                    if matches!(b.kind, VarKind::Input | VarKind::Output | VarKind::InOut) {
+                        params.push(Member {
+                            name: n.text.clone(),
+                            ty: t.clone(),
+                            offset: a,
+                            kind: b.kind,
+                            constant: false,
+                            retain: false,
+                        });
+                    }
+                }
+            }
+        }
+        let end = self.image.len() as u32;
+        let pou_id = self.new_pou_name(&pou.name.text);
+        let id = self.funcs.len() as u32;
+        self.funcs.push(FuncInfo {
+            name: pou.name.text.clone(),
+            pou: pou_id,
+            ret,
+            result,
+            params,
+            locals,
+            frame: (start, end - start),
+        });
+        self.fn_calls.push(Vec::new());
+        self.code_fns.push(None);
+        self.fn_by_name.insert(n.text.clone(), Lookup::Found(id));
+        Ok(id)
+    }
+
+    pub(super) fn external(&mut self, n: &Name, d: &ast::VarDecl, scope: &Scope) -> R<VarInfo> {
+        let Some(g) = self.globals.get(&n.text).cloned() else {
+            return Err(self.e(
+                n.pos,
+                ErrorKind::Undeclared,
+                format!("VAR_EXTERNAL '{}' has no VAR_GLOBAL", n.text),
+            ));
+        };
+        let (t, _) = self.type_spec(&d.ty, None, scope)?;
+        if t != g.ty {
+            return Err(self.e(
+                n.pos,
+                ErrorKind::TypeMismatch,
+                format!(
+                    "VAR_EXTERNAL '{}' is {} but the global is {}",
+                    n.text,
+                    self.type_name(&t),
+                    self.type_name(&g.ty)
+                ),
+            ));
+        }
+        Ok(g)
+    }
+
+    // ---------------------------------------------------------------- declarations
+
+    pub(super) fn declare_global(
+        &mut self,
+        b: &ast::VarBlock,
+        d: &ast::VarDecl,
+        scope: &Scope,
+    ) -> R<()> {
+        if b.kind != VarKind::Global {
+            return Err(self.e(
+                d.names[0].pos,
+                ErrorKind::Invalid,
+                "only VAR_GLOBAL is allowed here",
+            ));
+        }
+        for n in &d.names {
+            if self.globals.contains_key(&n.text) {
+                return Err(self.e(
+                    n.pos,
+                    ErrorKind::Duplicate,
+                    format!("global '{}' is already declared", n.text),
+                ));
+            }
+            let (info, sym) = self.declare_static(n, d, b, scope, "")?;
+            self.globals.insert(n.text.clone(), info);
+            self.global_syms.push(sym);
+        }
+        Ok(())
+    }
+
+    /// Allocates a variable at an absolute address (globals, program variables).
+    pub(super) fn declare_static(
+        &mut self,
+        n: &Name,
+        d: &ast::VarDecl,
+        b: &ast::VarBlock,
+        scope: &Scope,
+        prefix: &str,
+    ) -> R<(VarInfo, Symbol)> {
+        let (t, tpl) = self.type_spec(&d.ty, None, scope)?;
+        let size = size_of(self, &t);
+        let a = self.alloc(size, n.pos)?;
+        let mut sub = tpl.unwrap_or_else(|| self.template(&t));
+        if let Some(i) = &d.init {
+            self.apply_init(&t, i, &mut sub, 0, scope)?;
+        }
+        self.image[a as usize..a as usize + sub.len()].copy_from_slice(&sub);
+        let mut input_area = false;
+        if let Some((at, p)) = d.at {
+            let Some(e) = t.elem() else {
+                return Err(self.e(
+                    p,
+                    ErrorKind::TypeMismatch,
+                    "a located variable must be of an elementary type",
+                ));
+            };
+            let ok = match at.size {
+                AddrSize::Bit => e == Elem::Bool,
+                AddrSize::Byte => matches!(e, Elem::Byte | Elem::SInt | Elem::USInt),
+                AddrSize::Word => matches!(e, Elem::Word | Elem::Int | Elem::UInt),
+                AddrSize::Double => {
+                    matches!(e, Elem::DWord | Elem::DInt | Elem::UDInt | Elem::Real)
+                }
+                AddrSize::Long => matches!(
+                    e,
+                    Elem::LWord | Elem::LInt | Elem::ULInt | Elem::LReal | Elem::Time
+                ),
+            };
+            if !ok {
+                return Err(self.e(
+                    p,
+                    ErrorKind::TypeMismatch,
+                    format!("{} does not fit the address {at}", e.name()),
+                ));
+            }
+            if self.located.iter().any(|l| l.at == at) && at.area != Area::Memory {
+                return Err(self.e(
+                    p,
+                    ErrorKind::Duplicate,
+                    format!("address {at} is already used"),
+                ));
+            }
+            input_area = at.area == Area::Input;
+            self.located.push(Located {
+                at,
+                slot: a,
+                elem: e,
+            });
+        }
+        let const_val = if b.constant && t.scalar().is_some() {
+            Some(self.image[a as usize])
+        } else {
+            None
+        };
+        let info = VarInfo {
+            ty: t.clone(),
+            loc: Loc::Abs(a),
+            kind: b.kind,
+            constant: b.constant,
+            const_val,
+            input_area,
+        };
+        let sym = Symbol {
+            name: format!("{prefix}{}", n.text),
+            ty: t,
+            addr: a,
+            kind: b.kind,
+            retain: b.retain,
+            indirect: false,
+        };
+        Ok((info, sym))
+    }
+
+    pub(super) fn program_instance(&mut self, pou: &'a ast::Pou, inst: &str) -> R<ProgramInstance> {
+        let pou_id = self.new_pou_name(&pou.name.text);
+        let mut scope = Scope {
+            vars: HashMap::new(),
+            kind: PouKind::Program,
+            pou: pou_id,
+            loops: 0,
+            calls: Vec::new(),
+        };
+        let mut syms = Vec::new();
+        for b in &pou.vars {
+            for d in &b.decls {
+                for n in &d.names {
+                    if scope.vars.contains_key(&n.text) {
+                        return Err(self.e(
+                            n.pos,
+                            ErrorKind::Duplicate,
+                            format!("'{}' is already declared", n.text),
+                        ));
+                    }
+                    match b.kind {
+                        VarKind::External => {
+                            let g = self.external(n, d, &scope)?;
+                            scope.vars.insert(n.text.clone(), g);
+                        }
+                        VarKind::InOut => {
+                            return Err(self.e(
+                                n.pos,
+                                ErrorKind::Invalid,
+                                "VAR_IN_OUT is not allowed in a PROGRAM",
+                            ));
+                        }
+                        _ => {
+                            let (info, sym) = self.declare_static(n, d, b, &scope, "")?;
+                            scope.vars.insert(n.text.clone(), info);
+                            syms.push(sym);
+                        }
+                    }
+                }
+            }
+        }
+        let body = self.block(&pou.body, &mut scope)?;
+        Ok(ProgramInstance {
+            name: inst.to_string(),
+            pou_type: pou.name.text.clone(),
+            pou: pou_id,
+            vars: syms,
+            body,
+        })
+    }
+
+    pub(super) fn fb_body(&mut self, n: &Name) -> R<()> {
+        let id = self.fb_type(n)?;
+        let pou = self.fb_asts[&n.text];
+        let pou_id = self.new_pou_name(&pou.name.text);
+        let members = self.fbs[id as usize].members.clone();
+        let mut scope = Scope {
+            vars: HashMap::new(),
+            kind: PouKind::FunctionBlock,
+            pou: pou_id,
+            loops: 0,
+            calls: Vec::new(),
+        };
+        for m in &members {
+            let loc = if m.kind == VarKind::InOut {
+                Loc::IndRel(m.offset)
+            } else {
+                Loc::Rel(m.offset)
+            };
+            let const_val = if m.constant && m.ty.scalar().is_some() {
+                self.fbs[id as usize]
+                    .template
+                    .get(m.offset as usize)
+                    .copied()
+            } else {
+                None
+            };
+            scope.vars.insert(
+                m.name.clone(),
+                VarInfo {
+                    ty: m.ty.clone(),
+                    loc,
+                    kind: m.kind,
+                    constant: m.constant,
+                    const_val,
+                    input_area: false,
+                },
+            );
+        }
+        let empty = Scope {
+            vars: HashMap::new(),
+            kind: PouKind::FunctionBlock,
+            pou: 0,
+            loops: 0,
+            calls: Vec::new(),
+        };
+        for b in pou.vars.iter().filter(|b| b.kind == VarKind::External) {
+            for d in &b.decls {
+                for nm in &d.names {
+                    let g = self.external(nm, d, &empty)?;
+                    scope.vars.insert(nm.text.clone(), g);
+                }
+            }
+        }
+        let stmts = self.block(&pou.body, &mut scope)?;
+        // VAR_TEMP members are re-initialised on every call.
+        let temps: Vec<&Member> = members.iter().filter(|m| m.kind == VarKind::Temp).collect();
+        let reinit = match (temps.first(), temps.last()) {
+            (Some(f), Some(l)) => {
+                let start = f.offset;
+                let end = l.offset + size_of(self, &l.ty);
+                let tpl = &self.fbs[id as usize].template;
+                Some((
+                    start,
+                    tpl[start as usize..end as usize]
+                        .to_vec()
+                        .into_boxed_slice(),
+                ))
+            }
+            _ => None,
+        };
+        let body_id = self.fbs[id as usize].body;
+        self.code_fbs[body_id as usize] = Some(vm::Body {
+            pou: pou_id,
+            reinit,
+            stmts,
+        });
+        Ok(())
+    }
+
+    pub(super) fn fn_body(&mut self, n: &Name) -> R<()> {
+        let id = self.func(n)?;
+        let pou = self.fn_asts[&n.text];
+        let (vars, pou_id, frame, result, aggregate) = {
+            let f = &self.funcs[id as usize];
+            (
+                f.locals.clone(),
+                f.pou,
+                f.frame,
+                f.result,
+                f.ret.as_ref().is_some_and(|t| t.scalar().is_none()),
+            )
+        };
+        let mut scope = Scope {
+            vars,
+            kind: PouKind::Function,
+            pou: pou_id,
+            loops: 0,
+            calls: Vec::new(),
+        };
+        let stmts = self.block(&pou.body, &mut scope)?;
+        self.fn_calls[id as usize] = std::mem::take(&mut scope.calls);
+        let values = self.image[frame.0 as usize..(frame.0 + frame.1) as usize]
+            .to_vec()
+            .into_boxed_slice();
+        self.code_fns[id as usize] = Some(vm::Function {
+            body: vm::Body {
+                pou: pou_id,
+                reinit: Some((frame.0, values)),
+                stmts,
+            },
+            result,
+            aggregate,
+        });
+        Ok(())
+    }
+}

@@ -1,0 +1,935 @@
+//! Variable access, expressions, implicit conversions and constant folding.
+
+use super::*;
+
+impl<'a> Compiler<'a> {
+    // ---------------------------------------------------------------- variable access
+
+    pub(super) fn lookup(&mut self, n: &Name, sc: &Scope) -> Option<VarInfo> {
+        if let Some(v) = sc.vars.get(&n.text) {
+            return Some(v.clone());
+        }
+        self.globals.get(&n.text).cloned()
+    }
+
+    pub(super) fn access(&mut self, a: &Access, sc: &mut Scope) -> R<Lv> {
+        if a.root.text.starts_with('%') && self.lookup(&a.root, sc).is_none() {
+            let toks = crate::lexer::tokenize(&a.root.text, self.file)?;
+            if let Some(crate::lexer::Tok::Direct(d)) = toks.first().map(|t| &t.kind) {
+                self.direct_var(d, a.root.pos)?;
+            }
+        }
+        let Some(v) = self.lookup(&a.root, sc) else {
+            return Err(self.e(
+                a.root.pos,
+                ErrorKind::Undeclared,
+                format!("'{}' is not declared", a.root.text),
+            ));
+        };
+        let (base, indirect) = match v.loc {
+            Loc::Abs(x) => (Base::Abs(x), false),
+            Loc::Rel(x) => (Base::Rel(x), false),
+            Loc::IndAbs(x) => (Base::Abs(x), true),
+            Loc::IndRel(x) => (Base::Rel(x), true),
+        };
+        let readonly = if v.constant {
+            Some((
+                ErrorKind::AssignToConstant,
+                format!("'{}' is a CONSTANT", a.root.text),
+            ))
+        } else if v.kind == VarKind::Input {
+            Some((
+                ErrorKind::AssignToInput,
+                format!("'{}' is an input of this POU", a.root.text),
+            ))
+        } else if v.input_area {
+            Some((
+                ErrorKind::AssignToInput,
+                format!("'{}' is located in the input image (%I)", a.root.text),
+            ))
+        } else {
+            None
+        };
+        let mut lv = Lv {
+            ty: v.ty.clone(),
+            base,
+            indirect,
+            offset: 0,
+            steps: Vec::new(),
+            bit: None,
+            readonly,
+            const_val: v.const_val,
+        };
+        for p in &a.parts {
+            if lv.bit.is_some() {
+                return Err(self.e(
+                    a.root.pos,
+                    ErrorKind::Invalid,
+                    "nothing can follow a bit access",
+                ));
+            }
+            lv.const_val = None;
+            match p {
+                Part::Field(f) => match lv.ty.clone() {
+                    Type::Struct(id) => {
+                        let st = &self.structs[id as usize].0;
+                        let Some(field) = st.fields.iter().find(|x| x.name == f.text) else {
+                            return Err(self.e(
+                                f.pos,
+                                ErrorKind::Undeclared,
+                                format!("{} has no field '{}'", st.name, f.text),
+                            ));
+                        };
+                        lv.offset += field.offset;
+                        lv.ty = field.ty.clone();
+                    }
+                    Type::Fb(id) => {
+                        let fb = &self.fbs[id as usize];
+                        let Some(m) = fb.members.iter().find(|x| x.name == f.text).cloned() else {
+                            return Err(self.e(
+                                f.pos,
+                                ErrorKind::Undeclared,
+                                format!("{} has no member '{}'", fb.name, f.text),
+                            ));
+                        };
+                        if !matches!(m.kind, VarKind::Input | VarKind::Output | VarKind::InOut) {
+                            return Err(self.e(
+                                f.pos,
+                                ErrorKind::Invalid,
+                                format!("'{}' is internal to {}", f.text, fb.name),
+                            ));
+                        }
+                        if m.kind == VarKind::InOut {
+                            return Err(self.e(
+                                f.pos,
+                                ErrorKind::Invalid,
+                                "VAR_IN_OUT members cannot be accessed from outside",
+                            ));
+                        }
+                        if m.kind == VarKind::Output && lv.readonly.is_none() {
+                            lv.readonly = Some((
+                                ErrorKind::Invalid,
+                                format!(
+                                    "output '{}' of {} can only be written by the block",
+                                    f.text, fb.name
+                                ),
+                            ));
+                        }
+                        lv.offset += m.offset;
+                        lv.ty = m.ty.clone();
+                    }
+                    _ => {
+                        return Err(self.e(
+                            f.pos,
+                            ErrorKind::TypeMismatch,
+                            format!("'{}' is not a structure or function block", a.root.text),
+                        ));
+                    }
+                },
+                Part::Index(idx, pos) => {
+                    let Type::Array(at) = lv.ty.clone() else {
+                        return Err(self.e(
+                            *pos,
+                            ErrorKind::TypeMismatch,
+                            format!("'{}' is not an array", a.root.text),
+                        ));
+                    };
+                    if idx.len() != at.dims.len() {
+                        return Err(self.e(
+                            *pos,
+                            ErrorKind::WrongArgument,
+                            format!(
+                                "array has {} dimensions, {} indices given",
+                                at.dims.len(),
+                                idx.len()
+                            ),
+                        ));
+                    }
+                    // Row-major strides.
+                    let mut stride = at.elem_size as u64;
+                    let mut strides = vec![0u64; at.dims.len()];
+                    for (k, (l, h)) in at.dims.iter().enumerate().rev() {
+                        strides[k] = stride;
+                        stride *= (h - l + 1) as u64;
+                    }
+                    for (k, ie) in idx.iter().enumerate() {
+                        let (lo, hi) = at.dims[k];
+                        let te = self.expr(ie, sc, None)?;
+                        let ok = match &te.ty {
+                            Ty::AnyInt(_) => true,
+                            Ty::T(t) => t.elem().is_some_and(|e| e.is_int()),
+                            Ty::AnyReal(_) => false,
+                        };
+                        if !ok {
+                            return Err(self.e(
+                                ie.pos(),
+                                ErrorKind::TypeMismatch,
+                                format!(
+                                    "array index must be an integer, not {}",
+                                    self.ty_name(&te.ty)
+                                ),
+                            ));
+                        }
+                        let ity = match &te.ty {
+                            Ty::T(t) => t.clone(),
+                            _ => Type::Elem(Elem::LInt),
+                        };
+                        let e = self.coerce(te, &ity, ie.pos())?;
+                        if let vm::Expr::Const(c) = e {
+                            let i = if ity.elem().is_some_and(|e| ik(e).signed()) {
+                                c as i64
+                            } else {
+                                c.min(i64::MAX as u64) as i64
+                            };
+                            if i < lo || i > hi {
+                                return Err(self.e(
+                                    ie.pos(),
+                                    ErrorKind::Invalid,
+                                    format!("index {i} is outside {lo}..{hi}"),
+                                ));
+                            }
+                            lv.offset += ((i - lo) as u64 * strides[k]) as u32;
+                        } else {
+                            lv.steps.push(IndexStep {
+                                index: e,
+                                low: lo,
+                                len: (hi - lo + 1) as u64,
+                                stride: strides[k] as u32,
+                            });
+                        }
+                    }
+                    lv.ty = at.elem.clone();
+                }
+                Part::Bit(b, pos) => {
+                    let Some(e) = lv
+                        .ty
+                        .elem()
+                        .filter(|e| e.int_kind().is_some() && *e != Elem::Bool && *e != Elem::Time)
+                    else {
+                        return Err(self.e(
+                            *pos,
+                            ErrorKind::TypeMismatch,
+                            "bit access needs an integer or bit-string variable",
+                        ));
+                    };
+                    if *b as u32 >= e.bits() {
+                        return Err(self.e(
+                            *pos,
+                            ErrorKind::Invalid,
+                            format!("{} has no bit {b}", e.name()),
+                        ));
+                    }
+                    lv.bit = Some(*b);
+                }
+            }
+        }
+        Ok(lv)
+    }
+
+    pub(super) fn place(&self, lv: Lv) -> Place {
+        if lv.steps.is_empty() && !lv.indirect {
+            match lv.base {
+                Base::Abs(a) => Place::Abs(a + lv.offset),
+                Base::Rel(o) => Place::Rel(o + lv.offset),
+            }
+        } else {
+            Place::Dyn(Box::new(DynPlace {
+                base: lv.base,
+                indirect: lv.indirect,
+                offset: lv.offset,
+                steps: lv.steps.into_boxed_slice(),
+            }))
+        }
+    }
+
+    pub(super) fn load(&self, lv: Lv) -> TE {
+        if let Some(c) = lv.const_val {
+            return TE {
+                ty: Ty::T(lv.ty),
+                e: vm::Expr::Const(c),
+            };
+        }
+        let ty = lv.ty.clone();
+        let bit = lv.bit;
+        let scalar = ty.scalar().is_some();
+        let p = self.place(lv);
+        let e = if !scalar {
+            vm::Expr::AddrOf(p)
+        } else {
+            match p {
+                Place::Abs(a) => vm::Expr::LoadAbs(a),
+                Place::Rel(o) => vm::Expr::LoadRel(o),
+                Place::Dyn(d) => vm::Expr::Load(d),
+            }
+        };
+        match bit {
+            Some(b) => TE {
+                ty: Ty::T(Type::BOOL),
+                e: vm::Expr::Un(Un::Bit(b), Box::new(e)),
+            },
+            None => TE { ty: Ty::T(ty), e },
+        }
+    }
+
+    // ---------------------------------------------------------------- expressions
+
+    pub(super) fn string_literal(&mut self, s: &[u8], pos: Pos) -> R<TE> {
+        let cap = s.len().max(1) as u16;
+        let a = match self.string_lits.get(s) {
+            Some(a) => *a,
+            None => {
+                let a = self.alloc(string_slots(cap), pos)?;
+                crate::strings::write(&mut self.image, a as usize, cap, s);
+                self.string_lits.insert(s.to_vec(), a);
+                a
+            }
+        };
+        Ok(TE {
+            ty: Ty::T(Type::String(cap)),
+            e: vm::Expr::AddrOf(Place::Abs(a)),
+        })
+    }
+
+    pub(super) fn string_temp(&mut self, pos: Pos) -> R<u32> {
+        self.alloc(string_slots(MAX_STRING_LEN), pos)
+    }
+
+    pub(super) fn expr(&mut self, e: &AExpr, sc: &mut Scope, expect: Option<&Type>) -> R<TE> {
+        match e {
+            AExpr::Lit(l, pos) => Ok(match l {
+                Literal::Int(v) => TE {
+                    ty: Ty::AnyInt(*v as i128),
+                    e: vm::Expr::Const(0),
+                },
+                Literal::Real(v) => TE {
+                    ty: Ty::AnyReal(*v),
+                    e: vm::Expr::Const(0),
+                },
+                Literal::Time(ns) => {
+                    let ns = i64::try_from(*ns)
+                        .map_err(|_| self.e(*pos, ErrorKind::Invalid, "duration is too large"))?;
+                    TE {
+                        ty: Ty::T(Type::Elem(Elem::Time)),
+                        e: vm::Expr::Const(ns as u64),
+                    }
+                }
+                Literal::Bool(b) => TE {
+                    ty: Ty::T(Type::BOOL),
+                    e: vm::Expr::Const(*b as u64),
+                },
+                Literal::Str(s) => return self.string_literal(s, *pos),
+            }),
+            AExpr::Typed(tn, inner) => {
+                let (t, _) = self.named_type(tn)?;
+                let te = self.expr(inner, sc, Some(&t))?;
+                let v = self.coerce(te, &t, inner.pos())?;
+                Ok(TE { ty: Ty::T(t), e: v })
+            }
+            AExpr::EnumValue(tn, v) => {
+                let (t, _) = self.named_type(tn)?;
+                let Type::Enum(id) = t else {
+                    return Err(self.e(
+                        tn.pos,
+                        ErrorKind::TypeMismatch,
+                        format!("'{}' is not an enumeration", tn.text),
+                    ));
+                };
+                let Some((_, val)) = self.enums[id as usize]
+                    .values
+                    .iter()
+                    .find(|(n, _)| n == &v.text)
+                else {
+                    return Err(self.e(
+                        v.pos,
+                        ErrorKind::Undeclared,
+                        format!("{} has no value '{}'", tn.text, v.text),
+                    ));
+                };
+                Ok(TE {
+                    ty: Ty::T(Type::Enum(id)),
+                    e: vm::Expr::Const(*val as u64),
+                })
+            }
+            AExpr::Var(a) => {
+                if a.parts.is_empty() && self.lookup(&a.root, sc).is_none() {
+                    if let Some(cands) = self.enum_values.get(&a.root.text) {
+                        let pick = match expect {
+                            Some(Type::Enum(id)) => cands.iter().find(|(e, _)| e == id).copied(),
+                            _ => None,
+                        }
+                        .or(if cands.len() == 1 {
+                            Some(cands[0])
+                        } else {
+                            None
+                        });
+                        return match pick {
+                            Some((id, v)) => Ok(TE {
+                                ty: Ty::T(Type::Enum(id)),
+                                e: vm::Expr::Const(v as u64),
+                            }),
+                            None => Err(self.e(
+                                a.root.pos,
+                                ErrorKind::Invalid,
+                                format!(
+                                    "'{}' names values of several enumerations; write Type#{}",
+                                    a.root.text, a.root.text
+                                ),
+                            )),
+                        };
+                    }
+                }
+                let lv = self.access(a, sc)?;
+                if let Type::Fb(_) = lv.ty {
+                    return Err(self.e(
+                        a.root.pos,
+                        ErrorKind::TypeMismatch,
+                        "a function block instance is not a value; read one of its outputs",
+                    ));
+                }
+                Ok(self.load(lv))
+            }
+            AExpr::Direct(d, pos) => {
+                let name = d.to_string();
+                let root = Name {
+                    text: name,
+                    pos: *pos,
+                };
+                let lv = self.access(
+                    &Access {
+                        root,
+                        parts: Vec::new(),
+                    },
+                    sc,
+                )?;
+                Ok(self.load(lv))
+            }
+            AExpr::Unary(op, inner, pos) => {
+                let te = self.expr(inner, sc, expect)?;
+                self.unary(*op, te, *pos)
+            }
+            AExpr::Binary(op, l, r, pos) => {
+                let lt = self.expr(l, sc, expect)?;
+                let hint = match &lt.ty {
+                    Ty::T(t) => Some(t.clone()),
+                    _ => expect.cloned(),
+                };
+                let rt = self.expr(r, sc, hint.as_ref())?;
+                self.binary(*op, lt, rt, *pos)
+            }
+            AExpr::Call(name, args, pos) => {
+                let te = self.call_expr(name, args, sc, *pos, expect)?;
+                if let (Ty::T(Type::Elem(Elem::Bool)), vm::Expr::Call(call)) = (&te.ty, &te.e) {
+                    if self
+                        .funcs
+                        .get(call.func as usize)
+                        .is_some_and(|f| f.ret.is_none())
+                    {
+                        return Err(self.e(
+                            *pos,
+                            ErrorKind::TypeMismatch,
+                            format!("function '{}' returns no value", name.text),
+                        ));
+                    }
+                }
+                Ok(te)
+            }
+        }
+    }
+
+    /// Folds an expression whose operands are all constants.
+    pub(super) fn fold(&self, e: vm::Expr) -> vm::Expr {
+        let e = self.fold_constants(e);
+        match e {
+            vm::Expr::Un(Un::NotBool, a) => match *a {
+                vm::Expr::LoadAbs(s) => vm::Expr::NotAbs(s),
+                other => vm::Expr::Un(Un::NotBool, Box::new(other)),
+            },
+            vm::Expr::Bin(op, ab) => match *ab {
+                (vm::Expr::LoadAbs(x), vm::Expr::LoadAbs(y)) => vm::Expr::BinAbs(op, x, y),
+                (a, vm::Expr::Const(k)) if !matches!(a, vm::Expr::Const(_)) => {
+                    vm::Expr::BinK(op, Box::new(a), k)
+                }
+                pair => vm::Expr::Bin(op, Box::new(pair)),
+            },
+            other => other,
+        }
+    }
+
+    pub(super) fn fold_constants(&self, e: vm::Expr) -> vm::Expr {
+        let all_const = match &e {
+            vm::Expr::Un(_, a) | vm::Expr::Conv(_, a) => matches!(**a, vm::Expr::Const(_)),
+            vm::Expr::Bin(_, ab) => {
+                matches!(ab.0, vm::Expr::Const(_)) && matches!(ab.1, vm::Expr::Const(_))
+            }
+            _ => false,
+        };
+        if !all_const {
+            return e;
+        }
+        let mut tmp = vm::Vm {
+            mem: Vec::new(),
+            frame: 0,
+            now: 0,
+            budget: 10,
+            fault: None,
+            fault_at: None,
+            pou: 0,
+        };
+        let code = Code {
+            functions: Vec::new(),
+            fbs: Vec::new(),
+        };
+        let v = tmp.eval(&code, &e);
+        if tmp.fault.is_some() {
+            e
+        } else {
+            vm::Expr::Const(v)
+        }
+    }
+
+    pub(super) fn unary(&mut self, op: UnOp, te: TE, pos: Pos) -> R<TE> {
+        match (op, &te.ty) {
+            (UnOp::Plus, _) => Ok(te),
+            (UnOp::Neg, Ty::AnyInt(v)) => Ok(TE {
+                ty: Ty::AnyInt(-v),
+                e: te.e,
+            }),
+            (UnOp::Neg, Ty::AnyReal(v)) => Ok(TE {
+                ty: Ty::AnyReal(-v),
+                e: te.e,
+            }),
+            (UnOp::Not, Ty::AnyInt(v)) => {
+                // NOT of an untyped literal: take it as a DWORD-wide bit string.
+                let e = self.fold(vm::Expr::Un(
+                    Un::NotBits(IntKind::U32),
+                    Box::new(vm::Expr::Const(*v as u64)),
+                ));
+                Ok(TE {
+                    ty: Ty::T(Type::Elem(Elem::DWord)),
+                    e,
+                })
+            }
+            (_, Ty::T(t)) => {
+                let Some(el) = t.elem() else {
+                    return Err(self.e(
+                        pos,
+                        ErrorKind::TypeMismatch,
+                        format!("operator does not apply to {}", self.type_name(t)),
+                    ));
+                };
+                let un = match op {
+                    UnOp::Neg if el.is_real() => Un::NegR(real_flag(el)),
+                    UnOp::Neg if (el.is_int() && ik(el).signed()) || el == Elem::Time => {
+                        Un::NegI(ik(el))
+                    }
+                    UnOp::Not if el == Elem::Bool => Un::NotBool,
+                    UnOp::Not if el.is_bit() => Un::NotBits(ik(el)),
+                    _ => {
+                        let opn = if op == UnOp::Neg { "-" } else { "NOT" };
+                        return Err(self.e(
+                            pos,
+                            ErrorKind::TypeMismatch,
+                            format!("'{opn}' does not apply to {}", el.name()),
+                        ));
+                    }
+                };
+                let rt = match t {
+                    Type::Subrange(e, _, _) => Type::Elem(*e),
+                    t => t.clone(),
+                };
+                Ok(TE {
+                    ty: Ty::T(rt),
+                    e: self.fold(vm::Expr::Un(un, Box::new(te.e))),
+                })
+            }
+            (UnOp::Not, Ty::AnyReal(_)) => {
+                Err(self.e(pos, ErrorKind::TypeMismatch, "NOT does not apply to a real"))
+            }
+        }
+    }
+
+    pub(super) fn literal_fold(&self, op: BinOp, a: &Ty, b: &Ty, pos: Pos) -> R<Option<TE>> {
+        let cmp = |o: std::cmp::Ordering| -> bool {
+            use std::cmp::Ordering::*;
+            match op {
+                BinOp::Eq => o == Equal,
+                BinOp::Ne => o != Equal,
+                BinOp::Lt => o == Less,
+                BinOp::Le => o != Greater,
+                BinOp::Gt => o == Greater,
+                BinOp::Ge => o != Less,
+                _ => false,
+            }
+        };
+        let is_cmp = matches!(
+            op,
+            BinOp::Eq | BinOp::Ne | BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge
+        );
+        let boolean = |v: bool| TE {
+            ty: Ty::T(Type::BOOL),
+            e: vm::Expr::Const(v as u64),
+        };
+        match (a, b) {
+            (Ty::AnyInt(x), Ty::AnyInt(y)) => {
+                let (x, y) = (*x, *y);
+                if is_cmp {
+                    return Ok(Some(boolean(cmp(x.cmp(&y)))));
+                }
+                let v = match op {
+                    BinOp::Add => x.checked_add(y),
+                    BinOp::Sub => x.checked_sub(y),
+                    BinOp::Mul => x.checked_mul(y),
+                    BinOp::Div | BinOp::Mod if y == 0 => {
+                        return Err(self.e(
+                            pos,
+                            ErrorKind::Invalid,
+                            "division by zero in a constant expression",
+                        ));
+                    }
+                    BinOp::Div => x.checked_div(y),
+                    BinOp::Mod => x.checked_rem(y),
+                    BinOp::And => Some(x & y),
+                    BinOp::Or => Some(x | y),
+                    BinOp::Xor => Some(x ^ y),
+                    BinOp::Pow => {
+                        return Ok(Some(TE {
+                            ty: Ty::AnyReal((x as f64).powf(y as f64)),
+                            e: vm::Expr::Const(0),
+                        }));
+                    }
+                    _ => None,
+                };
+                match v.filter(|v| *v >= i64::MIN as i128 && *v <= u64::MAX as i128) {
+                    Some(v) => Ok(Some(TE {
+                        ty: Ty::AnyInt(v),
+                        e: vm::Expr::Const(0),
+                    })),
+                    None => Err(self.e(pos, ErrorKind::Invalid, "constant expression overflows")),
+                }
+            }
+            (Ty::AnyInt(_) | Ty::AnyReal(_), Ty::AnyInt(_) | Ty::AnyReal(_)) => {
+                let f = |t: &Ty| match t {
+                    Ty::AnyInt(v) => *v as f64,
+                    Ty::AnyReal(v) => *v,
+                    Ty::T(_) => 0.0,
+                };
+                let (x, y) = (f(a), f(b));
+                if is_cmp {
+                    return Ok(x.partial_cmp(&y).map(|o| boolean(cmp(o))));
+                }
+                let v = match op {
+                    BinOp::Add => x + y,
+                    BinOp::Sub => x - y,
+                    BinOp::Mul => x * y,
+                    BinOp::Div if y == 0.0 => {
+                        return Err(self.e(
+                            pos,
+                            ErrorKind::Invalid,
+                            "division by zero in a constant expression",
+                        ));
+                    }
+                    BinOp::Div => x / y,
+                    BinOp::Pow => x.powf(y),
+                    _ => {
+                        return Err(self.e(
+                            pos,
+                            ErrorKind::TypeMismatch,
+                            "operator does not apply to reals",
+                        ));
+                    }
+                };
+                Ok(Some(TE {
+                    ty: Ty::AnyReal(v),
+                    e: vm::Expr::Const(0),
+                }))
+            }
+            _ => Ok(None),
+        }
+    }
+
+    /// The type two operands meet at, following the implicit widening rules.
+    pub(super) fn common(&self, a: &Ty, b: &Ty, pos: Pos) -> R<Type> {
+        let base = |t: &Type| match t {
+            Type::Subrange(e, _, _) => Type::Elem(*e),
+            t => t.clone(),
+        };
+        match (a, b) {
+            (Ty::T(x), Ty::AnyInt(_) | Ty::AnyReal(_)) => Ok(base(x)),
+            (Ty::AnyInt(_) | Ty::AnyReal(_), Ty::T(y)) => Ok(base(y)),
+            (Ty::T(x), Ty::T(y)) => {
+                let (x, y) = (base(x), base(y));
+                if x == y {
+                    return Ok(x);
+                }
+                if let (Type::String(p), Type::String(q)) = (&x, &y) {
+                    return Ok(Type::String((*p).max(*q)));
+                }
+                match (x.elem(), y.elem()) {
+                    (Some(p), Some(q)) if widens(p, q) => Ok(y),
+                    (Some(p), Some(q)) if widens(q, p) => Ok(x),
+                    // Neither widens to the other (INT and UINT): the smallest type both
+                    // widen to (DINT).
+                    (Some(p), Some(q))
+                        if Elem::ALL.iter().any(|t| widens(p, *t) && widens(q, *t)) =>
+                    {
+                        let t = Elem::ALL.iter().find(|t| widens(p, **t) && widens(q, **t));
+                        Ok(Type::Elem(*t.unwrap_or(&Elem::LReal)))
+                    }
+                    _ => Err(self.e(
+                        pos,
+                        ErrorKind::TypeMismatch,
+                        format!(
+                            "type mismatch: {} and {}",
+                            self.type_name(&x),
+                            self.type_name(&y)
+                        ),
+                    )),
+                }
+            }
+            _ => Err(self.e(pos, ErrorKind::TypeMismatch, "type mismatch")),
+        }
+    }
+
+    pub(super) fn binary(&mut self, op: BinOp, l: TE, r: TE, pos: Pos) -> R<TE> {
+        if let Some(te) = self.literal_fold(op, &l.ty, &r.ty, pos)? {
+            return Ok(te);
+        }
+        let time = Type::Elem(Elem::Time);
+        // TIME * number and TIME / number.
+        if matches!(op, BinOp::Mul | BinOp::Div)
+            && matches!(&l.ty, Ty::T(t) if t.elem() == Some(Elem::Time))
+        {
+            let rt = match &r.ty {
+                Ty::AnyInt(_) => Some(Type::Elem(Elem::LInt)),
+                Ty::AnyReal(_) => Some(Type::Elem(Elem::LReal)),
+                Ty::T(t) if t.elem().is_some_and(|e| e.is_num()) => Some(t.clone()),
+                _ => None,
+            };
+            if let Some(rt) = rt {
+                let re = rt.elem().unwrap_or(Elem::LInt);
+                let rv = self.coerce(r, &rt, pos)?;
+                let bin = match (op, re.is_real()) {
+                    (BinOp::Mul, false) => Bin::MulTimeI,
+                    (BinOp::Div, false) => Bin::DivTimeI,
+                    (BinOp::Mul, true) => Bin::MulTimeR,
+                    _ => Bin::DivTimeR,
+                };
+                return Ok(TE {
+                    ty: Ty::T(time),
+                    e: self.fold(vm::Expr::Bin(bin, Box::new((l.e, rv)))),
+                });
+            }
+        }
+        let ct = self.common(&l.ty, &r.ty, pos)?;
+        let (lt_name, rt_name) = (self.ty_name(&l.ty), self.ty_name(&r.ty));
+        let le = self.coerce(l, &ct, pos)?;
+        let re = self.coerce(r, &ct, pos)?;
+        let mismatch = |c: &Compiler| {
+            let opname = format!("{op:?}").to_uppercase();
+            c.e(
+                pos,
+                ErrorKind::TypeMismatch,
+                format!("operator {opname} does not apply to {lt_name} and {rt_name}"),
+            )
+        };
+        let is_cmp = matches!(
+            op,
+            BinOp::Eq | BinOp::Ne | BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge
+        );
+        if let Type::String(_) = ct {
+            if !is_cmp {
+                return Err(mismatch(self));
+            }
+            use std::cmp::Ordering::*;
+            let (bin, swap_not) = match op {
+                BinOp::Eq => (Bin::CmpS(Equal, false), false),
+                BinOp::Ne => (Bin::CmpS(Equal, false), true),
+                BinOp::Lt => (Bin::CmpS(Less, false), false),
+                BinOp::Le => (Bin::CmpS(Less, true), false),
+                BinOp::Gt => (Bin::CmpS(Greater, false), false),
+                _ => (Bin::CmpS(Greater, true), false),
+            };
+            let e = vm::Expr::Bin(bin, Box::new((le, re)));
+            let e = if swap_not {
+                vm::Expr::Un(Un::NotBool, Box::new(e))
+            } else {
+                e
+            };
+            return Ok(TE {
+                ty: Ty::T(Type::BOOL),
+                e,
+            });
+        }
+        let el = match &ct {
+            Type::Enum(_) => {
+                if !is_cmp {
+                    return Err(mismatch(self));
+                }
+                Elem::DInt
+            }
+            t => t.elem().ok_or_else(|| mismatch(self))?,
+        };
+        let k = ik(el);
+        let s = real_flag(el);
+        let bin = if is_cmp {
+            if el.is_real() {
+                match op {
+                    BinOp::Eq => Bin::EqR,
+                    BinOp::Ne => Bin::NeR,
+                    BinOp::Lt => Bin::LtR,
+                    BinOp::Le => Bin::LeR,
+                    BinOp::Gt => Bin::GtR,
+                    _ => Bin::GeR,
+                }
+            } else {
+                let sg = k.signed();
+                match op {
+                    BinOp::Eq => Bin::Eq,
+                    BinOp::Ne => Bin::Ne,
+                    BinOp::Lt => Bin::Lt(sg),
+                    BinOp::Le => Bin::Le(sg),
+                    BinOp::Gt => Bin::Gt(sg),
+                    _ => Bin::Ge(sg),
+                }
+            }
+        } else {
+            match op {
+                BinOp::And | BinOp::Or | BinOp::Xor if el == Elem::Bool || el.is_bit() => {
+                    match op {
+                        BinOp::And => Bin::And,
+                        BinOp::Or => Bin::Or,
+                        _ => Bin::Xor,
+                    }
+                }
+                BinOp::Add if el.is_int() || el == Elem::Time => Bin::AddI(k),
+                BinOp::Sub if el.is_int() || el == Elem::Time => Bin::SubI(k),
+                BinOp::Mul if el.is_int() => Bin::MulI(k),
+                BinOp::Div if el.is_int() => Bin::DivI(k),
+                BinOp::Mod if el.is_int() => Bin::ModI(k),
+                BinOp::Add if el.is_real() => Bin::AddR(s),
+                BinOp::Sub if el.is_real() => Bin::SubR(s),
+                BinOp::Mul if el.is_real() => Bin::MulR(s),
+                BinOp::Div if el.is_real() => Bin::DivR(s),
+                BinOp::Pow if el.is_real() => Bin::PowR(s),
+                _ => return Err(mismatch(self)),
+            }
+        };
+        let ty = if is_cmp { Type::BOOL } else { ct };
+        Ok(TE {
+            ty: Ty::T(ty),
+            e: self.fold(vm::Expr::Bin(bin, Box::new((le, re)))),
+        })
+    }
+
+    /// Converts an expression to type `to` if IEC allows it implicitly.
+    pub(super) fn coerce(&self, te: TE, to: &Type, pos: Pos) -> R<vm::Expr> {
+        let mismatch = |c: &Compiler, from: &Ty| {
+            c.e(
+                pos,
+                ErrorKind::TypeMismatch,
+                format!(
+                    "type mismatch: a {} value where {} is expected",
+                    c.ty_name(from),
+                    c.type_name(to)
+                ),
+            )
+        };
+        match &te.ty {
+            Ty::AnyInt(v) => {
+                let v = *v;
+                let Some(el) = to.scalar() else {
+                    return Err(mismatch(self, &te.ty));
+                };
+                if matches!(to, Type::Enum(_)) {
+                    return Err(mismatch(self, &te.ty));
+                }
+                if el.is_real() {
+                    let f = v as f64;
+                    return Ok(vm::Expr::Const(if el == Elem::Real {
+                        ((f as f32) as f64).to_bits()
+                    } else {
+                        f.to_bits()
+                    }));
+                }
+                if el == Elem::Time {
+                    return Err(mismatch(self, &te.ty));
+                }
+                let (lo, hi) = match to {
+                    Type::Subrange(_, l, h) => (*l as i128, *h as i128),
+                    _ => el.int_range().unwrap_or((0, 1)),
+                };
+                if v < lo || v > hi {
+                    return Err(self.e(
+                        pos,
+                        ErrorKind::TypeMismatch,
+                        format!("{v} does not fit {}", self.type_name(to)),
+                    ));
+                }
+                Ok(vm::Expr::Const(v as i64 as u64))
+            }
+            Ty::AnyReal(f) => match to.elem() {
+                Some(Elem::Real) => Ok(vm::Expr::Const(((*f as f32) as f64).to_bits())),
+                Some(Elem::LReal) => Ok(vm::Expr::Const(f.to_bits())),
+                _ => Err(mismatch(self, &te.ty)),
+            },
+            Ty::T(from) => {
+                if from == to {
+                    return Ok(te.e);
+                }
+                match (from, to) {
+                    (Type::String(_), Type::String(_)) => return Ok(te.e),
+                    (Type::Subrange(a, _, _), Type::Subrange(b, _, _)) if a == b => return Ok(te.e),
+                    _ => {}
+                }
+                let (Some(f), Some(t)) = (from.elem(), to.elem()) else {
+                    return Err(mismatch(self, &te.ty));
+                };
+                if !widens(f, t) {
+                    return Err(mismatch(self, &te.ty));
+                }
+                Ok(self.fold(self.convert(te.e, f, t)))
+            }
+        }
+    }
+
+    /// Builds the conversion of a value from `f` to `t` (any pair of elementary types).
+    pub(super) fn convert(&self, e: vm::Expr, f: Elem, t: Elem) -> vm::Expr {
+        let c = |cv: Conv, e: vm::Expr| vm::Expr::Conv(cv, Box::new(e));
+        if f == t {
+            return e;
+        }
+        match (f, t) {
+            (_, Elem::Bool) if f.is_real() => c(Conv::RealToBool, e),
+            (_, Elem::Bool) => c(Conv::IntToBool, e),
+            (Elem::Time, t) if t.is_real() => c(Conv::NsToRealMs(real_flag(t)), e),
+            (Elem::Time, t) => c(Conv::Int(ik(t)), c(Conv::NsToMs, e)),
+            (f, Elem::Time) if f.is_real() => c(Conv::RealMsToNs, e),
+            (_, Elem::Time) => c(Conv::MsToNs, e),
+            (f, t) if f.is_real() && t.is_real() => {
+                if t == Elem::Real {
+                    c(Conv::ToF32, e)
+                } else {
+                    e
+                }
+            }
+            (f, t) if f.is_real() => c(Conv::RealToInt(ik(t)), e),
+            (f, t) if t.is_real() => c(
+                Conv::IntToReal {
+                    signed: ik(f).signed(),
+                    f32: real_flag(t),
+                },
+                e,
+            ),
+            (_, t) => {
+                // Integer to integer: a no-op when every value of f fits t's encoding.
+                let (fl, fh) = ik(f).range();
+                let (tl, th) = ik(t).range();
+                if fl >= tl && fh <= th {
+                    e
+                } else {
+                    c(Conv::Int(ik(t)), e)
+                }
+            }
+        }
+    }
+}

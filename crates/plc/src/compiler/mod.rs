@@ -1,0 +1,812 @@
+//! Type checker and code generator: from the syntax tree to [`Program`].
+//!
+//! `declare` lays out types, POUs and variables; `stmt`, `expr` and `call` compile bodies.
+//!
+//! Memory is laid out once: globals, program instances, function frames (functions cannot
+//! recurse in IEC 61131-3, so each has one static frame), call temporaries and string
+//! temporaries all get absolute slots; function block bodies address their instance
+//! relative to the instance base, so one body serves every instance.
+
+mod call;
+mod declare;
+mod expr;
+mod stmt;
+
+use std::collections::{HashMap, HashSet};
+use std::sync::Arc;
+use std::time::Duration;
+
+use crate::ast::{
+    self, Access, Arg, BinOp, Expr as AExpr, Init, Literal, Name, Part, PouKind, TypeSpec, UnOp,
+    VarKind,
+};
+use crate::error::{CompileError, CompileErrors, ErrorKind, Pos};
+use crate::lexer::{AddrSize, Area, DirectAddr};
+use crate::program::{FbLayout, Located, Program, ProgramInstance, Symbol, TaskDesc, area_index};
+use crate::stdfb::{Dir, StdFb};
+use crate::types::*;
+use crate::vm::{
+    self, ArgIn, ArgOut, Base, Bin, Block, Builtin, CaseArm, Code, Conv, DynPlace, FbCall, FbKind,
+    FnCall, ForLoop, IndexStep, Place, Stmt, StmtKind, Store, Un,
+};
+
+pub(crate) type R<T> = Result<T, CompileError>;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Loc {
+    Abs(u32),
+    Rel(u32),
+    IndAbs(u32),
+    IndRel(u32),
+}
+
+#[derive(Debug, Clone)]
+struct VarInfo {
+    ty: Type,
+    loc: Loc,
+    kind: VarKind,
+    constant: bool,
+    const_val: Option<u64>,
+    input_area: bool,
+}
+
+/// Compile-time type of an expression: a real type or an untyped literal.
+#[derive(Debug, Clone)]
+pub(crate) enum Ty {
+    T(Type),
+    AnyInt(i128),
+    AnyReal(f64),
+}
+
+pub(crate) struct TE {
+    pub(crate) ty: Ty,
+    pub(crate) e: vm::Expr,
+}
+
+#[derive(Debug, Clone)]
+struct Member {
+    name: String,
+    ty: Type,
+    offset: u32,
+    kind: VarKind,
+    constant: bool,
+    retain: bool,
+}
+
+struct FbInfo {
+    name: String,
+    members: Vec<Member>,
+    size: u32,
+    template: Vec<u64>,
+    std: Option<StdFb>,
+    body: u32,
+}
+
+struct FuncInfo {
+    name: String,
+    pou: u32,
+    ret: Option<Type>,
+    result: u32,
+    params: Vec<Member>,
+    locals: HashMap<String, VarInfo>,
+    frame: (u32, u32),
+}
+
+pub(crate) struct Scope {
+    vars: HashMap<String, VarInfo>,
+    kind: PouKind,
+    pou: u32,
+    loops: u32,
+    /// Functions called from this body (recursion check).
+    calls: Vec<u32>,
+}
+
+enum Lookup<T> {
+    Missing,
+    Busy,
+    Found(T),
+}
+
+pub(crate) struct Compiler<'a> {
+    file: &'a str,
+    /// Upper-case name -> its first spelling in the source, for messages.
+    spelling: HashMap<String, String>,
+    errors: Vec<CompileError>,
+    image: Vec<u64>,
+    type_asts: HashMap<String, &'a ast::TypeDecl>,
+    named: HashMap<String, (Type, Option<Vec<u64>>)>,
+    resolving: HashSet<String>,
+    enums: Vec<EnumType>,
+    enum_values: HashMap<String, Vec<(u32, i64)>>,
+    structs: Vec<(StructType, Vec<u64>)>,
+    fb_asts: HashMap<String, &'a ast::Pou>,
+    fbs: Vec<FbInfo>,
+    fb_by_name: HashMap<String, Lookup<u32>>,
+    fn_asts: HashMap<String, &'a ast::Pou>,
+    funcs: Vec<FuncInfo>,
+    fn_by_name: HashMap<String, Lookup<u32>>,
+    fn_calls: Vec<Vec<u32>>,
+    globals: HashMap<String, VarInfo>,
+    global_syms: Vec<Symbol>,
+    located: Vec<Located>,
+    pou_names: Vec<Arc<str>>,
+    code_fns: Vec<Option<vm::Function>>,
+    code_fbs: Vec<Option<vm::Body>>,
+    string_lits: HashMap<Vec<u8>, u32>,
+}
+
+fn err(file: &str, pos: Pos, kind: ErrorKind, msg: impl Into<String>) -> CompileError {
+    CompileError::new(file, pos, kind, msg)
+}
+
+fn elem_of(ty: &Ty) -> Option<Elem> {
+    match ty {
+        Ty::T(t) => t.scalar().filter(|_| !matches!(t, Type::Enum(_))),
+        _ => None,
+    }
+}
+
+fn real_flag(e: Elem) -> bool {
+    e == Elem::Real
+}
+
+fn ik(e: Elem) -> IntKind {
+    e.int_kind().unwrap_or(IntKind::I64)
+}
+
+fn size_of(c: &Compiler, t: &Type) -> u32 {
+    match t {
+        Type::Elem(_) | Type::Enum(_) | Type::Subrange(..) => 1,
+        Type::String(n) => string_slots(*n),
+        Type::Array(a) => (a.len() as u32).saturating_mul(a.elem_size),
+        Type::Struct(id) => c.structs.get(*id as usize).map_or(1, |s| s.0.size),
+        Type::Fb(id) => c.fbs.get(*id as usize).map_or(1, |f| f.size),
+    }
+}
+
+/// Limit on the slots of one program, so a huge ARRAY declaration is a compile error, not
+/// an allocation failure.
+const MAX_SLOTS: u64 = 16 << 20;
+
+pub(crate) fn compile(src: &str, file: &str) -> Result<Program, CompileErrors> {
+    let toks = crate::lexer::tokenize(src, file)?;
+    let unit = crate::parser::parse(&toks, file)?;
+    let spelling = spellings(src, &toks);
+    let mut c = Compiler {
+        spelling,
+        file,
+        errors: Vec::new(),
+        image: Vec::new(),
+        type_asts: HashMap::new(),
+        named: HashMap::new(),
+        resolving: HashSet::new(),
+        enums: Vec::new(),
+        enum_values: HashMap::new(),
+        structs: Vec::new(),
+        fb_asts: HashMap::new(),
+        fbs: Vec::new(),
+        fb_by_name: HashMap::new(),
+        fn_asts: HashMap::new(),
+        funcs: Vec::new(),
+        fn_by_name: HashMap::new(),
+        fn_calls: Vec::new(),
+        globals: HashMap::new(),
+        global_syms: Vec::new(),
+        located: Vec::new(),
+        pou_names: Vec::new(),
+        code_fns: Vec::new(),
+        code_fbs: Vec::new(),
+        string_lits: HashMap::new(),
+    };
+    let program = c.unit(&unit);
+    // A program instantiated twice reports its body's errors once.
+    let mut seen = HashSet::new();
+    c.errors
+        .retain(|e| seen.insert((e.pos.line, e.pos.col, e.message.clone())));
+    match program {
+        Ok(p) if c.errors.is_empty() => Ok(p),
+        Ok(_) => Err(CompileErrors(c.errors)),
+        Err(e) => {
+            c.errors.push(e);
+            c.errors.sort_by_key(|e| (e.pos.line, e.pos.col));
+            Err(CompileErrors(c.errors))
+        }
+    }
+}
+
+impl<'a> Compiler<'a> {
+    fn e(&self, pos: Pos, kind: ErrorKind, msg: impl Into<String>) -> CompileError {
+        err(self.file, pos, kind, self.respell(&msg.into()))
+    }
+
+    /// Shows quoted names in messages as the source spells them.
+    fn respell(&self, msg: &str) -> String {
+        let mut out = String::with_capacity(msg.len());
+        let mut parts = msg.split('\'');
+        if let Some(first) = parts.next() {
+            out.push_str(first);
+        }
+        for (i, part) in parts.enumerate() {
+            out.push('\'');
+            if i % 2 == 0 {
+                out.push_str(self.spelling.get(part).map_or(part, String::as_str));
+            } else {
+                out.push_str(part);
+            }
+        }
+        out
+    }
+
+    fn alloc(&mut self, n: u32, pos: Pos) -> R<u32> {
+        let start = self.image.len() as u64;
+        if start + n as u64 > MAX_SLOTS {
+            return Err(self.e(
+                pos,
+                ErrorKind::Invalid,
+                "program needs more than 16 Mi slots of memory",
+            ));
+        }
+        self.image.resize((start + n as u64) as usize, 0);
+        Ok(start as u32)
+    }
+
+    fn type_name(&self, t: &Type) -> String {
+        match t {
+            Type::Elem(e) => e.name().into(),
+            Type::String(n) => format!("STRING[{n}]"),
+            Type::Enum(id) => self.enums[*id as usize].name.clone(),
+            Type::Subrange(e, l, h) => format!("{}({l}..{h})", e.name()),
+            Type::Array(a) => format!("ARRAY OF {}", self.type_name(&a.elem)),
+            Type::Struct(id) => self.structs[*id as usize].0.name.clone(),
+            Type::Fb(id) => self.fbs[*id as usize].name.clone(),
+        }
+    }
+    fn ty_name(&self, t: &Ty) -> String {
+        match t {
+            Ty::T(t) => self.type_name(t),
+            Ty::AnyInt(_) => "integer literal".into(),
+            Ty::AnyReal(_) => "real literal".into(),
+        }
+    }
+
+    fn new_pou_name(&mut self, name: &str) -> u32 {
+        let shown = self.spelling.get(name).map_or(name, String::as_str);
+        self.pou_names.push(Arc::from(shown));
+        (self.pou_names.len() - 1) as u32
+    }
+
+    // ---------------------------------------------------------------- unit
+
+    fn unit(&mut self, u: &'a ast::Unit) -> R<Program> {
+        let mut seen: HashMap<String, Pos> = HashMap::new();
+        let mut check_dup = |c: &Compiler, n: &Name| -> R<()> {
+            if Elem::from_name(&n.text).is_some()
+                || StdFb::from_name(&n.text).is_some()
+                || n.text == "STRING"
+            {
+                return Err(c.e(
+                    n.pos,
+                    ErrorKind::Duplicate,
+                    format!("'{}' is a standard name", n.text),
+                ));
+            }
+            if let Some(p) = seen.insert(n.text.clone(), n.pos) {
+                return Err(c.e(
+                    n.pos,
+                    ErrorKind::Duplicate,
+                    format!("'{}' is already declared at line {}", n.text, p.line),
+                ));
+            }
+            Ok(())
+        };
+        for t in &u.types {
+            check_dup(self, &t.name)?;
+            self.type_asts.insert(t.name.text.clone(), t);
+        }
+        let mut programs: Vec<&'a ast::Pou> = Vec::new();
+        for p in &u.pous {
+            check_dup(self, &p.name)?;
+            match p.kind {
+                PouKind::Function => {
+                    self.fn_asts.insert(p.name.text.clone(), p);
+                }
+                PouKind::FunctionBlock => {
+                    self.fb_asts.insert(p.name.text.clone(), p);
+                }
+                PouKind::Program => programs.push(p),
+            }
+        }
+        for t in &u.types {
+            if let Err(e) = self.named_type(&t.name) {
+                self.errors.push(e);
+            }
+        }
+        let fb_names: Vec<Name> = u
+            .pous
+            .iter()
+            .filter(|p| p.kind == PouKind::FunctionBlock)
+            .map(|p| p.name.clone())
+            .collect();
+        for n in &fb_names {
+            if let Err(e) = self.fb_type(n) {
+                self.errors.push(e);
+            }
+        }
+        let fn_names: Vec<Name> = u
+            .pous
+            .iter()
+            .filter(|p| p.kind == PouKind::Function)
+            .map(|p| p.name.clone())
+            .collect();
+        for n in &fn_names {
+            if let Err(e) = self.func(n) {
+                self.errors.push(e);
+            }
+        }
+        // Globals: top level and of the configurations.
+        let mut global_blocks: Vec<&ast::VarBlock> = u.globals.iter().collect();
+        for cfg in &u.configs {
+            global_blocks.extend(cfg.globals.iter());
+        }
+        for b in global_blocks {
+            let scope = Scope {
+                vars: HashMap::new(),
+                kind: PouKind::Program,
+                pou: 0,
+                loops: 0,
+                calls: Vec::new(),
+            };
+            for d in &b.decls {
+                if let Err(e) = self.declare_global(b, d, &scope) {
+                    self.errors.push(e);
+                }
+            }
+        }
+        if !self.errors.is_empty() {
+            return Err(self.errors.remove(0));
+        }
+        // Bodies of function blocks and functions.
+        for n in &fb_names {
+            if let Err(e) = self.fb_body(n) {
+                self.errors.push(e);
+            }
+        }
+        for n in &fn_names {
+            if let Err(e) = self.fn_body(n) {
+                self.errors.push(e);
+            }
+        }
+        self.check_recursion(&fn_names)?;
+
+        // Program instances and tasks.
+        let prog_by_name: HashMap<&str, &'a ast::Pou> = programs
+            .iter()
+            .map(|p| (p.name.text.as_str(), *p))
+            .collect();
+        let mut instances = Vec::new();
+        let mut tasks: Vec<TaskDesc> = Vec::new();
+        let mut default_task: Vec<usize> = Vec::new();
+        if u.configs.len() > 1 {
+            return Err(self.e(
+                u.configs[1].name.pos,
+                ErrorKind::Invalid,
+                "only one CONFIGURATION per program is supported",
+            ));
+        }
+        if let Some(cfg) = u.configs.first() {
+            let mut inst_names: HashSet<String> = HashSet::new();
+            for res in &cfg.resources {
+                let first_task = tasks.len();
+                for t in &res.tasks {
+                    if tasks.iter().any(|x| x.name == t.name.text) {
+                        return Err(self.e(
+                            t.name.pos,
+                            ErrorKind::Duplicate,
+                            format!("task '{}' declared twice", t.name.text),
+                        ));
+                    }
+                    let interval = match &t.interval {
+                        Some(e) => {
+                            let ns = self.const_time(e)?;
+                            if ns <= 0 {
+                                return Err(self.e(
+                                    e.pos(),
+                                    ErrorKind::Invalid,
+                                    "INTERVAL must be positive",
+                                ));
+                            }
+                            Some(Duration::from_nanos(ns as u64))
+                        }
+                        None => None,
+                    };
+                    if let Some(s) = &t.single {
+                        return Err(self.e(
+                            s.pos(),
+                            ErrorKind::Invalid,
+                            "event tasks (SINGLE) are not supported; use INTERVAL",
+                        ));
+                    }
+                    let priority = match &t.priority {
+                        Some(e) => {
+                            let v = self.const_int(e)?;
+                            u32::try_from(v).map_err(|_| {
+                                self.e(e.pos(), ErrorKind::Invalid, "PRIORITY must be 0 or more")
+                            })?
+                        }
+                        None => 0,
+                    };
+                    tasks.push(TaskDesc {
+                        name: t.name.text.clone(),
+                        interval,
+                        priority,
+                        programs: Vec::new(),
+                        program_ids: Vec::new(),
+                    });
+                }
+                for pi in &res.programs {
+                    if !inst_names.insert(pi.name.text.clone()) {
+                        return Err(self.e(
+                            pi.name.pos,
+                            ErrorKind::Duplicate,
+                            format!("program instance '{}' declared twice", pi.name.text),
+                        ));
+                    }
+                    let Some(pou) = prog_by_name.get(pi.ty.text.as_str()) else {
+                        return Err(self.e(
+                            pi.ty.pos,
+                            ErrorKind::Undeclared,
+                            format!("no PROGRAM named '{}'", pi.ty.text),
+                        ));
+                    };
+                    let idx = instances.len();
+                    instances.push(self.program_instance(pou, &pi.name.text)?);
+                    match &pi.task {
+                        Some(tn) => {
+                            let Some(t) =
+                                tasks[first_task..].iter_mut().find(|t| t.name == tn.text)
+                            else {
+                                return Err(self.e(
+                                    tn.pos,
+                                    ErrorKind::Undeclared,
+                                    format!("no TASK named '{}' in this resource", tn.text),
+                                ));
+                            };
+                            t.programs.push(pi.name.text.clone());
+                            t.program_ids.push(idx);
+                        }
+                        None => default_task.push(idx),
+                    }
+                }
+            }
+        } else {
+            for p in &programs {
+                let idx = instances.len();
+                instances.push(self.program_instance(p, &p.name.text)?);
+                default_task.push(idx);
+            }
+        }
+        // A PROGRAM the configuration does not instantiate is still checked: it gets an
+        // instance of its own name that no task runs.
+        for p in &programs {
+            let used = instances.iter().any(|i| i.pou_type == p.name.text);
+            if !used && !instances.iter().any(|i| i.name == p.name.text) {
+                instances.push(self.program_instance(p, &p.name.text)?);
+            }
+        }
+        if !default_task.is_empty() {
+            tasks.push(TaskDesc {
+                name: "DEFAULT".into(),
+                interval: None,
+                priority: u32::MAX,
+                programs: default_task
+                    .iter()
+                    .map(|i| instances[*i].name.clone())
+                    .collect(),
+                program_ids: default_task,
+            });
+        }
+        tasks.sort_by_key(|t| t.priority);
+        if !self.errors.is_empty() {
+            return Err(self.errors.remove(0));
+        }
+        let mut sizes = [0usize; 3];
+        for l in &self.located {
+            let a = area_index(l.at.area);
+            sizes[a] = sizes[a].max(l.at.byte_offset() + l.at.byte_len());
+        }
+        let functions = self
+            .code_fns
+            .drain(..)
+            .map(|f| f.expect("every function body compiled"))
+            .collect();
+        let fbs = self
+            .code_fbs
+            .drain(..)
+            .map(|f| f.expect("every function block body compiled"))
+            .collect();
+        Ok(Program {
+            file: self.file.to_string(),
+            code: Code { functions, fbs },
+            init: std::mem::take(&mut self.image),
+            globals: std::mem::take(&mut self.global_syms),
+            instances,
+            tasks,
+            pou_names: std::mem::take(&mut self.pou_names),
+            enums: std::mem::take(&mut self.enums),
+            structs: self.structs.drain(..).map(|s| s.0).collect(),
+            fbs: self
+                .fbs
+                .iter()
+                .map(|f| FbLayout {
+                    name: f.name.clone(),
+                    members: f
+                        .members
+                        .iter()
+                        .map(|m| Symbol {
+                            name: m.name.clone(),
+                            ty: m.ty.clone(),
+                            addr: m.offset,
+                            kind: m.kind,
+                            retain: m.retain,
+                            indirect: m.kind == VarKind::InOut,
+                        })
+                        .collect(),
+                })
+                .collect(),
+            located: std::mem::take(&mut self.located),
+            image_sizes: sizes,
+            pou_count: u.pous.len(),
+        })
+    }
+
+    fn check_recursion(&self, names: &[Name]) -> R<()> {
+        // Depth-first search for a cycle in the static call graph.
+        fn visit(g: &[Vec<u32>], n: u32, state: &mut [u8]) -> bool {
+            match state[n as usize] {
+                1 => return true,
+                2 => return false,
+                _ => {}
+            }
+            state[n as usize] = 1;
+            for &m in &g[n as usize] {
+                if visit(g, m, state) {
+                    return true;
+                }
+            }
+            state[n as usize] = 2;
+            false
+        }
+        let mut state = vec![0u8; self.fn_calls.len()];
+        for i in 0..self.fn_calls.len() {
+            if visit(&self.fn_calls, i as u32, &mut state) {
+                let name = &self.funcs[i].name;
+                let pos = names
+                    .iter()
+                    .find(|n| &n.text == name)
+                    .map_or(Pos::default(), |n| n.pos);
+                return Err(self.e(
+                    pos,
+                    ErrorKind::Invalid,
+                    format!("function '{name}' calls itself (recursion is not allowed)"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    // ---------------------------------------------------------------- constants
+
+    fn const_value(&mut self, e: &AExpr, scope: &Scope) -> R<TE> {
+        let mut sc = Scope {
+            vars: scope.vars.clone(),
+            kind: scope.kind,
+            pou: scope.pou,
+            loops: 0,
+            calls: Vec::new(),
+        };
+        let te = self.expr(e, &mut sc, None)?;
+        match (&te.ty, &te.e) {
+            (Ty::AnyInt(_) | Ty::AnyReal(_), _) | (_, vm::Expr::Const(_)) => Ok(te),
+            _ => Err(self.e(
+                e.pos(),
+                ErrorKind::Invalid,
+                "a constant expression is needed here",
+            )),
+        }
+    }
+
+    fn const_int_in(&mut self, e: &AExpr, scope: &Scope) -> R<i128> {
+        let te = self.const_value(e, scope)?;
+        match te.ty {
+            Ty::AnyInt(v) => Ok(v),
+            Ty::T(t) => match (t.scalar(), &te.e) {
+                (Some(el), vm::Expr::Const(v)) if el.int_kind().is_some() && el != Elem::Time => {
+                    Ok(if ik(el).signed() || matches!(t, Type::Enum(_)) {
+                        *v as i64 as i128
+                    } else {
+                        *v as i128
+                    })
+                }
+                _ => Err(self.e(
+                    e.pos(),
+                    ErrorKind::TypeMismatch,
+                    "an integer constant is needed here",
+                )),
+            },
+            Ty::AnyReal(_) => Err(self.e(
+                e.pos(),
+                ErrorKind::TypeMismatch,
+                "an integer constant is needed here",
+            )),
+        }
+    }
+
+    fn const_int(&mut self, e: &AExpr) -> R<i128> {
+        let scope = Scope {
+            vars: HashMap::new(),
+            kind: PouKind::Program,
+            pou: 0,
+            loops: 0,
+            calls: Vec::new(),
+        };
+        self.const_int_in(e, &scope)
+    }
+
+    fn const_time(&mut self, e: &AExpr) -> R<i64> {
+        let scope = Scope {
+            vars: HashMap::new(),
+            kind: PouKind::Program,
+            pou: 0,
+            loops: 0,
+            calls: Vec::new(),
+        };
+        let te = self.const_value(e, &scope)?;
+        match (&te.ty, &te.e) {
+            (Ty::T(Type::Elem(Elem::Time)), vm::Expr::Const(v)) => Ok(*v as i64),
+            _ => Err(self.e(
+                e.pos(),
+                ErrorKind::TypeMismatch,
+                "a TIME constant is needed here",
+            )),
+        }
+    }
+}
+
+/// First spelling of every identifier (identifiers are ASCII, so the upper-case text has
+/// the length of the original).
+fn spellings(src: &str, toks: &[crate::lexer::Token]) -> HashMap<String, String> {
+    let mut line_starts = vec![0usize];
+    line_starts.extend(src.match_indices('\n').map(|(i, _)| i + 1));
+    let mut map = HashMap::new();
+    for t in toks {
+        if let crate::lexer::Tok::Ident(up) = &t.kind {
+            if map.contains_key(up) {
+                continue;
+            }
+            let start = line_starts
+                .get(t.pos.line as usize - 1)
+                .map(|s| s + t.pos.col as usize - 1);
+            if let Some(raw) = start.and_then(|s| src.get(s..s + up.len())) {
+                map.insert(up.clone(), raw.to_string());
+            }
+        }
+    }
+    map
+}
+
+fn t_root(t: &Option<Access>) -> Pos {
+    t.as_ref().map_or(Pos::default(), |a| a.root.pos)
+}
+
+fn contains_user_call(e: &AExpr, c: &Compiler) -> bool {
+    match e {
+        AExpr::Call(n, args, _) => {
+            c.fn_asts.contains_key(&n.text)
+                || args.iter().any(|a| match a {
+                    Arg::Positional(e) | Arg::Input(_, e) => contains_user_call(e, c),
+                    Arg::Output(..) => false,
+                })
+        }
+        AExpr::Unary(_, a, _) | AExpr::Typed(_, a) => contains_user_call(a, c),
+        AExpr::Binary(_, a, b, _) => contains_user_call(a, c) || contains_user_call(b, c),
+        AExpr::Var(a) => a.parts.iter().any(
+            |p| matches!(p, Part::Index(ix, _) if ix.iter().any(|e| contains_user_call(e, c))),
+        ),
+        _ => false,
+    }
+}
+
+/// A structure field's offset, type, type template and initializer.
+type FieldInit<'i> = (u32, Type, Option<Vec<u64>>, Option<&'i Init>);
+
+/// An lvalue under construction.
+struct Lv {
+    ty: Type,
+    base: Base,
+    indirect: bool,
+    offset: u32,
+    steps: Vec<IndexStep>,
+    bit: Option<u8>,
+    readonly: Option<(ErrorKind, String)>,
+    const_val: Option<u64>,
+}
+
+impl Compiler<'_> {
+    /// Declares the implicit global behind a directly represented variable (`%IX0.0`).
+    fn direct_var(&mut self, d: &DirectAddr, pos: Pos) -> R<()> {
+        let name = d.to_string();
+        if self.globals.contains_key(&name) {
+            return Ok(());
+        }
+        let e = match d.size {
+            AddrSize::Bit => Elem::Bool,
+            AddrSize::Byte => Elem::Byte,
+            AddrSize::Word => Elem::Word,
+            AddrSize::Double => Elem::DWord,
+            AddrSize::Long => Elem::LWord,
+        };
+        let a = self.alloc(1, pos)?;
+        self.located.push(Located {
+            at: *d,
+            slot: a,
+            elem: e,
+        });
+        let info = VarInfo {
+            ty: Type::Elem(e),
+            loc: Loc::Abs(a),
+            kind: VarKind::Global,
+            constant: false,
+            const_val: None,
+            input_area: d.area == Area::Input,
+        };
+        self.globals.insert(name.clone(), info);
+        self.global_syms.push(Symbol {
+            name,
+            ty: Type::Elem(e),
+            addr: a,
+            kind: VarKind::Global,
+            retain: false,
+            indirect: false,
+        });
+        Ok(())
+    }
+
+    pub(crate) fn err_at(&self, pos: Pos, kind: ErrorKind, msg: impl Into<String>) -> CompileError {
+        self.e(pos, kind, msg)
+    }
+    pub(crate) fn coerce_to(&self, te: TE, to: &Type, pos: Pos) -> R<vm::Expr> {
+        self.coerce(te, to, pos)
+    }
+    pub(crate) fn conversion(&self, e: vm::Expr, f: Elem, t: Elem) -> vm::Expr {
+        self.fold(self.convert(e, f, t))
+    }
+    pub(crate) fn folded(&self, e: vm::Expr) -> vm::Expr {
+        self.fold(e)
+    }
+    pub(crate) fn new_string_temp(&mut self, pos: Pos) -> R<u32> {
+        self.string_temp(pos)
+    }
+    pub(crate) fn type_label(&self, t: &Ty) -> String {
+        self.ty_name(t)
+    }
+    pub(crate) fn common_type(&self, a: &Ty, b: &Ty, pos: Pos) -> R<Type> {
+        self.common(a, b, pos)
+    }
+    pub(crate) fn binary_op(&mut self, op: BinOp, l: TE, r: TE, pos: Pos) -> R<TE> {
+        self.binary(op, l, r, pos)
+    }
+    pub(crate) fn te(ty: Ty, e: vm::Expr) -> TE {
+        TE { ty, e }
+    }
+    pub(crate) fn te_parts(t: TE) -> (Ty, vm::Expr) {
+        (t.ty, t.e)
+    }
+}
+
+pub(crate) fn builtin_expr(b: Builtin, args: Vec<vm::Expr>, dest: u32) -> vm::Expr {
+    vm::Expr::Builtin(b, args.into_boxed_slice(), dest)
+}
+
+pub(crate) fn literal_elem(t: &Ty) -> Option<Elem> {
+    elem_of(t)
+}

@@ -1,0 +1,607 @@
+//! Hand-written lexer for Structured Text: keywords and identifiers are case-insensitive,
+//! comments `(* *)` (nesting), `/* */` and `//`, pragmas `{ }` are skipped.
+
+use crate::error::{CompileError, ErrorKind, Pos};
+
+/// One token with its source position.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Token {
+    pub kind: Tok,
+    pub pos: Pos,
+}
+
+/// Token kinds. Identifiers are kept in upper case (the language is case-insensitive);
+/// `Ident` keeps the spelling of the source for messages in `text`.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum Tok {
+    Ident(String),
+    /// Integer literal (value as u64 bits, so 16#FFFF_FFFF_FFFF_FFFF fits).
+    Int(u128),
+    Real(f64),
+    /// Duration literal in nanoseconds.
+    Time(i128),
+    Str(Vec<u8>),
+    /// `TYPE#` prefix of a typed literal (`INT#5`, `Mode#Idle`).
+    TypedPrefix(String),
+    /// Directly represented variable: `%IX0.0`, `%QW3`, `%MD10`.
+    Direct(DirectAddr),
+    Assign,   // :=
+    Output,   // =>
+    Colon,    // :
+    Semi,     // ;
+    Comma,    // ,
+    Dot,      // .
+    DotDot,   // ..
+    LParen,   // (
+    RParen,   // )
+    LBracket, // [
+    RBracket, // ]
+    Plus,
+    Minus,
+    Star,
+    Power, // **
+    Slash,
+    Amp, // &
+    Eq,
+    Ne,
+    Lt,
+    Le,
+    Gt,
+    Ge,
+    Caret,
+    Eof,
+}
+
+/// Area of a directly represented variable.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Area {
+    /// `%I`: the input image.
+    Input,
+    /// `%Q`: the output image.
+    Output,
+    /// `%M`: the marker (memory) image.
+    Memory,
+}
+
+/// Size prefix of a directly represented variable.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum AddrSize {
+    /// `X` (or none): one bit, addressed `byte.bit`.
+    Bit,
+    /// `B`: one byte.
+    Byte,
+    /// `W`: a 16-bit word at byte offset `2 * n`.
+    Word,
+    /// `D`: a 32-bit double word at byte offset `4 * n`.
+    Double,
+    /// `L`: a 64-bit long word at byte offset `8 * n`.
+    Long,
+}
+
+/// A parsed `%` address.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct DirectAddr {
+    /// The image the address lives in.
+    pub area: Area,
+    /// The width of the addressed item.
+    pub size: AddrSize,
+    /// Item index (byte index for bits and bytes).
+    pub index: u32,
+    /// Bit number for `X` addresses.
+    pub bit: u8,
+}
+
+impl DirectAddr {
+    /// Byte offset of the first byte in its image.
+    pub fn byte_offset(&self) -> usize {
+        let i = self.index as usize;
+        match self.size {
+            AddrSize::Bit | AddrSize::Byte => i,
+            AddrSize::Word => i * 2,
+            AddrSize::Double => i * 4,
+            AddrSize::Long => i * 8,
+        }
+    }
+    /// Number of bytes the item occupies (1 for a bit).
+    pub fn byte_len(&self) -> usize {
+        match self.size {
+            AddrSize::Bit | AddrSize::Byte => 1,
+            AddrSize::Word => 2,
+            AddrSize::Double => 4,
+            AddrSize::Long => 8,
+        }
+    }
+}
+
+impl std::fmt::Display for DirectAddr {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let a = match self.area {
+            Area::Input => 'I',
+            Area::Output => 'Q',
+            Area::Memory => 'M',
+        };
+        match self.size {
+            AddrSize::Bit => write!(f, "%{a}X{}.{}", self.index, self.bit),
+            AddrSize::Byte => write!(f, "%{a}B{}", self.index),
+            AddrSize::Word => write!(f, "%{a}W{}", self.index),
+            AddrSize::Double => write!(f, "%{a}D{}", self.index),
+            AddrSize::Long => write!(f, "%{a}L{}", self.index),
+        }
+    }
+}
+
+pub(crate) struct Lexer<'a> {
+    src: &'a [u8],
+    i: usize,
+    line: u32,
+    line_start: usize,
+    file: &'a str,
+}
+
+fn is_ident_start(c: u8) -> bool {
+    c.is_ascii_alphabetic() || c == b'_'
+}
+fn is_ident(c: u8) -> bool {
+    c.is_ascii_alphanumeric() || c == b'_'
+}
+
+/// Splits the whole source into tokens (ending with `Eof`) or returns the first lexical error.
+pub(crate) fn tokenize(src: &str, file: &str) -> Result<Vec<Token>, CompileError> {
+    let mut lx = Lexer {
+        src: src.as_bytes(),
+        i: 0,
+        line: 1,
+        line_start: 0,
+        file,
+    };
+    let mut out = Vec::with_capacity(src.len() / 3 + 1);
+    loop {
+        let t = lx.next()?;
+        let eof = t.kind == Tok::Eof;
+        out.push(t);
+        if eof {
+            return Ok(out);
+        }
+    }
+}
+
+impl Lexer<'_> {
+    fn pos(&self) -> Pos {
+        Pos {
+            line: self.line,
+            col: (self.i - self.line_start) as u32 + 1,
+        }
+    }
+    fn err(&self, pos: Pos, msg: impl Into<String>) -> CompileError {
+        CompileError::new(self.file, pos, ErrorKind::Syntax, msg)
+    }
+    fn peek(&self, k: usize) -> u8 {
+        self.src.get(self.i + k).copied().unwrap_or(0)
+    }
+    fn bump(&mut self) -> u8 {
+        let c = self.peek(0);
+        self.i += 1;
+        if c == b'\n' {
+            self.line += 1;
+            self.line_start = self.i;
+        }
+        c
+    }
+
+    fn skip_trivia(&mut self) -> Result<(), CompileError> {
+        loop {
+            let c = self.peek(0);
+            if c == b' ' || c == b'\t' || c == b'\r' || c == b'\n' || c == 0x0c {
+                self.bump();
+            } else if c == b'/' && self.peek(1) == b'/' {
+                while self.i < self.src.len() && self.peek(0) != b'\n' {
+                    self.bump();
+                }
+            } else if (c == b'(' || c == b'/') && self.peek(1) == b'*' {
+                let start = self.pos();
+                let (open, close) = if c == b'(' {
+                    (b'(', b')')
+                } else {
+                    (b'/', b'/')
+                };
+                self.bump();
+                self.bump();
+                let mut depth = 1u32;
+                loop {
+                    if self.i >= self.src.len() {
+                        return Err(self.err(start, "comment is not closed"));
+                    }
+                    if self.peek(0) == b'*' && self.peek(1) == close {
+                        self.bump();
+                        self.bump();
+                        depth -= 1;
+                        if depth == 0 {
+                            break;
+                        }
+                    } else if self.peek(0) == open && self.peek(1) == b'*' {
+                        self.bump();
+                        self.bump();
+                        depth += 1;
+                    } else {
+                        self.bump();
+                    }
+                }
+            } else if c == b'{' {
+                let start = self.pos();
+                while self.peek(0) != b'}' {
+                    if self.i >= self.src.len() {
+                        return Err(self.err(start, "pragma is not closed"));
+                    }
+                    self.bump();
+                }
+                self.bump();
+            } else {
+                return Ok(());
+            }
+        }
+    }
+
+    fn next(&mut self) -> Result<Token, CompileError> {
+        self.skip_trivia()?;
+        let pos = self.pos();
+        if self.i >= self.src.len() {
+            return Ok(Token {
+                kind: Tok::Eof,
+                pos,
+            });
+        }
+        let c = self.peek(0);
+        let kind = if is_ident_start(c) {
+            let start = self.i;
+            while is_ident(self.peek(0)) {
+                self.bump();
+            }
+            let word = std::str::from_utf8(&self.src[start..self.i])
+                .unwrap_or("")
+                .to_ascii_uppercase();
+            if word.contains("__") {
+                // IEC forbids double underscores: they make names ambiguous.
+                return Err(self.err(pos, "identifier may not contain two underscores in a row"));
+            }
+            if self.peek(0) == b'#' {
+                self.bump();
+                let kind = self.typed_literal(word, pos)?;
+                return Ok(Token { kind, pos });
+            }
+            Tok::Ident(word)
+        } else if c.is_ascii_digit() {
+            self.number(pos)?
+        } else if c == b'\'' {
+            self.string(pos)?
+        } else if c == b'%' {
+            self.direct(pos)?
+        } else {
+            self.bump();
+            match c {
+                b':' => {
+                    if self.peek(0) == b'=' {
+                        self.bump();
+                        Tok::Assign
+                    } else {
+                        Tok::Colon
+                    }
+                }
+                b';' => Tok::Semi,
+                b',' => Tok::Comma,
+                b'.' => {
+                    if self.peek(0) == b'.' {
+                        self.bump();
+                        Tok::DotDot
+                    } else {
+                        Tok::Dot
+                    }
+                }
+                b'(' => Tok::LParen,
+                b')' => Tok::RParen,
+                b'[' => Tok::LBracket,
+                b']' => Tok::RBracket,
+                b'+' => Tok::Plus,
+                b'-' => Tok::Minus,
+                b'*' => {
+                    if self.peek(0) == b'*' {
+                        self.bump();
+                        Tok::Power
+                    } else {
+                        Tok::Star
+                    }
+                }
+                b'/' => Tok::Slash,
+                b'&' => Tok::Amp,
+                b'^' => Tok::Caret,
+                b'=' => {
+                    if self.peek(0) == b'>' {
+                        self.bump();
+                        Tok::Output
+                    } else {
+                        Tok::Eq
+                    }
+                }
+                b'<' => match self.peek(0) {
+                    b'=' => {
+                        self.bump();
+                        Tok::Le
+                    }
+                    b'>' => {
+                        self.bump();
+                        Tok::Ne
+                    }
+                    _ => Tok::Lt,
+                },
+                b'>' => {
+                    if self.peek(0) == b'=' {
+                        self.bump();
+                        Tok::Ge
+                    } else {
+                        Tok::Gt
+                    }
+                }
+                _ => {
+                    let shown = if c.is_ascii_graphic() {
+                        format!("'{}'", c as char)
+                    } else {
+                        format!("byte 0x{c:02x}")
+                    };
+                    return Err(self.err(pos, format!("unexpected character {shown}")));
+                }
+            }
+        };
+        Ok(Token { kind, pos })
+    }
+
+    fn digits(&mut self, radix: u32, pos: Pos) -> Result<u128, CompileError> {
+        let mut v: u128 = 0;
+        let mut any = false;
+        loop {
+            let c = self.peek(0);
+            if c == b'_' {
+                self.bump();
+                continue;
+            }
+            let Some(d) = (c as char).to_digit(radix) else {
+                break;
+            };
+            self.bump();
+            any = true;
+            v = v
+                .checked_mul(radix as u128)
+                .and_then(|v| v.checked_add(d as u128))
+                .filter(|v| *v <= u64::MAX as u128)
+                .ok_or_else(|| self.err(pos, "integer literal is too large"))?;
+        }
+        if !any {
+            return Err(self.err(pos, "digits expected"));
+        }
+        Ok(v)
+    }
+
+    fn number(&mut self, pos: Pos) -> Result<Tok, CompileError> {
+        let start = self.i;
+        let v = self.digits(10, pos)?;
+        if self.peek(0) == b'#' {
+            self.bump();
+            let radix = match v {
+                2 | 8 | 16 => v as u32,
+                _ => return Err(self.err(pos, "radix must be 2, 8 or 16")),
+            };
+            return Ok(Tok::Int(self.digits(radix, pos)?));
+        }
+        let is_real = self.peek(0) == b'.' && self.peek(1).is_ascii_digit();
+        let has_exp = matches!(self.peek(0), b'e' | b'E')
+            && (self.peek(1).is_ascii_digit()
+                || (matches!(self.peek(1), b'+' | b'-') && self.peek(2).is_ascii_digit()));
+        if !is_real && !has_exp {
+            return Ok(Tok::Int(v));
+        }
+        if is_real {
+            self.bump();
+            while self.peek(0).is_ascii_digit() || self.peek(0) == b'_' {
+                self.bump();
+            }
+        }
+        if matches!(self.peek(0), b'e' | b'E')
+            && (self.peek(1).is_ascii_digit()
+                || (matches!(self.peek(1), b'+' | b'-') && self.peek(2).is_ascii_digit()))
+        {
+            self.bump();
+            if matches!(self.peek(0), b'+' | b'-') {
+                self.bump();
+            }
+            while self.peek(0).is_ascii_digit() {
+                self.bump();
+            }
+        }
+        let text: String = self.src[start..self.i]
+            .iter()
+            .filter(|c| **c != b'_')
+            .map(|c| *c as char)
+            .collect();
+        text.parse::<f64>()
+            .map(Tok::Real)
+            .map_err(|_| self.err(pos, "malformed real literal"))
+    }
+
+    fn string(&mut self, pos: Pos) -> Result<Tok, CompileError> {
+        self.bump();
+        let mut out = Vec::new();
+        loop {
+            if self.i >= self.src.len() || self.peek(0) == b'\n' {
+                return Err(self.err(pos, "string literal is not closed"));
+            }
+            let c = self.bump();
+            match c {
+                b'\'' => break,
+                b'$' => {
+                    let e = self.bump();
+                    let ch = match e.to_ascii_uppercase() {
+                        b'$' => b'$',
+                        b'\'' => b'\'',
+                        b'L' | b'N' => b'\n',
+                        b'P' => 0x0c,
+                        b'R' => b'\r',
+                        b'T' => b'\t',
+                        h if h.is_ascii_hexdigit() => {
+                            let l = self.bump();
+                            let hex = [h, l];
+                            let s = std::str::from_utf8(&hex).unwrap_or("");
+                            u8::from_str_radix(s, 16)
+                                .map_err(|_| self.err(pos, "bad $hh escape in string"))?
+                        }
+                        _ => return Err(self.err(pos, "unknown $ escape in string")),
+                    };
+                    out.push(ch);
+                }
+                _ => out.push(c),
+            }
+        }
+        if out.len() > crate::types::MAX_STRING_LEN as usize {
+            return Err(self.err(
+                pos,
+                format!(
+                    "string literal longer than {} characters",
+                    crate::types::MAX_STRING_LEN
+                ),
+            ));
+        }
+        Ok(Tok::Str(out))
+    }
+
+    fn direct(&mut self, pos: Pos) -> Result<Tok, CompileError> {
+        self.bump();
+        let area = match self.bump().to_ascii_uppercase() {
+            b'I' => Area::Input,
+            b'Q' => Area::Output,
+            b'M' => Area::Memory,
+            _ => return Err(self.err(pos, "direct address must start with %I, %Q or %M")),
+        };
+        let size = match self.peek(0).to_ascii_uppercase() {
+            b'X' => Some(AddrSize::Bit),
+            b'B' => Some(AddrSize::Byte),
+            b'W' => Some(AddrSize::Word),
+            b'D' => Some(AddrSize::Double),
+            b'L' => Some(AddrSize::Long),
+            _ => None,
+        };
+        if size.is_some() {
+            self.bump();
+        }
+        let size = size.unwrap_or(AddrSize::Bit);
+        let index = self.digits(10, pos)?;
+        let index = u32::try_from(index)
+            .ok()
+            .filter(|i| *i < 1 << 20)
+            .ok_or_else(|| self.err(pos, "direct address is too large"))?;
+        let mut bit = 0u8;
+        if size == AddrSize::Bit {
+            if self.peek(0) != b'.' || !self.peek(1).is_ascii_digit() {
+                return Err(self.err(pos, "bit address needs the form %IX<byte>.<bit>"));
+            }
+            self.bump();
+            let b = self.digits(10, pos)?;
+            if b > 7 {
+                return Err(self.err(pos, "bit number must be 0..7"));
+            }
+            bit = b as u8;
+        }
+        Ok(Tok::Direct(DirectAddr {
+            area,
+            size,
+            index,
+            bit,
+        }))
+    }
+
+    fn typed_literal(&mut self, prefix: String, pos: Pos) -> Result<Tok, CompileError> {
+        match prefix.as_str() {
+            "T" | "TIME" | "LTIME" | "LT" => self.duration(pos),
+            _ => Ok(Tok::TypedPrefix(prefix)),
+        }
+    }
+
+    /// `T#1d2h3m4s5ms6us7ns`, `T#1.5s`, `T#-5s`, underscores allowed.
+    fn duration(&mut self, pos: Pos) -> Result<Tok, CompileError> {
+        let negative = if self.peek(0) == b'-' {
+            self.bump();
+            true
+        } else {
+            false
+        };
+        let mut total: f64 = 0.0;
+        let mut exact: i128 = 0;
+        let mut any = false;
+        let mut last_unit = u32::MAX;
+        loop {
+            if self.peek(0) == b'_' {
+                self.bump();
+                continue;
+            }
+            if !self.peek(0).is_ascii_digit() {
+                break;
+            }
+            let start = self.i;
+            while self.peek(0).is_ascii_digit() || self.peek(0) == b'_' {
+                self.bump();
+            }
+            let mut frac = false;
+            if self.peek(0) == b'.' && self.peek(1).is_ascii_digit() {
+                frac = true;
+                self.bump();
+                while self.peek(0).is_ascii_digit() {
+                    self.bump();
+                }
+            }
+            let text: String = self.src[start..self.i]
+                .iter()
+                .filter(|c| **c != b'_')
+                .map(|c| *c as char)
+                .collect();
+            let c0 = self.peek(0).to_ascii_lowercase();
+            let c1 = self.peek(1).to_ascii_lowercase();
+            let (unit_ns, len, rank): (i128, usize, u32) = match (c0, c1) {
+                (b'd', _) => (86_400_000_000_000, 1, 6),
+                (b'h', _) => (3_600_000_000_000, 1, 5),
+                (b'm', b's') => (1_000_000, 2, 2),
+                (b'm', _) => (60_000_000_000, 1, 4),
+                (b's', _) => (1_000_000_000, 1, 3),
+                (b'u', b's') => (1_000, 2, 1),
+                (b'n', b's') => (1, 2, 0),
+                _ => return Err(self.err(pos, "duration needs a unit: d, h, m, s, ms, us or ns")),
+            };
+            if rank >= last_unit {
+                return Err(self.err(pos, "duration units must go from larger to smaller"));
+            }
+            last_unit = rank;
+            for _ in 0..len {
+                self.bump();
+            }
+            if frac {
+                let v: f64 = text
+                    .parse()
+                    .map_err(|_| self.err(pos, "malformed duration"))?;
+                total += v * unit_ns as f64;
+            } else {
+                let v: i128 = text
+                    .parse()
+                    .map_err(|_| self.err(pos, "malformed duration"))?;
+                exact = v
+                    .checked_mul(unit_ns)
+                    .and_then(|x| x.checked_add(exact))
+                    .filter(|x| *x <= i64::MAX as i128)
+                    .ok_or_else(|| self.err(pos, "duration is too large"))?;
+            }
+            any = true;
+        }
+        if !any {
+            return Err(self.err(pos, "duration literal has no value"));
+        }
+        let ns = exact + total.round() as i128;
+        if ns > i64::MAX as i128 {
+            return Err(self.err(pos, "duration is too large"));
+        }
+        Ok(Tok::Time(if negative { -ns } else { ns }))
+    }
+}

@@ -1,0 +1,68 @@
+//! `rtcnc-plc`: an IEC 61131-3 Structured Text soft PLC for machine logic.
+//!
+//! Source is compiled once ([`compile`], [`compile_file`]) into a [`Program`]: a tree of
+//! typed operations over a flat slot memory, with every name resolved. A [`Runtime`] is
+//! one instance of a program; the caller (the motion kernel's PLC task, a test, the CLI)
+//! calls [`Runtime::scan`] every period with the current PLC time. A scan reads the input
+//! image, runs the programs of the due tasks, writes the output image; it allocates
+//! nothing, takes no locks and never reads the OS clock, so it runs the same in virtual
+//! and in real time. Runtime faults (division by zero, index out of range, subrange
+//! violation, watchdog budget) stop the PLC, drive outputs to their safe values and come
+//! back as a [`Fault`] value.
+//!
+//! ```
+//! use std::{sync::Arc, time::Duration};
+//! let src = "PROGRAM Main
+//!   VAR start : BOOL; t : TON; lamp : BOOL; END_VAR
+//!   t(IN := start, PT := T#20ms);
+//!   lamp := t.Q;
+//! END_PROGRAM";
+//! let program = Arc::new(rtcnc_plc::compile(src, "main.st").unwrap());
+//! let mut plc = rtcnc_plc::Runtime::new(program);
+//! let start = plc.resolve("start").unwrap();
+//! plc.write(&start, &rtcnc_plc::Value::Bool(true)).unwrap();
+//! for k in 0..6 {
+//!     plc.scan(Duration::from_millis(4 * k)).unwrap();
+//! }
+//! assert_eq!(plc.read_name("lamp").unwrap(), rtcnc_plc::Value::Bool(true));
+//! assert_eq!(plc.read_name("t.ET").unwrap(), rtcnc_plc::Value::Time(20_000_000));
+//! ```
+
+mod ast;
+mod builtins;
+mod compiler;
+mod error;
+mod lexer;
+mod parser;
+mod program;
+mod runtime;
+mod signals;
+mod stdfb;
+mod strings;
+pub mod types;
+mod value;
+mod vm;
+
+use std::path::Path;
+
+pub use error::{CompileError, CompileErrors, ErrorKind, Fault, FaultKind, LoadError, Pos};
+pub use lexer::{AddrSize, Area, DirectAddr};
+pub use program::{Program, TaskDesc};
+pub use runtime::{MonitorError, Restart, RetainReport, Runtime, RuntimeOptions, VarRef};
+pub use signals::{ConfigError, Direction, PlcConfig, Signal, SignalKind};
+pub use stdfb::StdFb;
+pub use value::{FmtTime, Value, ValueError, parse_time};
+
+/// Compiles Structured Text source; `file` names the source in error messages.
+pub fn compile(source: &str, file: &str) -> Result<Program, CompileErrors> {
+    compiler::compile(source, file)
+}
+
+/// Reads and compiles a Structured Text file.
+pub fn compile_file(path: &Path) -> Result<Program, LoadError> {
+    let text = std::fs::read_to_string(path).map_err(|source| LoadError::Io {
+        path: path.display().to_string(),
+        source,
+    })?;
+    compile(&text, &path.display().to_string()).map_err(LoadError::Compile)
+}

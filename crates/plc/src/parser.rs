@@ -1,0 +1,1083 @@
+//! Recursive-descent parser from tokens to the syntax tree.
+
+use crate::ast::*;
+use crate::error::{CompileError, ErrorKind, Pos};
+use crate::lexer::{Tok, Token};
+
+/// Deepest nesting of expressions and statements accepted; keeps the recursion (and the
+/// compiled tree) shallow enough for any stack.
+const MAX_DEPTH: u32 = 96;
+
+pub(crate) struct Parser<'a> {
+    toks: &'a [Token],
+    i: usize,
+    file: &'a str,
+    depth: u32,
+}
+
+type PResult<T> = Result<T, CompileError>;
+
+pub(crate) fn parse(toks: &[Token], file: &str) -> PResult<Unit> {
+    let mut p = Parser {
+        toks,
+        i: 0,
+        file,
+        depth: 0,
+    };
+    p.unit()
+}
+
+fn describe(t: &Tok) -> String {
+    match t {
+        Tok::Ident(s) => format!("'{s}'"),
+        Tok::Int(v) => format!("number {v}"),
+        Tok::Real(v) => format!("number {v}"),
+        Tok::Time(_) => "duration literal".into(),
+        Tok::Str(_) => "string literal".into(),
+        Tok::TypedPrefix(s) => format!("'{s}#'"),
+        Tok::Direct(d) => format!("'{d}'"),
+        Tok::Eof => "end of file".into(),
+        other => {
+            let s = match other {
+                Tok::Assign => ":=",
+                Tok::Output => "=>",
+                Tok::Colon => ":",
+                Tok::Semi => ";",
+                Tok::Comma => ",",
+                Tok::Dot => ".",
+                Tok::DotDot => "..",
+                Tok::LParen => "(",
+                Tok::RParen => ")",
+                Tok::LBracket => "[",
+                Tok::RBracket => "]",
+                Tok::Plus => "+",
+                Tok::Minus => "-",
+                Tok::Star => "*",
+                Tok::Power => "**",
+                Tok::Slash => "/",
+                Tok::Amp => "&",
+                Tok::Eq => "=",
+                Tok::Ne => "<>",
+                Tok::Lt => "<",
+                Tok::Le => "<=",
+                Tok::Gt => ">",
+                Tok::Ge => ">=",
+                Tok::Caret => "^",
+                _ => "?",
+            };
+            format!("'{s}'")
+        }
+    }
+}
+
+const RESERVED: &[&str] = &[
+    "IF",
+    "THEN",
+    "ELSIF",
+    "ELSE",
+    "END_IF",
+    "CASE",
+    "OF",
+    "END_CASE",
+    "FOR",
+    "TO",
+    "BY",
+    "DO",
+    "END_FOR",
+    "WHILE",
+    "END_WHILE",
+    "REPEAT",
+    "UNTIL",
+    "END_REPEAT",
+    "EXIT",
+    "RETURN",
+    "CONTINUE",
+    "VAR",
+    "END_VAR",
+    "VAR_INPUT",
+    "VAR_OUTPUT",
+    "VAR_IN_OUT",
+    "VAR_GLOBAL",
+    "VAR_EXTERNAL",
+    "VAR_TEMP",
+    "PROGRAM",
+    "END_PROGRAM",
+    "FUNCTION",
+    "END_FUNCTION",
+    "FUNCTION_BLOCK",
+    "END_FUNCTION_BLOCK",
+    "TYPE",
+    "END_TYPE",
+    "STRUCT",
+    "END_STRUCT",
+    "ARRAY",
+    "AND",
+    "OR",
+    "XOR",
+    "NOT",
+    "MOD",
+    "TRUE",
+    "FALSE",
+    "CONFIGURATION",
+    "END_CONFIGURATION",
+    "RESOURCE",
+    "END_RESOURCE",
+    "TASK",
+    "WITH",
+    "ON",
+    "AT",
+    "CONSTANT",
+    "RETAIN",
+    "NON_RETAIN",
+];
+
+impl Parser<'_> {
+    fn peek(&self) -> &Tok {
+        &self.toks[self.i.min(self.toks.len() - 1)].kind
+    }
+    fn peek_at(&self, k: usize) -> &Tok {
+        &self.toks[(self.i + k).min(self.toks.len() - 1)].kind
+    }
+    fn pos(&self) -> Pos {
+        self.toks[self.i.min(self.toks.len() - 1)].pos
+    }
+    fn bump(&mut self) -> Tok {
+        let t = self.peek().clone();
+        if self.i < self.toks.len() - 1 {
+            self.i += 1;
+        }
+        t
+    }
+    fn err(&self, msg: impl Into<String>) -> CompileError {
+        CompileError::new(self.file, self.pos(), ErrorKind::Syntax, msg)
+    }
+    fn unexpected(&self, wanted: &str) -> CompileError {
+        self.err(format!(
+            "expected {wanted}, found {}",
+            describe(self.peek())
+        ))
+    }
+    fn is_kw(&self, kw: &str) -> bool {
+        matches!(self.peek(), Tok::Ident(s) if s == kw)
+    }
+    fn eat_kw(&mut self, kw: &str) -> bool {
+        if self.is_kw(kw) {
+            self.bump();
+            true
+        } else {
+            false
+        }
+    }
+    fn expect_kw(&mut self, kw: &str) -> PResult<()> {
+        if self.eat_kw(kw) {
+            Ok(())
+        } else {
+            Err(self.unexpected(kw))
+        }
+    }
+    fn eat(&mut self, t: &Tok) -> bool {
+        if self.peek() == t {
+            self.bump();
+            true
+        } else {
+            false
+        }
+    }
+    fn expect(&mut self, t: &Tok) -> PResult<()> {
+        if self.eat(t) {
+            Ok(())
+        } else {
+            Err(self.unexpected(&describe(t)))
+        }
+    }
+    fn name(&mut self) -> PResult<Name> {
+        let pos = self.pos();
+        match self.peek() {
+            Tok::Ident(s) if !RESERVED.contains(&s.as_str()) => {
+                let text = s.clone();
+                self.bump();
+                Ok(Name { text, pos })
+            }
+            _ => Err(self.unexpected("a name")),
+        }
+    }
+    fn enter(&mut self) -> PResult<()> {
+        self.depth += 1;
+        if self.depth > MAX_DEPTH {
+            return Err(self.err("nesting is too deep"));
+        }
+        Ok(())
+    }
+
+    fn unit(&mut self) -> PResult<Unit> {
+        let mut u = Unit::default();
+        loop {
+            match self.peek() {
+                Tok::Eof => return Ok(u),
+                Tok::Ident(s) => {
+                    match s.as_str() {
+                        "TYPE" => {
+                            self.bump();
+                            while !self.eat_kw("END_TYPE") {
+                                u.types.push(self.type_decl()?);
+                            }
+                        }
+                        "PROGRAM" => u.pous.push(self.pou(PouKind::Program, "END_PROGRAM")?),
+                        "FUNCTION" => u.pous.push(self.pou(PouKind::Function, "END_FUNCTION")?),
+                        "FUNCTION_BLOCK" => u
+                            .pous
+                            .push(self.pou(PouKind::FunctionBlock, "END_FUNCTION_BLOCK")?),
+                        "VAR_GLOBAL" => u.globals.push(self.var_block()?),
+                        "CONFIGURATION" => u.configs.push(self.config()?),
+                        _ => return Err(self.unexpected(
+                            "TYPE, PROGRAM, FUNCTION, FUNCTION_BLOCK, VAR_GLOBAL or CONFIGURATION",
+                        )),
+                    }
+                }
+                _ => {
+                    return Err(self.unexpected(
+                        "TYPE, PROGRAM, FUNCTION, FUNCTION_BLOCK, VAR_GLOBAL or CONFIGURATION",
+                    ));
+                }
+            }
+        }
+    }
+
+    fn type_decl(&mut self) -> PResult<TypeDecl> {
+        let name = self.name()?;
+        self.expect(&Tok::Colon)?;
+        let spec = self.type_spec()?;
+        let init = if self.eat(&Tok::Assign) {
+            Some(self.init()?)
+        } else {
+            None
+        };
+        self.expect(&Tok::Semi)?;
+        Ok(TypeDecl { name, spec, init })
+    }
+
+    fn type_spec(&mut self) -> PResult<TypeSpec> {
+        let pos = self.pos();
+        if self.eat_kw("ARRAY") {
+            self.expect(&Tok::LBracket)?;
+            let mut dims = Vec::new();
+            loop {
+                let lo = self.expr()?;
+                self.expect(&Tok::DotDot)?;
+                let hi = self.expr()?;
+                dims.push((lo, hi));
+                if !self.eat(&Tok::Comma) {
+                    break;
+                }
+            }
+            self.expect(&Tok::RBracket)?;
+            self.expect_kw("OF")?;
+            let elem = self.type_spec()?;
+            return Ok(TypeSpec::Array {
+                dims,
+                elem: Box::new(elem),
+                pos,
+            });
+        }
+        if self.eat_kw("STRUCT") {
+            let mut fields = Vec::new();
+            while !self.eat_kw("END_STRUCT") {
+                fields.push(self.var_decl(false)?);
+            }
+            return Ok(TypeSpec::Struct { fields, pos });
+        }
+        if self.peek() == &Tok::LParen {
+            self.bump();
+            let mut values = Vec::new();
+            loop {
+                let n = self.name()?;
+                let v = if self.eat(&Tok::Assign) {
+                    Some(self.expr()?)
+                } else {
+                    None
+                };
+                values.push((n, v));
+                if !self.eat(&Tok::Comma) {
+                    break;
+                }
+            }
+            self.expect(&Tok::RParen)?;
+            return Ok(TypeSpec::Enum {
+                values,
+                base: None,
+                pos,
+            });
+        }
+        if self.is_kw("STRING") {
+            self.bump();
+            let len = if self.eat(&Tok::LBracket) {
+                let e = self.expr()?;
+                self.expect(&Tok::RBracket)?;
+                Some(e)
+            } else if self.peek() == &Tok::LParen {
+                self.bump();
+                let e = self.expr()?;
+                self.expect(&Tok::RParen)?;
+                Some(e)
+            } else {
+                None
+            };
+            return Ok(TypeSpec::String { len, pos });
+        }
+        let base = self.name()?;
+        if self.peek() == &Tok::LParen {
+            // Subrange `INT(0..100)` or typed enum `INT (A := 1, B := 2)`.
+            let save = self.i;
+            self.bump();
+            if matches!(self.peek(), Tok::Ident(_))
+                && matches!(self.peek_at(1), Tok::Assign | Tok::Comma | Tok::RParen)
+            {
+                self.i = save;
+                if let TypeSpec::Enum { values, pos, .. } = self.type_spec()? {
+                    return Ok(TypeSpec::Enum {
+                        values,
+                        base: Some(base),
+                        pos,
+                    });
+                }
+            }
+            let low = self.expr()?;
+            self.expect(&Tok::DotDot)?;
+            let high = self.expr()?;
+            self.expect(&Tok::RParen)?;
+            return Ok(TypeSpec::Subrange { base, low, high });
+        }
+        Ok(TypeSpec::Named(base))
+    }
+
+    fn init(&mut self) -> PResult<Init> {
+        let pos = self.pos();
+        if self.eat(&Tok::LBracket) {
+            let mut items = Vec::new();
+            if !self.eat(&Tok::RBracket) {
+                loop {
+                    // `n(value)` repeats; anything else is a value.
+                    if matches!(self.peek(), Tok::Int(_)) && self.peek_at(1) == &Tok::LParen {
+                        let count = self.primary()?;
+                        self.expect(&Tok::LParen)?;
+                        let v = if self.peek() == &Tok::RParen {
+                            None
+                        } else {
+                            Some(self.init()?)
+                        };
+                        self.expect(&Tok::RParen)?;
+                        items.push((Some(count), v.unwrap_or(Init::Array(Vec::new(), pos))));
+                    } else {
+                        items.push((None, self.init()?));
+                    }
+                    if !self.eat(&Tok::Comma) {
+                        break;
+                    }
+                }
+                self.expect(&Tok::RBracket)?;
+            }
+            return Ok(Init::Array(items, pos));
+        }
+        if self.peek() == &Tok::LParen
+            && matches!(self.peek_at(1), Tok::Ident(_))
+            && self.peek_at(2) == &Tok::Assign
+        {
+            self.bump();
+            let mut items = Vec::new();
+            loop {
+                let n = self.name()?;
+                self.expect(&Tok::Assign)?;
+                items.push((n, self.init()?));
+                if !self.eat(&Tok::Comma) {
+                    break;
+                }
+            }
+            self.expect(&Tok::RParen)?;
+            return Ok(Init::Struct(items, pos));
+        }
+        Ok(Init::Expr(self.expr()?))
+    }
+
+    fn var_block(&mut self) -> PResult<VarBlock> {
+        let kind = match self.peek() {
+            Tok::Ident(s) => match s.as_str() {
+                "VAR" => VarKind::Local,
+                "VAR_INPUT" => VarKind::Input,
+                "VAR_OUTPUT" => VarKind::Output,
+                "VAR_IN_OUT" => VarKind::InOut,
+                "VAR_GLOBAL" => VarKind::Global,
+                "VAR_EXTERNAL" => VarKind::External,
+                "VAR_TEMP" => VarKind::Temp,
+                _ => return Err(self.unexpected("a VAR block")),
+            },
+            _ => return Err(self.unexpected("a VAR block")),
+        };
+        self.bump();
+        let mut constant = false;
+        let mut retain = false;
+        loop {
+            if self.eat_kw("CONSTANT") {
+                constant = true;
+            } else if self.eat_kw("RETAIN") || self.eat_kw("PERSISTENT") {
+                retain = true;
+            } else if self.eat_kw("NON_RETAIN") {
+                retain = false;
+            } else {
+                break;
+            }
+        }
+        let mut decls = Vec::new();
+        while !self.eat_kw("END_VAR") {
+            decls.push(self.var_decl(true)?);
+        }
+        Ok(VarBlock {
+            kind,
+            constant,
+            retain,
+            decls,
+        })
+    }
+
+    fn var_decl(&mut self, allow_at: bool) -> PResult<VarDecl> {
+        let mut names = vec![self.name()?];
+        while self.eat(&Tok::Comma) {
+            names.push(self.name()?);
+        }
+        let mut at = None;
+        if allow_at && self.eat_kw("AT") {
+            let pos = self.pos();
+            match self.bump() {
+                Tok::Direct(d) => at = Some((d, pos)),
+                _ => {
+                    self.i -= 1;
+                    return Err(self.unexpected("a direct address like %IX0.0"));
+                }
+            }
+        }
+        self.expect(&Tok::Colon)?;
+        let ty = self.type_spec()?;
+        let init = if self.eat(&Tok::Assign) {
+            Some(self.init()?)
+        } else {
+            None
+        };
+        self.expect(&Tok::Semi)?;
+        Ok(VarDecl {
+            names,
+            at,
+            ty,
+            init,
+        })
+    }
+
+    fn is_var_block_start(&self) -> bool {
+        matches!(self.peek(), Tok::Ident(s) if matches!(s.as_str(), "VAR" | "VAR_INPUT" | "VAR_OUTPUT" | "VAR_IN_OUT" | "VAR_GLOBAL" | "VAR_EXTERNAL" | "VAR_TEMP"))
+    }
+
+    fn pou(&mut self, kind: PouKind, end: &str) -> PResult<Pou> {
+        self.bump();
+        let name = self.name()?;
+        let ret = if kind == PouKind::Function {
+            // A function without `: type` returns nothing (3rd edition).
+            if self.eat(&Tok::Colon) {
+                Some(self.type_spec()?)
+            } else {
+                None
+            }
+        } else {
+            None
+        };
+        let mut vars = Vec::new();
+        while self.is_var_block_start() {
+            vars.push(self.var_block()?);
+        }
+        let body = self.stmts(&[end])?;
+        self.expect_kw(end)?;
+        Ok(Pou {
+            kind,
+            name,
+            ret,
+            vars,
+            body,
+        })
+    }
+
+    fn config(&mut self) -> PResult<Config> {
+        self.bump();
+        let name = self.name()?;
+        let mut globals = Vec::new();
+        let mut resources = Vec::new();
+        loop {
+            if self.is_kw("VAR_GLOBAL") {
+                globals.push(self.var_block()?);
+            } else if self.eat_kw("RESOURCE") {
+                self.name()?;
+                if self.eat_kw("ON") {
+                    self.name()?;
+                }
+                let mut res = Resource {
+                    tasks: Vec::new(),
+                    programs: Vec::new(),
+                };
+                self.resource_body(&mut res, &mut globals, "END_RESOURCE")?;
+                resources.push(res);
+            } else if self.is_kw("TASK") || self.is_kw("PROGRAM") {
+                // A configuration without a RESOURCE: one implicit resource.
+                let mut res = Resource {
+                    tasks: Vec::new(),
+                    programs: Vec::new(),
+                };
+                self.resource_body(&mut res, &mut globals, "END_CONFIGURATION")?;
+                resources.push(res);
+                return Ok(Config {
+                    name,
+                    globals,
+                    resources,
+                });
+            } else if self.eat_kw("END_CONFIGURATION") {
+                return Ok(Config {
+                    name,
+                    globals,
+                    resources,
+                });
+            } else {
+                return Err(
+                    self.unexpected("VAR_GLOBAL, RESOURCE, TASK, PROGRAM or END_CONFIGURATION")
+                );
+            }
+        }
+    }
+
+    fn resource_body(
+        &mut self,
+        res: &mut Resource,
+        globals: &mut Vec<VarBlock>,
+        end: &str,
+    ) -> PResult<()> {
+        loop {
+            if self.eat_kw(end) {
+                return Ok(());
+            }
+            if self.is_kw("VAR_GLOBAL") {
+                globals.push(self.var_block()?);
+            } else if self.eat_kw("TASK") {
+                let name = self.name()?;
+                let mut t = TaskDecl {
+                    name,
+                    interval: None,
+                    priority: None,
+                    single: None,
+                };
+                self.expect(&Tok::LParen)?;
+                loop {
+                    let key = self.name()?;
+                    self.expect(&Tok::Assign)?;
+                    let v = self.expr()?;
+                    match key.text.as_str() {
+                        "INTERVAL" => t.interval = Some(v),
+                        "PRIORITY" => t.priority = Some(v),
+                        "SINGLE" => t.single = Some(v),
+                        _ => {
+                            return Err(CompileError::new(
+                                self.file,
+                                key.pos,
+                                ErrorKind::Syntax,
+                                format!(
+                                    "unknown task property '{}' (INTERVAL, PRIORITY, SINGLE)",
+                                    key.text
+                                ),
+                            ));
+                        }
+                    }
+                    if !self.eat(&Tok::Comma) {
+                        break;
+                    }
+                }
+                self.expect(&Tok::RParen)?;
+                self.expect(&Tok::Semi)?;
+                res.tasks.push(t);
+            } else if self.eat_kw("PROGRAM") {
+                self.eat_kw("RETAIN");
+                self.eat_kw("NON_RETAIN");
+                let name = self.name()?;
+                let task = if self.eat_kw("WITH") {
+                    Some(self.name()?)
+                } else {
+                    None
+                };
+                self.expect(&Tok::Colon)?;
+                let ty = self.name()?;
+                if self.peek() == &Tok::LParen {
+                    return Err(self.err("program instance arguments are not supported; use VAR_GLOBAL / VAR_EXTERNAL"));
+                }
+                self.expect(&Tok::Semi)?;
+                res.programs.push(ProgramInst { name, task, ty });
+            } else {
+                return Err(self.unexpected(&format!("TASK, PROGRAM, VAR_GLOBAL or {end}")));
+            }
+        }
+    }
+
+    fn stmts(&mut self, ends: &[&str]) -> PResult<Vec<Stmt>> {
+        let mut out = Vec::new();
+        loop {
+            if let Tok::Ident(s) = self.peek() {
+                if ends.contains(&s.as_str()) {
+                    return Ok(out);
+                }
+            }
+            if self.peek() == &Tok::Eof {
+                return Err(self.unexpected(&ends.join(" or ")));
+            }
+            let s = self.stmt()?;
+            if !matches!(s, Stmt::Empty) {
+                out.push(s);
+            }
+        }
+    }
+
+    fn stmt(&mut self) -> PResult<Stmt> {
+        self.enter()?;
+        let r = self.stmt_inner();
+        self.depth -= 1;
+        r
+    }
+
+    fn stmt_inner(&mut self) -> PResult<Stmt> {
+        let pos = self.pos();
+        if self.eat(&Tok::Semi) {
+            return Ok(Stmt::Empty);
+        }
+        let kw = match self.peek() {
+            Tok::Ident(s) => s.clone(),
+            Tok::Direct(d) => {
+                // `%QX0.4 := ...`: a directly represented variable as the target.
+                let root = Name {
+                    text: d.to_string(),
+                    pos,
+                };
+                self.bump();
+                self.expect(&Tok::Assign)?;
+                let e = self.expr()?;
+                self.expect(&Tok::Semi)?;
+                return Ok(Stmt::Assign(
+                    Access {
+                        root,
+                        parts: Vec::new(),
+                    },
+                    e,
+                    pos,
+                ));
+            }
+            _ => return Err(self.unexpected("a statement")),
+        };
+        let s = match kw.as_str() {
+            "IF" => {
+                self.bump();
+                let mut branches = Vec::new();
+                let c = self.expr()?;
+                self.expect_kw("THEN")?;
+                let b = self.stmts(&["ELSIF", "ELSE", "END_IF"])?;
+                branches.push((c, b));
+                let mut els = Vec::new();
+                loop {
+                    if self.eat_kw("ELSIF") {
+                        let c = self.expr()?;
+                        self.expect_kw("THEN")?;
+                        let b = self.stmts(&["ELSIF", "ELSE", "END_IF"])?;
+                        branches.push((c, b));
+                    } else if self.eat_kw("ELSE") {
+                        els = self.stmts(&["END_IF"])?;
+                        self.expect_kw("END_IF")?;
+                        break;
+                    } else {
+                        self.expect_kw("END_IF")?;
+                        break;
+                    }
+                }
+                Stmt::If(branches, els, pos)
+            }
+            "CASE" => {
+                self.bump();
+                let sel = self.expr()?;
+                self.expect_kw("OF")?;
+                let mut arms = Vec::new();
+                let mut els = Vec::new();
+                loop {
+                    if self.eat_kw("ELSE") {
+                        els = self.stmts(&["END_CASE"])?;
+                        self.expect_kw("END_CASE")?;
+                        break;
+                    }
+                    if self.eat_kw("END_CASE") {
+                        break;
+                    }
+                    let mut labels = Vec::new();
+                    loop {
+                        let lo = self.expr()?;
+                        let hi = if self.eat(&Tok::DotDot) {
+                            Some(self.expr()?)
+                        } else {
+                            None
+                        };
+                        labels.push((lo, hi));
+                        if !self.eat(&Tok::Comma) {
+                            break;
+                        }
+                    }
+                    self.expect(&Tok::Colon)?;
+                    let body = self.case_body()?;
+                    arms.push(CaseArm { labels, body });
+                }
+                Stmt::Case(sel, arms, els, pos)
+            }
+            "FOR" => {
+                self.bump();
+                let var = self.name()?;
+                self.expect(&Tok::Assign)?;
+                let from = self.expr()?;
+                self.expect_kw("TO")?;
+                let to = self.expr()?;
+                let by = if self.eat_kw("BY") {
+                    Some(self.expr()?)
+                } else {
+                    None
+                };
+                self.expect_kw("DO")?;
+                let body = self.stmts(&["END_FOR"])?;
+                self.expect_kw("END_FOR")?;
+                Stmt::For {
+                    var,
+                    from,
+                    to,
+                    by,
+                    body,
+                    pos,
+                }
+            }
+            "WHILE" => {
+                self.bump();
+                let c = self.expr()?;
+                self.expect_kw("DO")?;
+                let body = self.stmts(&["END_WHILE"])?;
+                self.expect_kw("END_WHILE")?;
+                Stmt::While(c, body, pos)
+            }
+            "REPEAT" => {
+                self.bump();
+                let body = self.stmts(&["UNTIL"])?;
+                self.expect_kw("UNTIL")?;
+                let c = self.expr()?;
+                self.expect_kw("END_REPEAT")?;
+                Stmt::Repeat(body, c, pos)
+            }
+            "EXIT" => {
+                self.bump();
+                Stmt::Exit(pos)
+            }
+            "CONTINUE" => {
+                self.bump();
+                Stmt::Continue(pos)
+            }
+            "RETURN" => {
+                self.bump();
+                Stmt::Return(pos)
+            }
+            _ => {
+                let target = self.access()?;
+                if self.peek() == &Tok::LParen {
+                    let args = self.args()?;
+                    Stmt::Call(target, args, pos)
+                } else if self.eat(&Tok::Assign) {
+                    let e = self.expr()?;
+                    Stmt::Assign(target, e, pos)
+                } else {
+                    return Err(self.unexpected("':=' or '('"));
+                }
+            }
+        };
+        if !matches!(s, Stmt::Empty) {
+            self.expect(&Tok::Semi)?;
+        }
+        Ok(s)
+    }
+
+    /// Statements of one CASE arm: up to the next label (`expr :` / `expr ..`), ELSE or END_CASE.
+    fn case_body(&mut self) -> PResult<Vec<Stmt>> {
+        let mut out = Vec::new();
+        loop {
+            if self.is_kw("ELSE") || self.is_kw("END_CASE") {
+                return Ok(out);
+            }
+            if self.peek() == &Tok::Eof {
+                return Err(self.unexpected("END_CASE"));
+            }
+            if self.looks_like_label() {
+                return Ok(out);
+            }
+            let s = self.stmt()?;
+            if !matches!(s, Stmt::Empty) {
+                out.push(s);
+            }
+        }
+    }
+
+    /// A case label starts with a constant (number, `-number`, enum name, typed literal)
+    /// followed by `:`, `,` or `..` at the top level.
+    fn looks_like_label(&self) -> bool {
+        let mut k = 0;
+        if self.peek_at(k) == &Tok::Minus {
+            k += 1;
+        }
+        match self.peek_at(k) {
+            Tok::Int(_) | Tok::Real(_) | Tok::Str(_) | Tok::Time(_) => {}
+            Tok::TypedPrefix(_) => {
+                k += 1;
+            }
+            Tok::Ident(s) if !RESERVED.contains(&s.as_str()) || s == "TRUE" || s == "FALSE" => {}
+            _ => return false,
+        }
+        k += 1;
+        matches!(self.peek_at(k), Tok::Colon | Tok::Comma | Tok::DotDot)
+    }
+
+    fn access(&mut self) -> PResult<Access> {
+        let root = self.name()?;
+        let mut parts = Vec::new();
+        loop {
+            if self.peek() == &Tok::Dot {
+                let pos = self.pos();
+                self.bump();
+                match self.peek().clone() {
+                    Tok::Int(b) => {
+                        self.bump();
+                        if b > 63 {
+                            return Err(CompileError::new(
+                                self.file,
+                                pos,
+                                ErrorKind::Syntax,
+                                "bit number must be 0..63",
+                            ));
+                        }
+                        parts.push(Part::Bit(b as u8, pos));
+                    }
+                    Tok::Real(_) => {
+                        return Err(self.err("bit access takes one bit number"));
+                    }
+                    _ => parts.push(Part::Field(self.name()?)),
+                }
+            } else if self.peek() == &Tok::LBracket {
+                let pos = self.pos();
+                self.bump();
+                let mut idx = vec![self.expr()?];
+                while self.eat(&Tok::Comma) {
+                    idx.push(self.expr()?);
+                }
+                self.expect(&Tok::RBracket)?;
+                parts.push(Part::Index(idx, pos));
+            } else {
+                return Ok(Access { root, parts });
+            }
+        }
+    }
+
+    fn args(&mut self) -> PResult<Vec<Arg>> {
+        self.expect(&Tok::LParen)?;
+        let mut args = Vec::new();
+        if self.eat(&Tok::RParen) {
+            return Ok(args);
+        }
+        loop {
+            let negated = self.is_kw("NOT")
+                && matches!(self.peek_at(1), Tok::Ident(_))
+                && self.peek_at(2) == &Tok::Output;
+            if negated {
+                self.bump();
+            }
+            if matches!(self.peek(), Tok::Ident(_)) && self.peek_at(1) == &Tok::Assign {
+                let n = self.name()?;
+                self.bump();
+                args.push(Arg::Input(n, self.expr()?));
+            } else if matches!(self.peek(), Tok::Ident(_)) && self.peek_at(1) == &Tok::Output {
+                let n = self.name()?;
+                self.bump();
+                let target = if matches!(self.peek(), Tok::Comma | Tok::RParen) {
+                    None
+                } else {
+                    Some(self.access()?)
+                };
+                args.push(Arg::Output(n, target, negated));
+            } else {
+                args.push(Arg::Positional(self.expr()?));
+            }
+            if !self.eat(&Tok::Comma) {
+                break;
+            }
+        }
+        self.expect(&Tok::RParen)?;
+        Ok(args)
+    }
+
+    pub(crate) fn expr(&mut self) -> PResult<Expr> {
+        self.enter()?;
+        let r = self.binary(0);
+        self.depth -= 1;
+        r
+    }
+
+    fn binop_at(&self, level: u8) -> Option<BinOp> {
+        let t = self.peek();
+        let kw = |k: &str| matches!(t, Tok::Ident(s) if s == k);
+        match level {
+            0 if kw("OR") => Some(BinOp::Or),
+            1 if kw("XOR") => Some(BinOp::Xor),
+            2 if kw("AND") || t == &Tok::Amp => Some(BinOp::And),
+            3 => match t {
+                Tok::Eq => Some(BinOp::Eq),
+                Tok::Ne => Some(BinOp::Ne),
+                _ => None,
+            },
+            4 => match t {
+                Tok::Lt => Some(BinOp::Lt),
+                Tok::Le => Some(BinOp::Le),
+                Tok::Gt => Some(BinOp::Gt),
+                Tok::Ge => Some(BinOp::Ge),
+                _ => None,
+            },
+            5 => match t {
+                Tok::Plus => Some(BinOp::Add),
+                Tok::Minus => Some(BinOp::Sub),
+                _ => None,
+            },
+            6 => match t {
+                Tok::Star => Some(BinOp::Mul),
+                Tok::Slash => Some(BinOp::Div),
+                _ if kw("MOD") => Some(BinOp::Mod),
+                _ => None,
+            },
+            7 if t == &Tok::Power => Some(BinOp::Pow),
+            _ => None,
+        }
+    }
+
+    fn binary(&mut self, level: u8) -> PResult<Expr> {
+        if level == 8 {
+            return self.unary();
+        }
+        let mut lhs = self.binary(level + 1)?;
+        let depth_before = self.depth;
+        while let Some(op) = self.binop_at(level) {
+            let pos = self.pos();
+            self.bump();
+            // A long left-leaning chain builds a tree as deep as nesting does.
+            if let Err(e) = self.enter() {
+                self.depth = depth_before;
+                return Err(e);
+            }
+            let rhs = self.binary(level + 1);
+            if rhs.is_err() {
+                self.depth = depth_before;
+            }
+            lhs = Expr::Binary(op, Box::new(lhs), Box::new(rhs?), pos);
+        }
+        self.depth = depth_before;
+        Ok(lhs)
+    }
+
+    fn unary(&mut self) -> PResult<Expr> {
+        let pos = self.pos();
+        let op = if self.peek() == &Tok::Minus {
+            Some(UnOp::Neg)
+        } else if self.peek() == &Tok::Plus {
+            Some(UnOp::Plus)
+        } else if self.is_kw("NOT") {
+            Some(UnOp::Not)
+        } else {
+            None
+        };
+        match op {
+            Some(op) => {
+                self.bump();
+                self.enter()?;
+                let e = self.unary();
+                self.depth -= 1;
+                let e = e?;
+                // Fold a minus into a numeric literal so INT#-32768 style bounds work.
+                if op == UnOp::Neg {
+                    if let Expr::Lit(Literal::Real(v), p) = e {
+                        return Ok(Expr::Lit(Literal::Real(-v), p));
+                    }
+                    if let Expr::Lit(Literal::Time(v), p) = e {
+                        return Ok(Expr::Lit(Literal::Time(-v), p));
+                    }
+                }
+                Ok(Expr::Unary(op, Box::new(e), pos))
+            }
+            None => self.primary(),
+        }
+    }
+
+    fn primary(&mut self) -> PResult<Expr> {
+        let pos = self.pos();
+        match self.peek().clone() {
+            Tok::Int(v) => {
+                self.bump();
+                Ok(Expr::Lit(Literal::Int(v), pos))
+            }
+            Tok::Real(v) => {
+                self.bump();
+                Ok(Expr::Lit(Literal::Real(v), pos))
+            }
+            Tok::Time(v) => {
+                self.bump();
+                Ok(Expr::Lit(Literal::Time(v), pos))
+            }
+            Tok::Str(s) => {
+                self.bump();
+                Ok(Expr::Lit(Literal::Str(s), pos))
+            }
+            Tok::Direct(d) => {
+                self.bump();
+                Ok(Expr::Direct(d, pos))
+            }
+            Tok::TypedPrefix(p) => {
+                self.bump();
+                let name = Name { text: p, pos };
+                if matches!(self.peek(), Tok::Ident(s) if s != "TRUE" && s != "FALSE") {
+                    let v = self.name()?;
+                    return Ok(Expr::EnumValue(name, v));
+                }
+                let neg = self.eat(&Tok::Minus);
+                let inner = self.primary()?;
+                let inner = if neg {
+                    Expr::Unary(UnOp::Neg, Box::new(inner), pos)
+                } else {
+                    inner
+                };
+                Ok(Expr::Typed(name, Box::new(inner)))
+            }
+            Tok::LParen => {
+                self.bump();
+                let e = self.expr()?;
+                self.expect(&Tok::RParen)?;
+                Ok(e)
+            }
+            Tok::Ident(s) if s == "TRUE" || s == "FALSE" => {
+                self.bump();
+                Ok(Expr::Lit(Literal::Bool(s == "TRUE"), pos))
+            }
+            Tok::Ident(_) => {
+                let a = self.access()?;
+                if self.peek() == &Tok::LParen {
+                    if !a.parts.is_empty() {
+                        return Err(self.err("only functions can be called inside an expression"));
+                    }
+                    let args = self.args()?;
+                    return Ok(Expr::Call(a.root, args, pos));
+                }
+                Ok(Expr::Var(a))
+            }
+            _ => Err(self.unexpected("an expression")),
+        }
+    }
+}

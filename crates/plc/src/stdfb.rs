@@ -1,0 +1,286 @@
+//! The standard function blocks of IEC 61131-3 (timers, counters, edge detectors and
+//! bistables), run natively on the instance's slots. The PLC's time is the scan time
+//! handed in by the caller, so they behave the same in virtual and real time.
+
+use crate::types::Elem;
+
+/// One of the standard function blocks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StdFb {
+    /// On-delay timer.
+    Ton,
+    /// Off-delay timer.
+    Tof,
+    /// Pulse timer.
+    Tp,
+    /// Up counter.
+    Ctu,
+    /// Down counter.
+    Ctd,
+    /// Up-down counter.
+    Ctud,
+    /// Rising edge detector.
+    RTrig,
+    /// Falling edge detector.
+    FTrig,
+    /// Set-dominant bistable.
+    Sr,
+    /// Reset-dominant bistable.
+    Rs,
+}
+
+/// Direction of a member of a standard FB.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Dir {
+    In,
+    Out,
+}
+
+type Member = (&'static str, Elem, Dir);
+
+const TIMER: &[Member] = &[
+    ("IN", Elem::Bool, Dir::In),
+    ("PT", Elem::Time, Dir::In),
+    ("Q", Elem::Bool, Dir::Out),
+    ("ET", Elem::Time, Dir::Out),
+];
+const TRIG: &[Member] = &[("CLK", Elem::Bool, Dir::In), ("Q", Elem::Bool, Dir::Out)];
+const SR: &[Member] = &[
+    ("S1", Elem::Bool, Dir::In),
+    ("R", Elem::Bool, Dir::In),
+    ("Q1", Elem::Bool, Dir::Out),
+];
+const RS: &[Member] = &[
+    ("S", Elem::Bool, Dir::In),
+    ("R1", Elem::Bool, Dir::In),
+    ("Q1", Elem::Bool, Dir::Out),
+];
+const CTU: &[Member] = &[
+    ("CU", Elem::Bool, Dir::In),
+    ("R", Elem::Bool, Dir::In),
+    ("PV", Elem::Int, Dir::In),
+    ("Q", Elem::Bool, Dir::Out),
+    ("CV", Elem::Int, Dir::Out),
+];
+const CTD: &[Member] = &[
+    ("CD", Elem::Bool, Dir::In),
+    ("LD", Elem::Bool, Dir::In),
+    ("PV", Elem::Int, Dir::In),
+    ("Q", Elem::Bool, Dir::Out),
+    ("CV", Elem::Int, Dir::Out),
+];
+const CTUD: &[Member] = &[
+    ("CU", Elem::Bool, Dir::In),
+    ("CD", Elem::Bool, Dir::In),
+    ("R", Elem::Bool, Dir::In),
+    ("LD", Elem::Bool, Dir::In),
+    ("PV", Elem::Int, Dir::In),
+    ("QU", Elem::Bool, Dir::Out),
+    ("QD", Elem::Bool, Dir::Out),
+    ("CV", Elem::Int, Dir::Out),
+];
+
+impl StdFb {
+    /// Look up by upper-case name.
+    pub fn from_name(n: &str) -> Option<StdFb> {
+        Some(match n {
+            "TON" => StdFb::Ton,
+            "TOF" => StdFb::Tof,
+            "TP" => StdFb::Tp,
+            "CTU" => StdFb::Ctu,
+            "CTD" => StdFb::Ctd,
+            "CTUD" => StdFb::Ctud,
+            "R_TRIG" => StdFb::RTrig,
+            "F_TRIG" => StdFb::FTrig,
+            "SR" => StdFb::Sr,
+            "RS" => StdFb::Rs,
+            _ => return None,
+        })
+    }
+    /// IEC name.
+    pub fn name(self) -> &'static str {
+        match self {
+            StdFb::Ton => "TON",
+            StdFb::Tof => "TOF",
+            StdFb::Tp => "TP",
+            StdFb::Ctu => "CTU",
+            StdFb::Ctd => "CTD",
+            StdFb::Ctud => "CTUD",
+            StdFb::RTrig => "R_TRIG",
+            StdFb::FTrig => "F_TRIG",
+            StdFb::Sr => "SR",
+            StdFb::Rs => "RS",
+        }
+    }
+    /// Public members in slot order (offset = index).
+    pub(crate) fn members(self) -> &'static [Member] {
+        match self {
+            StdFb::Ton | StdFb::Tof | StdFb::Tp => TIMER,
+            StdFb::RTrig | StdFb::FTrig => TRIG,
+            StdFb::Sr => SR,
+            StdFb::Rs => RS,
+            StdFb::Ctu => CTU,
+            StdFb::Ctd => CTD,
+            StdFb::Ctud => CTUD,
+        }
+    }
+    /// Slots of an instance: the public members, then the hidden state.
+    pub(crate) fn size(self) -> u32 {
+        self.members().len() as u32
+            + match self {
+                StdFb::Ton | StdFb::Tof | StdFb::Tp => 3,
+                StdFb::RTrig | StdFb::FTrig | StdFb::Ctu | StdFb::Ctd => 1,
+                StdFb::Ctud => 2,
+                StdFb::Sr | StdFb::Rs => 0,
+            }
+    }
+    /// Initial values of the hidden state (F_TRIG's memory starts TRUE, as the standard
+    /// declares it, so a FALSE input on the first call gives no edge).
+    pub(crate) fn init_hidden(self, inst: &mut [u64]) {
+        if self == StdFb::FTrig {
+            if let Some(m) = inst.get_mut(2) {
+                *m = 1;
+            }
+        }
+    }
+
+    /// Runs the block on its instance slots at scan time `now` (nanoseconds).
+    #[inline]
+    pub(crate) fn run(self, s: &mut [u64], now: i64) {
+        // The compiler sizes every instance with `size()`; a shorter slice is a bug and
+        // the block then does nothing rather than panic.
+        if s.len() < self.size() as usize {
+            return;
+        }
+        match self {
+            StdFb::Ton => ton(s, now),
+            StdFb::Tof => tof(s, now),
+            StdFb::Tp => tp(s, now),
+            StdFb::RTrig => {
+                let clk = s[0] & 1;
+                s[1] = clk & !s[2] & 1;
+                s[2] = clk;
+            }
+            StdFb::FTrig => {
+                let nclk = !s[0] & 1;
+                s[1] = nclk & !s[2] & 1;
+                s[2] = nclk;
+            }
+            StdFb::Sr => s[2] = (s[0] | (!s[1] & s[2])) & 1,
+            StdFb::Rs => s[2] = (!s[1] & (s[0] | s[2])) & 1,
+            StdFb::Ctu => {
+                let edge = s[0] & !s[5] & 1 != 0;
+                s[5] = s[0] & 1;
+                let mut cv = s[4] as i64;
+                let pv = s[2] as i64;
+                if s[1] & 1 != 0 {
+                    cv = 0;
+                } else if edge && cv < i16::MAX as i64 {
+                    cv += 1;
+                }
+                s[4] = cv as u64;
+                s[3] = (cv >= pv) as u64;
+            }
+            StdFb::Ctd => {
+                let edge = s[0] & !s[5] & 1 != 0;
+                s[5] = s[0] & 1;
+                let mut cv = s[4] as i64;
+                let pv = s[2] as i64;
+                if s[1] & 1 != 0 {
+                    cv = pv;
+                } else if edge && cv > i16::MIN as i64 {
+                    cv -= 1;
+                }
+                s[4] = cv as u64;
+                s[3] = (cv <= 0) as u64;
+            }
+            StdFb::Ctud => {
+                let up = s[0] & !s[8] & 1 != 0;
+                let down = s[1] & !s[9] & 1 != 0;
+                s[8] = s[0] & 1;
+                s[9] = s[1] & 1;
+                let mut cv = s[7] as i64;
+                let pv = s[4] as i64;
+                if s[2] & 1 != 0 {
+                    cv = 0;
+                } else if s[3] & 1 != 0 {
+                    cv = pv;
+                } else if !(up && down) {
+                    if up && cv < i16::MAX as i64 {
+                        cv += 1;
+                    } else if down && cv > i16::MIN as i64 {
+                        cv -= 1;
+                    }
+                }
+                s[7] = cv as u64;
+                s[5] = (cv >= pv) as u64;
+                s[6] = (cv <= 0) as u64;
+            }
+        }
+    }
+}
+
+// Timer slots: 0 IN, 1 PT, 2 Q, 3 ET, 4 start time, 5 running, 6 previous IN.
+
+fn elapsed(s: &[u64], now: i64) -> i64 {
+    let pt = (s[1] as i64).max(0);
+    now.saturating_sub(s[4] as i64).clamp(0, pt)
+}
+
+fn ton(s: &mut [u64], now: i64) {
+    if s[0] & 1 == 0 {
+        s[2] = 0;
+        s[3] = 0;
+        s[5] = 0;
+        return;
+    }
+    if s[5] == 0 {
+        s[4] = now as u64;
+        s[5] = 1;
+    }
+    let et = elapsed(s, now);
+    s[3] = et as u64;
+    s[2] = (et >= (s[1] as i64).max(0)) as u64;
+}
+
+fn tof(s: &mut [u64], now: i64) {
+    if s[0] & 1 != 0 {
+        s[2] = 1;
+        s[3] = 0;
+        s[5] = 0;
+        return;
+    }
+    if s[2] & 1 != 0 {
+        if s[5] == 0 {
+            s[4] = now as u64;
+            s[5] = 1;
+        }
+        let et = elapsed(s, now);
+        s[3] = et as u64;
+        if et >= (s[1] as i64).max(0) {
+            s[2] = 0;
+        }
+    }
+}
+
+fn tp(s: &mut [u64], now: i64) {
+    let input = s[0] & 1 != 0;
+    let rising = input && s[6] & 1 == 0;
+    s[6] = input as u64;
+    if s[2] & 1 == 0 {
+        if rising {
+            s[2] = 1;
+            s[4] = now as u64;
+        } else if !input {
+            s[3] = 0;
+            return;
+        } else {
+            return;
+        }
+    }
+    let et = elapsed(s, now);
+    s[3] = et as u64;
+    if et >= (s[1] as i64).max(0) {
+        s[2] = 0;
+    }
+}

@@ -1,0 +1,227 @@
+//! STRING values in slot memory and the standard string functions, without heap
+//! allocation: a string at address `a` has its length in slot `a` and its bytes packed
+//! little-endian in the slots after it. Work buffers live on the stack.
+
+use std::cmp::Ordering;
+use std::io::Write as _;
+
+use crate::types::{IntKind, MAX_STRING_LEN};
+use crate::vm::Builtin;
+
+const BUF: usize = MAX_STRING_LEN as usize + 1;
+
+/// Copies the string at `a` into `buf`, returns its length.
+pub(crate) fn read(mem: &[u64], a: usize, buf: &mut [u8; BUF]) -> usize {
+    let len = (mem.get(a).copied().unwrap_or(0) as usize).min(MAX_STRING_LEN as usize);
+    for (i, b) in buf.iter_mut().enumerate().take(len) {
+        let slot = mem.get(a + 1 + i / 8).copied().unwrap_or(0);
+        *b = (slot >> ((i % 8) * 8)) as u8;
+    }
+    len
+}
+
+/// Writes `bytes` (cut to `cap`) as the string at `a`.
+pub(crate) fn write(mem: &mut [u64], a: usize, cap: u16, bytes: &[u8]) {
+    let n = bytes.len().min(cap as usize);
+    let slots = n.div_ceil(8);
+    if a + 1 + slots > mem.len() {
+        return;
+    }
+    mem[a] = n as u64;
+    for s in 0..slots {
+        let mut v = 0u64;
+        for k in 0..8 {
+            if let Some(b) = bytes.get(s * 8 + k).filter(|_| s * 8 + k < n) {
+                v |= (*b as u64) << (k * 8);
+            }
+        }
+        mem[a + 1 + s] = v;
+    }
+}
+
+/// Copies the string at `src` to `dst` (capacity `cap`).
+pub(crate) fn copy(mem: &mut [u64], dst: usize, src: usize, cap: u16) {
+    if dst == src {
+        return;
+    }
+    let mut b = [0u8; BUF];
+    let n = read(mem, src, &mut b);
+    write(mem, dst, cap, &b[..n]);
+}
+
+/// Appends the string at `src` to the (maximum-capacity) string at `dst`.
+pub(crate) fn append(mem: &mut [u64], dst: usize, src: usize) {
+    let mut a = [0u8; BUF];
+    let mut b = [0u8; BUF];
+    let n = read(mem, dst, &mut a);
+    let m = read(mem, src, &mut b);
+    let total = (n + m).min(MAX_STRING_LEN as usize);
+    a[n..total].copy_from_slice(&b[..total - n]);
+    write(mem, dst, MAX_STRING_LEN, &a[..total]);
+}
+
+pub(crate) fn compare(mem: &[u64], x: usize, y: usize) -> Ordering {
+    let mut a = [0u8; BUF];
+    let mut b = [0u8; BUF];
+    let n = read(mem, x, &mut a);
+    let m = read(mem, y, &mut b);
+    a[..n].cmp(&b[..m])
+}
+
+fn clamp_pos(v: u64, max: usize) -> usize {
+    (v as i64).clamp(0, max as i64) as usize
+}
+
+/// Runs a string built-in; string results go to `dest`, whose address is returned.
+/// Positions are 1-based as in IEC; out-of-range positions and lengths are clamped.
+pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u64 {
+    let arg = |i: usize| v.get(i).copied().unwrap_or(0);
+    let mut s = [0u8; BUF];
+    let mut t = [0u8; BUF];
+    let mut out = [0u8; BUF];
+    let cap = MAX_STRING_LEN;
+    match b {
+        Builtin::Len => read(mem, arg(0) as usize, &mut s) as u64,
+        Builtin::Left | Builtin::Right => {
+            let n = read(mem, arg(0) as usize, &mut s);
+            let l = clamp_pos(arg(1), n);
+            let part = if matches!(b, Builtin::Left) {
+                &s[..l]
+            } else {
+                &s[n - l..n]
+            };
+            out[..l].copy_from_slice(part);
+            write(mem, dest, cap, &out[..l]);
+            dest as u64
+        }
+        Builtin::Mid => {
+            let n = read(mem, arg(0) as usize, &mut s);
+            let start = clamp_pos(arg(2), n + 1).max(1) - 1;
+            let l = clamp_pos(arg(1), n - start);
+            out[..l].copy_from_slice(&s[start..start + l]);
+            write(mem, dest, cap, &out[..l]);
+            dest as u64
+        }
+        Builtin::Insert => {
+            // INSERT(IN1, IN2, P): IN2 inserted after position P of IN1.
+            let n = read(mem, arg(0) as usize, &mut s);
+            let m = read(mem, arg(1) as usize, &mut t);
+            let p = clamp_pos(arg(2), n);
+            let mut k = 0;
+            for &c in s[..p].iter().chain(t[..m].iter()).chain(s[p..n].iter()) {
+                if k < out.len() {
+                    out[k] = c;
+                    k += 1;
+                }
+            }
+            write(mem, dest, cap, &out[..k.min(cap as usize)]);
+            dest as u64
+        }
+        Builtin::Delete => {
+            // DELETE(IN, L, P): L characters deleted from position P.
+            let n = read(mem, arg(0) as usize, &mut s);
+            let p = clamp_pos(arg(2), n + 1).max(1) - 1;
+            let l = clamp_pos(arg(1), n - p);
+            let mut k = 0;
+            for &c in s[..p].iter().chain(s[p + l..n].iter()) {
+                out[k] = c;
+                k += 1;
+            }
+            write(mem, dest, cap, &out[..k]);
+            dest as u64
+        }
+        Builtin::Replace => {
+            // REPLACE(IN1, IN2, L, P): L characters of IN1 from position P replaced by IN2.
+            let n = read(mem, arg(0) as usize, &mut s);
+            let m = read(mem, arg(1) as usize, &mut t);
+            let p = clamp_pos(arg(3), n + 1).max(1) - 1;
+            let l = clamp_pos(arg(2), n - p);
+            let mut k = 0;
+            for &c in s[..p].iter().chain(t[..m].iter()).chain(s[p + l..n].iter()) {
+                if k < out.len() {
+                    out[k] = c;
+                    k += 1;
+                }
+            }
+            write(mem, dest, cap, &out[..k.min(cap as usize)]);
+            dest as u64
+        }
+        Builtin::Find => {
+            // FIND(IN1, IN2): 1-based position of the first IN2 in IN1, 0 if absent.
+            let n = read(mem, arg(0) as usize, &mut s);
+            let m = read(mem, arg(1) as usize, &mut t);
+            if m == 0 || m > n {
+                return 0;
+            }
+            (0..=n - m)
+                .find(|&i| s[i..i + m] == t[..m])
+                .map_or(0, |i| i as u64 + 1)
+        }
+        Builtin::IntToStr(signed) => {
+            let x = arg(0);
+            let mut w = std::io::Cursor::new(&mut out[..]);
+            let _ = if signed {
+                write!(w, "{}", x as i64)
+            } else {
+                write!(w, "{x}")
+            };
+            let k = w.position() as usize;
+            write(mem, dest, cap, &out[..k]);
+            dest as u64
+        }
+        Builtin::RealToStr(f32) => {
+            let x = f64::from_bits(arg(0));
+            let mut w = std::io::Cursor::new(&mut out[..]);
+            let _ = if f32 {
+                write!(w, "{}", x as f32)
+            } else {
+                write!(w, "{x}")
+            };
+            let k = w.position() as usize;
+            write(mem, dest, cap, &out[..k]);
+            dest as u64
+        }
+        Builtin::TimeToStr => {
+            let mut w = std::io::Cursor::new(&mut out[..]);
+            let _ = write!(w, "{}", crate::value::FmtTime(arg(0) as i64));
+            let k = w.position() as usize;
+            write(mem, dest, cap, &out[..k]);
+            dest as u64
+        }
+        Builtin::BoolToStr => {
+            let text: &[u8] = if arg(0) & 1 != 0 { b"TRUE" } else { b"FALSE" };
+            write(mem, dest, cap, text);
+            dest as u64
+        }
+        Builtin::StrToInt(k) => {
+            let n = read(mem, arg(0) as usize, &mut s);
+            let text = std::str::from_utf8(&s[..n]).unwrap_or("").trim();
+            let v = if k.signed() {
+                text.parse::<i64>().map(|x| x as u64).unwrap_or(0)
+            } else {
+                text.parse::<u64>().unwrap_or(0)
+            };
+            wrap_checked(k, v)
+        }
+        Builtin::StrToReal(f32) => {
+            let n = read(mem, arg(0) as usize, &mut s);
+            let text = std::str::from_utf8(&s[..n]).unwrap_or("").trim();
+            let x = text.parse::<f64>().unwrap_or(0.0);
+            if f32 {
+                ((x as f32) as f64).to_bits()
+            } else {
+                x.to_bits()
+            }
+        }
+        Builtin::StrToBool => {
+            let n = read(mem, arg(0) as usize, &mut s);
+            let text = &s[..n];
+            (text.eq_ignore_ascii_case(b"TRUE") || text == b"1") as u64
+        }
+        _ => 0,
+    }
+}
+
+fn wrap_checked(k: IntKind, v: u64) -> u64 {
+    k.wrap(v)
+}

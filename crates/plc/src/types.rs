@@ -1,0 +1,316 @@
+//! Data types, their slot layout and the IEC implicit conversion (widening) rules.
+//!
+//! Every elementary value occupies one 64-bit slot: integers sign- or zero-extended to 64
+//! bits, BOOL as 0/1, REAL as the f64 bits of a value rounded to f32, LREAL as f64 bits,
+//! TIME as signed nanoseconds, enumerations as their integer value. A STRING of capacity
+//! `n` takes one length slot and `ceil(n / 8)` slots of bytes.
+
+use std::sync::Arc;
+
+/// Longest STRING accepted (IEC leaves the maximum to the implementation).
+pub const MAX_STRING_LEN: u16 = 255;
+/// Capacity of a STRING declared without one.
+pub const DEFAULT_STRING_LEN: u16 = 80;
+
+/// Elementary type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[allow(missing_docs)]
+pub enum Elem {
+    Bool,
+    SInt,
+    Int,
+    DInt,
+    LInt,
+    USInt,
+    UInt,
+    UDInt,
+    ULInt,
+    Byte,
+    Word,
+    DWord,
+    LWord,
+    Real,
+    LReal,
+    Time,
+}
+
+impl Elem {
+    /// All elementary types, for name look-ups.
+    pub const ALL: [Elem; 16] = [
+        Elem::Bool,
+        Elem::SInt,
+        Elem::Int,
+        Elem::DInt,
+        Elem::LInt,
+        Elem::USInt,
+        Elem::UInt,
+        Elem::UDInt,
+        Elem::ULInt,
+        Elem::Byte,
+        Elem::Word,
+        Elem::DWord,
+        Elem::LWord,
+        Elem::Real,
+        Elem::LReal,
+        Elem::Time,
+    ];
+    /// IEC name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Elem::Bool => "BOOL",
+            Elem::SInt => "SINT",
+            Elem::Int => "INT",
+            Elem::DInt => "DINT",
+            Elem::LInt => "LINT",
+            Elem::USInt => "USINT",
+            Elem::UInt => "UINT",
+            Elem::UDInt => "UDINT",
+            Elem::ULInt => "ULINT",
+            Elem::Byte => "BYTE",
+            Elem::Word => "WORD",
+            Elem::DWord => "DWORD",
+            Elem::LWord => "LWORD",
+            Elem::Real => "REAL",
+            Elem::LReal => "LREAL",
+            Elem::Time => "TIME",
+        }
+    }
+    /// Look up by (upper-case) name; LTIME is accepted as TIME (both count nanoseconds).
+    pub fn from_name(n: &str) -> Option<Elem> {
+        if n == "LTIME" {
+            return Some(Elem::Time);
+        }
+        Elem::ALL.iter().copied().find(|e| e.name() == n)
+    }
+    /// Signed or unsigned integer types.
+    pub fn is_int(self) -> bool {
+        self.int_kind().is_some() && !self.is_bit()
+    }
+    /// BYTE, WORD, DWORD, LWORD (BOOL is handled apart).
+    pub fn is_bit(self) -> bool {
+        matches!(self, Elem::Byte | Elem::Word | Elem::DWord | Elem::LWord)
+    }
+    /// REAL or LREAL.
+    pub fn is_real(self) -> bool {
+        matches!(self, Elem::Real | Elem::LReal)
+    }
+    /// Integer or real.
+    pub fn is_num(self) -> bool {
+        self.is_int() || self.is_real()
+    }
+    /// Width and signedness of integer-like types (integers, bit strings, TIME).
+    pub fn int_kind(self) -> Option<IntKind> {
+        Some(match self {
+            Elem::SInt => IntKind::I8,
+            Elem::Int => IntKind::I16,
+            Elem::DInt => IntKind::I32,
+            Elem::LInt | Elem::Time => IntKind::I64,
+            Elem::USInt | Elem::Byte => IntKind::U8,
+            Elem::UInt | Elem::Word => IntKind::U16,
+            Elem::UDInt | Elem::DWord => IntKind::U32,
+            Elem::ULInt | Elem::LWord => IntKind::U64,
+            Elem::Bool => IntKind::U1,
+            Elem::Real | Elem::LReal => return None,
+        })
+    }
+    /// Range of an integer type.
+    pub fn int_range(self) -> Option<(i128, i128)> {
+        self.int_kind().map(|k| k.range())
+    }
+    /// Size in bits.
+    pub fn bits(self) -> u32 {
+        match self {
+            Elem::Bool => 1,
+            Elem::SInt | Elem::USInt | Elem::Byte => 8,
+            Elem::Int | Elem::UInt | Elem::Word => 16,
+            Elem::DInt | Elem::UDInt | Elem::DWord | Elem::Real => 32,
+            _ => 64,
+        }
+    }
+}
+
+/// Width and signedness of an integer slot value, for wrap-around after arithmetic.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[allow(missing_docs)]
+pub enum IntKind {
+    U1,
+    I8,
+    I16,
+    I32,
+    I64,
+    U8,
+    U16,
+    U32,
+    U64,
+}
+
+impl IntKind {
+    /// Wraps a 64-bit result to this width (two's complement, as the PLCs do).
+    #[inline(always)]
+    pub fn wrap(self, v: u64) -> u64 {
+        match self {
+            IntKind::U1 => v & 1,
+            IntKind::I8 => v as i8 as i64 as u64,
+            IntKind::I16 => v as i16 as i64 as u64,
+            IntKind::I32 => v as i32 as i64 as u64,
+            IntKind::I64 | IntKind::U64 => v,
+            IntKind::U8 => v & 0xff,
+            IntKind::U16 => v & 0xffff,
+            IntKind::U32 => v & 0xffff_ffff,
+        }
+    }
+    /// Signed kinds compare and divide as i64, unsigned as u64.
+    #[inline(always)]
+    pub fn signed(self) -> bool {
+        matches!(
+            self,
+            IntKind::I8 | IntKind::I16 | IntKind::I32 | IntKind::I64
+        )
+    }
+    /// Number of bits.
+    pub fn bits(self) -> u32 {
+        match self {
+            IntKind::U1 => 1,
+            IntKind::I8 | IntKind::U8 => 8,
+            IntKind::I16 | IntKind::U16 => 16,
+            IntKind::I32 | IntKind::U32 => 32,
+            IntKind::I64 | IntKind::U64 => 64,
+        }
+    }
+    /// Inclusive value range.
+    pub fn range(self) -> (i128, i128) {
+        let b = self.bits();
+        if self.signed() {
+            (-(1i128 << (b - 1)), (1i128 << (b - 1)) - 1)
+        } else {
+            (0, (1i128 << b) - 1)
+        }
+    }
+}
+
+/// Identifier of a composite type in the program's type tables.
+pub type TypeId = u32;
+
+/// A resolved data type.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Type {
+    /// Elementary type.
+    Elem(Elem),
+    /// STRING with its capacity in bytes.
+    String(u16),
+    /// Enumeration (index into the enum table).
+    Enum(TypeId),
+    /// Subrange of an integer type.
+    Subrange(Elem, i64, i64),
+    /// Array.
+    Array(Arc<ArrayType>),
+    /// Structure (index into the struct table).
+    Struct(TypeId),
+    /// Function block instance (index into the FB type table).
+    Fb(TypeId),
+}
+
+/// An array type: dimensions and element.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArrayType {
+    /// Inclusive bounds of every dimension.
+    pub dims: Vec<(i64, i64)>,
+    /// Element type.
+    pub elem: Type,
+    /// Slots per element.
+    pub elem_size: u32,
+}
+
+impl ArrayType {
+    /// Number of elements.
+    pub fn len(&self) -> u64 {
+        self.dims.iter().map(|(l, h)| (h - l + 1) as u64).product()
+    }
+    /// True if the array has no element (never: bounds are checked at declaration).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// An enumeration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EnumType {
+    /// Name (upper case, or a generated name for anonymous ones).
+    pub name: String,
+    /// Values in declaration order.
+    pub values: Vec<(String, i64)>,
+}
+
+/// A structure.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StructType {
+    /// Name.
+    pub name: String,
+    /// Fields with their slot offset.
+    pub fields: Vec<Field>,
+    /// Slots.
+    pub size: u32,
+}
+
+/// A field of a structure or a member of a function block instance.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Field {
+    /// Upper-case name.
+    pub name: String,
+    /// Type.
+    pub ty: Type,
+    /// Offset in slots from the start of the structure or instance.
+    pub offset: u32,
+}
+
+impl Type {
+    /// BOOL.
+    pub const BOOL: Type = Type::Elem(Elem::Bool);
+    /// The elementary type this type is stored as, if scalar.
+    pub fn scalar(&self) -> Option<Elem> {
+        match self {
+            Type::Elem(e) => Some(*e),
+            Type::Subrange(e, _, _) => Some(*e),
+            Type::Enum(_) => Some(Elem::DInt),
+            _ => None,
+        }
+    }
+    /// The elementary type, if this is exactly an elementary type or a subrange of one.
+    pub fn elem(&self) -> Option<Elem> {
+        match self {
+            Type::Elem(e) | Type::Subrange(e, _, _) => Some(*e),
+            _ => None,
+        }
+    }
+    /// True for BOOL.
+    pub fn is_bool(&self) -> bool {
+        self.elem() == Some(Elem::Bool)
+    }
+}
+
+/// Slots of a STRING with capacity `cap`.
+pub fn string_slots(cap: u16) -> u32 {
+    1 + (cap as u32).div_ceil(8)
+}
+
+/// IEC 61131-3 (3rd edition) implicit conversion: may a value of `from` be used where `to`
+/// is expected without an explicit *_TO_* call?
+pub fn widens(from: Elem, to: Elem) -> bool {
+    use Elem::*;
+    if from == to {
+        return true;
+    }
+    match from {
+        SInt => matches!(to, Int | DInt | LInt | Real | LReal),
+        Int => matches!(to, DInt | LInt | Real | LReal),
+        DInt => matches!(to, LInt | LReal),
+        USInt => matches!(to, UInt | UDInt | ULInt | Int | DInt | LInt | Real | LReal),
+        UInt => matches!(to, UDInt | ULInt | DInt | LInt | Real | LReal),
+        UDInt => matches!(to, ULInt | LInt | LReal),
+        Real => matches!(to, LReal),
+        Byte => matches!(to, Word | DWord | LWord),
+        Word => matches!(to, DWord | LWord),
+        DWord => matches!(to, LWord),
+        _ => false,
+    }
+}

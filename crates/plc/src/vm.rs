@@ -1,0 +1,1058 @@
+//! The executable form of a compiled program and its interpreter.
+//!
+//! The compiler resolves every name to a slot address and every operator to a typed
+//! operation, so a scan walks a tree of `Stmt` and `Expr` nodes over one slot array without
+//! look-ups and without heap allocation. Faults set `Vm::fault` and drop the statement
+//! budget to zero; every statement boundary checks the budget, so a fault or an exhausted
+//! watchdog budget stops the scan at the statement that caused it.
+
+use crate::error::FaultKind;
+use crate::stdfb::StdFb;
+use crate::strings;
+use crate::types::IntKind;
+
+/// Base of a slot address: absolute, or relative to the running FB instance.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Base {
+    Abs(u32),
+    Rel(u32),
+}
+
+/// A storage location.
+#[derive(Debug)]
+pub(crate) enum Place {
+    Abs(u32),
+    Rel(u32),
+    Dyn(Box<DynPlace>),
+}
+
+/// A location computed at run time: array indexing and/or a VAR_IN_OUT reference.
+#[derive(Debug)]
+pub(crate) struct DynPlace {
+    pub base: Base,
+    /// The base slot holds the address (VAR_IN_OUT parameter).
+    pub indirect: bool,
+    pub offset: u32,
+    pub steps: Box<[IndexStep]>,
+}
+
+#[derive(Debug)]
+pub(crate) struct IndexStep {
+    pub index: Expr,
+    pub low: i64,
+    pub len: u64,
+    pub stride: u32,
+}
+
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Un {
+    NegI(IntKind),
+    NegR(bool),
+    NotBool,
+    NotBits(IntKind),
+    /// Reads bit n of an integer.
+    Bit(u8),
+}
+
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Bin {
+    AddI(IntKind),
+    SubI(IntKind),
+    MulI(IntKind),
+    DivI(IntKind),
+    ModI(IntKind),
+    /// Real arithmetic; the flag says REAL (round to f32) rather than LREAL.
+    AddR(bool),
+    SubR(bool),
+    MulR(bool),
+    DivR(bool),
+    PowR(bool),
+    And,
+    Or,
+    Xor,
+    Eq,
+    Ne,
+    /// Integer order; the flag says signed.
+    Lt(bool),
+    Le(bool),
+    Gt(bool),
+    Ge(bool),
+    EqR,
+    NeR,
+    LtR,
+    LeR,
+    GtR,
+    GeR,
+    /// String comparisons on string addresses.
+    CmpS(std::cmp::Ordering, bool),
+    /// TIME * integer (the flag says the integer is signed), TIME / integer.
+    MulTimeI,
+    DivTimeI,
+    MulTimeR,
+    DivTimeR,
+}
+
+/// Conversions between slot encodings.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Conv {
+    /// Integer to integer: wrap to the target width.
+    Int(IntKind),
+    /// Integer (signed flag) to real (REAL flag).
+    IntToReal {
+        signed: bool,
+        f32: bool,
+    },
+    /// Real to integer, rounding half to even (IEC 60559).
+    RealToInt(IntKind),
+    /// Real to integer toward zero (TRUNC).
+    RealTrunc(IntKind),
+    /// LREAL to REAL.
+    ToF32,
+    /// Anything to BOOL: non-zero.
+    IntToBool,
+    RealToBool,
+    /// TIME (ns) to milliseconds and back.
+    NsToMs,
+    MsToNs,
+    RealMsToNs,
+    NsToRealMs(bool),
+    /// Binary-coded decimal.
+    ToBcd(IntKind),
+    FromBcd,
+}
+
+/// Built-in functions, chosen by type at compile time.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Builtin {
+    AbsI(IntKind),
+    AbsR(bool),
+    Sqrt(bool),
+    Ln(bool),
+    Log(bool),
+    Exp(bool),
+    Sin(bool),
+    Cos(bool),
+    Tan(bool),
+    Asin(bool),
+    Acos(bool),
+    Atan(bool),
+    Atan2(bool),
+    Shl(IntKind),
+    Shr(IntKind),
+    Rol(IntKind),
+    Ror(IntKind),
+    Sel,
+    Mux,
+    MaxI(bool),
+    MinI(bool),
+    LimitI(bool),
+    MaxR,
+    MinR,
+    LimitR,
+    Len,
+    Left,
+    Right,
+    Mid,
+    Concat,
+    Insert,
+    Delete,
+    Replace,
+    Find,
+    IntToStr(bool),
+    RealToStr(bool),
+    TimeToStr,
+    BoolToStr,
+    StrToInt(IntKind),
+    StrToReal(bool),
+    StrToBool,
+}
+
+#[derive(Debug)]
+pub(crate) enum Expr {
+    Const(u64),
+    LoadAbs(u32),
+    LoadRel(u32),
+    Load(Box<DynPlace>),
+    /// Address of an aggregate (STRING, array, structure) or the target of a VAR_IN_OUT.
+    AddrOf(Place),
+    Un(Un, Box<Expr>),
+    /// Both operands in one allocation, next to each other in memory.
+    Bin(Bin, Box<(Expr, Expr)>),
+    /// Specialised shapes of the commonest PLC expressions (contacts and comparisons):
+    /// `NOT a`, `a op b` on two absolute slots, `e op constant`.
+    NotAbs(u32),
+    BinAbs(Bin, u32, u32),
+    BinK(Bin, Box<Expr>, u64),
+    Conv(Conv, Box<Expr>),
+    /// A built-in; string results go to the static temporary at `dest`.
+    Builtin(Builtin, Box<[Expr]>, u32),
+    Call(Box<FnCall>),
+}
+
+/// How a value is stored into a location.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Store {
+    Scalar,
+    Range(i64, i64),
+    String(u16),
+    Block(u32),
+}
+
+/// One input (or VAR_IN_OUT address) of a call: evaluated into `temp` unless the call is
+/// direct, then copied to the parameter slot.
+#[derive(Debug)]
+pub(crate) struct ArgIn {
+    pub value: Expr,
+    pub temp: u32,
+    pub param: u32,
+    pub store: Store,
+}
+
+/// One `name => target` output assignment of a call.
+#[derive(Debug)]
+pub(crate) struct ArgOut {
+    pub param: u32,
+    pub target: Place,
+    pub store: Store,
+    pub negate: bool,
+}
+
+#[derive(Debug)]
+pub(crate) struct FnCall {
+    pub func: u32,
+    /// No argument calls a user function, so parameters can be written directly.
+    pub direct: bool,
+    pub args: Box<[ArgIn]>,
+    pub outs: Box<[ArgOut]>,
+}
+
+#[derive(Debug)]
+pub(crate) enum FbKind {
+    Std(StdFb),
+    User(u32),
+}
+
+#[derive(Debug)]
+pub(crate) struct FbCall {
+    pub instance: Place,
+    pub kind: FbKind,
+    pub direct: bool,
+    pub args: Box<[ArgIn]>,
+    pub outs: Box<[ArgOut]>,
+}
+
+#[derive(Debug)]
+pub(crate) struct Stmt {
+    pub line: u32,
+    pub kind: StmtKind,
+}
+
+pub(crate) type Block = Box<[Stmt]>;
+
+#[derive(Debug)]
+pub(crate) struct CaseArm {
+    pub ranges: Box<[(i64, i64)]>,
+    pub body: Block,
+}
+
+#[derive(Debug)]
+pub(crate) struct ForLoop {
+    pub var: Place,
+    pub kind: IntKind,
+    pub from: Expr,
+    pub to: Expr,
+    pub by: Expr,
+    pub body: Block,
+}
+
+#[derive(Debug)]
+pub(crate) enum StmtKind {
+    Store(Place, Expr, Store),
+    StoreBit(Place, u8, Expr),
+    Eval(Expr),
+    If(Box<[(Expr, Block)]>, Block),
+    Case {
+        selector: Expr,
+        signed: bool,
+        arms: Box<[CaseArm]>,
+        default: Block,
+    },
+    For(Box<ForLoop>),
+    While(Expr, Block),
+    Repeat(Block, Expr),
+    Exit,
+    Continue,
+    Return,
+    CallFb(Box<FbCall>),
+}
+
+/// A user function or function block body.
+#[derive(Debug)]
+pub(crate) struct Body {
+    pub pou: u32,
+    /// Slots re-initialised on every call (function frame, VAR_TEMP): the first slot
+    /// (relative to the instance for FBs) and the initial values.
+    pub reinit: Option<(u32, Box<[u64]>)>,
+    pub stmts: Block,
+}
+
+#[derive(Debug)]
+pub(crate) struct Function {
+    pub body: Body,
+    /// Slot of the result (scalar) or of the result area (aggregate).
+    pub result: u32,
+    pub aggregate: bool,
+}
+
+/// The code shared by all runtime instances of one program.
+#[derive(Debug)]
+pub(crate) struct Code {
+    pub functions: Vec<Function>,
+    pub fbs: Vec<Body>,
+}
+
+/// Control flow out of a statement.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Flow {
+    Next,
+    Exit,
+    Continue,
+    Return,
+    Fault,
+}
+
+/// The mutable state a scan works on.
+pub(crate) struct Vm {
+    pub mem: Vec<u64>,
+    /// Base of the running FB instance.
+    pub frame: u32,
+    pub now: i64,
+    pub budget: u64,
+    pub fault: Option<FaultKind>,
+    /// POU and line where the fault was seen first.
+    pub fault_at: Option<(u32, u32)>,
+    pub pou: u32,
+}
+
+#[inline(always)]
+fn f(v: u64) -> f64 {
+    f64::from_bits(v)
+}
+#[inline(always)]
+fn r(v: f64, f32: bool) -> u64 {
+    if f32 {
+        ((v as f32) as f64).to_bits()
+    } else {
+        v.to_bits()
+    }
+}
+
+impl Vm {
+    #[inline(always)]
+    pub fn ld(&self, a: usize) -> u64 {
+        self.mem.get(a).copied().unwrap_or(0)
+    }
+    #[inline(always)]
+    pub fn st(&mut self, a: usize, v: u64) {
+        if let Some(c) = self.mem.get_mut(a) {
+            *c = v;
+        }
+    }
+    #[cold]
+    pub fn raise(&mut self, kind: FaultKind) {
+        if self.fault.is_none() {
+            self.fault = Some(kind);
+        }
+        self.budget = 0;
+    }
+    #[cold]
+    fn fail_at(&mut self, line: u32) -> Flow {
+        if self.fault.is_none() {
+            self.fault = Some(FaultKind::WatchdogExceeded { budget: 0 });
+        }
+        if self.fault_at.is_none() {
+            self.fault_at = Some((self.pou, line));
+        }
+        self.budget = 0;
+        Flow::Fault
+    }
+
+    #[inline]
+    fn base(&self, b: Base) -> usize {
+        match b {
+            Base::Abs(a) => a as usize,
+            Base::Rel(o) => self.frame as usize + o as usize,
+        }
+    }
+
+    /// Address of a place; an index out of range raises a fault and yields element 0.
+    #[inline]
+    pub fn addr(&mut self, c: &Code, p: &Place) -> usize {
+        match p {
+            Place::Abs(a) => *a as usize,
+            Place::Rel(o) => self.frame as usize + *o as usize,
+            Place::Dyn(d) => self.dyn_addr(c, d),
+        }
+    }
+
+    fn dyn_addr(&mut self, c: &Code, d: &DynPlace) -> usize {
+        let mut a = self.base(d.base);
+        if d.indirect {
+            a = self.ld(a) as usize;
+        }
+        a += d.offset as usize;
+        for s in d.steps.iter() {
+            let i = self.eval(c, &s.index) as i64;
+            let k = i.wrapping_sub(s.low);
+            if k < 0 || k as u64 >= s.len {
+                self.raise(FaultKind::IndexOutOfRange {
+                    index: i,
+                    low: s.low,
+                    high: s.low + s.len as i64 - 1,
+                });
+                continue;
+            }
+            a += k as usize * s.stride as usize;
+        }
+        a
+    }
+
+    pub fn eval(&mut self, c: &Code, e: &Expr) -> u64 {
+        match e {
+            Expr::Const(v) => *v,
+            Expr::LoadAbs(a) => self.ld(*a as usize),
+            Expr::LoadRel(o) => self.ld(self.frame as usize + *o as usize),
+            Expr::Load(d) => {
+                let a = self.dyn_addr(c, d);
+                self.ld(a)
+            }
+            Expr::AddrOf(p) => self.addr(c, p) as u64,
+            Expr::Un(op, a) => {
+                let v = self.eval(c, a);
+                match *op {
+                    Un::NegI(k) => k.wrap((v as i64).wrapping_neg() as u64),
+                    Un::NegR(s) => r(-f(v), s),
+                    Un::NotBool => v ^ 1,
+                    Un::NotBits(k) => k.wrap(!v),
+                    Un::Bit(n) => (v >> n) & 1,
+                }
+            }
+            Expr::Bin(op, ab) => {
+                let x = self.eval(c, &ab.0);
+                let y = self.eval(c, &ab.1);
+                self.bin(*op, x, y)
+            }
+            Expr::NotAbs(a) => self.ld(*a as usize) ^ 1,
+            Expr::BinAbs(op, a, b) => {
+                let x = self.ld(*a as usize);
+                let y = self.ld(*b as usize);
+                self.bin(*op, x, y)
+            }
+            Expr::BinK(op, a, k) => {
+                let x = self.eval(c, a);
+                self.bin(*op, x, *k)
+            }
+            Expr::Conv(cv, a) => {
+                let v = self.eval(c, a);
+                conv(*cv, v)
+            }
+            Expr::Builtin(b, args, dest) => self.builtin(c, *b, args, *dest),
+            Expr::Call(call) => self.call_fn(c, call),
+        }
+    }
+
+    #[inline]
+    fn bin(&mut self, op: Bin, x: u64, y: u64) -> u64 {
+        use std::cmp::Ordering;
+        match op {
+            Bin::AddI(k) => k.wrap(x.wrapping_add(y)),
+            Bin::SubI(k) => k.wrap(x.wrapping_sub(y)),
+            Bin::MulI(k) => k.wrap(x.wrapping_mul(y)),
+            Bin::DivI(k) => {
+                if y == 0 {
+                    self.raise(FaultKind::DivisionByZero);
+                    0
+                } else if k.signed() {
+                    k.wrap((x as i64).wrapping_div(y as i64) as u64)
+                } else {
+                    x / y
+                }
+            }
+            Bin::ModI(k) => {
+                if y == 0 {
+                    self.raise(FaultKind::DivisionByZero);
+                    0
+                } else if k.signed() {
+                    k.wrap((x as i64).wrapping_rem(y as i64) as u64)
+                } else {
+                    x % y
+                }
+            }
+            Bin::AddR(s) => r(f(x) + f(y), s),
+            Bin::SubR(s) => r(f(x) - f(y), s),
+            Bin::MulR(s) => r(f(x) * f(y), s),
+            Bin::DivR(s) => {
+                if f(y) == 0.0 {
+                    self.raise(FaultKind::DivisionByZero);
+                    0f64.to_bits()
+                } else {
+                    r(f(x) / f(y), s)
+                }
+            }
+            Bin::PowR(s) => r(f(x).powf(f(y)), s),
+            Bin::And => x & y,
+            Bin::Or => x | y,
+            Bin::Xor => x ^ y,
+            Bin::Eq => (x == y) as u64,
+            Bin::Ne => (x != y) as u64,
+            Bin::Lt(s) => (if s { (x as i64) < (y as i64) } else { x < y }) as u64,
+            Bin::Le(s) => (if s { (x as i64) <= (y as i64) } else { x <= y }) as u64,
+            Bin::Gt(s) => (if s { (x as i64) > (y as i64) } else { x > y }) as u64,
+            Bin::Ge(s) => (if s { (x as i64) >= (y as i64) } else { x >= y }) as u64,
+            Bin::EqR => (f(x) == f(y)) as u64,
+            Bin::NeR => (f(x) != f(y)) as u64,
+            Bin::LtR => (f(x) < f(y)) as u64,
+            Bin::LeR => (f(x) <= f(y)) as u64,
+            Bin::GtR => (f(x) > f(y)) as u64,
+            Bin::GeR => (f(x) >= f(y)) as u64,
+            Bin::CmpS(ord, equal_ok) => {
+                let o = strings::compare(&self.mem, x as usize, y as usize);
+                (o == ord || (equal_ok && o == Ordering::Equal)) as u64
+            }
+            Bin::MulTimeI => (x as i64).wrapping_mul(y as i64) as u64,
+            Bin::DivTimeI => {
+                if y == 0 {
+                    self.raise(FaultKind::DivisionByZero);
+                    0
+                } else {
+                    (x as i64).wrapping_div(y as i64) as u64
+                }
+            }
+            Bin::MulTimeR => ((x as i64) as f64 * f(y)).round() as i64 as u64,
+            Bin::DivTimeR => {
+                if f(y) == 0.0 {
+                    self.raise(FaultKind::DivisionByZero);
+                    0
+                } else {
+                    ((x as i64) as f64 / f(y)).round() as i64 as u64
+                }
+            }
+        }
+    }
+
+    fn builtin(&mut self, c: &Code, b: Builtin, args: &[Expr], dest: u32) -> u64 {
+        let arg = |vm: &mut Vm, i: usize| match args.get(i) {
+            Some(e) => vm.eval(c, e),
+            None => 0,
+        };
+        let real1 = |vm: &mut Vm, s: bool, fun: fn(f64) -> f64| -> u64 {
+            let v = match args.first() {
+                Some(e) => vm.eval(c, e),
+                None => 0,
+            };
+            r(fun(f(v)), s)
+        };
+        match b {
+            Builtin::AbsI(k) => {
+                let v = arg(self, 0);
+                if k.signed() {
+                    k.wrap((v as i64).wrapping_abs() as u64)
+                } else {
+                    v
+                }
+            }
+            Builtin::AbsR(s) => real1(self, s, f64::abs),
+            Builtin::Sqrt(s) => real1(self, s, f64::sqrt),
+            Builtin::Ln(s) => real1(self, s, f64::ln),
+            Builtin::Log(s) => real1(self, s, f64::log10),
+            Builtin::Exp(s) => real1(self, s, f64::exp),
+            Builtin::Sin(s) => real1(self, s, f64::sin),
+            Builtin::Cos(s) => real1(self, s, f64::cos),
+            Builtin::Tan(s) => real1(self, s, f64::tan),
+            Builtin::Asin(s) => real1(self, s, f64::asin),
+            Builtin::Acos(s) => real1(self, s, f64::acos),
+            Builtin::Atan(s) => real1(self, s, f64::atan),
+            Builtin::Atan2(s) => {
+                let y = arg(self, 0);
+                let x = arg(self, 1);
+                r(f(y).atan2(f(x)), s)
+            }
+            Builtin::Shl(k) => {
+                let v = arg(self, 0);
+                let n = arg(self, 1);
+                if n >= 64 { 0 } else { k.wrap(v << n) }
+            }
+            Builtin::Shr(k) => {
+                let v = arg(self, 0);
+                let n = arg(self, 1);
+                if n >= 64 { 0 } else { k.wrap(v >> n) }
+            }
+            Builtin::Rol(k) | Builtin::Ror(k) => {
+                let v = arg(self, 0);
+                let bits = k.bits() as u64;
+                let n = arg(self, 1) % bits;
+                let n = if matches!(b, Builtin::Ror(_)) {
+                    (bits - n) % bits
+                } else {
+                    n
+                };
+                if n == 0 {
+                    v
+                } else {
+                    k.wrap((v << n) | (v >> (bits - n)))
+                }
+            }
+            Builtin::Sel => {
+                let g = arg(self, 0);
+                // Only the selected input is evaluated.
+                if g & 1 != 0 {
+                    arg(self, 2)
+                } else {
+                    arg(self, 1)
+                }
+            }
+            Builtin::Mux => {
+                let k = arg(self, 0) as i64;
+                let n = args.len() as i64 - 1;
+                if k < 0 || k >= n {
+                    self.raise(FaultKind::IndexOutOfRange {
+                        index: k,
+                        low: 0,
+                        high: n - 1,
+                    });
+                    0
+                } else {
+                    arg(self, k as usize + 1)
+                }
+            }
+            Builtin::MaxI(s) | Builtin::MinI(s) => {
+                let mut acc = arg(self, 0);
+                for i in 1..args.len() {
+                    let v = arg(self, i);
+                    let greater = if s {
+                        (v as i64) > (acc as i64)
+                    } else {
+                        v > acc
+                    };
+                    let less = if s {
+                        (v as i64) < (acc as i64)
+                    } else {
+                        v < acc
+                    };
+                    if matches!(b, Builtin::MaxI(_)) && greater
+                        || matches!(b, Builtin::MinI(_)) && less
+                    {
+                        acc = v;
+                    }
+                }
+                acc
+            }
+            Builtin::MaxR | Builtin::MinR => {
+                let mut acc = f(arg(self, 0));
+                for i in 1..args.len() {
+                    let v = f(arg(self, i));
+                    if matches!(b, Builtin::MaxR) && v > acc
+                        || matches!(b, Builtin::MinR) && v < acc
+                    {
+                        acc = v;
+                    }
+                }
+                acc.to_bits()
+            }
+            Builtin::LimitI(s) => {
+                let lo = arg(self, 0);
+                let v = arg(self, 1);
+                let hi = arg(self, 2);
+                if s {
+                    (v as i64).max(lo as i64).min(hi as i64) as u64
+                } else {
+                    v.max(lo).min(hi)
+                }
+            }
+            Builtin::LimitR => {
+                let lo = f(arg(self, 0));
+                let v = f(arg(self, 1));
+                let hi = f(arg(self, 2));
+                v.max(lo).min(hi).to_bits()
+            }
+            Builtin::Len
+            | Builtin::Left
+            | Builtin::Right
+            | Builtin::Mid
+            | Builtin::Concat
+            | Builtin::Insert
+            | Builtin::Delete
+            | Builtin::Replace
+            | Builtin::Find
+            | Builtin::IntToStr(_)
+            | Builtin::RealToStr(_)
+            | Builtin::TimeToStr
+            | Builtin::BoolToStr
+            | Builtin::StrToInt(_)
+            | Builtin::StrToReal(_)
+            | Builtin::StrToBool => {
+                let mut vals = [0u64; 8];
+                // CONCAT is extensible: fold pairwise through the destination.
+                if matches!(b, Builtin::Concat) {
+                    let first = arg(self, 0);
+                    strings::copy(
+                        &mut self.mem,
+                        dest as usize,
+                        first as usize,
+                        crate::types::MAX_STRING_LEN,
+                    );
+                    for i in 1..args.len() {
+                        let v = arg(self, i);
+                        strings::append(&mut self.mem, dest as usize, v as usize);
+                    }
+                    return dest as u64;
+                }
+                for (i, slot) in vals.iter_mut().enumerate().take(args.len()) {
+                    *slot = arg(self, i);
+                }
+                strings::builtin(&mut self.mem, b, &vals[..args.len().min(8)], dest as usize)
+            }
+        }
+    }
+
+    /// Stores `v` (a scalar, or the address of an aggregate) into slot address `a`.
+    #[inline]
+    fn store_at(&mut self, a: usize, v: u64, s: Store) {
+        match s {
+            Store::Scalar => self.st(a, v),
+            Store::Range(lo, hi) => {
+                let x = v as i64;
+                if x < lo || x > hi {
+                    self.raise(FaultKind::SubrangeViolation {
+                        value: x,
+                        low: lo,
+                        high: hi,
+                    });
+                } else {
+                    self.st(a, v);
+                }
+            }
+            Store::String(cap) => strings::copy(&mut self.mem, a, v as usize, cap),
+            Store::Block(n) => {
+                let src = v as usize;
+                let n = n as usize;
+                if src.checked_add(n).is_some_and(|e| e <= self.mem.len())
+                    && a.checked_add(n).is_some_and(|e| e <= self.mem.len())
+                {
+                    self.mem.copy_within(src..src + n, a);
+                }
+            }
+        }
+    }
+
+    /// Evaluates call inputs into parameters at `base + param`.
+    fn pass_args(&mut self, c: &Code, args: &[ArgIn], base: usize, direct: bool) {
+        if direct {
+            for a in args {
+                let v = self.eval(c, &a.value);
+                self.store_at(base + a.param as usize, v, a.store);
+            }
+        } else {
+            for a in args {
+                let v = self.eval(c, &a.value);
+                self.store_at(a.temp as usize, v, a.store);
+            }
+            for a in args {
+                let v = match a.store {
+                    Store::Scalar | Store::Range(..) => self.ld(a.temp as usize),
+                    Store::String(_) | Store::Block(_) => a.temp as u64,
+                };
+                self.store_at(base + a.param as usize, v, a.store);
+            }
+        }
+    }
+
+    fn take_outputs(&mut self, c: &Code, outs: &[ArgOut], base: usize) {
+        for o in outs {
+            let src = base + o.param as usize;
+            let v = match o.store {
+                Store::Scalar | Store::Range(..) => {
+                    let v = self.ld(src);
+                    if o.negate { v ^ 1 } else { v }
+                }
+                Store::String(_) | Store::Block(_) => src as u64,
+            };
+            let a = self.addr(c, &o.target);
+            self.store_at(a, v, o.store);
+        }
+    }
+
+    fn reinit(&mut self, range: &Option<(u32, Box<[u64]>)>, base: usize) {
+        if let Some((start, values)) = range {
+            let dst = base + *start as usize;
+            if let Some(d) = self.mem.get_mut(dst..dst + values.len()) {
+                d.copy_from_slice(values);
+            }
+        }
+    }
+
+    fn call_fn(&mut self, c: &Code, call: &FnCall) -> u64 {
+        let Some(func) = c.functions.get(call.func as usize) else {
+            return 0;
+        };
+        self.reinit(&func.body.reinit, 0);
+        self.pass_args(c, &call.args, 0, call.direct);
+        if self.budget == 0 {
+            return 0;
+        }
+        let saved = self.pou;
+        self.pou = func.body.pou;
+        let _ = self.exec_block(c, &func.body.stmts);
+        self.pou = saved;
+        if self.budget == 0 {
+            return 0;
+        }
+        self.take_outputs(c, &call.outs, 0);
+        if func.aggregate {
+            func.result as u64
+        } else {
+            self.ld(func.result as usize)
+        }
+    }
+
+    fn call_fb(&mut self, c: &Code, call: &FbCall) {
+        let inst = self.addr(c, &call.instance);
+        self.pass_args(c, &call.args, inst, call.direct);
+        if self.budget == 0 {
+            return;
+        }
+        match call.kind {
+            FbKind::Std(fb) => {
+                let end = (inst + fb.size() as usize).min(self.mem.len());
+                if let Some(s) = self.mem.get_mut(inst..end) {
+                    fb.run(s, self.now);
+                }
+            }
+            FbKind::User(id) => {
+                let Some(body) = c.fbs.get(id as usize) else {
+                    return;
+                };
+                let (saved_frame, saved_pou) = (self.frame, self.pou);
+                self.frame = inst as u32;
+                self.pou = body.pou;
+                self.reinit(&body.reinit, inst);
+                let _ = self.exec_block(c, &body.stmts);
+                self.frame = saved_frame;
+                self.pou = saved_pou;
+                if self.budget == 0 {
+                    return;
+                }
+            }
+        }
+        self.take_outputs(c, &call.outs, inst);
+    }
+
+    /// Runs a program body (absolute addresses) under POU id `pou`.
+    pub fn run_program(&mut self, c: &Code, pou: u32, stmts: &[Stmt]) -> Flow {
+        self.pou = pou;
+        self.frame = 0;
+        self.exec_block(c, stmts)
+    }
+
+    pub fn exec_block(&mut self, c: &Code, stmts: &[Stmt]) -> Flow {
+        for s in stmts {
+            let flow = self.exec(c, s);
+            if self.budget <= 1 {
+                return self.fail_at(s.line);
+            }
+            self.budget -= 1;
+            if flow != Flow::Next {
+                return flow;
+            }
+        }
+        Flow::Next
+    }
+
+    /// One loop iteration's worth of watchdog budget.
+    #[inline]
+    fn tick(&mut self, line: u32) -> bool {
+        if self.budget <= 1 {
+            self.fail_at(line);
+            return false;
+        }
+        self.budget -= 1;
+        true
+    }
+
+    fn exec(&mut self, c: &Code, s: &Stmt) -> Flow {
+        match &s.kind {
+            StmtKind::Store(p, e, st) => {
+                let v = self.eval(c, e);
+                let a = self.addr(c, p);
+                if self.budget == 0 {
+                    // A fault in the value or the index: the assignment does not happen.
+                    return Flow::Fault;
+                }
+                self.store_at(a, v, *st);
+            }
+            StmtKind::StoreBit(p, bit, e) => {
+                let v = self.eval(c, e);
+                let a = self.addr(c, p);
+                if self.budget == 0 {
+                    return Flow::Fault;
+                }
+                let old = self.ld(a);
+                let m = 1u64 << bit;
+                self.st(a, if v & 1 != 0 { old | m } else { old & !m });
+            }
+            StmtKind::Eval(e) => {
+                self.eval(c, e);
+            }
+            StmtKind::CallFb(call) => self.call_fb(c, call),
+            StmtKind::If(branches, default) => {
+                for (cond, body) in branches.iter() {
+                    let v = self.eval(c, cond);
+                    if self.budget == 0 {
+                        return Flow::Fault;
+                    }
+                    if v & 1 != 0 {
+                        return self.exec_block(c, body);
+                    }
+                }
+                return self.exec_block(c, default);
+            }
+            StmtKind::Case {
+                selector,
+                signed,
+                arms,
+                default,
+            } => {
+                let v = self.eval(c, selector);
+                if self.budget == 0 {
+                    return Flow::Fault;
+                }
+                for arm in arms.iter() {
+                    let hit = arm.ranges.iter().any(|&(lo, hi)| {
+                        if *signed {
+                            (v as i64) >= lo && (v as i64) <= hi
+                        } else {
+                            v >= lo as u64 && v <= hi as u64
+                        }
+                    });
+                    if hit {
+                        return self.exec_block(c, &arm.body);
+                    }
+                }
+                return self.exec_block(c, default);
+            }
+            StmtKind::For(l) => return self.exec_for(c, l, s.line),
+            StmtKind::While(cond, body) => loop {
+                if self.eval(c, cond) & 1 == 0 {
+                    return Flow::Next;
+                }
+                if !self.tick(s.line) {
+                    return Flow::Fault;
+                }
+                match self.exec_block(c, body) {
+                    Flow::Next | Flow::Continue => {}
+                    Flow::Exit => return Flow::Next,
+                    other => return other,
+                }
+            },
+            StmtKind::Repeat(body, cond) => loop {
+                if !self.tick(s.line) {
+                    return Flow::Fault;
+                }
+                match self.exec_block(c, body) {
+                    Flow::Next | Flow::Continue => {}
+                    Flow::Exit => return Flow::Next,
+                    other => return other,
+                }
+                if self.eval(c, cond) & 1 != 0 {
+                    return Flow::Next;
+                }
+            },
+            StmtKind::Exit => return Flow::Exit,
+            StmtKind::Continue => return Flow::Continue,
+            StmtKind::Return => return Flow::Return,
+        }
+        Flow::Next
+    }
+
+    fn exec_for(&mut self, c: &Code, l: &ForLoop, line: u32) -> Flow {
+        let signed = l.kind.signed();
+        let as_i = |v: u64| if signed { v as i64 as i128 } else { v as i128 };
+        let mut i = as_i(self.eval(c, &l.from));
+        let end = as_i(self.eval(c, &l.to));
+        let step = as_i(self.eval(c, &l.by));
+        if self.budget == 0 {
+            return Flow::Fault;
+        }
+        if step == 0 {
+            self.raise(FaultKind::ZeroForStep);
+            return Flow::Fault;
+        }
+        loop {
+            // The control variable holds every value tested, including the one that ends
+            // the loop; the test runs on the unwrapped counter, so a loop up to the type's
+            // maximum still ends.
+            let a = self.addr(c, &l.var);
+            self.st(a, l.kind.wrap(i as u64));
+            if (step > 0 && i > end) || (step < 0 && i < end) {
+                return Flow::Next;
+            }
+            if !self.tick(line) {
+                return Flow::Fault;
+            }
+            match self.exec_block(c, &l.body) {
+                Flow::Next | Flow::Continue => {}
+                Flow::Exit => return Flow::Next,
+                other => return other,
+            }
+            i += step;
+        }
+    }
+}
+
+/// Applies a conversion to a slot value.
+pub(crate) fn conv(cv: Conv, v: u64) -> u64 {
+    match cv {
+        Conv::Int(k) => k.wrap(v),
+        Conv::IntToReal { signed, f32 } => r(if signed { v as i64 as f64 } else { v as f64 }, f32),
+        Conv::RealToInt(k) => k.wrap(real_to_int(f(v).round_ties_even(), k)),
+        Conv::RealTrunc(k) => k.wrap(real_to_int(f(v).trunc(), k)),
+        Conv::ToF32 => r(f(v), true),
+        Conv::IntToBool => (v != 0) as u64,
+        Conv::RealToBool => (f(v) != 0.0) as u64,
+        Conv::NsToMs => ((v as i64) / 1_000_000) as u64,
+        Conv::MsToNs => (v as i64).wrapping_mul(1_000_000) as u64,
+        Conv::RealMsToNs => (f(v) * 1e6).round() as i64 as u64,
+        Conv::NsToRealMs(s) => r(v as i64 as f64 / 1e6, s),
+        Conv::ToBcd(k) => {
+            let mut x = v;
+            let mut out = 0u64;
+            let mut shift = 0;
+            while x > 0 && shift < 64 {
+                out |= (x % 10) << shift;
+                x /= 10;
+                shift += 4;
+            }
+            k.wrap(out)
+        }
+        Conv::FromBcd => {
+            let mut out = 0u64;
+            let mut mul = 1u64;
+            let mut x = v;
+            while x > 0 {
+                out = out.wrapping_add((x & 0xf).min(9).wrapping_mul(mul));
+                mul = mul.wrapping_mul(10);
+                x >>= 4;
+            }
+            out
+        }
+    }
+}
+
+fn real_to_int(x: f64, k: IntKind) -> u64 {
+    // Saturating float-to-int casts; the caller wraps to the target width.
+    if !k.signed() && x >= 0.0 {
+        x as u64
+    } else {
+        x as i64 as u64
+    }
+}

@@ -1,0 +1,241 @@
+//! Fuzzing of the lexer, parser and compiler (and a few scans of whatever compiles):
+//! nothing may panic, every failure must be a positioned error or a fault value.
+//! `PLC_FUZZ_CASES` sets the number of cases per property (default: a short run);
+//! `scripts/fuzz-plc.sh` runs a long one.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use proptest::prelude::*;
+use rtcnc_plc::{Runtime, RuntimeOptions, compile};
+
+const MILL: &str = include_str!("../../../examples/plc/mill.st");
+
+fn cases() -> u32 {
+    std::env::var("PLC_FUZZ_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(if cfg!(debug_assertions) { 48 } else { 256 })
+}
+
+const VOCAB: &[&str] = &[
+    "PROGRAM",
+    "END_PROGRAM",
+    "FUNCTION",
+    "END_FUNCTION",
+    "FUNCTION_BLOCK",
+    "END_FUNCTION_BLOCK",
+    "VAR",
+    "VAR_INPUT",
+    "VAR_OUTPUT",
+    "VAR_IN_OUT",
+    "VAR_TEMP",
+    "VAR_GLOBAL",
+    "VAR_EXTERNAL",
+    "END_VAR",
+    "CONSTANT",
+    "RETAIN",
+    "TYPE",
+    "END_TYPE",
+    "STRUCT",
+    "END_STRUCT",
+    "ARRAY",
+    "OF",
+    "IF",
+    "THEN",
+    "ELSIF",
+    "ELSE",
+    "END_IF",
+    "CASE",
+    "END_CASE",
+    "FOR",
+    "TO",
+    "BY",
+    "DO",
+    "END_FOR",
+    "WHILE",
+    "END_WHILE",
+    "REPEAT",
+    "UNTIL",
+    "END_REPEAT",
+    "EXIT",
+    "RETURN",
+    "CONTINUE",
+    "AND",
+    "OR",
+    "XOR",
+    "NOT",
+    "MOD",
+    "TRUE",
+    "FALSE",
+    "CONFIGURATION",
+    "END_CONFIGURATION",
+    "RESOURCE",
+    "END_RESOURCE",
+    "TASK",
+    "WITH",
+    "ON",
+    "AT",
+    "INT",
+    "DINT",
+    "BOOL",
+    "REAL",
+    "LREAL",
+    "TIME",
+    "STRING",
+    "WORD",
+    "TON",
+    "CTU",
+    "R_TRIG",
+    "x",
+    "y",
+    "z",
+    "P",
+    "F",
+    "t",
+    "a",
+    ":=",
+    "=>",
+    ":",
+    ";",
+    ",",
+    ".",
+    "..",
+    "(",
+    ")",
+    "[",
+    "]",
+    "+",
+    "-",
+    "*",
+    "**",
+    "/",
+    "&",
+    "=",
+    "<>",
+    "<",
+    "<=",
+    ">",
+    ">=",
+    "0",
+    "1",
+    "42",
+    "-7",
+    "16#FF",
+    "2#1010",
+    "1.5",
+    "1e3",
+    "T#20ms",
+    "T#1s500ms",
+    "'txt'",
+    "'$N'",
+    "%IX0.0",
+    "%QW1",
+    "%MD2",
+    "INT#5",
+    "(*c*)",
+    "//c\n",
+    "ABS",
+    "LIMIT",
+    "SEL",
+    "MAX",
+    "CONCAT",
+    "INT_TO_REAL",
+    "REAL_TO_INT",
+    "LEN",
+    "MID",
+];
+
+/// A skeleton that makes token soups land inside a POU body more often.
+fn in_program(body: &str) -> String {
+    format!(
+        "PROGRAM P VAR x : INT; y : BOOL; z : REAL; t : TON; a : ARRAY[0..3] OF INT; END_VAR\n{body}\nEND_PROGRAM"
+    )
+}
+
+fn run_some(src: &str) {
+    if let Ok(p) = compile(src, "fuzz.st") {
+        let mut rt = Runtime::with_options(
+            Arc::new(p),
+            RuntimeOptions {
+                watchdog_budget: 20_000,
+                ..Default::default()
+            },
+        );
+        for k in 0..3 {
+            if rt.scan(Duration::from_millis(4 * k)).is_err() {
+                break;
+            }
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: cases(), failure_persistence: None, ..ProptestConfig::default() })]
+
+    #[test]
+    fn arbitrary_text_never_panics(s in "\\PC{0,300}") {
+        run_some(&s);
+    }
+
+    #[test]
+    fn arbitrary_bytes_never_panic(b in proptest::collection::vec(any::<u8>(), 0..300)) {
+        run_some(&String::from_utf8_lossy(&b));
+    }
+
+    #[test]
+    fn token_soup_never_panics(toks in proptest::collection::vec(0..VOCAB.len(), 0..80), wrap in any::<bool>()) {
+        let text: Vec<&str> = toks.iter().map(|i| VOCAB[*i]).collect();
+        let body = text.join(" ");
+        let src = if wrap { in_program(&body) } else { body };
+        run_some(&src);
+    }
+
+    #[test]
+    fn mutated_mill_never_panics(edits in proptest::collection::vec((0..MILL.len(), 0..40usize, 0..VOCAB.len()), 1..6)) {
+        let mut src = MILL.to_string();
+        for (at, len, tok) in edits {
+            let at = at.min(src.len());
+            let end = (at + len).min(src.len());
+            if src.is_char_boundary(at) && src.is_char_boundary(end) {
+                src.replace_range(at..end, VOCAB[tok]);
+            }
+        }
+        run_some(&src);
+    }
+}
+
+#[test]
+fn deep_nesting_is_an_error_not_a_stack_overflow() {
+    let deep = format!("{}1{}", "(".repeat(5000), ")".repeat(5000));
+    let src = in_program(&format!("x := {deep};"));
+    let e = compile(&src, "deep.st").unwrap_err();
+    assert_eq!(e.first().unwrap().code(), "syntax");
+    let chain = format!("x := {};", vec!["1"; 5000].join(" + "));
+    assert!(compile(&in_program(&chain), "chain.st").is_err());
+    let ifs = format!("{}{}", "IF y THEN ".repeat(3000), "END_IF; ".repeat(3000));
+    assert!(compile(&in_program(&ifs), "ifs.st").is_err());
+}
+
+#[test]
+fn huge_declarations_are_errors_not_allocation_failures() {
+    let src = "PROGRAM P VAR a : ARRAY[0..2000000000] OF LREAL; END_VAR END_PROGRAM";
+    assert!(compile(src, "huge.st").is_err());
+    let src =
+        "PROGRAM P VAR a : ARRAY[0..9999, 0..9999] OF ARRAY[0..9999] OF INT; END_VAR END_PROGRAM";
+    assert!(compile(src, "huge.st").is_err());
+}
+
+#[test]
+fn nesting_below_the_limit_compiles_and_runs() {
+    let n = 20;
+    let sum = format!("{}1{}", "1 + (".repeat(n), ")".repeat(n));
+    let ifs = format!(
+        "{}x := {sum};{}",
+        "IF NOT y THEN ".repeat(n),
+        " END_IF;".repeat(n)
+    );
+    let mut rt = Runtime::new(Arc::new(compile(&in_program(&ifs), "nest.st").unwrap()));
+    rt.scan(Duration::ZERO).unwrap();
+    assert_eq!(rt.read_name("x").unwrap(), rtcnc_plc::Value::Int(21));
+}
