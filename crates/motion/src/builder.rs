@@ -1,0 +1,793 @@
+//! Turns moves into path pieces: validation, feed resolution, soft limits, collinear merging
+//! (G64 Q), corner blending and smoothing of dense polylines (G64 P), exact stops (G61,
+//! G61.1). Runs when moves are pushed, not in the servo period.
+
+use crate::axes::{AXES, Axis, AxisVec, add_scaled, dot, is_finite, norm, norm_xyz, scale, sub};
+use crate::error::MotionError;
+use crate::geometry::{Helix, Shape, corner_bezier, quintic};
+use crate::input::{Feed, Move, MoveKind, PathMode};
+use crate::limits::Lim;
+use crate::piece::Piece;
+
+/// Direction changes up to this angle (rad) count as tangent: passed without a blend, at a
+/// speed that keeps the velocity step inside the jerk limit.
+pub(crate) const KINK: f64 = 1e-4;
+/// Largest direction change at a vertex that may be smoothed through (rad).
+const SMOOTH_MAX_ANGLE: f64 = 0.35;
+/// A corner blend whose speed limit is below this share of the feed becomes an exact stop.
+const MIN_BLEND_SPEED_SHARE: f64 = 0.05;
+/// Feed used for that comparison on rapids (mm/s).
+const V_RAPID_REF: f64 = 1e3;
+/// Longest run of collinear segments merged into one.
+const MERGE_MAX: usize = 64;
+/// Relative tolerance of arc radii (plus an absolute 1e-6 mm).
+const ARC_RADIUS_REL_TOL: f64 = 1e-6;
+
+#[derive(Debug, Clone, Copy)]
+struct LineP {
+    a: AxisVec,
+    b: AxisVec,
+    dir: AxisVec,
+    len: f64,
+    feed: f64,
+    rapid: bool,
+    mode: PathMode,
+    line: u32,
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Prim {
+    Line(LineP),
+    Arc {
+        h: Helix,
+        a: AxisVec,
+        b: AxisVec,
+        feed: f64,
+        mode: PathMode,
+        line: u32,
+    },
+}
+
+impl Prim {
+    fn mode(&self) -> PathMode {
+        match self {
+            Prim::Line(l) => l.mode,
+            Prim::Arc { mode, .. } => *mode,
+        }
+    }
+    fn end(&self) -> AxisVec {
+        match self {
+            Prim::Line(l) => l.b,
+            Prim::Arc { b, .. } => *b,
+        }
+    }
+    fn start_tangent(&self) -> AxisVec {
+        match self {
+            Prim::Line(l) => l.dir,
+            Prim::Arc { h, .. } => unit(&Shape::Helix(*h).eval(0.0).d1),
+        }
+    }
+    fn end_tangent(&self) -> AxisVec {
+        match self {
+            Prim::Line(l) => l.dir,
+            Prim::Arc { h, .. } => unit(&Shape::Helix(*h).eval(1.0).d1),
+        }
+    }
+}
+
+/// Where the remaining part of a line starts: point, unit tangent, curvature vector.
+#[derive(Debug, Clone, Copy)]
+struct State {
+    p: AxisVec,
+    t: AxisVec,
+    k: AxisVec,
+}
+
+fn unit(v: &AxisVec) -> AxisVec {
+    let n = norm(v);
+    if n > 0.0 { scale(v, 1.0 / n) } else { *v }
+}
+
+/// Statistics of the geometry stage.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct GeometryStats {
+    /// Moves accepted.
+    pub moves: u64,
+    /// Line segments merged away by the collinear tolerance.
+    pub merged: u64,
+    /// Corners rounded by a blend curve.
+    pub blends: u64,
+    /// Vertices passed through by a smoothing span.
+    pub smoothed: u64,
+    /// Exact stops inserted.
+    pub stops: u64,
+    /// Smoothing spans that could not be kept within the blend tolerance (see docs).
+    pub tolerance_exceeded: u64,
+    /// Smoothed vertices whose curvature was reduced to keep the span within P.
+    pub curvature_backoffs: u64,
+}
+
+pub(crate) struct Builder {
+    pub pos: AxisVec,
+    run: Option<(LineP, [AxisVec; MERGE_MAX], usize)>,
+    prev: Option<Prim>,
+    prev_state: Option<State>,
+    pub stats: GeometryStats,
+}
+
+impl Builder {
+    pub fn new(pos: AxisVec) -> Builder {
+        Builder {
+            pos,
+            run: None,
+            prev: None,
+            prev_state: None,
+            stats: GeometryStats::default(),
+        }
+    }
+
+    pub fn clear(&mut self, pos: AxisVec) {
+        self.pos = pos;
+        self.run = None;
+        self.prev = None;
+        self.prev_state = None;
+    }
+
+    /// Validates `mv` and feeds it through; finished pieces go to `out`.
+    pub fn push(&mut self, mv: &Move, lim: &Lim, out: &mut Vec<Piece>) -> Result<(), MotionError> {
+        let prim = self.validate(mv, lim)?;
+        self.stats.moves += 1;
+        match prim {
+            None => {
+                // Dwell.
+                let MoveKind::Dwell { seconds } = mv.kind else {
+                    return Ok(());
+                };
+                self.flush(lim, out);
+                out.push(Piece::dwell(self.pos, seconds, mv.line));
+                Ok(())
+            }
+            Some(p) => {
+                self.pos = p.end();
+                self.merge_stage(p, lim, out);
+                Ok(())
+            }
+        }
+    }
+
+    /// Emits everything held back; the path stops at its end.
+    pub fn flush(&mut self, lim: &Lim, out: &mut Vec<Piece>) {
+        if let Some((l, _, _)) = self.run.take() {
+            self.vertex_stage(Prim::Line(l), lim, out);
+        }
+        if let Some(prev) = self.prev.take() {
+            let st = self.prev_state.take();
+            self.emit_prim_to_end(&prev, st, true, lim, out);
+        }
+        self.prev_state = None;
+    }
+
+    fn validate(&self, mv: &Move, lim: &Lim) -> Result<Option<Prim>, MotionError> {
+        let line = mv.line;
+        let a = self.pos;
+        match mv.mode {
+            PathMode::Blend {
+                tolerance,
+                merge_tolerance,
+            } => {
+                for t in [tolerance, merge_tolerance] {
+                    if !(t.is_finite() && t >= 0.0) {
+                        return Err(MotionError::InvalidTolerance { line, value: t });
+                    }
+                }
+            }
+            PathMode::ExactPath | PathMode::ExactStop => {}
+        }
+        let (b, rapid) = match mv.kind {
+            MoveKind::Dwell { seconds } => {
+                if !(seconds.is_finite() && seconds >= 0.0) {
+                    return Err(MotionError::NotFinite {
+                        line,
+                        what: "dwell time",
+                    });
+                }
+                return Ok(None);
+            }
+            MoveKind::Line { end, rapid } => (end, rapid),
+            MoveKind::Arc { end, .. } => (end, false),
+        };
+        if !is_finite(&b) {
+            return Err(MotionError::NotFinite {
+                line,
+                what: "end point",
+            });
+        }
+        for i in 0..AXES {
+            if !lim.present[i] && b[i] != a[i] {
+                return Err(MotionError::SoftLimit {
+                    line,
+                    axis: Axis::ALL[i].letter(),
+                    position: b[i],
+                    min: a[i],
+                    max: a[i],
+                });
+            }
+        }
+        check_point(&b, lim, line)?;
+        let d = sub(&b, &a);
+        match mv.kind {
+            MoveKind::Line { .. } => {
+                let len = norm(&d);
+                if !(len > 1e-12) {
+                    return Err(MotionError::ZeroLength { line });
+                }
+                let feed = if rapid {
+                    f64::INFINITY
+                } else {
+                    resolve_feed(&mv.feed, norm_xyz(&d), len, line)?
+                };
+                Ok(Some(Prim::Line(LineP {
+                    a,
+                    b,
+                    dir: scale(&d, 1.0 / len),
+                    len,
+                    feed,
+                    rapid,
+                    mode: mv.mode,
+                    line,
+                })))
+            }
+            MoveKind::Arc {
+                centre,
+                normal,
+                turns,
+                ..
+            } => {
+                if !(centre.iter().all(|x| x.is_finite()) && normal.iter().all(|x| x.is_finite())) {
+                    return Err(MotionError::NotFinite {
+                        line,
+                        what: "arc centre or normal",
+                    });
+                }
+                let h = make_helix(&a, &b, centre, normal, turns, line)?;
+                let shape = Shape::Helix(h);
+                let len = shape.speed(0.0);
+                let len_xyz = {
+                    let d1 = shape.eval(0.0).d1;
+                    norm_xyz(&d1)
+                };
+                let feed = resolve_feed(&mv.feed, len_xyz, len, line)?;
+                check_helix_extent(&h, &a, &b, lim, line)?;
+                Ok(Some(Prim::Arc {
+                    h,
+                    a,
+                    b,
+                    feed,
+                    mode: mv.mode,
+                    line,
+                }))
+            }
+            MoveKind::Dwell { .. } => Ok(None),
+        }
+    }
+
+    /// G64 Q: merges consecutive feed lines whose inner vertices stay within Q of one line.
+    fn merge_stage(&mut self, p: Prim, lim: &Lim, out: &mut Vec<Piece>) {
+        let q = match p.mode() {
+            PathMode::Blend {
+                merge_tolerance, ..
+            } if merge_tolerance > 0.0 => merge_tolerance,
+            _ => 0.0,
+        };
+        let Prim::Line(l) = p else {
+            if let Some((r, _, _)) = self.run.take() {
+                self.vertex_stage(Prim::Line(r), lim, out);
+            }
+            self.vertex_stage(p, lim, out);
+            return;
+        };
+        if q <= 0.0 || l.rapid {
+            if let Some((r, _, _)) = self.run.take() {
+                self.vertex_stage(Prim::Line(r), lim, out);
+            }
+            self.vertex_stage(p, lim, out);
+            return;
+        }
+        if let Some((mut r, mut pts, mut n)) = self.run.take() {
+            let compatible = r.mode == l.mode && r.feed == l.feed && n < MERGE_MAX;
+            if compatible {
+                // Candidate merged line r.a -> l.b; every inner vertex (pts[..n] and r.b) within q.
+                let d = sub(&l.b, &r.a);
+                let len = norm(&d);
+                if len > 0.0 {
+                    let dir = scale(&d, 1.0 / len);
+                    let within = |x: &AxisVec| {
+                        let w = sub(x, &r.a);
+                        let along = dot(&w, &dir);
+                        let perp = norm(&add_scaled(&w, &dir, -along));
+                        along > 0.0 && along < len && perp <= q
+                    };
+                    if pts[..n].iter().all(within) && within(&r.b) && dot(&r.dir, &l.dir) > 0.0 {
+                        pts[n] = r.b;
+                        n += 1;
+                        r.b = l.b;
+                        r.dir = dir;
+                        r.len = len;
+                        self.stats.merged += 1;
+                        self.run = Some((r, pts, n));
+                        return;
+                    }
+                }
+            }
+            self.vertex_stage(Prim::Line(r), lim, out);
+        }
+        self.run = Some((l, [[0.0; AXES]; MERGE_MAX], 0));
+    }
+
+    /// Decides the junction between the held-back primitive and `cur`, emits the held-back
+    /// one up to that junction and holds `cur`.
+    fn vertex_stage(&mut self, cur: Prim, lim: &Lim, out: &mut Vec<Piece>) {
+        let Some(prev) = self.prev.take() else {
+            self.prev = Some(cur);
+            self.prev_state = None;
+            return;
+        };
+        let st = self.prev_state.take();
+        let t_in = prev.end_tangent();
+        let t_out = cur.start_tangent();
+        let cos = dot(&t_in, &t_out).clamp(-1.0, 1.0);
+        let theta = cos.acos();
+        let mode = prev.mode();
+        let stop = |this: &mut Builder, out: &mut Vec<Piece>| {
+            this.stats.stops += 1;
+            this.emit_prim_to_end(&prev, st, true, lim, out);
+        };
+        match mode {
+            PathMode::ExactStop => stop(self, out),
+            _ if theta <= KINK => {
+                self.emit_prim_to_end(&prev, st, false, lim, out);
+            }
+            PathMode::ExactPath => stop(self, out),
+            PathMode::Blend { tolerance, .. } => {
+                let (Prim::Line(lp), Prim::Line(lc)) = (prev, cur) else {
+                    stop(self, out);
+                    self.prev = Some(cur);
+                    return;
+                };
+                if theta > 170f64.to_radians() || tolerance <= 0.0 {
+                    stop(self, out);
+                } else {
+                    let v = lp.b;
+                    // Smoothing through the vertex (dense CAM polylines).
+                    if let Some(vs) = self.smooth_state(&lp, &lc, theta, tolerance) {
+                        let start = st.unwrap_or(State {
+                            p: lp.a,
+                            t: lp.dir,
+                            k: [0.0; AXES],
+                        });
+                        // The vertex curvature comes from the circle through three points;
+                        // a slightly smaller one keeps a span that bulges too far within P.
+                        for scale_k in [1.0, 0.95, 0.9, 0.8, 0.65] {
+                            let vk = State {
+                                k: scale(&vs.k, scale_k),
+                                ..vs
+                            };
+                            if let Some(pc) = span(&lp, &start, &vk, tolerance, lim) {
+                                out.push(pc);
+                                self.stats.smoothed += 1;
+                                if scale_k < 1.0 {
+                                    self.stats.curvature_backoffs += 1;
+                                }
+                                self.prev = Some(cur);
+                                self.prev_state = Some(vk);
+                                return;
+                            }
+                        }
+                    }
+                    // Corner blend.
+                    let d = (4.0 * tolerance / (0.5 * theta).sin())
+                        .min(0.5 * lp.len)
+                        .min(0.5 * lc.len);
+                    if d <= 1e-9 {
+                        stop(self, out);
+                    } else {
+                        let p0 = add_scaled(&v, &lp.dir, -d);
+                        let p3 = add_scaled(&v, &lc.dir, d);
+                        let end_state = State {
+                            p: p0,
+                            t: lp.dir,
+                            k: [0.0; AXES],
+                        };
+                        let start = st.unwrap_or(State {
+                            p: lp.a,
+                            t: lp.dir,
+                            k: [0.0; AXES],
+                        });
+                        let first = self.span_or_exceed(&lp, &start, &end_state, tolerance, lim);
+                        let shape = corner_bezier(&p0, &v, &p3);
+                        let mut b = Piece::new(
+                            shape,
+                            p0,
+                            p3,
+                            lp.feed.min(lc.feed),
+                            lp.rapid && lc.rapid,
+                            lp.line,
+                        );
+                        b.stop_at_end = false;
+                        // A blend that would have to be passed at a crawl (tiny tolerance on a
+                        // sharp corner) is no faster than a stop and much harder to follow
+                        // with jerk limits: stop at the corner instead.
+                        b.sample(lim);
+                        let v_blend = b.smp[..=b.ns]
+                            .iter()
+                            .fold(f64::INFINITY, |m, x| m.min(x.v_curve));
+                        if v_blend < MIN_BLEND_SPEED_SHARE * lp.feed.min(lc.feed).min(V_RAPID_REF) {
+                            self.stats.stops += 1;
+                            self.emit_prim_to_end(&prev, st, true, lim, out);
+                            self.prev = Some(cur);
+                            self.prev_state = None;
+                            return;
+                        }
+                        if let Some(pc) = first {
+                            out.push(pc);
+                        }
+                        out.push(b);
+                        self.stats.blends += 1;
+                        self.prev = Some(cur);
+                        self.prev_state = Some(State {
+                            p: p3,
+                            t: lc.dir,
+                            k: [0.0; AXES],
+                        });
+                        return;
+                    }
+                }
+            }
+        }
+        self.prev = Some(cur);
+        self.prev_state = None;
+    }
+
+    /// Tangent and curvature at the vertex between two short lines, from the circle through
+    /// the three points, when the vertex qualifies for smoothing.
+    fn smooth_state(&self, lp: &LineP, lc: &LineP, theta: f64, tol: f64) -> Option<State> {
+        if lp.rapid || lc.rapid || theta > SMOOTH_MAX_ANGLE || theta <= KINK {
+            return None;
+        }
+        let (la, lb) = (lp.len, lc.len);
+        if la > 3.0 * lb || lb > 3.0 * la || la.max(lb) * theta > 16.0 * tol {
+            return None;
+        }
+        let a = sub(&lp.b, &lp.a);
+        let b = sub(&lc.b, &lc.a);
+        // Tangent of the circle through the three points at the middle one.
+        let t = unit(&add_scaled(&scale(&a, lb / la), &b, la / lb));
+        let ab = dot(&a, &b);
+        let cross2 = (la * la * lb * lb - ab * ab).max(0.0);
+        let chord = norm(&add_scaled(&a, &b, 1.0));
+        let kappa = 2.0 * cross2.sqrt() / (la * lb * chord);
+        // Curvature direction: the turn from a to b, orthogonal to t.
+        let turn = sub(&unit(&b), &unit(&a));
+        let nrm = unit(&add_scaled(&turn, &t, -dot(&turn, &t)));
+        Some(State {
+            p: lp.b,
+            t,
+            k: scale(&nrm, kappa),
+        })
+    }
+
+    /// A span that must exist (the path has to be continuous): when the smoothing span
+    /// from a smoothed vertex to a line state exceeds the tolerance, it is still used and
+    /// counted in `tolerance_exceeded`.
+    fn span_or_exceed(
+        &mut self,
+        l: &LineP,
+        s0: &State,
+        s1: &State,
+        tol: f64,
+        lim: &Lim,
+    ) -> Option<Piece> {
+        if let Some(p) = span(l, s0, s1, tol, lim) {
+            return Some(p);
+        }
+        let p = span(l, s0, s1, f64::INFINITY, lim);
+        if p.is_some() {
+            self.stats.tolerance_exceeded += 1;
+        }
+        p
+    }
+
+    fn emit_prim_to_end(
+        &mut self,
+        prev: &Prim,
+        st: Option<State>,
+        stop: bool,
+        lim: &Lim,
+        out: &mut Vec<Piece>,
+    ) {
+        match prev {
+            Prim::Line(l) => {
+                let start = st.unwrap_or(State {
+                    p: l.a,
+                    t: l.dir,
+                    k: [0.0; AXES],
+                });
+                let end = State {
+                    p: l.b,
+                    t: l.dir,
+                    k: [0.0; AXES],
+                };
+                let tol = match l.mode {
+                    PathMode::Blend { tolerance, .. } => tolerance,
+                    _ => f64::INFINITY,
+                };
+                if let Some(mut pc) = self.span_or_exceed(l, &start, &end, tol, lim) {
+                    pc.stop_at_end = stop;
+                    out.push(pc);
+                } else if let Some(last) = out.last_mut() {
+                    last.stop_at_end |= stop;
+                }
+            }
+            Prim::Arc {
+                h,
+                a,
+                b,
+                feed,
+                line,
+                ..
+            } => {
+                let mut pc = Piece::new(Shape::Helix(*h), *a, *b, *feed, false, *line);
+                pc.stop_at_end = stop;
+                out.push(pc);
+            }
+        }
+    }
+}
+
+/// The piece of line `l` from state `s0` to state `s1`: a line when both states lie on the
+/// line's direction with zero curvature, else a quintic whose distance from the line is
+/// checked against `tol` (None when it exceeds it or the span is empty).
+fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Piece> {
+    let d = sub(&s1.p, &s0.p);
+    let lc = norm(&d);
+    if lc <= 1e-12 {
+        return None;
+    }
+    let straight0 = dot(&s0.t, &l.dir) >= 1.0 - 1e-15 && norm(&s0.k) == 0.0;
+    let straight1 = dot(&s1.t, &l.dir) >= 1.0 - 1e-15 && norm(&s1.k) == 0.0;
+    if straight0 && straight1 {
+        let dir = scale(&d, 1.0 / lc);
+        return Some(Piece::new(
+            Shape::Line { start: s0.p, dir },
+            s0.p,
+            s1.p,
+            l.feed,
+            l.rapid,
+            l.line,
+        ));
+    }
+    // Parameter length: arc length of the circular arc over the chord, from the mean curvature.
+    let kap = 0.5 * (norm(&s0.k) + norm(&s1.k));
+    let half = (0.5 * kap * lc).min(0.99);
+    let lp = if half > 1e-12 {
+        lc * half.asin() / half
+    } else {
+        lc
+    };
+    let shape = quintic(
+        &s0.p,
+        &scale(&s0.t, lp),
+        &scale(&s0.k, lp * lp),
+        &s1.p,
+        &scale(&s1.t, lp),
+        &scale(&s1.k, lp * lp),
+    );
+    // Distance from the programmed segment (the chord lies on it).
+    let dir = scale(&d, 1.0 / lc);
+    let mut dev = [0.0f64; 17];
+    for (k, dv) in dev.iter_mut().enumerate() {
+        let u = k as f64 / 16.0;
+        let w = sub(&shape.pos(u), &s0.p);
+        let along = dot(&w, &dir).clamp(0.0, lc);
+        *dv = norm(&add_scaled(&w, &dir, -along));
+    }
+    let (km, _) = dev.iter().enumerate().fold(
+        (0, 0.0),
+        |(bi, bv), (i, v)| if *v > bv { (i, *v) } else { (bi, bv) },
+    );
+    let mut max_dev = dev[km];
+    if km > 0 && km < 16 {
+        // Peak of the parabola through the three samples around the largest.
+        let (y0, y1, y2) = (dev[km - 1], dev[km], dev[km + 1]);
+        let den = y0 - 2.0 * y1 + y2;
+        if den < 0.0 {
+            max_dev = max_dev.max(y1 - 0.125 * (y2 - y0) * (y2 - y0) / den);
+        }
+    }
+    if max_dev > tol * (1.0 - 1e-3) {
+        return None;
+    }
+    for k in 0..=16 {
+        if tol.is_infinite() {
+            break;
+        }
+        let p = shape.pos(k as f64 / 16.0);
+        for i in 0..AXES {
+            if lim.present[i] && (p[i] < lim.min[i] || p[i] > lim.max[i]) {
+                return None;
+            }
+        }
+    }
+    Some(Piece::new(shape, s0.p, s1.p, l.feed, false, l.line))
+}
+
+fn resolve_feed(feed: &Feed, len_xyz: f64, len: f64, line: u32) -> Result<f64, MotionError> {
+    let f = match *feed {
+        Feed::UnitsPerSecond(f) => f,
+        Feed::InverseTime { seconds } => {
+            if !(seconds.is_finite() && seconds > 0.0) {
+                return Err(MotionError::InvalidFeed {
+                    line,
+                    feed: seconds,
+                });
+            }
+            if len_xyz > 1e-12 {
+                len_xyz / seconds
+            } else {
+                len / seconds
+            }
+        }
+        Feed::PerRevolution {
+            mm_per_rev,
+            spindle_rev_per_s,
+        } => mm_per_rev * spindle_rev_per_s,
+    };
+    if f.is_nan() {
+        return Err(MotionError::NotFinite { line, what: "feed" });
+    }
+    if !(f > 0.0) || f.is_infinite() {
+        return Err(MotionError::InvalidFeed { line, feed: f });
+    }
+    Ok(f)
+}
+
+fn check_point(p: &AxisVec, lim: &Lim, line: u32) -> Result<(), MotionError> {
+    for i in 0..AXES {
+        if lim.present[i] && (p[i] < lim.min[i] || p[i] > lim.max[i]) {
+            return Err(MotionError::SoftLimit {
+                line,
+                axis: Axis::ALL[i].letter(),
+                position: p[i],
+                min: lim.min[i],
+                max: lim.max[i],
+            });
+        }
+    }
+    Ok(())
+}
+
+fn make_helix(
+    a: &AxisVec,
+    b: &AxisVec,
+    centre: [f64; 3],
+    normal: [f64; 3],
+    turns: u32,
+    line: u32,
+) -> Result<Helix, MotionError> {
+    let nn = (normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]).sqrt();
+    if !(nn > 0.0) {
+        return Err(MotionError::InvalidArc {
+            line,
+            why: "zero normal",
+        });
+    }
+    let n = [normal[0] / nn, normal[1] / nn, normal[2] / nn];
+    let d3 = |x: &[f64; 3], y: &[f64; 3]| x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
+    let sa = [a[0] - centre[0], a[1] - centre[1], a[2] - centre[2]];
+    let ha = d3(&sa, &n);
+    let c0 = [
+        centre[0] + ha * n[0],
+        centre[1] + ha * n[1],
+        centre[2] + ha * n[2],
+    ];
+    let ra_v = [a[0] - c0[0], a[1] - c0[1], a[2] - c0[2]];
+    let r0 = d3(&ra_v, &ra_v).sqrt();
+    if !(r0 > 1e-9) {
+        return Err(MotionError::InvalidArc {
+            line,
+            why: "zero radius",
+        });
+    }
+    let e1 = [ra_v[0] / r0, ra_v[1] / r0, ra_v[2] / r0];
+    let e2 = [
+        n[1] * e1[2] - n[2] * e1[1],
+        n[2] * e1[0] - n[0] * e1[2],
+        n[0] * e1[1] - n[1] * e1[0],
+    ];
+    let sb = [b[0] - c0[0], b[1] - c0[1], b[2] - c0[2]];
+    let rise = d3(&sb, &n);
+    let q = [
+        sb[0] - rise * n[0],
+        sb[1] - rise * n[1],
+        sb[2] - rise * n[2],
+    ];
+    let r1 = d3(&q, &q).sqrt();
+    if (r1 - r0).abs() > 1e-6 + ARC_RADIUS_REL_TOL * r0 {
+        return Err(MotionError::ArcRadiusMismatch {
+            line,
+            start_radius: r0,
+            end_radius: r1,
+        });
+    }
+    let mut ang = d3(&q, &e2).atan2(d3(&q, &e1));
+    if ang <= 1e-12 {
+        ang += 2.0 * std::f64::consts::PI;
+    }
+    let sweep = ang + 2.0 * std::f64::consts::PI * turns as f64;
+    let mut other0 = [0.0; AXES];
+    let mut other_delta = [0.0; AXES];
+    for i in 3..AXES {
+        other0[i] = a[i];
+        other_delta[i] = b[i] - a[i];
+    }
+    Ok(Helix {
+        centre: c0,
+        e1,
+        e2,
+        n,
+        r0,
+        dr: r1 - r0,
+        sweep,
+        rise,
+        other0,
+        other_delta,
+    })
+}
+
+/// Refuses an arc whose extent leaves the envelope: per axis, the circle's extreme angles
+/// inside the sweep, plus the helix rise (conservative when both act on one axis).
+fn check_helix_extent(
+    h: &Helix,
+    a: &AxisVec,
+    b: &AxisVec,
+    lim: &Lim,
+    line: u32,
+) -> Result<(), MotionError> {
+    for i in 0..3 {
+        if !lim.present[i] {
+            continue;
+        }
+        let amp = (h.e1[i] * h.e1[i] + h.e2[i] * h.e2[i]).sqrt();
+        let mut lo = a[i].min(b[i]);
+        let mut hi = a[i].max(b[i]);
+        if amp > 0.0 {
+            let r = h.r0.max(h.r0 + h.dr);
+            let rise_lo = (h.rise * h.n[i]).min(0.0);
+            let rise_hi = (h.rise * h.n[i]).max(0.0);
+            let th_max = h.e2[i].atan2(h.e1[i]);
+            for (th0, sign) in [(th_max, 1.0), (th_max + std::f64::consts::PI, -1.0)] {
+                let th = th0.rem_euclid(2.0 * std::f64::consts::PI);
+                if th <= h.sweep {
+                    let x = h.centre[i] + sign * r * amp;
+                    if sign > 0.0 {
+                        hi = hi.max(x + rise_hi);
+                    } else {
+                        lo = lo.min(x + rise_lo);
+                    }
+                }
+            }
+        }
+        for x in [lo, hi] {
+            if x < lim.min[i] || x > lim.max[i] {
+                return Err(MotionError::SoftLimit {
+                    line,
+                    axis: Axis::ALL[i].letter(),
+                    position: x,
+                    min: lim.min[i],
+                    max: lim.max[i],
+                });
+            }
+        }
+    }
+    Ok(())
+}

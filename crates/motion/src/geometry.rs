@@ -1,0 +1,244 @@
+//! Path pieces with analytic evaluation: lines, helices (arcs are helices without rise) and
+//! polynomial curves (corner blends and smoothing spans). Every piece is evaluated at its
+//! arc length `s` (9-axis Euclidean length) through an exact map for lines and helices and a
+//! tabulated monotone map for polynomial curves; the set-point is always exactly on the
+//! curve, only the speed along it depends on the map.
+
+use crate::axes::{AXES, AxisVec, add_scaled, dot, norm};
+
+/// Value and first three derivatives with respect to the piece's own parameter.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Deriv {
+    pub p: AxisVec,
+    pub d1: AxisVec,
+    pub d2: AxisVec,
+    pub d3: AxisVec,
+}
+
+/// Shape of one piece.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Shape {
+    /// `start + dir * u`, u in [0, len] (dir unit).
+    Line { start: AxisVec, dir: AxisVec },
+    /// Helix/arc; u in [0, 1].
+    Helix(Helix),
+    /// Polynomial `sum c[k] u^k`, u in [0, 1], degree ≤ 5.
+    Poly { c: [AxisVec; 6] },
+}
+
+/// Arc or helix around `centre` (in the plane of the start point), from `e1` towards `e2`.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Helix {
+    pub centre: [f64; 3],
+    pub e1: [f64; 3],
+    pub e2: [f64; 3],
+    pub n: [f64; 3],
+    pub r0: f64,
+    pub dr: f64,
+    pub sweep: f64,
+    pub rise: f64,
+    /// Start of the axes A..W (indices 3..9) and their change.
+    pub other0: AxisVec,
+    pub other_delta: AxisVec,
+}
+
+impl Shape {
+    pub fn eval(&self, u: f64) -> Deriv {
+        match self {
+            Shape::Line { start, dir } => Deriv {
+                p: add_scaled(start, dir, u),
+                d1: *dir,
+                d2: [0.0; AXES],
+                d3: [0.0; AXES],
+            },
+            Shape::Helix(h) => h.eval(u),
+            Shape::Poly { c } => {
+                let mut d = Deriv::default();
+                for i in 0..AXES {
+                    let (c0, c1, c2, c3, c4, c5) =
+                        (c[0][i], c[1][i], c[2][i], c[3][i], c[4][i], c[5][i]);
+                    d.p[i] = c0 + u * (c1 + u * (c2 + u * (c3 + u * (c4 + u * c5))));
+                    d.d1[i] = c1 + u * (2.0 * c2 + u * (3.0 * c3 + u * (4.0 * c4 + u * 5.0 * c5)));
+                    d.d2[i] = 2.0 * c2 + u * (6.0 * c3 + u * (12.0 * c4 + u * 20.0 * c5));
+                    d.d3[i] = 6.0 * c3 + u * (24.0 * c4 + u * 60.0 * c5);
+                }
+                d
+            }
+        }
+    }
+
+    /// Position only (cheaper).
+    pub fn pos(&self, u: f64) -> AxisVec {
+        match self {
+            Shape::Line { start, dir } => add_scaled(start, dir, u),
+            Shape::Helix(h) => h.eval(u).p,
+            Shape::Poly { c } => {
+                let mut p = [0.0; AXES];
+                for i in 0..AXES {
+                    p[i] = c[0][i]
+                        + u * (c[1][i]
+                            + u * (c[2][i] + u * (c[3][i] + u * (c[4][i] + u * c[5][i]))));
+                }
+                p
+            }
+        }
+    }
+
+    /// Speed |dp/du|.
+    pub fn speed(&self, u: f64) -> f64 {
+        norm(&self.eval(u).d1)
+    }
+}
+
+impl Helix {
+    fn eval(&self, u: f64) -> Deriv {
+        let th = self.sweep * u;
+        let (s, c) = th.sin_cos();
+        let r = self.r0 + self.dr * u;
+        let sw = self.sweep;
+        let mut d = Deriv::default();
+        for i in 0..3 {
+            let radial = c * self.e1[i] + s * self.e2[i];
+            let tang = -s * self.e1[i] + c * self.e2[i];
+            d.p[i] = self.centre[i] + r * radial + self.rise * u * self.n[i];
+            d.d1[i] = self.dr * radial + r * sw * tang + self.rise * self.n[i];
+            d.d2[i] = 2.0 * self.dr * sw * tang - r * sw * sw * radial;
+            d.d3[i] = -3.0 * self.dr * sw * sw * radial - r * sw * sw * sw * tang;
+        }
+        for i in 3..AXES {
+            d.p[i] = self.other0[i] + self.other_delta[i] * u;
+            d.d1[i] = self.other_delta[i];
+        }
+        d
+    }
+}
+
+/// Number of intervals of the arc-length table of curved pieces.
+pub(crate) const MAP_N: usize = 8;
+
+/// Map from arc length to the shape parameter.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum ArcMap {
+    /// u = s * k.
+    Linear { k: f64 },
+    /// Nodes at uniform u (`u_k = k / MAP_N`) with their arc length and du/ds; between nodes
+    /// u(s) is the cubic Hermite interpolant (monotone for the smooth, regular pieces used).
+    Table {
+        s: [f64; MAP_N + 1],
+        duds: [f64; MAP_N + 1],
+    },
+}
+
+/// Three-point Gauss-Legendre on [0, 1].
+const GL_X: [f64; 3] = [0.112_701_665_379_258_31, 0.5, 0.887_298_334_620_741_7];
+const GL_W: [f64; 3] = [5.0 / 18.0, 8.0 / 18.0, 5.0 / 18.0];
+
+impl ArcMap {
+    /// Builds the table of a curved shape over u in [0, 1]; returns it with the total length.
+    pub fn table(shape: &Shape) -> (ArcMap, f64) {
+        let mut s = [0.0; MAP_N + 1];
+        let mut duds = [0.0; MAP_N + 1];
+        let h = 1.0 / MAP_N as f64;
+        for k in 0..=MAP_N {
+            let sp = shape.speed(k as f64 * h);
+            duds[k] = if sp > 0.0 { 1.0 / sp } else { 0.0 };
+            if k > 0 {
+                let u0 = (k - 1) as f64 * h;
+                let mut acc = 0.0;
+                for g in 0..3 {
+                    acc += GL_W[g] * shape.speed(u0 + GL_X[g] * h);
+                }
+                s[k] = s[k - 1] + acc * h;
+            }
+        }
+        let len = s[MAP_N];
+        (ArcMap::Table { s, duds }, len)
+    }
+
+    /// Shape parameter at arc length `s_q` (clamped to the piece).
+    #[inline]
+    pub fn u(&self, s_q: f64) -> f64 {
+        match self {
+            ArcMap::Linear { k } => s_q * k,
+            ArcMap::Table { s, duds } => {
+                let h = 1.0 / MAP_N as f64;
+                let mut k = 0;
+                while k + 1 < MAP_N && s_q > s[k + 1] {
+                    k += 1;
+                }
+                let ds = s[k + 1] - s[k];
+                if ds <= 0.0 {
+                    return k as f64 * h;
+                }
+                let t = ((s_q - s[k]) / ds).clamp(0.0, 1.0);
+                let (m0, m1) = (duds[k] * ds / h, duds[k + 1] * ds / h);
+                let t2 = t * t;
+                let t3 = t2 * t;
+                let frac = (-2.0 * t3 + 3.0 * t2) + m0 * (t3 - 2.0 * t2 + t) + m1 * (t3 - t2);
+                (k as f64 + frac) * h
+            }
+        }
+    }
+}
+
+/// Derivatives with respect to arc length: tangent T, curvature vector K = d²p/ds², and
+/// dK/ds, from derivatives with respect to any regular parameter.
+pub(crate) fn arc_derivs(d: &Deriv) -> (AxisVec, AxisVec, AxisVec) {
+    let sig2 = dot(&d.d1, &d.d1);
+    let sig = sig2.sqrt();
+    if !(sig > 0.0) {
+        return ([0.0; AXES], [0.0; AXES], [0.0; AXES]);
+    }
+    let sig_u = dot(&d.d1, &d.d2) / sig;
+    let sig_uu = (dot(&d.d2, &d.d2) + dot(&d.d1, &d.d3)) / sig - sig_u * sig_u / sig;
+    let u1 = 1.0 / sig;
+    let u2 = -sig_u / (sig2 * sig);
+    let u3 = -sig_uu / (sig2 * sig2) + 3.0 * sig_u * sig_u / (sig2 * sig2 * sig);
+    let mut t = [0.0; AXES];
+    let mut k = [0.0; AXES];
+    let mut kp = [0.0; AXES];
+    for i in 0..AXES {
+        t[i] = d.d1[i] * u1;
+        k[i] = d.d2[i] * u1 * u1 + d.d1[i] * u2;
+        kp[i] = d.d3[i] * u1 * u1 * u1 + 3.0 * d.d2[i] * u1 * u2 + d.d1[i] * u3;
+    }
+    (t, k, kp)
+}
+
+/// Quintic Hermite curve matching position, first and second derivative at both ends
+/// (derivatives with respect to u in [0, 1]).
+pub(crate) fn quintic(
+    p0: &AxisVec,
+    d0: &AxisVec,
+    dd0: &AxisVec,
+    p1: &AxisVec,
+    d1: &AxisVec,
+    dd1: &AxisVec,
+) -> Shape {
+    let mut c = [[0.0; AXES]; 6];
+    for i in 0..AXES {
+        c[0][i] = p0[i];
+        c[1][i] = d0[i];
+        c[2][i] = 0.5 * dd0[i];
+        c[3][i] =
+            -10.0 * p0[i] - 6.0 * d0[i] - 1.5 * dd0[i] + 0.5 * dd1[i] - 4.0 * d1[i] + 10.0 * p1[i];
+        c[4][i] = 15.0 * p0[i] + 8.0 * d0[i] + 1.5 * dd0[i] - dd1[i] + 7.0 * d1[i] - 15.0 * p1[i];
+        c[5][i] =
+            -6.0 * p0[i] - 3.0 * d0[i] - 0.5 * dd0[i] + 0.5 * dd1[i] - 3.0 * d1[i] + 6.0 * p1[i];
+    }
+    Shape::Poly { c }
+}
+
+/// Cubic Bézier with both inner control points at the corner `v`: curvature is zero at both
+/// ends, so it joins the two lines with continuous curvature (G2).
+pub(crate) fn corner_bezier(p0: &AxisVec, v: &AxisVec, p3: &AxisVec) -> Shape {
+    // B = (1-u)^3 P0 + 3(1-u)^2 u V + 3(1-u) u^2 V + u^3 P3, in power basis.
+    let mut c = [[0.0; AXES]; 6];
+    for i in 0..AXES {
+        c[0][i] = p0[i];
+        c[1][i] = 3.0 * (v[i] - p0[i]);
+        c[2][i] = 3.0 * (p0[i] - v[i]);
+        c[3][i] = p3[i] - p0[i];
+    }
+    Shape::Poly { c }
+}

@@ -1,0 +1,137 @@
+//! Plain-data input of the planner: moves in mm (degrees for rotary axes) and seconds.
+
+use crate::axes::AxisVec;
+
+/// How fast a feed move goes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Feed {
+    /// Path speed in mm/s (G94; the interpreter's mm/min divided by 60).
+    UnitsPerSecond(f64),
+    /// Inverse time (G93): the move takes this many seconds (at 100 % override).
+    InverseTime {
+        /// Duration of the move.
+        seconds: f64,
+    },
+    /// Per revolution (G95): mm per spindle revolution, with the spindle speed the move runs at.
+    PerRevolution {
+        /// Feed per revolution, mm.
+        mm_per_rev: f64,
+        /// Spindle speed, revolutions per second.
+        spindle_rev_per_s: f64,
+    },
+}
+
+/// Path control mode of a move (applies to the junction at its end).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PathMode {
+    /// G61.1: stop at the end of every move.
+    ExactStop,
+    /// G61: follow the programmed path exactly; stop only where the path has a corner.
+    ExactPath,
+    /// G64 P Q: round corners within `tolerance` (P, mm); merge nearly collinear lines within
+    /// `merge_tolerance` (Q, mm; 0 disables merging).
+    Blend {
+        /// Maximal distance of the rounded path from the programmed corner.
+        tolerance: f64,
+        /// Collinear-merge tolerance.
+        merge_tolerance: f64,
+    },
+}
+
+/// The geometry of one move; the start is the end of the previous move.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MoveKind {
+    /// Straight line to `end` (all nine axes move linearly).
+    Line {
+        /// End point.
+        end: AxisVec,
+        /// Rapid traverse (G0): speed set by the axis limits and the rapid override.
+        rapid: bool,
+    },
+    /// Arc or helix: around `centre` counter-clockwise seen from the tip of `normal`
+    /// (right-hand rule; a G2 in G17 has normal (0,0,-1)), `turns` extra full turns, ending
+    /// at `end`. The component along the normal and the axes A..W move linearly (helix).
+    Arc {
+        /// End point.
+        end: AxisVec,
+        /// Centre (X Y Z); its component along the normal is irrelevant.
+        centre: [f64; 3],
+        /// Plane normal (need not be unit length).
+        normal: [f64; 3],
+        /// Additional full turns (0 for an arc of less than one turn).
+        turns: u32,
+    },
+    /// Dwell at rest.
+    Dwell {
+        /// Seconds.
+        seconds: f64,
+    },
+}
+
+/// One move as the planner receives it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Move {
+    /// Geometry.
+    pub kind: MoveKind,
+    /// Feed (ignored by rapids and dwells).
+    pub feed: Feed,
+    /// Path control mode.
+    pub mode: PathMode,
+    /// Source line number, carried into errors and status.
+    pub line: u32,
+}
+
+impl Move {
+    /// A feed line at `feed` mm/s.
+    pub fn line(end: AxisVec, feed: f64, mode: PathMode, line: u32) -> Self {
+        Move {
+            kind: MoveKind::Line { end, rapid: false },
+            feed: Feed::UnitsPerSecond(feed),
+            mode,
+            line,
+        }
+    }
+
+    /// A rapid line.
+    pub fn rapid(end: AxisVec, mode: PathMode, line: u32) -> Self {
+        Move {
+            kind: MoveKind::Line { end, rapid: true },
+            feed: Feed::UnitsPerSecond(f64::INFINITY),
+            mode,
+            line,
+        }
+    }
+
+    /// An arc or helix at `feed` mm/s.
+    pub fn arc(
+        end: AxisVec,
+        centre: [f64; 3],
+        normal: [f64; 3],
+        turns: u32,
+        feed: f64,
+        mode: PathMode,
+        line: u32,
+    ) -> Self {
+        Move {
+            kind: MoveKind::Arc {
+                end,
+                centre,
+                normal,
+                turns,
+            },
+            feed: Feed::UnitsPerSecond(feed),
+            mode,
+            line,
+        }
+    }
+
+    /// A dwell.
+    pub fn dwell(seconds: f64, line: u32) -> Self {
+        Move {
+            kind: MoveKind::Dwell { seconds },
+            feed: Feed::UnitsPerSecond(1.0),
+            mode: PathMode::ExactStop,
+            line,
+        }
+    }
+}

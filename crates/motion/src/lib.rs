@@ -1,0 +1,38 @@
+//! rtcnc motion: motion planning and interpolation for CNC machines.
+//!
+//! This crate is a layer-2 library of rtcnc: no threads, no I/O, no dependency on the other
+//! rtcnc crates.
+//!
+//! - [`Planner`]: look-ahead path planning (corner blends and smoothing of dense polylines
+//!   within the G64 tolerance, exact stops), jerk-limited path speed under every axis's
+//!   velocity, acceleration and jerk limit, and interpolation: feed it [`Move`]s (mm and
+//!   seconds), call [`Planner::next`] once per servo period to get joint set-points. No
+//!   allocation in [`Planner::next`].
+//! - [`otg`]: the time-optimal jerk-limited state-to-state trajectory generator (jog,
+//!   point-to-point moves).
+//!
+//! See `docs/motion.md` for the methods and their guarantees.
+#![warn(missing_docs)]
+// Numeric code over fixed 9-axis arrays reads best with index loops; negated comparisons are
+// how NaN is refused (`!(x > 0.0)` is true for NaN).
+#![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
+
+mod axes;
+mod builder;
+mod error;
+mod geometry;
+mod input;
+mod kinematics;
+mod limits;
+pub mod otg;
+mod piece;
+mod planner;
+mod scurve;
+
+pub use axes::{AXES, Axis, AxisVec};
+pub use builder::GeometryStats;
+pub use error::MotionError;
+pub use input::{Feed, Move, MoveKind, PathMode};
+pub use kinematics::{JointLimits, Kinematics, TrivialKinematics};
+pub use limits::{AxisLimits, MachineLimits};
+pub use planner::{MotionState, Planner, RunStats, Status};

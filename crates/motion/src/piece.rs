@@ -1,0 +1,362 @@
+//! A piece of the planned path with its velocity-limit samples and braking curve.
+
+use crate::axes::{AXES, AxisVec, norm_xyz};
+use crate::geometry::{ArcMap, Shape, arc_derivs};
+use crate::limits::Lim;
+
+/// Most sub-intervals of one piece's velocity-limit samples.
+pub(crate) const NS_MAX: usize = 4;
+
+/// Share of each axis's jerk the velocity limit leaves to the curvature-change term
+/// v³·|dK/ds| (the rest serves the tangential jerk and the 3·v·a·K coupling).
+pub(crate) const JERK_SHARE_CURVATURE: f64 = 0.6;
+/// Share of J·T an acceleration step at a curvature discontinuity may use (a step Δa
+/// shows up as Δa/T in the sampled jerk).
+pub(crate) const JERK_SHARE_JUMP: f64 = 0.5;
+/// Share of the available deceleration and jerk the braking model uses on curved pieces
+/// (straight pieces use all of it): the margin lets the jerk-limited controller follow a
+/// braking curve whose slope changes along the curve.
+pub(crate) const BRAKE_SHARE_CURVED: f64 = 0.8;
+/// The same on straight pieces: just below one, so that the controller (which may use the
+/// full limits) keeps some room to follow the braking model exactly in discrete time.
+pub(crate) const BRAKE_SHARE_STRAIGHT: f64 = 0.99;
+
+/// Geometry of the path at one sample.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Sample {
+    /// Unit tangent (d p / d s).
+    pub t: AxisVec,
+    /// Curvature vector (d² p / d s²).
+    pub k: AxisVec,
+    /// Speed bound from axis velocities.
+    pub v_axis: f64,
+    /// Speed bound from centripetal acceleration, curvature change and junction jumps.
+    pub v_curve: f64,
+    /// |T_xyz| (feed applies to the XYZ speed); 0 when XYZ does not move.
+    pub t_xyz: f64,
+}
+
+/// One piece of path in the look-ahead window.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Piece {
+    pub shape: Shape,
+    pub map: ArcMap,
+    pub len: f64,
+    pub start: AxisVec,
+    pub end: AxisVec,
+    /// Feed ceiling (mm/s of XYZ, or of the whole path when XYZ does not move); infinite for rapids.
+    pub feed: f64,
+    pub rapid: bool,
+    pub line: u32,
+    /// The path stops at the end of this piece (exact stop, corner, dwell, program end).
+    pub stop_at_end: bool,
+    /// Dwell time (the piece has zero length).
+    pub dwell: f64,
+    pub straight: bool,
+    pub ns: usize,
+    pub smp: [Sample; NS_MAX + 1],
+    /// Braking curve (maximal speed) at the samples.
+    pub w: [f64; NS_MAX + 1],
+    /// Deceleration the braking curve uses on each sub-interval.
+    pub a_sub: [f64; NS_MAX],
+    /// Acceleration the forward pass allows on each sub-interval.
+    pub acc_sub: [f64; NS_MAX],
+    /// Smallest deceleration from this piece to the next stop, within the stop's reach.
+    pub a_to_stop: f64,
+    /// Smallest braking jerk from this piece to the next stop.
+    pub j_to_stop: f64,
+    /// Braking jerk of this piece.
+    pub j_brake: f64,
+    /// Path length from the start of the program to the start of this piece.
+    pub cum_start: f64,
+    /// First valley of the braking curve inside this piece: (local s, speed, deceleration
+    /// and jerk of the braking before it), where a
+    /// braking section ends on a lower limit; the controller must arrive there with its
+    /// deceleration released.
+    pub valley_in: Option<(f64, f64, f64, f64)>,
+    /// The next valley after this piece: (path length from the program start, speed,
+    /// deceleration, jerk).
+    pub valley_next: Option<(f64, f64, f64, f64)>,
+}
+
+impl Piece {
+    pub fn new(
+        shape: Shape,
+        start: AxisVec,
+        end: AxisVec,
+        feed: f64,
+        rapid: bool,
+        line: u32,
+    ) -> Piece {
+        let (map, len, straight) = match shape {
+            Shape::Line { .. } => {
+                let mut l = 0.0;
+                for i in 0..AXES {
+                    l += (end[i] - start[i]) * (end[i] - start[i]);
+                }
+                (ArcMap::Linear { k: 1.0 }, l.sqrt(), true)
+            }
+            Shape::Helix(h) if h.dr == 0.0 => {
+                let sp = shape.speed(0.0);
+                let len = sp;
+                (ArcMap::Linear { k: 1.0 / sp }, len, false)
+            }
+            _ => {
+                let (m, l) = ArcMap::table(&shape);
+                (m, l, false)
+            }
+        };
+        Piece {
+            shape,
+            map,
+            len,
+            start,
+            end,
+            feed,
+            rapid,
+            line,
+            stop_at_end: false,
+            dwell: 0.0,
+            straight,
+            ns: if straight { 1 } else { NS_MAX },
+            smp: [Sample::default(); NS_MAX + 1],
+            w: [0.0; NS_MAX + 1],
+            a_sub: [0.0; NS_MAX],
+            acc_sub: [f64::INFINITY; NS_MAX],
+            a_to_stop: f64::INFINITY,
+            j_to_stop: f64::INFINITY,
+            j_brake: f64::INFINITY,
+            cum_start: 0.0,
+            valley_in: None,
+            valley_next: None,
+        }
+    }
+
+    pub fn dwell(at: AxisVec, seconds: f64, line: u32) -> Piece {
+        let mut p = Piece::new(
+            Shape::Line {
+                start: at,
+                dir: [0.0; AXES],
+            },
+            at,
+            at,
+            1.0,
+            false,
+            line,
+        );
+        p.len = 0.0;
+        p.dwell = seconds;
+        p.stop_at_end = true;
+        p
+    }
+
+    /// Position at arc length `s` (exact end point at and beyond the end).
+    #[inline]
+    pub fn pos(&self, s: f64) -> AxisVec {
+        if s >= self.len {
+            return self.end;
+        }
+        if s <= 0.0 {
+            return self.start;
+        }
+        self.shape.pos(self.map.u(s))
+    }
+
+    /// Position and unit tangent at arc length `s`.
+    pub fn pos_tangent(&self, s: f64) -> (AxisVec, AxisVec) {
+        let s_c = s.clamp(0.0, self.len);
+        let d = self.shape.eval(self.map.u(s_c));
+        let (t, _, _) = arc_derivs(&d);
+        let p = if s >= self.len {
+            self.end
+        } else if s <= 0.0 {
+            self.start
+        } else {
+            d.p
+        };
+        (p, t)
+    }
+
+    /// Tangent, curvature vector and its derivative at local arc length `s`.
+    #[inline]
+    pub fn geo_at(&self, s: f64) -> (AxisVec, AxisVec, AxisVec) {
+        if let Shape::Line { dir, .. } = &self.shape {
+            return (*dir, [0.0; AXES], [0.0; AXES]);
+        }
+        arc_derivs(&self.shape.eval(self.map.u(s.clamp(0.0, self.len))))
+    }
+
+    /// Fills the samples (geometry and speed bounds) from the machine limits.
+    pub fn sample(&mut self, lim: &Lim) {
+        for k in 0..=self.ns {
+            let s = self.len * k as f64 / self.ns as f64;
+            let d = self.shape.eval(self.map.u(s));
+            let (t, kv, kp) = arc_derivs(&d);
+            let mut v_axis = f64::INFINITY;
+            let mut v_curve = f64::INFINITY;
+            for i in 0..AXES {
+                if !lim.present[i] {
+                    continue;
+                }
+                // Arcs: the per-axis projections rotate along the arc; use their amplitude
+                // so that the bound holds on the whole sub-interval.
+                let (ti, ki, kpi) = match &self.shape {
+                    Shape::Helix(h) if i < 3 => {
+                        let amp = (h.e1[i] * h.e1[i] + h.e2[i] * h.e2[i]).sqrt();
+                        let tn = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
+                        let kn = (kv[0] * kv[0] + kv[1] * kv[1] + kv[2] * kv[2]).sqrt();
+                        let kpn = (kp[0] * kp[0] + kp[1] * kp[1] + kp[2] * kp[2]).sqrt();
+                        let axial = (h.rise * h.n[i]).abs() / self.len.max(1e-300);
+                        ((tn * amp + axial).min(1.0), kn * amp, kpn * amp)
+                    }
+                    _ => (t[i].abs(), kv[i].abs(), kp[i].abs()),
+                };
+                if ti > 0.0 {
+                    v_axis = v_axis.min(lim.v[i] / ti);
+                }
+                if ki > 0.0 {
+                    v_curve = v_curve.min((lim.a[i] / ki).sqrt());
+                }
+                if kpi > 0.0 {
+                    v_curve = v_curve.min((JERK_SHARE_CURVATURE * lim.j[i] / kpi).cbrt());
+                }
+            }
+            self.smp[k] = Sample {
+                t,
+                k: kv,
+                v_axis,
+                v_curve,
+                t_xyz: norm_xyz(&t),
+            };
+        }
+    }
+
+    /// Speed limit at sample `k` under the given overrides.
+    #[inline]
+    pub fn vlc(&self, k: usize, feed_override: f64, rapid_override: f64) -> f64 {
+        let sm = &self.smp[k];
+        if self.rapid {
+            return (sm.v_axis * rapid_override).min(sm.v_curve);
+        }
+        let f = if sm.t_xyz > 1e-9 {
+            self.feed * feed_override / sm.t_xyz
+        } else {
+            self.feed * feed_override
+        };
+        f.min(sm.v_axis).min(sm.v_curve)
+    }
+
+    /// Largest tangential deceleration available at sample `k` at speed `v`, scaled by the
+    /// braking share.
+    pub fn decel_available(&self, k: usize, v: f64, lim: &Lim) -> f64 {
+        let sm = &self.smp[k];
+        let mut d = f64::INFINITY;
+        for i in 0..AXES {
+            if !lim.present[i] {
+                continue;
+            }
+            let ti = sm.t[i];
+            let c = v * v * sm.k[i];
+            let bound = if ti > 1e-12 {
+                (lim.a[i] + c) / ti
+            } else if ti < -1e-12 {
+                (lim.a[i] - c) / -ti
+            } else {
+                f64::INFINITY
+            };
+            d = d.min(bound);
+        }
+        if !d.is_finite() {
+            d = lim
+                .a
+                .iter()
+                .zip(lim.present.iter())
+                .filter(|(_, p)| **p)
+                .fold(f64::INFINITY, |m, (a, _)| m.min(*a));
+        }
+        let share = if self.straight {
+            BRAKE_SHARE_STRAIGHT
+        } else {
+            BRAKE_SHARE_CURVED
+        };
+        d.max(0.0) * share
+    }
+
+    /// Largest tangential acceleration available at sample `k` at speed `v`, scaled like
+    /// the deceleration.
+    pub fn accel_available(&self, k: usize, v: f64, lim: &Lim) -> f64 {
+        let sm = &self.smp[k];
+        let mut d = f64::INFINITY;
+        for i in 0..AXES {
+            if !lim.present[i] {
+                continue;
+            }
+            let ti = sm.t[i];
+            let c = v * v * sm.k[i];
+            let bound = if ti > 1e-12 {
+                (lim.a[i] - c) / ti
+            } else if ti < -1e-12 {
+                (lim.a[i] + c) / -ti
+            } else {
+                f64::INFINITY
+            };
+            d = d.min(bound);
+        }
+        d.max(0.0) * BRAKE_SHARE_STRAIGHT
+    }
+
+    /// Largest tangential jerk the braking model may use on this piece.
+    pub fn jerk_available(&self, lim: &Lim) -> f64 {
+        let mut jm = f64::INFINITY;
+        for k in 0..=self.ns {
+            for i in 0..AXES {
+                if lim.present[i] {
+                    let ti = self.smp[k].t[i].abs();
+                    if ti > 1e-12 {
+                        jm = jm.min(lim.j[i] / ti);
+                    }
+                }
+            }
+        }
+        if !jm.is_finite() {
+            jm = lim
+                .j
+                .iter()
+                .zip(lim.present.iter())
+                .filter(|(_, p)| **p)
+                .fold(f64::INFINITY, |m, (a, _)| m.min(*a));
+        }
+        if self.straight {
+            jm * BRAKE_SHARE_STRAIGHT
+        } else {
+            jm * BRAKE_SHARE_CURVED
+        }
+    }
+
+    /// Braking-curve speed at local arc length `s` and its deceleration there (0 where the
+    /// curve is at the speed limit, i.e. flat).
+    #[inline]
+    pub fn w_at(&self, s: f64, fo: f64, ro: f64) -> (f64, f64) {
+        if self.len <= 0.0 {
+            return (self.w[0], 0.0);
+        }
+        let h = self.len / self.ns as f64;
+        let mut k = (s / h) as usize;
+        if k >= self.ns {
+            k = self.ns - 1;
+        }
+        let s1 = h * (k + 1) as f64;
+        let vl = self.vlc(k, fo, ro).min(self.vlc(k + 1, fo, ro));
+        let wn = self.w[k + 1];
+        let d = (s1 - s).max(0.0);
+        let wb = (wn * wn + 2.0 * self.a_sub[k] * d).sqrt();
+        let w0 = self.w[k];
+        let wf = (w0 * w0 + 2.0 * self.acc_sub[k] * (s - h * k as f64).max(0.0)).sqrt();
+        let cap = vl.min(wf);
+        if wb < cap {
+            (wb, self.a_sub[k])
+        } else {
+            (cap, 0.0)
+        }
+    }
+}

@@ -1,0 +1,307 @@
+//! Analytic cases, on-line changes (override, hold, abort, quick stop), dwell, kinematics.
+
+mod common;
+use common::*;
+use rtcnc_motion::{
+    AXES, Axis, AxisLimits, JointLimits, MachineLimits, MotionState, Move, PathMode, Planner,
+    TrivialKinematics,
+};
+
+const V: f64 = 100.0;
+const A: f64 = 1000.0;
+const J: f64 = 50_000.0;
+
+/// Closed-form time of a rest-to-rest S-curve over `d` that reaches the cruise speed `v`
+/// with a constant-acceleration phase: T = d/v + v/a + a/j (valid when v ≥ a²/j and
+/// d ≥ v (v/a + a/j)).
+fn scurve_time(d: f64, v: f64, a: f64, j: f64) -> f64 {
+    assert!(v >= a * a / j && d >= v * (v / a + a / j));
+    d / v + v / a + a / j
+}
+
+#[test]
+fn single_line_rest_to_rest_matches_the_closed_form_s_curve() {
+    for (d, f) in [(20.0, 100.0), (50.0, 80.0), (12.5, 60.0)] {
+        let lim = limits(V, A, J);
+        let mut pl = planner(&lim, p3(0.0, 0.0, 0.0), 64);
+        let tr = run(
+            &mut pl,
+            &[Move::line(p3(d, 0.0, 0.0), f, PathMode::ExactStop, 1)],
+            10_000,
+        );
+        assert_limits(&tr, V, A, J);
+        let t_ref = scurve_time(d, f, A, J);
+        let t = cycle_time(&tr);
+        // Never faster than the time-optimal profile (that would break a limit); slower by
+        // at most the braking margin (1 % of a and j, 5 % in the final stop check) and the
+        // rounding of the end to whole periods.
+        assert!(t >= t_ref - T, "{t} < {t_ref}");
+        assert!(t <= t_ref * 1.03 + 2.0 * T, "{t} vs closed form {t_ref}");
+        // The cruise speed is the feed.
+        let peak = tr.speed.iter().cloned().fold(0.0, f64::max);
+        assert!((peak - f).abs() <= 1e-6 * f, "peak {peak}");
+    }
+}
+
+#[test]
+fn diagonal_line_uses_the_projected_axis_limits() {
+    // Along the XY diagonal each axis carries 1/√2 of the path quantities: the path may
+    // accelerate at √2·a; the feed (120) is below √2·v.
+    let lim = limits(V, A, J);
+    let mut pl = planner(&lim, p3(0.0, 0.0, 0.0), 64);
+    let tr = run(
+        &mut pl,
+        &[Move::line(
+            p3(30.0, 30.0, 0.0),
+            120.0,
+            PathMode::ExactStop,
+            1,
+        )],
+        10_000,
+    );
+    assert_limits(&tr, V, A, J);
+    let s2 = 2f64.sqrt();
+    let t_ref = scurve_time(30.0 * s2, 120.0, A * s2, J * s2);
+    let t = cycle_time(&tr);
+    assert!(
+        t >= t_ref - T && t <= t_ref * 1.03 + 2.0 * T,
+        "{t} vs {t_ref}"
+    );
+}
+
+#[test]
+fn arc_at_high_feed_runs_at_the_centripetal_limit() {
+    // Full circle R = 5 in XY at F 200: v = sqrt(a R) = 70.71 mm/s binds (below the axis
+    // velocity limit and the jerk bound (j R²)^(1/3)·0.6^(1/3) = 90.9).
+    let r = 5.0;
+    let mv = Move::arc(
+        p3(r, 0.0, 0.0),
+        [0.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0],
+        1,
+        200.0,
+        PathMode::ExactStop,
+        1,
+    );
+    let lim = limits(V, A, J);
+    let mut pl = planner(&lim, p3(r, 0.0, 0.0), 64);
+    let tr = run(&mut pl, &[mv], 20_000);
+    assert_limits(&tr, V, A, J);
+    let v_ref = (A * r).sqrt();
+    // The path speed the controller aims at is sqrt(a R) (the per-axis check, not this
+    // figure, enforces the limits; its corrections may move the speed by a hair).
+    let peak = tr.speed.iter().cloned().fold(0.0, f64::max);
+    assert!(
+        peak <= v_ref * (1.0 + 1e-3),
+        "peak {peak} above sqrt(a R) {v_ref}"
+    );
+    // Two full turns: most of the time is spent at the limit.
+    let at_limit = tr.speed.iter().filter(|v| **v >= 0.99 * v_ref).count() as f64 * T;
+    assert!(
+        at_limit >= 0.5 * 2.0 * 2.0 * std::f64::consts::PI * r / v_ref,
+        "only {at_limit} s at the limit"
+    );
+    assert!(dist(tr.pts.last().unwrap(), &p3(r, 0.0, 0.0)) <= 1e-9);
+}
+
+fn long_line_run(hook: impl FnMut(usize, &mut Planner<TrivialKinematics>)) -> Trace {
+    let lim = limits(V, A, J);
+    let mut pl = planner(&lim, p3(0.0, 0.0, 0.0), 64);
+    let moves = [
+        Move::line(p3(100.0, 0.0, 0.0), 100.0, blend(0.01), 1),
+        Move::line(p3(100.0, 40.0, 0.0), 100.0, blend(0.01), 2),
+    ];
+    let tr = run_with(&mut pl, &moves, 50_000, hook);
+    assert_limits(&tr, V, A, J);
+    assert_eq!(pl.stats().limit_violations, 0);
+    tr
+}
+
+#[test]
+fn feed_hold_stops_on_the_path_and_resume_finishes_it() {
+    let tr = long_line_run(|n, pl| {
+        if n == 200 {
+            pl.hold();
+        }
+        if n == 800 {
+            pl.resume();
+        }
+    });
+    // Held: between the hold's deceleration and the resume the set-point does not move.
+    let held = &tr.pts[3 + 500..3 + 800];
+    assert!(held.iter().all(|p| p == &held[0]));
+    assert!(tr.states[600] == MotionState::Holding);
+    // Stopped on the programmed path (on the first line, y = 0).
+    assert_eq!(held[0][1], 0.0);
+    assert!(dist(tr.pts.last().unwrap(), &p3(100.0, 40.0, 0.0)) <= 1e-9);
+}
+
+#[test]
+fn feed_override_changes_mid_segment_within_the_limits() {
+    let tr = long_line_run(|n, pl| match n {
+        150 => pl.set_feed_override(0.5),
+        400 => pl.set_feed_override(1.7),
+        600 => pl.set_feed_override(0.0),
+        900 => pl.set_feed_override(1.0),
+        _ => {}
+    });
+    // At 50 % the speed settles at 50 mm/s, at 0 % the machine stops on the path.
+    assert!((tr.speed[390] - 50.0).abs() < 1e-4, "{}", tr.speed[390]);
+    assert!(tr.speed[880] == 0.0);
+    // 170 % of 100 mm/s is capped by the axis velocity limit (100 mm/s on X).
+    assert!(
+        tr.speed[590] <= 100.0 + 1e-9 && tr.speed[590] > 99.0,
+        "{}",
+        tr.speed[590]
+    );
+}
+
+#[test]
+fn abort_stops_on_the_path_and_drops_the_queue() {
+    let lim = limits(V, A, J);
+    let mut pl = planner(&lim, p3(0.0, 0.0, 0.0), 64);
+    let moves = [Move::line(p3(40.0, 0.0, 0.0), 100.0, blend(0.01), 1)];
+    let tr = run_with(&mut pl, &moves, 50_000, |n, pl| {
+        if n == 250 {
+            pl.abort();
+        }
+    });
+    assert_limits(&tr, V, A, J);
+    let last = tr.pts.last().unwrap();
+    assert!(
+        last[0] < 40.0 && last[0] > 10.0 && last[1] == 0.0,
+        "{last:?}"
+    );
+    assert_eq!(pl.window_len(), 0);
+    // The planner takes new moves from where it stopped.
+    pl.push(&Move::line(p3(0.0, 0.0, 0.0), 50.0, blend(0.01), 2))
+        .unwrap();
+    pl.flush();
+    let tr2 = run(&mut pl, &[], 50_000);
+    assert!(dist(tr2.pts.last().unwrap(), &p3(0.0, 0.0, 0.0)) <= 1e-9);
+}
+
+#[test]
+fn quick_stop_uses_its_own_deceleration_and_jerk() {
+    // Quick stop may use 3000 mm/s² and 200 000 mm/s³: it stops much shorter than a hold.
+    let mut al = AxisLimits::new(V, A, J, -1000.0, 1000.0);
+    al.quick_stop_acceleration = 3000.0;
+    al.quick_stop_jerk = 200_000.0;
+    let lim = MachineLimits::uniform(&[Axis::X, Axis::Y, Axis::Z], al);
+    let stop_at = |quick: bool| {
+        let mut pl = planner(&lim, p3(0.0, 0.0, 0.0), 64);
+        let moves = [Move::line(p3(60.0, 0.0, 0.0), 100.0, blend(0.01), 1)];
+        let tr = run_with(&mut pl, &moves, 50_000, |n, pl| {
+            if n == 300 {
+                if quick { pl.quick_stop() } else { pl.abort() }
+            }
+        });
+        assert_limits(
+            &tr,
+            V,
+            if quick { 3000.0 } else { A },
+            if quick { 200_000.0 } else { J },
+        );
+        tr.pts.last().unwrap()[0]
+    };
+    let (x_quick, x_abort) = (stop_at(true), stop_at(false));
+    assert!(x_quick < x_abort - 1.0, "quick {x_quick} abort {x_abort}");
+}
+
+#[test]
+fn dwell_waits_at_rest() {
+    let lim = limits(V, A, J);
+    let mut pl = planner(&lim, p3(0.0, 0.0, 0.0), 64);
+    let moves = [
+        Move::line(p3(5.0, 0.0, 0.0), 50.0, blend(0.01), 1),
+        Move::dwell(0.25, 2),
+        Move::line(p3(5.0, 5.0, 0.0), 50.0, blend(0.01), 3),
+    ];
+    let tr = run(&mut pl, &moves, 50_000);
+    assert_limits(&tr, V, A, J);
+    let dwelling = tr
+        .states
+        .iter()
+        .filter(|s| **s == MotionState::Dwelling)
+        .count();
+    assert_eq!(dwelling, 250);
+    let at = p3(5.0, 0.0, 0.0);
+    assert!(tr.pts.iter().filter(|p| **p == at).count() >= 250);
+}
+
+#[test]
+fn gantry_axis_drives_all_its_joints() {
+    let lim = limits(V, A, J);
+    let kin = TrivialKinematics::new(vec![
+        (Axis::X, None),
+        (Axis::X, None),
+        (Axis::X, None),
+        (Axis::X, None),
+        (Axis::Y, None),
+        (Axis::Z, None),
+    ])
+    .unwrap();
+    let mut pl = Planner::new(&lim, kin, T, 64, p3(0.0, 0.0, 0.0)).unwrap();
+    pl.push(&Move::line(p3(10.0, 5.0, 0.0), 80.0, blend(0.01), 1))
+        .unwrap();
+    pl.flush();
+    let mut joints = [0.0; 6];
+    loop {
+        let st = pl.next(&mut joints);
+        assert!(joints[..4].iter().all(|j| *j == st.axes[0]));
+        assert_eq!(joints[4], st.axes[1]);
+        if st.state == MotionState::Idle {
+            break;
+        }
+    }
+    assert_eq!(joints[0], 10.0);
+}
+
+#[test]
+fn joint_velocity_limit_slows_the_axis_it_follows() {
+    let lim = limits(V, A, J);
+    let jl = JointLimits {
+        max_velocity: 40.0,
+        min_position: -100.0,
+        max_position: 100.0,
+    };
+    let kin = TrivialKinematics::new(vec![(Axis::X, Some(jl)), (Axis::Y, None), (Axis::Z, None)])
+        .unwrap();
+    let mut pl = Planner::new(&lim, kin, T, 64, p3(0.0, 0.0, 0.0)).unwrap();
+    let tr = run_gen(
+        &mut pl,
+        &[Move::line(p3(20.0, 0.0, 0.0), 100.0, blend(0.01), 1)],
+    );
+    let (rv, _, _) = ratios(&tr, 40.0, A, J);
+    assert!(rv <= 1.0 + 1e-9 && rv > 0.99, "{rv}");
+    // Its position range narrows the envelope.
+    assert!(
+        pl.push(&Move::line(p3(150.0, 0.0, 0.0), 100.0, blend(0.01), 2))
+            .is_err()
+    );
+}
+
+fn run_gen(pl: &mut Planner<TrivialKinematics>, moves: &[Move]) -> Trace {
+    run(pl, moves, 50_000)
+}
+
+#[test]
+fn rotary_and_extra_axes_move_linearly_along_a_line() {
+    let mut lim = limits(V, A, J);
+    lim.axes[Axis::A as usize] = Some(AxisLimits::new(360.0, 3600.0, 100_000.0, -1e6, 1e6));
+    let kin = TrivialKinematics::identity(&[Axis::X, Axis::Y, Axis::Z, Axis::A]);
+    let mut pl = Planner::new(&lim, kin, T, 64, [0.0; AXES]).unwrap();
+    let mut end = p3(10.0, 0.0, 0.0);
+    end[Axis::A as usize] = 90.0;
+    pl.push(&Move::line(end, 50.0, blend(0.01), 1)).unwrap();
+    pl.flush();
+    let mut joints = [0.0; 4];
+    loop {
+        let st = pl.next(&mut joints);
+        assert!((st.axes[3] - 9.0 * st.axes[0]).abs() < 1e-9);
+        if st.state == MotionState::Idle {
+            break;
+        }
+    }
+    assert_eq!(joints[3], 90.0);
+}

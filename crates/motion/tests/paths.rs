@@ -1,0 +1,164 @@
+//! Limits, tolerance and end points on a corpus of paths: squares, circles (polylines and
+//! arcs), CAM-like polylines, exact-stop modes.
+
+mod common;
+use common::*;
+use rtcnc_motion::{Move, PathMode};
+
+const V: f64 = 100.0;
+const A: f64 = 1000.0;
+const J: f64 = 50_000.0;
+
+fn check_run(moves: &[Move], verts: Option<&[rtcnc_motion::AxisVec]>, p: f64, max: usize) -> Trace {
+    let lim = limits(V, A, J);
+    let mut pl = planner(&lim, verts.map_or(p3(0.0, 0.0, 0.0), |v| v[0]), 2048);
+    let tr = run(&mut pl, moves, max);
+    assert_limits(&tr, V, A, J);
+    assert_eq!(pl.stats().limit_violations, 0);
+    let end = match moves.last().unwrap().kind {
+        rtcnc_motion::MoveKind::Line { end, .. } | rtcnc_motion::MoveKind::Arc { end, .. } => end,
+        _ => unreachable!(),
+    };
+    let last = *tr.pts.last().unwrap();
+    assert!(
+        dist(&last, &end) <= 1e-9,
+        "end point off by {}",
+        dist(&last, &end)
+    );
+    if let Some(v) = verts {
+        let dev = max_deviation(&tr, v);
+        assert!(dev <= p * (1.0 + 1e-9) + 1e-12, "deviation {dev} > P {p}");
+    }
+    tr
+}
+
+/// Whether the trace comes to rest exactly at `c`: the set-point equals it and the steps
+/// before and after are at most J·T³ (the first step from rest is J·T³/6).
+fn stops_at(tr: &Trace, c: &rtcnc_motion::AxisVec) -> bool {
+    tr.pts.windows(3).any(|w| {
+        w[1] == *c && dist(&w[0], &w[1]) <= J * T * T * T && dist(&w[2], &w[1]) <= J * T * T * T
+    })
+}
+
+#[test]
+fn square_with_blended_corners_respects_limits_and_tolerance() {
+    let verts = [
+        p3(0.0, 0.0, 0.0),
+        p3(10.0, 0.0, 0.0),
+        p3(10.0, 10.0, 0.0),
+        p3(0.0, 10.0, 0.0),
+        p3(0.0, 0.0, 0.0),
+    ];
+    for p in [0.001, 0.01, 0.1] {
+        check_run(&lines(&verts, 100.0, blend(p)), Some(&verts), p, 5000);
+    }
+}
+
+#[test]
+fn square_in_exact_path_mode_stops_at_every_corner() {
+    let verts = [
+        p3(0.0, 0.0, 0.0),
+        p3(10.0, 0.0, 0.0),
+        p3(10.0, 10.0, 0.0),
+        p3(0.0, 10.0, 0.0),
+    ];
+    let tr = check_run(
+        &lines(&verts, 100.0, PathMode::ExactPath),
+        Some(&verts),
+        0.0,
+        5000,
+    );
+    // The corners are passed at rest: a set-point exactly on the corner, reached and left
+    // with steps no larger than one jerk-limited step from rest.
+    for c in &verts[1..3] {
+        assert!(stops_at(&tr, c), "no stop at {c:?}");
+    }
+}
+
+#[test]
+fn exact_path_mode_does_not_stop_between_collinear_segments() {
+    let verts = [p3(0.0, 0.0, 0.0), p3(5.0, 0.0, 0.0), p3(10.0, 0.0, 0.0)];
+    let tr = check_run(
+        &lines(&verts, 50.0, PathMode::ExactPath),
+        Some(&verts),
+        0.0,
+        5000,
+    );
+    let mid = tr.pts.iter().position(|p| p[0] >= 5.0).unwrap();
+    assert!(
+        tr.speed[mid - 3] > 49.0,
+        "slowed down at a collinear junction"
+    );
+}
+
+#[test]
+fn exact_stop_mode_stops_between_collinear_segments() {
+    let verts = [p3(0.0, 0.0, 0.0), p3(5.0, 0.0, 0.0), p3(10.0, 0.0, 0.0)];
+    let tr = check_run(
+        &lines(&verts, 50.0, PathMode::ExactStop),
+        Some(&verts),
+        0.0,
+        5000,
+    );
+    assert!(stops_at(&tr, &verts[1]));
+}
+
+#[test]
+fn circle_polyline_at_one_micron_chord_tolerance() {
+    let verts = circle_polyline(10.0, 0.001, 1.0);
+    let moves = lines(&verts, 100.0, blend(0.001));
+    check_run(&moves, Some(&verts), 0.001, 5000);
+}
+
+#[test]
+fn ellipse_polyline_at_one_micron_chord_tolerance() {
+    let verts = ellipse_polyline(20.0, 10.0, 0.001);
+    let moves = lines(&verts, 100.0, blend(0.001));
+    check_run(&moves, Some(&verts), 0.001, 5000);
+}
+
+#[test]
+fn many_tiny_segments_per_period_are_not_a_speed_limit() {
+    // 2000 segments of 5 µm on a gentle arc: 10 segments per period at 50 mm/s.
+    let r = 1000.0;
+    let verts: Vec<_> = (0..=2000)
+        .map(|k| {
+            let th = 0.005 * k as f64 / r;
+            p3(r * th.sin(), r * (1.0 - th.cos()), 0.0)
+        })
+        .collect();
+    let moves = lines(&verts, 50.0, blend(0.001));
+    let tr = check_run(&moves, Some(&verts), 0.001, 5000);
+    let peak = tr.speed.iter().cloned().fold(0.0, f64::max);
+    assert!(peak > 49.9, "peak path speed {peak}");
+}
+
+#[test]
+fn arcs_and_helix_reach_their_end_points_exactly() {
+    // Quarter arc in XY, then a helix turn in YZ (normal along X) with a rise.
+    let a1 = Move::arc(
+        p3(0.0, 10.0, 0.0),
+        [0.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0],
+        0,
+        50.0,
+        PathMode::ExactPath,
+        1,
+    );
+    let a2 = Move::arc(
+        p3(2.0, 10.0, 0.0),
+        [0.0, 10.0, 5.0],
+        [1.0, 0.0, 0.0],
+        1,
+        50.0,
+        PathMode::ExactPath,
+        2,
+    );
+    let lim = limits(V, A, J);
+    let mut pl = planner(&lim, p3(10.0, 0.0, 0.0), 256);
+    let tr = run(&mut pl, &[a1, a2], 20_000);
+    assert_limits(&tr, V, A, J);
+    assert!(dist(tr.pts.last().unwrap(), &p3(2.0, 10.0, 0.0)) <= 1e-9);
+    // The first arc's end is passed exactly (exact path: tangency is not given, so a stop).
+    assert!(tr.pts.iter().any(|p| dist(p, &p3(0.0, 10.0, 0.0)) <= 1e-12));
+}
