@@ -6,6 +6,9 @@
 
 use crate::error::ErrorKind;
 
+/// Axis word letters in pose order (X Y Z A B C U V W).
+pub(crate) const AXES: [u8; 9] = [b'x', b'y', b'z', b'a', b'b', b'c', b'u', b'v', b'w'];
+
 /// Highest numbered parameter.
 pub const MAX_PARAMETER: usize = 5602;
 
@@ -71,8 +74,8 @@ pub(crate) fn g_group(code: i32) -> Option<usize> {
     use gg::*;
     Some(match code {
         40 | 100 | 280 | 281 | 300 | 301 | 520 | 530 | 920 | 921 | 922 | 923 => NON_MODAL,
-        0 | 10 | 20 | 30 | 50 | 51 | 382 | 383 | 384 | 385 | 730 | 760 | 800 | 810 | 820 | 830
-        | 840 | 850 | 860 | 870 | 880 | 890 => MOTION,
+        0 | 10 | 20 | 30 | 50 | 51 | 330 | 382 | 383 | 384 | 385 | 730 | 760 | 800 | 810 | 820
+        | 830 | 840 | 850 | 860 | 870 | 880 | 890 => MOTION,
         170 | 180 | 190 | 171 | 181 | 191 => PLANE,
         900 | 910 => DISTANCE,
         901 | 911 => IJK,
@@ -271,7 +274,12 @@ pub(crate) struct Reader<'a, P: ParamSource + ?Sized> {
     s: &'a [u8],
     i: usize,
     params: &'a P,
+    /// Nesting of values being read (brackets, indirect parameters, functions).
+    depth: u32,
 }
+
+/// Deepest nesting of brackets, functions and indirect parameters in one value.
+const MAX_DEPTH: u32 = 64;
 
 /// Reads `line` into `block` (cleared first).
 pub(crate) fn read_block<P: ParamSource + ?Sized>(
@@ -284,6 +292,7 @@ pub(crate) fn read_block<P: ParamSource + ?Sized>(
         s: line,
         i: 0,
         params,
+        depth: 0,
     };
     r.block(block)
 }
@@ -591,6 +600,16 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
     }
 
     fn code_tenths(&self, v: f64, col: usize, letter: u8) -> Res<i32> {
+        if !v.is_finite() {
+            return err(
+                ErrorKind::BadValue,
+                col,
+                format!(
+                    "{} code is not a finite number",
+                    letter.to_ascii_uppercase() as char
+                ),
+            );
+        }
         if v < 0.0 {
             return err(
                 ErrorKind::BadValue,
@@ -747,6 +766,7 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
 
     /// A real value: number, `[expression]`, `#parameter`, or a function call.
     fn real_value(&mut self) -> Res<f64> {
+        self.peek();
         let col = self.i;
         if self
             .s
@@ -755,6 +775,16 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
         {
             return self.number(col);
         }
+        if self.depth >= MAX_DEPTH {
+            return err(ErrorKind::Syntax, col, "expression nested too deeply");
+        }
+        self.depth += 1;
+        let v = self.nested_value(col);
+        self.depth -= 1;
+        v
+    }
+
+    fn nested_value(&mut self, col: usize) -> Res<f64> {
         match self.peek() {
             None => err(ErrorKind::Syntax, col, "value expected at end of line"),
             Some(b'[') => {

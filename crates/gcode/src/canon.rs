@@ -356,7 +356,7 @@ pub enum CanonCommand {
     /// G43 / G43.1 / G43.2 / G49: tool length offset now in force.
     UseToolLengthOffset(Pose),
     /// G10 L1 / L10 / L11: a tool table entry was changed.
-    SetToolTableEntry(ToolEntry),
+    SetToolTableEntry(Box<ToolEntry>),
     /// G4.
     Dwell(f64),
     /// G0 and the rapid parts of cycles.
@@ -371,6 +371,18 @@ pub enum CanonCommand {
     TurnProbeOn,
     /// After a G38 move.
     TurnProbeOff,
+    /// The following feed moves advance `feed_per_revolution` per spindle revolution
+    /// (G33, G76 threading).
+    StartSpeedFeedSync {
+        /// Spindle number.
+        spindle: u8,
+        /// Length units per revolution.
+        feed_per_revolution: f64,
+        /// True: velocity mode (G33.1 style), false: position synchronised.
+        velocity_mode: bool,
+    },
+    /// End of spindle-synchronised motion.
+    StopSpeedFeedSync,
     /// G38.2 - G38.5 straight probing move.
     StraightProbe {
         /// End point.
@@ -662,6 +674,18 @@ impl Canon {
                 push_int(o, i64::from(s.order));
                 o.extend_from_slice(b", ...)");
             }
+            C::StartSpeedFeedSync {
+                feed_per_revolution,
+                velocity_mode,
+                ..
+            } => {
+                o.extend_from_slice(b"START_SPEED_FEED_SYNC(");
+                push_fixed(o, *feed_per_revolution, 6);
+                o.push(b',');
+                o.push(if *velocity_mode { b'1' } else { b'0' });
+                o.push(b')');
+            }
+            C::StopSpeedFeedSync => o.extend_from_slice(b"STOP_SPEED_FEED_SYNCH()"),
             C::TurnProbeOn => o.extend_from_slice(b"TURN_PROBE_ON()"),
             C::TurnProbeOff => o.extend_from_slice(b"TURN_PROBE_OFF()"),
             C::StraightProbe { end, .. } => call_pose(o, b"STRAIGHT_PROBE(", end),
@@ -824,54 +848,72 @@ fn push_small(o: &mut Vec<u8>, bytes: &[u8]) {
 /// that rounds to zero is printed without a minus sign.
 pub(crate) fn push_fixed(o: &mut Vec<u8>, v: f64, decimals: u32) {
     const SCALE: [f64; 7] = [1.0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6];
+    const POW: [u64; 7] = [1, 10, 100, 1_000, 10_000, 100_000, 1_000_000];
+    const ZEROS: [&[u8]; 7] = [
+        b"0",
+        b"0.0",
+        b"0.00",
+        b"0.000",
+        b"0.0000",
+        b"0.00000",
+        b"0.000000",
+    ];
     let d = decimals.min(6) as usize;
     let scaled = v * SCALE[d];
-    if !scaled.is_finite() || scaled.abs() >= 9.0e15 {
+    if !scaled.is_finite() || scaled.abs() >= 1.0e15 {
         use std::io::Write;
         // Rare: huge or non-finite values take the exact (slower) path.
         let _ = write!(o, "{:.*}", d, v);
         return;
     }
-    let n = scaled.round() as i64;
+    // Round half away from zero (the cast truncates).
+    let n = if scaled >= 0.0 {
+        (scaled + 0.5) as i64
+    } else {
+        (scaled - 0.5) as i64
+    };
     if n == 0 {
-        const ZEROS: [&[u8]; 7] = [
-            b"0",
-            b"0.0",
-            b"0.00",
-            b"0.000",
-            b"0.0000",
-            b"0.00000",
-            b"0.000000",
-        ];
         o.extend_from_slice(ZEROS[d]);
         return;
     }
-    // Digits are written backwards into a small buffer: fraction, point, integer, sign.
-    let mut buf = [0u8; 32];
-    let mut i = buf.len();
-    let mut m = n.unsigned_abs();
+    let m = n.unsigned_abs();
+    let int = m / POW[d];
+    let mut frac = m % POW[d];
+    let mut int_digits = 1;
+    let mut t = int;
+    while t >= 10 {
+        t /= 10;
+        int_digits += 1;
+    }
+    let len = usize::from(n < 0) + int_digits + usize::from(d > 0) + d;
+    // The digits are laid out in a fixed-size buffer that is appended whole and then cut to
+    // length: a constant-size copy is cheaper than a call to memcpy.
+    let mut buf = [0u8; 24];
+    let mut pos = len.min(buf.len());
     for _ in 0..d {
-        i -= 1;
-        buf[i] = b'0' + (m % 10) as u8;
-        m /= 10;
+        pos = pos.saturating_sub(1);
+        buf[pos] = b'0' + (frac % 10) as u8;
+        frac /= 10;
     }
     if d > 0 {
-        i -= 1;
-        buf[i] = b'.';
+        pos = pos.saturating_sub(1);
+        buf[pos] = b'.';
     }
+    let mut t = int;
     loop {
-        i -= 1;
-        buf[i] = b'0' + (m % 10) as u8;
-        m /= 10;
-        if m == 0 {
+        pos = pos.saturating_sub(1);
+        buf[pos] = b'0' + (t % 10) as u8;
+        t /= 10;
+        if t == 0 {
             break;
         }
     }
     if n < 0 {
-        i -= 1;
-        buf[i] = b'-';
+        buf[0] = b'-';
     }
-    push_small(o, &buf[i..]);
+    let start = o.len();
+    o.extend_from_slice(&buf);
+    o.truncate(start + len);
 }
 
 #[cfg(test)]

@@ -1,24 +1,21 @@
-//! The interpreter: reads blocks on demand, runs o-word control flow, and executes blocks
-//! into canonical commands that the caller pulls one at a time.
+//! The interpreter: its set-up, modal state and public API. It reads a line when the caller
+//! pulls a command and nothing is queued, runs o-word control (`control.rs`) or executes the
+//! block (`exec.rs` and the modules it calls), and queues the canonical commands.
 
 use std::collections::{HashMap, VecDeque};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use crate::block::{self, Block, OKeyword, ParamRef, ParamSource};
+use crate::block::{self, Block, ParamRef, ParamSource};
 use crate::canon::{
     Canon, CanonCommand, CompensationSide, FeedMode, FileId, PathMode, Plane, Pose, Source,
     SpindleDirection, Units,
 };
+use crate::control::{CallFrame, LoopFrame, SubDef};
 use crate::error::{ErrorKind, GcodeError};
 use crate::params::{Parameters, sys};
 use crate::source::{Location, ReadLineError, Sources};
 use crate::tools::ToolTable;
-
-/// Deepest subroutine nesting (LinuxCNC: 10 levels).
-const MAX_CALL_DEPTH: usize = 10;
-/// Deepest loop / if nesting.
-const MAX_NESTING: usize = 64;
 
 /// How the interpreter is set up for a machine.
 #[derive(Clone, Debug)]
@@ -34,6 +31,14 @@ pub struct Settings {
     pub block_delete: bool,
     /// Tolerance of the radius difference of centre-format arcs (mm).
     pub arc_radius_tolerance_mm: f64,
+    /// After a probing move (G38.x) or an input wait (M66), stop reading the program until
+    /// the machine reports the result ([`Interpreter::probe_result`],
+    /// [`Interpreter::input_result`]), since later lines may read it (#5061-#5070, #5399).
+    /// When false the results are modelled as LinuxCNC's stand-alone interpreter does.
+    pub wait_for_machine: bool,
+    /// A program that runs this many lines without issuing any command is stopped with an
+    /// error (an endless o-word loop would otherwise never return).
+    pub max_lines_without_output: u64,
     /// The same in inches.
     pub arc_radius_tolerance_inch: f64,
 }
@@ -47,6 +52,8 @@ impl Default for Settings {
             block_delete: false,
             arc_radius_tolerance_mm: 2.0 * 0.01 * std::f64::consts::SQRT_2,
             arc_radius_tolerance_inch: 2.0 * 0.001 * std::f64::consts::SQRT_2,
+            max_lines_without_output: 10_000_000,
+            wait_for_machine: false,
         }
     }
 }
@@ -189,43 +196,6 @@ pub(crate) struct CycleMemory {
     pub initial_level: Option<f64>,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum LoopKind {
-    While,
-    Do,
-    Repeat,
-}
-
-#[derive(Clone, Debug)]
-struct LoopFrame {
-    label: Box<str>,
-    kind: LoopKind,
-    /// While: the `while` line; Do and Repeat: the line after `do` / `repeat`.
-    start: Location,
-    remaining: u64,
-}
-
-#[derive(Clone, Debug)]
-struct CallFrame {
-    label: Box<str>,
-    ret: Location,
-    saved: [f64; 30],
-    loops: usize,
-    ifs: usize,
-    /// Fanuc M98: remaining repetitions and where the subprogram body starts.
-    m98_remaining: u64,
-    body: Location,
-    fanuc: bool,
-    saved_state: Option<Box<ModalState>>,
-    restore_on_return: bool,
-}
-
-/// Where a definition lives: the line after `o<name> sub` (or after `O1000`).
-#[derive(Clone, Copy, Debug)]
-struct SubDef {
-    body: Location,
-}
-
 /// The RS274/NGC interpreter. Pull canonical commands with [`Interpreter::next_canon`] (or
 /// iterate).
 pub struct Interpreter {
@@ -239,24 +209,26 @@ pub struct Interpreter {
     /// Column of the word being executed (for errors).
     pub(crate) src: Sources,
     /// The block being executed; boxed so that taking it out to execute moves a pointer.
-    block: Option<Box<Block>>,
-    line_label: String,
-    subs: HashMap<Box<str>, SubDef>,
-    calls: Vec<CallFrame>,
-    loops: Vec<LoopFrame>,
+    pub(crate) block: Option<Box<Block>>,
+    pub(crate) line_label: String,
+    pub(crate) subs: HashMap<Box<str>, SubDef>,
+    pub(crate) calls: Vec<CallFrame>,
+    pub(crate) loops: Vec<LoopFrame>,
     /// Labels of open `if` blocks.
-    ifs: Vec<Box<str>>,
+    pub(crate) ifs: Vec<Box<str>>,
     /// Saved state of M70 at the top level.
-    top_saved: Option<Box<ModalState>>,
+    pub(crate) top_saved: Option<Box<ModalState>>,
     /// The program is running (a file is open and not ended).
-    running: bool,
-    percent_seen: bool,
-    failed: bool,
-    pending_error: Option<GcodeError>,
-    at_eof: bool,
+    pub(crate) running: bool,
+    pub(crate) percent_seen: bool,
+    pub(crate) failed: bool,
+    /// Waiting for a probe or input result from the machine.
+    pub(crate) waiting: bool,
+    pub(crate) lines_without_output: u64,
+    pub(crate) pending_error: Option<GcodeError>,
+    pub(crate) at_eof: bool,
     pub(crate) value: f64,
     pub(crate) value_returned: bool,
-    pub(crate) probe_pending: bool,
     pub(crate) spline_last_pq: Option<[f64; 2]>,
 }
 
@@ -285,11 +257,12 @@ impl Interpreter {
             running: false,
             percent_seen: false,
             failed: false,
+            waiting: false,
+            lines_without_output: 0,
             pending_error: None,
             at_eof: false,
             value: 0.0,
             value_returned: false,
-            probe_pending: false,
             spline_last_pq: None,
         };
         // #5599 enables (DEBUG,...) messages.
@@ -327,15 +300,7 @@ impl Interpreter {
     /// Opens a program file to run. Lines are read as commands are pulled.
     pub fn open(&mut self, path: impl AsRef<Path>) -> Result<(), GcodeError> {
         let path = path.as_ref();
-        self.src.clear();
-        self.subs.clear();
-        self.calls.clear();
-        self.loops.clear();
-        self.ifs.clear();
-        self.params.reset_scopes();
-        self.failed = false;
-        self.at_eof = false;
-        self.percent_seen = false;
+        self.reset_run();
         let name = path.display().to_string();
         let id = self.src.open(path, &name).map_err(|e| GcodeError {
             kind: ErrorKind::Io,
@@ -355,6 +320,39 @@ impl Interpreter {
         Ok(())
     }
 
+    /// Runs a program held in memory; `name` is used in errors.
+    pub fn open_text(&mut self, name: &str, text: impl Into<Vec<u8>>) -> Result<(), GcodeError> {
+        self.reset_run();
+        let id = self
+            .src
+            .open_text(name, text.into())
+            .map_err(|e| self.io_error(e))?;
+        self.src
+            .jump(Location {
+                file: id,
+                offset: 0,
+                line: 1,
+            })
+            .map_err(|e| self.io_error(e))?;
+        self.running = true;
+        Ok(())
+    }
+
+    fn reset_run(&mut self) {
+        self.src.clear();
+        self.subs.clear();
+        self.calls.clear();
+        self.loops.clear();
+        self.ifs.clear();
+        self.params.reset_scopes();
+        self.failed = false;
+        self.pending_error = None;
+        self.at_eof = false;
+        self.percent_seen = false;
+        self.lines_without_output = 0;
+        self.waiting = false;
+    }
+
     /// Executes one line of MDI. Its commands are queued for [`Interpreter::next_canon`].
     /// Subroutines may be called (from files on the subroutine path); other o-word control
     /// is refused.
@@ -363,6 +361,7 @@ impl Interpreter {
             return Err(self.error_at(ErrorKind::State, 0, "a program is running"));
         }
         self.failed = false;
+        self.lines_without_output = 0;
         self.src.set_mdi_line(line);
         self.source = Source {
             file: FileId::MAX,
@@ -382,13 +381,27 @@ impl Interpreter {
     pub fn next_canon(&mut self) -> Option<Result<Canon, GcodeError>> {
         loop {
             if let Some(c) = self.out.pop_front() {
+                self.lines_without_output = 0;
                 return Some(Ok(c));
             }
             if let Some(e) = self.pending_error.take() {
                 return Some(Err(e));
             }
-            if !self.running || self.failed {
+            if !self.running || self.failed || self.waiting {
                 return None;
+            }
+            self.lines_without_output += 1;
+            if self.lines_without_output > self.settings.max_lines_without_output {
+                self.failed = true;
+                self.running = false;
+                return Some(Err(self.error_at(
+                    ErrorKind::Flow,
+                    0,
+                    format!(
+                        "{} lines ran without producing any command: endless loop?",
+                        self.settings.max_lines_without_output
+                    ),
+                )));
             }
             if let Err(e) = self.step() {
                 // What the failing block issued before the error still comes out first,
@@ -401,6 +414,46 @@ impl Interpreter {
                 self.pending_error = Some(e);
             }
         }
+    }
+
+    /// Stops the running program (operator abort): queued commands are dropped, open
+    /// subroutine calls and loops are forgotten. The modal state stays as it is.
+    pub fn abort(&mut self) {
+        self.out.clear();
+        self.pending_error = None;
+        self.running = false;
+        self.waiting = false;
+        self.calls.clear();
+        self.loops.clear();
+        self.ifs.clear();
+        self.params.reset_scopes();
+    }
+
+    /// True when the interpreter waits for [`Interpreter::probe_result`] or
+    /// [`Interpreter::input_result`] before reading on (see [`Settings::wait_for_machine`]).
+    pub fn is_waiting(&self) -> bool {
+        self.waiting
+    }
+
+    /// The result of the last probing move: where the probe tripped (machine coordinates,
+    /// current length units) and whether it did. The controlled point is taken to be at
+    /// `stopped_at` (machine coordinates) afterwards. Reading resumes.
+    pub fn probe_result(&mut self, tripped_at: Pose, tripped: bool, stopped_at: Pose) {
+        let p = self.program_from_machine(&tripped_at).to_array();
+        for (i, v) in p.iter().enumerate() {
+            self.params.set(sys::PROBE + i, *v);
+        }
+        self.params
+            .set(sys::PROBE_OK, if tripped { 1.0 } else { 0.0 });
+        self.state.position = self.program_from_machine(&stopped_at);
+        self.waiting = false;
+    }
+
+    /// The result of the last M66 wait (the input's value, -1 on time-out): stored in
+    /// #5399. Reading resumes.
+    pub fn input_result(&mut self, value: f64) {
+        self.params.set(sys::INPUT, value);
+        self.waiting = false;
     }
 
     /// After an error from a program file, continue with the line after the one that
@@ -488,7 +541,7 @@ impl Interpreter {
 
     /// Reads the current line into the block and runs it. Returns false if the line was
     /// skipped.
-    fn run_line(&mut self) -> Result<bool, GcodeError> {
+    pub(crate) fn run_line(&mut self) -> Result<bool, GcodeError> {
         let mut block = self.block.take().unwrap_or_default();
         let r = self.run_block(&mut block);
         self.block = Some(block);
@@ -569,560 +622,6 @@ impl Interpreter {
         self.ifs.clear();
         self.params.reset_scopes();
         Ok(())
-    }
-
-    // ----- o-word control flow -----
-
-    fn control(&mut self, b: &mut Block, kw: OKeyword) -> Result<(), GcodeError> {
-        let col = usize::from(b.o_col) + 1;
-        let label: Box<str> = b.o_label.as_str().into();
-        let arg = b.o_args.first().copied();
-        match kw {
-            OKeyword::Sub | OKeyword::Fanuc => {
-                // A definition met in the flow of the program: remember it, skip its body.
-                let body = self.next_line_location()?;
-                self.subs.insert(label.clone(), SubDef { body });
-                if kw == OKeyword::Fanuc {
-                    self.skip_fanuc_body(&label, col)?;
-                } else {
-                    self.skip_to(&label, &[OKeyword::EndSub], col)?;
-                }
-            }
-            OKeyword::EndSub | OKeyword::Return => {
-                if kw == OKeyword::Return && self.calls.is_empty() {
-                    return Err(self.error_at(
-                        ErrorKind::Flow,
-                        col,
-                        format!("o{label} return outside a subroutine"),
-                    ));
-                }
-                match arg {
-                    Some(v) => {
-                        self.value = v;
-                        self.value_returned = true;
-                    }
-                    None => self.value_returned = false,
-                }
-                if self.calls.is_empty() {
-                    return Err(self.error_at(
-                        ErrorKind::Flow,
-                        col,
-                        format!("o{label} endsub without a call"),
-                    ));
-                }
-                self.return_from_call()?;
-            }
-            OKeyword::Call => self.call(&label, &b.o_args, col)?,
-            OKeyword::If => {
-                self.push_if(&label, col)?;
-                if arg.unwrap_or(0.0) == 0.0 {
-                    self.if_false(&label, col)?;
-                }
-            }
-            OKeyword::ElseIf | OKeyword::Else => {
-                // Reached by executing a taken branch: skip to the end.
-                self.skip_to(&label, &[OKeyword::EndIf], col)?;
-                self.pop_if(&label);
-            }
-            OKeyword::EndIf => self.pop_if(&label),
-            OKeyword::Do => {
-                let start = self.next_line_location()?;
-                self.push_loop(label, LoopKind::Do, start, 0, col)?;
-            }
-            OKeyword::While => {
-                let is_do_tail = self
-                    .loops
-                    .last()
-                    .is_some_and(|l| l.kind == LoopKind::Do && *l.label == *label);
-                if is_do_tail {
-                    if arg.unwrap_or(0.0) != 0.0 {
-                        let start = self.loops.last().map(|l| l.start);
-                        if let Some(start) = start {
-                            self.jump(start)?;
-                        }
-                    } else {
-                        self.loops.pop();
-                    }
-                } else {
-                    let here = self.src.line_start;
-                    let active = self
-                        .loops
-                        .last()
-                        .is_some_and(|l| l.kind == LoopKind::While && l.start == here);
-                    if arg.unwrap_or(0.0) != 0.0 {
-                        if !active {
-                            self.push_loop(label, LoopKind::While, here, 0, col)?;
-                        }
-                    } else {
-                        if active {
-                            self.loops.pop();
-                        }
-                        self.skip_to(&label, &[OKeyword::EndWhile], col)?;
-                    }
-                }
-            }
-            OKeyword::EndWhile => match self.loops.last() {
-                Some(l) if l.kind == LoopKind::While && *l.label == *label => {
-                    let start = l.start;
-                    self.jump(start)?;
-                }
-                _ => {
-                    return Err(self.error_at(
-                        ErrorKind::Flow,
-                        col,
-                        format!("o{label} endwhile without a matching while"),
-                    ));
-                }
-            },
-            OKeyword::Repeat => {
-                let n = arg.unwrap_or(0.0).round();
-                if n >= 1.0 {
-                    let start = self.next_line_location()?;
-                    self.push_loop(label, LoopKind::Repeat, start, n as u64, col)?;
-                } else {
-                    self.skip_to(&label, &[OKeyword::EndRepeat], col)?;
-                }
-            }
-            OKeyword::EndRepeat => self.end_repeat(&label, col)?,
-            OKeyword::Break => {
-                let Some(l) = self.loops.pop() else {
-                    return Err(self.error_at(ErrorKind::Flow, col, "break outside a loop"));
-                };
-                let end = match l.kind {
-                    LoopKind::While => OKeyword::EndWhile,
-                    LoopKind::Repeat => OKeyword::EndRepeat,
-                    LoopKind::Do => OKeyword::While,
-                };
-                self.skip_to(&l.label, &[end], col)?;
-            }
-            OKeyword::Continue => {
-                let Some(l) = self.loops.last().cloned() else {
-                    return Err(self.error_at(ErrorKind::Flow, col, "continue outside a loop"));
-                };
-                match l.kind {
-                    LoopKind::While => self.jump(l.start)?,
-                    LoopKind::Repeat => {
-                        self.skip_to(&l.label, &[OKeyword::EndRepeat], col)?;
-                        self.end_repeat(&l.label, col)?;
-                    }
-                    LoopKind::Do => {
-                        // Evaluate the tail `while` as if reached normally.
-                        self.skip_to(&l.label, &[OKeyword::While], col)?;
-                        self.source.line = self.src.line_start.line;
-                        self.run_line()?;
-                    }
-                }
-            }
-        }
-        Ok(())
-    }
-
-    fn end_repeat(&mut self, label: &str, col: usize) -> Result<(), GcodeError> {
-        match self.loops.last_mut() {
-            Some(l) if l.kind == LoopKind::Repeat && *l.label == *label => {
-                l.remaining = l.remaining.saturating_sub(1);
-                if l.remaining > 0 {
-                    let start = l.start;
-                    self.jump(start)?;
-                } else {
-                    self.loops.pop();
-                }
-                Ok(())
-            }
-            _ => Err(self.error_at(
-                ErrorKind::Flow,
-                col,
-                format!("o{label} endrepeat without a matching repeat"),
-            )),
-        }
-    }
-
-    fn push_loop(
-        &mut self,
-        label: Box<str>,
-        kind: LoopKind,
-        start: Location,
-        remaining: u64,
-        col: usize,
-    ) -> Result<(), GcodeError> {
-        if self.loops.len() >= MAX_NESTING {
-            return Err(self.error_at(ErrorKind::Flow, col, "loops nested too deeply"));
-        }
-        self.loops.push(LoopFrame {
-            label,
-            kind,
-            start,
-            remaining,
-        });
-        Ok(())
-    }
-
-    fn push_if(&mut self, label: &str, col: usize) -> Result<(), GcodeError> {
-        if self.ifs.len() >= MAX_NESTING {
-            return Err(self.error_at(ErrorKind::Flow, col, "if blocks nested too deeply"));
-        }
-        self.ifs.push(label.into());
-        Ok(())
-    }
-
-    fn pop_if(&mut self, label: &str) {
-        if let Some(i) = self.ifs.iter().rposition(|l| **l == *label) {
-            self.ifs.truncate(i);
-        }
-    }
-
-    /// The condition of `if` (or of a skipped-to `elseif`) was false: find the branch to
-    /// run.
-    fn if_false(&mut self, label: &str, col: usize) -> Result<(), GcodeError> {
-        loop {
-            let kw = self.skip_to(
-                label,
-                &[OKeyword::ElseIf, OKeyword::Else, OKeyword::EndIf],
-                col,
-            )?;
-            match kw {
-                OKeyword::ElseIf => {
-                    // Evaluate its condition.
-                    let loc = self.src.line_start;
-                    self.source = Source {
-                        file: loc.file,
-                        line: loc.line,
-                        n: None,
-                    };
-                    let mut b = self.block.take().unwrap_or_default();
-                    let line = std::mem::take(&mut self.src.line);
-                    let r = block::read_block(&line, &*self, &mut b);
-                    self.src.line = line;
-                    let cond = b.o_args.first().copied().unwrap_or(0.0);
-                    self.block = Some(b);
-                    if let Err(e) = r {
-                        return Err(self.error_at(e.kind, e.column + 1, e.message));
-                    }
-                    if cond != 0.0 {
-                        return Ok(());
-                    }
-                }
-                OKeyword::EndIf => {
-                    self.pop_if(label);
-                    return Ok(());
-                }
-                _ => return Ok(()),
-            }
-        }
-    }
-
-    /// Reads lines without executing them until an o-word with `label` and one of
-    /// `targets`; that line is left in `self.src.line`. Nested definitions are skipped.
-    fn skip_to(
-        &mut self,
-        label: &str,
-        targets: &[OKeyword],
-        col: usize,
-    ) -> Result<OKeyword, GcodeError> {
-        let opened = self.src.line_start;
-        let mut l = std::mem::take(&mut self.line_label);
-        let r = loop {
-            match self.src.read_line() {
-                Ok(true) => {}
-                Ok(false) => {
-                    break Err(GcodeError {
-                        kind: ErrorKind::Flow,
-                        file: self.src.name(opened.file),
-                        line: opened.line,
-                        column: col as u32,
-                        message: format!(
-                            "o{label} block is never closed (expected {})",
-                            targets
-                                .iter()
-                                .map(|k| format!("{k:?}").to_lowercase())
-                                .collect::<Vec<_>>()
-                                .join(" or ")
-                        ),
-                    });
-                }
-                Err(ReadLineError::TooLong) => {
-                    break Err(self.error_at(ErrorKind::Syntax, 0, "line too long"));
-                }
-                Err(ReadLineError::Io(e)) => break Err(self.io_error(e)),
-            }
-            if let Some(kw) = block::peek_oword(&self.src.line, &mut l) {
-                if kw == OKeyword::Sub && l != label {
-                    // Remember definitions we pass.
-                    if let Some(body) = self.src.next_location() {
-                        self.subs.insert(l.as_str().into(), SubDef { body });
-                    }
-                }
-                if l == label && targets.contains(&kw) {
-                    break Ok(kw);
-                }
-            }
-        };
-        self.line_label = l;
-        r
-    }
-
-    /// Skips a Fanuc subprogram body (up to and including its M99 line).
-    fn skip_fanuc_body(&mut self, label: &str, col: usize) -> Result<(), GcodeError> {
-        let opened = self.src.line_start;
-        loop {
-            match self.src.read_line() {
-                Ok(true) => {}
-                Ok(false) => {
-                    return Err(GcodeError {
-                        kind: ErrorKind::Flow,
-                        file: self.src.name(opened.file),
-                        line: opened.line,
-                        column: col as u32,
-                        message: format!("subprogram O{label} has no M99"),
-                    });
-                }
-                Err(ReadLineError::TooLong) => {
-                    return Err(self.error_at(ErrorKind::Syntax, 0, "line too long"));
-                }
-                Err(ReadLineError::Io(e)) => return Err(self.io_error(e)),
-            }
-            if has_m99(&self.src.line) {
-                return Ok(());
-            }
-        }
-    }
-
-    fn next_line_location(&self) -> Result<Location, GcodeError> {
-        self.src
-            .next_location()
-            .ok_or_else(|| self.error_at(ErrorKind::Flow, 0, "o-word control needs a file"))
-    }
-
-    fn jump(&mut self, loc: Location) -> Result<(), GcodeError> {
-        self.src.jump(loc).map_err(|e| self.io_error(e))
-    }
-
-    /// Finds the definition of subroutine `label`: known already, further on in the current
-    /// file, or in `label.ngc` on the subroutine path.
-    fn find_sub(&mut self, label: &str, fanuc: bool, col: usize) -> Result<SubDef, GcodeError> {
-        if let Some(d) = self.subs.get(label) {
-            return Ok(*d);
-        }
-        // Search forward in the current file, then come back.
-        if let Some(resume) = self.src.next_location() {
-            let mut l = std::mem::take(&mut self.line_label);
-            let mut found = None;
-            while let Ok(true) = self.src.read_line() {
-                if let Some(kw) = block::peek_oword(&self.src.line, &mut l) {
-                    if kw == OKeyword::Sub || kw == OKeyword::Fanuc {
-                        if let Some(body) = self.src.next_location() {
-                            let def = SubDef { body };
-                            self.subs.insert(l.as_str().into(), def);
-                            if l == label && (kw == OKeyword::Fanuc) == fanuc {
-                                found = Some(def);
-                                break;
-                            }
-                        }
-                    }
-                }
-            }
-            self.line_label = l;
-            self.jump(resume)?;
-            if let Some(d) = found {
-                return Ok(d);
-            }
-        }
-        // A file of its own on the subroutine path (or next to the program).
-        let mut dirs: Vec<PathBuf> = self.settings.subroutine_path.clone();
-        if let Some(dir) = self.src.path(0).and_then(|p| p.parent()) {
-            dirs.push(dir.to_path_buf());
-        }
-        for dir in dirs {
-            let path = dir.join(format!("{label}.ngc"));
-            if !path.is_file() {
-                continue;
-            }
-            let resume = self.src.next_location();
-            let id = self
-                .src
-                .open(&path, &path.display().to_string())
-                .map_err(|e| self.io_error(e))?;
-            self.jump(Location {
-                file: id,
-                offset: 0,
-                line: 1,
-            })?;
-            let mut l = std::mem::take(&mut self.line_label);
-            let mut found = None;
-            while let Ok(true) = self.src.read_line() {
-                if let Some(OKeyword::Sub) = block::peek_oword(&self.src.line, &mut l) {
-                    if l == label {
-                        found = self.src.next_location();
-                        break;
-                    }
-                }
-            }
-            self.line_label = l;
-            if let Some(r) = resume {
-                self.jump(r)?;
-            }
-            if let Some(body) = found {
-                let def = SubDef { body };
-                self.subs.insert(label.into(), def);
-                return Ok(def);
-            }
-            return Err(self.error_at(
-                ErrorKind::Flow,
-                col,
-                format!("{} does not define o<{label}> sub", path.display()),
-            ));
-        }
-        Err(self.error_at(
-            ErrorKind::Flow,
-            col,
-            format!("subroutine o<{label}> is not defined"),
-        ))
-    }
-
-    fn call(&mut self, label: &str, args: &[f64], col: usize) -> Result<(), GcodeError> {
-        if self.calls.len() >= MAX_CALL_DEPTH {
-            return Err(self.error_at(ErrorKind::Flow, col, "subroutines nested too deeply"));
-        }
-        if args.len() > 30 {
-            return Err(self.error_at(ErrorKind::Flow, col, "more than 30 subroutine arguments"));
-        }
-        let def = self.find_sub(label, false, col)?;
-        let ret = match self.src.next_location() {
-            Some(l) => l,
-            None => Location {
-                file: FileId::MAX,
-                offset: 0,
-                line: 0,
-            },
-        };
-        let mut saved = [0.0; 30];
-        for (i, s) in saved.iter_mut().enumerate() {
-            *s = self.params.get(i + 1);
-            self.params.set(i + 1, args.get(i).copied().unwrap_or(0.0));
-        }
-        self.calls.push(CallFrame {
-            label: label.into(),
-            ret,
-            saved,
-            loops: self.loops.len(),
-            ifs: self.ifs.len(),
-            m98_remaining: 0,
-            body: def.body,
-            fanuc: false,
-            saved_state: None,
-            restore_on_return: false,
-        });
-        self.params.push_scope();
-        self.jump(def.body)
-    }
-
-    /// M98 P<n> L<count>: Fanuc-style call of subprogram O<n>; #1..#30 are shared.
-    fn m98(&mut self, b: &Block) -> Result<(), GcodeError> {
-        let col = usize::from(b.m_col[block::mg::USER]) + 1;
-        let Some(p) = b.get(b'p') else {
-            return Err(self.error_at(ErrorKind::MissingWord, col, "M98 needs a P word"));
-        };
-        let label = format!("{}", p.round() as i64);
-        let count = b.get(b'l').map_or(1.0, f64::round);
-        if count < 1.0 {
-            return Ok(());
-        }
-        if self.calls.len() >= MAX_CALL_DEPTH {
-            return Err(self.error_at(ErrorKind::Flow, col, "subroutines nested too deeply"));
-        }
-        let def = self.find_sub(&label, true, col)?;
-        let ret = self.next_line_location()?;
-        self.calls.push(CallFrame {
-            label: label.into(),
-            ret,
-            saved: [0.0; 30],
-            loops: self.loops.len(),
-            ifs: self.ifs.len(),
-            m98_remaining: count as u64,
-            body: def.body,
-            fanuc: true,
-            saved_state: None,
-            restore_on_return: false,
-        });
-        self.jump(def.body)
-    }
-
-    /// M99: end of a Fanuc subprogram (repeat or return); at the top level it ends the
-    /// program.
-    pub(crate) fn m99(&mut self) -> Result<bool, GcodeError> {
-        match self.calls.last_mut() {
-            Some(f) if f.fanuc => {
-                f.m98_remaining = f.m98_remaining.saturating_sub(1);
-                if f.m98_remaining > 0 {
-                    let body = f.body;
-                    self.jump(body)?;
-                } else {
-                    self.return_from_call()?;
-                }
-                Ok(true)
-            }
-            Some(_) => {
-                self.return_from_call()?;
-                Ok(true)
-            }
-            None => Ok(false),
-        }
-    }
-
-    fn return_from_call(&mut self) -> Result<(), GcodeError> {
-        let Some(frame) = self.calls.pop() else {
-            return Ok(());
-        };
-        self.loops.truncate(frame.loops);
-        self.ifs.truncate(frame.ifs);
-        if !frame.fanuc {
-            for (i, v) in frame.saved.iter().enumerate() {
-                self.params.set(i + 1, *v);
-            }
-            self.params.pop_scope();
-        }
-        if frame.restore_on_return {
-            if let Some(saved) = frame.saved_state {
-                self.restore_state(&saved)?;
-            }
-        }
-        if frame.ret.file == FileId::MAX {
-            // Called from MDI: done.
-            self.running = false;
-            return Ok(());
-        }
-        self.jump(frame.ret)
-    }
-
-    /// M70 / M73: save the modal state in the current call level.
-    pub(crate) fn save_state(&mut self, auto_restore: bool) {
-        let s = Box::new(self.state.clone());
-        match self.calls.last_mut() {
-            Some(f) => {
-                f.saved_state = Some(s);
-                f.restore_on_return |= auto_restore;
-            }
-            None => self.top_saved = Some(s),
-        }
-    }
-
-    /// M71: forget the saved state of this call level.
-    pub(crate) fn invalidate_state(&mut self) {
-        match self.calls.last_mut() {
-            Some(f) => {
-                f.saved_state = None;
-                f.restore_on_return = false;
-            }
-            None => self.top_saved = None,
-        }
-    }
-
-    /// The state M72 would restore.
-    pub(crate) fn saved_state(&self) -> Option<ModalState> {
-        match self.calls.last() {
-            Some(f) => f.saved_state.as_deref().cloned(),
-            None => self.top_saved.as_deref().cloned(),
-        }
     }
 
     // ----- helpers shared with execution -----
@@ -1344,30 +843,6 @@ pub(crate) fn rotate(x: f64, y: f64, degrees: f64) -> (f64, f64) {
     }
     let (s, c) = degrees.to_radians().sin_cos();
     (x * c - y * s, x * s + y * c)
-}
-
-/// True if the line holds an M99 word outside comments.
-fn has_m99(line: &[u8]) -> bool {
-    let mut compact = [0u8; 3];
-    let mut n = 0;
-    let mut in_comment = false;
-    for &c in line {
-        match c {
-            b'(' => in_comment = true,
-            b')' => in_comment = false,
-            b';' if !in_comment => return false,
-            b' ' | b'\t' => {}
-            _ if in_comment => {}
-            _ => {
-                compact = [compact[1], compact[2], c.to_ascii_lowercase()];
-                n += 1;
-                if n >= 3 && &compact == b"m99" {
-                    return true;
-                }
-            }
-        }
-    }
-    false
 }
 
 /// Formats the text of `(DEBUG,...)` / `(PRINT,...)`: `#n` and `#<name>` are replaced by

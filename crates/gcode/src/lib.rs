@@ -19,12 +19,18 @@
 mod block;
 pub mod canon;
 pub mod compensation;
+mod control;
 mod cycles;
 pub mod error;
 mod exec;
 mod interp;
+mod mcodes;
+mod motion;
+mod offsets;
 pub mod params;
+mod program_end;
 mod source;
+mod threading;
 pub mod tools;
 
 pub use canon::{Canon, CanonCommand, Pose, Source};

@@ -21,10 +21,35 @@ pub(crate) struct Location {
     pub line: u32,
 }
 
+/// Where the text of a program comes from.
+enum Text {
+    File(BufReader<File>),
+    Memory(std::io::Cursor<Vec<u8>>),
+}
+
+impl Text {
+    fn reader(&mut self) -> &mut dyn BufRead {
+        match self {
+            Text::File(f) => f,
+            Text::Memory(m) => m,
+        }
+    }
+
+    fn seek(&mut self, offset: u64) -> std::io::Result<()> {
+        match self {
+            Text::File(f) => f.seek(SeekFrom::Start(offset)).map(|_| ()),
+            Text::Memory(m) => {
+                m.set_position(offset);
+                Ok(())
+            }
+        }
+    }
+}
+
 struct OpenFile {
     name: Arc<str>,
     path: PathBuf,
-    reader: Option<BufReader<File>>,
+    reader: Option<Text>,
     /// Offset of the next line to read.
     offset: u64,
     /// Number of the last line read.
@@ -79,7 +104,22 @@ impl Sources {
         self.files.push(OpenFile {
             name: Arc::from(name),
             path: path.to_path_buf(),
-            reader: Some(BufReader::with_capacity(64 * 1024, file)),
+            reader: Some(Text::File(BufReader::with_capacity(64 * 1024, file))),
+            offset: 0,
+            line: 0,
+        });
+        Ok((self.files.len() - 1) as FileId)
+    }
+
+    /// Adds a program held in memory (named `name`) and returns its id.
+    pub fn open_text(&mut self, name: &str, text: Vec<u8>) -> std::io::Result<FileId> {
+        if self.files.len() >= usize::from(FileId::MAX) {
+            return Err(std::io::Error::other("too many files"));
+        }
+        self.files.push(OpenFile {
+            name: Arc::from(name),
+            path: PathBuf::new(),
+            reader: Some(Text::Memory(std::io::Cursor::new(text))),
             offset: 0,
             line: 0,
         });
@@ -125,7 +165,7 @@ impl Sources {
             .as_mut()
             .ok_or_else(|| std::io::Error::other("file closed"))?;
         if f.offset != loc.offset {
-            reader.seek(SeekFrom::Start(loc.offset))?;
+            reader.seek(loc.offset)?;
             f.offset = loc.offset;
         }
         f.line = loc.line.saturating_sub(1);
@@ -144,7 +184,7 @@ impl Sources {
             return Ok(false);
         };
         let n = reader
-            .by_ref()
+            .reader()
             .take(MAX_LINE as u64 + 1)
             .read_until(b'\n', &mut self.line)
             .map_err(ReadLineError::Io)?;

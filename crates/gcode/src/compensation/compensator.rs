@@ -21,9 +21,15 @@ const SPIRAL_TOLERANCE_MM: f64 = 2.0 * 0.01 * std::f64::consts::SQRT_2;
 /// check: it never changes for a correct corner).
 const MOVED_ARC_RADIUS_TOLERANCE: f64 = 0.01;
 
-/// Allowed growth (radians) of an arc's sweep when its end point moves back at a concave
-/// corner before it counts as gouging.
-const SWEEP_GROWTH_TOLERANCE: f64 = 0.001;
+/// Allowed growth of an arc's sweep (radians) when its end point moves back at a concave
+/// corner before it counts as gouging: LinuxCNC 2.9 allows 0.001 in inch programs and
+/// 0.0254 in millimetre programs (the inch figure scaled as if it were a length).
+fn sweep_growth_tolerance(units: Units) -> f64 {
+    match units {
+        Units::Inches => 0.001,
+        Units::Mm => 0.0254,
+    }
+}
 
 /// A compensated move waiting for the next move, which may still shorten it.
 #[derive(Clone, Debug)]
@@ -132,6 +138,16 @@ impl Compensator {
             endpoint: [0.0; 2],
             endpoint_valid: false,
             offsets: Offsets::default(),
+        }
+    }
+
+    /// Tells the stage where the tool is, in program coordinates, when that is not the end
+    /// of the last move it saw: at start-up, or after the machine moved outside the program
+    /// (jog, MDI, a probe's actual trip point). The next compensation entry starts there.
+    /// Ignored while a compensated path is under way.
+    pub fn set_position(&mut self, programmed: Pose) {
+        if !self.compensating() || self.first_move {
+            self.programmed = programmed;
         }
     }
 
@@ -442,6 +458,7 @@ impl Compensator {
         }
         let endpoint = self.endpoint;
         let check = self.endpoint_valid;
+        let sweep_tolerance = sweep_growth_tolerance(self.units);
         for p in self.pending.iter_mut() {
             match p {
                 Pending::Arc {
@@ -459,7 +476,7 @@ impl Compensator {
                     }
                     if *original_turns != 0.0
                         && check
-                        && l2.abs() > original_turns.abs() + SWEEP_GROWTH_TOLERANCE
+                        && l2.abs() > original_turns.abs() + sweep_tolerance
                     {
                         return Err(CompError::new(K::ArcGouge, src));
                     }
@@ -491,9 +508,16 @@ impl Compensator {
         Ok(())
     }
 
-    /// The first held move, if it is an arc: its compensated centre, end and turn.
+    /// The first held move, if it is an arc: its compensated centre, end and turn. A lathe
+    /// entry's positioning move is not the move that makes the corner: LinuxCNC looks at it
+    /// and takes the entry arc for a line (an arc end moved off its circle, or a full
+    /// circle); the stage looks past it.
     fn held_arc(&self) -> Option<(P2, P2, i32)> {
-        match self.pending.front() {
+        let first = self
+            .pending
+            .iter()
+            .find(|p| !matches!(p, Pending::Line { fixed: true, .. }));
+        match first {
             Some(Pending::Arc {
                 centre, end, turn, ..
             }) => Some((*centre, *end, *turn)),

@@ -8,8 +8,9 @@
 #                     replaced by marker comments (RTCNC,COMP,side,radius,orientation):
 #                     the uncompensated stream the interpreter hands to the stage.
 # Both keep rs274's N-word column (every corpus line has an N word) so the tests can place
-# the compensation commands in their blocks. The tool table is canon.tbl in this folder;
-# rs274 reads it in inches (a D3 tool is 76.2 mm across in a G21 program).
+# the compensation commands in their blocks. The tool table is PROGRAM.tbl if there is one,
+# else canon.tbl in this folder; rs274 reads it in inches (a D3 tool is 76.2 mm across in a
+# G21 program).
 set -euo pipefail
 HERE=$(cd "$(dirname "$0")" && pwd)
 ROOT=$(cd "$HERE/../../../.." && pwd)
@@ -23,8 +24,10 @@ TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
 for ngc in "$HERE"/*.ngc; do
   base=${ngc%.ngc}
-  "$CANON" -k -e -t "$HERE/canon.tbl" "$ngc" > "$base.expected" 2>/dev/null || true
-  python3 "$HERE/uncompensate.py" "$HERE/canon.tbl" < "$ngc" > "$TMP/input.ngc"
-  "$CANON" -k -e -t "$HERE/canon.tbl" "$TMP/input.ngc" > "$base.input" 2>/dev/null || true
+  tbl=$HERE/canon.tbl
+  [ -f "$base.tbl" ] && tbl=$base.tbl
+  "$CANON" -k -e -t "$tbl" "$ngc" > "$base.expected" 2>/dev/null || true
+  python3 "$HERE/uncompensate.py" "$tbl" < "$ngc" > "$TMP/input.ngc"
+  "$CANON" -k -e -t "$tbl" "$TMP/input.ngc" > "$base.input" 2>/dev/null || true
   echo "$(basename "$ngc"): $(wc -l < "$base.expected") lines expected"
 done

@@ -11,11 +11,14 @@ import re
 import sys
 
 table = {}
+orientations = {}
 for line in open(sys.argv[1]):
     t = re.search(r"\bT(\d+)", line)
     d = re.search(r"\bD([-+0-9.]+)", line)
+    q = re.search(r"\bQ(\d+)", line)
     if t and d:
         table[int(t.group(1))] = float(d.group(1))
+        orientations[int(t.group(1))] = int(q.group(1)) if q else 0
 
 inch = False
 tool = 0
@@ -51,6 +54,7 @@ for line in sys.stdin:
         else:
             number = int(float(d.group(1))) if d else tool
             radius = table.get(number, 0.0) / 2 * (1.0 if inch else 25.4)
+            orientation = orientations.get(number, 0)
         if radius < 0:
             radius = -radius
             side = "RIGHT" if side == "LEFT" else "LEFT"

@@ -27,7 +27,14 @@ printf '[RS274NGC]\nPARAMETER_FILE = canon.var\nSUBROUTINE_PATH = %s\n' "$HERE/s
 n=0
 for f in "$HERE"/*.ngc; do
   b=${f%.ngc}
-  "$CANON" -t "$HERE/canon.tbl" -i "$TMP/corpus.ini" "$f" > "$b.canon" 2> "$b.err" || true
+  # rs274 always prints its start-up lines; an empty output means it did not run (e.g. a
+  # busy machine): try again.
+  for attempt in 1 2 3 4 5; do
+    "$CANON" -t "$HERE/canon.tbl" -i "$TMP/corpus.ini" "$f" > "$b.canon" 2> "$b.err" || true
+    [ -s "$b.canon" ] && break
+    sleep 1
+  done
+  [ -s "$b.canon" ] || { echo "regenerate.sh: rs274 gave no output for $f" >&2; exit 1; }
   n=$((n + 1))
 done
 echo "regenerated $n expected outputs"

@@ -1,0 +1,343 @@
+//! Behaviour of the interpreter API beyond what rs274 can check: U/V/W axes, PRINT,
+//! error positions, MDI, parameter persistence, the endless-loop guard, memory bookkeeping
+//! of loops. Expected values are worked out by hand.
+
+use rtcnc_gcode::canon::{CanonCommand, Pose, Units};
+use rtcnc_gcode::{ErrorKind, GcodeError, Interpreter, Parameters, Settings, ToolTable};
+
+fn interp() -> Interpreter {
+    Interpreter::new(Settings::default(), ToolTable::new(), Parameters::new())
+}
+
+/// Runs `text`, returns the commands after the 6 start-up ones, and the error if any.
+fn run(text: &str) -> (Vec<CanonCommand>, Option<GcodeError>) {
+    let mut it = interp();
+    it.open_text("test.ngc", text).unwrap();
+    let mut out = Vec::new();
+    let mut error = None;
+    for c in &mut it {
+        match c {
+            Ok(c) => out.push(c.command),
+            Err(e) => {
+                error = Some(e);
+                break;
+            }
+        }
+    }
+    (out.split_off(6), error)
+}
+
+fn text(c: &CanonCommand) -> String {
+    let mut v = Vec::new();
+    rtcnc_gcode::Canon {
+        source: Default::default(),
+        command: c.clone(),
+    }
+    .write_rs274(&mut v, false);
+    String::from_utf8(v).unwrap()
+}
+
+#[test]
+fn uvw_axes_move_and_print_nine_coordinates() {
+    let (out, err) = run("G1 X1 U2 V3 W4 F100\nM2\n");
+    assert!(err.is_none());
+    let feed = out
+        .iter()
+        .find(|c| matches!(c, CanonCommand::StraightFeed(_)))
+        .unwrap();
+    assert_eq!(
+        *feed,
+        CanonCommand::StraightFeed(Pose {
+            x: 1.0,
+            u: 2.0,
+            v: 3.0,
+            w: 4.0,
+            ..Pose::ZERO
+        })
+    );
+    assert_eq!(
+        text(feed),
+        "STRAIGHT_FEED(1.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 2.0000, 3.0000, 4.0000)\n"
+    );
+}
+
+#[test]
+fn print_comments_substitute_and_stay_out_of_the_rs274_text() {
+    let (out, _) = run("#1=2.5\n#<_x1>=3\n(PRINT, a=#1 b=#<_x1> c=#<nope>)\nM2\n");
+    let print = out
+        .iter()
+        .find(|c| matches!(c, CanonCommand::Print(_)))
+        .unwrap();
+    assert_eq!(
+        *print,
+        CanonCommand::Print(" a=2.500000 b=3.000000 c=######".into())
+    );
+    assert_eq!(text(print), "");
+}
+
+#[test]
+fn errors_name_file_line_and_column() {
+    let (_, err) = run("G0 X0\nG1 X1 Q1 F100\n");
+    let e = err.unwrap();
+    assert_eq!(e.kind, ErrorKind::UnusedWord);
+    assert_eq!((&*e.file, e.line, e.column), ("test.ngc", 2, 7));
+    assert_eq!(e.to_string().split(": ").next(), Some("test.ngc:2:7"));
+    let (_, err) = run("G0 X[1 + / 2]\n");
+    let e = err.unwrap();
+    assert_eq!((e.kind, e.line, e.column), (ErrorKind::Syntax, 1, 10));
+    let (_, err) = run("G1 X1\n");
+    assert_eq!(err.unwrap().message, "cannot do G1 with zero feed rate");
+}
+
+#[test]
+fn unterminated_blocks_are_reported_at_their_opening_line() {
+    let (_, err) = run("G0 X1\no7 while [1 lt 0]\nG0 X2\nM2\n");
+    let e = err.unwrap();
+    assert_eq!((e.kind, e.line), (ErrorKind::Flow, 2));
+    let (_, err) = run("o<nothere> call\nM2\n");
+    assert_eq!(err.unwrap().kind, ErrorKind::Flow);
+}
+
+#[test]
+fn mdi_lines_keep_the_modal_state() {
+    let mut it = interp();
+    let _: Vec<_> = (&mut it).collect();
+    it.execute_mdi("G20 G91 F10").unwrap();
+    it.execute_mdi("G1 X1").unwrap();
+    it.execute_mdi("G1 X1").unwrap();
+    let cmds: Vec<CanonCommand> = (&mut it).map(|c| c.unwrap().command).collect();
+    assert_eq!(cmds[0], CanonCommand::SetFeedRate(10.0));
+    assert_eq!(cmds[1], CanonCommand::UseLengthUnits(Units::Inches));
+    let feeds: Vec<f64> = cmds
+        .iter()
+        .filter_map(|c| match c {
+            CanonCommand::StraightFeed(p) => Some(p.x),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(feeds, vec![1.0, 2.0]);
+    assert_eq!(it.modal_state().units, Units::Inches);
+    assert!(!it.modal_state().absolute);
+}
+
+#[test]
+fn work_offsets_persist_through_the_parameter_file() {
+    let dir = std::env::temp_dir().join(format!("rtcnc-gcode-persist-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let var = dir.join("machine.var");
+    let mut it = interp();
+    it.open_text("a.ngc", "G10 L2 P2 X5 Y-2.5 R30\nG55\nG92 X1\nM2\n")
+        .unwrap();
+    for c in &mut it {
+        c.unwrap();
+    }
+    it.parameters().save(&var).unwrap();
+    let params = Parameters::load(&var).unwrap();
+    assert_eq!(params.get(5241), 5.0);
+    assert_eq!(params.get(5242), -2.5);
+    assert_eq!(params.get(5250), 30.0);
+    // In G55 (rotated 30 degrees, origin X5 Y-2.5) the machine origin reads
+    // X = -5 cos 30 + 2.5 sin 30 = -3.080127, so G92 X1 offsets X by -4.080127.
+    assert_eq!(params.get(5211), -4.080127);
+    // M2 selects G54 again, so the next run starts there, with the G92 offset in force.
+    assert_eq!(params.get(5220), 1.0);
+    let mut next = Interpreter::new(Settings::default(), ToolTable::new(), params);
+    let start: Vec<CanonCommand> = (&mut next).map(|c| c.unwrap().command).collect();
+    assert_eq!(
+        start[2],
+        CanonCommand::SetG92Offset(Pose {
+            x: -4.080127,
+            ..Pose::ZERO
+        })
+    );
+    next.open_text("b.ngc", "G55\nM2\n").unwrap();
+    let cmds: Vec<CanonCommand> = (&mut next).map(|c| c.unwrap().command).collect();
+    assert_eq!(
+        cmds[0],
+        CanonCommand::SetG5xOffset {
+            index: 2,
+            offset: Pose {
+                x: 5.0,
+                y: -2.5,
+                ..Pose::ZERO
+            }
+        }
+    );
+    assert_eq!(cmds[2], CanonCommand::SetXyRotation(30.0));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn endless_loops_without_output_are_stopped() {
+    let mut it = Interpreter::new(
+        Settings {
+            max_lines_without_output: 1000,
+            ..Settings::default()
+        },
+        ToolTable::new(),
+        Parameters::new(),
+    );
+    it.open_text("loop.ngc", "o1 while [1]\n#1=[#1+1]\no1 endwhile\nM2\n")
+        .unwrap();
+    let last = (&mut it).last().unwrap();
+    assert_eq!(last.unwrap_err().kind, ErrorKind::Flow);
+}
+
+#[test]
+fn long_loops_and_calls_keep_no_history() {
+    // 20 000 iterations calling a subroutine: the output is complete and in order.
+    let (out, err) = run(
+        "o<step> sub\nG1 X#1\no<step> endsub\nF100\n#2=0\no1 repeat [20000]\n#2=[#2+1]\no<step> call [#2]\no1 endrepeat\nM2\n",
+    );
+    assert!(err.is_none(), "{err:?}");
+    let xs: Vec<f64> = out
+        .iter()
+        .filter_map(|c| match c {
+            CanonCommand::StraightFeed(p) => Some(p.x),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(xs.len(), 20_000);
+    assert_eq!(xs[0], 1.0);
+    assert_eq!(xs[19_999], 20_000.0);
+}
+
+#[test]
+fn g10_l1_changes_the_tool_table() {
+    let mut tools = ToolTable::new();
+    tools.set(rtcnc_gcode::Tool::new(3, 3));
+    let mut it = Interpreter::new(Settings::default(), tools, Parameters::new());
+    it.open_text("t.ngc", "G10 L1 P3 Z-12.5 R2\nM2\n").unwrap();
+    for c in &mut it {
+        c.unwrap();
+    }
+    let t = it.tool_table().get(3).unwrap();
+    assert_eq!(t.offset.z, -12.5);
+    assert_eq!(t.diameter, 4.0);
+}
+
+#[test]
+fn cutter_compensation_start_carries_the_radius() {
+    let mut tools = ToolTable::new();
+    let mut t = rtcnc_gcode::Tool::new(1, 1);
+    t.diameter = 6.0;
+    tools.set(t);
+    let mut it = Interpreter::new(Settings::default(), tools, Parameters::new());
+    it.open_text("c.ngc", "T1 M6\nG41\nG40\nG42.1 D4\nM2\n")
+        .unwrap();
+    let cmds: Vec<CanonCommand> = (&mut it).map(|c| c.unwrap().command).collect();
+    let starts: Vec<(f64, rtcnc_gcode::canon::CompensationSide)> = cmds
+        .iter()
+        .filter_map(|c| match c {
+            CanonCommand::StartCutterRadiusCompensation { side, radius, .. } => {
+                Some((*radius, *side))
+            }
+            _ => None,
+        })
+        .collect();
+    use rtcnc_gcode::canon::CompensationSide::*;
+    assert_eq!(starts, vec![(3.0, Left), (2.0, Right)]);
+}
+
+#[test]
+fn probing_waits_for_the_machine_when_asked_to() {
+    let mut it = Interpreter::new(
+        Settings {
+            wait_for_machine: true,
+            ..Settings::default()
+        },
+        ToolTable::new(),
+        Parameters::new(),
+    );
+    it.open_text(
+        "p.ngc",
+        "F100\nG38.2 Z-10\nG0 Z[#5063 + 1]\n(debug,#5070)\nM66 P1 L3 Q2\nG0 X#5399\nM2\n",
+    )
+    .unwrap();
+    let before: Vec<CanonCommand> = (&mut it).map(|c| c.unwrap().command).collect();
+    assert!(it.is_waiting());
+    assert_eq!(before.last(), Some(&CanonCommand::TurnProbeOff));
+    // The probe tripped at Z-4 (machine), the machine stopped at Z-3.9.
+    let z = |z| Pose { z, ..Pose::ZERO };
+    it.probe_result(z(-4.0), true, z(-3.9));
+    let after: Vec<CanonCommand> = (&mut it).map(|c| c.unwrap().command).collect();
+    assert_eq!(after[0], CanonCommand::StraightTraverse(z(-3.0)));
+    assert_eq!(after[1], CanonCommand::Message("1.000000".into()));
+    assert!(it.is_waiting());
+    it.input_result(7.0);
+    let rest: Vec<CanonCommand> = (&mut it).map(|c| c.unwrap().command).collect();
+    assert_eq!(
+        rest[0],
+        CanonCommand::StraightTraverse(Pose {
+            x: 7.0,
+            z: -3.0,
+            ..Pose::ZERO
+        })
+    );
+}
+
+#[test]
+fn g52_shifts_the_local_origin() {
+    let (out, err) = run("G52 X10\nG0 X1\nG52 X0\nG0 X1\nM2\n");
+    assert!(err.is_none());
+    let traverses: Vec<f64> = out
+        .iter()
+        .filter_map(|c| match c {
+            CanonCommand::StraightTraverse(p) => Some(p.x),
+            _ => None,
+        })
+        .collect();
+    // Program coordinates stay as written; the offset goes out as SET_G92_OFFSET(10, ...).
+    assert_eq!(traverses, vec![1.0, 1.0]);
+    assert_eq!(
+        out[0],
+        CanonCommand::SetG92Offset(Pose {
+            x: 10.0,
+            ..Pose::ZERO
+        })
+    );
+}
+
+#[test]
+fn mdi_calls_subroutines_from_the_search_path_and_abort_stops_a_program() {
+    let dir = std::env::temp_dir().join(format!("rtcnc-gcode-mdi-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(
+        dir.join("probe_x.ngc"),
+        "o<probe_x> sub\nG0 X#1\nG0 Y#2\no<probe_x> endsub\n",
+    )
+    .unwrap();
+    let mut it = Interpreter::new(
+        Settings {
+            subroutine_path: vec![dir.clone()],
+            ..Settings::default()
+        },
+        ToolTable::new(),
+        Parameters::new(),
+    );
+    let _: Vec<_> = (&mut it).collect();
+    it.execute_mdi("o<probe_x> call [3] [4]").unwrap();
+    assert!(it.is_running());
+    let cmds: Vec<CanonCommand> = (&mut it).map(|c| c.unwrap().command).collect();
+    assert_eq!(
+        cmds,
+        vec![
+            CanonCommand::StraightTraverse(Pose {
+                x: 3.0,
+                ..Pose::ZERO
+            }),
+            CanonCommand::StraightTraverse(Pose {
+                x: 3.0,
+                y: 4.0,
+                ..Pose::ZERO
+            }),
+        ]
+    );
+    assert!(!it.is_running());
+    it.open_text("long.ngc", "G0 X1\nG0 X2\nG0 X3\nM2\n")
+        .unwrap();
+    assert!(it.next_canon().is_some());
+    it.abort();
+    assert!(it.next_canon().is_none());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
