@@ -132,3 +132,26 @@ fn run_rejects_unknown_watch_names() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("no variable 'no_such_var'"));
 }
+
+#[test]
+fn check_lists_variables_on_request() {
+    let out = rtcnc(&["plc", "check", "--vars", &repo("examples/plc/mill.st")]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success());
+    assert!(
+        stdout
+            .lines()
+            .any(|l| l == "MILL.ESTOP_BUTTON_OK AT %IX0.0 : BOOL"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.lines().any(|l| l == "MILL.SPINDLE_TIMER.ET : TIME"),
+        "{stdout}"
+    );
+    assert!(
+        stdout
+            .lines()
+            .any(|l| l == "MILL.CURRENT_TOOL : INT RETAIN"),
+        "{stdout}"
+    );
+}

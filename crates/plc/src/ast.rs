@@ -101,7 +101,19 @@ pub(crate) struct Pou {
     pub name: Name,
     pub ret: Option<TypeSpec>,
     pub vars: Vec<VarBlock>,
+    pub methods: Vec<Method>,
     pub body: Vec<Stmt>,
+}
+
+/// A METHOD of a function block.
+#[derive(Debug)]
+pub(crate) struct Method {
+    pub name: Name,
+    pub ret: Option<TypeSpec>,
+    pub vars: Vec<VarBlock>,
+    pub body: Vec<Stmt>,
+    /// PRIVATE or PROTECTED: callable only from inside the function block.
+    pub private: bool,
 }
 
 #[derive(Debug)]
@@ -179,6 +191,8 @@ pub(crate) enum Expr {
     Unary(UnOp, Box<Expr>, Pos),
     Binary(BinOp, Box<Expr>, Box<Expr>, Pos),
     Call(Name, Vec<Arg>, Pos),
+    /// `instance.method(args)`: the instance path and the method name.
+    MethodCall(Box<(Access, Name)>, Vec<Arg>, Pos),
 }
 
 impl Expr {
@@ -188,7 +202,8 @@ impl Expr {
             | Expr::Direct(_, p)
             | Expr::Unary(_, _, p)
             | Expr::Binary(_, _, _, p)
-            | Expr::Call(_, _, p) => *p,
+            | Expr::Call(_, _, p)
+            | Expr::MethodCall(_, _, p) => *p,
             Expr::Typed(n, _) | Expr::EnumValue(n, _) => n.pos,
             Expr::Var(a) => a.root.pos,
         }

@@ -187,9 +187,9 @@ pub(crate) fn call(
     }
     let known = [
         "ABS", "SQRT", "LN", "LOG", "EXP", "SIN", "COS", "TAN", "ASIN", "ACOS", "ATAN", "ATAN2",
-        "EXPT", "ADD", "SUB", "MUL", "DIV", "MOD", "MOVE", "SHL", "SHR", "ROL", "ROR", "SEL",
-        "MAX", "MIN", "LIMIT", "MUX", "GT", "GE", "EQ", "LE", "LT", "NE", "LEN", "LEFT", "RIGHT",
-        "MID", "CONCAT", "INSERT", "DELETE", "REPLACE", "FIND", "TRUNC",
+        "EXPT", "ADD", "SUB", "MUL", "DIV", "MOD", "AND", "OR", "XOR", "MOVE", "SHL", "SHR", "ROL",
+        "ROR", "SEL", "MAX", "MIN", "LIMIT", "MUX", "GT", "GE", "EQ", "LE", "LT", "NE", "LEN",
+        "LEFT", "RIGHT", "MID", "CONCAT", "INSERT", "DELETE", "REPLACE", "FIND", "TRUNC",
     ];
     if !known.contains(&f) {
         return Err(c.err_at(
@@ -311,8 +311,8 @@ pub(crate) fn call(
                 ))
             }
         }
-        "ADD" | "MUL" | "SUB" | "DIV" | "MOD" => {
-            let (min, max) = if matches!(f, "ADD" | "MUL") {
+        "ADD" | "MUL" | "SUB" | "DIV" | "MOD" | "AND" | "OR" | "XOR" => {
+            let (min, max) = if matches!(f, "ADD" | "MUL" | "AND" | "OR" | "XOR") {
                 (2, usize::MAX)
             } else {
                 (2, 2)
@@ -323,6 +323,9 @@ pub(crate) fn call(
                 "MUL" => BinOp::Mul,
                 "SUB" => BinOp::Sub,
                 "DIV" => BinOp::Div,
+                "AND" => BinOp::And,
+                "OR" => BinOp::Or,
+                "XOR" => BinOp::Xor,
                 _ => BinOp::Mod,
             };
             let mut it = a.into_iter();
@@ -423,19 +426,36 @@ pub(crate) fn call(
                 "LT" => BinOp::Lt,
                 _ => BinOp::Ne,
             };
-            // GT(a, b, c) = (a > b) AND (b > c); operands are re-evaluated per pair only
-            // when they are plain loads or constants, so side effects stay single.
             if a.len() == 2 {
                 let (x, y) = (a.remove(0), a.remove(0));
                 return c.binary_op(op, x.0, y.0, y.1);
             }
-            Err(c.err_at(
-                pos,
-                ErrorKind::WrongArgument,
-                format!(
-                    "{f} with more than two inputs is not supported; chain comparisons with AND"
-                ),
-            ))
+            // GT(a, b, c) = (a > b) AND (b > c): middle inputs are compiled into two
+            // comparisons, so they may not call anything (no double side effects).
+            for arg in &args[1..args.len() - 1] {
+                if let Arg::Positional(e) = arg {
+                    if has_call(e) {
+                        return Err(c.err_at(
+                            e.pos(),
+                            ErrorKind::WrongArgument,
+                            format!(
+                                "{f}: middle inputs of a chained comparison may not call functions"
+                            ),
+                        ));
+                    }
+                }
+            }
+            let mut acc: Option<TE> = None;
+            for i in 0..args.len() - 1 {
+                let mut pair = c.b_args(&args[i..i + 2], sc, f)?;
+                let (x, y) = (pair.remove(0), pair.remove(0));
+                let cmp = c.binary_op(op, x.0, y.0, y.1)?;
+                acc = Some(match acc {
+                    None => cmp,
+                    Some(prev) => c.binary_op(BinOp::And, prev, cmp, pos)?,
+                });
+            }
+            acc.ok_or_else(|| c.err_at(pos, ErrorKind::WrongArgument, format!("{f} needs inputs")))
         }
         "LEN" => {
             count(c, f, &a, 1, 1, pos)?;
@@ -714,11 +734,7 @@ fn conversion(c: &mut Compiler, f: &str, args: &[Arg], sc: &mut Scope, pos: Pos)
             } else if t.is_real() {
                 Builtin::StrToReal(t == Elem::Real)
             } else if t == Elem::Time {
-                return Err(c.err_at(
-                    pos,
-                    ErrorKind::WrongArgument,
-                    "STRING_TO_TIME is not supported",
-                ));
+                Builtin::StrToTime
             } else {
                 Builtin::StrToInt(ik(t))
             };
@@ -727,4 +743,19 @@ fn conversion(c: &mut Compiler, f: &str, args: &[Arg], sc: &mut Scope, pos: Pos)
         (Kind::To, None, None) => xe,
     };
     Ok(Some(Compiler::te(Ty::T(result_ty), out)))
+}
+
+/// True if the expression calls a function or method anywhere.
+fn has_call(e: &crate::ast::Expr) -> bool {
+    use crate::ast::{Expr, Part};
+    match e {
+        Expr::Call(..) | Expr::MethodCall(..) => true,
+        Expr::Unary(_, a, _) | Expr::Typed(_, a) => has_call(a),
+        Expr::Binary(_, a, b, _) => has_call(a) || has_call(b),
+        Expr::Var(a) => a
+            .parts
+            .iter()
+            .any(|p| matches!(p, Part::Index(ix, _) if ix.iter().any(has_call))),
+        _ => false,
+    }
 }

@@ -47,8 +47,10 @@ use std::path::Path;
 
 pub use error::{CompileError, CompileErrors, ErrorKind, Fault, FaultKind, LoadError, Pos};
 pub use lexer::{AddrSize, Area, DirectAddr};
-pub use program::{Program, TaskDesc};
-pub use runtime::{MonitorError, Restart, RetainReport, Runtime, RuntimeOptions, VarRef};
+pub use program::{Program, TaskDesc, VariableInfo};
+pub use runtime::{
+    MonitorError, Restart, RetainReport, RetainSnapshot, Runtime, RuntimeOptions, VarRef,
+};
 pub use signals::{ConfigError, Direction, PlcConfig, Signal, SignalKind};
 pub use stdfb::StdFb;
 pub use value::{FmtTime, Value, ValueError, parse_time};

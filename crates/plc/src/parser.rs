@@ -4,15 +4,18 @@ use crate::ast::*;
 use crate::error::{CompileError, ErrorKind, Pos};
 use crate::lexer::{Tok, Token};
 
-/// Deepest nesting of expressions and statements accepted; keeps the recursion (and the
-/// compiled tree) shallow enough for any stack.
-const MAX_DEPTH: u32 = 96;
+/// Deepest nesting of sub-expressions, and of statements, accepted. Parsing, compiling
+/// and running recurse along the nesting; these limits keep the worst case inside 1 MiB
+/// of stack even in debug builds (tests/fuzz.rs checks it).
+const MAX_EXPR_DEPTH: u32 = 64;
+const MAX_STMT_DEPTH: u32 = 32;
 
 pub(crate) struct Parser<'a> {
     toks: &'a [Token],
     i: usize,
     file: &'a str,
     depth: u32,
+    stmt_depth: u32,
 }
 
 type PResult<T> = Result<T, CompileError>;
@@ -23,6 +26,7 @@ pub(crate) fn parse(toks: &[Token], file: &str) -> PResult<Unit> {
         i: 0,
         file,
         depth: 0,
+        stmt_depth: 0,
     };
     p.unit()
 }
@@ -129,6 +133,8 @@ const RESERVED: &[&str] = &[
     "CONSTANT",
     "RETAIN",
     "NON_RETAIN",
+    "METHOD",
+    "END_METHOD",
 ];
 
 impl Parser<'_> {
@@ -203,8 +209,8 @@ impl Parser<'_> {
     }
     fn enter(&mut self) -> PResult<()> {
         self.depth += 1;
-        if self.depth > MAX_DEPTH {
-            return Err(self.err("nesting is too deep"));
+        if self.depth > MAX_EXPR_DEPTH {
+            return Err(self.err(format!("expression nested more than {MAX_EXPR_DEPTH} deep")));
         }
         Ok(())
     }
@@ -491,6 +497,10 @@ impl Parser<'_> {
         while self.is_var_block_start() {
             vars.push(self.var_block()?);
         }
+        let mut methods = Vec::new();
+        while kind == PouKind::FunctionBlock && self.is_kw("METHOD") {
+            methods.push(self.method()?);
+        }
         let body = self.stmts(&[end])?;
         self.expect_kw(end)?;
         Ok(Pou {
@@ -498,7 +508,42 @@ impl Parser<'_> {
             name,
             ret,
             vars,
+            methods,
             body,
+        })
+    }
+
+    fn method(&mut self) -> PResult<Method> {
+        self.bump();
+        let mut private = false;
+        loop {
+            if self.eat_kw("PUBLIC") || self.eat_kw("INTERNAL") || self.eat_kw("FINAL") {
+                continue;
+            }
+            if self.eat_kw("PRIVATE") || self.eat_kw("PROTECTED") {
+                private = true;
+                continue;
+            }
+            break;
+        }
+        let name = self.name()?;
+        let ret = if self.eat(&Tok::Colon) {
+            Some(self.type_spec()?)
+        } else {
+            None
+        };
+        let mut vars = Vec::new();
+        while self.is_var_block_start() {
+            vars.push(self.var_block()?);
+        }
+        let body = self.stmts(&["END_METHOD"])?;
+        self.expect_kw("END_METHOD")?;
+        Ok(Method {
+            name,
+            ret,
+            vars,
+            body,
+            private,
         })
     }
 
@@ -637,9 +682,12 @@ impl Parser<'_> {
     }
 
     fn stmt(&mut self) -> PResult<Stmt> {
-        self.enter()?;
+        self.stmt_depth += 1;
+        if self.stmt_depth > MAX_STMT_DEPTH {
+            return Err(self.err(format!("statements nested more than {MAX_STMT_DEPTH} deep")));
+        }
         let r = self.stmt_inner();
-        self.depth -= 1;
+        self.stmt_depth -= 1;
         r
     }
 
@@ -960,28 +1008,57 @@ impl Parser<'_> {
         }
     }
 
-    fn binary(&mut self, level: u8) -> PResult<Expr> {
-        if level == 8 {
-            return self.unary();
-        }
-        let mut lhs = self.binary(level + 1)?;
+    /// The binary operator at the cursor and its precedence (0 = OR ... 7 = **).
+    fn binop(&self) -> Option<(BinOp, u8)> {
+        (0..8).find_map(|level| self.binop_at(level).map(|op| (op, level)))
+    }
+
+    /// Precedence climbing: one stack frame per nesting level, not per precedence level.
+    fn binary(&mut self, min_level: u8) -> PResult<Expr> {
+        let mut lhs = self.unary()?;
         let depth_before = self.depth;
-        while let Some(op) = self.binop_at(level) {
+        let result = loop {
+            let Some((op, level)) = self.binop().filter(|(_, l)| *l >= min_level) else {
+                break Ok(lhs);
+            };
             let pos = self.pos();
             self.bump();
-            // A long left-leaning chain builds a tree as deep as nesting does.
+            if matches!(op, BinOp::And | BinOp::Or | BinOp::Xor) {
+                // Long AND/OR/XOR chains (ladder rungs) become balanced trees: same
+                // left-to-right evaluation, logarithmic depth.
+                let mut operands = vec![lhs];
+                match self.binary(level + 1) {
+                    Ok(e) => operands.push(e),
+                    Err(e) => break Err(e),
+                }
+                let mut failed = None;
+                while self.binop() == Some((op, level)) {
+                    self.bump();
+                    match self.binary(level + 1) {
+                        Ok(e) => operands.push(e),
+                        Err(e) => {
+                            failed = Some(e);
+                            break;
+                        }
+                    }
+                }
+                if let Some(e) = failed {
+                    break Err(e);
+                }
+                lhs = balanced(op, operands, pos);
+                continue;
+            }
+            // Other chains build a tree as deep as nesting does.
             if let Err(e) = self.enter() {
-                self.depth = depth_before;
-                return Err(e);
+                break Err(e);
             }
-            let rhs = self.binary(level + 1);
-            if rhs.is_err() {
-                self.depth = depth_before;
+            match self.binary(level + 1) {
+                Ok(rhs) => lhs = Expr::Binary(op, Box::new(lhs), Box::new(rhs), pos),
+                Err(e) => break Err(e),
             }
-            lhs = Expr::Binary(op, Box::new(lhs), Box::new(rhs?), pos);
-        }
+        };
         self.depth = depth_before;
-        Ok(lhs)
+        result
     }
 
     fn unary(&mut self) -> PResult<Expr> {
@@ -1062,6 +1139,15 @@ impl Parser<'_> {
                 self.expect(&Tok::RParen)?;
                 Ok(e)
             }
+            // Operators in function form: AND(a, b, c), OR(...), XOR(...), MOD(a, b).
+            Tok::Ident(s)
+                if matches!(s.as_str(), "AND" | "OR" | "XOR" | "MOD")
+                    && self.peek_at(1) == &Tok::LParen =>
+            {
+                self.bump();
+                let args = self.args()?;
+                Ok(Expr::Call(Name { text: s, pos }, args, pos))
+            }
             Tok::Ident(s) if s == "TRUE" || s == "FALSE" => {
                 self.bump();
                 Ok(Expr::Lit(Literal::Bool(s == "TRUE"), pos))
@@ -1069,15 +1155,37 @@ impl Parser<'_> {
             Tok::Ident(_) => {
                 let a = self.access()?;
                 if self.peek() == &Tok::LParen {
-                    if !a.parts.is_empty() {
-                        return Err(self.err("only functions can be called inside an expression"));
-                    }
-                    let args = self.args()?;
-                    return Ok(Expr::Call(a.root, args, pos));
+                    let mut a = a;
+                    return match a.parts.pop() {
+                        None => Ok(Expr::Call(a.root, self.args()?, pos)),
+                        Some(Part::Field(m)) => {
+                            let args = self.args()?;
+                            Ok(Expr::MethodCall(Box::new((a, m)), args, pos))
+                        }
+                        Some(_) => Err(self
+                            .err("only functions and methods can be called inside an expression")),
+                    };
                 }
                 Ok(Expr::Var(a))
             }
             _ => Err(self.unexpected("an expression")),
         }
     }
+}
+
+/// `op` over `operands` as a balanced tree, operands kept in order.
+fn balanced(op: BinOp, mut operands: Vec<Expr>, pos: Pos) -> Expr {
+    if operands.len() == 1 {
+        if let Some(e) = operands.pop() {
+            return e;
+        }
+    }
+    // Called with two or more operands: both halves are non-empty.
+    let right = operands.split_off(operands.len() / 2);
+    Expr::Binary(
+        op,
+        Box::new(balanced(op, operands, pos)),
+        Box::new(balanced(op, right, pos)),
+        pos,
+    )
 }

@@ -46,6 +46,28 @@ pub(crate) struct ProgramInstance {
     pub body: Block,
 }
 
+/// An elementary variable of a program, as [`Program::variables`] lists it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct VariableInfo {
+    /// Path for [`crate::Runtime::resolve`] (upper case).
+    pub path: String,
+    /// IEC type name.
+    pub type_name: String,
+    /// Declared RETAIN (or inside a RETAIN instance).
+    pub retain: bool,
+    /// Direct address of a located variable.
+    pub location: Option<DirectAddr>,
+}
+
+/// An elementary leaf of the variable tree.
+#[derive(Debug, Clone)]
+pub(crate) struct Leaf {
+    pub path: String,
+    pub slot: u32,
+    pub ty: Type,
+    pub retain: bool,
+}
+
 /// A task of the CONFIGURATION, for the kernel to put on the executive.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct TaskDesc {
@@ -56,6 +78,10 @@ pub struct TaskDesc {
     pub interval: Option<Duration>,
     /// IEC priority: 0 is the most urgent.
     pub priority: u32,
+    /// For an event task (`SINGLE := var`): the BOOL global whose rising edge activates
+    /// it. [`crate::Runtime::scan`] runs it on the scan that sees the edge.
+    pub trigger: Option<String>,
+    pub(crate) trigger_slot: Option<u32>,
     /// Program instance names run by this task, in order.
     pub programs: Vec<String>,
     pub(crate) program_ids: Vec<usize>,
@@ -106,6 +132,110 @@ impl Program {
     pub fn image_size(&self, area: Area) -> usize {
         self.image_sizes[area_index(area)]
     }
+    /// Members of a structure or function block type, offsets relative to its start.
+    pub(crate) fn member_symbols(&self, ty: &Type) -> Option<Vec<Symbol>> {
+        match ty {
+            Type::Struct(id) => self.structs.get(*id as usize).map(|s| {
+                s.fields
+                    .iter()
+                    .map(|f| Symbol {
+                        name: f.name.clone(),
+                        ty: f.ty.clone(),
+                        addr: f.offset,
+                        kind: VarKind::Local,
+                        retain: false,
+                        indirect: false,
+                    })
+                    .collect()
+            }),
+            Type::Fb(id) => self.fbs.get(*id as usize).map(|f| f.members.clone()),
+            _ => None,
+        }
+    }
+
+    /// Every elementary leaf of every global and program variable (arrays expanded,
+    /// structures and function block instances by member), with its retain flag.
+    pub(crate) fn leaves(&self) -> Vec<Leaf> {
+        let mut out = Vec::new();
+        for g in &self.globals {
+            self.walk(g.name.clone(), &g.ty, g.addr, g.retain, &mut out);
+        }
+        for i in &self.instances {
+            for v in &i.vars {
+                self.walk(
+                    format!("{}.{}", i.name, v.name),
+                    &v.ty,
+                    v.addr,
+                    v.retain,
+                    &mut out,
+                );
+            }
+        }
+        out
+    }
+
+    fn walk(&self, path: String, ty: &Type, slot: u32, retain: bool, out: &mut Vec<Leaf>) {
+        match ty {
+            Type::Array(a) => {
+                let mut idx: Vec<i64> = a.dims.iter().map(|(l, _)| *l).collect();
+                for k in 0..a.len() {
+                    let label: Vec<String> = idx.iter().map(|i| i.to_string()).collect();
+                    let at = slot + k as u32 * a.elem_size;
+                    self.walk(
+                        format!("{path}[{}]", label.join(",")),
+                        &a.elem,
+                        at,
+                        retain,
+                        out,
+                    );
+                    for d in (0..idx.len()).rev() {
+                        idx[d] += 1;
+                        if idx[d] <= a.dims[d].1 {
+                            break;
+                        }
+                        idx[d] = a.dims[d].0;
+                    }
+                }
+            }
+            Type::Struct(_) | Type::Fb(_) => {
+                for m in self.member_symbols(ty).unwrap_or_default() {
+                    if m.indirect || m.kind == VarKind::Temp {
+                        continue;
+                    }
+                    let at = slot + m.addr;
+                    self.walk(
+                        format!("{path}.{}", m.name),
+                        &m.ty,
+                        at,
+                        retain || m.retain,
+                        out,
+                    );
+                }
+            }
+            t => out.push(Leaf {
+                path,
+                slot,
+                ty: t.clone(),
+                retain,
+            }),
+        }
+    }
+
+    /// Every elementary variable a runtime can monitor or force, by path (globals,
+    /// `INSTANCE.VAR`, members and array elements), with its type, retain flag and
+    /// direct address. For browsing in an HMI; build it once, not per scan.
+    pub fn variables(&self) -> Vec<VariableInfo> {
+        self.leaves()
+            .into_iter()
+            .map(|l| VariableInfo {
+                type_name: self.type_name(&l.ty),
+                location: self.located.iter().find(|x| x.slot == l.slot).map(|x| x.at),
+                retain: l.retain,
+                path: l.path,
+            })
+            .collect()
+    }
+
     pub(crate) fn type_name(&self, ty: &Type) -> String {
         match ty {
             Type::Elem(e) => e.name().to_string(),

@@ -213,6 +213,10 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
                 x.to_bits()
             }
         }
+        Builtin::StrToTime => {
+            let n = read(mem, arg(0) as usize, &mut s);
+            parse_duration(&s[..n]).unwrap_or(0) as u64
+        }
         Builtin::StrToBool => {
             let n = read(mem, arg(0) as usize, &mut s);
             let text = &s[..n];
@@ -224,4 +228,63 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
 
 fn wrap_checked(k: IntKind, v: u64) -> u64 {
     k.wrap(v)
+}
+
+/// Parses `T#1h2m3.5s`, `TIME#20ms`, `-5s` or `1d2h` from bytes, without allocating.
+fn parse_duration(text: &[u8]) -> Option<i64> {
+    let mut t = text.trim_ascii();
+    for prefix in [&b"LTIME#"[..], b"TIME#", b"LT#", b"T#"] {
+        if t.len() >= prefix.len() && t[..prefix.len()].eq_ignore_ascii_case(prefix) {
+            t = &t[prefix.len()..];
+            break;
+        }
+    }
+    let negative = t.first() == Some(&b'-');
+    if negative {
+        t = &t[1..];
+    }
+    let mut total: f64 = 0.0;
+    let mut any = false;
+    let mut i = 0;
+    while i < t.len() {
+        if t[i] == b'_' {
+            i += 1;
+            continue;
+        }
+        let start = i;
+        while i < t.len() && (t[i].is_ascii_digit() || t[i] == b'.') {
+            i += 1;
+        }
+        let number = std::str::from_utf8(&t[start..i])
+            .ok()?
+            .parse::<f64>()
+            .ok()?;
+        let rest = &t[i..];
+        let unit = |u: &[u8]| rest.len() >= u.len() && rest[..u.len()].eq_ignore_ascii_case(u);
+        let (scale, len) = if unit(b"ms") {
+            (1e6, 2)
+        } else if unit(b"us") {
+            (1e3, 2)
+        } else if unit(b"ns") {
+            (1.0, 2)
+        } else if unit(b"d") {
+            (86_400e9, 1)
+        } else if unit(b"h") {
+            (3_600e9, 1)
+        } else if unit(b"m") {
+            (60e9, 1)
+        } else if unit(b"s") {
+            (1e9, 1)
+        } else {
+            return None;
+        };
+        total += number * scale;
+        i += len;
+        any = true;
+    }
+    if !any || total > i64::MAX as f64 {
+        return None;
+    }
+    let ns = total.round() as i64;
+    Some(if negative { -ns } else { ns })
 }

@@ -165,6 +165,7 @@ pub(crate) enum Builtin {
     StrToInt(IntKind),
     StrToReal(bool),
     StrToBool,
+    StrToTime,
 }
 
 #[derive(Debug)]
@@ -187,6 +188,7 @@ pub(crate) enum Expr {
     /// A built-in; string results go to the static temporary at `dest`.
     Builtin(Builtin, Box<[Expr]>, u32),
     Call(Box<FnCall>),
+    CallMethod(Box<MethodCall>),
 }
 
 /// How a value is stored into a location.
@@ -224,6 +226,13 @@ pub(crate) struct FnCall {
     pub direct: bool,
     pub args: Box<[ArgIn]>,
     pub outs: Box<[ArgOut]>,
+}
+
+/// A METHOD call: a function-like call whose body addresses the instance.
+#[derive(Debug)]
+pub(crate) struct MethodCall {
+    pub instance: Place,
+    pub call: FnCall,
 }
 
 #[derive(Debug)]
@@ -458,6 +467,10 @@ impl Vm {
             }
             Expr::Builtin(b, args, dest) => self.builtin(c, *b, args, *dest),
             Expr::Call(call) => self.call_fn(c, call),
+            Expr::CallMethod(m) => {
+                let inst = self.addr(c, &m.instance);
+                self.call_fn_in(c, &m.call, Some(inst))
+            }
         }
     }
 
@@ -603,27 +616,30 @@ impl Vm {
                 }
             }
             Builtin::Sel => {
+                // Functions evaluate all their inputs (IEC has no lazy evaluation).
                 let g = arg(self, 0);
-                // Only the selected input is evaluated.
-                if g & 1 != 0 {
-                    arg(self, 2)
-                } else {
-                    arg(self, 1)
-                }
+                let in0 = arg(self, 1);
+                let in1 = arg(self, 2);
+                if g & 1 != 0 { in1 } else { in0 }
             }
             Builtin::Mux => {
                 let k = arg(self, 0) as i64;
                 let n = args.len() as i64 - 1;
+                let mut picked = 0;
+                for i in 0..n {
+                    let v = arg(self, i as usize + 1);
+                    if i == k {
+                        picked = v;
+                    }
+                }
                 if k < 0 || k >= n {
                     self.raise(FaultKind::IndexOutOfRange {
                         index: k,
                         low: 0,
                         high: n - 1,
                     });
-                    0
-                } else {
-                    arg(self, k as usize + 1)
                 }
+                picked
             }
             Builtin::MaxI(s) | Builtin::MinI(s) => {
                 let mut acc = arg(self, 0);
@@ -690,7 +706,8 @@ impl Vm {
             | Builtin::BoolToStr
             | Builtin::StrToInt(_)
             | Builtin::StrToReal(_)
-            | Builtin::StrToBool => {
+            | Builtin::StrToBool
+            | Builtin::StrToTime => {
                 let mut vals = [0u64; 8];
                 // CONCAT is extensible: fold pairwise through the destination.
                 if matches!(b, Builtin::Concat) {
@@ -792,6 +809,12 @@ impl Vm {
     }
 
     fn call_fn(&mut self, c: &Code, call: &FnCall) -> u64 {
+        self.call_fn_in(c, call, None)
+    }
+
+    /// Calls a function, or a method on the instance at `instance`: arguments and outputs
+    /// are evaluated in the caller's frame, the body runs in the instance's.
+    fn call_fn_in(&mut self, c: &Code, call: &FnCall, instance: Option<usize>) -> u64 {
         let Some(func) = c.functions.get(call.func as usize) else {
             return 0;
         };
@@ -800,10 +823,14 @@ impl Vm {
         if self.budget == 0 {
             return 0;
         }
-        let saved = self.pou;
+        let (saved_pou, saved_frame) = (self.pou, self.frame);
         self.pou = func.body.pou;
+        if let Some(inst) = instance {
+            self.frame = inst as u32;
+        }
         let _ = self.exec_block(c, &func.body.stmts);
-        self.pou = saved;
+        self.pou = saved_pou;
+        self.frame = saved_frame;
         if self.budget == 0 {
             return 0;
         }

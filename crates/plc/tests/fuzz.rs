@@ -144,6 +144,13 @@ const VOCAB: &[&str] = &[
     "REAL_TO_INT",
     "LEN",
     "MID",
+    "METHOD",
+    "END_METHOD",
+    "PRIVATE",
+    "GT",
+    "STRING_TO_TIME",
+    "AND(",
+    "THIS",
 ];
 
 /// A skeleton that makes token soups land inside a POU body more often.
@@ -205,9 +212,46 @@ proptest! {
     }
 }
 
+/// Runs `f` on a thread with half the default test stack, to keep a margin.
+fn on_small_stack(f: impl FnOnce() + Send + 'static) {
+    std::thread::Builder::new()
+        .stack_size(1 << 20)
+        .spawn(f)
+        .unwrap()
+        .join()
+        .unwrap();
+}
+
+#[test]
+fn nesting_at_the_limits_fits_a_small_stack() {
+    on_small_stack(|| {
+        // The deepest accepted program: 32 nested IFs around an expression nested to the
+        // expression limit (unary minus around parentheses costs two levels).
+        let e = format!("{}x{}", "-(".repeat(31), ")".repeat(31));
+        let body = format!(
+            "x := 1;{}x := {e};{}",
+            "IF NOT y THEN ".repeat(31),
+            " END_IF;".repeat(31)
+        );
+        let p = compile(&in_program(&body), "deep.st").unwrap_or_else(|e| panic!("{e}"));
+        let mut rt = Runtime::new(Arc::new(p));
+        rt.scan(Duration::ZERO).unwrap();
+        assert_eq!(rt.read_name("x").unwrap(), rtcnc_plc::Value::Int(-1));
+        // One more level of either is refused.
+        let e = format!("{}x{}", "-(".repeat(33), ")".repeat(33));
+        assert!(compile(&in_program(&format!("x := {e};")), "deep.st").is_err());
+        let body = format!(
+            "{}x := 1;{}",
+            "IF y THEN ".repeat(33),
+            " END_IF;".repeat(33)
+        );
+        assert!(compile(&in_program(&body), "deep.st").is_err());
+    });
+}
+
 #[test]
 fn deep_nesting_is_an_error_not_a_stack_overflow() {
-    let deep = format!("{}1{}", "(".repeat(5000), ")".repeat(5000));
+    let deep = format!("{}1{}", "-(".repeat(5000), ")".repeat(5000));
     let src = in_program(&format!("x := {deep};"));
     let e = compile(&src, "deep.st").unwrap_err();
     assert_eq!(e.first().unwrap().code(), "syntax");
@@ -238,4 +282,27 @@ fn nesting_below_the_limit_compiles_and_runs() {
     let mut rt = Runtime::new(Arc::new(compile(&in_program(&ifs), "nest.st").unwrap()));
     rt.scan(Duration::ZERO).unwrap();
     assert_eq!(rt.read_name("x").unwrap(), rtcnc_plc::Value::Int(21));
+}
+
+#[test]
+fn long_contact_chains_are_fine() {
+    // A 3000-contact rung: AND/OR chains are balanced, so depth is no issue.
+    let contacts: Vec<String> = (0..3000)
+        .map(|i| {
+            if i == 2999 {
+                "y".to_string()
+            } else {
+                "FALSE".to_string()
+            }
+        })
+        .collect();
+    let src = format!(
+        "PROGRAM P VAR y : BOOL := TRUE; q : BOOL; r : BOOL; END_VAR q := {}; r := {}; END_PROGRAM",
+        contacts.join(" OR "),
+        contacts.join(" AND ")
+    );
+    let mut rt = Runtime::new(Arc::new(compile(&src, "chain.st").unwrap()));
+    rt.scan(Duration::ZERO).unwrap();
+    assert_eq!(rt.read_name("q").unwrap(), rtcnc_plc::Value::Bool(true));
+    assert_eq!(rt.read_name("r").unwrap(), rtcnc_plc::Value::Bool(false));
 }

@@ -441,7 +441,7 @@ fn structs_nested_with_initial_values_and_whole_assignment() {
 #[test]
 fn enumerations_and_subranges() {
     let src = "TYPE Color : (RED, GREEN := 5, BLUE); Pct : INT (0..100) := 50; Level : (LOW, HIGH); END_TYPE
-        PROGRAM P VAR c : Color; d : Color := Color#BLUE; p : Pct; q : INT(10..20); same : BOOL; v : DINT; lvl : Level := HIGH; END_VAR
+        PROGRAM P VAR c : Color; d : Color := Color#BLUE; p : Pct; q : INT(10..20); r : SINT(-5..5); same : BOOL; v : DINT; lvl : Level := HIGH; END_VAR
         c := GREEN; same := c = Color#GREEN; v := TO_DINT(d);
         END_PROGRAM";
     let mut rt = plc(src);
@@ -450,8 +450,9 @@ fn enumerations_and_subranges() {
     assert!(boolean(&rt, "same"));
     assert_eq!(int(&rt, "v"), 6);
     assert_eq!(int(&rt, "p"), 50);
-    // A subrange that excludes 0 starts at its lower bound.
+    // A subrange starts at its lower limit.
     assert_eq!(int(&rt, "q"), 10);
+    assert_eq!(int(&rt, "r"), -5);
     assert_eq!(rt.format(&rt.resolve("lvl").unwrap()), "HIGH");
 }
 
@@ -648,4 +649,123 @@ fn mixed_operands_meet_at_the_smallest_common_type() {
     assert_eq!(int(&rt, "s"), 0);
     // DINT and REAL meet at LREAL.
     assert_eq!(real(&rt, "x"), 1.5);
+}
+
+#[test]
+fn methods_of_function_blocks() {
+    let src = "
+        FUNCTION_BLOCK Axis
+          VAR_INPUT enable : BOOL; END_VAR
+          VAR_OUTPUT pos : LREAL; moves : INT; END_VAR
+          VAR target : LREAL; END_VAR
+          METHOD PUBLIC MoveTo : BOOL
+            VAR_INPUT where : LREAL; END_VAR
+            VAR scratch : INT; END_VAR
+            scratch := scratch + 1;
+            IF NOT enable THEN MoveTo := FALSE; RETURN; END_IF;
+            target := where; moves := moves + scratch; MoveTo := TRUE;
+          END_METHOD
+          METHOD PRIVATE Step
+            pos := pos + LIMIT(-1.0, target - pos, 1.0);
+          END_METHOD
+          METHOD Distance : LREAL
+            Distance := ABS(target - pos);
+          END_METHOD
+          Step();
+        END_FUNCTION_BLOCK
+        PROGRAM P VAR x : Axis; y : Axis; ok1 : BOOL; ok2 : BOOL; d : LREAL; temps_ok : BOOL; END_VAR
+          ok1 := x.MoveTo(2.5);
+          y.enable := TRUE;
+          ok2 := y.MoveTo(where := 3.0);
+          y.MoveTo(-1.0);
+          y.MoveTo(3.0);
+          x(); y();
+          d := y.Distance();
+        END_PROGRAM";
+    let mut rt = plc(src);
+    rt.scan(ms(0)).unwrap();
+    assert!(!boolean(&rt, "ok1"));
+    assert!(boolean(&rt, "ok2"));
+    // Method variables restart on every call: each call adds 1 to moves.
+    assert_eq!(int(&rt, "y.moves"), 3);
+    assert_eq!(int(&rt, "x.moves"), 0);
+    assert_eq!(real(&rt, "y.pos"), 1.0);
+    assert_eq!(real(&rt, "x.pos"), 0.0);
+    assert_eq!(real(&rt, "d"), 2.0);
+    rt.scan(ms(4)).unwrap();
+    assert_eq!(real(&rt, "y.pos"), 2.0);
+}
+
+#[test]
+fn method_errors() {
+    let fb = "FUNCTION_BLOCK B METHOD PRIVATE Hidden : INT Hidden := 1; END_METHOD METHOD Act Hidden(); END_METHOD END_FUNCTION_BLOCK\n";
+    let src = format!("{fb}PROGRAM P VAR b : B; x : INT; END_VAR\n  x := b.Hidden();\nEND_PROGRAM");
+    assert_eq!(compile_error(&src).2, "invalid");
+    let src = format!("{fb}PROGRAM P VAR b : B; END_VAR\n  b.Nothing();\nEND_PROGRAM");
+    assert_eq!(compile_error(&src).2, "undeclared");
+    let src = format!("{fb}PROGRAM P VAR b : B; x : INT; END_VAR\n  x := b.Act();\nEND_PROGRAM");
+    assert_eq!(compile_error(&src).2, "type-mismatch");
+    let src = "FUNCTION_BLOCK R METHOD Again : INT Again := Again(); END_METHOD END_FUNCTION_BLOCK";
+    assert_eq!(compile_error(src).2, "invalid");
+}
+
+#[test]
+fn extensible_comparisons_and_operator_functions() {
+    let rt = eval(
+        "a : BOOL; b : BOOL; c : BOOL; d : BOOL; w : WORD; x : BOOL; m : INT; t1 : TIME; t2 : TIME; t3 : TIME;",
+        "a := GT(3, 2, 1); b := GT(3, 2, 2); c := LE(1, 1, 2, 5); d := EQ(4, 4, 4);
+         w := AND(WORD#16#FF0F, WORD#16#0FFF, WORD#16#F0F0); x := XOR(TRUE, TRUE, TRUE); m := MOD(17, 5);
+         t1 := STRING_TO_TIME('T#1m2s500ms'); t2 := STRING_TO_TIME('250ms'); t3 := STRING_TO_TIME('nonsense');",
+    );
+    assert!(boolean(&rt, "a"));
+    assert!(!boolean(&rt, "b"));
+    assert!(boolean(&rt, "c"));
+    assert!(boolean(&rt, "d"));
+    assert_eq!(uint(&rt, "w"), 0x0000);
+    assert!(boolean(&rt, "x"));
+    assert_eq!(int(&rt, "m"), 2);
+    assert_eq!(time_ms(&rt, "t1"), 62_500.0);
+    assert_eq!(time_ms(&rt, "t2"), 250.0);
+    assert_eq!(time_ms(&rt, "t3"), 0.0);
+}
+
+#[test]
+fn var_temp_between_other_blocks_restarts_alone() {
+    let src = "FUNCTION_BLOCK B
+          VAR_TEMP t1 : INT := 5; END_VAR
+          VAR keep : INT; END_VAR
+          VAR_TEMP t2 : INT := 7; END_VAR
+          t1 := t1 + 1; t2 := t2 + 1; keep := keep + t1 + t2;
+        END_FUNCTION_BLOCK
+        PROGRAM P VAR b : B; END_VAR b(); b(); END_PROGRAM";
+    let mut rt = plc(src);
+    rt.scan(ms(0)).unwrap();
+    // Each call: t1 = 6, t2 = 8; keep accumulates across calls.
+    assert_eq!(int(&rt, "b.keep"), 28);
+}
+
+#[test]
+fn remaining_standard_functions_and_operators() {
+    let rt = eval(
+        "x : LREAL := 0.5; a : DINT; b : DINT; c : DINT; m : INT := 9; d : LREAL; e : LREAL; f : LREAL; g : LREAL; h : LREAL;
+         p : BOOL; q : BOOL; r : LREAL; s : REAL := -2.5; t : DINT; u : INT; v : LREAL := 3.0;",
+        "a := SUB(10, 3); b := DIV(7, 2); c := MOVE(m);
+         d := COS(x); e := TAN(x); f := ASIN(x); g := ACOS(x); h := ATAN(x);
+         p := TRUE & FALSE; q := NOT (1 > 2) & TRUE; r := v ** 2.0 - -v; t := TRUNC(s); u := REAL_TRUNC_INT(s);",
+    );
+    assert_eq!(int(&rt, "a"), 7);
+    assert_eq!(int(&rt, "b"), 3);
+    assert_eq!(int(&rt, "c"), 9);
+    assert_eq!(real(&rt, "d"), 0.5f64.cos());
+    assert_eq!(real(&rt, "e"), 0.5f64.tan());
+    assert_eq!(real(&rt, "f"), 0.5f64.asin());
+    assert_eq!(real(&rt, "g"), 0.5f64.acos());
+    assert_eq!(real(&rt, "h"), 0.5f64.atan());
+    assert!(!boolean(&rt, "p"));
+    assert!(boolean(&rt, "q"));
+    // 3 ** 2 - (-3) = 12
+    assert_eq!(real(&rt, "r"), 12.0);
+    // TRUNC goes toward zero.
+    assert_eq!(int(&rt, "t"), -2);
+    assert_eq!(int(&rt, "u"), -2);
 }

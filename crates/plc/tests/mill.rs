@@ -379,3 +379,27 @@ fn lubrication_pulse_lasts_5s_with_pressure() {
     assert!(!m.out(LUBE_PUMP));
     assert!(!m.sig(Signal::MachineFault));
 }
+
+#[test]
+fn a_tripped_limit_is_a_fault_until_clear_and_reset() {
+    let mut m = Mill::new();
+    m.power_up();
+    m.rt.set_signal(Signal::LimitMax, 0b100 as f64); // joint 2 (Z) positive limit
+    m.step();
+    assert!(m.sig(Signal::MachineFault));
+    assert_eq!(m.num(Signal::MachineFaultCode), 5.0);
+    assert!(m.sig(Signal::FeedHoldRequest));
+    // A reset while the limit is still tripped does not clear the fault.
+    m.set(Signal::EstopReset, true);
+    m.step();
+    assert!(m.sig(Signal::MachineFault));
+    m.set(Signal::EstopReset, false);
+    m.step();
+    m.rt.set_signal(Signal::LimitMax, 0.0);
+    m.step();
+    assert!(m.sig(Signal::MachineFault));
+    m.set(Signal::EstopReset, true);
+    m.step();
+    assert!(!m.sig(Signal::MachineFault));
+    assert_eq!(m.num(Signal::MachineFaultCode), 0.0);
+}

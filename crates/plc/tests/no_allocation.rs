@@ -66,7 +66,9 @@ fn mill_scans_signals_and_forces_allocate_nothing() {
     rt.configure(&cfg).unwrap();
     let door = rt.resolve("door_closed").unwrap();
     rt.input_image_mut()[0] = 0b0000_1101;
+    let mut snapshot = rt.retain_snapshot();
     let n = allocations(|| {
+        rt.update_retain_snapshot(&mut snapshot);
         rt.force(&door, &Value::Bool(true)).unwrap();
         rt.set_signal_bool(Signal::EstopReset, true);
         rt.set_signal_bool(Signal::MachineOnRequest, true);

@@ -292,3 +292,91 @@ fn warm_restart_keeps_retain_cold_restart_does_not() {
     rt.restart(Restart::Cold);
     assert_eq!(get(&rt, "count"), Value::UInt(0));
 }
+
+#[test]
+fn variables_are_listed_for_browsing() {
+    let p = compile(RETAIN_SRC, "r.st").unwrap();
+    let vars = p.variables();
+    let paths: Vec<&str> = vars.iter().map(|v| v.path.as_str()).collect();
+    assert_eq!(
+        paths,
+        [
+            "HOURS",
+            "P.COUNT",
+            "P.NAME",
+            "P.TOOLS[1]",
+            "P.TOOLS[2]",
+            "P.TOOLS[3]",
+            "P.LAST",
+            "P.SCRATCH"
+        ]
+    );
+    assert_eq!(vars[2].type_name, "STRING[16]");
+    assert!(vars[3].retain && !vars[7].retain);
+    let rt = Runtime::new(Arc::new(p));
+    for v in &vars {
+        assert!(rt.read_name(&v.path).is_ok(), "{}", v.path);
+    }
+}
+
+#[test]
+fn retain_snapshot_is_taken_in_the_plc_task_and_written_elsewhere() {
+    let dir = std::env::temp_dir().join(format!("rtcnc-plc-retain3-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("retain.txt");
+    let program = Arc::new(compile(RETAIN_SRC, "r.st").unwrap());
+    let mut rt = Runtime::new(program.clone());
+    let mut snap = rt.retain_snapshot();
+    for k in 0..5 {
+        rt.scan(ms(k)).unwrap();
+    }
+    rt.update_retain_snapshot(&mut snap);
+    rt.scan(ms(5)).unwrap();
+    // The snapshot holds count = 5, taken before the sixth scan.
+    let writer = std::thread::spawn(move || snap.save(&path).map(|_| path));
+    let path = writer.join().unwrap().unwrap();
+    let mut fresh = Runtime::new(program);
+    fresh.load_retain(&path).unwrap();
+    assert_eq!(get(&fresh, "count"), Value::UInt(5));
+    assert_eq!(get(&fresh, "hours"), Value::Real(2.5));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn event_task_runs_on_each_rising_edge_of_its_trigger() {
+    let src = "
+        PROGRAM OnEvent VAR n : INT; END_VAR n := n + 1; END_PROGRAM
+        PROGRAM Cyclic VAR n : INT; END_VAR n := n + 1; END_PROGRAM
+        CONFIGURATION C
+          VAR_GLOBAL go : BOOL; END_VAR
+          RESOURCE R ON PLC
+            TASK Ev (SINGLE := go, PRIORITY := 0);
+            TASK Cy (INTERVAL := T#1ms, PRIORITY := 2);
+            PROGRAM e WITH Ev : OnEvent;
+            PROGRAM c WITH Cy : Cyclic;
+          END_RESOURCE
+        END_CONFIGURATION";
+    let program = compile(src, "ev.st").unwrap();
+    assert_eq!(program.tasks()[0].trigger.as_deref(), Some("GO"));
+    assert_eq!(program.tasks()[0].interval, None);
+    let mut rt = Runtime::new(Arc::new(program));
+    let go = rt.resolve("go").unwrap();
+    // go: F T T F T F F T -> rising edges on scans 2, 5 and 8.
+    for (k, v) in [false, true, true, false, true, false, false, true]
+        .into_iter()
+        .enumerate()
+    {
+        rt.write(&go, &Value::Bool(v)).unwrap();
+        rt.scan(ms(k as u64)).unwrap();
+    }
+    assert_eq!(int(&rt, "e.n"), 3);
+    assert_eq!(int(&rt, "c.n"), 8);
+    // A task is cyclic or event-driven, not both; the trigger must be a BOOL global.
+    let both = src.replace(
+        "(SINGLE := go, PRIORITY := 0)",
+        "(SINGLE := go, INTERVAL := T#1ms)",
+    );
+    assert!(compile(&both, "ev.st").is_err());
+    let not_bool = src.replace("go : BOOL;", "go : INT;");
+    assert!(compile(&not_bool, "ev.st").is_err());
+}

@@ -22,6 +22,9 @@ enum PlcCommand {
     Check {
         /// The Structured Text source.
         file: PathBuf,
+        /// Also list every variable that `run --watch` / `--set` can name.
+        #[arg(long)]
+        vars: bool,
     },
     /// Run FILE.st in virtual time and print the watched variables after every scan.
     Run {
@@ -46,7 +49,7 @@ enum PlcCommand {
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     match args.command {
-        PlcCommand::Check { file } => check(&file),
+        PlcCommand::Check { file, vars } => check(&file, vars),
         PlcCommand::Run {
             file,
             scans,
@@ -71,7 +74,7 @@ fn load(file: &Path) -> anyhow::Result<Result<rtcnc_plc::Program, ExitCode>> {
     }
 }
 
-fn check(file: &Path) -> anyhow::Result<ExitCode> {
+fn check(file: &Path, vars: bool) -> anyhow::Result<ExitCode> {
     let program = match load(file)? {
         Ok(p) => p,
         Err(code) => return Ok(code),
@@ -96,6 +99,13 @@ fn check(file: &Path) -> anyhow::Result<ExitCode> {
             t.priority,
             t.programs.join(", ")
         );
+    }
+    if vars {
+        for v in program.variables() {
+            let at = v.location.map(|a| format!(" AT {a}")).unwrap_or_default();
+            let retain = if v.retain { " RETAIN" } else { "" };
+            println!("{}{at} : {}{retain}", v.path, v.type_name);
+        }
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -2,6 +2,10 @@
 
 use super::*;
 
+/// Bound call arguments: whether they may be written straight into the parameters, the
+/// inputs and the `=>` outputs.
+type BoundArgs = (bool, Box<[ArgIn]>, Box<[ArgOut]>);
+
 impl<'a> Compiler<'a> {
     // ---------------------------------------------------------------- calls
 
@@ -16,6 +20,23 @@ impl<'a> Compiler<'a> {
             let te = self.call_expr(&target.root, args, sc, pos, None)?;
             return Ok(StmtKind::Eval(te.e));
         }
+        // `instance.method(...)` as a statement.
+        if let Some(ast::Part::Field(m)) = target.parts.last() {
+            let prefix = Access {
+                root: target.root.clone(),
+                parts: target.parts[..target.parts.len() - 1].to_vec(),
+            };
+            let is_method = match self.access(&prefix, sc) {
+                Ok(lv) => {
+                    matches!(lv.ty, Type::Fb(id) if self.fbs[id as usize].methods.iter().any(|x| x.0 == m.text))
+                }
+                Err(_) => false,
+            };
+            if is_method {
+                let te = self.method_call(&prefix, m, args, sc, pos)?;
+                return Ok(StmtKind::Eval(te.e));
+            }
+        }
         let lv = self.access(target, sc)?;
         let Type::Fb(id) = lv.ty else {
             return Err(self.e(
@@ -26,7 +47,7 @@ impl<'a> Compiler<'a> {
         };
         let fb_name = self.fbs[id as usize].name.clone();
         let members = self.fbs[id as usize].members.clone();
-        let (direct, ins, outs) = self.bind_args(&fb_name, &members, args, sc, pos, true)?;
+        let (direct, ins, outs) = self.bind_args(&fb_name, &members, args, sc, pos)?;
         let kind = match self.fbs[id as usize].std {
             Some(s) => FbKind::Std(s),
             None => FbKind::User(self.fbs[id as usize].body),
@@ -42,7 +63,6 @@ impl<'a> Compiler<'a> {
     }
 
     /// Matches formal and informal arguments to parameters.
-    #[allow(clippy::type_complexity)]
     pub(super) fn bind_args(
         &mut self,
         pou: &str,
@@ -50,8 +70,7 @@ impl<'a> Compiler<'a> {
         args: &[Arg],
         sc: &mut Scope,
         pos: Pos,
-        is_fb: bool,
-    ) -> R<(bool, Box<[ArgIn]>, Box<[ArgOut]>)> {
+    ) -> R<BoundArgs> {
         let positional: Vec<&Member> = params
             .iter()
             .filter(|m| matches!(m.kind, VarKind::Input | VarKind::InOut))
@@ -189,7 +208,6 @@ impl<'a> Compiler<'a> {
                 ));
             }
         }
-        let _ = is_fb;
         Ok((!calls_user, ins.into_boxed_slice(), outs.into_boxed_slice()))
     }
 
@@ -260,11 +278,11 @@ impl<'a> Compiler<'a> {
         expect: Option<&Type>,
     ) -> R<TE> {
         if let Some(id) = self.func_id(name)? {
-            let (fname, params, ret, result) = {
+            let (fname, params, ret) = {
                 let f = &self.funcs[id as usize];
-                (f.name.clone(), f.params.clone(), f.ret.clone(), f.result)
+                (f.name.clone(), f.params.clone(), f.ret.clone())
             };
-            let (direct, ins, outs) = self.bind_args(&fname, &params, args, sc, pos, false)?;
+            let (direct, ins, outs) = self.bind_args(&fname, &params, args, sc, pos)?;
             sc.calls.push(id);
             let call = vm::Expr::Call(Box::new(FnCall {
                 func: id,
@@ -272,7 +290,6 @@ impl<'a> Compiler<'a> {
                 args: ins,
                 outs,
             }));
-            let _ = result;
             return Ok(match ret {
                 Some(t) => TE {
                     ty: Ty::T(t),
@@ -298,7 +315,88 @@ impl<'a> Compiler<'a> {
                 ),
             ));
         }
+        // A method of the function block this body belongs to, called without instance.
+        if let Some(fb) = sc.fb {
+            if let Some(&(_, fid, _)) = self.fbs[fb as usize]
+                .methods
+                .iter()
+                .find(|x| x.0 == name.text)
+            {
+                return self.method_call_on(Place::Rel(0), fb, fid, name, args, sc, pos);
+            }
+        }
         crate::builtins::call(self, name, args, sc, pos, expect)
+    }
+
+    /// `prefix.method(args)`: prefix must be an instance of a function block with that
+    /// method (PRIVATE methods only from inside the block).
+    pub(super) fn method_call(
+        &mut self,
+        prefix: &Access,
+        m: &Name,
+        args: &[Arg],
+        sc: &mut Scope,
+        pos: Pos,
+    ) -> R<TE> {
+        let lv = self.access(prefix, sc)?;
+        let Type::Fb(fb) = lv.ty else {
+            return Err(self.e(
+                m.pos,
+                ErrorKind::TypeMismatch,
+                format!("'{}' is not a function block instance", prefix.root.text),
+            ));
+        };
+        let Some(&(_, fid, private)) = self.fbs[fb as usize].methods.iter().find(|x| x.0 == m.text)
+        else {
+            return Err(self.e(
+                m.pos,
+                ErrorKind::Undeclared,
+                format!("{} has no method '{}'", self.fbs[fb as usize].name, m.text),
+            ));
+        };
+        if private && sc.fb != Some(fb) {
+            return Err(self.e(
+                m.pos,
+                ErrorKind::Invalid,
+                format!(
+                    "method '{}' is PRIVATE to {}",
+                    m.text, self.fbs[fb as usize].name
+                ),
+            ));
+        }
+        let instance = self.place(lv);
+        self.method_call_on(instance, fb, fid, m, args, sc, pos)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn method_call_on(
+        &mut self,
+        instance: Place,
+        fb: u32,
+        fid: u32,
+        m: &Name,
+        args: &[Arg],
+        sc: &mut Scope,
+        pos: Pos,
+    ) -> R<TE> {
+        let (params, ret) = {
+            let f = &self.funcs[fid as usize];
+            (f.params.clone(), f.ret.clone())
+        };
+        let shown = format!("{}.{}", self.fbs[fb as usize].name, m.text);
+        let (direct, ins, outs) = self.bind_args(&shown, &params, args, sc, pos)?;
+        sc.calls.push(fid);
+        let call = FnCall {
+            func: fid,
+            direct,
+            args: ins,
+            outs,
+        };
+        let e = vm::Expr::CallMethod(Box::new(vm::MethodCall { instance, call }));
+        Ok(TE {
+            ty: Ty::T(ret.unwrap_or(Type::BOOL)),
+            e,
+        })
     }
 
     // Hooks for the builtins module.

@@ -38,6 +38,8 @@ impl<'a> Compiler<'a> {
             pou: 0,
             loops: 0,
             calls: Vec::new(),
+            fb: None,
+            for_vars: Vec::new(),
         };
         let r = self.type_spec(&decl.spec, Some(&decl.name.text), &scope);
         self.resolving.remove(&n.text);
@@ -223,7 +225,8 @@ impl<'a> Compiler<'a> {
             Type::Elem(_) => vec![0],
             Type::String(n) => vec![0; string_slots(*n) as usize],
             Type::Enum(id) => vec![self.enums[*id as usize].values[0].1 as u64],
-            Type::Subrange(_, l, h) => vec![if *l <= 0 && 0 <= *h { 0 } else { *l as u64 }],
+            // IEC: a subrange starts at its lower limit unless initialised.
+            Type::Subrange(_, l, _) => vec![*l as u64],
             Type::Array(a) => {
                 let e = self.template(&a.elem);
                 e.repeat(a.len() as usize)
@@ -395,6 +398,7 @@ impl<'a> Compiler<'a> {
                 template,
                 std: Some(s),
                 body: 0,
+                methods: Vec::new(),
             });
             self.fb_by_name.insert(n.text.clone(), Lookup::Found(id));
             return Ok(Some(id));
@@ -436,8 +440,16 @@ impl<'a> Compiler<'a> {
             pou: 0,
             loops: 0,
             calls: Vec::new(),
+            fb: None,
+            for_vars: Vec::new(),
         };
-        for b in &pou.vars {
+        // VAR_TEMP members go last, so the slots re-initialised per call are contiguous.
+        let ordered = pou
+            .vars
+            .iter()
+            .filter(|b| b.kind != VarKind::Temp)
+            .chain(pou.vars.iter().filter(|b| b.kind == VarKind::Temp));
+        for b in ordered {
             if matches!(b.kind, VarKind::Global) {
                 return Err(self.e(
                     pou.name.pos,
@@ -507,6 +519,7 @@ impl<'a> Compiler<'a> {
             template,
             std: None,
             body,
+            methods: Vec::new(),
         })
     }
 
@@ -529,27 +542,43 @@ impl<'a> Compiler<'a> {
         }
         let pou = self.fn_asts[&n.text];
         self.fn_by_name.insert(n.text.clone(), Lookup::Busy);
+        let id = self.callable(&pou.name, &pou.ret, &pou.vars, &pou.name.text)?;
+        self.fn_by_name.insert(n.text.clone(), Lookup::Found(id));
+        Ok(id)
+    }
+
+    /// Lays out a function or method: a static frame with the result, parameters and
+    /// locals (functions and methods cannot recurse, so one frame each is enough).
+    pub(super) fn callable(
+        &mut self,
+        name: &Name,
+        ret_spec: &Option<TypeSpec>,
+        vars: &[ast::VarBlock],
+        shown: &str,
+    ) -> R<u32> {
         let scope = Scope {
             vars: HashMap::new(),
             kind: PouKind::Function,
             pou: 0,
             loops: 0,
             calls: Vec::new(),
+            fb: None,
+            for_vars: Vec::new(),
         };
-        let ret = match &pou.ret {
+        let ret = match ret_spec {
             Some(TypeSpec::Named(t)) if t.text == "VOID" => None,
             Some(spec) => Some(self.type_spec(spec, None, &scope)?.0),
             None => None,
         };
         if let Some(Type::Fb(_)) = ret {
             return Err(self.e(
-                pou.name.pos,
+                name.pos,
                 ErrorKind::Invalid,
                 "a function cannot return a function block",
             ));
         }
         let start = self.image.len() as u32;
-        let result = self.alloc(ret.as_ref().map_or(1, |t| size_of(self, t)), pou.name.pos)?;
+        let result = self.alloc(ret.as_ref().map_or(1, |t| size_of(self, t)), name.pos)?;
         if let Some(t) = &ret {
             let tpl = self.template(t);
             self.image[result as usize..result as usize + tpl.len()].copy_from_slice(&tpl);
@@ -558,7 +587,7 @@ impl<'a> Compiler<'a> {
         let mut params: Vec<Member> = Vec::new();
         if let Some(t) = &ret {
             locals.insert(
-                pou.name.text.clone(),
+                name.text.clone(),
                 VarInfo {
                     ty: t.clone(),
                     loc: Loc::Abs(result),
@@ -569,10 +598,10 @@ impl<'a> Compiler<'a> {
                 },
             );
         }
-        for b in &pou.vars {
+        for b in vars {
             if matches!(b.kind, VarKind::Global) {
                 return Err(self.e(
-                    pou.name.pos,
+                    name.pos,
                     ErrorKind::Invalid,
                     "VAR_GLOBAL is not allowed inside a function",
                 ));
@@ -642,10 +671,10 @@ impl<'a> Compiler<'a> {
             }
         }
         let end = self.image.len() as u32;
-        let pou_id = self.new_pou_name(&pou.name.text);
+        let pou_id = self.new_pou_name(shown);
         let id = self.funcs.len() as u32;
         self.funcs.push(FuncInfo {
-            name: pou.name.text.clone(),
+            name: name.text.clone(),
             pou: pou_id,
             ret,
             result,
@@ -655,7 +684,6 @@ impl<'a> Compiler<'a> {
         });
         self.fn_calls.push(Vec::new());
         self.code_fns.push(None);
-        self.fn_by_name.insert(n.text.clone(), Lookup::Found(id));
         Ok(id)
     }
 
@@ -804,6 +832,8 @@ impl<'a> Compiler<'a> {
             pou: pou_id,
             loops: 0,
             calls: Vec::new(),
+            fb: None,
+            for_vars: Vec::new(),
         };
         let mut syms = Vec::new();
         for b in &pou.vars {
@@ -847,10 +877,9 @@ impl<'a> Compiler<'a> {
         })
     }
 
-    pub(super) fn fb_body(&mut self, n: &Name) -> R<()> {
-        let id = self.fb_type(n)?;
-        let pou = self.fb_asts[&n.text];
-        let pou_id = self.new_pou_name(&pou.name.text);
+    /// The scope of a function block's body and methods: its members (relative to the
+    /// instance) and its VAR_EXTERNALs.
+    fn fb_scope(&mut self, id: u32, pou: &ast::Pou, pou_id: u32) -> R<Scope> {
         let members = self.fbs[id as usize].members.clone();
         let mut scope = Scope {
             vars: HashMap::new(),
@@ -858,6 +887,8 @@ impl<'a> Compiler<'a> {
             pou: pou_id,
             loops: 0,
             calls: Vec::new(),
+            fb: Some(id),
+            for_vars: Vec::new(),
         };
         for m in &members {
             let loc = if m.kind == VarKind::InOut {
@@ -891,6 +922,8 @@ impl<'a> Compiler<'a> {
             pou: 0,
             loops: 0,
             calls: Vec::new(),
+            fb: None,
+            for_vars: Vec::new(),
         };
         for b in pou.vars.iter().filter(|b| b.kind == VarKind::External) {
             for d in &b.decls {
@@ -900,6 +933,88 @@ impl<'a> Compiler<'a> {
                 }
             }
         }
+        Ok(scope)
+    }
+
+    /// Lays out the METHODs of a function block (after its members are known).
+    pub(super) fn declare_methods(&mut self, n: &Name) -> R<()> {
+        let id = self.fb_type(n)?;
+        let pou = self.fb_asts[&n.text];
+        for m in &pou.methods {
+            let clash = self.fbs[id as usize]
+                .methods
+                .iter()
+                .any(|(x, _, _)| x == &m.name.text)
+                || self.fbs[id as usize]
+                    .members
+                    .iter()
+                    .any(|x| x.name == m.name.text);
+            if clash {
+                return Err(self.e(
+                    m.name.pos,
+                    ErrorKind::Duplicate,
+                    format!("'{}' is already declared in {}", m.name.text, n.text),
+                ));
+            }
+            let spelled = |t: &str| {
+                self.spelling
+                    .get(t)
+                    .cloned()
+                    .unwrap_or_else(|| t.to_string())
+            };
+            let shown = format!("{}.{}", spelled(&n.text), spelled(&m.name.text));
+            let f = self.callable(&m.name, &m.ret, &m.vars, &shown)?;
+            self.fbs[id as usize]
+                .methods
+                .push((m.name.text.clone(), f, m.private));
+            self.method_asts.insert(f, (id, m));
+            self.method_names.insert(m.name.text.clone());
+        }
+        Ok(())
+    }
+
+    /// Compiles a METHOD: the function block's members relative to the instance, the
+    /// method's own variables in its static frame.
+    pub(super) fn method_body(&mut self, fid: u32) -> R<()> {
+        let (fb, m) = self.method_asts[&fid];
+        let fb_name = self.fbs[fb as usize].name.clone();
+        let pou = self.fb_asts[&fb_name];
+        let (locals, pou_id, frame, result, aggregate) = {
+            let f = &self.funcs[fid as usize];
+            (
+                f.locals.clone(),
+                f.pou,
+                f.frame,
+                f.result,
+                f.ret.as_ref().is_some_and(|t| t.scalar().is_none()),
+            )
+        };
+        let mut scope = self.fb_scope(fb, pou, pou_id)?;
+        scope.kind = PouKind::Function;
+        scope.vars.extend(locals);
+        let stmts = self.block(&m.body, &mut scope)?;
+        self.fn_calls[fid as usize] = std::mem::take(&mut scope.calls);
+        let values = self.image[frame.0 as usize..(frame.0 + frame.1) as usize]
+            .to_vec()
+            .into_boxed_slice();
+        self.code_fns[fid as usize] = Some(vm::Function {
+            body: vm::Body {
+                pou: pou_id,
+                reinit: Some((frame.0, values)),
+                stmts,
+            },
+            result,
+            aggregate,
+        });
+        Ok(())
+    }
+
+    pub(super) fn fb_body(&mut self, n: &Name) -> R<()> {
+        let id = self.fb_type(n)?;
+        let pou = self.fb_asts[&n.text];
+        let pou_id = self.new_pou_name(&pou.name.text);
+        let members = self.fbs[id as usize].members.clone();
+        let mut scope = self.fb_scope(id, pou, pou_id)?;
         let stmts = self.block(&pou.body, &mut scope)?;
         // VAR_TEMP members are re-initialised on every call.
         let temps: Vec<&Member> = members.iter().filter(|m| m.kind == VarKind::Temp).collect();
@@ -945,6 +1060,8 @@ impl<'a> Compiler<'a> {
             pou: pou_id,
             loops: 0,
             calls: Vec::new(),
+            fb: None,
+            for_vars: Vec::new(),
         };
         let stmts = self.block(&pou.body, &mut scope)?;
         self.fn_calls[id as usize] = std::mem::take(&mut scope.calls);

@@ -416,12 +416,35 @@ impl<'a> Compiler<'a> {
                 let rt = self.expr(r, sc, hint.as_ref())?;
                 self.binary(*op, lt, rt, *pos)
             }
-            AExpr::Call(name, args, pos) => {
-                let te = self.call_expr(name, args, sc, *pos, expect)?;
-                if let (Ty::T(Type::Elem(Elem::Bool)), vm::Expr::Call(call)) = (&te.ty, &te.e) {
+            AExpr::MethodCall(target, args, pos) => {
+                let (prefix, m) = &**target;
+                let te = self.method_call(prefix, m, args, sc, *pos)?;
+                if let vm::Expr::CallMethod(mc) = &te.e {
                     if self
                         .funcs
-                        .get(call.func as usize)
+                        .get(mc.call.func as usize)
+                        .is_some_and(|f| f.ret.is_none())
+                    {
+                        return Err(self.e(
+                            *pos,
+                            ErrorKind::TypeMismatch,
+                            format!("method '{}' returns no value", m.text),
+                        ));
+                    }
+                }
+                Ok(te)
+            }
+            AExpr::Call(name, args, pos) => {
+                let te = self.call_expr(name, args, sc, *pos, expect)?;
+                let called = match &te.e {
+                    vm::Expr::Call(call) => Some(call.func),
+                    vm::Expr::CallMethod(mc) => Some(mc.call.func),
+                    _ => None,
+                };
+                if let (Ty::T(Type::Elem(Elem::Bool)), Some(func)) = (&te.ty, called) {
+                    if self
+                        .funcs
+                        .get(func as usize)
                         .is_some_and(|f| f.ret.is_none())
                     {
                         return Err(self.e(

@@ -80,6 +80,8 @@ struct FbInfo {
     template: Vec<u64>,
     std: Option<StdFb>,
     body: u32,
+    /// METHODs: name, function id, private.
+    methods: Vec<(String, u32, bool)>,
 }
 
 struct FuncInfo {
@@ -97,8 +99,12 @@ pub(crate) struct Scope {
     kind: PouKind,
     pou: u32,
     loops: u32,
-    /// Functions called from this body (recursion check).
+    /// Functions and methods called from this body (recursion check).
     calls: Vec<u32>,
+    /// The function block whose body or method this is: its methods can be called bare.
+    fb: Option<u32>,
+    /// Control variables of the FOR loops being compiled: the body may not assign them.
+    for_vars: Vec<String>,
 }
 
 enum Lookup<T> {
@@ -126,6 +132,9 @@ pub(crate) struct Compiler<'a> {
     funcs: Vec<FuncInfo>,
     fn_by_name: HashMap<String, Lookup<u32>>,
     fn_calls: Vec<Vec<u32>>,
+    /// Method function id -> its function block and declaration.
+    method_asts: HashMap<u32, (u32, &'a ast::Method)>,
+    method_names: HashSet<String>,
     globals: HashMap<String, VarInfo>,
     global_syms: Vec<Symbol>,
     located: Vec<Located>,
@@ -170,8 +179,11 @@ const MAX_SLOTS: u64 = 16 << 20;
 
 pub(crate) fn compile(src: &str, file: &str) -> Result<Program, CompileErrors> {
     let toks = crate::lexer::tokenize(src, file)?;
-    let unit = crate::parser::parse(&toks, file)?;
     let spelling = spellings(src, &toks);
+    let unit = crate::parser::parse(&toks, file).map_err(|mut e| {
+        e.message = respell(&spelling, &e.message);
+        e
+    })?;
     let mut c = Compiler {
         spelling,
         file,
@@ -190,6 +202,8 @@ pub(crate) fn compile(src: &str, file: &str) -> Result<Program, CompileErrors> {
         funcs: Vec::new(),
         fn_by_name: HashMap::new(),
         fn_calls: Vec::new(),
+        method_asts: HashMap::new(),
+        method_names: HashSet::new(),
         globals: HashMap::new(),
         global_syms: Vec::new(),
         located: Vec::new(),
@@ -221,20 +235,7 @@ impl<'a> Compiler<'a> {
 
     /// Shows quoted names in messages as the source spells them.
     fn respell(&self, msg: &str) -> String {
-        let mut out = String::with_capacity(msg.len());
-        let mut parts = msg.split('\'');
-        if let Some(first) = parts.next() {
-            out.push_str(first);
-        }
-        for (i, part) in parts.enumerate() {
-            out.push('\'');
-            if i % 2 == 0 {
-                out.push_str(self.spelling.get(part).map_or(part, String::as_str));
-            } else {
-                out.push_str(part);
-            }
-        }
-        out
+        respell(&self.spelling, msg)
     }
 
     fn alloc(&mut self, n: u32, pos: Pos) -> R<u32> {
@@ -332,6 +333,11 @@ impl<'a> Compiler<'a> {
                 self.errors.push(e);
             }
         }
+        for n in &fb_names {
+            if let Err(e) = self.declare_methods(n) {
+                self.errors.push(e);
+            }
+        }
         let fn_names: Vec<Name> = u
             .pous
             .iter()
@@ -355,6 +361,8 @@ impl<'a> Compiler<'a> {
                 pou: 0,
                 loops: 0,
                 calls: Vec::new(),
+                fb: None,
+                for_vars: Vec::new(),
             };
             for d in &b.decls {
                 if let Err(e) = self.declare_global(b, d, &scope) {
@@ -368,6 +376,12 @@ impl<'a> Compiler<'a> {
         // Bodies of function blocks and functions.
         for n in &fb_names {
             if let Err(e) = self.fb_body(n) {
+                self.errors.push(e);
+            }
+        }
+        let methods: Vec<u32> = self.method_asts.keys().copied().collect();
+        for id in methods {
+            if let Err(e) = self.method_body(id) {
                 self.errors.push(e);
             }
         }
@@ -419,13 +433,20 @@ impl<'a> Compiler<'a> {
                         }
                         None => None,
                     };
-                    if let Some(s) = &t.single {
-                        return Err(self.e(
-                            s.pos(),
-                            ErrorKind::Invalid,
-                            "event tasks (SINGLE) are not supported; use INTERVAL",
-                        ));
-                    }
+                    let (trigger, trigger_slot) = match &t.single {
+                        Some(s) => {
+                            if interval.is_some() {
+                                return Err(self.e(
+                                    s.pos(),
+                                    ErrorKind::Invalid,
+                                    "a task has either INTERVAL (cyclic) or SINGLE (event), not both",
+                                ));
+                            }
+                            let (name, slot) = self.trigger_variable(s)?;
+                            (Some(name), Some(slot))
+                        }
+                        None => (None, None),
+                    };
                     let priority = match &t.priority {
                         Some(e) => {
                             let v = self.const_int(e)?;
@@ -439,6 +460,8 @@ impl<'a> Compiler<'a> {
                         name: t.name.text.clone(),
                         interval,
                         priority,
+                        trigger,
+                        trigger_slot,
                         programs: Vec::new(),
                         program_ids: Vec::new(),
                     });
@@ -498,6 +521,8 @@ impl<'a> Compiler<'a> {
                 name: "DEFAULT".into(),
                 interval: None,
                 priority: u32::MAX,
+                trigger: None,
+                trigger_slot: None,
                 programs: default_task
                     .iter()
                     .map(|i| instances[*i].name.clone())
@@ -514,16 +539,26 @@ impl<'a> Compiler<'a> {
             let a = area_index(l.at.area);
             sizes[a] = sizes[a].max(l.at.byte_offset() + l.at.byte_len());
         }
+        // Every body compiled when no error was reported; a missing one is reported, never
+        // run.
+        let missing = || {
+            err(
+                self.file,
+                Pos::default(),
+                ErrorKind::Invalid,
+                "a POU body failed to compile",
+            )
+        };
         let functions = self
             .code_fns
             .drain(..)
-            .map(|f| f.expect("every function body compiled"))
-            .collect();
+            .collect::<Option<Vec<_>>>()
+            .ok_or_else(missing)?;
         let fbs = self
             .code_fbs
             .drain(..)
-            .map(|f| f.expect("every function block body compiled"))
-            .collect();
+            .collect::<Option<Vec<_>>>()
+            .ok_or_else(missing)?;
         Ok(Program {
             file: self.file.to_string(),
             code: Code { functions, fbs },
@@ -559,6 +594,41 @@ impl<'a> Compiler<'a> {
         })
     }
 
+    /// The BOOL global (or `%IX`/`%QX`/`%MX` address) named by a task's SINGLE.
+    fn trigger_variable(&mut self, e: &AExpr) -> R<(String, u32)> {
+        let name = match e {
+            AExpr::Var(a) if a.parts.is_empty() => a.root.text.clone(),
+            AExpr::Direct(d, pos) => {
+                self.direct_var(d, *pos)?;
+                d.to_string()
+            }
+            _ => {
+                return Err(self.e(
+                    e.pos(),
+                    ErrorKind::Invalid,
+                    "SINGLE needs a BOOL global variable",
+                ));
+            }
+        };
+        match self.globals.get(&name) {
+            Some(VarInfo {
+                ty,
+                loc: Loc::Abs(slot),
+                ..
+            }) if ty.is_bool() => Ok((name, *slot)),
+            Some(_) => Err(self.e(
+                e.pos(),
+                ErrorKind::TypeMismatch,
+                "SINGLE needs a BOOL global variable",
+            )),
+            None => Err(self.e(
+                e.pos(),
+                ErrorKind::Undeclared,
+                format!("no global '{name}'"),
+            )),
+        }
+    }
+
     fn check_recursion(&self, names: &[Name]) -> R<()> {
         // Depth-first search for a cycle in the static call graph.
         fn visit(g: &[Vec<u32>], n: u32, state: &mut [u8]) -> bool {
@@ -580,10 +650,13 @@ impl<'a> Compiler<'a> {
         for i in 0..self.fn_calls.len() {
             if visit(&self.fn_calls, i as u32, &mut state) {
                 let name = &self.funcs[i].name;
-                let pos = names
-                    .iter()
-                    .find(|n| &n.text == name)
-                    .map_or(Pos::default(), |n| n.pos);
+                let pos = match self.method_asts.get(&(i as u32)) {
+                    Some((_, m)) => m.name.pos,
+                    None => names
+                        .iter()
+                        .find(|n| &n.text == name)
+                        .map_or(Pos::default(), |n| n.pos),
+                };
                 return Err(self.e(
                     pos,
                     ErrorKind::Invalid,
@@ -603,6 +676,8 @@ impl<'a> Compiler<'a> {
             pou: scope.pou,
             loops: 0,
             calls: Vec::new(),
+            fb: None,
+            for_vars: Vec::new(),
         };
         let te = self.expr(e, &mut sc, None)?;
         match (&te.ty, &te.e) {
@@ -648,6 +723,8 @@ impl<'a> Compiler<'a> {
             pou: 0,
             loops: 0,
             calls: Vec::new(),
+            fb: None,
+            for_vars: Vec::new(),
         };
         self.const_int_in(e, &scope)
     }
@@ -659,6 +736,8 @@ impl<'a> Compiler<'a> {
             pou: 0,
             loops: 0,
             calls: Vec::new(),
+            fb: None,
+            for_vars: Vec::new(),
         };
         let te = self.const_value(e, &scope)?;
         match (&te.ty, &te.e) {
@@ -670,6 +749,23 @@ impl<'a> Compiler<'a> {
             )),
         }
     }
+}
+
+/// Replaces every quoted upper-case name in `msg` by its spelling in the source.
+fn respell(spelling: &HashMap<String, String>, msg: &str) -> String {
+    let mut out = String::with_capacity(msg.len());
+    for (i, part) in msg.split('\'').enumerate() {
+        if i > 0 {
+            out.push('\'');
+        }
+        let quoted = i % 2 == 1;
+        out.push_str(if quoted {
+            spelling.get(part).map_or(part, String::as_str)
+        } else {
+            part
+        });
+    }
+    out
 }
 
 /// First spelling of every identifier (identifiers are ASCII, so the upper-case text has
@@ -700,8 +796,11 @@ fn t_root(t: &Option<Access>) -> Pos {
 
 fn contains_user_call(e: &AExpr, c: &Compiler) -> bool {
     match e {
+        // Methods use static frames like functions.
+        AExpr::MethodCall(..) => true,
         AExpr::Call(n, args, _) => {
             c.fn_asts.contains_key(&n.text)
+                || c.method_names.contains(&n.text)
                 || args.iter().any(|a| match a {
                     Arg::Positional(e) | Arg::Input(_, e) => contains_user_call(e, c),
                     Arg::Output(..) => false,

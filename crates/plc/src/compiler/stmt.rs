@@ -65,6 +65,7 @@ impl<'a> Compiler<'a> {
                     || sel_ty.scalar().is_some_and(|e| ik(e).signed());
                 let selector = self.coerce(te, &sel_ty, sel.pos())?;
                 let mut out = Vec::new();
+                let mut seen: Vec<(i64, i64)> = Vec::new();
                 for arm in arms {
                     let mut ranges = Vec::new();
                     for (lo, hi) in &arm.labels {
@@ -76,8 +77,25 @@ impl<'a> Compiler<'a> {
                         if h < l {
                             return Err(self.e(lo.pos(), ErrorKind::Invalid, "empty CASE range"));
                         }
+                        let clash = seen
+                            .iter()
+                            .chain(ranges.iter())
+                            .find(|(a, b)| l <= *b && *a <= h);
+                        if let Some((a, b)) = clash {
+                            let shown = if a == b {
+                                a.to_string()
+                            } else {
+                                format!("{a}..{b}")
+                            };
+                            return Err(self.e(
+                                lo.pos(),
+                                ErrorKind::Invalid,
+                                format!("CASE label overlaps the earlier label {shown}"),
+                            ));
+                        }
                         ranges.push((l, h));
                     }
+                    seen.extend(ranges.iter().copied());
                     out.push(CaseArm {
                         ranges: ranges.into_boxed_slice(),
                         body: self.block(&arm.body, sc)?,
@@ -105,6 +123,16 @@ impl<'a> Compiler<'a> {
                     root: var.clone(),
                     parts: Vec::new(),
                 };
+                if sc.for_vars.contains(&var.text) {
+                    return Err(self.e(
+                        var.pos,
+                        ErrorKind::Invalid,
+                        format!(
+                            "'{}' is already the control variable of an enclosing FOR loop",
+                            var.text
+                        ),
+                    ));
+                }
                 let lv = self.access(&a, sc)?;
                 self.check_writable(&lv, var.pos)?;
                 let Some(e) = lv.ty.elem().filter(|e| e.is_int()) else {
@@ -127,7 +155,9 @@ impl<'a> Compiler<'a> {
                     None => vm::Expr::Const(1),
                 };
                 sc.loops += 1;
+                sc.for_vars.push(var.text.clone());
                 let body = self.block(body, sc);
+                sc.for_vars.pop();
                 sc.loops -= 1;
                 let var_place = self.place(lv);
                 (
@@ -202,6 +232,16 @@ impl<'a> Compiler<'a> {
         sc: &mut Scope,
         pos: Pos,
     ) -> R<StmtKind> {
+        if target.parts.is_empty() && sc.for_vars.contains(&target.root.text) {
+            return Err(self.e(
+                target.root.pos,
+                ErrorKind::Invalid,
+                format!(
+                    "'{}' is the control variable of an enclosing FOR loop",
+                    target.root.text
+                ),
+            ));
+        }
         let lv = self.access(target, sc)?;
         self.check_writable(&lv, target.root.pos)?;
         if let Type::Fb(_) = lv.ty {

@@ -1,0 +1,483 @@
+//! A running instance of a compiled program: memory, I/O images, scans and faults;
+//! `monitor` (variables by name, forcing), `signals` (the machine interface) and `retain`
+//! (retained variables) add to it.
+
+mod monitor;
+mod retain;
+mod signals;
+
+use retain::retain_leaves;
+pub use retain::{RetainReport, RetainSnapshot};
+
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Duration;
+
+use crate::error::{Fault, FaultKind};
+use crate::lexer::{AddrSize, Area, Tok};
+use crate::program::{Program, Symbol};
+use crate::signals::{ConfigError, Direction, PlcConfig, Signal, SignalKind};
+use crate::types::{Elem, Type, string_slots};
+use crate::value::{Value, ValueError};
+use crate::vm::{Flow, Vm};
+
+/// Runtime settings.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RuntimeOptions {
+    /// Statements plus loop iterations one scan may execute before the watchdog stops
+    /// the PLC. Counting work instead of time makes the watchdog deterministic. The
+    /// default, 200 000, is a few milliseconds of work at ~15 ns per statement.
+    pub watchdog_budget: u64,
+    /// Most variables that can be forced at once (the force table is preallocated).
+    pub max_forces: usize,
+}
+
+impl Default for RuntimeOptions {
+    fn default() -> Self {
+        RuntimeOptions {
+            watchdog_budget: 1_000_000,
+            max_forces: 64,
+        }
+    }
+}
+
+/// Restart kinds of IEC 61131-3.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Restart {
+    /// All variables take their initial values.
+    Cold,
+    /// RETAIN variables keep their values, all others take their initial values.
+    Warm,
+}
+
+/// Errors of on-line access by name.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum MonitorError {
+    /// No such variable.
+    #[error("no variable '{0}'")]
+    Unknown(String),
+    /// The name is not a variable path.
+    #[error("'{0}' is not a variable path (name, name.member, name[index])")]
+    BadPath(String),
+    /// The variable is not elementary (array, structure, instance).
+    #[error("'{0}' is not an elementary variable")]
+    NotScalar(String),
+    /// The value does not fit.
+    #[error("{name}: {error}")]
+    Value {
+        /// Variable.
+        name: String,
+        /// Why.
+        error: ValueError,
+    },
+    /// The force table is full.
+    #[error("cannot force more than {0} variables")]
+    ForceTableFull(usize),
+    /// A short name matches variables in several program instances.
+    #[error("'{0}' is ambiguous; prefix it with the program instance name")]
+    Ambiguous(String),
+}
+
+impl MonitorError {
+    /// Stable code.
+    pub fn code(&self) -> &'static str {
+        match self {
+            MonitorError::Unknown(_) => "unknown-variable",
+            MonitorError::BadPath(_) => "bad-path",
+            MonitorError::NotScalar(_) => "not-scalar",
+            MonitorError::Value { .. } => "bad-value",
+            MonitorError::ForceTableFull(_) => "force-table-full",
+            MonitorError::Ambiguous(_) => "ambiguous",
+        }
+    }
+}
+
+/// A resolved variable: address and type, for repeated access without name look-ups.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VarRef {
+    slot: u32,
+    ty: Type,
+    bit: Option<u8>,
+    /// Written by the PLC's input image, a VAR_INPUT of the program, etc.: informative.
+    located_input: bool,
+}
+
+impl VarRef {
+    /// The slot index in PLC memory.
+    pub fn slot(&self) -> u32 {
+        self.slot
+    }
+    /// The variable's type.
+    pub fn ty(&self) -> &Type {
+        &self.ty
+    }
+    /// True for a variable located in the input image: the next scan overwrites what
+    /// [`Runtime::write`] put there, so commissioning forces it instead.
+    pub fn is_located_input(&self) -> bool {
+        self.located_input
+    }
+    /// The elementary type of a scalar variable (BOOL for a bit access).
+    pub fn elem(&self) -> Option<Elem> {
+        if self.bit.is_some() {
+            Some(Elem::Bool)
+        } else {
+            self.ty.scalar()
+        }
+    }
+}
+
+/// A retained variable, as saved to and restored from the retain file.
+#[derive(Debug, Clone)]
+struct RetainLeaf {
+    path: String,
+    slot: u32,
+    ty: Type,
+}
+
+/// One instance of a program: what the kernel's PLC task owns and calls every period.
+#[derive(Debug)]
+pub struct Runtime {
+    program: Arc<Program>,
+    vm: Vm,
+    images: [Vec<u8>; 3],
+    safe_outputs: Vec<u8>,
+    forces: Vec<(u32, u64)>,
+    options: RuntimeOptions,
+    fault: Option<Fault>,
+    scans: u64,
+    next_due: Vec<Option<i64>>,
+    /// Trigger values seen on the previous scan (event tasks).
+    trigger_prev: Vec<bool>,
+    signals: Vec<Option<(u32, Elem)>>,
+    safe_slots: Vec<(u32, u64)>,
+    retain: Arc<[RetainLeaf]>,
+}
+
+impl std::fmt::Debug for Vm {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Vm")
+            .field("slots", &self.mem.len())
+            .finish()
+    }
+}
+
+impl Runtime {
+    /// Creates an instance with default options: memory at its initial values.
+    pub fn new(program: Arc<Program>) -> Runtime {
+        Runtime::with_options(program, RuntimeOptions::default())
+    }
+
+    /// Creates an instance; all memory is allocated here, none during scans.
+    pub fn with_options(program: Arc<Program>, options: RuntimeOptions) -> Runtime {
+        let sizes = program.image_sizes;
+        let retain: Arc<[RetainLeaf]> = retain_leaves(&program).into();
+        let n_tasks = program.tasks.len();
+        Runtime {
+            vm: Vm {
+                mem: program.init.clone(),
+                frame: 0,
+                now: 0,
+                budget: 0,
+                fault: None,
+                fault_at: None,
+                pou: 0,
+            },
+            images: [vec![0; sizes[0]], vec![0; sizes[1]], vec![0; sizes[2]]],
+            safe_outputs: vec![0; sizes[1]],
+            forces: Vec::with_capacity(options.max_forces),
+            options,
+            fault: None,
+            scans: 0,
+            next_due: vec![None; n_tasks],
+            trigger_prev: vec![false; n_tasks],
+            signals: vec![None; Signal::ALL.len()],
+            safe_slots: Vec::new(),
+            retain,
+            program,
+        }
+    }
+
+    /// The program this instance runs.
+    pub fn program(&self) -> &Arc<Program> {
+        &self.program
+    }
+
+    /// Number of scans run since the start or the last restart.
+    pub fn scan_count(&self) -> u64 {
+        self.scans
+    }
+
+    /// The fault that stopped the PLC, if any.
+    pub fn fault(&self) -> Option<&Fault> {
+        self.fault.as_ref()
+    }
+
+    /// Restarts after a fault or on request. Forces and the signal mapping stay.
+    pub fn restart(&mut self, kind: Restart) {
+        let mut kept: Vec<(u32, Vec<u64>)> = Vec::new();
+        if kind == Restart::Warm {
+            for l in self.retain.iter() {
+                let n = slots_of(&l.ty) as usize;
+                let s = l.slot as usize;
+                kept.push((l.slot, self.vm.mem[s..s + n].to_vec()));
+            }
+        }
+        self.vm.mem.copy_from_slice(&self.program.init);
+        for (slot, vals) in kept {
+            let s = slot as usize;
+            self.vm.mem[s..s + vals.len()].copy_from_slice(&vals);
+        }
+        self.fault = None;
+        self.vm.fault = None;
+        self.vm.fault_at = None;
+        self.scans = 0;
+        self.next_due.iter_mut().for_each(|d| *d = None);
+        self.trigger_prev.iter_mut().for_each(|p| *p = false);
+    }
+
+    /// The input image (`%I`), written by the caller before a scan.
+    pub fn input_image_mut(&mut self) -> &mut [u8] {
+        &mut self.images[0]
+    }
+    /// The output image (`%Q`), valid after a scan (the safe image after a fault).
+    pub fn output_image(&self) -> &[u8] {
+        &self.images[1]
+    }
+    /// The marker image (`%M`).
+    pub fn marker_image(&self) -> &[u8] {
+        &self.images[2]
+    }
+
+    /// Runs one scan at PLC time `now` (time since the PLC started, from the caller's clock
+    /// — virtual or real): reads the input image, runs every task that is due (tasks
+    /// without INTERVAL run every scan, in priority order), writes the output image.
+    /// After a fault the PLC stays stopped (outputs safe) until [`Runtime::restart`].
+    pub fn scan(&mut self, now: Duration) -> Result<(), Fault> {
+        let now_ns = duration_ns(now);
+        self.begin(now_ns)?;
+        for t in 0..self.program.tasks.len() {
+            let task = &self.program.tasks[t];
+            let due = match (task.trigger_slot, task.interval, self.next_due[t]) {
+                (Some(slot), _, _) => {
+                    let now_set = self.vm.mem.get(slot as usize).is_some_and(|v| v & 1 != 0);
+                    let rising = now_set && !self.trigger_prev[t];
+                    self.trigger_prev[t] = now_set;
+                    rising
+                }
+                (None, None, _) => true,
+                (None, Some(_), None) => true,
+                (None, Some(_), Some(d)) => now_ns >= d,
+            };
+            if due {
+                if let Some(iv) = self.program.tasks[t].interval {
+                    let iv = duration_ns(iv);
+                    let mut next = self.next_due[t].unwrap_or(now_ns).saturating_add(iv);
+                    if next <= now_ns {
+                        // Overrun: skip the missed activations rather than run them in a burst.
+                        next = now_ns.saturating_add(iv);
+                    }
+                    self.next_due[t] = Some(next);
+                }
+                self.run_task_programs(t)?;
+            }
+        }
+        self.end();
+        Ok(())
+    }
+
+    /// Runs one activation of task `task` (index into [`Program::tasks`]) at time `now`,
+    /// with its own input and output image transfer: for a kernel that puts each task of
+    /// the CONFIGURATION on its own executive slot.
+    pub fn run_task(&mut self, task: usize, now: Duration) -> Result<(), Fault> {
+        self.begin(duration_ns(now))?;
+        if task < self.program.tasks.len() {
+            self.run_task_programs(task)?;
+        }
+        self.end();
+        Ok(())
+    }
+
+    fn begin(&mut self, now: i64) -> Result<(), Fault> {
+        if let Some(f) = &self.fault {
+            return Err(f.clone());
+        }
+        self.scans += 1;
+        self.vm.now = now;
+        self.vm.budget = self.options.watchdog_budget.max(2);
+        let program = &self.program;
+        for l in program.located.iter() {
+            if l.at.area == Area::Output {
+                continue;
+            }
+            let img = &self.images[crate::program::area_index(l.at.area)];
+            let v = read_image(img, l.at.size, l.at.byte_offset(), l.at.bit, l.elem);
+            if let Some(s) = self.vm.mem.get_mut(l.slot as usize) {
+                *s = v;
+            }
+        }
+        self.apply_forces();
+        Ok(())
+    }
+
+    fn run_task_programs(&mut self, t: usize) -> Result<(), Fault> {
+        let program = Arc::clone(&self.program);
+        for &i in &program.tasks[t].program_ids {
+            let inst = &program.instances[i];
+            let flow = self.vm.run_program(&program.code, inst.pou, &inst.body);
+            if flow == Flow::Fault || self.vm.fault.is_some() {
+                return Err(self.stop());
+            }
+        }
+        Ok(())
+    }
+
+    fn end(&mut self) {
+        self.apply_forces();
+        let program = &self.program;
+        for l in program.located.iter() {
+            if l.at.area == Area::Input {
+                continue;
+            }
+            let v = self.vm.mem.get(l.slot as usize).copied().unwrap_or(0);
+            let img = &mut self.images[crate::program::area_index(l.at.area)];
+            write_image(img, l.at.size, l.at.byte_offset(), l.at.bit, l.elem, v);
+        }
+    }
+
+    fn apply_forces(&mut self) {
+        for &(slot, v) in &self.forces {
+            if let Some(s) = self.vm.mem.get_mut(slot as usize) {
+                *s = v;
+            }
+        }
+    }
+
+    /// Stops the PLC: outputs and signals from the PLC go to their safe values.
+    #[cold]
+    fn stop(&mut self) -> Fault {
+        let kind = match self.vm.fault {
+            Some(FaultKind::WatchdogExceeded { .. }) | None => FaultKind::WatchdogExceeded {
+                budget: self.options.watchdog_budget,
+            },
+            Some(k) => k,
+        };
+        let (pou, line) = self.vm.fault_at.unwrap_or((0, 0));
+        let name = self
+            .program
+            .pou_names
+            .get(pou as usize)
+            .cloned()
+            .unwrap_or_else(|| Arc::from("?"));
+        let fault = Fault {
+            kind,
+            pou: name,
+            line,
+            scan: self.scans,
+        };
+        self.images[1].copy_from_slice(&self.safe_outputs);
+        for &(slot, v) in &self.safe_slots {
+            if let Some(s) = self.vm.mem.get_mut(slot as usize) {
+                *s = v;
+            }
+        }
+        self.fault = Some(fault.clone());
+        fault
+    }
+}
+
+/// Decodes the value of type `ty` stored at `slot`.
+fn value_at(mem: &[u64], slot: usize, ty: &Type) -> Value {
+    match ty {
+        Type::String(_) => {
+            let mut buf = [0u8; crate::types::MAX_STRING_LEN as usize + 1];
+            let n = crate::strings::read(mem, slot, &mut buf);
+            Value::String(String::from_utf8_lossy(&buf[..n]).into_owned())
+        }
+        t => Value::from_slot(
+            t.scalar().unwrap_or(Elem::LWord),
+            mem.get(slot).copied().unwrap_or(0),
+        ),
+    }
+}
+
+fn duration_ns(d: Duration) -> i64 {
+    i64::try_from(d.as_nanos()).unwrap_or(i64::MAX)
+}
+
+fn encode_f64(e: Elem, v: f64) -> u64 {
+    match e {
+        Elem::Bool => (v != 0.0) as u64,
+        Elem::Real => ((v as f32) as f64).to_bits(),
+        Elem::LReal => v.to_bits(),
+        Elem::Time => (v * 1e6).round() as i64 as u64,
+        e => {
+            let k = e.int_kind().unwrap_or(crate::types::IntKind::I64);
+            let (lo, hi) = k.range();
+            let x = v.round().clamp(lo as f64, hi as f64);
+            k.wrap(if k.signed() {
+                x as i64 as u64
+            } else {
+                x as u64
+            })
+        }
+    }
+}
+
+fn decode_f64(e: Elem, v: u64) -> f64 {
+    match e {
+        Elem::Bool => (v & 1) as f64,
+        Elem::Real | Elem::LReal => f64::from_bits(v),
+        Elem::Time => v as i64 as f64 / 1e6,
+        e if e.int_kind().is_some_and(|k| k.signed()) => v as i64 as f64,
+        _ => v as f64,
+    }
+}
+
+fn read_image(img: &[u8], size: AddrSize, off: usize, bit: u8, e: Elem) -> u64 {
+    let mut b = [0u8; 8];
+    let n = match size {
+        AddrSize::Bit => return img.get(off).map_or(0, |x| ((x >> bit) & 1) as u64),
+        AddrSize::Byte => 1,
+        AddrSize::Word => 2,
+        AddrSize::Double => 4,
+        AddrSize::Long => 8,
+    };
+    if let Some(src) = img.get(off..off + n) {
+        b[..n].copy_from_slice(src);
+    }
+    let raw = u64::from_le_bytes(b);
+    match e {
+        Elem::Real => (f32::from_bits(raw as u32) as f64).to_bits(),
+        e => e.int_kind().map_or(raw, |k| k.wrap(raw)),
+    }
+}
+
+fn write_image(img: &mut [u8], size: AddrSize, off: usize, bit: u8, e: Elem, v: u64) {
+    let n = match size {
+        AddrSize::Bit => {
+            if let Some(x) = img.get_mut(off) {
+                *x = (*x & !(1 << bit)) | (((v & 1) as u8) << bit);
+            }
+            return;
+        }
+        AddrSize::Byte => 1,
+        AddrSize::Word => 2,
+        AddrSize::Double => 4,
+        AddrSize::Long => 8,
+    };
+    let raw = if e == Elem::Real {
+        (f64::from_bits(v) as f32).to_bits() as u64
+    } else {
+        v
+    };
+    if let Some(dst) = img.get_mut(off..off + n) {
+        dst.copy_from_slice(&raw.to_le_bytes()[..n]);
+    }
+}
+
+fn slots_of(t: &Type) -> u32 {
+    match t {
+        Type::String(n) => string_slots(*n),
+        _ => 1,
+    }
+}

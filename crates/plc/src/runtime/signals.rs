@@ -1,0 +1,111 @@
+//! The machine interface: mapping signals onto variables, safe values, signal access.
+
+use super::*;
+
+impl Runtime {
+    /// Applies a machine configuration: maps signals onto variables and sets safe values.
+    pub fn configure(&mut self, cfg: &PlcConfig) -> Result<(), ConfigError> {
+        let mut signals = vec![None; Signal::ALL.len()];
+        let mut safe_slots: Vec<(u32, u64)> = Vec::new();
+        for (sname, var) in &cfg.signals {
+            let sig = Signal::from_name(sname)
+                .ok_or_else(|| ConfigError::UnknownSignal(sname.clone()))?;
+            let r = self.resolve(var).map_err(|error| ConfigError::Variable {
+                signal: sname.clone(),
+                error,
+            })?;
+            let e = r.elem().filter(|_| r.bit.is_none());
+            let ok = match (sig.kind(), e) {
+                (SignalKind::Bool, Some(Elem::Bool)) => true,
+                (SignalKind::Number, Some(e)) => e.is_num(),
+                (SignalKind::Integer, Some(e)) => e.is_int() || e.is_bit(),
+                (SignalKind::Mask, Some(e)) => {
+                    e.is_bit() || (e.is_int() && !e.int_kind().is_some_and(|k| k.signed()))
+                }
+                _ => false,
+            };
+            let Some(e) = e.filter(|_| ok) else {
+                return Err(ConfigError::Type {
+                    signal: sname.clone(),
+                    kind: sig.kind(),
+                    variable: var.clone(),
+                    ty: self.program.type_name(&r.ty),
+                });
+            };
+            signals[sig as usize] = Some((r.slot, e));
+            if sig.direction() == Direction::FromPlc {
+                safe_slots.push((r.slot, encode_f64(e, sig.safe_value())));
+            }
+        }
+        let mut safe_outputs = vec![0u8; self.images[1].len()];
+        for (var, text) in &cfg.safe_values {
+            let bad = |message: String| ConfigError::SafeValue {
+                variable: var.clone(),
+                message,
+            };
+            let r = self.resolve(var).map_err(|e| bad(e.to_string()))?;
+            let value = self.parse_value(&r, text).map_err(|e| bad(e.to_string()))?;
+            let v = self.encode(&r, &value).map_err(|e| bad(e.to_string()))?;
+            let located = self
+                .program
+                .located
+                .iter()
+                .find(|l| l.slot == r.slot && l.at.area == Area::Output);
+            if let Some(l) = located {
+                write_image(
+                    &mut safe_outputs,
+                    l.at.size,
+                    l.at.byte_offset(),
+                    l.at.bit,
+                    l.elem,
+                    v,
+                );
+            } else if let Some(s) = safe_slots.iter_mut().find(|(s, _)| *s == r.slot) {
+                s.1 = v;
+            } else {
+                return Err(bad(
+                    "is neither a %Q variable nor mapped to a signal from the PLC".into(),
+                ));
+            }
+        }
+        self.signals = signals;
+        self.safe_slots = safe_slots;
+        self.safe_outputs = safe_outputs;
+        Ok(())
+    }
+
+    /// True if the signal is mapped to a variable.
+    pub fn has_signal(&self, s: Signal) -> bool {
+        self.signals.get(s as usize).is_some_and(|x| x.is_some())
+    }
+
+    /// Sets a signal to the PLC (ignored when unmapped or not `ToPlc`). Numbers are
+    /// converted to the variable's type (rounded for integers).
+    pub fn set_signal(&mut self, s: Signal, value: f64) {
+        if s.direction() != Direction::ToPlc {
+            return;
+        }
+        if let Some(Some((slot, e))) = self.signals.get(s as usize).copied() {
+            if let Some(m) = self.vm.mem.get_mut(slot as usize) {
+                *m = encode_f64(e, value);
+            }
+        }
+    }
+
+    /// Sets a BOOL signal to the PLC.
+    pub fn set_signal_bool(&mut self, s: Signal, value: bool) {
+        self.set_signal(s, if value { 1.0 } else { 0.0 });
+    }
+
+    /// Reads a signal (either direction) as a number (BOOL as 0/1); `None` when unmapped.
+    pub fn signal(&self, s: Signal) -> Option<f64> {
+        let (slot, e) = self.signals.get(s as usize).copied().flatten()?;
+        let v = self.vm.mem.get(slot as usize).copied().unwrap_or(0);
+        Some(decode_f64(e, v))
+    }
+
+    /// Reads a BOOL signal; unmapped signals read as their safe value.
+    pub fn signal_bool(&self, s: Signal) -> bool {
+        self.signal(s).unwrap_or(s.safe_value()) != 0.0
+    }
+}
