@@ -39,13 +39,15 @@ fn a_one_second_run_reports_statistics_a_plot_and_a_trace() {
         .find(|l| l.starts_with("latency (us): samples "))
         .expect("summary line");
     let samples: u64 = line.split_whitespace().nth(3).unwrap().parse().unwrap();
-    assert!(samples > 0, "{line}");
     assert!(stdout.contains("histogram"), "{stdout}");
 
     let plot = std::fs::read_to_string(&svg).unwrap();
     assert!(plot.starts_with("<svg") && plot.trim_end().ends_with("</svg>"));
 
-    // One complete event per measured period in the trace.
+    assert_eq!(samples, 1000, "1 s at 1 ms: {line}");
+
+    // A complete event per period in the trace (the thread may run a period or two more
+    // while it is being stopped).
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&trace).unwrap()).unwrap();
     let spans = json["traceEvents"]
@@ -54,7 +56,7 @@ fn a_one_second_run_reports_statistics_a_plot_and_a_trace() {
         .iter()
         .filter(|e| e["ph"] == "X" && e["name"] == "measure")
         .count() as u64;
-    assert_eq!(spans, samples);
+    assert!(spans >= samples, "{spans} spans for {samples} samples");
     std::fs::remove_dir_all(&dir).ok();
 }
 

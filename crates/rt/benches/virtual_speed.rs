@@ -44,7 +44,7 @@ fn virtual_speed(c: &mut Criterion) {
         )
     });
     let mut sim = VirtualRunner::new(task_set());
-    let simulated = Duration::from_secs(20);
+    let simulated = Duration::from_secs(100);
     let t0 = Instant::now();
     sim.run_for(simulated).unwrap();
     let wall = t0.elapsed();

@@ -42,6 +42,18 @@ pub enum ConfigError {
         /// The task.
         task: String,
     },
+    /// A deadline of zero.
+    #[error("task '{task}': deadline must be greater than zero")]
+    ZeroDeadline {
+        /// The task.
+        task: String,
+    },
+    /// A deadline given to a background task.
+    #[error("task '{task}': background tasks have no deadline")]
+    DeadlineOnBackground {
+        /// The task.
+        task: String,
+    },
     /// A periodic thread without tasks.
     #[error("thread '{thread}' has no tasks")]
     EmptyThread {
@@ -82,6 +94,8 @@ impl ConfigError {
             ConfigError::EmptyName { .. } => "empty_name",
             ConfigError::ZeroRuns { .. } => "zero_runs",
             ConfigError::EmptyThread { .. } => "empty_thread",
+            ConfigError::ZeroDeadline { .. } => "zero_deadline",
+            ConfigError::DeadlineOnBackground { .. } => "deadline_on_background",
             ConfigError::UnknownThread { .. } => "unknown_thread",
             ConfigError::ZeroCapacity { .. } => "zero_capacity",
             ConfigError::InitialAboveMax { .. } => "initial_above_max",

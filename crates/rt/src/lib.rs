@@ -54,8 +54,8 @@ mod virtual_time;
 
 pub use error::ConfigError;
 pub use ipc::{
-    BinarySemaphore, CountingSemaphore, EventSemaphore, IpcError, Mailbox, PiMutex, PiMutexGuard,
-    Rejected, RingConsumer, RingProducer, Trigger, ring,
+    BinarySemaphore, CountingSemaphore, EventSemaphore, IpcError, LatestReader, LatestWriter,
+    Mailbox, PiMutex, PiMutexGuard, Rejected, RingConsumer, RingProducer, Trigger, latest, ring,
 };
 pub use monitor::{
     Fault, FaultCode, FaultRecord, MissReaction, Monitor, TaskKind, TaskMonitor, TaskState,

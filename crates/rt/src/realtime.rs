@@ -13,19 +13,19 @@ use std::time::Duration;
 
 use thiserror::Error;
 
-use crate::ipc::{Trigger, WaitResult};
-use crate::monitor::{Fault, FaultCode, MissReaction, Monitor, TaskState};
+use crate::ipc::{EventSemaphore, Trigger, WaitResult};
+use crate::monitor::{FaultCode, MissReaction, Monitor, TaskState};
 use crate::sys::{
-    SchedOutcome, lock_all_memory, monotonic_ns, os_priority, prefault_stack,
-    set_current_thread_affinity, set_current_thread_fifo, set_in_task_body, sleep_until_monotonic,
-    warn_once,
+    SchedOutcome, hold_cpu_dma_latency, lock_all_memory, may_lock_all_memory, monotonic_ns,
+    os_priority, prefault_stack, set_current_thread_affinity, set_current_thread_fifo,
+    set_in_task_body, sleep_until_monotonic, warn_once,
 };
 use crate::task::{
     Body, ClockSource, Context, DeclKind, Next, Recording, TaskControl, TaskSet, TaskSpec, Wake,
 };
 use crate::time::{Time, duration_ns};
 use crate::trace::{EventKind, Lane, TraceEvent};
-use crate::virtual_time::{next_release, react_to_miss};
+use crate::virtual_time::{next_release, periodic_miss, reactive_miss, record_miss};
 
 static WARNED_NO_FIFO: AtomicBool = AtomicBool::new(false);
 static WARNED_NO_MLOCK: AtomicBool = AtomicBool::new(false);
@@ -51,7 +51,14 @@ pub struct RealTimeConfig {
     pub lock_memory: bool,
     /// CPUs the executive's threads may run on (`None`: any).
     pub cpus: Option<Vec<usize>>,
-    /// Time between `start` and the first release, for the threads to set up.
+    /// CPUs for single threads, by name (a periodic thread, an event task, or
+    /// "background"); these override `cpus` for that thread.
+    pub thread_cpus: Vec<(String, Vec<usize>)>,
+    /// Keep CPUs out of idle states whose exit latency exceeds this many microseconds while
+    /// the executive runs (PM QoS via /dev/cpu_dma_latency, as cyclictest does; skipped
+    /// silently without permission). `None` leaves power management alone.
+    pub cpu_dma_latency_us: Option<u32>,
+    /// Time between the moment every thread is set up and the first release.
     pub start_delay: Duration,
 }
 
@@ -61,7 +68,9 @@ impl Default for RealTimeConfig {
             scheduling: SchedulingMode::BestEffort,
             lock_memory: true,
             cpus: None,
-            start_delay: Duration::from_millis(20),
+            thread_cpus: Vec::new(),
+            cpu_dma_latency_us: Some(0),
+            start_delay: Duration::from_millis(5),
         }
     }
 }
@@ -101,7 +110,10 @@ pub struct RealTimeRunner;
 #[derive(Clone)]
 struct Shared {
     stop: Arc<AtomicBool>,
+    /// Monotonic time of release zero; known once every thread is set up (see `await_start`).
     epoch: u64,
+    epoch_cell: Arc<AtomicU64>,
+    go: EventSemaphore,
     monitor: Arc<Monitor>,
     lanes: Vec<Arc<Lane>>,
     warn_pending: Arc<AtomicU64>,
@@ -133,10 +145,28 @@ impl Shared {
     }
 }
 
+/// Reports the thread ready, then waits until every thread is: the epoch is fixed only then,
+/// so a slow thread start cannot make another thread miss the first releases. False when
+/// the runner is being stopped instead.
+fn await_start(shared: &mut Shared, ready: mpsc::Sender<bool>, fifo: bool) -> bool {
+    let _ = ready.send(fifo);
+    drop(ready);
+    if !shared.go.wait_set_or_stop(&shared.stop) || shared.stop.load(Ordering::Acquire) {
+        return false;
+    }
+    shared.epoch = shared.epoch_cell.load(Ordering::Acquire);
+    true
+}
+
 /// Per-thread set-up: scheduling, affinity, pre-faulted stack. Reports whether SCHED_FIFO
 /// was granted.
-fn setup_thread(priority: Option<i32>, config: &RealTimeConfig) -> bool {
-    if let Some(cpus) = &config.cpus {
+fn setup_thread(name: &str, priority: Option<i32>, config: &RealTimeConfig) -> bool {
+    let own = config
+        .thread_cpus
+        .iter()
+        .find(|(n, _)| n == name)
+        .map(|(_, cpus)| cpus);
+    if let Some(cpus) = own.or(config.cpus.as_ref()) {
         set_current_thread_affinity(cpus);
     }
     prefault_stack(64 * 1024);
@@ -190,17 +220,20 @@ fn run_body(
     next
 }
 
+#[allow(clippy::too_many_arguments)]
 fn periodic_thread(
-    shared: Shared,
+    mut shared: Shared,
+    name: String,
     mut tasks: Vec<(usize, TaskSpec)>,
     period: u64,
     ready: mpsc::Sender<bool>,
     priority: i32,
     config: RealTimeConfig,
 ) {
-    let fifo = setup_thread(Some(priority), &config);
-    let _ = ready.send(fifo);
-    drop(ready);
+    let fifo = setup_thread(&name, Some(priority), &config);
+    if !await_start(&mut shared, ready, fifo) {
+        return;
+    }
     let mut release = 0u64;
     loop {
         sleep_until_monotonic(shared.epoch.saturating_add(release));
@@ -209,7 +242,6 @@ fn periodic_thread(
             break;
         }
         let activation = release / period.max(1);
-        let deadline = release + period;
         let mut missed: Option<usize> = None;
         let mut first = true;
         for (task, spec) in tasks.iter_mut() {
@@ -222,6 +254,7 @@ fn periodic_thread(
                 DeclKind::Periodic { runs, .. } => runs,
                 _ => 1,
             };
+            let mut task_missed = false;
             for run in 0..runs {
                 let start = if first { wake } else { shared.now() };
                 first = false;
@@ -244,9 +277,16 @@ fn periodic_thread(
                     );
                 }
                 shared.span(spec, task, start, end);
-                if end > deadline && missed.is_none() {
-                    missed = Some(task);
-                    raise_miss(&shared, spec, task, end, end - deadline);
+                if let Some(late) = periodic_miss(
+                    release,
+                    period,
+                    spec.deadline_ns,
+                    end,
+                    task,
+                    &mut task_missed,
+                    &mut missed,
+                ) {
+                    raise_miss(&shared, spec, task, end, late);
                 }
             }
             shared.state(task, TaskState::Waiting);
@@ -262,28 +302,18 @@ fn periodic_thread(
 }
 
 fn raise_miss(shared: &Shared, spec: &TaskSpec, task: usize, now: u64, late: u64) {
-    let fault = Fault {
-        time: Time::from_nanos(now),
+    record_miss(
+        &shared.monitor,
+        shared.lane(spec.lane),
+        spec,
         task,
-        code: FaultCode::DeadlineMiss,
-        detail: late,
-        message: "",
-    };
-    shared.monitor.push_fault(fault);
-    if let Some(m) = shared.monitor.task_at(task) {
-        m.record_miss(0);
-    }
-    shared.lane(spec.lane).push(TraceEvent {
-        time: now,
-        kind: EventKind::Fault,
-        task: task as u32,
-        label: FaultCode::DeadlineMiss.as_str(),
-        arg: late,
-    });
+        now,
+        late,
+        false,
+    );
     if matches!(spec.reaction, MissReaction::Warn) {
         shared.warn_pending.fetch_add(1, Ordering::Release);
     }
-    react_to_miss(&spec.reaction, &fault, String::new, false);
 }
 
 /// What a reactive (event or background) task waits for next.
@@ -332,21 +362,22 @@ fn sleep_until_or_stop(shared: &Shared, t: u64) -> bool {
 }
 
 fn event_thread(
-    shared: Shared,
+    mut shared: Shared,
     task: usize,
     mut spec: TaskSpec,
     ready: mpsc::Sender<bool>,
     config: RealTimeConfig,
 ) {
-    let fifo = setup_thread(Some(spec.priority), &config);
-    let _ = ready.send(fifo);
-    drop(ready);
+    let fifo = setup_thread(&spec.name, Some(spec.priority), &config);
     let trigger = match &spec.kind {
         DeclKind::Event { trigger } => trigger.clone(),
         _ => return,
     };
     // Armed before the first release, so edges from the first cycles are seen.
     let mut own_token = trigger.source.arm();
+    if !await_start(&mut shared, ready, fifo) {
+        return;
+    }
     sleep_until_monotonic(shared.epoch);
     let mut waiting = Waiting::OwnTrigger;
     let mut activation = 0u64;
@@ -414,19 +445,25 @@ fn event_thread(
             m.record_run(None, end.saturating_sub(start));
         }
         shared.span(&spec, task, start, end);
+        // The thread's wake-up is the start of the run here (the moment the trigger fired is
+        // not known without a time stamp in every IPC call).
+        if let Some(late) = reactive_miss(start, spec.deadline_ns, end) {
+            raise_miss(&shared, &spec, task, end, late);
+        }
         waiting = after_body(next, end, true);
     }
 }
 
 fn background_thread(
-    shared: Shared,
+    mut shared: Shared,
     mut tasks: Vec<(usize, TaskSpec)>,
     ready: mpsc::Sender<bool>,
     config: RealTimeConfig,
 ) {
-    setup_thread(None, &config);
-    let _ = ready.send(true);
-    drop(ready);
+    setup_thread("background", None, &config);
+    if !await_start(&mut shared, ready, true) {
+        return;
+    }
     sleep_until_monotonic(shared.epoch);
     let mut states: Vec<Waiting> = tasks
         .iter()
@@ -505,16 +542,22 @@ pub struct RealTimeHandle {
     recording: Option<Recording>,
     controls: Vec<(String, TaskControl)>,
     fifo: bool,
+    /// Open while the run lasts: the PM QoS latency request.
+    _pm_qos: Option<std::fs::File>,
 }
 
 impl RealTimeRunner {
     /// Starts every thread of `set`; the first release is `config.start_delay` from now.
     pub fn start(set: TaskSet, config: RealTimeConfig) -> Result<RealTimeHandle, RtStartError> {
-        if config.lock_memory && !lock_all_memory() {
-            warn_once(
-                &WARNED_NO_MLOCK,
-                "mlockall failed (needs root or a memlock limit); memory is not locked, page faults may delay cycles",
-            );
+        if config.lock_memory {
+            // With a finite RLIMIT_MEMLOCK, MCL_FUTURE would make later allocations (thread
+            // stacks, buffers) fail once the limit is reached: lock only without a limit.
+            if !may_lock_all_memory() || !lock_all_memory() {
+                warn_once(
+                    &WARNED_NO_MLOCK,
+                    "memory is not locked (needs CAP_IPC_LOCK or an unlimited memlock limit); page faults may delay cycles",
+                );
+            }
         }
         let TaskSet {
             threads,
@@ -537,7 +580,9 @@ impl RealTimeRunner {
             .collect();
         let shared = Shared {
             stop: Arc::new(AtomicBool::new(false)),
-            epoch: monotonic_ns() + duration_ns(config.start_delay),
+            epoch: 0,
+            epoch_cell: Arc::new(AtomicU64::new(0)),
+            go: EventSemaphore::new("executive start"),
             monitor: Arc::clone(&recording.monitor),
             lanes: recording.lanes.clone(),
             warn_pending: Arc::new(AtomicU64::new(0)),
@@ -568,9 +613,10 @@ impl RealTimeRunner {
                 th.period_ns,
                 th.priority,
             );
+            let thread_name = th.name.clone();
             result = spawn(
                 th.name.clone(),
-                Box::new(move || periodic_thread(sh, group, period, tx, prio, cfg)),
+                Box::new(move || periodic_thread(sh, thread_name, group, period, tx, prio, cfg)),
             );
             if result.is_err() {
                 break;
@@ -608,8 +654,14 @@ impl RealTimeRunner {
             }
         }
         drop(tx);
-        let fifo = (0..spawned).all(|_| rx.recv().unwrap_or(false))
-            && config.scheduling != SchedulingMode::Normal;
+        // Hear from every thread (no short cut: a thread not yet heard from is not ready).
+        let answers: Vec<bool> = (0..spawned).map(|_| rx.recv().unwrap_or(false)).collect();
+        let granted = answers.iter().all(|&a| a);
+        let fifo = granted && config.scheduling != SchedulingMode::Normal;
+        // Every thread is set up and waiting: fix the epoch and let them go.
+        let mut shared = shared;
+        shared.epoch = monotonic_ns() + duration_ns(config.start_delay);
+        shared.epoch_cell.store(shared.epoch, Ordering::Release);
         let supervisor = warn_tasks.iter().any(|&w| w).then(|| {
             let sh = shared.clone();
             std::thread::spawn(move || supervise(sh, warn_tasks))
@@ -621,6 +673,7 @@ impl RealTimeRunner {
             recording: Some(recording),
             controls,
             fifo,
+            _pm_qos: config.cpu_dma_latency_us.and_then(hold_cpu_dma_latency),
         };
         if let Err(e) = result {
             handle.stop();
@@ -639,6 +692,7 @@ impl RealTimeRunner {
                 SchedulingMode::Normal => {}
             }
         }
+        handle.shared.go.set();
         Ok(handle)
     }
 }

@@ -215,6 +215,37 @@ pub(crate) fn set_current_thread_affinity(cpus: &[usize]) -> bool {
     }
 }
 
+/// True when locking all current and future memory cannot make later allocations fail: the
+/// memlock limit is infinite or the process has CAP_IPC_LOCK.
+pub(crate) fn may_lock_all_memory() -> bool {
+    let mut limit = libc::rlimit {
+        rlim_cur: 0,
+        rlim_max: 0,
+    };
+    // SAFETY: valid out-pointer.
+    let unlimited = unsafe { libc::getrlimit(libc::RLIMIT_MEMLOCK, &mut limit) } == 0
+        && limit.rlim_cur == libc::RLIM_INFINITY;
+    unlimited || has_effective_capability(CAP_IPC_LOCK)
+}
+
+/// Capability number of CAP_IPC_LOCK (linux/capability.h).
+const CAP_IPC_LOCK: u32 = 14;
+
+/// Reads an effective capability bit from /proc/self/status (start-up only).
+fn has_effective_capability(bit: u32) -> bool {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|status| {
+            let hex = status
+                .lines()
+                .find_map(|l| l.strip_prefix("CapEff:"))?
+                .trim()
+                .to_string();
+            u64::from_str_radix(&hex, 16).ok()
+        })
+        .is_some_and(|caps| caps & (1u64 << bit) != 0)
+}
+
 pub(crate) fn lock_all_memory() -> bool {
     // SAFETY: plain syscall.
     unsafe { libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) == 0 }
@@ -250,4 +281,16 @@ pub(crate) fn warn_once(flag: &AtomicBool, message: &str) {
     if !flag.swap(true, Ordering::Relaxed) {
         eprintln!("rtcnc-rt: warning: {message}");
     }
+}
+
+/// Asks the kernel to keep CPUs out of power-saving states deeper than `us` microseconds of
+/// exit latency (PM QoS, as cyclictest does); the request holds while the file stays open.
+pub(crate) fn hold_cpu_dma_latency(us: u32) -> Option<std::fs::File> {
+    use std::io::Write;
+    let mut file = std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/cpu_dma_latency")
+        .ok()?;
+    file.write_all(&(us as i32).to_ne_bytes()).ok()?;
+    Some(file)
 }

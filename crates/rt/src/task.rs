@@ -185,6 +185,14 @@ pub struct ThreadId(usize);
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct TaskId(usize);
 
+impl TaskId {
+    /// Position of the task in declaration order: its index in [`Monitor::tasks`] and in
+    /// [`crate::Fault::task`].
+    pub fn index(self) -> usize {
+        self.0
+    }
+}
+
 struct ThreadDecl {
     name: String,
     period: Duration,
@@ -204,6 +212,7 @@ struct TaskDecl {
     body: Body,
     reaction: MissReaction,
     start_stopped: bool,
+    deadline: Option<Duration>,
 }
 
 /// Declares threads and tasks; [`build`](Self::build) validates everything at once.
@@ -300,6 +309,7 @@ impl TaskSetBuilder {
             body,
             reaction: MissReaction::Count,
             start_stopped: false,
+            deadline: None,
         });
         TaskId(self.tasks.len() - 1)
     }
@@ -308,6 +318,17 @@ impl TaskSetBuilder {
     pub fn on_deadline_miss(&mut self, task: TaskId, reaction: MissReaction) -> &mut Self {
         if let Some(t) = self.tasks.get_mut(task.0) {
             t.reaction = reaction;
+        }
+        self
+    }
+
+    /// A relative deadline for `task`: for a periodic task, each run must end within
+    /// `deadline` of its cycle's release (without one, the cycle must end by the next
+    /// release); for an event task, each run must end within `deadline` of its wake-up.
+    /// A late run is a deadline-miss fault. Background tasks have no deadline.
+    pub fn deadline(&mut self, task: TaskId, deadline: Duration) -> &mut Self {
+        if let Some(t) = self.tasks.get_mut(task.0) {
+            t.deadline = Some(deadline);
         }
         self
     }
@@ -392,7 +413,18 @@ impl TaskSetBuilder {
                         });
                     }
                 }
-                DeclKind::Background => {}
+                DeclKind::Background => {
+                    if t.deadline.is_some() {
+                        return Err(ConfigError::DeadlineOnBackground {
+                            task: t.name.clone(),
+                        });
+                    }
+                }
+            }
+            if t.deadline.is_some_and(|d| d.is_zero()) {
+                return Err(ConfigError::ZeroDeadline {
+                    task: t.name.clone(),
+                });
             }
         }
         for (i, th) in self.threads.iter().enumerate() {
@@ -419,10 +451,6 @@ impl TaskSetBuilder {
                 tasks: Vec::new(),
             })
             .collect();
-        let has_background = self
-            .tasks
-            .iter()
-            .any(|t| matches!(t.kind, DeclKind::Background));
         let mut monitors = Vec::with_capacity(self.tasks.len());
         let mut tasks = Vec::with_capacity(self.tasks.len());
         let mut background_lane = None;
@@ -482,11 +510,11 @@ impl TaskSetBuilder {
                 kind: decl.kind,
                 body: decl.body,
                 reaction: decl.reaction,
+                deadline_ns: decl.deadline.map(duration_ns),
                 control: RunFlag::new(!decl.start_stopped),
                 lane,
             });
         }
-        let _ = has_background;
         let lanes = lane_names
             .into_iter()
             .map(|n| Arc::new(Lane::new(n, self.trace_capacity)))
@@ -519,6 +547,8 @@ pub(crate) struct TaskSpec {
     pub kind: DeclKind,
     pub body: Body,
     pub reaction: MissReaction,
+    /// Relative deadline of each run (see `TaskSetBuilder::deadline`).
+    pub deadline_ns: Option<u64>,
     pub control: RunFlag,
     pub lane: usize,
 }

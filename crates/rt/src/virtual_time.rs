@@ -63,6 +63,84 @@ pub(crate) fn next_release(release: u64, period: u64, end: u64) -> (u64, u64) {
     (nominal + skipped * period, skipped)
 }
 
+/// Decides whether a periodic run that ended at `end` is a deadline miss, with the same rule
+/// under both runners: a task with its own deadline misses when it ends later than
+/// `release + deadline`; otherwise the first run of the cycle that ends after the next
+/// release (`release + period`) is charged. At most one miss per task per cycle. Returns how
+/// late the run was; updates `task_missed` and `cycle_missed` (who overran the period).
+pub(crate) fn periodic_miss(
+    release: u64,
+    period: u64,
+    own_deadline: Option<u64>,
+    end: u64,
+    task: usize,
+    task_missed: &mut bool,
+    cycle_missed: &mut Option<usize>,
+) -> Option<u64> {
+    let period_deadline = release.saturating_add(period);
+    let mut late = None;
+    if let Some(d) = own_deadline {
+        let deadline = release.saturating_add(d);
+        if end > deadline && !*task_missed {
+            late = Some(end - deadline);
+        }
+    } else if end > period_deadline && cycle_missed.is_none() && !*task_missed {
+        late = Some(end - period_deadline);
+    }
+    if late.is_some() {
+        *task_missed = true;
+    }
+    if end > period_deadline && cycle_missed.is_none() {
+        *cycle_missed = Some(task);
+    }
+    late
+}
+
+/// Whether an event or background run woken at `woke` and ended at `end` missed its own
+/// deadline, and by how much.
+pub(crate) fn reactive_miss(woke: u64, own_deadline: Option<u64>, end: u64) -> Option<u64> {
+    let deadline = woke.saturating_add(own_deadline?);
+    (end > deadline).then(|| end - deadline)
+}
+
+/// Records a deadline miss of `task` detected at `now`, `late` ns late: fault log, monitor,
+/// trace, then the task's reaction (`warn_now`: print a `Warn` at once).
+pub(crate) fn record_miss(
+    monitor: &crate::monitor::Monitor,
+    lane: &crate::trace::Lane,
+    spec: &TaskSpec,
+    task: usize,
+    now: u64,
+    late: u64,
+    warn_now: bool,
+) -> Fault {
+    let fault = Fault {
+        time: Time::from_nanos(now),
+        task,
+        code: FaultCode::DeadlineMiss,
+        detail: late,
+        message: "",
+    };
+    monitor.push_fault(fault);
+    if let Some(m) = monitor.task_at(task) {
+        m.record_miss(0);
+    }
+    lane.push(TraceEvent {
+        time: now,
+        kind: EventKind::Fault,
+        task: task as u32,
+        label: FaultCode::DeadlineMiss.as_str(),
+        arg: late,
+    });
+    react_to_miss(
+        &spec.reaction,
+        &fault,
+        || monitor.describe(&fault).to_string(),
+        warn_now,
+    );
+    fault
+}
+
 pub(crate) fn react_to_miss(
     reaction: &MissReaction,
     fault: &Fault,
@@ -95,6 +173,8 @@ struct Cycle {
     run: u32,
     checked: bool,
     missed: Option<usize>,
+    /// The task at `pos` has had its miss this cycle.
+    task_missed: bool,
     seq: u64,
     step: Option<Step>,
 }
@@ -130,6 +210,8 @@ struct VReactive {
     seq: u64,
     activation: u64,
     own_token: u64,
+    /// When the task last became ready (its wake-up, for its deadline).
+    ready_at: u64,
     step: Option<Step>,
 }
 
@@ -183,6 +265,7 @@ impl VirtualRunner {
                     seq: 0,
                     activation: 0,
                     own_token: 0,
+                    ready_at: 0,
                     step: None,
                 })
             })
@@ -353,6 +436,7 @@ impl VirtualRunner {
                     run: 0,
                     checked: false,
                     missed: None,
+                    task_missed: false,
                     seq,
                     step: None,
                 });
@@ -379,6 +463,7 @@ impl VirtualRunner {
                     let r = &mut self.reactive[i];
                     r.state = RState::Ready(Wake::TimedOut);
                     r.seq = seq;
+                    r.ready_at = self.now;
                     let task = r.task;
                     self.set_state(task, TaskState::Ready);
                 }
@@ -432,9 +517,11 @@ impl VirtualRunner {
             };
             if let Some(w) = wake {
                 let seq = self.next_seq();
+                let now = self.now;
                 let r = &mut self.reactive[i];
                 r.state = RState::Ready(w);
                 r.seq = seq;
+                r.ready_at = now;
                 self.set_state(task, TaskState::Ready);
             }
         }
@@ -582,31 +669,22 @@ impl VirtualRunner {
             label: "",
             arg: now - step.start,
         });
-        let deadline = cycle.release + th.spec.period_ns;
-        if now > deadline && cycle.missed.is_none() {
-            cycle.missed = Some(step.task);
-            let fault = Fault {
-                time: Time::from_nanos(now),
-                task: step.task,
-                code: FaultCode::DeadlineMiss,
-                detail: now - deadline,
-                message: "",
-            };
-            recording.monitor.push_fault(fault);
-            if let Some(m) = recording.monitor.task_at(step.task) {
-                m.record_miss(0);
-            }
-            recording.lanes[spec.lane].push(TraceEvent {
-                time: now,
-                kind: EventKind::Fault,
-                task: step.task as u32,
-                label: FaultCode::DeadlineMiss.as_str(),
-                arg: now - deadline,
-            });
-            react_to_miss(
-                &spec.reaction,
-                &fault,
-                || recording.monitor.describe(&fault).to_string(),
+        if let Some(late) = periodic_miss(
+            cycle.release,
+            th.spec.period_ns,
+            spec.deadline_ns,
+            now,
+            step.task,
+            &mut cycle.task_missed,
+            &mut cycle.missed,
+        ) {
+            record_miss(
+                &recording.monitor,
+                &recording.lanes[spec.lane],
+                spec,
+                step.task,
+                now,
+                late,
                 true,
             );
         }
@@ -619,6 +697,7 @@ impl VirtualRunner {
             cycle.run = 0;
             cycle.pos += 1;
             cycle.checked = false;
+            cycle.task_missed = false;
             if let Some(m) = recording.monitor.task_at(step.task) {
                 m.set_state(TaskState::Waiting);
             }
@@ -726,6 +805,17 @@ impl VirtualRunner {
             label: "",
             arg: now - step.start,
         });
+        if let Some(late) = reactive_miss(r.ready_at, spec.deadline_ns, now) {
+            record_miss(
+                &self.recording.monitor,
+                &self.recording.lanes[spec.lane],
+                spec,
+                step.task,
+                now,
+                late,
+                true,
+            );
+        }
         let (state, shown) = match step.next.unwrap_or(Next::Done) {
             Next::Done => match &r.trigger {
                 Some(_) => (
@@ -736,6 +826,7 @@ impl VirtualRunner {
             },
             Next::Continue => {
                 r.seq = seq;
+                r.ready_at = now;
                 (RState::Ready(Wake::Scheduled), TaskState::Ready)
             }
             Next::WaitFor { trigger, timeout } => {

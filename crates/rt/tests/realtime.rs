@@ -11,6 +11,14 @@ use rtcnc_rt::{
 
 type Log = Arc<Mutex<Vec<&'static str>>>;
 
+/// Tests that pin SCHED_FIFO threads to CPU 0 run one at a time, so they do not disturb
+/// each other's order of events.
+static CPU0: Mutex<()> = Mutex::new(());
+
+fn cpu0() -> std::sync::MutexGuard<'static, ()> {
+    CPU0.lock().unwrap_or_else(|e| e.into_inner())
+}
+
 fn push(log: &Log, what: &'static str) {
     log.lock().unwrap().push(what);
 }
@@ -20,6 +28,7 @@ fn push(log: &Log, what: &'static str) {
 /// so high gets the mutex before medium runs; without it, medium would run first.
 #[test]
 fn priority_inheritance_prevents_inversion() {
+    let _cpu0 = cpu0();
     let mutex = Arc::new(PiMutex::new(0u32));
     let (wake_low, wake_medium, wake_high) = (
         BinarySemaphore::new("low"),
@@ -110,10 +119,11 @@ fn tasks_report_their_state_and_stop_at_their_next_cycle() {
         ..RealTimeConfig::default()
     };
     let handle = RealTimeRunner::start(b.build().unwrap(), config).unwrap();
-    std::thread::sleep(Duration::from_millis(60));
     let scan = handle.control("scan").unwrap();
+    wait_until(|| *counted.lock().unwrap() >= 5);
     scan.stop();
-    std::thread::sleep(Duration::from_millis(10)); // at least one cycle starts after the request
+    // Stopped is set at the start of a cycle that saw the request: no body runs after it.
+    wait_until(|| scan.state() == TaskState::Stopped);
     let frozen = *counted.lock().unwrap();
     std::thread::sleep(Duration::from_millis(20));
     assert_eq!(
@@ -131,13 +141,147 @@ fn tasks_report_their_state_and_stop_at_their_next_cycle() {
         TaskState::Stopped
     );
     scan.start();
-    std::thread::sleep(Duration::from_millis(20));
+    wait_until(|| *counted.lock().unwrap() > frozen);
     let rec = handle.stop();
-    assert!(*counted.lock().unwrap() > frozen, "restarted");
     let stats = rec.monitor().task("scan").unwrap().stats();
     assert_eq!(stats.activations, u64::from(*counted.lock().unwrap()));
     assert_eq!(
         rec.monitor().task("self test").unwrap().stats().activations,
         0
     );
+}
+
+/// Polls `condition` until it holds; gives up (failing) after 10 s.
+fn wait_until(condition: impl Fn() -> bool) {
+    for _ in 0..10_000 {
+        if condition() {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    panic!("condition not reached in 10 s");
+}
+
+#[test]
+fn threads_run_on_the_cpus_they_are_given() {
+    let _cpu0 = cpu0();
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let wanted = cpus - 1; // the last CPU
+    let seen: Arc<Mutex<Vec<i32>>> = Arc::default();
+    let mut b = TaskSet::builder();
+    let t = b.periodic_thread("pinned", Duration::from_millis(1), 20);
+    let s = Arc::clone(&seen);
+    b.periodic(t, "where", 1, move |_| {
+        // SAFETY: plain query.
+        s.lock().unwrap().push(unsafe { libc::sched_getcpu() });
+    });
+    let config = RealTimeConfig {
+        scheduling: SchedulingMode::BestEffort,
+        lock_memory: false,
+        cpus: Some(vec![0]),
+        thread_cpus: vec![("pinned".to_string(), vec![wanted])],
+        ..RealTimeConfig::default()
+    };
+    let handle = RealTimeRunner::start(b.build().unwrap(), config).unwrap();
+    wait_until(|| seen.lock().unwrap().len() >= 10);
+    drop(handle.stop());
+    let seen = seen.lock().unwrap();
+    assert!(
+        seen.iter().all(|&c| c == wanted as i32),
+        "{seen:?} (wanted {wanted})"
+    );
+}
+
+/// The RTX64 table of SEEDS.md (as in the virtual-time test) on the real-time runner, all
+/// threads on one CPU: within every half millisecond the bodies start in the same order as
+/// under virtual time. Only the order is compared, never the times. A machine too busy to
+/// keep every release (skipped releases) makes the test skip with a message.
+#[test]
+fn rtx64_table_starts_in_the_same_order_as_in_virtual_time() {
+    let _cpu0 = cpu0();
+    // (name, period µs, runs, priority, cost µs)
+    const RTX64: [(&str, u64, u32, i32, u64); 6] = [
+        ("fieldbus", 500, 1, 126, 20),
+        ("interpolation", 500, 2, 125, 10),
+        ("look-ahead", 1000, 4, 120, 25),
+        ("host commands", 1000, 3, 117, 15),
+        ("status", 1000, 1, 110, 30),
+        ("main", 1000, 1, 1, 300),
+    ];
+    type StartLog = Arc<Mutex<Vec<(u64, &'static str, u32)>>>;
+    let build = |log: &StartLog| {
+        let mut b = TaskSet::builder();
+        for (name, period_us, runs, priority, cost_us) in RTX64 {
+            let thread = b.periodic_thread(name, Duration::from_micros(period_us), priority);
+            let log = Arc::clone(log);
+            b.periodic(thread, name, runs, move |ctx| {
+                // the half millisecond this start belongs to, from the release time
+                let slot = ctx.release_time().as_nanos() / 500_000;
+                log.lock().unwrap().push((slot, name, ctx.run()));
+                ctx.consume(Duration::from_micros(cost_us));
+            });
+        }
+        b.build().unwrap()
+    };
+    let slots = 40; // 20 ms
+
+    let virtual_log: StartLog = Arc::default();
+    let mut sim = rtcnc_rt::VirtualRunner::new(build(&virtual_log));
+    sim.run_for(Duration::from_millis(20)).unwrap();
+
+    let real_log: StartLog = Arc::default();
+    let config = RealTimeConfig {
+        scheduling: SchedulingMode::RequireFifo,
+        lock_memory: true,
+        cpus: Some(vec![0]),
+        ..RealTimeConfig::default()
+    };
+    let handle = match RealTimeRunner::start(build(&real_log), config) {
+        Ok(h) => h,
+        Err(RtStartError::FifoNotPermitted) => {
+            println!("skipped: SCHED_FIFO is not permitted here, real-time order cannot be shown");
+            return;
+        }
+        Err(e) => panic!("{e}"),
+    };
+    // main has the lowest priority: once it has started past the window, every thread has
+    // finished every cycle of the window (and any skipped release has been counted).
+    wait_until(|| {
+        real_log
+            .lock()
+            .unwrap()
+            .iter()
+            .any(|e| e.1 == "main" && e.0 >= slots)
+    });
+    let recording = handle.stop();
+
+    // Starts grouped by release slot, in the order they happened within the slot (a stable
+    // sort): a low-priority thread delayed into the next half millisecond by something else
+    // on the machine still has to start after every higher-priority thread of its own slot.
+    let in_window = |log: &StartLog| -> Vec<(u64, &'static str, u32)> {
+        let mut starts: Vec<_> = log
+            .lock()
+            .unwrap()
+            .iter()
+            .copied()
+            .filter(|e| e.0 < slots)
+            .collect();
+        starts.sort_by_key(|e| e.0);
+        starts
+    };
+    let expected = in_window(&virtual_log);
+    assert_eq!(expected.len(), 40 * 3 + 20 * 9);
+    let skipped: u64 = recording
+        .monitor()
+        .stats()
+        .iter()
+        .map(|s| s.skipped_releases)
+        .sum();
+    if skipped > 0 {
+        println!(
+            "skipped: the machine delayed a cycle past its period ({skipped} releases skipped)"
+        );
+        return;
+    }
+    assert_eq!(in_window(&real_log), expected);
 }

@@ -347,3 +347,160 @@ fn a_task_that_never_lets_time_pass_is_reported_as_a_livelock() {
     assert_eq!(e.code(), "livelock");
     assert!(e.to_string().contains("'stuck'"), "{e}");
 }
+
+#[test]
+fn background_tasks_run_in_what_is_left() {
+    let starts: Arc<Mutex<Vec<u64>>> = Arc::default();
+    let continued = Arc::new(AtomicU64::new(0));
+    let mut b = TaskSet::builder();
+    let thread = b.periodic_thread("servo", Duration::from_millis(1), 10);
+    b.periodic(thread, "control", 1, |ctx| {
+        ctx.consume(Duration::from_micros(100))
+    });
+    let s = Arc::clone(&starts);
+    b.background("self test", move |ctx| {
+        s.lock().unwrap().push(ctx.start_time().as_nanos());
+        Next::Sleep(Duration::from_millis(1))
+    });
+    let c = Arc::clone(&continued);
+    b.background("housekeeping", move |_| {
+        c.fetch_add(1, Ordering::Relaxed);
+        Next::Continue
+    });
+    let set = b.build().unwrap();
+    let control = set.control("housekeeping").unwrap();
+    let mut sim = VirtualRunner::new(set);
+    sim.run_for(Duration::from_millis(1)).unwrap();
+    // Each background run takes at least 10 µs. In the first millisecond the servo thread
+    // takes 0..100 µs; the self test runs at 100 µs (to 110 µs), housekeeping fills
+    // 110..1000 µs with 89 runs of 10 µs.
+    assert_eq!(continued.load(Ordering::Relaxed), 89);
+    control.stop();
+    sim.run_for(Duration::from_millis(4)).unwrap();
+    // The self test sleeps 1 ms after each 10 µs run: 100, 1110, 2120, 3130, 4140 µs (never
+    // inside the servo thread's first 100 µs of a millisecond).
+    assert_eq!(
+        *starts.lock().unwrap(),
+        vec![100 * US, 1_110 * US, 2_120 * US, 3_130 * US, 4_140 * US]
+    );
+    let monitor = sim.recording().monitor();
+    assert_eq!(
+        monitor.task("self test").unwrap().state(),
+        TaskState::Suspended
+    );
+    assert_eq!(
+        monitor.task("housekeeping").unwrap().state(),
+        TaskState::Stopped
+    );
+    // housekeeping saw its stop at its next run (at 1 ms, after the servo's 100 µs, the self
+    // test's turn is at 1110 µs): 89 runs in the first millisecond and none after.
+    assert_eq!(continued.load(Ordering::Relaxed), 89);
+}
+
+#[test]
+fn faults_raised_by_tasks_are_logged_and_traced_and_the_log_is_bounded() {
+    let mut b = TaskSet::builder();
+    b.fault_capacity(2).trace_capacity(8);
+    let thread = b.periodic_thread("plc", Duration::from_millis(1), 50);
+    b.periodic(thread, "scan", 1, |ctx| {
+        if ctx.activation() % 4 == 3 {
+            ctx.raise_fault(7, "limit switch X+", ctx.activation());
+        }
+    });
+    let mut sim = VirtualRunner::new(b.build().unwrap());
+    sim.run_for(Duration::from_millis(12)).unwrap();
+    let monitor = sim.recording().monitor();
+    // faults at 3, 7 and 11 ms; the log keeps two and counts three
+    assert_eq!(monitor.fault_count(), 3);
+    let faults = monitor.faults();
+    assert_eq!(faults.len(), 2);
+    assert_eq!(faults[1].time, Time::from_millis(7));
+    assert_eq!(faults[1].code, FaultCode::User(7));
+    assert_eq!(faults[1].message, "limit switch X+ (code 7, value 7)");
+    assert_eq!(faults[1].task, "scan");
+    // 12 spans + 3 faults in a lane of 8: the last 8 are kept, 7 dropped
+    let trace = sim.recording().trace();
+    assert_eq!(trace.event_count(), 8);
+    assert_eq!(trace.dropped(), 7);
+    let json: serde_json::Value = serde_json::from_str(&trace.to_chrome_json()).unwrap();
+    let last_fault = json["traceEvents"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .rfind(|e| e["cat"] == "fault")
+        .unwrap()
+        .clone();
+    assert_eq!(last_fault["name"], "limit switch X+");
+    assert_eq!(last_fault["ts"].as_f64(), Some(11_000.0));
+    assert_eq!(last_fault["args"]["value"], 11);
+}
+
+#[test]
+fn own_deadlines_of_periodic_and_event_tasks_give_exactly_the_expected_misses() {
+    let setpoints: Mailbox<u64> = Mailbox::new("setpoints", 4).unwrap();
+    let mut b = TaskSet::builder();
+    let servo = b.periodic_thread("servo", Duration::from_millis(1), 100);
+    let read = b.periodic(servo, "read inputs", 1, |ctx| {
+        let cost = if ctx.activation() == 2 { 150 } else { 20 };
+        ctx.consume(Duration::from_micros(cost));
+    });
+    b.deadline(read, Duration::from_micros(100));
+    let out = setpoints.clone();
+    b.periodic(servo, "pid", 1, move |ctx| {
+        out.try_put(ctx.activation()).unwrap();
+        let cost = if ctx.activation() == 5 { 1_200 } else { 50 };
+        ctx.consume(Duration::from_micros(cost));
+    });
+    let inbox = setpoints.clone();
+    let interp = b.event("interp", 50, setpoints.data_trigger(), move |ctx| {
+        let mut cost = 100;
+        while let Some(v) = inbox.try_get() {
+            if v == 8 {
+                cost = 400;
+            }
+        }
+        ctx.consume(Duration::from_micros(cost));
+        Next::Done
+    });
+    b.deadline(interp, Duration::from_micros(300));
+    let mut sim = VirtualRunner::new(b.build().unwrap());
+    sim.run_for(Duration::from_millis(10)).unwrap();
+
+    // Worked out by hand (µs): activation 2: read inputs runs 2000..2150, its deadline is
+    // 2100. Activation 5: pid runs 5020..6220 past the period (6000) and release 6000 is
+    // skipped; interp, woken by pid's put at 5020, can only run 6220..6320 (deadline 5320).
+    // Activation 8: interp runs 8070..8470 (deadline 8020 + 300 = 8320).
+    let monitor = sim.recording().monitor();
+    let got: Vec<(u64, String, u64)> = monitor
+        .raw_faults()
+        .iter()
+        .map(|f| {
+            let name = monitor.tasks()[f.task].name().to_string();
+            (f.time.as_nanos() / US, name, f.detail / US)
+        })
+        .collect();
+    assert_eq!(
+        got,
+        vec![
+            (2_150, "read inputs".to_string(), 50),
+            (6_220, "pid".to_string(), 220),
+            (6_320, "interp".to_string(), 1_000),
+            (8_470, "interp".to_string(), 150),
+        ]
+    );
+    assert_eq!(monitor.task("pid").unwrap().stats().skipped_releases, 1);
+    assert_eq!(monitor.task("interp").unwrap().stats().deadline_misses, 2);
+
+    let mut b = TaskSet::builder();
+    let t = b.periodic_thread("servo", Duration::from_millis(1), 100);
+    let task = b.periodic(t, "pid", 1, |_| {});
+    b.deadline(task, Duration::ZERO);
+    assert_eq!(
+        b.build().err().unwrap().to_string(),
+        "task 'pid': deadline must be greater than zero"
+    );
+    let mut b = TaskSet::builder();
+    let task = b.background("self test", |_| Next::Done);
+    b.deadline(task, Duration::from_millis(1));
+    assert_eq!(b.build().err().unwrap().code(), "deadline_on_background");
+}

@@ -12,8 +12,8 @@ use std::time::{Duration, Instant};
 use anyhow::Context as _;
 use rtcnc_rt::histogram::{LinearHistogram, Summary};
 use rtcnc_rt::{
-    RealTimeConfig, RealTimeRunner, SchedulingMode, TaskSet, executive_priority_for_os,
-    os_priority, parse_duration,
+    BinarySemaphore, RealTimeConfig, RealTimeRunner, SchedulingMode, TaskSet,
+    executive_priority_for_os, os_priority, parse_duration,
 };
 
 /// Measure the executive's wake-up latency (like cyclictest).
@@ -94,9 +94,19 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let priority = executive_priority_for_os(args.priority);
     let thread = builder.periodic_thread("latency", args.period, priority);
     let h = Arc::clone(&histogram);
+    let samples = u64::try_from(cycles).unwrap_or(u64::MAX).max(1);
+    let done = BinarySemaphore::new("latency done");
+    let finished = done.clone();
+    let mut taken = 0u64;
     builder.periodic(thread, "measure", 1, move |ctx| {
         // Start lateness of the thread's first task is its wake-up latency.
-        h.record(u64::try_from(ctx.lateness().as_nanos()).unwrap_or(u64::MAX));
+        if taken < samples {
+            h.record(u64::try_from(ctx.lateness().as_nanos()).unwrap_or(u64::MAX));
+            taken += 1;
+            if taken == samples {
+                finished.signal();
+            }
+        }
     });
     let trace_events = if args.trace.is_some() {
         usize::try_from(cycles)
@@ -141,18 +151,18 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
 
     let started = Instant::now();
     let progress = !args.quiet && std::io::stderr().is_terminal();
-    let end = args.duration + Duration::from_millis(20);
-    while started.elapsed() < end {
-        let left = end.saturating_sub(started.elapsed());
-        std::thread::sleep(left.min(Duration::from_secs(1)));
+    // Generous bound: a machine that cannot keep up still ends, with the samples it has.
+    let give_up = args.duration * 2 + Duration::from_secs(5);
+    while done.wait_timeout(Duration::from_secs(1)).is_err() {
+        if started.elapsed() > give_up {
+            eprintln!("rtcnc latency: the measuring thread fell behind; stopping early");
+            break;
+        }
         if progress {
             let s = histogram.summary();
             eprint!(
                 "\r  {:>5.1} s  samples {:>8}  max {:>8.1} us",
-                started
-                    .elapsed()
-                    .as_secs_f64()
-                    .min(args.duration.as_secs_f64()),
+                started.elapsed().as_secs_f64(),
                 s.count,
                 us(s.max)
             );
@@ -279,7 +289,8 @@ fn svg_histogram(h: &LinearHistogram, summary: &Summary, args: &Args, fifo: bool
     let rows = histogram_rows(h, summary, 200);
     let plot_w = W - LEFT - RIGHT;
     let plot_h = HT - TOP - BOTTOM;
-    let x_max = rows.last().map_or(1, |r| r.1 + 1).max(1) as f64;
+    // 5 % room right of the largest value, so the max bar and its label stay visible.
+    let x_max = (rows.last().map_or(1, |r| r.1 + 1).max(1) as f64 * 1.05).ceil();
     let peak = rows.iter().map(|r| r.2).max().unwrap_or(1).max(1) as f64;
     let y_top = peak.log10().ceil().max(1.0);
     let x = |v: f64| LEFT + v / x_max * plot_w;
@@ -376,10 +387,14 @@ fn svg_histogram(h: &LinearHistogram, summary: &Summary, args: &Args, fifo: bool
         ("max", summary.max, "#c00000"),
     ] {
         let xx = x(us(value).min(x_max));
+        let (tx, anchor) = if xx > W - RIGHT - 40.0 {
+            (xx - 3.0, "end")
+        } else {
+            (xx + 3.0, "start")
+        };
         s.push_str(&format!(
-            "<line x1=\"{xx:.1}\" y1=\"{TOP}\" x2=\"{xx:.1}\" y2=\"{}\" stroke=\"{color}\" stroke-dasharray=\"4 3\"/><text x=\"{:.1}\" y=\"{}\" fill=\"{color}\">{label}</text>\n",
+            "<line x1=\"{xx:.1}\" y1=\"{TOP}\" x2=\"{xx:.1}\" y2=\"{}\" stroke=\"{color}\" stroke-dasharray=\"4 3\"/><text x=\"{tx:.1}\" y=\"{}\" fill=\"{color}\" text-anchor=\"{anchor}\">{label}</text>\n",
             TOP + plot_h,
-            xx + 3.0,
             TOP + 12.0
         ));
     }

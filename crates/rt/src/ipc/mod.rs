@@ -1,6 +1,6 @@
 //! Communication between tasks, with the semantics of SEEDS.md: bounded mailboxes,
-//! binary / counting / event semaphores, a priority-inheritance mutex and a wait-free
-//! single-producer single-consumer ring.
+//! binary / counting / event semaphores, a priority-inheritance mutex, a wait-free
+//! single-producer single-consumer ring and a wait-free latest-value cell (triple buffer).
 //!
 //! Every object works the same under both schedulers. Non-blocking calls (`try_*`, `put_front`,
 //! `peek`, `clear`, `signal`, `set`, `pulse`) are what task bodies use; a task that must wait
@@ -10,12 +10,14 @@
 //! [`IpcError::BlockingInTask`] under either scheduler, so the mistake shows the same way in
 //! simulation and on the machine.
 
+mod latest;
 mod mailbox;
 mod pimutex;
 mod ring;
 mod semaphore;
 mod trigger;
 
+pub use latest::{LatestReader, LatestWriter, latest};
 pub use mailbox::Mailbox;
 pub use pimutex::{PiMutex, PiMutexGuard};
 pub use ring::{RingConsumer, RingProducer, ring};
