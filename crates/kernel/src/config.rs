@@ -240,6 +240,11 @@ pub struct TasksConfig {
     pub tool_compensation: EventTaskConfig,
     /// Interpreter (woken by a program start, runs while there is room ahead).
     pub interpreter: EventTaskConfig,
+    /// Run interpolation as the last function of the fieldbus thread (as LinuxCNC's servo
+    /// thread runs its motion controller) instead of in a thread of its own: no wake-up of
+    /// a second thread between the exchange and the next set-point. `tasks.interpolation`'s
+    /// period and priority are then unused.
+    pub interpolation_in_fieldbus_thread: bool,
 }
 
 impl Default for TasksConfig {
@@ -258,6 +263,7 @@ impl Default for TasksConfig {
             status_feedback: t("1ms", 110, 1),
             tool_compensation: EventTaskConfig { priority: 119 },
             interpreter: EventTaskConfig { priority: 20 },
+            interpolation_in_fieldbus_thread: false,
         }
     }
 }

@@ -291,7 +291,11 @@ impl Kernel {
         });
         b.on_deadline_miss(id, miss.clone());
 
-        let th = thread(&mut b, "interpolation", 2);
+        let th = if t.interpolation_in_fieldbus_thread {
+            fieldbus
+        } else {
+            thread(&mut b, "interpolation", 2)
+        };
         let (c, sh) = (core.clone(), shared.clone());
         let mut target_tx = target_tx;
         let load = options.interpolation_load;

@@ -130,3 +130,41 @@ fn a_100_microsecond_servo_period_is_accepted() {
     assert_eq!(config.servo_period(), std::time::Duration::from_micros(100));
     Kernel::build(&config, KernelOptions::default()).unwrap();
 }
+
+#[test]
+fn interpolation_may_run_in_the_fieldbus_thread_with_the_same_results() {
+    use rtcnc_kernel::{Command, MachineState, Simulation};
+    let run = |one_thread: bool| {
+        let mut cfg = MachineConfig::load(&repo().join("configs/experiment-1.toml")).unwrap();
+        cfg.tasks.interpolation_in_fieldbus_thread = one_thread;
+        let kernel = Kernel::build(
+            &cfg,
+            KernelOptions {
+                program: Some(repo().join("examples/experiment-1.ngc")),
+                record_capacity: 4096,
+                ..KernelOptions::default()
+            },
+        )
+        .unwrap();
+        let mut sim = Simulation::new(kernel);
+        let h = sim.handle().clone();
+        let mut samples = Vec::new();
+        let mut sink = |s: &rtcnc_kernel::Sample| samples.push((s.cycle, s.setpoint[0]));
+        sim.run_cycles(2, &mut sink).unwrap();
+        h.command(Command::Reset);
+        sim.run_cycles(10, &mut sink).unwrap();
+        h.command(Command::Start { from_line: 0 });
+        let ended = sim
+            .run_until(std::time::Duration::from_secs(2), &mut sink, |s| {
+                s.program_ended && s.state == MachineState::Idle
+            })
+            .unwrap();
+        assert!(ended);
+        samples
+    };
+    let separate = run(false);
+    let shared = run(true);
+    // The set-point of every cycle is the same; only the thread that computes it differs.
+    assert_eq!(separate.len(), shared.len());
+    assert!(separate == shared);
+}
