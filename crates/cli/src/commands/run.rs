@@ -210,7 +210,15 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             e.mean as f64 / 1e3,
             e.p99 as f64 / 1e3,
             e.max as f64 / 1e3,
-            share.map_or("event".to_string(), |s| format!("{s:.3} %")),
+            share.map_or_else(
+                || if stats.name == "self test" {
+                    "background"
+                } else {
+                    "event"
+                }
+                .to_string(),
+                |s| format!("{s:.3} %")
+            ),
             stats.deadline_misses
         );
     }
