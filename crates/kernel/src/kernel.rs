@@ -349,6 +349,7 @@ impl Kernel {
             let mut status = *sh.status.lock();
             c.lock()
                 .status(&feedback, ctx.now().as_nanos(), &mut status);
+            status.fault_count = sh.fault_count.load(std::sync::atomic::Ordering::Relaxed);
             *sh.status.lock() = status;
         });
         b.on_deadline_miss(id, miss);

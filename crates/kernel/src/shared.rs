@@ -175,6 +175,8 @@ pub struct Shared {
     pub status: std::sync::Arc<PiMutex<Status>>,
     /// The last interpreter error in words (non-real-time side only).
     pub error_text: std::sync::Arc<PiMutex<Option<String>>>,
+    /// Faults raised so far (for the status snapshot).
+    pub fault_count: std::sync::Arc<std::sync::atomic::AtomicU32>,
     /// The last move the planner refused (moved in, not formatted, by the look-ahead).
     pub motion_error: std::sync::Arc<PiMutex<Option<rtcnc_motion::MotionError>>>,
 }
@@ -195,6 +197,7 @@ impl Shared {
             status: std::sync::Arc::new(PiMutex::new(Status::default())),
             error_text: std::sync::Arc::new(PiMutex::new(None)),
             motion_error: std::sync::Arc::new(PiMutex::new(None)),
+            fault_count: std::sync::Arc::new(std::sync::atomic::AtomicU32::new(0)),
         }
     }
 
@@ -222,6 +225,8 @@ impl Shared {
             code.message(),
             joint.map_or(u64::from(line), u64::from),
         );
+        self.fault_count
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let _ = self.faults.try_put(fault);
         if code.stops_machine() {
             let _ = self.stop_requests.try_put(fault);

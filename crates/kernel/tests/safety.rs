@@ -72,6 +72,8 @@ fn estop_starts_the_stop_in_the_cycle_it_is_read_then_disables_the_drives() {
     assert_eq!(*v.last().unwrap(), 0.0);
     let status = stopped.status();
     assert_eq!(status.state, MachineState::EStop);
+    assert_eq!(status.fault_count, 1);
+    assert_eq!(status.last_fault.map(|f| f.code), Some(FaultCode::EStop));
     assert!(!status.ready);
     stopped.sim.handle().with_machine(|machine| {
         assert!((0..3).all(|j| machine.true_state(j).unwrap().1.abs() < 1e-3))
