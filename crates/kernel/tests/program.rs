@@ -102,3 +102,20 @@ fn tool_length_and_cutter_radius_compensation_shape_the_path() {
     assert!((max(0) - 17.0).abs() < 1e-9, "max X {}", max(0));
     assert!((max(1) - 17.0).abs() < 1e-9, "max Y {}", max(1));
 }
+
+#[test]
+fn inch_programs_move_in_millimetres_on_the_machine() {
+    let cfg = config("sim-mill.toml");
+    let text = "G20 G90 G61.1\nG1 X1 Y0.5 F20\nM2\n";
+    let mut m = Machine::new(&cfg, Some(program(text, "inch.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(10.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert_eq!(&m.status().axes[..2], &[25.4, 12.7]);
+    // F20 in/min along the diagonal: 20 × 25.4 / 60 mm/s.
+    let top = m.samples.iter().map(|s| s.path_speed).fold(0.0, f64::max);
+    assert!(
+        (top - 20.0 * 25.4 / 60.0).abs() < 1e-3 * top,
+        "path speed {top}"
+    );
+}
