@@ -4,8 +4,8 @@
 #
 # ruckig is timed through its Python bindings from the peers' venv, so two ruckig figures
 # are printed: the best-pass wall time of one Python calculate() call (includes the Python
-# binding overhead, so it is an upper bound of ruckig's own cost) and ruckig's C++
-# calculation_duration reported by update() (which does more than calculate()).
+# binding overhead, so it is an upper bound of ruckig's own cost) and the median of ruckig's
+# C++ calculation_duration over one cold update() per case (indicative only).
 # Our figure is the criterion mean over the whole set divided by 1000 (native Rust).
 # Needs ../shared/peers (or $RTCNC_PEERS) and ~/.cache/rtcnc-peers/venv; skips ruckig if absent.
 set -euo pipefail
@@ -48,11 +48,11 @@ for inp in inputs:
     o = Ruckig(1, 1e-3); out = OutputParameter(1)
     o.update(inp, out)
     internal.append(out.calculation_duration)
-print(min(passes), statistics.mean(internal))
+print(min(passes), statistics.median(internal))
 PY
 )
 echo "ruckig python calculate(): ${py_us} us per profile (includes Python binding overhead)"
-echo "ruckig C++ calculation_duration: ${cpp_us} us per profile (ruckig's own timer)"
+echo "ruckig C++ calculation_duration: ${cpp_us} us per profile (ruckig's own timer, median of one cold update() per case)"
 awk -v o="$ours_us" -v p="$py_us" -v c="$cpp_us" 'BEGIN {
   printf "ratio ours / ruckig via python = %.2f (ruckig figure includes the python call overhead)\n", o/p;
-  printf "ratio ours / ruckig C++ timer  = %.2f (ruckig timer from update(), more than calculate())\n", o/c }'
+  printf "ratio ours / ruckig C++ timer  = %.2f (cold single calls: indicative only)\n", o/c }'

@@ -9,7 +9,8 @@ use std::time::Duration;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use rtcnc_motion::otg::{
-    Limits, OnlineAxis, State, position_profile, synchronize, velocity_profile,
+    Limits, OnlineAxis, State, position_profile, synchronize, synchronize_straight,
+    synchronize_velocity, velocity_profile,
 };
 use serde::Deserialize;
 
@@ -78,6 +79,19 @@ fn compute(c: &mut Criterion) {
     ];
     group.bench_function("three axes synchronised", |b| {
         b.iter(|| synchronize(black_box(&starts), black_box(&targets), &all))
+    });
+    let rest = [State::at_rest(0.0); 3];
+    let ends = [
+        State::at_rest(20.0),
+        State::at_rest(-4.0),
+        State::at_rest(1.0),
+    ];
+    group.bench_function("three axes straight line", |b| {
+        b.iter(|| synchronize_straight(black_box(&rest), black_box(&ends), &all))
+    });
+    let speeds = [30.0, -10.0, 0.0];
+    group.bench_function("three axes velocity synchronised", |b| {
+        b.iter(|| synchronize_velocity(black_box(&starts), black_box(&speeds), &[0.0; 3], &all))
     });
     let cases = ruckig_cases();
     group.bench_function("1000 ruckig rest-to-rest cases (whole set)", |b| {

@@ -12,7 +12,8 @@
 use std::collections::BTreeMap;
 
 use rtcnc_motion::otg::{
-    Limits, State, position_profile, synchronize, synchronize_on_period, velocity_profile,
+    Limits, State, position_profile, synchronize, synchronize_on_period, synchronize_straight,
+    synchronize_velocity, velocity_profile,
 };
 use serde_json::Value;
 
@@ -66,7 +67,9 @@ fn main() {
             entry.2.push(line);
         }
     }
-    for (i, c) in doc["sync3"].as_array().into_iter().flatten().enumerate() {
+    let sync_cases = doc["sync3"].as_array().into_iter().flatten();
+    let straight_cases = doc["straight3"].as_array().into_iter().flatten();
+    for (i, c) in sync_cases.chain(straight_cases).enumerate() {
         let arr = |key: &str| -> [f64; 3] {
             std::array::from_fn(|k| c[key][k].as_f64().unwrap_or(f64::NAN))
         };
@@ -85,11 +88,35 @@ fn main() {
         let kind = c["kind"].as_str().unwrap_or("sync3").to_string();
         let entry = stats.entry(kind).or_default();
         entry.0 += 1;
-        let result = match c["period"].as_f64() {
-            Some(period) => synchronize_on_period(&start, &target, &limits, period),
-            None => synchronize(&start, &target, &limits),
+        let result = match (c["period"].as_f64(), c["kind"].as_str()) {
+            (_, Some("straight3")) => synchronize_straight(&start, &target, &limits),
+            (Some(period), _) => synchronize_on_period(&start, &target, &limits, period),
+            (None, _) => synchronize(&start, &target, &limits),
         };
         let bad = match result {
+            Ok(s) => {
+                let rel = (s.duration() - want) / want;
+                (rel.abs() > 1e-6)
+                    .then(|| format!("#{i}: {} vs {want} (rel {rel:+.2e})", s.duration()))
+            }
+            Err(e) => Some(format!("#{i}: {e}")),
+        };
+        if let Some(line) = bad {
+            entry.1 += 1;
+            entry.2.push(line);
+        }
+    }
+    for (i, c) in doc["vsync3"].as_array().into_iter().flatten().enumerate() {
+        let arr = |key: &str| -> [f64; 3] {
+            std::array::from_fn(|k| c[key][k].as_f64().unwrap_or(f64::NAN))
+        };
+        let (v0, a0, vf, af) = (arr("v0"), arr("a0"), arr("vf"), arr("af"));
+        let start: [State; 3] = std::array::from_fn(|k| State::new(0.0, v0[k], a0[k]));
+        let limits: [Limits; 3] = std::array::from_fn(|k| limits_of(&c["limits"][k]));
+        let want = f(c, "duration");
+        let entry = stats.entry("vsync3".to_string()).or_default();
+        entry.0 += 1;
+        let bad = match synchronize_velocity(&start, &vf, &af, &limits) {
             Ok(s) => {
                 let rel = (s.duration() - want) / want;
                 (rel.abs() > 1e-6)

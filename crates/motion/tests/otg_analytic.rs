@@ -332,3 +332,24 @@ fn online_group_retargets_and_ends_on_a_tick() {
         "otg-invalid-limit"
     );
 }
+
+/// An on-line axis created in motion does not keep accelerating on its own: it stops as
+/// fast as its limits allow (from 3 with acceleration 0: T = 2 sqrt(v/j) with v j < a²).
+#[test]
+fn online_axis_created_in_motion_comes_to_rest() {
+    let limits = Limits::symmetric(10.0, 20.0, 100.0);
+    let mut axis = OnlineAxis::new(State::new(1.0, 3.0, 0.0), limits).unwrap();
+    let (profile, _) = axis.profile();
+    assert!((profile.duration() - 2.0 * (3.0f64 / 100.0).sqrt()).abs() < 1e-12);
+    for _ in 0..1000 {
+        axis.step(1e-3);
+    }
+    let s = axis.sample();
+    assert_eq!((s.v, s.a), (0.0, 0.0));
+    let group = OnlineGroup::new(
+        [State::new(0.0, 3.0, 0.0), State::at_rest(2.0)],
+        [limits; 2],
+    )
+    .unwrap();
+    assert!((group.duration() - 2.0 * (3.0f64 / 100.0).sqrt()).abs() < 1e-12);
+}

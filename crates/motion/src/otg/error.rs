@@ -72,6 +72,16 @@ pub enum OtgError {
         /// Minimum duration of this axis.
         minimum: f64,
     },
+    /// A straight-line (phase-synchronised) move was asked for, but the start or target
+    /// velocity or acceleration of some axis is not along the line between the positions.
+    #[error(
+        "axis {axis}: its start or target velocity/acceleration is not along the straight line \
+         of the move, so no straight-line profile exists (use time synchronisation)"
+    )]
+    NotCollinear {
+        /// Index of the first axis off the line.
+        axis: usize,
+    },
     /// No common duration was found for a multi-axis move.
     #[error("axis {axis}: no profile of the synchronised duration {duration} was found")]
     SynchronizationFailed {
@@ -94,6 +104,7 @@ impl OtgError {
             Self::NoProfileFound { .. } => "otg-no-profile-found",
             Self::DurationTooShort { .. } => "otg-duration-too-short",
             Self::SynchronizationFailed { .. } => "otg-synchronization-failed",
+            Self::NotCollinear { .. } => "otg-not-collinear",
         }
     }
 }

@@ -3,8 +3,10 @@
 //!
 //! * [`position_profile`]: from any state `(p, v, a)` to a target state, time-optimal under
 //!   velocity, acceleration and jerk limits (a start outside the limits brakes first).
-//! * [`velocity_profile`]: reach a target velocity and acceleration (jog, override, stop).
+//! * [`velocity_profile`]: reach a target velocity and acceleration (jog, override, stop);
+//!   [`synchronize_velocity`]: several axes reaching theirs together.
 //! * [`synchronize`] / [`synchronize_on_period`]: several axes arriving together;
+//!   [`synchronize_straight`]: several axes along the straight line between the positions;
 //!   [`position_profile_with_duration`]: one axis, a prescribed duration.
 //! * [`along_path`]: the path planner's 1-D problem `(0, v0, a0) -> (L, v1, 0)`.
 //! * [`OnlineAxis`] / [`OnlineGroup`]: one servo period at a time, targets replaceable at
@@ -39,6 +41,7 @@ mod online;
 mod position;
 mod profile;
 mod roots;
+mod straight;
 mod sync;
 mod velocity;
 
@@ -47,5 +50,6 @@ pub use limits::{Limits, State};
 pub use online::{OnlineAxis, OnlineGroup};
 pub use position::{Block, along_path, position_block, position_profile};
 pub use profile::{MAX_PHASES, Phase, Profile, Sample};
+pub use straight::synchronize_straight;
 pub use sync::{Synchronized, position_profile_with_duration, synchronize, synchronize_on_period};
-pub use velocity::velocity_profile;
+pub use velocity::{synchronize_velocity, velocity_profile};

@@ -7,7 +7,7 @@
 use super::limits::Which;
 use super::{
     Limits, OtgError, Profile, Sample, State, Synchronized, position_profile, synchronize,
-    synchronize_on_period, velocity_profile,
+    synchronize_on_period, synchronize_straight, velocity_profile,
 };
 
 /// One axis under on-line control.
@@ -24,14 +24,20 @@ pub struct OnlineAxis {
 }
 
 impl OnlineAxis {
-    /// An axis at `state` (moving on with its own velocity and acceleration until a target
-    /// is set; give a state at rest to stand still).
+    /// An axis at `state`. A state at rest stands still; a moving one is brought to rest as
+    /// fast as the limits allow until a target is set (a set-point generator must not keep
+    /// accelerating on its own).
     pub fn new(state: State, limits: Limits) -> Result<Self, OtgError> {
         limits.validate()?;
         state.check_finite(Which::Start)?;
+        let profile = if state.v == 0.0 && state.a == 0.0 {
+            Profile::hold(state)
+        } else {
+            velocity_profile(state, 0.0, 0.0, &limits)?
+        };
         Ok(Self {
             limits,
-            profile: Profile::hold(state),
+            profile,
             time: 0.0,
         })
     }
@@ -113,17 +119,17 @@ pub struct OnlineGroup<const N: usize> {
 }
 
 impl<const N: usize> OnlineGroup<N> {
-    /// Axes at `states`.
+    /// Axes at `states`. Axes at rest stand still; moving ones are brought to rest as fast
+    /// as their limits allow until targets are set (each on its own: the group's duration is
+    /// the longest stop).
     pub fn new(states: [State; N], limits: [Limits; N]) -> Result<Self, OtgError> {
-        for (state, limit) in states.iter().zip(&limits) {
-            limit.validate()?;
-            state.check_finite(Which::Start)?;
+        let mut profiles = [Profile::hold(State::default()); N];
+        for (i, slot) in profiles.iter_mut().enumerate() {
+            *slot = OnlineAxis::new(states[i], limits[i])?.profile;
         }
         Ok(Self {
             limits,
-            motion: Synchronized {
-                profiles: states.map(Profile::hold),
-            },
+            motion: Synchronized { profiles },
             time: 0.0,
             period: None,
         })
@@ -157,6 +163,16 @@ impl<const N: usize> OnlineGroup<N> {
             Some(period) => synchronize_on_period(&now, targets, &self.limits, period)?,
             None => synchronize(&now, targets, &self.limits)?,
         };
+        self.time = 0.0;
+        Ok(())
+    }
+
+    /// Moves every axis to its target along the straight line between the current and the
+    /// target positions (phase synchronisation; no period rounding). The current motion must
+    /// be at rest or along that line, else [`OtgError::NotCollinear`] and nothing changes.
+    pub fn set_targets_straight(&mut self, targets: &[State; N]) -> Result<(), OtgError> {
+        let now = self.sample().map(|s| State::new(s.p, s.v, s.a));
+        self.motion = synchronize_straight(&now, targets, &self.limits)?;
         self.time = 0.0;
         Ok(())
     }

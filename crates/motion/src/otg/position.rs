@@ -16,7 +16,8 @@
 //! | `ACC1` | lower acceleration only | ramp time | quartic |
 //! | `NONE` | no limit | ramp time | quartic |
 //!
-//! Every family is solved for both directions; every root becomes a candidate that
+//! The polynomial coefficients below come from `derive_polynomials.py` (sympy) next to this
+//! file. Every family is solved for both directions; every root becomes a candidate that
 //! [`check`] validates (durations, limits, target). The shortest valid candidate is the
 //! time-optimal profile; the others bound the blocked duration intervals.
 
@@ -293,7 +294,6 @@ pub(crate) fn solve_position(
     })
 }
 
-/// All candidate families in the frame where the profile starts with `+j`.
 /// The problem seen in the frame where the profile starts with `+j` (`sign` -1 mirrors it).
 fn oriented(problem: &Problem, bounds: &Bounds, sign: f64) -> (Problem, Bounds) {
     if sign > 0.0 {
@@ -305,8 +305,8 @@ fn oriented(problem: &Problem, bounds: &Bounds, sign: f64) -> (Problem, Bounds) 
 
 type Family = fn(&Problem, &Bounds, f64, &mut Candidates);
 
-/// Tries every family; with `first_only`, stops at the first valid profile. Returns whether
-/// any was found.
+/// Tries every candidate family in the frame where the profile starts with `+j`; with
+/// `first_only`, stops at the first valid profile. Returns whether any was found.
 fn solve_oriented(
     problem: &Problem,
     bounds: &Bounds,

@@ -139,6 +139,10 @@ impl Profile {
         })
     }
 
+    pub(crate) fn brake_phase_count(&self) -> usize {
+        self.brake_count
+    }
+
     /// Number of phases (brake phases included, zero-length phases excluded).
     pub fn phase_count(&self) -> usize {
         self.count

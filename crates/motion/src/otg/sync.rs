@@ -16,7 +16,7 @@
 //! If none of these has a profile of the exact duration, the common duration is lengthened
 //! step by step until every axis has one: conservative (slower than ruckig), never wrong,
 //! since every profile is validated against the limits and the target before it is used.
-//! On 8400 random three-axis cases against ruckig this fallback was never needed.
+//! On 12 600 random three-axis cases against ruckig this fallback was never needed.
 
 use super::check::{Bounds, Problem, check};
 use super::position::{Step1, solve_position};
@@ -520,9 +520,12 @@ pub struct Synchronized<const N: usize> {
 }
 
 impl<const N: usize> Synchronized<N> {
-    /// Common duration of all axes.
+    /// Common duration of all axes (the longest, should they differ).
     pub fn duration(&self) -> f64 {
-        self.profiles.first().map_or(0.0, Profile::duration)
+        self.profiles
+            .iter()
+            .map(Profile::duration)
+            .fold(0.0, f64::max)
     }
 
     /// Every axis's sample at time `t`.

@@ -17,6 +17,11 @@ The tests only read the JSON; they never call ruckig. Families of cases:
                 minimum: an axis's blocked duration interval decides (rare: searched for)
   sync3_period  three axes, duration rounded up to a whole number of control periods
                 (ruckig's discrete duration), period in the field "period"
+  straight3     three axes with the same limits, phase synchronisation (a straight line),
+                from rest or from a velocity and acceleration along the line, to rest
+                (in the list "straight3")
+  vsync3        three axes, velocity interface, time synchronisation (all reach their
+                target velocity and acceleration together; in the list "vsync3")
 """
 import json
 import math
@@ -88,7 +93,8 @@ def start_state(lim, violating):
     return v0, a0
 
 
-def calc(n, p0, v0, a0, pf, vf, af, lims, interface=ControlInterface.Position, period=None):
+def calc(n, p0, v0, a0, pf, vf, af, lims, interface=ControlInterface.Position, period=None,
+         sync=Synchronization.Time):
     inp = InputParameter(n)
     inp.current_position, inp.current_velocity, inp.current_acceleration = p0, v0, a0
     inp.target_position, inp.target_velocity, inp.target_acceleration = pf, vf, af
@@ -98,7 +104,7 @@ def calc(n, p0, v0, a0, pf, vf, af, lims, interface=ControlInterface.Position, p
     inp.min_acceleration = [l["amin"] for l in lims]
     inp.max_jerk = [l["jmax"] for l in lims]
     inp.control_interface = interface
-    inp.synchronization = Synchronization.Time
+    inp.synchronization = sync
     if period is not None:
         inp.duration_discretization = DurationDiscretization.Discrete
     tr = Trajectory(n)
@@ -148,6 +154,50 @@ def three_axes(period=None):
                 duration=tr.duration, independent_min_durations=list(tr.independent_min_durations))
 
 
+def straight_axes(moving):
+    lim = limits()
+    p0 = [rng.uniform(-10, 10) for _ in range(3)]
+    d = [rng.choice([-1, 1]) * lu(1e-3, 50.0) * rng.choice([1.0, rng.random()]) for _ in range(3)]
+    pf = [p + x for p, x in zip(p0, d)]
+    length = math.sqrt(sum(x * x for x in d))
+    u = [x / length for x in d]
+    umax = max(abs(x) for x in u)
+    # along the line: |u_i| * speed within the limits of every axis
+    sv = rng.uniform(-0.9, 0.9) * lim["vmax"] / umax if moving else 0.0
+    sa = rng.uniform(-0.5, 0.5) * lim["amax"] / umax if moving else 0.0
+    # keep the start safe along the line (not bound to break the velocity limit)
+    reach = sa * abs(sa) / (2 * lim["jmax"] / umax)
+    if abs(sv + reach) > 0.95 * lim["vmax"] / umax:
+        sa = 0.0
+    v0 = [sv * x for x in u]
+    a0 = [sa * x for x in u]
+    tr = calc(3, p0, v0, a0, pf, [0.0] * 3, [0.0] * 3, [lim] * 3, sync=Synchronization.Phase)
+    if tr is None:
+        return None
+    return dict(kind="straight3", p0=p0, v0=v0, a0=a0, pf=pf, vf=[0.0] * 3, af=[0.0] * 3,
+                limits=[lim] * 3, duration=tr.duration,
+                independent_min_durations=list(tr.independent_min_durations))
+
+
+def velocity_axes():
+    lims = [limits() for _ in range(3)]
+    starts = []
+    for l in lims:
+        v0, a0 = start_state(l, violating=False)
+        if rng.random() < 0.2:
+            a0 = rng.choice([l["amax"], l["amin"]]) * rng.uniform(1.05, 2.0)
+        starts.append((v0, a0))
+    targets = [target_state(l, True, rng.random() < 0.5) for l in lims]
+    z = [0.0] * 3
+    tr = calc(3, z, [s[0] for s in starts], [s[1] for s in starts], z, [t[0] for t in targets],
+              [t[1] for t in targets], lims, interface=ControlInterface.Velocity)
+    if tr is None:
+        return None
+    return dict(kind="vsync3", v0=[s[0] for s in starts], a0=[s[1] for s in starts],
+                vf=[t[0] for t in targets], af=[t[1] for t in targets], limits=lims,
+                duration=tr.duration, independent_min_durations=list(tr.independent_min_durations))
+
+
 def main():
     k = ARGS.scale
     counts = dict(inside=60 * k, target_v=60 * k, target_va=60 * k, violating=60 * k, asymmetric=60 * k,
@@ -182,6 +232,20 @@ def main():
         if c is not None:
             sync.append(c)
             made += 1
+    straight = []
+    while len(straight) < 24 * k:
+        c = straight_axes(moving=len(straight) % 2 == 1)
+        if c is None:
+            skipped += 1
+            continue
+        straight.append(c)
+    vsync = []
+    while len(vsync) < 24 * k:
+        c = velocity_axes()
+        if c is None:
+            skipped += 1
+            continue
+        vsync.append(c)
     doc = {
         "tool": "ruckig", "ruckig_version": ruckig.__version__, "seed": SEED,
         "generator": "crates/motion/tests/data/gen_otg_state_cases.py",
@@ -190,11 +254,14 @@ def main():
         "skipped_ruckig_errors": skipped,
         "cases": cases,
         "sync3": sync,
+        "straight3": straight,
+        "vsync3": vsync,
     }
     out = ARGS.out or os.path.join(os.path.dirname(os.path.abspath(__file__)), "otg_state_cases.json")
     with open(out, "w") as f:
         json.dump(doc, f, indent=1)
-    print(f"wrote {out}: {len(cases)} single-axis, {len(sync)} three-axis cases, {skipped} skipped")
+    print(f"wrote {out}: {len(cases)} single-axis, {len(sync)} three-axis, {len(straight)} straight-line, "
+          f"{len(vsync)} velocity-synchronised cases, {skipped} skipped")
 
 
 if __name__ == "__main__":
