@@ -66,6 +66,7 @@ struct Measured {
     plan_s: f64,
     segments: usize,
     geo: String,
+    ns_per_period: f64,
 }
 
 fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
@@ -78,6 +79,7 @@ fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
     let mut k = 0;
     let mut flushed = false;
     let mut plan = std::time::Duration::ZERO;
+    let mut interp = std::time::Duration::ZERO;
     let mut moving_periods = 0usize;
     for _ in 0..10_000_000 {
         let t0 = std::time::Instant::now();
@@ -89,7 +91,9 @@ fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
             flushed = true;
         }
         plan += t0.elapsed();
+        let t1 = std::time::Instant::now();
         let st = pl.next(&mut joints);
+        interp += t1.elapsed();
         if st.state == rtcnc_motion::MotionState::Idle && flushed {
             break;
         }
@@ -106,6 +110,7 @@ fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
         geo: format!("{:?} {:?}", pl.geometry_stats(), pl.stats()),
         plan_s: plan.as_secs_f64(),
         segments: moves.len(),
+        ns_per_period: interp.as_secs_f64() * 1e9 / moving_periods.max(1) as f64,
     };
     // Time: periods until the set-point reaches the end and stays.
     let end = moves.last().map(|mv| match mv.kind {
@@ -116,7 +121,6 @@ fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
     let last_move = pts.iter().rposition(|p| p != &end).map_or(0, |i| i + 1);
     let first_move = pts.iter().position(|p| p != &start).unwrap_or(0);
     m.time = (last_move - first_move + 1) as f64 * t;
-    let _ = moving_periods;
     m.end_err = (0..3)
         .map(|i| (pts[pts.len() - 1][i] - end[i]).abs())
         .fold(0.0, f64::max);
@@ -151,7 +155,7 @@ fn main() {
         ("lemniscate", 1.190, 1.337),
     ];
     println!(
-        "{:<11} {:>8} {:>7} {:>8} {:>7} {:>8} {:>18} {:>22} {:>26} {:>9} {:>5} {:>10}",
+        "{:<11} {:>8} {:>7} {:>8} {:>7} {:>8} {:>18} {:>22} {:>26} {:>9} {:>5} {:>11} {:>10}",
         "path",
         "ours[s]",
         "toppra",
@@ -163,7 +167,8 @@ fn main() {
         "max|j| x,y,z",
         "end err",
         "viol",
-        "plan[seg/s]"
+        "plan[seg/s]",
+        "ns/period"
     );
     for (name, tp, lc) in refs {
         let file = dir.join(format!("{name}.ngc"));
@@ -174,7 +179,7 @@ fn main() {
         let (start, moves) = read_bench_program(&text);
         let m = run(start, &moves, 1e-3);
         println!(
-            "{:<11} {:>8.3} {:>7.3} {:>8.3} {:>7.3} {:>8.3} {:>6.1},{:>5.1},{:>5.1} {:>7.0},{:>6.0},{:>6.0} {:>8.0},{:>8.0},{:>8.0} {:>9.1e} {:>5} {:>10.0}",
+            "{:<11} {:>8.3} {:>7.3} {:>8.3} {:>7.3} {:>8.3} {:>6.1},{:>5.1},{:>5.1} {:>7.0},{:>6.0},{:>6.0} {:>8.0},{:>8.0},{:>8.0} {:>9.1e} {:>5} {:>11.0} {:>10.0}",
             name,
             m.time,
             tp,
@@ -192,7 +197,8 @@ fn main() {
             m.jmax[2],
             m.end_err,
             m.violations,
-            m.segments as f64 / m.plan_s.max(1e-12)
+            m.segments as f64 / m.plan_s.max(1e-12),
+            m.ns_per_period
         );
         if std::env::var("RTCNC_DEBUG_GEO").is_ok() {
             println!("  {}", m.geo);

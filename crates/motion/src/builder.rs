@@ -367,10 +367,21 @@ impl Builder {
                         });
                         // The vertex curvature comes from the circle through three points;
                         // a slightly smaller one keeps a span that bulges too far within P.
-                        for scale_k in [1.0, 0.95, 0.9, 0.8, 0.65] {
+                        let (vs, t_plain) = vs;
+                        let cands = [
+                            (vs.t, 1.0),
+                            (vs.t, 0.95),
+                            (vs.t, 0.85),
+                            (t_plain, 1.0),
+                            (t_plain, 0.7),
+                            (t_plain, 0.3),
+                        ];
+                        for (tv, scale_k) in cands {
+                            let nrm = add_scaled(&vs.k, &tv, -dot(&vs.k, &tv));
                             let vk = State {
-                                k: scale(&vs.k, scale_k),
-                                ..vs
+                                p: vs.p,
+                                t: tv,
+                                k: scale(&nrm, scale_k),
                             };
                             if let Some(pc) = span(&lp, &start, &vk, tolerance, lim) {
                                 out.push(pc);
@@ -429,7 +440,7 @@ impl Builder {
                             self.prev_state = None;
                             return;
                         }
-                        if let Some(pc) = first {
+                        for pc in first.into_iter().flatten() {
                             out.push(pc);
                         }
                         out.push(b);
@@ -458,12 +469,12 @@ impl Builder {
         theta: f64,
         tol: f64,
         before: Option<&State>,
-    ) -> Option<State> {
+    ) -> Option<(State, AxisVec)> {
         if lp.rapid || lc.rapid || theta > SMOOTH_MAX_ANGLE || theta <= KINK {
             return None;
         }
         let (la, lb) = (lp.len, lc.len);
-        if la > 3.0 * lb || lb > 3.0 * la || la.max(lb) * theta > 16.0 * tol {
+        if la > 6.0 * lb || lb > 6.0 * la || la.max(lb) * theta > 30.0 * tol {
             return None;
         }
         let a = sub(&lp.b, &lp.a);
@@ -479,6 +490,7 @@ impl Builder {
         let nrm = unit(&add_scaled(&turn, &t, -dot(&turn, &t)));
         // That tangent is off by κ'·la·lb/6 (towards the normal) where the curvature
         // changes; κ' comes from the previous smoothed vertex (signed along this normal).
+        let t_plain = t;
         let t = match before {
             Some(prev) if norm(&prev.k) > 0.0 => {
                 let kp = (kappa - dot(&prev.k, &nrm)) / la;
@@ -487,11 +499,14 @@ impl Builder {
             _ => t,
         };
         let nrm = unit(&add_scaled(&nrm, &t, -dot(&nrm, &t)));
-        Some(State {
-            p: lp.b,
-            t,
-            k: scale(&nrm, kappa),
-        })
+        Some((
+            State {
+                p: lp.b,
+                t,
+                k: scale(&nrm, kappa),
+            },
+            t_plain,
+        ))
     }
 
     /// A span that must exist (the path has to be continuous): when the smoothing span
@@ -504,15 +519,30 @@ impl Builder {
         s1: &State,
         tol: f64,
         lim: &Lim,
-    ) -> Option<Piece> {
+    ) -> [Option<Piece>; 2] {
         if let Some(p) = span(l, s0, s1, tol, lim) {
-            return Some(p);
+            return [Some(p), None];
+        }
+        // Into a straight end: a shorter span out of the curved start bulges less; the rest
+        // of the segment is a line.
+        let straight1 = dot(&s1.t, &l.dir) >= 1.0 - 1e-15 && norm(&s1.k) == 0.0;
+        if straight1 {
+            for frac in [0.5, 0.25, 0.125] {
+                let q = State {
+                    p: add_scaled(&s0.p, &sub(&s1.p, &s0.p), frac),
+                    t: l.dir,
+                    k: [0.0; AXES],
+                };
+                if let (Some(a), Some(b)) = (span(l, s0, &q, tol, lim), span(l, &q, s1, tol, lim)) {
+                    return [Some(a), Some(b)];
+                }
+            }
         }
         let p = span(l, s0, s1, f64::INFINITY, lim);
         if p.is_some() {
             self.stats.tolerance_exceeded += 1;
         }
-        p
+        [p, None]
     }
 
     fn emit_prim_to_end(
@@ -539,10 +569,11 @@ impl Builder {
                     PathMode::Blend { tolerance, .. } => tolerance,
                     _ => f64::INFINITY,
                 };
-                if let Some(mut pc) = self.span_or_exceed(l, &start, &end, tol, lim) {
-                    pc.stop_at_end = stop;
+                let pieces = self.span_or_exceed(l, &start, &end, tol, lim);
+                for pc in pieces.into_iter().flatten() {
                     out.push(pc);
-                } else if let Some(last) = out.last_mut() {
+                }
+                if let Some(last) = out.last_mut() {
                     last.stop_at_end |= stop;
                 }
             }

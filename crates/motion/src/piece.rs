@@ -9,7 +9,7 @@ pub(crate) const NS_MAX: usize = 4;
 
 /// Share of each axis's jerk the velocity limit leaves to the curvature-change term
 /// v³·|dK/ds| (the rest serves the tangential jerk and the 3·v·a·K coupling).
-pub(crate) const JERK_SHARE_CURVATURE: f64 = 0.6;
+pub(crate) const JERK_SHARE_CURVATURE: f64 = 0.8;
 /// The same on corner blends, whose curvature rises and falls within a short length.
 pub(crate) const JERK_SHARE_CURVATURE_BLEND: f64 = 0.4;
 /// Share of J·T an acceleration step at a curvature discontinuity may use (a step Δa
@@ -18,7 +18,7 @@ pub(crate) const JERK_SHARE_JUMP: f64 = 0.5;
 /// Share of the available deceleration and jerk the braking model uses on curved pieces
 /// (straight pieces use all of it): the margin lets the jerk-limited controller follow a
 /// braking curve whose slope changes along the curve.
-pub(crate) const BRAKE_SHARE_CURVED: f64 = 0.8;
+pub(crate) const BRAKE_SHARE_CURVED: f64 = 0.9;
 /// The same on straight pieces: just below one, so that the controller (which may use the
 /// full limits) keeps some room to follow the braking model exactly in discrete time.
 pub(crate) const BRAKE_SHARE_STRAIGHT: f64 = 0.99;

@@ -159,6 +159,8 @@ pub struct Planner<K: Kinematics> {
     land_n: Option<usize>,
     /// Path jerk of the last period (warm start of the next search).
     j_last: f64,
+    /// Start of each piece ahead, from the head piece's start (rebuilt every period).
+    starts: Vec<f64>,
     /// Diagnostic trace of the speed controller on stderr (`RTCNC_MOTION_TRACE` set when
     /// the planner is built); never enable on a real-time thread.
     trace: bool,
@@ -248,6 +250,7 @@ impl<K: Kinematics> Planner<K> {
             ds_hist: [0.0; 2],
             land_n: None,
             j_last: 0.0,
+            starts: Vec::with_capacity(window),
             trace: std::env::var_os("RTCNC_MOTION_TRACE").is_some(),
         })
     }
@@ -719,8 +722,18 @@ impl<K: Kinematics> Planner<K> {
     /// never beyond the next stop.
     #[inline]
     fn locate(&self, d: f64) -> (usize, f64) {
-        let mut i = 0;
-        let mut sl = self.s + d;
+        let target = self.s + d;
+        // Table of piece starts built at the start of the period (binary search).
+        let m = self.starts.len();
+        let (mut i, mut sl) = if m > 0 {
+            let k = self
+                .starts
+                .partition_point(|x| *x <= target)
+                .saturating_sub(1);
+            (k, target - self.starts[k])
+        } else {
+            (0, target)
+        };
         loop {
             let p = self.q.get(i);
             if sl <= p.len || p.stop_at_end || i + 1 >= self.q.len {
@@ -728,6 +741,21 @@ impl<K: Kinematics> Planner<K> {
             }
             sl -= p.len;
             i += 1;
+        }
+    }
+
+    /// Fills the table of piece starts (distance from the head piece's start) up to the next
+    /// stop, for `locate`. Bounded by the window; no allocation (capacity reserved).
+    fn build_starts(&mut self) {
+        self.starts.clear();
+        let mut cum = 0.0;
+        for i in 0..self.q.len.min(self.starts.capacity()) {
+            self.starts.push(cum);
+            let p = self.q.get(i);
+            if p.stop_at_end {
+                break;
+            }
+            cum += p.len;
         }
     }
 
@@ -839,6 +867,7 @@ impl<K: Kinematics> Planner<K> {
     /// One period of the path-speed controller: chooses the path jerk, checks the resulting
     /// set-point against every axis limit and commits it.
     fn control(&mut self) -> AxisVec {
+        self.build_starts();
         let t = self.period;
         let head = *self.q.get(0);
         let (quick, hold) = match self.hold {
@@ -922,6 +951,13 @@ impl<K: Kinematics> Planner<K> {
                 .map(|(c, vm, av, jv)| (c - head.cum_start - self.s, vm, av, jv)),
         }
         .filter(|(d, ..)| *d > 0.0);
+        // Lowest braking-curve speed within the travel of the longest possible ramp.
+        let w_floor = {
+            let jb_min = 0.5 * (-j_lo).max(0.1 * jm);
+            let reach =
+                (v + a.abs() * t + a_full * t) * (a.max(0.0) + a_full) / jb_min * 2.0 + v * 4.0 * t;
+            self.w_min_between(0.0, reach.min(rem))
+        };
         // 0: safe; 1: violates the stop (distance or undershoot); 2: violates the braking curve.
         let check_detail = |j: f64| -> u8 {
             let (ds, v1, a1) = advance(0.0, v, a, j, t);
@@ -993,7 +1029,10 @@ impl<K: Kinematics> Planner<K> {
             }
             // Joining the braking curve: simulate the jerk-limited ramp of the acceleration
             // towards the curve's local slope, in chunks, over the time the longest ramp takes.
-            if !self.join_ok(ds, v1, a1, jb, a_full, t, rem) {
+            // Skipped when even the highest speed the ramp could reach stays under the curve's
+            // lowest point within the longest ramp's travel.
+            let v_peak = v1 + a1.max(0.0) * (a1.max(0.0) / (2.0 * jb) + t);
+            if v_peak > w_floor && !self.join_ok(ds, v1, a1, jb, a_full, t, rem) {
                 return 26;
             }
             0

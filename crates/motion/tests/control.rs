@@ -73,7 +73,7 @@ fn diagonal_line_uses_the_projected_axis_limits() {
 #[test]
 fn arc_at_high_feed_runs_at_the_centripetal_limit() {
     // Full circle R = 5 in XY at F 200: v = sqrt(a R) = 70.71 mm/s binds (below the axis
-    // velocity limit and the jerk bound (j R²)^(1/3)·0.6^(1/3) = 90.9).
+    // velocity limit and the jerk bound (0.8 j R²)^(1/3) = 100).
     let r = 5.0;
     let mv = Move::arc(
         p3(r, 0.0, 0.0),
