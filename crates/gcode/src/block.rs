@@ -118,6 +118,11 @@ pub(crate) enum CommentKind {
     Msg,
     Debug,
     Print,
+    Log,
+    LogOpen,
+    LogAppend,
+    LogClose,
+    Abort,
 }
 
 /// An o-word control keyword.
@@ -171,6 +176,10 @@ pub(crate) struct Block {
     pub m_col: [u16; mg::COUNT],
     pub m98: bool,
     pub dollar: Option<f64>,
+    /// Polar coordinates: `@` radius and `^` angle (degrees), with their columns.
+    pub polar_radius: Option<f64>,
+    pub polar_angle: Option<f64>,
+    pub polar_col: u16,
     pub assigns: Vec<(ParamRef, f64)>,
     pub comment_kind: CommentKind,
     pub has_comment: bool,
@@ -200,6 +209,9 @@ impl Default for Block {
             m_col: [0; mg::COUNT],
             m98: false,
             dollar: None,
+            polar_radius: None,
+            polar_angle: None,
+            polar_col: 0,
             assigns: Vec::new(),
             comment_kind: CommentKind::Plain,
             has_comment: false,
@@ -223,6 +235,8 @@ impl Block {
         self.m = [-1; mg::COUNT];
         self.m98 = false;
         self.dollar = None;
+        self.polar_radius = None;
+        self.polar_angle = None;
         self.assigns.clear();
         self.comment_kind = CommentKind::Plain;
         self.has_comment = false;
@@ -252,6 +266,11 @@ impl Block {
     /// 0-based column of letter word `c`.
     pub fn column(&self, c: u8) -> usize {
         self.col[(c - b'a') as usize] as usize
+    }
+
+    /// True if a polar coordinate (`@` or `^`) is present.
+    pub fn has_polar(&self) -> bool {
+        self.polar_radius.is_some() || self.polar_angle.is_some()
     }
 
     /// True if any axis word X Y Z A B C U V W is present.
@@ -557,6 +576,30 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
                     b.m_col[group] = col as u16;
                     b.other_words = true;
                 }
+                b'@' | b'^' => {
+                    self.i += 1;
+                    let slot = if c == b'@' {
+                        &mut b.polar_radius
+                    } else {
+                        &mut b.polar_angle
+                    };
+                    if slot.is_some() {
+                        return err(
+                            ErrorKind::Conflict,
+                            col,
+                            format!("two {} words on one line", c as char),
+                        );
+                    }
+                    let v = self.real_value()?;
+                    let slot = if c == b'@' {
+                        &mut b.polar_radius
+                    } else {
+                        &mut b.polar_angle
+                    };
+                    *slot = Some(v);
+                    b.polar_col = col as u16;
+                    b.other_words = true;
+                }
                 b'$' => {
                     self.i += 1;
                     if b.dollar.is_some() {
@@ -663,6 +706,16 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
             (CommentKind::Debug, &body[6..])
         } else if starts(b"print,") {
             (CommentKind::Print, &body[6..])
+        } else if starts(b"log,") {
+            (CommentKind::Log, &body[4..])
+        } else if starts(b"logopen,") {
+            (CommentKind::LogOpen, &body[8..])
+        } else if starts(b"logappend,") {
+            (CommentKind::LogAppend, &body[10..])
+        } else if body.eq_ignore_ascii_case(b"logclose") {
+            (CommentKind::LogClose, &body[8..])
+        } else if starts(b"abort,") {
+            (CommentKind::Abort, &body[6..])
         } else {
             (CommentKind::Plain, text)
         };

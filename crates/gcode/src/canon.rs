@@ -286,6 +286,17 @@ pub enum CanonCommand {
     /// `(PRINT,...)` text: for a log, not for the operator (rs274 prints it outside its
     /// canonical stream).
     Print(Text),
+    /// `(LOGOPEN,file)` / `(LOGAPPEND,file)`: start writing `(LOG,...)` lines to a file.
+    LogOpen {
+        /// File name as written.
+        path: Text,
+        /// Append instead of truncating.
+        append: bool,
+    },
+    /// `(LOG,text)` with parameters substituted.
+    Log(Text),
+    /// `(LOGCLOSE)`.
+    LogClose,
     /// Arc / canned cycle / compensation plane.
     SelectPlane(Plane),
     /// G61 / G61.1 / G64.
@@ -529,6 +540,17 @@ impl Canon {
             C::Comment(t) => call_text(o, b"COMMENT(\"", t),
             C::Message(t) => call_text(o, b"MESSAGE(\"", t),
             C::Print(_) | C::WaitInput { .. } => {}
+            C::LogOpen { path, append } => call_text(
+                o,
+                if *append {
+                    b"LOGAPPEND(\"".as_slice()
+                } else {
+                    b"LOGOPEN(\""
+                },
+                path,
+            ),
+            C::Log(t) => call_text(o, b"LOG(\"", t),
+            C::LogClose => o.extend_from_slice(b"LOGCLOSE()"),
             C::SelectPlane(p) => {
                 o.extend_from_slice(b"SELECT_PLANE(");
                 o.extend_from_slice(match p {

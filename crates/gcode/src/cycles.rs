@@ -5,6 +5,7 @@ use crate::block::{Block, gg};
 use crate::canon::{CanonCommand as C, FeedMode, PathMode, Plane, Pose, SpindleDirection, Units};
 use crate::error::{ErrorKind, GcodeError};
 use crate::interp::Interpreter;
+use crate::motion::polar_end;
 
 type Res<T> = Result<T, GcodeError>;
 
@@ -155,14 +156,20 @@ impl Interpreter {
             }
         };
         let (mut aa, mut bb, r, cc, da, db);
+        // Polar words (G17 only) step the hole position in radius and angle.
+        let (mut dr, mut dt) = (None, None);
         if self.state.absolute {
             r = r_word;
             cc = c_word;
             aa = b.get(ax.la).unwrap_or(pos[ax.a]);
             bb = b.get(ax.lb).unwrap_or(pos[ax.b]);
+            if b.has_polar() {
+                (aa, bb) = polar_end(pos[0], pos[1], b.polar_radius, b.polar_angle, true);
+            }
             da = 0.0;
             db = 0.0;
         } else {
+            (dr, dt) = (b.polar_radius, b.polar_angle);
             da = b.get(ax.la).unwrap_or(0.0);
             db = b.get(ax.lb).unwrap_or(0.0);
             r = r_word + old_cc;
@@ -249,6 +256,17 @@ impl Interpreter {
         for repeat in (1..=repeats).rev() {
             aa += da;
             bb += db;
+            if dr.is_some() || dt.is_some() {
+                if aa == 0.0 && bb == 0.0 {
+                    return Err(self.cycle_err(
+                        b,
+                        ErrorKind::BadValue,
+                        "incremental motion with polar coordinates is indeterminate at the origin",
+                    ));
+                }
+                (aa, bb) = polar_end(aa, bb, dr, None, false);
+                (aa, bb) = polar_end(aa, bb, None, dt, false);
+            }
             if repeat == repeats && current_cc > r {
                 self.cycle_move(&ax, false, aa, bb, current_cc);
                 self.cycle_move(&ax, false, aa, bb, r);

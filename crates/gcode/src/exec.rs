@@ -4,9 +4,9 @@
 //! path mode, distance modes, retract mode, G10/G28/G30/G92, motion, stop.
 
 use crate::block::{AXES, Block, CommentKind as Comment, fmt_code, gg, mg};
-use crate::canon::{CanonCommand as C, FeedMode, PathMode, Plane, Units};
+use crate::canon::{CanonCommand as C, FeedMode, PathMode, Plane, Pose, Units};
 use crate::error::{ErrorKind, GcodeError};
-use crate::interp::{Interpreter, substitute};
+use crate::interp::{Interpreter, rotate, substitute};
 use crate::params::sys;
 
 type Res<T> = Result<T, GcodeError>;
@@ -52,7 +52,7 @@ impl Interpreter {
         let motion = self.motion_to_be(b)?;
         self.check_words(b, motion)?;
         if b.has_comment {
-            self.comment(b);
+            self.comment(b)?;
         }
         if b.g[gg::SPINDLE] != -1 {
             self.spindle_mode(b)?;
@@ -98,18 +98,89 @@ impl Interpreter {
             self.state.selected_tool = t;
             self.state.selected_pocket = pocket;
         }
+        let tool_before = self.state.tool_offset;
         self.m_codes(b)?;
         self.g_codes(b, motion)?;
+        if b.m[mg::TOOL] != -1 && motion == -1 {
+            self.resync_after_tool_change(tool_before);
+        }
         if b.m[mg::STOP] != -1 {
             return self.stop(b);
         }
         Ok(true)
     }
 
+    /// After M6 or M61 LinuxCNC stops reading ahead and takes its position back from the
+    /// motion controller, where a tool length offset applied in the same block has not
+    /// moved anything: the offset then shows on the next move instead of shifting the
+    /// program position. (A G43 in a block of its own shifts the program position.)
+    fn resync_after_tool_change(&mut self, tool_before: Pose) {
+        let new = self.state.tool_offset;
+        if new == tool_before {
+            return;
+        }
+        let (dx, dy) = rotate(
+            new.x - tool_before.x,
+            new.y - tool_before.y,
+            -self.state.rotation,
+        );
+        let mut p = self.state.position.to_array();
+        let (o, n) = (tool_before.to_array(), new.to_array());
+        for i in 2..9 {
+            p[i] += n[i] - o[i];
+        }
+        p[0] += dx;
+        p[1] += dy;
+        self.state.position = Pose::from_array(p);
+    }
+
     /// Which motion the block makes (tenths), or -1 for none; with the axis-word checks of
     /// RS274/NGC.
     pub(crate) fn motion_to_be(&self, b: &Block) -> Res<i32> {
-        let axis = b.has_axis();
+        if !b.has_polar() {
+            return self.motion_of_words(b, b.has_axis());
+        }
+        let col = usize::from(b.polar_col) + 1;
+        if self.state.plane != Plane::XY {
+            return Err(self.error_at(
+                ErrorKind::State,
+                col,
+                "polar coordinates (@, ^) can only be used in the G17 plane",
+            ));
+        }
+        if b.has(b'x') || b.has(b'y') {
+            return Err(self.error_at(
+                ErrorKind::Conflict,
+                col,
+                "X or Y words cannot be given with polar coordinates",
+            ));
+        }
+        if b.g[gg::NON_MODAL] == 530 {
+            return Err(self.error_at(
+                ErrorKind::Conflict,
+                col,
+                "polar coordinates cannot be used with G53",
+            ));
+        }
+        if b.g[gg::NON_MODAL] != -1 && b.g[gg::NON_MODAL] != 40 {
+            return Err(self.error_at(
+                ErrorKind::UnusedWord,
+                col,
+                "polar coordinates can only be used for motion",
+            ));
+        }
+        let motion = self.motion_of_words(b, true)?;
+        if motion == -1 {
+            return Err(self.error_at(
+                ErrorKind::UnusedWord,
+                col,
+                "polar coordinates can only be used for motion",
+            ));
+        }
+        Ok(motion)
+    }
+
+    fn motion_of_words(&self, b: &Block, axis: bool) -> Res<i32> {
         let mode0 = b.g[gg::NON_MODAL];
         let mode1 = b.g[gg::MOTION];
         let covets = matches!(mode0, 100 | 280 | 300 | 520 | 920);
@@ -429,7 +500,7 @@ impl Interpreter {
         Ok(())
     }
 
-    pub(crate) fn comment(&mut self, b: &Block) {
+    pub(crate) fn comment(&mut self, b: &Block) -> Res<()> {
         match b.comment_kind {
             Comment::Plain => {
                 let t = b.comment.trim_start_matches([' ', '\t']).to_string();
@@ -446,7 +517,21 @@ impl Interpreter {
                 let t = substitute(&b.comment, self);
                 self.emit(C::Print(t.into()));
             }
+            Comment::Log => {
+                let t = substitute(&b.comment, self);
+                self.emit(C::Log(t.into()));
+            }
+            Comment::LogOpen | Comment::LogAppend => self.emit(C::LogOpen {
+                path: b.comment.clone().into(),
+                append: b.comment_kind == Comment::LogAppend,
+            }),
+            Comment::LogClose => self.emit(C::LogClose),
+            Comment::Abort => {
+                let t = substitute(&b.comment, self);
+                return Err(self.error_at(ErrorKind::State, 0, t));
+            }
         }
+        Ok(())
     }
 
     pub(crate) fn spindle_mode(&mut self, b: &Block) -> Res<()> {

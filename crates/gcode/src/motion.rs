@@ -47,10 +47,35 @@ impl Interpreter {
                 end[i] = if s.absolute { v } else { cur[i] + v };
             }
         }
+        if b.has_polar() {
+            let (x, y) = polar_end(end[0], end[1], b.polar_radius, b.polar_angle, s.absolute);
+            end[0] = x;
+            end[1] = y;
+        }
         Pose::from_array(end)
     }
 
     pub(crate) fn motion(&mut self, b: &Block, motion: i32) -> Res<()> {
+        if b.has_polar() && !matches!(motion, 730 | 810..=890) {
+            let col = usize::from(b.polar_col) + 1;
+            let p = self.state.position;
+            if p.x == 0.0 && p.y == 0.0 {
+                if !self.state.absolute {
+                    return Err(self.error_at(
+                        ErrorKind::BadValue,
+                        col,
+                        "incremental motion with polar coordinates is indeterminate at the origin",
+                    ));
+                }
+                if b.polar_angle.is_none() {
+                    return Err(self.error_at(
+                        ErrorKind::MissingWord,
+                        col,
+                        "give the angle (^) of a polar coordinate when at the origin",
+                    ));
+                }
+            }
+        }
         match motion {
             0 | 10 => self.straight(b, motion),
             20 | 30 => self.arc(b, motion),
@@ -151,6 +176,19 @@ impl Interpreter {
         };
         let r_word = b.get(b'r');
         if r_word.is_some() {
+            // A radius-format arc cannot be a full circle: it needs an end point.
+            if !b.has(l1) && !b.has(l2) && !b.has_polar() {
+                return Err(self.g_err(
+                    b,
+                    gg::MOTION,
+                    ErrorKind::MissingWord,
+                    format!(
+                        "{} and {} words both missing for a radius-format arc in this plane",
+                        l1.to_ascii_uppercase() as char,
+                        l2.to_ascii_uppercase() as char
+                    ),
+                ));
+            }
             if b.has(b'i') || b.has(b'j') || b.has(b'k') {
                 return Err(self.err(
                     b,
@@ -467,6 +505,28 @@ impl Interpreter {
         self.waiting = self.settings.wait_for_machine;
         Ok(())
     }
+}
+
+/// X and Y of a polar end point (`@` radius, `^` angle in degrees, about the origin of the
+/// coordinate system). Absolute: a missing word keeps the current radius or angle;
+/// incremental: the words add to them.
+pub(crate) fn polar_end(
+    x: f64,
+    y: f64,
+    radius: Option<f64>,
+    angle: Option<f64>,
+    absolute: bool,
+) -> (f64, f64) {
+    let (r0, t0) = (x.hypot(y), y.atan2(x));
+    let (r, t) = if absolute {
+        (radius.unwrap_or(r0), angle.map_or(t0, f64::to_radians))
+    } else {
+        (
+            r0 + radius.unwrap_or(0.0),
+            t0 + angle.unwrap_or(0.0).to_radians(),
+        )
+    };
+    (r * t.cos(), r * t.sin())
 }
 
 /// Length of a straight move for inverse time feed: XYZ(UVW) distance, or the rotary
