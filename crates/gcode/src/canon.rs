@@ -882,10 +882,18 @@ pub(crate) fn push_fixed(o: &mut Vec<u8>, v: f64, decimals: u32) {
     ];
     let d = decimals.min(6) as usize;
     let scaled = v * SCALE[d];
-    if !scaled.is_finite() || scaled.abs() >= 1.0e15 {
+    // Values near a rounding tie (x.xxxx5) are decided on their exact binary value, as C's
+    // printf does; those, huge and non-finite values take the exact (slower) path.
+    // (The fraction through an integer cast: `f64::fract` is a libm call on x86-64.)
+    let tie = ((scaled - (scaled as i64) as f64).abs() - 0.5).abs() < 1e-6;
+    if tie || !scaled.is_finite() || scaled.abs() >= 1.0e15 {
         use std::io::Write;
-        // Rare: huge or non-finite values take the exact (slower) path.
+        let start = o.len();
         let _ = write!(o, "{:.*}", d, v);
+        // No minus sign on a value that prints as zero.
+        if o[start] == b'-' && o[start + 1..].iter().all(|c| *c == b'0' || *c == b'.') {
+            o.remove(start);
+        }
         return;
     }
     // Round half away from zero (the cast truncates).
@@ -963,6 +971,10 @@ mod tests {
             (-1.5, "-1.5000"),
             (0.123456, "0.1235"),
             (1e17, "100000000000000000.0000"),
+            // Ties go by the exact binary value, like printf.
+            (1.76975, "1.7697"),
+            (22.32435, "22.3243"),
+            (-0.00005, "-0.0001"),
         ] {
             v.clear();
             push_fixed(&mut v, x, 4);
