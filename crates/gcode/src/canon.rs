@@ -394,6 +394,13 @@ pub enum CanonCommand {
     },
     /// End of spindle-synchronised motion.
     StopSpeedFeedSync,
+    /// G33.1: rigid tapping to `end` and back out (the spindle reverses), synchronised.
+    RigidTap {
+        /// Bottom of the hole.
+        end: Pose,
+        /// Spindle speed factor on the way out (I word, at least 1).
+        scale: f64,
+    },
     /// G38.2 - G38.5 straight probing move.
     StraightProbe {
         /// End point.
@@ -708,6 +715,15 @@ impl Canon {
                 o.push(b')');
             }
             C::StopSpeedFeedSync => o.extend_from_slice(b"STOP_SPEED_FEED_SYNCH()"),
+            C::RigidTap { end, .. } => {
+                o.extend_from_slice(b"RIGID_TAP(");
+                push_fixed(o, end.x, 4);
+                o.extend_from_slice(b", ");
+                push_fixed(o, end.y, 4);
+                o.extend_from_slice(b", ");
+                push_fixed(o, end.z, 4);
+                o.push(b')');
+            }
             C::TurnProbeOn => o.extend_from_slice(b"TURN_PROBE_ON()"),
             C::TurnProbeOff => o.extend_from_slice(b"TURN_PROBE_OFF()"),
             C::StraightProbe { end, .. } => call_pose(o, b"STRAIGHT_PROBE(", end),

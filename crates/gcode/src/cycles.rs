@@ -278,6 +278,16 @@ impl Interpreter {
             }
             if repeat == repeats {
                 match motion {
+                    740 if direction != Some(SpindleDirection::CounterClockwise) => {
+                        return Err(self.cycle_err(
+                            b,
+                            ErrorKind::State,
+                            match direction {
+                                None => "spindle not turning in G74",
+                                _ => "spindle turning clockwise in G74",
+                            },
+                        ));
+                    }
                     840 if direction != Some(SpindleDirection::Clockwise) => {
                         return Err(self.cycle_err(
                             b,
@@ -321,7 +331,19 @@ impl Interpreter {
                     self.cycle_move(&ax, true, aa, bb, cc);
                     self.cycle_move(&ax, false, aa, bb, clear_cc);
                 }
-                840 => {
+                740 | 840 => {
+                    // Tapping: in at feed, reverse the spindle, dwell, out at feed, restore.
+                    let (down, up) = if motion == 840 {
+                        (
+                            SpindleDirection::Clockwise,
+                            SpindleDirection::CounterClockwise,
+                        )
+                    } else {
+                        (
+                            SpindleDirection::CounterClockwise,
+                            SpindleDirection::Clockwise,
+                        )
+                    };
                     let fo = self.state.feed_override;
                     let so = self.state.speed_override;
                     self.emit(C::FeedOverride(false));
@@ -333,14 +355,14 @@ impl Interpreter {
                     self.emit(C::StopSpindle { spindle: 0 });
                     self.emit(C::StartSpindle {
                         spindle: 0,
-                        direction: SpindleDirection::CounterClockwise,
+                        direction: up,
                     });
                     self.emit(C::Dwell(dwell));
                     self.cycle_move(&ax, true, aa, bb, clear_cc);
                     self.emit(C::StopSpindle { spindle: 0 });
                     self.emit(C::StartSpindle {
                         spindle: 0,
-                        direction: SpindleDirection::Clockwise,
+                        direction: down,
                     });
                     if fo {
                         self.emit(C::FeedOverride(true));
@@ -408,7 +430,7 @@ impl Interpreter {
         }
         self.cycle.cc = c_word;
         self.cycle.r = r_word;
-        if needs_p || matches!(motion, 840) {
+        if needs_p || matches!(motion, 740 | 840) {
             self.cycle.p = dwell;
         }
         if needs_q {

@@ -238,7 +238,7 @@ impl Interpreter {
             return Ok(-1);
         }
         if axis {
-            if self.state.motion == 800 && b.g[gg::LENGTH] != 431 {
+            if self.state.motion == 800 && !matches!(b.g[gg::LENGTH], 431 | 432) {
                 let first = AXES.iter().find(|c| b.has(**c)).copied().unwrap_or(b'x');
                 return Err(self.err(
                     b,
@@ -247,7 +247,7 @@ impl Interpreter {
                     "axis word with no motion mode in effect (G80): give G0, G1, ... first",
                 ));
             }
-            if b.g[gg::LENGTH] == 431 {
+            if matches!(b.g[gg::LENGTH], 431 | 432) {
                 return Ok(-1);
             }
             return Ok(self.state.motion);
@@ -261,7 +261,7 @@ impl Interpreter {
     /// Words present that nothing on the block uses.
     pub(crate) fn check_words(&self, b: &Block, motion: i32) -> Res<()> {
         let mode0 = b.g[gg::NON_MODAL];
-        let cycle = matches!(motion, 730 | 810..=890);
+        let cycle = matches!(motion, 730 | 740 | 810..=890);
         let g10 = mode0 == 100;
         let user_m = b.m[mg::USER] != -1;
         let m = |g: usize, v: i32| b.m[g] == v;
@@ -319,15 +319,15 @@ impl Interpreter {
                 "E word with no M66, M67 or M68 to use it",
             ));
         }
-        if b.has(b'h') && b.g[gg::LENGTH] != 430 && motion != 760 {
+        if b.has(b'h') && !matches!(b.g[gg::LENGTH], 430 | 432) && motion != 760 {
             return Err(self.err(
                 b,
                 b'h',
                 ErrorKind::UnusedWord,
-                "H word with no G43 to use it",
+                "H word with no G43 or G43.2 to use it",
             ));
         }
-        if b.has(b'i') && !(matches!(motion, 20 | 30 | 50 | 51 | 760 | 870) || g10) {
+        if b.has(b'i') && !(matches!(motion, 20 | 30 | 50 | 51 | 331 | 760 | 870) || g10) {
             return Err(self.err(
                 b,
                 b'i',
@@ -343,7 +343,7 @@ impl Interpreter {
                 "J word with no G2, G3, G5, G5.1, G10 or G87 to use it",
             ));
         }
-        if b.has(b'k') && !matches!(motion, 20 | 30 | 330 | 760 | 870) {
+        if b.has(b'k') && !matches!(motion, 20 | 30 | 330 | 331 | 760 | 870) {
             return Err(self.err(
                 b,
                 b'k',
@@ -370,7 +370,10 @@ impl Interpreter {
             let ok = g10
                 || mode0 == 40
                 || b.g[gg::CONTROL] == 640
-                || matches!(motion, 820 | 860 | 880 | 890 | 50 | 20 | 30 | 840 | 760)
+                || matches!(
+                    motion,
+                    820 | 860 | 880 | 890 | 50 | 20 | 30 | 740 | 840 | 760
+                )
                 || matches!(b.m[mg::OVERRIDE], 50..=53)
                 || matches!(b.m[mg::IO], 62..=66)
                 || m(mg::SPINDLE, 19)
@@ -439,13 +442,13 @@ impl Interpreter {
                 ));
             }
         }
-        if motion == 330 {
+        if motion == 330 || motion == 331 {
             if !b.has(b'k') {
                 return Err(self.g_err(
                     b,
                     gg::MOTION,
                     ErrorKind::MissingWord,
-                    "G33 needs a K word (pitch)",
+                    "G33 and G33.1 need a K word (pitch)",
                 ));
             }
             if b.has(b'f') {
@@ -453,7 +456,7 @@ impl Interpreter {
                     b,
                     b'f',
                     ErrorKind::UnusedWord,
-                    "F word cannot be used with G33",
+                    "F word cannot be used with G33 or G33.1",
                 ));
             }
         }
@@ -488,7 +491,7 @@ impl Interpreter {
                 || matches!(b.m[mg::SPINDLE], 3 | 4 | 5 | 19)
                 || b.g[gg::SPINDLE] != -1
                 || b.g[gg::FEED_MODE] == 950
-                || matches!(motion, 330 | 760)
+                || matches!(motion, 330 | 331 | 760)
                 || m(mg::OVERRIDE, 51))
         {
             return Err(self.error_at(

@@ -56,7 +56,7 @@ impl Interpreter {
     }
 
     pub(crate) fn motion(&mut self, b: &Block, motion: i32) -> Res<()> {
-        if b.has_polar() && !matches!(motion, 730 | 810..=890) {
+        if b.has_polar() && !matches!(motion, 730 | 740 | 810..=890) {
             let col = usize::from(b.polar_col) + 1;
             let p = self.state.position;
             if p.x == 0.0 && p.y == 0.0 {
@@ -82,6 +82,7 @@ impl Interpreter {
             50 | 51 => self.spline(b, motion),
             382..=385 => self.probe(b, motion),
             330 => self.g33(b),
+            331 => self.g33_1(b),
             760 => self.g76(b),
             800 => {
                 self.emit(C::Comment("interpreter: motion mode set to none".into()));

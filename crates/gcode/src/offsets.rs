@@ -154,7 +154,17 @@ impl Interpreter {
         let code = b.g[gg::LENGTH];
         let new = match code {
             490 => Pose::ZERO,
-            430 => {
+            430 | 432 => {
+                if code == 432 && !b.has(b'h') {
+                    // G43.2 with axis words: add them to the offset in force.
+                    let mut v = self.state.tool_offset.to_array();
+                    for (i, l) in AXES.iter().enumerate() {
+                        if let Some(x) = b.get(*l) {
+                            v[i] += x;
+                        }
+                    }
+                    return self.apply_tool_offset(Pose::from_array(v), code);
+                }
                 let tool = match b.get(b'h') {
                     Some(h) => {
                         let t = self.whole(b, b'h', h)?;
@@ -187,6 +197,13 @@ impl Interpreter {
                         self.user_to_program(off[i])
                     };
                 }
+                if code == 432 {
+                    // G43.2 H: add that tool's offsets to the ones in force.
+                    let cur = self.state.tool_offset.to_array();
+                    for i in 0..9 {
+                        v[i] += cur[i];
+                    }
+                }
                 Pose::from_array(v)
             }
             _ => {
@@ -200,6 +217,12 @@ impl Interpreter {
                 Pose::from_array(v)
             }
         };
+        self.apply_tool_offset(new, code)
+    }
+
+    /// Puts a tool length offset in force; the program position moves so that the machine
+    /// does not.
+    fn apply_tool_offset(&mut self, new: Pose, code: i32) -> Res<()> {
         self.emit(C::UseToolLengthOffset(new));
         let old = self.state.tool_offset;
         let (dx, dy) = rotate(old.x - new.x, old.y - new.y, -self.state.rotation);

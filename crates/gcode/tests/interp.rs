@@ -341,3 +341,18 @@ fn mdi_calls_subroutines_from_the_search_path_and_abort_stops_a_program() {
     assert!(it.next_canon().is_none());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn g43_2_with_axis_words_adds_to_the_offset_in_force() {
+    // rs274 (2.9.0~pre1) rejects this form ("Requested tool -1"): checked by hand.
+    let (out, err) = run("G43.1 Z2\nG43.2 Z0.5 X0.1\nM2\n");
+    assert!(err.is_none(), "{err:?}");
+    assert_eq!(
+        out[1],
+        CanonCommand::UseToolLengthOffset(Pose {
+            x: 0.1,
+            z: 2.5,
+            ..Pose::ZERO
+        })
+    );
+}
