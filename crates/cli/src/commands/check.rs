@@ -102,6 +102,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     if args.canon {
         // rs274 resets the interpreter as it exits.
+        if args.line_numbers {
+            buf.extend_from_slice(b"N..... ");
+        }
         buf.extend_from_slice(b"ON_RESET()\n");
     }
     out.write_all(&buf)?;
