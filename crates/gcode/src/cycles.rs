@@ -9,6 +9,9 @@ use crate::motion::polar_end;
 
 type Res<T> = Result<T, GcodeError>;
 
+/// Most repeats (L) of one canned cycle block: its moves are queued at once.
+const MAX_REPEATS: u64 = 10_000;
+
 /// The plane's axes as pose indices: (first, second, normal) and the letters of the words.
 struct Axes {
     a: usize,
@@ -130,6 +133,14 @@ impl Interpreter {
                 }
                 if l < 0.0 {
                     return Err(self.cycle_err(b, ErrorKind::BadValue, "negative L word"));
+                }
+                // One block's moves are queued together: keep that bounded.
+                if l > MAX_REPEATS as f64 {
+                    return Err(self.cycle_err(
+                        b,
+                        ErrorKind::BadValue,
+                        format!("more than {MAX_REPEATS} repeats of a canned cycle in one block"),
+                    ));
                 }
                 l as u64
             }

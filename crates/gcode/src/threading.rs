@@ -153,11 +153,11 @@ impl Interpreter {
             self.threading_pass(&t, depth, zoff);
             pass += 1;
             depth = full_dia_depth + cut_increment * f64::from(pass).powf(1.0 / degression);
-            if pass > 100_000 {
+            if pass > 10_000 {
                 return Err(self.sync_err(
                     b,
                     ErrorKind::BadValue,
-                    "G76 would need more than 100000 passes",
+                    "G76 would need more than 10000 passes",
                 ));
             }
         }
