@@ -54,7 +54,8 @@ impl Interpreter {
                     };
                     self.emit(C::SetAnalogOutput {
                         index: e as u32,
-                        value: b.get(b'q').unwrap_or(0.0),
+                        // LinuxCNC sends -1 when Q is missing.
+                        value: b.get(b'q').unwrap_or(-1.0),
                         synchronized: io == 67,
                     });
                 }
@@ -203,7 +204,8 @@ impl Interpreter {
                     "cannot change overrides with cutter radius compensation on",
                 ));
             }
-            let on = b.get(b'p').unwrap_or(0.0) != 0.0;
+            // As in LinuxCNC, a missing P counts as -1: on.
+            let on = b.get(b'p').unwrap_or(-1.0) != 0.0;
             match ov {
                 48 | 49 => {
                     let on = ov == 48;
