@@ -229,7 +229,6 @@ pub struct Interpreter {
     pub(crate) at_eof: bool,
     pub(crate) value: f64,
     pub(crate) value_returned: bool,
-    pub(crate) spline_last_pq: Option<[f64; 2]>,
 }
 
 impl Interpreter {
@@ -263,7 +262,6 @@ impl Interpreter {
             at_eof: false,
             value: 0.0,
             value_returned: false,
-            spline_last_pq: None,
         };
         // #5599 enables (DEBUG,...) messages.
         it.params.set(5599, 1.0);

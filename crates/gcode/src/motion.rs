@@ -359,54 +359,68 @@ impl Interpreter {
     }
 
     pub(crate) fn spline(&mut self, b: &Block, motion: i32) -> Res<()> {
+        let err = |this: &Self, kind, msg: &str| this.g_err(b, gg::MOTION, kind, msg);
+        if self.state.cutter.is_some() {
+            return Err(err(
+                self,
+                ErrorKind::State,
+                "cannot make a spline with cutter radius compensation on",
+            ));
+        }
+        match self.state.feed_mode {
+            FeedMode::InverseTime if !b.has(b'f') => {
+                return Err(err(
+                    self,
+                    ErrorKind::MissingWord,
+                    "F word missing with inverse time (G93) spline",
+                ));
+            }
+            FeedMode::UnitsPerMinute if self.state.feed_rate == 0.0 => {
+                return Err(err(
+                    self,
+                    ErrorKind::State,
+                    "cannot make a spline with zero feed rate",
+                ));
+            }
+            _ => {}
+        }
         if self.state.plane != Plane::XY {
-            return Err(self.g_err(
-                b,
-                gg::MOTION,
+            return Err(err(
+                self,
                 ErrorKind::State,
                 "G5 and G5.1 need the XY plane (G17)",
             ));
         }
-        if self.state.feed_rate == 0.0 && self.state.feed_mode != FeedMode::InverseTime {
-            return Err(self.g_err(
-                b,
-                gg::MOTION,
-                ErrorKind::State,
-                "cannot make a spline with zero feed rate",
+        if [b'z', b'a', b'b', b'c'].iter().any(|l| b.has(*l)) {
+            return Err(err(
+                self,
+                ErrorKind::UnusedWord,
+                "splines may not move Z, A, B or C",
             ));
         }
         let start = self.state.position;
         self.state.motion = motion;
-        let end = self.find_ends(b);
         let spline = if motion == 50 {
+            // I J of the first control point; without them the reflection of the previous
+            // G5's P Q (LinuxCNC keeps it with the G87 offsets).
             let ij = match (b.get(b'i'), b.get(b'j')) {
-                (None, None) => match self.spline_last_pq {
-                    Some(pq) => [-pq[0], -pq[1]],
-                    None => {
-                        return Err(self.g_err(
-                            b,
-                            gg::MOTION,
-                            ErrorKind::MissingWord,
-                            "the first G5 of a spline needs I and J",
-                        ));
-                    }
-                },
-                (i, j) => {
-                    if i.is_none() || j.is_none() {
-                        return Err(self.g_err(
-                            b,
-                            gg::MOTION,
-                            ErrorKind::MissingWord,
-                            "G5 needs both I and J",
-                        ));
-                    }
-                    [i.unwrap_or(0.0), j.unwrap_or(0.0)]
+                (Some(i), Some(j)) => [i, j],
+                (None, None) => [self.cycle.i, self.cycle.j],
+                _ => {
+                    return Err(err(
+                        self,
+                        ErrorKind::MissingWord,
+                        "G5 needs both I and J, or neither",
+                    ));
                 }
             };
+            let end = self.find_ends(b);
             let (Some(p), Some(q)) = (b.get(b'p'), b.get(b'q')) else {
-                return Err(self.g_err(b, gg::MOTION, ErrorKind::MissingWord, "G5 needs P and Q"));
+                return Err(err(self, ErrorKind::MissingWord, "G5 needs both P and Q"));
             };
-            self.spline_last_pq = Some([p, q]);
+            self.cycle.i = -p;
+            self.cycle.j = -q;
+            self.state.position = end;
             Spline {
                 order: 4,
                 p1: [start.x + ij[0], start.y + ij[1]],
@@ -415,14 +429,10 @@ impl Interpreter {
             }
         } else {
             let (Some(i), Some(j)) = (b.get(b'i'), b.get(b'j')) else {
-                return Err(self.g_err(
-                    b,
-                    gg::MOTION,
-                    ErrorKind::MissingWord,
-                    "G5.1 needs I and J",
-                ));
+                return Err(err(self, ErrorKind::MissingWord, "G5.1 needs both I and J"));
             };
-            self.spline_last_pq = None;
+            let end = self.find_ends(b);
+            self.state.position = end;
             let p1 = [start.x + i, start.y + j];
             Spline {
                 order: 3,
@@ -432,7 +442,6 @@ impl Interpreter {
             }
         };
         self.emit(C::SplineFeed(spline));
-        self.state.position = end;
         Ok(())
     }
 
