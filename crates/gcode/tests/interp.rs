@@ -356,3 +356,21 @@ fn g43_2_with_axis_words_adds_to_the_offset_in_force() {
         })
     );
 }
+
+#[test]
+fn continue_in_a_do_loop_goes_to_its_while_test() {
+    // rs274 (2.9) instead takes the closing `while` for the start of a new while loop and
+    // leaves the do loop: a documented difference. By hand: X1, (2 skipped), X3, X4, break.
+    let (out, err) = run(
+        "#1=0\no1 do\n#1=[#1+1]\no2 if [#1 eq 2]\no1 continue\no2 endif\nG1 F100 X#1\no3 if [#1 ge 4]\no1 break\no3 endif\no1 while [#1 lt 10]\nG1 Y1\nM2\n",
+    );
+    assert!(err.is_none(), "{err:?}");
+    let xs: Vec<(f64, f64)> = out
+        .iter()
+        .filter_map(|c| match c {
+            CanonCommand::StraightFeed(p) => Some((p.x, p.y)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(xs, vec![(1.0, 0.0), (3.0, 0.0), (4.0, 0.0), (4.0, 1.0)]);
+}
