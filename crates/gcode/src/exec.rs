@@ -606,6 +606,7 @@ impl Interpreter {
         }
         match self.tools.get(t) {
             Some(tool) => Ok(tool.pocket),
+            None if self.settings.accept_unknown_tools => Ok(t),
             None => Err(self.err(
                 b,
                 letter,

@@ -31,6 +31,9 @@ pub struct Settings {
     pub block_delete: bool,
     /// Tolerance of the radius difference of centre-format arcs (mm).
     pub arc_radius_tolerance_mm: f64,
+    /// Accept tool numbers that are not in the tool table, as tools with no offsets and
+    /// their number for a pocket (to check a program without the machine's table).
+    pub accept_unknown_tools: bool,
     /// After a probing move (G38.x) or an input wait (M66), stop reading the program until
     /// the machine reports the result ([`Interpreter::probe_result`],
     /// [`Interpreter::input_result`]), since later lines may read it (#5061-#5070, #5399).
@@ -54,6 +57,7 @@ impl Default for Settings {
             arc_radius_tolerance_inch: 2.0 * 0.001 * std::f64::consts::SQRT_2,
             max_lines_without_output: 10_000_000,
             wait_for_machine: false,
+            accept_unknown_tools: false,
         }
     }
 }

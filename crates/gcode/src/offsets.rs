@@ -104,7 +104,10 @@ impl Interpreter {
             let entry = if tool == 0 && b.get(b'd').is_none() {
                 self.tools.get(self.state.current_tool).cloned()
             } else {
-                if tool != 0 && self.tools.get(tool).is_none() {
+                if tool != 0
+                    && self.tools.get(tool).is_none()
+                    && !self.settings.accept_unknown_tools
+                {
                     return Err(self.err(
                         b,
                         b'd',
@@ -171,7 +174,10 @@ impl Interpreter {
                         if t < 0 {
                             return Err(self.err(b, b'h', ErrorKind::BadValue, "negative H word"));
                         }
-                        if t != 0 && self.tools.get(t).is_none() {
+                        if t != 0
+                            && self.tools.get(t).is_none()
+                            && !self.settings.accept_unknown_tools
+                        {
                             return Err(self.err(
                                 b,
                                 b'h',
@@ -410,7 +416,12 @@ impl Interpreter {
     }
 
     pub(crate) fn g10_tool(&mut self, b: &Block, l: i32, tool_no: i32) -> Res<()> {
-        let Some(existing) = self.tools.get(tool_no).cloned() else {
+        let known = self.tools.get(tool_no).cloned().or_else(|| {
+            self.settings
+                .accept_unknown_tools
+                .then(|| crate::tools::Tool::new(tool_no, tool_no))
+        });
+        let Some(existing) = known else {
             return Err(self.err(
                 b,
                 b'p',

@@ -374,3 +374,22 @@ fn continue_in_a_do_loop_goes_to_its_while_test() {
         .collect();
     assert_eq!(xs, vec![(1.0, 0.0), (3.0, 0.0), (4.0, 0.0), (4.0, 1.0)]);
 }
+
+#[test]
+fn unknown_tools_are_refused_unless_accepted() {
+    let (_, err) = run("T5 M6\nM2\n");
+    assert_eq!(err.unwrap().message, "tool 5 is not in the tool table");
+    let mut it = Interpreter::new(
+        Settings {
+            accept_unknown_tools: true,
+            ..Settings::default()
+        },
+        ToolTable::new(),
+        Parameters::new(),
+    );
+    it.open_text("t.ngc", "T5 M6\nG43 H5\nM2\n").unwrap();
+    let cmds: Vec<CanonCommand> = (&mut it).map(|c| c.unwrap().command).collect();
+    assert!(cmds.contains(&CanonCommand::ChangeTool(5)));
+    assert!(cmds.contains(&CanonCommand::UseToolLengthOffset(Pose::ZERO)));
+    assert_eq!(it.modal_state().current_tool, 5);
+}
