@@ -225,6 +225,8 @@ pub struct Interpreter {
     /// The program is running (a file is open and not ended).
     pub(crate) running: bool,
     pub(crate) percent_seen: bool,
+    /// A line other than blanks was read (a % after that closes, not opens).
+    pub(crate) started: bool,
     pub(crate) failed: bool,
     /// Waiting for a probe or input result from the machine.
     pub(crate) waiting: bool,
@@ -259,6 +261,7 @@ impl Interpreter {
             top_saved: None,
             running: false,
             percent_seen: false,
+            started: false,
             failed: false,
             waiting: false,
             lines_without_output: 0,
@@ -351,6 +354,7 @@ impl Interpreter {
         self.pending_error = None;
         self.at_eof = false;
         self.percent_seen = false;
+        self.started = false;
         self.lines_without_output = 0;
         self.waiting = false;
     }
@@ -561,17 +565,28 @@ impl Interpreter {
             return Ok(false);
         }
         if b.percent {
-            if !self.percent_seen && self.source.line == 1 && self.source.file == 0 {
+            if !self.started && self.source.file == 0 {
+                // The first line that is not blank may open the program with %.
                 self.percent_seen = true;
+                self.started = true;
                 return Ok(false);
             }
-            if self.calls.is_empty() && self.src.current() == Some(0) {
+            if self.percent_seen && self.calls.is_empty() && self.src.current() == Some(0) {
                 // Closing % ends the program at once.
                 self.emit(CanonCommand::Finish);
                 self.running = false;
                 return Ok(true);
             }
-            return Ok(false);
+            return Err(self.error_at(
+                ErrorKind::Syntax,
+                1,
+                "'%' only opens and closes a program (the first line must be % too)",
+            ));
+        }
+        if !self.started
+            && (b.other_words || b.has_comment || b.o_keyword.is_some() || b.n.is_some())
+        {
+            self.started = true;
         }
         self.source.n = b.n;
         if let Some(kw) = b.o_keyword {
