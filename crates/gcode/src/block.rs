@@ -524,15 +524,16 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
                         );
                     };
                     if b.g[group] != -1 {
-                        return err(
-                            ErrorKind::Conflict,
-                            col,
+                        let message = if b.g[group] == code {
+                            format!("G{} appears twice on the line", fmt_code(code))
+                        } else {
                             format!(
                                 "G{} and G{} are in the same modal group",
                                 fmt_code(b.g[group]),
                                 fmt_code(code)
-                            ),
-                        );
+                            )
+                        };
+                        return err(ErrorKind::Conflict, col, message);
                     }
                     b.g[group] = code;
                     b.g_col[group] = col as u16;
@@ -566,11 +567,12 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
                         );
                     };
                     if b.m[group] != -1 {
-                        return err(
-                            ErrorKind::Conflict,
-                            col,
-                            format!("M{} and M{code} are in the same modal group", b.m[group]),
-                        );
+                        let message = if b.m[group] == code {
+                            format!("M{code} appears twice on the line")
+                        } else {
+                            format!("M{} and M{code} are in the same modal group", b.m[group])
+                        };
+                        return err(ErrorKind::Conflict, col, message);
                     }
                     b.m[group] = code;
                     b.m_col[group] = col as u16;
