@@ -523,6 +523,16 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
                             format!("unknown G code G{}", fmt_code(code)),
                         );
                     };
+                    // As in LinuxCNC, G80 gives way to another motion code on the line.
+                    if group == gg::MOTION && (code == 800 || b.g[group] == 800) && b.g[group] != -1
+                    {
+                        if code != 800 {
+                            b.g[group] = code;
+                            b.g_col[group] = col as u16;
+                        }
+                        b.other_words = true;
+                        continue;
+                    }
                     if b.g[group] != -1 {
                         let message = if b.g[group] == code {
                             format!("G{} appears twice on the line", fmt_code(code))

@@ -34,6 +34,14 @@ impl Interpreter {
                             format!("M{io} needs a P word (output number)"),
                         ));
                     };
+                    if p.round() < 0.0 {
+                        return Err(self.err(
+                            b,
+                            b'p',
+                            ErrorKind::BadValue,
+                            format!("negative output number with M{io}"),
+                        ));
+                    }
                     let index = round_index(p);
                     self.emit(C::SetDigitalOutput {
                         index,
