@@ -98,11 +98,10 @@ impl Interpreter {
             self.state.selected_tool = t;
             self.state.selected_pocket = pocket;
         }
-        let tool_before = self.state.tool_offset;
         self.m_codes(b)?;
         self.g_codes(b, motion)?;
-        if b.m[mg::TOOL] != -1 && motion == -1 {
-            self.resync_after_tool_change(tool_before);
+        if b.m[mg::TOOL] != -1 || b.m[mg::IO] == 66 {
+            self.resync_position();
         }
         if b.m[mg::STOP] != -1 {
             return self.stop(b);
@@ -110,28 +109,25 @@ impl Interpreter {
         Ok(true)
     }
 
-    /// After M6 or M61 LinuxCNC stops reading ahead and takes its position back from the
-    /// motion controller, where a tool length offset applied in the same block has not
-    /// moved anything: the offset then shows on the next move instead of shifting the
-    /// program position. (A G43 in a block of its own shifts the program position.)
-    fn resync_after_tool_change(&mut self, tool_before: Pose) {
+    /// After M6, M61 or M66 LinuxCNC stops reading ahead and takes its position back from
+    /// the motion controller, whose end point has not moved since the last move: a tool
+    /// length offset changed since then has not shifted it. The program position follows,
+    /// so such an offset shows on the next move instead.
+    fn resync_position(&mut self) {
         let new = self.state.tool_offset;
-        if new == tool_before {
-            return;
+        let old = self.tool_at_last_move;
+        if new != old {
+            let (dx, dy) = rotate(new.x - old.x, new.y - old.y, -self.state.rotation);
+            let mut p = self.state.position.to_array();
+            let (o, n) = (old.to_array(), new.to_array());
+            for i in 2..9 {
+                p[i] += n[i] - o[i];
+            }
+            p[0] += dx;
+            p[1] += dy;
+            self.state.position = Pose::from_array(p);
         }
-        let (dx, dy) = rotate(
-            new.x - tool_before.x,
-            new.y - tool_before.y,
-            -self.state.rotation,
-        );
-        let mut p = self.state.position.to_array();
-        let (o, n) = (tool_before.to_array(), new.to_array());
-        for i in 2..9 {
-            p[i] += n[i] - o[i];
-        }
-        p[0] += dx;
-        p[1] += dy;
-        self.state.position = Pose::from_array(p);
+        self.tool_at_last_move = new;
     }
 
     /// Which motion the block makes (tenths), or -1 for none; with the axis-word checks of

@@ -233,6 +233,8 @@ pub struct Interpreter {
     pub(crate) lines_without_output: u64,
     pub(crate) pending_error: Option<GcodeError>,
     pub(crate) at_eof: bool,
+    /// Tool length offset in force at the last move (see `resync_position`).
+    pub(crate) tool_at_last_move: Pose,
     pub(crate) value: f64,
     pub(crate) value_returned: bool,
 }
@@ -267,6 +269,7 @@ impl Interpreter {
             lines_without_output: 0,
             pending_error: None,
             at_eof: false,
+            tool_at_last_move: Pose::ZERO,
             value: 0.0,
             value_returned: false,
         };
@@ -644,6 +647,17 @@ impl Interpreter {
     // ----- helpers shared with execution -----
 
     pub(crate) fn emit(&mut self, command: CanonCommand) {
+        if matches!(
+            command,
+            CanonCommand::StraightTraverse(_)
+                | CanonCommand::StraightFeed(_)
+                | CanonCommand::ArcFeed(_)
+                | CanonCommand::SplineFeed(_)
+                | CanonCommand::StraightProbe { .. }
+                | CanonCommand::RigidTap { .. }
+        ) {
+            self.tool_at_last_move = self.state.tool_offset;
+        }
         self.out.push_back(Canon {
             source: self.source,
             command,
