@@ -100,7 +100,7 @@ impl Interpreter {
         }
         self.m_codes(b)?;
         self.g_codes(b, motion)?;
-        if b.m[mg::TOOL] != -1 || b.m[mg::IO] == 66 {
+        if b.m[mg::TOOL] != -1 {
             self.resync_position();
         }
         if b.m[mg::STOP] != -1 {
@@ -109,7 +109,7 @@ impl Interpreter {
         Ok(true)
     }
 
-    /// After M6, M61 or M66 LinuxCNC stops reading ahead and takes its position back from
+    /// After M6 or M61 LinuxCNC stops reading ahead and takes its position back from
     /// the motion controller, whose end point has not moved since the last move: a tool
     /// length offset changed since then has not shifted it. The program position follows,
     /// so such an offset shows on the next move instead.
