@@ -401,10 +401,23 @@ impl Interpreter {
         let off = Pose::from_array(off);
         self.pose_to_params(base, &off);
         if index == self.state.origin_index {
-            let machine = self.machine_position();
+            // The program position moves with the origin as LinuxCNC moves it: rotated
+            // without the G92 offset (unlike a change of coordinate system).
+            let old = self.state.g5x.to_array();
+            let new = off.to_array();
+            let mut p = self.state.position.to_array();
+            let (x, y) = rotate(p[0], p[1], self.state.rotation);
+            p[0] = x;
+            p[1] = y;
+            for i in 0..9 {
+                p[i] += old[i] - new[i];
+            }
+            let (x, y) = rotate(p[0], p[1], -r);
+            p[0] = x;
+            p[1] = y;
+            self.state.position = Pose::from_array(p);
             self.state.g5x = off;
             self.state.rotation = r;
-            self.state.position = self.program_from_machine(&machine);
             self.emit(C::SetG5xOffset { index, offset: off });
             self.emit(C::SetXyRotation(r));
         } else {
