@@ -73,6 +73,16 @@ if have_peer:
     print('  ratio rtcnc check / rs274:         %.1fx (goal >= 20x)' % (ref / med['rtcnc check']))
 PY
 
+if [ $have_peer = 1 ]; then
+  "$CANON" "$PROG" > "$TMP/rs274.canon" 2>/dev/null || true
+  "$RTCNC" check --canon "$PROG" > "$TMP/rtcnc.canon"
+  if cmp -s "$TMP/rs274.canon" "$TMP/rtcnc.canon"; then
+    echo "  canonical outputs identical ($(wc -l < "$TMP/rtcnc.canon") lines)"
+  else
+    echo "  canonical outputs DIFFER: $(cmp "$TMP/rs274.canon" "$TMP/rtcnc.canon" | head -1)"
+  fi
+fi
+
 # Peak memory on a 10 M-line program: the interpreter streams, memory must stay flat.
 BIG=$TMP/big10m.ngc
 python3 - "$BIG" <<'PY'

@@ -74,15 +74,15 @@ pub(crate) fn g_group(code: i32) -> Option<usize> {
     use gg::*;
     Some(match code {
         40 | 100 | 280 | 281 | 300 | 301 | 520 | 530 | 920 | 921 | 922 | 923 => NON_MODAL,
-        0 | 10 | 20 | 30 | 50 | 51 | 330 | 382 | 383 | 384 | 385 | 730 | 760 | 800 | 810 | 820
-        | 830 | 840 | 850 | 860 | 870 | 880 | 890 => MOTION,
+        0 | 10 | 20 | 30 | 50 | 51 | 330 | 331 | 382 | 383 | 384 | 385 | 730 | 740 | 760 | 800
+        | 810 | 820 | 830 | 840 | 850 | 860 | 870 | 880 | 890 => MOTION,
         170 | 180 | 190 | 171 | 181 | 191 => PLANE,
         900 | 910 => DISTANCE,
         901 | 911 => IJK,
         930 | 940 | 950 => FEED_MODE,
         200 | 210 => UNITS,
         400 | 410 | 420 | 411 | 421 => CUTTER,
-        430 | 431 | 490 => LENGTH,
+        430 | 431 | 432 | 490 => LENGTH,
         980 | 990 => RETRACT,
         540 | 550 | 560 | 570 | 580 | 590 | 591 | 592 | 593 => COORD,
         610 | 611 | 640 => CONTROL,
@@ -118,6 +118,11 @@ pub(crate) enum CommentKind {
     Msg,
     Debug,
     Print,
+    Log,
+    LogOpen,
+    LogAppend,
+    LogClose,
+    Abort,
 }
 
 /// An o-word control keyword.
@@ -171,6 +176,10 @@ pub(crate) struct Block {
     pub m_col: [u16; mg::COUNT],
     pub m98: bool,
     pub dollar: Option<f64>,
+    /// Polar coordinates: `@` radius and `^` angle (degrees), with their columns.
+    pub polar_radius: Option<f64>,
+    pub polar_angle: Option<f64>,
+    pub polar_col: u16,
     pub assigns: Vec<(ParamRef, f64)>,
     pub comment_kind: CommentKind,
     pub has_comment: bool,
@@ -200,6 +209,9 @@ impl Default for Block {
             m_col: [0; mg::COUNT],
             m98: false,
             dollar: None,
+            polar_radius: None,
+            polar_angle: None,
+            polar_col: 0,
             assigns: Vec::new(),
             comment_kind: CommentKind::Plain,
             has_comment: false,
@@ -223,6 +235,8 @@ impl Block {
         self.m = [-1; mg::COUNT];
         self.m98 = false;
         self.dollar = None;
+        self.polar_radius = None;
+        self.polar_angle = None;
         self.assigns.clear();
         self.comment_kind = CommentKind::Plain;
         self.has_comment = false;
@@ -252,6 +266,11 @@ impl Block {
     /// 0-based column of letter word `c`.
     pub fn column(&self, c: u8) -> usize {
         self.col[(c - b'a') as usize] as usize
+    }
+
+    /// True if a polar coordinate (`@` or `^`) is present.
+    pub fn has_polar(&self) -> bool {
+        self.polar_radius.is_some() || self.polar_angle.is_some()
     }
 
     /// True if any axis word X Y Z A B C U V W is present.
@@ -504,16 +523,27 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
                             format!("unknown G code G{}", fmt_code(code)),
                         );
                     };
+                    // As in LinuxCNC, G80 gives way to another motion code on the line.
+                    if group == gg::MOTION && (code == 800 || b.g[group] == 800) && b.g[group] != -1
+                    {
+                        if code != 800 {
+                            b.g[group] = code;
+                            b.g_col[group] = col as u16;
+                        }
+                        b.other_words = true;
+                        continue;
+                    }
                     if b.g[group] != -1 {
-                        return err(
-                            ErrorKind::Conflict,
-                            col,
+                        let message = if b.g[group] == code {
+                            format!("G{} appears twice on the line", fmt_code(code))
+                        } else {
                             format!(
                                 "G{} and G{} are in the same modal group",
                                 fmt_code(b.g[group]),
                                 fmt_code(code)
-                            ),
-                        );
+                            )
+                        };
+                        return err(ErrorKind::Conflict, col, message);
                     }
                     b.g[group] = code;
                     b.g_col[group] = col as u16;
@@ -547,14 +577,39 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
                         );
                     };
                     if b.m[group] != -1 {
-                        return err(
-                            ErrorKind::Conflict,
-                            col,
-                            format!("M{} and M{code} are in the same modal group", b.m[group]),
-                        );
+                        let message = if b.m[group] == code {
+                            format!("M{code} appears twice on the line")
+                        } else {
+                            format!("M{} and M{code} are in the same modal group", b.m[group])
+                        };
+                        return err(ErrorKind::Conflict, col, message);
                     }
                     b.m[group] = code;
                     b.m_col[group] = col as u16;
+                    b.other_words = true;
+                }
+                b'@' | b'^' => {
+                    self.i += 1;
+                    let slot = if c == b'@' {
+                        &mut b.polar_radius
+                    } else {
+                        &mut b.polar_angle
+                    };
+                    if slot.is_some() {
+                        return err(
+                            ErrorKind::Conflict,
+                            col,
+                            format!("two {} words on one line", c as char),
+                        );
+                    }
+                    let v = self.real_value()?;
+                    let slot = if c == b'@' {
+                        &mut b.polar_radius
+                    } else {
+                        &mut b.polar_angle
+                    };
+                    *slot = Some(v);
+                    b.polar_col = col as u16;
                     b.other_words = true;
                 }
                 b'$' => {
@@ -663,6 +718,16 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
             (CommentKind::Debug, &body[6..])
         } else if starts(b"print,") {
             (CommentKind::Print, &body[6..])
+        } else if starts(b"log,") {
+            (CommentKind::Log, &body[4..])
+        } else if starts(b"logopen,") {
+            (CommentKind::LogOpen, &body[8..])
+        } else if starts(b"logappend,") {
+            (CommentKind::LogAppend, &body[10..])
+        } else if body.eq_ignore_ascii_case(b"logclose") {
+            (CommentKind::LogClose, &body[8..])
+        } else if starts(b"abort,") {
+            (CommentKind::Abort, &body[6..])
         } else {
             (CommentKind::Plain, text)
         };

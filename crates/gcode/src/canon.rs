@@ -286,6 +286,17 @@ pub enum CanonCommand {
     /// `(PRINT,...)` text: for a log, not for the operator (rs274 prints it outside its
     /// canonical stream).
     Print(Text),
+    /// `(LOGOPEN,file)` / `(LOGAPPEND,file)`: start writing `(LOG,...)` lines to a file.
+    LogOpen {
+        /// File name as written.
+        path: Text,
+        /// Append instead of truncating.
+        append: bool,
+    },
+    /// `(LOG,text)` with parameters substituted.
+    Log(Text),
+    /// `(LOGCLOSE)`.
+    LogClose,
     /// Arc / canned cycle / compensation plane.
     SelectPlane(Plane),
     /// G61 / G61.1 / G64.
@@ -383,6 +394,13 @@ pub enum CanonCommand {
     },
     /// End of spindle-synchronised motion.
     StopSpeedFeedSync,
+    /// G33.1: rigid tapping to `end` and back out (the spindle reverses), synchronised.
+    RigidTap {
+        /// Bottom of the hole.
+        end: Pose,
+        /// Spindle speed factor on the way out (I word, at least 1).
+        scale: f64,
+    },
     /// G38.2 - G38.5 straight probing move.
     StraightProbe {
         /// End point.
@@ -529,6 +547,17 @@ impl Canon {
             C::Comment(t) => call_text(o, b"COMMENT(\"", t),
             C::Message(t) => call_text(o, b"MESSAGE(\"", t),
             C::Print(_) | C::WaitInput { .. } => {}
+            C::LogOpen { path, append } => call_text(
+                o,
+                if *append {
+                    b"LOGAPPEND(\"".as_slice()
+                } else {
+                    b"LOGOPEN(\""
+                },
+                path,
+            ),
+            C::Log(t) => call_text(o, b"LOG(\"", t),
+            C::LogClose => o.extend_from_slice(b"LOGCLOSE()"),
             C::SelectPlane(p) => {
                 o.extend_from_slice(b"SELECT_PLANE(");
                 o.extend_from_slice(match p {
@@ -686,6 +715,15 @@ impl Canon {
                 o.push(b')');
             }
             C::StopSpeedFeedSync => o.extend_from_slice(b"STOP_SPEED_FEED_SYNCH()"),
+            C::RigidTap { end, .. } => {
+                o.extend_from_slice(b"RIGID_TAP(");
+                push_fixed(o, end.x, 4);
+                o.extend_from_slice(b", ");
+                push_fixed(o, end.y, 4);
+                o.extend_from_slice(b", ");
+                push_fixed(o, end.z, 4);
+                o.push(b')');
+            }
             C::TurnProbeOn => o.extend_from_slice(b"TURN_PROBE_ON()"),
             C::TurnProbeOff => o.extend_from_slice(b"TURN_PROBE_OFF()"),
             C::StraightProbe { end, .. } => call_pose(o, b"STRAIGHT_PROBE(", end),
@@ -860,10 +898,18 @@ pub(crate) fn push_fixed(o: &mut Vec<u8>, v: f64, decimals: u32) {
     ];
     let d = decimals.min(6) as usize;
     let scaled = v * SCALE[d];
-    if !scaled.is_finite() || scaled.abs() >= 1.0e15 {
+    // Values near a rounding tie (x.xxxx5) are decided on their exact binary value, as C's
+    // printf does; those, huge and non-finite values take the exact (slower) path.
+    // (The fraction through an integer cast: `f64::fract` is a libm call on x86-64.)
+    let tie = ((scaled - (scaled as i64) as f64).abs() - 0.5).abs() < 1e-6;
+    if tie || !scaled.is_finite() || scaled.abs() >= 1.0e15 {
         use std::io::Write;
-        // Rare: huge or non-finite values take the exact (slower) path.
+        let start = o.len();
         let _ = write!(o, "{:.*}", d, v);
+        // No minus sign on a value that prints as zero.
+        if o[start] == b'-' && o[start + 1..].iter().all(|c| *c == b'0' || *c == b'.') {
+            o.remove(start);
+        }
         return;
     }
     // Round half away from zero (the cast truncates).
@@ -941,6 +987,10 @@ mod tests {
             (-1.5, "-1.5000"),
             (0.123456, "0.1235"),
             (1e17, "100000000000000000.0000"),
+            // Ties go by the exact binary value, like printf.
+            (1.76975, "1.7697"),
+            (22.32435, "22.3243"),
+            (-0.00005, "-0.0001"),
         ] {
             v.clear();
             push_fixed(&mut v, x, 4);

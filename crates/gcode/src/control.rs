@@ -88,7 +88,10 @@ impl Interpreter {
                         self.value = v;
                         self.value_returned = true;
                     }
-                    None => self.value_returned = false,
+                    None => {
+                        self.value = 0.0;
+                        self.value_returned = false;
+                    }
                 }
                 if self.calls.is_empty() {
                     return Err(self.error_at(

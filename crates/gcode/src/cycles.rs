@@ -5,8 +5,12 @@ use crate::block::{Block, gg};
 use crate::canon::{CanonCommand as C, FeedMode, PathMode, Plane, Pose, SpindleDirection, Units};
 use crate::error::{ErrorKind, GcodeError};
 use crate::interp::Interpreter;
+use crate::motion::polar_end;
 
 type Res<T> = Result<T, GcodeError>;
+
+/// Most repeats (L) of one canned cycle block: its moves are queued at once.
+const MAX_REPEATS: u64 = 10_000;
 
 /// The plane's axes as pose indices: (first, second, normal) and the letters of the words.
 struct Axes {
@@ -130,6 +134,14 @@ impl Interpreter {
                 if l < 0.0 {
                     return Err(self.cycle_err(b, ErrorKind::BadValue, "negative L word"));
                 }
+                // One block's moves are queued together: keep that bounded.
+                if l > MAX_REPEATS as f64 {
+                    return Err(self.cycle_err(
+                        b,
+                        ErrorKind::BadValue,
+                        format!("more than {MAX_REPEATS} repeats of a canned cycle in one block"),
+                    ));
+                }
                 l as u64
             }
             None => 1,
@@ -155,14 +167,20 @@ impl Interpreter {
             }
         };
         let (mut aa, mut bb, r, cc, da, db);
+        // Polar words (G17 only) step the hole position in radius and angle.
+        let (mut dr, mut dt) = (None, None);
         if self.state.absolute {
             r = r_word;
             cc = c_word;
             aa = b.get(ax.la).unwrap_or(pos[ax.a]);
             bb = b.get(ax.lb).unwrap_or(pos[ax.b]);
+            if b.has_polar() {
+                (aa, bb) = polar_end(pos[0], pos[1], b.polar_radius, b.polar_angle, true);
+            }
             da = 0.0;
             db = 0.0;
         } else {
+            (dr, dt) = (b.polar_radius, b.polar_angle);
             da = b.get(ax.la).unwrap_or(0.0);
             db = b.get(ax.lb).unwrap_or(0.0);
             r = r_word + old_cc;
@@ -249,6 +267,17 @@ impl Interpreter {
         for repeat in (1..=repeats).rev() {
             aa += da;
             bb += db;
+            if dr.is_some() || dt.is_some() {
+                if aa == 0.0 && bb == 0.0 {
+                    return Err(self.cycle_err(
+                        b,
+                        ErrorKind::BadValue,
+                        "incremental motion with polar coordinates is indeterminate at the origin",
+                    ));
+                }
+                (aa, bb) = polar_end(aa, bb, dr, None, false);
+                (aa, bb) = polar_end(aa, bb, None, dt, false);
+            }
             if repeat == repeats && current_cc > r {
                 self.cycle_move(&ax, false, aa, bb, current_cc);
                 self.cycle_move(&ax, false, aa, bb, r);
@@ -260,6 +289,16 @@ impl Interpreter {
             }
             if repeat == repeats {
                 match motion {
+                    740 if direction != Some(SpindleDirection::CounterClockwise) => {
+                        return Err(self.cycle_err(
+                            b,
+                            ErrorKind::State,
+                            match direction {
+                                None => "spindle not turning in G74",
+                                _ => "spindle turning clockwise in G74",
+                            },
+                        ));
+                    }
                     840 if direction != Some(SpindleDirection::Clockwise) => {
                         return Err(self.cycle_err(
                             b,
@@ -303,7 +342,19 @@ impl Interpreter {
                     self.cycle_move(&ax, true, aa, bb, cc);
                     self.cycle_move(&ax, false, aa, bb, clear_cc);
                 }
-                840 => {
+                740 | 840 => {
+                    // Tapping: in at feed, reverse the spindle, dwell, out at feed, restore.
+                    let (down, up) = if motion == 840 {
+                        (
+                            SpindleDirection::Clockwise,
+                            SpindleDirection::CounterClockwise,
+                        )
+                    } else {
+                        (
+                            SpindleDirection::CounterClockwise,
+                            SpindleDirection::Clockwise,
+                        )
+                    };
                     let fo = self.state.feed_override;
                     let so = self.state.speed_override;
                     self.emit(C::FeedOverride(false));
@@ -315,14 +366,14 @@ impl Interpreter {
                     self.emit(C::StopSpindle { spindle: 0 });
                     self.emit(C::StartSpindle {
                         spindle: 0,
-                        direction: SpindleDirection::CounterClockwise,
+                        direction: up,
                     });
                     self.emit(C::Dwell(dwell));
                     self.cycle_move(&ax, true, aa, bb, clear_cc);
                     self.emit(C::StopSpindle { spindle: 0 });
                     self.emit(C::StartSpindle {
                         spindle: 0,
-                        direction: SpindleDirection::Clockwise,
+                        direction: down,
                     });
                     if fo {
                         self.emit(C::FeedOverride(true));
@@ -390,7 +441,7 @@ impl Interpreter {
         }
         self.cycle.cc = c_word;
         self.cycle.r = r_word;
-        if needs_p || matches!(motion, 840) {
+        if needs_p || matches!(motion, 740 | 840) {
             self.cycle.p = dwell;
         }
         if needs_q {

@@ -4,9 +4,9 @@
 //! path mode, distance modes, retract mode, G10/G28/G30/G92, motion, stop.
 
 use crate::block::{AXES, Block, CommentKind as Comment, fmt_code, gg, mg};
-use crate::canon::{CanonCommand as C, FeedMode, PathMode, Plane, Units};
+use crate::canon::{CanonCommand as C, FeedMode, PathMode, Plane, Pose, Units};
 use crate::error::{ErrorKind, GcodeError};
-use crate::interp::{Interpreter, substitute};
+use crate::interp::{Interpreter, rotate, substitute};
 use crate::params::sys;
 
 type Res<T> = Result<T, GcodeError>;
@@ -52,7 +52,7 @@ impl Interpreter {
         let motion = self.motion_to_be(b)?;
         self.check_words(b, motion)?;
         if b.has_comment {
-            self.comment(b);
+            self.comment(b)?;
         }
         if b.g[gg::SPINDLE] != -1 {
             self.spindle_mode(b)?;
@@ -100,16 +100,83 @@ impl Interpreter {
         }
         self.m_codes(b)?;
         self.g_codes(b, motion)?;
+        if b.m[mg::TOOL] != -1 {
+            self.resync_position();
+        }
         if b.m[mg::STOP] != -1 {
             return self.stop(b);
         }
         Ok(true)
     }
 
+    /// After M6 or M61 LinuxCNC stops reading ahead and takes its position back from
+    /// the motion controller, whose end point has not moved since the last move: a tool
+    /// length offset changed since then has not shifted it. The program position follows,
+    /// so such an offset shows on the next move instead.
+    fn resync_position(&mut self) {
+        let new = self.state.tool_offset;
+        let old = self.tool_at_last_move;
+        if new != old {
+            let (dx, dy) = rotate(new.x - old.x, new.y - old.y, -self.state.rotation);
+            let mut p = self.state.position.to_array();
+            let (o, n) = (old.to_array(), new.to_array());
+            for i in 2..9 {
+                p[i] += n[i] - o[i];
+            }
+            p[0] += dx;
+            p[1] += dy;
+            self.state.position = Pose::from_array(p);
+        }
+        self.tool_at_last_move = new;
+    }
+
     /// Which motion the block makes (tenths), or -1 for none; with the axis-word checks of
     /// RS274/NGC.
     pub(crate) fn motion_to_be(&self, b: &Block) -> Res<i32> {
-        let axis = b.has_axis();
+        if !b.has_polar() {
+            return self.motion_of_words(b, b.has_axis());
+        }
+        let col = usize::from(b.polar_col) + 1;
+        if self.state.plane != Plane::XY {
+            return Err(self.error_at(
+                ErrorKind::State,
+                col,
+                "polar coordinates (@, ^) can only be used in the G17 plane",
+            ));
+        }
+        if b.has(b'x') || b.has(b'y') {
+            return Err(self.error_at(
+                ErrorKind::Conflict,
+                col,
+                "X or Y words cannot be given with polar coordinates",
+            ));
+        }
+        if b.g[gg::NON_MODAL] == 530 {
+            return Err(self.error_at(
+                ErrorKind::Conflict,
+                col,
+                "polar coordinates cannot be used with G53",
+            ));
+        }
+        if b.g[gg::NON_MODAL] != -1 && b.g[gg::NON_MODAL] != 40 {
+            return Err(self.error_at(
+                ErrorKind::UnusedWord,
+                col,
+                "polar coordinates can only be used for motion",
+            ));
+        }
+        let motion = self.motion_of_words(b, true)?;
+        if motion == -1 {
+            return Err(self.error_at(
+                ErrorKind::UnusedWord,
+                col,
+                "polar coordinates can only be used for motion",
+            ));
+        }
+        Ok(motion)
+    }
+
+    fn motion_of_words(&self, b: &Block, axis: bool) -> Res<i32> {
         let mode0 = b.g[gg::NON_MODAL];
         let mode1 = b.g[gg::MOTION];
         let covets = matches!(mode0, 100 | 280 | 300 | 520 | 920);
@@ -167,7 +234,7 @@ impl Interpreter {
             return Ok(-1);
         }
         if axis {
-            if self.state.motion == 800 && b.g[gg::LENGTH] != 431 {
+            if self.state.motion == 800 && !matches!(b.g[gg::LENGTH], 431 | 432) {
                 let first = AXES.iter().find(|c| b.has(**c)).copied().unwrap_or(b'x');
                 return Err(self.err(
                     b,
@@ -176,7 +243,7 @@ impl Interpreter {
                     "axis word with no motion mode in effect (G80): give G0, G1, ... first",
                 ));
             }
-            if b.g[gg::LENGTH] == 431 {
+            if matches!(b.g[gg::LENGTH], 431 | 432) {
                 return Ok(-1);
             }
             return Ok(self.state.motion);
@@ -190,7 +257,7 @@ impl Interpreter {
     /// Words present that nothing on the block uses.
     pub(crate) fn check_words(&self, b: &Block, motion: i32) -> Res<()> {
         let mode0 = b.g[gg::NON_MODAL];
-        let cycle = matches!(motion, 730 | 810..=890);
+        let cycle = matches!(motion, 730 | 740 | 810..=890);
         let g10 = mode0 == 100;
         let user_m = b.m[mg::USER] != -1;
         let m = |g: usize, v: i32| b.m[g] == v;
@@ -248,15 +315,15 @@ impl Interpreter {
                 "E word with no M66, M67 or M68 to use it",
             ));
         }
-        if b.has(b'h') && b.g[gg::LENGTH] != 430 && motion != 760 {
+        if b.has(b'h') && !matches!(b.g[gg::LENGTH], 430 | 432) && motion != 760 {
             return Err(self.err(
                 b,
                 b'h',
                 ErrorKind::UnusedWord,
-                "H word with no G43 to use it",
+                "H word with no G43 or G43.2 to use it",
             ));
         }
-        if b.has(b'i') && !(matches!(motion, 20 | 30 | 50 | 51 | 760 | 870) || g10) {
+        if b.has(b'i') && !(matches!(motion, 20 | 30 | 50 | 51 | 331 | 760 | 870) || g10) {
             return Err(self.err(
                 b,
                 b'i',
@@ -272,7 +339,7 @@ impl Interpreter {
                 "J word with no G2, G3, G5, G5.1, G10 or G87 to use it",
             ));
         }
-        if b.has(b'k') && !matches!(motion, 20 | 30 | 330 | 760 | 870) {
+        if b.has(b'k') && !matches!(motion, 20 | 30 | 330 | 331 | 760 | 870) {
             return Err(self.err(
                 b,
                 b'k',
@@ -299,7 +366,10 @@ impl Interpreter {
             let ok = g10
                 || mode0 == 40
                 || b.g[gg::CONTROL] == 640
-                || matches!(motion, 820 | 860 | 880 | 890 | 50 | 20 | 30 | 840 | 760)
+                || matches!(
+                    motion,
+                    820 | 860 | 880 | 890 | 50 | 20 | 30 | 740 | 840 | 760
+                )
                 || matches!(b.m[mg::OVERRIDE], 50..=53)
                 || matches!(b.m[mg::IO], 62..=66)
                 || m(mg::SPINDLE, 19)
@@ -368,13 +438,13 @@ impl Interpreter {
                 ));
             }
         }
-        if motion == 330 {
+        if motion == 330 || motion == 331 {
             if !b.has(b'k') {
                 return Err(self.g_err(
                     b,
                     gg::MOTION,
                     ErrorKind::MissingWord,
-                    "G33 needs a K word (pitch)",
+                    "G33 and G33.1 need a K word (pitch)",
                 ));
             }
             if b.has(b'f') {
@@ -382,7 +452,7 @@ impl Interpreter {
                     b,
                     b'f',
                     ErrorKind::UnusedWord,
-                    "F word cannot be used with G33",
+                    "F word cannot be used with G33 or G33.1",
                 ));
             }
         }
@@ -417,7 +487,7 @@ impl Interpreter {
                 || matches!(b.m[mg::SPINDLE], 3 | 4 | 5 | 19)
                 || b.g[gg::SPINDLE] != -1
                 || b.g[gg::FEED_MODE] == 950
-                || matches!(motion, 330 | 760)
+                || matches!(motion, 330 | 331 | 760)
                 || m(mg::OVERRIDE, 51))
         {
             return Err(self.error_at(
@@ -429,7 +499,7 @@ impl Interpreter {
         Ok(())
     }
 
-    pub(crate) fn comment(&mut self, b: &Block) {
+    pub(crate) fn comment(&mut self, b: &Block) -> Res<()> {
         match b.comment_kind {
             Comment::Plain => {
                 let t = b.comment.trim_start_matches([' ', '\t']).to_string();
@@ -446,7 +516,21 @@ impl Interpreter {
                 let t = substitute(&b.comment, self);
                 self.emit(C::Print(t.into()));
             }
+            Comment::Log => {
+                let t = substitute(&b.comment, self);
+                self.emit(C::Log(t.into()));
+            }
+            Comment::LogOpen | Comment::LogAppend => self.emit(C::LogOpen {
+                path: b.comment.clone().into(),
+                append: b.comment_kind == Comment::LogAppend,
+            }),
+            Comment::LogClose => self.emit(C::LogClose),
+            Comment::Abort => {
+                let t = substitute(&b.comment, self);
+                return Err(self.error_at(ErrorKind::State, 0, t));
+            }
         }
+        Ok(())
     }
 
     pub(crate) fn spindle_mode(&mut self, b: &Block) -> Res<()> {
@@ -518,6 +602,7 @@ impl Interpreter {
         }
         match self.tools.get(t) {
             Some(tool) => Ok(tool.pocket),
+            None if self.settings.accept_unknown_tools => Ok(t),
             None => Err(self.err(
                 b,
                 letter,

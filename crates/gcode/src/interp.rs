@@ -31,6 +31,9 @@ pub struct Settings {
     pub block_delete: bool,
     /// Tolerance of the radius difference of centre-format arcs (mm).
     pub arc_radius_tolerance_mm: f64,
+    /// Accept tool numbers that are not in the tool table, as tools with no offsets and
+    /// their number for a pocket (to check a program without the machine's table).
+    pub accept_unknown_tools: bool,
     /// After a probing move (G38.x) or an input wait (M66), stop reading the program until
     /// the machine reports the result ([`Interpreter::probe_result`],
     /// [`Interpreter::input_result`]), since later lines may read it (#5061-#5070, #5399).
@@ -54,6 +57,7 @@ impl Default for Settings {
             arc_radius_tolerance_inch: 2.0 * 0.001 * std::f64::consts::SQRT_2,
             max_lines_without_output: 10_000_000,
             wait_for_machine: false,
+            accept_unknown_tools: false,
         }
     }
 }
@@ -221,15 +225,18 @@ pub struct Interpreter {
     /// The program is running (a file is open and not ended).
     pub(crate) running: bool,
     pub(crate) percent_seen: bool,
+    /// A line other than blanks was read (a % after that closes, not opens).
+    pub(crate) started: bool,
     pub(crate) failed: bool,
     /// Waiting for a probe or input result from the machine.
     pub(crate) waiting: bool,
     pub(crate) lines_without_output: u64,
     pub(crate) pending_error: Option<GcodeError>,
     pub(crate) at_eof: bool,
+    /// Tool length offset in force at the last move (see `resync_position`).
+    pub(crate) tool_at_last_move: Pose,
     pub(crate) value: f64,
     pub(crate) value_returned: bool,
-    pub(crate) spline_last_pq: Option<[f64; 2]>,
 }
 
 impl Interpreter {
@@ -256,14 +263,15 @@ impl Interpreter {
             top_saved: None,
             running: false,
             percent_seen: false,
+            started: false,
             failed: false,
             waiting: false,
             lines_without_output: 0,
             pending_error: None,
             at_eof: false,
+            tool_at_last_move: Pose::ZERO,
             value: 0.0,
             value_returned: false,
-            spline_last_pq: None,
         };
         // #5599 enables (DEBUG,...) messages.
         it.params.set(5599, 1.0);
@@ -349,6 +357,7 @@ impl Interpreter {
         self.pending_error = None;
         self.at_eof = false;
         self.percent_seen = false;
+        self.started = false;
         self.lines_without_output = 0;
         self.waiting = false;
     }
@@ -559,17 +568,28 @@ impl Interpreter {
             return Ok(false);
         }
         if b.percent {
-            if !self.percent_seen && self.source.line == 1 && self.source.file == 0 {
+            if !self.started && self.source.file == 0 {
+                // The first line that is not blank may open the program with %.
                 self.percent_seen = true;
+                self.started = true;
                 return Ok(false);
             }
-            if self.calls.is_empty() && self.src.current() == Some(0) {
+            if self.percent_seen && self.calls.is_empty() && self.src.current() == Some(0) {
                 // Closing % ends the program at once.
                 self.emit(CanonCommand::Finish);
                 self.running = false;
                 return Ok(true);
             }
-            return Ok(false);
+            return Err(self.error_at(
+                ErrorKind::Syntax,
+                1,
+                "'%' only opens and closes a program (the first line must be % too)",
+            ));
+        }
+        if !self.started
+            && (b.other_words || b.has_comment || b.o_keyword.is_some() || b.n.is_some())
+        {
+            self.started = true;
         }
         self.source.n = b.n;
         if let Some(kw) = b.o_keyword {
@@ -627,6 +647,17 @@ impl Interpreter {
     // ----- helpers shared with execution -----
 
     pub(crate) fn emit(&mut self, command: CanonCommand) {
+        if matches!(
+            command,
+            CanonCommand::StraightTraverse(_)
+                | CanonCommand::StraightFeed(_)
+                | CanonCommand::ArcFeed(_)
+                | CanonCommand::SplineFeed(_)
+                | CanonCommand::StraightProbe { .. }
+                | CanonCommand::RigidTap { .. }
+        ) {
+            self.tool_at_last_move = self.state.tool_offset;
+        }
         self.out.push_back(Canon {
             source: self.source,
             command,

@@ -34,6 +34,14 @@ impl Interpreter {
                             format!("M{io} needs a P word (output number)"),
                         ));
                     };
+                    if p.round() < 0.0 {
+                        return Err(self.err(
+                            b,
+                            b'p',
+                            ErrorKind::BadValue,
+                            format!("negative output number with M{io}"),
+                        ));
+                    }
                     let index = round_index(p);
                     self.emit(C::SetDigitalOutput {
                         index,
@@ -54,7 +62,8 @@ impl Interpreter {
                     };
                     self.emit(C::SetAnalogOutput {
                         index: e as u32,
-                        value: b.get(b'q').unwrap_or(0.0),
+                        // LinuxCNC sends -1 when Q is missing.
+                        value: b.get(b'q').unwrap_or(-1.0),
                         synchronized: io == 67,
                     });
                 }
@@ -203,7 +212,8 @@ impl Interpreter {
                     "cannot change overrides with cutter radius compensation on",
                 ));
             }
-            let on = b.get(b'p').unwrap_or(0.0) != 0.0;
+            // As in LinuxCNC, a missing P counts as -1: on.
+            let on = b.get(b'p').unwrap_or(-1.0) != 0.0;
             match ov {
                 48 | 49 => {
                     let on = ov == 48;

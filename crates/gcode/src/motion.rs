@@ -47,16 +47,42 @@ impl Interpreter {
                 end[i] = if s.absolute { v } else { cur[i] + v };
             }
         }
+        if b.has_polar() {
+            let (x, y) = polar_end(end[0], end[1], b.polar_radius, b.polar_angle, s.absolute);
+            end[0] = x;
+            end[1] = y;
+        }
         Pose::from_array(end)
     }
 
     pub(crate) fn motion(&mut self, b: &Block, motion: i32) -> Res<()> {
+        if b.has_polar() && !matches!(motion, 730 | 740 | 810..=890) {
+            let col = usize::from(b.polar_col) + 1;
+            let p = self.state.position;
+            if p.x == 0.0 && p.y == 0.0 {
+                if !self.state.absolute {
+                    return Err(self.error_at(
+                        ErrorKind::BadValue,
+                        col,
+                        "incremental motion with polar coordinates is indeterminate at the origin",
+                    ));
+                }
+                if b.polar_angle.is_none() {
+                    return Err(self.error_at(
+                        ErrorKind::MissingWord,
+                        col,
+                        "give the angle (^) of a polar coordinate when at the origin",
+                    ));
+                }
+            }
+        }
         match motion {
             0 | 10 => self.straight(b, motion),
             20 | 30 => self.arc(b, motion),
             50 | 51 => self.spline(b, motion),
             382..=385 => self.probe(b, motion),
             330 => self.g33(b),
+            331 => self.g33_1(b),
             760 => self.g76(b),
             800 => {
                 self.emit(C::Comment("interpreter: motion mode set to none".into()));
@@ -151,6 +177,19 @@ impl Interpreter {
         };
         let r_word = b.get(b'r');
         if r_word.is_some() {
+            // A radius-format arc cannot be a full circle: it needs an end point.
+            if !b.has(l1) && !b.has(l2) && !b.has_polar() {
+                return Err(self.g_err(
+                    b,
+                    gg::MOTION,
+                    ErrorKind::MissingWord,
+                    format!(
+                        "{} and {} words both missing for a radius-format arc in this plane",
+                        l1.to_ascii_uppercase() as char,
+                        l2.to_ascii_uppercase() as char
+                    ),
+                ));
+            }
             if b.has(b'i') || b.has(b'j') || b.has(b'k') {
                 return Err(self.err(
                     b,
@@ -320,54 +359,68 @@ impl Interpreter {
     }
 
     pub(crate) fn spline(&mut self, b: &Block, motion: i32) -> Res<()> {
+        let err = |this: &Self, kind, msg: &str| this.g_err(b, gg::MOTION, kind, msg);
+        if self.state.cutter.is_some() {
+            return Err(err(
+                self,
+                ErrorKind::State,
+                "cannot make a spline with cutter radius compensation on",
+            ));
+        }
+        match self.state.feed_mode {
+            FeedMode::InverseTime if !b.has(b'f') => {
+                return Err(err(
+                    self,
+                    ErrorKind::MissingWord,
+                    "F word missing with inverse time (G93) spline",
+                ));
+            }
+            FeedMode::UnitsPerMinute if self.state.feed_rate == 0.0 => {
+                return Err(err(
+                    self,
+                    ErrorKind::State,
+                    "cannot make a spline with zero feed rate",
+                ));
+            }
+            _ => {}
+        }
         if self.state.plane != Plane::XY {
-            return Err(self.g_err(
-                b,
-                gg::MOTION,
+            return Err(err(
+                self,
                 ErrorKind::State,
                 "G5 and G5.1 need the XY plane (G17)",
             ));
         }
-        if self.state.feed_rate == 0.0 && self.state.feed_mode != FeedMode::InverseTime {
-            return Err(self.g_err(
-                b,
-                gg::MOTION,
-                ErrorKind::State,
-                "cannot make a spline with zero feed rate",
+        if [b'z', b'a', b'b', b'c'].iter().any(|l| b.has(*l)) {
+            return Err(err(
+                self,
+                ErrorKind::UnusedWord,
+                "splines may not move Z, A, B or C",
             ));
         }
         let start = self.state.position;
         self.state.motion = motion;
-        let end = self.find_ends(b);
         let spline = if motion == 50 {
+            // I J of the first control point; without them the reflection of the previous
+            // G5's P Q (LinuxCNC keeps it with the G87 offsets).
             let ij = match (b.get(b'i'), b.get(b'j')) {
-                (None, None) => match self.spline_last_pq {
-                    Some(pq) => [-pq[0], -pq[1]],
-                    None => {
-                        return Err(self.g_err(
-                            b,
-                            gg::MOTION,
-                            ErrorKind::MissingWord,
-                            "the first G5 of a spline needs I and J",
-                        ));
-                    }
-                },
-                (i, j) => {
-                    if i.is_none() || j.is_none() {
-                        return Err(self.g_err(
-                            b,
-                            gg::MOTION,
-                            ErrorKind::MissingWord,
-                            "G5 needs both I and J",
-                        ));
-                    }
-                    [i.unwrap_or(0.0), j.unwrap_or(0.0)]
+                (Some(i), Some(j)) => [i, j],
+                (None, None) => [self.cycle.i, self.cycle.j],
+                _ => {
+                    return Err(err(
+                        self,
+                        ErrorKind::MissingWord,
+                        "G5 needs both I and J, or neither",
+                    ));
                 }
             };
+            let end = self.find_ends(b);
             let (Some(p), Some(q)) = (b.get(b'p'), b.get(b'q')) else {
-                return Err(self.g_err(b, gg::MOTION, ErrorKind::MissingWord, "G5 needs P and Q"));
+                return Err(err(self, ErrorKind::MissingWord, "G5 needs both P and Q"));
             };
-            self.spline_last_pq = Some([p, q]);
+            self.cycle.i = -p;
+            self.cycle.j = -q;
+            self.state.position = end;
             Spline {
                 order: 4,
                 p1: [start.x + ij[0], start.y + ij[1]],
@@ -376,14 +429,10 @@ impl Interpreter {
             }
         } else {
             let (Some(i), Some(j)) = (b.get(b'i'), b.get(b'j')) else {
-                return Err(self.g_err(
-                    b,
-                    gg::MOTION,
-                    ErrorKind::MissingWord,
-                    "G5.1 needs I and J",
-                ));
+                return Err(err(self, ErrorKind::MissingWord, "G5.1 needs both I and J"));
             };
-            self.spline_last_pq = None;
+            let end = self.find_ends(b);
+            self.state.position = end;
             let p1 = [start.x + i, start.y + j];
             Spline {
                 order: 3,
@@ -393,7 +442,6 @@ impl Interpreter {
             }
         };
         self.emit(C::SplineFeed(spline));
-        self.state.position = end;
         Ok(())
     }
 
@@ -467,6 +515,28 @@ impl Interpreter {
         self.waiting = self.settings.wait_for_machine;
         Ok(())
     }
+}
+
+/// X and Y of a polar end point (`@` radius, `^` angle in degrees, about the origin of the
+/// coordinate system). Absolute: a missing word keeps the current radius or angle;
+/// incremental: the words add to them.
+pub(crate) fn polar_end(
+    x: f64,
+    y: f64,
+    radius: Option<f64>,
+    angle: Option<f64>,
+    absolute: bool,
+) -> (f64, f64) {
+    let (r0, t0) = (x.hypot(y), y.atan2(x));
+    let (r, t) = if absolute {
+        (radius.unwrap_or(r0), angle.map_or(t0, f64::to_radians))
+    } else {
+        (
+            r0 + radius.unwrap_or(0.0),
+            t0 + angle.unwrap_or(0.0).to_radians(),
+        )
+    };
+    (r * t.cos(), r * t.sin())
 }
 
 /// Length of a straight move for inverse time feed: XYZ(UVW) distance, or the rotary

@@ -104,7 +104,10 @@ impl Interpreter {
             let entry = if tool == 0 && b.get(b'd').is_none() {
                 self.tools.get(self.state.current_tool).cloned()
             } else {
-                if tool != 0 && self.tools.get(tool).is_none() {
+                if tool != 0
+                    && self.tools.get(tool).is_none()
+                    && !self.settings.accept_unknown_tools
+                {
                     return Err(self.err(
                         b,
                         b'd',
@@ -154,14 +157,27 @@ impl Interpreter {
         let code = b.g[gg::LENGTH];
         let new = match code {
             490 => Pose::ZERO,
-            430 => {
+            430 | 432 => {
+                if code == 432 && !b.has(b'h') {
+                    // G43.2 with axis words: add them to the offset in force.
+                    let mut v = self.state.tool_offset.to_array();
+                    for (i, l) in AXES.iter().enumerate() {
+                        if let Some(x) = b.get(*l) {
+                            v[i] += x;
+                        }
+                    }
+                    return self.apply_tool_offset(Pose::from_array(v), code);
+                }
                 let tool = match b.get(b'h') {
                     Some(h) => {
                         let t = self.whole(b, b'h', h)?;
                         if t < 0 {
                             return Err(self.err(b, b'h', ErrorKind::BadValue, "negative H word"));
                         }
-                        if t != 0 && self.tools.get(t).is_none() {
+                        if t != 0
+                            && self.tools.get(t).is_none()
+                            && !self.settings.accept_unknown_tools
+                        {
                             return Err(self.err(
                                 b,
                                 b'h',
@@ -187,6 +203,13 @@ impl Interpreter {
                         self.user_to_program(off[i])
                     };
                 }
+                if code == 432 {
+                    // G43.2 H: add that tool's offsets to the ones in force.
+                    let cur = self.state.tool_offset.to_array();
+                    for i in 0..9 {
+                        v[i] += cur[i];
+                    }
+                }
                 Pose::from_array(v)
             }
             _ => {
@@ -200,6 +223,12 @@ impl Interpreter {
                 Pose::from_array(v)
             }
         };
+        self.apply_tool_offset(new, code)
+    }
+
+    /// Puts a tool length offset in force; the program position moves so that the machine
+    /// does not.
+    fn apply_tool_offset(&mut self, new: Pose, code: i32) -> Res<()> {
         self.emit(C::UseToolLengthOffset(new));
         let old = self.state.tool_offset;
         let (dx, dy) = rotate(old.x - new.x, old.y - new.y, -self.state.rotation);
@@ -372,10 +401,23 @@ impl Interpreter {
         let off = Pose::from_array(off);
         self.pose_to_params(base, &off);
         if index == self.state.origin_index {
-            let machine = self.machine_position();
+            // The program position moves with the origin as LinuxCNC moves it: rotated
+            // without the G92 offset (unlike a change of coordinate system).
+            let old = self.state.g5x.to_array();
+            let new = off.to_array();
+            let mut p = self.state.position.to_array();
+            let (x, y) = rotate(p[0], p[1], self.state.rotation);
+            p[0] = x;
+            p[1] = y;
+            for i in 0..9 {
+                p[i] += old[i] - new[i];
+            }
+            let (x, y) = rotate(p[0], p[1], -r);
+            p[0] = x;
+            p[1] = y;
+            self.state.position = Pose::from_array(p);
             self.state.g5x = off;
             self.state.rotation = r;
-            self.state.position = self.program_from_machine(&machine);
             self.emit(C::SetG5xOffset { index, offset: off });
             self.emit(C::SetXyRotation(r));
         } else {
@@ -387,7 +429,12 @@ impl Interpreter {
     }
 
     pub(crate) fn g10_tool(&mut self, b: &Block, l: i32, tool_no: i32) -> Res<()> {
-        let Some(existing) = self.tools.get(tool_no).cloned() else {
+        let known = self.tools.get(tool_no).cloned().or_else(|| {
+            self.settings
+                .accept_unknown_tools
+                .then(|| crate::tools::Tool::new(tool_no, tool_no))
+        });
+        let Some(existing) = known else {
             return Err(self.err(
                 b,
                 b'p',

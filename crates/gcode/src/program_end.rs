@@ -20,7 +20,7 @@ impl Interpreter {
             }
             99 if self.m99()? => return Ok(true),
             code => {
-                self.program_end_reset();
+                self.program_end_reset(b);
                 if code == 30 {
                     self.emit(C::PalletShuttle);
                 }
@@ -33,7 +33,7 @@ impl Interpreter {
 
     /// The resets of M2 / M30: G54 back in force, XY plane, absolute, units per minute,
     /// feed override on, compensation off, spindle off, G1, coolant off.
-    pub(crate) fn program_end_reset(&mut self) {
+    pub(crate) fn program_end_reset(&mut self, b: &Block) {
         let machine = self.machine_position();
         self.state.origin_index = 1;
         self.params.set(sys::COORD_SYSTEM, 1.0);
@@ -55,7 +55,8 @@ impl Interpreter {
             spindle: 0,
             mode: FeedMode::UnitsPerMinute,
         });
-        self.state.feed_rate = self.block_f();
+        // LinuxCNC keeps the F of the M2 block (the canonical feed rate goes to 0).
+        self.state.feed_rate = b.get(b'f').unwrap_or(0.0);
         self.emit(C::SetFeedRate(0.0));
         if !self.state.feed_override {
             self.emit(C::FeedOverride(true));
@@ -81,10 +82,6 @@ impl Interpreter {
             self.emit(C::FloodOff);
             self.state.flood = false;
         }
-    }
-
-    pub(crate) fn block_f(&self) -> f64 {
-        0.0
     }
 
     /// M72 (or return from a subroutine after M73): bring back a saved modal state the way

@@ -52,6 +52,26 @@ impl Interpreter {
         Ok(())
     }
 
+    /// G33.1: rigid tapping at K per revolution; the tool comes back to where it started.
+    pub(crate) fn g33_1(&mut self, b: &Block) -> Res<()> {
+        if !self.spindle_turning() {
+            return Err(self.sync_err(b, ErrorKind::State, "spindle not turning in G33.1"));
+        }
+        self.state.motion = 331;
+        let end = self.find_ends(b);
+        self.emit(C::StartSpeedFeedSync {
+            spindle: 0,
+            feed_per_revolution: b.get(b'k').unwrap_or(0.0),
+            velocity_mode: false,
+        });
+        self.emit(C::RigidTap {
+            end,
+            scale: b.get(b'i').map_or(1.0, |i| i.max(1.0)),
+        });
+        self.emit(C::StopSpeedFeedSync);
+        Ok(())
+    }
+
     /// G76: multi-pass threading on a lathe (X radial, Z along the spindle).
     pub(crate) fn g76(&mut self, b: &Block) -> Res<()> {
         if !self.spindle_turning() {
@@ -133,11 +153,11 @@ impl Interpreter {
             self.threading_pass(&t, depth, zoff);
             pass += 1;
             depth = full_dia_depth + cut_increment * f64::from(pass).powf(1.0 / degression);
-            if pass > 100_000 {
+            if pass > 10_000 {
                 return Err(self.sync_err(
                     b,
                     ErrorKind::BadValue,
-                    "G76 would need more than 100000 passes",
+                    "G76 would need more than 10000 passes",
                 ));
             }
         }

@@ -19,7 +19,14 @@ fn run(program: &Path) -> (String, Option<String>) {
         ..Settings::rs274()
     };
     let tools = ToolTable::load(&dir.join("canon.tbl")).expect("canon.tbl");
-    let params = Parameters::load(&dir.join("canon.var")).expect("canon.var");
+    // A program may come with its own parameter file NAME.var.
+    let own = program.with_extension("var");
+    let var = if own.exists() {
+        own
+    } else {
+        dir.join("canon.var")
+    };
+    let params = Parameters::load(&var).expect("parameter file");
     let mut interp = Interpreter::new(settings, tools, params);
     interp.open(program).expect("open");
     let mut out = Vec::new();

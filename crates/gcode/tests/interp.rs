@@ -341,3 +341,55 @@ fn mdi_calls_subroutines_from_the_search_path_and_abort_stops_a_program() {
     assert!(it.next_canon().is_none());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn g43_2_with_axis_words_adds_to_the_offset_in_force() {
+    // rs274 (2.9.0~pre1) rejects this form ("Requested tool -1"): checked by hand.
+    let (out, err) = run("G43.1 Z2\nG43.2 Z0.5 X0.1\nM2\n");
+    assert!(err.is_none(), "{err:?}");
+    assert_eq!(
+        out[1],
+        CanonCommand::UseToolLengthOffset(Pose {
+            x: 0.1,
+            z: 2.5,
+            ..Pose::ZERO
+        })
+    );
+}
+
+#[test]
+fn continue_in_a_do_loop_goes_to_its_while_test() {
+    // rs274 (2.9) instead takes the closing `while` for the start of a new while loop and
+    // leaves the do loop: a documented difference. By hand: X1, (2 skipped), X3, X4, break.
+    let (out, err) = run(
+        "#1=0\no1 do\n#1=[#1+1]\no2 if [#1 eq 2]\no1 continue\no2 endif\nG1 F100 X#1\no3 if [#1 ge 4]\no1 break\no3 endif\no1 while [#1 lt 10]\nG1 Y1\nM2\n",
+    );
+    assert!(err.is_none(), "{err:?}");
+    let xs: Vec<(f64, f64)> = out
+        .iter()
+        .filter_map(|c| match c {
+            CanonCommand::StraightFeed(p) => Some((p.x, p.y)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(xs, vec![(1.0, 0.0), (3.0, 0.0), (4.0, 0.0), (4.0, 1.0)]);
+}
+
+#[test]
+fn unknown_tools_are_refused_unless_accepted() {
+    let (_, err) = run("T5 M6\nM2\n");
+    assert_eq!(err.unwrap().message, "tool 5 is not in the tool table");
+    let mut it = Interpreter::new(
+        Settings {
+            accept_unknown_tools: true,
+            ..Settings::default()
+        },
+        ToolTable::new(),
+        Parameters::new(),
+    );
+    it.open_text("t.ngc", "T5 M6\nG43 H5\nM2\n").unwrap();
+    let cmds: Vec<CanonCommand> = (&mut it).map(|c| c.unwrap().command).collect();
+    assert!(cmds.contains(&CanonCommand::ChangeTool(5)));
+    assert!(cmds.contains(&CanonCommand::UseToolLengthOffset(Pose::ZERO)));
+    assert_eq!(it.modal_state().current_tool, 5);
+}

@@ -14,7 +14,8 @@ use rtcnc_gcode::{Interpreter, Parameters, Settings, ToolTable};
 pub struct Args {
     /// The G-code program.
     program: PathBuf,
-    /// Tool table in LinuxCNC `.tbl` format.
+    /// Tool table in LinuxCNC `.tbl` format. Without it any tool number is accepted, with
+    /// no offsets.
     #[arg(long, value_name = "FILE")]
     tool_table: Option<PathBuf>,
     /// Parameter file in LinuxCNC `.var` format (work offsets, G92, homes); read only.
@@ -57,6 +58,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     };
     let settings = Settings {
         user_units,
+        accept_unknown_tools: args.tool_table.is_none(),
         subroutine_path: args.subroutine_path.clone(),
         block_delete: args.block_delete,
         ..Settings::default()
@@ -102,6 +104,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     if args.canon {
         // rs274 resets the interpreter as it exits.
+        if args.line_numbers {
+            buf.extend_from_slice(b"N..... ");
+        }
         buf.extend_from_slice(b"ON_RESET()\n");
     }
     out.write_all(&buf)?;

@@ -27,6 +27,8 @@ printf '[RS274NGC]\nPARAMETER_FILE = canon.var\nSUBROUTINE_PATH = %s\n' "$HERE/s
 n=0
 for f in "$HERE"/*.ngc; do
   b=${f%.ngc}
+  # A program may come with its own parameter file NAME.var.
+  if [ -f "$b.var" ]; then cp "$b.var" "$TMP/canon.var"; else cp "$HERE/canon.var" "$TMP/canon.var"; fi
   # rs274 always prints its start-up lines; an empty output means it did not run (e.g. a
   # busy machine): try again.
   for attempt in 1 2 3 4 5; do

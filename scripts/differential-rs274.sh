@@ -1,0 +1,92 @@
+#!/usr/bin/env bash
+# scripts/differential-rs274.sh [COUNT] - random differential test against LinuxCNC's rs274:
+# generates COUNT (default 200) random programs (moves, arcs, offsets, G92, G53, cycles,
+# parameters, units of a mill), runs each through rs274 (peer harness canon.sh) and
+# `rtcnc check --canon`, and counts programs whose canonical output is byte-identical
+# (including the ones both stop with an error at the same block).
+# Needs rs274 and the peer folder ($RTCNC_PEERS or ../shared/peers next to the repository).
+set -euo pipefail
+ROOT=$(cd "$(dirname "$0")/.." && pwd)
+COUNT=${1:-200}
+if [ -z "${RTCNC_PEERS:-}" ]; then
+  for d in "$ROOT/../shared/peers" "$ROOT/../../shared/peers"; do
+    [ -d "$d" ] && RTCNC_PEERS=$d && break
+  done
+fi
+CANON=${RTCNC_PEERS:-/nonexistent}/linuxcnc/canon.sh
+if [ ! -x "$CANON" ] || ! command -v rs274 >/dev/null; then
+  echo "needs rs274 and $CANON" >&2
+  exit 2
+fi
+cargo build --release -q -p rtcnc --manifest-path "$ROOT/Cargo.toml"
+RTCNC=$ROOT/target/release/rtcnc
+TBL=$ROOT/crates/gcode/tests/corpus/canon.tbl
+TMP=$(mktemp -d)
+trap 'rm -rf "$TMP"' EXIT
+KEEP=${KEEP:-}   # set KEEP=dir to keep the programs that differ
+python3 - "$TMP" "$COUNT" <<'PY'
+import math, random, sys
+out, n = sys.argv[1], int(sys.argv[2])
+for seed in range(n):
+    r = random.Random(seed)
+    L = [r.choice(["G21", "G20"]) + " G90 G17 F" + str(r.randint(10, 900))]
+    x = y = 0.0
+    for _ in range(r.randint(5, 40)):
+        k = r.random()
+        if k < 0.25:
+            x, y = r.uniform(-50, 50), r.uniform(-50, 50)
+            L.append("G%d X%.3f Y%.3f Z%.3f" % (r.choice([0, 1]), x, y, r.uniform(-10, 10)))
+        elif k < 0.40:
+            cx, cy = x + r.uniform(-20, 20), y + r.uniform(-20, 20)
+            rad = math.hypot(x - cx, y - cy)
+            a = r.uniform(0, 2 * math.pi)
+            ex, ey = cx + rad * math.cos(a), cy + rad * math.sin(a)
+            L.append("G90 G%d X%.4f Y%.4f I%.4f J%.4f" % (r.choice([2, 3]), ex, ey, cx - x, cy - y))
+            x, y = float("%.4f" % ex), float("%.4f" % ey)
+        elif k < 0.48:
+            L.append("G10 L2 P%d X%.3f Y%.3f R%s" % (r.randint(1, 3), r.uniform(-20, 20),
+                                                    r.uniform(-20, 20), r.choice(["0", "15", "90"])))
+        elif k < 0.55:
+            L.append(r.choice(["G54", "G55", "G56", "G92 X%.3f" % r.uniform(-9, 9), "G92.1"]))
+        elif k < 0.62:
+            L.append(r.choice(["G91 G1 X1 Y-1", "G90", "G61", "G64 P0.01", "G61.1"]))
+        elif k < 0.70:
+            L.append("G81 X%.3f Y%.3f Z%.3f R%.3f" % (r.uniform(-20, 20), r.uniform(-20, 20),
+                                                     r.uniform(-5, -1), r.uniform(1, 3)))
+            L.append(r.choice(["X%.2f" % r.uniform(-9, 9), "G80"]))
+            L.append("G80")
+        elif k < 0.76:
+            L.append("S%d M%d %s" % (r.randint(100, 5000), r.choice([3, 4, 5]), r.choice(["M8", "M9", ""])))
+        elif k < 0.82:
+            L.append(r.choice(["G53 G0 Z%.3f" % r.uniform(-5, 0), "G28.1", "G28", "G30 Z2"]))
+        elif k < 0.90:
+            L.append("#%d = [%.3f * %d + #%d]" % (r.randint(1, 9), r.uniform(-5, 5), r.randint(1, 4), r.randint(1, 9)))
+            L.append("G1 X#%d Y[#%d / 2]" % (r.randint(1, 9), r.randint(1, 9)))
+        else:
+            L.append(r.choice(["T%d M6 G43" % r.randint(1, 6), "G49", "G43.1 Z0.2", "M61 Q%d" % r.randint(0, 6)]))
+    L.append("M2")
+    open("%s/r%04d.ngc" % (out, seed), "w").write("\n".join(L) + "\n")
+PY
+same=0
+with_error=0
+total=0
+for f in "$TMP"/r*.ngc; do
+  b=${f%.ngc}
+  total=$((total + 1))
+  "$CANON" -t "$TBL" "$f" > "$b.exp" 2> "$b.experr" || true
+  "$RTCNC" check --canon --user-units inch --tool-table "$TBL" "$f" > "$b.out" 2> "$b.err" || true
+  theirs_failed=0; ours_failed=0
+  [ -s "$b.experr" ] && theirs_failed=1
+  [ -s "$b.err" ] && ours_failed=1
+  if cmp -s "$b.exp" "$b.out" && [ $theirs_failed = $ours_failed ]; then
+    same=$((same + 1))
+    [ -s "$b.err" ] && with_error=$((with_error + 1))
+  else
+    echo "differs: $(basename "$f")"
+    [ -n "$KEEP" ] && mkdir -p "$KEEP" && cp "$f" "$KEEP/"
+    (diff "$b.exp" "$b.out" || true) | head -4 | sed 's/^/    /'
+    echo "    rs274: $(head -1 "$b.experr" | cut -c1-100)"
+    echo "    rtcnc: $(head -1 "$b.err" | cut -c1-100)"
+  fi
+done
+echo "identical: $same of $total random programs ($with_error of them stop with the same error)"
