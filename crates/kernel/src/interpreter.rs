@@ -43,6 +43,10 @@ pub(crate) struct InterpreterStage {
     spindle_on: Option<SpindleDirection>,
     diameter_mode: bool,
     parameter_file: Option<PathBuf>,
+    /// The G64 P tolerance in force, so that a later Q (naive-CAM merge) can join it.
+    blend_tolerance: Option<f64>,
+    /// A command the kernel cannot carry out stopped this run: nothing after it converts.
+    refused: bool,
 }
 
 impl InterpreterStage {
@@ -73,6 +77,8 @@ impl InterpreterStage {
             spindle_on: None,
             diameter_mode,
             parameter_file: None,
+            blend_tolerance: None,
+            refused: false,
         }
     }
 
@@ -108,6 +114,7 @@ impl InterpreterStage {
             match request {
                 InterpreterRequest::Run { epoch } => {
                     self.epoch = epoch;
+                    self.refused = false;
                     self.outbox.clear();
                     self.comp = Compensator::new();
                     let mut interp = self.fresh_interpreter();
@@ -131,6 +138,7 @@ impl InterpreterStage {
                 }
                 InterpreterRequest::Mdi { epoch, line } => {
                     self.epoch = epoch;
+                    self.refused = false;
                     self.outbox.clear();
                     if self.interp.is_none() {
                         self.interp = Some(self.fresh_interpreter());
@@ -232,6 +240,13 @@ impl InterpreterStage {
 
     fn convert(&mut self, canon: Canon) {
         use CanonCommand as C;
+        if self.refused {
+            return;
+        }
+        if let Some(what) = not_carried_out(&canon.command) {
+            self.refuse(&canon, what);
+            return;
+        }
         let line = canon.source.line;
         let out = &mut self.outbox;
         let aux = |aux| ProgramBlock::Aux { line, aux };
@@ -247,14 +262,29 @@ impl InterpreterStage {
             C::SetXyRotation(r) => out.push_back(ProgramBlock::Rotation(r)),
             C::UseToolLengthOffset(p) => out.push_back(ProgramBlock::ToolOffset(p.to_array())),
             C::SelectPlane(p) => self.plane = p,
-            C::SetMotionControlMode(mode) => out.push_back(ProgramBlock::PathMode(match mode {
-                rtcnc_gcode::canon::PathMode::ExactStop => PathMode::ExactStop,
-                rtcnc_gcode::canon::PathMode::ExactPath => PathMode::ExactPath,
-                rtcnc_gcode::canon::PathMode::Continuous { tolerance } => PathMode::Blend {
-                    tolerance,
-                    merge_tolerance: 0.0,
-                },
-            })),
+            C::SetMotionControlMode(mode) => {
+                self.blend_tolerance = match mode {
+                    rtcnc_gcode::canon::PathMode::Continuous { tolerance } => Some(tolerance),
+                    _ => None,
+                };
+                out.push_back(ProgramBlock::PathMode(match mode {
+                    rtcnc_gcode::canon::PathMode::ExactStop => PathMode::ExactStop,
+                    rtcnc_gcode::canon::PathMode::ExactPath => PathMode::ExactPath,
+                    rtcnc_gcode::canon::PathMode::Continuous { tolerance } => PathMode::Blend {
+                        tolerance,
+                        merge_tolerance: 0.0,
+                    },
+                }))
+            }
+            // G64 Q: rs274 sends it right after the mode it belongs to.
+            C::SetNaivecamTolerance(merge_tolerance) => {
+                if let Some(tolerance) = self.blend_tolerance {
+                    out.push_back(ProgramBlock::PathMode(PathMode::Blend {
+                        tolerance,
+                        merge_tolerance,
+                    }));
+                }
+            }
             C::SetFeedMode { mode, .. } => {
                 let _ = mode == FeedMode::UnitsPerRevolution;
             }
@@ -302,7 +332,7 @@ impl InterpreterStage {
                     rapid: true,
                 });
             }
-            C::StraightFeed(p) | C::StraightProbe { end: p, .. } => {
+            C::StraightFeed(p) => {
                 self.position = p.to_array();
                 out.push_back(ProgramBlock::Line {
                     line,
@@ -319,17 +349,6 @@ impl InterpreterStage {
                     centre,
                     normal,
                     turns,
-                });
-            }
-            C::SplineFeed(s) => {
-                // Splines are followed through their control polygon's end point as a line:
-                // the planner has no spline segment yet.
-                self.position[0] = s.end[0];
-                self.position[1] = s.end[1];
-                out.push_back(ProgramBlock::Line {
-                    line,
-                    end: self.position,
-                    rapid: false,
                 });
             }
             C::SetDigitalOutput { index, on, .. } => {
@@ -377,6 +396,26 @@ impl InterpreterStage {
 }
 
 impl InterpreterStage {
+    /// Stops the run before a block the kernel cannot carry out: "error in program" at
+    /// that block, like an interpreter error found ahead.
+    fn refuse(&mut self, canon: &Canon, what: &str) {
+        let line = canon.source.line;
+        let file = self
+            .interp
+            .as_ref()
+            .map_or_else(|| "MDI".into(), |i| i.file_name(canon.source.file));
+        *self.shared.error_text.lock() = Some(format!(
+            "{file}:{line}: {what} is not supported by the motion kernel yet; \
+             the program stops before this block"
+        ));
+        self.outbox.push_back(ProgramBlock::Error {
+            line,
+            code: FaultCode::ProgramError,
+        });
+        self.active = false;
+        self.refused = true;
+    }
+
     /// Writes the parameter file (atomically: the interpreter's `Parameters::save`).
     fn save_parameters(&mut self) {
         if let (Some(path), Some(interp)) = (&self.parameter_file, &self.interp) {
@@ -384,6 +423,32 @@ impl InterpreterStage {
                 *self.shared.error_text.lock() = Some(format!("{}: {e}", path.display()));
             }
         }
+    }
+}
+
+/// Canonical commands the kernel cannot carry out yet. Running them as something else (a
+/// spline as a line, a probing move as a plain feed, G96 at a fixed speed) would move the
+/// machine in a way the program did not mean, so the run stops before them instead.
+fn not_carried_out(command: &CanonCommand) -> Option<&'static str> {
+    use CanonCommand as C;
+    match command {
+        C::SplineFeed(_) => Some("spline motion (G5, G5.1)"),
+        C::StraightProbe { .. } => Some("probing (G38.2 to G38.5)"),
+        C::RigidTap { .. } => Some("rigid tapping (G33.1)"),
+        C::StartSpeedFeedSync { .. } => Some("spindle-synchronised motion (G33, G76)"),
+        C::OrientSpindle { .. } | C::WaitOrientComplete { .. } => Some("spindle orientation (M19)"),
+        C::SetSpindleMode {
+            constant_surface_speed: true,
+            ..
+        } => Some("constant surface speed (G96)"),
+        C::WaitInput { digital: false, .. } => Some("waiting on an analogue input (M66 E)"),
+        C::SetAnalogOutput { .. } => Some("analogue outputs (M67, M68)"),
+        C::FeedOverride(false) | C::SpeedOverride { enable: false, .. } => {
+            Some("disabling the overrides (M49, M50 P0, M51 P0)")
+        }
+        C::FeedHold(false) => Some("disabling feed hold (M53 P0)"),
+        C::AdaptiveFeed(true) => Some("adaptive feed (M52 P1)"),
+        _ => None,
     }
 }
 
