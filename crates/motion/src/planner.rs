@@ -870,10 +870,7 @@ impl<K: Kinematics> Planner<K> {
         self.build_starts();
         let t = self.period;
         let head = *self.q.get(0);
-        let (quick, hold) = match self.hold {
-            Some(h) => (h.kind == StopKind::Quick, Some(h)),
-            None => (false, None),
-        };
+        let quick = matches!(self.hold, Some(h) if h.kind == StopKind::Quick);
         let mut rem = self.stop_cum - self.s;
         let mut a_stop = if head.a_to_stop.is_finite() && head.a_to_stop > 1e-3 * self.a_min {
             head.a_to_stop
