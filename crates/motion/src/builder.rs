@@ -16,6 +16,9 @@ pub(crate) const KINK: f64 = 1e-4;
 const SMOOTH_MAX_ANGLE: f64 = 0.35;
 /// A corner blend whose speed limit is below this share of the feed becomes an exact stop.
 const MIN_BLEND_SPEED_SHARE: f64 = 0.05;
+/// ... and a blend slower than this (mm/s) as well: approaching such a low limit with the
+/// deceleration released costs as much as a stop.
+const MIN_BLEND_SPEED: f64 = 2.0;
 /// Feed used for that comparison on rapids (mm/s).
 const V_RAPID_REF: f64 = 1e3;
 /// Longest run of collinear segments merged into one.
@@ -442,7 +445,10 @@ impl Builder {
                         let v_blend = b.smp[..=b.ns]
                             .iter()
                             .fold(f64::INFINITY, |m, x| m.min(x.v_curve));
-                        if v_blend < MIN_BLEND_SPEED_SHARE * lp.feed.min(lc.feed).min(V_RAPID_REF) {
+                        if v_blend
+                            < (MIN_BLEND_SPEED_SHARE * lp.feed.min(lc.feed).min(V_RAPID_REF))
+                                .max(MIN_BLEND_SPEED)
+                        {
                             self.stats.stops += 1;
                             self.emit_prim_to_end(&prev, st, true, lim, out);
                             self.prev = Some(cur);
