@@ -16,6 +16,9 @@ pub(crate) const KINK: f64 = 1e-4;
 const SMOOTH_MAX_ANGLE: f64 = 0.35;
 /// A corner blend whose speed limit is below this share of the feed becomes an exact stop.
 const MIN_BLEND_SPEED_SHARE: f64 = 0.05;
+/// ... and a blend slower than this (mm/s) as well: approaching such a low limit with the
+/// deceleration released costs as much as a stop.
+const MIN_BLEND_SPEED: f64 = 2.0;
 /// Feed used for that comparison on rapids (mm/s).
 const V_RAPID_REF: f64 = 1e3;
 /// Longest run of collinear segments merged into one.
@@ -383,7 +386,16 @@ impl Builder {
                                 t: tv,
                                 k: scale(&nrm, scale_k),
                             };
-                            if let Some(pc) = span(&lp, &start, &vk, tolerance, lim) {
+                            // After a stop the run may start already curved, like the arc
+                            // the polyline follows (mirror of the vertex state).
+                            let curved_start = if st.is_none() {
+                                span(&lp, &mirror(&vk, &lp.a, &lp.dir), &vk, tolerance, lim)
+                            } else {
+                                None
+                            };
+                            if let Some(pc) =
+                                curved_start.or_else(|| span(&lp, &start, &vk, tolerance, lim))
+                            {
                                 out.push(pc);
                                 self.stats.smoothed += 1;
                                 if scale_k < 1.0 {
@@ -433,7 +445,10 @@ impl Builder {
                         let v_blend = b.smp[..=b.ns]
                             .iter()
                             .fold(f64::INFINITY, |m, x| m.min(x.v_curve));
-                        if v_blend < MIN_BLEND_SPEED_SHARE * lp.feed.min(lc.feed).min(V_RAPID_REF) {
+                        if v_blend
+                            < (MIN_BLEND_SPEED_SHARE * lp.feed.min(lc.feed).min(V_RAPID_REF))
+                                .max(MIN_BLEND_SPEED)
+                        {
                             self.stats.stops += 1;
                             self.emit_prim_to_end(&prev, st, true, lim, out);
                             self.prev = Some(cur);
@@ -569,7 +584,16 @@ impl Builder {
                     PathMode::Blend { tolerance, .. } => tolerance,
                     _ => f64::INFINITY,
                 };
-                let pieces = self.span_or_exceed(l, &start, &end, tol, lim);
+                // Into a stop, a curved run may end curved (mirror of its start state).
+                let curved_end = if stop && norm(&start.k) > 0.0 && tol.is_finite() {
+                    span(l, &start, &mirror(&start, &l.b, &l.dir), tol, lim)
+                } else {
+                    None
+                };
+                let pieces = match curved_end {
+                    Some(p) => [Some(p), None],
+                    None => self.span_or_exceed(l, &start, &end, tol, lim),
+                };
                 for pc in pieces.into_iter().flatten() {
                     out.push(pc);
                 }
@@ -668,6 +692,14 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Piece>
         }
     }
     Some(Piece::new(shape, s0.p, s1.p, l.feed, false, l.line))
+}
+
+/// The state at `at`, the other end of the chord with direction `chord`, that mirrors
+/// `state` across the chord's perpendicular bisector (the two ends of a circular arc).
+fn mirror(state: &State, at: &AxisVec, chord: &AxisVec) -> State {
+    let t = sub(&scale(chord, 2.0 * dot(&state.t, chord)), &state.t);
+    let k = add_scaled(&state.k, chord, -2.0 * dot(&state.k, chord));
+    State { p: *at, t, k }
 }
 
 fn resolve_feed(feed: &Feed, len_xyz: f64, len: f64, line: u32) -> Result<f64, MotionError> {

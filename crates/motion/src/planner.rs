@@ -870,10 +870,7 @@ impl<K: Kinematics> Planner<K> {
         self.build_starts();
         let t = self.period;
         let head = *self.q.get(0);
-        let (quick, hold) = match self.hold {
-            Some(h) => (h.kind == StopKind::Quick, Some(h)),
-            None => (false, None),
-        };
+        let quick = matches!(self.hold, Some(h) if h.kind == StopKind::Quick);
         let mut rem = self.stop_cum - self.s;
         let mut a_stop = if head.a_to_stop.is_finite() && head.a_to_stop > 1e-3 * self.a_min {
             head.a_to_stop
@@ -886,6 +883,20 @@ impl<K: Kinematics> Planner<K> {
             head.j_brake
         };
         let mut real_stop = true;
+        if let Some(h) = &mut self.hold {
+            // A hold point is soft: when the axes cannot brake as the stop model assumes (on a
+            // curve at speed), it moves on to where the machine can stop from here.
+            let (d_need, _) = stop(
+                self.v,
+                self.a.max(-h.a),
+                STOP_CHECK_SHARE * h.a,
+                STOP_CHECK_JERK_SHARE * h.j,
+            );
+            if self.s + d_need > h.cum && h.cum - self.s > 0.0 {
+                h.cum = self.s + d_need;
+            }
+        }
+        let hold = self.hold;
         if let Some(h) = hold {
             let hr = h.cum - self.s;
             if hr < rem {

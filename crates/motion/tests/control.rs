@@ -306,3 +306,47 @@ fn rotary_and_extra_axes_move_linearly_along_a_line() {
     }
     assert_eq!(joints[3], 90.0);
 }
+
+#[test]
+fn hold_resume_and_override_on_a_curved_polyline_respect_the_limits() {
+    // The 1 µm circle polyline (smoothing spans): override changes and a hold in the middle
+    // of the curve, then resume.
+    let verts = circle_polyline(10.0, 0.001, 1.0);
+    let moves = lines(&verts, 100.0, blend(0.001));
+    let lim = limits(V, A, J);
+    let mut pl = planner(&lim, verts[0], 2048);
+    let tr = run_with(&mut pl, &moves, 50_000, |n, pl| match n {
+        150 => pl.set_feed_override(0.3),
+        260 => pl.set_feed_override(1.5),
+        400 => pl.hold(),
+        700 => pl.resume(),
+        _ => {}
+    });
+    assert_limits(&tr, V, A, J);
+    assert_eq!(pl.stats().limit_violations, 0);
+    // Held on the curve: standing still between the stop and the resume, on the circle.
+    let first_still = (400..700)
+        .find(|k| tr.pts[3 + k] == tr.pts[3 + k + 1])
+        .expect("no stop");
+    let held = &tr.pts[3 + first_still..3 + 700];
+    assert!(held.iter().all(|p| p == &held[0]));
+    assert!(((held[0][0].powi(2) + held[0][1].powi(2)).sqrt() - 10.0).abs() < 0.0011);
+    assert!(dist(tr.pts.last().unwrap(), verts.last().unwrap()) <= 1e-9);
+    assert!(max_deviation(&tr, &verts) <= 0.001 * (1.0 + 1e-9));
+}
+
+#[test]
+fn quick_stop_on_a_curve_stays_on_the_path() {
+    let verts = circle_polyline(10.0, 0.001, 1.0);
+    let moves = lines(&verts, 100.0, blend(0.001));
+    let lim = limits(V, A, J);
+    let mut pl = planner(&lim, verts[0], 2048);
+    let tr = run_with(&mut pl, &moves, 50_000, |n, pl| {
+        if n == 300 {
+            pl.quick_stop()
+        }
+    });
+    assert_limits(&tr, V, A, J);
+    assert!(max_deviation(&tr, &verts) <= 0.001 * (1.0 + 1e-9));
+    assert_eq!(pl.window_len(), 0);
+}

@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Long randomised checks of the path planner (not in CI): random move lists through the
+# planner, every set-point's finite differences against every axis's v, a, j limit.
+#   bench/motion-stress.sh [PROGRAMS_PER_SEED] [SEEDS]
+# Prints, per seed, how many programs exceeded a limit and the first failing programs in the
+# format of `cargo run -p rtcnc-motion --example debug_line spec` (SPEC="x y z F mode P; ...").
+# Then the proptest of tests/random.rs with more cases.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+n="${1:-500}"
+seeds="${2:-1 2 3 4 5 6 7}"
+cargo build -q --release -p rtcnc-motion --example stress
+for s in $seeds; do
+  echo "== seed $s"
+  target/release/examples/stress "$n" "$s"
+done
+echo "== tests/random.rs with 512 cases"
+PROPTEST_CASES=512 cargo test -q --release -p rtcnc-motion --test random
