@@ -34,6 +34,24 @@ for seed in range(n):
     x = y = 0.0
     known = True  # the generator knows the current XY (arcs by centre need it)
     for _ in range(r.randint(5, 40)):
+        if seed % 2 and r.random() < 0.3:
+            # A second family: planes, units, radius arcs, other cycles, G52/G92 family,
+            # inverse time, probing, polar words, state save/restore.
+            L.append(r.choice([
+                "G18", "G19", "G17", "G20", "G21", "G91.1", "G90.1", "G7", "G8",
+                "G2 X%.3f Y%.3f R%.3f" % (r.uniform(-9, 9), r.uniform(-9, 9), r.uniform(10, 30)),
+                "G3 X%.3f Z%.3f R-%.3f" % (r.uniform(-9, 9), r.uniform(-9, 9), r.uniform(10, 30)),
+                "G83 X%.3f Y%.3f Z-3 R1 Q0.7" % (r.uniform(-9, 9), r.uniform(-9, 9)),
+                "G73 X%.3f Y%.3f Z-2 R1 Q0.5 L2" % (r.uniform(-9, 9), r.uniform(-9, 9)),
+                "G82 X1 Y2 Z-1 R2 P0.2", "G85 X2 Y1 Z-1 R2", "G80",
+                "G91 G81 X1 Y1 Z-2 R1 L3", "G90",
+                "G52 X%.3f Y%.3f" % (r.uniform(-5, 5), r.uniform(-5, 5)), "G92.2", "G92.3",
+                "G93 G1 X%.3f Y%.3f F2" % (r.uniform(-9, 9), r.uniform(-9, 9)), "G94 F100",
+                "G38.3 Z-%.3f F50" % r.uniform(1, 5), "G0 Z5",
+                "G1 @%.3f ^%.1f F100" % (r.uniform(1, 9), r.uniform(0, 360)),
+                "M70", "M72", "G30.1", "G53 G0 X0", "G10 L20 P0 X%.2f" % r.uniform(-5, 5),
+            ]))
+            continue
         if len(L) > 1 and not L[-1].startswith(("G90 G0", "G90 G1", "G90 G2", "G90 G3")):
             known = False
         k = r.random()
@@ -73,23 +91,6 @@ for seed in range(n):
         elif k < 0.93:
             L.append(r.choice(["T%d M6 G43" % r.randint(1, 6), "G49", "G43.1 Z0.2", "M61 Q%d" % r.randint(0, 6),
                                "G43 H%d" % r.randint(0, 6)]))
-        elif seed % 2:
-            # A second family: planes, units, radius arcs, other cycles, G52/G92 family,
-            # inverse time, probing, polar words, state save/restore.
-            L.append(r.choice([
-                "G18", "G19", "G17", "G20", "G21", "G91.1", "G90.1", "G7", "G8",
-                "G2 X%.3f Y%.3f R%.3f" % (r.uniform(-9, 9), r.uniform(-9, 9), r.uniform(10, 30)),
-                "G3 X%.3f Z%.3f R-%.3f" % (r.uniform(-9, 9), r.uniform(-9, 9), r.uniform(10, 30)),
-                "G83 X%.3f Y%.3f Z-3 R1 Q0.7" % (r.uniform(-9, 9), r.uniform(-9, 9)),
-                "G73 X%.3f Y%.3f Z-2 R1 Q0.5 L2" % (r.uniform(-9, 9), r.uniform(-9, 9)),
-                "G82 X1 Y2 Z-1 R2 P0.2", "G85 X2 Y1 Z-1 R2", "G80",
-                "G91 G81 X1 Y1 Z-2 R1 L3", "G90",
-                "G52 X%.3f Y%.3f" % (r.uniform(-5, 5), r.uniform(-5, 5)), "G92.2", "G92.3",
-                "G93 G1 X%.3f Y%.3f F2" % (r.uniform(-9, 9), r.uniform(-9, 9)), "G94 F100",
-                "G38.3 Z-%.3f F50" % r.uniform(1, 5), "G0 Z5",
-                "G1 @%.3f ^%.1f F100" % (r.uniform(1, 9), r.uniform(0, 360)),
-                "M70", "M72", "G30.1", "G53 G0 X0", "G10 L20 P0 X%.2f" % r.uniform(-5, 5),
-            ]))
         else:
             L.append(r.choice(["G4 P0.5", "M7", "M9", "G64 P0.05 Q0.02", "G98", "G99"]))
     L.append("M2")
