@@ -34,6 +34,22 @@ for seed in range(n):
     x = y = 0.0
     known = True  # the generator knows the current XY (arcs by centre need it)
     for _ in range(r.randint(5, 40)):
+        if seed % 3 == 2 and r.random() < 0.3:
+            # A third family: control flow, subroutines, parameters, lathe threading (each
+            # o-word label used once, as LinuxCNC requires).
+            n = r.randint(1, 3)
+            lab = 10 + len(L)
+            L.append(r.choice([
+                "o%d repeat [%d]\nG91 G1 X%.2f Y%.2f\nG90\no%d endrepeat" % (lab, n, r.uniform(-3, 3), r.uniform(-3, 3), lab),
+                "#20 = 0\no%d while [#20 lt %d]\nG1 X[#20 * 2] Y#20\n#20 = [#20 + 1]\no%d endwhile" % (lab, n, lab),
+                "o%d if [#1 gt 0]\nG0 X1\no%d elseif [#1 lt -1]\nG0 Y1\no%d else\nG0 Z1\no%d endif" % (lab, lab, lab, lab),
+                "o<s%d> call [%.2f] [%.2f]" % (seed, r.uniform(-9, 9), r.uniform(-9, 9)),
+                "#<_g> = [#<_g> + %d]\nG1 X#<_g> F100" % n,
+                "M98 P900 L%d" % n,
+                "G18 S500 M3\nG0 X1 Z1\nG33 Z-1 K0.1\nG76 P0.05 Z-1 I-0.1 J0.01 K0.05\nG17",
+                "#1 = [%.3f]\n#2 = [#1 ** 2 + sqrt[abs[#1]]]\nG1 X[#2 mod 7] Y[atan[#1]/[2]] F100" % r.uniform(-9, 9),
+            ]))
+            continue
         if seed % 2 and r.random() < 0.3:
             # A second family: planes, units, radius arcs, other cycles, G52/G92 family,
             # inverse time, probing, polar words, state save/restore.
@@ -94,6 +110,11 @@ for seed in range(n):
         else:
             L.append(r.choice(["G4 P0.5", "M7", "M9", "G64 P0.05 Q0.02", "G98", "G99"]))
     L.append("M2")
+    if seed % 3 == 2:
+        # Subroutines first (LinuxCNC's forward search has quirks of its own), and the
+        # global the program adds to.
+        L.insert(0, "#<_g> = 0\no<s%d> sub\nG1 X#1 Y#2 F200\no<s%d> return [#1 + #2]\no<s%d> endsub" % (seed, seed, seed))
+        L.append("O900\nG91 G0 X0.5\nG90\nM99")
     open("%s/r%04d.ngc" % (out, seed), "w").write("\n".join(L) + "\n")
 PY
 # Lines equal with numbers within 1e-4 (the corpus test's rule).
