@@ -505,7 +505,8 @@ impl Canon {
     /// text and M66 waits. `with_n` prefixes the `N.....` column of `rs274`.
     ///
     /// Differences: U/V/W coordinates are printed as three more numbers when any of them is
-    /// non-zero (rs274 has no U/V/W), M100-M199 print as `USER_M_CODE(code, p, q)`.
+    /// non-zero (rs274 has no U/V/W), M100-M199 print as `USER_M_CODE(code, p, q)` (-1 for a
+    /// missing word).
     pub fn write_rs274(&self, out: &mut Vec<u8>, with_n: bool) -> bool {
         use CanonCommand as C;
         if matches!(self.command, C::Print(_) | C::WaitInput { .. }) {
@@ -797,9 +798,10 @@ impl Canon {
             C::UserMCode { code, p, q } => {
                 o.extend_from_slice(b"USER_M_CODE(");
                 push_int(o, i64::from(*code));
+                // A missing word prints as -1, LinuxCNC's value for "not given".
                 for w in [p, q] {
                     o.extend_from_slice(b", ");
-                    push_fixed(o, w.unwrap_or(0.0), 4);
+                    push_fixed(o, w.unwrap_or(-1.0), 4);
                 }
                 o.push(b')');
             }

@@ -393,3 +393,19 @@ fn unknown_tools_are_refused_unless_accepted() {
     assert!(cmds.contains(&CanonCommand::UseToolLengthOffset(Pose::ZERO)));
     assert_eq!(it.modal_state().current_tool, 5);
 }
+
+#[test]
+fn user_m_codes_go_to_the_machine_logic_with_p_and_q() {
+    let (out, err) = run("M100 P1 Q2.5\nM199\nM2\n");
+    assert!(err.is_none());
+    assert_eq!(
+        out[0],
+        CanonCommand::UserMCode {
+            code: 100,
+            p: Some(1.0),
+            q: Some(2.5)
+        }
+    );
+    assert_eq!(text(&out[0]), "USER_M_CODE(100, 1.0000, 2.5000)\n");
+    assert_eq!(text(&out[1]), "USER_M_CODE(199, -1.0000, -1.0000)\n");
+}
