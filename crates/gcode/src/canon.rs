@@ -490,6 +490,100 @@ pub enum CanonCommand {
     Finish,
 }
 
+impl Pose {
+    /// The linear axes (X Y Z U V W) multiplied by `f`, the rotary ones (A B C) unchanged.
+    pub fn scale_linear(&self, f: f64) -> Pose {
+        Pose {
+            x: self.x * f,
+            y: self.y * f,
+            z: self.z * f,
+            u: self.u * f,
+            v: self.v * f,
+            w: self.w * f,
+            ..*self
+        }
+    }
+}
+
+impl CanonCommand {
+    /// The same command with its lengths in millimetres, given the length units it was
+    /// issued in (the last [`CanonCommand::UseLengthUnits`]): positions, centres, offsets,
+    /// feed rates, tolerances, radii. Angles, times, speeds and spindle surface speeds are
+    /// left as they are; `UseLengthUnits` itself becomes millimetres.
+    pub fn to_mm(&self, units: Units) -> CanonCommand {
+        let f = units.mm_per_unit();
+        if f == 1.0 {
+            return self.clone();
+        }
+        use CanonCommand as C;
+        match self {
+            C::UseLengthUnits(_) => C::UseLengthUnits(Units::Mm),
+            C::SetG5xOffset { index, offset } => C::SetG5xOffset {
+                index: *index,
+                offset: offset.scale_linear(f),
+            },
+            C::SetG92Offset(p) => C::SetG92Offset(p.scale_linear(f)),
+            C::SetMotionControlMode(PathMode::Continuous { tolerance }) => {
+                C::SetMotionControlMode(PathMode::Continuous {
+                    tolerance: tolerance * f,
+                })
+            }
+            C::SetNaivecamTolerance(t) => C::SetNaivecamTolerance(t * f),
+            C::SetFeedRate(r) => C::SetFeedRate(r * f),
+            C::UseToolLengthOffset(p) => C::UseToolLengthOffset(p.scale_linear(f)),
+            C::StraightTraverse(p) => C::StraightTraverse(p.scale_linear(f)),
+            C::StraightFeed(p) => C::StraightFeed(p.scale_linear(f)),
+            C::ArcFeed(a) => C::ArcFeed(Arc {
+                first_end: a.first_end * f,
+                second_end: a.second_end * f,
+                first_axis: a.first_axis * f,
+                second_axis: a.second_axis * f,
+                axis_end_point: a.axis_end_point * f,
+                u: a.u * f,
+                v: a.v * f,
+                w: a.w * f,
+                ..*a
+            }),
+            C::SplineFeed(sp) => {
+                let m = |p: [f64; 2]| [p[0] * f, p[1] * f];
+                C::SplineFeed(Spline {
+                    p1: m(sp.p1),
+                    p2: m(sp.p2),
+                    end: m(sp.end),
+                    ..*sp
+                })
+            }
+            C::StartSpeedFeedSync {
+                spindle,
+                feed_per_revolution,
+                velocity_mode,
+            } => C::StartSpeedFeedSync {
+                spindle: *spindle,
+                feed_per_revolution: feed_per_revolution * f,
+                velocity_mode: *velocity_mode,
+            },
+            C::RigidTap { end, scale } => C::RigidTap {
+                end: end.scale_linear(f),
+                scale: *scale,
+            },
+            C::StraightProbe { end, kind } => C::StraightProbe {
+                end: end.scale_linear(f),
+                kind: *kind,
+            },
+            C::StartCutterRadiusCompensation {
+                side,
+                radius,
+                orientation,
+            } => C::StartCutterRadiusCompensation {
+                side: *side,
+                radius: radius * f,
+                orientation: *orientation,
+            },
+            other => other.clone(),
+        }
+    }
+}
+
 /// A canonical command with the place in the program it came from.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Canon {
@@ -505,7 +599,8 @@ impl Canon {
     /// text and M66 waits. `with_n` prefixes the `N.....` column of `rs274`.
     ///
     /// Differences: U/V/W coordinates are printed as three more numbers when any of them is
-    /// non-zero (rs274 has no U/V/W), M100-M199 print as `USER_M_CODE(code, p, q)`.
+    /// non-zero (rs274 has no U/V/W), M100-M199 print as `USER_M_CODE(code, p, q)` (-1 for a
+    /// missing word).
     pub fn write_rs274(&self, out: &mut Vec<u8>, with_n: bool) -> bool {
         use CanonCommand as C;
         if matches!(self.command, C::Print(_) | C::WaitInput { .. }) {
@@ -797,9 +892,10 @@ impl Canon {
             C::UserMCode { code, p, q } => {
                 o.extend_from_slice(b"USER_M_CODE(");
                 push_int(o, i64::from(*code));
+                // A missing word prints as -1, LinuxCNC's value for "not given".
                 for w in [p, q] {
                     o.extend_from_slice(b", ");
-                    push_fixed(o, w.unwrap_or(0.0), 4);
+                    push_fixed(o, w.unwrap_or(-1.0), 4);
                 }
                 o.push(b')');
             }
@@ -996,6 +1092,47 @@ mod tests {
             push_fixed(&mut v, x, 4);
             assert_eq!(std::str::from_utf8(&v).unwrap(), s);
         }
+    }
+
+    #[test]
+    fn inch_commands_convert_to_mm() {
+        let inch = CanonCommand::ArcFeed(Arc {
+            first_end: 1.0,
+            second_end: 2.0,
+            first_axis: 0.5,
+            second_axis: 0.25,
+            rotation: -1,
+            axis_end_point: -0.1,
+            a: 90.0,
+            b: 0.0,
+            c: 0.0,
+            u: 0.0,
+            v: 0.0,
+            w: 1.0,
+        });
+        let CanonCommand::ArcFeed(a) = inch.to_mm(Units::Inches) else {
+            panic!("not an arc");
+        };
+        assert_eq!(
+            (a.first_end, a.second_end, a.first_axis, a.second_axis),
+            (25.4, 50.8, 12.7, 6.35)
+        );
+        assert_eq!(
+            (a.axis_end_point, a.a, a.w, a.rotation),
+            (-2.54, 90.0, 25.4, -1)
+        );
+        assert_eq!(
+            CanonCommand::SetFeedRate(10.0).to_mm(Units::Inches),
+            CanonCommand::SetFeedRate(254.0)
+        );
+        assert_eq!(
+            CanonCommand::Dwell(2.0).to_mm(Units::Inches),
+            CanonCommand::Dwell(2.0)
+        );
+        assert_eq!(
+            CanonCommand::SetFeedRate(10.0).to_mm(Units::Mm),
+            CanonCommand::SetFeedRate(10.0)
+        );
     }
 
     #[test]

@@ -568,6 +568,7 @@ impl Interpreter {
 
     /// M70 / M73: save the modal state in the current call level.
     pub(crate) fn save_state(&mut self, auto_restore: bool) {
+        self.state.g92_applied = self.params.get(crate::params::sys::G92_APPLIED) != 0.0;
         let s = Box::new(self.state.clone());
         match self.calls.last_mut() {
             Some(f) => {

@@ -1,5 +1,6 @@
-//! Canned cycles G73, G81..G89, expanded into straight moves, dwells and spindle commands
-//! the way LinuxCNC's interpreter expands them (in the XY, XZ and YZ planes).
+//! Canned cycles G73, G74, G81..G89, expanded into straight moves, dwells and spindle
+//! commands the way LinuxCNC's interpreter expands them, in the XY, XZ and YZ planes and in
+//! the UV, UW and VW planes of the U V W axes.
 
 use crate::block::{Block, gg};
 use crate::canon::{CanonCommand as C, FeedMode, PathMode, Plane, Pose, SpindleDirection, Units};
@@ -22,8 +23,8 @@ struct Axes {
     lc: u8,
 }
 
-fn axes(plane: Plane) -> Option<Axes> {
-    Some(match plane {
+fn axes(plane: Plane) -> Axes {
+    match plane {
         Plane::XY => Axes {
             a: 0,
             b: 1,
@@ -48,8 +49,36 @@ fn axes(plane: Plane) -> Option<Axes> {
             lb: b'z',
             lc: b'x',
         },
-        _ => return None,
-    })
+        Plane::UV => Axes {
+            a: 6,
+            b: 7,
+            c: 8,
+            la: b'u',
+            lb: b'v',
+            lc: b'w',
+        },
+        Plane::WU => Axes {
+            a: 8,
+            b: 6,
+            c: 7,
+            la: b'w',
+            lb: b'u',
+            lc: b'v',
+        },
+        Plane::VW => Axes {
+            a: 7,
+            b: 8,
+            c: 6,
+            la: b'v',
+            lb: b'w',
+            lc: b'u',
+        },
+    }
+}
+
+/// True for the planes of the U V W axes (G17.1, G18.1, G19.1).
+fn uvw_plane(plane: Plane) -> bool {
+    matches!(plane, Plane::UV | Plane::WU | Plane::VW)
 }
 
 impl Interpreter {
@@ -90,14 +119,14 @@ impl Interpreter {
                 "cannot use canned cycles with cutter radius compensation on",
             ));
         }
-        let Some(ax) = axes(s.plane) else {
-            return Err(self.cycle_err(
-                b,
-                ErrorKind::State,
-                "canned cycles in the UV, UW and VW planes are not supported",
-            ));
+        let ax = axes(s.plane);
+        // The other triple of linear axes cannot move in a cycle.
+        let others = if uvw_plane(s.plane) {
+            [b'x', b'y', b'z']
+        } else {
+            [b'u', b'v', b'w']
         };
-        for l in [b'u', b'v', b'w'] {
+        for l in others {
             if b.has(l) {
                 return Err(self.cycle_err(
                     b,

@@ -121,6 +121,8 @@ pub struct ModalState {
     pub g92: Pose,
     /// Current position in the active coordinate system, current units.
     pub position: Pose,
+    /// G92 offsets applied (#5210).
+    pub g92_applied: bool,
     /// G7 (true) / G8.
     pub lathe_diameter: bool,
     /// M7.
@@ -171,6 +173,7 @@ impl ModalState {
             rotation: 0.0,
             g92: Pose::ZERO,
             position: Pose::ZERO,
+            g92_applied: false,
             lathe_diameter: false,
             mist: false,
             flood: false,
@@ -298,6 +301,7 @@ impl Interpreter {
         });
         if self.params.get(sys::G92_APPLIED) != 0.0 {
             self.state.g92 = self.pose_from_params(sys::G92);
+            self.state.g92_applied = true;
         }
         self.emit(CanonCommand::SetG92Offset(self.state.g92));
         self.emit(CanonCommand::SetXyRotation(self.state.rotation));

@@ -16,6 +16,8 @@
 //! # Ok::<(), rtcnc_gcode::GcodeError>(())
 //! ```
 
+#![warn(missing_docs)]
+
 mod block;
 pub mod canon;
 pub mod compensation;

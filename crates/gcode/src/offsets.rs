@@ -589,6 +589,7 @@ impl Interpreter {
             520 => {
                 // G52: a local offset given directly (it shares the G92 offset).
                 self.params.set(sys::G92_APPLIED, 1.0);
+                self.state.g92_applied = true;
                 for (i, letter) in AXES.iter().enumerate() {
                     if let Some(v) = b.get(*letter) {
                         pos[i] += off[i] - v;
@@ -598,6 +599,7 @@ impl Interpreter {
             }
             920 => {
                 self.params.set(sys::G92_APPLIED, 1.0);
+                self.state.g92_applied = true;
                 for (i, letter) in AXES.iter().enumerate() {
                     if let Some(v) = b.get(*letter) {
                         off[i] += pos[i] - v;
@@ -607,6 +609,7 @@ impl Interpreter {
             }
             921 | 922 => {
                 self.params.set(sys::G92_APPLIED, 0.0);
+                self.state.g92_applied = false;
                 for i in 0..9 {
                     pos[i] += off[i];
                     off[i] = 0.0;
@@ -619,6 +622,7 @@ impl Interpreter {
             }
             _ => {
                 self.params.set(sys::G92_APPLIED, 1.0);
+                self.state.g92_applied = true;
                 let saved = self.pose_from_params(sys::G92).to_array();
                 for i in 0..9 {
                     pos[i] += off[i] - saved[i];

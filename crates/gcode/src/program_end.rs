@@ -2,7 +2,9 @@
 //! M72/M73 restore of a saved modal state.
 
 use crate::block::{Block, fmt_code, mg};
-use crate::canon::{CanonCommand as C, FeedMode, PathMode, Plane, SpindleDirection, Units};
+use crate::canon::{
+    CanonCommand as C, CompensationSide, FeedMode, PathMode, Plane, Pose, SpindleDirection, Units,
+};
 use crate::error::GcodeError;
 use crate::interp::{Interpreter, ModalState};
 use crate::params::sys;
@@ -85,10 +87,12 @@ impl Interpreter {
     }
 
     /// M72 (or return from a subroutine after M73): bring back a saved modal state the way
-    /// LinuxCNC does it, by executing the codes that differ: units first, then one block
-    /// with F, S and the G codes, then the M codes one per block.
+    /// LinuxCNC 2.9 does it, by executing the codes that differ: units first, then one line
+    /// with F, S and the G codes (in its order of its modal table) to which the first M code
+    /// is joined, then the other M codes one per line.
     pub(crate) fn restore_state(&mut self, saved: &ModalState) -> Res<()> {
         use std::fmt::Write;
+        self.state.g92_applied = self.params.get(sys::G92_APPLIED) != 0.0;
         let cur = self.state.clone();
         if saved.units != cur.units {
             self.execute_text(if saved.units == Units::Inches {
@@ -97,6 +101,7 @@ impl Interpreter {
                 "G21"
             })?;
         }
+        let cur = self.state.clone();
         let mut cmd = String::new();
         if saved.feed_rate != cur.feed_rate {
             let _ = write!(cmd, " F{:.1}", saved.feed_rate);
@@ -104,82 +109,104 @@ impl Interpreter {
         if saved.speed != cur.speed {
             let _ = write!(cmd, " S{:.0}", saved.speed);
         }
-        let plane = |p: Plane| match p {
-            Plane::XY => "G17",
-            Plane::XZ => "G18",
-            Plane::YZ => "G19",
-            Plane::UV => "G17.1",
-            Plane::WU => "G18.1",
-            Plane::VW => "G19.1",
-        };
-        if saved.plane != cur.plane {
-            let _ = write!(cmd, " {}", plane(saved.plane));
-        }
-        if saved.cutter_gcode != cur.cutter_gcode {
-            let _ = write!(cmd, " G{}", fmt_code(saved.cutter_gcode));
-        }
-        if saved.absolute != cur.absolute {
-            cmd.push_str(if saved.absolute { " G90" } else { " G91" });
-        }
-        if saved.feed_mode != cur.feed_mode {
-            cmd.push_str(match saved.feed_mode {
-                FeedMode::InverseTime => " G93",
-                FeedMode::UnitsPerMinute => " G94",
-                FeedMode::UnitsPerRevolution => " G95",
-            });
-        }
-        if saved.origin_index != cur.origin_index {
-            let code = match saved.origin_index {
-                i @ 1..=6 => 530 + 10 * i32::from(i),
-                i => 590 + i32::from(i) - 6,
+        let (tol_s, tol_c) = (tolerance(saved.path_mode), tolerance(cur.path_mode));
+        let mut g64_changed = tol_s != tol_c || saved.naivecam_tolerance != cur.naivecam_tolerance;
+        let g = |st: &ModalState| -> [i32; 17] {
+            let mut v = [-1; 17];
+            v[3] = match st.plane {
+                Plane::XY => 170,
+                Plane::XZ => 180,
+                Plane::YZ => 190,
+                Plane::UV => 171,
+                Plane::WU => 181,
+                Plane::VW => 191,
             };
-            let _ = write!(cmd, " G{}", fmt_code(code));
-        }
-        if saved.length_gcode != cur.length_gcode {
-            let _ = write!(cmd, " G{}", fmt_code(saved.length_gcode));
-        }
-        if saved.retract_old_z != cur.retract_old_z {
-            cmd.push_str(if saved.retract_old_z { " G98" } else { " G99" });
-        }
-        if saved.css != cur.css {
-            cmd.push_str(if saved.css { " G96" } else { " G97" });
-        }
-        if saved.ijk_absolute != cur.ijk_absolute {
-            cmd.push_str(if saved.ijk_absolute {
-                " G90.1"
+            v[4] = match st.cutter {
+                None => 400,
+                Some(CompensationSide::Left) => 410,
+                Some(CompensationSide::Right) => 420,
+            };
+            v[6] = if st.absolute { 900 } else { 910 };
+            v[7] = match st.feed_mode {
+                FeedMode::InverseTime => 930,
+                FeedMode::UnitsPerMinute => 940,
+                FeedMode::UnitsPerRevolution => 950,
+            };
+            v[8] = match st.origin_index {
+                i @ 1..=6 => 530 + 10 * i32::from(i),
+                i => 584 + i32::from(i),
+            };
+            v[9] = if st.tool_offset == Pose::ZERO {
+                490
             } else {
-                " G91.1"
-            });
-        }
-        if saved.lathe_diameter != cur.lathe_diameter {
-            cmd.push_str(if saved.lathe_diameter { " G7" } else { " G8" });
-        }
-        match (saved.path_mode, cur.path_mode) {
-            (a, b) if a == b && saved.naivecam_tolerance == cur.naivecam_tolerance => {}
-            (PathMode::ExactPath, _) => cmd.push_str(" G61"),
-            (PathMode::ExactStop, _) => cmd.push_str(" G61.1"),
-            (PathMode::Continuous { tolerance }, _) => {
-                let _ = write!(cmd, " G64 P{tolerance:.6} Q{:.6}", saved.naivecam_tolerance);
+                430
+            };
+            v[10] = if st.retract_old_z { 980 } else { 990 };
+            v[11] = match st.path_mode {
+                PathMode::Continuous { .. } => 640,
+                PathMode::ExactPath => 610,
+                PathMode::ExactStop => 611,
+            };
+            v[13] = if st.css { 960 } else { 970 };
+            v[14] = if st.ijk_absolute { 901 } else { 911 };
+            v[15] = if st.lathe_diameter { 70 } else { 80 };
+            v[16] = if st.g92_applied { 923 } else { 922 };
+            v
+        };
+        let (gs, gc) = (g(saved), g(&cur));
+        for i in [3, 4, 6, 7, 8, 9, 10, 11, 13, 14, 15, 16] {
+            if gs[i] == gc[i] {
+                continue;
+            }
+            if i == 11 && gs[i] == 640 {
+                g64_changed = true;
+            } else {
+                let _ = write!(cmd, " G{}", fmt_code(gs[i]));
             }
         }
-        if !cmd.is_empty() {
-            self.execute_text(&cmd)?;
+        if gs[11] == 640 && g64_changed {
+            if tol_s < 0.0 {
+                cmd.push_str(" G64");
+            } else if saved.naivecam_tolerance < 0.0 {
+                let _ = write!(cmd, " G64 P{tol_s:.6}");
+            } else {
+                let _ = write!(cmd, " G64 P{tol_s:.6} Q{:.6}", saved.naivecam_tolerance);
+            }
         }
-        if saved.spindle != cur.spindle {
-            self.execute_text(match saved.spindle {
-                Some(SpindleDirection::Clockwise) => "M3",
-                Some(SpindleDirection::CounterClockwise) => "M4",
-                None => "M5",
-            })?;
+        // M codes as LinuxCNC lists its modal M state.
+        let m = |st: &ModalState| -> [i32; 6] {
+            [
+                match st.spindle {
+                    None => 5,
+                    Some(SpindleDirection::Clockwise) => 3,
+                    Some(SpindleDirection::CounterClockwise) => 4,
+                },
+                if st.mist {
+                    7
+                } else if st.flood {
+                    -1
+                } else {
+                    9
+                },
+                if st.flood { 8 } else { -1 },
+                match (st.feed_override, st.speed_override) {
+                    (true, true) => 48,
+                    (true, false) => 50,
+                    (false, true) => 51,
+                    (false, false) => 49,
+                },
+                if st.adaptive_feed { 52 } else { -1 },
+                if st.feed_hold { 53 } else { -1 },
+            ]
+        };
+        let (ms, mc) = (m(saved), m(&cur));
+        for (s, c) in ms.iter().zip(mc) {
+            if *s != c && *s != -1 {
+                let _ = writeln!(cmd, "M{s}");
+            }
         }
-        if saved.mist != cur.mist {
-            self.execute_text(if saved.mist { "M7" } else { "M9" })?;
-        }
-        if saved.flood != cur.flood {
-            self.execute_text(if saved.flood { "M8" } else { "M9" })?;
-        }
-        if saved.feed_override != cur.feed_override {
-            self.execute_text(if saved.feed_override { "M48" } else { "M49" })?;
+        for line in cmd.split('\n').filter(|l| !l.is_empty()) {
+            self.execute_text(line)?;
         }
         Ok(())
     }
@@ -191,5 +218,13 @@ impl Interpreter {
             return Err(self.error_at(e.kind, 0, format!("restoring state: {}", e.message)));
         }
         self.execute(&mut b).map(|_| ())
+    }
+}
+
+/// The G64 tolerance of a path mode (-1 when not in G64, as LinuxCNC records it).
+fn tolerance(mode: PathMode) -> f64 {
+    match mode {
+        PathMode::Continuous { tolerance } => tolerance,
+        _ => -1.0,
     }
 }

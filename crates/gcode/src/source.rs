@@ -35,9 +35,20 @@ impl Text {
         }
     }
 
-    fn seek(&mut self, offset: u64) -> std::io::Result<()> {
+    /// Moves to `offset`; `from` is the current position. Within the buffer of a file no
+    /// data is read again (loops and calls jump back and forth a lot).
+    fn seek(&mut self, offset: u64, from: u64) -> std::io::Result<()> {
         match self {
-            Text::File(f) => f.seek(SeekFrom::Start(offset)).map(|_| ()),
+            Text::File(f) => {
+                let delta = i64::try_from(offset)
+                    .ok()
+                    .zip(i64::try_from(from).ok())
+                    .map(|(a, b)| a - b);
+                match delta {
+                    Some(d) => f.seek_relative(d),
+                    None => f.seek(SeekFrom::Start(offset)).map(|_| ()),
+                }
+            }
             Text::Memory(m) => {
                 m.set_position(offset);
                 Ok(())
@@ -104,7 +115,7 @@ impl Sources {
         self.files.push(OpenFile {
             name: Arc::from(name),
             path: path.to_path_buf(),
-            reader: Some(Text::File(BufReader::with_capacity(64 * 1024, file))),
+            reader: Some(Text::File(BufReader::with_capacity(8 * 1024, file))),
             offset: 0,
             line: 0,
         });
@@ -165,7 +176,7 @@ impl Sources {
             .as_mut()
             .ok_or_else(|| std::io::Error::other("file closed"))?;
         if f.offset != loc.offset {
-            reader.seek(loc.offset)?;
+            reader.seek(loc.offset, f.offset)?;
             f.offset = loc.offset;
         }
         f.line = loc.line.saturating_sub(1);

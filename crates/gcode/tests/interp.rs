@@ -393,3 +393,46 @@ fn unknown_tools_are_refused_unless_accepted() {
     assert!(cmds.contains(&CanonCommand::UseToolLengthOffset(Pose::ZERO)));
     assert_eq!(it.modal_state().current_tool, 5);
 }
+
+#[test]
+fn user_m_codes_go_to_the_machine_logic_with_p_and_q() {
+    let (out, err) = run("M100 P1 Q2.5\nM199\nM2\n");
+    assert!(err.is_none());
+    assert_eq!(
+        out[0],
+        CanonCommand::UserMCode {
+            code: 100,
+            p: Some(1.0),
+            q: Some(2.5)
+        }
+    );
+    assert_eq!(text(&out[0]), "USER_M_CODE(100, 1.0000, 2.5000)\n");
+    assert_eq!(text(&out[1]), "USER_M_CODE(199, -1.0000, -1.0000)\n");
+}
+
+#[test]
+fn canned_cycles_work_in_the_uvw_planes() {
+    // G81 in G17.1 (UV plane, W drills) from W5 with R1: worked out by hand.
+    let (out, err) = run("G17.1\nG0 W5\nG81 U1 V2 W-1 R1 F100\nG80\nG17\nM2\n");
+    assert!(err.is_none(), "{err:?}");
+    let moves: Vec<(bool, f64, f64, f64)> = out
+        .iter()
+        .filter_map(|c| match c {
+            CanonCommand::StraightTraverse(p) => Some((false, p.u, p.v, p.w)),
+            CanonCommand::StraightFeed(p) => Some((true, p.u, p.v, p.w)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        moves,
+        vec![
+            (false, 0.0, 0.0, 5.0),
+            (false, 1.0, 2.0, 5.0),
+            (false, 1.0, 2.0, 1.0),
+            (true, 1.0, 2.0, -1.0),
+            (false, 1.0, 2.0, 1.0),
+        ]
+    );
+    let (_, err) = run("G17.1\nG81 U1 V2 W-1 R1 X1 F100\n");
+    assert_eq!(err.unwrap().kind, ErrorKind::UnusedWord);
+}
