@@ -53,3 +53,52 @@ fn errors_are_reported_with_their_place_and_fail_the_check() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+fn comp_corpus(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../gcode/tests/comp_corpus")
+        .join(name)
+}
+
+#[test]
+fn canon_output_is_cutter_compensated_like_rs274() {
+    // rs274 compensates inside its interpreter, so its text for a G41 program is the path of
+    // the tool's centre: offset lines, arcs around the convex corners.
+    // The expected text is rs274's with its 7-character N column, which for a held move
+    // names the block that released it; rtcnc keeps the move's own block there, so the
+    // commands are compared without that column.
+    let out = Command::new(env!("CARGO_BIN_EXE_rtcnc"))
+        .args(["check", "--canon"])
+        .arg(comp_corpus("square_outside_g41.ngc"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let expected: String = std::fs::read_to_string(comp_corpus("square_outside_g41.expected"))
+        .unwrap()
+        .lines()
+        .map(|line| format!("{}\n", &line[7..]))
+        .collect();
+    assert_eq!(String::from_utf8(out.stdout).unwrap(), expected);
+}
+
+#[test]
+fn a_compensation_error_names_its_block_and_fails_the_check() {
+    let out = Command::new(env!("CARGO_BIN_EXE_rtcnc"))
+        .args(["check", "--canon"])
+        .arg(comp_corpus("err_entry_too_short.ngc"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(
+        stderr.trim_end().ends_with(
+            "err_entry_too_short.ngc:4:0: Length of cutter compensation entry move is not \
+             greater than the tool radius"
+        ),
+        "{stderr}"
+    );
+}

@@ -7,6 +7,7 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 use rtcnc_gcode::canon::{CanonCommand, Units};
+use rtcnc_gcode::compensation::Compensator;
 use rtcnc_gcode::{Interpreter, Parameters, Settings, ToolTable};
 
 /// Arguments of `rtcnc check`.
@@ -41,6 +42,19 @@ pub struct Args {
 /// Most errors reported before giving up.
 const MAX_ERRORS: usize = 100;
 
+/// Writes what is buffered, then the error, so the error follows the output before it.
+fn report_error(
+    out: &mut impl Write,
+    buf: &mut Vec<u8>,
+    error: &impl std::fmt::Display,
+) -> anyhow::Result<()> {
+    out.write_all(buf)?;
+    buf.clear();
+    out.flush()?;
+    eprintln!("{error}");
+    Ok(())
+}
+
 /// Runs `rtcnc check`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let user_units = match args.user_units.as_str() {
@@ -72,34 +86,45 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     interp
         .open(&args.program)
         .map_err(|e| anyhow::anyhow!("{e}"))?;
-    loop {
+    // Cutter radius compensation is a stage of its own after the interpreter; what it
+    // emits is what rs274 prints, since LinuxCNC compensates inside its interpreter.
+    let mut stage = Compensator::new();
+    let mut done = false;
+    while !done {
         match interp.next_canon() {
             Some(Ok(c)) => {
-                commands += 1;
                 if let CanonCommand::Print(text) = &c.command {
                     eprintln!("{text}");
                 }
-                if args.canon {
-                    c.write_rs274(&mut buf, args.line_numbers);
-                    if buf.len() >= 60 * 1024 {
-                        out.write_all(&buf)
-                            .context("writing the canonical output")?;
-                        buf.clear();
-                    }
+                if let Err(e) = stage.push(c) {
+                    errors += 1;
+                    let name = interp.file_name(e.at.file);
+                    report_error(&mut out, &mut buf, &e.into_gcode_error(name))?;
+                    // The stage cannot go on past a refused move: its geometry is unknown.
+                    done = true;
                 }
             }
             Some(Err(e)) => {
                 errors += 1;
-                out.write_all(&buf)?;
-                buf.clear();
-                out.flush()?;
-                eprintln!("{e}");
+                report_error(&mut out, &mut buf, &e)?;
                 // rs274 stops at the first error; without --canon keep looking for more.
-                if args.canon || errors >= MAX_ERRORS || !interp.resume_after_error() {
-                    break;
-                }
+                done = args.canon || errors >= MAX_ERRORS || !interp.resume_after_error();
             }
-            None => break,
+            None => {
+                stage.finish();
+                done = true;
+            }
+        }
+        while let Some(c) = stage.pop() {
+            commands += 1;
+            if args.canon {
+                c.write_rs274(&mut buf, args.line_numbers);
+            }
+        }
+        if buf.len() >= 60 * 1024 {
+            out.write_all(&buf)
+                .context("writing the canonical output")?;
+            buf.clear();
         }
     }
     if args.canon {
