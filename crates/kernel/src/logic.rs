@@ -154,8 +154,8 @@ fn plc_scan(
             Signal::MCodeQ,
             if mi.m_q.is_finite() { mi.m_q } else { 0.0 },
         ),
-        (Signal::LimitMin, 0.0),
-        (Signal::LimitMax, 0.0),
+        (Signal::LimitMin, f64::from(fb.negative_limit)),
+        (Signal::LimitMax, f64::from(fb.positive_limit)),
     ];
     for (signal, value) in to_plc {
         plc.set_signal(signal, value);

@@ -158,7 +158,10 @@ pub struct MotionCore {
     last_fault: Option<Fault>,
     offsets_known: bool,
     has_program: bool,
-    estop_feed_hold_from_logic: bool,
+    /// The machine logic asks for a feed hold (its level as interpolation last read it).
+    /// Its rising edge holds a moving path as the operator's feed hold does; while it
+    /// stands, a resume is refused and a standing path does not start.
+    logic_hold: bool,
     program_inputs: [usize; 16],
     program_input_count: usize,
     /// The logic's e-stop chain has been seen closed since the last reset.
@@ -338,7 +341,7 @@ impl MotionCore {
             last_fault: None,
             offsets_known: false,
             has_program: false,
-            estop_feed_hold_from_logic: false,
+            logic_hold: false,
             program_inputs: {
                 let mut p = [0usize; 16];
                 for (slot, &i) in p.iter_mut().zip(&config.io.program_inputs) {
@@ -412,6 +415,8 @@ impl MotionCore {
                 shared.raise(ctx, FaultCode::EStop, TaskName::Interpolation, None, 0, 0.0);
             }
             Urgent::FeedHold => self.hold(),
+            // The logic's hold (door open, fault, spindle not at speed) must clear first.
+            Urgent::Resume if shared.machine_interface.lock().feed_hold_request => {}
             Urgent::Resume => {
                 if self.held {
                     self.held = false;
@@ -790,7 +795,7 @@ impl MotionCore {
             match self.phase {
                 Phase::Idle => return,
                 Phase::Feeding => {
-                    if self.held {
+                    if self.held || (self.logic_hold && !self.moving()) {
                         return;
                     }
                     let block = match self.pending.take() {
@@ -1145,10 +1150,10 @@ impl MotionCore {
         }
         let chain_ok = {
             let mi = shared.machine_interface.lock();
-            if mi.feed_hold_request && !self.estop_feed_hold_from_logic {
+            if mi.feed_hold_request && !self.logic_hold {
                 self.hold();
             }
-            self.estop_feed_hold_from_logic = mi.feed_hold_request;
+            self.logic_hold = mi.feed_hold_request;
             mi.estop_chain_ok
         };
         // The machine logic's e-stop chain: once closed after a reset, its opening is an
