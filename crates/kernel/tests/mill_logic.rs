@@ -326,3 +326,54 @@ fn m100_blows_air_for_p_seconds_before_motion_continues() {
     assert!(m.until(5.0, |s| s.program_ended && s.state == MachineState::Idle));
     assert!(m.faults.is_empty(), "{:?}", m.faults);
 }
+
+#[test]
+fn a_tripped_limit_is_a_logic_fault_until_jogged_clear_and_reset() {
+    let text = std::fs::read_to_string(repo().join("configs/sim-mill.toml"))
+        .unwrap()
+        .replacen(
+            "positive_limit_switch = 312.0",
+            "positive_limit_switch = 50.0",
+            1,
+        );
+    let mut cfg = rtcnc_kernel::MachineConfig::parse(&text, "limit.toml").unwrap();
+    cfg.base_dir = repo().join("configs");
+    let program = program("G21 G90 G61.1\nG1 X200 F3000\nM2\n", "limit.ngc");
+    let mut m = Machine::new(&cfg, Some(program));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(5.0, |s| s.state == MachineState::Fault && !s.ready));
+    m.cycles(500);
+    let codes: Vec<_> = m
+        .faults
+        .iter()
+        .map(|f| (f.code, f.joint, f.value))
+        .collect();
+    assert_eq!(codes[0].0, FaultCode::HardLimit);
+    assert_eq!(codes[0].1, Some(0));
+    // mill.st's limit fault (code 5), raised by the next scan.
+    assert_eq!(codes[1..], [(FaultCode::LogicFault, None, 5.0)]);
+    // A reset enables the drives, but the logic keeps its fault while the switch is
+    // pressed: a program would not move. The jog takes the table off the switch.
+    m.command(Command::Reset);
+    assert!(m.until(1.0, |s| s.ready && s.state == MachineState::Idle));
+    let x = m.status().axes[0];
+    m.command(Command::Start { from_line: 0 });
+    m.cycles(300);
+    assert_eq!(m.status().axes[0], x);
+    assert!(m.sim.handle().urgent(Urgent::Abort));
+    assert!(m.until(1.0, |s| s.state == MachineState::Idle));
+    m.command(Command::JogIncrement {
+        axis: 0,
+        distance: -5.0,
+    });
+    assert!(m.until(5.0, |s| s.axes[0] == x - 5.0
+        && s.state == MachineState::Idle));
+    m.command(Command::Reset);
+    m.cycles(20);
+    m.command(Command::Mdi(
+        rtcnc_kernel::FixedText::new("G1 X10 F3000").unwrap(),
+    ));
+    assert!(m.until(5.0, |s| s.axes[0] == 10.0 && s.state == MachineState::Idle));
+    assert_eq!(m.faults.len(), 2, "{:?}", m.faults);
+}
