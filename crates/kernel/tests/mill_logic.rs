@@ -377,3 +377,30 @@ fn a_tripped_limit_is_a_logic_fault_until_jogged_clear_and_reset() {
     assert!(m.until(5.0, |s| s.axes[0] == 10.0 && s.state == MachineState::Idle));
     assert_eq!(m.faults.len(), 2, "{:?}", m.faults);
 }
+
+#[test]
+fn a_door_opened_during_a_tool_change_keeps_the_program_held_until_a_resume() {
+    let text = "G21 G90 G61.1\nG1 X1 F600\nT2 M6\nG1 X2\nM2\n";
+    let mut m = mill(text, "door-change.ngc");
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    until(&mut m, 5000, |m| output(m, UNCLAMP_VALVE));
+    assert_eq!(m.status().state, MachineState::WaitingForLogic);
+    // Opened and closed again while the changer works: the change completes, then the
+    // program waits for the operator.
+    m.sim
+        .handle()
+        .with_machine(|machine| machine.set_door_open(true).unwrap());
+    m.cycles(100);
+    m.sim
+        .handle()
+        .with_machine(|machine| machine.set_door_open(false).unwrap());
+    m.cycles(2000);
+    assert_eq!(m.status().tool, 2);
+    assert_eq!(m.status().state, MachineState::Held);
+    assert_eq!(m.status().axes[0], 1.0);
+    assert!(m.sim.handle().urgent(Urgent::Resume));
+    assert!(m.until(5.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert_eq!(m.status().axes[0], 2.0);
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+}
