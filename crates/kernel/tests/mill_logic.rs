@@ -404,3 +404,27 @@ fn a_door_opened_during_a_tool_change_keeps_the_program_held_until_a_resume() {
     assert_eq!(m.status().axes[0], 2.0);
     assert!(m.faults.is_empty(), "{:?}", m.faults);
 }
+
+#[test]
+fn a_spindle_override_while_cutting_holds_the_feed_until_at_speed_and_a_resume() {
+    let mut m = mill(
+        "G21 G90 G61.1\nS6000 M3\nG1 X100 F1200\nM2\n",
+        "override.ngc",
+    );
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(3.0, |s| s.path_speed > 0.0));
+    m.cycles(500);
+    assert!(m.sim.handle().urgent(Urgent::SpindleOverride(1.2)));
+    // 7200 rpm is outside mill.st's 2 % window of the new speed: the feed is held.
+    assert!(m.until(0.1, |s| s.state == MachineState::Held));
+    assert!(m.sim.handle().urgent(Urgent::Resume));
+    m.cycles(10);
+    assert_eq!(m.status().state, MachineState::Held);
+    // Within 144 rpm of 7200 after (7056 − 6000) / 12 = 88 periods, at speed 200 ms later.
+    m.cycles(400);
+    assert!(m.sim.handle().urgent(Urgent::Resume));
+    assert!(m.until(10.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert_eq!(m.status().axes[0], 100.0);
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+}
