@@ -23,6 +23,12 @@ max_speed_rpm = 24000.0
 acceleration_rpm_per_s = 8000.0
 [tool_changer]
 change_time_s = 3.0
+[[devices]]
+kind = "delayed_input"
+output = 5
+input = 2
+rise_delay_s = 0.5
+fall_delay_s = 0.2
 "#;
 
 const SERVO: &str = r#"

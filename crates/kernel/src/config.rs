@@ -9,7 +9,8 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use rtcnc_fieldbus::sim::{
-    IoConfig, SimulatedJointConfig, SimulatedMachineConfig, SpindleConfig, ToolChangerConfig,
+    DeviceConfig, IoConfig, SimulatedJointConfig, SimulatedMachineConfig, SpindleConfig,
+    ToolChangerConfig,
 };
 use rtcnc_motion::Axis;
 use rtcnc_servo::ServoLoopConfig;
@@ -286,6 +287,10 @@ pub struct FieldbusConfig {
     /// Simulated machine: communication watchdog of the drives (s).
     #[serde(default)]
     pub communication_watchdog_s: Option<f64>,
+    /// Simulated machine: devices on the digital I/O (`[[fieldbus.devices]]`, rtcnc-fieldbus'
+    /// `DeviceConfig`: e-stop contact, door, delayed inputs, carousel).
+    #[serde(default)]
+    pub devices: Vec<DeviceConfig>,
 }
 
 /// Which fieldbus back-end.
@@ -821,6 +826,7 @@ impl MachineConfig {
             sim.communication_watchdog_s = v;
         }
         sim.joints = self.joints.iter().map(|j| j.sim.clone()).collect();
+        sim.devices = self.fieldbus.devices.clone();
         if let Some(s) = &self.spindle {
             sim.spindle = SpindleConfig {
                 max_speed_rpm: s.max_speed_rpm,

@@ -154,8 +154,8 @@ fn plc_scan(
             Signal::MCodeQ,
             if mi.m_q.is_finite() { mi.m_q } else { 0.0 },
         ),
-        (Signal::LimitMin, 0.0),
-        (Signal::LimitMax, 0.0),
+        (Signal::LimitMin, f64::from(fb.negative_limit)),
+        (Signal::LimitMax, f64::from(fb.positive_limit)),
     ];
     for (signal, value) in to_plc {
         plc.set_signal(signal, value);
@@ -180,10 +180,12 @@ fn plc_scan(
     mi.out_mist = flag(Signal::CoolantMistOn);
     mi.out_flood = flag(Signal::CoolantFloodOn);
     mi.feed_hold_request = flag(Signal::FeedHoldRequest);
-    // The PLC's acknowledgement is its interlock (e.g. the spindle has stopped): only then
-    // does the changer start, and the change is done when the changer says so.
+    // With a timed changer the PLC's acknowledgement is its interlock (e.g. the spindle
+    // has stopped): only then does the changer start, and the change is done when the
+    // changer says so. Without one the PLC's acknowledgement is the change (it drives the
+    // changer's devices itself).
     let plc_done = flag(Signal::ToolChangeDone);
-    mi.out_tool_start = mi.tool_change_request && plc_done;
+    mi.out_tool_start = mi.tool_change_request && plc_done && has_tool_changer;
     mi.out_tool_number = mi.tool_number;
     mi.tool_change_done = plc_done && (!has_tool_changer || fb.tool_change_done);
     mi.estop_chain_ok = match plc.signal(Signal::EstopChainOut) {

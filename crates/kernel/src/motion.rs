@@ -158,7 +158,13 @@ pub struct MotionCore {
     last_fault: Option<Fault>,
     offsets_known: bool,
     has_program: bool,
-    estop_feed_hold_from_logic: bool,
+    /// The machine logic asks for a feed hold (its level as interpolation last read it).
+    /// Its rising edge holds a moving path as the operator's feed hold does; while it
+    /// stands, a resume is refused and a standing path does not start.
+    logic_hold: bool,
+    /// The logic's hold rose while a program or MDI line stood between moves (not in its
+    /// own spindle hand-shake): the next move waits for a resume, as a held path does.
+    logic_paused: bool,
     program_inputs: [usize; 16],
     program_input_count: usize,
     /// The logic's e-stop chain has been seen closed since the last reset.
@@ -338,7 +344,8 @@ impl MotionCore {
             last_fault: None,
             offsets_known: false,
             has_program: false,
-            estop_feed_hold_from_logic: false,
+            logic_hold: false,
+            logic_paused: false,
             program_inputs: {
                 let mut p = [0usize; 16];
                 for (slot, &i) in p.iter_mut().zip(&config.io.program_inputs) {
@@ -393,7 +400,7 @@ impl MotionCore {
             Phase::Paused { .. } => return MachineState::Paused,
             _ => {}
         }
-        if self.held {
+        if self.held || self.logic_paused {
             return MachineState::Held;
         }
         if self.moving() || self.homing.is_some() || self.phase != Phase::Idle {
@@ -412,9 +419,12 @@ impl MotionCore {
                 shared.raise(ctx, FaultCode::EStop, TaskName::Interpolation, None, 0, 0.0);
             }
             Urgent::FeedHold => self.hold(),
+            // The logic's hold (door open, fault, spindle not at speed) must clear first.
+            Urgent::Resume if shared.machine_interface.lock().feed_hold_request => {}
             Urgent::Resume => {
-                if self.held {
+                if self.held || self.logic_paused {
                     self.held = false;
+                    self.logic_paused = false;
                     self.planner.resume();
                 } else if matches!(self.phase, Phase::Paused { .. }) {
                     self.start_count = self.start_count.wrapping_add(1);
@@ -471,6 +481,7 @@ impl MotionCore {
         self.pending = None;
         self.phase = Phase::Idle;
         self.held = false;
+        self.logic_paused = false;
         self.homing = None;
         match self.source {
             Source::Path => self.planner.abort(),
@@ -738,6 +749,7 @@ impl MotionCore {
         self.mode = mode;
         self.epoch = self.epoch.wrapping_add(1);
         self.phase = Phase::Feeding;
+        self.logic_paused = false;
         self.pending = None;
         self.program_ended = false;
         self.run_from_line = from_line;
@@ -790,7 +802,7 @@ impl MotionCore {
             match self.phase {
                 Phase::Idle => return,
                 Phase::Feeding => {
-                    if self.held {
+                    if self.held || self.logic_paused || (self.logic_hold && !self.moving()) {
                         return;
                     }
                     let block = match self.pending.take() {
@@ -1145,10 +1157,21 @@ impl MotionCore {
         }
         let chain_ok = {
             let mi = shared.machine_interface.lock();
-            if mi.feed_hold_request && !self.estop_feed_hold_from_logic {
-                self.hold();
+            if mi.feed_hold_request && !self.logic_hold {
+                let spindle_handshake = matches!(
+                    self.phase,
+                    Phase::Logic {
+                        aux: Aux::SpindleOn { .. } | Aux::SpindleSpeed { .. },
+                        ..
+                    }
+                );
+                if self.moving() {
+                    self.hold();
+                } else if self.phase != Phase::Idle && !spindle_handshake {
+                    self.logic_paused = true;
+                }
             }
-            self.estop_feed_hold_from_logic = mi.feed_hold_request;
+            self.logic_hold = mi.feed_hold_request;
             mi.estop_chain_ok
         };
         // The machine logic's e-stop chain: once closed after a reset, its opening is an
@@ -1259,6 +1282,7 @@ impl MotionCore {
         self.pending = None;
         self.phase = Phase::Idle;
         self.held = false;
+        self.logic_paused = false;
         self.homing = None;
         self.latch = LatchRequest::default();
         match self.source {

@@ -267,14 +267,15 @@ impl<B: Fieldbus> ServoStage<B> {
             self.outputs.coolant.flood = mi.out_flood;
             self.outputs.tool_changer.start = mi.out_tool_start;
             self.outputs.tool_changer.tool = mi.out_tool_number;
+            // Each point is the logic's output, or'ed with the program output mapped to it
+            // (M62..M65), written afresh every cycle so that an output the logic drops goes
+            // off.
+            for (i, o) in self.outputs.digital.iter_mut().enumerate().take(64) {
+                *o = mi.out_digital & (1 << i) != 0;
+            }
             for (n, &point) in self.program_outputs.iter().enumerate().take(64) {
                 if let Some(o) = self.outputs.digital.get_mut(point) {
-                    *o = mi.program_outputs & (1 << n) != 0;
-                }
-            }
-            for (i, o) in self.outputs.digital.iter_mut().enumerate().take(64) {
-                if mi.out_digital & (1 << i) != 0 {
-                    *o = true;
+                    *o |= mi.program_outputs & (1 << n) != 0;
                 }
             }
         }

@@ -168,3 +168,31 @@ fn interpolation_may_run_in_the_fieldbus_thread_with_the_same_results() {
     assert_eq!(separate.len(), shared.len());
     assert!(separate == shared);
 }
+
+#[test]
+fn the_mill_runs_mill_st_with_the_signal_map_of_mill_toml() {
+    let config = MachineConfig::load(&repo().join("configs/sim-mill.toml")).unwrap();
+    let plc = config.plc.as_ref().expect("the mill has a machine logic");
+    assert_eq!(
+        config.resolve(&plc.program),
+        repo().join("configs/../examples/plc/mill.st")
+    );
+    let text = std::fs::read_to_string(repo().join("examples/plc/mill.toml")).unwrap();
+    let example: rtcnc_plc::PlcConfig = toml::from_str(&text).unwrap();
+    assert_eq!(plc.signals, example.signals);
+    assert_eq!(plc.safe_values, example.safe_values);
+    assert!(!repo().join("examples/plc/sim-mill.st").exists());
+}
+
+#[test]
+fn a_simulated_device_on_a_missing_input_is_refused_naming_the_key() {
+    let text = mill_text().replacen(
+        "kind = \"estop_contact\"\ninput = 0",
+        "kind = \"estop_contact\"\ninput = 40",
+        1,
+    );
+    assert_eq!(
+        refusal(&text),
+        "fieldbus.devices[0]: digital input 40 is outside the 32 inputs"
+    );
+}

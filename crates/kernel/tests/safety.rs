@@ -187,9 +187,15 @@ fn an_error_in_a_block_ahead_stops_the_machine_before_that_block_naming_its_line
 
 #[test]
 fn a_tool_change_waits_for_the_machine_logic_before_motion_continues() {
-    // The simulated changer takes 1.5 s (configs/sim-mill.toml).
+    // The kernel's direct logic (no [plc]) with the simulated timed changer of 1.5 s;
+    // the mill's own logic and carousel are tested in mill_logic.rs.
     let text = "G21 G90 G61.1\nG1 X10 F3000\nT2 M6\nG1 X20\nM2\n";
-    let cfg = config("sim-mill.toml");
+    let mut cfg = config("sim-mill.toml");
+    cfg.plc = None;
+    cfg.tool_changer = Some(rtcnc_kernel::config::ToolChangerSection {
+        change_time_s: 1.5,
+        initial_tool: 1,
+    });
     let mut m = Machine::new(&cfg, Some(program(text, "tool.ngc")));
     m.power_on();
     m.command(Command::Start { from_line: 0 });

@@ -3,6 +3,7 @@
 use serde::Deserialize;
 
 use crate::image::DriveMode;
+use crate::sim::devices::{DeviceConfig, validate_devices};
 
 /// A configuration value was refused: `field` names it (dotted path, e.g.
 /// `joints[1].motor.inertia`), `reason` says why.
@@ -94,6 +95,9 @@ pub struct SimulatedMachineConfig {
     /// General-purpose I/O.
     #[serde(default)]
     pub io: IoConfig,
+    /// Devices wired to the digital I/O (door, e-stop contact, delayed inputs, carousel).
+    #[serde(default)]
+    pub devices: Vec<DeviceConfig>,
 }
 
 /// One joint: its drive, motor and load, encoder and switches. Positions are in joint
@@ -298,7 +302,11 @@ impl SimulatedMachineConfig {
                 return Err(ConfigError::new(name, format!("at most {MAX_IO_POINTS}")));
             }
         }
-        Ok(())
+        validate_devices(
+            &self.devices,
+            self.io.digital_inputs,
+            self.io.digital_outputs,
+        )
     }
 }
 

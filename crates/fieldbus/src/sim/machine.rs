@@ -4,6 +4,7 @@ use crate::image::{
     ToolChangeCommand,
 };
 use crate::sim::config::{ConfigError, SimulatedMachineConfig};
+use crate::sim::devices::{Device, DeviceCycle};
 use crate::sim::joint::{CycleConditions, SimulatedJoint};
 use crate::sim::peripherals::{Spindle, ToolChanger, seconds_to_ns};
 
@@ -27,6 +28,14 @@ pub enum InjectedFault {
     /// Process data stops: `exchange` fails and the drives run on their last command
     /// until the watchdog makes them fault with [`COMMUNICATION`](crate::cia402::error_code::COMMUNICATION).
     CommunicationLoss,
+    /// Digital input `input` reads `value` whatever drives it (a failed sensor, a broken
+    /// wire, a jammed mechanism), until cleared.
+    StuckInput {
+        /// Digital input.
+        input: usize,
+        /// The level it is stuck at.
+        value: bool,
+    },
 }
 
 /// A request to the simulated machine named something it does not have.
@@ -50,6 +59,9 @@ pub enum SimulationError {
         /// Points present.
         count: usize,
     },
+    /// The machine has no such device.
+    #[error("the machine has no {0}")]
+    NoSuchDevice(&'static str),
 }
 
 impl SimulationError {
@@ -58,6 +70,7 @@ impl SimulationError {
         match self {
             Self::NoSuchJoint { .. } => "fieldbus.sim.no_such_joint",
             Self::NoSuchInput { .. } => "fieldbus.sim.no_such_input",
+            Self::NoSuchDevice(_) => "fieldbus.sim.no_such_device",
         }
     }
 }
@@ -82,6 +95,12 @@ pub struct SimulatedMachine {
     tool_changer: ToolChanger,
     tool_command: ToolChangeCommand,
     digital_inputs: Vec<bool>,
+    /// The digital inputs as the machine reads them: the harness's levels, then the
+    /// devices', then stuck inputs.
+    digital_image: Vec<bool>,
+    devices: Vec<Device>,
+    stuck_inputs: Vec<Option<bool>>,
+    door_open_requested: bool,
     analog_inputs: Vec<f64>,
     digital_outputs: Vec<bool>,
     analog_outputs: Vec<f64>,
@@ -117,6 +136,10 @@ impl SimulatedMachine {
             tool_changer: ToolChanger::new(config.tool_changer),
             tool_command: ToolChangeCommand::default(),
             digital_inputs: vec![false; config.io.digital_inputs],
+            digital_image: vec![false; config.io.digital_inputs],
+            devices: config.devices.iter().map(Device::new).collect(),
+            stuck_inputs: vec![None; config.io.digital_inputs],
+            door_open_requested: false,
             analog_inputs: vec![0.0; config.io.analog_inputs],
             digital_outputs: vec![false; config.io.digital_outputs],
             analog_outputs: vec![0.0; config.io.analog_outputs],
@@ -139,7 +162,36 @@ impl SimulatedMachine {
         self.handwheel_counts = self.handwheel_counts.wrapping_add(detents);
     }
 
-    /// Sets digital input `index` (a switch on the machine, a panel button).
+    /// The operator pulls the door open (`true`) or pushes it shut (`false`). A locked door
+    /// stays closed until its lock output drops (see
+    /// [`DeviceConfig::Door`](crate::sim::DeviceConfig::Door)); it acts from the next
+    /// exchange on.
+    pub fn set_door_open(&mut self, open: bool) -> Result<(), SimulationError> {
+        if !self.devices.iter().any(|d| d.door_closed().is_some()) {
+            return Err(SimulationError::NoSuchDevice("door"));
+        }
+        self.door_open_requested = open;
+        Ok(())
+    }
+
+    /// Whether the door is closed (`None`: no door).
+    pub fn door_closed(&self) -> Option<bool> {
+        self.devices.iter().find_map(Device::door_closed)
+    }
+
+    /// The pocket of the carousel at the tool-change station (`None`: no carousel).
+    pub fn carousel_pocket(&self) -> Option<u32> {
+        self.devices.iter().find_map(Device::carousel_pocket)
+    }
+
+    /// Digital input `index` as the machine last reported it (devices and stuck inputs
+    /// included).
+    pub fn digital_input(&self, index: usize) -> Option<bool> {
+        self.digital_image.get(index).copied()
+    }
+
+    /// Sets digital input `index` (a switch on the machine, a panel button). An input a
+    /// device drives takes the device's level instead.
     pub fn set_digital_input(&mut self, index: usize, value: bool) -> Result<(), SimulationError> {
         let count = self.digital_inputs.len();
         let slot = self.digital_inputs.get_mut(index);
@@ -192,6 +244,18 @@ impl SimulatedMachine {
                 .set_injected_fault(active.then_some(error_code)),
             InjectedFault::EncoderLoss { joint } => self.joint_mut(joint)?.set_encoder_lost(active),
             InjectedFault::CommunicationLoss => self.communication_lost = active,
+            InjectedFault::StuckInput { input, value } => {
+                let count = self.stuck_inputs.len();
+                let slot =
+                    self.stuck_inputs
+                        .get_mut(input)
+                        .ok_or(SimulationError::NoSuchInput {
+                            kind: "digital",
+                            index: input,
+                            count,
+                        })?;
+                *slot = active.then_some(value);
+            }
         }
         Ok(())
     }
@@ -264,6 +328,21 @@ impl Fieldbus for SimulatedMachine {
         self.time_ns = self.time_ns.saturating_add(period_ns);
         let spindle = self.spindle.cycle(&self.spindle_command, power, period_s);
         let tool_changer = self.tool_changer.cycle(&self.tool_command, period_ns);
+        self.digital_image.copy_from_slice(&self.digital_inputs);
+        let device_cycle = DeviceCycle {
+            outputs: &self.digital_outputs,
+            estop_pressed: self.estop_active,
+            door_open_requested: self.door_open_requested,
+            period_ns,
+        };
+        for device in &mut self.devices {
+            device.cycle(&device_cycle, &mut self.digital_image);
+        }
+        for (level, stuck) in self.digital_image.iter_mut().zip(&self.stuck_inputs) {
+            if let Some(value) = stuck {
+                *level = *value;
+            }
+        }
         if self.communication_lost {
             // The plant runs on; the controller hears nothing. Feedback goes to scratch.
             let mut scratch = crate::image::JointFeedback::default();
@@ -280,7 +359,7 @@ impl Fieldbus for SimulatedMachine {
         {
             joint.cycle(command, &conditions, feedback);
         }
-        inputs.digital.copy_from_slice(&self.digital_inputs);
+        inputs.digital.copy_from_slice(&self.digital_image);
         inputs.analog.copy_from_slice(&self.analog_inputs);
         inputs.estop_active = self.estop_active;
         inputs.handwheel_counts = self.handwheel_counts;
