@@ -427,6 +427,9 @@ pub struct FilesSection {
     /// LinuxCNC-style `.tbl` tool table.
     #[serde(default)]
     pub tool_table: Option<PathBuf>,
+    /// The PLC's RETAIN variables: restored at start-up, saved atomically when they change.
+    #[serde(default)]
+    pub plc_retain: Option<PathBuf>,
 }
 
 /// `[handwheel]`.

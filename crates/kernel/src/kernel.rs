@@ -238,15 +238,40 @@ impl Kernel {
             None => Logic::Direct,
             Some(plc) => {
                 let path = config.resolve(&plc.program);
-                let runtime = crate::logic::load_plc(&path, &plc.signals, &plc.safe_values)
+                let mut runtime = crate::logic::load_plc(&path, &plc.signals, &plc.safe_values)
                     .map_err(|e| KernelError::Plc(format!("{}: {e}", path.display())))?;
                 report
                     .checks
                     .push(("machine logic", format!("{} compiled", path.display())));
+                if let Some(file) = &config.files.plc_retain {
+                    let file = config.resolve(file);
+                    let restored = runtime
+                        .load_retain(&file)
+                        .map_err(|e| KernelError::Plc(format!("{}: {e}", file.display())))?;
+                    report.checks.push((
+                        "plc retain",
+                        format!(
+                            "{}: {} restored, {} skipped",
+                            file.display(),
+                            restored.restored,
+                            restored.skipped
+                        ),
+                    ));
+                }
                 Logic::Plc(Box::new(runtime))
             }
         };
+        let retain = match (&logic, &config.files.plc_retain) {
+            (Logic::Plc(runtime), Some(file)) => {
+                let file = config.resolve(file);
+                Some((Arc::new(PiMutex::new(runtime.retain_snapshot())), file))
+            }
+            _ => None,
+        };
         let mut logic = LogicStage::new(shared.clone(), logic, config.tool_changer.is_some());
+        if let Some((snapshot, _)) = &retain {
+            logic = logic.with_retain(Arc::clone(snapshot));
+        }
 
         let mut settings = Settings::default();
         if config.machine.units == LengthUnits::Inch {
@@ -370,19 +395,46 @@ impl Kernel {
         // Background checks while running, in what time is left: the drive exchange still
         // advances, the persistent files' folders are still there and writable.
         let sh = shared.clone();
-        let folders: Vec<PathBuf> = [&config.files.parameters, &config.files.tool_table]
-            .into_iter()
-            .flatten()
-            .map(|p| {
-                config
-                    .resolve(p)
-                    .parent()
-                    .map_or_else(|| PathBuf::from("."), Path::to_path_buf)
-            })
-            .collect();
+        let folders: Vec<PathBuf> = [
+            &config.files.parameters,
+            &config.files.tool_table,
+            &config.files.plc_retain,
+        ]
+        .into_iter()
+        .flatten()
+        .map(|p| {
+            config
+                .resolve(p)
+                .parent()
+                .map_or_else(|| PathBuf::from("."), Path::to_path_buf)
+        })
+        .collect();
         let mut last_cycle = 0u64;
         let mut reported = false;
+        // The RETAIN values are written here, off the real-time tasks, when they changed.
+        let mut retain_saver = retain.map(|(snapshot, file)| (snapshot, file, None, false));
         b.background("self test", move |ctx| {
+            if let Some((snapshot, file, saved, failing)) = &mut retain_saver {
+                let now = snapshot.lock().clone();
+                if saved.as_ref() != Some(&now) {
+                    let result = now.save(file);
+                    // A failed write is retried every round but reported once.
+                    if result.is_err() && !*failing {
+                        sh.raise(
+                            ctx,
+                            crate::FaultCode::BackgroundCheck,
+                            crate::TaskName::BackgroundCheck,
+                            None,
+                            0,
+                            3.0,
+                        );
+                    }
+                    *failing = result.is_err();
+                    if result.is_ok() {
+                        *saved = Some(now);
+                    }
+                }
+            }
             let cycle = sh.feedback.lock().cycle;
             let stalled = ctx.activation() > 0 && cycle == last_cycle;
             last_cycle = cycle;

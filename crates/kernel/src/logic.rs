@@ -6,8 +6,8 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use rtcnc_plc::{Runtime, Signal};
-use rtcnc_rt::Context;
+use rtcnc_plc::{RetainSnapshot, Runtime, Signal};
+use rtcnc_rt::{Context, PiMutex};
 
 use crate::fault::{FaultCode, TaskName};
 use crate::shared::{Feedback, MachineInterface, Shared};
@@ -25,6 +25,8 @@ pub(crate) struct LogicStage {
     /// A reset is held until this time, so that the PLC's task (which may run only every
     /// few periods) sees it.
     reset_until: Duration,
+    /// Where the PLC task leaves its RETAIN values for the background task to save.
+    retain: Option<Arc<PiMutex<RetainSnapshot>>>,
 }
 
 impl LogicStage {
@@ -35,7 +37,14 @@ impl LogicStage {
             fault_latched: false,
             has_tool_changer,
             reset_until: Duration::ZERO,
+            retain: None,
         }
+    }
+
+    /// Hands the RETAIN values to `snapshot` after every scan (the disk is not touched here).
+    pub(crate) fn with_retain(mut self, snapshot: Arc<PiMutex<RetainSnapshot>>) -> Self {
+        self.retain = Some(snapshot);
+        self
     }
 
     pub(crate) fn scan(&mut self, ctx: &mut Context<'_>) {
@@ -59,6 +68,12 @@ impl LogicStage {
                 mi.estop_reset = now <= self.reset_until && self.reset_until > Duration::ZERO;
                 if let Err(f) = plc_scan(plc, &mut mi, &fb, now, self.has_tool_changer) {
                     fault = Some(f);
+                }
+                // A copy into preallocated slots; if the saver holds the snapshot just now,
+                // the next scan refreshes it.
+                if let Some(snapshot) = self.retain.as_ref().and_then(|r| r.try_lock()) {
+                    let mut snapshot = snapshot;
+                    plc.update_retain_snapshot(&mut snapshot);
                 }
             }
         }

@@ -428,3 +428,56 @@ fn a_spindle_override_while_cutting_holds_the_feed_until_at_speed_and_a_resume()
     assert_eq!(m.status().axes[0], 100.0);
     assert!(m.faults.is_empty(), "{:?}", m.faults);
 }
+
+#[test]
+fn retained_values_survive_a_restart() {
+    let dir = std::env::temp_dir().join(format!("rtcnc-retain-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("mill.retain");
+    let _ = std::fs::remove_file(&file);
+    let mut cfg = config("sim-mill.toml");
+    cfg.files.plc_retain = Some(file.clone());
+    let text = "G21 G90 G61.1\nG1 X1 F600\nT2 M6\nG1 X2\nM2\n";
+
+    // First run: the change puts tool 2 in the spindle; mill.st keeps it in RETAIN
+    // current_tool, which the background task (every 0.5 s) writes once it changed.
+    let mut m = Machine::new(&cfg, Some(program(text, "retain1.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(10.0, |s| s.program_ended && s.state == MachineState::Idle));
+    m.cycles(600);
+    let saved = std::fs::read_to_string(&file).unwrap();
+    assert!(
+        saved
+            .lines()
+            .any(|l| l.eq_ignore_ascii_case("MILL.current_tool = 2")),
+        "{saved}"
+    );
+
+    // A restart restores both retained variables (current_tool, lube_cycles) ...
+    let kernel = rtcnc_kernel::Kernel::build(&cfg, rtcnc_kernel::KernelOptions::default())
+        .expect("kernel builds");
+    let (_, found) = kernel
+        .self_test
+        .checks
+        .iter()
+        .find(|(name, _)| *name == "plc retain")
+        .expect("retain check");
+    assert!(found.ends_with(": 2 restored, 0 skipped"), "{found}");
+    // ... so asking for tool 2 again finds it in the spindle: the unclamp valve never opens.
+    let mut m = Machine::new(&cfg, Some(program(text, "retain2.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    let mut valve_opened = false;
+    for _ in 0..5000 {
+        step(&mut m);
+        valve_opened |= output(&m, UNCLAMP_VALVE);
+        if m.status().program_ended && m.status().state == MachineState::Idle {
+            break;
+        }
+    }
+    assert!(m.status().program_ended);
+    assert!(!valve_opened);
+    assert_eq!(m.status().axes[0], 2.0);
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+}

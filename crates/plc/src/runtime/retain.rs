@@ -105,6 +105,14 @@ pub struct RetainSnapshot {
     values: Vec<u64>,
 }
 
+/// Two snapshots of the same program are equal when every retained value is: a saver uses
+/// this to write the file only when something changed.
+impl PartialEq for RetainSnapshot {
+    fn eq(&self, other: &Self) -> bool {
+        Arc::ptr_eq(&self.leaves, &other.leaves) && self.values == other.values
+    }
+}
+
 impl RetainSnapshot {
     /// Writes `name = value` lines to a temporary file in the same directory, fsyncs it,
     /// renames it over `path` and fsyncs the directory: a crash leaves either the old or
