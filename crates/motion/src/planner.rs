@@ -902,12 +902,15 @@ impl<K: Kinematics> Planner<K> {
             // plus rounding, and the profile runs at them exactly.
             let share = 1.0 - 1e-7;
             let limits = OtgLimits::symmetric(
-                vmax,
+                share * vmax,
                 share * head_accel(&head, &self.lim, false),
                 share * head_jerk(&head, &self.lim, false),
             );
             let rest = |p: f64| OtgState { p, v: 0.0, a: 0.0 };
             let profile = position_profile(rest(0.0), rest(head.len), &limits).ok()?;
+            if self.trace {
+                eprintln!("PROFILE len={} duration={}", head.len, profile.duration());
+            }
             self.line_profile = Some((profile, 0.0));
         }
         let (profile, elapsed) = self.line_profile?;
@@ -925,6 +928,9 @@ impl<K: Kinematics> Planner<K> {
         if ds_done == rem {
             // Exactly on the end point (s + rem may round below the piece's length).
             x = head.pos(head.len);
+        }
+        if ds_done != ds && self.trace {
+            eprintln!("PROFILE handover el={elapsed} ds={ds} done={ds_done} v={v} a={a}");
         }
         if ds_done != ds {
             // The set-point check had to move the point: the controller takes over.
