@@ -117,7 +117,6 @@ fn experiment_1_as_a_program_the_drive_stays_within_10_um_and_two_periods() {
 }
 
 #[test]
-#[ignore = "the path planner (motion-path branch, in progress) takes 313 periods on this move"]
 fn experiment_1_as_a_program_takes_ruckigs_time() {
     let m = run_program();
     let mv = measure(&m.samples);

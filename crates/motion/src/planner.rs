@@ -7,6 +7,7 @@ use crate::error::MotionError;
 use crate::input::Move;
 use crate::kinematics::Kinematics;
 use crate::limits::{Lim, MachineLimits};
+use crate::otg::{Limits as OtgLimits, Profile, State as OtgState, position_profile};
 use crate::piece::{BRAKE_SHARE_STRAIGHT, JERK_SHARE_JUMP, Piece};
 use crate::scurve::{advance, stop, stop_advance};
 
@@ -161,6 +162,9 @@ pub struct Planner<K: Kinematics> {
     j_last: f64,
     /// Start of each piece ahead, from the head piece's start (rebuilt every period).
     starts: Vec<f64>,
+    /// Time-optimal S-curve of an isolated straight line (rest to rest) and the time spent
+    /// on it: such a move follows the OTG's profile instead of the period-by-period search.
+    line_profile: Option<(Profile, f64)>,
     /// Diagnostic trace of the speed controller on stderr (`RTCNC_MOTION_TRACE` set when
     /// the planner is built); never enable on a real-time thread.
     trace: bool,
@@ -251,6 +255,7 @@ impl<K: Kinematics> Planner<K> {
             land_n: None,
             j_last: 0.0,
             starts: Vec::with_capacity(window),
+            line_profile: None,
             trace: std::env::var_os("RTCNC_MOTION_TRACE").is_some(),
         })
     }
@@ -319,6 +324,7 @@ impl<K: Kinematics> Planner<K> {
         };
         if f != self.fo {
             self.fo = f;
+            self.line_profile = None;
             self.backward(0);
         }
     }
@@ -332,6 +338,7 @@ impl<K: Kinematics> Planner<K> {
         };
         if f != self.ro {
             self.ro = f;
+            self.line_profile = None;
             self.backward(0);
         }
     }
@@ -619,6 +626,7 @@ impl<K: Kinematics> Planner<K> {
     }
 
     fn start_stop(&mut self, kind: StopKind) {
+        self.line_profile = None;
         let (a, j) = match kind {
             StopKind::Quick => (self.qa_min, self.qj_min),
             _ => (0.5 * self.a_min, 0.5 * self.j_min),
@@ -635,7 +643,13 @@ impl<K: Kinematics> Planner<K> {
             STOP_CHECK_SHARE * a,
             STOP_CHECK_JERK_SHARE * j,
         );
-        let d = d + self.v * self.period;
+        // A quick stop brakes from its first period on (no slack to coast in); the hold
+        // point moves on if the discrete landing needs more room.
+        let d = if kind == StopKind::Quick {
+            d
+        } else {
+            d + self.v * self.period
+        };
         self.hold = Some(Hold {
             cum: self.s + d,
             a,
@@ -864,10 +878,81 @@ impl<K: Kinematics> Planner<K> {
         m
     }
 
+    /// An isolated straight line (starting at rest, ending in a stop, no hold or stop in
+    /// progress) follows the time-optimal rest-to-rest S-curve of the OTG under the feed and
+    /// the axis limits projected on the line: its duration is the optimum, and every period
+    /// samples the continuous profile, so the finite differences stay within the limits.
+    /// Returns the set-point of this period, or None when the controller decides.
+    fn follow_line_profile(&mut self) -> Option<AxisVec> {
+        let t = self.period;
+        let head = *self.q.get(0);
+        if self.line_profile.is_none() {
+            let straight = head.len > 0.0
+                && head.stop_at_end
+                && (0..=head.ns).all(|k| head.smp[k].k.iter().all(|c| *c == 0.0))
+                && (0..head.ns).all(|k| head.smp[k].t == head.smp[k + 1].t);
+            if !(straight && self.hold.is_none() && self.s == 0.0 && self.v == 0.0 && self.a == 0.0)
+            {
+                return None;
+            }
+            let vmax = (0..=head.ns)
+                .map(|k| head.vlc(k, self.fo, self.ro))
+                .fold(f64::INFINITY, f64::min);
+            // A hair (1e-7) inside the limits: the set-point check shrinks them by 1e-10 relative
+            // plus rounding, and the profile runs at them exactly.
+            let share = 1.0 - 1e-7;
+            let limits = OtgLimits::symmetric(
+                share * vmax,
+                share * head_accel(&head, &self.lim, false),
+                share * head_jerk(&head, &self.lim, false),
+            );
+            let rest = |p: f64| OtgState { p, v: 0.0, a: 0.0 };
+            let profile = position_profile(rest(0.0), rest(head.len), &limits).ok()?;
+            if self.trace {
+                eprintln!("PROFILE len={} duration={}", head.len, profile.duration());
+            }
+            self.line_profile = Some((profile, 0.0));
+        }
+        let (profile, elapsed) = self.line_profile?;
+        let elapsed = elapsed + t;
+        let rem = head.len - self.s;
+        let (ds, v, a) = if elapsed >= profile.duration() {
+            self.line_profile = None;
+            (rem, 0.0, 0.0)
+        } else {
+            self.line_profile = Some((profile, elapsed));
+            let smp = profile.at(elapsed);
+            (clampf(smp.p - self.s, 0.0, rem), smp.v, smp.a)
+        };
+        let (ds_done, mut x) = self.exact(ds, rem, false);
+        if ds_done == rem {
+            // Exactly on the end point (s + rem may round below the piece's length).
+            x = head.pos(head.len);
+        }
+        if ds_done != ds && self.trace {
+            eprintln!("PROFILE handover el={elapsed} ds={ds} done={ds_done} v={v} a={a}");
+        }
+        if ds_done != ds {
+            // The set-point check had to move the point: the controller takes over.
+            self.line_profile = None;
+        }
+        self.v = v;
+        self.a = a;
+        self.ds_hist = [self.ds_hist[1], ds_done];
+        self.s += ds_done;
+        if self.s > head.len {
+            self.s = head.len;
+        }
+        Some(x)
+    }
+
     /// One period of the path-speed controller: chooses the path jerk, checks the resulting
     /// set-point against every axis limit and commits it.
     fn control(&mut self) -> AxisVec {
         self.build_starts();
+        if let Some(x) = self.follow_line_profile() {
+            return x;
+        }
         let t = self.period;
         let head = *self.q.get(0);
         let quick = matches!(self.hold, Some(h) if h.kind == StopKind::Quick);
@@ -1271,6 +1356,7 @@ impl<K: Kinematics> Planner<K> {
             if inside(&x) {
                 return (ds, x);
             }
+
             let (_, tan) = piece.pos_tangent(sl);
             let (mut dlo, mut dhi) = (-ds, rem - ds);
             for i in 0..AXES {
@@ -1512,6 +1598,7 @@ impl<K: Kinematics> Planner<K> {
         }
         self.q.clear();
         self.builder.clear(position);
+        self.line_profile = None;
         self.hold = None;
         self.dwell_left = None;
         self.s = 0.0;

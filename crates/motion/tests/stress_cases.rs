@@ -1,0 +1,77 @@
+//! Move lists the randomised stress run (`examples/stress.rs`) found exceeding a limit,
+//! shrunk to a few moves (`examples/shrink.rs`). Each must keep every axis's v, a, j limit
+//! in every period, end exactly and count no violation. All still fail (docs/motion.md,
+//! "Not every program yet"), so they are ignored until the controller is fixed; run them
+//! with `cargo test -p rtcnc-motion --test stress_cases -- --ignored`.
+
+mod common;
+use common::*;
+use rtcnc_motion::{Move, PathMode};
+
+const V: f64 = 100.0;
+const A: f64 = 1000.0;
+const J: f64 = 50_000.0;
+
+fn check(moves: &[Move], window: usize) {
+    let lim = limits(V, A, J);
+    let mut pl = planner(&lim, p3(0.0, 0.0, 0.0), window);
+    let tr = run(&mut pl, moves, 20_000);
+    assert_limits(&tr, V, A, J);
+    assert_eq!(pl.stats().limit_violations, 0, "{:?}", pl.stats());
+    let end = match moves.last().unwrap().kind {
+        rtcnc_motion::MoveKind::Line { end, .. } => end,
+        _ => unreachable!(),
+    };
+    let last = *tr.pts.last().unwrap();
+    assert!(
+        dist(&last, &end) <= 1e-9,
+        "end off by {}",
+        dist(&last, &end)
+    );
+}
+
+/// Seed 1, program 428 of `stress 500 1`: a fast 3-D line into a blended corner, then an
+/// exact stop. The controller used to notice the corner's slow-down too late and the
+/// set-point jumped (acceleration 21 ×, jerk 400 × the limit).
+#[test]
+#[ignore = "known failure: the set-point jumps at the stop (docs/motion.md)"]
+fn fast_line_into_a_blend_then_a_stop_keeps_the_limits() {
+    let moves = [
+        Move::line(p3(8.0, 13.0, 18.0), 145.0, blend(0.01), 1),
+        Move::line(p3(-14.0, -3.0, 18.0), 123.0, blend(0.1), 2),
+        Move::line(p3(-20.0, -6.0, 18.0), 110.0, PathMode::ExactStop, 3),
+    ];
+    for window in [64, 256, 2048] {
+        check(&moves, window);
+    }
+}
+
+/// Seed 2, program 221 of `stress 500 2`: a short blended zig-zag with feeds from 39 to
+/// 118 mm/s (jerk 5.6 × the limit before the fix).
+#[test]
+#[ignore = "known failure: the speed reaches zero mid-line with deceleration left (docs/motion.md)"]
+fn short_zig_zag_with_mixed_feeds_keeps_the_limits() {
+    let moves = [
+        Move::line(p3(6.0, 20.0, -1.0), 118.0, PathMode::ExactPath, 1),
+        Move::line(p3(6.0, 17.8, -1.0), 112.0, blend(0.01), 2),
+        Move::line(p3(11.0, 11.85, -1.0), 39.0, blend(0.1), 3),
+        Move::line(p3(-7.0, 6.0, 1.0), 84.0, blend(0.1), 4),
+    ];
+    for window in [64, 256, 2048] {
+        check(&moves, window);
+    }
+}
+
+/// Seed 6, program 400 of `stress 500 6` (once isolated lines follow the OTG profile): a
+/// line to an exact-path stop, then two blended lines; the per-sample check moves points
+/// on the second blend (acceleration and jerk up to 1.23 × the limit).
+#[test]
+#[ignore = "known failure: the per-sample check moves set-points on a blend (docs/motion.md)"]
+fn line_to_a_stop_then_two_blends_keeps_the_limits() {
+    let moves = [
+        Move::line(p3(5.0, 2.8, -12.863), 63.0, PathMode::ExactPath, 1),
+        Move::line(p3(-3.162995, 0.4, -17.1), 42.0, blend(0.1), 2),
+        Move::line(p3(-11.85, -6.47, -15.574), 68.0, blend(0.001), 3),
+    ];
+    check(&moves, 256);
+}
