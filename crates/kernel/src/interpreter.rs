@@ -285,9 +285,10 @@ impl InterpreterStage {
                     }));
                 }
             }
-            C::SetFeedMode { mode, .. } => {
-                let _ = mode == FeedMode::UnitsPerRevolution;
-            }
+            // Nothing to carry: per-revolution feed is read from the modal state at each
+            // SET_FEED_RATE below, and the interpreter already turns inverse time (G93) into
+            // a feed rate per move, as rs274 does.
+            C::SetFeedMode { .. } => {}
             C::SetFeedRate(rate) => {
                 let per_revolution = self
                     .interp
