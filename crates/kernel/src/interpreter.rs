@@ -13,7 +13,7 @@ use rtcnc_motion::PathMode;
 use rtcnc_rt::{Context, Next};
 
 use crate::fault::FaultCode;
-use crate::messages::{Aux, ProgramBlock, WaitCondition};
+use crate::messages::{Aux, FixedText, ProgramBlock, WaitCondition};
 use crate::shared::{InterpreterRequest, Shared, Tagged};
 
 /// Blocks handled per activation before giving the processor back.
@@ -47,6 +47,10 @@ pub(crate) struct InterpreterStage {
     blend_tolerance: Option<f64>,
     /// A command the kernel cannot carry out stopped this run: nothing after it converts.
     refused: bool,
+    /// Sequence number of the last operator message.
+    message_seq: u32,
+    /// Message texts not yet handed to the look-ahead (its channel was full).
+    texts: std::collections::VecDeque<(u32, FixedText)>,
 }
 
 impl InterpreterStage {
@@ -79,6 +83,8 @@ impl InterpreterStage {
             parameter_file: None,
             blend_tolerance: None,
             refused: false,
+            message_seq: 0,
+            texts: std::collections::VecDeque::with_capacity(8),
         }
     }
 
@@ -116,6 +122,7 @@ impl InterpreterStage {
                     self.epoch = epoch;
                     self.refused = false;
                     self.outbox.clear();
+                    self.texts.clear();
                     self.comp = Compensator::new();
                     let mut interp = self.fresh_interpreter();
                     let opened = match &self.program {
@@ -140,6 +147,7 @@ impl InterpreterStage {
                     self.epoch = epoch;
                     self.refused = false;
                     self.outbox.clear();
+                    self.texts.clear();
                     if self.interp.is_none() {
                         self.interp = Some(self.fresh_interpreter());
                     }
@@ -158,12 +166,32 @@ impl InterpreterStage {
                 InterpreterRequest::Stop => {
                     self.active = false;
                     self.outbox.clear();
+                    self.texts.clear();
                 }
                 InterpreterRequest::BlockDelete(on) => self.settings.block_delete = on,
             }
         }
         for _ in 0..BLOCKS_PER_ACTIVATION {
+            // A message's text goes ahead of its block.
+            while let Some(&text) = self.texts.front() {
+                if self.shared.message_texts.try_put(text).is_err() {
+                    break;
+                }
+                self.texts.pop_front();
+            }
             if let Some(block) = self.outbox.front().copied() {
+                if let ProgramBlock::Aux {
+                    aux: Aux::Message { seq },
+                    ..
+                } = block
+                {
+                    if self.texts.iter().any(|t| t.0 == seq) {
+                        return Next::WaitFor {
+                            trigger: self.shared.message_texts.space_trigger(),
+                            timeout: None,
+                        };
+                    }
+                }
                 let tagged = Tagged {
                     epoch: self.epoch,
                     block,
@@ -373,6 +401,14 @@ impl InterpreterStage {
                     index,
                     condition,
                     timeout,
+                }));
+            }
+            C::Message(text) => {
+                self.message_seq = self.message_seq.wrapping_add(1);
+                self.texts
+                    .push_back((self.message_seq, FixedText::truncated(&text)));
+                out.push_back(aux(Aux::Message {
+                    seq: self.message_seq,
                 }));
             }
             C::MistOn => out.push_back(aux(Aux::Mist(true))),

@@ -16,7 +16,7 @@ use crate::config::{LengthUnits, MachineConfig, MissReactionConfig};
 use crate::fault::Fault;
 use crate::interpreter::InterpreterStage;
 use crate::logic::{Logic, LogicStage};
-use crate::messages::{Command, Status, Urgent};
+use crate::messages::{Command, OperatorMessage, Status, Urgent};
 use crate::motion::{MotionCore, ServoTarget};
 use crate::servo::{Sample, ServoStage};
 use crate::shared::Shared;
@@ -114,6 +114,12 @@ impl KernelHandle {
     /// The latest status snapshot.
     pub fn status(&self) -> Status {
         *self.shared.status.lock()
+    }
+
+    /// Operator messages (`(MSG,...)`, `(DEBUG,...)`) the machine reached since the last
+    /// call, in program order.
+    pub fn take_messages(&self) -> Vec<OperatorMessage> {
+        std::iter::from_fn(|| self.shared.operator_messages.try_get()).collect()
     }
 
     /// Faults raised since the last call.

@@ -30,6 +30,18 @@ impl FixedText {
         })
     }
 
+    /// The text, shortened at a character boundary to fit when it is longer.
+    pub fn truncated(text: &str) -> FixedText {
+        let mut end = text.len().min(Self::CAPACITY);
+        while !text.is_char_boundary(end) {
+            end -= 1;
+        }
+        FixedText::new(&text[..end]).unwrap_or(FixedText {
+            len: 0,
+            bytes: [0u8; Self::CAPACITY],
+        })
+    }
+
     /// The text.
     pub fn as_str(&self) -> &str {
         let len = usize::from(self.len).min(Self::CAPACITY);
@@ -186,6 +198,27 @@ pub enum Aux {
     ProgramStop,
     /// M1.
     OptionalStop,
+    /// `(MSG,...)` / `(DEBUG,...)`: shown once the motion before it is done. The text
+    /// travels beside the blocks (see `Shared::message_texts`), so that every block stays
+    /// small; `seq` finds it.
+    Message {
+        /// Sequence number of the text.
+        seq: u32,
+    },
+}
+
+/// An operator message (`(MSG,...)`, `(DEBUG,...)`) as the machine reached it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OperatorMessage {
+    /// The servo cycle of the set-point at which the path stood at the message's block
+    /// (everything before it done).
+    pub cycle: u64,
+    /// That set-point's time, ns since start (`cycle` servo periods).
+    pub time_ns: u64,
+    /// Program line.
+    pub line: u32,
+    /// The text (at most [`FixedText::CAPACITY`] bytes; longer texts are shortened).
+    pub text: FixedText,
 }
 
 /// What M66 waits for.

@@ -12,7 +12,7 @@ use rtcnc_rt::{Context, RingProducer};
 use crate::config::{MAX_JOINTS, MachineConfig};
 use crate::fault::{Fault, FaultCode, TaskName};
 use crate::messages::{
-    Aux, Command, JointSetpoints, MachineBlock, MachineState, Mode, Status, Urgent,
+    Aux, Command, JointSetpoints, MachineBlock, MachineState, Mode, OperatorMessage, Status, Urgent,
 };
 use crate::shared::{Feedback, InterpreterRequest, Shared, Tagged};
 
@@ -125,6 +125,7 @@ pub struct MotionCore {
     joint_manual: u32,
     source: Source,
     period_s: f64,
+    period_ns: u64,
     cycle: u64,
     offsets: [f64; MAX_JOINTS],
     last: JointSetpoints,
@@ -311,6 +312,7 @@ impl MotionCore {
             joint_manual,
             source: Source::Path,
             period_s,
+            period_ns: config.servo_period().as_nanos() as u64,
             cycle: 0,
             offsets: [0.0; MAX_JOINTS],
             last,
@@ -1057,6 +1059,12 @@ impl MotionCore {
                 };
                 return;
             }
+            Aux::Message { seq } => {
+                drop(mi);
+                self.show_message(shared, seq, line);
+                self.phase = Phase::Feeding;
+                return;
+            }
             Aux::OptionalStop => {
                 drop(mi);
                 self.phase = if self.optional_stop {
@@ -1074,6 +1082,26 @@ impl MotionCore {
             line,
             released: false,
         };
+    }
+
+    /// Hands the text of message `seq` to the operator, stamped with the set-point at which
+    /// the path stands at its block. Texts of an aborted run still in the channel are
+    /// older: they are dropped on the way.
+    fn show_message(&self, shared: &Shared, seq: u32, line: u32) {
+        for _ in 0..shared.message_texts.capacity() {
+            let Some((s, text)) = shared.message_texts.try_get() else {
+                return;
+            };
+            if s == seq {
+                let _ = shared.operator_messages.try_put(OperatorMessage {
+                    cycle: self.cycle,
+                    time_ns: self.cycle.saturating_mul(self.period_ns),
+                    line,
+                    text,
+                });
+                return;
+            }
+        }
     }
 
     /// Whether the machine logic acknowledged `aux`; drops hand-shake requests once done.
@@ -1120,6 +1148,7 @@ impl MotionCore {
             Aux::DigitalOutput { .. }
             | Aux::ProgramStop
             | Aux::OptionalStop
+            | Aux::Message { .. }
             | Aux::WaitInput { .. } => true,
         };
         if done {

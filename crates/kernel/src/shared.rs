@@ -5,7 +5,9 @@ use rtcnc_rt::{BinarySemaphore, Context, Mailbox, PiMutex};
 
 use crate::config::MAX_JOINTS;
 use crate::fault::{Fault, FaultCode, TaskName};
-use crate::messages::{Command, FixedText, MachineBlock, ProgramBlock, Status, Urgent};
+use crate::messages::{
+    Command, FixedText, MachineBlock, OperatorMessage, ProgramBlock, Status, Urgent,
+};
 
 /// A pipeline message tagged with the program run it belongs to, so that an abort can drop
 /// whatever of an old run is still in the channels.
@@ -163,6 +165,11 @@ pub struct Shared {
     pub program_blocks: Mailbox<Tagged<ProgramBlock>>,
     /// Tool compensation -> look-ahead.
     pub machine_blocks: Mailbox<Tagged<MachineBlock>>,
+    /// Interpreter -> look-ahead: the texts of operator messages, by sequence number, in
+    /// the order of their `Aux::Message` blocks.
+    pub message_texts: Mailbox<(u32, FixedText)>,
+    /// Operator messages as the machine reached them, for the operator.
+    pub operator_messages: Mailbox<OperatorMessage>,
     /// Faults for the operator and the log.
     pub faults: Mailbox<Fault>,
     /// Faults that must stop motion, for the interpolation task (read first every cycle).
@@ -190,6 +197,8 @@ impl Shared {
             interpreter_wake: BinarySemaphore::new("interpreter wake"),
             program_blocks: Mailbox::new("program blocks", 128).expect("capacity > 0"),
             machine_blocks: Mailbox::new("machine blocks", 128).expect("capacity > 0"),
+            message_texts: Mailbox::new("message texts", 32).expect("capacity > 0"),
+            operator_messages: Mailbox::new("operator messages", 1024).expect("capacity > 0"),
             faults: Mailbox::new("faults", 1024).expect("capacity > 0"),
             stop_requests: Mailbox::new("stop requests", 64).expect("capacity > 0"),
             feedback: std::sync::Arc::new(PiMutex::new(Feedback::default())),
