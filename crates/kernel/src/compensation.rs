@@ -107,7 +107,19 @@ impl CompensationStage {
                 self.feed_per_minute = rate;
                 self.per_revolution = per_revolution;
             }
-            ProgramBlock::PathMode(m) => self.mode = m,
+            // G64 P and Q are lengths in the program's units when they were given.
+            ProgramBlock::PathMode(m) => {
+                self.mode = match m {
+                    PathMode::Blend {
+                        tolerance,
+                        merge_tolerance,
+                    } => PathMode::Blend {
+                        tolerance: tolerance * self.mm_per_unit,
+                        merge_tolerance: merge_tolerance * self.mm_per_unit,
+                    },
+                    other => other,
+                }
+            }
             ProgramBlock::Line { line, end, rapid } => {
                 let end = self.to_machine(&end);
                 return Some(MachineBlock::Motion(Move {

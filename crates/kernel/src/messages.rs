@@ -429,4 +429,7 @@ pub struct Status {
     pub spindle_rpm: f64,
     /// The self-test passed and the drives are enabled.
     pub ready: bool,
+    /// The planner's geometry counters since start-up (moves, G64 Q merges, blends,
+    /// smoothed vertices, exact stops).
+    pub geometry: rtcnc_motion::GeometryStats,
 }

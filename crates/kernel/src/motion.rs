@@ -1526,6 +1526,7 @@ impl MotionCore {
         status.tool = self.tool;
         status.spindle_rpm = feedback.spindle_rpm;
         status.ready = self.ready && self.enable && feedback.enabled != 0;
+        status.geometry = self.planner.geometry_stats();
         if let Some(f) = self.last_fault {
             status.last_fault = Some(f);
         }
