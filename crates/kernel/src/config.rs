@@ -335,6 +335,10 @@ pub struct ToolChangerSection {
     pub initial_tool: u32,
 }
 
+/// Most program inputs or outputs of one kind (`io.program_*`); the kernel's images carry
+/// the first 16 analogue points.
+pub const MAX_PROGRAM_IO: usize = 16;
+
 /// `[io]`: process-image sizes and the map from program I/O numbers to image points.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -357,6 +361,12 @@ pub struct IoSection {
     /// M66 `P n` reads digital input `program_inputs[n]`.
     #[serde(default)]
     pub program_inputs: Vec<usize>,
+    /// M66 `E n` reads analogue input `program_analog_inputs[n]`.
+    #[serde(default)]
+    pub program_analog_inputs: Vec<usize>,
+    /// M67/M68 `E n` drive analogue output `program_analog_outputs[n]`.
+    #[serde(default)]
+    pub program_analog_outputs: Vec<usize>,
 }
 
 fn sixteen() -> usize {
@@ -375,6 +385,8 @@ impl Default for IoSection {
             analog_outputs: 4,
             program_outputs: Vec::new(),
             program_inputs: Vec::new(),
+            program_analog_inputs: Vec::new(),
+            program_analog_outputs: Vec::new(),
         }
     }
 }
@@ -703,7 +715,23 @@ impl MachineConfig {
                 self.io.digital_inputs,
                 "io.program_inputs",
             ),
+            (
+                &self.io.program_analog_inputs,
+                self.io.analog_inputs.min(MAX_PROGRAM_IO),
+                "io.program_analog_inputs",
+            ),
+            (
+                &self.io.program_analog_outputs,
+                self.io.analog_outputs.min(MAX_PROGRAM_IO),
+                "io.program_analog_outputs",
+            ),
         ] {
+            if list.len() > MAX_PROGRAM_IO {
+                return Err(ConfigError::invalid(
+                    key,
+                    format!("at most {MAX_PROGRAM_IO} program points"),
+                ));
+            }
             if let Some(bad) = list.iter().find(|&&i| i >= size) {
                 return Err(ConfigError::invalid(
                     key,

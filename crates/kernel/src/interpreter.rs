@@ -13,7 +13,7 @@ use rtcnc_motion::PathMode;
 use rtcnc_rt::{Context, Next};
 
 use crate::fault::FaultCode;
-use crate::messages::{Aux, FixedText, ProgramBlock, WaitCondition};
+use crate::messages::{Aux, FixedText, MachineResult, ProgramBlock, WaitCondition};
 use crate::shared::{InterpreterRequest, Shared, Tagged};
 
 /// Blocks handled per activation before giving the processor back.
@@ -164,6 +164,10 @@ impl InterpreterStage {
                     self.active = true;
                 }
                 InterpreterRequest::Stop => {
+                    // Also ends a wait for the machine's result.
+                    if let Some(interp) = self.interp.as_mut() {
+                        interp.abort();
+                    }
                     self.active = false;
                     self.outbox.clear();
                     self.texts.clear();
@@ -209,20 +213,23 @@ impl InterpreterStage {
                 return Next::Done;
             }
             ctx.consume(COST_PER_COMMAND);
-            self.pull_one();
+            if !self.pull_one() {
+                return Next::Done;
+            }
         }
         Next::Continue
     }
 
     /// Pulls one canonical command through compensation and converts what comes out.
-    fn pull_one(&mut self) {
+    /// False when the interpreter waits for the machine's result, which has not come.
+    fn pull_one(&mut self) -> bool {
         if let Some(c) = self.comp.pop() {
             self.convert(c);
-            return;
+            return true;
         }
         let Some(interp) = self.interp.as_mut() else {
             self.active = false;
-            return;
+            return true;
         };
         match interp.next_canon() {
             Some(Ok(canon)) => {
@@ -250,6 +257,16 @@ impl InterpreterStage {
                 });
                 self.active = false;
             }
+            // After M66 the interpreter reads on only with the machine's result, as
+            // LinuxCNC's does: later lines may read #5399. Not the end.
+            None if interp.is_waiting() => match self.take_result() {
+                Some(MachineResult::Input(value)) => {
+                    if let Some(interp) = self.interp.as_mut() {
+                        interp.input_result(value);
+                    }
+                }
+                None => return false,
+            },
             None => {
                 self.comp.finish();
                 while let Some(c) = self.comp.pop() {
@@ -264,6 +281,7 @@ impl InterpreterStage {
                 self.active = false;
             }
         }
+        true
     }
 
     fn convert(&mut self, canon: Canon) {
@@ -411,6 +429,15 @@ impl InterpreterStage {
                     seq: self.message_seq,
                 }));
             }
+            // The interpreter allows only L0 (read now) on an analogue input, as LinuxCNC.
+            C::WaitInput {
+                digital: false,
+                index,
+                ..
+            } => out.push_back(aux(Aux::ReadAnalogInput { index })),
+            C::SetAnalogOutput { index, value, .. } => {
+                out.push_back(aux(Aux::AnalogOutput { index, value }))
+            }
             C::MistOn => out.push_back(aux(Aux::Mist(true))),
             C::MistOff => out.push_back(aux(Aux::Mist(false))),
             C::FloodOn => out.push_back(aux(Aux::Flood(true))),
@@ -453,6 +480,16 @@ impl InterpreterStage {
         self.refused = true;
     }
 
+    /// The machine's result for the current run, if it has come (older runs' are dropped).
+    fn take_result(&mut self) -> Option<MachineResult> {
+        while let Some(Tagged { epoch, block }) = self.shared.machine_results.try_get() {
+            if epoch == self.epoch {
+                return Some(block);
+            }
+        }
+        None
+    }
+
     /// Writes the parameter file (atomically: the interpreter's `Parameters::save`).
     fn save_parameters(&mut self) {
         if let (Some(path), Some(interp)) = (&self.parameter_file, &self.interp) {
@@ -478,8 +515,6 @@ fn not_carried_out(command: &CanonCommand) -> Option<&'static str> {
             constant_surface_speed: true,
             ..
         } => Some("constant surface speed (G96)"),
-        C::WaitInput { digital: false, .. } => Some("waiting on an analogue input (M66 E)"),
-        C::SetAnalogOutput { .. } => Some("analogue outputs (M67, M68)"),
         C::FeedOverride(false) | C::SpeedOverride { enable: false, .. } => {
             Some("disabling the overrides (M49, M50 P0, M51 P0)")
         }

@@ -225,15 +225,18 @@ impl Kernel {
         } else {
             (None, None)
         };
-        let servo = Arc::new(PiMutex::new(ServoStage::new(
-            machine,
-            loops,
-            period_s,
-            target_rx,
-            recorder,
-            shared.clone(),
-            config.io.program_outputs.clone(),
-        )));
+        let servo = Arc::new(PiMutex::new(
+            ServoStage::new(
+                machine,
+                loops,
+                period_s,
+                target_rx,
+                recorder,
+                shared.clone(),
+                config.io.program_outputs.clone(),
+            )
+            .with_program_analog_outputs(config.io.program_analog_outputs.clone()),
+        ));
 
         let mut core = MotionCore::new(&config).map_err(|e| KernelError::Motion(e.to_string()))?;
         core.set_has_program(options.program.is_some());
@@ -279,7 +282,12 @@ impl Kernel {
             logic = logic.with_retain(Arc::clone(snapshot));
         }
 
-        let mut settings = Settings::default();
+        // The interpreter stops reading after M66 (and G38) until the machine's result is
+        // in, as LinuxCNC's task synchronises before such a block.
+        let mut settings = Settings {
+            wait_for_machine: true,
+            ..Settings::default()
+        };
         if config.machine.units == LengthUnits::Inch {
             settings.initial_units = rtcnc_gcode::canon::Units::Inches;
         }

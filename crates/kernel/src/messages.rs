@@ -194,6 +194,18 @@ pub enum Aux {
         /// Seconds; 0 reads the input and goes on.
         timeout: f64,
     },
+    /// M66 E L0: read an analogue input (the interpreter waits for its value).
+    ReadAnalogInput {
+        /// Program input number (E word), mapped by `io.program_analog_inputs`.
+        index: u32,
+    },
+    /// M67/M68: set an analogue output once the motion before it is done.
+    AnalogOutput {
+        /// Program output number (E word), mapped by `io.program_analog_outputs`.
+        index: u32,
+        /// Value (Q word).
+        value: f64,
+    },
     /// M0.
     ProgramStop,
     /// M1.
@@ -219,6 +231,14 @@ pub struct OperatorMessage {
     pub line: u32,
     /// The text (at most [`FixedText::CAPACITY`] bytes; longer texts are shortened).
     pub text: FixedText,
+}
+
+/// What the machine measured for a block the interpreter waits on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MachineResult {
+    /// M66: the input's value (digital 0 or 1, or the analogue value), -1 on a time-out;
+    /// the interpreter stores it in #5399.
+    Input(f64),
 }
 
 /// What M66 waits for.

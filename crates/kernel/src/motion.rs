@@ -12,7 +12,8 @@ use rtcnc_rt::{Context, RingProducer};
 use crate::config::{MAX_JOINTS, MachineConfig};
 use crate::fault::{Fault, FaultCode, TaskName};
 use crate::messages::{
-    Aux, Command, JointSetpoints, MachineBlock, MachineState, Mode, OperatorMessage, Status, Urgent,
+    Aux, Command, JointSetpoints, MachineBlock, MachineResult, MachineState, Mode, OperatorMessage,
+    Status, Urgent,
 };
 use crate::shared::{Feedback, InterpreterRequest, Shared, Tagged};
 
@@ -168,6 +169,9 @@ pub struct MotionCore {
     logic_paused: bool,
     program_inputs: [usize; 16],
     program_input_count: usize,
+    program_analog_inputs: [usize; crate::config::MAX_PROGRAM_IO],
+    program_analog_input_count: usize,
+    program_analog_output_count: usize,
     /// The logic's e-stop chain has been seen closed since the last reset.
     chain_closed: bool,
 }
@@ -356,6 +360,23 @@ impl MotionCore {
                 p
             },
             program_input_count: config.io.program_inputs.len().min(16),
+            program_analog_inputs: {
+                let mut p = [0usize; crate::config::MAX_PROGRAM_IO];
+                for (slot, &i) in p.iter_mut().zip(&config.io.program_analog_inputs) {
+                    *slot = i;
+                }
+                p
+            },
+            program_analog_input_count: config
+                .io
+                .program_analog_inputs
+                .len()
+                .min(crate::config::MAX_PROGRAM_IO),
+            program_analog_output_count: config
+                .io
+                .program_analog_outputs
+                .len()
+                .min(crate::config::MAX_PROGRAM_IO),
             chain_closed: false,
         })
     }
@@ -856,6 +877,13 @@ impl MotionCore {
                         W::Low => !now,
                     };
                     if met || self.cycle >= deadline {
+                        // #5399: the input's level, or -1 on a time-out (LinuxCNC).
+                        let value = match (met, now) {
+                            (false, _) => -1.0,
+                            (true, true) => 1.0,
+                            (true, false) => 0.0,
+                        };
+                        self.send_result(shared, MachineResult::Input(value));
                         self.phase = Phase::Feeding;
                     } else {
                         self.phase = Phase::WaitInput {
@@ -1052,6 +1080,48 @@ impl MotionCore {
                 };
                 return;
             }
+            Aux::ReadAnalogInput { index } => {
+                drop(mi);
+                let point = usize::try_from(index)
+                    .ok()
+                    .filter(|&i| i < self.program_analog_input_count)
+                    .map(|i| self.program_analog_inputs[i]);
+                let value =
+                    point.and_then(|p| shared.feedback.lock().analog_inputs.get(p).copied());
+                match value {
+                    Some(v) => {
+                        self.send_result(shared, MachineResult::Input(v));
+                        self.phase = Phase::Feeding;
+                    }
+                    None => {
+                        self.phase = Phase::Draining {
+                            then: Then::Error(FaultCode::AuxRefused),
+                            line,
+                        }
+                    }
+                }
+                return;
+            }
+            Aux::AnalogOutput { index, value } => {
+                let slot = usize::try_from(index)
+                    .ok()
+                    .filter(|&i| i < self.program_analog_output_count)
+                    .and_then(|i| mi.program_analog_outputs.get_mut(i));
+                let mapped = slot.is_some();
+                if let Some(slot) = slot {
+                    *slot = value;
+                }
+                drop(mi);
+                self.phase = if mapped {
+                    Phase::Feeding
+                } else {
+                    Phase::Draining {
+                        then: Then::Error(FaultCode::AuxRefused),
+                        line,
+                    }
+                };
+                return;
+            }
             Aux::ProgramStop => {
                 drop(mi);
                 self.phase = Phase::Paused {
@@ -1082,6 +1152,15 @@ impl MotionCore {
             line,
             released: false,
         };
+    }
+
+    /// Hands the interpreter the result it waits for (it reads on once it has it).
+    fn send_result(&self, shared: &Shared, result: MachineResult) {
+        let _ = shared.machine_results.try_put(Tagged {
+            epoch: self.epoch,
+            block: result,
+        });
+        shared.interpreter_wake.signal();
     }
 
     /// Hands the text of message `seq` to the operator, stamped with the set-point at which
@@ -1149,6 +1228,8 @@ impl MotionCore {
             | Aux::ProgramStop
             | Aux::OptionalStop
             | Aux::Message { .. }
+            | Aux::ReadAnalogInput { .. }
+            | Aux::AnalogOutput { .. }
             | Aux::WaitInput { .. } => true,
         };
         if done {

@@ -58,6 +58,7 @@ pub(crate) struct ServoStage<B: Fieldbus> {
     exchanges: u64,
     following_error: [f64; MAX_JOINTS],
     program_outputs: Vec<usize>,
+    program_analog_outputs: Vec<usize>,
     previous_joints: [f64; MAX_JOINTS],
     underruns: u64,
 }
@@ -97,9 +98,16 @@ impl<B: Fieldbus> ServoStage<B> {
             exchanges: 0,
             following_error: [0.0; MAX_JOINTS],
             program_outputs,
+            program_analog_outputs: Vec::new(),
             previous_joints: [0.0; MAX_JOINTS],
             underruns: 0,
         }
+    }
+
+    /// M67/M68 `E n` drive analogue output `points[n]`.
+    pub(crate) fn with_program_analog_outputs(mut self, points: Vec<usize>) -> Self {
+        self.program_analog_outputs = points;
+        self
     }
 
     /// Position control: one servo cycle.
@@ -278,6 +286,15 @@ impl<B: Fieldbus> ServoStage<B> {
                     *o |= mi.program_outputs & (1 << n) != 0;
                 }
             }
+            for (&point, &value) in self
+                .program_analog_outputs
+                .iter()
+                .zip(&mi.program_analog_outputs)
+            {
+                if let Some(o) = self.outputs.analog.get_mut(point) {
+                    *o = value;
+                }
+            }
         }
         let result = self
             .bus
@@ -363,6 +380,9 @@ impl<B: Fieldbus> ServoStage<B> {
             if d {
                 fb.digital_inputs |= 1 << i;
             }
+        }
+        for (slot, &a) in fb.analog_inputs.iter_mut().zip(&self.inputs.analog) {
+            *slot = a;
         }
         *self.shared.feedback.lock() = fb;
     }

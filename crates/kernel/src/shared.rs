@@ -6,7 +6,7 @@ use rtcnc_rt::{BinarySemaphore, Context, Mailbox, PiMutex};
 use crate::config::MAX_JOINTS;
 use crate::fault::{Fault, FaultCode, TaskName};
 use crate::messages::{
-    Command, FixedText, MachineBlock, OperatorMessage, ProgramBlock, Status, Urgent,
+    Command, FixedText, MachineBlock, MachineResult, OperatorMessage, ProgramBlock, Status, Urgent,
 };
 
 /// A pipeline message tagged with the program run it belongs to, so that an abort can drop
@@ -80,6 +80,8 @@ pub struct Feedback {
     pub tool_change_done: bool,
     /// Digital inputs, bit n = input n (first 64).
     pub digital_inputs: u64,
+    /// Analogue inputs (first 16).
+    pub analog_inputs: [f64; crate::config::MAX_PROGRAM_IO],
 }
 
 /// The machine interface between the kernel and the machine logic (the PLC's signals).
@@ -118,6 +120,8 @@ pub struct MachineInterface {
     pub machine_on_request: bool,
     /// Program digital outputs (M62..M65), bit n = program output n.
     pub program_outputs: u64,
+    /// Program analogue outputs (M67/M68), by program output number.
+    pub program_analog_outputs: [f64; crate::config::MAX_PROGRAM_IO],
     // Logic -> kernel.
     /// Spindle at speed.
     pub spindle_at_speed: bool,
@@ -170,6 +174,9 @@ pub struct Shared {
     pub message_texts: Mailbox<(u32, FixedText)>,
     /// Operator messages as the machine reached them, for the operator.
     pub operator_messages: Mailbox<OperatorMessage>,
+    /// Look-ahead -> interpreter: what the machine measured for a block the interpreter
+    /// waits on (M66's input value for #5399), tagged with the run.
+    pub machine_results: Mailbox<Tagged<MachineResult>>,
     /// Faults for the operator and the log.
     pub faults: Mailbox<Fault>,
     /// Faults that must stop motion, for the interpolation task (read first every cycle).
@@ -199,6 +206,7 @@ impl Shared {
             machine_blocks: Mailbox::new("machine blocks", 128).expect("capacity > 0"),
             message_texts: Mailbox::new("message texts", 32).expect("capacity > 0"),
             operator_messages: Mailbox::new("operator messages", 1024).expect("capacity > 0"),
+            machine_results: Mailbox::new("machine results", 8).expect("capacity > 0"),
             faults: Mailbox::new("faults", 1024).expect("capacity > 0"),
             stop_requests: Mailbox::new("stop requests", 64).expect("capacity > 0"),
             feedback: std::sync::Arc::new(PiMutex::new(Feedback::default())),
