@@ -367,6 +367,10 @@ pub struct IoSection {
     /// M67/M68 `E n` drive analogue output `program_analog_outputs[n]`.
     #[serde(default)]
     pub program_analog_outputs: Vec<usize>,
+    /// The feed stop switch (digital input): while it is on, the path holds (M53 P0 lets
+    /// the program ignore it, M53 P1 heeds it again; heeded by default).
+    #[serde(default)]
+    pub feed_stop_input: Option<usize>,
 }
 
 fn sixteen() -> usize {
@@ -387,6 +391,7 @@ impl Default for IoSection {
             program_inputs: Vec::new(),
             program_analog_inputs: Vec::new(),
             program_analog_outputs: Vec::new(),
+            feed_stop_input: None,
         }
     }
 }
@@ -736,6 +741,17 @@ impl MachineConfig {
                 return Err(ConfigError::invalid(
                     key,
                     format!("point {bad} is outside the image of {size}"),
+                ));
+            }
+        }
+        if let Some(i) = self.io.feed_stop_input {
+            if i >= self.io.digital_inputs.min(64) {
+                return Err(ConfigError::invalid(
+                    "io.feed_stop_input",
+                    format!(
+                        "input {i} is outside the image of {}",
+                        self.io.digital_inputs.min(64)
+                    ),
                 ));
             }
         }

@@ -438,6 +438,11 @@ impl InterpreterStage {
             C::SetAnalogOutput { index, value, .. } => {
                 out.push_back(aux(Aux::AnalogOutput { index, value }))
             }
+            C::FeedOverride(on) => out.push_back(aux(Aux::FeedOverrideEnable(on))),
+            C::SpeedOverride { enable, .. } => {
+                out.push_back(aux(Aux::SpindleOverrideEnable(enable)))
+            }
+            C::FeedHold(on) => out.push_back(aux(Aux::FeedStopEnable(on))),
             C::MistOn => out.push_back(aux(Aux::Mist(true))),
             C::MistOff => out.push_back(aux(Aux::Mist(false))),
             C::FloodOn => out.push_back(aux(Aux::Flood(true))),
@@ -515,10 +520,6 @@ fn not_carried_out(command: &CanonCommand) -> Option<&'static str> {
             constant_surface_speed: true,
             ..
         } => Some("constant surface speed (G96)"),
-        C::FeedOverride(false) | C::SpeedOverride { enable: false, .. } => {
-            Some("disabling the overrides (M49, M50 P0, M51 P0)")
-        }
-        C::FeedHold(false) => Some("disabling feed hold (M53 P0)"),
         C::AdaptiveFeed(true) => Some("adaptive feed (M52 P1)"),
         _ => None,
     }

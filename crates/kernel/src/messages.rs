@@ -206,6 +206,12 @@ pub enum Aux {
         /// Value (Q word).
         value: f64,
     },
+    /// M48-M50: the operator's feed (and rapid) override in force or not.
+    FeedOverrideEnable(bool),
+    /// M48, M49, M51: the operator's spindle override in force or not.
+    SpindleOverrideEnable(bool),
+    /// M53: the feed stop switch heeded or not.
+    FeedStopEnable(bool),
     /// M0.
     ProgramStop,
     /// M1.

@@ -154,7 +154,19 @@ pub struct MotionCore {
     handwheel_counts: Option<i64>,
     handwheel_units_per_count: f64,
     feed_override: f64,
+    rapid_override: f64,
+    /// The programmed spindle speed (rpm, before the override).
+    programmed_rpm: f64,
     spindle_override: f64,
+    /// M48-M51: the operator's overrides in force (else 100 %).
+    feed_override_enabled: bool,
+    spindle_override_enabled: bool,
+    /// M53: the feed stop switch is heeded.
+    feed_stop_enabled: bool,
+    /// The feed stop switch holds the path now.
+    feed_stop_active: bool,
+    /// Bit of the feed stop switch in the digital inputs (0: none).
+    feed_stop_bit: u64,
     program_ended: bool,
     tool: u32,
     last_fault: Option<Fault>,
@@ -344,7 +356,14 @@ impl MotionCore {
             handwheel_counts: None,
             handwheel_units_per_count: config.handwheel.units_per_count,
             feed_override: 1.0,
+            rapid_override: 1.0,
+            programmed_rpm: 0.0,
             spindle_override: 1.0,
+            feed_override_enabled: true,
+            spindle_override_enabled: true,
+            feed_stop_enabled: true,
+            feed_stop_active: false,
+            feed_stop_bit: config.io.feed_stop_input.map_or(0, |i| 1u64 << i.min(63)),
             program_ended: false,
             tool: config.tool_changer.map_or(0, |t| t.initial_tool),
             last_fault: None,
@@ -423,7 +442,7 @@ impl MotionCore {
             Phase::Paused { .. } => return MachineState::Paused,
             _ => {}
         }
-        if self.held || self.logic_paused {
+        if self.held || self.logic_paused || self.feed_stop_active {
             return MachineState::Held;
         }
         if self.moving() || self.homing.is_some() || self.phase != Phase::Idle {
@@ -448,7 +467,10 @@ impl MotionCore {
                 if self.held || self.logic_paused {
                     self.held = false;
                     self.logic_paused = false;
-                    self.planner.resume();
+                    // The feed stop switch keeps holding until it is released.
+                    if !self.feed_stop_active {
+                        self.planner.resume();
+                    }
                 } else if matches!(self.phase, Phase::Paused { .. }) {
                     self.start_count = self.start_count.wrapping_add(1);
                 }
@@ -460,9 +482,16 @@ impl MotionCore {
                 } else {
                     0.0
                 };
-                self.planner.set_feed_override(self.feed_override);
+                self.apply_feed_overrides();
             }
-            Urgent::RapidOverride(f) => self.planner.set_rapid_override(f),
+            Urgent::RapidOverride(f) => {
+                self.rapid_override = if f.is_finite() {
+                    f.clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                self.apply_feed_overrides();
+            }
             Urgent::SpindleOverride(f) => {
                 self.spindle_override = if f.is_finite() {
                     f.clamp(0.5, 1.5)
@@ -471,9 +500,41 @@ impl MotionCore {
                 };
                 let mut mi = shared.machine_interface.lock();
                 if mi.spindle_on {
-                    mi.spindle_rpm = mi.spindle_rpm.abs() * self.spindle_override;
+                    mi.spindle_rpm = self.programmed_rpm * self.spindle_factor();
                 }
             }
+        }
+    }
+
+    /// The operator's feed and rapid overrides, or 100 % while M49/M50 P0 is in force.
+    fn apply_feed_overrides(&mut self) {
+        let (feed, rapid) = if self.feed_override_enabled {
+            (self.feed_override, self.rapid_override)
+        } else {
+            (1.0, 1.0)
+        };
+        self.planner.set_feed_override(feed);
+        self.planner.set_rapid_override(rapid);
+    }
+
+    /// The operator's spindle override, or 1 while M49/M51 P0 is in force.
+    fn spindle_factor(&self) -> f64 {
+        if self.spindle_override_enabled {
+            self.spindle_override
+        } else {
+            1.0
+        }
+    }
+
+    /// M48-M53 as after a reset: every override and the feed stop switch in force.
+    fn reset_enables(&mut self, shared: &Shared) {
+        self.feed_override_enabled = true;
+        self.spindle_override_enabled = true;
+        self.feed_stop_enabled = true;
+        self.apply_feed_overrides();
+        let mut mi = shared.machine_interface.lock();
+        if mi.spindle_on {
+            mi.spindle_rpm = self.programmed_rpm * self.spindle_factor();
         }
     }
 
@@ -496,6 +557,8 @@ impl MotionCore {
     }
 
     fn abort(&mut self, shared: &Shared) {
+        // A stopped program leaves no override disabled behind (M49, M50 P0, M53 P0).
+        self.reset_enables(shared);
         self.epoch = self.epoch.wrapping_add(1);
         let _ = shared
             .interpreter_requests
@@ -553,6 +616,7 @@ impl MotionCore {
                     self.estop = false;
                     self.fault = false;
                     self.enable = true;
+                    self.apply_feed_overrides();
                     self.chain_closed = false;
                     self.reset_count = self.reset_count.wrapping_add(1);
                     let mut mi = shared.machine_interface.lock();
@@ -769,6 +833,9 @@ impl MotionCore {
 
     fn begin(&mut self, shared: &Shared, mode: Mode, from_line: u32) {
         self.enter_path();
+        if mode == Mode::Auto {
+            self.reset_enables(shared);
+        }
         self.mode = mode;
         self.epoch = self.epoch.wrapping_add(1);
         self.phase = Phase::Feeding;
@@ -825,7 +892,10 @@ impl MotionCore {
             match self.phase {
                 Phase::Idle => return,
                 Phase::Feeding => {
-                    if self.held || self.logic_paused || (self.logic_hold && !self.moving()) {
+                    if self.held
+                        || self.logic_paused
+                        || ((self.logic_hold || self.feed_stop_active) && !self.moving())
+                    {
                         return;
                     }
                     let block = match self.pending.take() {
@@ -996,6 +1066,7 @@ impl MotionCore {
                 }
             }
             Then::End => {
+                self.reset_enables(shared);
                 self.phase = Phase::Idle;
                 self.program_ended = true;
                 shared.machine_interface.lock().program_running = false;
@@ -1020,12 +1091,16 @@ impl MotionCore {
             Aux::SpindleOn { rpm } => {
                 mi.spindle_on = rpm != 0.0;
                 mi.spindle_reverse = rpm < 0.0;
-                mi.spindle_rpm = rpm.abs() * self.spindle_override;
+                self.programmed_rpm = rpm.abs();
+                mi.spindle_rpm = self.programmed_rpm * self.spindle_factor();
             }
             Aux::SpindleOff => {
                 mi.spindle_on = false;
             }
-            Aux::SpindleSpeed { rpm } => mi.spindle_rpm = rpm.abs() * self.spindle_override,
+            Aux::SpindleSpeed { rpm } => {
+                self.programmed_rpm = rpm.abs();
+                mi.spindle_rpm = self.programmed_rpm * self.spindle_factor();
+            }
             Aux::Mist(on) => mi.mist = on,
             Aux::Flood(on) => mi.flood = on,
             Aux::ToolChange { tool } => {
@@ -1120,6 +1195,28 @@ impl MotionCore {
                         line,
                     }
                 };
+                return;
+            }
+            Aux::FeedOverrideEnable(on) => {
+                drop(mi);
+                self.feed_override_enabled = on;
+                self.apply_feed_overrides();
+                self.phase = Phase::Feeding;
+                return;
+            }
+            Aux::SpindleOverrideEnable(on) => {
+                self.spindle_override_enabled = on;
+                if mi.spindle_on {
+                    mi.spindle_rpm = self.programmed_rpm * self.spindle_factor();
+                }
+                drop(mi);
+                self.phase = Phase::Feeding;
+                return;
+            }
+            Aux::FeedStopEnable(on) => {
+                drop(mi);
+                self.feed_stop_enabled = on;
+                self.phase = Phase::Feeding;
                 return;
             }
             Aux::ProgramStop => {
@@ -1228,6 +1325,9 @@ impl MotionCore {
             | Aux::ProgramStop
             | Aux::OptionalStop
             | Aux::Message { .. }
+            | Aux::FeedOverrideEnable(_)
+            | Aux::SpindleOverrideEnable(_)
+            | Aux::FeedStopEnable(_)
             | Aux::ReadAnalogInput { .. }
             | Aux::AnalogOutput { .. }
             | Aux::WaitInput { .. } => true,
@@ -1284,6 +1384,21 @@ impl MotionCore {
             self.logic_hold = mi.feed_hold_request;
             mi.estop_chain_ok
         };
+        // The feed stop switch (M53): holds a moving path while it is on, and lets it go on
+        // by itself when released (LinuxCNC's feed hold input); no new move starts meanwhile.
+        let stop_now = self.feed_stop_enabled && feedback.digital_inputs & self.feed_stop_bit != 0;
+        if stop_now != self.feed_stop_active {
+            self.feed_stop_active = stop_now;
+            if self.source == Source::Path {
+                if stop_now {
+                    if self.moving() {
+                        self.planner.hold();
+                    }
+                } else if !self.held && !self.logic_paused {
+                    self.planner.resume();
+                }
+            }
+        }
         // The machine logic's e-stop chain: once closed after a reset, its opening is an
         // e-stop (the chain closes a scan or two after the reset).
         if self.enable && !self.estop {
@@ -1407,6 +1522,12 @@ impl MotionCore {
         mi.m_code_request = false;
         mi.program_running = false;
         mi.spindle_on = false;
+        drop(mi);
+        // A stopped program leaves no override disabled behind; the planner takes them at
+        // the reset.
+        self.feed_override_enabled = true;
+        self.spindle_override_enabled = true;
+        self.feed_stop_enabled = true;
     }
 
     fn handwheel_step(&mut self, feedback: &Feedback) {
