@@ -139,3 +139,20 @@ fn the_feed_stop_switch_holds_the_path_until_released_unless_m53_p0() {
     switch(&mut m, false);
     assert!(m.until(5.0, |s| s.axes[0] == 30.0));
 }
+
+#[test]
+fn a_tapping_cycle_which_switches_the_overrides_off_runs() {
+    // G84 turns the overrides off for the tap (feed and spindle must stay in step) and
+    // back on after it; the kernel used to refuse that.
+    let cfg = config("bench-xyz.toml");
+    let text = "G21 G90 G17\nS500 M3\nG0 X0 Y0 Z5\nG98 G84 X10 Y0 Z-5 R2 F500\nG80\nM5\nM2\n";
+    let mut m = Machine::new(&cfg, Some(program(text, "g84.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(20.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    let bottom = m.samples.iter().map(|s| s.axes[2]).fold(f64::MAX, f64::min);
+    assert_eq!(bottom, -5.0);
+    // G98: back to the initial level Z5 over the hole.
+    assert_eq!(m.status().axes[..3], [10.0, 0.0, 5.0]);
+}
