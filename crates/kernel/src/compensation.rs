@@ -21,6 +21,8 @@ pub(crate) struct CompensationStage {
     per_revolution: bool,
     spindle_rpm: f64,
     mode: PathMode,
+    /// G96 in force.
+    css: bool,
     pending: Option<Tagged<MachineBlock>>,
 }
 
@@ -37,6 +39,7 @@ impl CompensationStage {
             per_revolution: false,
             spindle_rpm: 0.0,
             mode: PathMode::ExactPath,
+            css: false,
             pending: None,
         }
     }
@@ -120,6 +123,19 @@ impl CompensationStage {
                     other => other,
                 }
             }
+            ProgramBlock::Line { line, .. } | ProgramBlock::Arc { line, .. }
+                if self.per_revolution && self.css && !block_is_rapid(&block) =>
+            {
+                *self.shared.error_text.lock() = Some(format!(
+                    "line {line}: feed per revolution (G95) under constant surface speed \
+                     (G96) is not supported by the motion kernel yet; the program stops \
+                     before this block"
+                ));
+                return Some(MachineBlock::Error {
+                    line,
+                    code: crate::FaultCode::ProgramError,
+                });
+            }
             ProgramBlock::Line { line, end, rapid } => {
                 let end = self.to_machine(&end);
                 return Some(MachineBlock::Motion(Move {
@@ -169,11 +185,36 @@ impl CompensationStage {
                 return Some(MachineBlock::Motion(Move::dwell(seconds, line)));
             }
             ProgramBlock::Aux { line, aux } => {
-                match aux {
-                    Aux::SpindleOn { rpm } | Aux::SpindleSpeed { rpm } => self.spindle_rpm = rpm,
-                    Aux::SpindleOff => self.spindle_rpm = 0.0,
-                    _ => {}
-                }
+                let aux = match aux {
+                    Aux::SpindleOn { rpm } | Aux::SpindleSpeed { rpm } => {
+                        self.spindle_rpm = rpm;
+                        aux
+                    }
+                    Aux::SpindleOff => {
+                        self.spindle_rpm = 0.0;
+                        aux
+                    }
+                    // LinuxCNC's canon: rpm = S (in mm/min) / (2π·|X − the X offsets|).
+                    Aux::SurfaceSpeed { surface, max_rpm } => {
+                        self.css = true;
+                        let mm_per_minute = if self.mm_per_unit == 1.0 {
+                            surface * 1000.0
+                        } else {
+                            surface * 12.0 * self.mm_per_unit
+                        };
+                        Aux::ConstantSurfaceSpeed {
+                            factor: mm_per_minute / std::f64::consts::TAU,
+                            x_centre: (self.work[0] + self.g92[0] + self.tool[0])
+                                * self.mm_per_unit,
+                            max_rpm,
+                        }
+                    }
+                    Aux::SurfaceSpeedOff => {
+                        self.css = false;
+                        aux
+                    }
+                    _ => aux,
+                };
                 return Some(MachineBlock::Aux { line, aux });
             }
             ProgramBlock::End { line } => return Some(MachineBlock::End { line }),
@@ -182,4 +223,8 @@ impl CompensationStage {
         }
         None
     }
+}
+
+fn block_is_rapid(block: &ProgramBlock) -> bool {
+    matches!(block, ProgramBlock::Line { rapid: true, .. })
 }

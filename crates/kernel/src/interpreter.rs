@@ -47,6 +47,8 @@ pub(crate) struct InterpreterStage {
     blend_tolerance: Option<f64>,
     /// A command the kernel cannot carry out stopped this run: nothing after it converts.
     refused: bool,
+    /// G96 in force, with its D word.
+    css_max: Option<f64>,
     /// Sequence number of the last operator message.
     message_seq: u32,
     /// Message texts not yet handed to the look-ahead (its channel was full).
@@ -83,6 +85,7 @@ impl InterpreterStage {
             parameter_file: None,
             blend_tolerance: None,
             refused: false,
+            css_max: None,
             message_seq: 0,
             texts: std::collections::VecDeque::with_capacity(8),
         }
@@ -121,6 +124,7 @@ impl InterpreterStage {
                 InterpreterRequest::Run { epoch } => {
                     self.epoch = epoch;
                     self.refused = false;
+                    self.css_max = None;
                     self.outbox.clear();
                     self.texts.clear();
                     self.comp = Compensator::new();
@@ -345,6 +349,33 @@ impl InterpreterStage {
                     per_revolution,
                 })
             }
+            C::SetSpindleMode {
+                constant_surface_speed: true,
+                max_rpm,
+                ..
+            } => {
+                self.css_max = Some(max_rpm);
+                out.push_back(aux(Aux::SurfaceSpeed {
+                    surface: self.spindle_rpm,
+                    max_rpm,
+                }));
+            }
+            // G97: the S number in force is rpm again (as LinuxCNC's canon takes it), until
+            // an S word follows.
+            C::SetSpindleMode {
+                constant_surface_speed: false,
+                ..
+            } if self.css_max.is_some() => {
+                self.css_max = None;
+                out.push_back(aux(Aux::SurfaceSpeedOff));
+            }
+            C::SetSpindleSpeed { speed, .. } if self.css_max.is_some() => {
+                self.spindle_rpm = speed;
+                out.push_back(aux(Aux::SurfaceSpeed {
+                    surface: speed,
+                    max_rpm: self.css_max.unwrap_or(1e30),
+                }));
+            }
             C::SetSpindleSpeed { speed, .. } => {
                 self.spindle_rpm = speed;
                 if let Some(d) = self.spindle_on {
@@ -516,10 +547,6 @@ fn not_carried_out(command: &CanonCommand) -> Option<&'static str> {
         C::RigidTap { .. } => Some("rigid tapping (G33.1)"),
         C::StartSpeedFeedSync { .. } => Some("spindle-synchronised motion (G33, G76)"),
         C::OrientSpindle { .. } | C::WaitOrientComplete { .. } => Some("spindle orientation (M19)"),
-        C::SetSpindleMode {
-            constant_surface_speed: true,
-            ..
-        } => Some("constant surface speed (G96)"),
         C::AdaptiveFeed(true) => Some("adaptive feed (M52 P1)"),
         _ => None,
     }

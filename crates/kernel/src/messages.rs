@@ -206,6 +206,27 @@ pub enum Aux {
         /// Value (Q word).
         value: f64,
     },
+    /// G96 S D as the interpreter gives it: surface speed in the program's units per minute
+    /// (m/min in G21, ft/min in G20), `max_rpm` the D word (1e30 without one). Tool
+    /// compensation turns it into [`Aux::ConstantSurfaceSpeed`].
+    SurfaceSpeed {
+        /// S.
+        surface: f64,
+        /// D.
+        max_rpm: f64,
+    },
+    /// G96 for the machine: the spindle turns at `factor / |X − x_centre|` rpm (capped at
+    /// `max_rpm`), following the X set-point every servo period.
+    ConstantSurfaceSpeed {
+        /// Surface speed in mm/min over 2π (rpm·mm).
+        factor: f64,
+        /// Machine X of the spindle axis (the X offsets in force), mm.
+        x_centre: f64,
+        /// D word, rpm.
+        max_rpm: f64,
+    },
+    /// G97: the spindle turns at the programmed rpm again.
+    SurfaceSpeedOff,
     /// M48-M50: the operator's feed (and rapid) override in force or not.
     FeedOverrideEnable(bool),
     /// M48, M49, M51: the operator's spindle override in force or not.
@@ -451,8 +472,10 @@ pub struct Status {
     pub program_ended: bool,
     /// Tool in the spindle.
     pub tool: u32,
-    /// Spindle speed, rpm.
+    /// Spindle speed, rpm (measured).
     pub spindle_rpm: f64,
+    /// Spindle speed commanded (after the override and G96), rpm; 0 while off.
+    pub spindle_command_rpm: f64,
     /// The self-test passed and the drives are enabled.
     pub ready: bool,
     /// The planner's geometry counters since start-up (moves, G64 Q merges, blends,

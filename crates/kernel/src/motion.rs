@@ -95,6 +95,17 @@ struct Homing {
     step: [Option<HomingStep>; MAX_JOINTS],
 }
 
+/// G96: the spindle speed follows X.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct ConstantSurfaceSpeed {
+    /// Surface speed (mm/min) over 2π.
+    factor: f64,
+    /// Machine X of the spindle axis.
+    x_centre: f64,
+    /// D word, at most the spindle's top speed.
+    max_rpm: f64,
+}
+
 /// One joint's data for the core, taken from the configuration.
 #[derive(Debug, Clone, Copy)]
 struct JointInfo {
@@ -157,6 +168,14 @@ pub struct MotionCore {
     rapid_override: f64,
     /// The programmed spindle speed (rpm, before the override).
     programmed_rpm: f64,
+    /// The spindle is commanded on.
+    spindle_on: bool,
+    /// Interpolation cycle in which the last machine function started.
+    aux_cycle: u64,
+    /// G96 in force.
+    css: Option<ConstantSurfaceSpeed>,
+    /// The spindle's top speed (rpm).
+    spindle_max_rpm: f64,
     spindle_override: f64,
     /// M48-M51: the operator's overrides in force (else 100 %).
     feed_override_enabled: bool,
@@ -358,6 +377,12 @@ impl MotionCore {
             feed_override: 1.0,
             rapid_override: 1.0,
             programmed_rpm: 0.0,
+            spindle_on: false,
+            aux_cycle: 0,
+            css: None,
+            spindle_max_rpm: config
+                .simulated_machine()
+                .map_or(f64::INFINITY, |m| m.spindle.max_speed_rpm),
             spindle_override: 1.0,
             feed_override_enabled: true,
             spindle_override_enabled: true,
@@ -500,7 +525,7 @@ impl MotionCore {
                 };
                 let mut mi = shared.machine_interface.lock();
                 if mi.spindle_on {
-                    mi.spindle_rpm = self.programmed_rpm * self.spindle_factor();
+                    mi.spindle_rpm = self.spindle_command();
                 }
             }
         }
@@ -526,6 +551,24 @@ impl MotionCore {
         }
     }
 
+    /// The spindle speed to command (rpm, unsigned): the programmed speed times the
+    /// override; under G96 the surface speed over 2π·|X − centre| at the X set-point, times
+    /// the override, capped at D (as LinuxCNC's motion controller does it every period).
+    fn spindle_command(&self) -> f64 {
+        match self.css {
+            Some(c) => {
+                let radius = (self.last.axes[0] - c.x_centre).abs();
+                let rpm = if radius > 0.0 {
+                    c.factor / radius
+                } else {
+                    c.max_rpm
+                };
+                (rpm * self.spindle_factor()).min(c.max_rpm)
+            }
+            None => self.programmed_rpm * self.spindle_factor(),
+        }
+    }
+
     /// M48-M53 as after a reset: every override and the feed stop switch in force.
     fn reset_enables(&mut self, shared: &Shared) {
         self.feed_override_enabled = true;
@@ -534,7 +577,7 @@ impl MotionCore {
         self.apply_feed_overrides();
         let mut mi = shared.machine_interface.lock();
         if mi.spindle_on {
-            mi.spindle_rpm = self.programmed_rpm * self.spindle_factor();
+            mi.spindle_rpm = self.spindle_command();
         }
     }
 
@@ -835,6 +878,7 @@ impl MotionCore {
         self.enter_path();
         if mode == Mode::Auto {
             self.reset_enables(shared);
+            self.css = None;
         }
         self.mode = mode;
         self.epoch = self.epoch.wrapping_add(1);
@@ -1086,20 +1130,46 @@ impl MotionCore {
     }
 
     fn start_aux(&mut self, shared: &Shared, aux: Aux, line: u32) {
+        self.aux_cycle = self.cycle;
         let mut mi = shared.machine_interface.lock();
         match aux {
             Aux::SpindleOn { rpm } => {
                 mi.spindle_on = rpm != 0.0;
+                self.spindle_on = mi.spindle_on;
                 mi.spindle_reverse = rpm < 0.0;
                 self.programmed_rpm = rpm.abs();
-                mi.spindle_rpm = self.programmed_rpm * self.spindle_factor();
+                mi.spindle_rpm = self.spindle_command();
             }
             Aux::SpindleOff => {
                 mi.spindle_on = false;
+                self.spindle_on = false;
+            }
+            Aux::ConstantSurfaceSpeed {
+                factor,
+                x_centre,
+                max_rpm,
+            } => {
+                self.css = Some(ConstantSurfaceSpeed {
+                    factor,
+                    x_centre,
+                    max_rpm: max_rpm.min(self.spindle_max_rpm),
+                });
+                mi.spindle_rpm = self.spindle_command();
+            }
+            // Tool compensation turns it into the above.
+            Aux::SurfaceSpeed { .. } => {}
+            // The S number in force becomes the rpm; not waited for (an S word usually
+            // follows at once, and that is waited for).
+            Aux::SurfaceSpeedOff => {
+                self.css = None;
+                mi.spindle_rpm = self.spindle_command();
+                drop(mi);
+                self.phase = Phase::Feeding;
+                return;
             }
             Aux::SpindleSpeed { rpm } => {
                 self.programmed_rpm = rpm.abs();
-                mi.spindle_rpm = self.programmed_rpm * self.spindle_factor();
+                mi.spindle_rpm = self.spindle_command();
             }
             Aux::Mist(on) => mi.mist = on,
             Aux::Flood(on) => mi.flood = on,
@@ -1207,7 +1277,7 @@ impl MotionCore {
             Aux::SpindleOverrideEnable(on) => {
                 self.spindle_override_enabled = on;
                 if mi.spindle_on {
-                    mi.spindle_rpm = self.programmed_rpm * self.spindle_factor();
+                    mi.spindle_rpm = self.spindle_command();
                 }
                 drop(mi);
                 self.phase = Phase::Feeding;
@@ -1284,8 +1354,14 @@ impl MotionCore {
     fn logic_done(&mut self, shared: &Shared, aux: Aux, line: u32, released: bool) -> bool {
         let mut mi = shared.machine_interface.lock();
         let done = match aux {
-            Aux::SpindleOn { .. } | Aux::SpindleSpeed { .. } => {
-                !mi.spindle_on || mi.spindle_at_speed
+            Aux::SpindleOn { .. }
+            | Aux::SpindleSpeed { .. }
+            | Aux::ConstantSurfaceSpeed { .. }
+            | Aux::SurfaceSpeed { .. }
+            | Aux::SurfaceSpeedOff => {
+                // The logic's at-speed answers the new command only after the drives have
+                // had it (one exchange) and the logic has scanned again.
+                !mi.spindle_on || (mi.spindle_at_speed && self.cycle >= self.aux_cycle + 2)
             }
             Aux::SpindleOff => true,
             Aux::Mist(on) => mi.out_mist == on,
@@ -1371,7 +1447,10 @@ impl MotionCore {
                 let spindle_handshake = matches!(
                     self.phase,
                     Phase::Logic {
-                        aux: Aux::SpindleOn { .. } | Aux::SpindleSpeed { .. },
+                        aux: Aux::SpindleOn { .. }
+                            | Aux::SpindleSpeed { .. }
+                            | Aux::ConstantSurfaceSpeed { .. }
+                            | Aux::SurfaceSpeedOff,
                         ..
                     }
                 );
@@ -1419,6 +1498,11 @@ impl MotionCore {
         if self.last.line != line {
             // The program line in the trace, so a timeline shows which block ran when.
             ctx.mark("line", u64::from(self.last.line));
+        }
+        // G96: the spindle speed follows the X set-point.
+        if self.css.is_some() && self.spindle_on {
+            let rpm = self.spindle_command();
+            shared.machine_interface.lock().spindle_rpm = rpm;
         }
         if self.stopping && !self.moving() {
             self.stopping = false;
@@ -1522,6 +1606,7 @@ impl MotionCore {
         mi.m_code_request = false;
         mi.program_running = false;
         mi.spindle_on = false;
+        self.spindle_on = false;
         drop(mi);
         // A stopped program leaves no override disabled behind; the planner takes them at
         // the reset.
@@ -1727,6 +1812,11 @@ impl MotionCore {
         status.program_ended = self.program_ended;
         status.tool = self.tool;
         status.spindle_rpm = feedback.spindle_rpm;
+        status.spindle_command_rpm = if self.spindle_on {
+            self.spindle_command()
+        } else {
+            0.0
+        };
         status.ready = self.ready && self.enable && feedback.enabled != 0;
         status.geometry = self.planner.geometry_stats();
         if let Some(f) = self.last_fault {
