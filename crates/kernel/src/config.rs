@@ -315,6 +315,19 @@ pub struct SpindleSection {
     /// At-speed window, fraction of the command.
     #[serde(default = "spindle_tolerance")]
     pub at_speed_tolerance: f64,
+    /// Simulated spindle: speed of an orientation (M19) once stopped (rpm).
+    #[serde(default = "orient_speed")]
+    pub orient_speed_rpm: f64,
+    /// Simulated spindle: oriented within this many degrees.
+    #[serde(default = "orient_tolerance")]
+    pub orient_tolerance_deg: f64,
+}
+
+fn orient_speed() -> f64 {
+    SpindleConfig::default().orient_speed_rpm
+}
+fn orient_tolerance() -> f64 {
+    SpindleConfig::default().orient_tolerance_deg
 }
 
 fn spindle_ramp() -> f64 {
@@ -879,6 +892,8 @@ impl MachineConfig {
                 max_speed_rpm: s.max_speed_rpm,
                 acceleration_rpm_per_s: s.acceleration_rpm_per_s,
                 at_speed_tolerance: s.at_speed_tolerance,
+                orient_speed_rpm: s.orient_speed_rpm,
+                orient_tolerance_deg: s.orient_tolerance_deg,
             };
         }
         if let Some(t) = &self.tool_changer {

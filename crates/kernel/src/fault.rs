@@ -78,6 +78,8 @@ pub enum FaultCode {
     /// A background check found a persistent file's folder gone or read-only, or the
     /// drive exchange no longer advancing (logged, not stopping by itself).
     BackgroundCheck,
+    /// M19 Q: the spindle did not report oriented within the time-out.
+    SpindleOrientTimeout,
 }
 
 impl FaultCode {
@@ -98,6 +100,7 @@ impl FaultCode {
             FaultCode::HomingFailed => "kernel.homing_failed",
             FaultCode::CommandRefused => "kernel.command_refused",
             FaultCode::BackgroundCheck => "kernel.background_check",
+            FaultCode::SpindleOrientTimeout => "kernel.spindle_orient_timeout",
         }
     }
 
@@ -123,6 +126,7 @@ impl FaultCode {
             FaultCode::HomingFailed => "homing failed",
             FaultCode::CommandRefused => "command refused",
             FaultCode::BackgroundCheck => "background check failed",
+            FaultCode::SpindleOrientTimeout => "spindle orientation timed out",
         }
     }
 

@@ -469,6 +469,16 @@ impl InterpreterStage {
             C::SetAnalogOutput { index, value, .. } => {
                 out.push_back(aux(Aux::AnalogOutput { index, value }))
             }
+            C::OrientSpindle { angle, mode, .. } => {
+                self.spindle_on = None;
+                out.push_back(aux(Aux::SpindleOrient {
+                    angle,
+                    mode: u8::try_from(mode).unwrap_or(0).min(2),
+                }))
+            }
+            C::WaitOrientComplete { timeout, .. } => {
+                out.push_back(aux(Aux::WaitOrient { timeout }))
+            }
             C::FeedOverride(on) => out.push_back(aux(Aux::FeedOverrideEnable(on))),
             C::SpeedOverride { enable, .. } => {
                 out.push_back(aux(Aux::SpindleOverrideEnable(enable)))
@@ -546,7 +556,6 @@ fn not_carried_out(command: &CanonCommand) -> Option<&'static str> {
         C::StraightProbe { .. } => Some("probing (G38.2 to G38.5)"),
         C::RigidTap { .. } => Some("rigid tapping (G33.1)"),
         C::StartSpeedFeedSync { .. } => Some("spindle-synchronised motion (G33, G76)"),
-        C::OrientSpindle { .. } | C::WaitOrientComplete { .. } => Some("spindle orientation (M19)"),
         C::AdaptiveFeed(true) => Some("adaptive feed (M52 P1)"),
         _ => None,
     }

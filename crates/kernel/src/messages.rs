@@ -227,6 +227,18 @@ pub enum Aux {
     },
     /// G97: the spindle turns at the programmed rpm again.
     SurfaceSpeedOff,
+    /// M19 R P: orient the spindle (stops its rotation).
+    SpindleOrient {
+        /// Angle, degrees.
+        angle: f64,
+        /// 0 the shorter way, 1 clockwise, 2 counter-clockwise.
+        mode: u8,
+    },
+    /// M19 Q: wait for the orientation, at most `timeout` seconds, else stop the program.
+    WaitOrient {
+        /// Seconds.
+        timeout: f64,
+    },
     /// M48-M50: the operator's feed (and rapid) override in force or not.
     FeedOverrideEnable(bool),
     /// M48, M49, M51: the operator's spindle override in force or not.

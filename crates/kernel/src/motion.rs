@@ -68,6 +68,8 @@ enum Phase {
     Logic { aux: Aux, line: u32, released: bool },
     /// Paused at M0/M1/single block until resume.
     Paused { start_count: u32 },
+    /// M19 Q: waiting for the spindle to report oriented until `deadline`.
+    WaitOrient { deadline: u64, line: u32 },
     /// M66: waiting for a digital input until `deadline` (an interpolation cycle).
     WaitInput {
         bit: u64,
@@ -172,6 +174,8 @@ pub struct MotionCore {
     spindle_on: bool,
     /// Interpolation cycle in which the last machine function started.
     aux_cycle: u64,
+    /// Interpolation cycle of the last orientation command.
+    orient_cycle: u64,
     /// G96 in force.
     css: Option<ConstantSurfaceSpeed>,
     /// The spindle's top speed (rpm).
@@ -379,6 +383,7 @@ impl MotionCore {
             programmed_rpm: 0.0,
             spindle_on: false,
             aux_cycle: 0,
+            orient_cycle: 0,
             css: None,
             spindle_max_rpm: config
                 .simulated_machine()
@@ -975,6 +980,21 @@ impl MotionCore {
                     }
                     self.phase = Phase::Feeding;
                 }
+                Phase::WaitOrient { deadline, line } => {
+                    // The feedback answers the orientation only after the drive had it.
+                    let oriented = shared.feedback.lock().spindle_oriented
+                        && self.cycle >= self.orient_cycle + 2;
+                    if oriented {
+                        self.phase = Phase::Feeding;
+                    } else if self.cycle >= deadline {
+                        self.phase = Phase::Draining {
+                            then: Then::Error(FaultCode::SpindleOrientTimeout),
+                            line,
+                        };
+                    } else {
+                        return;
+                    }
+                }
                 Phase::WaitInput {
                     bit,
                     condition,
@@ -1134,6 +1154,7 @@ impl MotionCore {
         let mut mi = shared.machine_interface.lock();
         match aux {
             Aux::SpindleOn { rpm } => {
+                mi.spindle_orient = false;
                 mi.spindle_on = rpm != 0.0;
                 self.spindle_on = mi.spindle_on;
                 mi.spindle_reverse = rpm < 0.0;
@@ -1141,8 +1162,34 @@ impl MotionCore {
                 mi.spindle_rpm = self.spindle_command();
             }
             Aux::SpindleOff => {
+                mi.spindle_orient = false;
                 mi.spindle_on = false;
                 self.spindle_on = false;
+            }
+            // Orientation goes to the spindle drive at once; M19 Q waits for it.
+            Aux::SpindleOrient { angle, mode } => {
+                mi.spindle_on = false;
+                self.spindle_on = false;
+                mi.spindle_orient = true;
+                mi.spindle_orient_angle = angle;
+                mi.spindle_orient_mode = mode;
+                drop(mi);
+                self.orient_cycle = self.cycle;
+                self.phase = Phase::Feeding;
+                return;
+            }
+            Aux::WaitOrient { timeout } => {
+                drop(mi);
+                let periods = if timeout.is_finite() && timeout > 0.0 {
+                    (timeout / self.period_s).ceil() as u64
+                } else {
+                    0
+                };
+                self.phase = Phase::WaitOrient {
+                    deadline: self.cycle + periods,
+                    line,
+                };
+                return;
             }
             Aux::ConstantSurfaceSpeed {
                 factor,
@@ -1401,6 +1448,8 @@ impl MotionCore {
             | Aux::ProgramStop
             | Aux::OptionalStop
             | Aux::Message { .. }
+            | Aux::SpindleOrient { .. }
+            | Aux::WaitOrient { .. }
             | Aux::FeedOverrideEnable(_)
             | Aux::SpindleOverrideEnable(_)
             | Aux::FeedStopEnable(_)
@@ -1606,6 +1655,7 @@ impl MotionCore {
         mi.m_code_request = false;
         mi.program_running = false;
         mi.spindle_on = false;
+        mi.spindle_orient = false;
         self.spindle_on = false;
         drop(mi);
         // A stopped program leaves no override disabled behind; the planner takes them at

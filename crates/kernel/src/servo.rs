@@ -271,6 +271,9 @@ impl<B: Fieldbus> ServoStage<B> {
             let mi = self.shared.machine_interface.lock();
             self.outputs.spindle.enable = mi.out_spindle_enable;
             self.outputs.spindle.speed_rpm = mi.out_spindle_rpm;
+            self.outputs.spindle.orient = mi.spindle_orient;
+            self.outputs.spindle.orient_angle_deg = mi.spindle_orient_angle;
+            self.outputs.spindle.orient_mode = mi.spindle_orient_mode;
             self.outputs.coolant.mist = mi.out_mist;
             self.outputs.coolant.flood = mi.out_flood;
             self.outputs.tool_changer.start = mi.out_tool_start;
@@ -374,6 +377,8 @@ impl<B: Fieldbus> ServoStage<B> {
         fb.handwheel_counts = self.inputs.handwheel_counts;
         fb.spindle_rpm = self.inputs.spindle.speed_rpm;
         fb.spindle_at_speed = self.inputs.spindle.at_speed;
+        fb.spindle_angle_deg = self.inputs.spindle.position_deg;
+        fb.spindle_oriented = self.inputs.spindle.oriented;
         fb.tool = self.inputs.tool_changer.current_tool;
         fb.tool_change_done = self.inputs.tool_changer.done;
         for (i, &d) in self.inputs.digital.iter().enumerate().take(64) {

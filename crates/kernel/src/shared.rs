@@ -74,6 +74,10 @@ pub struct Feedback {
     pub spindle_rpm: f64,
     /// Spindle at speed.
     pub spindle_at_speed: bool,
+    /// Spindle angle from its index, degrees.
+    pub spindle_angle_deg: f64,
+    /// The spindle is oriented (M19).
+    pub spindle_oriented: bool,
     /// Tool in the spindle.
     pub tool: u32,
     /// Tool change finished (held until the request drops).
@@ -120,6 +124,12 @@ pub struct MachineInterface {
     pub machine_on_request: bool,
     /// Program digital outputs (M62..M65), bit n = program output n.
     pub program_outputs: u64,
+    /// M19: orient the spindle (to the machine directly; the logic does not see it).
+    pub spindle_orient: bool,
+    /// Its angle, degrees.
+    pub spindle_orient_angle: f64,
+    /// Its mode: 0 shorter way, 1 clockwise, 2 counter-clockwise.
+    pub spindle_orient_mode: u8,
     /// Program analogue outputs (M67/M68), by program output number.
     pub program_analog_outputs: [f64; crate::config::MAX_PROGRAM_IO],
     // Logic -> kernel.

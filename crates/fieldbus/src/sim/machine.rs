@@ -204,6 +204,11 @@ impl SimulatedMachine {
         Ok(())
     }
 
+    /// The spindle's angle from its index, degrees (0 ≤ angle < 360).
+    pub fn spindle_angle_deg(&self) -> f64 {
+        self.spindle.angle_deg()
+    }
+
     /// Sets analogue input `index`.
     pub fn set_analog_input(&mut self, index: usize, value: f64) -> Result<(), SimulationError> {
         let count = self.analog_inputs.len();
