@@ -308,6 +308,16 @@ impl SimulatedMachineConfig {
                 return Err(ConfigError::new(name, format!("at most {MAX_IO_POINTS}")));
             }
         }
+        for (index, device) in self.devices.iter().enumerate() {
+            if let DeviceConfig::Probe { joint, .. } = device {
+                if *joint >= self.joints.len() {
+                    return Err(ConfigError::new(
+                        format!("devices[{index}].joint"),
+                        format!("there is no joint {joint}"),
+                    ));
+                }
+            }
+        }
         validate_devices(
             &self.devices,
             self.io.digital_inputs,

@@ -364,6 +364,19 @@ impl Fieldbus for SimulatedMachine {
         {
             joint.cycle(command, &conditions, feedback);
         }
+        // A probe senses where the joints are at the end of the cycle.
+        let joints = &self.joints;
+        for device in &self.devices {
+            device.sense(
+                |j| joints.get(j).map(|j| j.true_position()),
+                &mut self.digital_image,
+            );
+        }
+        for (level, stuck) in self.digital_image.iter_mut().zip(&self.stuck_inputs) {
+            if let Some(value) = stuck {
+                *level = *value;
+            }
+        }
         inputs.digital.copy_from_slice(&self.digital_image);
         inputs.analog.copy_from_slice(&self.analog_inputs);
         inputs.estop_active = self.estop_active;
