@@ -181,6 +181,18 @@ impl CompensationStage {
                     line,
                 }));
             }
+            ProgramBlock::Probe { line, end, kind } => {
+                let end = self.to_machine(&end);
+                return Some(MachineBlock::Probe {
+                    mv: Move {
+                        kind: MoveKind::Line { end, rapid: false },
+                        feed: self.feed(),
+                        mode: PathMode::ExactStop,
+                        line,
+                    },
+                    kind,
+                });
+            }
             ProgramBlock::Dwell { line, seconds } => {
                 return Some(MachineBlock::Motion(Move::dwell(seconds, line)));
             }

@@ -384,6 +384,9 @@ pub struct IoSection {
     /// the program ignore it, M53 P1 heeds it again; heeded by default).
     #[serde(default)]
     pub feed_stop_input: Option<usize>,
+    /// The touch probe's digital input (G38.2-G38.5).
+    #[serde(default)]
+    pub probe_input: Option<usize>,
 }
 
 fn sixteen() -> usize {
@@ -405,6 +408,7 @@ impl Default for IoSection {
             program_analog_inputs: Vec::new(),
             program_analog_outputs: Vec::new(),
             feed_stop_input: None,
+            probe_input: None,
         }
     }
 }
@@ -757,15 +761,20 @@ impl MachineConfig {
                 ));
             }
         }
-        if let Some(i) = self.io.feed_stop_input {
-            if i >= self.io.digital_inputs.min(64) {
-                return Err(ConfigError::invalid(
-                    "io.feed_stop_input",
-                    format!(
-                        "input {i} is outside the image of {}",
-                        self.io.digital_inputs.min(64)
-                    ),
-                ));
+        for (key, input) in [
+            ("io.feed_stop_input", self.io.feed_stop_input),
+            ("io.probe_input", self.io.probe_input),
+        ] {
+            if let Some(i) = input {
+                if i >= self.io.digital_inputs.min(64) {
+                    return Err(ConfigError::invalid(
+                        key,
+                        format!(
+                            "input {i} is outside the image of {}",
+                            self.io.digital_inputs.min(64)
+                        ),
+                    ));
+                }
             }
         }
         positive_finite("handwheel.units_per_count", self.handwheel.units_per_count)?;

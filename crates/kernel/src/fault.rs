@@ -80,6 +80,9 @@ pub enum FaultCode {
     BackgroundCheck,
     /// M19 Q: the spindle did not report oriented within the time-out.
     SpindleOrientTimeout,
+    /// G38.2-G38.5: the probe was already in the state the move looks for, or G38.2/G38.4
+    /// ended without the probe changing, or the machine has no probe input.
+    ProbeFailed,
 }
 
 impl FaultCode {
@@ -101,6 +104,7 @@ impl FaultCode {
             FaultCode::CommandRefused => "kernel.command_refused",
             FaultCode::BackgroundCheck => "kernel.background_check",
             FaultCode::SpindleOrientTimeout => "kernel.spindle_orient_timeout",
+            FaultCode::ProbeFailed => "kernel.probe_failed",
         }
     }
 
@@ -127,6 +131,7 @@ impl FaultCode {
             FaultCode::CommandRefused => "command refused",
             FaultCode::BackgroundCheck => "background check failed",
             FaultCode::SpindleOrientTimeout => "spindle orientation timed out",
+            FaultCode::ProbeFailed => "probing move failed",
         }
     }
 

@@ -269,6 +269,29 @@ impl InterpreterStage {
                         interp.input_result(value);
                     }
                 }
+                Some(MachineResult::Probe {
+                    tripped,
+                    at,
+                    stopped,
+                }) => {
+                    if let Some(interp) = self.interp.as_mut() {
+                        // Machine millimetres to the interpreter's machine coordinates in
+                        // the program's units.
+                        let per_unit = match interp.modal_state().units {
+                            Units::Mm => 1.0,
+                            Units::Inches => 25.4,
+                        };
+                        let units = |p: [f64; 9]| {
+                            let mut p = p;
+                            for i in [0, 1, 2, 6, 7, 8] {
+                                p[i] /= per_unit;
+                            }
+                            rtcnc_gcode::canon::Pose::from_array(p)
+                        };
+                        interp.probe_result(units(at), tripped, units(stopped));
+                        self.position = interp.modal_state().position.to_array();
+                    }
+                }
                 None => return false,
             },
             None => {
@@ -479,6 +502,14 @@ impl InterpreterStage {
             C::WaitOrientComplete { timeout, .. } => {
                 out.push_back(aux(Aux::WaitOrient { timeout }))
             }
+            C::StraightProbe { end, kind } => {
+                self.position = end.to_array();
+                out.push_back(ProgramBlock::Probe {
+                    line,
+                    end: self.position,
+                    kind,
+                });
+            }
             C::FeedOverride(on) => out.push_back(aux(Aux::FeedOverrideEnable(on))),
             C::SpeedOverride { enable, .. } => {
                 out.push_back(aux(Aux::SpindleOverrideEnable(enable)))
@@ -553,7 +584,6 @@ fn not_carried_out(command: &CanonCommand) -> Option<&'static str> {
     use CanonCommand as C;
     match command {
         C::SplineFeed(_) => Some("spline motion (G5, G5.1)"),
-        C::StraightProbe { .. } => Some("probing (G38.2 to G38.5)"),
         C::RigidTap { .. } => Some("rigid tapping (G33.1)"),
         C::StartSpeedFeedSync { .. } => Some("spindle-synchronised motion (G33, G76)"),
         C::AdaptiveFeed(true) => Some("adaptive feed (M52 P1)"),

@@ -278,6 +278,17 @@ pub enum MachineResult {
     /// M66: the input's value (digital 0 or 1, or the analogue value), -1 on a time-out;
     /// the interpreter stores it in #5399.
     Input(f64),
+    /// G38.x: where the probe changed (machine mm; where the move ended when it did not)
+    /// and where the machine stands now (#5061-#5070 and the position the program goes on
+    /// from).
+    Probe {
+        /// The probe changed.
+        tripped: bool,
+        /// Axis position at the change, machine mm (degrees for A B C).
+        at: [f64; AXES],
+        /// Axis position after the stop.
+        stopped: [f64; AXES],
+    },
 }
 
 /// What M66 waits for.
@@ -306,6 +317,13 @@ pub enum MachineBlock {
         line: u32,
         /// What.
         aux: Aux,
+    },
+    /// A probing move (G38.x): it stops where the probe changes.
+    Probe {
+        /// The move (machine coordinates).
+        mv: Move,
+        /// Which G38.
+        kind: rtcnc_gcode::canon::ProbeKind,
     },
     /// The program ended (M2/M30 or `%`).
     End {
@@ -367,6 +385,15 @@ pub enum ProgramBlock {
         normal: [f64; 3],
         /// Extra turns.
         turns: u32,
+    },
+    /// G38.x straight probe to `end` (program coordinates).
+    Probe {
+        /// Line.
+        line: u32,
+        /// End.
+        end: [f64; AXES],
+        /// Which G38.
+        kind: rtcnc_gcode::canon::ProbeKind,
     },
     /// Dwell, seconds.
     Dwell {

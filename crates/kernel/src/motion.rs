@@ -9,6 +9,8 @@ use rtcnc_motion::otg::{Limits, OnlineAxis, State};
 use rtcnc_motion::{AXES, MotionError, MotionState, Move, Planner, TrivialKinematics};
 use rtcnc_rt::{Context, RingProducer};
 
+use rtcnc_gcode::canon::ProbeKind;
+
 use crate::config::{MAX_JOINTS, MachineConfig};
 use crate::fault::{Fault, FaultCode, TaskName};
 use crate::messages::{
@@ -49,6 +51,7 @@ enum Source {
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Then {
+    Probe(Move, ProbeKind),
     Aux(Aux),
     Error(FaultCode),
     End,
@@ -68,6 +71,8 @@ enum Phase {
     Logic { aux: Aux, line: u32, released: bool },
     /// Paused at M0/M1/single block until resume.
     Paused { start_count: u32 },
+    /// G38.x: the probing move runs (it stops where the probe changes).
+    Probing { kind: ProbeKind, line: u32 },
     /// M19 Q: waiting for the spindle to report oriented until `deadline`.
     WaitOrient { deadline: u64, line: u32 },
     /// M66: waiting for a digital input until `deadline` (an interpolation cycle).
@@ -176,6 +181,12 @@ pub struct MotionCore {
     aux_cycle: u64,
     /// Interpolation cycle of the last orientation command.
     orient_cycle: u64,
+    /// Bit of the probe in the digital inputs (0: none).
+    probe_bit: u64,
+    /// The probing move in progress: its kind and where the probe changed.
+    probe: Option<(ProbeKind, Option<[f64; AXES]>)>,
+    /// Each axis' first joint (for positions from the feedback).
+    axis_joint: [Option<usize>; AXES],
     /// G96 in force.
     css: Option<ConstantSurfaceSpeed>,
     /// The spindle's top speed (rpm).
@@ -384,6 +395,17 @@ impl MotionCore {
             spindle_on: false,
             aux_cycle: 0,
             orient_cycle: 0,
+            probe_bit: config.io.probe_input.map_or(0, |i| 1u64 << i.min(63)),
+            probe: None,
+            axis_joint: {
+                let mut a = [None; AXES];
+                for j in (0..joint_count).rev() {
+                    if let Some(i) = joints[j].axis {
+                        a[i] = Some(j);
+                    }
+                }
+                a
+            },
             css: None,
             spindle_max_rpm: config
                 .simulated_machine()
@@ -605,6 +627,7 @@ impl MotionCore {
     }
 
     fn abort(&mut self, shared: &Shared) {
+        self.probe = None;
         // A stopped program leaves no override disabled behind (M49, M50 P0, M53 P0).
         self.reset_enables(shared);
         self.epoch = self.epoch.wrapping_add(1);
@@ -980,6 +1003,29 @@ impl MotionCore {
                     }
                     self.phase = Phase::Feeding;
                 }
+                Phase::Probing { kind, line } => {
+                    if self.moving() {
+                        return;
+                    }
+                    let tripped_at = self.probe.take().and_then(|p| p.1);
+                    let must_change = matches!(kind, ProbeKind::TowardError | ProbeKind::AwayError);
+                    if tripped_at.is_none() && must_change {
+                        self.phase = Phase::Draining {
+                            then: Then::Error(FaultCode::ProbeFailed),
+                            line,
+                        };
+                        continue;
+                    }
+                    self.send_result(
+                        shared,
+                        MachineResult::Probe {
+                            tripped: tripped_at.is_some(),
+                            at: tripped_at.unwrap_or(self.last.axes),
+                            stopped: self.last.axes,
+                        },
+                    );
+                    self.phase = Phase::Feeding;
+                }
                 Phase::WaitOrient { deadline, line } => {
                     // The feedback answers the orientation only after the drive had it.
                     let oriented = shared.feedback.lock().spindle_oriented
@@ -1095,6 +1141,14 @@ impl MotionCore {
                 let _ = shared;
                 true
             }
+            MachineBlock::Probe { mv, kind } => {
+                self.planner.flush();
+                self.phase = Phase::Draining {
+                    then: Then::Probe(mv, kind),
+                    line: mv.line,
+                };
+                true
+            }
             MachineBlock::End { line } => {
                 self.planner.flush();
                 self.phase = Phase::Draining {
@@ -1146,6 +1200,7 @@ impl MotionCore {
                 shared.machine_interface.lock().program_running = false;
             }
             Then::Aux(aux) => self.start_aux(shared, aux, line),
+            Then::Probe(mv, kind) => self.start_probe(shared, mv, kind),
         }
     }
 
@@ -1368,6 +1423,67 @@ impl MotionCore {
         };
     }
 
+    /// Starts a probing move: refused without a probe input, or when the probe already is
+    /// where the move looks for (LinuxCNC's "probe is already tripped" / "not tripped").
+    fn start_probe(&mut self, shared: &Shared, mv: Move, kind: ProbeKind) {
+        let contact = shared.feedback.lock().digital_inputs & self.probe_bit != 0;
+        let toward = matches!(kind, ProbeKind::TowardError | ProbeKind::Toward);
+        let fail = |line| Phase::Draining {
+            then: Then::Error(FaultCode::ProbeFailed),
+            line,
+        };
+        if self.probe_bit == 0 || contact == toward {
+            self.phase = fail(mv.line);
+            return;
+        }
+        match self.planner.push(&mv) {
+            Ok(()) => {
+                self.planner.flush();
+                self.probe = Some((kind, None));
+                self.phase = Phase::Probing {
+                    kind,
+                    line: mv.line,
+                };
+            }
+            // Already there: the probe did not change.
+            Err(MotionError::ZeroLength { .. }) => {
+                self.probe = Some((kind, None));
+                self.phase = Phase::Probing {
+                    kind,
+                    line: mv.line,
+                };
+            }
+            Err(e) => {
+                self.phase = Phase::Draining {
+                    then: Then::Error(FaultCode::MotionError),
+                    line: e.line().unwrap_or(mv.line),
+                };
+                *shared.motion_error.lock() = Some(e);
+            }
+        }
+    }
+
+    /// During a probing move, every period: where the probe changes, remember the axis
+    /// position (from the feedback, as LinuxCNC) and stop the move.
+    fn probe_step(&mut self, feedback: &Feedback) {
+        let Some((kind, None)) = self.probe else {
+            return;
+        };
+        let contact = feedback.digital_inputs & self.probe_bit != 0;
+        let toward = matches!(kind, ProbeKind::TowardError | ProbeKind::Toward);
+        if contact != toward {
+            return;
+        }
+        let mut at = self.last.axes;
+        for i in 0..AXES {
+            if let Some(j) = self.axis_joint[i] {
+                at[i] = feedback.position[j] + self.offsets[j];
+            }
+        }
+        self.probe = Some((kind, Some(at)));
+        self.planner.abort();
+    }
+
     /// Hands the interpreter the result it waits for (it reads on once it has it).
     fn send_result(&self, shared: &Shared, result: MachineResult) {
         let _ = shared.machine_results.try_put(Tagged {
@@ -1537,6 +1653,7 @@ impl MotionCore {
                 shared.raise(ctx, FaultCode::EStop, TaskName::MachineLogic, None, 0, 0.0);
             }
         }
+        self.probe_step(&feedback);
         // One set-point per servo period of the drives: after a late activation (a real-time
         // overrun) the missed periods are computed now, at most four.
         let steps = feedback.cycle.saturating_sub(self.cycle).clamp(1, 4);
@@ -1633,6 +1750,7 @@ impl MotionCore {
         // Quick stop of whatever moves, with the configured deceleration and jerk; the
         // drives are disabled once it stands (see `interpolate`).
         self.stopping = true;
+        self.probe = None;
         self.epoch = self.epoch.wrapping_add(1);
         let _ = shared
             .interpreter_requests
