@@ -103,3 +103,29 @@ fn a_probe_already_in_contact_refuses_g38_2() {
     assert_eq!(f.line, 3);
     assert_eq!(m.status().axes[2], -4.0);
 }
+
+#[test]
+fn the_simulated_mill_probes_the_top_of_its_workpiece_at_z_minus_50() {
+    // Velocity drives and PID loops: the load follows the set-point closely; the probe
+    // closes in the first period that ends at or below -50, the feedback of that period is
+    // the result (within one period's travel at F100, 1.7 µm, and the encoder's 0.04 µm).
+    let text = "G21 G90\nG0 Z-45\nG38.2 Z-60 F100\n(DEBUG,#5063 #5070)\nG0 Z0\nM2\n";
+    let mut m = Machine::new(
+        &config("sim-mill.toml"),
+        Some(program(text, "mill-probe.ngc")),
+    );
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(30.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    let message = m.sim.handle().take_messages()[0].text;
+    let mut words = message.as_str().split_whitespace();
+    let z: f64 = words.next().unwrap().parse().unwrap();
+    let ok: f64 = words.next().unwrap().parse().unwrap();
+    assert_eq!(ok, 1.0);
+    // (DEBUG prints 6 decimals.)
+    assert!(
+        z <= -50.0 + 5e-7 && z >= -50.0 - 100.0 / 60.0 * 0.001 - 1e-6,
+        "{z}"
+    );
+}
