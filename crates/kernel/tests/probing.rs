@@ -125,7 +125,7 @@ fn the_simulated_mill_probes_the_top_of_its_workpiece_at_z_minus_50() {
     assert_eq!(ok, 1.0);
     // (DEBUG prints 6 decimals.)
     assert!(
-        z <= -50.0 + 5e-7 && z >= -50.0 - 100.0 / 60.0 * 0.001 - 1e-6,
+        (-50.0 - 100.0 / 60.0 * 0.001 - 1e-6..=-50.0 + 5e-7).contains(&z),
         "{z}"
     );
 }
