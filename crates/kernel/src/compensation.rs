@@ -23,6 +23,8 @@ pub(crate) struct CompensationStage {
     mode: PathMode,
     /// G96 in force.
     css: bool,
+    /// G33/G76: the pitch (mm per revolution) of the synchronised feed moves.
+    sync_pitch: Option<f64>,
     pending: Option<Tagged<MachineBlock>>,
 }
 
@@ -40,6 +42,7 @@ impl CompensationStage {
             spindle_rpm: 0.0,
             mode: PathMode::ExactPath,
             css: false,
+            sync_pitch: None,
             pending: None,
         }
     }
@@ -122,6 +125,20 @@ impl CompensationStage {
                     },
                     other => other,
                 }
+            }
+            ProgramBlock::SpindleSync(pitch) => {
+                self.sync_pitch = pitch.map(|p| p * self.mm_per_unit);
+            }
+            ProgramBlock::Line {
+                line,
+                end,
+                rapid: false,
+            } if self.sync_pitch.is_some() => {
+                return Some(MachineBlock::Synced {
+                    line,
+                    end: self.to_machine(&end),
+                    pitch: self.sync_pitch.unwrap_or(0.0),
+                });
             }
             ProgramBlock::Line { line, .. } | ProgramBlock::Arc { line, .. }
                 if self.per_revolution && self.css && !block_is_rapid(&block) =>

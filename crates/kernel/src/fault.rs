@@ -83,6 +83,8 @@ pub enum FaultCode {
     /// G38.2-G38.5: the probe was already in the state the move looks for, or G38.2/G38.4
     /// ended without the probe changing, or the machine has no probe input.
     ProbeFailed,
+    /// G33/G76: the spindle does not turn, or turns too fast for the pitch and the axes.
+    SyncFailed,
 }
 
 impl FaultCode {
@@ -105,6 +107,7 @@ impl FaultCode {
             FaultCode::BackgroundCheck => "kernel.background_check",
             FaultCode::SpindleOrientTimeout => "kernel.spindle_orient_timeout",
             FaultCode::ProbeFailed => "kernel.probe_failed",
+            FaultCode::SyncFailed => "kernel.sync_failed",
         }
     }
 
@@ -132,6 +135,7 @@ impl FaultCode {
             FaultCode::BackgroundCheck => "background check failed",
             FaultCode::SpindleOrientTimeout => "spindle orientation timed out",
             FaultCode::ProbeFailed => "probing move failed",
+            FaultCode::SyncFailed => "spindle-synchronised move impossible",
         }
     }
 

@@ -49,6 +49,8 @@ pub(crate) struct InterpreterStage {
     refused: bool,
     /// G96 in force, with its D word.
     css_max: Option<f64>,
+    /// A spindle-synchronised stretch being collected (from its start to its end).
+    sync_hold: Option<Vec<Canon>>,
     /// Sequence number of the last operator message.
     message_seq: u32,
     /// Message texts not yet handed to the look-ahead (its channel was full).
@@ -86,6 +88,7 @@ impl InterpreterStage {
             blend_tolerance: None,
             refused: false,
             css_max: None,
+            sync_hold: None,
             message_seq: 0,
             texts: std::collections::VecDeque::with_capacity(8),
         }
@@ -125,6 +128,7 @@ impl InterpreterStage {
                     self.epoch = epoch;
                     self.refused = false;
                     self.css_max = None;
+                    self.sync_hold = None;
                     self.outbox.clear();
                     self.texts.clear();
                     self.comp = Compensator::new();
@@ -312,7 +316,6 @@ impl InterpreterStage {
     }
 
     fn convert(&mut self, canon: Canon) {
-        use CanonCommand as C;
         if self.refused {
             return;
         }
@@ -320,6 +323,44 @@ impl InterpreterStage {
             self.refuse(&canon, what);
             return;
         }
+        // A spindle-synchronised stretch is held until its end, so that one the kernel
+        // cannot carry out (more than one move: chained G33, G76 tapers) stops the program
+        // before any of it cuts.
+        if let Some(held) = self.sync_hold.as_mut() {
+            let end = matches!(canon.command, CanonCommand::StopSpeedFeedSync);
+            held.push(canon);
+            if !end {
+                return;
+            }
+            let held = self.sync_hold.take().unwrap_or_default();
+            let mut moves = held.iter().filter(|c| {
+                matches!(
+                    c.command,
+                    CanonCommand::StraightFeed(_) | CanonCommand::ArcFeed(_)
+                )
+            });
+            if let (Some(_), Some(second)) = (moves.next(), moves.next()) {
+                let second = second.clone();
+                self.refuse(
+                    &second,
+                    "consecutive spindle-synchronised moves (chained G33, G76 tapers)",
+                );
+                return;
+            }
+            for c in held {
+                self.convert_now(c);
+            }
+            return;
+        }
+        if matches!(canon.command, CanonCommand::StartSpeedFeedSync { .. }) {
+            self.sync_hold = Some(vec![canon]);
+            return;
+        }
+        self.convert_now(canon);
+    }
+
+    fn convert_now(&mut self, canon: Canon) {
+        use CanonCommand as C;
         let line = canon.source.line;
         let out = &mut self.outbox;
         let aux = |aux| ProgramBlock::Aux { line, aux };
@@ -502,6 +543,11 @@ impl InterpreterStage {
             C::WaitOrientComplete { timeout, .. } => {
                 out.push_back(aux(Aux::WaitOrient { timeout }))
             }
+            C::StartSpeedFeedSync {
+                feed_per_revolution,
+                ..
+            } => out.push_back(ProgramBlock::SpindleSync(Some(feed_per_revolution))),
+            C::StopSpeedFeedSync => out.push_back(ProgramBlock::SpindleSync(None)),
             C::StraightProbe { end, kind } => {
                 self.position = end.to_array();
                 out.push_back(ProgramBlock::Probe {
@@ -585,7 +631,10 @@ fn not_carried_out(command: &CanonCommand) -> Option<&'static str> {
     match command {
         C::SplineFeed(_) => Some("spline motion (G5, G5.1)"),
         C::RigidTap { .. } => Some("rigid tapping (G33.1)"),
-        C::StartSpeedFeedSync { .. } => Some("spindle-synchronised motion (G33, G76)"),
+        C::StartSpeedFeedSync {
+            velocity_mode: true,
+            ..
+        } => Some("velocity-synchronised motion (G33.1)"),
         C::AdaptiveFeed(true) => Some("adaptive feed (M52 P1)"),
         _ => None,
     }

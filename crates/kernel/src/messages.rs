@@ -318,6 +318,16 @@ pub enum MachineBlock {
         /// What.
         aux: Aux,
     },
+    /// A spindle-synchronised line (G33, a G76 pass): from where the machine stands to
+    /// `end`, `pitch` mm per spindle revolution, starting at the spindle's index.
+    Synced {
+        /// Program line.
+        line: u32,
+        /// End (machine coordinates).
+        end: [f64; AXES],
+        /// mm per revolution.
+        pitch: f64,
+    },
     /// A probing move (G38.x): it stops where the probe changes.
     Probe {
         /// The move (machine coordinates).
@@ -386,6 +396,9 @@ pub enum ProgramBlock {
         /// Extra turns.
         turns: u32,
     },
+    /// G33/G76: the following feed move advances `pitch` (program units) per spindle
+    /// revolution, position-synchronised; `None` ends it.
+    SpindleSync(Option<f64>),
     /// G38.x straight probe to `end` (program coordinates).
     Probe {
         /// Line.

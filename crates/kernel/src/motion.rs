@@ -51,6 +51,7 @@ enum Source {
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Then {
+    Synced([f64; AXES], f64),
     Probe(Move, ProbeKind),
     Aux(Aux),
     Error(FaultCode),
@@ -71,6 +72,8 @@ enum Phase {
     Logic { aux: Aux, line: u32, released: bool },
     /// Paused at M0/M1/single block until resume.
     Paused { start_count: u32 },
+    /// G33: the spindle-synchronised move runs.
+    Synced,
     /// G38.x: the probing move runs (it stops where the probe changes).
     Probing { kind: ProbeKind, line: u32 },
     /// M19 Q: waiting for the spindle to report oriented until `deadline`.
@@ -111,6 +114,33 @@ struct ConstantSurfaceSpeed {
     x_centre: f64,
     /// D word, at most the spindle's top speed.
     max_rpm: f64,
+}
+
+/// G33 / a G76 pass: a line whose progress follows the spindle's angle.
+#[derive(Debug, Clone, Copy)]
+struct SyncedMove {
+    start: [f64; AXES],
+    /// Unit direction.
+    dir: [f64; AXES],
+    length: f64,
+    /// mm per revolution.
+    pitch: f64,
+    /// While tracking: the progress's offset from pitch × revolutions, jerk-limited from
+    /// where it was at the index to 0 (planned in the frame that moves with the spindle,
+    /// so it catches up time-optimally and then stays on it).
+    offset: Option<OnlineAxis>,
+    /// Progress along the line (mm): at rest before the index, to the end after tracking.
+    otg: OnlineAxis,
+    /// Path limits along the line (velocity, acceleration, jerk).
+    limits: (f64, f64, f64),
+    /// Unwrapped spindle angle (degrees) and the last reading (0..360).
+    angle: f64,
+    reading: f64,
+    /// The unwrapped angle of the index the move started at; `None` while waiting for it.
+    index: Option<f64>,
+    /// Going to the end at rest (or stopping): no longer tracking.
+    finishing: bool,
+    line: u32,
 }
 
 /// One joint's data for the core, taken from the configuration.
@@ -187,6 +217,10 @@ pub struct MotionCore {
     probe: Option<(ProbeKind, Option<[f64; AXES]>)>,
     /// Each axis' first joint (for positions from the feedback).
     axis_joint: [Option<usize>; AXES],
+    /// The spindle-synchronised move in progress.
+    synced: Option<SyncedMove>,
+    /// A feed hold came during it: the program waits for a resume after it.
+    hold_after_sync: bool,
     /// G96 in force.
     css: Option<ConstantSurfaceSpeed>,
     /// The spindle's top speed (rpm).
@@ -397,6 +431,8 @@ impl MotionCore {
             orient_cycle: 0,
             probe_bit: config.io.probe_input.map_or(0, |i| 1u64 << i.min(63)),
             probe: None,
+            synced: None,
+            hold_after_sync: false,
             axis_joint: {
                 let mut a = [None; AXES];
                 for j in (0..joint_count).rev() {
@@ -464,7 +500,11 @@ impl MotionCore {
 
     fn moving(&self) -> bool {
         match self.source {
-            Source::Path => self.last_state != MotionState::Idle || self.planner.window_len() > 0,
+            Source::Path => {
+                self.synced.is_some()
+                    || self.last_state != MotionState::Idle
+                    || self.planner.window_len() > 0
+            }
             Source::Manual => self.manual_moving(),
         }
     }
@@ -610,6 +650,9 @@ impl MotionCore {
 
     fn hold(&mut self) {
         match self.source {
+            // A thread pass cannot stop in the cut: the hold takes effect at its end (as in
+            // LinuxCNC, which holds spindle-synchronised motion only after it).
+            Source::Path if self.synced.is_some() => self.hold_after_sync = true,
             Source::Path => {
                 if self.moving() {
                     self.held = true;
@@ -628,6 +671,7 @@ impl MotionCore {
 
     fn abort(&mut self, shared: &Shared) {
         self.probe = None;
+        self.stop_synced(false);
         // A stopped program leaves no override disabled behind (M49, M50 P0, M53 P0).
         self.reset_enables(shared);
         self.epoch = self.epoch.wrapping_add(1);
@@ -1003,6 +1047,12 @@ impl MotionCore {
                     }
                     self.phase = Phase::Feeding;
                 }
+                Phase::Synced => {
+                    if self.synced.is_some() {
+                        return;
+                    }
+                    self.phase = Phase::Feeding;
+                }
                 Phase::Probing { kind, line } => {
                     if self.moving() {
                         return;
@@ -1141,6 +1191,14 @@ impl MotionCore {
                 let _ = shared;
                 true
             }
+            MachineBlock::Synced { line, end, pitch } => {
+                self.planner.flush();
+                self.phase = Phase::Draining {
+                    then: Then::Synced(end, pitch),
+                    line,
+                };
+                true
+            }
             MachineBlock::Probe { mv, kind } => {
                 self.planner.flush();
                 self.phase = Phase::Draining {
@@ -1201,6 +1259,7 @@ impl MotionCore {
             }
             Then::Aux(aux) => self.start_aux(shared, aux, line),
             Then::Probe(mv, kind) => self.start_probe(shared, mv, kind),
+            Then::Synced(end, pitch) => self.start_synced(shared, end, pitch, line),
         }
     }
 
@@ -1463,6 +1522,199 @@ impl MotionCore {
         }
     }
 
+    /// Starts a spindle-synchronised line (G33) from where the machine stands: it waits for
+    /// the spindle's index, then its progress follows pitch × revolutions. Refused when the
+    /// spindle stands, when the line leaves the soft limits, or when the spindle turns too
+    /// fast for the pitch and the axes (the axes could not keep up).
+    fn start_synced(&mut self, shared: &Shared, end: [f64; AXES], pitch: f64, line: u32) {
+        let feedback = *shared.feedback.lock();
+        let fail = |code| Phase::Draining {
+            then: Then::Error(code),
+            line,
+        };
+        let start = self.last.axes;
+        let mut dir = [0.0; AXES];
+        let mut length2 = 0.0;
+        for i in 0..AXES {
+            dir[i] = end[i] - start[i];
+            length2 += dir[i] * dir[i];
+        }
+        let length = length2.sqrt();
+        if !length.is_finite() {
+            self.phase = fail(FaultCode::MotionError);
+            return;
+        }
+        if length == 0.0 {
+            self.phase = Phase::Feeding;
+            return;
+        }
+        let (mut v, mut a, mut j) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+        for i in 0..AXES {
+            dir[i] /= length;
+            let share = dir[i].abs();
+            if share < 1e-12 {
+                continue;
+            }
+            if !self.axis_present[i] || end[i] < self.axis_min[i] || end[i] > self.axis_max[i] {
+                self.phase = fail(FaultCode::MotionError);
+                return;
+            }
+            let l = self.axis_limits[i];
+            v = v.min(l.max_velocity / share);
+            a = a.min(l.max_acceleration / share);
+            j = j.min(l.max_jerk / share);
+        }
+        let speed = pitch * feedback.spindle_rpm.abs() / 60.0;
+        let otg = OnlineAxis::new(State::at_rest(0.0), Limits::symmetric(v, a, j));
+        match otg {
+            Ok(otg) if self.spindle_on && speed > 0.0 && speed <= 0.9 * v && pitch > 0.0 => {
+                self.synced = Some(SyncedMove {
+                    start,
+                    dir,
+                    length,
+                    pitch,
+                    offset: None,
+                    otg,
+                    limits: (v, a, j),
+                    angle: feedback.spindle_angle_deg,
+                    reading: feedback.spindle_angle_deg,
+                    index: None,
+                    finishing: false,
+                    line,
+                });
+                self.phase = Phase::Synced;
+            }
+            _ => self.phase = fail(FaultCode::SyncFailed),
+        }
+    }
+
+    /// One period of the synchronised move: follows the spindle's angle (from the last
+    /// exchange) and gives the axis position; finished moves hand the path back to the
+    /// planner where they ended.
+    fn synced_step(&mut self, feedback: &Feedback, sp: &mut JointSetpoints) {
+        let Some(mut m) = self.synced else {
+            return;
+        };
+        let dt = self.period_s;
+        let mut delta = feedback.spindle_angle_deg - m.reading;
+        if delta > 180.0 {
+            delta -= 360.0;
+        } else if delta <= -180.0 {
+            delta += 360.0;
+        }
+        m.reading = feedback.spindle_angle_deg;
+        m.angle += delta;
+        if m.index.is_none() {
+            // The index is at angle 0: the first crossing of a whole turn.
+            let (now, before) = (
+                (m.angle / 360.0).floor(),
+                ((m.angle - delta) / 360.0).floor(),
+            );
+            if now != before {
+                m.index = Some(360.0 * now.max(before));
+            }
+        }
+        let mut progress = None;
+        if let (Some(index), false) = (m.index, m.finishing) {
+            let (vmax, a, j) = m.limits;
+            let speed = m.pitch * (delta / 360.0 / dt).abs();
+            let here = m.pitch * ((m.angle - index) / 360.0).abs();
+            if m.offset.is_none() {
+                // At the index: the offset from the spindle's progress now, to be closed.
+                let relative = Limits {
+                    max_velocity: vmax - speed,
+                    min_velocity: -vmax - speed,
+                    max_acceleration: a,
+                    min_acceleration: -a,
+                    max_jerk: j,
+                };
+                let at = m.otg.sample();
+                let start = State::new(at.p - here, at.v - speed, at.a);
+                m.offset = OnlineAxis::new(start, relative)
+                    .and_then(|mut o| o.set_target(State::at_rest(0.0)).map(|()| o))
+                    .ok();
+                if m.offset.is_none() {
+                    m.finishing = true;
+                    let _ = m.otg.stop();
+                }
+            }
+            if let Some(offset) = m.offset.as_mut() {
+                // The set-point is applied in the next period: where the spindle will be.
+                let e = offset.step(dt);
+                let p = here + speed * dt + e.p;
+                let v = speed + e.v;
+                let stopping = 0.5 * v * (v / a + a / j) + v * dt;
+                if p + stopping >= m.length {
+                    // The end: at most this speed, then to rest on the end point.
+                    // (From the last set-point, which `otg` holds.)
+                    m.finishing = true;
+                    let limits = Limits::symmetric(v.abs().max(speed).max(1e-6), a, j);
+                    let _ = m.otg.set_limits(limits);
+                    let _ = m.otg.set_target(State::at_rest(m.length));
+                } else {
+                    progress = Some((p, v));
+                    // Where a stop would start from (abort, fault).
+                    if let Ok(o) = OnlineAxis::new(
+                        State::new(p, v, e.a),
+                        Limits::symmetric(vmax.max(v.abs()), a, j),
+                    ) {
+                        m.otg = o;
+                    }
+                }
+            }
+        }
+        let s = match progress {
+            Some((p, v)) => rtcnc_motion::otg::Sample {
+                p,
+                v,
+                a: 0.0,
+                j: 0.0,
+            },
+            None if m.finishing || m.offset.is_none() => m.otg.step(dt),
+            None => m.otg.sample(),
+        };
+        for i in 0..AXES {
+            sp.axes[i] = m.start[i] + m.dir[i] * s.p;
+        }
+        for jn in 0..self.joint_count {
+            if let Some(i) = self.joints[jn].axis {
+                sp.joints[jn] = sp.axes[i];
+            }
+        }
+        sp.line = m.line;
+        sp.path_speed = s.v.abs();
+        if m.finishing && m.otg.is_finished() {
+            self.synced = None;
+            let _ = self.planner.reset_at(sp.axes);
+            if std::mem::take(&mut self.hold_after_sync) && self.phase != Phase::Idle {
+                // Standing between moves now: the next one waits for a resume.
+                self.logic_paused = true;
+            }
+        } else {
+            self.synced = Some(m);
+        }
+    }
+
+    /// Stops a synchronised move along its line (abort, fault): it no longer tracks.
+    fn stop_synced(&mut self, quick: bool) {
+        if let Some(m) = self.synced.as_mut() {
+            m.finishing = true;
+            if quick {
+                let (v, _, _) = m.limits;
+                let (mut a, mut j) = (f64::INFINITY, f64::INFINITY);
+                for i in 0..AXES {
+                    let share = m.dir[i].abs();
+                    if share > 1e-12 {
+                        a = a.min(self.axis_quick[i].max_acceleration / share);
+                        j = j.min(self.axis_quick[i].max_jerk / share);
+                    }
+                }
+                let _ = m.otg.set_limits(Limits::symmetric(v, a, j));
+            }
+            let _ = m.otg.stop();
+        }
+    }
+
     /// During a probing move, every period: where the probe changes, remember the axis
     /// position (from the feedback, as LinuxCNC) and stop the move.
     fn probe_step(&mut self, feedback: &Feedback) {
@@ -1691,6 +1943,7 @@ impl MotionCore {
         let mut sp = self.last;
         sp.cycle = self.cycle;
         match self.source {
+            Source::Path if self.synced.is_some() => self.synced_step(feedback, &mut sp),
             Source::Path => {
                 let n = self.planner_joint_count;
                 let status = self.planner.next(&mut self.planner_buf[..n]);
@@ -1751,6 +2004,7 @@ impl MotionCore {
         // drives are disabled once it stands (see `interpolate`).
         self.stopping = true;
         self.probe = None;
+        self.stop_synced(true);
         self.epoch = self.epoch.wrapping_add(1);
         let _ = shared
             .interpreter_requests

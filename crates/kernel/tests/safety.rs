@@ -336,11 +336,12 @@ fn m66_waits_for_a_digital_input_or_its_timeout() {
 
 #[test]
 fn a_probing_move_without_a_probe_input_stops_the_program_before_it() {
-    // G38.2 needs a probe input (io.probe_input), which the simulated mill has none of:
+    // G38.2 needs a probe input (io.probe_input), taken away from the simulated mill here:
     // running it as a plain feed would drive the stylus into the part, so the program
     // stops at the end of line 2.
     let text = "G21 G90 G61.1\nG1 X10 F3000\nG38.2 Z-5 F100\nG1 X20\nM2\n";
-    let cfg = config("sim-mill.toml");
+    let mut cfg = config("sim-mill.toml");
+    cfg.io.probe_input = None;
     let mut m = Machine::new(&cfg, Some(program(text, "probe.ngc")));
     m.power_on();
     m.command(Command::Start { from_line: 0 });
