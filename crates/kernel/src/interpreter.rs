@@ -153,6 +153,7 @@ impl InterpreterStage {
                 }
                 InterpreterRequest::Mdi { epoch, line } => {
                     self.epoch = epoch;
+                    self.sync_hold = None;
                     self.refused = false;
                     self.outbox.clear();
                     self.texts.clear();
@@ -172,6 +173,7 @@ impl InterpreterStage {
                     self.active = true;
                 }
                 InterpreterRequest::Stop => {
+                    self.sync_hold = None;
                     // Also ends a wait for the machine's result.
                     if let Some(interp) = self.interp.as_mut() {
                         interp.abort();
