@@ -21,8 +21,6 @@ pub(crate) struct CompensationStage {
     per_revolution: bool,
     spindle_rpm: f64,
     mode: PathMode,
-    /// G96 in force.
-    css: bool,
     /// G33/G76: the pitch (mm per revolution) of the synchronised feed moves.
     sync_pitch: Option<f64>,
     pending: Option<Tagged<MachineBlock>>,
@@ -41,7 +39,6 @@ impl CompensationStage {
             per_revolution: false,
             spindle_rpm: 0.0,
             mode: PathMode::ExactPath,
-            css: false,
             sync_pitch: None,
             pending: None,
         }
@@ -140,19 +137,6 @@ impl CompensationStage {
                     pitch: self.sync_pitch.unwrap_or(0.0),
                 });
             }
-            ProgramBlock::Line { line, .. } | ProgramBlock::Arc { line, .. }
-                if self.per_revolution && self.css && !block_is_rapid(&block) =>
-            {
-                *self.shared.error_text.lock() = Some(format!(
-                    "line {line}: feed per revolution (G95) under constant surface speed \
-                     (G96) is not supported by the motion kernel yet; the program stops \
-                     before this block"
-                ));
-                return Some(MachineBlock::Error {
-                    line,
-                    code: crate::FaultCode::ProgramError,
-                });
-            }
             ProgramBlock::Line { line, end, rapid } => {
                 let end = self.to_machine(&end);
                 return Some(MachineBlock::Motion(Move {
@@ -225,7 +209,6 @@ impl CompensationStage {
                     }
                     // LinuxCNC's canon: rpm = S (in mm/min) / (2π·|X − the X offsets|).
                     Aux::SurfaceSpeed { surface, max_rpm } => {
-                        self.css = true;
                         let mm_per_minute = if self.mm_per_unit == 1.0 {
                             surface * 1000.0
                         } else {
@@ -238,10 +221,6 @@ impl CompensationStage {
                             max_rpm,
                         }
                     }
-                    Aux::SurfaceSpeedOff => {
-                        self.css = false;
-                        aux
-                    }
                     _ => aux,
                 };
                 return Some(MachineBlock::Aux { line, aux });
@@ -252,8 +231,4 @@ impl CompensationStage {
         }
         None
     }
-}
-
-fn block_is_rapid(block: &ProgramBlock) -> bool {
-    matches!(block, ProgramBlock::Line { rapid: true, .. })
 }

@@ -354,6 +354,23 @@ impl InterpreterStage {
             }
             return;
         }
+        // The planner takes one spindle speed per move; under G96 it changes along it.
+        if self.css_max.is_some()
+            && matches!(
+                canon.command,
+                CanonCommand::StraightFeed(_) | CanonCommand::ArcFeed(_)
+            )
+            && self
+                .interp
+                .as_ref()
+                .is_some_and(|i| i.modal_state().feed_mode == FeedMode::UnitsPerRevolution)
+        {
+            self.refuse(
+                &canon,
+                "feed per revolution (G95) under constant surface speed (G96)",
+            );
+            return;
+        }
         if matches!(canon.command, CanonCommand::StartSpeedFeedSync { .. }) {
             self.sync_hold = Some(vec![canon]);
             return;
