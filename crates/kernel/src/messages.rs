@@ -276,6 +276,15 @@ pub enum ProgramBlock {
         /// Extra turns.
         turns: u32,
     },
+    /// Spline (G5, G5.1): end and Bézier control points in program coordinates.
+    Spline {
+        /// Line.
+        line: u32,
+        /// End.
+        end: [f64; AXES],
+        /// Inner control points (all nine axes).
+        control: rtcnc_motion::Bezier,
+    },
     /// Dwell, seconds.
     Dwell {
         /// Line.

@@ -875,7 +875,8 @@ impl MotionCore {
             MachineBlock::Motion(mv) => {
                 if self.run_from_line > 1 && mv.line < self.run_from_line {
                     if let rtcnc_motion::MoveKind::Line { end, .. }
-                    | rtcnc_motion::MoveKind::Arc { end, .. } = mv.kind
+                    | rtcnc_motion::MoveKind::Arc { end, .. }
+                    | rtcnc_motion::MoveKind::Spline { end, .. } = mv.kind
                     {
                         self.skipped_to = Some(end);
                     }

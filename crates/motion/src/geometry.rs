@@ -117,6 +117,8 @@ impl Helix {
 pub(crate) const MAP_N: usize = 8;
 
 /// Map from arc length to the shape parameter.
+// Pieces are plain data in a preallocated ring: no boxing of the larger table.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Copy)]
 pub(crate) enum ArcMap {
     /// u = s * k.
@@ -127,7 +129,19 @@ pub(crate) enum ArcMap {
         s: [f64; MAP_N + 1],
         duds: [f64; MAP_N + 1],
     },
+    /// Finer nodes at uniform u (`u_k = k / MAP_FINE_N`) with their arc length, du/ds and
+    /// d²u/ds²; between nodes u(s) is the quintic Hermite interpolant, so the path speed,
+    /// acceleration and jerk the map implies are continuous (spline pieces, whose
+    /// parametric speed varies more than that of blends).
+    Quintic {
+        s: [f64; MAP_FINE_N + 1],
+        duds: [f64; MAP_FINE_N + 1],
+        d2uds2: [f64; MAP_FINE_N + 1],
+    },
 }
+
+/// Number of intervals of the quintic arc-length table.
+pub(crate) const MAP_FINE_N: usize = 16;
 
 /// Three-point Gauss-Legendre on [0, 1].
 const GL_X: [f64; 3] = [0.112_701_665_379_258_31, 0.5, 0.887_298_334_620_741_7];
@@ -155,6 +169,37 @@ impl ArcMap {
         (ArcMap::Table { s, duds }, len)
     }
 
+    /// Builds the quintic table of a regular curved shape over u in [0, 1] (its parametric
+    /// speed must not vanish); returns it with the total length.
+    pub fn quintic_table(shape: &Shape) -> (ArcMap, f64) {
+        let mut s = [0.0; MAP_FINE_N + 1];
+        let mut duds = [0.0; MAP_FINE_N + 1];
+        let mut d2uds2 = [0.0; MAP_FINE_N + 1];
+        let h = 1.0 / MAP_FINE_N as f64;
+        for k in 0..=MAP_FINE_N {
+            let d = shape.eval(k as f64 * h);
+            let sig = norm(&d.d1);
+            if sig > 0.0 {
+                let sig_u = dot(&d.d1, &d.d2) / sig;
+                duds[k] = 1.0 / sig;
+                d2uds2[k] = -sig_u / (sig * sig * sig);
+            }
+            if k > 0 {
+                // Two three-point Gauss-Legendre halves per interval.
+                let u0 = (k - 1) as f64 * h;
+                let mut acc = 0.0;
+                for half in 0..2 {
+                    for g in 0..3 {
+                        acc += GL_W[g] * shape.speed(u0 + (half as f64 + GL_X[g]) * 0.5 * h);
+                    }
+                }
+                s[k] = s[k - 1] + acc * 0.5 * h;
+            }
+        }
+        let len = s[MAP_FINE_N];
+        (ArcMap::Quintic { s, duds, d2uds2 }, len)
+    }
+
     /// Shape parameter at arc length `s_q` (clamped to the piece).
     #[inline]
     pub fn u(&self, s_q: f64) -> f64 {
@@ -176,6 +221,38 @@ impl ArcMap {
                 let t3 = t2 * t;
                 let frac = (-2.0 * t3 + 3.0 * t2) + m0 * (t3 - 2.0 * t2 + t) + m1 * (t3 - t2);
                 (k as f64 + frac) * h
+            }
+            ArcMap::Quintic { s, duds, d2uds2 } => {
+                let h = 1.0 / MAP_FINE_N as f64;
+                // Binary search of the interval holding s_q.
+                let (mut lo, mut hi) = (0, MAP_FINE_N);
+                while hi - lo > 1 {
+                    let mid = (lo + hi) / 2;
+                    if s_q > s[mid] {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                let k = lo;
+                let ds = s[k + 1] - s[k];
+                if ds <= 0.0 {
+                    return k as f64 * h;
+                }
+                let t = ((s_q - s[k]) / ds).clamp(0.0, 1.0);
+                let (t2, t3) = (t * t, t * t * t);
+                let (t4, t5) = (t3 * t, t3 * t2);
+                let h1 = t - 6.0 * t3 + 8.0 * t4 - 3.0 * t5;
+                let h2 = 0.5 * (t2 - 3.0 * t3 + 3.0 * t4 - t5);
+                let h3 = 10.0 * t3 - 15.0 * t4 + 6.0 * t5;
+                let h4 = -4.0 * t3 + 7.0 * t4 - 3.0 * t5;
+                let h5 = 0.5 * (t3 - 2.0 * t4 + t5);
+                let du = h1 * ds * duds[k]
+                    + h2 * ds * ds * d2uds2[k]
+                    + h3 * h
+                    + h4 * ds * duds[k + 1]
+                    + h5 * ds * ds * d2uds2[k + 1];
+                k as f64 * h + du
             }
         }
     }
