@@ -204,6 +204,8 @@ pub enum WaitCondition {
 }
 
 /// What the tool-compensation stage sends to look-ahead (machine coordinates, mm, s).
+// Plain data in preallocated channels: a spline move is the largest, no boxing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum MachineBlock {
     /// A move for the planner.
