@@ -130,6 +130,7 @@ fn bernstein(d: usize, t: f64) -> Vec<f64> {
 
 /// Control points of the Bézier curve of degree `d` through `pts` at parameters `ts`
 /// (least squares: normal equations, Gaussian elimination with pivoting).
+#[allow(clippy::needless_range_loop)] // matrix code reads best with indices
 fn fit_bezier(d: usize, ts: &[f64], pts: &[[f64; 3]]) -> Vec<[f64; 3]> {
     let n = d + 1;
     let mut m = vec![vec![0.0; n + 3]; n];
@@ -164,6 +165,7 @@ fn fit_bezier(d: usize, ts: &[f64], pts: &[[f64; 3]]) -> Vec<[f64; 3]> {
 }
 
 /// The curve at t (de Casteljau).
+#[allow(clippy::needless_range_loop)]
 fn on_bezier(ctrl: &[[f64; 3]], t: f64) -> [f64; 3] {
     let mut q = [[0.0; 3]; 4];
     q[..ctrl.len()].copy_from_slice(ctrl);
@@ -236,7 +238,7 @@ fn splines_run_on_linuxcncs_curves_to_the_exact_end() {
         let first = points.iter().position(|(l, _)| *l == line).unwrap();
         let pts: Vec<[f64; 3]> = points[first - 1..]
             .iter()
-            .take_while(|(l, _)| *l == line || *l < line)
+            .take_while(|(l, _)| *l <= line)
             .map(|(_, p)| *p)
             .collect();
         let n = pts.len() - 1;
