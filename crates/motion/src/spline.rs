@@ -2,7 +2,7 @@
 //! limits are checked on, and the split into pieces that are each the exact polynomial over
 //! part of the parameter range (never chords). Runs when moves are pushed.
 //!
-//! A curve is cut into at most [`SPLINE_PIECES`] pieces of equal "difficulty" (the change
+//! A curve is cut into at most three pieces of equal "difficulty" (the change
 //! of the logarithm of the parametric speed plus the turning angle), so that each piece's
 //! tabulated arc-length map sees a parametric speed that changes by a bounded factor, and
 //! the speed-limit samples of a piece are taken as the smallest bound between them (the
@@ -15,8 +15,9 @@ use crate::input::{Bezier, PathMode};
 use crate::limits::Lim;
 use crate::piece::Piece;
 
-/// Most pieces one spline becomes: the planner reserves room for four pieces per move.
-pub(crate) const SPLINE_PIECES: usize = 4;
+/// Most pieces one spline becomes: with a dwell after it, the four pieces the planner
+/// reserves per move.
+pub(crate) const SPLINE_PIECES: usize = 3;
 /// Smallest parametric speed along a curve relative to its largest. Below it the curve
 /// nearly stops inside (a cusp) or at an end (a control point on its end point), where the
 /// curvature grows without bound and the arc-length map cannot follow the parameter.
