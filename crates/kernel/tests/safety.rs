@@ -377,7 +377,10 @@ fn a_spline_whose_bulge_leaves_the_envelope_is_refused_with_its_line() {
         .expect("refused spline");
     assert_eq!(f.line, 3);
     let words = m.sim.handle().error_text().unwrap();
-    assert!(words.contains("soft limit") && words.contains("202.5"), "{words}");
+    assert!(
+        words.contains("soft limit") && words.contains("202.5"),
+        "{words}"
+    );
     let max_y = m.samples.iter().map(|s| s.axes[1]).fold(f64::MIN, f64::max);
     assert_eq!(max_y, 0.0);
 }

@@ -48,6 +48,8 @@ pub(crate) struct SplineP {
     pub len_xyz: f64,
     splits: [f64; SPLINE_PIECES + 1],
     n: usize,
+    /// Arc-length table and length of each piece (built once, when checked).
+    maps: [(ArcMap, f64); SPLINE_PIECES],
 }
 
 fn unit(v: &AxisVec) -> AxisVec {
@@ -130,6 +132,7 @@ impl SplineP {
             len_xyz: 0.0,
             splits: [0.0; SPLINE_PIECES + 1],
             n: 1,
+            maps: [(ArcMap::Linear { k: 1.0 }, 0.0); SPLINE_PIECES],
         };
         sp.check_regular()?;
         sp.check_extent(lim)?;
@@ -335,10 +338,11 @@ impl SplineP {
     /// Refuses a curve on which the arc-length map of some piece would misjudge the path
     /// speed by more than [`MAP_SPEED_TOL`] (the split keeps that from happening on curves
     /// that pass [`SplineP::check_regular`]; this is the guarantee).
-    fn check_maps(&self) -> Result<(), MotionError> {
+    fn check_maps(&mut self) -> Result<(), MotionError> {
         for m in 0..self.n {
             let shape = self.piece_shape(self.splits[m], self.splits[m + 1]);
             let (map, len) = ArcMap::quintic_table(&shape);
+            self.maps[m] = (map, len);
             if map_speed_error(&shape, &map, len) > MAP_SPEED_TOL {
                 return Err(MotionError::InvalidSpline {
                     line: self.line,
@@ -379,7 +383,7 @@ impl SplineP {
                 self.piece_shape(u1, self.splits[m + 2]).pos(0.0)
             };
             let mut pc = Piece::new(shape, start, end, self.feed, false, self.line);
-            (pc.map, pc.len) = ArcMap::quintic_table(&shape);
+            (pc.map, pc.len) = self.maps[m];
             pc.dense_bounds = true;
             pc.stop_at_end = stop && m + 1 == self.n;
             out.push(pc);
