@@ -39,6 +39,8 @@ struct LineP {
     line: u32,
 }
 
+// One primitive is held at a time, by value: a spline with its tables is the largest.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Copy)]
 enum Prim {
     Line(LineP),
