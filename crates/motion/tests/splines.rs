@@ -459,3 +459,41 @@ fn a_long_spline_chain_through_the_smallest_window_ends_exactly() {
     }
     assert!(worst <= 1e-9, "{worst}");
 }
+
+#[test]
+fn hold_resume_and_override_on_a_spline_stay_on_the_curve() {
+    let pts = [
+        p3(0.0, 0.0, 0.0),
+        p3(10.0, 15.0, 0.0),
+        p3(20.0, -15.0, 0.0),
+        p3(30.0, 0.0, 0.0),
+    ];
+    let mv = Move::spline(
+        pts[3],
+        Bezier::Cubic([pts[1], pts[2]]),
+        100.0,
+        PathMode::ExactPath,
+        1,
+    );
+    let lim = limits(V, A, J);
+    let mut pl = planner(&lim, pts[0], 64);
+    let tr = run_with(&mut pl, &[mv], 50_000, |n, pl| match n {
+        150 => pl.hold(),
+        600 => pl.resume(),
+        700 => pl.set_feed_override(0.5),
+        900 => pl.set_feed_override(1.7),
+        _ => {}
+    });
+    assert_limits(&tr, V, A, J);
+    assert_eq!(pl.stats().limit_violations, 0);
+    check_on_curve(&tr, &pts);
+    // Held: the set-point stands still between the hold's stop and the resume.
+    let held = &tr.pts[3 + 450..3 + 600];
+    assert!(held.iter().all(|p| p == &held[0]));
+    assert!(
+        held[0][0] > 1.0 && held[0][0] < 29.0,
+        "held at {:?}",
+        held[0]
+    );
+    assert!(dist(tr.pts.last().unwrap(), &pts[3]) <= 1e-12);
+}
