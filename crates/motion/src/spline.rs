@@ -30,8 +30,10 @@ const GRID: usize = 128;
 /// Difficulty (change of ln speed plus turning, rad) one piece takes at most before the
 /// curve is cut into more pieces.
 const PIECE_COST: f64 = 0.3;
-/// Extra points per sub-interval between speed-limit samples.
+/// Sub-intervals between speed-limit samples on which the bounds are taken.
 const DENSE: usize = 8;
+/// Share of each axis's acceleration the centripetal bound of a spline may take.
+const CENTRIPETAL_SHARE: f64 = 0.9;
 
 /// A validated spline: power-basis coefficients and where its pieces meet.
 #[derive(Debug, Clone, Copy)]
@@ -411,18 +413,26 @@ fn map_speed_error(shape: &Shape, map: &ArcMap, len: f64) -> f64 {
 impl Piece {
     /// The speed bounds at each sample become the smallest bound between it and its
     /// neighbours: the braking curve takes the smaller of two neighbouring samples over the
-    /// interval between them, so a peak of curvature between samples is not missed.
+    /// interval between them, so a peak of curvature between samples is not missed. The
+    /// centripetal bound leaves [`CENTRIPETAL_SHARE`]'s complement of each axis's
+    /// acceleration free: at a curvature peak the path must still be able to brake (with
+    /// the whole acceleration taken by the curve the braking model sees no deceleration
+    /// there, and a stop after it could not be planned).
     pub(crate) fn tighten_bounds_between_samples(&mut self, lim: &Lim) {
+        let mut shared = *lim;
+        for a in shared.a.iter_mut() {
+            *a *= CENTRIPETAL_SHARE;
+        }
         let mut v_axis = [f64::INFINITY; crate::piece::NS_MAX];
         let mut v_curve = [f64::INFINITY; crate::piece::NS_MAX];
         for k in 0..self.ns {
             let u0 = self.map.u(self.len * k as f64 / self.ns as f64);
             let u1 = self.map.u(self.len * (k + 1) as f64 / self.ns as f64);
-            for q in 1..DENSE {
+            for q in 0..=DENSE {
                 let u = u0 + (u1 - u0) * q as f64 / DENSE as f64;
                 let d = self.shape.eval(u);
                 let (t, kv, kp) = crate::geometry::arc_derivs(&d);
-                let (va, vc) = self.point_bounds(&t, &kv, &kp, lim);
+                let (va, vc) = self.point_bounds(&t, &kv, &kp, &shared);
                 v_axis[k] = v_axis[k].min(va);
                 v_curve[k] = v_curve[k].min(vc);
             }

@@ -30,35 +30,35 @@ fn bezier(pts: &[AxisVec], t: f64) -> AxisVec {
     p
 }
 
-/// Distance of `p` from the curve: the nearest parameter on a fine grid, refined by Newton
-/// steps on (B(t) - p)·B'(t) = 0 with derivatives by central differences of B.
+/// Distance of `p` from the curve: the nearest parameter on a grid, refined by a ternary
+/// search on the squared distance within the grid cells next to it.
 fn distance_to_curve(pts: &[AxisVec], p: &AxisVec) -> f64 {
-    let n = 500;
-    let mut best = (0.0, f64::INFINITY);
+    let d2 = |t: f64| {
+        let b = bezier(pts, t);
+        (0..AXES).map(|i| (b[i] - p[i]).powi(2)).sum::<f64>()
+    };
+    let n = 1000;
+    let (mut k_best, mut best) = (0, f64::INFINITY);
     for k in 0..=n {
-        let t = k as f64 / n as f64;
-        let d = dist(&bezier(pts, t), p);
-        if d < best.1 {
-            best = (t, d);
+        let d = d2(k as f64 / n as f64);
+        if d < best {
+            (k_best, best) = (k, d);
         }
     }
-    let mut t = best.0;
-    let h = 1e-5;
-    for _ in 0..20 {
-        let f = |t: f64| {
-            let b = bezier(pts, t);
-            let (bp, bm) = (bezier(pts, t + h), bezier(pts, t - h));
-            (0..AXES)
-                .map(|i| (b[i] - p[i]) * (bp[i] - bm[i]) / (2.0 * h))
-                .sum::<f64>()
-        };
-        let g = (f(t + h) - f(t - h)) / (2.0 * h);
-        if g == 0.0 {
-            break;
+    let h = 1.0 / n as f64;
+    let (mut lo, mut hi) = (
+        (k_best as f64 * h - h).max(0.0),
+        (k_best as f64 * h + h).min(1.0),
+    );
+    for _ in 0..100 {
+        let (a, b) = (lo + (hi - lo) / 3.0, hi - (hi - lo) / 3.0);
+        if d2(a) < d2(b) {
+            hi = b;
+        } else {
+            lo = a;
         }
-        t = (t - f(t) / g).clamp(0.0, 1.0);
     }
-    dist(&bezier(pts, t), p).min(best.1)
+    d2(0.5 * (lo + hi)).min(best).sqrt()
 }
 
 fn check_on_curve(tr: &Trace, pts: &[AxisVec]) {
@@ -114,7 +114,7 @@ fn quadratic_spline_set_points_lie_on_the_parabola_and_end_exactly() {
     assert!(dist(tr.pts.last().unwrap(), &pts[2]) <= 1e-12);
 }
 
-/// A cubic whose inner control points cross: a hairpin of radius `r_apex` at t = 1/2.
+/// A cubic whose inner control points cross: a hairpin at t = 1/2.
 fn hairpin(c1x: f64, c2x: f64, line: u32) -> (Move, [AxisVec; 4]) {
     let pts = [
         p3(0.0, 0.0, 0.0),
@@ -134,8 +134,8 @@ fn hairpin(c1x: f64, c2x: f64, line: u32) -> (Move, [AxisVec; 4]) {
 
 #[test]
 fn a_tight_spline_slows_down_to_its_curvature_and_keeps_the_limits() {
-    // At t = 1/2: B' = (3 (c1x - c2x) / 2 ... ) = (6, 0), B'' = (0, -48): radius 0.75 mm,
-    // so the centripetal limit there is sqrt(1000 · 0.75) = 27.4 mm/s.
+    // At t = 1/2: B' = (6, 0), B'' = (0, -48): radius 0.75 mm, so the centripetal limit
+    // there is sqrt(1000 · 0.75) = 27.4 mm/s.
     let (mv, pts) = hairpin(6.0, 4.0, 3);
     let tr = spline_run(&[mv], pts[0]);
     check_on_curve(&tr, &pts);
@@ -143,6 +143,17 @@ fn a_tight_spline_slows_down_to_its_curvature_and_keeps_the_limits() {
     let apex = p3(5.0, 6.0, 0.0);
     let v_apex = speed_near(&tr, &apex);
     assert!(v_apex <= (A * 0.75f64).sqrt() * (1.0 + 1e-6), "{v_apex}");
+    // Hairpins down to a radius of 0.19 mm (B' = (3, 0), B'' = (0, -48) at the apex),
+    // at two feeds: on the curve, within the limits, at rest at the end.
+    for (c1x, c2x) in [(12.0, -2.0), (10.0, 2.0), (14.0, -4.0)] {
+        for feed in [30.0, 100.0] {
+            let (mut mv, pts) = hairpin(c1x, c2x, 4);
+            mv.feed = rtcnc_motion::Feed::UnitsPerSecond(feed);
+            let tr = spline_run(&[mv], pts[0]);
+            check_on_curve(&tr, &pts);
+            assert!(dist(tr.pts.last().unwrap(), &pts[3]) <= 1e-12);
+        }
+    }
 }
 
 #[test]
