@@ -30,35 +30,36 @@ fn bezier(pts: &[AxisVec], t: f64) -> AxisVec {
     p
 }
 
-/// Distance of `p` from the curve: the nearest parameter on a grid, refined by a ternary
-/// search on the squared distance within the grid cells next to it.
+/// Distance of `p` from the curve: every local minimum of the distance on a grid (a loop
+/// brings two branches close), refined by a ternary search within the grid cells next to
+/// it.
 fn distance_to_curve(pts: &[AxisVec], p: &AxisVec) -> f64 {
     let d2 = |t: f64| {
         let b = bezier(pts, t);
         (0..AXES).map(|i| (b[i] - p[i]).powi(2)).sum::<f64>()
     };
-    let n = 1000;
-    let (mut k_best, mut best) = (0, f64::INFINITY);
-    for k in 0..=n {
-        let d = d2(k as f64 / n as f64);
-        if d < best {
-            (k_best, best) = (k, d);
-        }
-    }
+    let n = 300;
     let h = 1.0 / n as f64;
-    let (mut lo, mut hi) = (
-        (k_best as f64 * h - h).max(0.0),
-        (k_best as f64 * h + h).min(1.0),
-    );
-    for _ in 0..100 {
-        let (a, b) = (lo + (hi - lo) / 3.0, hi - (hi - lo) / 3.0);
-        if d2(a) < d2(b) {
-            hi = b;
-        } else {
-            lo = a;
+    let grid: Vec<f64> = (0..=n).map(|k| d2(k as f64 * h)).collect();
+    let mut best = f64::INFINITY;
+    for k in 0..=n {
+        let left = k == 0 || grid[k] <= grid[k - 1];
+        let right = k == n || grid[k] <= grid[k + 1];
+        if !(left && right) {
+            continue;
         }
+        let (mut lo, mut hi) = ((k as f64 * h - h).max(0.0), (k as f64 * h + h).min(1.0));
+        for _ in 0..100 {
+            let (a, b) = (lo + (hi - lo) / 3.0, hi - (hi - lo) / 3.0);
+            if d2(a) < d2(b) {
+                hi = b;
+            } else {
+                lo = a;
+            }
+        }
+        best = best.min(d2(0.5 * (lo + hi))).min(grid[k]);
     }
-    d2(0.5 * (lo + hi)).min(best).sqrt()
+    best.sqrt()
 }
 
 fn check_on_curve(tr: &Trace, pts: &[AxisVec]) {
