@@ -129,11 +129,13 @@ pub(crate) enum ArcMap {
         s: [f64; MAP_N + 1],
         duds: [f64; MAP_N + 1],
     },
-    /// Finer nodes at uniform u (`u_k = k / MAP_FINE_N`) with their arc length, du/ds and
-    /// d²u/ds²; between nodes u(s) is the quintic Hermite interpolant, so the path speed,
-    /// acceleration and jerk the map implies are continuous (spline pieces, whose
-    /// parametric speed varies more than that of blends).
+    /// Finer nodes `u_k`, placed where the parametric speed changes (equal steps of
+    /// u + |Δ ln |dp/du||), with their arc length, du/ds and d²u/ds²; between nodes u(s) is
+    /// the quintic Hermite interpolant, so the path speed, acceleration and jerk the map
+    /// implies are continuous (spline pieces, whose parametric speed varies much more than
+    /// that of blends).
     Quintic {
+        u: [f64; MAP_FINE_N + 1],
         s: [f64; MAP_FINE_N + 1],
         duds: [f64; MAP_FINE_N + 1],
         d2uds2: [f64; MAP_FINE_N + 1],
@@ -141,7 +143,7 @@ pub(crate) enum ArcMap {
 }
 
 /// Number of intervals of the quintic arc-length table.
-pub(crate) const MAP_FINE_N: usize = 16;
+pub(crate) const MAP_FINE_N: usize = 24;
 
 /// Three-point Gauss-Legendre on [0, 1].
 const GL_X: [f64; 3] = [0.112_701_665_379_258_31, 0.5, 0.887_298_334_620_741_7];
@@ -172,12 +174,37 @@ impl ArcMap {
     /// Builds the quintic table of a regular curved shape over u in [0, 1] (its parametric
     /// speed must not vanish); returns it with the total length.
     pub fn quintic_table(shape: &Shape) -> (ArcMap, f64) {
+        // Node placement: equal steps of u + |Δ ln σ| on a fine grid (σ = |dp/du|), so
+        // that nodes gather where du/ds = 1/σ changes fast.
+        const FINE: usize = 8 * MAP_FINE_N;
+        let mut cum = [0.0; FINE + 1];
+        let mut prev = shape.speed(0.0).ln();
+        for k in 1..=FINE {
+            let ls = shape.speed(k as f64 / FINE as f64).ln();
+            cum[k] = cum[k - 1] + 1.0 / FINE as f64 + (ls - prev).abs();
+            prev = ls;
+        }
+        let mut u = [1.0; MAP_FINE_N + 1];
+        u[0] = 0.0;
+        let mut j = 0;
+        for k in 1..MAP_FINE_N {
+            let target = cum[FINE] * k as f64 / MAP_FINE_N as f64;
+            while j < FINE && cum[j + 1] < target {
+                j += 1;
+            }
+            let span = cum[j + 1] - cum[j];
+            let f = if span > 0.0 {
+                (target - cum[j]) / span
+            } else {
+                0.0
+            };
+            u[k] = (j as f64 + f) / FINE as f64;
+        }
         let mut s = [0.0; MAP_FINE_N + 1];
         let mut duds = [0.0; MAP_FINE_N + 1];
         let mut d2uds2 = [0.0; MAP_FINE_N + 1];
-        let h = 1.0 / MAP_FINE_N as f64;
         for k in 0..=MAP_FINE_N {
-            let d = shape.eval(k as f64 * h);
+            let d = shape.eval(u[k]);
             let sig = norm(&d.d1);
             if sig > 0.0 {
                 let sig_u = dot(&d.d1, &d.d2) / sig;
@@ -186,7 +213,7 @@ impl ArcMap {
             }
             if k > 0 {
                 // Two three-point Gauss-Legendre halves per interval.
-                let u0 = (k - 1) as f64 * h;
+                let (u0, h) = (u[k - 1], u[k] - u[k - 1]);
                 let mut acc = 0.0;
                 for half in 0..2 {
                     for g in 0..3 {
@@ -197,7 +224,7 @@ impl ArcMap {
             }
         }
         let len = s[MAP_FINE_N];
-        (ArcMap::Quintic { s, duds, d2uds2 }, len)
+        (ArcMap::Quintic { u, s, duds, d2uds2 }, len)
     }
 
     /// Shape parameter at arc length `s_q` (clamped to the piece).
@@ -222,8 +249,7 @@ impl ArcMap {
                 let frac = (-2.0 * t3 + 3.0 * t2) + m0 * (t3 - 2.0 * t2 + t) + m1 * (t3 - t2);
                 (k as f64 + frac) * h
             }
-            ArcMap::Quintic { s, duds, d2uds2 } => {
-                let h = 1.0 / MAP_FINE_N as f64;
+            ArcMap::Quintic { u, s, duds, d2uds2 } => {
                 // Binary search of the interval holding s_q.
                 let (mut lo, mut hi) = (0, MAP_FINE_N);
                 while hi - lo > 1 {
@@ -237,7 +263,7 @@ impl ArcMap {
                 let k = lo;
                 let ds = s[k + 1] - s[k];
                 if ds <= 0.0 {
-                    return k as f64 * h;
+                    return u[k];
                 }
                 let t = ((s_q - s[k]) / ds).clamp(0.0, 1.0);
                 let (t2, t3) = (t * t, t * t * t);
@@ -249,10 +275,10 @@ impl ArcMap {
                 let h5 = 0.5 * (t3 - 2.0 * t4 + t5);
                 let du = h1 * ds * duds[k]
                     + h2 * ds * ds * d2uds2[k]
-                    + h3 * h
+                    + h3 * (u[k + 1] - u[k])
                     + h4 * ds * duds[k + 1]
                     + h5 * ds * ds * d2uds2[k + 1];
-                k as f64 * h + du
+                u[k] + du
             }
         }
     }

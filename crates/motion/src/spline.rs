@@ -348,7 +348,7 @@ impl SplineP {
             if map_speed_error(&shape, &map, len) > MAP_SPEED_TOL {
                 return Err(MotionError::InvalidSpline {
                     line: self.line,
-                    why: "its parametric speed changes too fast (control points close to an end point)",
+                    why: "its parametric speed changes too fast to be followed (a control point very near an end point, or a near cusp)",
                 });
             }
         }

