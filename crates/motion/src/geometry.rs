@@ -178,9 +178,11 @@ impl ArcMap {
         // that nodes gather where du/ds = 1/σ changes fast.
         const FINE: usize = 8 * MAP_FINE_N;
         let mut cum = [0.0; FINE + 1];
-        let mut prev = shape.speed(0.0).ln();
+        // (Spline pieces are regular: the floor only keeps a degenerate shape finite.)
+        let log_speed = |u: f64| shape.speed(u).max(1e-300).ln();
+        let mut prev = log_speed(0.0);
         for k in 1..=FINE {
-            let ls = shape.speed(k as f64 / FINE as f64).ln();
+            let ls = log_speed(k as f64 / FINE as f64);
             cum[k] = cum[k - 1] + 1.0 / FINE as f64 + (ls - prev).abs();
             prev = ls;
         }
