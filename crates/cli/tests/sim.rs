@@ -134,3 +134,19 @@ fn ctrl_c_holds_the_feed_and_a_second_one_aborts() {
     assert!(stdout.contains("program stopped"), "{stdout}");
     assert_eq!(out.status.code(), Some(1));
 }
+
+#[test]
+fn sim_runs_the_spline_example_on_the_mill() {
+    let out = rtcnc()
+        .args(["sim", "examples/gcode/splines.ngc", "-q"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("limits      respected"), "{stdout}");
+    assert!(stdout.contains("faults      none"), "{stdout}");
+}
