@@ -281,3 +281,47 @@ fn splines_run_on_linuxcncs_curves_to_the_exact_end() {
     }
     assert!(checked > 100, "{checked} set-points on the splines");
 }
+
+#[test]
+fn a_spline_in_inches_in_a_rotated_work_system_is_the_transformed_curve() {
+    // G54 at X0.5 Y0.2 in, rotated 30°: machine = rotate(program) + offset, in mm. A Bézier
+    // curve maps to the Bézier curve of the mapped control points.
+    let text = "G20 G90 G17 G61\nG10 L2 P1 X0.5 Y0.2 R30\nG54 G0 X0 Y0\n\
+                G1 X0.4 F20\nG5 I0.2 J0 P-0.2 Q0 X1.0 Y0.4\nM2\n";
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::new(&cfg, Some(program(text, "inch-spline.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(
+        m.until(60.0, |s| s.program_ended && s.state == MachineState::Idle),
+        "{:?} {:?}",
+        m.faults,
+        m.sim.handle().error_text()
+    );
+    let (s30, c30) = 30f64.to_radians().sin_cos();
+    let machine = |x: f64, y: f64| {
+        [
+            (c30 * x - s30 * y + 0.5) * 25.4,
+            (s30 * x + c30 * y + 0.2) * 25.4,
+            0.0,
+        ]
+    };
+    let ctrl = [
+        machine(0.4, 0.0),
+        machine(0.6, 0.0),
+        machine(0.8, 0.4),
+        machine(1.0, 0.4),
+    ];
+    let mut on_spline = 0;
+    for s in m.samples.iter().filter(|s| s.line == 5) {
+        let d = distance_to_bezier(&ctrl, &s.axes[..3]);
+        assert!(d <= 1e-9, "set-point {:?} is {d} mm off", &s.axes[..3]);
+        on_spline += 1;
+    }
+    assert!(on_spline > 100, "{on_spline}");
+    let end = m.status().axes;
+    assert!(
+        (0..2).all(|i| (end[i] - ctrl[3][i]).abs() <= 1e-9),
+        "{end:?}"
+    );
+}
