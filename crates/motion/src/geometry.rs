@@ -143,7 +143,7 @@ pub(crate) enum ArcMap {
 }
 
 /// Number of intervals of the quintic arc-length table.
-pub(crate) const MAP_FINE_N: usize = 24;
+pub(crate) const MAP_FINE_N: usize = 32;
 
 /// Three-point Gauss-Legendre on [0, 1].
 const GL_X: [f64; 3] = [0.112_701_665_379_258_31, 0.5, 0.887_298_334_620_741_7];

@@ -138,8 +138,11 @@ impl SplineP {
         };
         sp.check_regular()?;
         sp.check_extent(lim)?;
-        sp.split();
-        sp.check_maps()?;
+        sp.split(false);
+        if sp.check_maps().is_err() {
+            sp.split(true);
+            sp.check_maps()?;
+        }
         let (len, len_xyz) = sp.lengths();
         sp.len = len;
         sp.len_xyz = len_xyz;
@@ -283,8 +286,10 @@ impl SplineP {
         (lo, hi)
     }
 
-    /// Cuts [0, 1] into pieces of equal difficulty (change of ln speed plus turning).
-    fn split(&mut self) {
+    /// Cuts [0, 1] into pieces of equal difficulty (change of ln speed plus turning); with
+    /// `at_dip`, one cut goes where the parametric speed is smallest inside (a near cusp
+    /// then lies at a piece's end, where its table has a node, not inside a piece).
+    fn split(&mut self, at_dip: bool) {
         let mut cum = [0.0; GRID + 1];
         let mut prev_t = unit(&self.d1(0.0));
         let mut prev_ls = norm(&self.d1(0.0)).ln();
@@ -299,23 +304,74 @@ impl SplineP {
         }
         let total = cum[GRID];
         let n = ((total / PIECE_COST).ceil() as usize).clamp(1, SPLINE_PIECES);
-        self.n = n;
-        self.splits = [1.0; SPLINE_PIECES + 1];
-        self.splits[0] = 0.0;
-        let mut k = 0;
-        for m in 1..n {
-            let target = total * m as f64 / n as f64;
-            while k < GRID && cum[k + 1] < target {
-                k += 1;
-            }
+        // The parameter where the cost reaches `target`.
+        let at_cost = |target: f64| {
+            let k = (0..GRID).find(|k| cum[k + 1] >= target).unwrap_or(GRID - 1);
             let span = cum[k + 1] - cum[k];
             let f = if span > 0.0 {
-                (target - cum[k]) / span
+                ((target - cum[k]) / span).clamp(0.0, 1.0)
             } else {
                 0.0
             };
-            self.splits[m] = (k as f64 + f) / GRID as f64;
+            (k as f64 + f) / GRID as f64
+        };
+        self.splits = [1.0; SPLINE_PIECES + 1];
+        self.splits[0] = 0.0;
+        if at_dip && n >= 2 {
+            // Cuts at the deepest interior minima of the parametric speed, then at the cost
+            // midpoint of the costliest piece.
+            let speed: Vec<f64> = (0..=GRID)
+                .map(|k| norm(&self.d1(k as f64 / GRID as f64)))
+                .collect();
+            let top = speed.iter().cloned().fold(0.0, f64::max);
+            let mut dips: Vec<usize> = (2..GRID - 1)
+                .filter(|&k| speed[k] < speed[k - 1] && speed[k] <= speed[k + 1])
+                .filter(|&k| speed[k] < 0.5 * top)
+                .collect();
+            dips.sort_by(|a, b| speed[*a].total_cmp(&speed[*b]));
+            dips.truncate(n - 1);
+            // Each minimum refined by golden-section search within its grid cells.
+            let mut cuts: Vec<f64> = dips
+                .iter()
+                .map(|&k| {
+                    let h = 1.0 / GRID as f64;
+                    let (mut lo, mut hi) = ((k - 1) as f64 * h, (k + 1) as f64 * h);
+                    let g = 0.5 * (5f64.sqrt() - 1.0);
+                    for _ in 0..50 {
+                        let (x1, x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
+                        if norm(&self.d1(x1)) < norm(&self.d1(x2)) {
+                            hi = x2;
+                        } else {
+                            lo = x1;
+                        }
+                    }
+                    0.5 * (lo + hi)
+                })
+                .collect();
+            let cost_at = |u: f64| cum[((u * GRID as f64).round() as usize).min(GRID)];
+            while cuts.len() < n - 1 {
+                cuts.sort_by(f64::total_cmp);
+                let mut bounds = vec![0.0];
+                bounds.extend(cuts.iter().cloned());
+                bounds.push(1.0);
+                let (i, _) = bounds
+                    .windows(2)
+                    .enumerate()
+                    .map(|(i, w)| (i, cost_at(w[1]) - cost_at(w[0])))
+                    .fold((0, f64::MIN), |m, x| if x.1 > m.1 { x } else { m });
+                let mid = 0.5 * (cost_at(bounds[i]) + cost_at(bounds[i + 1]));
+                cuts.push(at_cost(mid));
+            }
+            cuts.sort_by(f64::total_cmp);
+            for (m, u) in cuts.iter().enumerate() {
+                self.splits[m + 1] = *u;
+            }
+        } else {
+            for m in 1..n {
+                self.splits[m] = at_cost(total * m as f64 / n as f64);
+            }
         }
+        self.n = n;
     }
 
     /// The exact polynomial over [u0, u1], re-parametrised to [0, 1].
@@ -345,7 +401,7 @@ impl SplineP {
             let shape = self.piece_shape(self.splits[m], self.splits[m + 1]);
             let (map, len) = ArcMap::quintic_table(&shape);
             self.maps[m] = (map, len);
-            if map_speed_error(&shape, &map, len) > MAP_SPEED_TOL {
+            if map_speed_error(&shape, &map) > MAP_SPEED_TOL {
                 return Err(MotionError::InvalidSpline {
                     line: self.line,
                     why: "its parametric speed changes too fast to be followed (a control point very near an end point, or a near cusp)",
@@ -394,17 +450,22 @@ impl SplineP {
 }
 
 /// Largest relative error of the path speed the map makes on a piece: σ(u(s))·du/ds − 1
-/// at four points inside every interval of the table.
-fn map_speed_error(shape: &Shape, map: &ArcMap, len: f64) -> f64 {
+/// at four points inside every interval of its table.
+fn map_speed_error(shape: &Shape, map: &ArcMap) -> f64 {
+    let ArcMap::Quintic { s: nodes, .. } = map else {
+        return 0.0;
+    };
     let mut worst = 0.0f64;
-    let n = 4 * MAP_FINE_N;
-    for k in 0..n {
-        let s = len * (k as f64 + 0.5) / n as f64;
-        let ds = 1e-4 * len / n as f64;
-        let duds = (map.u(s + ds) - map.u(s - ds)) / (2.0 * ds);
-        let err = (shape.speed(map.u(s)) * duds - 1.0).abs();
-        if !(err <= worst) {
-            worst = if err.is_nan() { f64::INFINITY } else { err };
+    for k in 0..MAP_FINE_N {
+        let (s0, s1) = (nodes[k], nodes[k + 1]);
+        for q in 0..4 {
+            let s = s0 + (s1 - s0) * (2 * q + 1) as f64 / 8.0;
+            let ds = 1e-4 * (s1 - s0);
+            let duds = (map.u(s + ds) - map.u(s - ds)) / (2.0 * ds);
+            let err = (shape.speed(map.u(s)) * duds - 1.0).abs();
+            if !(err <= worst) {
+                worst = if err.is_nan() { f64::INFINITY } else { err };
+            }
         }
     }
     worst
