@@ -86,7 +86,19 @@ impl Shape {
 
     /// Speed |dp/du|.
     pub fn speed(&self, u: f64) -> f64 {
-        norm(&self.eval(u).d1)
+        match self {
+            // The first derivative only (the arc-length tables call this most).
+            Shape::Poly { c } => {
+                let mut s2 = 0.0;
+                for i in 0..AXES {
+                    let (c1, c2, c3, c4, c5) = (c[1][i], c[2][i], c[3][i], c[4][i], c[5][i]);
+                    let d = c1 + u * (2.0 * c2 + u * (3.0 * c3 + u * (4.0 * c4 + u * 5.0 * c5)));
+                    s2 += d * d;
+                }
+                s2.sqrt()
+            }
+            _ => norm(&self.eval(u).d1),
+        }
     }
 }
 
