@@ -22,6 +22,9 @@ pub(crate) const SPLINE_PIECES: usize = 3;
 /// nearly stops inside (a cusp) or at an end (a control point on its end point), where the
 /// curvature grows without bound and the arc-length map cannot follow the parameter.
 const MIN_SPEED_RATIO: f64 = 1e-3;
+/// Smallest radius of curvature a spline may have, mm (0.1 µm, the resolution of fine
+/// linear scales): a tighter turn is a cusp for a machine, passable only at a crawl.
+const MIN_RADIUS: f64 = 1e-4;
 /// Largest relative error of the path speed the arc-length map of a piece may make
 /// (checked at push time).
 const MAP_SPEED_TOL: f64 = 1e-3;
@@ -159,6 +162,16 @@ impl SplineP {
         d
     }
 
+    /// d²p/du².
+    fn d2(&self, u: f64) -> AxisVec {
+        let c = &self.c;
+        let mut d = [0.0; AXES];
+        for i in 0..AXES {
+            d[i] = 2.0 * c[2][i] + 6.0 * c[3][i] * u;
+        }
+        d
+    }
+
     fn pos(&self, u: f64) -> AxisVec {
         let c = &self.c;
         let mut p = [0.0; AXES];
@@ -210,6 +223,28 @@ impl SplineP {
         let u_min = 0.5 * (lo + hi);
         s_min = s_min.min(speed(u_min));
         if s_min >= MIN_SPEED_RATIO * s_max {
+            // Regular, but it may still turn on a point: the smallest radius of curvature
+            // (on the grid and where the parametric speed is smallest, where a near cusp
+            // has it).
+            let radius = |u: f64| {
+                let (d1, d2) = (self.d1(u), self.d2(u));
+                let (a, b, ab) = (dot(&d1, &d1), dot(&d2, &d2), dot(&d1, &d2));
+                let cross = (a * b - ab * ab).max(0.0).sqrt();
+                if cross > 0.0 {
+                    a * a.sqrt() / cross
+                } else {
+                    f64::INFINITY
+                }
+            };
+            let r_min = (0..=GRID)
+                .map(|k| radius(k as f64 / GRID as f64))
+                .fold(radius(u_min), f64::min);
+            if r_min < MIN_RADIUS {
+                return Err(MotionError::InvalidSpline {
+                    line: self.line,
+                    why: "the curve turns on a radius below 0.1 µm (it nearly stops and turns back)",
+                });
+            }
             return Ok(());
         }
         let why = if u_min <= 2.0 * h && speed(0.0) < MIN_SPEED_RATIO * s_max {

@@ -402,6 +402,27 @@ fn bad_splines_are_refused_with_a_code_and_the_line() {
         let e = pl.push(&mv).unwrap_err();
         assert_eq!((e.code(), e.line()), (code, Some(mv.line)), "{e}");
     }
+    // A near cusp: the parametric speed falls to 0.26 % of its largest (regular), but the
+    // curve turns on a radius of 8 nm there.
+    let mut pl = planner(
+        &limits(V, A, J),
+        p3(3.1887258314998213, 0.7356281137639603, 0.0),
+        64,
+    );
+    let e = pl
+        .push(&Move::spline(
+            p3(2.215878192136022, 0.1613738554755767, 0.0),
+            Bezier::Cubic([
+                p3(4.686116984651003, -0.07399006585920931, 0.0),
+                p3(0.945332027915605, 0.24124691679413082, 0.0),
+            ]),
+            50.0,
+            PathMode::ExactPath,
+            28,
+        ))
+        .unwrap_err();
+    assert_eq!((e.code(), e.line()), ("MOTION-012", Some(28)));
+    assert!(e.to_string().contains("0.1 µm"), "{e}");
     // Bad feed on a spline.
     let mut pl = enveloped();
     let mut mv = cubic(p3(1.0, 1.0, 0.0), p3(2.0, 1.0, 0.0), p3(3.0, 0.0, 0.0), 27);
