@@ -209,3 +209,19 @@ fn run_shows_operator_messages() {
         "{stdout}"
     );
 }
+
+#[test]
+fn sim_runs_the_spline_example_on_the_mill() {
+    let out = rtcnc()
+        .args(["sim", "examples/gcode/splines.ngc", "-q"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("limits      respected"), "{stdout}");
+    assert!(stdout.contains("faults      none"), "{stdout}");
+}

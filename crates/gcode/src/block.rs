@@ -517,11 +517,15 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
                     self.i += 1;
                     let code = self.code(col, b'g')?;
                     let Some(group) = g_group(code) else {
-                        return err(
-                            ErrorKind::UnknownWord,
-                            col,
-                            format!("unknown G code G{}", fmt_code(code)),
-                        );
+                        let what = if code == 52 || code == 53 {
+                            format!(
+                                "G{} NURBS blocks are not supported (G5 and G5.1 splines are)",
+                                fmt_code(code)
+                            )
+                        } else {
+                            format!("unknown G code G{}", fmt_code(code))
+                        };
+                        return err(ErrorKind::UnknownWord, col, what);
                     };
                     // As in LinuxCNC, G80 gives way to another motion code on the line.
                     if group == gg::MOTION && (code == 800 || b.g[group] == 800) && b.g[group] != -1

@@ -391,11 +391,16 @@ impl Interpreter {
                 "G5 and G5.1 need the XY plane (G17)",
             ));
         }
-        if [b'z', b'a', b'b', b'c'].iter().any(|l| b.has(*l)) {
+        // The spline command carries X and Y only: a U, V or W word would move the
+        // program position without the machine.
+        if [b'z', b'a', b'b', b'c', b'u', b'v', b'w']
+            .iter()
+            .any(|l| b.has(*l))
+        {
             return Err(err(
                 self,
                 ErrorKind::UnusedWord,
-                "splines may not move Z, A, B or C",
+                "splines may not move Z, A, B, C, U, V or W",
             ));
         }
         let start = self.state.position;
@@ -441,6 +446,14 @@ impl Interpreter {
                 end: [end.x, end.y],
             }
         };
+        if self.state.feed_mode == FeedMode::InverseTime {
+            // As for lines and arcs, the move's time 1/F becomes a rate over its length
+            // (rs274 emits none: LinuxCNC runs a G93 spline at the last feed rate).
+            let length = spline_length([start.x, start.y], &spline);
+            let rate = (length * b.get(b'f').unwrap_or(0.0)).max(0.1);
+            self.state.feed_rate = rate;
+            self.emit(C::SetFeedRate(rate));
+        }
         self.emit(C::SplineFeed(spline));
         Ok(())
     }
@@ -537,6 +550,34 @@ pub(crate) fn polar_end(
         )
     };
     (r * t.cos(), r * t.sin())
+}
+
+/// Arc length of a spline in the XY plane (Gauss-Legendre, 64 intervals of three points;
+/// exact to rounding for the smooth curves G5 and G5.1 make).
+fn spline_length(start: [f64; 2], sp: &Spline) -> f64 {
+    const X: [f64; 3] = [0.112_701_665_379_258_31, 0.5, 0.887_298_334_620_741_7];
+    const W: [f64; 3] = [5.0 / 18.0, 8.0 / 18.0, 5.0 / 18.0];
+    // Derivative of the Bézier curve (quadratic or cubic) at u.
+    let d = |u: f64, i: usize| {
+        let s = 1.0 - u;
+        if sp.order == 3 {
+            2.0 * (s * (sp.p1[i] - start[i]) + u * (sp.end[i] - sp.p1[i]))
+        } else {
+            3.0 * (s * s * (sp.p1[i] - start[i])
+                + 2.0 * s * u * (sp.p2[i] - sp.p1[i])
+                + u * u * (sp.end[i] - sp.p2[i]))
+        }
+    };
+    let n = 64;
+    let h = 1.0 / n as f64;
+    let mut len = 0.0;
+    for k in 0..n {
+        for g in 0..3 {
+            let u = (k as f64 + X[g]) * h;
+            len += W[g] * h * d(u, 0).hypot(d(u, 1));
+        }
+    }
+    len
 }
 
 /// Length of a straight move for inverse time feed: XYZ(UVW) distance, or the rotary

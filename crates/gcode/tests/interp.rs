@@ -436,3 +436,31 @@ fn canned_cycles_work_in_the_uvw_planes() {
     let (_, err) = run("G17.1\nG81 U1 V2 W-1 R1 X1 F100\n");
     assert_eq!(err.unwrap().kind, ErrorKind::UnusedWord);
 }
+
+#[test]
+fn an_inverse_time_spline_gets_the_rate_of_its_length() {
+    // The parabola (10t, 20t(1-t)) is y = 2x - x²/5 over x in [0, 10]; its length is
+    // 2.5 (2√5 + asinh 2) mm. With G93 F2 it takes 1/2 minute: rate = 2 · length.
+    let (out, err) = run("G21 G17 G90 G0 X0 Y0\nG93 G5.1 I5 J10 X10 Y0 F2\nM2\n");
+    assert!(err.is_none(), "{err:?}");
+    let at = out
+        .iter()
+        .position(|c| matches!(c, CanonCommand::SplineFeed(_)))
+        .unwrap();
+    let CanonCommand::SetFeedRate(rate) = out[at - 1] else {
+        panic!("no feed rate before the spline: {:?}", &out[..at]);
+    };
+    let length = 2.5 * (2.0 * 5f64.sqrt() + 2f64.asinh());
+    assert!((rate - 2.0 * length).abs() <= 1e-9, "{rate}");
+}
+
+#[test]
+fn a_spline_may_not_move_other_axes_and_nurbs_are_refused_clearly() {
+    let (_, err) = run("G21 G17 F100\nG5.1 I1 J1 X2 Y0 U1\nM2\n");
+    let e = err.unwrap();
+    assert_eq!(e.kind, ErrorKind::UnusedWord);
+    assert!(e.message.contains("U, V or W"), "{}", e.message);
+    let (_, err) = run("G21 G17 F100\nG5.2 X1 Y1 P1 L3\nM2\n");
+    let e = err.unwrap();
+    assert!(e.message.contains("G5.2 NURBS"), "{}", e.message);
+}

@@ -4,7 +4,7 @@
 //! runs inside the interpreter task, on the canonical stream it works on.) Event task,
 //! woken by blocks from the interpreter; allocation-free.
 
-use rtcnc_motion::{AXES, Feed, Move, MoveKind, PathMode};
+use rtcnc_motion::{AXES, Bezier, Feed, Move, MoveKind, PathMode};
 use rtcnc_rt::{Context, Next};
 
 use crate::messages::{Aux, MachineBlock, ProgramBlock};
@@ -193,6 +193,25 @@ impl CompensationStage {
                     },
                     kind,
                 });
+            }
+            ProgramBlock::Spline { line, end, control } => {
+                // A Bézier curve is affine invariant: offsets, rotation and units apply to
+                // its control points.
+                let control = match control {
+                    Bezier::Quadratic(c) => Bezier::Quadratic(self.to_machine(&c)),
+                    Bezier::Cubic([c1, c2]) => {
+                        Bezier::Cubic([self.to_machine(&c1), self.to_machine(&c2)])
+                    }
+                };
+                return Some(MachineBlock::Motion(Move {
+                    kind: MoveKind::Spline {
+                        end: self.to_machine(&end),
+                        control,
+                    },
+                    feed: self.feed(),
+                    mode: self.mode,
+                    line,
+                }));
             }
             ProgramBlock::Dwell { line, seconds } => {
                 return Some(MachineBlock::Motion(Move::dwell(seconds, line)));

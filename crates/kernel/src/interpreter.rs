@@ -6,10 +6,12 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use rtcnc_gcode::canon::{Arc as CanonArc, CanonCommand, FeedMode, Plane, SpindleDirection, Units};
+use rtcnc_gcode::canon::{
+    Arc as CanonArc, CanonCommand, FeedMode, Plane, SpindleDirection, Spline as CanonSpline, Units,
+};
 use rtcnc_gcode::compensation::Compensator;
 use rtcnc_gcode::{Canon, Interpreter, Parameters, Settings, ToolTable};
-use rtcnc_motion::PathMode;
+use rtcnc_motion::{Bezier, PathMode};
 use rtcnc_rt::{Context, Next};
 
 use crate::fault::FaultCode;
@@ -512,6 +514,11 @@ impl InterpreterStage {
                     turns,
                 });
             }
+            C::SplineFeed(sp) => {
+                let (end, control) = spline_geometry(&sp, &self.position);
+                self.position = end;
+                out.push_back(ProgramBlock::Spline { line, end, control });
+            }
             C::SetDigitalOutput { index, on, .. } => {
                 out.push_back(aux(Aux::DigitalOutput { index, on }))
             }
@@ -648,7 +655,6 @@ impl InterpreterStage {
 fn not_carried_out(command: &CanonCommand) -> Option<&'static str> {
     use CanonCommand as C;
     match command {
-        C::SplineFeed(_) => Some("spline motion (G5, G5.1)"),
         C::RigidTap { .. } => Some("rigid tapping (G33.1)"),
         C::StartSpeedFeedSync {
             velocity_mode: true,
@@ -664,6 +670,24 @@ fn signed(rpm: f64, direction: SpindleDirection) -> f64 {
         SpindleDirection::Clockwise => rpm.abs(),
         SpindleDirection::CounterClockwise => -rpm.abs(),
     }
+}
+
+/// The end point and Bézier control points (nine axes) of a canonical spline. The
+/// interpreter gives G5/G5.1 in the XY plane only and refuses other axis words on them, so
+/// the other axes keep their values (as control points: constant).
+fn spline_geometry(sp: &CanonSpline, from: &[f64; 9]) -> ([f64; 9], Bezier) {
+    let at = |xy: [f64; 2]| {
+        let mut p = *from;
+        p[0] = xy[0];
+        p[1] = xy[1];
+        p
+    };
+    let control = if sp.order == 3 {
+        Bezier::Quadratic(at(sp.p1))
+    } else {
+        Bezier::Cubic([at(sp.p1), at(sp.p2)])
+    };
+    (at(sp.end), control)
 }
 
 /// The end point (nine axes), centre and plane normal of a canonical arc. The normal points

@@ -307,6 +307,8 @@ pub enum WaitCondition {
 }
 
 /// What the tool-compensation stage sends to look-ahead (machine coordinates, mm, s).
+// Plain data in preallocated channels: a spline move is the largest, no boxing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum MachineBlock {
     /// A move for the planner.
@@ -407,6 +409,15 @@ pub enum ProgramBlock {
         end: [f64; AXES],
         /// Which G38.
         kind: rtcnc_gcode::canon::ProbeKind,
+    },
+    /// Spline (G5, G5.1): end and Bézier control points in program coordinates.
+    Spline {
+        /// Line.
+        line: u32,
+        /// End.
+        end: [f64; AXES],
+        /// Inner control points (all nine axes).
+        control: rtcnc_motion::Bezier,
     },
     /// Dwell, seconds.
     Dwell {

@@ -50,6 +50,8 @@ enum Source {
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
+// Plain data held in place: boxing the larger variant would allocate on the real-time path.
+#[allow(clippy::large_enum_variant)]
 enum Then {
     Synced([f64; AXES], f64),
     Probe(Move, ProbeKind),
@@ -61,6 +63,8 @@ enum Then {
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
+// Plain data held in place: boxing the larger variant would allocate on the real-time path.
+#[allow(clippy::large_enum_variant)]
 enum Phase {
     /// No program or MDI.
     Idle,
@@ -1135,7 +1139,8 @@ impl MotionCore {
             MachineBlock::Motion(mv) => {
                 if self.run_from_line > 1 && mv.line < self.run_from_line {
                     if let rtcnc_motion::MoveKind::Line { end, .. }
-                    | rtcnc_motion::MoveKind::Arc { end, .. } = mv.kind
+                    | rtcnc_motion::MoveKind::Arc { end, .. }
+                    | rtcnc_motion::MoveKind::Spline { end, .. } = mv.kind
                     {
                         self.skipped_to = Some(end);
                     }

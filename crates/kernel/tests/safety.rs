@@ -357,3 +357,29 @@ fn a_probing_move_without_a_probe_input_stops_the_program_before_it() {
     let last = m.samples.last().unwrap();
     assert_eq!(&last.axes[..3], &[10.0, 0.0, 0.0]);
 }
+
+#[test]
+fn a_spline_whose_bulge_leaves_the_envelope_is_refused_with_its_line() {
+    // Both ends at Y0, inner control points at Y270: the curve's top is at 3/4 of that,
+    // Y202.5, beyond the mill's Y200.
+    let text = "G21 G90 G17 G61.1\nG1 X50 F3000\nG5 I0 J270 P0 Q270 X100 Y0\nM2\n";
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::new(&cfg, Some(program(text, "bulge.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    m.cycles(50);
+    assert!(m.until(5.0, |s| s.state == MachineState::Idle && s.line == 0));
+    let f = m
+        .faults
+        .iter()
+        .find(|f| f.code == FaultCode::MotionError)
+        .expect("refused spline");
+    assert_eq!(f.line, 3);
+    let words = m.sim.handle().error_text().unwrap();
+    assert!(
+        words.contains("soft limit") && words.contains("202.5"),
+        "{words}"
+    );
+    let max_y = m.samples.iter().map(|s| s.axes[1]).fold(f64::MIN, f64::max);
+    assert_eq!(max_y, 0.0);
+}

@@ -3,6 +3,8 @@
 //! per axis, on a CAM-like polyline (a circle of R 10 in 0.28 mm chords, 1 µm chord
 //! tolerance, G64 P0.001, F 100 mm/s, 100 mm/s, 1000 mm/s², 50 000 mm/s³ per axis).
 //!
+//! The same two figures on a chain of tangent G5 splines (cubic arches of 2 mm, F 60 mm/s).
+//!
 //! `cargo bench -p rtcnc-motion --bench planner`; goals: ≥ 500 000 segments/s, ≤ 50 ns per
 //! axis per period.
 
@@ -11,7 +13,8 @@ use std::time::Duration;
 
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 use rtcnc_motion::{
-    AXES, Axis, AxisLimits, AxisVec, MachineLimits, Move, PathMode, Planner, TrivialKinematics,
+    AXES, Axis, AxisLimits, AxisVec, Bezier, MachineLimits, Move, PathMode, Planner,
+    TrivialKinematics,
 };
 
 fn polyline(turns: f64) -> (AxisVec, Vec<Move>) {
@@ -36,6 +39,29 @@ fn polyline(turns: f64) -> (AxisVec, Vec<Move>) {
             .map(|k| Move::line(pt(k), 100.0, mode, k as u32))
             .collect(),
     )
+}
+
+/// Tangent cubic arches along X, alternately up and down (each leaves and arrives along +X).
+fn spline_chain(n: usize) -> Vec<Move> {
+    let p = |x: f64, y: f64| {
+        let mut v = [0.0; AXES];
+        v[0] = x;
+        v[1] = y;
+        v
+    };
+    (0..n)
+        .map(|k| {
+            let x = 2.0 * k as f64;
+            let h = if k % 2 == 0 { 1.0 } else { -1.0 };
+            Move::spline(
+                p(x + 2.0, 0.0),
+                Bezier::Cubic([p(x + 0.5, h), p(x + 1.5, h)]),
+                60.0,
+                PathMode::ExactPath,
+                k as u32 + 1,
+            )
+        })
+        .collect()
 }
 
 fn planner(start: AxisVec, window: usize) -> Planner<TrivialKinematics> {
@@ -102,5 +128,52 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench);
+fn bench_splines(c: &mut Criterion) {
+    let moves = spline_chain(400);
+    let start = [0.0; AXES];
+    let mut g = c.benchmark_group("planner, G5 splines");
+    g.measurement_time(Duration::from_secs(3)).sample_size(20);
+    g.throughput(Throughput::Elements(moves.len() as u64));
+    g.bench_function("look-ahead: push splines", |b| {
+        b.iter_batched(
+            || planner(start, 4 * moves.len() + 16),
+            |mut pl| {
+                let mut k = 0;
+                while k < moves.len() {
+                    k += pl.push_all(black_box(&moves[k..])).unwrap();
+                }
+                pl.flush();
+                pl
+            },
+            BatchSize::LargeInput,
+        )
+    });
+    const PERIODS: u64 = 200;
+    g.throughput(Throughput::Elements(PERIODS));
+    g.bench_function("interpolate: one servo period (3 axes)", |b| {
+        b.iter_batched(
+            || {
+                let mut pl = planner(start, 4 * moves.len() + 16);
+                pl.push_all(&moves).unwrap();
+                pl.flush();
+                let mut j = [0.0; 3];
+                for _ in 0..300 {
+                    pl.next(&mut j);
+                }
+                pl
+            },
+            |mut pl| {
+                let mut j = [0.0; 3];
+                for _ in 0..PERIODS {
+                    black_box(pl.next(&mut j));
+                }
+                pl
+            },
+            BatchSize::LargeInput,
+        )
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench, bench_splines);
 criterion_main!(benches);

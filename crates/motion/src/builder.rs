@@ -8,6 +8,7 @@ use crate::geometry::{Helix, Shape, corner_bezier, quintic};
 use crate::input::{Feed, Move, MoveKind, PathMode};
 use crate::limits::Lim;
 use crate::piece::Piece;
+use crate::spline::SplineP;
 
 /// Direction changes up to this angle (rad) count as tangent: passed without a blend, at a
 /// speed that keeps the velocity step inside the jerk limit.
@@ -38,6 +39,8 @@ struct LineP {
     line: u32,
 }
 
+// One primitive is held at a time, by value: a spline with its tables is the largest.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Copy)]
 enum Prim {
     Line(LineP),
@@ -49,6 +52,7 @@ enum Prim {
         mode: PathMode,
         line: u32,
     },
+    Spline(SplineP),
 }
 
 impl Prim {
@@ -56,24 +60,28 @@ impl Prim {
         match self {
             Prim::Line(l) => l.mode,
             Prim::Arc { mode, .. } => *mode,
+            Prim::Spline(sp) => sp.mode,
         }
     }
     fn end(&self) -> AxisVec {
         match self {
             Prim::Line(l) => l.b,
             Prim::Arc { b, .. } => *b,
+            Prim::Spline(sp) => sp.end(),
         }
     }
     fn start_tangent(&self) -> AxisVec {
         match self {
             Prim::Line(l) => l.dir,
             Prim::Arc { h, .. } => unit(&Shape::Helix(*h).eval(0.0).d1),
+            Prim::Spline(sp) => sp.start_tangent(),
         }
     }
     fn end_tangent(&self) -> AxisVec {
         match self {
             Prim::Line(l) => l.dir,
             Prim::Arc { h, .. } => unit(&Shape::Helix(*h).eval(1.0).d1),
+            Prim::Spline(sp) => sp.end_tangent(),
         }
     }
 }
@@ -197,7 +205,7 @@ impl Builder {
                 return Ok(None);
             }
             MoveKind::Line { end, rapid } => (end, rapid),
-            MoveKind::Arc { end, .. } => (end, false),
+            MoveKind::Arc { end, .. } | MoveKind::Spline { end, .. } => (end, false),
         };
         if !is_finite(&b) {
             return Err(MotionError::NotFinite {
@@ -269,6 +277,11 @@ impl Builder {
                     mode: mv.mode,
                     line,
                 }))
+            }
+            MoveKind::Spline { control, .. } => {
+                let mut sp = SplineP::new(&a, &b, &control, mv.mode, line, lim)?;
+                sp.feed = resolve_feed(&mv.feed, sp.len_xyz, sp.len, line)?;
+                Ok(Some(Prim::Spline(sp)))
             }
             MoveKind::Dwell { .. } => Ok(None),
         }
@@ -613,6 +626,7 @@ impl Builder {
                 pc.stop_at_end = stop;
                 out.push(pc);
             }
+            Prim::Spline(sp) => sp.emit(stop, out),
         }
     }
 }

@@ -56,6 +56,15 @@ pub enum MotionError {
         /// Reason.
         why: &'static str,
     },
+    /// Spline control points that define no followable curve: the curve stops or turns back
+    /// inside (a cusp), or a control point lies on its end point (no direction there).
+    #[error("line {line}: invalid spline: {why}")]
+    InvalidSpline {
+        /// Program line.
+        line: u32,
+        /// Reason.
+        why: &'static str,
+    },
     /// Invalid path-control tolerance (negative or NaN P or Q).
     #[error("line {line}: invalid blend tolerance {value}")]
     InvalidTolerance {
@@ -106,6 +115,7 @@ impl MotionError {
             MotionError::Kinematics(_) => "MOTION-009",
             MotionError::QueueFull => "MOTION-010",
             MotionError::Busy(_) => "MOTION-011",
+            MotionError::InvalidSpline { .. } => "MOTION-012",
         }
     }
 
@@ -117,6 +127,7 @@ impl MotionError {
             | MotionError::InvalidFeed { line, .. }
             | MotionError::ArcRadiusMismatch { line, .. }
             | MotionError::InvalidArc { line, .. }
+            | MotionError::InvalidSpline { line, .. }
             | MotionError::InvalidTolerance { line, .. }
             | MotionError::SoftLimit { line, .. } => Some(*line),
             _ => None,

@@ -86,7 +86,19 @@ impl Shape {
 
     /// Speed |dp/du|.
     pub fn speed(&self, u: f64) -> f64 {
-        norm(&self.eval(u).d1)
+        match self {
+            // The first derivative only (the arc-length tables call this most).
+            Shape::Poly { c } => {
+                let mut s2 = 0.0;
+                for i in 0..AXES {
+                    let (c1, c2, c3, c4, c5) = (c[1][i], c[2][i], c[3][i], c[4][i], c[5][i]);
+                    let d = c1 + u * (2.0 * c2 + u * (3.0 * c3 + u * (4.0 * c4 + u * 5.0 * c5)));
+                    s2 += d * d;
+                }
+                s2.sqrt()
+            }
+            _ => norm(&self.eval(u).d1),
+        }
     }
 }
 
@@ -117,6 +129,8 @@ impl Helix {
 pub(crate) const MAP_N: usize = 8;
 
 /// Map from arc length to the shape parameter.
+// Pieces are plain data in a preallocated ring: no boxing of the larger table.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Copy)]
 pub(crate) enum ArcMap {
     /// u = s * k.
@@ -127,7 +141,21 @@ pub(crate) enum ArcMap {
         s: [f64; MAP_N + 1],
         duds: [f64; MAP_N + 1],
     },
+    /// Finer nodes `u_k`, placed where the parametric speed changes (equal steps of
+    /// u + |Δ ln |dp/du||), with their arc length, du/ds and d²u/ds²; between nodes u(s) is
+    /// the quintic Hermite interpolant, so the path speed, acceleration and jerk the map
+    /// implies are continuous (spline pieces, whose parametric speed varies much more than
+    /// that of blends).
+    Quintic {
+        u: [f64; MAP_FINE_N + 1],
+        s: [f64; MAP_FINE_N + 1],
+        duds: [f64; MAP_FINE_N + 1],
+        d2uds2: [f64; MAP_FINE_N + 1],
+    },
 }
+
+/// Number of intervals of the quintic arc-length table.
+pub(crate) const MAP_FINE_N: usize = 32;
 
 /// Three-point Gauss-Legendre on [0, 1].
 const GL_X: [f64; 3] = [0.112_701_665_379_258_31, 0.5, 0.887_298_334_620_741_7];
@@ -155,6 +183,64 @@ impl ArcMap {
         (ArcMap::Table { s, duds }, len)
     }
 
+    /// Builds the quintic table of a regular curved shape over u in [0, 1] (its parametric
+    /// speed must not vanish); returns it with the total length.
+    pub fn quintic_table(shape: &Shape) -> (ArcMap, f64) {
+        // Node placement: equal steps of u + |Δ ln σ| on a fine grid (σ = |dp/du|), so
+        // that nodes gather where du/ds = 1/σ changes fast.
+        const FINE: usize = 8 * MAP_FINE_N;
+        let mut cum = [0.0; FINE + 1];
+        // (Spline pieces are regular: the floor only keeps a degenerate shape finite.)
+        let log_speed = |u: f64| shape.speed(u).max(1e-300).ln();
+        let mut prev = log_speed(0.0);
+        for k in 1..=FINE {
+            let ls = log_speed(k as f64 / FINE as f64);
+            cum[k] = cum[k - 1] + 1.0 / FINE as f64 + (ls - prev).abs();
+            prev = ls;
+        }
+        let mut u = [1.0; MAP_FINE_N + 1];
+        u[0] = 0.0;
+        let mut j = 0;
+        for k in 1..MAP_FINE_N {
+            let target = cum[FINE] * k as f64 / MAP_FINE_N as f64;
+            while j < FINE && cum[j + 1] < target {
+                j += 1;
+            }
+            let span = cum[j + 1] - cum[j];
+            let f = if span > 0.0 {
+                (target - cum[j]) / span
+            } else {
+                0.0
+            };
+            u[k] = (j as f64 + f) / FINE as f64;
+        }
+        let mut s = [0.0; MAP_FINE_N + 1];
+        let mut duds = [0.0; MAP_FINE_N + 1];
+        let mut d2uds2 = [0.0; MAP_FINE_N + 1];
+        for k in 0..=MAP_FINE_N {
+            let d = shape.eval(u[k]);
+            let sig = norm(&d.d1);
+            if sig > 0.0 {
+                let sig_u = dot(&d.d1, &d.d2) / sig;
+                duds[k] = 1.0 / sig;
+                d2uds2[k] = -sig_u / (sig * sig * sig);
+            }
+            if k > 0 {
+                // Two three-point Gauss-Legendre halves per interval.
+                let (u0, h) = (u[k - 1], u[k] - u[k - 1]);
+                let mut acc = 0.0;
+                for half in 0..2 {
+                    for g in 0..3 {
+                        acc += GL_W[g] * shape.speed(u0 + (half as f64 + GL_X[g]) * 0.5 * h);
+                    }
+                }
+                s[k] = s[k - 1] + acc * 0.5 * h;
+            }
+        }
+        let len = s[MAP_FINE_N];
+        (ArcMap::Quintic { u, s, duds, d2uds2 }, len)
+    }
+
     /// Shape parameter at arc length `s_q` (clamped to the piece).
     #[inline]
     pub fn u(&self, s_q: f64) -> f64 {
@@ -176,6 +262,37 @@ impl ArcMap {
                 let t3 = t2 * t;
                 let frac = (-2.0 * t3 + 3.0 * t2) + m0 * (t3 - 2.0 * t2 + t) + m1 * (t3 - t2);
                 (k as f64 + frac) * h
+            }
+            ArcMap::Quintic { u, s, duds, d2uds2 } => {
+                // Binary search of the interval holding s_q.
+                let (mut lo, mut hi) = (0, MAP_FINE_N);
+                while hi - lo > 1 {
+                    let mid = (lo + hi) / 2;
+                    if s_q > s[mid] {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                let k = lo;
+                let ds = s[k + 1] - s[k];
+                if ds <= 0.0 {
+                    return u[k];
+                }
+                let t = ((s_q - s[k]) / ds).clamp(0.0, 1.0);
+                let (t2, t3) = (t * t, t * t * t);
+                let (t4, t5) = (t3 * t, t3 * t2);
+                let h1 = t - 6.0 * t3 + 8.0 * t4 - 3.0 * t5;
+                let h2 = 0.5 * (t2 - 3.0 * t3 + 3.0 * t4 - t5);
+                let h3 = 10.0 * t3 - 15.0 * t4 + 6.0 * t5;
+                let h4 = -4.0 * t3 + 7.0 * t4 - 3.0 * t5;
+                let h5 = 0.5 * (t3 - 2.0 * t4 + t5);
+                let du = h1 * ds * duds[k]
+                    + h2 * ds * ds * d2uds2[k]
+                    + h3 * (u[k + 1] - u[k])
+                    + h4 * ds * duds[k + 1]
+                    + h5 * ds * ds * d2uds2[k + 1];
+                u[k] + du
             }
         }
     }

@@ -61,11 +61,30 @@ pub enum MoveKind {
         /// Additional full turns (0 for an arc of less than one turn).
         turns: u32,
     },
+    /// Polynomial spline (G5 cubic, G5.1 quadratic) in Bézier form, from the start point
+    /// through the control points to `end`, evaluated exactly as the polynomial. Every axis
+    /// follows the polynomial: an axis whose control values lie evenly spaced between its
+    /// start and end value moves linearly (the axes outside a G5 plane).
+    Spline {
+        /// End point.
+        end: AxisVec,
+        /// Inner control points.
+        control: Bezier,
+    },
     /// Dwell at rest.
     Dwell {
         /// Seconds.
         seconds: f64,
     },
+}
+
+/// Inner control points of a [`MoveKind::Spline`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Bezier {
+    /// Quadratic Bézier (G5.1): one control point.
+    Quadratic(AxisVec),
+    /// Cubic Bézier (G5): two control points, the first after the start point.
+    Cubic([AxisVec; 2]),
 }
 
 /// One move as the planner receives it.
@@ -119,6 +138,16 @@ impl Move {
                 normal,
                 turns,
             },
+            feed: Feed::UnitsPerSecond(feed),
+            mode,
+            line,
+        }
+    }
+
+    /// A spline (G5, G5.1) at `feed` mm/s.
+    pub fn spline(end: AxisVec, control: Bezier, feed: f64, mode: PathMode, line: u32) -> Self {
+        Move {
+            kind: MoveKind::Spline { end, control },
             feed: Feed::UnitsPerSecond(feed),
             mode,
             line,

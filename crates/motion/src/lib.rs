@@ -28,11 +28,12 @@ pub mod otg;
 mod piece;
 mod planner;
 mod scurve;
+mod spline;
 
 pub use axes::{AXES, Axis, AxisVec};
 pub use builder::GeometryStats;
 pub use error::MotionError;
-pub use input::{Feed, Move, MoveKind, PathMode};
+pub use input::{Bezier, Feed, Move, MoveKind, PathMode};
 pub use kinematics::{JointLimits, Kinematics, TrivialKinematics};
 pub use limits::{AxisLimits, MachineLimits};
 pub use planner::{MotionState, Planner, RunStats, Status};

@@ -126,8 +126,12 @@ const STOP_CHECK_SHARE: f64 = 0.95;
 /// continuous profile it follows.
 const STOP_CHECK_JERK_SHARE: f64 = 0.8;
 
-/// Pieces one move can produce at most (line span, blend, dwell after a flush).
+/// Pieces one move can produce at most (line span, blend, dwell after a flush; a spline
+/// and a dwell after it).
 const PIECES_PER_MOVE: usize = 4;
+/// Pieces a flush can produce at most (the held move: a line's two spans, a spline's
+/// pieces): [`Planner::free`] keeps room for them, so that a flush never overruns the window.
+const FLUSH_PIECES: usize = crate::spline::SPLINE_PIECES;
 
 /// Jerk-limited, look-ahead path planner and interpolator. See the crate documentation.
 pub struct Planner<K: Kinematics> {
@@ -262,7 +266,7 @@ impl<K: Kinematics> Planner<K> {
 
     /// Moves that can be pushed now without [`MotionError::QueueFull`].
     pub fn free(&self) -> usize {
-        (self.q.cap() - self.q.len) / PIECES_PER_MOVE
+        (self.q.cap() - self.q.len).saturating_sub(FLUSH_PIECES) / PIECES_PER_MOVE
     }
 
     /// Adds a move to the look-ahead window. Errors (bad input, soft limits) carry the move's

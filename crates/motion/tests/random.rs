@@ -127,7 +127,9 @@ fn random_programs_respect_every_limit() {
             );
             prop_assert_eq!(pl.stats().limit_violations, 0);
             let end = match moves.last().unwrap().kind {
-                MoveKind::Line { end, .. } | MoveKind::Arc { end, .. } => end,
+                MoveKind::Line { end, .. }
+                | MoveKind::Arc { end, .. }
+                | MoveKind::Spline { end, .. } => end,
                 MoveKind::Dwell { .. } => unreachable!(),
             };
             prop_assert!(dist(tr.pts.last().unwrap(), &end) <= 1e-9);

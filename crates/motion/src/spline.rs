@@ -1,0 +1,543 @@
+//! Spline moves (G5 cubic, G5.1 quadratic Bézier): validation, the analytic extent the soft
+//! limits are checked on, and the split into pieces that are each the exact polynomial over
+//! part of the parameter range (never chords). Runs when moves are pushed.
+//!
+//! A curve is cut into at most three pieces of equal "difficulty" (the change
+//! of the logarithm of the parametric speed plus the turning angle), so that each piece's
+//! tabulated arc-length map sees a parametric speed that changes by a bounded factor, and
+//! the speed-limit samples of a piece are taken as the smallest bound between them (the
+//! curvature of a spline peaks anywhere, not at a sample).
+
+use crate::axes::{AXES, Axis, AxisVec, dot, is_finite, norm, norm_xyz, scale, sub};
+use crate::error::MotionError;
+use crate::geometry::{ArcMap, MAP_FINE_N, Shape};
+use crate::input::{Bezier, PathMode};
+use crate::limits::Lim;
+use crate::piece::Piece;
+
+/// Most pieces one spline becomes: with a dwell after it, the four pieces the planner
+/// reserves per move.
+pub(crate) const SPLINE_PIECES: usize = 3;
+/// Smallest parametric speed along a curve relative to its largest. Below it the curve
+/// nearly stops inside (a cusp) or at an end (a control point on its end point), where the
+/// curvature grows without bound and the arc-length map cannot follow the parameter.
+const MIN_SPEED_RATIO: f64 = 1e-3;
+/// Smallest radius of curvature a spline may have, mm (0.1 µm, the resolution of fine
+/// linear scales): a tighter turn is a cusp for a machine, passable only at a crawl.
+const MIN_RADIUS: f64 = 1e-4;
+/// Largest relative error of the path speed the arc-length map of a piece may make
+/// (checked at push time).
+const MAP_SPEED_TOL: f64 = 1e-3;
+/// Grid on which the split points and the speed range are found.
+const GRID: usize = 128;
+/// Difficulty (change of ln speed plus turning, rad) one piece takes at most before the
+/// curve is cut into more pieces.
+const PIECE_COST: f64 = 0.3;
+/// Sub-intervals between speed-limit samples on which the bounds are taken.
+const DENSE: usize = 8;
+/// Share of each axis's acceleration the centripetal bound of a spline may take.
+const CENTRIPETAL_SHARE: f64 = 0.9;
+
+/// A validated spline: power-basis coefficients and where its pieces meet.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SplineP {
+    /// `p(u) = c0 + c1 u + c2 u² + c3 u³`, u in [0, 1] (c3 = 0 for a quadratic).
+    pub c: [AxisVec; 4],
+    pub a: AxisVec,
+    pub b: AxisVec,
+    pub feed: f64,
+    pub mode: PathMode,
+    pub line: u32,
+    /// Arc length (all axes) and its XYZ part.
+    pub len: f64,
+    pub len_xyz: f64,
+    splits: [f64; SPLINE_PIECES + 1],
+    n: usize,
+    /// Arc-length table and length of each piece (built once, when checked).
+    maps: [(ArcMap, f64); SPLINE_PIECES],
+}
+
+fn unit(v: &AxisVec) -> AxisVec {
+    let n = norm(v);
+    if n > 0.0 { scale(v, 1.0 / n) } else { *v }
+}
+
+impl SplineP {
+    /// Validates the curve from `a` through `control` to `b`: finite, inside the envelope
+    /// (analytic extent per axis), regular. The feed is set by the caller.
+    pub fn new(
+        a: &AxisVec,
+        b: &AxisVec,
+        control: &Bezier,
+        mode: PathMode,
+        line: u32,
+        lim: &Lim,
+    ) -> Result<SplineP, MotionError> {
+        let ctrl: &[AxisVec] = match control {
+            Bezier::Quadratic(p) => std::slice::from_ref(p),
+            Bezier::Cubic(p) => p,
+        };
+        if !ctrl.iter().all(is_finite) {
+            return Err(MotionError::NotFinite {
+                line,
+                what: "spline control point",
+            });
+        }
+        // An axis without limits must not move anywhere along the curve.
+        for i in 0..AXES {
+            if lim.present[i] {
+                continue;
+            }
+            if let Some(p) = ctrl.iter().find(|p| p[i] != a[i]) {
+                return Err(MotionError::SoftLimit {
+                    line,
+                    axis: Axis::ALL[i].letter(),
+                    position: p[i],
+                    min: a[i],
+                    max: a[i],
+                });
+            }
+        }
+        let mut c = [[0.0; AXES]; 4];
+        for i in 0..AXES {
+            match control {
+                Bezier::Quadratic(q) => {
+                    c[0][i] = a[i];
+                    c[1][i] = 2.0 * (q[i] - a[i]);
+                    c[2][i] = a[i] - 2.0 * q[i] + b[i];
+                }
+                Bezier::Cubic([p1, p2]) => {
+                    c[0][i] = a[i];
+                    c[1][i] = 3.0 * (p1[i] - a[i]);
+                    c[2][i] = 3.0 * (a[i] - 2.0 * p1[i] + p2[i]);
+                    c[3][i] = -a[i] + 3.0 * (p1[i] - p2[i]) + b[i];
+                }
+            }
+        }
+        let polygon = {
+            let mut l = 0.0;
+            let mut prev = *a;
+            for p in ctrl.iter().chain(std::iter::once(b)) {
+                l += norm(&sub(p, &prev));
+                prev = *p;
+            }
+            l
+        };
+        if !(polygon > 1e-12) {
+            return Err(MotionError::ZeroLength { line });
+        }
+        let mut sp = SplineP {
+            c,
+            a: *a,
+            b: *b,
+            feed: 0.0,
+            mode,
+            line,
+            len: 0.0,
+            len_xyz: 0.0,
+            splits: [0.0; SPLINE_PIECES + 1],
+            n: 1,
+            maps: [(ArcMap::Linear { k: 1.0 }, 0.0); SPLINE_PIECES],
+        };
+        sp.check_regular()?;
+        sp.check_extent(lim)?;
+        sp.split(false);
+        if sp.check_maps().is_err() {
+            sp.split(true);
+            sp.check_maps()?;
+        }
+        let (len, len_xyz) = sp.lengths();
+        sp.len = len;
+        sp.len_xyz = len_xyz;
+        Ok(sp)
+    }
+
+    /// dp/du.
+    fn d1(&self, u: f64) -> AxisVec {
+        let c = &self.c;
+        let mut d = [0.0; AXES];
+        for i in 0..AXES {
+            d[i] = c[1][i] + u * (2.0 * c[2][i] + u * 3.0 * c[3][i]);
+        }
+        d
+    }
+
+    /// d²p/du².
+    fn d2(&self, u: f64) -> AxisVec {
+        let c = &self.c;
+        let mut d = [0.0; AXES];
+        for i in 0..AXES {
+            d[i] = 2.0 * c[2][i] + 6.0 * c[3][i] * u;
+        }
+        d
+    }
+
+    fn pos(&self, u: f64) -> AxisVec {
+        let c = &self.c;
+        let mut p = [0.0; AXES];
+        for i in 0..AXES {
+            p[i] = c[0][i] + u * (c[1][i] + u * (c[2][i] + u * c[3][i]));
+        }
+        p
+    }
+
+    pub fn end(&self) -> AxisVec {
+        self.b
+    }
+
+    pub fn start_tangent(&self) -> AxisVec {
+        unit(&self.d1(0.0))
+    }
+
+    pub fn end_tangent(&self) -> AxisVec {
+        unit(&self.d1(1.0))
+    }
+
+    /// Refuses a curve whose parametric speed nearly vanishes somewhere: smallest speed on
+    /// a grid, refined by golden-section search around it.
+    fn check_regular(&self) -> Result<(), MotionError> {
+        let speed = |u: f64| norm(&self.d1(u));
+        let (mut k_min, mut s_min, mut s_max) = (0, f64::INFINITY, 0.0f64);
+        for k in 0..=GRID {
+            let s = speed(k as f64 / GRID as f64);
+            if s < s_min {
+                s_min = s;
+                k_min = k;
+            }
+            s_max = s_max.max(s);
+        }
+        let h = 1.0 / GRID as f64;
+        let (mut lo, mut hi) = (
+            (k_min as f64 * h - h).max(0.0),
+            (k_min as f64 * h + h).min(1.0),
+        );
+        let g = 0.5 * (5f64.sqrt() - 1.0);
+        for _ in 0..60 {
+            let (x1, x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
+            if speed(x1) < speed(x2) {
+                hi = x2;
+            } else {
+                lo = x1;
+            }
+        }
+        let u_min = 0.5 * (lo + hi);
+        s_min = s_min.min(speed(u_min));
+        if s_min >= MIN_SPEED_RATIO * s_max {
+            // Regular, but it may still turn on a point: the smallest radius of curvature
+            // (on the grid and where the parametric speed is smallest, where a near cusp
+            // has it).
+            let radius = |u: f64| {
+                let (d1, d2) = (self.d1(u), self.d2(u));
+                let (a, b, ab) = (dot(&d1, &d1), dot(&d2, &d2), dot(&d1, &d2));
+                let cross = (a * b - ab * ab).max(0.0).sqrt();
+                if cross > 0.0 {
+                    a * a.sqrt() / cross
+                } else {
+                    f64::INFINITY
+                }
+            };
+            let r_min = (0..=GRID)
+                .map(|k| radius(k as f64 / GRID as f64))
+                .fold(radius(u_min), f64::min);
+            if r_min < MIN_RADIUS {
+                return Err(MotionError::InvalidSpline {
+                    line: self.line,
+                    why: "the curve turns on a radius below 0.1 µm (it nearly stops and turns back)",
+                });
+            }
+            return Ok(());
+        }
+        let why = if u_min <= 2.0 * h && speed(0.0) < MIN_SPEED_RATIO * s_max {
+            "the first control point is (nearly) on the start point: no direction there"
+        } else if u_min >= 1.0 - 2.0 * h && speed(1.0) < MIN_SPEED_RATIO * s_max {
+            "the last control point is (nearly) on the end point: no direction there"
+        } else {
+            "the curve stops and turns back (a cusp)"
+        };
+        Err(MotionError::InvalidSpline {
+            line: self.line,
+            why,
+        })
+    }
+
+    /// Soft limits on the analytic extent: per axis the end points and the polynomial's
+    /// extrema inside (roots of its derivative).
+    fn check_extent(&self, lim: &Lim) -> Result<(), MotionError> {
+        for i in 0..AXES {
+            if !lim.present[i] {
+                continue;
+            }
+            let (lo, hi) = self.axis_range(i);
+            for x in [lo, hi] {
+                if x < lim.min[i] || x > lim.max[i] {
+                    return Err(MotionError::SoftLimit {
+                        line: self.line,
+                        axis: Axis::ALL[i].letter(),
+                        position: x,
+                        min: lim.min[i],
+                        max: lim.max[i],
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Smallest and largest value axis `i` takes on the curve.
+    pub fn axis_range(&self, i: usize) -> (f64, f64) {
+        let (c1, c2, c3) = (self.c[1][i], self.c[2][i], self.c[3][i]);
+        let mut lo = self.a[i].min(self.b[i]);
+        let mut hi = self.a[i].max(self.b[i]);
+        let mut take = |u: f64| {
+            if u > 0.0 && u < 1.0 {
+                let x = self.pos(u)[i];
+                lo = lo.min(x);
+                hi = hi.max(x);
+            }
+        };
+        // c1 + 2 c2 u + 3 c3 u² = 0.
+        let (qa, qb, qc) = (3.0 * c3, 2.0 * c2, c1);
+        let scale_q = qa.abs().max(qb.abs()).max(qc.abs());
+        if scale_q == 0.0 {
+            return (lo, hi);
+        }
+        if qa.abs() <= 1e-14 * scale_q {
+            if qb != 0.0 {
+                take(-qc / qb);
+            }
+        } else {
+            let disc = qb * qb - 4.0 * qa * qc;
+            if disc >= 0.0 {
+                // Numerically stable pair of roots.
+                let q = -0.5 * (qb + qb.signum() * disc.sqrt());
+                if q != 0.0 {
+                    take(q / qa);
+                    take(qc / q);
+                } else {
+                    take(0.0);
+                }
+            }
+        }
+        (lo, hi)
+    }
+
+    /// Cuts [0, 1] into pieces of equal difficulty (change of ln speed plus turning); with
+    /// `at_dip`, one cut goes where the parametric speed is smallest inside (a near cusp
+    /// then lies at a piece's end, where its table has a node, not inside a piece).
+    fn split(&mut self, at_dip: bool) {
+        let mut cum = [0.0; GRID + 1];
+        let mut prev_t = unit(&self.d1(0.0));
+        let mut prev_ls = norm(&self.d1(0.0)).ln();
+        for k in 1..=GRID {
+            let d = self.d1(k as f64 / GRID as f64);
+            let t = unit(&d);
+            let ls = norm(&d).ln();
+            let turn = dot(&t, &prev_t).clamp(-1.0, 1.0).acos();
+            cum[k] = cum[k - 1] + (ls - prev_ls).abs() + turn;
+            prev_t = t;
+            prev_ls = ls;
+        }
+        let total = cum[GRID];
+        let n = ((total / PIECE_COST).ceil() as usize).clamp(1, SPLINE_PIECES);
+        // The parameter where the cost reaches `target`.
+        let at_cost = |target: f64| {
+            let k = (0..GRID).find(|k| cum[k + 1] >= target).unwrap_or(GRID - 1);
+            let span = cum[k + 1] - cum[k];
+            let f = if span > 0.0 {
+                ((target - cum[k]) / span).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            (k as f64 + f) / GRID as f64
+        };
+        self.splits = [1.0; SPLINE_PIECES + 1];
+        self.splits[0] = 0.0;
+        if at_dip && n >= 2 {
+            // Cuts at the deepest interior minima of the parametric speed, then at the cost
+            // midpoint of the costliest piece.
+            let speed: Vec<f64> = (0..=GRID)
+                .map(|k| norm(&self.d1(k as f64 / GRID as f64)))
+                .collect();
+            let top = speed.iter().cloned().fold(0.0, f64::max);
+            let mut dips: Vec<usize> = (2..GRID - 1)
+                .filter(|&k| speed[k] < speed[k - 1] && speed[k] <= speed[k + 1])
+                .filter(|&k| speed[k] < 0.5 * top)
+                .collect();
+            dips.sort_by(|a, b| speed[*a].total_cmp(&speed[*b]));
+            dips.truncate(n - 1);
+            // Each minimum refined by golden-section search within its grid cells.
+            let mut cuts: Vec<f64> = dips
+                .iter()
+                .map(|&k| {
+                    let h = 1.0 / GRID as f64;
+                    let (mut lo, mut hi) = ((k - 1) as f64 * h, (k + 1) as f64 * h);
+                    let g = 0.5 * (5f64.sqrt() - 1.0);
+                    for _ in 0..50 {
+                        let (x1, x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
+                        if norm(&self.d1(x1)) < norm(&self.d1(x2)) {
+                            hi = x2;
+                        } else {
+                            lo = x1;
+                        }
+                    }
+                    0.5 * (lo + hi)
+                })
+                .collect();
+            let cost_at = |u: f64| cum[((u * GRID as f64).round() as usize).min(GRID)];
+            while cuts.len() < n - 1 {
+                cuts.sort_by(f64::total_cmp);
+                let mut bounds = vec![0.0];
+                bounds.extend(cuts.iter().cloned());
+                bounds.push(1.0);
+                let (i, _) = bounds
+                    .windows(2)
+                    .enumerate()
+                    .map(|(i, w)| (i, cost_at(w[1]) - cost_at(w[0])))
+                    .fold((0, f64::MIN), |m, x| if x.1 > m.1 { x } else { m });
+                let mid = 0.5 * (cost_at(bounds[i]) + cost_at(bounds[i + 1]));
+                cuts.push(at_cost(mid));
+            }
+            cuts.sort_by(f64::total_cmp);
+            for (m, u) in cuts.iter().enumerate() {
+                self.splits[m + 1] = *u;
+            }
+        } else {
+            for m in 1..n {
+                self.splits[m] = at_cost(total * m as f64 / n as f64);
+            }
+        }
+        self.n = n;
+    }
+
+    /// The exact polynomial over [u0, u1], re-parametrised to [0, 1].
+    fn piece_shape(&self, u0: f64, u1: f64) -> Shape {
+        let h = u1 - u0;
+        let p = self.pos(u0);
+        let d = self.d1(u0);
+        let mut c = [[0.0; AXES]; 6];
+        for i in 0..AXES {
+            let (c2, c3) = (self.c[2][i], self.c[3][i]);
+            c[0][i] = p[i];
+            c[1][i] = d[i] * h;
+            c[2][i] = (c2 + 3.0 * c3 * u0) * h * h;
+            c[3][i] = c3 * h * h * h;
+        }
+        if u0 == 0.0 {
+            c[0] = self.a;
+        }
+        Shape::Poly { c }
+    }
+
+    /// Refuses a curve on which the arc-length map of some piece would misjudge the path
+    /// speed by more than [`MAP_SPEED_TOL`] (the split keeps that from happening on curves
+    /// that pass [`SplineP::check_regular`]; this is the guarantee).
+    fn check_maps(&mut self) -> Result<(), MotionError> {
+        for m in 0..self.n {
+            let shape = self.piece_shape(self.splits[m], self.splits[m + 1]);
+            let (map, len) = ArcMap::quintic_table(&shape);
+            self.maps[m] = (map, len);
+            if map_speed_error(&shape, &map) > MAP_SPEED_TOL {
+                return Err(MotionError::InvalidSpline {
+                    line: self.line,
+                    why: "its parametric speed changes too fast to be followed (a control point very near an end point, or a near cusp)",
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Arc length of the whole curve and of its XYZ part (Gauss-Legendre, 64 intervals).
+    fn lengths(&self) -> (f64, f64) {
+        const X: [f64; 3] = [0.112_701_665_379_258_31, 0.5, 0.887_298_334_620_741_7];
+        const W: [f64; 3] = [5.0 / 18.0, 8.0 / 18.0, 5.0 / 18.0];
+        let n = 64;
+        let h = 1.0 / n as f64;
+        let (mut l, mut lx) = (0.0, 0.0);
+        for k in 0..n {
+            for g in 0..3 {
+                let d = self.d1((k as f64 + X[g]) * h);
+                l += W[g] * h * norm(&d);
+                lx += W[g] * h * norm_xyz(&d);
+            }
+        }
+        (l, lx)
+    }
+
+    /// The pieces of the curve; the last ends exactly at the end point and stops there when
+    /// `stop`.
+    pub fn emit(&self, stop: bool, out: &mut Vec<Piece>) {
+        for m in 0..self.n {
+            let (u0, u1) = (self.splits[m], self.splits[m + 1]);
+            let shape = self.piece_shape(u0, u1);
+            let start = if m == 0 { self.a } else { shape.pos(0.0) };
+            let end = if m + 1 == self.n {
+                self.b
+            } else {
+                self.piece_shape(u1, self.splits[m + 2]).pos(0.0)
+            };
+            let mut pc = Piece::new(shape, start, end, self.feed, false, self.line);
+            (pc.map, pc.len) = self.maps[m];
+            pc.dense_bounds = true;
+            pc.stop_at_end = stop && m + 1 == self.n;
+            out.push(pc);
+        }
+    }
+}
+
+/// Largest relative error of the path speed the map makes on a piece: σ(u(s))·du/ds − 1
+/// at four points inside every interval of its table.
+fn map_speed_error(shape: &Shape, map: &ArcMap) -> f64 {
+    let ArcMap::Quintic { s: nodes, .. } = map else {
+        return 0.0;
+    };
+    let mut worst = 0.0f64;
+    for k in 0..MAP_FINE_N {
+        let (s0, s1) = (nodes[k], nodes[k + 1]);
+        for q in 0..4 {
+            let s = s0 + (s1 - s0) * (2 * q + 1) as f64 / 8.0;
+            let ds = 1e-4 * (s1 - s0);
+            let duds = (map.u(s + ds) - map.u(s - ds)) / (2.0 * ds);
+            let err = (shape.speed(map.u(s)) * duds - 1.0).abs();
+            if !(err <= worst) {
+                worst = if err.is_nan() { f64::INFINITY } else { err };
+            }
+        }
+    }
+    worst
+}
+
+impl Piece {
+    /// The speed bounds at each sample become the smallest bound between it and its
+    /// neighbours: the braking curve takes the smaller of two neighbouring samples over the
+    /// interval between them, so a peak of curvature between samples is not missed. The
+    /// centripetal bound leaves [`CENTRIPETAL_SHARE`]'s complement of each axis's
+    /// acceleration free: at a curvature peak the path must still be able to brake (with
+    /// the whole acceleration taken by the curve the braking model sees no deceleration
+    /// there, and a stop after it could not be planned).
+    pub(crate) fn tighten_bounds_between_samples(&mut self, lim: &Lim) {
+        let mut shared = *lim;
+        for a in shared.a.iter_mut() {
+            *a *= CENTRIPETAL_SHARE;
+        }
+        let mut v_axis = [f64::INFINITY; crate::piece::NS_MAX];
+        let mut v_curve = [f64::INFINITY; crate::piece::NS_MAX];
+        for k in 0..self.ns {
+            let u0 = self.map.u(self.len * k as f64 / self.ns as f64);
+            let u1 = self.map.u(self.len * (k + 1) as f64 / self.ns as f64);
+            for q in 0..=DENSE {
+                let u = u0 + (u1 - u0) * q as f64 / DENSE as f64;
+                let d = self.shape.eval(u);
+                let (t, kv, kp) = crate::geometry::arc_derivs(&d);
+                let (va, vc) = self.point_bounds(&t, &kv, &kp, &shared);
+                v_axis[k] = v_axis[k].min(va);
+                v_curve[k] = v_curve[k].min(vc);
+            }
+        }
+        for k in 0..self.ns {
+            for j in [k, k + 1] {
+                self.smp[j].v_axis = self.smp[j].v_axis.min(v_axis[k]);
+                self.smp[j].v_curve = self.smp[j].v_curve.min(v_curve[k]);
+            }
+        }
+    }
+}
