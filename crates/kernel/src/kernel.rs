@@ -19,7 +19,7 @@ use crate::logic::{Logic, LogicStage};
 use crate::messages::{Command, Status, Urgent};
 use crate::motion::{MotionCore, ServoTarget};
 use crate::servo::{Sample, ServoStage};
-use crate::shared::Shared;
+use crate::shared::{Shared, Snapshot};
 
 /// Why the kernel could not be built or did not pass its self-test.
 #[derive(Debug, thiserror::Error)]
@@ -113,7 +113,7 @@ impl KernelHandle {
 
     /// The latest status snapshot.
     pub fn status(&self) -> Status {
-        *self.shared.status.lock()
+        self.shared.status.read()
     }
 
     /// Faults raised since the last call.
@@ -209,7 +209,7 @@ impl Kernel {
             })
             .collect::<Result<Vec<_>, _>>()?;
 
-        let shared = Shared::new();
+        let (shared, writers) = Shared::new();
         let (target_tx, target_rx) = rtcnc_rt::ring::<ServoTarget>("set-points", 4)
             .map_err(|e| KernelError::Executive(e.to_string()))?;
         let (recorder, samples) = if options.record_capacity > 0 {
@@ -226,10 +226,12 @@ impl Kernel {
             target_rx,
             recorder,
             shared.clone(),
+            writers.feedback,
             config.io.program_outputs.clone(),
         )));
 
-        let mut core = MotionCore::new(&config).map_err(|e| KernelError::Motion(e.to_string()))?;
+        let mut core = MotionCore::new(&config, &shared, writers.requests)
+            .map_err(|e| KernelError::Motion(e.to_string()))?;
         core.set_has_program(options.program.is_some());
         core.set_ready(true);
         let core = Arc::new(PiMutex::new(core));
@@ -268,7 +270,12 @@ impl Kernel {
             }
             _ => None,
         };
-        let mut logic = LogicStage::new(shared.clone(), logic, config.tool_changer.is_some());
+        let mut logic = LogicStage::new(
+            shared.clone(),
+            logic,
+            writers.logic_outputs,
+            config.tool_changer.is_some(),
+        );
         if let Some((snapshot, _)) = &retain {
             logic = logic.with_retain(Arc::clone(snapshot));
         }
@@ -334,11 +341,12 @@ impl Kernel {
 
         let th = thread(&mut b, "look-ahead", 3);
         let (c, sh) = (core.clone(), shared.clone());
-        let mut active = false;
+        let mut more = false;
         let id = b.periodic(th, "look-ahead", t.look_ahead.runs, move |ctx| {
-            // The runs after the first only when a program or MDI line is in progress.
-            if ctx.run() == 0 || active {
-                active = c.lock().look_ahead(ctx, &sh);
+            // The runs after the first only when the one before stopped at its bound of
+            // steps, not on something only another task can change.
+            if ctx.run() == 0 || more {
+                more = c.lock().look_ahead(ctx, &sh);
             }
         });
         b.on_deadline_miss(id, miss.clone());
@@ -366,16 +374,17 @@ impl Kernel {
 
         let th = thread(&mut b, "status feedback", 5);
         let (c, sh) = (core.clone(), shared.clone());
+        let mut feedback = Snapshot::new(shared.feedback.clone());
+        let mut status_out = writers.status;
+        let mut status = status_out.value();
         let id = b.periodic(th, "status feedback", t.status_feedback.runs, move |ctx| {
             if ctx.run() != 0 {
                 return;
             }
-            let feedback = *sh.feedback.lock();
-            let mut status = *sh.status.lock();
             c.lock()
-                .status(&feedback, ctx.now().as_nanos(), &mut status);
+                .status(feedback.get(), ctx.now().as_nanos(), &mut status);
             status.fault_count = sh.fault_count.load(std::sync::atomic::Ordering::Relaxed);
-            *sh.status.lock() = status;
+            status_out.publish(status);
         });
         b.on_deadline_miss(id, miss);
 
@@ -411,6 +420,7 @@ impl Kernel {
         .collect();
         let mut last_cycle = 0u64;
         let mut reported = false;
+        let mut feedback = Snapshot::new(shared.feedback.clone());
         // The RETAIN values are written here, off the real-time tasks, when they changed.
         let mut retain_saver = retain.map(|(snapshot, file)| (snapshot, file, None, false));
         b.background("self test", move |ctx| {
@@ -435,7 +445,7 @@ impl Kernel {
                     }
                 }
             }
-            let cycle = sh.feedback.lock().cycle;
+            let cycle = feedback.get().cycle;
             let stalled = ctx.activation() > 0 && cycle == last_cycle;
             last_cycle = cycle;
             let folder_bad = folders.iter().any(|f| {

@@ -7,14 +7,16 @@
 
 use rtcnc_motion::otg::{Limits, OnlineAxis, State};
 use rtcnc_motion::{AXES, MotionError, MotionState, Move, Planner, TrivialKinematics};
-use rtcnc_rt::{Context, RingProducer};
+use rtcnc_rt::{Context, RingProducer, SeqlockWriter};
 
 use crate::config::{MAX_JOINTS, MachineConfig};
 use crate::fault::{Fault, FaultCode, TaskName};
 use crate::messages::{
     Aux, Command, JointSetpoints, MachineBlock, MachineState, Mode, Status, Urgent,
 };
-use crate::shared::{Feedback, InterpreterRequest, Shared, Tagged};
+use crate::shared::{
+    Feedback, InterpreterRequest, LogicOutputs, LogicRequests, Shared, Snapshot, Tagged,
+};
 
 /// Latch requests carried with a set-point (bit n for joint n).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -169,7 +171,19 @@ pub struct MotionCore {
     program_input_count: usize,
     /// The logic's e-stop chain has been seen closed since the last reset.
     chain_closed: bool,
+    /// The feedback image as drive I/O published it.
+    feedback: Snapshot<Feedback>,
+    /// The machine logic's answers.
+    logic: Snapshot<LogicOutputs>,
+    /// The requests to the machine logic (this core is their one writer) and whether they
+    /// changed since they were last published.
+    requests: LogicRequests,
+    requests_changed: bool,
+    requests_out: SeqlockWriter<LogicRequests>,
 }
+
+/// Steps (blocks taken, phases passed) of one look-ahead run at most, so a run is bounded.
+const LOOK_AHEAD_STEPS: usize = 64;
 
 fn limits_of(v: f64, a: f64, j: f64) -> Limits {
     Limits::symmetric(v, a, j)
@@ -177,7 +191,11 @@ fn limits_of(v: f64, a: f64, j: f64) -> Limits {
 
 impl MotionCore {
     /// The core for a validated configuration, at rest at the joints' initial positions.
-    pub fn new(config: &MachineConfig) -> Result<MotionCore, MotionError> {
+    pub fn new(
+        config: &MachineConfig,
+        shared: &Shared,
+        requests_out: SeqlockWriter<LogicRequests>,
+    ) -> Result<MotionCore, MotionError> {
         let period_s = config.servo_period().as_secs_f64();
         let plan = config.axis_plan();
         let mut limits = rtcnc_motion::MachineLimits { axes: [None; AXES] };
@@ -355,7 +373,25 @@ impl MotionCore {
             },
             program_input_count: config.io.program_inputs.len().min(16),
             chain_closed: false,
+            feedback: Snapshot::new(shared.feedback.clone()),
+            logic: Snapshot::new(shared.logic_outputs.clone()),
+            requests: requests_out.value(),
+            requests_changed: false,
+            requests_out,
         })
+    }
+
+    /// The requests to the machine logic, to change (published at the end of the task body).
+    fn requests_mut(&mut self) -> &mut LogicRequests {
+        self.requests_changed = true;
+        &mut self.requests
+    }
+
+    /// Publishes the requests to the machine logic if a task body changed them.
+    fn publish_requests(&mut self) {
+        if std::mem::take(&mut self.requests_changed) {
+            self.requests_out.publish(self.requests);
+        }
     }
 
     /// The self-test passed: the machine may be reset into operation.
@@ -420,7 +456,7 @@ impl MotionCore {
             }
             Urgent::FeedHold => self.hold(),
             // The logic's hold (door open, fault, spindle not at speed) must clear first.
-            Urgent::Resume if shared.machine_interface.lock().feed_hold_request => {}
+            Urgent::Resume if self.logic.get().feed_hold_request => {}
             Urgent::Resume => {
                 if self.held || self.logic_paused {
                     self.held = false;
@@ -446,9 +482,10 @@ impl MotionCore {
                 } else {
                     1.0
                 };
-                let mut mi = shared.machine_interface.lock();
-                if mi.spindle_on {
-                    mi.spindle_rpm = mi.spindle_rpm.abs() * self.spindle_override;
+                let factor = self.spindle_override;
+                if self.requests.spindle_on {
+                    let mi = self.requests_mut();
+                    mi.spindle_rpm = mi.spindle_rpm.abs() * factor;
                 }
             }
         }
@@ -487,7 +524,7 @@ impl MotionCore {
             Source::Path => self.planner.abort(),
             Source::Manual => self.stop_manual(false),
         }
-        let mut mi = shared.machine_interface.lock();
+        let mi = self.requests_mut();
         mi.tool_change_request = false;
         mi.m_code_request = false;
         mi.program_running = false;
@@ -512,13 +549,19 @@ impl MotionCore {
 
     /// A normal command. Returns false when it was refused in this state.
     pub fn command(&mut self, ctx: &mut Context<'_>, shared: &Shared, command: Command) -> bool {
+        let ok = self.command_inner(ctx, shared, command);
+        self.publish_requests();
+        ok
+    }
+
+    fn command_inner(&mut self, ctx: &mut Context<'_>, shared: &Shared, command: Command) -> bool {
         let idle = self.operational()
             && !self.moving()
             && self.phase == Phase::Idle
             && self.homing.is_none();
         let ok = match command {
             Command::Reset => {
-                let feedback = *shared.feedback.lock();
+                let feedback = *self.feedback.get();
                 if !self.ready || feedback.estop || self.stopping {
                     false
                 } else {
@@ -532,15 +575,15 @@ impl MotionCore {
                     self.enable = true;
                     self.chain_closed = false;
                     self.reset_count = self.reset_count.wrapping_add(1);
-                    let mut mi = shared.machine_interface.lock();
-                    mi.estop_reset = true;
+                    let mi = self.requests_mut();
+                    mi.reset_count = mi.reset_count.wrapping_add(1);
                     mi.machine_on_request = true;
                     true
                 }
             }
             Command::Start { from_line } => {
                 if idle && self.has_program {
-                    self.begin(shared, Mode::Auto, from_line);
+                    self.begin(Mode::Auto, from_line);
                     let _ = shared
                         .interpreter_requests
                         .try_put(InterpreterRequest::Run { epoch: self.epoch });
@@ -555,7 +598,7 @@ impl MotionCore {
             }
             Command::Mdi(line) => {
                 if idle {
-                    self.begin(shared, Mode::Mdi, 0);
+                    self.begin(Mode::Mdi, 0);
                     let _ = shared
                         .interpreter_requests
                         .try_put(InterpreterRequest::Mdi {
@@ -744,7 +787,7 @@ impl MotionCore {
         let _ = self.planner.reset_at(axes);
     }
 
-    fn begin(&mut self, shared: &Shared, mode: Mode, from_line: u32) {
+    fn begin(&mut self, mode: Mode, from_line: u32) {
         self.enter_path();
         self.mode = mode;
         self.epoch = self.epoch.wrapping_add(1);
@@ -754,7 +797,7 @@ impl MotionCore {
         self.program_ended = false;
         self.run_from_line = from_line;
         self.skipped_to = None;
-        shared.machine_interface.lock().program_running = mode == Mode::Auto;
+        self.requests_mut().program_running = mode == Mode::Auto;
     }
 
     /// Hands motion to the on-line generators, from where the path stands.
@@ -788,38 +831,41 @@ impl MotionCore {
 
     /// One run of the look-ahead: moves blocks into the planner's window while it has room,
     /// stops the path before machine functions and errors, and sequences their hand-shakes.
-    /// Returns whether a program or MDI line is in progress (more runs may have work).
+    /// Returns whether another run in the same period may find more to do: only when this
+    /// one stopped at its bound of steps. Otherwise it stopped on something only another
+    /// task can change (no block, no room, the machine still moving, the logic's answer).
     pub fn look_ahead(&mut self, ctx: &mut Context<'_>, shared: &Shared) -> bool {
-        self.look_ahead_runs(ctx, shared);
-        self.phase != Phase::Idle
+        let more = self.look_ahead_runs(ctx, shared);
+        self.publish_requests();
+        more
     }
 
-    fn look_ahead_runs(&mut self, ctx: &mut Context<'_>, shared: &Shared) {
+    fn look_ahead_runs(&mut self, ctx: &mut Context<'_>, shared: &Shared) -> bool {
         if !self.operational() || self.stopping {
-            return;
+            return false;
         }
-        for _ in 0..64 {
+        for _ in 0..LOOK_AHEAD_STEPS {
             match self.phase {
-                Phase::Idle => return,
+                Phase::Idle => return false,
                 Phase::Feeding => {
                     if self.held || self.logic_paused || (self.logic_hold && !self.moving()) {
-                        return;
+                        return false;
                     }
                     let block = match self.pending.take() {
                         Some(b) => b,
                         None => match shared.machine_blocks.try_get() {
                             Some(Tagged { epoch, block }) if epoch == self.epoch => block,
                             Some(_) => continue,
-                            None => return,
+                            None => return false,
                         },
                     };
                     if !self.feed(ctx, shared, block) {
-                        return;
+                        return false;
                     }
                 }
                 Phase::Draining { then, line } => {
                     if self.moving() {
-                        return;
+                        return false;
                     }
                     self.after_drain(ctx, shared, then, line);
                 }
@@ -828,13 +874,13 @@ impl MotionCore {
                     line,
                     released,
                 } => {
-                    if !self.logic_done(shared, aux, line, released) {
-                        return;
+                    if !self.logic_done(aux, line, released) {
+                        return false;
                     }
                 }
                 Phase::Paused { start_count } => {
                     if self.start_count == start_count {
-                        return;
+                        return false;
                     }
                     self.phase = Phase::Feeding;
                 }
@@ -845,7 +891,7 @@ impl MotionCore {
                     previous,
                 } => {
                     use crate::messages::WaitCondition as W;
-                    let now = shared.feedback.lock().digital_inputs & bit != 0;
+                    let now = self.feedback.get().digital_inputs & bit != 0;
                     let met = match condition {
                         W::Immediate => true,
                         W::Rise => now && !previous,
@@ -862,11 +908,12 @@ impl MotionCore {
                             deadline,
                             previous: now,
                         };
-                        return;
+                        return false;
                     }
                 }
             }
         }
+        true
     }
 
     /// Returns false when the block could not be taken now (kept for the next run).
@@ -968,7 +1015,7 @@ impl MotionCore {
             Then::End => {
                 self.phase = Phase::Idle;
                 self.program_ended = true;
-                shared.machine_interface.lock().program_running = false;
+                self.requests_mut().program_running = false;
             }
             Then::MdiDone => self.phase = Phase::Idle,
             Then::Error(code) => {
@@ -978,14 +1025,14 @@ impl MotionCore {
                 let _ = shared
                     .interpreter_requests
                     .try_put(InterpreterRequest::Stop);
-                shared.machine_interface.lock().program_running = false;
+                self.requests_mut().program_running = false;
             }
-            Then::Aux(aux) => self.start_aux(shared, aux, line),
+            Then::Aux(aux) => self.start_aux(aux, line),
         }
     }
 
-    fn start_aux(&mut self, shared: &Shared, aux: Aux, line: u32) {
-        let mut mi = shared.machine_interface.lock();
+    fn start_aux(&mut self, aux: Aux, line: u32) {
+        let mut mi = self.requests;
         match aux {
             Aux::SpindleOn { rpm } => {
                 mi.spindle_on = rpm != 0.0;
@@ -1022,7 +1069,6 @@ impl MotionCore {
                 condition,
                 timeout,
             } => {
-                drop(mi);
                 let point = usize::try_from(index)
                     .ok()
                     .filter(|&i| i < self.program_input_count)
@@ -1041,7 +1087,7 @@ impl MotionCore {
                     0
                 };
                 let bit = 1u64 << point;
-                let previous = shared.feedback.lock().digital_inputs & bit != 0;
+                let previous = self.feedback.get().digital_inputs & bit != 0;
                 self.phase = Phase::WaitInput {
                     bit,
                     condition,
@@ -1051,14 +1097,12 @@ impl MotionCore {
                 return;
             }
             Aux::ProgramStop => {
-                drop(mi);
                 self.phase = Phase::Paused {
                     start_count: self.start_count,
                 };
                 return;
             }
             Aux::OptionalStop => {
-                drop(mi);
                 self.phase = if self.optional_stop {
                     Phase::Paused {
                         start_count: self.start_count,
@@ -1069,6 +1113,7 @@ impl MotionCore {
                 return;
             }
         }
+        *self.requests_mut() = mi;
         self.phase = Phase::Logic {
             aux,
             line,
@@ -1077,19 +1122,19 @@ impl MotionCore {
     }
 
     /// Whether the machine logic acknowledged `aux`; drops hand-shake requests once done.
-    fn logic_done(&mut self, shared: &Shared, aux: Aux, line: u32, released: bool) -> bool {
-        let mut mi = shared.machine_interface.lock();
+    fn logic_done(&mut self, aux: Aux, line: u32, released: bool) -> bool {
+        let answers = *self.logic.get();
         let done = match aux {
             Aux::SpindleOn { .. } | Aux::SpindleSpeed { .. } => {
-                !mi.spindle_on || mi.spindle_at_speed
+                !self.requests.spindle_on || answers.spindle_at_speed
             }
             Aux::SpindleOff => true,
-            Aux::Mist(on) => mi.out_mist == on,
-            Aux::Flood(on) => mi.out_flood == on,
+            Aux::Mist(on) => answers.out_mist == on,
+            Aux::Flood(on) => answers.out_flood == on,
             Aux::ToolChange { tool } => {
                 if !released {
-                    if mi.tool_change_done {
-                        mi.tool_change_request = false;
+                    if answers.tool_change_done {
+                        self.requests_mut().tool_change_request = false;
                         self.tool = tool;
                         self.phase = Phase::Logic {
                             aux,
@@ -1099,13 +1144,13 @@ impl MotionCore {
                     }
                     false
                 } else {
-                    !mi.tool_change_done
+                    !answers.tool_change_done
                 }
             }
             Aux::UserM { .. } => {
                 if !released {
-                    if mi.m_code_done {
-                        mi.m_code_request = false;
+                    if answers.m_code_done {
+                        self.requests_mut().m_code_request = false;
                         self.phase = Phase::Logic {
                             aux,
                             line,
@@ -1114,7 +1159,7 @@ impl MotionCore {
                     }
                     false
                 } else {
-                    !mi.m_code_done
+                    !answers.m_code_done
                 }
             }
             Aux::DigitalOutput { .. }
@@ -1146,7 +1191,7 @@ impl MotionCore {
         while let Some(fault) = shared.stop_requests.try_get() {
             self.on_fault(shared, fault);
         }
-        let feedback = *shared.feedback.lock();
+        let feedback = *self.feedback.get();
         if !self.offsets_known && feedback.cycle > 0 {
             // Before homing, a joint's machine position is where the kernel believed it
             // was at power-up: the offsets make feedback and set-points agree.
@@ -1156,7 +1201,7 @@ impl MotionCore {
             }
         }
         let chain_ok = {
-            let mi = shared.machine_interface.lock();
+            let mi = *self.logic.get();
             if mi.feed_hold_request && !self.logic_hold {
                 let spindle_handshake = matches!(
                     self.phase,
@@ -1189,7 +1234,7 @@ impl MotionCore {
         let steps = feedback.cycle.saturating_sub(self.cycle).clamp(1, 4);
         let line = self.last.line;
         for _ in 0..steps {
-            self.step(shared, &feedback);
+            self.step(&feedback);
         }
         if self.last.line != line {
             // The program line in the trace, so a timeline shows which block ran when.
@@ -1201,6 +1246,7 @@ impl MotionCore {
                 self.enable = false;
             }
         }
+        self.publish_requests();
         let _ = out.push(ServoTarget {
             setpoints: self.last,
             offsets: self.offsets,
@@ -1211,7 +1257,7 @@ impl MotionCore {
     }
 
     /// One servo period of the set-point generators.
-    fn step(&mut self, shared: &Shared, feedback: &Feedback) {
+    fn step(&mut self, feedback: &Feedback) {
         self.cycle += 1;
         let mut sp = self.last;
         sp.cycle = self.cycle;
@@ -1249,7 +1295,7 @@ impl MotionCore {
                         sp.joints[j] = sp.axes[i];
                     }
                 }
-                self.homing_step(shared, feedback);
+                self.homing_step(feedback);
             }
         }
         // Joints on their own generator (homing, independent joints).
@@ -1263,7 +1309,7 @@ impl MotionCore {
 
     fn on_fault(&mut self, shared: &Shared, fault: Fault) {
         self.last_fault = Some(fault);
-        shared.machine_interface.lock().machine_on_request = false;
+        self.requests_mut().machine_on_request = false;
         if fault.code == FaultCode::EStop {
             self.estop = true;
         } else {
@@ -1292,7 +1338,7 @@ impl MotionCore {
                 self.stop_manual(true);
             }
         }
-        let mut mi = shared.machine_interface.lock();
+        let mi = self.requests_mut();
         mi.tool_change_request = false;
         mi.m_code_request = false;
         mi.program_running = false;
@@ -1338,7 +1384,7 @@ impl MotionCore {
     }
 
     /// One period of the homing sequence of the current group.
-    fn homing_step(&mut self, shared: &Shared, feedback: &Feedback) {
+    fn homing_step(&mut self, feedback: &Feedback) {
         let Some(mut homing) = self.homing else {
             return;
         };
@@ -1471,7 +1517,7 @@ impl MotionCore {
                         self.homed |= 1 << j;
                     }
                 }
-                shared.machine_interface.lock().homed = true;
+                self.requests_mut().homed = true;
             }
         } else {
             self.homing = Some(homing);

@@ -7,13 +7,13 @@
 use rtcnc_fieldbus::{
     Cia402State, ControlWord, Fieldbus, LatchSource, ProcessInputs, ProcessOutputs,
 };
-use rtcnc_rt::{Context, RingConsumer, RingProducer};
+use rtcnc_rt::{Context, RingConsumer, RingProducer, SeqlockWriter};
 use rtcnc_servo::{ServoCommand, ServoLoop, SetPointDifferentiator};
 
 use crate::config::MAX_JOINTS;
 use crate::fault::{FaultCode, TaskName};
 use crate::motion::ServoTarget;
-use crate::shared::{Feedback, Shared};
+use crate::shared::{Feedback, LogicOutputs, LogicRequests, Shared, Snapshot};
 
 /// One recorded servo cycle (for the CSV files, plots and summaries of `rtcnc sim`).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -48,6 +48,9 @@ pub(crate) struct ServoStage<B: Fieldbus> {
     targets: RingConsumer<ServoTarget>,
     recorder: Option<RingProducer<Sample>>,
     shared: Shared,
+    feedback_out: SeqlockWriter<Feedback>,
+    logic: Snapshot<LogicOutputs>,
+    requests: Snapshot<LogicRequests>,
     was_enabled: u32,
     servo_fault: bool,
     reset_count: u32,
@@ -63,6 +66,8 @@ pub(crate) struct ServoStage<B: Fieldbus> {
 }
 
 impl<B: Fieldbus> ServoStage<B> {
+    // Every argument is one of the stage's own parts, handed over once at build time.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn new(
         bus: B,
         loops: Vec<ServoLoop>,
@@ -70,6 +75,7 @@ impl<B: Fieldbus> ServoStage<B> {
         targets: RingConsumer<ServoTarget>,
         recorder: Option<RingProducer<Sample>>,
         shared: Shared,
+        feedback_out: SeqlockWriter<Feedback>,
         program_outputs: Vec<usize>,
     ) -> Self {
         let outputs = ProcessOutputs::new(bus.layout());
@@ -86,7 +92,10 @@ impl<B: Fieldbus> ServoStage<B> {
             target: None,
             targets,
             recorder,
+            logic: Snapshot::new(shared.logic_outputs.clone()),
+            requests: Snapshot::new(shared.requests.clone()),
             shared,
+            feedback_out,
             was_enabled: 0,
             servo_fault: false,
             reset_count: 0,
@@ -260,7 +269,8 @@ impl<B: Fieldbus> ServoStage<B> {
     /// Drive I/O: one exchange.
     pub(crate) fn drive_io(&mut self, ctx: &mut Context<'_>) {
         {
-            let mi = self.shared.machine_interface.lock();
+            let mi = *self.logic.get();
+            let program_outputs = self.requests.get().program_outputs;
             self.outputs.spindle.enable = mi.out_spindle_enable;
             self.outputs.spindle.speed_rpm = mi.out_spindle_rpm;
             self.outputs.coolant.mist = mi.out_mist;
@@ -275,7 +285,7 @@ impl<B: Fieldbus> ServoStage<B> {
             }
             for (n, &point) in self.program_outputs.iter().enumerate().take(64) {
                 if let Some(o) = self.outputs.digital.get_mut(point) {
-                    *o |= mi.program_outputs & (1 << n) != 0;
+                    *o |= program_outputs & (1 << n) != 0;
                 }
             }
         }
@@ -364,7 +374,7 @@ impl<B: Fieldbus> ServoStage<B> {
                 fb.digital_inputs |= 1 << i;
             }
         }
-        *self.shared.feedback.lock() = fb;
+        self.feedback_out.publish(fb);
     }
 
     /// Periods in which position control had to go on without a fresh set-point.

@@ -55,7 +55,8 @@ mod virtual_time;
 pub use error::ConfigError;
 pub use ipc::{
     BinarySemaphore, CountingSemaphore, EventSemaphore, IpcError, LatestReader, LatestWriter,
-    Mailbox, PiMutex, PiMutexGuard, Rejected, RingConsumer, RingProducer, Trigger, latest, ring,
+    Mailbox, PiMutex, PiMutexGuard, Rejected, RingConsumer, RingProducer, SeqlockReader,
+    SeqlockWriter, Trigger, latest, ring, seqlock,
 };
 pub use monitor::{
     Fault, FaultCode, FaultRecord, MissReaction, Monitor, TaskKind, TaskMonitor, TaskState,
