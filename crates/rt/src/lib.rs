@@ -70,4 +70,4 @@ pub use task::{
 };
 pub use time::{DurationError, Time, duration_from_secs, parse_duration};
 pub use trace::Trace;
-pub use virtual_time::{RunError, VirtualRunner};
+pub use virtual_time::{HostProfile, RunError, VirtualRunner};

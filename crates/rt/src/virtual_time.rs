@@ -238,6 +238,42 @@ pub struct VirtualRunner {
     background_step_ns: u64,
     /// Something may have fired a trigger or changed a start event since the last poll.
     dirty: bool,
+    /// Host processor time spent in each task's bodies, when asked for.
+    host: Option<HostProfile>,
+}
+
+/// The host processor time of a virtual-time run, per task: what simulating each task
+/// costs on the computer that runs the simulation (not simulated time).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct HostProfile {
+    /// Per task, in declaration order: (name, body runs, host time in the bodies, ns).
+    pub tasks: Vec<(String, u64, u64)>,
+    /// The cost of one pair of clock readings, ns, already taken off each body run.
+    pub clock_overhead_ns: u64,
+}
+
+impl HostProfile {
+    fn new(tasks: &[TaskSpec]) -> Self {
+        // What reading the clock twice costs, so that it is not charged to the bodies.
+        let rounds = 2000u32;
+        let t0 = std::time::Instant::now();
+        for _ in 0..rounds {
+            std::hint::black_box(std::time::Instant::now());
+        }
+        let per_read = t0.elapsed().as_nanos() as u64 / u64::from(rounds);
+        HostProfile {
+            tasks: tasks.iter().map(|t| (t.name.clone(), 0, 0)).collect(),
+            clock_overhead_ns: per_read,
+        }
+    }
+
+    fn charge(&mut self, task: usize, since: std::time::Instant) {
+        let ns = (since.elapsed().as_nanos() as u64).saturating_sub(self.clock_overhead_ns);
+        if let Some(t) = self.tasks.get_mut(task) {
+            t.1 += 1;
+            t.2 += ns;
+        }
+    }
 }
 
 impl VirtualRunner {
@@ -288,7 +324,21 @@ impl VirtualRunner {
             instant: 0,
             background_step_ns: 10_000,
             dirty: true,
+            host: None,
         }
+    }
+
+    /// Measures the host processor time of every body run (two clock readings each), for
+    /// a profile of what each task costs the simulation; see [`host_profile`](Self::host_profile).
+    /// It changes nothing in the simulated run.
+    pub fn with_host_profile(mut self) -> Self {
+        self.host = Some(HostProfile::new(&self.tasks));
+        self
+    }
+
+    /// The host time spent in each task's bodies so far (with [`with_host_profile`](Self::with_host_profile)).
+    pub fn host_profile(&self) -> Option<&HostProfile> {
+        self.host.as_ref()
     }
 
     /// The least simulated processor time one background body run takes (default 10 µs),
@@ -449,6 +499,11 @@ impl VirtualRunner {
                 }
             }
         }
+        self.poll_reactive();
+    }
+
+    /// Wakes event and background tasks whose trigger fired or timeout passed.
+    fn poll_reactive(&mut self) {
         // Triggers and start events only change when a body ran (or code outside the task set
         // ran between two run calls); without that, only timeouts can wake a task.
         let poll = std::mem::take(&mut self.dirty);
@@ -527,6 +582,13 @@ impl VirtualRunner {
         }
     }
 
+    /// Whether an event or background task of a priority above `priority` is ready.
+    fn reactive_above(&self, priority: i32) -> bool {
+        self.reactive
+            .iter()
+            .any(|r| r.priority > priority && matches!(r.state, RState::Ready(_) | RState::Running))
+    }
+
     fn pick(&self) -> Option<Pick> {
         let mut best: Option<(i32, u64, Pick)> = None;
         let mut consider = |prio: i32, seq: u64, p: Pick| {
@@ -591,11 +653,32 @@ impl VirtualRunner {
         }
     }
 
+    /// Starts the next step of thread `i`'s cycle. Steps that declare no processor time end
+    /// at once; the cycle then goes on with its next step here, without a round through
+    /// the scheduler loop, as long as that loop would pick this thread again: no release
+    /// can fall due at this instant, so only an event task of higher priority woken by the
+    /// body can come first (equal priorities woken now queue behind this cycle).
     fn start_thread_step(&mut self, i: usize) {
+        loop {
+            if !self.start_one_thread_step(i) || self.threads[i].cycle.is_none() {
+                return;
+            }
+            self.poll_reactive();
+            if self.reactive_above(self.threads[i].spec.priority)
+                || self.instant_steps >= MAX_STEPS_PER_INSTANT
+            {
+                return;
+            }
+            self.instant_steps += 1;
+        }
+    }
+
+    /// One step of thread `i`'s cycle; true when it declared no time and is over.
+    fn start_one_thread_step(&mut self, i: usize) -> bool {
         let now = self.now;
         let th = &mut self.threads[i];
         let Some(cycle) = th.cycle.as_mut() else {
-            return;
+            return false;
         };
         // Skip tasks asked to stop: they stop themselves at the start of their cycle.
         while let Some(&task) = th.spec.tasks.get(cycle.pos) {
@@ -610,7 +693,7 @@ impl VirtualRunner {
         }
         let Some(&task) = th.spec.tasks.get(cycle.pos) else {
             self.finish_cycle(i);
-            return;
+            return false;
         };
         let TaskSpec {
             name, body, lane, ..
@@ -630,8 +713,12 @@ impl VirtualRunner {
             m.set_state(TaskState::Running);
         }
         set_in_task_body(true);
+        let host_start = self.host.is_some().then(std::time::Instant::now);
         if let Body::Periodic(body) = body {
             body(&mut ctx);
+        }
+        if let (Some(profile), Some(start)) = (self.host.as_mut(), host_start) {
+            profile.charge(task, start);
         }
         set_in_task_body(false);
         self.dirty = true;
@@ -646,6 +733,7 @@ impl VirtualRunner {
         if cost == 0 {
             self.finish_thread_step(i);
         }
+        cost == 0
     }
 
     fn finish_thread_step(&mut self, i: usize) {
@@ -765,10 +853,14 @@ impl VirtualRunner {
             m.set_state(TaskState::Running);
         }
         set_in_task_body(true);
+        let host_start = self.host.is_some().then(std::time::Instant::now);
         let next = match body {
             Body::Reactive(body) => body(&mut ctx),
             Body::Periodic(_) => Next::Done,
         };
+        if let (Some(profile), Some(start)) = (self.host.as_mut(), host_start) {
+            profile.charge(task, start);
+        }
         set_in_task_body(false);
         self.dirty = true;
         let mut cost = ctx.consumed;

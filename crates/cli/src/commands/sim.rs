@@ -35,6 +35,10 @@ pub struct Args {
     /// No progress bar.
     #[arg(long, short)]
     quiet: bool,
+    /// Print where the host processor time went: each task, the recording, the executive
+    /// (measuring adds two clock readings per task run, so the run itself is slower).
+    #[arg(long)]
+    profile: bool,
 }
 
 /// What `summary.json` holds.
@@ -63,6 +67,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let period = config.servo_period();
     let period_s = period.as_secs_f64();
     let mut sim = Simulation::new(kernel);
+    if args.profile {
+        sim = sim.with_host_profile();
+    }
+    let recording_ns = std::cell::Cell::new(0u64);
+    let whole_run = Instant::now();
     let handle = sim.handle().clone();
 
     let mut writers = match &args.out {
@@ -73,13 +82,18 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let mut plot = PlotData::default();
     let mut faults: Vec<Fault> = Vec::new();
     let mut io_error: Option<std::io::Error> = None;
+    let profile = args.profile;
     let mut sink = |s: &Sample| {
+        let t0 = profile.then(Instant::now);
         stats.add(s, period_s);
         plot.add(s);
         if let Some(w) = writers.as_mut() {
             if let Err(e) = w.write(s, config.joints.len()) {
                 io_error.get_or_insert(e);
             }
+        }
+        if let Some(t0) = t0 {
+            recording_ns.set(recording_ns.get() + t0.elapsed().as_nanos() as u64);
         }
     };
 
@@ -149,6 +163,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         bar.finish_and_clear();
     }
     let wall_s = wall.elapsed().as_secs_f64();
+    let whole_run_ns = whole_run.elapsed().as_nanos() as u64;
     if let Some(e) = io_error {
         return Err(e).context("writing the CSV files");
     }
@@ -244,6 +259,15 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }
     }
 
+    if let Some(profile) = sim.runner().host_profile() {
+        print_profile(
+            profile,
+            whole_run_ns,
+            recording_ns.get(),
+            sim.now().as_secs_f64(),
+        );
+    }
+
     if let Some(dir) = &args.out {
         if let Some(w) = writers.take() {
             w.finish()?;
@@ -278,6 +302,51 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     } else {
         ExitCode::from(1)
     })
+}
+
+/// Where the host processor time of the run went, per simulated millisecond.
+fn print_profile(
+    profile: &rtcnc_rt::HostProfile,
+    whole_run_ns: u64,
+    recording_ns: u64,
+    simulated_s: f64,
+) {
+    let ms = (simulated_s * 1e3).max(1e-9);
+    let per_ms = |ns: u64| ns as f64 / 1e3 / ms;
+    let share = |ns: u64| 100.0 * ns as f64 / whole_run_ns.max(1) as f64;
+    println!(
+        "host time   {:.3} s for {simulated_s:.3} s simulated ({:.3} µs per simulated ms; \
+         profiling adds {} ns per task run)",
+        whole_run_ns as f64 * 1e-9,
+        per_ms(whole_run_ns),
+        profile.clock_overhead_ns * 2,
+    );
+    println!(
+        "  {:<22} {:>9} {:>14} {:>7}",
+        "task", "runs/ms", "µs per sim ms", "share"
+    );
+    let mut in_tasks = 0;
+    for (name, runs, ns) in &profile.tasks {
+        in_tasks += ns;
+        println!(
+            "  {name:<22} {:>9.2} {:>14.3} {:>6.1}%",
+            *runs as f64 / ms,
+            per_ms(*ns),
+            share(*ns)
+        );
+    }
+    let rest = whole_run_ns.saturating_sub(in_tasks + recording_ns);
+    for (name, ns) in [
+        ("recording (sim)", recording_ns),
+        ("executive + glue", rest),
+    ] {
+        println!(
+            "  {name:<22} {:>9} {:>14.3} {:>6.1}%",
+            "",
+            per_ms(ns),
+            share(ns)
+        );
+    }
 }
 
 fn progress_bar(quiet: bool) -> Option<indicatif::ProgressBar> {
