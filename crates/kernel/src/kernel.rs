@@ -323,7 +323,7 @@ impl Kernel {
         });
         b.on_deadline_miss(id, miss.clone());
 
-        let th = if t.interpolation_in_fieldbus_thread {
+        let th = if t.interpolation_in_fieldbus_thread(period) {
             fieldbus
         } else {
             thread(&mut b, "interpolation", 2)

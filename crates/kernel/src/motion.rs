@@ -1229,9 +1229,20 @@ impl MotionCore {
                 shared.raise(ctx, FaultCode::EStop, TaskName::MachineLogic, None, 0, 0.0);
             }
         }
-        // One set-point per servo period of the drives: after a late activation (a real-time
-        // overrun) the missed periods are computed now, at most four.
-        let steps = feedback.cycle.saturating_sub(self.cycle).clamp(1, 4);
+        // One set-point per exchange with the drives, numbered by the exchange it is for:
+        // the one made in period p is applied by position control in period p + 1, after
+        // the exchanges of periods up to p, i.e. p + 1 less the periods the fieldbus thread
+        // skipped. The number does not depend on whether drive I/O has already done this
+        // period's exchange, which on several processors it may or may not have (reading
+        // the feedback's exchange count instead made the set-points one period late about
+        // every other period at 10 kHz). After a late activation (a real-time overrun) the
+        // missed set-points are computed now, at most four; none when interpolation is
+        // ahead (the fieldbus thread skipped periods meanwhile).
+        let skipped = shared
+            .fieldbus_skipped
+            .load(std::sync::atomic::Ordering::Relaxed);
+        let target = (ctx.activation() + 1).saturating_sub(skipped);
+        let steps = target.saturating_sub(self.cycle).min(4);
         let line = self.last.line;
         for _ in 0..steps {
             self.step(&feedback);
@@ -1247,6 +1258,9 @@ impl MotionCore {
             }
         }
         self.publish_requests();
+        if steps == 0 {
+            return;
+        }
         let _ = out.push(ServoTarget {
             setpoints: self.last,
             offsets: self.offsets,

@@ -113,6 +113,10 @@ impl<B: Fieldbus> ServoStage<B> {
 
     /// Position control: one servo cycle.
     pub(crate) fn position_control(&mut self, ctx: &mut Context<'_>) {
+        self.shared.fieldbus_skipped.store(
+            ctx.activation().saturating_sub(self.exchanges),
+            std::sync::atomic::Ordering::Relaxed,
+        );
         // Take the set-points up to this period's, not beyond: on a multi-core machine the
         // interpolation thread may already have made the next one.
         while let Some(cycle) = self.targets.peek().map(|t| t.setpoints.cycle) {
