@@ -44,8 +44,9 @@ pub(crate) fn sleep_until_monotonic(ns: u64) {
 }
 
 /// A mutex with the priority-inheritance protocol (`PTHREAD_PRIO_INHERIT`) and a condition
-/// variable on `CLOCK_MONOTONIC`. Every IPC object of the executive is built on it, so the
-/// only lock a real-time task ever takes is a PI mutex.
+/// variable on `CLOCK_MONOTONIC`. The blocking IPC objects (mailboxes, semaphores) are built
+/// on it; `PiMutex` uses the same kernel mechanism (a PI futex) without the condition
+/// variable. So the only lock a real-time task ever takes is a PI mutex.
 pub(crate) struct PiLock<T> {
     // Boxed: pthread objects must not move after initialisation.
     mutex: Box<UnsafeCell<libc::pthread_mutex_t>>,
@@ -91,12 +92,6 @@ impl<T> PiLock<T> {
         // SAFETY: the mutex was initialised in `new` and lives as long as `self`.
         unsafe { libc::pthread_mutex_lock(self.mutex.get()) };
         PiGuard { lock: self }
-    }
-
-    pub(crate) fn try_lock(&self) -> Option<PiGuard<'_, T>> {
-        // SAFETY: as in `lock`.
-        let rc = unsafe { libc::pthread_mutex_trylock(self.mutex.get()) };
-        (rc == 0).then_some(PiGuard { lock: self })
     }
 
     /// Wakes every thread waiting on the condition variable.

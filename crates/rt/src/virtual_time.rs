@@ -166,6 +166,13 @@ struct Step {
     next: Option<Next>,
 }
 
+/// What booking the end of a step needs.
+struct EndedStep {
+    task: usize,
+    start: u64,
+    lateness: Option<u64>,
+}
+
 struct Cycle {
     release: u64,
     activation: u64,
@@ -723,26 +730,39 @@ impl VirtualRunner {
         set_in_task_body(false);
         self.dirty = true;
         let cost = ctx.consumed;
+        let lateness = Some(now - cycle.release);
+        if cost == 0 {
+            // Over at once: no step to keep for the scheduler loop.
+            self.end_thread_step(i, task, now, lateness);
+            return true;
+        }
         cycle.step = Some(Step {
             task,
             start: now,
             remaining: cost,
-            lateness: Some(now - cycle.release),
+            lateness,
             next: None,
         });
-        if cost == 0 {
-            self.finish_thread_step(i);
-        }
-        cost == 0
+        false
     }
 
     fn finish_thread_step(&mut self, i: usize) {
+        let Some(step) = self.threads[i].cycle.as_mut().and_then(|c| c.step.take()) else {
+            return;
+        };
+        self.end_thread_step(i, step.task, step.start, step.lateness);
+    }
+
+    /// Books the end of a step of thread `i` (task `task`, started at `start`) now.
+    fn end_thread_step(&mut self, i: usize, task: usize, start: u64, lateness: Option<u64>) {
+        let step = EndedStep {
+            task,
+            start,
+            lateness,
+        };
         let now = self.now;
         let th = &mut self.threads[i];
         let Some(cycle) = th.cycle.as_mut() else {
-            return;
-        };
-        let Some(step) = cycle.step.take() else {
             return;
         };
         let recording = &self.recording;
@@ -798,13 +818,14 @@ impl VirtualRunner {
     fn finish_cycle(&mut self, i: usize) {
         let now = self.now;
         let th = &mut self.threads[i];
-        let Some(cycle) = th.cycle.take() else {
+        let Some((release, missed)) = th.cycle.as_ref().map(|c| (c.release, c.missed)) else {
             return;
         };
-        let (next, skipped) = next_release(cycle.release, th.spec.period_ns, now);
+        th.cycle = None;
+        let (next, skipped) = next_release(release, th.spec.period_ns, now);
         th.next_release = next;
         if skipped > 0 {
-            if let Some(m) = cycle.missed.and_then(|t| self.recording.monitor.task_at(t)) {
+            if let Some(m) = missed.and_then(|t| self.recording.monitor.task_at(t)) {
                 m.record_skipped(skipped);
             }
         }
