@@ -301,10 +301,15 @@ impl SimulatedJoint {
         }
     }
 
+    #[inline]
     fn update_latch(&mut self, before: f64, after: f64) {
         if !self.latch.armed || self.latch.latched || self.encoder_lost || before == after {
             return;
         }
+        self.catch_latch(before, after);
+    }
+
+    fn catch_latch(&mut self, before: f64, after: f64) {
         let event = match self.latch_request {
             Some(LatchSource::IndexPulse) => self.index_between(before, after),
             Some(LatchSource::HomeSwitch) => self.home_edge_between(before, after),
