@@ -129,7 +129,7 @@ impl MotorModel {
         if v == 0.0 || net * v >= 0.0 {
             return true; // no stop at all (time_to_stop is infinite)
         }
-        if !(c > 0.0) || t != self.cached_step {
+        if c.is_nan() || c <= 0.0 || t != self.cached_step {
             return false;
         }
         let terminal = net / c;
