@@ -104,7 +104,9 @@ impl LogicStage {
                 self.plc.apply(&mut out, &req, &fb, self.has_tool_changer);
             }
         }
-        self.outputs.publish(out);
+        if out != self.outputs.value() {
+            self.outputs.publish(out);
+        }
         let faulted = fault.is_some() || out.machine_fault;
         if faulted && !self.fault_latched {
             let code = fault.unwrap_or(out.machine_fault_code as f64);

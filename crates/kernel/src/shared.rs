@@ -162,17 +162,27 @@ pub struct LogicOutputs {
 pub(crate) struct Snapshot<T> {
     reader: SeqlockReader<T>,
     value: T,
+    /// The publication `value` is (at least); no copy while there is nothing newer.
+    version: u64,
 }
 
 impl<T: Copy + Send> Snapshot<T> {
     pub(crate) fn new(reader: SeqlockReader<T>) -> Self {
+        let version = reader.version();
         let value = reader.read();
-        Snapshot { reader, value }
+        Snapshot {
+            reader,
+            value,
+            version,
+        }
     }
 
     /// The newest value (never waits).
     pub(crate) fn get(&mut self) -> &T {
-        self.reader.read_into(&mut self.value);
+        let version = self.reader.version();
+        if version != self.version && self.reader.read_into(&mut self.value) {
+            self.version = version;
+        }
         &self.value
     }
 }

@@ -13,6 +13,8 @@ use crate::sim::motor::MotorModel;
 pub(crate) struct CycleConditions {
     pub period_s: f64,
     pub substeps: usize,
+    /// `period_s / substeps`.
+    pub step_s: f64,
     /// Drive power is present (the e-stop chain is closed, or does not cut power).
     pub power: bool,
     /// The process-data watchdog expired.
@@ -259,7 +261,7 @@ impl SimulatedJoint {
         substep: usize,
     ) {
         let substeps = conditions.substeps.max(1);
-        let step_s = conditions.period_s / substeps as f64;
+        let step_s = conditions.step_s;
         let started = (substep - 1) as f64;
         let fraction = started / substeps as f64;
         // Velocity and torque commands reach the motor `command_delay_s` after the sample

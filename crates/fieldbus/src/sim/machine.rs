@@ -321,9 +321,11 @@ impl Fieldbus for SimulatedMachine {
             self.tool_command = outputs.tool_changer;
         }
         let power = !(self.estop_active && self.estop_removes_power);
+        let substeps = self.substeps_for(period_s);
         let conditions = CycleConditions {
             period_s,
-            substeps: self.substeps_for(period_s),
+            substeps,
+            step_s: period_s / substeps.max(1) as f64,
             power,
             watchdog_expired: self.silent_ns >= self.watchdog_ns && self.silent_ns > 0,
             command_delay_s: self.command_delay_s,
