@@ -66,9 +66,7 @@ impl Simulation {
         for _ in 0..cycles {
             self.runner.run_for(self.period)?;
             if let Some(samples) = self.samples.as_mut() {
-                while let Some(s) = samples.pop() {
-                    sink(&s);
-                }
+                samples.drain_with(&mut *sink);
             }
         }
         Ok(())

@@ -263,7 +263,6 @@ impl SimulatedJoint {
         let substeps = conditions.substeps.max(1);
         let step_s = conditions.step_s;
         let started = (substep - 1) as f64;
-        let fraction = started / substeps as f64;
         // Velocity and torque commands reach the motor `command_delay_s` after the sample
         // (the controller's computation and the DAC): until then the previous command acts.
         // A CSP drive's timing is its interpolation.
@@ -271,7 +270,7 @@ impl SimulatedJoint {
             && self.mode != DriveMode::Csp;
         let previous = self.previous_command;
         let active = if delayed { &previous } else { command };
-        let mut demand = self.torque_demand(active, fraction, step_s);
+        let mut demand = self.torque_demand(active, started, substeps, step_s);
         if !demand.is_finite() {
             // A non-finite command gives no torque rather than poisoning the model.
             demand = 0.0;
@@ -302,7 +301,15 @@ impl SimulatedJoint {
         self.write_feedback(conditions.period_s, feedback);
     }
 
-    fn torque_demand(&mut self, command: &JointCommand, fraction: f64, step_s: f64) -> f64 {
+    /// The torque the drive asks for in the sub-step that starts `started` sub-steps into
+    /// the cycle's `substeps`.
+    fn torque_demand(
+        &mut self,
+        command: &JointCommand,
+        started: f64,
+        substeps: usize,
+        step_s: f64,
+    ) -> f64 {
         match self.state {
             Cia402State::OperationEnabled => match self.mode {
                 DriveMode::Velocity => self.velocity_loop(command.target_velocity, 0.0, step_s),
@@ -310,6 +317,7 @@ impl SimulatedJoint {
                     // Linear interpolation from the previous target to this one over the
                     // cycle: the reference reaches each target one period after it
                     // arrives, which is the lag of a CSP drive.
+                    let fraction = started / substeps as f64;
                     let target = self.previous_target
                         + (command.target_position - self.previous_target) * fraction;
                     let velocity = self.position_gain * (target - self.motor.position())
