@@ -1237,11 +1237,15 @@ impl MotionCore {
         // the feedback's exchange count instead made the set-points one period late about
         // every other period at 10 kHz). After a late activation (a real-time overrun) the
         // missed set-points are computed now, at most four; none when interpolation is
-        // ahead (the fieldbus thread skipped periods meanwhile).
+        // ahead. It never runs more than one exchange ahead of the feedback: while the
+        // fieldbus thread stalls (it woke late on another processor) the machine does not
+        // move on, so neither do its set-points.
         let skipped = shared
             .fieldbus_skipped
             .load(std::sync::atomic::Ordering::Relaxed);
-        let target = (ctx.activation() + 1).saturating_sub(skipped);
+        let target = (ctx.activation() + 1)
+            .saturating_sub(skipped)
+            .min(feedback.cycle + 1);
         let steps = target.saturating_sub(self.cycle).min(4);
         let line = self.last.line;
         for _ in 0..steps {

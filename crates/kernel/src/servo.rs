@@ -155,9 +155,13 @@ impl<B: Fieldbus> ServoStage<B> {
         // Interpolation made the set-point for this period in the previous one. When it was
         // late (a real-time overrun), go on along the last two set-points for up to four
         // periods instead of standing still; it catches up by computing the missed ones.
+        // Every period without a fresh set-point counts, also those beyond the four that
+        // are bridged (the set-point then stands until interpolation catches up).
         let missing = self.exchanges.saturating_sub(target.setpoints.cycle);
-        if missing > 0 && missing <= 4 && target.enable {
+        if missing > 0 && target.enable {
             self.underruns += 1;
+        }
+        if missing > 0 && missing <= 4 && target.enable {
             let k = missing as f64;
             for j in 0..self.joint_count {
                 let v = target.setpoints.joints[j] - self.previous_joints[j];
