@@ -91,6 +91,7 @@ impl<T> PiLock<T> {
     pub(crate) fn lock(&self) -> PiGuard<'_, T> {
         // SAFETY: the mutex was initialised in `new` and lives as long as `self`.
         unsafe { libc::pthread_mutex_lock(self.mutex.get()) };
+        IPC_TOUCHED.with(|t| t.set(true));
         PiGuard { lock: self }
     }
 
@@ -260,6 +261,15 @@ pub(crate) fn prefault_stack(bytes: usize) {
 
 thread_local! {
     static IN_TASK_BODY: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+    /// Set whenever this thread took the lock of a blocking IPC object (every change of a
+    /// mailbox, semaphore or start event happens under it): the virtual-time runner polls
+    /// its triggers only after that.
+    static IPC_TOUCHED: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Whether this thread took an IPC object's lock since the last call (and clears it).
+pub(crate) fn take_ipc_touched() -> bool {
+    IPC_TOUCHED.with(|t| t.replace(false))
 }
 
 /// True while the calling thread is executing a task body (blocking IPC calls are refused).

@@ -15,7 +15,7 @@ use thiserror::Error;
 
 use crate::ipc::Trigger;
 use crate::monitor::{Fault, FaultCode, MissReaction, TaskState};
-use crate::sys::set_in_task_body;
+use crate::sys::{set_in_task_body, take_ipc_touched};
 use crate::task::{
     Body, ClockSource, Context, DeclKind, Next, Recording, TaskControl, TaskSet, TaskSpec,
     ThreadSpec, Wake,
@@ -511,9 +511,10 @@ impl VirtualRunner {
 
     /// Wakes event and background tasks whose trigger fired or timeout passed.
     fn poll_reactive(&mut self) {
-        // Triggers and start events only change when a body ran (or code outside the task set
-        // ran between two run calls); without that, only timeouts can wake a task.
-        let poll = std::mem::take(&mut self.dirty);
+        // Triggers and start events only change under an IPC object's lock, taken by a body
+        // (or a miss hook, or code outside the task set between two run calls), or when a
+        // task's own waiting state changed; without that, only timeouts can wake a task.
+        let poll = std::mem::take(&mut self.dirty) | take_ipc_touched();
         for i in 0..self.reactive.len() {
             if !poll {
                 let due = matches!(
@@ -728,7 +729,6 @@ impl VirtualRunner {
             profile.charge(task, start);
         }
         set_in_task_body(false);
-        self.dirty = true;
         let cost = ctx.consumed;
         let lateness = Some(now - cycle.release);
         if cost == 0 {
@@ -883,7 +883,6 @@ impl VirtualRunner {
             profile.charge(task, start);
         }
         set_in_task_body(false);
-        self.dirty = true;
         let mut cost = ctx.consumed;
         if matches!(kind, DeclKind::Background) {
             cost = cost.max(self.background_step_ns);
