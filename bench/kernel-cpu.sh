@@ -40,7 +40,7 @@ done
 if command -v cyclictest >/dev/null; then
     echo "== cyclictest -m -S -p95 -i100 -D10 (peer)"
     cyclictest -m -S -p95 -i100 -D10 -q -h 5000 > "$tmp/cyclictest.txt" 2>&1 || true
-    grep -E '^# (Total|Min|Avg|Max) ' "$tmp/cyclictest.txt"
+    grep -E '^# (Total|Min|Avg|Max)' "$tmp/cyclictest.txt"
     awk '!/^#/ && NF > 1 { for (i = 2; i <= NF; i++) { if ($1 >= 100) late100[i] += $i;
          if ($1 >= 400) late400[i] += $i; if ($1 >= 1000) late1000[i] += $i } }
          END { for (i = 2; i in late100 || i in late400; i++)
