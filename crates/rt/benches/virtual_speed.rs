@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use rtcnc_rt::{Mailbox, Next, TaskSet, VirtualRunner};
 
-/// The kernel's shape of work: six periodic threads at 1 kHz, ten body runs per period
+/// The kernel's shape of work: six periodic threads at 1 kHz, 13 body runs per period
 /// (two functions in the first thread, two threads with four runs), bodies that declare no
 /// processor time, and an event task that is never woken: what the runner itself costs per
 /// body run.
