@@ -134,3 +134,78 @@ fn ctrl_c_holds_the_feed_and_a_second_one_aborts() {
     assert!(stdout.contains("program stopped"), "{stdout}");
     assert_eq!(out.status.code(), Some(1));
 }
+
+/// Writes `text` as a program in a fresh temporary folder.
+fn temp_program(name: &str, text: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("rtcnc-cli-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(format!("{name}.ngc"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn sim_shows_operator_messages_when_the_machine_reaches_them() {
+    let program = temp_program(
+        "messages",
+        "G21 G90\nG1 X10 F600\n(MSG,first cut done)\nG1 X20\n(DEBUG,at X#5420)\nM2\n",
+    );
+    let dir = program.parent().unwrap().join("out");
+    let out = rtcnc()
+        .args(["sim"])
+        .arg(&program)
+        .args(["--machine", "configs/bench-xyz.toml", "-q", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}");
+    let lines: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.starts_with("message"))
+        .collect();
+    assert_eq!(lines.len(), 2, "{stdout}");
+    assert!(lines[0].ends_with("line 3: first cut done"), "{stdout}");
+    assert!(lines[1].ends_with("line 5: at X20.000000"), "{stdout}");
+    // Printed before the report, in the order of the motion.
+    assert!(stdout.find("message").unwrap() < stdout.find("limits").unwrap());
+    // Each 10 mm move at 10 mm/s on this machine is a rest-to-rest S-curve of
+    // 1 + 2·sqrt(10/50000) = 1.028 s (see crates/kernel/tests/messages.rs for the exact
+    // period counts): the messages come after one and after two of them.
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    let messages = summary["messages"].as_array().unwrap();
+    assert_eq!(messages.len(), 2);
+    assert_eq!(messages[0]["line"], 3);
+    assert_eq!(messages[0]["text"], "first cut done");
+    assert_eq!(messages[1]["text"], "at X20.000000");
+    let t0 = messages[0]["time_s"].as_f64().unwrap();
+    let t1 = messages[1]["time_s"].as_f64().unwrap();
+    let move_time = 1.0 + 2.0 * (10.0f64 / 50_000.0).sqrt();
+    assert!(t0 > move_time && t0 < move_time + 0.01, "{t0}");
+    assert!(
+        t1 - t0 > move_time && t1 - t0 < move_time + 0.003,
+        "{t0} {t1}"
+    );
+}
+
+#[test]
+fn run_shows_operator_messages() {
+    let program = temp_program(
+        "run-messages",
+        "G21 G90\nG1 X1 F600\n(MSG,halfway)\nG1 X0\nM2\n",
+    );
+    let out = rtcnc()
+        .args(["run"])
+        .arg(&program)
+        .args(["--machine", "configs/bench-xyz.toml"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout
+            .lines()
+            .any(|l| l.starts_with("message") && l.ends_with("line 3: halfway")),
+        "{stdout}"
+    );
+}

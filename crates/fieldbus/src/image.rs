@@ -110,6 +110,14 @@ pub struct SpindleCommand {
     pub enable: bool,
     /// Speed (rev/min); the sign gives the direction (positive: M3, clockwise).
     pub speed_rpm: f64,
+    /// Orient (M19): stop, then turn to `orient_angle_deg` and hold there (overrides
+    /// `enable` and `speed_rpm` while on).
+    pub orient: bool,
+    /// Orientation angle, degrees from the index (0 ≤ angle < 360).
+    pub orient_angle_deg: f64,
+    /// How to get there: 0 the shorter way, 1 always clockwise (the M3 direction), 2
+    /// always counter-clockwise (LinuxCNC's `orient` modes).
+    pub orient_mode: u8,
 }
 
 /// Spindle inputs.
@@ -119,6 +127,10 @@ pub struct SpindleFeedback {
     pub speed_rpm: f64,
     /// The speed is within the configured tolerance of the command.
     pub at_speed: bool,
+    /// Angle from the index, degrees (0 ≤ angle < 360; clockwise positive).
+    pub position_deg: f64,
+    /// Orienting and standing within the orientation tolerance of the angle.
+    pub oriented: bool,
 }
 
 /// Coolant outputs (M7, M8, M9), and the pumps' state as inputs.

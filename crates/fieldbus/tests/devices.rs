@@ -385,3 +385,44 @@ fn devices_allocate_nothing_per_cycle() {
     }
     assert_eq!(ALLOCATIONS.with(Cell::get) - before, 0);
 }
+
+#[test]
+fn a_probe_input_is_on_while_its_joint_stands_at_or_beyond_the_surface() {
+    // An ideal drive stands on its target at the end of each exchange: stepping the target
+    // down by 0.1 from 0, the probe over a surface at -0.45 closes in the exchange that
+    // reaches -0.5 (the first at or below it) and opens again on the way back up at -0.4.
+    let config: SimulatedMachineConfig = toml::from_str(
+        r#"
+[[joints]]
+drive = "ideal"
+[[devices]]
+kind = "probe"
+input = 4
+joint = 0
+surface = -0.45
+"#,
+    )
+    .unwrap();
+    let mut machine = SimulatedMachine::new(&config).unwrap();
+    let mut outputs = ProcessOutputs::new(machine.layout());
+    let mut inputs = ProcessInputs::new(machine.layout());
+    let mut seen = Vec::new();
+    for k in (0..=10).chain((0..10).rev()) {
+        outputs.joints[0].target_position = -0.1 * f64::from(k);
+        // Walk the drive to operation enabled first (it ignores targets until then).
+        for _ in 0..4 {
+            outputs.joints[0].controlword = inputs.joints[0].state().controlword_towards(true);
+            machine.exchange(0.001, &outputs, &mut inputs).unwrap();
+        }
+        seen.push((k, inputs.digital[4]));
+    }
+    let closed: Vec<i32> = seen.iter().filter(|s| s.1).map(|s| s.0).collect();
+    assert_eq!(closed, [5, 6, 7, 8, 9, 10, 9, 8, 7, 6, 5]);
+    // A probe on a joint that does not exist is refused, naming the field.
+    let bad: SimulatedMachineConfig = toml::from_str(
+        "joints = []\n[[devices]]\nkind = \"probe\"\ninput = 1\njoint = 0\nsurface = 0.0\n",
+    )
+    .unwrap();
+    let err = SimulatedMachine::new(&bad).err().unwrap().to_string();
+    assert!(err.contains("devices[0].joint"), "{err}");
+}

@@ -21,6 +21,8 @@ pub(crate) struct CompensationStage {
     per_revolution: bool,
     spindle_rpm: f64,
     mode: PathMode,
+    /// G33/G76: the pitch (mm per revolution) of the synchronised feed moves.
+    sync_pitch: Option<f64>,
     pending: Option<Tagged<MachineBlock>>,
 }
 
@@ -37,6 +39,7 @@ impl CompensationStage {
             per_revolution: false,
             spindle_rpm: 0.0,
             mode: PathMode::ExactPath,
+            sync_pitch: None,
             pending: None,
         }
     }
@@ -107,7 +110,33 @@ impl CompensationStage {
                 self.feed_per_minute = rate;
                 self.per_revolution = per_revolution;
             }
-            ProgramBlock::PathMode(m) => self.mode = m,
+            // G64 P and Q are lengths in the program's units when they were given.
+            ProgramBlock::PathMode(m) => {
+                self.mode = match m {
+                    PathMode::Blend {
+                        tolerance,
+                        merge_tolerance,
+                    } => PathMode::Blend {
+                        tolerance: tolerance * self.mm_per_unit,
+                        merge_tolerance: merge_tolerance * self.mm_per_unit,
+                    },
+                    other => other,
+                }
+            }
+            ProgramBlock::SpindleSync(pitch) => {
+                self.sync_pitch = pitch.map(|p| p * self.mm_per_unit);
+            }
+            ProgramBlock::Line {
+                line,
+                end,
+                rapid: false,
+            } if self.sync_pitch.is_some() => {
+                return Some(MachineBlock::Synced {
+                    line,
+                    end: self.to_machine(&end),
+                    pitch: self.sync_pitch.unwrap_or(0.0),
+                });
+            }
             ProgramBlock::Line { line, end, rapid } => {
                 let end = self.to_machine(&end);
                 return Some(MachineBlock::Motion(Move {
@@ -153,15 +182,47 @@ impl CompensationStage {
                     line,
                 }));
             }
+            ProgramBlock::Probe { line, end, kind } => {
+                let end = self.to_machine(&end);
+                return Some(MachineBlock::Probe {
+                    mv: Move {
+                        kind: MoveKind::Line { end, rapid: false },
+                        feed: self.feed(),
+                        mode: PathMode::ExactStop,
+                        line,
+                    },
+                    kind,
+                });
+            }
             ProgramBlock::Dwell { line, seconds } => {
                 return Some(MachineBlock::Motion(Move::dwell(seconds, line)));
             }
             ProgramBlock::Aux { line, aux } => {
-                match aux {
-                    Aux::SpindleOn { rpm } | Aux::SpindleSpeed { rpm } => self.spindle_rpm = rpm,
-                    Aux::SpindleOff => self.spindle_rpm = 0.0,
-                    _ => {}
-                }
+                let aux = match aux {
+                    Aux::SpindleOn { rpm } | Aux::SpindleSpeed { rpm } => {
+                        self.spindle_rpm = rpm;
+                        aux
+                    }
+                    Aux::SpindleOff => {
+                        self.spindle_rpm = 0.0;
+                        aux
+                    }
+                    // LinuxCNC's canon: rpm = S (in mm/min) / (2π·|X − the X offsets|).
+                    Aux::SurfaceSpeed { surface, max_rpm } => {
+                        let mm_per_minute = if self.mm_per_unit == 1.0 {
+                            surface * 1000.0
+                        } else {
+                            surface * 12.0 * self.mm_per_unit
+                        };
+                        Aux::ConstantSurfaceSpeed {
+                            factor: mm_per_minute / std::f64::consts::TAU,
+                            x_centre: (self.work[0] + self.g92[0] + self.tool[0])
+                                * self.mm_per_unit,
+                            max_rpm,
+                        }
+                    }
+                    _ => aux,
+                };
                 return Some(MachineBlock::Aux { line, aux });
             }
             ProgramBlock::End { line } => return Some(MachineBlock::End { line }),

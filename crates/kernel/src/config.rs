@@ -334,6 +334,19 @@ pub struct SpindleSection {
     /// At-speed window, fraction of the command.
     #[serde(default = "spindle_tolerance")]
     pub at_speed_tolerance: f64,
+    /// Simulated spindle: speed of an orientation (M19) once stopped (rpm).
+    #[serde(default = "orient_speed")]
+    pub orient_speed_rpm: f64,
+    /// Simulated spindle: oriented within this many degrees.
+    #[serde(default = "orient_tolerance")]
+    pub orient_tolerance_deg: f64,
+}
+
+fn orient_speed() -> f64 {
+    SpindleConfig::default().orient_speed_rpm
+}
+fn orient_tolerance() -> f64 {
+    SpindleConfig::default().orient_tolerance_deg
 }
 
 fn spindle_ramp() -> f64 {
@@ -353,6 +366,10 @@ pub struct ToolChangerSection {
     #[serde(default)]
     pub initial_tool: u32,
 }
+
+/// Most program inputs or outputs of one kind (`io.program_*`); the kernel's images carry
+/// the first 16 analogue points.
+pub const MAX_PROGRAM_IO: usize = 16;
 
 /// `[io]`: process-image sizes and the map from program I/O numbers to image points.
 #[derive(Debug, Clone, Deserialize)]
@@ -376,6 +393,19 @@ pub struct IoSection {
     /// M66 `P n` reads digital input `program_inputs[n]`.
     #[serde(default)]
     pub program_inputs: Vec<usize>,
+    /// M66 `E n` reads analogue input `program_analog_inputs[n]`.
+    #[serde(default)]
+    pub program_analog_inputs: Vec<usize>,
+    /// M67/M68 `E n` drive analogue output `program_analog_outputs[n]`.
+    #[serde(default)]
+    pub program_analog_outputs: Vec<usize>,
+    /// The feed stop switch (digital input): while it is on, the path holds (M53 P0 lets
+    /// the program ignore it, M53 P1 heeds it again; heeded by default).
+    #[serde(default)]
+    pub feed_stop_input: Option<usize>,
+    /// The touch probe's digital input (G38.2-G38.5).
+    #[serde(default)]
+    pub probe_input: Option<usize>,
 }
 
 fn sixteen() -> usize {
@@ -394,6 +424,10 @@ impl Default for IoSection {
             analog_outputs: 4,
             program_outputs: Vec::new(),
             program_inputs: Vec::new(),
+            program_analog_inputs: Vec::new(),
+            program_analog_outputs: Vec::new(),
+            feed_stop_input: None,
+            probe_input: None,
         }
     }
 }
@@ -722,12 +756,44 @@ impl MachineConfig {
                 self.io.digital_inputs,
                 "io.program_inputs",
             ),
+            (
+                &self.io.program_analog_inputs,
+                self.io.analog_inputs.min(MAX_PROGRAM_IO),
+                "io.program_analog_inputs",
+            ),
+            (
+                &self.io.program_analog_outputs,
+                self.io.analog_outputs.min(MAX_PROGRAM_IO),
+                "io.program_analog_outputs",
+            ),
         ] {
+            if list.len() > MAX_PROGRAM_IO {
+                return Err(ConfigError::invalid(
+                    key,
+                    format!("at most {MAX_PROGRAM_IO} program points"),
+                ));
+            }
             if let Some(bad) = list.iter().find(|&&i| i >= size) {
                 return Err(ConfigError::invalid(
                     key,
                     format!("point {bad} is outside the image of {size}"),
                 ));
+            }
+        }
+        for (key, input) in [
+            ("io.feed_stop_input", self.io.feed_stop_input),
+            ("io.probe_input", self.io.probe_input),
+        ] {
+            if let Some(i) = input {
+                if i >= self.io.digital_inputs.min(64) {
+                    return Err(ConfigError::invalid(
+                        key,
+                        format!(
+                            "input {i} is outside the image of {}",
+                            self.io.digital_inputs.min(64)
+                        ),
+                    ));
+                }
             }
         }
         positive_finite("handwheel.units_per_count", self.handwheel.units_per_count)?;
@@ -854,6 +920,8 @@ impl MachineConfig {
                 max_speed_rpm: s.max_speed_rpm,
                 acceleration_rpm_per_s: s.acceleration_rpm_per_s,
                 at_speed_tolerance: s.at_speed_tolerance,
+                orient_speed_rpm: s.orient_speed_rpm,
+                orient_tolerance_deg: s.orient_tolerance_deg,
             };
         }
         if let Some(t) = &self.tool_changer {

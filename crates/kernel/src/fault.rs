@@ -78,6 +78,13 @@ pub enum FaultCode {
     /// A background check found a persistent file's folder gone or read-only, or the
     /// drive exchange no longer advancing (logged, not stopping by itself).
     BackgroundCheck,
+    /// M19 Q: the spindle did not report oriented within the time-out.
+    SpindleOrientTimeout,
+    /// G38.2-G38.5: the probe was already in the state the move looks for, or G38.2/G38.4
+    /// ended without the probe changing, or the machine has no probe input.
+    ProbeFailed,
+    /// G33/G76: the spindle does not turn, or turns too fast for the pitch and the axes.
+    SyncFailed,
 }
 
 impl FaultCode {
@@ -98,6 +105,9 @@ impl FaultCode {
             FaultCode::HomingFailed => "kernel.homing_failed",
             FaultCode::CommandRefused => "kernel.command_refused",
             FaultCode::BackgroundCheck => "kernel.background_check",
+            FaultCode::SpindleOrientTimeout => "kernel.spindle_orient_timeout",
+            FaultCode::ProbeFailed => "kernel.probe_failed",
+            FaultCode::SyncFailed => "kernel.sync_failed",
         }
     }
 
@@ -123,6 +133,9 @@ impl FaultCode {
             FaultCode::HomingFailed => "homing failed",
             FaultCode::CommandRefused => "command refused",
             FaultCode::BackgroundCheck => "background check failed",
+            FaultCode::SpindleOrientTimeout => "spindle orientation timed out",
+            FaultCode::ProbeFailed => "probing move failed",
+            FaultCode::SyncFailed => "spindle-synchronised move impossible",
         }
     }
 

@@ -13,7 +13,7 @@ use rtcnc_motion::PathMode;
 use rtcnc_rt::{Context, Next};
 
 use crate::fault::FaultCode;
-use crate::messages::{Aux, ProgramBlock, WaitCondition};
+use crate::messages::{Aux, FixedText, MachineResult, ProgramBlock, WaitCondition};
 use crate::shared::{InterpreterRequest, Shared, Tagged};
 
 /// Blocks handled per activation before giving the processor back.
@@ -47,6 +47,14 @@ pub(crate) struct InterpreterStage {
     blend_tolerance: Option<f64>,
     /// A command the kernel cannot carry out stopped this run: nothing after it converts.
     refused: bool,
+    /// G96 in force, with its D word.
+    css_max: Option<f64>,
+    /// A spindle-synchronised stretch being collected (from its start to its end).
+    sync_hold: Option<Vec<Canon>>,
+    /// Sequence number of the last operator message.
+    message_seq: u32,
+    /// Message texts not yet handed to the look-ahead (its channel was full).
+    texts: std::collections::VecDeque<(u32, FixedText)>,
 }
 
 impl InterpreterStage {
@@ -79,6 +87,10 @@ impl InterpreterStage {
             parameter_file: None,
             blend_tolerance: None,
             refused: false,
+            css_max: None,
+            sync_hold: None,
+            message_seq: 0,
+            texts: std::collections::VecDeque::with_capacity(8),
         }
     }
 
@@ -115,7 +127,10 @@ impl InterpreterStage {
                 InterpreterRequest::Run { epoch } => {
                     self.epoch = epoch;
                     self.refused = false;
+                    self.css_max = None;
+                    self.sync_hold = None;
                     self.outbox.clear();
+                    self.texts.clear();
                     self.comp = Compensator::new();
                     let mut interp = self.fresh_interpreter();
                     let opened = match &self.program {
@@ -138,8 +153,10 @@ impl InterpreterStage {
                 }
                 InterpreterRequest::Mdi { epoch, line } => {
                     self.epoch = epoch;
+                    self.sync_hold = None;
                     self.refused = false;
                     self.outbox.clear();
+                    self.texts.clear();
                     if self.interp.is_none() {
                         self.interp = Some(self.fresh_interpreter());
                     }
@@ -156,14 +173,39 @@ impl InterpreterStage {
                     self.active = true;
                 }
                 InterpreterRequest::Stop => {
+                    self.sync_hold = None;
+                    // Also ends a wait for the machine's result.
+                    if let Some(interp) = self.interp.as_mut() {
+                        interp.abort();
+                    }
                     self.active = false;
                     self.outbox.clear();
+                    self.texts.clear();
                 }
                 InterpreterRequest::BlockDelete(on) => self.settings.block_delete = on,
             }
         }
         for _ in 0..BLOCKS_PER_ACTIVATION {
+            // A message's text goes ahead of its block.
+            while let Some(&text) = self.texts.front() {
+                if self.shared.message_texts.try_put(text).is_err() {
+                    break;
+                }
+                self.texts.pop_front();
+            }
             if let Some(block) = self.outbox.front().copied() {
+                if let ProgramBlock::Aux {
+                    aux: Aux::Message { seq },
+                    ..
+                } = block
+                {
+                    if self.texts.iter().any(|t| t.0 == seq) {
+                        return Next::WaitFor {
+                            trigger: self.shared.message_texts.space_trigger(),
+                            timeout: None,
+                        };
+                    }
+                }
                 let tagged = Tagged {
                     epoch: self.epoch,
                     block,
@@ -181,20 +223,23 @@ impl InterpreterStage {
                 return Next::Done;
             }
             ctx.consume(COST_PER_COMMAND);
-            self.pull_one();
+            if !self.pull_one() {
+                return Next::Done;
+            }
         }
         Next::Continue
     }
 
     /// Pulls one canonical command through compensation and converts what comes out.
-    fn pull_one(&mut self) {
+    /// False when the interpreter waits for the machine's result, which has not come.
+    fn pull_one(&mut self) -> bool {
         if let Some(c) = self.comp.pop() {
             self.convert(c);
-            return;
+            return true;
         }
         let Some(interp) = self.interp.as_mut() else {
             self.active = false;
-            return;
+            return true;
         };
         match interp.next_canon() {
             Some(Ok(canon)) => {
@@ -222,6 +267,39 @@ impl InterpreterStage {
                 });
                 self.active = false;
             }
+            // After M66 the interpreter reads on only with the machine's result, as
+            // LinuxCNC's does: later lines may read #5399. Not the end.
+            None if interp.is_waiting() => match self.take_result() {
+                Some(MachineResult::Input(value)) => {
+                    if let Some(interp) = self.interp.as_mut() {
+                        interp.input_result(value);
+                    }
+                }
+                Some(MachineResult::Probe {
+                    tripped,
+                    at,
+                    stopped,
+                }) => {
+                    if let Some(interp) = self.interp.as_mut() {
+                        // Machine millimetres to the interpreter's machine coordinates in
+                        // the program's units.
+                        let per_unit = match interp.modal_state().units {
+                            Units::Mm => 1.0,
+                            Units::Inches => 25.4,
+                        };
+                        let units = |p: [f64; 9]| {
+                            let mut p = p;
+                            for i in [0, 1, 2, 6, 7, 8] {
+                                p[i] /= per_unit;
+                            }
+                            rtcnc_gcode::canon::Pose::from_array(p)
+                        };
+                        interp.probe_result(units(at), tripped, units(stopped));
+                        self.position = interp.modal_state().position.to_array();
+                    }
+                }
+                None => return false,
+            },
             None => {
                 self.comp.finish();
                 while let Some(c) = self.comp.pop() {
@@ -236,10 +314,10 @@ impl InterpreterStage {
                 self.active = false;
             }
         }
+        true
     }
 
     fn convert(&mut self, canon: Canon) {
-        use CanonCommand as C;
         if self.refused {
             return;
         }
@@ -247,6 +325,61 @@ impl InterpreterStage {
             self.refuse(&canon, what);
             return;
         }
+        // A spindle-synchronised stretch is held until its end, so that one the kernel
+        // cannot carry out (more than one move: chained G33, G76 tapers) stops the program
+        // before any of it cuts.
+        if let Some(held) = self.sync_hold.as_mut() {
+            let end = matches!(canon.command, CanonCommand::StopSpeedFeedSync);
+            held.push(canon);
+            if !end {
+                return;
+            }
+            let held = self.sync_hold.take().unwrap_or_default();
+            let mut moves = held.iter().filter(|c| {
+                matches!(
+                    c.command,
+                    CanonCommand::StraightFeed(_) | CanonCommand::ArcFeed(_)
+                )
+            });
+            if let (Some(_), Some(second)) = (moves.next(), moves.next()) {
+                let second = second.clone();
+                self.refuse(
+                    &second,
+                    "consecutive spindle-synchronised moves (chained G33, G76 tapers)",
+                );
+                return;
+            }
+            for c in held {
+                self.convert_now(c);
+            }
+            return;
+        }
+        // The planner takes one spindle speed per move; under G96 it changes along it.
+        if self.css_max.is_some()
+            && matches!(
+                canon.command,
+                CanonCommand::StraightFeed(_) | CanonCommand::ArcFeed(_)
+            )
+            && self
+                .interp
+                .as_ref()
+                .is_some_and(|i| i.modal_state().feed_mode == FeedMode::UnitsPerRevolution)
+        {
+            self.refuse(
+                &canon,
+                "feed per revolution (G95) under constant surface speed (G96)",
+            );
+            return;
+        }
+        if matches!(canon.command, CanonCommand::StartSpeedFeedSync { .. }) {
+            self.sync_hold = Some(vec![canon]);
+            return;
+        }
+        self.convert_now(canon);
+    }
+
+    fn convert_now(&mut self, canon: Canon) {
+        use CanonCommand as C;
         let line = canon.source.line;
         let out = &mut self.outbox;
         let aux = |aux| ProgramBlock::Aux { line, aux };
@@ -298,6 +431,33 @@ impl InterpreterStage {
                     rate,
                     per_revolution,
                 })
+            }
+            C::SetSpindleMode {
+                constant_surface_speed: true,
+                max_rpm,
+                ..
+            } => {
+                self.css_max = Some(max_rpm);
+                out.push_back(aux(Aux::SurfaceSpeed {
+                    surface: self.spindle_rpm,
+                    max_rpm,
+                }));
+            }
+            // G97: the S number in force is rpm again (as LinuxCNC's canon takes it), until
+            // an S word follows.
+            C::SetSpindleMode {
+                constant_surface_speed: false,
+                ..
+            } if self.css_max.is_some() => {
+                self.css_max = None;
+                out.push_back(aux(Aux::SurfaceSpeedOff));
+            }
+            C::SetSpindleSpeed { speed, .. } if self.css_max.is_some() => {
+                self.spindle_rpm = speed;
+                out.push_back(aux(Aux::SurfaceSpeed {
+                    surface: speed,
+                    max_rpm: self.css_max.unwrap_or(1e30),
+                }));
             }
             C::SetSpindleSpeed { speed, .. } => {
                 self.spindle_rpm = speed;
@@ -375,6 +535,51 @@ impl InterpreterStage {
                     timeout,
                 }));
             }
+            C::Message(text) => {
+                self.message_seq = self.message_seq.wrapping_add(1);
+                self.texts
+                    .push_back((self.message_seq, FixedText::truncated(&text)));
+                out.push_back(aux(Aux::Message {
+                    seq: self.message_seq,
+                }));
+            }
+            // The interpreter allows only L0 (read now) on an analogue input, as LinuxCNC.
+            C::WaitInput {
+                digital: false,
+                index,
+                ..
+            } => out.push_back(aux(Aux::ReadAnalogInput { index })),
+            C::SetAnalogOutput { index, value, .. } => {
+                out.push_back(aux(Aux::AnalogOutput { index, value }))
+            }
+            C::OrientSpindle { angle, mode, .. } => {
+                self.spindle_on = None;
+                out.push_back(aux(Aux::SpindleOrient {
+                    angle,
+                    mode: u8::try_from(mode).unwrap_or(0).min(2),
+                }))
+            }
+            C::WaitOrientComplete { timeout, .. } => {
+                out.push_back(aux(Aux::WaitOrient { timeout }))
+            }
+            C::StartSpeedFeedSync {
+                feed_per_revolution,
+                ..
+            } => out.push_back(ProgramBlock::SpindleSync(Some(feed_per_revolution))),
+            C::StopSpeedFeedSync => out.push_back(ProgramBlock::SpindleSync(None)),
+            C::StraightProbe { end, kind } => {
+                self.position = end.to_array();
+                out.push_back(ProgramBlock::Probe {
+                    line,
+                    end: self.position,
+                    kind,
+                });
+            }
+            C::FeedOverride(on) => out.push_back(aux(Aux::FeedOverrideEnable(on))),
+            C::SpeedOverride { enable, .. } => {
+                out.push_back(aux(Aux::SpindleOverrideEnable(enable)))
+            }
+            C::FeedHold(on) => out.push_back(aux(Aux::FeedStopEnable(on))),
             C::MistOn => out.push_back(aux(Aux::Mist(true))),
             C::MistOff => out.push_back(aux(Aux::Mist(false))),
             C::FloodOn => out.push_back(aux(Aux::Flood(true))),
@@ -417,6 +622,16 @@ impl InterpreterStage {
         self.refused = true;
     }
 
+    /// The machine's result for the current run, if it has come (older runs' are dropped).
+    fn take_result(&mut self) -> Option<MachineResult> {
+        while let Some(Tagged { epoch, block }) = self.shared.machine_results.try_get() {
+            if epoch == self.epoch {
+                return Some(block);
+            }
+        }
+        None
+    }
+
     /// Writes the parameter file (atomically: the interpreter's `Parameters::save`).
     fn save_parameters(&mut self) {
         if let (Some(path), Some(interp)) = (&self.parameter_file, &self.interp) {
@@ -434,20 +649,11 @@ fn not_carried_out(command: &CanonCommand) -> Option<&'static str> {
     use CanonCommand as C;
     match command {
         C::SplineFeed(_) => Some("spline motion (G5, G5.1)"),
-        C::StraightProbe { .. } => Some("probing (G38.2 to G38.5)"),
         C::RigidTap { .. } => Some("rigid tapping (G33.1)"),
-        C::StartSpeedFeedSync { .. } => Some("spindle-synchronised motion (G33, G76)"),
-        C::OrientSpindle { .. } | C::WaitOrientComplete { .. } => Some("spindle orientation (M19)"),
-        C::SetSpindleMode {
-            constant_surface_speed: true,
+        C::StartSpeedFeedSync {
+            velocity_mode: true,
             ..
-        } => Some("constant surface speed (G96)"),
-        C::WaitInput { digital: false, .. } => Some("waiting on an analogue input (M66 E)"),
-        C::SetAnalogOutput { .. } => Some("analogue outputs (M67, M68)"),
-        C::FeedOverride(false) | C::SpeedOverride { enable: false, .. } => {
-            Some("disabling the overrides (M49, M50 P0, M51 P0)")
-        }
-        C::FeedHold(false) => Some("disabling feed hold (M53 P0)"),
+        } => Some("velocity-synchronised motion (G33.1)"),
         C::AdaptiveFeed(true) => Some("adaptive feed (M52 P1)"),
         _ => None,
     }

@@ -16,7 +16,7 @@ use crate::config::{LengthUnits, MachineConfig, MissReactionConfig};
 use crate::fault::Fault;
 use crate::interpreter::InterpreterStage;
 use crate::logic::{Logic, LogicStage};
-use crate::messages::{Command, Status, Urgent};
+use crate::messages::{Command, OperatorMessage, Status, Urgent};
 use crate::motion::{MotionCore, ServoTarget};
 use crate::servo::{Sample, ServoStage};
 use crate::shared::{Shared, Snapshot};
@@ -114,6 +114,12 @@ impl KernelHandle {
     /// The latest status snapshot.
     pub fn status(&self) -> Status {
         self.shared.status.read()
+    }
+
+    /// Operator messages (`(MSG,...)`, `(DEBUG,...)`) the machine reached since the last
+    /// call, in program order.
+    pub fn take_messages(&self) -> Vec<OperatorMessage> {
+        std::iter::from_fn(|| self.shared.operator_messages.try_get()).collect()
     }
 
     /// Faults raised since the last call.
@@ -219,16 +225,19 @@ impl Kernel {
         } else {
             (None, None)
         };
-        let servo = Arc::new(PiMutex::new(ServoStage::new(
-            machine,
-            loops,
-            period_s,
-            target_rx,
-            recorder,
-            shared.clone(),
-            writers.feedback,
-            config.io.program_outputs.clone(),
-        )));
+        let servo = Arc::new(PiMutex::new(
+            ServoStage::new(
+                machine,
+                loops,
+                period_s,
+                target_rx,
+                recorder,
+                shared.clone(),
+                writers.feedback,
+                config.io.program_outputs.clone(),
+            )
+            .with_program_analog_outputs(config.io.program_analog_outputs.clone()),
+        ));
 
         let mut core = MotionCore::new(&config, &shared, writers.requests)
             .map_err(|e| KernelError::Motion(e.to_string()))?;
@@ -280,7 +289,12 @@ impl Kernel {
             logic = logic.with_retain(Arc::clone(snapshot));
         }
 
-        let mut settings = Settings::default();
+        // The interpreter stops reading after M66 (and G38) until the machine's result is
+        // in, as LinuxCNC's task synchronises before such a block.
+        let mut settings = Settings {
+            wait_for_machine: true,
+            ..Settings::default()
+        };
         if config.machine.units == LengthUnits::Inch {
             settings.initial_units = rtcnc_gcode::canon::Units::Inches;
         }

@@ -40,7 +40,7 @@ mod sim;
 pub use config::{ConfigError, MAX_JOINTS, MachineConfig};
 pub use fault::{Fault, FaultCode, TaskName};
 pub use kernel::{Kernel, KernelError, KernelHandle, KernelOptions, SelfTestReport};
-pub use messages::{Command, FixedText, MachineState, Mode, Status, Urgent};
+pub use messages::{Command, FixedText, MachineState, Mode, OperatorMessage, Status, Urgent};
 pub use motion::{LatchRequest, MotionCore, ServoTarget};
 pub use servo::Sample;
 pub use shared::{Feedback, LogicOutputs, LogicRequests};

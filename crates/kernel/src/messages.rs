@@ -30,6 +30,18 @@ impl FixedText {
         })
     }
 
+    /// The text, shortened at a character boundary to fit when it is longer.
+    pub fn truncated(text: &str) -> FixedText {
+        let mut end = text.len().min(Self::CAPACITY);
+        while !text.is_char_boundary(end) {
+            end -= 1;
+        }
+        FixedText::new(&text[..end]).unwrap_or(FixedText {
+            len: 0,
+            bytes: [0u8; Self::CAPACITY],
+        })
+    }
+
     /// The text.
     pub fn as_str(&self) -> &str {
         let len = usize::from(self.len).min(Self::CAPACITY);
@@ -182,10 +194,101 @@ pub enum Aux {
         /// Seconds; 0 reads the input and goes on.
         timeout: f64,
     },
+    /// M66 E L0: read an analogue input (the interpreter waits for its value).
+    ReadAnalogInput {
+        /// Program input number (E word), mapped by `io.program_analog_inputs`.
+        index: u32,
+    },
+    /// M67/M68: set an analogue output once the motion before it is done.
+    AnalogOutput {
+        /// Program output number (E word), mapped by `io.program_analog_outputs`.
+        index: u32,
+        /// Value (Q word).
+        value: f64,
+    },
+    /// G96 S D as the interpreter gives it: surface speed in the program's units per minute
+    /// (m/min in G21, ft/min in G20), `max_rpm` the D word (1e30 without one). Tool
+    /// compensation turns it into [`Aux::ConstantSurfaceSpeed`].
+    SurfaceSpeed {
+        /// S.
+        surface: f64,
+        /// D.
+        max_rpm: f64,
+    },
+    /// G96 for the machine: the spindle turns at `factor / |X − x_centre|` rpm (capped at
+    /// `max_rpm`), following the X set-point every servo period.
+    ConstantSurfaceSpeed {
+        /// Surface speed in mm/min over 2π (rpm·mm).
+        factor: f64,
+        /// Machine X of the spindle axis (the X offsets in force), mm.
+        x_centre: f64,
+        /// D word, rpm.
+        max_rpm: f64,
+    },
+    /// G97: the spindle turns at the programmed rpm again.
+    SurfaceSpeedOff,
+    /// M19 R P: orient the spindle (stops its rotation).
+    SpindleOrient {
+        /// Angle, degrees.
+        angle: f64,
+        /// 0 the shorter way, 1 clockwise, 2 counter-clockwise.
+        mode: u8,
+    },
+    /// M19 Q: wait for the orientation, at most `timeout` seconds, else stop the program.
+    WaitOrient {
+        /// Seconds.
+        timeout: f64,
+    },
+    /// M48-M50: the operator's feed (and rapid) override in force or not.
+    FeedOverrideEnable(bool),
+    /// M48, M49, M51: the operator's spindle override in force or not.
+    SpindleOverrideEnable(bool),
+    /// M53: the feed stop switch heeded or not.
+    FeedStopEnable(bool),
     /// M0.
     ProgramStop,
     /// M1.
     OptionalStop,
+    /// `(MSG,...)` / `(DEBUG,...)`: shown once the motion before it is done. The text
+    /// travels beside the blocks (see `Shared::message_texts`), so that every block stays
+    /// small; `seq` finds it.
+    Message {
+        /// Sequence number of the text.
+        seq: u32,
+    },
+}
+
+/// An operator message (`(MSG,...)`, `(DEBUG,...)`) as the machine reached it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OperatorMessage {
+    /// The servo cycle of the set-point at which the path stood at the message's block
+    /// (everything before it done).
+    pub cycle: u64,
+    /// That set-point's time, ns since start (`cycle` servo periods).
+    pub time_ns: u64,
+    /// Program line.
+    pub line: u32,
+    /// The text (at most [`FixedText::CAPACITY`] bytes; longer texts are shortened).
+    pub text: FixedText,
+}
+
+/// What the machine measured for a block the interpreter waits on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MachineResult {
+    /// M66: the input's value (digital 0 or 1, or the analogue value), -1 on a time-out;
+    /// the interpreter stores it in #5399.
+    Input(f64),
+    /// G38.x: where the probe changed (machine mm; where the move ended when it did not)
+    /// and where the machine stands now (#5061-#5070 and the position the program goes on
+    /// from).
+    Probe {
+        /// The probe changed.
+        tripped: bool,
+        /// Axis position at the change, machine mm (degrees for A B C).
+        at: [f64; AXES],
+        /// Axis position after the stop.
+        stopped: [f64; AXES],
+    },
 }
 
 /// What M66 waits for.
@@ -214,6 +317,23 @@ pub enum MachineBlock {
         line: u32,
         /// What.
         aux: Aux,
+    },
+    /// A spindle-synchronised line (G33, a G76 pass): from where the machine stands to
+    /// `end`, `pitch` mm per spindle revolution, starting at the spindle's index.
+    Synced {
+        /// Program line.
+        line: u32,
+        /// End (machine coordinates).
+        end: [f64; AXES],
+        /// mm per revolution.
+        pitch: f64,
+    },
+    /// A probing move (G38.x): it stops where the probe changes.
+    Probe {
+        /// The move (machine coordinates).
+        mv: Move,
+        /// Which G38.
+        kind: rtcnc_gcode::canon::ProbeKind,
     },
     /// The program ended (M2/M30 or `%`).
     End {
@@ -275,6 +395,18 @@ pub enum ProgramBlock {
         normal: [f64; 3],
         /// Extra turns.
         turns: u32,
+    },
+    /// G33/G76: the following feed move advances `pitch` (program units) per spindle
+    /// revolution, position-synchronised; `None` ends it.
+    SpindleSync(Option<f64>),
+    /// G38.x straight probe to `end` (program coordinates).
+    Probe {
+        /// Line.
+        line: u32,
+        /// End.
+        end: [f64; AXES],
+        /// Which G38.
+        kind: rtcnc_gcode::canon::ProbeKind,
     },
     /// Dwell, seconds.
     Dwell {
@@ -392,8 +524,13 @@ pub struct Status {
     pub program_ended: bool,
     /// Tool in the spindle.
     pub tool: u32,
-    /// Spindle speed, rpm.
+    /// Spindle speed, rpm (measured).
     pub spindle_rpm: f64,
+    /// Spindle speed commanded (after the override and G96), rpm; 0 while off.
+    pub spindle_command_rpm: f64,
     /// The self-test passed and the drives are enabled.
     pub ready: bool,
+    /// The planner's geometry counters since start-up (moves, G64 Q merges, blends,
+    /// smoothed vertices, exact stops).
+    pub geometry: rtcnc_motion::GeometryStats,
 }

@@ -9,10 +9,13 @@ use rtcnc_motion::otg::{Limits, OnlineAxis, State};
 use rtcnc_motion::{AXES, MotionError, MotionState, Move, Planner, TrivialKinematics};
 use rtcnc_rt::{Context, RingProducer, SeqlockWriter};
 
+use rtcnc_gcode::canon::ProbeKind;
+
 use crate::config::{MAX_JOINTS, MachineConfig};
 use crate::fault::{Fault, FaultCode, TaskName};
 use crate::messages::{
-    Aux, Command, JointSetpoints, MachineBlock, MachineState, Mode, Status, Urgent,
+    Aux, Command, JointSetpoints, MachineBlock, MachineResult, MachineState, Mode, OperatorMessage,
+    Status, Urgent,
 };
 use crate::shared::{
     Feedback, InterpreterRequest, LogicOutputs, LogicRequests, Shared, Snapshot, Tagged,
@@ -50,6 +53,8 @@ enum Source {
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Then {
+    Synced([f64; AXES], f64),
+    Probe(Move, ProbeKind),
     Aux(Aux),
     Error(FaultCode),
     End,
@@ -69,6 +74,12 @@ enum Phase {
     Logic { aux: Aux, line: u32, released: bool },
     /// Paused at M0/M1/single block until resume.
     Paused { start_count: u32 },
+    /// G33: the spindle-synchronised move runs.
+    Synced,
+    /// G38.x: the probing move runs (it stops where the probe changes).
+    Probing { kind: ProbeKind, line: u32 },
+    /// M19 Q: waiting for the spindle to report oriented until `deadline`.
+    WaitOrient { deadline: u64, line: u32 },
     /// M66: waiting for a digital input until `deadline` (an interpolation cycle).
     WaitInput {
         bit: u64,
@@ -94,6 +105,44 @@ struct Homing {
     sequence: u8,
     /// Joints of the current group with their step.
     step: [Option<HomingStep>; MAX_JOINTS],
+}
+
+/// G96: the spindle speed follows X.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct ConstantSurfaceSpeed {
+    /// Surface speed (mm/min) over 2π.
+    factor: f64,
+    /// Machine X of the spindle axis.
+    x_centre: f64,
+    /// D word, at most the spindle's top speed.
+    max_rpm: f64,
+}
+
+/// G33 / a G76 pass: a line whose progress follows the spindle's angle.
+#[derive(Debug, Clone, Copy)]
+struct SyncedMove {
+    start: [f64; AXES],
+    /// Unit direction.
+    dir: [f64; AXES],
+    length: f64,
+    /// mm per revolution.
+    pitch: f64,
+    /// While tracking: the progress's offset from pitch × revolutions, jerk-limited from
+    /// where it was at the index to 0 (planned in the frame that moves with the spindle,
+    /// so it catches up time-optimally and then stays on it).
+    offset: Option<OnlineAxis>,
+    /// Progress along the line (mm): at rest before the index, to the end after tracking.
+    otg: OnlineAxis,
+    /// Path limits along the line (velocity, acceleration, jerk).
+    limits: (f64, f64, f64),
+    /// Unwrapped spindle angle (degrees) and the last reading (0..360).
+    angle: f64,
+    reading: f64,
+    /// The unwrapped angle of the index the move started at; `None` while waiting for it.
+    index: Option<f64>,
+    /// Going to the end at rest (or stopping): no longer tracking.
+    finishing: bool,
+    line: u32,
 }
 
 /// One joint's data for the core, taken from the configuration.
@@ -127,6 +176,7 @@ pub struct MotionCore {
     joint_manual: u32,
     source: Source,
     period_s: f64,
+    period_ns: u64,
     cycle: u64,
     offsets: [f64; MAX_JOINTS],
     last: JointSetpoints,
@@ -154,7 +204,39 @@ pub struct MotionCore {
     handwheel_counts: Option<i64>,
     handwheel_units_per_count: f64,
     feed_override: f64,
+    rapid_override: f64,
+    /// The programmed spindle speed (rpm, before the override).
+    programmed_rpm: f64,
+    /// The spindle is commanded on.
+    spindle_on: bool,
+    /// Interpolation cycle in which the last machine function started.
+    aux_cycle: u64,
+    /// Interpolation cycle of the last orientation command.
+    orient_cycle: u64,
+    /// Bit of the probe in the digital inputs (0: none).
+    probe_bit: u64,
+    /// The probing move in progress: its kind and where the probe changed.
+    probe: Option<(ProbeKind, Option<[f64; AXES]>)>,
+    /// Each axis' first joint (for positions from the feedback).
+    axis_joint: [Option<usize>; AXES],
+    /// The spindle-synchronised move in progress.
+    synced: Option<SyncedMove>,
+    /// A feed hold came during it: the program waits for a resume after it.
+    hold_after_sync: bool,
+    /// G96 in force.
+    css: Option<ConstantSurfaceSpeed>,
+    /// The spindle's top speed (rpm).
+    spindle_max_rpm: f64,
     spindle_override: f64,
+    /// M48-M51: the operator's overrides in force (else 100 %).
+    feed_override_enabled: bool,
+    spindle_override_enabled: bool,
+    /// M53: the feed stop switch is heeded.
+    feed_stop_enabled: bool,
+    /// The feed stop switch holds the path now.
+    feed_stop_active: bool,
+    /// Bit of the feed stop switch in the digital inputs (0: none).
+    feed_stop_bit: u64,
     program_ended: bool,
     tool: u32,
     last_fault: Option<Fault>,
@@ -169,6 +251,9 @@ pub struct MotionCore {
     logic_paused: bool,
     program_inputs: [usize; 16],
     program_input_count: usize,
+    program_analog_inputs: [usize; crate::config::MAX_PROGRAM_IO],
+    program_analog_input_count: usize,
+    program_analog_output_count: usize,
     /// The logic's e-stop chain has been seen closed since the last reset.
     chain_closed: bool,
     /// The feedback image as drive I/O published it.
@@ -329,6 +414,7 @@ impl MotionCore {
             joint_manual,
             source: Source::Path,
             period_s,
+            period_ns: config.servo_period().as_nanos() as u64,
             cycle: 0,
             offsets: [0.0; MAX_JOINTS],
             last,
@@ -356,7 +442,34 @@ impl MotionCore {
             handwheel_counts: None,
             handwheel_units_per_count: config.handwheel.units_per_count,
             feed_override: 1.0,
+            rapid_override: 1.0,
+            programmed_rpm: 0.0,
+            spindle_on: false,
+            aux_cycle: 0,
+            orient_cycle: 0,
+            probe_bit: config.io.probe_input.map_or(0, |i| 1u64 << i.min(63)),
+            probe: None,
+            synced: None,
+            hold_after_sync: false,
+            axis_joint: {
+                let mut a = [None; AXES];
+                for j in (0..joint_count).rev() {
+                    if let Some(i) = joints[j].axis {
+                        a[i] = Some(j);
+                    }
+                }
+                a
+            },
+            css: None,
+            spindle_max_rpm: config
+                .simulated_machine()
+                .map_or(f64::INFINITY, |m| m.spindle.max_speed_rpm),
             spindle_override: 1.0,
+            feed_override_enabled: true,
+            spindle_override_enabled: true,
+            feed_stop_enabled: true,
+            feed_stop_active: false,
+            feed_stop_bit: config.io.feed_stop_input.map_or(0, |i| 1u64 << i.min(63)),
             program_ended: false,
             tool: config.tool_changer.map_or(0, |t| t.initial_tool),
             last_fault: None,
@@ -372,6 +485,23 @@ impl MotionCore {
                 p
             },
             program_input_count: config.io.program_inputs.len().min(16),
+            program_analog_inputs: {
+                let mut p = [0usize; crate::config::MAX_PROGRAM_IO];
+                for (slot, &i) in p.iter_mut().zip(&config.io.program_analog_inputs) {
+                    *slot = i;
+                }
+                p
+            },
+            program_analog_input_count: config
+                .io
+                .program_analog_inputs
+                .len()
+                .min(crate::config::MAX_PROGRAM_IO),
+            program_analog_output_count: config
+                .io
+                .program_analog_outputs
+                .len()
+                .min(crate::config::MAX_PROGRAM_IO),
             chain_closed: false,
             feedback: Snapshot::new(shared.feedback.clone()),
             logic: Snapshot::new(shared.logic_outputs.clone()),
@@ -406,7 +536,11 @@ impl MotionCore {
 
     fn moving(&self) -> bool {
         match self.source {
-            Source::Path => self.last_state != MotionState::Idle || self.planner.window_len() > 0,
+            Source::Path => {
+                self.synced.is_some()
+                    || self.last_state != MotionState::Idle
+                    || self.planner.window_len() > 0
+            }
             Source::Manual => self.manual_moving(),
         }
     }
@@ -436,7 +570,7 @@ impl MotionCore {
             Phase::Paused { .. } => return MachineState::Paused,
             _ => {}
         }
-        if self.held || self.logic_paused {
+        if self.held || self.logic_paused || self.feed_stop_active {
             return MachineState::Held;
         }
         if self.moving() || self.homing.is_some() || self.phase != Phase::Idle {
@@ -461,7 +595,10 @@ impl MotionCore {
                 if self.held || self.logic_paused {
                     self.held = false;
                     self.logic_paused = false;
-                    self.planner.resume();
+                    // The feed stop switch keeps holding until it is released.
+                    if !self.feed_stop_active {
+                        self.planner.resume();
+                    }
                 } else if matches!(self.phase, Phase::Paused { .. }) {
                     self.start_count = self.start_count.wrapping_add(1);
                 }
@@ -473,26 +610,85 @@ impl MotionCore {
                 } else {
                     0.0
                 };
-                self.planner.set_feed_override(self.feed_override);
+                self.apply_feed_overrides();
             }
-            Urgent::RapidOverride(f) => self.planner.set_rapid_override(f),
+            Urgent::RapidOverride(f) => {
+                self.rapid_override = if f.is_finite() {
+                    f.clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                self.apply_feed_overrides();
+            }
             Urgent::SpindleOverride(f) => {
                 self.spindle_override = if f.is_finite() {
                     f.clamp(0.5, 1.5)
                 } else {
                     1.0
                 };
-                let factor = self.spindle_override;
                 if self.requests.spindle_on {
-                    let mi = self.requests_mut();
-                    mi.spindle_rpm = mi.spindle_rpm.abs() * factor;
+                    let rpm = self.spindle_command();
+                    self.requests_mut().spindle_rpm = rpm;
                 }
             }
         }
     }
 
+    /// The operator's feed and rapid overrides, or 100 % while M49/M50 P0 is in force.
+    fn apply_feed_overrides(&mut self) {
+        let (feed, rapid) = if self.feed_override_enabled {
+            (self.feed_override, self.rapid_override)
+        } else {
+            (1.0, 1.0)
+        };
+        self.planner.set_feed_override(feed);
+        self.planner.set_rapid_override(rapid);
+    }
+
+    /// The operator's spindle override, or 1 while M49/M51 P0 is in force.
+    fn spindle_factor(&self) -> f64 {
+        if self.spindle_override_enabled {
+            self.spindle_override
+        } else {
+            1.0
+        }
+    }
+
+    /// The spindle speed to command (rpm, unsigned): the programmed speed times the
+    /// override; under G96 the surface speed over 2π·|X − centre| at the X set-point, times
+    /// the override, capped at D (as LinuxCNC's motion controller does it every period).
+    fn spindle_command(&self) -> f64 {
+        match self.css {
+            Some(c) => {
+                let radius = (self.last.axes[0] - c.x_centre).abs();
+                let rpm = if radius > 0.0 {
+                    c.factor / radius
+                } else {
+                    c.max_rpm
+                };
+                (rpm * self.spindle_factor()).min(c.max_rpm)
+            }
+            None => self.programmed_rpm * self.spindle_factor(),
+        }
+    }
+
+    /// M48-M53 as after a reset: every override and the feed stop switch in force.
+    fn reset_enables(&mut self) {
+        self.feed_override_enabled = true;
+        self.spindle_override_enabled = true;
+        self.feed_stop_enabled = true;
+        self.apply_feed_overrides();
+        if self.requests.spindle_on {
+            let rpm = self.spindle_command();
+            self.requests_mut().spindle_rpm = rpm;
+        }
+    }
+
     fn hold(&mut self) {
         match self.source {
+            // A thread pass cannot stop in the cut: the hold takes effect at its end (as in
+            // LinuxCNC, which holds spindle-synchronised motion only after it).
+            Source::Path if self.synced.is_some() => self.hold_after_sync = true,
             Source::Path => {
                 if self.moving() {
                     self.held = true;
@@ -510,6 +706,10 @@ impl MotionCore {
     }
 
     fn abort(&mut self, shared: &Shared) {
+        self.probe = None;
+        self.stop_synced(false);
+        // A stopped program leaves no override disabled behind (M49, M50 P0, M53 P0).
+        self.reset_enables();
         self.epoch = self.epoch.wrapping_add(1);
         let _ = shared
             .interpreter_requests
@@ -573,6 +773,7 @@ impl MotionCore {
                     self.estop = false;
                     self.fault = false;
                     self.enable = true;
+                    self.apply_feed_overrides();
                     self.chain_closed = false;
                     self.reset_count = self.reset_count.wrapping_add(1);
                     let mi = self.requests_mut();
@@ -789,6 +990,10 @@ impl MotionCore {
 
     fn begin(&mut self, mode: Mode, from_line: u32) {
         self.enter_path();
+        if mode == Mode::Auto {
+            self.reset_enables();
+            self.css = None;
+        }
         self.mode = mode;
         self.epoch = self.epoch.wrapping_add(1);
         self.phase = Phase::Feeding;
@@ -848,7 +1053,10 @@ impl MotionCore {
             match self.phase {
                 Phase::Idle => return false,
                 Phase::Feeding => {
-                    if self.held || self.logic_paused || (self.logic_hold && !self.moving()) {
+                    if self.held
+                        || self.logic_paused
+                        || ((self.logic_hold || self.feed_stop_active) && !self.moving())
+                    {
                         return false;
                     }
                     let block = match self.pending.take() {
@@ -884,6 +1092,50 @@ impl MotionCore {
                     }
                     self.phase = Phase::Feeding;
                 }
+                Phase::Synced => {
+                    if self.synced.is_some() {
+                        return false;
+                    }
+                    self.phase = Phase::Feeding;
+                }
+                Phase::Probing { kind, line } => {
+                    if self.moving() {
+                        return false;
+                    }
+                    let tripped_at = self.probe.take().and_then(|p| p.1);
+                    let must_change = matches!(kind, ProbeKind::TowardError | ProbeKind::AwayError);
+                    if tripped_at.is_none() && must_change {
+                        self.phase = Phase::Draining {
+                            then: Then::Error(FaultCode::ProbeFailed),
+                            line,
+                        };
+                        continue;
+                    }
+                    self.send_result(
+                        shared,
+                        MachineResult::Probe {
+                            tripped: tripped_at.is_some(),
+                            at: tripped_at.unwrap_or(self.last.axes),
+                            stopped: self.last.axes,
+                        },
+                    );
+                    self.phase = Phase::Feeding;
+                }
+                Phase::WaitOrient { deadline, line } => {
+                    // The feedback answers the orientation only after the drive had it.
+                    let oriented =
+                        self.feedback.get().spindle_oriented && self.cycle >= self.orient_cycle + 2;
+                    if oriented {
+                        self.phase = Phase::Feeding;
+                    } else if self.cycle >= deadline {
+                        self.phase = Phase::Draining {
+                            then: Then::Error(FaultCode::SpindleOrientTimeout),
+                            line,
+                        };
+                    } else {
+                        return false;
+                    }
+                }
                 Phase::WaitInput {
                     bit,
                     condition,
@@ -900,6 +1152,13 @@ impl MotionCore {
                         W::Low => !now,
                     };
                     if met || self.cycle >= deadline {
+                        // #5399: the input's level, or -1 on a time-out (LinuxCNC).
+                        let value = match (met, now) {
+                            (false, _) => -1.0,
+                            (true, true) => 1.0,
+                            (true, false) => 0.0,
+                        };
+                        self.send_result(shared, MachineResult::Input(value));
                         self.phase = Phase::Feeding;
                     } else {
                         self.phase = Phase::WaitInput {
@@ -978,6 +1237,22 @@ impl MotionCore {
                 let _ = shared;
                 true
             }
+            MachineBlock::Synced { line, end, pitch } => {
+                self.planner.flush();
+                self.phase = Phase::Draining {
+                    then: Then::Synced(end, pitch),
+                    line,
+                };
+                true
+            }
+            MachineBlock::Probe { mv, kind } => {
+                self.planner.flush();
+                self.phase = Phase::Draining {
+                    then: Then::Probe(mv, kind),
+                    line: mv.line,
+                };
+                true
+            }
             MachineBlock::End { line } => {
                 self.planner.flush();
                 self.phase = Phase::Draining {
@@ -1013,6 +1288,7 @@ impl MotionCore {
                 }
             }
             Then::End => {
+                self.reset_enables();
                 self.phase = Phase::Idle;
                 self.program_ended = true;
                 self.requests_mut().program_running = false;
@@ -1027,22 +1303,82 @@ impl MotionCore {
                     .try_put(InterpreterRequest::Stop);
                 self.requests_mut().program_running = false;
             }
-            Then::Aux(aux) => self.start_aux(aux, line),
+            Then::Aux(aux) => self.start_aux(shared, aux, line),
+            Then::Probe(mv, kind) => self.start_probe(shared, mv, kind),
+            Then::Synced(end, pitch) => self.start_synced(end, pitch, line),
         }
     }
 
-    fn start_aux(&mut self, aux: Aux, line: u32) {
+    fn start_aux(&mut self, shared: &Shared, aux: Aux, line: u32) {
+        self.aux_cycle = self.cycle;
+        // A copy of the requests, published where the old lock was given back.
         let mut mi = self.requests;
         match aux {
             Aux::SpindleOn { rpm } => {
+                mi.spindle_orient = false;
                 mi.spindle_on = rpm != 0.0;
+                self.spindle_on = mi.spindle_on;
                 mi.spindle_reverse = rpm < 0.0;
-                mi.spindle_rpm = rpm.abs() * self.spindle_override;
+                self.programmed_rpm = rpm.abs();
+                mi.spindle_rpm = self.spindle_command();
             }
             Aux::SpindleOff => {
+                mi.spindle_orient = false;
                 mi.spindle_on = false;
+                self.spindle_on = false;
             }
-            Aux::SpindleSpeed { rpm } => mi.spindle_rpm = rpm.abs() * self.spindle_override,
+            // Orientation goes to the spindle drive at once; M19 Q waits for it.
+            Aux::SpindleOrient { angle, mode } => {
+                mi.spindle_on = false;
+                self.spindle_on = false;
+                mi.spindle_orient = true;
+                mi.spindle_orient_angle = angle;
+                mi.spindle_orient_mode = mode;
+                *self.requests_mut() = mi;
+                self.orient_cycle = self.cycle;
+                self.phase = Phase::Feeding;
+                return;
+            }
+            Aux::WaitOrient { timeout } => {
+                *self.requests_mut() = mi;
+                let periods = if timeout.is_finite() && timeout > 0.0 {
+                    (timeout / self.period_s).ceil() as u64
+                } else {
+                    0
+                };
+                self.phase = Phase::WaitOrient {
+                    deadline: self.cycle + periods,
+                    line,
+                };
+                return;
+            }
+            Aux::ConstantSurfaceSpeed {
+                factor,
+                x_centre,
+                max_rpm,
+            } => {
+                self.css = Some(ConstantSurfaceSpeed {
+                    factor,
+                    x_centre,
+                    max_rpm: max_rpm.min(self.spindle_max_rpm),
+                });
+                mi.spindle_rpm = self.spindle_command();
+            }
+            // Tool compensation turns it into the above.
+            Aux::SurfaceSpeed { .. } => {}
+            // The S number in force becomes the rpm; not waited for (an S word usually
+            // follows at once, and that is waited for).
+            Aux::SurfaceSpeedOff => {
+                self.css = None;
+                mi.spindle_rpm = self.spindle_command();
+                *self.requests_mut() = mi;
+                self.phase = Phase::Feeding;
+                return;
+            }
+            Aux::SpindleSpeed { rpm } => {
+                self.programmed_rpm = rpm.abs();
+                mi.spindle_rpm = self.spindle_command();
+            }
             Aux::Mist(on) => mi.mist = on,
             Aux::Flood(on) => mi.flood = on,
             Aux::ToolChange { tool } => {
@@ -1096,10 +1432,79 @@ impl MotionCore {
                 };
                 return;
             }
+            Aux::ReadAnalogInput { index } => {
+                *self.requests_mut() = mi;
+                let point = usize::try_from(index)
+                    .ok()
+                    .filter(|&i| i < self.program_analog_input_count)
+                    .map(|i| self.program_analog_inputs[i]);
+                let value = point.and_then(|p| self.feedback.get().analog_inputs.get(p).copied());
+                match value {
+                    Some(v) => {
+                        self.send_result(shared, MachineResult::Input(v));
+                        self.phase = Phase::Feeding;
+                    }
+                    None => {
+                        self.phase = Phase::Draining {
+                            then: Then::Error(FaultCode::AuxRefused),
+                            line,
+                        }
+                    }
+                }
+                return;
+            }
+            Aux::AnalogOutput { index, value } => {
+                let slot = usize::try_from(index)
+                    .ok()
+                    .filter(|&i| i < self.program_analog_output_count)
+                    .and_then(|i| mi.program_analog_outputs.get_mut(i));
+                let mapped = slot.is_some();
+                if let Some(slot) = slot {
+                    *slot = value;
+                }
+                *self.requests_mut() = mi;
+                self.phase = if mapped {
+                    Phase::Feeding
+                } else {
+                    Phase::Draining {
+                        then: Then::Error(FaultCode::AuxRefused),
+                        line,
+                    }
+                };
+                return;
+            }
+            Aux::FeedOverrideEnable(on) => {
+                *self.requests_mut() = mi;
+                self.feed_override_enabled = on;
+                self.apply_feed_overrides();
+                self.phase = Phase::Feeding;
+                return;
+            }
+            Aux::SpindleOverrideEnable(on) => {
+                self.spindle_override_enabled = on;
+                if mi.spindle_on {
+                    mi.spindle_rpm = self.spindle_command();
+                }
+                *self.requests_mut() = mi;
+                self.phase = Phase::Feeding;
+                return;
+            }
+            Aux::FeedStopEnable(on) => {
+                *self.requests_mut() = mi;
+                self.feed_stop_enabled = on;
+                self.phase = Phase::Feeding;
+                return;
+            }
             Aux::ProgramStop => {
                 self.phase = Phase::Paused {
                     start_count: self.start_count,
                 };
+                return;
+            }
+            Aux::Message { seq } => {
+                *self.requests_mut() = mi;
+                self.show_message(shared, seq, line);
+                self.phase = Phase::Feeding;
                 return;
             }
             Aux::OptionalStop => {
@@ -1121,12 +1526,302 @@ impl MotionCore {
         };
     }
 
+    /// Starts a probing move: refused without a probe input, or when the probe already is
+    /// where the move looks for (LinuxCNC's "probe is already tripped" / "not tripped").
+    fn start_probe(&mut self, shared: &Shared, mv: Move, kind: ProbeKind) {
+        let contact = self.feedback.get().digital_inputs & self.probe_bit != 0;
+        let toward = matches!(kind, ProbeKind::TowardError | ProbeKind::Toward);
+        let fail = |line| Phase::Draining {
+            then: Then::Error(FaultCode::ProbeFailed),
+            line,
+        };
+        if self.probe_bit == 0 || contact == toward {
+            self.phase = fail(mv.line);
+            return;
+        }
+        match self.planner.push(&mv) {
+            Ok(()) => {
+                self.planner.flush();
+                self.probe = Some((kind, None));
+                self.phase = Phase::Probing {
+                    kind,
+                    line: mv.line,
+                };
+            }
+            // Already there: the probe did not change.
+            Err(MotionError::ZeroLength { .. }) => {
+                self.probe = Some((kind, None));
+                self.phase = Phase::Probing {
+                    kind,
+                    line: mv.line,
+                };
+            }
+            Err(e) => {
+                self.phase = Phase::Draining {
+                    then: Then::Error(FaultCode::MotionError),
+                    line: e.line().unwrap_or(mv.line),
+                };
+                *shared.motion_error.lock() = Some(e);
+            }
+        }
+    }
+
+    /// Starts a spindle-synchronised line (G33) from where the machine stands: it waits for
+    /// the spindle's index, then its progress follows pitch × revolutions. Refused when the
+    /// spindle stands, when the line leaves the soft limits, or when the spindle turns too
+    /// fast for the pitch and the axes (the axes could not keep up).
+    fn start_synced(&mut self, end: [f64; AXES], pitch: f64, line: u32) {
+        let feedback = *self.feedback.get();
+        let fail = |code| Phase::Draining {
+            then: Then::Error(code),
+            line,
+        };
+        let start = self.last.axes;
+        let mut dir = [0.0; AXES];
+        let mut length2 = 0.0;
+        for i in 0..AXES {
+            dir[i] = end[i] - start[i];
+            length2 += dir[i] * dir[i];
+        }
+        let length = length2.sqrt();
+        if !length.is_finite() {
+            self.phase = fail(FaultCode::MotionError);
+            return;
+        }
+        if length == 0.0 {
+            self.phase = Phase::Feeding;
+            return;
+        }
+        let (mut v, mut a, mut j) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+        for i in 0..AXES {
+            dir[i] /= length;
+            let share = dir[i].abs();
+            if share < 1e-12 {
+                continue;
+            }
+            if !self.axis_present[i] || end[i] < self.axis_min[i] || end[i] > self.axis_max[i] {
+                self.phase = fail(FaultCode::MotionError);
+                return;
+            }
+            let l = self.axis_limits[i];
+            v = v.min(l.max_velocity / share);
+            a = a.min(l.max_acceleration / share);
+            j = j.min(l.max_jerk / share);
+        }
+        let speed = pitch * feedback.spindle_rpm.abs() / 60.0;
+        let otg = OnlineAxis::new(State::at_rest(0.0), Limits::symmetric(v, a, j));
+        match otg {
+            Ok(otg) if self.spindle_on && speed > 0.0 && speed <= 0.9 * v && pitch > 0.0 => {
+                self.synced = Some(SyncedMove {
+                    start,
+                    dir,
+                    length,
+                    pitch,
+                    offset: None,
+                    otg,
+                    limits: (v, a, j),
+                    angle: feedback.spindle_angle_deg,
+                    reading: feedback.spindle_angle_deg,
+                    index: None,
+                    finishing: false,
+                    line,
+                });
+                self.phase = Phase::Synced;
+            }
+            _ => self.phase = fail(FaultCode::SyncFailed),
+        }
+    }
+
+    /// One period of the synchronised move: follows the spindle's angle (from the last
+    /// exchange) and gives the axis position; finished moves hand the path back to the
+    /// planner where they ended.
+    fn synced_step(&mut self, feedback: &Feedback, sp: &mut JointSetpoints) {
+        let Some(mut m) = self.synced else {
+            return;
+        };
+        let dt = self.period_s;
+        let mut delta = feedback.spindle_angle_deg - m.reading;
+        if delta > 180.0 {
+            delta -= 360.0;
+        } else if delta <= -180.0 {
+            delta += 360.0;
+        }
+        m.reading = feedback.spindle_angle_deg;
+        m.angle += delta;
+        if m.index.is_none() {
+            // The index is at angle 0: the first crossing of a whole turn.
+            let (now, before) = (
+                (m.angle / 360.0).floor(),
+                ((m.angle - delta) / 360.0).floor(),
+            );
+            if now != before {
+                m.index = Some(360.0 * now.max(before));
+            }
+        }
+        let mut progress = None;
+        if let (Some(index), false) = (m.index, m.finishing) {
+            let (vmax, a, j) = m.limits;
+            let speed = m.pitch * (delta / 360.0 / dt).abs();
+            let here = m.pitch * ((m.angle - index) / 360.0).abs();
+            if m.offset.is_none() {
+                // At the index: the offset from the spindle's progress now, to be closed.
+                let relative = Limits {
+                    max_velocity: vmax - speed,
+                    min_velocity: -vmax - speed,
+                    max_acceleration: a,
+                    min_acceleration: -a,
+                    max_jerk: j,
+                };
+                let at = m.otg.sample();
+                let start = State::new(at.p - here, at.v - speed, at.a);
+                m.offset = OnlineAxis::new(start, relative)
+                    .and_then(|mut o| o.set_target(State::at_rest(0.0)).map(|()| o))
+                    .ok();
+                if m.offset.is_none() {
+                    m.finishing = true;
+                    let _ = m.otg.stop();
+                }
+            }
+            if let Some(offset) = m.offset.as_mut() {
+                // The set-point is applied in the next period: where the spindle will be.
+                let e = offset.step(dt);
+                let p = here + speed * dt + e.p;
+                let v = speed + e.v;
+                let stopping = 0.5 * v * (v / a + a / j) + v * dt;
+                if p + stopping >= m.length {
+                    // The end: at most this speed, then to rest on the end point.
+                    // (From the last set-point, which `otg` holds.)
+                    m.finishing = true;
+                    let limits = Limits::symmetric(v.abs().max(speed).max(1e-6), a, j);
+                    let _ = m.otg.set_limits(limits);
+                    let _ = m.otg.set_target(State::at_rest(m.length));
+                } else {
+                    progress = Some((p, v));
+                    // Where a stop would start from (abort, fault).
+                    if let Ok(o) = OnlineAxis::new(
+                        State::new(p, v, e.a),
+                        Limits::symmetric(vmax.max(v.abs()), a, j),
+                    ) {
+                        m.otg = o;
+                    }
+                }
+            }
+        }
+        let s = match progress {
+            Some((p, v)) => rtcnc_motion::otg::Sample {
+                p,
+                v,
+                a: 0.0,
+                j: 0.0,
+            },
+            None if m.finishing || m.offset.is_none() => m.otg.step(dt),
+            None => m.otg.sample(),
+        };
+        for i in 0..AXES {
+            sp.axes[i] = m.start[i] + m.dir[i] * s.p;
+        }
+        for jn in 0..self.joint_count {
+            if let Some(i) = self.joints[jn].axis {
+                sp.joints[jn] = sp.axes[i];
+            }
+        }
+        sp.line = m.line;
+        sp.path_speed = s.v.abs();
+        if m.finishing && m.otg.is_finished() {
+            self.synced = None;
+            let _ = self.planner.reset_at(sp.axes);
+            if std::mem::take(&mut self.hold_after_sync) && self.phase != Phase::Idle {
+                // Standing between moves now: the next one waits for a resume.
+                self.logic_paused = true;
+            }
+        } else {
+            self.synced = Some(m);
+        }
+    }
+
+    /// Stops a synchronised move along its line (abort, fault): it no longer tracks.
+    fn stop_synced(&mut self, quick: bool) {
+        if let Some(m) = self.synced.as_mut() {
+            m.finishing = true;
+            if quick {
+                let (v, _, _) = m.limits;
+                let (mut a, mut j) = (f64::INFINITY, f64::INFINITY);
+                for i in 0..AXES {
+                    let share = m.dir[i].abs();
+                    if share > 1e-12 {
+                        a = a.min(self.axis_quick[i].max_acceleration / share);
+                        j = j.min(self.axis_quick[i].max_jerk / share);
+                    }
+                }
+                let _ = m.otg.set_limits(Limits::symmetric(v, a, j));
+            }
+            let _ = m.otg.stop();
+        }
+    }
+
+    /// During a probing move, every period: where the probe changes, remember the axis
+    /// position (from the feedback, as LinuxCNC) and stop the move.
+    fn probe_step(&mut self, feedback: &Feedback) {
+        let Some((kind, None)) = self.probe else {
+            return;
+        };
+        let contact = feedback.digital_inputs & self.probe_bit != 0;
+        let toward = matches!(kind, ProbeKind::TowardError | ProbeKind::Toward);
+        if contact != toward {
+            return;
+        }
+        let mut at = self.last.axes;
+        for i in 0..AXES {
+            if let Some(j) = self.axis_joint[i] {
+                at[i] = feedback.position[j] + self.offsets[j];
+            }
+        }
+        self.probe = Some((kind, Some(at)));
+        self.planner.abort();
+    }
+
+    /// Hands the interpreter the result it waits for (it reads on once it has it).
+    fn send_result(&self, shared: &Shared, result: MachineResult) {
+        let _ = shared.machine_results.try_put(Tagged {
+            epoch: self.epoch,
+            block: result,
+        });
+        shared.interpreter_wake.signal();
+    }
+
+    /// Hands the text of message `seq` to the operator, stamped with the set-point at which
+    /// the path stands at its block. Texts of an aborted run still in the channel are
+    /// older: they are dropped on the way.
+    fn show_message(&self, shared: &Shared, seq: u32, line: u32) {
+        for _ in 0..shared.message_texts.capacity() {
+            let Some((s, text)) = shared.message_texts.try_get() else {
+                return;
+            };
+            if s == seq {
+                let _ = shared.operator_messages.try_put(OperatorMessage {
+                    cycle: self.cycle,
+                    time_ns: self.cycle.saturating_mul(self.period_ns),
+                    line,
+                    text,
+                });
+                return;
+            }
+        }
+    }
+
     /// Whether the machine logic acknowledged `aux`; drops hand-shake requests once done.
     fn logic_done(&mut self, aux: Aux, line: u32, released: bool) -> bool {
         let answers = *self.logic.get();
         let done = match aux {
-            Aux::SpindleOn { .. } | Aux::SpindleSpeed { .. } => {
-                !self.requests.spindle_on || answers.spindle_at_speed
+            Aux::SpindleOn { .. }
+            | Aux::SpindleSpeed { .. }
+            | Aux::ConstantSurfaceSpeed { .. }
+            | Aux::SurfaceSpeed { .. }
+            | Aux::SurfaceSpeedOff => {
+                // The logic's at-speed answers the new command only after the drives have
+                // had it (one exchange) and the logic has scanned again.
+                !self.requests.spindle_on
+                    || (answers.spindle_at_speed && self.cycle >= self.aux_cycle + 2)
             }
             Aux::SpindleOff => true,
             Aux::Mist(on) => answers.out_mist == on,
@@ -1165,6 +1860,14 @@ impl MotionCore {
             Aux::DigitalOutput { .. }
             | Aux::ProgramStop
             | Aux::OptionalStop
+            | Aux::Message { .. }
+            | Aux::SpindleOrient { .. }
+            | Aux::WaitOrient { .. }
+            | Aux::FeedOverrideEnable(_)
+            | Aux::SpindleOverrideEnable(_)
+            | Aux::FeedStopEnable(_)
+            | Aux::ReadAnalogInput { .. }
+            | Aux::AnalogOutput { .. }
             | Aux::WaitInput { .. } => true,
         };
         if done {
@@ -1206,7 +1909,10 @@ impl MotionCore {
                 let spindle_handshake = matches!(
                     self.phase,
                     Phase::Logic {
-                        aux: Aux::SpindleOn { .. } | Aux::SpindleSpeed { .. },
+                        aux: Aux::SpindleOn { .. }
+                            | Aux::SpindleSpeed { .. }
+                            | Aux::ConstantSurfaceSpeed { .. }
+                            | Aux::SurfaceSpeedOff,
                         ..
                     }
                 );
@@ -1219,6 +1925,21 @@ impl MotionCore {
             self.logic_hold = mi.feed_hold_request;
             mi.estop_chain_ok
         };
+        // The feed stop switch (M53): holds a moving path while it is on, and lets it go on
+        // by itself when released (LinuxCNC's feed hold input); no new move starts meanwhile.
+        let stop_now = self.feed_stop_enabled && feedback.digital_inputs & self.feed_stop_bit != 0;
+        if stop_now != self.feed_stop_active {
+            self.feed_stop_active = stop_now;
+            if self.source == Source::Path {
+                if stop_now {
+                    if self.moving() {
+                        self.planner.hold();
+                    }
+                } else if !self.held && !self.logic_paused {
+                    self.planner.resume();
+                }
+            }
+        }
         // The machine logic's e-stop chain: once closed after a reset, its opening is an
         // e-stop (the chain closes a scan or two after the reset).
         if self.enable && !self.estop {
@@ -1229,6 +1950,7 @@ impl MotionCore {
                 shared.raise(ctx, FaultCode::EStop, TaskName::MachineLogic, None, 0, 0.0);
             }
         }
+        self.probe_step(&feedback);
         // One set-point per exchange with the drives, numbered by the exchange it is for:
         // the one made in period p is applied by position control in period p + 1, after
         // the exchanges of periods up to p, i.e. p + 1 less the periods the fieldbus thread
@@ -1255,6 +1977,13 @@ impl MotionCore {
             // The program line in the trace, so a timeline shows which block ran when.
             ctx.mark("line", u64::from(self.last.line));
         }
+        // G96: the spindle speed follows the X set-point.
+        if self.css.is_some() && self.spindle_on {
+            let rpm = self.spindle_command();
+            if self.requests.spindle_rpm != rpm {
+                self.requests_mut().spindle_rpm = rpm;
+            }
+        }
         if self.stopping && !self.moving() {
             self.stopping = false;
             if self.estop || self.fault {
@@ -1280,6 +2009,7 @@ impl MotionCore {
         let mut sp = self.last;
         sp.cycle = self.cycle;
         match self.source {
+            Source::Path if self.synced.is_some() => self.synced_step(feedback, &mut sp),
             Source::Path => {
                 let n = self.planner_joint_count;
                 let status = self.planner.next(&mut self.planner_buf[..n]);
@@ -1339,6 +2069,8 @@ impl MotionCore {
         // Quick stop of whatever moves, with the configured deceleration and jerk; the
         // drives are disabled once it stands (see `interpolate`).
         self.stopping = true;
+        self.probe = None;
+        self.stop_synced(true);
         self.epoch = self.epoch.wrapping_add(1);
         let _ = shared
             .interpreter_requests
@@ -1361,6 +2093,13 @@ impl MotionCore {
         mi.m_code_request = false;
         mi.program_running = false;
         mi.spindle_on = false;
+        mi.spindle_orient = false;
+        self.spindle_on = false;
+        // A stopped program leaves no override disabled behind; the planner takes them at
+        // the reset.
+        self.feed_override_enabled = true;
+        self.spindle_override_enabled = true;
+        self.feed_stop_enabled = true;
     }
 
     fn handwheel_step(&mut self, feedback: &Feedback) {
@@ -1560,7 +2299,13 @@ impl MotionCore {
         status.program_ended = self.program_ended;
         status.tool = self.tool;
         status.spindle_rpm = feedback.spindle_rpm;
+        status.spindle_command_rpm = if self.spindle_on {
+            self.spindle_command()
+        } else {
+            0.0
+        };
         status.ready = self.ready && self.enable && feedback.enabled != 0;
+        status.geometry = self.planner.geometry_stats();
         if let Some(f) = self.last_fault {
             status.last_fault = Some(f);
         }

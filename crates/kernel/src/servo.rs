@@ -61,6 +61,7 @@ pub(crate) struct ServoStage<B: Fieldbus> {
     exchanges: u64,
     following_error: [f64; MAX_JOINTS],
     program_outputs: Vec<usize>,
+    program_analog_outputs: Vec<usize>,
     previous_joints: [f64; MAX_JOINTS],
     underruns: u64,
 }
@@ -106,9 +107,16 @@ impl<B: Fieldbus> ServoStage<B> {
             exchanges: 0,
             following_error: [0.0; MAX_JOINTS],
             program_outputs,
+            program_analog_outputs: Vec::new(),
             previous_joints: [0.0; MAX_JOINTS],
             underruns: 0,
         }
+    }
+
+    /// M67/M68 `E n` drive analogue output `points[n]`.
+    pub(crate) fn with_program_analog_outputs(mut self, points: Vec<usize>) -> Self {
+        self.program_analog_outputs = points;
+        self
     }
 
     /// Position control: one servo cycle.
@@ -278,9 +286,14 @@ impl<B: Fieldbus> ServoStage<B> {
     pub(crate) fn drive_io(&mut self, ctx: &mut Context<'_>) {
         {
             let mi = *self.logic.get();
-            let program_outputs = self.requests.get().program_outputs;
+            let req = self.requests.get();
+            let program_outputs = req.program_outputs;
+            let program_analog_outputs = req.program_analog_outputs;
             self.outputs.spindle.enable = mi.out_spindle_enable;
             self.outputs.spindle.speed_rpm = mi.out_spindle_rpm;
+            self.outputs.spindle.orient = req.spindle_orient;
+            self.outputs.spindle.orient_angle_deg = req.spindle_orient_angle;
+            self.outputs.spindle.orient_mode = req.spindle_orient_mode;
             self.outputs.coolant.mist = mi.out_mist;
             self.outputs.coolant.flood = mi.out_flood;
             self.outputs.tool_changer.start = mi.out_tool_start;
@@ -294,6 +307,15 @@ impl<B: Fieldbus> ServoStage<B> {
             for (n, &point) in self.program_outputs.iter().enumerate().take(64) {
                 if let Some(o) = self.outputs.digital.get_mut(point) {
                     *o |= program_outputs & (1 << n) != 0;
+                }
+            }
+            for (&point, &value) in self
+                .program_analog_outputs
+                .iter()
+                .zip(&program_analog_outputs)
+            {
+                if let Some(o) = self.outputs.analog.get_mut(point) {
+                    *o = value;
                 }
             }
         }
@@ -375,12 +397,17 @@ impl<B: Fieldbus> ServoStage<B> {
         fb.handwheel_counts = self.inputs.handwheel_counts;
         fb.spindle_rpm = self.inputs.spindle.speed_rpm;
         fb.spindle_at_speed = self.inputs.spindle.at_speed;
+        fb.spindle_angle_deg = self.inputs.spindle.position_deg;
+        fb.spindle_oriented = self.inputs.spindle.oriented;
         fb.tool = self.inputs.tool_changer.current_tool;
         fb.tool_change_done = self.inputs.tool_changer.done;
         for (i, &d) in self.inputs.digital.iter().enumerate().take(64) {
             if d {
                 fb.digital_inputs |= 1 << i;
             }
+        }
+        for (slot, &a) in fb.analog_inputs.iter_mut().zip(&self.inputs.analog) {
+            *slot = a;
         }
         self.feedback_out.publish(fb);
     }

@@ -7,7 +7,9 @@ use rtcnc_rt::{BinarySemaphore, Context, Mailbox, PiMutex, SeqlockReader, Seqloc
 
 use crate::config::MAX_JOINTS;
 use crate::fault::{Fault, FaultCode, TaskName};
-use crate::messages::{Command, FixedText, MachineBlock, ProgramBlock, Status, Urgent};
+use crate::messages::{
+    Command, FixedText, MachineBlock, MachineResult, OperatorMessage, ProgramBlock, Status, Urgent,
+};
 
 /// A pipeline message tagged with the program run it belongs to, so that an abort can drop
 /// whatever of an old run is still in the channels.
@@ -74,12 +76,18 @@ pub struct Feedback {
     pub spindle_rpm: f64,
     /// Spindle at speed.
     pub spindle_at_speed: bool,
+    /// Spindle angle from its index, degrees.
+    pub spindle_angle_deg: f64,
+    /// The spindle is oriented (M19).
+    pub spindle_oriented: bool,
     /// Tool in the spindle.
     pub tool: u32,
     /// Tool change finished (held until the request drops).
     pub tool_change_done: bool,
     /// Digital inputs, bit n = input n (first 64).
     pub digital_inputs: u64,
+    /// Analogue inputs (first 16).
+    pub analog_inputs: [f64; crate::config::MAX_PROGRAM_IO],
 }
 
 /// The kernel's half of the machine interface (the PLC's signals): what the motion core asks
@@ -120,6 +128,14 @@ pub struct LogicRequests {
     pub machine_on_request: bool,
     /// Program digital outputs (M62..M65), bit n = program output n.
     pub program_outputs: u64,
+    /// M19: orient the spindle (to the machine directly; the logic does not see it).
+    pub spindle_orient: bool,
+    /// Its angle, degrees.
+    pub spindle_orient_angle: f64,
+    /// Its mode: 0 shorter way, 1 clockwise, 2 counter-clockwise.
+    pub spindle_orient_mode: u8,
+    /// Program analogue outputs (M67/M68), by program output number.
+    pub program_analog_outputs: [f64; crate::config::MAX_PROGRAM_IO],
 }
 
 /// The machine logic's half of the machine interface: its answers to the kernel and its
@@ -210,6 +226,14 @@ pub struct Shared {
     pub program_blocks: Mailbox<Tagged<ProgramBlock>>,
     /// Tool compensation -> look-ahead.
     pub machine_blocks: Mailbox<Tagged<MachineBlock>>,
+    /// Interpreter -> look-ahead: the texts of operator messages, by sequence number, in
+    /// the order of their `Aux::Message` blocks.
+    pub message_texts: Mailbox<(u32, FixedText)>,
+    /// Operator messages as the machine reached them, for the operator.
+    pub operator_messages: Mailbox<OperatorMessage>,
+    /// Look-ahead -> interpreter: what the machine measured for a block the interpreter
+    /// waits on (M66's input value for #5399), tagged with the run.
+    pub machine_results: Mailbox<Tagged<MachineResult>>,
     /// Faults for the operator and the log.
     pub faults: Mailbox<Fault>,
     /// Faults that must stop motion, for the interpolation task (read first every cycle).
@@ -254,6 +278,9 @@ impl Shared {
             interpreter_wake: BinarySemaphore::new("interpreter wake"),
             program_blocks: Mailbox::new("program blocks", 128).expect("capacity > 0"),
             machine_blocks: Mailbox::new("machine blocks", 128).expect("capacity > 0"),
+            message_texts: Mailbox::new("message texts", 32).expect("capacity > 0"),
+            operator_messages: Mailbox::new("operator messages", 1024).expect("capacity > 0"),
+            machine_results: Mailbox::new("machine results", 8).expect("capacity > 0"),
             faults: Mailbox::new("faults", 1024).expect("capacity > 0"),
             stop_requests: Mailbox::new("stop requests", 64).expect("capacity > 0"),
             feedback,

@@ -119,3 +119,19 @@ fn inch_programs_move_in_millimetres_on_the_machine() {
         "path speed {top}"
     );
 }
+
+#[test]
+fn the_thread_example_faces_at_constant_surface_speed_and_threads_on_the_lathe() {
+    let (m, _) = run_example("sim-lathe.toml", "lathe-thread.ngc");
+    // The facing cut reached the centre; the G76 passes went down to Z-22.
+    let min = |i: usize| m.samples.iter().map(|s| s.axes[i]).fold(f64::MAX, f64::min);
+    assert_eq!(min(0), 0.0);
+    assert_eq!(min(2), -30.0);
+    let thread_end = m
+        .samples
+        .iter()
+        .filter(|s| s.line == 21)
+        .map(|s| s.axes[2])
+        .fold(f64::MAX, f64::min);
+    assert_eq!(thread_end, -22.0);
+}

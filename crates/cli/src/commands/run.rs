@@ -36,6 +36,18 @@ pub struct Args {
     limit: f64,
 }
 
+/// Prints the operator messages the machine reached since the last call (time since the
+/// start command, line, text), clearing the status line first.
+fn print_messages(handle: &rtcnc_kernel::KernelHandle, start_ns: u64, tty: bool) {
+    for m in handle.take_messages() {
+        let t = m.time_ns.saturating_sub(start_ns) as f64 * 1e-9;
+        if tty {
+            eprint!("\r{:100}\r", "");
+        }
+        println!("message  t {t:.3} s  line {}: {}", m.line, m.text.as_str());
+    }
+}
+
 static INTERRUPTS: AtomicU32 = AtomicU32::new(0);
 
 extern "C" fn on_sigint(_: libc::c_int) {
@@ -112,6 +124,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         std::thread::sleep(Duration::from_secs_f64(idle.max(0.0)));
     } else {
         handle.command(Command::Start { from_line: 0 });
+        let kernel_start = handle.status().time_ns;
         let mut seen = 0;
         loop {
             std::thread::sleep(Duration::from_millis(100));
@@ -126,6 +139,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                     eprintln!("\nrtcnc: abort");
                 }
             }
+            print_messages(&handle, kernel_start, tty);
             let s = handle.status();
             if tty {
                 eprint!(
@@ -157,6 +171,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         if tty {
             eprintln!();
         }
+        print_messages(&handle, kernel_start, false);
     }
     let elapsed = started.elapsed().as_secs_f64();
     let fifo = runner.is_fifo();

@@ -47,6 +47,8 @@ pub struct Summary {
     pub ended: bool,
     pub limits_exceeded: bool,
     pub faults: Vec<String>,
+    /// Operator messages: time since the program start (s), line, text.
+    pub messages: Vec<(f64, u32, String)>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
@@ -117,6 +119,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let start = sim.now();
     let wall = Instant::now();
     let bar = progress_bar(args.quiet);
+    let mut messages: Vec<(f64, u32, String)> = Vec::new();
     let limit = Duration::from_secs_f64(args.limit.max(0.001));
     let mut ended = false;
     loop {
@@ -126,6 +129,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         })?;
         let status = handle.status();
         faults.extend(handle.take_faults());
+        take_messages(&handle, start, &bar, &mut messages);
         if let Some(bar) = &bar {
             bar.set_message(format!(
                 "t {:.1} s  line {}  X{:.3} Y{:.3} Z{:.3}  {:.1} mm/s  {}",
@@ -161,6 +165,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     // Let the machine settle a moment so the feedback of the last move is recorded.
     sim.run_cycles(20, &mut sink)?;
     faults.extend(handle.take_faults());
+    take_messages(&handle, start, &bar, &mut messages);
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
@@ -283,6 +288,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 ended,
                 limits_exceeded: !exceeded.is_empty(),
                 faults: fault_texts.clone(),
+                messages,
             },
             error_text.as_deref(),
         )?;
@@ -348,6 +354,31 @@ fn print_profile(
             per_ms(ns),
             share(ns)
         );
+    }
+}
+
+/// Prints the operator messages the machine reached (time since the program start, line,
+/// text) and keeps them for the summary.
+fn take_messages(
+    handle: &rtcnc_kernel::KernelHandle,
+    start: Duration,
+    bar: &Option<indicatif::ProgressBar>,
+    messages: &mut Vec<(f64, u32, String)>,
+) {
+    for m in handle.take_messages() {
+        let t = Duration::from_nanos(m.time_ns)
+            .saturating_sub(start)
+            .as_secs_f64();
+        let text = format!(
+            "message     t {t:.3} s  line {}: {}",
+            m.line,
+            m.text.as_str()
+        );
+        match bar {
+            Some(bar) => bar.suspend(|| println!("{text}")),
+            None => println!("{text}"),
+        }
+        messages.push((t, m.line, m.text.as_str().to_string()));
     }
 }
 
@@ -629,6 +660,11 @@ fn write_summary(
         "axes": Value::Object(axes),
         "joints": Value::Object(joints),
         "faults": summary.faults,
+        "messages": summary
+            .messages
+            .iter()
+            .map(|(t, line, text)| json!({ "time_s": t, "line": line, "text": text }))
+            .collect::<Vec<_>>(),
         "program_error": error_text,
     });
     std::fs::write(path, serde_json::to_string_pretty(&value)? + "\n")

@@ -189,6 +189,10 @@ pub struct SpindleConfig {
     pub acceleration_rpm_per_s: f64,
     /// At-speed window, a fraction of the commanded speed.
     pub at_speed_tolerance: f64,
+    /// Speed at which an orientation (M19) turns to its angle once stopped (rev/min).
+    pub orient_speed_rpm: f64,
+    /// Orientation window: oriented within this many degrees of the angle.
+    pub orient_tolerance_deg: f64,
 }
 
 impl Default for SpindleConfig {
@@ -197,6 +201,8 @@ impl Default for SpindleConfig {
             max_speed_rpm: 24000.0,
             acceleration_rpm_per_s: 8000.0,
             at_speed_tolerance: 0.02,
+            orient_speed_rpm: 60.0,
+            orient_tolerance_deg: 0.5,
         }
     }
 }
@@ -300,6 +306,16 @@ impl SimulatedMachineConfig {
         ] {
             if count > MAX_IO_POINTS {
                 return Err(ConfigError::new(name, format!("at most {MAX_IO_POINTS}")));
+            }
+        }
+        for (index, device) in self.devices.iter().enumerate() {
+            if let DeviceConfig::Probe { joint, .. } = device {
+                if *joint >= self.joints.len() {
+                    return Err(ConfigError::new(
+                        format!("devices[{index}].joint"),
+                        format!("there is no joint {joint}"),
+                    ));
+                }
             }
         }
         validate_devices(
@@ -406,6 +422,8 @@ impl SpindleConfig {
         if self.at_speed_tolerance >= 1.0 {
             return Err(ConfigError::new("at_speed_tolerance", "must be below 1"));
         }
+        positive("orient_speed_rpm", self.orient_speed_rpm)?;
+        non_negative("orient_tolerance_deg", self.orient_tolerance_deg)?;
         Ok(())
     }
 }

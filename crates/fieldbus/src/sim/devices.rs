@@ -83,6 +83,32 @@ pub enum DeviceConfig {
         #[serde(default = "first_pocket")]
         initial_pocket: u32,
     },
+    /// A touch probe over a flat surface across one joint's travel: `input` is TRUE while
+    /// the joint's load stands at or beyond `surface` (below it with `side = "below"`, the
+    /// default, above it with `"above"`), in the joint's own position (before the
+    /// controller's homing offsets), sensed at the end of every cycle.
+    Probe {
+        /// Digital input of the probe.
+        input: usize,
+        /// Joint whose position is sensed.
+        joint: usize,
+        /// Where the surface is, joint units.
+        surface: f64,
+        /// Which side of the surface is in contact.
+        #[serde(default)]
+        side: ProbeSide,
+    },
+}
+
+/// The side of a probe's surface that is in contact.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ProbeSide {
+    /// In contact at and below the surface (a probe moving down onto a part).
+    #[default]
+    Below,
+    /// In contact at and above it.
+    Above,
 }
 
 fn first_pocket() -> u32 {
@@ -111,7 +137,9 @@ impl DeviceConfig {
     /// Digital inputs this device drives.
     fn inputs(&self) -> impl Iterator<Item = usize> + '_ {
         let (first, rest): (usize, &[usize]) = match self {
-            Self::EstopContact { input } | Self::DelayedInput { input, .. } => (*input, &[]),
+            Self::EstopContact { input }
+            | Self::DelayedInput { input, .. }
+            | Self::Probe { input, .. } => (*input, &[]),
             Self::Door { closed_input, .. } => (*closed_input, &[]),
             Self::Carousel {
                 in_position_input,
@@ -125,7 +153,7 @@ impl DeviceConfig {
     /// Digital outputs this device reads.
     fn outputs(&self) -> Option<usize> {
         match self {
-            Self::EstopContact { .. } => None,
+            Self::EstopContact { .. } | Self::Probe { .. } => None,
             Self::Door { lock_output, .. } => *lock_output,
             Self::DelayedInput { output, .. } => Some(*output),
             Self::Carousel { motor_output, .. } => Some(*motor_output),
@@ -135,6 +163,16 @@ impl DeviceConfig {
     fn validate_timing(&self, prefix: &str) -> Result<(), ConfigError> {
         match self {
             Self::EstopContact { .. } | Self::Door { .. } => Ok(()),
+            Self::Probe { surface, .. } => {
+                if surface.is_finite() {
+                    Ok(())
+                } else {
+                    Err(refuse(
+                        format!("{prefix}.surface"),
+                        "must be a finite number",
+                    ))
+                }
+            }
             Self::DelayedInput {
                 rise_delay_s,
                 fall_delay_s,
@@ -275,6 +313,12 @@ pub(crate) enum Device {
         pocket: u64,
         phase_ns: u64,
     },
+    Probe {
+        input: usize,
+        joint: usize,
+        surface: f64,
+        side: ProbeSide,
+    },
 }
 
 fn output(outputs: &[bool], index: usize) -> bool {
@@ -334,6 +378,34 @@ impl Device {
                 pocket: u64::from(*initial_pocket).max(1),
                 phase_ns: 0,
             },
+            DeviceConfig::Probe {
+                input,
+                joint,
+                surface,
+                side,
+            } => Self::Probe {
+                input: *input,
+                joint: *joint,
+                surface: *surface,
+                side: *side,
+            },
+        }
+    }
+
+    /// Senses the joints' positions at the end of the cycle (the probe).
+    pub(crate) fn sense(&self, position: impl Fn(usize) -> Option<f64>, inputs: &mut [bool]) {
+        if let Self::Probe {
+            input,
+            joint,
+            surface,
+            side,
+        } = self
+        {
+            let contact = position(*joint).is_some_and(|p| match side {
+                ProbeSide::Below => p <= *surface,
+                ProbeSide::Above => p >= *surface,
+            });
+            set(inputs, *input, contact);
         }
     }
 
@@ -373,6 +445,8 @@ impl Device {
                 }
                 set(inputs, *input, *level);
             }
+            // Sensed after the joints have moved (`sense`).
+            Self::Probe { .. } => {}
             Self::Carousel {
                 motor_output,
                 in_position_input,

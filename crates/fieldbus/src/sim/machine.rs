@@ -207,6 +207,11 @@ impl SimulatedMachine {
         Ok(())
     }
 
+    /// The spindle's angle from its index, degrees (0 ≤ angle < 360).
+    pub fn spindle_angle_deg(&self) -> f64 {
+        self.spindle.angle_deg()
+    }
+
     /// Sets analogue input `index`.
     pub fn set_analog_input(&mut self, index: usize, value: f64) -> Result<(), SimulationError> {
         let count = self.analog_inputs.len();
@@ -386,6 +391,19 @@ impl Fieldbus for SimulatedMachine {
             .zip(inputs.joints.iter_mut())
         {
             joint.end_cycle(command, &conditions, feedback);
+        }
+        // A probe senses where the joints are at the end of the cycle.
+        let joints = &self.joints;
+        for device in &self.devices {
+            device.sense(
+                |j| joints.get(j).map(|j| j.true_position()),
+                &mut self.digital_image,
+            );
+        }
+        for (level, stuck) in self.digital_image.iter_mut().zip(&self.stuck_inputs) {
+            if let Some(value) = stuck {
+                *level = *value;
+            }
         }
         inputs.digital.copy_from_slice(&self.digital_image);
         inputs.analog.copy_from_slice(&self.analog_inputs);

@@ -24,6 +24,6 @@ pub use config::{
     ConfigError, IoConfig, MAX_IO_POINTS, MAX_JOINTS, MotorConfig, SimulatedJointConfig,
     SimulatedMachineConfig, SpindleConfig, SwitchRange, ToolChangerConfig,
 };
-pub use devices::DeviceConfig;
+pub use devices::{DeviceConfig, ProbeSide};
 pub use machine::{InjectedFault, SimulatedMachine, SimulationError};
 pub use motor::MotorModel;

@@ -3,11 +3,16 @@
 use crate::image::{SpindleCommand, SpindleFeedback, ToolChangeCommand, ToolChangerFeedback};
 use crate::sim::config::{SpindleConfig, ToolChangerConfig};
 
-/// A spindle drive that ramps its speed at a fixed acceleration.
+/// A spindle drive that ramps its speed at a fixed acceleration, with an encoder angle and
+/// an orientation mode (M19).
 #[derive(Debug, Clone)]
 pub(crate) struct Spindle {
     config: SpindleConfig,
     speed_rpm: f64,
+    /// Angle turned since power-up, degrees (clockwise positive, not wrapped).
+    position_deg: f64,
+    /// The orientation being done: its target (unwrapped) and the command it answers.
+    orient: Option<(f64, f64, u8)>,
 }
 
 impl Spindle {
@@ -15,7 +20,81 @@ impl Spindle {
         Self {
             config,
             speed_rpm: 0.0,
+            position_deg: 0.0,
+            orient: None,
         }
+    }
+
+    /// Angle from the index, degrees (0 ≤ angle < 360).
+    pub(crate) fn angle_deg(&self) -> f64 {
+        self.position_deg.rem_euclid(360.0)
+    }
+
+    /// The unwrapped target of an orientation to `angle` from where the spindle stands.
+    fn orient_target(&self, angle: f64, mode: u8) -> f64 {
+        let here = self.angle_deg();
+        let angle = if angle.is_finite() {
+            angle.rem_euclid(360.0)
+        } else {
+            0.0
+        };
+        let clockwise = (angle - here).rem_euclid(360.0);
+        let counter = clockwise - 360.0;
+        let delta = match mode {
+            1 => clockwise,
+            2 if clockwise == 0.0 => 0.0,
+            2 => counter,
+            _ if clockwise <= -counter => clockwise,
+            _ => counter,
+        };
+        self.position_deg + delta
+    }
+
+    /// Orientation: stop at the acceleration, then turn at the orientation speed to the
+    /// angle and hold it. Returns whether it stands within the tolerance.
+    fn orient_cycle(&mut self, command: &SpindleCommand, power: bool, period_s: f64) -> bool {
+        let key = (command.orient_angle_deg, command.orient_mode);
+        if !power {
+            self.ramp(0.0, period_s);
+            self.orient = None;
+            return false;
+        }
+        if self.speed_rpm != 0.0 {
+            self.ramp(0.0, period_s);
+            self.orient = None;
+            return false;
+        }
+        let target = match self.orient {
+            Some((target, angle, mode)) if (angle, mode) == key => target,
+            _ => {
+                let target = self.orient_target(key.0, key.1);
+                self.orient = Some((target, key.0, key.1));
+                target
+            }
+        };
+        // Degrees per period at the orientation speed (rpm × 360 / 60).
+        let step = self.config.orient_speed_rpm * 6.0 * period_s;
+        let remaining = target - self.position_deg;
+        if remaining.abs() <= step * (1.0 + 1e-9) {
+            self.position_deg = target;
+        } else {
+            self.position_deg += step.copysign(remaining);
+        }
+        (target - self.position_deg).abs() <= self.config.orient_tolerance_deg
+    }
+
+    /// Ramps the speed towards `target` over one period and turns the angle with it.
+    fn ramp(&mut self, target: f64, period_s: f64) {
+        let before = self.speed_rpm;
+        let change = self.config.acceleration_rpm_per_s * period_s;
+        let difference = target - self.speed_rpm;
+        self.speed_rpm = if difference.abs() <= change {
+            target
+        } else {
+            self.speed_rpm + change.copysign(difference)
+        };
+        // The mean speed over the period (the ramp is linear), in degrees.
+        self.position_deg += (before + self.speed_rpm) * 3.0 * period_s;
     }
 
     fn target(&self, command: &SpindleCommand, power: bool) -> f64 {
@@ -35,19 +114,25 @@ impl Spindle {
         power: bool,
         period_s: f64,
     ) -> SpindleFeedback {
+        if command.orient {
+            let oriented = self.orient_cycle(command, power, period_s);
+            return SpindleFeedback {
+                speed_rpm: self.speed_rpm,
+                at_speed: false,
+                position_deg: self.angle_deg(),
+                oriented,
+            };
+        }
+        self.orient = None;
         let target = self.target(command, power);
-        let change = self.config.acceleration_rpm_per_s * period_s;
-        let difference = target - self.speed_rpm;
-        self.speed_rpm = if difference.abs() <= change {
-            target
-        } else {
-            self.speed_rpm + change.copysign(difference)
-        };
+        self.ramp(target, period_s);
         let at_speed =
             (self.speed_rpm - target).abs() <= self.config.at_speed_tolerance * target.abs();
         SpindleFeedback {
             speed_rpm: self.speed_rpm,
             at_speed,
+            position_deg: self.angle_deg(),
+            oriented: false,
         }
     }
 }

@@ -75,6 +75,14 @@ impl Machine {
         ok
     }
 
+    /// Acts on the simulated machine (inputs, faults).
+    pub fn handle_machine<R>(
+        &self,
+        f: impl FnOnce(&mut rtcnc_fieldbus::sim::SimulatedMachine) -> R,
+    ) -> R {
+        self.sim.handle().with_machine(f)
+    }
+
     pub fn status(&self) -> Status {
         self.sim.handle().status()
     }

@@ -1,0 +1,91 @@
+//! G96 constant surface speed on the simulated lathe: the spindle speed follows the X
+//! set-point every servo period, as LinuxCNC's motion controller computes it.
+
+mod common;
+use common::*;
+use rtcnc_kernel::{Command, FaultCode, MachineState};
+
+/// rpm for S m/min at radius r mm: S·1000 / (2π·r), capped at D.
+fn css_rpm(surface_m_per_min: f64, radius_mm: f64, max: f64) -> f64 {
+    (surface_m_per_min * 1000.0 / (std::f64::consts::TAU * radius_mm)).min(max)
+}
+
+#[test]
+fn the_spindle_speed_follows_x_under_g96_and_is_fixed_again_after_g97() {
+    // X is programmed as a diameter (G7): X100 is a radius of 50 mm.
+    let text = "G18 G21 G90 G7 G94 G64 P0.01
+G0 X100 Z2
+G96 S200 D3000 M3
+G4 P1
+G1 X40 F300
+G4 P1
+G1 X10
+G4 P1
+G97 S800
+G4 P1
+M5
+M2
+";
+    let cfg = config("sim-lathe.toml");
+    let mut m = Machine::new(&cfg, Some(program(text, "css.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    let mut checked = 0;
+    let mut at_dwell_end = [0.0; 12];
+    for _ in 0..20_000 {
+        m.cycles(1);
+        let s = m.status();
+        if (3..=8).contains(&s.line) && s.spindle_command_rpm > 0.0 {
+            // Every period: the command from the X set-point (a radius).
+            let expected = css_rpm(200.0, s.axes[0], 3000.0);
+            assert!(
+                (s.spindle_command_rpm - expected).abs() <= 1e-9 * expected,
+                "line {} X {}: {} rpm, expected {expected}",
+                s.line,
+                s.axes[0],
+                s.spindle_command_rpm
+            );
+            checked += 1;
+        }
+        if let Some(slot) = at_dwell_end.get_mut(s.line as usize) {
+            *slot = s.spindle_rpm;
+        }
+        if s.program_ended && s.state == MachineState::Idle {
+            break;
+        }
+    }
+    assert!(
+        m.faults.is_empty(),
+        "{:?} {:?}",
+        m.faults,
+        m.sim.handle().error_text()
+    );
+    assert!(checked > 3000, "{checked}");
+    // The measured speed at the end of each dwell, where X stands: radius 50 and 20 mm,
+    // then 5 mm, where 6366 rpm is over D3000; after G97 S800, 800 rpm.
+    assert_eq!(at_dwell_end[4], css_rpm(200.0, 50.0, 3000.0));
+    assert_eq!(at_dwell_end[6], css_rpm(200.0, 20.0, 3000.0));
+    assert_eq!(at_dwell_end[8], 3000.0);
+    assert_eq!(at_dwell_end[10], 800.0);
+    assert!((at_dwell_end[4] - 636.619_772_367_581_4).abs() < 1e-9);
+}
+
+#[test]
+fn feed_per_revolution_under_g96_stops_the_program_before_the_move() {
+    let text = "G18 G21 G90 G7 G95\nG0 X40 Z2\nG96 S100 D2000 M3\nG1 Z-10 F0.1\nM2\n";
+    let cfg = config("sim-lathe.toml");
+    let mut m = Machine::new(&cfg, Some(program(text, "css-g95.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    m.cycles(2);
+    assert!(m.until(10.0, |s| s.state == MachineState::Idle));
+    let f = m
+        .faults
+        .iter()
+        .find(|f| f.code == FaultCode::ProgramError)
+        .unwrap();
+    assert_eq!(f.line, 4);
+    assert!(m.samples.iter().all(|s| s.axes[2] >= 0.0));
+    let words = m.sim.handle().error_text().unwrap();
+    assert!(words.contains("G95") && words.contains("G96"), "{words}");
+}

@@ -1,0 +1,131 @@
+//! G38.2-G38.5 through the whole kernel on a simulated touch probe over a surface at
+//! Z = -3 (a probe device on the Z joint): the move stops where the probe changes, the
+//! interpreter waits for the result, and #5061-#5070 hold it for the lines after.
+
+mod common;
+use common::*;
+use rtcnc_fieldbus::sim::{DeviceConfig, ProbeSide};
+use rtcnc_kernel::{Command, FaultCode, MachineConfig, MachineState};
+
+fn machine() -> MachineConfig {
+    let mut cfg = config("bench-xyz.toml");
+    cfg.io.probe_input = Some(6);
+    cfg.fieldbus.devices.push(DeviceConfig::Probe {
+        input: 6,
+        joint: 2,
+        surface: -3.0,
+        side: ProbeSide::Below,
+    });
+    cfg
+}
+
+fn number(text: &str, key: &str) -> f64 {
+    let start = text.find(key).unwrap() + key.len();
+    text[start..]
+        .split_whitespace()
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap()
+}
+
+#[test]
+fn probing_finds_the_surface_and_the_program_uses_the_result() {
+    let text = "G21 G90
+G0 X1 Y2 Z0
+G38.2 Z-10 F60
+(DEBUG,down z #5063 ok #5070 x #5061 y #5062)
+#1 = #5063
+G38.4 Z0 F30
+(DEBUG,up z #5063 ok #5070)
+G0 Z[#1 + 5]
+G38.3 Z-1 F600
+(DEBUG,short z #5063 ok #5070)
+G38.2 Z-2.5
+M2
+";
+    let mut m = Machine::new(&machine(), Some(program(text, "probe.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    m.cycles(2);
+    assert!(m.until(30.0, |s| s.state == MachineState::Idle));
+    let messages: Vec<String> = m
+        .sim
+        .handle()
+        .take_messages()
+        .iter()
+        .map(|msg| msg.text.as_str().to_string())
+        .collect();
+    assert_eq!(messages.len(), 3, "{messages:?} {:?}", m.faults);
+    // Down at 1 mm/s (F60) on ideal drives: the probe closes in the first period that ends
+    // at or below -3, at most 1 µm (one period's travel) past it, where the feedback is
+    // taken; X and Y are where they were.
+    let down = number(&messages[0], "down z");
+    assert!((-3.001..=-3.0).contains(&down), "{down}");
+    assert_eq!(number(&messages[0], "ok"), 1.0);
+    assert_eq!(number(&messages[0], "x"), 1.0);
+    assert_eq!(number(&messages[0], "y"), 2.0);
+    // Up at 0.5 mm/s until it opens: the first period that ends above -3.
+    let up = number(&messages[1], "up z");
+    assert!(up > -3.0 && up <= -3.0 + 0.0005, "{up}");
+    assert_eq!(number(&messages[1], "ok"), 1.0);
+    // G38.3 to Z-1 from Z2 never touches: no error, #5070 = 0, #5063 where it ended.
+    assert_eq!(number(&messages[2], "short z"), -1.0);
+    assert_eq!(number(&messages[2], "ok"), 0.0);
+    // The G0 went to the first contact + 5: the interpreter read #5063 after the probe
+    // (DEBUG prints 6 decimals).
+    let top = m.samples.iter().map(|s| s.axes[2]).fold(f64::MIN, f64::max);
+    assert!((top - (down + 5.0)).abs() <= 5e-7, "{top} {down}");
+    // G38.2 to Z-2.5 ends without contact: the program stops there with the fault.
+    let f = m
+        .faults
+        .iter()
+        .find(|f| f.code == FaultCode::ProbeFailed)
+        .unwrap();
+    assert_eq!(f.line, 11);
+    assert!(!m.status().program_ended);
+    assert_eq!(m.status().axes[2], -2.5);
+}
+
+#[test]
+fn a_probe_already_in_contact_refuses_g38_2() {
+    let text = "G21 G90\nG0 Z-4\nG38.2 Z-10 F60\nM2\n";
+    let mut m = Machine::new(&machine(), Some(program(text, "probe-tripped.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    m.cycles(2);
+    assert!(m.until(10.0, |s| s.state == MachineState::Idle));
+    let f = m
+        .faults
+        .iter()
+        .find(|f| f.code == FaultCode::ProbeFailed)
+        .unwrap();
+    assert_eq!(f.line, 3);
+    assert_eq!(m.status().axes[2], -4.0);
+}
+
+#[test]
+fn the_simulated_mill_probes_the_top_of_its_workpiece_at_z_minus_50() {
+    // Velocity drives and PID loops: the load follows the set-point closely; the probe
+    // closes in the first period that ends at or below -50, the feedback of that period is
+    // the result (within one period's travel at F100, 1.7 µm, and the encoder's 0.04 µm).
+    let text = "G21 G90\nG0 Z-45\nG38.2 Z-60 F100\n(DEBUG,#5063 #5070)\nG0 Z0\nM2\n";
+    let mut m = Machine::new(
+        &config("sim-mill.toml"),
+        Some(program(text, "mill-probe.ngc")),
+    );
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(30.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    let message = m.sim.handle().take_messages()[0].text;
+    let mut words = message.as_str().split_whitespace();
+    let z: f64 = words.next().unwrap().parse().unwrap();
+    let ok: f64 = words.next().unwrap().parse().unwrap();
+    assert_eq!(ok, 1.0);
+    // (DEBUG prints 6 decimals.)
+    assert!(
+        (-50.0 - 100.0 / 60.0 * 0.001 - 1e-6..=-50.0 + 5e-7).contains(&z),
+        "{z}"
+    );
+}
