@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Virtual-time speed of the motion kernel: how many times faster than real time `rtcnc sim`
 # runs a program (goal: >= 1000x for the mill). Runs examples/bracket.ngc on the simulated
-# mill, examples/gantry-12.ngc on the 12-drive gantry and, when the peers folder is present
-# (../shared/peers or $RTCNC_PEERS), the four 1 um benchmark polylines on configs/bench-xyz.toml
+# mill (then once more with the per-task host-time profile), examples/gantry-12.ngc on the
+# 12-drive gantry and, when the peers folder is present (../shared/peers or $RTCNC_PEERS),
+# the four 1 um benchmark polylines on configs/bench-xyz.toml
 # (their cycle times are the motion issue's figures; toppra's optimum and LinuxCNC's times
 # are in ../shared/peers/README.md).
 set -euo pipefail
@@ -17,6 +18,10 @@ run() {
         "$(grep '^limits' <<<"$out")"
 }
 run configs/sim-mill.toml examples/bracket.ngc
+# Where the host time of the mill run goes, per task (the planner works inside
+# "interpolation" and "look-ahead"); measuring adds two clock readings per task run.
+target/release/rtcnc sim examples/bracket.ngc --machine configs/sim-mill.toml -q --profile |
+    sed -n '/^host time/,$p'
 run configs/sim-gantry-12.toml examples/gantry-12.ngc
 peers=${RTCNC_PEERS:-../shared/peers}
 if [ -d "$peers/bench-paths" ]; then

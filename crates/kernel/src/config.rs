@@ -244,8 +244,27 @@ pub struct TasksConfig {
     /// Run interpolation as the last function of the fieldbus thread (as LinuxCNC's servo
     /// thread runs its motion controller) instead of in a thread of its own: no wake-up of
     /// a second thread between the exchange and the next set-point. `tasks.interpolation`'s
-    /// period and priority are then unused.
-    pub interpolation_in_fieldbus_thread: bool,
+    /// period and priority are then unused. Unset: in the fieldbus thread when the servo
+    /// period is shorter than [`SEPARATE_INTERPOLATION_MIN_PERIOD`], else in its own thread
+    /// (see [`TasksConfig::interpolation_in_fieldbus_thread`]).
+    pub interpolation_in_fieldbus_thread: Option<bool>,
+}
+
+/// The shortest servo period at which interpolation runs in a thread of its own unless the
+/// configuration says otherwise. A thread of its own must wake within the four periods
+/// position control can bridge by extrapolating; on a virtual machine without a real-time
+/// kernel the wake-up latency has a tail of 1 to 2 ms (cyclictest at 100 µs), which four
+/// periods of 100 µs cannot cover and four of 0.5 ms can.
+pub const SEPARATE_INTERPOLATION_MIN_PERIOD: Duration = Duration::from_micros(500);
+
+impl TasksConfig {
+    /// Whether interpolation runs as the last function of the fieldbus thread: as
+    /// configured, else when the servo period (`servo_period`) is shorter than
+    /// [`SEPARATE_INTERPOLATION_MIN_PERIOD`].
+    pub fn interpolation_in_fieldbus_thread(&self, servo_period: Duration) -> bool {
+        self.interpolation_in_fieldbus_thread
+            .unwrap_or(servo_period < SEPARATE_INTERPOLATION_MIN_PERIOD)
+    }
 }
 
 impl Default for TasksConfig {
@@ -264,7 +283,7 @@ impl Default for TasksConfig {
             status_feedback: t("1ms", 110, 1),
             tool_compensation: EventTaskConfig { priority: 119 },
             interpreter: EventTaskConfig { priority: 20 },
-            interpolation_in_fieldbus_thread: false,
+            interpolation_in_fieldbus_thread: None,
         }
     }
 }

@@ -19,7 +19,7 @@ use crate::logic::{Logic, LogicStage};
 use crate::messages::{Command, OperatorMessage, Status, Urgent};
 use crate::motion::{MotionCore, ServoTarget};
 use crate::servo::{Sample, ServoStage};
-use crate::shared::Shared;
+use crate::shared::{Shared, Snapshot};
 
 /// Why the kernel could not be built or did not pass its self-test.
 #[derive(Debug, thiserror::Error)]
@@ -113,7 +113,7 @@ impl KernelHandle {
 
     /// The latest status snapshot.
     pub fn status(&self) -> Status {
-        *self.shared.status.lock()
+        self.shared.status.read()
     }
 
     /// Operator messages (`(MSG,...)`, `(DEBUG,...)`) the machine reached since the last
@@ -215,7 +215,7 @@ impl Kernel {
             })
             .collect::<Result<Vec<_>, _>>()?;
 
-        let shared = Shared::new();
+        let (shared, writers) = Shared::new();
         let (target_tx, target_rx) = rtcnc_rt::ring::<ServoTarget>("set-points", 4)
             .map_err(|e| KernelError::Executive(e.to_string()))?;
         let (recorder, samples) = if options.record_capacity > 0 {
@@ -233,12 +233,14 @@ impl Kernel {
                 target_rx,
                 recorder,
                 shared.clone(),
+                writers.feedback,
                 config.io.program_outputs.clone(),
             )
             .with_program_analog_outputs(config.io.program_analog_outputs.clone()),
         ));
 
-        let mut core = MotionCore::new(&config).map_err(|e| KernelError::Motion(e.to_string()))?;
+        let mut core = MotionCore::new(&config, &shared, writers.requests)
+            .map_err(|e| KernelError::Motion(e.to_string()))?;
         core.set_has_program(options.program.is_some());
         core.set_ready(true);
         let core = Arc::new(PiMutex::new(core));
@@ -277,7 +279,12 @@ impl Kernel {
             }
             _ => None,
         };
-        let mut logic = LogicStage::new(shared.clone(), logic, config.tool_changer.is_some());
+        let mut logic = LogicStage::new(
+            shared.clone(),
+            logic,
+            writers.logic_outputs,
+            config.tool_changer.is_some(),
+        );
         if let Some((snapshot, _)) = &retain {
             logic = logic.with_retain(Arc::clone(snapshot));
         }
@@ -330,7 +337,7 @@ impl Kernel {
         });
         b.on_deadline_miss(id, miss.clone());
 
-        let th = if t.interpolation_in_fieldbus_thread {
+        let th = if t.interpolation_in_fieldbus_thread(period) {
             fieldbus
         } else {
             thread(&mut b, "interpolation", 2)
@@ -348,11 +355,12 @@ impl Kernel {
 
         let th = thread(&mut b, "look-ahead", 3);
         let (c, sh) = (core.clone(), shared.clone());
-        let mut active = false;
+        let mut more = false;
         let id = b.periodic(th, "look-ahead", t.look_ahead.runs, move |ctx| {
-            // The runs after the first only when a program or MDI line is in progress.
-            if ctx.run() == 0 || active {
-                active = c.lock().look_ahead(ctx, &sh);
+            // The runs after the first only when the one before stopped at its bound of
+            // steps, not on something only another task can change.
+            if ctx.run() == 0 || more {
+                more = c.lock().look_ahead(ctx, &sh);
             }
         });
         b.on_deadline_miss(id, miss.clone());
@@ -380,16 +388,17 @@ impl Kernel {
 
         let th = thread(&mut b, "status feedback", 5);
         let (c, sh) = (core.clone(), shared.clone());
+        let mut feedback = Snapshot::new(shared.feedback.clone());
+        let mut status_out = writers.status;
+        let mut status = status_out.value();
         let id = b.periodic(th, "status feedback", t.status_feedback.runs, move |ctx| {
             if ctx.run() != 0 {
                 return;
             }
-            let feedback = *sh.feedback.lock();
-            let mut status = *sh.status.lock();
             c.lock()
-                .status(&feedback, ctx.now().as_nanos(), &mut status);
+                .status(feedback.get(), ctx.now().as_nanos(), &mut status);
             status.fault_count = sh.fault_count.load(std::sync::atomic::Ordering::Relaxed);
-            *sh.status.lock() = status;
+            status_out.publish(status);
         });
         b.on_deadline_miss(id, miss);
 
@@ -425,6 +434,7 @@ impl Kernel {
         .collect();
         let mut last_cycle = 0u64;
         let mut reported = false;
+        let mut feedback = Snapshot::new(shared.feedback.clone());
         // The RETAIN values are written here, off the real-time tasks, when they changed.
         let mut retain_saver = retain.map(|(snapshot, file)| (snapshot, file, None, false));
         b.background("self test", move |ctx| {
@@ -449,7 +459,7 @@ impl Kernel {
                     }
                 }
             }
-            let cycle = sh.feedback.lock().cycle;
+            let cycle = feedback.get().cycle;
             let stalled = ctx.activation() > 0 && cycle == last_cycle;
             last_cycle = cycle;
             let folder_bad = folders.iter().any(|f| {

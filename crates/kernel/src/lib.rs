@@ -43,5 +43,5 @@ pub use kernel::{Kernel, KernelError, KernelHandle, KernelOptions, SelfTestRepor
 pub use messages::{Command, FixedText, MachineState, Mode, OperatorMessage, Status, Urgent};
 pub use motion::{LatchRequest, MotionCore, ServoTarget};
 pub use servo::Sample;
-pub use shared::{Feedback, MachineInterface};
+pub use shared::{Feedback, LogicOutputs, LogicRequests};
 pub use sim::Simulation;

@@ -7,10 +7,10 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use rtcnc_plc::{RetainSnapshot, Runtime, Signal};
-use rtcnc_rt::{Context, PiMutex};
+use rtcnc_rt::{Context, PiMutex, SeqlockWriter};
 
 use crate::fault::{FaultCode, TaskName};
-use crate::shared::{Feedback, MachineInterface, Shared};
+use crate::shared::{Feedback, LogicOutputs, LogicRequests, Shared, Snapshot};
 
 pub(crate) enum Logic {
     Direct,
@@ -20,8 +20,15 @@ pub(crate) enum Logic {
 pub(crate) struct LogicStage {
     shared: Shared,
     logic: Logic,
+    feedback: Snapshot<Feedback>,
+    requests: Snapshot<LogicRequests>,
+    outputs: SeqlockWriter<LogicOutputs>,
+    /// What the PLC program said in its last scan.
+    plc: PlcAnswers,
     fault_latched: bool,
     has_tool_changer: bool,
+    /// The operator's resets seen so far.
+    resets_seen: u32,
     /// A reset is held until this time, so that the PLC's task (which may run only every
     /// few periods) sees it.
     reset_until: Duration,
@@ -30,10 +37,20 @@ pub(crate) struct LogicStage {
 }
 
 impl LogicStage {
-    pub(crate) fn new(shared: Shared, logic: Logic, has_tool_changer: bool) -> Self {
+    pub(crate) fn new(
+        shared: Shared,
+        logic: Logic,
+        outputs: SeqlockWriter<LogicOutputs>,
+        has_tool_changer: bool,
+    ) -> Self {
         LogicStage {
+            feedback: Snapshot::new(shared.feedback.clone()),
+            requests: Snapshot::new(shared.requests.clone()),
+            resets_seen: 0,
             shared,
             logic,
+            outputs,
+            plc: PlcAnswers::default(),
             fault_latched: false,
             has_tool_changer,
             reset_until: Duration::ZERO,
@@ -48,14 +65,17 @@ impl LogicStage {
     }
 
     pub(crate) fn scan(&mut self, ctx: &mut Context<'_>) {
-        let fb: Feedback = *self.shared.feedback.lock();
-        let mut mi = *self.shared.machine_interface.lock();
+        let fb: Feedback = *self.feedback.get();
+        let req: LogicRequests = *self.requests.get();
         let now = Duration::from_nanos(ctx.release_time().as_nanos());
+        let mut out = LogicOutputs::default();
         let mut fault = None;
+        let reset = req.reset_count != self.resets_seen;
+        self.resets_seen = req.reset_count;
         match &mut self.logic {
-            Logic::Direct => direct(&mut mi, &fb, self.has_tool_changer),
+            Logic::Direct => direct(&mut out, &req, &fb, self.has_tool_changer),
             Logic::Plc(plc) => {
-                if mi.estop_reset {
+                if reset {
                     let longest = plc
                         .program()
                         .tasks()
@@ -65,41 +85,31 @@ impl LogicStage {
                         .unwrap_or(Duration::ZERO);
                     self.reset_until = now + longest;
                 }
-                mi.estop_reset = now <= self.reset_until && self.reset_until > Duration::ZERO;
-                if let Err(f) = plc_scan(plc, &mut mi, &fb, now, self.has_tool_changer) {
-                    fault = Some(f);
+                // The PLC's tasks run at their own intervals (mill.st: 4 ms); in the calls
+                // between, a scan would only copy the images, so the answers of the last
+                // scan stand and only what the kernel derives from the feedback is renewed.
+                if plc.is_due(now) {
+                    let estop_reset = now <= self.reset_until && self.reset_until > Duration::ZERO;
+                    self.plc = plc_scan(plc, &req, estop_reset, &fb, now);
+                    // A copy into preallocated slots; if the saver holds the snapshot just
+                    // now, the next scan refreshes it.
+                    if let Some(snapshot) = self.retain.as_ref().and_then(|r| r.try_lock()) {
+                        let mut snapshot = snapshot;
+                        plc.update_retain_snapshot(&mut snapshot);
+                    }
                 }
-                // A copy into preallocated slots; if the saver holds the snapshot just now,
-                // the next scan refreshes it.
-                if let Some(snapshot) = self.retain.as_ref().and_then(|r| r.try_lock()) {
-                    let mut snapshot = snapshot;
-                    plc.update_retain_snapshot(&mut snapshot);
+                if self.plc.failed {
+                    fault = Some(-1.0);
                 }
+                self.plc.apply(&mut out, &req, &fb, self.has_tool_changer);
             }
         }
-        mi.estop_reset = false;
-        {
-            let mut shared = self.shared.machine_interface.lock();
-            // Copy back what the logic owns; the kernel's requests may have changed since.
-            shared.spindle_at_speed = mi.spindle_at_speed;
-            shared.tool_change_done = mi.tool_change_done;
-            shared.m_code_done = mi.m_code_done;
-            shared.feed_hold_request = mi.feed_hold_request;
-            shared.machine_fault = mi.machine_fault;
-            shared.estop_chain_ok = mi.estop_chain_ok;
-            shared.machine_fault_code = mi.machine_fault_code;
-            shared.out_spindle_enable = mi.out_spindle_enable;
-            shared.out_spindle_rpm = mi.out_spindle_rpm;
-            shared.out_mist = mi.out_mist;
-            shared.out_flood = mi.out_flood;
-            shared.out_tool_start = mi.out_tool_start;
-            shared.out_tool_number = mi.out_tool_number;
-            shared.out_digital = mi.out_digital;
-            shared.estop_reset = false;
+        if out != self.outputs.value() {
+            self.outputs.publish(out);
         }
-        let faulted = fault.is_some() || mi.machine_fault;
+        let faulted = fault.is_some() || out.machine_fault;
         if faulted && !self.fault_latched {
-            let code = fault.unwrap_or(mi.machine_fault_code as f64);
+            let code = fault.unwrap_or(out.machine_fault_code as f64);
             self.shared.raise(
                 ctx,
                 FaultCode::LogicFault,
@@ -113,61 +123,122 @@ impl LogicStage {
     }
 }
 
-fn direct(mi: &mut MachineInterface, fb: &Feedback, has_tool_changer: bool) {
-    mi.out_spindle_enable = mi.spindle_on;
-    mi.out_spindle_rpm = if mi.spindle_reverse {
-        -mi.spindle_rpm
+fn direct(out: &mut LogicOutputs, req: &LogicRequests, fb: &Feedback, has_tool_changer: bool) {
+    out.out_spindle_enable = req.spindle_on;
+    out.out_spindle_rpm = if req.spindle_reverse {
+        -req.spindle_rpm
     } else {
-        mi.spindle_rpm
+        req.spindle_rpm
     };
-    mi.spindle_at_speed = mi.spindle_on && fb.spindle_at_speed;
-    mi.out_mist = mi.mist;
-    mi.out_flood = mi.flood;
-    mi.out_tool_number = mi.tool_number;
-    mi.out_tool_start = mi.tool_change_request && has_tool_changer;
-    mi.tool_change_done = if has_tool_changer {
-        mi.tool_change_request && fb.tool_change_done
+    out.spindle_at_speed = req.spindle_on && fb.spindle_at_speed;
+    out.out_mist = req.mist;
+    out.out_flood = req.flood;
+    out.out_tool_number = req.tool_number;
+    out.out_tool_start = req.tool_change_request && has_tool_changer;
+    out.tool_change_done = if has_tool_changer {
+        req.tool_change_request && fb.tool_change_done
     } else {
-        mi.tool_change_request
+        req.tool_change_request
     };
-    mi.m_code_done = mi.m_code_request;
-    mi.feed_hold_request = false;
-    mi.machine_fault = false;
-    mi.estop_chain_ok = !fb.estop;
+    out.m_code_done = req.m_code_request;
+    out.feed_hold_request = false;
+    out.machine_fault = false;
+    out.estop_chain_ok = !fb.estop;
 }
 
-/// One PLC scan on the machine interface; a runtime fault comes back as its code number.
+/// What the PLC program's signals and output image said after a scan.
+#[derive(Debug, Clone, Copy, Default)]
+struct PlcAnswers {
+    digital: u64,
+    spindle_enable: bool,
+    spindle_rpm: f64,
+    spindle_at_speed: bool,
+    mist: bool,
+    flood: bool,
+    feed_hold: bool,
+    tool_change_done: bool,
+    /// `None`: the signal is not mapped.
+    estop_chain_out: Option<bool>,
+    m_code_done: bool,
+    machine_fault: bool,
+    machine_fault_code: i64,
+    /// The scan faulted (the PLC stopped with its outputs at their safe values).
+    failed: bool,
+}
+
+impl PlcAnswers {
+    /// The logic's outputs: the PLC's answers combined with the kernel's requests and the
+    /// feedback of this period.
+    fn apply(
+        &self,
+        out: &mut LogicOutputs,
+        req: &LogicRequests,
+        fb: &Feedback,
+        has_tool_changer: bool,
+    ) {
+        out.out_digital = self.digital;
+        // Unmapped signals from the PLC keep the kernel's neutral value (not the signal's
+        // safe value, which is for a faulted PLC).
+        out.out_spindle_enable = self.spindle_enable;
+        out.out_spindle_rpm = self.spindle_rpm;
+        out.spindle_at_speed = self.spindle_at_speed;
+        out.out_mist = self.mist;
+        out.out_flood = self.flood;
+        out.feed_hold_request = self.feed_hold;
+        // With a timed changer the PLC's acknowledgement is its interlock (e.g. the spindle
+        // has stopped): only then does the changer start, and the change is done when the
+        // changer says so. Without one the PLC's acknowledgement is the change (it drives
+        // the changer's devices itself).
+        out.out_tool_start = req.tool_change_request && self.tool_change_done && has_tool_changer;
+        out.out_tool_number = req.tool_number;
+        out.tool_change_done = self.tool_change_done && (!has_tool_changer || fb.tool_change_done);
+        out.estop_chain_ok = match self.estop_chain_out {
+            Some(v) => v && !fb.estop,
+            None => !fb.estop,
+        };
+        out.m_code_done = self.m_code_done;
+        out.machine_fault = self.machine_fault;
+        out.machine_fault_code = self.machine_fault_code;
+        if self.failed {
+            // A faulted PLC has driven its outputs to their safe values: hold the feed.
+            out.feed_hold_request = true;
+        }
+    }
+}
+
+/// One PLC scan on the machine interface. The details of a runtime fault are in the PLC's
+/// own fault record; the kernel's fault says "logic".
 fn plc_scan(
     plc: &mut Runtime,
-    mi: &mut MachineInterface,
+    req: &LogicRequests,
+    estop_reset: bool,
     fb: &Feedback,
     now: Duration,
-    has_tool_changer: bool,
-) -> Result<(), f64> {
+) -> PlcAnswers {
     let b = |v: bool| if v { 1.0 } else { 0.0 };
     let to_plc = [
         (Signal::EstopChainIn, b(!fb.estop)),
-        (Signal::EstopReset, b(mi.estop_reset)),
-        (Signal::MachineOnRequest, b(mi.machine_on_request)),
-        (Signal::ProgramRunning, b(mi.program_running)),
-        (Signal::AxesHomed, b(mi.homed)),
-        (Signal::SpindleOn, b(mi.spindle_on)),
-        (Signal::SpindleReverse, b(mi.spindle_reverse)),
-        (Signal::SpindleSpeedCommand, mi.spindle_rpm),
+        (Signal::EstopReset, b(estop_reset)),
+        (Signal::MachineOnRequest, b(req.machine_on_request)),
+        (Signal::ProgramRunning, b(req.program_running)),
+        (Signal::AxesHomed, b(req.homed)),
+        (Signal::SpindleOn, b(req.spindle_on)),
+        (Signal::SpindleReverse, b(req.spindle_reverse)),
+        (Signal::SpindleSpeedCommand, req.spindle_rpm),
         (Signal::SpindleSpeedActual, fb.spindle_rpm),
-        (Signal::CoolantMist, b(mi.mist)),
-        (Signal::CoolantFlood, b(mi.flood)),
-        (Signal::ToolChangeRequest, b(mi.tool_change_request)),
-        (Signal::ToolNumber, f64::from(mi.tool_number)),
-        (Signal::MCodeRequest, b(mi.m_code_request)),
-        (Signal::MCodeNumber, f64::from(mi.m_code)),
+        (Signal::CoolantMist, b(req.mist)),
+        (Signal::CoolantFlood, b(req.flood)),
+        (Signal::ToolChangeRequest, b(req.tool_change_request)),
+        (Signal::ToolNumber, f64::from(req.tool_number)),
+        (Signal::MCodeRequest, b(req.m_code_request)),
+        (Signal::MCodeNumber, f64::from(req.m_code)),
         (
             Signal::MCodeP,
-            if mi.m_p.is_finite() { mi.m_p } else { 0.0 },
+            if req.m_p.is_finite() { req.m_p } else { 0.0 },
         ),
         (
             Signal::MCodeQ,
-            if mi.m_q.is_finite() { mi.m_q } else { 0.0 },
+            if req.m_q.is_finite() { req.m_q } else { 0.0 },
         ),
         (Signal::LimitMin, f64::from(fb.negative_limit)),
         (Signal::LimitMax, f64::from(fb.positive_limit)),
@@ -184,38 +255,23 @@ fn plc_scan(
     for (byte, &v) in plc.output_image().iter().enumerate().take(8) {
         digital |= u64::from(v) << (8 * byte);
     }
-    mi.out_digital = digital;
-    // Unmapped signals from the PLC keep the kernel's neutral value (not the signal's
-    // safe value, which is for a faulted PLC).
     let flag = |s: Signal| plc.signal(s).is_some_and(|v| v != 0.0);
     let number = |s: Signal| plc.signal(s).unwrap_or(0.0);
-    mi.out_spindle_enable = flag(Signal::SpindleEnable);
-    mi.out_spindle_rpm = number(Signal::SpindleSpeedOut);
-    mi.spindle_at_speed = flag(Signal::SpindleAtSpeed);
-    mi.out_mist = flag(Signal::CoolantMistOn);
-    mi.out_flood = flag(Signal::CoolantFloodOn);
-    mi.feed_hold_request = flag(Signal::FeedHoldRequest);
-    // With a timed changer the PLC's acknowledgement is its interlock (e.g. the spindle
-    // has stopped): only then does the changer start, and the change is done when the
-    // changer says so. Without one the PLC's acknowledgement is the change (it drives the
-    // changer's devices itself).
-    let plc_done = flag(Signal::ToolChangeDone);
-    mi.out_tool_start = mi.tool_change_request && plc_done && has_tool_changer;
-    mi.out_tool_number = mi.tool_number;
-    mi.tool_change_done = plc_done && (!has_tool_changer || fb.tool_change_done);
-    mi.estop_chain_ok = match plc.signal(Signal::EstopChainOut) {
-        Some(v) => v != 0.0 && !fb.estop,
-        None => !fb.estop,
-    };
-    mi.m_code_done = flag(Signal::MCodeDone);
-    mi.machine_fault = flag(Signal::MachineFault);
-    mi.machine_fault_code = number(Signal::MachineFaultCode) as i64;
-    if result.is_err() {
-        // A faulted PLC has driven its outputs to their safe values: hold the feed.
-        mi.feed_hold_request = true;
+    PlcAnswers {
+        digital,
+        spindle_enable: flag(Signal::SpindleEnable),
+        spindle_rpm: number(Signal::SpindleSpeedOut),
+        spindle_at_speed: flag(Signal::SpindleAtSpeed),
+        mist: flag(Signal::CoolantMistOn),
+        flood: flag(Signal::CoolantFloodOn),
+        feed_hold: flag(Signal::FeedHoldRequest),
+        tool_change_done: flag(Signal::ToolChangeDone),
+        estop_chain_out: plc.signal(Signal::EstopChainOut).map(|v| v != 0.0),
+        m_code_done: flag(Signal::MCodeDone),
+        machine_fault: flag(Signal::MachineFault),
+        machine_fault_code: number(Signal::MachineFaultCode) as i64,
+        failed: result.is_err(),
     }
-    // The fault's details are in the PLC's own fault record; the kernel's fault says "logic".
-    result.map_err(|_| -1.0)
 }
 
 /// Compiles and configures the machine's PLC program.

@@ -7,7 +7,7 @@
 
 use rtcnc_motion::otg::{Limits, OnlineAxis, State};
 use rtcnc_motion::{AXES, MotionError, MotionState, Move, Planner, TrivialKinematics};
-use rtcnc_rt::{Context, RingProducer};
+use rtcnc_rt::{Context, RingProducer, SeqlockWriter};
 
 use rtcnc_gcode::canon::ProbeKind;
 
@@ -17,7 +17,9 @@ use crate::messages::{
     Aux, Command, JointSetpoints, MachineBlock, MachineResult, MachineState, Mode, OperatorMessage,
     Status, Urgent,
 };
-use crate::shared::{Feedback, InterpreterRequest, Shared, Tagged};
+use crate::shared::{
+    Feedback, InterpreterRequest, LogicOutputs, LogicRequests, Shared, Snapshot, Tagged,
+};
 
 /// Latch requests carried with a set-point (bit n for joint n).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -258,7 +260,19 @@ pub struct MotionCore {
     program_analog_output_count: usize,
     /// The logic's e-stop chain has been seen closed since the last reset.
     chain_closed: bool,
+    /// The feedback image as drive I/O published it.
+    feedback: Snapshot<Feedback>,
+    /// The machine logic's answers.
+    logic: Snapshot<LogicOutputs>,
+    /// The requests to the machine logic (this core is their one writer) and whether they
+    /// changed since they were last published.
+    requests: LogicRequests,
+    requests_changed: bool,
+    requests_out: SeqlockWriter<LogicRequests>,
 }
+
+/// Steps (blocks taken, phases passed) of one look-ahead run at most, so a run is bounded.
+const LOOK_AHEAD_STEPS: usize = 64;
 
 fn limits_of(v: f64, a: f64, j: f64) -> Limits {
     Limits::symmetric(v, a, j)
@@ -266,7 +280,11 @@ fn limits_of(v: f64, a: f64, j: f64) -> Limits {
 
 impl MotionCore {
     /// The core for a validated configuration, at rest at the joints' initial positions.
-    pub fn new(config: &MachineConfig) -> Result<MotionCore, MotionError> {
+    pub fn new(
+        config: &MachineConfig,
+        shared: &Shared,
+        requests_out: SeqlockWriter<LogicRequests>,
+    ) -> Result<MotionCore, MotionError> {
         let period_s = config.servo_period().as_secs_f64();
         let plan = config.axis_plan();
         let mut limits = rtcnc_motion::MachineLimits { axes: [None; AXES] };
@@ -489,7 +507,25 @@ impl MotionCore {
                 .len()
                 .min(crate::config::MAX_PROGRAM_IO),
             chain_closed: false,
+            feedback: Snapshot::new(shared.feedback.clone()),
+            logic: Snapshot::new(shared.logic_outputs.clone()),
+            requests: requests_out.value(),
+            requests_changed: false,
+            requests_out,
         })
+    }
+
+    /// The requests to the machine logic, to change (published at the end of the task body).
+    fn requests_mut(&mut self) -> &mut LogicRequests {
+        self.requests_changed = true;
+        &mut self.requests
+    }
+
+    /// Publishes the requests to the machine logic if a task body changed them.
+    fn publish_requests(&mut self) {
+        if std::mem::take(&mut self.requests_changed) {
+            self.requests_out.publish(self.requests);
+        }
     }
 
     /// The self-test passed: the machine may be reset into operation.
@@ -558,7 +594,7 @@ impl MotionCore {
             }
             Urgent::FeedHold => self.hold(),
             // The logic's hold (door open, fault, spindle not at speed) must clear first.
-            Urgent::Resume if shared.machine_interface.lock().feed_hold_request => {}
+            Urgent::Resume if self.logic.get().feed_hold_request => {}
             Urgent::Resume => {
                 if self.held || self.logic_paused {
                     self.held = false;
@@ -594,9 +630,9 @@ impl MotionCore {
                 } else {
                     1.0
                 };
-                let mut mi = shared.machine_interface.lock();
-                if mi.spindle_on {
-                    mi.spindle_rpm = self.spindle_command();
+                if self.requests.spindle_on {
+                    let rpm = self.spindle_command();
+                    self.requests_mut().spindle_rpm = rpm;
                 }
             }
         }
@@ -641,14 +677,14 @@ impl MotionCore {
     }
 
     /// M48-M53 as after a reset: every override and the feed stop switch in force.
-    fn reset_enables(&mut self, shared: &Shared) {
+    fn reset_enables(&mut self) {
         self.feed_override_enabled = true;
         self.spindle_override_enabled = true;
         self.feed_stop_enabled = true;
         self.apply_feed_overrides();
-        let mut mi = shared.machine_interface.lock();
-        if mi.spindle_on {
-            mi.spindle_rpm = self.spindle_command();
+        if self.requests.spindle_on {
+            let rpm = self.spindle_command();
+            self.requests_mut().spindle_rpm = rpm;
         }
     }
 
@@ -677,7 +713,7 @@ impl MotionCore {
         self.probe = None;
         self.stop_synced(false);
         // A stopped program leaves no override disabled behind (M49, M50 P0, M53 P0).
-        self.reset_enables(shared);
+        self.reset_enables();
         self.epoch = self.epoch.wrapping_add(1);
         let _ = shared
             .interpreter_requests
@@ -692,7 +728,7 @@ impl MotionCore {
             Source::Path => self.planner.abort(),
             Source::Manual => self.stop_manual(false),
         }
-        let mut mi = shared.machine_interface.lock();
+        let mi = self.requests_mut();
         mi.tool_change_request = false;
         mi.m_code_request = false;
         mi.program_running = false;
@@ -717,13 +753,19 @@ impl MotionCore {
 
     /// A normal command. Returns false when it was refused in this state.
     pub fn command(&mut self, ctx: &mut Context<'_>, shared: &Shared, command: Command) -> bool {
+        let ok = self.command_inner(ctx, shared, command);
+        self.publish_requests();
+        ok
+    }
+
+    fn command_inner(&mut self, ctx: &mut Context<'_>, shared: &Shared, command: Command) -> bool {
         let idle = self.operational()
             && !self.moving()
             && self.phase == Phase::Idle
             && self.homing.is_none();
         let ok = match command {
             Command::Reset => {
-                let feedback = *shared.feedback.lock();
+                let feedback = *self.feedback.get();
                 if !self.ready || feedback.estop || self.stopping {
                     false
                 } else {
@@ -738,15 +780,15 @@ impl MotionCore {
                     self.apply_feed_overrides();
                     self.chain_closed = false;
                     self.reset_count = self.reset_count.wrapping_add(1);
-                    let mut mi = shared.machine_interface.lock();
-                    mi.estop_reset = true;
+                    let mi = self.requests_mut();
+                    mi.reset_count = mi.reset_count.wrapping_add(1);
                     mi.machine_on_request = true;
                     true
                 }
             }
             Command::Start { from_line } => {
                 if idle && self.has_program {
-                    self.begin(shared, Mode::Auto, from_line);
+                    self.begin(Mode::Auto, from_line);
                     let _ = shared
                         .interpreter_requests
                         .try_put(InterpreterRequest::Run { epoch: self.epoch });
@@ -761,7 +803,7 @@ impl MotionCore {
             }
             Command::Mdi(line) => {
                 if idle {
-                    self.begin(shared, Mode::Mdi, 0);
+                    self.begin(Mode::Mdi, 0);
                     let _ = shared
                         .interpreter_requests
                         .try_put(InterpreterRequest::Mdi {
@@ -950,10 +992,10 @@ impl MotionCore {
         let _ = self.planner.reset_at(axes);
     }
 
-    fn begin(&mut self, shared: &Shared, mode: Mode, from_line: u32) {
+    fn begin(&mut self, mode: Mode, from_line: u32) {
         self.enter_path();
         if mode == Mode::Auto {
-            self.reset_enables(shared);
+            self.reset_enables();
             self.css = None;
         }
         self.mode = mode;
@@ -964,7 +1006,7 @@ impl MotionCore {
         self.program_ended = false;
         self.run_from_line = from_line;
         self.skipped_to = None;
-        shared.machine_interface.lock().program_running = mode == Mode::Auto;
+        self.requests_mut().program_running = mode == Mode::Auto;
     }
 
     /// Hands motion to the on-line generators, from where the path stands.
@@ -998,41 +1040,44 @@ impl MotionCore {
 
     /// One run of the look-ahead: moves blocks into the planner's window while it has room,
     /// stops the path before machine functions and errors, and sequences their hand-shakes.
-    /// Returns whether a program or MDI line is in progress (more runs may have work).
+    /// Returns whether another run in the same period may find more to do: only when this
+    /// one stopped at its bound of steps. Otherwise it stopped on something only another
+    /// task can change (no block, no room, the machine still moving, the logic's answer).
     pub fn look_ahead(&mut self, ctx: &mut Context<'_>, shared: &Shared) -> bool {
-        self.look_ahead_runs(ctx, shared);
-        self.phase != Phase::Idle
+        let more = self.look_ahead_runs(ctx, shared);
+        self.publish_requests();
+        more
     }
 
-    fn look_ahead_runs(&mut self, ctx: &mut Context<'_>, shared: &Shared) {
+    fn look_ahead_runs(&mut self, ctx: &mut Context<'_>, shared: &Shared) -> bool {
         if !self.operational() || self.stopping {
-            return;
+            return false;
         }
-        for _ in 0..64 {
+        for _ in 0..LOOK_AHEAD_STEPS {
             match self.phase {
-                Phase::Idle => return,
+                Phase::Idle => return false,
                 Phase::Feeding => {
                     if self.held
                         || self.logic_paused
                         || ((self.logic_hold || self.feed_stop_active) && !self.moving())
                     {
-                        return;
+                        return false;
                     }
                     let block = match self.pending.take() {
                         Some(b) => b,
                         None => match shared.machine_blocks.try_get() {
                             Some(Tagged { epoch, block }) if epoch == self.epoch => block,
                             Some(_) => continue,
-                            None => return,
+                            None => return false,
                         },
                     };
                     if !self.feed(ctx, shared, block) {
-                        return;
+                        return false;
                     }
                 }
                 Phase::Draining { then, line } => {
                     if self.moving() {
-                        return;
+                        return false;
                     }
                     self.after_drain(ctx, shared, then, line);
                 }
@@ -1041,25 +1086,25 @@ impl MotionCore {
                     line,
                     released,
                 } => {
-                    if !self.logic_done(shared, aux, line, released) {
-                        return;
+                    if !self.logic_done(aux, line, released) {
+                        return false;
                     }
                 }
                 Phase::Paused { start_count } => {
                     if self.start_count == start_count {
-                        return;
+                        return false;
                     }
                     self.phase = Phase::Feeding;
                 }
                 Phase::Synced => {
                     if self.synced.is_some() {
-                        return;
+                        return false;
                     }
                     self.phase = Phase::Feeding;
                 }
                 Phase::Probing { kind, line } => {
                     if self.moving() {
-                        return;
+                        return false;
                     }
                     let tripped_at = self.probe.take().and_then(|p| p.1);
                     let must_change = matches!(kind, ProbeKind::TowardError | ProbeKind::AwayError);
@@ -1082,8 +1127,8 @@ impl MotionCore {
                 }
                 Phase::WaitOrient { deadline, line } => {
                     // The feedback answers the orientation only after the drive had it.
-                    let oriented = shared.feedback.lock().spindle_oriented
-                        && self.cycle >= self.orient_cycle + 2;
+                    let oriented =
+                        self.feedback.get().spindle_oriented && self.cycle >= self.orient_cycle + 2;
                     if oriented {
                         self.phase = Phase::Feeding;
                     } else if self.cycle >= deadline {
@@ -1092,7 +1137,7 @@ impl MotionCore {
                             line,
                         };
                     } else {
-                        return;
+                        return false;
                     }
                 }
                 Phase::WaitInput {
@@ -1102,7 +1147,7 @@ impl MotionCore {
                     previous,
                 } => {
                     use crate::messages::WaitCondition as W;
-                    let now = shared.feedback.lock().digital_inputs & bit != 0;
+                    let now = self.feedback.get().digital_inputs & bit != 0;
                     let met = match condition {
                         W::Immediate => true,
                         W::Rise => now && !previous,
@@ -1126,11 +1171,12 @@ impl MotionCore {
                             deadline,
                             previous: now,
                         };
-                        return;
+                        return false;
                     }
                 }
             }
         }
+        true
     }
 
     /// Returns false when the block could not be taken now (kept for the next run).
@@ -1247,10 +1293,10 @@ impl MotionCore {
                 }
             }
             Then::End => {
-                self.reset_enables(shared);
+                self.reset_enables();
                 self.phase = Phase::Idle;
                 self.program_ended = true;
-                shared.machine_interface.lock().program_running = false;
+                self.requests_mut().program_running = false;
             }
             Then::MdiDone => self.phase = Phase::Idle,
             Then::Error(code) => {
@@ -1260,17 +1306,18 @@ impl MotionCore {
                 let _ = shared
                     .interpreter_requests
                     .try_put(InterpreterRequest::Stop);
-                shared.machine_interface.lock().program_running = false;
+                self.requests_mut().program_running = false;
             }
             Then::Aux(aux) => self.start_aux(shared, aux, line),
             Then::Probe(mv, kind) => self.start_probe(shared, mv, kind),
-            Then::Synced(end, pitch) => self.start_synced(shared, end, pitch, line),
+            Then::Synced(end, pitch) => self.start_synced(end, pitch, line),
         }
     }
 
     fn start_aux(&mut self, shared: &Shared, aux: Aux, line: u32) {
         self.aux_cycle = self.cycle;
-        let mut mi = shared.machine_interface.lock();
+        // A copy of the requests, published where the old lock was given back.
+        let mut mi = self.requests;
         match aux {
             Aux::SpindleOn { rpm } => {
                 mi.spindle_orient = false;
@@ -1292,13 +1339,13 @@ impl MotionCore {
                 mi.spindle_orient = true;
                 mi.spindle_orient_angle = angle;
                 mi.spindle_orient_mode = mode;
-                drop(mi);
+                *self.requests_mut() = mi;
                 self.orient_cycle = self.cycle;
                 self.phase = Phase::Feeding;
                 return;
             }
             Aux::WaitOrient { timeout } => {
-                drop(mi);
+                *self.requests_mut() = mi;
                 let periods = if timeout.is_finite() && timeout > 0.0 {
                     (timeout / self.period_s).ceil() as u64
                 } else {
@@ -1329,7 +1376,7 @@ impl MotionCore {
             Aux::SurfaceSpeedOff => {
                 self.css = None;
                 mi.spindle_rpm = self.spindle_command();
-                drop(mi);
+                *self.requests_mut() = mi;
                 self.phase = Phase::Feeding;
                 return;
             }
@@ -1363,7 +1410,6 @@ impl MotionCore {
                 condition,
                 timeout,
             } => {
-                drop(mi);
                 let point = usize::try_from(index)
                     .ok()
                     .filter(|&i| i < self.program_input_count)
@@ -1382,7 +1428,7 @@ impl MotionCore {
                     0
                 };
                 let bit = 1u64 << point;
-                let previous = shared.feedback.lock().digital_inputs & bit != 0;
+                let previous = self.feedback.get().digital_inputs & bit != 0;
                 self.phase = Phase::WaitInput {
                     bit,
                     condition,
@@ -1392,13 +1438,12 @@ impl MotionCore {
                 return;
             }
             Aux::ReadAnalogInput { index } => {
-                drop(mi);
+                *self.requests_mut() = mi;
                 let point = usize::try_from(index)
                     .ok()
                     .filter(|&i| i < self.program_analog_input_count)
                     .map(|i| self.program_analog_inputs[i]);
-                let value =
-                    point.and_then(|p| shared.feedback.lock().analog_inputs.get(p).copied());
+                let value = point.and_then(|p| self.feedback.get().analog_inputs.get(p).copied());
                 match value {
                     Some(v) => {
                         self.send_result(shared, MachineResult::Input(v));
@@ -1422,7 +1467,7 @@ impl MotionCore {
                 if let Some(slot) = slot {
                     *slot = value;
                 }
-                drop(mi);
+                *self.requests_mut() = mi;
                 self.phase = if mapped {
                     Phase::Feeding
                 } else {
@@ -1434,7 +1479,7 @@ impl MotionCore {
                 return;
             }
             Aux::FeedOverrideEnable(on) => {
-                drop(mi);
+                *self.requests_mut() = mi;
                 self.feed_override_enabled = on;
                 self.apply_feed_overrides();
                 self.phase = Phase::Feeding;
@@ -1445,31 +1490,29 @@ impl MotionCore {
                 if mi.spindle_on {
                     mi.spindle_rpm = self.spindle_command();
                 }
-                drop(mi);
+                *self.requests_mut() = mi;
                 self.phase = Phase::Feeding;
                 return;
             }
             Aux::FeedStopEnable(on) => {
-                drop(mi);
+                *self.requests_mut() = mi;
                 self.feed_stop_enabled = on;
                 self.phase = Phase::Feeding;
                 return;
             }
             Aux::ProgramStop => {
-                drop(mi);
                 self.phase = Phase::Paused {
                     start_count: self.start_count,
                 };
                 return;
             }
             Aux::Message { seq } => {
-                drop(mi);
+                *self.requests_mut() = mi;
                 self.show_message(shared, seq, line);
                 self.phase = Phase::Feeding;
                 return;
             }
             Aux::OptionalStop => {
-                drop(mi);
                 self.phase = if self.optional_stop {
                     Phase::Paused {
                         start_count: self.start_count,
@@ -1480,6 +1523,7 @@ impl MotionCore {
                 return;
             }
         }
+        *self.requests_mut() = mi;
         self.phase = Phase::Logic {
             aux,
             line,
@@ -1490,7 +1534,7 @@ impl MotionCore {
     /// Starts a probing move: refused without a probe input, or when the probe already is
     /// where the move looks for (LinuxCNC's "probe is already tripped" / "not tripped").
     fn start_probe(&mut self, shared: &Shared, mv: Move, kind: ProbeKind) {
-        let contact = shared.feedback.lock().digital_inputs & self.probe_bit != 0;
+        let contact = self.feedback.get().digital_inputs & self.probe_bit != 0;
         let toward = matches!(kind, ProbeKind::TowardError | ProbeKind::Toward);
         let fail = |line| Phase::Draining {
             then: Then::Error(FaultCode::ProbeFailed),
@@ -1531,8 +1575,8 @@ impl MotionCore {
     /// the spindle's index, then its progress follows pitch × revolutions. Refused when the
     /// spindle stands, when the line leaves the soft limits, or when the spindle turns too
     /// fast for the pitch and the axes (the axes could not keep up).
-    fn start_synced(&mut self, shared: &Shared, end: [f64; AXES], pitch: f64, line: u32) {
-        let feedback = *shared.feedback.lock();
+    fn start_synced(&mut self, end: [f64; AXES], pitch: f64, line: u32) {
+        let feedback = *self.feedback.get();
         let fail = |code| Phase::Draining {
             then: Then::Error(code),
             line,
@@ -1771,8 +1815,8 @@ impl MotionCore {
     }
 
     /// Whether the machine logic acknowledged `aux`; drops hand-shake requests once done.
-    fn logic_done(&mut self, shared: &Shared, aux: Aux, line: u32, released: bool) -> bool {
-        let mut mi = shared.machine_interface.lock();
+    fn logic_done(&mut self, aux: Aux, line: u32, released: bool) -> bool {
+        let answers = *self.logic.get();
         let done = match aux {
             Aux::SpindleOn { .. }
             | Aux::SpindleSpeed { .. }
@@ -1781,15 +1825,16 @@ impl MotionCore {
             | Aux::SurfaceSpeedOff => {
                 // The logic's at-speed answers the new command only after the drives have
                 // had it (one exchange) and the logic has scanned again.
-                !mi.spindle_on || (mi.spindle_at_speed && self.cycle >= self.aux_cycle + 2)
+                !self.requests.spindle_on
+                    || (answers.spindle_at_speed && self.cycle >= self.aux_cycle + 2)
             }
             Aux::SpindleOff => true,
-            Aux::Mist(on) => mi.out_mist == on,
-            Aux::Flood(on) => mi.out_flood == on,
+            Aux::Mist(on) => answers.out_mist == on,
+            Aux::Flood(on) => answers.out_flood == on,
             Aux::ToolChange { tool } => {
                 if !released {
-                    if mi.tool_change_done {
-                        mi.tool_change_request = false;
+                    if answers.tool_change_done {
+                        self.requests_mut().tool_change_request = false;
                         self.tool = tool;
                         self.phase = Phase::Logic {
                             aux,
@@ -1799,13 +1844,13 @@ impl MotionCore {
                     }
                     false
                 } else {
-                    !mi.tool_change_done
+                    !answers.tool_change_done
                 }
             }
             Aux::UserM { .. } => {
                 if !released {
-                    if mi.m_code_done {
-                        mi.m_code_request = false;
+                    if answers.m_code_done {
+                        self.requests_mut().m_code_request = false;
                         self.phase = Phase::Logic {
                             aux,
                             line,
@@ -1814,7 +1859,7 @@ impl MotionCore {
                     }
                     false
                 } else {
-                    !mi.m_code_done
+                    !answers.m_code_done
                 }
             }
             Aux::DigitalOutput { .. }
@@ -1854,7 +1899,7 @@ impl MotionCore {
         while let Some(fault) = shared.stop_requests.try_get() {
             self.on_fault(shared, fault);
         }
-        let feedback = *shared.feedback.lock();
+        let feedback = *self.feedback.get();
         if !self.offsets_known && feedback.cycle > 0 {
             // Before homing, a joint's machine position is where the kernel believed it
             // was at power-up: the offsets make feedback and set-points agree.
@@ -1864,7 +1909,7 @@ impl MotionCore {
             }
         }
         let chain_ok = {
-            let mi = shared.machine_interface.lock();
+            let mi = *self.logic.get();
             if mi.feed_hold_request && !self.logic_hold {
                 let spindle_handshake = matches!(
                     self.phase,
@@ -1911,12 +1956,27 @@ impl MotionCore {
             }
         }
         self.probe_step(&feedback);
-        // One set-point per servo period of the drives: after a late activation (a real-time
-        // overrun) the missed periods are computed now, at most four.
-        let steps = feedback.cycle.saturating_sub(self.cycle).clamp(1, 4);
+        // One set-point per exchange with the drives, numbered by the exchange it is for:
+        // the one made in period p is applied by position control in period p + 1, after
+        // the exchanges of periods up to p, i.e. p + 1 less the periods the fieldbus thread
+        // skipped. The number does not depend on whether drive I/O has already done this
+        // period's exchange, which on several processors it may or may not have (reading
+        // the feedback's exchange count instead made the set-points one period late about
+        // every other period at 10 kHz). After a late activation (a real-time overrun) the
+        // missed set-points are computed now, at most four; none when interpolation is
+        // ahead. It never runs more than one exchange ahead of the feedback: while the
+        // fieldbus thread stalls (it woke late on another processor) the machine does not
+        // move on, so neither do its set-points.
+        let skipped = shared
+            .fieldbus_skipped
+            .load(std::sync::atomic::Ordering::Relaxed);
+        let target = (ctx.activation() + 1)
+            .saturating_sub(skipped)
+            .min(feedback.cycle + 1);
+        let steps = target.saturating_sub(self.cycle).min(4);
         let line = self.last.line;
         for _ in 0..steps {
-            self.step(shared, &feedback);
+            self.step(&feedback);
         }
         if self.last.line != line {
             // The program line in the trace, so a timeline shows which block ran when.
@@ -1925,13 +1985,19 @@ impl MotionCore {
         // G96: the spindle speed follows the X set-point.
         if self.css.is_some() && self.spindle_on {
             let rpm = self.spindle_command();
-            shared.machine_interface.lock().spindle_rpm = rpm;
+            if self.requests.spindle_rpm != rpm {
+                self.requests_mut().spindle_rpm = rpm;
+            }
         }
         if self.stopping && !self.moving() {
             self.stopping = false;
             if self.estop || self.fault {
                 self.enable = false;
             }
+        }
+        self.publish_requests();
+        if steps == 0 {
+            return;
         }
         let _ = out.push(ServoTarget {
             setpoints: self.last,
@@ -1943,7 +2009,7 @@ impl MotionCore {
     }
 
     /// One servo period of the set-point generators.
-    fn step(&mut self, shared: &Shared, feedback: &Feedback) {
+    fn step(&mut self, feedback: &Feedback) {
         self.cycle += 1;
         let mut sp = self.last;
         sp.cycle = self.cycle;
@@ -1982,7 +2048,7 @@ impl MotionCore {
                         sp.joints[j] = sp.axes[i];
                     }
                 }
-                self.homing_step(shared, feedback);
+                self.homing_step(feedback);
             }
         }
         // Joints on their own generator (homing, independent joints).
@@ -1996,7 +2062,7 @@ impl MotionCore {
 
     fn on_fault(&mut self, shared: &Shared, fault: Fault) {
         self.last_fault = Some(fault);
-        shared.machine_interface.lock().machine_on_request = false;
+        self.requests_mut().machine_on_request = false;
         if fault.code == FaultCode::EStop {
             self.estop = true;
         } else {
@@ -2027,14 +2093,13 @@ impl MotionCore {
                 self.stop_manual(true);
             }
         }
-        let mut mi = shared.machine_interface.lock();
+        let mi = self.requests_mut();
         mi.tool_change_request = false;
         mi.m_code_request = false;
         mi.program_running = false;
         mi.spindle_on = false;
         mi.spindle_orient = false;
         self.spindle_on = false;
-        drop(mi);
         // A stopped program leaves no override disabled behind; the planner takes them at
         // the reset.
         self.feed_override_enabled = true;
@@ -2081,7 +2146,7 @@ impl MotionCore {
     }
 
     /// One period of the homing sequence of the current group.
-    fn homing_step(&mut self, shared: &Shared, feedback: &Feedback) {
+    fn homing_step(&mut self, feedback: &Feedback) {
         let Some(mut homing) = self.homing else {
             return;
         };
@@ -2214,7 +2279,7 @@ impl MotionCore {
                         self.homed |= 1 << j;
                     }
                 }
-                shared.machine_interface.lock().homed = true;
+                self.requests_mut().homed = true;
             }
         } else {
             self.homing = Some(homing);

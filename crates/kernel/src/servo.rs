@@ -7,13 +7,13 @@
 use rtcnc_fieldbus::{
     Cia402State, ControlWord, Fieldbus, LatchSource, ProcessInputs, ProcessOutputs,
 };
-use rtcnc_rt::{Context, RingConsumer, RingProducer};
+use rtcnc_rt::{Context, RingConsumer, RingProducer, SeqlockWriter};
 use rtcnc_servo::{ServoCommand, ServoLoop, SetPointDifferentiator};
 
 use crate::config::MAX_JOINTS;
 use crate::fault::{FaultCode, TaskName};
 use crate::motion::ServoTarget;
-use crate::shared::{Feedback, Shared};
+use crate::shared::{Feedback, LogicOutputs, LogicRequests, Shared, Snapshot};
 
 /// One recorded servo cycle (for the CSV files, plots and summaries of `rtcnc sim`).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -48,6 +48,9 @@ pub(crate) struct ServoStage<B: Fieldbus> {
     targets: RingConsumer<ServoTarget>,
     recorder: Option<RingProducer<Sample>>,
     shared: Shared,
+    feedback_out: SeqlockWriter<Feedback>,
+    logic: Snapshot<LogicOutputs>,
+    requests: Snapshot<LogicRequests>,
     was_enabled: u32,
     servo_fault: bool,
     reset_count: u32,
@@ -64,6 +67,8 @@ pub(crate) struct ServoStage<B: Fieldbus> {
 }
 
 impl<B: Fieldbus> ServoStage<B> {
+    // Every argument is one of the stage's own parts, handed over once at build time.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn new(
         bus: B,
         loops: Vec<ServoLoop>,
@@ -71,6 +76,7 @@ impl<B: Fieldbus> ServoStage<B> {
         targets: RingConsumer<ServoTarget>,
         recorder: Option<RingProducer<Sample>>,
         shared: Shared,
+        feedback_out: SeqlockWriter<Feedback>,
         program_outputs: Vec<usize>,
     ) -> Self {
         let outputs = ProcessOutputs::new(bus.layout());
@@ -87,7 +93,10 @@ impl<B: Fieldbus> ServoStage<B> {
             target: None,
             targets,
             recorder,
+            logic: Snapshot::new(shared.logic_outputs.clone()),
+            requests: Snapshot::new(shared.requests.clone()),
             shared,
+            feedback_out,
             was_enabled: 0,
             servo_fault: false,
             reset_count: 0,
@@ -112,6 +121,10 @@ impl<B: Fieldbus> ServoStage<B> {
 
     /// Position control: one servo cycle.
     pub(crate) fn position_control(&mut self, ctx: &mut Context<'_>) {
+        self.shared.fieldbus_skipped.store(
+            ctx.activation().saturating_sub(self.exchanges),
+            std::sync::atomic::Ordering::Relaxed,
+        );
         // Take the set-points up to this period's, not beyond: on a multi-core machine the
         // interpolation thread may already have made the next one.
         while let Some(cycle) = self.targets.peek().map(|t| t.setpoints.cycle) {
@@ -150,9 +163,13 @@ impl<B: Fieldbus> ServoStage<B> {
         // Interpolation made the set-point for this period in the previous one. When it was
         // late (a real-time overrun), go on along the last two set-points for up to four
         // periods instead of standing still; it catches up by computing the missed ones.
+        // Every period without a fresh set-point counts, also those beyond the four that
+        // are bridged (the set-point then stands until interpolation catches up).
         let missing = self.exchanges.saturating_sub(target.setpoints.cycle);
-        if missing > 0 && missing <= 4 && target.enable {
+        if missing > 0 && target.enable {
             self.underruns += 1;
+        }
+        if missing > 0 && missing <= 4 && target.enable {
             let k = missing as f64;
             for j in 0..self.joint_count {
                 let v = target.setpoints.joints[j] - self.previous_joints[j];
@@ -268,12 +285,15 @@ impl<B: Fieldbus> ServoStage<B> {
     /// Drive I/O: one exchange.
     pub(crate) fn drive_io(&mut self, ctx: &mut Context<'_>) {
         {
-            let mi = self.shared.machine_interface.lock();
+            let mi = *self.logic.get();
+            let req = self.requests.get();
+            let program_outputs = req.program_outputs;
+            let program_analog_outputs = req.program_analog_outputs;
             self.outputs.spindle.enable = mi.out_spindle_enable;
             self.outputs.spindle.speed_rpm = mi.out_spindle_rpm;
-            self.outputs.spindle.orient = mi.spindle_orient;
-            self.outputs.spindle.orient_angle_deg = mi.spindle_orient_angle;
-            self.outputs.spindle.orient_mode = mi.spindle_orient_mode;
+            self.outputs.spindle.orient = req.spindle_orient;
+            self.outputs.spindle.orient_angle_deg = req.spindle_orient_angle;
+            self.outputs.spindle.orient_mode = req.spindle_orient_mode;
             self.outputs.coolant.mist = mi.out_mist;
             self.outputs.coolant.flood = mi.out_flood;
             self.outputs.tool_changer.start = mi.out_tool_start;
@@ -286,13 +306,13 @@ impl<B: Fieldbus> ServoStage<B> {
             }
             for (n, &point) in self.program_outputs.iter().enumerate().take(64) {
                 if let Some(o) = self.outputs.digital.get_mut(point) {
-                    *o |= mi.program_outputs & (1 << n) != 0;
+                    *o |= program_outputs & (1 << n) != 0;
                 }
             }
             for (&point, &value) in self
                 .program_analog_outputs
                 .iter()
-                .zip(&mi.program_analog_outputs)
+                .zip(&program_analog_outputs)
             {
                 if let Some(o) = self.outputs.analog.get_mut(point) {
                     *o = value;
@@ -389,7 +409,7 @@ impl<B: Fieldbus> ServoStage<B> {
         for (slot, &a) in fb.analog_inputs.iter_mut().zip(&self.inputs.analog) {
             *slot = a;
         }
-        *self.shared.feedback.lock() = fb;
+        self.feedback_out.publish(fb);
     }
 
     /// Periods in which position control had to go on without a fresh set-point.

@@ -1,7 +1,9 @@
-//! What the kernel's tasks share: the channels between stages and the few plain-data areas
-//! (feedback image, machine interface, status) guarded by priority-inheritance mutexes.
+//! What the kernel's tasks share: the channels between stages and the plain-data images
+//! written by one task each and read by others (feedback image, the two halves of the
+//! machine interface, status), which are single-writer snapshots: no task waits for
+//! another to read or write them.
 
-use rtcnc_rt::{BinarySemaphore, Context, Mailbox, PiMutex};
+use rtcnc_rt::{BinarySemaphore, Context, Mailbox, PiMutex, SeqlockReader, SeqlockWriter, seqlock};
 
 use crate::config::MAX_JOINTS;
 use crate::fault::{Fault, FaultCode, TaskName};
@@ -88,10 +90,11 @@ pub struct Feedback {
     pub analog_inputs: [f64; crate::config::MAX_PROGRAM_IO],
 }
 
-/// The machine interface between the kernel and the machine logic (the PLC's signals).
+/// The kernel's half of the machine interface (the PLC's signals): what the motion core asks
+/// of the machine logic. Written by the motion core's tasks (one at a time, under the core's
+/// lock), read by the logic and drive I/O.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct MachineInterface {
-    // Kernel -> logic.
+pub struct LogicRequests {
     /// Spindle commanded on.
     pub spindle_on: bool,
     /// Counter-clockwise.
@@ -118,8 +121,9 @@ pub struct MachineInterface {
     pub program_running: bool,
     /// Every joint homed.
     pub homed: bool,
-    /// Operator reset (held for one scan by the logic task).
-    pub estop_reset: bool,
+    /// Operator resets so far: the logic gives its `estop_reset` signal for a while after
+    /// each change.
+    pub reset_count: u32,
     /// The operator asked for the machine to be on (from a reset until an e-stop or fault).
     pub machine_on_request: bool,
     /// Program digital outputs (M62..M65), bit n = program output n.
@@ -132,7 +136,12 @@ pub struct MachineInterface {
     pub spindle_orient_mode: u8,
     /// Program analogue outputs (M67/M68), by program output number.
     pub program_analog_outputs: [f64; crate::config::MAX_PROGRAM_IO],
-    // Logic -> kernel.
+}
+
+/// The machine logic's half of the machine interface: its answers to the kernel and its
+/// outputs to the machine. Written by the logic task only.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LogicOutputs {
     /// Spindle at speed.
     pub spindle_at_speed: bool,
     /// Tool change done.
@@ -147,7 +156,6 @@ pub struct MachineInterface {
     pub estop_chain_ok: bool,
     /// Its code.
     pub machine_fault_code: i64,
-    // Logic -> machine.
     /// Spindle drive enabled.
     pub out_spindle_enable: bool,
     /// Signed spindle speed set-point.
@@ -162,6 +170,45 @@ pub struct MachineInterface {
     pub out_tool_number: u32,
     /// Digital outputs, bit n = output n.
     pub out_digital: u64,
+}
+
+/// The newest value of a snapshot channel as one real-time reader last got it: when the
+/// writer is in the middle of a write on another processor, the reader goes on with the
+/// value it has rather than waiting.
+pub(crate) struct Snapshot<T> {
+    reader: SeqlockReader<T>,
+    value: T,
+    /// The publication `value` is (at least); no copy while there is nothing newer.
+    version: u64,
+}
+
+impl<T: Copy + Send> Snapshot<T> {
+    pub(crate) fn new(reader: SeqlockReader<T>) -> Self {
+        let version = reader.version();
+        let value = reader.read();
+        Snapshot {
+            reader,
+            value,
+            version,
+        }
+    }
+
+    /// The newest value (never waits).
+    pub(crate) fn get(&mut self) -> &T {
+        let version = self.reader.version();
+        if version != self.version && self.reader.read_into(&mut self.value) {
+            self.version = version;
+        }
+        &self.value
+    }
+}
+
+/// The writing ends of the shared state images, each handed to its one writer.
+pub(crate) struct Writers {
+    pub(crate) feedback: SeqlockWriter<Feedback>,
+    pub(crate) requests: SeqlockWriter<LogicRequests>,
+    pub(crate) logic_outputs: SeqlockWriter<LogicOutputs>,
+    pub(crate) status: SeqlockWriter<Status>,
 }
 
 /// Everything the tasks share. Built once; cloned handles go into the task closures.
@@ -191,23 +238,40 @@ pub struct Shared {
     pub faults: Mailbox<Fault>,
     /// Faults that must stop motion, for the interpolation task (read first every cycle).
     pub stop_requests: Mailbox<Fault>,
-    /// The feedback image.
-    pub feedback: std::sync::Arc<PiMutex<Feedback>>,
-    /// The machine interface.
-    pub machine_interface: std::sync::Arc<PiMutex<MachineInterface>>,
-    /// The status snapshot.
-    pub status: std::sync::Arc<PiMutex<Status>>,
+    /// The feedback image (written by drive I/O every exchange).
+    pub feedback: SeqlockReader<Feedback>,
+    /// The kernel's requests to the machine logic.
+    pub requests: SeqlockReader<LogicRequests>,
+    /// The machine logic's answers and outputs.
+    pub logic_outputs: SeqlockReader<LogicOutputs>,
+    /// The status snapshot (written by the status task every period).
+    pub status: SeqlockReader<Status>,
     /// The last interpreter error in words (non-real-time side only).
     pub error_text: std::sync::Arc<PiMutex<Option<String>>>,
     /// Faults raised so far (for the status snapshot).
     pub fault_count: std::sync::Arc<std::sync::atomic::AtomicU32>,
+    /// Servo periods the fieldbus thread has skipped so far (its period index minus the
+    /// exchanges done), written by position control at the start of every cycle: with it
+    /// interpolation numbers each set-point by the exchange it is for without looking at
+    /// how far drive I/O has got in the current period (see `MotionCore::interpolate`).
+    pub fieldbus_skipped: std::sync::Arc<std::sync::atomic::AtomicU64>,
     /// The last move the planner refused (moved in, not formatted, by the look-ahead).
     pub motion_error: std::sync::Arc<PiMutex<Option<rtcnc_motion::MotionError>>>,
 }
 
 impl Shared {
-    pub(crate) fn new() -> Shared {
-        Shared {
+    pub(crate) fn new() -> (Shared, Writers) {
+        let (feedback_w, feedback) = seqlock("feedback image", Feedback::default());
+        let (requests_w, requests) = seqlock("logic requests", LogicRequests::default());
+        let (outputs_w, logic_outputs) = seqlock("logic outputs", LogicOutputs::default());
+        let (status_w, status) = seqlock("status", Status::default());
+        let writers = Writers {
+            feedback: feedback_w,
+            requests: requests_w,
+            logic_outputs: outputs_w,
+            status: status_w,
+        };
+        let shared = Shared {
             urgent: Mailbox::new("urgent commands", 32).expect("capacity > 0"),
             normal: Mailbox::new("normal commands", 64).expect("capacity > 0"),
             interpreter_requests: Mailbox::new("interpreter requests", 8).expect("capacity > 0"),
@@ -219,13 +283,16 @@ impl Shared {
             machine_results: Mailbox::new("machine results", 8).expect("capacity > 0"),
             faults: Mailbox::new("faults", 1024).expect("capacity > 0"),
             stop_requests: Mailbox::new("stop requests", 64).expect("capacity > 0"),
-            feedback: std::sync::Arc::new(PiMutex::new(Feedback::default())),
-            machine_interface: std::sync::Arc::new(PiMutex::new(MachineInterface::default())),
-            status: std::sync::Arc::new(PiMutex::new(Status::default())),
+            feedback,
+            requests,
+            logic_outputs,
+            status,
             error_text: std::sync::Arc::new(PiMutex::new(None)),
             motion_error: std::sync::Arc::new(PiMutex::new(None)),
             fault_count: std::sync::Arc::new(std::sync::atomic::AtomicU32::new(0)),
-        }
+            fieldbus_skipped: std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0)),
+        };
+        (shared, writers)
     }
 
     /// Records a fault: the fault channel, the executive's fault log and trace, and (when it

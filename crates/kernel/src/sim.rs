@@ -28,6 +28,15 @@ impl Simulation {
         }
     }
 
+    /// Measures the host processor time of every task (see
+    /// `VirtualRunner::with_host_profile`); the simulated run is the same.
+    pub fn with_host_profile(self) -> Simulation {
+        Simulation {
+            runner: self.runner.with_host_profile(),
+            ..self
+        }
+    }
+
     /// The operator side.
     pub fn handle(&self) -> &KernelHandle {
         &self.handle
@@ -57,9 +66,7 @@ impl Simulation {
         for _ in 0..cycles {
             self.runner.run_for(self.period)?;
             if let Some(samples) = self.samples.as_mut() {
-                while let Some(s) = samples.pop() {
-                    sink(&s);
-                }
+                samples.drain_with(&mut *sink);
             }
         }
         Ok(())

@@ -132,11 +132,41 @@ fn a_100_microsecond_servo_period_is_accepted() {
 }
 
 #[test]
-fn interpolation_may_run_in_the_fieldbus_thread_with_the_same_results() {
+fn below_half_a_millisecond_interpolation_runs_in_the_fieldbus_thread_unless_configured() {
+    use std::time::Duration;
+    let mut t = MachineConfig::load(&repo().join("configs/sim-mill.toml"))
+        .unwrap()
+        .tasks;
+    assert_eq!(t.interpolation_in_fieldbus_thread, None);
+    assert!(!t.interpolation_in_fieldbus_thread(Duration::from_millis(1)));
+    assert!(!t.interpolation_in_fieldbus_thread(Duration::from_micros(500)));
+    assert!(t.interpolation_in_fieldbus_thread(Duration::from_micros(250)));
+    assert!(t.interpolation_in_fieldbus_thread(Duration::from_micros(100)));
+    t.interpolation_in_fieldbus_thread = Some(false);
+    assert!(!t.interpolation_in_fieldbus_thread(Duration::from_micros(100)));
+    t.interpolation_in_fieldbus_thread = Some(true);
+    assert!(t.interpolation_in_fieldbus_thread(Duration::from_millis(1)));
+}
+
+#[derive(Clone, Copy)]
+enum Arrangement {
+    SeparateThread,
+    InFieldbusThread,
+    /// Interpolation's thread above the fieldbus thread: every period it runs before the
+    /// exchange, as it may on another processor.
+    SeparateThreadFirst,
+}
+
+#[test]
+fn interpolation_may_run_in_the_fieldbus_thread_or_before_it_with_the_same_results() {
     use rtcnc_kernel::{Command, MachineState, Simulation};
-    let run = |one_thread: bool| {
+    let run = |arrangement: Arrangement| {
         let mut cfg = MachineConfig::load(&repo().join("configs/experiment-1.toml")).unwrap();
-        cfg.tasks.interpolation_in_fieldbus_thread = one_thread;
+        cfg.tasks.interpolation_in_fieldbus_thread =
+            Some(matches!(arrangement, Arrangement::InFieldbusThread));
+        if let Arrangement::SeparateThreadFirst = arrangement {
+            cfg.tasks.interpolation.priority = cfg.tasks.fieldbus.priority + 1;
+        }
         let kernel = Kernel::build(
             &cfg,
             KernelOptions {
@@ -160,13 +190,26 @@ fn interpolation_may_run_in_the_fieldbus_thread_with_the_same_results() {
             })
             .unwrap();
         assert!(ended);
+        // Position control had this period's set-point in every period.
+        assert_eq!(h.setpoint_underruns(), 0);
         samples
     };
-    let separate = run(false);
-    let shared = run(true);
-    // The set-point of every cycle is the same; only the thread that computes it differs.
+    let separate = run(Arrangement::SeparateThread);
+    let shared = run(Arrangement::InFieldbusThread);
+    let first = run(Arrangement::SeparateThreadFirst);
+    // The set-point of every cycle is the same; only the thread that computes it, and
+    // when, differs.
     assert_eq!(separate.len(), shared.len());
     assert!(separate == shared);
+    // Running first, interpolation's first set-point is there already in period 0 (held
+    // where the machine stands): one sample more at the start.
+    assert_eq!(first.len(), separate.len() + 1, "{:?}", &first[..3]);
+    assert!(
+        separate[..] == first[1..],
+        "{:?} {:?}",
+        &separate[..3],
+        &first[..4]
+    );
 }
 
 #[test]

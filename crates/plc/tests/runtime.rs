@@ -56,6 +56,27 @@ fn scan_runs_each_task_when_it_is_due() {
 }
 
 #[test]
+fn a_scan_is_due_only_when_a_cyclic_task_comes_round() {
+    let only_cyclic = TASKS.replace("PROGRAM free1 : Free;", "");
+    let mut rt = Runtime::new(Arc::new(compile(&only_cyclic, "cell.st").unwrap()));
+    // 1 ms calls for 20 ms, scanning only when due: the 2 ms task's times.
+    let mut due = Vec::new();
+    for k in 0..20 {
+        if rt.is_due(ms(k)) {
+            due.push(k);
+            rt.scan(ms(k)).unwrap();
+        }
+    }
+    assert_eq!(due, [0, 2, 4, 6, 8, 10, 12, 14, 16, 18]);
+    assert_eq!(int(&rt, "f1.n"), 10);
+    assert_eq!(int(&rt, "s1.n"), 2);
+    // A task without an interval makes every scan due.
+    let mut rt = Runtime::new(Arc::new(compile(TASKS, "cell.st").unwrap()));
+    rt.scan(ms(0)).unwrap();
+    assert!(rt.is_due(ms(1)));
+}
+
+#[test]
 fn run_task_runs_one_task_only() {
     let mut rt = Runtime::new(Arc::new(compile(TASKS, "cell.st").unwrap()));
     rt.run_task(1, ms(0)).unwrap();

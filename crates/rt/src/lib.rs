@@ -55,7 +55,8 @@ mod virtual_time;
 pub use error::ConfigError;
 pub use ipc::{
     BinarySemaphore, CountingSemaphore, EventSemaphore, IpcError, LatestReader, LatestWriter,
-    Mailbox, PiMutex, PiMutexGuard, Rejected, RingConsumer, RingProducer, Trigger, latest, ring,
+    Mailbox, PiMutex, PiMutexGuard, Rejected, RingConsumer, RingProducer, SeqlockReader,
+    SeqlockWriter, Trigger, latest, ring, seqlock,
 };
 pub use monitor::{
     Fault, FaultCode, FaultRecord, MissReaction, Monitor, TaskKind, TaskMonitor, TaskState,
@@ -69,4 +70,4 @@ pub use task::{
 };
 pub use time::{DurationError, Time, duration_from_secs, parse_duration};
 pub use trace::Trace;
-pub use virtual_time::{RunError, VirtualRunner};
+pub use virtual_time::{HostProfile, RunError, VirtualRunner};

@@ -44,8 +44,9 @@ pub(crate) fn sleep_until_monotonic(ns: u64) {
 }
 
 /// A mutex with the priority-inheritance protocol (`PTHREAD_PRIO_INHERIT`) and a condition
-/// variable on `CLOCK_MONOTONIC`. Every IPC object of the executive is built on it, so the
-/// only lock a real-time task ever takes is a PI mutex.
+/// variable on `CLOCK_MONOTONIC`. The blocking IPC objects (mailboxes, semaphores) are built
+/// on it; `PiMutex` uses the same kernel mechanism (a PI futex) without the condition
+/// variable. So the only lock a real-time task ever takes is a PI mutex.
 pub(crate) struct PiLock<T> {
     // Boxed: pthread objects must not move after initialisation.
     mutex: Box<UnsafeCell<libc::pthread_mutex_t>>,
@@ -90,13 +91,8 @@ impl<T> PiLock<T> {
     pub(crate) fn lock(&self) -> PiGuard<'_, T> {
         // SAFETY: the mutex was initialised in `new` and lives as long as `self`.
         unsafe { libc::pthread_mutex_lock(self.mutex.get()) };
+        IPC_TOUCHED.with(|t| t.set(true));
         PiGuard { lock: self }
-    }
-
-    pub(crate) fn try_lock(&self) -> Option<PiGuard<'_, T>> {
-        // SAFETY: as in `lock`.
-        let rc = unsafe { libc::pthread_mutex_trylock(self.mutex.get()) };
-        (rc == 0).then_some(PiGuard { lock: self })
     }
 
     /// Wakes every thread waiting on the condition variable.
@@ -265,6 +261,15 @@ pub(crate) fn prefault_stack(bytes: usize) {
 
 thread_local! {
     static IN_TASK_BODY: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+    /// Set whenever this thread took the lock of a blocking IPC object (every change of a
+    /// mailbox, semaphore or start event happens under it): the virtual-time runner polls
+    /// its triggers only after that.
+    static IPC_TOUCHED: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Whether this thread took an IPC object's lock since the last call (and clears it).
+pub(crate) fn take_ipc_touched() -> bool {
+    IPC_TOUCHED.with(|t| t.replace(false))
 }
 
 /// True while the calling thread is executing a task body (blocking IPC calls are refused).

@@ -91,6 +91,13 @@ pub struct Trace<'a> {
 }
 
 fn push_json_str(out: &mut String, s: &str) {
+    // Task and label names rarely need escaping: copy them whole then.
+    if !s.bytes().any(|b| b == b'"' || b == b'\\' || b < 0x20) {
+        out.push('"');
+        out.push_str(s);
+        out.push('"');
+        return;
+    }
     out.push('"');
     for c in s.chars() {
         match c {
@@ -105,8 +112,31 @@ fn push_json_str(out: &mut String, s: &str) {
     out.push('"');
 }
 
+/// Appends `n` in decimal (what `{}` writes, without the formatter's machinery: a trace has
+/// hundreds of thousands of numbers).
+fn push_u64(out: &mut String, mut n: u64) {
+    let mut digits = [0u8; 20];
+    let mut i = digits.len();
+    loop {
+        i -= 1;
+        digits[i] = b'0' + (n % 10) as u8;
+        n /= 10;
+        if n == 0 {
+            break;
+        }
+    }
+    for &d in &digits[i..] {
+        out.push(char::from(d));
+    }
+}
+
 fn push_us(out: &mut String, ns: u64) {
-    let _ = write!(out, "{}.{:03}", ns / 1000, ns % 1000);
+    push_u64(out, ns / 1000);
+    let frac = ns % 1000;
+    out.push('.');
+    out.push(char::from(b'0' + (frac / 100) as u8));
+    out.push(char::from(b'0' + (frac / 10 % 10) as u8));
+    out.push(char::from(b'0' + (frac % 10) as u8));
 }
 
 impl Trace<'_> {
@@ -140,6 +170,7 @@ impl Trace<'_> {
                 out,
                 ",\n{{\"name\":\"thread_sort_index\",\"ph\":\"M\",\"pid\":1,\"tid\":{tid},\"args\":{{\"sort_index\":{tid}}}}}"
             );
+            let args = format!(",\"pid\":1,\"tid\":{tid},\"args\":{{\"task\":");
             let (events, _) = lane.events();
             for e in events {
                 let task = self.task_names.get(e.task as usize).copied().unwrap_or("?");
@@ -163,10 +194,11 @@ impl Trace<'_> {
                         push_us(&mut out, e.time);
                     }
                 }
-                let _ = write!(out, ",\"pid\":1,\"tid\":{tid},\"args\":{{\"task\":");
+                out.push_str(&args);
                 push_json_str(&mut out, task);
                 if e.kind != EventKind::Span {
-                    let _ = write!(out, ",\"value\":{}", e.arg);
+                    out.push_str(",\"value\":");
+                    push_u64(&mut out, e.arg);
                 }
                 out.push_str("}}");
             }

@@ -15,7 +15,7 @@ use thiserror::Error;
 
 use crate::ipc::Trigger;
 use crate::monitor::{Fault, FaultCode, MissReaction, TaskState};
-use crate::sys::set_in_task_body;
+use crate::sys::{set_in_task_body, take_ipc_touched};
 use crate::task::{
     Body, ClockSource, Context, DeclKind, Next, Recording, TaskControl, TaskSet, TaskSpec,
     ThreadSpec, Wake,
@@ -166,6 +166,13 @@ struct Step {
     next: Option<Next>,
 }
 
+/// What booking the end of a step needs.
+struct EndedStep {
+    task: usize,
+    start: u64,
+    lateness: Option<u64>,
+}
+
 struct Cycle {
     release: u64,
     activation: u64,
@@ -238,6 +245,42 @@ pub struct VirtualRunner {
     background_step_ns: u64,
     /// Something may have fired a trigger or changed a start event since the last poll.
     dirty: bool,
+    /// Host processor time spent in each task's bodies, when asked for.
+    host: Option<HostProfile>,
+}
+
+/// The host processor time of a virtual-time run, per task: what simulating each task
+/// costs on the computer that runs the simulation (not simulated time).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct HostProfile {
+    /// Per task, in declaration order: (name, body runs, host time in the bodies, ns).
+    pub tasks: Vec<(String, u64, u64)>,
+    /// The cost of one pair of clock readings, ns, already taken off each body run.
+    pub clock_overhead_ns: u64,
+}
+
+impl HostProfile {
+    fn new(tasks: &[TaskSpec]) -> Self {
+        // What reading the clock twice costs, so that it is not charged to the bodies.
+        let rounds = 2000u32;
+        let t0 = std::time::Instant::now();
+        for _ in 0..rounds {
+            std::hint::black_box(std::time::Instant::now());
+        }
+        let per_read = t0.elapsed().as_nanos() as u64 / u64::from(rounds);
+        HostProfile {
+            tasks: tasks.iter().map(|t| (t.name.clone(), 0, 0)).collect(),
+            clock_overhead_ns: per_read,
+        }
+    }
+
+    fn charge(&mut self, task: usize, since: std::time::Instant) {
+        let ns = (since.elapsed().as_nanos() as u64).saturating_sub(self.clock_overhead_ns);
+        if let Some(t) = self.tasks.get_mut(task) {
+            t.1 += 1;
+            t.2 += ns;
+        }
+    }
 }
 
 impl VirtualRunner {
@@ -288,7 +331,21 @@ impl VirtualRunner {
             instant: 0,
             background_step_ns: 10_000,
             dirty: true,
+            host: None,
         }
+    }
+
+    /// Measures the host processor time of every body run (two clock readings each), for
+    /// a profile of what each task costs the simulation; see [`host_profile`](Self::host_profile).
+    /// It changes nothing in the simulated run.
+    pub fn with_host_profile(mut self) -> Self {
+        self.host = Some(HostProfile::new(&self.tasks));
+        self
+    }
+
+    /// The host time spent in each task's bodies so far (with [`with_host_profile`](Self::with_host_profile)).
+    pub fn host_profile(&self) -> Option<&HostProfile> {
+        self.host.as_ref()
     }
 
     /// The least simulated processor time one background body run takes (default 10 µs),
@@ -449,9 +506,15 @@ impl VirtualRunner {
                 }
             }
         }
-        // Triggers and start events only change when a body ran (or code outside the task set
-        // ran between two run calls); without that, only timeouts can wake a task.
-        let poll = std::mem::take(&mut self.dirty);
+        self.poll_reactive();
+    }
+
+    /// Wakes event and background tasks whose trigger fired or timeout passed.
+    fn poll_reactive(&mut self) {
+        // Triggers and start events only change under an IPC object's lock, taken by a body
+        // (or a miss hook, or code outside the task set between two run calls), or when a
+        // task's own waiting state changed; without that, only timeouts can wake a task.
+        let poll = std::mem::take(&mut self.dirty) | take_ipc_touched();
         for i in 0..self.reactive.len() {
             if !poll {
                 let due = matches!(
@@ -527,6 +590,13 @@ impl VirtualRunner {
         }
     }
 
+    /// Whether an event or background task of a priority above `priority` is ready.
+    fn reactive_above(&self, priority: i32) -> bool {
+        self.reactive
+            .iter()
+            .any(|r| r.priority > priority && matches!(r.state, RState::Ready(_) | RState::Running))
+    }
+
     fn pick(&self) -> Option<Pick> {
         let mut best: Option<(i32, u64, Pick)> = None;
         let mut consider = |prio: i32, seq: u64, p: Pick| {
@@ -591,11 +661,32 @@ impl VirtualRunner {
         }
     }
 
+    /// Starts the next step of thread `i`'s cycle. Steps that declare no processor time end
+    /// at once; the cycle then goes on with its next step here, without a round through
+    /// the scheduler loop, as long as that loop would pick this thread again: no release
+    /// can fall due at this instant, so only an event task of higher priority woken by the
+    /// body can come first (equal priorities woken now queue behind this cycle).
     fn start_thread_step(&mut self, i: usize) {
+        loop {
+            if !self.start_one_thread_step(i) || self.threads[i].cycle.is_none() {
+                return;
+            }
+            self.poll_reactive();
+            if self.reactive_above(self.threads[i].spec.priority)
+                || self.instant_steps >= MAX_STEPS_PER_INSTANT
+            {
+                return;
+            }
+            self.instant_steps += 1;
+        }
+    }
+
+    /// One step of thread `i`'s cycle; true when it declared no time and is over.
+    fn start_one_thread_step(&mut self, i: usize) -> bool {
         let now = self.now;
         let th = &mut self.threads[i];
         let Some(cycle) = th.cycle.as_mut() else {
-            return;
+            return false;
         };
         // Skip tasks asked to stop: they stop themselves at the start of their cycle.
         while let Some(&task) = th.spec.tasks.get(cycle.pos) {
@@ -610,7 +701,7 @@ impl VirtualRunner {
         }
         let Some(&task) = th.spec.tasks.get(cycle.pos) else {
             self.finish_cycle(i);
-            return;
+            return false;
         };
         let TaskSpec {
             name, body, lane, ..
@@ -630,31 +721,48 @@ impl VirtualRunner {
             m.set_state(TaskState::Running);
         }
         set_in_task_body(true);
+        let host_start = self.host.is_some().then(std::time::Instant::now);
         if let Body::Periodic(body) = body {
             body(&mut ctx);
         }
+        if let (Some(profile), Some(start)) = (self.host.as_mut(), host_start) {
+            profile.charge(task, start);
+        }
         set_in_task_body(false);
-        self.dirty = true;
         let cost = ctx.consumed;
+        let lateness = Some(now - cycle.release);
+        if cost == 0 {
+            // Over at once: no step to keep for the scheduler loop.
+            self.end_thread_step(i, task, now, lateness);
+            return true;
+        }
         cycle.step = Some(Step {
             task,
             start: now,
             remaining: cost,
-            lateness: Some(now - cycle.release),
+            lateness,
             next: None,
         });
-        if cost == 0 {
-            self.finish_thread_step(i);
-        }
+        false
     }
 
     fn finish_thread_step(&mut self, i: usize) {
+        let Some(step) = self.threads[i].cycle.as_mut().and_then(|c| c.step.take()) else {
+            return;
+        };
+        self.end_thread_step(i, step.task, step.start, step.lateness);
+    }
+
+    /// Books the end of a step of thread `i` (task `task`, started at `start`) now.
+    fn end_thread_step(&mut self, i: usize, task: usize, start: u64, lateness: Option<u64>) {
+        let step = EndedStep {
+            task,
+            start,
+            lateness,
+        };
         let now = self.now;
         let th = &mut self.threads[i];
         let Some(cycle) = th.cycle.as_mut() else {
-            return;
-        };
-        let Some(step) = cycle.step.take() else {
             return;
         };
         let recording = &self.recording;
@@ -710,13 +818,14 @@ impl VirtualRunner {
     fn finish_cycle(&mut self, i: usize) {
         let now = self.now;
         let th = &mut self.threads[i];
-        let Some(cycle) = th.cycle.take() else {
+        let Some((release, missed)) = th.cycle.as_ref().map(|c| (c.release, c.missed)) else {
             return;
         };
-        let (next, skipped) = next_release(cycle.release, th.spec.period_ns, now);
+        th.cycle = None;
+        let (next, skipped) = next_release(release, th.spec.period_ns, now);
         th.next_release = next;
         if skipped > 0 {
-            if let Some(m) = cycle.missed.and_then(|t| self.recording.monitor.task_at(t)) {
+            if let Some(m) = missed.and_then(|t| self.recording.monitor.task_at(t)) {
                 m.record_skipped(skipped);
             }
         }
@@ -765,12 +874,15 @@ impl VirtualRunner {
             m.set_state(TaskState::Running);
         }
         set_in_task_body(true);
+        let host_start = self.host.is_some().then(std::time::Instant::now);
         let next = match body {
             Body::Reactive(body) => body(&mut ctx),
             Body::Periodic(_) => Next::Done,
         };
+        if let (Some(profile), Some(start)) = (self.host.as_mut(), host_start) {
+            profile.charge(task, start);
+        }
         set_in_task_body(false);
-        self.dirty = true;
         let mut cost = ctx.consumed;
         if matches!(kind, DeclKind::Background) {
             cost = cost.max(self.background_step_ns);

@@ -251,6 +251,29 @@ fn two_virtual_runs_give_byte_identical_traces() {
 }
 
 #[test]
+fn a_host_time_profile_changes_nothing_in_the_run_and_counts_every_body_run() {
+    let mut plain = VirtualRunner::new(traced_set());
+    plain.run_for(Duration::from_millis(20)).unwrap();
+    let mut profiled = VirtualRunner::new(traced_set()).with_host_profile();
+    profiled.run_for(Duration::from_millis(20)).unwrap();
+    assert_eq!(
+        plain.recording().trace().to_chrome_json(),
+        profiled.recording().trace().to_chrome_json()
+    );
+    assert!(plain.host_profile().is_none());
+    let profile = profiled.host_profile().unwrap();
+    let monitor = profiled.recording().monitor();
+    assert_eq!(profile.tasks.len(), monitor.tasks().len());
+    for (name, runs, _ns) in &profile.tasks {
+        assert_eq!(
+            *runs,
+            monitor.task(name).unwrap().stats().activations,
+            "{name}"
+        );
+    }
+}
+
+#[test]
 fn a_task_asked_to_stop_stops_at_its_next_cycle_and_restarts() {
     let count = Arc::new(AtomicU64::new(0));
     let mut b = TaskSet::builder();

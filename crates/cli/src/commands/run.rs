@@ -203,7 +203,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         let (p, runs) = match task {
             "position control" | "drive io" => (&t.fieldbus.period, 1),
             "machine logic" => (&t.machine_logic.period, 1),
-            "interpolation" if t.interpolation_in_fieldbus_thread => (&t.fieldbus.period, 1),
+            "interpolation" if t.interpolation_in_fieldbus_thread(config.servo_period()) => {
+                (&t.fieldbus.period, 1)
+            }
             "interpolation" => (&t.interpolation.period, 1),
             "look-ahead" => (&t.look_ahead.period, t.look_ahead.runs),
             "command parsing" => (&t.command_parsing.period, t.command_parsing.runs),

@@ -13,6 +13,8 @@ use crate::sim::motor::MotorModel;
 pub(crate) struct CycleConditions {
     pub period_s: f64,
     pub substeps: usize,
+    /// `period_s / substeps`.
+    pub step_s: f64,
     /// Drive power is present (the e-stop chain is closed, or does not cut power).
     pub power: bool,
     /// The process-data watchdog expired.
@@ -212,10 +214,27 @@ impl SimulatedJoint {
         conditions: &CycleConditions,
         feedback: &mut JointFeedback,
     ) {
+        if self.begin_cycle(command, conditions) {
+            let substeps = conditions.substeps.max(1);
+            for substep in 1..=substeps {
+                self.substep(command, conditions, substep);
+            }
+        }
+        self.end_cycle(command, conditions, feedback);
+    }
+
+    /// The start of an exchange cycle: state machine, latch request, and for an ideal drive
+    /// the whole move. Returns whether the cycle has sub-steps to run
+    /// ([`substep`](Self::substep) for 1..=substeps, then [`end_cycle`](Self::end_cycle)).
+    /// The machine runs the sub-steps of all joints interleaved, which changes no joint's
+    /// arithmetic but lets the processor overlap the joints' independent chains.
+    pub(crate) fn begin_cycle(
+        &mut self,
+        command: &JointCommand,
+        conditions: &CycleConditions,
+    ) -> bool {
         self.step_state_machine(command, conditions);
         self.step_latch_request(command.latch);
-        let substeps = conditions.substeps.max(1);
-        let step_s = conditions.period_s / substeps as f64;
         self.torque_limited = false;
         if self.mode == DriveMode::Ideal {
             self.torque = 0.0;
@@ -228,31 +247,50 @@ impl SimulatedJoint {
                 self.motor.place(before, 0.0);
             }
             self.update_latch(before, self.motor.position());
-        } else {
-            let previous = self.previous_command;
-            for substep in 1..=substeps {
-                let started = (substep - 1) as f64;
-                let fraction = started / substeps as f64;
-                // Velocity and torque commands reach the motor `command_delay_s` after the
-                // sample (the controller's computation and the DAC): until then the
-                // previous command acts. A CSP drive's timing is its interpolation.
-                let delayed = started * step_s < conditions.command_delay_s * (1.0 - 1e-9)
-                    && self.mode != DriveMode::Csp;
-                let active = if delayed { &previous } else { command };
-                let mut demand = self.torque_demand(active, fraction, step_s);
-                if !demand.is_finite() {
-                    // A non-finite command gives no torque rather than poisoning the model.
-                    demand = 0.0;
-                    self.velocity_integral = 0.0;
-                }
-                let torque = demand.clamp(-self.torque_limit, self.torque_limit);
-                self.torque_limited |= torque != demand;
-                self.torque = torque;
-                let before = self.motor.position();
-                self.motor.advance(torque, step_s);
-                self.update_latch(before, self.motor.position());
-            }
+            return false;
         }
+        true
+    }
+
+    /// Sub-step `substep` (1-based) of the cycle: the drive's loops once, the torque held.
+    #[inline]
+    pub(crate) fn substep(
+        &mut self,
+        command: &JointCommand,
+        conditions: &CycleConditions,
+        substep: usize,
+    ) {
+        let substeps = conditions.substeps.max(1);
+        let step_s = conditions.step_s;
+        let started = (substep - 1) as f64;
+        // Velocity and torque commands reach the motor `command_delay_s` after the sample
+        // (the controller's computation and the DAC): until then the previous command acts.
+        // A CSP drive's timing is its interpolation.
+        let delayed = started * step_s < conditions.command_delay_s * (1.0 - 1e-9)
+            && self.mode != DriveMode::Csp;
+        let previous = self.previous_command;
+        let active = if delayed { &previous } else { command };
+        let mut demand = self.torque_demand(active, started, substeps, step_s);
+        if !demand.is_finite() {
+            // A non-finite command gives no torque rather than poisoning the model.
+            demand = 0.0;
+            self.velocity_integral = 0.0;
+        }
+        let torque = demand.clamp(-self.torque_limit, self.torque_limit);
+        self.torque_limited |= torque != demand;
+        self.torque = torque;
+        let before = self.motor.position();
+        self.motor.advance(torque, step_s);
+        self.update_latch(before, self.motor.position());
+    }
+
+    /// The end of the cycle: the encoder and the feedback.
+    pub(crate) fn end_cycle(
+        &mut self,
+        command: &JointCommand,
+        conditions: &CycleConditions,
+        feedback: &mut JointFeedback,
+    ) {
         if self.state == Cia402State::OperationEnabled && command.target_position.is_finite() {
             self.previous_target = command.target_position;
         }
@@ -263,9 +301,15 @@ impl SimulatedJoint {
         self.write_feedback(conditions.period_s, feedback);
     }
 
-    /// Torque demanded in one sub-step; `fraction` is how far through the cycle it starts
-    /// (the drive samples reference and feedback at the same instant).
-    fn torque_demand(&mut self, command: &JointCommand, fraction: f64, step_s: f64) -> f64 {
+    /// The torque the drive asks for in the sub-step that starts `started` sub-steps into
+    /// the cycle's `substeps`.
+    fn torque_demand(
+        &mut self,
+        command: &JointCommand,
+        started: f64,
+        substeps: usize,
+        step_s: f64,
+    ) -> f64 {
         match self.state {
             Cia402State::OperationEnabled => match self.mode {
                 DriveMode::Velocity => self.velocity_loop(command.target_velocity, 0.0, step_s),
@@ -273,6 +317,7 @@ impl SimulatedJoint {
                     // Linear interpolation from the previous target to this one over the
                     // cycle: the reference reaches each target one period after it
                     // arrives, which is the lag of a CSP drive.
+                    let fraction = started / substeps as f64;
                     let target = self.previous_target
                         + (command.target_position - self.previous_target) * fraction;
                     let velocity = self.position_gain * (target - self.motor.position())
@@ -301,10 +346,15 @@ impl SimulatedJoint {
         }
     }
 
+    #[inline]
     fn update_latch(&mut self, before: f64, after: f64) {
         if !self.latch.armed || self.latch.latched || self.encoder_lost || before == after {
             return;
         }
+        self.catch_latch(before, after);
+    }
+
+    fn catch_latch(&mut self, before: f64, after: f64) {
         let event = match self.latch_request {
             Some(LatchSource::IndexPulse) => self.index_between(before, after),
             Some(LatchSource::HomeSwitch) => self.home_edge_between(before, after),

@@ -89,6 +89,8 @@ pub struct SimulatedMachine {
     /// The commands the drives last received (they keep acting on them when a cycle is
     /// lost).
     received: Vec<JointCommand>,
+    /// Per joint: this cycle has sub-steps to run (not an ideal drive).
+    stepping: Vec<bool>,
     spindle: Spindle,
     spindle_command: SpindleCommand,
     coolant: Coolant,
@@ -130,6 +132,7 @@ impl SimulatedMachine {
             command_delay_s: config.command_delay_s,
             joints: config.joints.iter().map(SimulatedJoint::new).collect(),
             received: vec![JointCommand::default(); config.joints.len()],
+            stepping: vec![false; config.joints.len()],
             spindle: Spindle::new(config.spindle),
             spindle_command: SpindleCommand::default(),
             coolant: Coolant::default(),
@@ -323,9 +326,11 @@ impl Fieldbus for SimulatedMachine {
             self.tool_command = outputs.tool_changer;
         }
         let power = !(self.estop_active && self.estop_removes_power);
+        let substeps = self.substeps_for(period_s);
         let conditions = CycleConditions {
             period_s,
-            substeps: self.substeps_for(period_s),
+            substeps,
+            step_s: period_s / substeps.max(1) as f64,
             power,
             watchdog_expired: self.silent_ns >= self.watchdog_ns && self.silent_ns > 0,
             command_delay_s: self.command_delay_s,
@@ -356,13 +361,36 @@ impl Fieldbus for SimulatedMachine {
             }
             return Err(FieldbusError::CommunicationLost);
         }
+        // The joints' sub-steps interleaved (sub-step outer, joint inner): each joint's
+        // arithmetic is the same as one joint at a time, and the processor overlaps the
+        // joints' independent dependency chains.
+        for ((joint, command), stepping) in self
+            .joints
+            .iter_mut()
+            .zip(&self.received)
+            .zip(self.stepping.iter_mut())
+        {
+            *stepping = joint.begin_cycle(command, &conditions);
+        }
+        for substep in 1..=conditions.substeps.max(1) {
+            for ((joint, command), stepping) in self
+                .joints
+                .iter_mut()
+                .zip(&self.received)
+                .zip(self.stepping.iter())
+            {
+                if *stepping {
+                    joint.substep(command, &conditions, substep);
+                }
+            }
+        }
         for ((joint, command), feedback) in self
             .joints
             .iter_mut()
             .zip(&self.received)
             .zip(inputs.joints.iter_mut())
         {
-            joint.cycle(command, &conditions, feedback);
+            joint.end_cycle(command, &conditions, feedback);
         }
         // A probe senses where the joints are at the end of the cycle.
         let joints = &self.joints;

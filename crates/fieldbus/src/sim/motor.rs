@@ -76,7 +76,11 @@ impl MotorModel {
                 drive.signum()
             };
             let net = drive - direction * self.coulomb_acceleration;
-            let stop_after = self.time_to_stop(net);
+            let stop_after = if self.keeps_direction(net, remaining) {
+                f64::INFINITY
+            } else {
+                self.time_to_stop(net)
+            };
             if stop_after < remaining {
                 self.position += self.distance(net, stop_after).0;
                 self.velocity = 0.0;
@@ -111,6 +115,27 @@ impl MotorModel {
                 self.velocity + net * t,
             )
         }
+    }
+
+    /// Whether the velocity clearly keeps its sign (and stays away from zero) for `t` under
+    /// `net`: then the step needs no stop time, and the logarithm of
+    /// [`time_to_stop`](Self::time_to_stop) is saved. This only answers "yes" with a margin
+    /// far above rounding, where the stop time would certainly come out longer than `t`,
+    /// so the result is the same as with the stop time.
+    #[inline]
+    fn keeps_direction(&self, net: f64, t: f64) -> bool {
+        let v = self.velocity;
+        let c = self.decay_rate;
+        if v == 0.0 || net * v >= 0.0 {
+            return true; // no stop at all (time_to_stop is infinite)
+        }
+        if c.is_nan() || c <= 0.0 || t != self.cached_step {
+            return false;
+        }
+        let terminal = net / c;
+        let change = (v - terminal) * self.cached_decay;
+        let end = v + change;
+        end * v > 0.0 && end.abs() > 1e-6 * v.abs().max(change.abs())
     }
 
     /// When the velocity would reach zero under `net` (infinite if it never does).

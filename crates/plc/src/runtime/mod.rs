@@ -285,6 +285,26 @@ impl Runtime {
         Ok(())
     }
 
+    /// Whether a [`scan`](Self::scan) at `now` would run a task. False only when every task
+    /// is cyclic with an INTERVAL that has not come round yet (and the PLC is not faulted):
+    /// such a scan would only copy the images, so a caller that calls more often than the
+    /// PLC's own intervals may skip it and keep the outputs of the last scan. Tasks without
+    /// an interval, or started by a trigger variable, make every scan due.
+    pub fn is_due(&self, now: Duration) -> bool {
+        let now_ns = duration_ns(now);
+        self.fault.is_some()
+            || self
+                .program
+                .tasks
+                .iter()
+                .zip(&self.next_due)
+                .any(|(task, next)| {
+                    task.trigger_slot.is_some()
+                        || task.interval.is_none()
+                        || next.is_none_or(|d| now_ns >= d)
+                })
+    }
+
     /// Runs one activation of task `task` (index into [`Program::tasks`]) at time `now`,
     /// with its own input and output image transfer: for a kernel that puts each task of
     /// the CONFIGURATION on its own executive slot.

@@ -1,6 +1,7 @@
 //! Communication between tasks, with the semantics of SEEDS.md: bounded mailboxes,
 //! binary / counting / event semaphores, a priority-inheritance mutex, a wait-free
-//! single-producer single-consumer ring and a wait-free latest-value cell (triple buffer).
+//! single-producer single-consumer ring, a wait-free latest-value cell (triple buffer) and a
+//! single-writer many-reader snapshot (seqlock).
 //!
 //! Every object works the same under both schedulers. Non-blocking calls (`try_*`, `put_front`,
 //! `peek`, `clear`, `signal`, `set`, `pulse`) are what task bodies use; a task that must wait
@@ -15,6 +16,7 @@ mod mailbox;
 mod pimutex;
 mod ring;
 mod semaphore;
+mod seqlock;
 mod trigger;
 
 pub use latest::{LatestReader, LatestWriter, latest};
@@ -22,6 +24,7 @@ pub use mailbox::Mailbox;
 pub use pimutex::{PiMutex, PiMutexGuard};
 pub use ring::{RingConsumer, RingProducer, ring};
 pub use semaphore::{BinarySemaphore, CountingSemaphore, EventSemaphore};
+pub use seqlock::{SLOTS as SEQLOCK_SLOTS, SeqlockReader, SeqlockWriter, seqlock};
 pub use trigger::Trigger;
 pub(crate) use trigger::WaitResult;
 

@@ -67,6 +67,19 @@ impl<T> RingConsumer<T> {
         self.inner.pop().ok()
     }
 
+    /// Hands every item waiting now to `f`, oldest first, by reference, then removes them
+    /// (no copy out of the ring, which counts for large items); returns how many.
+    pub fn drain_with(&mut self, mut f: impl FnMut(&T)) -> usize {
+        let n = self.inner.slots();
+        let Ok(chunk) = self.inner.read_chunk(n) else {
+            return 0;
+        };
+        let (first, second) = chunk.as_slices();
+        first.iter().chain(second).for_each(&mut f);
+        chunk.commit_all();
+        n
+    }
+
     /// The oldest item without removing it.
     pub fn peek(&self) -> Option<&T> {
         self.inner.peek().ok()
@@ -85,5 +98,27 @@ impl<T> RingConsumer<T> {
     /// The ring's name.
     pub fn name(&self) -> &str {
         &self.name
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn drain_with_hands_over_every_waiting_item_in_order_across_the_wrap() {
+        let (mut tx, mut rx) = ring::<u32>("samples", 4).unwrap();
+        for v in [1, 2, 3] {
+            tx.push(v).unwrap();
+        }
+        assert_eq!(rx.pop(), Some(1));
+        for v in [4, 5] {
+            tx.push(v).unwrap(); // 5 lands in the slot after the end: the items wrap
+        }
+        let mut seen = Vec::new();
+        assert_eq!(rx.drain_with(|&v| seen.push(v)), 4);
+        assert_eq!(seen, [2, 3, 4, 5]);
+        assert!(rx.is_empty());
+        assert_eq!(rx.drain_with(|_| panic!("nothing waits")), 0);
     }
 }

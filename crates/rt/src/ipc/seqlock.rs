@@ -1,0 +1,272 @@
+//! Single-writer, many-reader snapshot of plain data (a seqlock over a few slots): one task
+//! publishes a state image every cycle (the feedback image, the status), any number of
+//! tasks and outside threads read the newest one. Neither side takes a lock or makes a
+//! system call.
+//!
+//! The value lives in [`SLOTS`] slots used in turn. The writer fills the slot after the
+//! newest one and only then makes it the newest, so a reader always finds a complete
+//! newest slot, even when it preempted the writer in the middle of a write (a reader of
+//! higher priority on the writer's processor must never wait for it, or it would wait
+//! forever). A read fails only when the writer, running at the same time on another
+//! processor, started `SLOTS` new values during the reader's copy; [`SeqlockReader::try_read`]
+//! gives up after a few such attempts, so a real-time reader keeps its previous value
+//! rather than looping.
+
+use std::cell::UnsafeCell;
+use std::mem::MaybeUninit;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering, fence};
+
+/// Slots the writer cycles through: a read fails only when the writer laps them during it.
+pub const SLOTS: usize = 4;
+/// Attempts of one [`SeqlockReader::try_read`].
+const ATTEMPTS: usize = 4;
+/// The version of a slot being written (never a publication number).
+const WRITING: u64 = u64::MAX;
+
+struct Slot<T> {
+    /// The publication number the slot holds, or `WRITING`.
+    version: AtomicU64,
+    value: UnsafeCell<MaybeUninit<T>>,
+}
+
+struct Shared<T> {
+    name: String,
+    /// Number of the newest publication; it lives in slot `published % SLOTS`.
+    published: AtomicU64,
+    slots: [Slot<T>; SLOTS],
+}
+
+// SAFETY: only the single writer stores into a slot, and only into one no reader may use
+// (its version is `WRITING` meanwhile). Readers copy a slot optimistically and keep the copy
+// only when the slot's version was the same, published number before and after the copy,
+// i.e. when no store overlapped it (the protocol of a seqlock, as crossbeam's `AtomicCell`
+// uses for values without a native atomic). `T: Copy` makes the copies plain bytes.
+unsafe impl<T: Copy + Send> Sync for Shared<T> {}
+
+/// The publishing end (one per value; not `Clone`).
+pub struct SeqlockWriter<T> {
+    shared: Arc<Shared<T>>,
+}
+
+/// A reading end; clone it for every reader.
+pub struct SeqlockReader<T> {
+    shared: Arc<Shared<T>>,
+}
+
+impl<T> Clone for SeqlockReader<T> {
+    fn clone(&self) -> Self {
+        SeqlockReader {
+            shared: Arc::clone(&self.shared),
+        }
+    }
+}
+
+/// A snapshot channel called `name`, holding `initial` until the first publication.
+pub fn seqlock<T: Copy + Send>(name: &str, initial: T) -> (SeqlockWriter<T>, SeqlockReader<T>) {
+    let slot = |version| Slot {
+        version: AtomicU64::new(version),
+        value: UnsafeCell::new(MaybeUninit::new(initial)),
+    };
+    let shared = Arc::new(Shared {
+        name: name.to_string(),
+        published: AtomicU64::new(0),
+        slots: [slot(0), slot(WRITING), slot(WRITING), slot(WRITING)],
+    });
+    (
+        SeqlockWriter {
+            shared: Arc::clone(&shared),
+        },
+        SeqlockReader { shared },
+    )
+}
+
+impl<T: Copy + Send> SeqlockWriter<T> {
+    /// Makes `value` the newest (wait-free: a few stores and one copy of `T`).
+    pub fn publish(&mut self, value: T) {
+        let next = self.begin();
+        // SAFETY: the slot is marked `WRITING`, no reader keeps what it copies from it.
+        unsafe { std::ptr::write_volatile(self.slot_value(next), MaybeUninit::new(value)) };
+        self.commit(next);
+    }
+
+    /// Publishes the newest value changed by `update` (the closure edits a copy of it).
+    pub fn publish_with(&mut self, update: impl FnOnce(&mut T)) {
+        let mut value = self.value();
+        update(&mut value);
+        self.publish(value);
+    }
+
+    /// The newest value (the writer's own, read without a retry).
+    pub fn value(&self) -> T {
+        let n = self.shared.published.load(Ordering::Relaxed);
+        // SAFETY: only this writer stores into slots, and not while this reads.
+        unsafe { (*self.slot_value(n)).assume_init() }
+    }
+
+    /// Publications so far.
+    pub fn version(&self) -> u64 {
+        self.shared.published.load(Ordering::Relaxed)
+    }
+
+    /// The channel's name.
+    pub fn name(&self) -> &str {
+        &self.shared.name
+    }
+
+    /// A reader of this channel.
+    pub fn reader(&self) -> SeqlockReader<T> {
+        SeqlockReader {
+            shared: Arc::clone(&self.shared),
+        }
+    }
+
+    fn slot_value(&self, n: u64) -> *mut MaybeUninit<T> {
+        self.shared.slots[(n % SLOTS as u64) as usize].value.get()
+    }
+
+    /// Marks the slot of the next publication as being written; returns its number.
+    fn begin(&mut self) -> u64 {
+        let next = self.shared.published.load(Ordering::Relaxed) + 1;
+        let slot = &self.shared.slots[(next % SLOTS as u64) as usize];
+        slot.version.store(WRITING, Ordering::Relaxed);
+        // The mark is visible before any byte of the new value.
+        fence(Ordering::Release);
+        next
+    }
+
+    /// Makes publication `next` (written into its slot) the newest.
+    fn commit(&mut self, next: u64) {
+        let slot = &self.shared.slots[(next % SLOTS as u64) as usize];
+        slot.version.store(next, Ordering::Release);
+        self.shared.published.store(next, Ordering::Release);
+    }
+}
+
+impl<T: Copy + Send> SeqlockReader<T> {
+    /// The newest value, or `None` when the writer, running on another processor, replaced
+    /// every slot during each of a few attempts (a real-time reader then keeps its previous
+    /// value). Never waits.
+    pub fn try_read(&self) -> Option<T> {
+        for _ in 0..ATTEMPTS {
+            let n = self.shared.published.load(Ordering::Acquire);
+            let slot = &self.shared.slots[(n % SLOTS as u64) as usize];
+            if slot.version.load(Ordering::Acquire) != n {
+                continue;
+            }
+            // SAFETY: a possibly torn copy of plain bytes, kept only if the check below
+            // proves that no store overlapped it.
+            let copy = unsafe { std::ptr::read_volatile(slot.value.get()) };
+            fence(Ordering::Acquire);
+            if slot.version.load(Ordering::Relaxed) == n {
+                // SAFETY: the slot held publication `n`, fully written, for the whole copy.
+                return Some(unsafe { copy.assume_init() });
+            }
+        }
+        None
+    }
+
+    /// Reads into `value` and returns true, or leaves it alone and returns false (see
+    /// [`try_read`](Self::try_read)).
+    pub fn read_into(&self, value: &mut T) -> bool {
+        match self.try_read() {
+            Some(v) => {
+                *value = v;
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// The newest value, trying until a read succeeds: for threads outside the task set
+    /// (an HMI, a test), which may wait. A real-time task uses [`try_read`](Self::try_read).
+    pub fn read(&self) -> T {
+        loop {
+            if let Some(v) = self.try_read() {
+                return v;
+            }
+            std::hint::spin_loop();
+        }
+    }
+
+    /// Publications so far (a cheap test for news).
+    pub fn version(&self) -> u64 {
+        self.shared.published.load(Ordering::Acquire)
+    }
+
+    /// The channel's name.
+    pub fn name(&self) -> &str {
+        &self.shared.name
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_reader_sees_the_newest_value() {
+        let (mut w, r) = seqlock("feedback", 7u32);
+        let r2 = r.clone();
+        assert_eq!(r.read(), 7);
+        assert_eq!(w.version(), 0);
+        for i in 1..=10 {
+            w.publish(i);
+        }
+        assert_eq!((r.read(), r2.read()), (10, 10));
+        assert_eq!(r.version(), 10);
+        w.publish_with(|v| *v += 5);
+        assert_eq!(w.value(), 15);
+        assert_eq!(r2.try_read(), Some(15));
+    }
+
+    #[test]
+    fn a_reader_that_preempts_the_writer_mid_write_gets_the_previous_value_at_once() {
+        let (mut w, r) = seqlock("status", (1u64, 1u64));
+        w.publish((2, 2));
+        // The writer is interrupted between marking its slot and publishing it.
+        let next = w.begin();
+        // SAFETY: test of the protocol: half a value in the slot being written.
+        unsafe { (*w.slot_value(next)).as_mut_ptr().cast::<u64>().write(3) };
+        assert_eq!(
+            r.try_read(),
+            Some((2, 2)),
+            "the newest complete value, first try"
+        );
+        // SAFETY: as above, the rest of the value.
+        unsafe {
+            (*w.slot_value(next))
+                .as_mut_ptr()
+                .cast::<u64>()
+                .add(1)
+                .write(3)
+        };
+        w.commit(next);
+        assert_eq!(r.try_read(), Some((3, 3)));
+    }
+
+    #[test]
+    fn values_are_never_torn_across_threads() {
+        let (mut w, r) = seqlock("pair", [0u64; 8]);
+        let readers: Vec<_> = (0..2)
+            .map(|_| {
+                let r = r.clone();
+                std::thread::spawn(move || {
+                    let mut last = 0;
+                    while last < 200_000 {
+                        let v = r.read();
+                        assert!(v.iter().all(|&x| x == v[0]), "torn value {v:?}");
+                        assert!(v[0] >= last, "went back in time");
+                        last = v[0];
+                    }
+                })
+            })
+            .collect();
+        for i in 1..=200_000u64 {
+            w.publish([i; 8]);
+        }
+        for t in readers {
+            t.join().unwrap();
+        }
+    }
+}
