@@ -59,6 +59,9 @@ pub(crate) struct Piece {
     pub straight: bool,
     /// A corner blend (as opposed to a line, arc or smoothing span).
     pub corner_blend: bool,
+    /// Speed ceiling from a dense analysis of the curve by the builder (arc corner blends,
+    /// whose curvature change peaks between the velocity-limit samples); infinite otherwise.
+    pub v_cap: f64,
     pub ns: usize,
     pub smp: [Sample; NS_MAX + 1],
     /// Braking curve (maximal speed) at the samples.
@@ -128,6 +131,7 @@ impl Piece {
             dwell: 0.0,
             straight,
             corner_blend: false,
+            v_cap: f64::INFINITY,
             ns: if straight { 1 } else { NS_MAX },
             smp: [Sample::default(); NS_MAX + 1],
             w: [0.0; NS_MAX + 1],
@@ -242,7 +246,7 @@ impl Piece {
                 k: kv,
                 kp,
                 v_axis,
-                v_curve,
+                v_curve: v_curve.min(self.v_cap),
                 t_xyz: norm_xyz(&t),
             };
         }

@@ -1,0 +1,533 @@
+//! G64 P corners where an arc or helix meets a line or another arc.
+//!
+//! Both neighbours are trimmed by the same length `d` next to the corner (an arc by angle,
+//! so it stays an exact helix), and a quintic joins the two trim points matching position,
+//! tangent and curvature vector on both sides (derivatives `L·T` and `L²·K` for a common
+//! parameter length `L`): the path is curvature-continuous (G2) and the curvature at each
+//! end of the blend is its neighbour's (the arc's, or zero on a line). `d` is the largest
+//! (up to half of a line, 45 % of an arc and half a radian of its turn) whose blend stays
+//! within P of the programmed path, i.e. of the two neighbours up to the corner, with the
+//! distance measured to the exact segment and helix. A few parameter lengths are tried and
+//! the one with the highest speed limit (centripetal acceleration and curvature change of
+//! every axis) is kept.
+
+use super::{Builder, MIN_BLEND_SPEED, MIN_BLEND_SPEED_SHARE, Prim, State, V_RAPID_REF};
+use crate::axes::{AXES, AxisVec, add_scaled, dot, norm, scale, sub};
+use crate::geometry::{ArcMap, Helix, Shape, arc_derivs, quintic};
+use crate::limits::Lim;
+use crate::piece::{JERK_SHARE_CURVATURE_BLEND, Piece};
+
+/// Parameter lengths tried, relative to the chord between the trim points.
+const L_FACTORS: [f64; 3] = [1.0, 1.25, 1.5];
+/// Sample intervals of a blend for its deviation, speed estimate and soft limits.
+const NSAMP: usize = 32;
+/// Largest share of an arc trimmed at one end (the rest stays a piece of its own).
+const ARC_TRIM_MAX: f64 = 0.45;
+/// Largest turn trimmed from an arc (rad): the quintic follows the arc's curvature over a
+/// moderate turn only.
+const ARC_TRIM_ANGLE: f64 = 0.5;
+/// The measured deviation stays this much (relative) below P: the refined sampling finds
+/// the peak to far better than that.
+const DEV_MARGIN: f64 = 1e-3;
+/// Smallest |dp/du| of a blend relative to `L` (a blend that nearly stops is refused).
+const MIN_PARAM_SPEED: f64 = 0.1;
+/// Pieces a blend is emitted as.
+const BLEND_PIECES: usize = 4;
+/// Iterations of the search for `d` per parameter length.
+const D_ITER: usize = 12;
+
+/// The programmed path between a trim point and the corner.
+#[derive(Debug, Clone, Copy)]
+enum Near {
+    Seg { a: AxisVec, b: AxisVec },
+    Arc { h: Helix, lo: f64, hi: f64 },
+}
+
+/// One neighbour trimmed by `d`: the state at the trim point, its helix parameter (arcs),
+/// and the programmed part from there to the corner.
+#[derive(Debug, Clone, Copy)]
+struct Trim {
+    st: State,
+    u: f64,
+    near: Near,
+}
+
+/// A blend found for a corner.
+#[derive(Debug, Clone, Copy)]
+struct ArcBlend {
+    shape: Shape,
+    from: Trim,
+    to: Trim,
+    /// Trim length on both sides.
+    d: f64,
+    /// Largest distance from the programmed path, as measured.
+    deviation: f64,
+    /// Speed limit estimated from the curvature and its change along the blend...
+    speed: f64,
+    /// ... and at each sample.
+    speeds: [f64; NSAMP + 1],
+}
+
+impl Builder {
+    /// Rounds the corner between `prev` (whose remaining part starts at `st` if a line)
+    /// and `cur` within `tol`, emitting `prev` up to the blend and the blend; returns `cur`
+    /// as it remains after the blend. None (nothing emitted) when the corner must stop:
+    /// no blend within the tolerance, one leaving the soft limits, or one slower than the
+    /// threshold line corners use.
+    pub(super) fn arc_corner(
+        &mut self,
+        prev: &Prim,
+        st: Option<State>,
+        cur: &Prim,
+        tol: f64,
+        lim: &Lim,
+        out: &mut Vec<Piece>,
+    ) -> Option<(Prim, Option<State>)> {
+        let bl = solve(prev, st.as_ref(), cur, tol, lim)?;
+        for k in 0..=NSAMP {
+            let p = bl.shape.pos(k as f64 / NSAMP as f64);
+            for i in 0..AXES {
+                if lim.present[i] && (p[i] < lim.min[i] || p[i] > lim.max[i]) {
+                    return None;
+                }
+            }
+        }
+        let feed = feed_of(prev).min(feed_of(cur));
+        if bl.speed < (MIN_BLEND_SPEED_SHARE * feed.min(V_RAPID_REF)).max(MIN_BLEND_SPEED) {
+            return None;
+        }
+        match prev {
+            Prim::Line(lp) => {
+                let start = st.unwrap_or(State {
+                    p: lp.a,
+                    t: lp.dir,
+                    k: [0.0; AXES],
+                });
+                let end = State {
+                    p: bl.from.st.p,
+                    t: lp.dir,
+                    k: [0.0; AXES],
+                };
+                for pc in self
+                    .span_or_exceed(lp, &start, &end, tol, lim)
+                    .into_iter()
+                    .flatten()
+                {
+                    out.push(pc);
+                }
+            }
+            Prim::Arc {
+                h,
+                a,
+                u0,
+                feed,
+                line,
+                ..
+            } => out.push(Piece::new(
+                Shape::Helix(h.sub(*u0, bl.from.u)),
+                *a,
+                bl.from.st.p,
+                *feed,
+                false,
+                *line,
+            )),
+        }
+        // The blend goes out in parts, each with its own velocity-limit samples and a ceiling
+        // from the dense estimate over its range: the curvature change of a short blend
+        // peaks between the planner's five samples of a piece.
+        let Shape::Poly { c } = bl.shape else {
+            return None;
+        };
+        let per = NSAMP / BLEND_PIECES;
+        let mut p_start = bl.from.st.p;
+        for j in 0..BLEND_PIECES {
+            let (ua, ub) = (
+                (j * per) as f64 / NSAMP as f64,
+                ((j + 1) * per) as f64 / NSAMP as f64,
+            );
+            let p_end = if j + 1 == BLEND_PIECES {
+                bl.to.st.p
+            } else {
+                bl.shape.pos(ub)
+            };
+            let mut b = Piece::new(
+                poly_sub(&c, ua, ub),
+                p_start,
+                p_end,
+                feed,
+                false,
+                line_of(prev),
+            );
+            b.corner_blend = true;
+            b.v_cap = bl.speeds[j * per..=(j + 1) * per]
+                .iter()
+                .fold(f64::INFINITY, |m, v| m.min(*v));
+            out.push(b);
+            p_start = p_end;
+        }
+        self.stats.blends += 1;
+        Some(match *cur {
+            Prim::Line(lc) => (
+                Prim::Line(lc),
+                Some(State {
+                    p: bl.to.st.p,
+                    t: lc.dir,
+                    k: [0.0; AXES],
+                }),
+            ),
+            Prim::Arc {
+                h,
+                b,
+                feed,
+                mode,
+                line,
+                ..
+            } => (
+                Prim::Arc {
+                    h,
+                    a: bl.to.st.p,
+                    u0: bl.to.u,
+                    b,
+                    feed,
+                    mode,
+                    line,
+                },
+                None,
+            ),
+        })
+    }
+}
+
+fn feed_of(p: &Prim) -> f64 {
+    match p {
+        Prim::Line(l) => l.feed,
+        Prim::Arc { feed, .. } => *feed,
+    }
+}
+
+fn line_of(p: &Prim) -> u32 {
+    match p {
+        Prim::Line(l) => l.line,
+        Prim::Arc { line, .. } => *line,
+    }
+}
+
+/// Length of a whole helix.
+fn helix_len(h: &Helix) -> f64 {
+    let sh = Shape::Helix(*h);
+    if h.dr == 0.0 {
+        sh.speed(0.0)
+    } else {
+        ArcMap::table(&sh).1
+    }
+}
+
+/// Longest trim of `prim` at its end (`at_end`) or its start.
+fn max_trim(prim: &Prim, st: Option<&State>, at_end: bool) -> f64 {
+    match prim {
+        Prim::Line(l) => {
+            let left = if at_end {
+                norm(&sub(&l.b, &st.map_or(l.a, |s| s.p)))
+            } else {
+                l.len
+            };
+            (0.5 * l.len).min(left)
+        }
+        Prim::Arc { h, .. } => {
+            // A start trim takes at most 45 %, so an end trim of 45 % leaves a tenth.
+            let u = if at_end { 1.0 } else { 0.0 };
+            let (_, k, _) = arc_derivs(&Shape::Helix(*h).eval(u));
+            let kn = norm(&k);
+            let d = ARC_TRIM_MAX * helix_len(h);
+            if kn > 0.0 {
+                d.min(ARC_TRIM_ANGLE / kn)
+            } else {
+                d
+            }
+        }
+    }
+}
+
+/// `prim` trimmed by `d` at its end or start.
+fn trim(prim: &Prim, d: f64, at_end: bool) -> Trim {
+    match prim {
+        Prim::Line(l) => {
+            let (p, near) = if at_end {
+                let p = add_scaled(&l.b, &l.dir, -d);
+                (p, Near::Seg { a: p, b: l.b })
+            } else {
+                let p = add_scaled(&l.a, &l.dir, d);
+                (p, Near::Seg { a: l.a, b: p })
+            };
+            Trim {
+                st: State {
+                    p,
+                    t: l.dir,
+                    k: [0.0; AXES],
+                },
+                u: 0.0,
+                near,
+            }
+        }
+        Prim::Arc { h, .. } => {
+            let du = d / helix_len(h);
+            let (u, near) = if at_end {
+                let u = 1.0 - du;
+                (
+                    u,
+                    Near::Arc {
+                        h: *h,
+                        lo: u,
+                        hi: 1.0,
+                    },
+                )
+            } else {
+                (
+                    du,
+                    Near::Arc {
+                        h: *h,
+                        lo: 0.0,
+                        hi: du,
+                    },
+                )
+            };
+            let dv = Shape::Helix(*h).eval(u);
+            let (t, k, _) = arc_derivs(&dv);
+            Trim {
+                st: State { p: dv.p, t, k },
+                u,
+                near,
+            }
+        }
+    }
+}
+
+/// Distance of `x` from the programmed part `n` (exact for segments; for a helix the
+/// nearest point in the plane, refined by Newton steps on the squared distance for the
+/// rise, radius change and other axes; never below the true distance).
+fn dist_near(x: &AxisVec, n: &Near) -> f64 {
+    match n {
+        Near::Seg { a, b } => {
+            let d = sub(b, a);
+            let w = sub(x, a);
+            let l2 = dot(&d, &d);
+            let t = if l2 > 0.0 {
+                (dot(&w, &d) / l2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            norm(&add_scaled(&w, &d, -t))
+        }
+        Near::Arc { h, lo, hi } => {
+            let sh = Shape::Helix(*h);
+            let q = [x[0] - h.centre[0], x[1] - h.centre[1], x[2] - h.centre[2]];
+            let a1 = q[0] * h.e1[0] + q[1] * h.e1[1] + q[2] * h.e1[2];
+            let a2 = q[0] * h.e2[0] + q[1] * h.e2[1] + q[2] * h.e2[2];
+            let (tlo, thi) = (h.sweep * lo, h.sweep * hi);
+            let mid = 0.5 * (tlo + thi);
+            let tau = 2.0 * std::f64::consts::PI;
+            let dphi = (a2.atan2(a1) - mid + 0.5 * tau).rem_euclid(tau) - 0.5 * tau;
+            let mut u = (mid + dphi.clamp(tlo - mid, thi - mid)) / h.sweep;
+            for _ in 0..4 {
+                let dv = sh.eval(u);
+                let r = sub(&dv.p, x);
+                let g = dot(&r, &dv.d1);
+                let hs = dot(&dv.d1, &dv.d1) + dot(&r, &dv.d2);
+                if !(hs > 0.0) {
+                    break;
+                }
+                u = (u - g / hs).clamp(*lo, *hi);
+            }
+            [u, *lo, *hi]
+                .iter()
+                .map(|v| norm(&sub(x, &sh.pos(*v))))
+                .fold(f64::INFINITY, f64::min)
+        }
+    }
+}
+
+/// Largest distance of the blend from the programmed path near the corner: samples, then
+/// a golden-section search around the largest.
+fn deviation(shape: &Shape, a: &Near, b: &Near) -> f64 {
+    let f = |u: f64| {
+        let p = shape.pos(u);
+        dist_near(&p, a).min(dist_near(&p, b))
+    };
+    let h = 1.0 / NSAMP as f64;
+    let (mut km, mut worst) = (0, 0.0f64);
+    for k in 0..=NSAMP {
+        let v = f(k as f64 * h);
+        if v > worst {
+            worst = v;
+            km = k;
+        }
+    }
+    if km == 0 || km == NSAMP {
+        return worst;
+    }
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut x0, mut x3) = ((km - 1) as f64 * h, (km + 1) as f64 * h);
+    let mut x1 = x3 - g * (x3 - x0);
+    let mut x2 = x0 + g * (x3 - x0);
+    let (mut f1, mut f2) = (f(x1), f(x2));
+    for _ in 0..24 {
+        if f1 > f2 {
+            x3 = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = x3 - g * (x3 - x0);
+            f1 = f(x1);
+        } else {
+            x0 = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = x0 + g * (x3 - x0);
+            f2 = f(x2);
+        }
+    }
+    worst.max(f1).max(f2)
+}
+
+/// Speed limit at each sample of the blend from each axis's centripetal acceleration and
+/// curvature change (the shares the planner uses on corner blends); None when the curve is
+/// not regular enough (|dp/du| below a tenth of `l`).
+fn blend_speed(shape: &Shape, l: f64, lim: &Lim) -> Option<[f64; NSAMP + 1]> {
+    let mut out = [f64::INFINITY; NSAMP + 1];
+    for (k, v) in out.iter_mut().enumerate() {
+        let dv = shape.eval(k as f64 / NSAMP as f64);
+        if !(norm(&dv.d1) >= MIN_PARAM_SPEED * l) {
+            return None;
+        }
+        let (_, kv, kp) = arc_derivs(&dv);
+        for i in 0..AXES {
+            if !lim.present[i] {
+                continue;
+            }
+            if kv[i] != 0.0 {
+                *v = v.min((lim.a[i] / kv[i].abs()).sqrt());
+            }
+            if kp[i] != 0.0 {
+                *v = v.min((JERK_SHARE_CURVATURE_BLEND * lim.j[i] / kp[i].abs()).cbrt());
+            }
+        }
+    }
+    Some(out)
+}
+
+/// The part of the polynomial `c` between parameters `ua` and `ub`, reparametrised to
+/// 0..1 (Taylor coefficients at `ua`, scaled): the same curve.
+fn poly_sub(c: &[AxisVec; 6], ua: f64, ub: f64) -> Shape {
+    const BINOM: [[f64; 6]; 6] = [
+        [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0, 0.0, 0.0, 0.0],
+        [1.0, 2.0, 1.0, 0.0, 0.0, 0.0],
+        [1.0, 3.0, 3.0, 1.0, 0.0, 0.0],
+        [1.0, 4.0, 6.0, 4.0, 1.0, 0.0],
+        [1.0, 5.0, 10.0, 10.0, 5.0, 1.0],
+    ];
+    let h = ub - ua;
+    let mut out = [[0.0; AXES]; 6];
+    for i in 0..AXES {
+        let mut hk = 1.0;
+        for k in 0..6 {
+            let mut acc = 0.0;
+            for m in (k..6).rev() {
+                acc = acc * ua + BINOM[m][k] * c[m][i];
+            }
+            out[k][i] = acc * hk;
+            hk *= h;
+        }
+    }
+    Shape::Poly { c: out }
+}
+
+/// The blend trimming both neighbours by `d`, with parameter length `f`·chord.
+fn candidate(prev: &Prim, cur: &Prim, d: f64, f: f64, lim: &Lim) -> Option<ArcBlend> {
+    let from = trim(prev, d, true);
+    let to = trim(cur, d, false);
+    let (s0, s1) = (&from.st, &to.st);
+    let l = f * norm(&sub(&s1.p, &s0.p));
+    if !(l > 0.0) {
+        return None;
+    }
+    let shape = quintic(
+        &s0.p,
+        &scale(&s0.t, l),
+        &scale(&s0.k, l * l),
+        &s1.p,
+        &scale(&s1.t, l),
+        &scale(&s1.k, l * l),
+    );
+    let speeds = blend_speed(&shape, l, lim)?;
+    Some(ArcBlend {
+        shape,
+        from,
+        to,
+        d,
+        deviation: deviation(&shape, &from.near, &to.near),
+        speed: speeds.iter().fold(f64::INFINITY, |m, v| m.min(*v)),
+        speeds,
+    })
+}
+
+/// The blend of the corner between `prev` and `cur` within `tol`: for each parameter
+/// length the largest trim found within the tolerance, then the fastest of those.
+fn solve(prev: &Prim, st: Option<&State>, cur: &Prim, tol: f64, lim: &Lim) -> Option<ArcBlend> {
+    let d_max = max_trim(prev, st, true).min(max_trim(cur, None, false));
+    if !(d_max > 1e-9 && tol > 0.0) {
+        return None;
+    }
+    let target = tol * (1.0 - DEV_MARGIN);
+    let mut best: Option<ArcBlend> = None;
+    for f in L_FACTORS {
+        // The deviation grows about linearly with d: secant steps towards the target,
+        // bracketed by the largest d found within it and the smallest found beyond it.
+        let mut ok: Option<ArcBlend> = None;
+        let mut d_bad = f64::INFINITY;
+        let mut d = d_max;
+        for _ in 0..D_ITER {
+            let c = candidate(prev, cur, d, f, lim);
+            match c {
+                Some(c) if c.deviation <= target => {
+                    if ok.is_none_or(|o| c.d > o.d) {
+                        ok = Some(c);
+                    }
+                    if d >= d_max || c.deviation >= 0.97 * target {
+                        break;
+                    }
+                    let next = (d * 0.99 * target / c.deviation.max(1e-300)).min(d_max);
+                    d = if d_bad.is_finite() {
+                        next.min(0.5 * (d + d_bad))
+                    } else {
+                        next
+                    };
+                }
+                _ => {
+                    d_bad = d_bad.min(d);
+                    let lo = ok.map_or(0.0, |o| o.d);
+                    let next = match c {
+                        Some(c) => d * (0.99 * target / c.deviation).clamp(0.05, 0.95),
+                        None => 0.5 * d,
+                    };
+                    d = if lo > 0.0 {
+                        next.max(0.5 * (lo + d))
+                    } else {
+                        next
+                    };
+                }
+            }
+            if d < 1e-9 {
+                break;
+            }
+        }
+        if let Some(o) = ok {
+            if best.is_none_or(|b| o.speed > b.speed) {
+                best = Some(o);
+            }
+        }
+    }
+    best
+}
+
+#[cfg(test)]
+mod tests;
