@@ -59,9 +59,10 @@ pub(crate) struct Piece {
     pub straight: bool,
     /// A corner blend (as opposed to a line, arc or smoothing span).
     pub corner_blend: bool,
-    /// Speed ceiling from a dense analysis of the curve by the builder (arc corner blends,
-    /// whose curvature change peaks between the velocity-limit samples); infinite otherwise.
-    pub v_cap: f64,
+    /// Ceilings of the velocity-limit samples from a dense analysis of the curve by the
+    /// builder (arc corner blends, whose curvature change peaks between the samples);
+    /// infinite otherwise.
+    pub v_cap: [f64; NS_MAX + 1],
     pub ns: usize,
     pub smp: [Sample; NS_MAX + 1],
     /// Braking curve (maximal speed) at the samples.
@@ -131,7 +132,7 @@ impl Piece {
             dwell: 0.0,
             straight,
             corner_blend: false,
-            v_cap: f64::INFINITY,
+            v_cap: [f64::INFINITY; NS_MAX + 1],
             ns: if straight { 1 } else { NS_MAX },
             smp: [Sample::default(); NS_MAX + 1],
             w: [0.0; NS_MAX + 1],
@@ -246,7 +247,7 @@ impl Piece {
                 k: kv,
                 kp,
                 v_axis,
-                v_curve: v_curve.min(self.v_cap),
+                v_curve: v_curve.min(self.v_cap[k]),
                 t_xyz: norm_xyz(&t),
             };
         }

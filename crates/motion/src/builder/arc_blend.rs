@@ -13,14 +13,16 @@
 
 use super::{Builder, MIN_BLEND_SPEED, MIN_BLEND_SPEED_SHARE, Prim, State, V_RAPID_REF};
 use crate::axes::{AXES, AxisVec, add_scaled, dot, norm, scale, sub};
-use crate::geometry::{ArcMap, Helix, Shape, arc_derivs, quintic};
+use crate::geometry::{ArcMap, Deriv, Helix, Shape, arc_derivs, quintic};
 use crate::limits::Lim;
-use crate::piece::{JERK_SHARE_CURVATURE_BLEND, Piece};
+use crate::piece::{JERK_SHARE_CURVATURE_BLEND, NS_MAX, Piece};
 
 /// Parameter lengths tried, relative to the chord between the trim points.
 const L_FACTORS: [f64; 3] = [1.0, 1.25, 1.5];
-/// Sample intervals of a blend for its deviation, speed estimate and soft limits.
+/// Sample intervals of a blend for its speed estimate and soft limits...
 const NSAMP: usize = 32;
+/// ... and for its deviation.
+const NDEV: usize = 64;
 /// Largest share of an arc trimmed at one end (the rest stays a piece of its own).
 const ARC_TRIM_MAX: f64 = 0.45;
 /// Largest turn trimmed from an arc (rad): the quintic follows the arc's curvature over a
@@ -31,8 +33,6 @@ const ARC_TRIM_ANGLE: f64 = 0.5;
 const DEV_MARGIN: f64 = 1e-3;
 /// Smallest |dp/du| of a blend relative to `L` (a blend that nearly stops is refused).
 const MIN_PARAM_SPEED: f64 = 0.1;
-/// Pieces a blend is emitted as.
-const BLEND_PIECES: usize = 4;
 /// Iterations of the search for `d` per parameter length.
 const D_ITER: usize = 12;
 
@@ -62,10 +62,8 @@ struct ArcBlend {
     d: f64,
     /// Largest distance from the programmed path, as measured.
     deviation: f64,
-    /// Speed limit estimated from the curvature and its change along the blend...
+    /// Speed limit estimated from the curvature and its change along the blend.
     speed: f64,
-    /// ... and at each sample.
-    speeds: [f64; NSAMP + 1],
 }
 
 impl Builder {
@@ -132,39 +130,19 @@ impl Builder {
                 *line,
             )),
         }
-        // The blend goes out in parts, each with its own velocity-limit samples and a ceiling
-        // from the dense estimate over its range: the curvature change of a short blend
-        // peaks between the planner's five samples of a piece.
-        let Shape::Poly { c } = bl.shape else {
-            return None;
-        };
-        let per = NSAMP / BLEND_PIECES;
-        let mut p_start = bl.from.st.p;
-        for j in 0..BLEND_PIECES {
-            let (ua, ub) = (
-                (j * per) as f64 / NSAMP as f64,
-                ((j + 1) * per) as f64 / NSAMP as f64,
-            );
-            let p_end = if j + 1 == BLEND_PIECES {
-                bl.to.st.p
-            } else {
-                bl.shape.pos(ub)
-            };
-            let mut b = Piece::new(
-                poly_sub(&c, ua, ub),
-                p_start,
-                p_end,
-                feed,
-                false,
-                line_of(prev),
-            );
-            b.corner_blend = true;
-            b.v_cap = bl.speeds[j * per..=(j + 1) * per]
-                .iter()
-                .fold(f64::INFINITY, |m, v| m.min(*v));
-            out.push(b);
-            p_start = p_end;
-        }
+        // The planner samples a piece's speed limit at five points, which miss the peak of
+        // the curvature change of a short blend: a dense estimate caps each sample.
+        let mut b = Piece::new(
+            bl.shape,
+            bl.from.st.p,
+            bl.to.st.p,
+            feed,
+            false,
+            line_of(prev),
+        );
+        b.corner_blend = true;
+        b.v_cap = sample_caps(&b, lim);
+        out.push(b);
         self.stats.blends += 1;
         Some(match *cur {
             Prim::Line(lc) => (
@@ -347,98 +325,104 @@ fn dist_near(x: &AxisVec, n: &Near) -> f64 {
 }
 
 /// Largest distance of the blend from the programmed path near the corner: samples, then
-/// a golden-section search around the largest.
+/// a golden-section search around every local maximum among them (the distance has a
+/// narrow peak near the corner on long blends, and may have more than one).
 fn deviation(shape: &Shape, a: &Near, b: &Near) -> f64 {
     let f = |u: f64| {
         let p = shape.pos(u);
         dist_near(&p, a).min(dist_near(&p, b))
     };
-    let h = 1.0 / NSAMP as f64;
-    let (mut km, mut worst) = (0, 0.0f64);
-    for k in 0..=NSAMP {
-        let v = f(k as f64 * h);
-        if v > worst {
-            worst = v;
-            km = k;
-        }
+    let h = 1.0 / NDEV as f64;
+    let mut y = [0.0f64; NDEV + 1];
+    for (k, v) in y.iter_mut().enumerate() {
+        *v = f(k as f64 * h);
     }
-    if km == 0 || km == NSAMP {
-        return worst;
-    }
+    let mut worst = y.iter().fold(0.0f64, |m, v| m.max(*v));
     let g = 0.5 * (5f64.sqrt() - 1.0);
-    let (mut x0, mut x3) = ((km - 1) as f64 * h, (km + 1) as f64 * h);
-    let mut x1 = x3 - g * (x3 - x0);
-    let mut x2 = x0 + g * (x3 - x0);
-    let (mut f1, mut f2) = (f(x1), f(x2));
-    for _ in 0..24 {
-        if f1 > f2 {
-            x3 = x2;
-            x2 = x1;
-            f2 = f1;
-            x1 = x3 - g * (x3 - x0);
-            f1 = f(x1);
-        } else {
-            x0 = x1;
-            x1 = x2;
-            f1 = f2;
-            x2 = x0 + g * (x3 - x0);
-            f2 = f(x2);
+    for k in 1..NDEV {
+        if !(y[k] >= y[k - 1] && y[k] >= y[k + 1] && y[k] > 0.0) {
+            continue;
         }
+        let (mut x0, mut x3) = ((k - 1) as f64 * h, (k + 1) as f64 * h);
+        let mut x1 = x3 - g * (x3 - x0);
+        let mut x2 = x0 + g * (x3 - x0);
+        let (mut f1, mut f2) = (f(x1), f(x2));
+        for _ in 0..24 {
+            if f1 > f2 {
+                x3 = x2;
+                x2 = x1;
+                f2 = f1;
+                x1 = x3 - g * (x3 - x0);
+                f1 = f(x1);
+            } else {
+                x0 = x1;
+                x1 = x2;
+                f1 = f2;
+                x2 = x0 + g * (x3 - x0);
+                f2 = f(x2);
+            }
+        }
+        worst = worst.max(f1).max(f2);
     }
-    worst.max(f1).max(f2)
+    worst
 }
 
-/// Speed limit at each sample of the blend from each axis's centripetal acceleration and
-/// curvature change (the shares the planner uses on corner blends); None when the curve is
-/// not regular enough (|dp/du| below a tenth of `l`).
-fn blend_speed(shape: &Shape, l: f64, lim: &Lim) -> Option<[f64; NSAMP + 1]> {
-    let mut out = [f64::INFINITY; NSAMP + 1];
-    for (k, v) in out.iter_mut().enumerate() {
+/// Speed limit at one point of a curve from each axis's centripetal acceleration and
+/// curvature change (the shares the planner uses on corner blends).
+fn speed_at(d: &Deriv, lim: &Lim) -> f64 {
+    let (_, kv, kp) = arc_derivs(d);
+    let mut v = f64::INFINITY;
+    for i in 0..AXES {
+        if !lim.present[i] {
+            continue;
+        }
+        if kv[i] != 0.0 {
+            v = v.min((lim.a[i] / kv[i].abs()).sqrt());
+        }
+        if kp[i] != 0.0 {
+            v = v.min((JERK_SHARE_CURVATURE_BLEND * lim.j[i] / kp[i].abs()).cbrt());
+        }
+    }
+    v
+}
+
+/// Lowest speed limit along the blend; None when the curve is not regular enough
+/// (|dp/du| below a tenth of `l`).
+fn blend_speed(shape: &Shape, l: f64, lim: &Lim) -> Option<f64> {
+    let mut v = f64::INFINITY;
+    for k in 0..=NSAMP {
         let dv = shape.eval(k as f64 / NSAMP as f64);
         if !(norm(&dv.d1) >= MIN_PARAM_SPEED * l) {
             return None;
         }
-        let (_, kv, kp) = arc_derivs(&dv);
-        for i in 0..AXES {
-            if !lim.present[i] {
-                continue;
-            }
-            if kv[i] != 0.0 {
-                *v = v.min((lim.a[i] / kv[i].abs()).sqrt());
-            }
-            if kp[i] != 0.0 {
-                *v = v.min((JERK_SHARE_CURVATURE_BLEND * lim.j[i] / kp[i].abs()).cbrt());
-            }
-        }
+        v = v.min(speed_at(&dv, lim));
     }
-    Some(out)
+    Some(v)
 }
 
-/// The part of the polynomial `c` between parameters `ua` and `ub`, reparametrised to
-/// 0..1 (Taylor coefficients at `ua`, scaled): the same curve.
-fn poly_sub(c: &[AxisVec; 6], ua: f64, ub: f64) -> Shape {
-    const BINOM: [[f64; 6]; 6] = [
-        [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-        [1.0, 1.0, 0.0, 0.0, 0.0, 0.0],
-        [1.0, 2.0, 1.0, 0.0, 0.0, 0.0],
-        [1.0, 3.0, 3.0, 1.0, 0.0, 0.0],
-        [1.0, 4.0, 6.0, 4.0, 1.0, 0.0],
-        [1.0, 5.0, 10.0, 10.0, 5.0, 1.0],
-    ];
-    let h = ub - ua;
-    let mut out = [[0.0; AXES]; 6];
-    for i in 0..AXES {
-        let mut hk = 1.0;
-        for k in 0..6 {
-            let mut acc = 0.0;
-            for m in (k..6).rev() {
-                acc = acc * ua + BINOM[m][k] * c[m][i];
-            }
-            out[k][i] = acc * hk;
-            hk *= h;
+/// Ceilings for the piece's velocity-limit samples: the planner takes the lower of two
+/// neighbouring samples over the interval between them, so each sample gets the lowest
+/// dense limit over the intervals it bounds.
+fn sample_caps(b: &Piece, lim: &Lim) -> [f64; NS_MAX + 1] {
+    let sub = NSAMP / b.ns;
+    let h = b.len / b.ns as f64;
+    let mut interval = [f64::INFINITY; NS_MAX];
+    for (j, iv) in interval.iter_mut().enumerate().take(b.ns) {
+        for m in 0..=sub {
+            let s = h * (j as f64 + m as f64 / sub as f64);
+            *iv = iv.min(speed_at(&b.shape.eval(b.map.u(s)), lim));
         }
     }
-    Shape::Poly { c: out }
+    let mut caps = [f64::INFINITY; NS_MAX + 1];
+    for (k, c) in caps.iter_mut().enumerate().take(b.ns + 1) {
+        if k > 0 {
+            *c = c.min(interval[k - 1]);
+        }
+        if k < b.ns {
+            *c = c.min(interval[k]);
+        }
+    }
+    caps
 }
 
 /// The blend trimming both neighbours by `d`, with parameter length `f`·chord.
@@ -458,15 +442,14 @@ fn candidate(prev: &Prim, cur: &Prim, d: f64, f: f64, lim: &Lim) -> Option<ArcBl
         &scale(&s1.t, l),
         &scale(&s1.k, l * l),
     );
-    let speeds = blend_speed(&shape, l, lim)?;
+    let speed = blend_speed(&shape, l, lim)?;
     Some(ArcBlend {
         shape,
         from,
         to,
         d,
         deviation: deviation(&shape, &from.near, &to.near),
-        speed: speeds.iter().fold(f64::INFINITY, |m, v| m.min(*v)),
-        speeds,
+        speed,
     })
 }
 
