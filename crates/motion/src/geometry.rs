@@ -71,7 +71,7 @@ impl Shape {
     pub fn pos(&self, u: f64) -> AxisVec {
         match self {
             Shape::Line { start, dir } => add_scaled(start, dir, u),
-            Shape::Helix(h) => h.eval(u).p,
+            Shape::Helix(h) => h.pos(u),
             Shape::Poly { c } => {
                 let mut p = [0.0; AXES];
                 for i in 0..AXES {
@@ -111,6 +111,20 @@ impl Helix {
             h.other_delta[i] = self.other_delta[i] * du;
         }
         h
+    }
+
+    fn pos(&self, u: f64) -> AxisVec {
+        let (s, c) = (self.sweep * u).sin_cos();
+        let r = self.r0 + self.dr * u;
+        let mut p = [0.0; AXES];
+        for i in 0..3 {
+            p[i] =
+                self.centre[i] + r * (c * self.e1[i] + s * self.e2[i]) + self.rise * u * self.n[i];
+        }
+        for i in 3..AXES {
+            p[i] = self.other0[i] + self.other_delta[i] * u;
+        }
+        p
     }
 
     fn eval(&self, u: f64) -> Deriv {

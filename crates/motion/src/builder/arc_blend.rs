@@ -19,6 +19,8 @@ use crate::piece::{JERK_SHARE_CURVATURE_BLEND, NS_MAX, Piece};
 
 /// Parameter lengths tried, relative to the chord between the trim points.
 const L_FACTORS: [f64; 3] = [1.0, 1.25, 1.5];
+/// Blends slower than this share of the fastest found are not chosen for a shorter time.
+const SPEED_PREFERENCE: f64 = 0.9;
 /// Sample intervals of a blend for its speed estimate and soft limits...
 const NSAMP: usize = 32;
 /// ... and for its deviation.
@@ -81,7 +83,8 @@ impl Builder {
         lim: &Lim,
         out: &mut Vec<Piece>,
     ) -> Option<(Prim, Option<State>)> {
-        let bl = solve(prev, st.as_ref(), cur, tol, lim)?;
+        let feed = feed_of(prev).min(feed_of(cur)).min(V_RAPID_REF);
+        let bl = solve(prev, st.as_ref(), cur, tol, feed, lim)?;
         for k in 0..=NSAMP {
             let p = bl.shape.pos(k as f64 / NSAMP as f64);
             for i in 0..AXES {
@@ -90,8 +93,7 @@ impl Builder {
                 }
             }
         }
-        let feed = feed_of(prev).min(feed_of(cur));
-        if bl.speed < (MIN_BLEND_SPEED_SHARE * feed.min(V_RAPID_REF)).max(MIN_BLEND_SPEED) {
+        if bl.speed < min_blend_speed(feed) {
             return None;
         }
         match prev {
@@ -136,7 +138,7 @@ impl Builder {
             bl.shape,
             bl.from.st.p,
             bl.to.st.p,
-            feed,
+            feed_of(prev).min(feed_of(cur)),
             false,
             line_of(prev),
         );
@@ -174,6 +176,11 @@ impl Builder {
             ),
         })
     }
+}
+
+/// Below this speed limit a blend becomes an exact stop, as line corners do.
+fn min_blend_speed(feed: f64) -> f64 {
+    (MIN_BLEND_SPEED_SHARE * feed.min(V_RAPID_REF)).max(MIN_BLEND_SPEED)
 }
 
 fn feed_of(p: &Prim) -> f64 {
@@ -306,6 +313,11 @@ fn dist_near(x: &AxisVec, n: &Near) -> f64 {
             let tau = 2.0 * std::f64::consts::PI;
             let dphi = (a2.atan2(a1) - mid + 0.5 * tau).rem_euclid(tau) - 0.5 * tau;
             let mut u = (mid + dphi.clamp(tlo - mid, thi - mid)) / h.sweep;
+            if h.rise == 0.0 && h.dr == 0.0 && h.other_delta.iter().all(|v| *v == 0.0) {
+                // A circle: the point at the projection's angle (or the nearer end of the
+                // part) is the nearest.
+                return norm(&sub(x, &sh.pos(u)));
+            }
             for _ in 0..4 {
                 let dv = sh.eval(u);
                 let r = sub(&dv.p, x);
@@ -326,20 +338,26 @@ fn dist_near(x: &AxisVec, n: &Near) -> f64 {
 
 /// Largest distance of the blend from the programmed path near the corner: samples, then
 /// a golden-section search around every local maximum among them (the distance has a
-/// narrow peak near the corner on long blends, and may have more than one).
-fn deviation(shape: &Shape, a: &Near, b: &Near) -> f64 {
+/// narrow peak near the corner on long blends, and may have more than one). `fine`: the
+/// resolution that decides; the coarse one (a quarter of the samples, no search) steers
+/// the search for the trim.
+fn deviation(shape: &Shape, a: &Near, b: &Near, fine: bool) -> f64 {
     let f = |u: f64| {
         let p = shape.pos(u);
         dist_near(&p, a).min(dist_near(&p, b))
     };
-    let h = 1.0 / NDEV as f64;
+    let (n, iters) = if fine { (NDEV, 24) } else { (NDEV / 4, 0) };
+    let h = 1.0 / n as f64;
     let mut y = [0.0f64; NDEV + 1];
-    for (k, v) in y.iter_mut().enumerate() {
+    for (k, v) in y.iter_mut().enumerate().take(n + 1) {
         *v = f(k as f64 * h);
     }
     let mut worst = y.iter().fold(0.0f64, |m, v| m.max(*v));
     let g = 0.5 * (5f64.sqrt() - 1.0);
-    for k in 1..NDEV {
+    for k in 1..n {
+        if iters == 0 {
+            break;
+        }
         if !(y[k] >= y[k - 1] && y[k] >= y[k + 1] && y[k] > 0.0) {
             continue;
         }
@@ -347,7 +365,7 @@ fn deviation(shape: &Shape, a: &Near, b: &Near) -> f64 {
         let mut x1 = x3 - g * (x3 - x0);
         let mut x2 = x0 + g * (x3 - x0);
         let (mut f1, mut f2) = (f(x1), f(x2));
-        for _ in 0..24 {
+        for _ in 0..iters {
             if f1 > f2 {
                 x3 = x2;
                 x2 = x1;
@@ -386,18 +404,24 @@ fn speed_at(d: &Deriv, lim: &Lim) -> f64 {
     v
 }
 
-/// Lowest speed limit along the blend; None when the curve is not regular enough
-/// (|dp/du| below a tenth of `l`).
-fn blend_speed(shape: &Shape, l: f64, lim: &Lim) -> Option<f64> {
+/// Lowest speed limit along the blend over `n` intervals (with `lim`, else 0) and its
+/// length; None when the curve is not regular enough (|dp/du| below a tenth of `l`).
+fn blend_speed(shape: &Shape, l: f64, lim: Option<&Lim>, n: usize) -> Option<(f64, f64)> {
     let mut v = f64::INFINITY;
-    for k in 0..=NSAMP {
-        let dv = shape.eval(k as f64 / NSAMP as f64);
-        if !(norm(&dv.d1) >= MIN_PARAM_SPEED * l) {
+    let mut len = 0.0;
+    for k in 0..=n {
+        let dv = shape.eval(k as f64 / n as f64);
+        let sp = norm(&dv.d1);
+        if !(sp >= MIN_PARAM_SPEED * l) {
             return None;
         }
-        v = v.min(speed_at(&dv, lim));
+        len += if k == 0 || k == n { 0.5 * sp } else { sp };
+        v = match lim {
+            Some(lim) => v.min(speed_at(&dv, lim)),
+            None => 0.0,
+        };
     }
-    Some(v)
+    Some((v, len / n as f64))
 }
 
 /// Ceilings for the piece's velocity-limit samples: the planner takes the lower of two
@@ -425,8 +449,9 @@ fn sample_caps(b: &Piece, lim: &Lim) -> [f64; NS_MAX + 1] {
     caps
 }
 
-/// The blend trimming both neighbours by `d`, with parameter length `f`·chord.
-fn candidate(prev: &Prim, cur: &Prim, d: f64, f: f64, lim: &Lim) -> Option<ArcBlend> {
+/// The blend trimming both neighbours by `d`, with parameter length `f`·chord; its
+/// deviation and speed limit measured finely (`fine`), or its deviation coarsely.
+fn candidate(prev: &Prim, cur: &Prim, d: f64, f: f64, lim: &Lim, fine: bool) -> Option<ArcBlend> {
     let from = trim(prev, d, true);
     let to = trim(cur, d, false);
     let (s0, s1) = (&from.st, &to.st);
@@ -442,34 +467,43 @@ fn candidate(prev: &Prim, cur: &Prim, d: f64, f: f64, lim: &Lim) -> Option<ArcBl
         &scale(&s1.t, l),
         &scale(&s1.k, l * l),
     );
-    let speed = blend_speed(&shape, l, lim)?;
+    let (speed, _) = blend_speed(&shape, l, fine.then_some(lim), NSAMP)?;
     Some(ArcBlend {
         shape,
         from,
         to,
         d,
-        deviation: deviation(&shape, &from.near, &to.near),
+        deviation: deviation(&shape, &from.near, &to.near, fine),
         speed,
     })
 }
 
 /// The blend of the corner between `prev` and `cur` within `tol`: for each parameter
 /// length the largest trim found within the tolerance, then the fastest of those.
-fn solve(prev: &Prim, st: Option<&State>, cur: &Prim, tol: f64, lim: &Lim) -> Option<ArcBlend> {
+fn solve(
+    prev: &Prim,
+    st: Option<&State>,
+    cur: &Prim,
+    tol: f64,
+    feed: f64,
+    lim: &Lim,
+) -> Option<ArcBlend> {
     let d_max = max_trim(prev, st, true).min(max_trim(cur, None, false));
     if !(d_max > 1e-9 && tol > 0.0) {
         return None;
     }
     let target = tol * (1.0 - DEV_MARGIN);
-    let mut best: Option<ArcBlend> = None;
-    for f in L_FACTORS {
+    let v_min = min_blend_speed(feed);
+    // Per parameter length: the blend, the factor, its lowest speed limit and its length.
+    let mut found: [Option<(ArcBlend, f64, f64, f64)>; L_FACTORS.len()] = [None; L_FACTORS.len()];
+    for (slot, f) in found.iter_mut().zip(L_FACTORS) {
         // The deviation grows about linearly with d: secant steps towards the target,
         // bracketed by the largest d found within it and the smallest found beyond it.
         let mut ok: Option<ArcBlend> = None;
         let mut d_bad = f64::INFINITY;
         let mut d = d_max;
         for _ in 0..D_ITER {
-            let c = candidate(prev, cur, d, f, lim);
+            let c = candidate(prev, cur, d, f, lim, false);
             match c {
                 Some(c) if c.deviation <= target => {
                     if ok.is_none_or(|o| c.d > o.d) {
@@ -504,12 +538,38 @@ fn solve(prev: &Prim, st: Option<&State>, cur: &Prim, tol: f64, lim: &Lim) -> Op
             }
         }
         if let Some(o) = ok {
-            if best.is_none_or(|b| o.speed > b.speed) {
-                best = Some(o);
-            }
+            *slot = blend_speed(&o.shape, 0.0, Some(lim), NSAMP / 2).map(|(v, len)| (o, f, v, len));
         }
     }
-    best
+    // Of the blends whose lowest speed limit is near the highest found, the one with the
+    // least time through it at that speed, less the time on the path it replaces: a long
+    // blend at a low speed can cost more than a sharper short one. (A slow valley is also
+    // what the speed controller follows worst, hence the preference for speed.)
+    let v_top = found.iter().flatten().fold(0.0f64, |m, c| m.max(c.2));
+    let mut best: Option<(ArcBlend, f64, f64)> = None;
+    for &(o, f, v, len) in found.iter().flatten() {
+        if v < v_min || v < SPEED_PREFERENCE * v_top {
+            continue;
+        }
+        let cost = len / v.min(feed) - 2.0 * o.d / feed;
+        if best.is_none_or(|(_, _, c)| cost < c) {
+            best = Some((o, f, cost));
+        }
+    }
+    // The fine measure decides; where it finds more than the coarse one, shorten.
+    let (o, f, _) = best?;
+    let mut d = o.d;
+    for _ in 0..D_ITER {
+        let fine = candidate(prev, cur, d, f, lim, true)?;
+        if fine.deviation <= target {
+            return Some(fine);
+        }
+        d *= (0.99 * target / fine.deviation).clamp(0.05, 0.99);
+        if d < 1e-9 {
+            break;
+        }
+    }
+    None
 }
 
 #[cfg(test)]
