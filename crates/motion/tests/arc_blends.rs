@@ -466,7 +466,7 @@ fn random_chains_keep_limits_and_tolerance() {
 
 /// Harsher chains (radii and lines from 0.3 mm, corners up to 160°), `N` programs (default
 /// 300) from seed `SEED`: the distance from the path and the end points hold in all of
-/// them; the limits do not yet (9 of 300 with the default seed, 15 of 600 with seed 7):
+/// them; the limits do not yet (10 of 300 with the default seed):
 /// the speed controller brakes towards a slow blend valley and stops dead, the failure
 /// described in docs/motion.md. The same programs in G61 keep the limits. Run with
 /// `cargo test --release -p rtcnc-motion --test arc_blends -- --ignored`.

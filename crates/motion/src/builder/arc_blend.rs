@@ -494,6 +494,12 @@ fn solve(
     }
     let target = tol * (1.0 - DEV_MARGIN);
     let v_min = min_blend_speed(feed);
+    // First guess: the reach of a line corner's blend of the same turn, then the reach
+    // found for the previous parameter length.
+    let turn = dot(&trim(prev, 0.0, true).st.t, &trim(cur, 0.0, false).st.t)
+        .clamp(-1.0, 1.0)
+        .acos();
+    let mut d_start = (4.0 * tol / (0.5 * turn).sin().max(1e-6)).min(d_max);
     // Per parameter length: the blend, the factor, its lowest speed limit and its length.
     let mut found: [Option<(ArcBlend, f64, f64, f64)>; L_FACTORS.len()] = [None; L_FACTORS.len()];
     for (slot, f) in found.iter_mut().zip(L_FACTORS) {
@@ -501,7 +507,7 @@ fn solve(
         // bracketed by the largest d found within it and the smallest found beyond it.
         let mut ok: Option<ArcBlend> = None;
         let mut d_bad = f64::INFINITY;
-        let mut d = d_max;
+        let mut d = d_start;
         for _ in 0..D_ITER {
             let c = candidate(prev, cur, d, f, lim, false);
             match c {
@@ -509,7 +515,7 @@ fn solve(
                     if ok.is_none_or(|o| c.d > o.d) {
                         ok = Some(c);
                     }
-                    if d >= d_max || c.deviation >= 0.97 * target {
+                    if d >= d_max || c.deviation >= 0.95 * target {
                         break;
                     }
                     let next = (d * 0.99 * target / c.deviation.max(1e-300)).min(d_max);
@@ -538,6 +544,7 @@ fn solve(
             }
         }
         if let Some(o) = ok {
+            d_start = o.d;
             *slot = blend_speed(&o.shape, 0.0, Some(lim), NSAMP / 2).map(|(v, len)| (o, f, v, len));
         }
     }

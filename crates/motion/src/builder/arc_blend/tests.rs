@@ -141,16 +141,16 @@ fn line_meeting_a_circle_at_a_right_angle() {
         assert!((a[0] - b[0]).abs() <= 1e-12 && (a[1] - b[1]).abs() <= 1e-12);
     }
 
-    // Within P, using most of it (the search stops within 3 % of the target)...
+    // Within P, using most of it (the search accepts 95 % of the target)...
     let dev = brute_deviation(&hand);
     assert!(dev <= TOL * (1.0 - 1e-3) + 1e-12, "deviation {dev}");
-    assert!(dev >= 0.96 * TOL, "deviation {dev} leaves P unused");
+    assert!(dev >= 0.94 * TOL, "deviation {dev} leaves P unused");
     assert!(
         (dev - bl.deviation).abs() <= 2e-5 * TOL,
         "{dev} {} d {d} f {f}",
         bl.deviation
     );
-    // ... and a reach 6 % longer (same factor) would leave it.
-    let (longer, _) = by_hand(1.06 * d, f);
+    // ... and a reach 10 % longer (same factor) would leave it.
+    let (longer, _) = by_hand(1.1 * d, f);
     assert!(brute_deviation(longer) > TOL);
 }
