@@ -288,12 +288,14 @@ fn check_corner(kind: &str, n: V3, t0: V3, bend: f64, rise: f64) {
         assert!(never_stops(&tr), "{kind} P {p}: stopped");
         assert!(!stops_at(&tr, o));
     }
-    let (tr, gs) = run_prog(&elems, start, PathMode::ExactPath, 0.0);
-    assert_eq!(gs.stops, 1);
-    assert!(
-        stops_at(&tr, o),
-        "{kind}: G61 passes the corner without a stop"
-    );
+    for mode in [PathMode::ExactPath, PathMode::ExactStop] {
+        let (tr, gs) = run_prog(&elems, start, mode, 0.0);
+        assert_eq!(gs.stops, 1);
+        assert!(
+            stops_at(&tr, o),
+            "{kind}: {mode:?} passes the corner without a stop"
+        );
+    }
 }
 
 #[test]

@@ -154,3 +154,56 @@ fn line_meeting_a_circle_at_a_right_angle() {
     let (longer, _) = by_hand(1.1 * d, f);
     assert!(brute_deviation(longer) > TOL);
 }
+
+/// The blend is sampled against the soft limits. Its neighbours were checked when pushed,
+/// so here the envelope passed to the corner is narrowed after the fact (Y below the
+/// blend's highest point) to reach the refusal: nothing is emitted and the corner stops.
+#[test]
+fn a_blend_leaving_the_soft_limits_is_refused() {
+    let m = MachineLimits::uniform(
+        &[Axis::X, Axis::Y, Axis::Z],
+        AxisLimits::new(100.0, 1000.0, 50_000.0, -100.0, 100.0),
+    );
+    let mut lim = Lim::from(&m);
+    let mode = PathMode::Blend {
+        tolerance: TOL,
+        merge_tolerance: 0.0,
+    };
+    let line = Builder::new(p2(-10.0, 0.0))
+        .validate(&Move::line(p2(0.0, 0.0), 30.0, mode, 1), &lim)
+        .unwrap()
+        .unwrap();
+    let arc = Builder::new(p2(0.0, 0.0))
+        .validate(
+            &Move::arc(p2(-R, R), [-R, 0.0, 0.0], [0.0, 0.0, 1.0], 0, 30.0, mode, 2),
+            &lim,
+        )
+        .unwrap()
+        .unwrap();
+    let mut b = Builder::new(p2(-10.0, 0.0));
+
+    // Inside the envelope: the line up to the blend, the blend; the arc remains from the
+    // blend's end.
+    let mut out = Vec::new();
+    let (next, _) = b
+        .arc_corner(&line, None, &arc, TOL, &lim, &mut out)
+        .unwrap();
+    assert_eq!(out.len(), 2);
+    assert!(out[1].corner_blend && !out[0].corner_blend);
+    let Prim::Arc { a, u0, .. } = next else {
+        panic!("the arc is not what remains")
+    };
+    assert_eq!(a, out[1].end);
+    assert!(u0 > 0.0);
+
+    let y_top = (0..=64)
+        .map(|k| out[1].shape.pos(k as f64 / 64.0)[1])
+        .fold(f64::NEG_INFINITY, f64::max);
+    lim.max[1] = 0.5 * y_top;
+    let mut out = Vec::new();
+    assert!(
+        b.arc_corner(&line, None, &arc, TOL, &lim, &mut out)
+            .is_none()
+    );
+    assert!(out.is_empty());
+}
