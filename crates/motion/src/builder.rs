@@ -10,6 +10,8 @@ use crate::limits::Lim;
 use crate::piece::Piece;
 use crate::spline::SplineP;
 
+mod arc_blend;
+
 /// Direction changes up to this angle (rad) count as tangent: passed without a blend, at a
 /// speed that keeps the velocity step inside the jerk limit.
 pub(crate) const KINK: f64 = 1e-4;
@@ -46,7 +48,10 @@ enum Prim {
     Line(LineP),
     Arc {
         h: Helix,
+        /// Start of the part not yet emitted (the arc's start, or where a corner blend
+        /// left it), at parameter `u0` of `h`.
         a: AxisVec,
+        u0: f64,
         b: AxisVec,
         feed: f64,
         mode: PathMode,
@@ -73,7 +78,7 @@ impl Prim {
     fn start_tangent(&self) -> AxisVec {
         match self {
             Prim::Line(l) => l.dir,
-            Prim::Arc { h, .. } => unit(&Shape::Helix(*h).eval(0.0).d1),
+            Prim::Arc { h, u0, .. } => unit(&Shape::Helix(*h).eval(*u0).d1),
             Prim::Spline(sp) => sp.start_tangent(),
         }
     }
@@ -272,6 +277,7 @@ impl Builder {
                 Ok(Some(Prim::Arc {
                     h,
                     a,
+                    u0: 0.0,
                     b,
                     feed,
                     mode: mv.mode,
@@ -366,6 +372,16 @@ impl Builder {
             PathMode::ExactPath => stop(self, out),
             PathMode::Blend { tolerance, .. } => {
                 let (Prim::Line(lp), Prim::Line(lc)) = (prev, cur) else {
+                    // A corner where an arc meets a line or another arc.
+                    if theta <= 170f64.to_radians() && tolerance > 0.0 {
+                        if let Some((next, next_state)) =
+                            self.arc_corner(&prev, st, &cur, tolerance, lim, out)
+                        {
+                            self.prev = Some(next);
+                            self.prev_state = next_state;
+                            return;
+                        }
+                    }
                     stop(self, out);
                     self.prev = Some(cur);
                     return;
@@ -617,12 +633,14 @@ impl Builder {
             Prim::Arc {
                 h,
                 a,
+                u0,
                 b,
                 feed,
                 line,
                 ..
             } => {
-                let mut pc = Piece::new(Shape::Helix(*h), *a, *b, *feed, false, *line);
+                let h = if *u0 > 0.0 { h.sub(*u0, 1.0) } else { *h };
+                let mut pc = Piece::new(Shape::Helix(h), *a, *b, *feed, false, *line);
                 pc.stop_at_end = stop;
                 out.push(pc);
             }

@@ -71,7 +71,7 @@ impl Shape {
     pub fn pos(&self, u: f64) -> AxisVec {
         match self {
             Shape::Line { start, dir } => add_scaled(start, dir, u),
-            Shape::Helix(h) => h.eval(u).p,
+            Shape::Helix(h) => h.pos(u),
             Shape::Poly { c } => {
                 let mut p = [0.0; AXES];
                 for i in 0..AXES {
@@ -103,6 +103,42 @@ impl Shape {
 }
 
 impl Helix {
+    /// The part of this helix between parameters `u0` and `u1`, as a helix of its own
+    /// (parameter 0..1): the same exact curve, trimmed by angle.
+    pub fn sub(&self, u0: f64, u1: f64) -> Helix {
+        let (s, c) = (self.sweep * u0).sin_cos();
+        let du = u1 - u0;
+        let mut h = *self;
+        for i in 0..3 {
+            h.e1[i] = c * self.e1[i] + s * self.e2[i];
+            h.e2[i] = -s * self.e1[i] + c * self.e2[i];
+            h.centre[i] = self.centre[i] + self.rise * u0 * self.n[i];
+        }
+        h.r0 = self.r0 + self.dr * u0;
+        h.dr = self.dr * du;
+        h.sweep = self.sweep * du;
+        h.rise = self.rise * du;
+        for i in 3..AXES {
+            h.other0[i] = self.other0[i] + self.other_delta[i] * u0;
+            h.other_delta[i] = self.other_delta[i] * du;
+        }
+        h
+    }
+
+    fn pos(&self, u: f64) -> AxisVec {
+        let (s, c) = (self.sweep * u).sin_cos();
+        let r = self.r0 + self.dr * u;
+        let mut p = [0.0; AXES];
+        for i in 0..3 {
+            p[i] =
+                self.centre[i] + r * (c * self.e1[i] + s * self.e2[i]) + self.rise * u * self.n[i];
+        }
+        for i in 3..AXES {
+            p[i] = self.other0[i] + self.other_delta[i] * u;
+        }
+        p
+    }
+
     fn eval(&self, u: f64) -> Deriv {
         let th = self.sweep * u;
         let (s, c) = th.sin_cos();

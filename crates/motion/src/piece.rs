@@ -62,6 +62,10 @@ pub(crate) struct Piece {
     /// Speed bounds at the samples cover the whole interval around them (spline pieces,
     /// whose curvature may peak between samples).
     pub dense_bounds: bool,
+    /// Ceilings of the velocity-limit samples from a dense analysis of the curve by the
+    /// builder (arc corner blends, whose curvature change peaks between the samples);
+    /// infinite otherwise.
+    pub v_cap: [f64; NS_MAX + 1],
     pub ns: usize,
     pub smp: [Sample; NS_MAX + 1],
     /// Braking curve (maximal speed) at the samples.
@@ -132,6 +136,7 @@ impl Piece {
             straight,
             corner_blend: false,
             dense_bounds: false,
+            v_cap: [f64::INFINITY; NS_MAX + 1],
             ns: if straight { 1 } else { NS_MAX },
             smp: [Sample::default(); NS_MAX + 1],
             w: [0.0; NS_MAX + 1],
@@ -213,7 +218,7 @@ impl Piece {
                 k: kv,
                 kp,
                 v_axis,
-                v_curve,
+                v_curve: v_curve.min(self.v_cap[k]),
                 t_xyz: norm_xyz(&t),
             };
         }

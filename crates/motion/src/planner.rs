@@ -482,6 +482,12 @@ impl<K: Kinematics> Planner<K> {
             self.recompute_stop();
         } else {
             self.stop_idx -= 1;
+            if self.stop_idx == 0 {
+                // Exact once the stop is in the head piece: the running sum drifts by
+                // rounding over a long path (1e-11 after 1000 mm), more than the 1e-12 at
+                // which the head counts as reached, and the path would halt short of it.
+                self.stop_cum = self.q.get(0).len;
+            }
         }
     }
 

@@ -162,3 +162,24 @@ fn arcs_and_helix_reach_their_end_points_exactly() {
     // The first arc's end is passed exactly (exact path: tangency is not given, so a stop).
     assert!(tr.pts.iter().any(|p| dist(p, &p3(0.0, 10.0, 0.0)) <= 1e-12));
 }
+
+#[test]
+fn a_long_path_without_stops_reaches_its_end() {
+    // 400 segments of 2.5 mm (1000 mm) whose direction alternates by 5e-5 rad: tangent
+    // junctions, so the only stop is the end. The running distance to that stop drifts by
+    // rounding over such a path (about 1e-11 mm), more than the 1e-12 mm at which the last
+    // piece counts as reached: the path used to halt there for ever.
+    let mut verts = vec![p3(0.0, 0.0, 0.0)];
+    for k in 0..400 {
+        let a: f64 = if k % 2 == 0 { 0.3 } else { 0.30005 };
+        let last = *verts.last().unwrap();
+        verts.push(p3(last[0] + 2.5 * a.cos(), last[1] + 2.5 * a.sin(), 0.0));
+    }
+    // 10.1 s at 100 mm/s; `check_run` fails if it does not finish within 11 s.
+    check_run(
+        &lines(&verts, 100.0, PathMode::ExactPath),
+        Some(&verts),
+        0.0,
+        11_000,
+    );
+}

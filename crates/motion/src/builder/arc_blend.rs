@@ -1,0 +1,606 @@
+//! G64 P corners where an arc or helix meets a line or another arc.
+//!
+//! Both neighbours are trimmed by the same length `d` next to the corner (an arc by angle,
+//! so it stays an exact helix), and a quintic joins the two trim points matching position,
+//! tangent and curvature vector on both sides (derivatives `L·T` and `L²·K` for a common
+//! parameter length `L`): the path is curvature-continuous (G2) and the curvature at each
+//! end of the blend is its neighbour's (the arc's, or zero on a line). `d` is the largest
+//! (up to half of a line, 45 % of an arc and half a radian of its turn) whose blend stays
+//! within P of the programmed path, i.e. of the two neighbours up to the corner, with the
+//! distance measured to the exact segment and helix. A few parameter lengths are tried and
+//! the one with the highest speed limit (centripetal acceleration and curvature change of
+//! every axis) is kept, or a shorter blend within 10 % of that speed that takes less time.
+//! The blend's dense speed estimate caps the planner's velocity-limit samples.
+
+use super::{Builder, MIN_BLEND_SPEED, MIN_BLEND_SPEED_SHARE, Prim, State, V_RAPID_REF};
+use crate::axes::{AXES, AxisVec, add_scaled, dot, norm, scale, sub};
+use crate::geometry::{ArcMap, Deriv, Helix, Shape, arc_derivs, quintic};
+use crate::limits::Lim;
+use crate::piece::{JERK_SHARE_CURVATURE_BLEND, NS_MAX, Piece};
+
+/// Parameter lengths tried, relative to the chord between the trim points.
+const L_FACTORS: [f64; 3] = [1.0, 1.25, 1.5];
+/// Blends slower than this share of the fastest found are not chosen for a shorter time.
+const SPEED_PREFERENCE: f64 = 0.9;
+/// Sample intervals of a blend for its speed estimate and soft limits...
+const NSAMP: usize = 32;
+/// ... and for its deviation.
+const NDEV: usize = 64;
+/// Largest share of an arc trimmed at one end (the rest stays a piece of its own).
+const ARC_TRIM_MAX: f64 = 0.45;
+/// Largest turn trimmed from an arc (rad): the quintic follows the arc's curvature over a
+/// moderate turn only.
+const ARC_TRIM_ANGLE: f64 = 0.5;
+/// The measured deviation stays this much (relative) below P: the refined sampling finds
+/// the peak to far better than that.
+const DEV_MARGIN: f64 = 1e-3;
+/// Smallest |dp/du| of a blend relative to `L` (a blend that nearly stops is refused).
+const MIN_PARAM_SPEED: f64 = 0.1;
+/// Iterations of the search for `d` per parameter length.
+const D_ITER: usize = 12;
+
+/// The programmed path between a trim point and the corner.
+#[derive(Debug, Clone, Copy)]
+enum Near {
+    Seg { a: AxisVec, b: AxisVec },
+    Arc { h: Helix, lo: f64, hi: f64 },
+}
+
+/// One neighbour trimmed by `d`: the state at the trim point, its helix parameter (arcs),
+/// and the programmed part from there to the corner.
+#[derive(Debug, Clone, Copy)]
+struct Trim {
+    st: State,
+    u: f64,
+    near: Near,
+}
+
+/// A blend found for a corner.
+#[derive(Debug, Clone, Copy)]
+struct ArcBlend {
+    shape: Shape,
+    from: Trim,
+    to: Trim,
+    /// Trim length on both sides.
+    d: f64,
+    /// Largest distance from the programmed path, as measured.
+    deviation: f64,
+    /// Speed limit estimated from the curvature and its change along the blend.
+    speed: f64,
+}
+
+impl Builder {
+    /// Rounds the corner between `prev` (whose remaining part starts at `st` if a line)
+    /// and `cur` within `tol`, emitting `prev` up to the blend and the blend; returns `cur`
+    /// as it remains after the blend. None (nothing emitted) when the corner must stop:
+    /// no blend within the tolerance, one leaving the soft limits, or one slower than the
+    /// threshold line corners use.
+    pub(super) fn arc_corner(
+        &mut self,
+        prev: &Prim,
+        st: Option<State>,
+        cur: &Prim,
+        tol: f64,
+        lim: &Lim,
+        out: &mut Vec<Piece>,
+    ) -> Option<(Prim, Option<State>)> {
+        // Corners at splines are not blended (they stop): nothing below sees a spline.
+        if matches!(prev, Prim::Spline(_)) || matches!(cur, Prim::Spline(_)) {
+            return None;
+        }
+        let feed = feed_of(prev).min(feed_of(cur)).min(V_RAPID_REF);
+        let bl = solve(prev, st.as_ref(), cur, tol, feed, lim)?;
+        for k in 0..=NSAMP {
+            let p = bl.shape.pos(k as f64 / NSAMP as f64);
+            for i in 0..AXES {
+                if lim.present[i] && (p[i] < lim.min[i] || p[i] > lim.max[i]) {
+                    return None;
+                }
+            }
+        }
+        if bl.speed < min_blend_speed(feed) {
+            return None;
+        }
+        match prev {
+            Prim::Line(lp) => {
+                let start = st.unwrap_or(State {
+                    p: lp.a,
+                    t: lp.dir,
+                    k: [0.0; AXES],
+                });
+                let end = State {
+                    p: bl.from.st.p,
+                    t: lp.dir,
+                    k: [0.0; AXES],
+                };
+                for pc in self
+                    .span_or_exceed(lp, &start, &end, tol, lim)
+                    .into_iter()
+                    .flatten()
+                {
+                    out.push(pc);
+                }
+            }
+            Prim::Arc {
+                h,
+                a,
+                u0,
+                feed,
+                line,
+                ..
+            } => out.push(Piece::new(
+                Shape::Helix(h.sub(*u0, bl.from.u)),
+                *a,
+                bl.from.st.p,
+                *feed,
+                false,
+                *line,
+            )),
+            Prim::Spline(_) => return None,
+        }
+        // The planner samples a piece's speed limit at five points, which miss the peak of
+        // the curvature change of a short blend: a dense estimate caps each sample.
+        let mut b = Piece::new(
+            bl.shape,
+            bl.from.st.p,
+            bl.to.st.p,
+            feed_of(prev).min(feed_of(cur)),
+            false,
+            line_of(prev),
+        );
+        b.corner_blend = true;
+        b.v_cap = sample_caps(&b, lim);
+        out.push(b);
+        self.stats.blends += 1;
+        Some(match *cur {
+            Prim::Line(lc) => (
+                Prim::Line(lc),
+                Some(State {
+                    p: bl.to.st.p,
+                    t: lc.dir,
+                    k: [0.0; AXES],
+                }),
+            ),
+            Prim::Arc {
+                h,
+                b,
+                feed,
+                mode,
+                line,
+                ..
+            } => (
+                Prim::Arc {
+                    h,
+                    a: bl.to.st.p,
+                    u0: bl.to.u,
+                    b,
+                    feed,
+                    mode,
+                    line,
+                },
+                None,
+            ),
+            Prim::Spline(sp) => (Prim::Spline(sp), None),
+        })
+    }
+}
+
+/// Below this speed limit a blend becomes an exact stop, as line corners do.
+fn min_blend_speed(feed: f64) -> f64 {
+    (MIN_BLEND_SPEED_SHARE * feed.min(V_RAPID_REF)).max(MIN_BLEND_SPEED)
+}
+
+fn feed_of(p: &Prim) -> f64 {
+    match p {
+        Prim::Line(l) => l.feed,
+        Prim::Arc { feed, .. } => *feed,
+        Prim::Spline(sp) => sp.feed,
+    }
+}
+
+fn line_of(p: &Prim) -> u32 {
+    match p {
+        Prim::Line(l) => l.line,
+        Prim::Arc { line, .. } => *line,
+        Prim::Spline(sp) => sp.line,
+    }
+}
+
+/// Length of a whole helix.
+fn helix_len(h: &Helix) -> f64 {
+    let sh = Shape::Helix(*h);
+    if h.dr == 0.0 {
+        sh.speed(0.0)
+    } else {
+        ArcMap::table(&sh).1
+    }
+}
+
+/// Longest trim of `prim` at its end (`at_end`) or its start.
+fn max_trim(prim: &Prim, st: Option<&State>, at_end: bool) -> f64 {
+    match prim {
+        Prim::Line(l) => {
+            let left = if at_end {
+                norm(&sub(&l.b, &st.map_or(l.a, |s| s.p)))
+            } else {
+                l.len
+            };
+            (0.5 * l.len).min(left)
+        }
+        Prim::Arc { h, .. } => {
+            // A start trim takes at most 45 %, so an end trim of 45 % leaves a tenth.
+            let u = if at_end { 1.0 } else { 0.0 };
+            let (_, k, _) = arc_derivs(&Shape::Helix(*h).eval(u));
+            let kn = norm(&k);
+            let d = ARC_TRIM_MAX * helix_len(h);
+            if kn > 0.0 {
+                d.min(ARC_TRIM_ANGLE / kn)
+            } else {
+                d
+            }
+        }
+        Prim::Spline(_) => 0.0,
+    }
+}
+
+/// `prim` trimmed by `d` at its end or start.
+fn trim(prim: &Prim, d: f64, at_end: bool) -> Trim {
+    match prim {
+        Prim::Line(l) => {
+            let (p, near) = if at_end {
+                let p = add_scaled(&l.b, &l.dir, -d);
+                (p, Near::Seg { a: p, b: l.b })
+            } else {
+                let p = add_scaled(&l.a, &l.dir, d);
+                (p, Near::Seg { a: l.a, b: p })
+            };
+            Trim {
+                st: State {
+                    p,
+                    t: l.dir,
+                    k: [0.0; AXES],
+                },
+                u: 0.0,
+                near,
+            }
+        }
+        Prim::Arc { h, .. } => {
+            let du = d / helix_len(h);
+            let (u, near) = if at_end {
+                let u = 1.0 - du;
+                (
+                    u,
+                    Near::Arc {
+                        h: *h,
+                        lo: u,
+                        hi: 1.0,
+                    },
+                )
+            } else {
+                (
+                    du,
+                    Near::Arc {
+                        h: *h,
+                        lo: 0.0,
+                        hi: du,
+                    },
+                )
+            };
+            let dv = Shape::Helix(*h).eval(u);
+            let (t, k, _) = arc_derivs(&dv);
+            Trim {
+                st: State { p: dv.p, t, k },
+                u,
+                near,
+            }
+        }
+        // Not trimmed (`arc_corner` refuses splines): the end point itself.
+        Prim::Spline(sp) => {
+            let p = if at_end { sp.b } else { sp.a };
+            Trim {
+                st: State {
+                    p,
+                    t: [0.0; AXES],
+                    k: [0.0; AXES],
+                },
+                u: if at_end { 1.0 } else { 0.0 },
+                near: Near::Seg { a: p, b: p },
+            }
+        }
+    }
+}
+
+/// Distance of `x` from the programmed part `n` (exact for segments; for a helix the
+/// nearest point in the plane, refined by Newton steps on the squared distance for the
+/// rise, radius change and other axes; never below the true distance).
+fn dist_near(x: &AxisVec, n: &Near) -> f64 {
+    match n {
+        Near::Seg { a, b } => {
+            let d = sub(b, a);
+            let w = sub(x, a);
+            let l2 = dot(&d, &d);
+            let t = if l2 > 0.0 {
+                (dot(&w, &d) / l2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            norm(&add_scaled(&w, &d, -t))
+        }
+        Near::Arc { h, lo, hi } => {
+            let sh = Shape::Helix(*h);
+            let q = [x[0] - h.centre[0], x[1] - h.centre[1], x[2] - h.centre[2]];
+            let a1 = q[0] * h.e1[0] + q[1] * h.e1[1] + q[2] * h.e1[2];
+            let a2 = q[0] * h.e2[0] + q[1] * h.e2[1] + q[2] * h.e2[2];
+            let (tlo, thi) = (h.sweep * lo, h.sweep * hi);
+            let mid = 0.5 * (tlo + thi);
+            let tau = 2.0 * std::f64::consts::PI;
+            let dphi = (a2.atan2(a1) - mid + 0.5 * tau).rem_euclid(tau) - 0.5 * tau;
+            let mut u = (mid + dphi.clamp(tlo - mid, thi - mid)) / h.sweep;
+            if h.rise == 0.0 && h.dr == 0.0 && h.other_delta.iter().all(|v| *v == 0.0) {
+                // A circle: the point at the projection's angle (or the nearer end of the
+                // part) is the nearest.
+                return norm(&sub(x, &sh.pos(u)));
+            }
+            for _ in 0..4 {
+                let dv = sh.eval(u);
+                let r = sub(&dv.p, x);
+                let g = dot(&r, &dv.d1);
+                let hs = dot(&dv.d1, &dv.d1) + dot(&r, &dv.d2);
+                if !(hs > 0.0) {
+                    break;
+                }
+                u = (u - g / hs).clamp(*lo, *hi);
+            }
+            [u, *lo, *hi]
+                .iter()
+                .map(|v| norm(&sub(x, &sh.pos(*v))))
+                .fold(f64::INFINITY, f64::min)
+        }
+    }
+}
+
+/// Largest distance of the blend from the programmed path near the corner: samples, then
+/// a golden-section search around every local maximum among them (the distance has a
+/// narrow peak near the corner on long blends, and may have more than one). `fine`: the
+/// resolution that decides; the coarse one (a quarter of the samples, no search) steers
+/// the search for the trim.
+fn deviation(shape: &Shape, a: &Near, b: &Near, fine: bool) -> f64 {
+    let f = |u: f64| {
+        let p = shape.pos(u);
+        dist_near(&p, a).min(dist_near(&p, b))
+    };
+    let (n, iters) = if fine { (NDEV, 24) } else { (NDEV / 4, 0) };
+    let h = 1.0 / n as f64;
+    let mut y = [0.0f64; NDEV + 1];
+    for (k, v) in y.iter_mut().enumerate().take(n + 1) {
+        *v = f(k as f64 * h);
+    }
+    let mut worst = y.iter().fold(0.0f64, |m, v| m.max(*v));
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    for k in 1..n {
+        if iters == 0 {
+            break;
+        }
+        if !(y[k] >= y[k - 1] && y[k] >= y[k + 1] && y[k] > 0.0) {
+            continue;
+        }
+        let (mut x0, mut x3) = ((k - 1) as f64 * h, (k + 1) as f64 * h);
+        let mut x1 = x3 - g * (x3 - x0);
+        let mut x2 = x0 + g * (x3 - x0);
+        let (mut f1, mut f2) = (f(x1), f(x2));
+        for _ in 0..iters {
+            if f1 > f2 {
+                x3 = x2;
+                x2 = x1;
+                f2 = f1;
+                x1 = x3 - g * (x3 - x0);
+                f1 = f(x1);
+            } else {
+                x0 = x1;
+                x1 = x2;
+                f1 = f2;
+                x2 = x0 + g * (x3 - x0);
+                f2 = f(x2);
+            }
+        }
+        worst = worst.max(f1).max(f2);
+    }
+    worst
+}
+
+/// Speed limit at one point of a curve from each axis's centripetal acceleration and
+/// curvature change (the shares the planner uses on corner blends).
+fn speed_at(d: &Deriv, lim: &Lim) -> f64 {
+    let (_, kv, kp) = arc_derivs(d);
+    let mut v = f64::INFINITY;
+    for i in 0..AXES {
+        if !lim.present[i] {
+            continue;
+        }
+        if kv[i] != 0.0 {
+            v = v.min((lim.a[i] / kv[i].abs()).sqrt());
+        }
+        if kp[i] != 0.0 {
+            v = v.min((JERK_SHARE_CURVATURE_BLEND * lim.j[i] / kp[i].abs()).cbrt());
+        }
+    }
+    v
+}
+
+/// Lowest speed limit along the blend over `n` intervals (with `lim`, else 0) and its
+/// length; None when the curve is not regular enough (|dp/du| below a tenth of `l`).
+fn blend_speed(shape: &Shape, l: f64, lim: Option<&Lim>, n: usize) -> Option<(f64, f64)> {
+    let mut v = f64::INFINITY;
+    let mut len = 0.0;
+    for k in 0..=n {
+        let dv = shape.eval(k as f64 / n as f64);
+        let sp = norm(&dv.d1);
+        if !(sp >= MIN_PARAM_SPEED * l) {
+            return None;
+        }
+        len += if k == 0 || k == n { 0.5 * sp } else { sp };
+        v = match lim {
+            Some(lim) => v.min(speed_at(&dv, lim)),
+            None => 0.0,
+        };
+    }
+    Some((v, len / n as f64))
+}
+
+/// Ceilings for the piece's velocity-limit samples: the planner takes the lower of two
+/// neighbouring samples over the interval between them, so each sample gets the lowest
+/// dense limit over the intervals it bounds.
+fn sample_caps(b: &Piece, lim: &Lim) -> [f64; NS_MAX + 1] {
+    let sub = NSAMP / b.ns;
+    let h = b.len / b.ns as f64;
+    let mut interval = [f64::INFINITY; NS_MAX];
+    for (j, iv) in interval.iter_mut().enumerate().take(b.ns) {
+        for m in 0..=sub {
+            let s = h * (j as f64 + m as f64 / sub as f64);
+            *iv = iv.min(speed_at(&b.shape.eval(b.map.u(s)), lim));
+        }
+    }
+    let mut caps = [f64::INFINITY; NS_MAX + 1];
+    for (k, c) in caps.iter_mut().enumerate().take(b.ns + 1) {
+        if k > 0 {
+            *c = c.min(interval[k - 1]);
+        }
+        if k < b.ns {
+            *c = c.min(interval[k]);
+        }
+    }
+    caps
+}
+
+/// The blend trimming both neighbours by `d`, with parameter length `f`·chord; its
+/// deviation and speed limit measured finely (`fine`), or its deviation coarsely.
+fn candidate(prev: &Prim, cur: &Prim, d: f64, f: f64, lim: &Lim, fine: bool) -> Option<ArcBlend> {
+    let from = trim(prev, d, true);
+    let to = trim(cur, d, false);
+    let (s0, s1) = (&from.st, &to.st);
+    let l = f * norm(&sub(&s1.p, &s0.p));
+    if !(l > 0.0) {
+        return None;
+    }
+    let shape = quintic(
+        &s0.p,
+        &scale(&s0.t, l),
+        &scale(&s0.k, l * l),
+        &s1.p,
+        &scale(&s1.t, l),
+        &scale(&s1.k, l * l),
+    );
+    let (speed, _) = blend_speed(&shape, l, fine.then_some(lim), NSAMP)?;
+    Some(ArcBlend {
+        shape,
+        from,
+        to,
+        d,
+        deviation: deviation(&shape, &from.near, &to.near, fine),
+        speed,
+    })
+}
+
+/// The blend of the corner between `prev` and `cur` within `tol`: for each parameter
+/// length the largest trim found within the tolerance, then the fastest of those.
+fn solve(
+    prev: &Prim,
+    st: Option<&State>,
+    cur: &Prim,
+    tol: f64,
+    feed: f64,
+    lim: &Lim,
+) -> Option<ArcBlend> {
+    let d_max = max_trim(prev, st, true).min(max_trim(cur, None, false));
+    if !(d_max > 1e-9 && tol > 0.0) {
+        return None;
+    }
+    let target = tol * (1.0 - DEV_MARGIN);
+    let v_min = min_blend_speed(feed);
+    // First guess: the reach of a line corner's blend of the same turn, then the reach
+    // found for the previous parameter length.
+    let turn = dot(&trim(prev, 0.0, true).st.t, &trim(cur, 0.0, false).st.t)
+        .clamp(-1.0, 1.0)
+        .acos();
+    let mut d_start = (4.0 * tol / (0.5 * turn).sin().max(1e-6)).min(d_max);
+    // Per parameter length: the blend, the factor, its lowest speed limit and its length.
+    let mut found: [Option<(ArcBlend, f64, f64, f64)>; L_FACTORS.len()] = [None; L_FACTORS.len()];
+    for (slot, f) in found.iter_mut().zip(L_FACTORS) {
+        // The deviation grows about linearly with d: secant steps towards the target,
+        // bracketed by the largest d found within it and the smallest found beyond it.
+        let mut ok: Option<ArcBlend> = None;
+        let mut d_bad = f64::INFINITY;
+        let mut d = d_start;
+        for _ in 0..D_ITER {
+            let c = candidate(prev, cur, d, f, lim, false);
+            match c {
+                Some(c) if c.deviation <= target => {
+                    if ok.is_none_or(|o| c.d > o.d) {
+                        ok = Some(c);
+                    }
+                    if d >= d_max || c.deviation >= 0.95 * target {
+                        break;
+                    }
+                    let next = (d * 0.99 * target / c.deviation.max(1e-300)).min(d_max);
+                    d = if d_bad.is_finite() {
+                        next.min(0.5 * (d + d_bad))
+                    } else {
+                        next
+                    };
+                }
+                _ => {
+                    d_bad = d_bad.min(d);
+                    let lo = ok.map_or(0.0, |o| o.d);
+                    let next = match c {
+                        Some(c) => d * (0.99 * target / c.deviation).clamp(0.05, 0.95),
+                        None => 0.5 * d,
+                    };
+                    d = if lo > 0.0 {
+                        next.max(0.5 * (lo + d))
+                    } else {
+                        next
+                    };
+                }
+            }
+            if d < 1e-9 {
+                break;
+            }
+        }
+        if let Some(o) = ok {
+            d_start = o.d;
+            *slot = blend_speed(&o.shape, 0.0, Some(lim), NSAMP / 2).map(|(v, len)| (o, f, v, len));
+        }
+    }
+    // Of the blends whose lowest speed limit is near the highest found, the one with the
+    // least time through it at that speed, less the time on the path it replaces: a long
+    // blend at a low speed can cost more than a sharper short one. (A slow valley is also
+    // what the speed controller follows worst, hence the preference for speed.)
+    let v_top = found.iter().flatten().fold(0.0f64, |m, c| m.max(c.2));
+    let mut best: Option<(ArcBlend, f64, f64)> = None;
+    for &(o, f, v, len) in found.iter().flatten() {
+        if v < v_min || v < SPEED_PREFERENCE * v_top {
+            continue;
+        }
+        let cost = len / v.min(feed) - 2.0 * o.d / feed;
+        if best.is_none_or(|(_, _, c)| cost < c) {
+            best = Some((o, f, cost));
+        }
+    }
+    // The fine measure decides; where it finds more than the coarse one, shorten.
+    let (o, f, _) = best?;
+    let mut d = o.d;
+    for _ in 0..D_ITER {
+        let fine = candidate(prev, cur, d, f, lim, true)?;
+        if fine.deviation <= target {
+            return Some(fine);
+        }
+        d *= (0.99 * target / fine.deviation).clamp(0.05, 0.99);
+        if d < 1e-9 {
+            break;
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests;

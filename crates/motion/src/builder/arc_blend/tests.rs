@@ -1,0 +1,209 @@
+//! A hand-worked corner: a line along +X meets a circle of radius 5 at a right angle.
+//! The trim points, tangents and curvatures come from the circle's equations, the blend is
+//! rebuilt from the quintic Hermite basis written out by hand, and its distance from the
+//! programmed path is measured by brute force.
+
+use super::*;
+use crate::axes::Axis;
+use crate::input::{Move, PathMode};
+use crate::limits::{AxisLimits, MachineLimits};
+
+const R: f64 = 5.0;
+const TOL: f64 = 0.05;
+
+fn p2(x: f64, y: f64) -> AxisVec {
+    let mut p = [0.0; AXES];
+    p[0] = x;
+    p[1] = y;
+    p
+}
+
+/// Quintic Hermite basis: position, first and second derivative at both ends.
+fn hermite(u: f64, e: [[f64; 2]; 6]) -> [f64; 2] {
+    let (u2, u3, u4, u5) = (u * u, u * u * u, u.powi(4), u.powi(5));
+    let h = [
+        1.0 - 10.0 * u3 + 15.0 * u4 - 6.0 * u5,
+        u - 6.0 * u3 + 8.0 * u4 - 3.0 * u5,
+        0.5 * u2 - 1.5 * u3 + 1.5 * u4 - 0.5 * u5,
+        0.5 * u3 - u4 + 0.5 * u5,
+        -4.0 * u3 + 7.0 * u4 - 3.0 * u5,
+        10.0 * u3 - 15.0 * u4 + 6.0 * u5,
+    ];
+    let mut p = [0.0; 2];
+    for k in 0..6 {
+        p[0] += h[k] * e[k][0];
+        p[1] += h[k] * e[k][1];
+    }
+    p
+}
+
+/// The blend trimming the line and the circle by `d`, with parameter length `f`·chord,
+/// from the circle's own equations: P0 = (-d, 0), T0 = (1, 0), K0 = 0; at φ = d/R on the
+/// circle around (-R, 0): P1 = (-R + R cos φ, R sin φ), T1 = (-sin φ, cos φ),
+/// K1 = -(cos φ, sin φ)/R.
+fn by_hand(d: f64, f: f64) -> (impl Fn(f64) -> [f64; 2], f64) {
+    let phi = d / R;
+    let (s, c) = phi.sin_cos();
+    let p1 = [-R + R * c, R * s];
+    let l = f * ((p1[0] + d).powi(2) + p1[1].powi(2)).sqrt();
+    let e = [
+        [-d, 0.0],
+        [l, 0.0],
+        [0.0, 0.0],
+        [-c / R * l * l, -s / R * l * l],
+        [-s * l, c * l],
+        p1,
+    ];
+    (move |u| hermite(u, e), l)
+}
+
+/// Distance from the programmed path: the segment (-10, 0)-(0, 0) and the quarter circle.
+fn path_dist(p: [f64; 2]) -> f64 {
+    let seg = if p[0] <= 0.0 {
+        p[1].abs()
+    } else {
+        (p[0] * p[0] + p[1] * p[1]).sqrt()
+    };
+    let (x, y) = (p[0] + R, p[1]);
+    let ang = y.atan2(x);
+    let arc = if (0.0..=0.5 * std::f64::consts::PI).contains(&ang) {
+        ((x * x + y * y).sqrt() - R).abs()
+    } else {
+        ((p[0]).powi(2) + p[1].powi(2)).sqrt()
+    };
+    seg.min(arc)
+}
+
+fn brute_deviation(f: impl Fn(f64) -> [f64; 2]) -> f64 {
+    (0..=200_000)
+        .map(|k| path_dist(f(k as f64 / 200_000.0)))
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn line_meeting_a_circle_at_a_right_angle() {
+    let m = MachineLimits::uniform(
+        &[Axis::X, Axis::Y, Axis::Z],
+        AxisLimits::new(100.0, 1000.0, 50_000.0, -100.0, 100.0),
+    );
+    let lim = Lim::from(&m);
+    let mode = PathMode::Blend {
+        tolerance: TOL,
+        merge_tolerance: 0.0,
+    };
+    let line = Builder::new(p2(-10.0, 0.0))
+        .validate(&Move::line(p2(0.0, 0.0), 30.0, mode, 1), &lim)
+        .unwrap()
+        .unwrap();
+    let arc = Builder::new(p2(0.0, 0.0))
+        .validate(
+            &Move::arc(p2(-R, R), [-R, 0.0, 0.0], [0.0, 0.0, 1.0], 0, 30.0, mode, 2),
+            &lim,
+        )
+        .unwrap()
+        .unwrap();
+    let bl = solve(&line, None, &arc, TOL, 30.0, &lim).unwrap();
+    let d = bl.d;
+    let phi = d / R;
+    // Well inside the longest trim (2.5: half a radian of the circle).
+    assert!(d > 0.05 && d < 1.0, "d {d}");
+
+    // Trim points on the line and on the circle, at the same length d from the corner.
+    assert_eq!(bl.from.st.p, p2(-d, 0.0));
+    let q1 = p2(-R + R * phi.cos(), R * phi.sin());
+    assert!(norm(&sub(&bl.to.st.p, &q1)) <= 1e-12);
+
+    // Curvature-continuous: tangent and curvature vector of the neighbours at both ends.
+    let (t0, k0, _) = arc_derivs(&bl.shape.eval(0.0));
+    let (t1, k1, _) = arc_derivs(&bl.shape.eval(1.0));
+    assert!(norm(&sub(&t0, &p2(1.0, 0.0))) <= 1e-12);
+    assert!(norm(&k0) <= 1e-12);
+    assert!(norm(&sub(&t1, &p2(-phi.sin(), phi.cos()))) <= 1e-12);
+    assert!(norm(&sub(&k1, &p2(-phi.cos() / R, -phi.sin() / R))) <= 1e-9);
+
+    // The same curve as the hand-built quintic, with the parameter length it chose.
+    let chord = norm(&sub(&q1, &p2(-d, 0.0)));
+    // Parameter length: the first derivative at the start is L·T0.
+    let Shape::Poly { c } = bl.shape else {
+        panic!("not a polynomial")
+    };
+    let bl_l = norm(&c[1]);
+    let f = bl_l / chord;
+    assert!(
+        L_FACTORS.iter().any(|x| (x - f).abs() <= 1e-12),
+        "factor {f}"
+    );
+    let (hand, l) = by_hand(d, f);
+    assert!((l - bl_l).abs() <= 1e-12);
+    for k in 0..=16 {
+        let u = k as f64 / 16.0;
+        let (a, b) = (hand(u), bl.shape.pos(u));
+        assert!((a[0] - b[0]).abs() <= 1e-12 && (a[1] - b[1]).abs() <= 1e-12);
+    }
+
+    // Within P, using most of it (the search accepts 95 % of the target)...
+    let dev = brute_deviation(&hand);
+    assert!(dev <= TOL * (1.0 - 1e-3) + 1e-12, "deviation {dev}");
+    assert!(dev >= 0.94 * TOL, "deviation {dev} leaves P unused");
+    assert!(
+        (dev - bl.deviation).abs() <= 2e-5 * TOL,
+        "{dev} {} d {d} f {f}",
+        bl.deviation
+    );
+    // ... and a reach 10 % longer (same factor) would leave it.
+    let (longer, _) = by_hand(1.1 * d, f);
+    assert!(brute_deviation(longer) > TOL);
+}
+
+/// The blend is sampled against the soft limits. Its neighbours were checked when pushed,
+/// so here the envelope passed to the corner is narrowed after the fact (Y below the
+/// blend's highest point) to reach the refusal: nothing is emitted and the corner stops.
+#[test]
+fn a_blend_leaving_the_soft_limits_is_refused() {
+    let m = MachineLimits::uniform(
+        &[Axis::X, Axis::Y, Axis::Z],
+        AxisLimits::new(100.0, 1000.0, 50_000.0, -100.0, 100.0),
+    );
+    let mut lim = Lim::from(&m);
+    let mode = PathMode::Blend {
+        tolerance: TOL,
+        merge_tolerance: 0.0,
+    };
+    let line = Builder::new(p2(-10.0, 0.0))
+        .validate(&Move::line(p2(0.0, 0.0), 30.0, mode, 1), &lim)
+        .unwrap()
+        .unwrap();
+    let arc = Builder::new(p2(0.0, 0.0))
+        .validate(
+            &Move::arc(p2(-R, R), [-R, 0.0, 0.0], [0.0, 0.0, 1.0], 0, 30.0, mode, 2),
+            &lim,
+        )
+        .unwrap()
+        .unwrap();
+    let mut b = Builder::new(p2(-10.0, 0.0));
+
+    // Inside the envelope: the line up to the blend, the blend; the arc remains from the
+    // blend's end.
+    let mut out = Vec::new();
+    let (next, _) = b
+        .arc_corner(&line, None, &arc, TOL, &lim, &mut out)
+        .unwrap();
+    assert_eq!(out.len(), 2);
+    assert!(out[1].corner_blend && !out[0].corner_blend);
+    let Prim::Arc { a, u0, .. } = next else {
+        panic!("the arc is not what remains")
+    };
+    assert_eq!(a, out[1].end);
+    assert!(u0 > 0.0);
+
+    let y_top = (0..=64)
+        .map(|k| out[1].shape.pos(k as f64 / 64.0)[1])
+        .fold(f64::NEG_INFINITY, f64::max);
+    lim.max[1] = 0.5 * y_top;
+    let mut out = Vec::new();
+    assert!(
+        b.arc_corner(&line, None, &arc, TOL, &lim, &mut out)
+            .is_none()
+    );
+    assert!(out.is_empty());
+}
