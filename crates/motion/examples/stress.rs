@@ -27,6 +27,7 @@ fn main() {
     let mut rng = Lcg(seed);
     let (vm, am, jm, t) = (100.0, 1000.0, 50_000.0, 1e-3);
     let mut failures = 0;
+    let (mut periods, mut rollbacks, mut violations, mut generated) = (0u64, 0u64, 0u64, 0u64);
     for case in 0..n {
         let k = 1 + (rng.f() * 8.0) as usize;
         let mut spec = String::new();
@@ -94,6 +95,11 @@ fn main() {
                 break;
             }
         }
+        let st = pl.stats();
+        periods += st.periods;
+        rollbacks += st.rollbacks;
+        violations += st.limit_violations;
+        generated += st.generated;
         if worst.0 > 1.0 + 1e-9 || worst.1 > 1.0 + 1e-9 || worst.2 > 1.0 + 1e-9 {
             failures += 1;
             if failures <= 5 {
@@ -108,5 +114,7 @@ fn main() {
             }
         }
     }
-    println!("{failures} of {n} programs exceeded a limit");
+    println!(
+        "{failures} of {n} programs exceeded a limit ({periods} periods, {generated} set-points generated, {rollbacks} rollbacks, {violations} counted violations)"
+    );
 }
