@@ -81,6 +81,7 @@ fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
     let mut plan = std::time::Duration::ZERO;
     let mut interp = std::time::Duration::ZERO;
     let mut moving_periods = 0usize;
+    let mut speeds = Vec::new();
     for _ in 0..10_000_000 {
         let t0 = std::time::Instant::now();
         if k < moves.len() && pl.free() > 0 {
@@ -98,7 +99,14 @@ fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
             break;
         }
         pts.push(st.axes);
+        speeds.push(st.path_speed);
         moving_periods += 1;
+    }
+    if let Some(path) = std::env::var_os("BENCH_PATHS_SPEED") {
+        // Diagnostics: the path speed of every period, one per line (last program run).
+        let text: String = speeds.iter().map(|v| format!("{v}\n")).collect();
+        let _ = std::fs::write(path, text);
+        eprintln!("{:?}", pl.stats());
     }
     let mut m = Measured {
         time: 0.0,

@@ -86,6 +86,9 @@ pub(crate) struct Piece {
     /// The next valley after this piece: (path length from the program start, speed,
     /// deceleration, jerk).
     pub valley_next: Option<(f64, f64, f64, f64)>,
+    /// Lowest value of the braking curve on this piece (a lower bound of `w_at` over the
+    /// piece, not counting the stop's jerk-limited shape near a stop).
+    pub w_low: f64,
 }
 
 impl Piece {
@@ -140,6 +143,7 @@ impl Piece {
             stop_ahead: (f64::INFINITY, 0.0, 0.0),
             valley_in: None,
             valley_next: None,
+            w_low: 0.0,
         }
     }
 

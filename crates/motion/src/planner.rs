@@ -833,6 +833,16 @@ impl<K: Kinematics> Planner<K> {
                 }
             }
             wf = p.w[ns];
+            // Within a sub-interval the curve lies above both samples and the speed
+            // limit's lower sample (see `Piece::w_at`).
+            let mut low = p.w[0];
+            for k in 0..ns {
+                let vl = p
+                    .vlc(k, self.fo, self.ro)
+                    .min(p.vlc(k + 1, self.fo, self.ro));
+                low = low.min(p.w[k + 1]).min(vl);
+            }
+            p.w_low = low;
         }
         // Pieces before the early break keep their curve, but the next stop may have moved
         // (the window's old end was one): refresh it back to the previous real stop.

@@ -12,6 +12,7 @@
 
 use super::*;
 use crate::otg::{Limits as OtgLimits, State as OtgState, position_profile};
+use crate::piece::jerk_stop_speed;
 use crate::scurve::stop_advance;
 
 /// Share of the projected axis limits the speed policy uses (the set-point check allows the
@@ -46,6 +47,10 @@ struct Model {
     d_nom: f64,
     /// Cap on the braking curve (1 unless a rollback made the policy stricter).
     cap: f64,
+    quick: bool,
+    /// Lowest braking-curve speed within the farthest reach of this period's probes: a
+    /// probe whose speed stays under it needs no lookups.
+    w_floor: f64,
 }
 
 /// Why a path jerk is refused by the model.
@@ -122,14 +127,17 @@ impl<K: Kinematics> Planner<K> {
     /// dead end (unless `force`).
     fn step(&mut self, prev: &GenState, force: bool) -> Option<GenState> {
         let st = self.step_unchecked(prev, force)?;
-        let _ = force;
         if st.hist[0] == prev.hist[0] && st.hist[1] == prev.hist[0] {
             // A period at rest is a set-point too: coming to rest must keep the box.
             let quick = matches!(self.hold, Some(h) if h.kind == StopKind::Quick);
             let (lo, hi) = self.fd_box(&prev.hist, quick);
             if !inside(&self.lim, &st.hist[0], &lo, &hi) {
-                // Not rolled back (the stop models end at rest): counted, so that a
-                // violation cannot pass unnoticed.
+                if !force {
+                    if self.trace {
+                        eprintln!("DEAD END at rest at={} v={} a={}", prev.at, prev.v, prev.a);
+                    }
+                    return None;
+                }
                 self.stats.limit_violations += 1;
             }
         }
@@ -354,6 +362,12 @@ impl<K: Kinematics> Planner<K> {
             return Verdict::Stop;
         }
         let at1 = m.at + ds;
+        // The highest speed of the probe below (where its acceleration crosses zero).
+        let v_peak = v1 + a1.max(0.0) * a1.max(0.0) / (2.0 * m.jb);
+        let quiet = a1 <= 0.0 || self.q.get(m.idx).straight;
+        if v_peak <= m.cap * m.w_floor && quiet {
+            return Verdict::Safe;
+        }
         let (w1, d1) = self.w_abs(m.idx, at1, m.stop_at);
         if v1 > m.cap * w1 * (1.0 + 1e-12) + 1e-12 {
             return Verdict::Curve;
@@ -367,20 +381,61 @@ impl<K: Kinematics> Planner<K> {
         if tau <= 0.0 {
             return Verdict::Safe;
         }
-        for tk in [tau0, 0.5 * (tau0 + tau), tau] {
+        // While the acceleration is still positive, it must also fit the path bound where
+        // the probe is (on a curve the centripetal load leaves less as the speed grows).
+        for tk in [0.5 * tau0, tau0, 0.5 * (tau0 + tau), tau] {
             if tk <= 0.0 {
                 continue;
             }
-            let (dp, vp, _) = advance(0.0, v1, a1, -m.jb, tk);
+            let (dp, vp, ap) = advance(0.0, v1, a1, -m.jb, tk);
             if vp <= 0.0 {
                 break;
             }
-            let (wp, _) = self.w_abs(m.idx, at1 + dp.max(0.0), m.stop_at);
+            let target = at1 + dp.max(0.0);
+            if target > m.stop_at {
+                return Verdict::Curve;
+            }
+            let (i, sl) = self.find(m.idx, target, m.stop_at);
+            let p = self.q.get(i);
+            let (wp, _) = p.w_at(sl, self.fo, self.ro);
             if vp > m.cap * wp * (1.0 + 1e-12) + 1e-12 {
                 return Verdict::Curve;
             }
+            if ap > 0.0 && !p.straight {
+                let (_, a_hi, _, _) = path_bounds(&self.lim, p, sl, vp, ap, m.quick);
+                if ap > a_hi {
+                    return Verdict::Curve;
+                }
+            }
         }
         Verdict::Safe
+    }
+
+    /// Lowest braking-curve speed from the current point to the farthest point a probe of
+    /// this period can reach (pieces' `w_low`, and the stop's jerk-limited shape there).
+    fn w_floor(&self, m: &Model, j_hi: f64) -> f64 {
+        let t = m.t;
+        let a1 = m.a.max(0.0) + j_hi.max(0.0) * t;
+        let v1 = m.v + m.a.max(0.0) * t + 0.5 * j_hi.max(0.0) * t * t;
+        let v_peak = v1 + a1 * a1 / (2.0 * m.jb);
+        let reach = v1 * t + v_peak * (a1 + m.d_nom) / m.jb;
+        let end = (m.at + reach).min(m.stop_at);
+        let mut floor = f64::INFINITY;
+        let mut i = m.idx;
+        // Bounded by the window; the reach of one probe covers a few pieces.
+        while i < self.q.len {
+            let p = self.q.get(i);
+            floor = floor.min(p.w_low);
+            if p.cum_start + p.len >= end || p.stop_at_end {
+                break;
+            }
+            i += 1;
+        }
+        let (stop_pos, sa, sj) = self.q.get(m.idx).stop_ahead;
+        if stop_pos.is_finite() && sa > 0.0 && sj > 0.0 {
+            floor = floor.min(jerk_stop_speed((stop_pos - end).max(0.0), sa, sj).0);
+        }
+        floor
     }
 
     /// One period of the path-speed policy from `st` (moving, on piece `idx`).
@@ -408,8 +463,8 @@ impl<K: Kinematics> Planner<K> {
             let (d_need, _) = stop(
                 st.v,
                 st.a.max(-h.a),
-                STOP_SHARE * h.a,
-                STOP_JERK_SHARE * h.j,
+                STOP_SHARE * h.a * f,
+                STOP_JERK_SHARE * h.j * f,
             );
             if st.at + d_need > hold_at && hold_at - st.at > 0.0 {
                 hold_at = st.at + d_need;
@@ -464,7 +519,11 @@ impl<K: Kinematics> Planner<K> {
             jb: head.j_brake.min(0.8 * (-j_lo).max(0.1 * jm)) * f,
             d_nom: (0.95 * (-a_lo).max(0.1 * a_full)).min(a_full) * f,
             cap: f,
+            quick,
+            w_floor: 0.0,
         };
+        let mut model = model;
+        model.w_floor = self.w_floor(&model, j_hi);
 
         // Landing: when the stop is a few periods away, plan the last steps exactly (the
         // smoothest sequence of steps that ends at the stop and stays there).
@@ -535,10 +594,18 @@ impl<K: Kinematics> Planner<K> {
                 None => {
                     // No constant jerk over the period keeps the stop: follow the stop
                     // profile exactly (a switch of its jerk falls inside the period).
-                    // With the full stop capability (the model's shares are the margin);
-                    // a hold point moves back to where that stop ends, so that the
+                    // The model's profile while it fits, else with the full stop capability
+                    // (the model's shares are the margin); a hold point moves back to where that stop ends, so that the
                     // machine does not creep up to it after coming to rest.
-                    let (ds, v1, a1) = stop_advance(v, a, a_stop, j_stop, t);
+                    let (mut ds, mut v1, mut a1) =
+                        stop_advance(v, a, model.a_stop, model.j_stop, t);
+                    let fits = |ds: f64, v1: f64, a1: f64| {
+                        ds + stop(v1, a1, model.a_stop, model.j_stop).0 <= rem
+                    };
+                    let releasable = !(a < 0.0 && a * a > 2.0 * model.j_stop * v.max(0.0));
+                    if !(releasable && fits(ds, v1, a1)) {
+                        (ds, v1, a1) = stop_advance(v, a, a_stop, j_stop, t);
+                    }
                     if hold_at.is_finite() && hold_at - st.at < stop_at - st.at {
                         let end = st.at + ds + stop(v1, a1, a_stop, j_stop).0;
                         hold_at = hold_at.min(end);
