@@ -405,3 +405,37 @@ fn isolated_line_takes_the_time_optimal_s_curve_time() {
         assert_limits(&tr, 50.0, 1000.0, 10_000.0);
     }
 }
+
+#[test]
+fn on_line_changes_never_alter_set_points_already_emitted() {
+    // The generator runs ahead of emission; an override, a hold or a quick stop regenerates
+    // only what was not emitted: the first 300 set-points are those of the run without a
+    // change, and the change shows from the next period on.
+    let plain = long_line_run(|_, _| {});
+    for change in 0..3 {
+        let changed = long_line_run(|n, pl| {
+            if n == 300 {
+                match change {
+                    0 => pl.set_feed_override(0.5),
+                    1 => pl.hold(),
+                    _ => pl.quick_stop(),
+                }
+            }
+            if n == 700 && change == 1 {
+                pl.resume();
+            }
+        });
+        // Three repeated start points, then period n's set-point at index n + 3.
+        assert_eq!(plain.pts[..303], changed.pts[..303], "change {change}");
+        assert_ne!(plain.pts[304], changed.pts[304], "change {change}");
+    }
+}
+
+#[test]
+fn the_generator_runs_one_longest_stop_ahead() {
+    // Fastest path speed sqrt(3)·100 mm/s over the weakest axis's 1000 mm/s², plus A/J:
+    // 0.1932 s, i.e. 194 periods of 1 ms.
+    let pl = planner(&limits(V, A, J), p3(0.0, 0.0, 0.0), 64);
+    let t_stop = 3f64.sqrt() * V / A + A / J;
+    assert!(pl.generation_depth() as f64 * T >= t_stop);
+}
