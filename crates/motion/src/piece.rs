@@ -89,6 +89,10 @@ pub(crate) struct Piece {
     /// Lowest value of the braking curve on this piece (a lower bound of `w_at` over the
     /// piece, not counting the stop's jerk-limited shape near a stop).
     pub w_low: f64,
+    /// Largest tangential acceleration and jerk on this piece (axis limits projected on
+    /// the tangent; normal and quick-stop limits), filled with the samples.
+    pub a_proj: [f64; 2],
+    pub j_proj: [f64; 2],
 }
 
 impl Piece {
@@ -144,6 +148,8 @@ impl Piece {
             valley_in: None,
             valley_next: None,
             w_low: 0.0,
+            a_proj: [1.0; 2],
+            j_proj: [1.0; 2],
         }
     }
 

@@ -561,7 +561,7 @@ impl<K: Kinematics> Planner<K> {
     /// Computes the next servo period: writes the joint positions (`joints.len()` should be
     /// the kinematics' joint count) and returns the status. Allocation-free, bounded time:
     /// one buffered set-point is emitted and the buffer is topped up with at most
-    /// `1 + GEN_BUDGET` (13) generator steps.
+    /// `1 + GEN_BUDGET` (13) generator steps, plus one forced step when nothing is buffered.
     pub fn next(&mut self, joints: &mut [f64]) -> Status {
         self.stats.periods += 1;
         self.top_up();
@@ -671,6 +671,14 @@ impl<K: Kinematics> Planner<K> {
             let mut p = self.scratch[k];
             p.sample(&self.lim);
             p.j_brake = p.jerk_available(&self.lim);
+            p.a_proj = [
+                head_accel(&p, &self.lim, false),
+                head_accel(&p, &self.lim, true),
+            ];
+            p.j_proj = [
+                head_jerk(&p, &self.lim, false),
+                head_jerk(&p, &self.lim, true),
+            ];
             if self.q.len > 0 {
                 let last_idx = self.q.len - 1;
                 let period = self.period;

@@ -84,7 +84,7 @@ impl<K: Kinematics> Planner<K> {
             }
             None if self.ahead.len == 0 => {
                 // Nothing left to roll back: the nearest point is emitted (and counted).
-                let st = self.generate_forced(front);
+                let st = self.step(front, true).unwrap_or_else(|| still(*front));
                 self.ahead.push(st);
             }
             None => self.rollback(front),
@@ -316,7 +316,20 @@ impl<K: Kinematics> Planner<K> {
     fn find(&self, from: usize, target: f64, stop_at: f64) -> (usize, f64) {
         let clamped = target >= stop_at;
         let target = target.min(stop_at);
-        let (mut lo, mut hi) = (from, self.q.len - 1);
+        // Most targets lie within a few pieces: look there first.
+        let mut lo = from;
+        for _ in 0..3 {
+            if lo + 1 < self.q.len && self.q.get(lo + 1).cum_start < target {
+                lo += 1;
+            } else {
+                let p = self.q.get(lo);
+                if clamped && p.cum_start + p.len >= stop_at - 1e-9 {
+                    return (lo, p.len);
+                }
+                return (lo, (target - p.cum_start).clamp(0.0, p.len));
+            }
+        }
+        let mut hi = self.q.len - 1;
         while lo < hi {
             let mid = (lo + hi).div_ceil(2);
             if self.q.get(mid).cum_start < target {
@@ -402,7 +415,7 @@ impl<K: Kinematics> Planner<K> {
                 return Verdict::Curve;
             }
             if ap > 0.0 && !p.straight {
-                let (_, a_hi, _, _) = path_bounds(&self.lim, p, sl, vp, ap, m.quick);
+                let (_, a_hi, _, _) = path_bounds(&self.lim, &p.geo_at(sl), vp, ap, m.quick);
                 if ap > a_hi {
                     return Verdict::Curve;
                 }
@@ -476,19 +489,19 @@ impl<K: Kinematics> Planner<K> {
                 j_stop = h.j;
             }
         }
-        let jm = CONTROL_SHARE * head_jerk(head, &self.lim, quick);
+        let jm = CONTROL_SHARE * head.j_proj[quick as usize];
         let (v, a) = (st.v, st.a);
         // Exact bounds of the path acceleration and jerk at the current point, and of the
         // acceleration at the point the period is expected to end at (the centripetal load
         // turns and grows along a curve: the state at the end of the period must fit there).
-        let (a_lo0, a_hi0, j_lo, j_hi) = path_bounds(&self.lim, head, st.s, v, a, quick);
+        let (a_lo0, a_hi0, j_lo, j_hi) = path_bounds(&self.lim, &head.geo_at(st.s), v, a, quick);
         let ds_pred = (v * t + 0.5 * a * t * t).max(0.0);
         let v_pred = (v + a * t).max(0.0);
         let (k1, s1) = self.locate(idx, st.s, st.at, ds_pred, stop_at);
-        let (a_lo1, a_hi1, _, _) = path_bounds(&self.lim, self.q.get(k1), s1, v_pred, a, quick);
-        let head = self.q.get(idx);
+        let geo1 = self.q.get(k1).geo_at(s1);
+        let (a_lo1, a_hi1, _, _) = path_bounds(&self.lim, &geo1, v_pred, a, quick);
         let (mut a_lo, mut a_hi) = (a_lo0.max(a_lo1), a_hi0.min(a_hi1));
-        let a_full = CONTROL_SHARE * head_accel(head, &self.lim, quick);
+        let a_full = CONTROL_SHARE * head.a_proj[quick as usize];
         if !(a_lo < a_hi) {
             (a_lo, a_hi) = (a_lo0, a_hi0);
         }
@@ -500,8 +513,9 @@ impl<K: Kinematics> Planner<K> {
         let (j_lo, j_hi) = (j_lo.max(-jm), j_hi.min(jm));
         if self.trace {
             eprintln!(
-                "CTRL at={} v={v} a={a} a_lo={a_lo} a_hi={a_hi} j_lo={j_lo} j_hi={j_hi} rem={rem}",
-                st.at
+                "CTRL at={} v={v} a={a} a_lo={a_lo} a_hi={a_hi} j_lo={j_lo} j_hi={j_hi} rem={rem} w={}",
+                st.at,
+                self.w_abs(idx, st.at, stop_at).0
             );
         }
         let model = Model {
@@ -841,13 +855,19 @@ impl<K: Kinematics> Planner<K> {
     }
 }
 
-/// Bounds of the path acceleration and jerk at local arc length `s` of `p` at speed `v` and
-/// acceleration `a` from every axis: |T a + K v²| ≤ A and |T j + 3 K v a + K' v³| ≤ J, with
+/// Bounds of the path acceleration and jerk where the path has tangent, curvature vector
+/// and its derivative `geo`, at speed `v` and acceleration `a`, from every axis: |T a + K v²| ≤ A and |T j + 3 K v a + K' v³| ≤ J, with
 /// the 3·K·v·a term kept within half of what the curvature change leaves (so that the
 /// acceleration can always be ramped back with the other half). Infinite where no axis
 /// bounds it.
-fn path_bounds(lim: &Lim, p: &Piece, s: f64, v: f64, a: f64, quick: bool) -> (f64, f64, f64, f64) {
-    let (tan, kv, kp) = p.geo_at(s);
+fn path_bounds(
+    lim: &Lim,
+    geo: &(AxisVec, AxisVec, AxisVec),
+    v: f64,
+    a: f64,
+    quick: bool,
+) -> (f64, f64, f64, f64) {
+    let (tan, kv, kp) = geo;
     let (mut a_lo, mut a_hi) = (f64::NEG_INFINITY, f64::INFINITY);
     let (mut j_lo, mut j_hi) = (f64::NEG_INFINITY, f64::INFINITY);
     for i in 0..AXES {
