@@ -12,7 +12,7 @@ use crate::error::MotionError;
 use crate::input::Move;
 use crate::kinematics::Kinematics;
 use crate::limits::{Lim, MachineLimits};
-use crate::otg::Profile;
+use crate::otg::{Profile, State as OtgState};
 use crate::piece::{BRAKE_SHARE_STRAIGHT, JERK_SHARE_JUMP, Piece};
 use crate::scurve::{advance, stop};
 
@@ -147,6 +147,10 @@ impl Ring {
         self.len = 0;
     }
 }
+
+/// Isolated-line S-curves kept at once (the emitted line's and those the generator reached
+/// ahead of it; one evicted is recomputed from rest when needed again).
+const PROFILE_SLOTS: usize = 4;
 
 /// Pieces one move can produce at most (line span, blend, dwell after a flush).
 const PIECES_PER_MOVE: usize = 4;
@@ -295,7 +299,7 @@ pub struct Planner<K: Kinematics> {
     strict: Option<Strict>,
     /// Time-optimal S-curve of an isolated straight line (rest to rest) with the id of its
     /// piece: such a move follows the OTG's profile instead of the period-by-period policy.
-    line_profile: Option<(u64, Profile)>,
+    line_profiles: [Option<(u64, Profile)>; PROFILE_SLOTS],
     /// Diagnostic trace of the generator on stderr (`RTCNC_MOTION_TRACE` set when the
     /// planner is built); never enable on a real-time thread.
     trace: bool,
@@ -389,7 +393,7 @@ impl<K: Kinematics> Planner<K> {
             ahead: GenBuffer::new(depth + 1, cur),
             depth,
             strict: None,
-            line_profile: None,
+            line_profiles: [None; PROFILE_SLOTS],
             trace: std::env::var_os("RTCNC_MOTION_TRACE").is_some(),
         })
     }
@@ -458,8 +462,8 @@ impl<K: Kinematics> Planner<K> {
         };
         if f != self.fo {
             self.fo = f;
-            self.line_profile = None;
             self.update_curve(0);
+            self.replan_line_profile();
             self.regenerate();
         }
     }
@@ -473,8 +477,8 @@ impl<K: Kinematics> Planner<K> {
         };
         if f != self.ro {
             self.ro = f;
-            self.line_profile = None;
             self.update_curve(0);
+            self.replan_line_profile();
             self.regenerate();
         }
     }
@@ -602,7 +606,7 @@ impl<K: Kinematics> Planner<K> {
             self.hold = None;
             self.ahead.len = 0;
             self.strict = None;
-            self.line_profile = None;
+            self.line_profiles = [None; PROFILE_SLOTS];
             self.cur.stopped = false;
             self.cur.id = self.q.head_id;
             self.cur.s = 0.0;
@@ -633,6 +637,67 @@ impl<K: Kinematics> Planner<K> {
             }
             work += 1;
             self.generate_one(&front);
+        }
+    }
+
+    /// After an override change while the emitted set-point follows an isolated line's
+    /// S-curve: a new time-optimal S-curve from the emitted state to the line's end under
+    /// the new feed. (Handing over to the speed policy there would leave it a state that
+    /// brakes at the full limits, which its stop model, with its margins, cannot follow.)
+    fn replan_line_profile(&mut self) {
+        let c = self.cur;
+        let on_profile = c.prof_t.is_some() && self.profile_of(c.id).is_some();
+        // Every other S-curve was planned with the old feed.
+        self.line_profiles = [None; PROFILE_SLOTS];
+        let Some(idx) = self.q.index(c.id).filter(|_| on_profile) else {
+            self.cur.prof_t = None;
+            return;
+        };
+        let from = OtgState {
+            p: c.s,
+            v: c.v,
+            a: c.a,
+        };
+        match self.line_profile_from(idx, from) {
+            Some(profile) => {
+                self.keep_profile(c.id, profile);
+                self.cur.prof_t = Some(0.0);
+            }
+            None => self.cur.prof_t = None,
+        }
+    }
+
+    /// The S-curve kept for piece `id`.
+    fn profile_of(&self, id: u64) -> Option<Profile> {
+        self.line_profiles
+            .iter()
+            .flatten()
+            .find(|(pid, _)| *pid == id)
+            .map(|(_, p)| *p)
+    }
+
+    /// Keeps the S-curve of piece `id`, in its own slot, a free one, or the one of a piece
+    /// already passed, else the one farthest ahead (never the emitted piece's: it may have
+    /// been replanned from a moving state).
+    fn keep_profile(&mut self, id: u64, profile: Profile) {
+        let cur = self.cur.id;
+        let slots = &self.line_profiles;
+        let pick = slots
+            .iter()
+            .position(|e| matches!(e, Some((pid, _)) if *pid == id))
+            .or_else(|| slots.iter().position(|e| e.is_none()))
+            .or_else(|| {
+                slots
+                    .iter()
+                    .position(|e| matches!(e, Some((pid, _)) if *pid < cur))
+            })
+            .or_else(|| {
+                (0..PROFILE_SLOTS)
+                    .filter(|i| matches!(slots[*i], Some((pid, _)) if pid != cur))
+                    .max_by_key(|i| slots[*i].map_or(0, |(pid, _)| pid))
+            });
+        if let Some(i) = pick {
+            self.line_profiles[i] = Some((id, profile));
         }
     }
 
@@ -868,7 +933,6 @@ impl<K: Kinematics> Planner<K> {
     }
 
     fn start_stop(&mut self, kind: StopKind) {
-        self.line_profile = None;
         let (a, j) = match kind {
             StopKind::Quick => (self.qa_min, self.qj_min),
             _ => (0.5 * self.a_min, 0.5 * self.j_min),
@@ -889,7 +953,19 @@ impl<K: Kinematics> Planner<K> {
         };
         self.hold = Some(Hold { a, j, kind });
         self.cur.hold_at = c.at + d;
-        self.cur.prof_t = None;
+        // On an isolated line's S-curve whose end comes before this stop would: the S-curve
+        // (which stops there at the full limits) is the stop. Else the speed policy takes
+        // over from the S-curve's state.
+        let on_profile = c.prof_t.is_some() && self.profile_of(c.id).is_some();
+        let line_end = self.q.index(c.id).map_or(f64::INFINITY, |i| {
+            self.q.get(i).cum_start + self.q.get(i).len
+        });
+        if on_profile && line_end <= c.at + d {
+            self.cur.hold_at = line_end;
+        } else {
+            self.line_profiles = [None; PROFILE_SLOTS];
+            self.cur.prof_t = None;
+        }
         self.regenerate();
     }
 }
@@ -1094,7 +1170,7 @@ impl<K: Kinematics> Planner<K> {
         }
         self.q.clear();
         self.builder.clear(position);
-        self.line_profile = None;
+        self.line_profiles = [None; PROFILE_SLOTS];
         self.hold = None;
         self.strict = None;
         self.ahead.len = 0;

@@ -246,26 +246,20 @@ impl<K: Kinematics> Planner<K> {
             {
                 return None;
             }
-            if !matches!(self.line_profile, Some((pid, _)) if pid == id) {
-                let vmax = (0..=head.ns)
-                    .map(|k| head.vlc(k, self.fo, self.ro))
-                    .fold(f64::INFINITY, f64::min);
-                // A hair (1e-7) inside the limits: the set-point check shrinks them by 1e-10
-                // relative plus rounding, and the profile runs at them exactly.
-                let share = 1.0 - 1e-7;
-                let limits = OtgLimits::symmetric(
-                    share * vmax,
-                    share * head_accel(head, &self.lim, false),
-                    share * head_jerk(head, &self.lim, false),
-                );
-                let rest = |p: f64| OtgState { p, v: 0.0, a: 0.0 };
-                let profile = position_profile(rest(0.0), rest(head.len), &limits).ok()?;
-                self.line_profile = Some((id, profile));
-            }
         }
-        let profile = match self.line_profile {
-            Some((pid, pr)) if pid == id => pr,
-            _ => return None,
+        let profile = match self.profile_of(id) {
+            Some(pr) => pr,
+            None => {
+                // Not planned yet, or evicted (then it was planned from rest as well).
+                let rest = OtgState {
+                    p: 0.0,
+                    v: 0.0,
+                    a: 0.0,
+                };
+                let pr = self.line_profile_from(idx, rest)?;
+                self.keep_profile(id, pr);
+                pr
+            }
         };
         let head = self.q.get(idx);
         let elapsed = st.prof_t.unwrap_or(0.0) + t;
@@ -295,6 +289,46 @@ impl<K: Kinematics> Planner<K> {
         n.at = head.cum_start + n.s;
         n.hist = [x, st.hist[0], st.hist[1]];
         Some(n)
+    }
+
+    /// The time-optimal S-curve of the straight piece `idx` from `from` (local arc length,
+    /// speed, acceleration) to rest at its end, under the feed (with the overrides) and the
+    /// axis limits projected on the line, a hair (1e-7) inside them: the set-point check
+    /// shrinks them by 1e-10 relative plus rounding, and the profile runs at them exactly.
+    /// From a moving state (an override changed the feed) the profile must not reverse: when
+    /// slowing down to the new feed first would overshoot the line's end, the speed limit
+    /// stays at the current speed (the stop at the end binds anyway). None when no
+    /// monotonic profile exists.
+    pub(super) fn line_profile_from(&self, idx: usize, from: OtgState) -> Option<Profile> {
+        let head = self.q.get(idx);
+        let vmax = (0..=head.ns)
+            .map(|k| head.vlc(k, self.fo, self.ro))
+            .fold(f64::INFINITY, f64::min);
+        let share = 1.0 - 1e-7;
+        let end = OtgState {
+            p: head.len,
+            v: 0.0,
+            a: 0.0,
+        };
+        if !(vmax > 1e-9) {
+            // An override of 0 %: the speed policy brings the machine to rest on the path.
+            return None;
+        }
+        let t = self.period;
+        for v_lim in [share * vmax, (share * vmax).max(from.v * (1.0 + 1e-9))] {
+            let limits =
+                OtgLimits::symmetric(v_lim, share * head.a_proj[0], share * head.j_proj[0]);
+            let Ok(profile) = position_profile(from, end, &limits) else {
+                continue;
+            };
+            // Monotonic along the path, checked at every period (bounded: the profile is
+            // at most a line's S-curve long).
+            let n = ((profile.duration() / t).ceil() as usize).min(1 << 20);
+            if (0..=n).all(|k| profile.at(k as f64 * t).v >= -1e-9) {
+                return Some(profile);
+            }
+        }
+        None
     }
 
     /// Piece index and local arc length `ds` ahead of (`idx`, `s`), never beyond the next
@@ -518,6 +552,8 @@ impl<K: Kinematics> Planner<K> {
                 self.w_abs(idx, st.at, stop_at).0
             );
         }
+        // Whether the stop ahead is a hold's (its point is soft and moves on, see above).
+        let soft = hold_at.is_finite() && hold_at - st.at < stop_at - st.at;
         let model = Model {
             t,
             v,
@@ -528,8 +564,10 @@ impl<K: Kinematics> Planner<K> {
             stop_at,
             a_lo,
             a_hi,
-            a_stop: STOP_SHARE * a_stop * f,
-            j_stop: STOP_JERK_SHARE * j_stop * f,
+            // A rollback cannot reach before the hold request, so a stricter model does not
+            // help a hold's stop; it does for a stop of the path.
+            a_stop: STOP_SHARE * a_stop * if soft { 1.0 } else { f },
+            j_stop: STOP_JERK_SHARE * j_stop * if soft { 1.0 } else { f },
             jb: head.j_brake.min(0.8 * (-j_lo).max(0.1 * jm)) * f,
             d_nom: (0.95 * (-a_lo).max(0.1 * a_full)).min(a_full) * f,
             cap: f,
