@@ -113,12 +113,21 @@ fn main() {
                     pl.set_feed_override(ovr);
                 }
                 if n == p_hold && kind('h') {
+                    if only.is_some() {
+                        eprintln!("HOLD at {n}");
+                    }
                     pl.hold();
                 }
                 if n == p_hold.saturating_add(300) && kind('h') {
+                    if only.is_some() {
+                        eprintln!("RESUME at {n}");
+                    }
                     pl.resume();
                 }
                 if n == p_quick && kind('q') {
+                    if only.is_some() {
+                        eprintln!("QUICK at {n}");
+                    }
                     pl.quick_stop();
                 }
             }
