@@ -655,11 +655,18 @@ impl<K: Kinematics> Planner<K> {
                         ds + stop(v1, a1, model.a_stop, model.j_stop).0 <= rem
                     };
                     let releasable = !(a < 0.0 && a * a > 2.0 * model.j_stop * v.max(0.0));
+                    // A hold's jerk is a soft choice: a deceleration that would outlast the
+                    // speed under it is released with the path's own jerk bound.
+                    let j_full = if soft && a < 0.0 && a * a > 2.0 * j_stop * v.max(0.0) {
+                        j_stop.max(0.99 * j_hi.min(jm))
+                    } else {
+                        j_stop
+                    };
                     if !(releasable && fits(ds, v1, a1)) {
-                        (ds, v1, a1) = stop_advance(v, a, a_stop, j_stop, t);
+                        (ds, v1, a1) = stop_advance(v, a, a_stop, j_full, t);
                     }
-                    if hold_at.is_finite() && hold_at - st.at < stop_at - st.at {
-                        let end = st.at + ds + stop(v1, a1, a_stop, j_stop).0;
+                    if soft {
+                        let end = st.at + ds + stop(v1, a1, a_stop, j_full).0;
                         hold_at = hold_at.min(end);
                     }
                     exact_state = Some((v1, a1));
