@@ -953,14 +953,15 @@ impl<K: Kinematics> Planner<K> {
         };
         self.hold = Some(Hold { a, j, kind });
         self.cur.hold_at = c.at + d;
-        // On an isolated line's S-curve whose end comes before this stop would: the S-curve
-        // (which stops there at the full limits) is the stop. Else the speed policy takes
-        // over from the S-curve's state.
+        // On an isolated line's S-curve whose end comes before this stop would, or which
+        // already brakes for it: the S-curve (which stops there at the full limits) is the
+        // stop. Else (accelerating or cruising, with room) the speed policy takes over from
+        // the S-curve's state.
         let on_profile = c.prof_t.is_some() && self.profile_of(c.id).is_some();
         let line_end = self.q.index(c.id).map_or(f64::INFINITY, |i| {
             self.q.get(i).cum_start + self.q.get(i).len
         });
-        if on_profile && line_end <= c.at + d {
+        if on_profile && (line_end <= c.at + d || c.a < 0.0) {
             self.cur.hold_at = line_end;
         } else {
             self.line_profiles = [None; PROFILE_SLOTS];

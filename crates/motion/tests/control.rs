@@ -439,3 +439,42 @@ fn the_generator_runs_one_longest_stop_ahead() {
     let t_stop = 3f64.sqrt() * V / A + A / J;
     assert!(pl.generation_depth() as f64 * T >= t_stop);
 }
+
+#[test]
+fn on_line_changes_on_an_isolated_lines_s_curve_keep_the_limits() {
+    // A line from rest to a stop follows the OTG's S-curve at the full limits. An override
+    // replans it from the current state, a hold or quick stop whose stop would end beyond
+    // the line keeps it: handing such a state over to the speed policy (whose stop model
+    // keeps margins) used to exceed the limits at the stop.
+    let lim = limits(V, A, J);
+    let line = [Move::line(
+        p3(30.0, 0.0, 0.0),
+        145.0,
+        PathMode::ExactStop,
+        1,
+    )];
+    // The S-curve takes about 0.42 s: 200 is at speed, 330 brakes, 400 lands.
+    for at in [200, 330, 400] {
+        for change in 0..4 {
+            let mut pl = planner(&lim, p3(0.0, 0.0, 0.0), 64);
+            let tr = run_with(&mut pl, &line, 10_000, |n, pl| {
+                if n == at {
+                    match change {
+                        0 => pl.set_feed_override(0.5),
+                        1 => pl.set_feed_override(1.5),
+                        2 => pl.hold(),
+                        _ => pl.quick_stop(),
+                    }
+                }
+                if n == at + 400 && change == 2 {
+                    pl.resume();
+                }
+            });
+            assert_limits(&tr, V, A, J);
+            assert_eq!(pl.stats().limit_violations, 0, "at {at} change {change}");
+            if change < 3 {
+                assert!(dist(tr.pts.last().unwrap(), &p3(30.0, 0.0, 0.0)) <= 1e-9);
+            }
+        }
+    }
+}
