@@ -8,7 +8,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 n="${1:-500}"
-seeds="${2:-1 2 3 4 5 6 7}"
+seeds="${2:-1 2 3 4 5 6 7 8 9 10 11 12 13 14}"
 cargo build -q --release -p rtcnc-motion --example stress
 for s in $seeds; do
   echo "== seed $s"

@@ -73,7 +73,9 @@ fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
     let lim = AxisLimits::new(100.0, 1000.0, 50_000.0, -1000.0, 1000.0);
     let machine = MachineLimits::uniform(&[Axis::X, Axis::Y, Axis::Z], lim);
     let kin = TrivialKinematics::identity(&[Axis::X, Axis::Y, Axis::Z]);
-    let mut pl = Planner::new(&machine, kin, t, 1024, start).expect("planner");
+    let trickle = std::env::var_os("BENCH_PATHS_TRICKLE").is_some();
+    let window = if trickle { 256 } else { 1024 };
+    let mut pl = Planner::new(&machine, kin, t, window, start).expect("planner");
     let mut joints = [0.0; 3];
     let mut pts: Vec<[f64; AXES]> = vec![start; 3];
     let mut k = 0;
@@ -81,10 +83,14 @@ fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
     let mut plan = std::time::Duration::ZERO;
     let mut interp = std::time::Duration::ZERO;
     let mut moving_periods = 0usize;
+    let mut speeds = Vec::new();
     for _ in 0..10_000_000 {
         let t0 = std::time::Instant::now();
         if k < moves.len() && pl.free() > 0 {
-            k += pl.push_all(&moves[k..]).expect("push");
+            // BENCH_PATHS_TRICKLE: one move per period into a 256-piece window, as a
+            // kernel feeding the planner while it runs.
+            let n = if trickle { 1 } else { moves.len() - k };
+            k += pl.push_all(&moves[k..k + n]).expect("push");
         }
         if k == moves.len() && !flushed {
             pl.flush();
@@ -98,7 +104,14 @@ fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
             break;
         }
         pts.push(st.axes);
+        speeds.push(st.path_speed);
         moving_periods += 1;
+    }
+    if let Some(path) = std::env::var_os("BENCH_PATHS_SPEED") {
+        // Diagnostics: the path speed of every period, one per line (last program run).
+        let text: String = speeds.iter().map(|v| format!("{v}\n")).collect();
+        let _ = std::fs::write(path, text);
+        eprintln!("{:?}", pl.stats());
     }
     let mut m = Measured {
         time: 0.0,

@@ -27,6 +27,7 @@ fn main() {
     let mut rng = Lcg(seed);
     let (vm, am, jm, t) = (100.0, 1000.0, 50_000.0, 1e-3);
     let mut failures = 0;
+    let (mut periods, mut rollbacks, mut violations, mut generated) = (0u64, 0u64, 0u64, 0u64);
     for case in 0..n {
         let k = 1 + (rng.f() * 8.0) as usize;
         let mut spec = String::new();
@@ -79,7 +80,57 @@ fn main() {
         let mut h = vec![[0.0; AXES]; 3];
         let mut j = [0.0; 3];
         let mut worst = (0.0f64, 0.0f64, 0.0f64);
-        for _ in 0..2_000_000 {
+        // STRESS_ONLINE=1: on-line changes at random periods (an override, a hold and its
+        // resume, and in one program of ten a quick stop).
+        let online_kinds = std::env::var("STRESS_ONLINE").unwrap_or_default();
+        let online = !online_kinds.is_empty();
+        let kind = |c: char| online_kinds.contains(c) || online_kinds == "1";
+        // (Drawn only then, so that the programs of a seed stay those of plain runs.)
+        let (mut p_ovr, mut ovr, mut p_hold, mut p_quick) =
+            (usize::MAX, 1.0, usize::MAX, usize::MAX);
+        if online {
+            (p_ovr, ovr) = (30 + (rng.f() * 600.0) as usize, 0.2 + rng.f() * 1.5);
+            p_hold = 30 + (rng.f() * 900.0) as usize;
+            if rng.f() < 0.1 {
+                p_quick = 30 + (rng.f() * 1500.0) as usize;
+            }
+        }
+        // STRESS_ONLY=<case>: run only that program (for a trace with RTCNC_MOTION_TRACE).
+        let only = std::env::var("STRESS_ONLY")
+            .ok()
+            .and_then(|x| x.parse::<usize>().ok());
+        let periods_max = if only.is_some_and(|o| o != case) {
+            0
+        } else {
+            2_000_000
+        };
+        for n in 0..periods_max {
+            if online {
+                if n == p_ovr && kind('o') {
+                    if only.is_some() {
+                        eprintln!("OVERRIDE {ovr} at {n}");
+                    }
+                    pl.set_feed_override(ovr);
+                }
+                if n == p_hold && kind('h') {
+                    if only.is_some() {
+                        eprintln!("HOLD at {n}");
+                    }
+                    pl.hold();
+                }
+                if n == p_hold.saturating_add(300) && kind('h') {
+                    if only.is_some() {
+                        eprintln!("RESUME at {n}");
+                    }
+                    pl.resume();
+                }
+                if n == p_quick && kind('q') {
+                    if only.is_some() {
+                        eprintln!("QUICK at {n}");
+                    }
+                    pl.quick_stop();
+                }
+            }
             let st = pl.next(&mut j);
             h.push(st.axes);
             let w = &h[h.len() - 4..];
@@ -94,6 +145,11 @@ fn main() {
                 break;
             }
         }
+        let st = pl.stats();
+        periods += st.periods;
+        rollbacks += st.rollbacks;
+        violations += st.limit_violations;
+        generated += st.generated;
         if worst.0 > 1.0 + 1e-9 || worst.1 > 1.0 + 1e-9 || worst.2 > 1.0 + 1e-9 {
             failures += 1;
             if failures <= 5 {
@@ -108,5 +164,7 @@ fn main() {
             }
         }
     }
-    println!("{failures} of {n} programs exceeded a limit");
+    println!(
+        "{failures} of {n} programs exceeded a limit ({periods} periods, {generated} set-points generated, {rollbacks} rollbacks, {violations} counted violations)"
+    );
 }

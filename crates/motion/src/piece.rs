@@ -93,6 +93,13 @@ pub(crate) struct Piece {
     /// The next valley after this piece: (path length from the program start, speed,
     /// deceleration, jerk).
     pub valley_next: Option<(f64, f64, f64, f64)>,
+    /// Lowest value of the braking curve on this piece (a lower bound of `w_at` over the
+    /// piece, not counting the stop's jerk-limited shape near a stop).
+    pub w_low: f64,
+    /// Largest tangential acceleration and jerk on this piece (axis limits projected on
+    /// the tangent; normal and quick-stop limits), filled with the samples.
+    pub a_proj: [f64; 2],
+    pub j_proj: [f64; 2],
 }
 
 impl Piece {
@@ -149,6 +156,9 @@ impl Piece {
             stop_ahead: (f64::INFINITY, 0.0, 0.0),
             valley_in: None,
             valley_next: None,
+            w_low: 0.0,
+            a_proj: [1.0; 2],
+            j_proj: [1.0; 2],
         }
     }
 

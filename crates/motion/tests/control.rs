@@ -405,3 +405,76 @@ fn isolated_line_takes_the_time_optimal_s_curve_time() {
         assert_limits(&tr, 50.0, 1000.0, 10_000.0);
     }
 }
+
+#[test]
+fn on_line_changes_never_alter_set_points_already_emitted() {
+    // The generator runs ahead of emission; an override, a hold or a quick stop regenerates
+    // only what was not emitted: the first 300 set-points are those of the run without a
+    // change, and the change shows from the next period on.
+    let plain = long_line_run(|_, _| {});
+    for change in 0..3 {
+        let changed = long_line_run(|n, pl| {
+            if n == 300 {
+                match change {
+                    0 => pl.set_feed_override(0.5),
+                    1 => pl.hold(),
+                    _ => pl.quick_stop(),
+                }
+            }
+            if n == 700 && change == 1 {
+                pl.resume();
+            }
+        });
+        // Three repeated start points, then period n's set-point at index n + 3.
+        assert_eq!(plain.pts[..303], changed.pts[..303], "change {change}");
+        assert_ne!(plain.pts[304], changed.pts[304], "change {change}");
+    }
+}
+
+#[test]
+fn the_generator_runs_one_longest_stop_ahead() {
+    // Fastest path speed sqrt(3)·100 mm/s over the weakest axis's 1000 mm/s², plus A/J:
+    // 0.1932 s, i.e. 194 periods of 1 ms.
+    let pl = planner(&limits(V, A, J), p3(0.0, 0.0, 0.0), 64);
+    let t_stop = 3f64.sqrt() * V / A + A / J;
+    assert!(pl.generation_depth() as f64 * T >= t_stop);
+}
+
+#[test]
+fn on_line_changes_on_an_isolated_lines_s_curve_keep_the_limits() {
+    // A line from rest to a stop follows the OTG's S-curve at the full limits. An override
+    // replans it from the current state, a hold or quick stop whose stop would end beyond
+    // the line keeps it: handing such a state over to the speed policy (whose stop model
+    // keeps margins) used to exceed the limits at the stop.
+    let lim = limits(V, A, J);
+    let line = [Move::line(
+        p3(30.0, 0.0, 0.0),
+        145.0,
+        PathMode::ExactStop,
+        1,
+    )];
+    // The S-curve takes about 0.42 s: 200 is at speed, 330 brakes, 400 lands.
+    for at in [200, 330, 400] {
+        for change in 0..4 {
+            let mut pl = planner(&lim, p3(0.0, 0.0, 0.0), 64);
+            let tr = run_with(&mut pl, &line, 10_000, |n, pl| {
+                if n == at {
+                    match change {
+                        0 => pl.set_feed_override(0.5),
+                        1 => pl.set_feed_override(1.5),
+                        2 => pl.hold(),
+                        _ => pl.quick_stop(),
+                    }
+                }
+                if n == at + 400 && change == 2 {
+                    pl.resume();
+                }
+            });
+            assert_limits(&tr, V, A, J);
+            assert_eq!(pl.stats().limit_violations, 0, "at {at} change {change}");
+            if change < 3 {
+                assert!(dist(tr.pts.last().unwrap(), &p3(30.0, 0.0, 0.0)) <= 1e-9);
+            }
+        }
+    }
+}

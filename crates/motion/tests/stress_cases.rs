@@ -1,8 +1,7 @@
 //! Move lists the randomised stress run (`examples/stress.rs`) found exceeding a limit,
 //! shrunk to a few moves (`examples/shrink.rs`). Each must keep every axis's v, a, j limit
-//! in every period, end exactly and count no violation. All still fail (docs/motion.md,
-//! "Not every program yet"), so they are ignored until the controller is fixed; run them
-//! with `cargo test -p rtcnc-motion --test stress_cases -- --ignored`.
+//! in every period, end exactly and count no violation. They failed with the controller
+//! before set-points were generated ahead with verification and rollback.
 
 mod common;
 use common::*;
@@ -34,7 +33,6 @@ fn check(moves: &[Move], window: usize) {
 /// exact stop. The controller used to notice the corner's slow-down too late and the
 /// set-point jumped (acceleration 21 ×, jerk 400 × the limit).
 #[test]
-#[ignore = "known failure: the set-point jumps at the stop (docs/motion.md)"]
 fn fast_line_into_a_blend_then_a_stop_keeps_the_limits() {
     let moves = [
         Move::line(p3(8.0, 13.0, 18.0), 145.0, blend(0.01), 1),
@@ -49,7 +47,6 @@ fn fast_line_into_a_blend_then_a_stop_keeps_the_limits() {
 /// Seed 2, program 221 of `stress 500 2`: a short blended zig-zag with feeds from 39 to
 /// 118 mm/s (jerk 5.6 × the limit before the fix).
 #[test]
-#[ignore = "known failure: the speed reaches zero mid-line with deceleration left (docs/motion.md)"]
 fn short_zig_zag_with_mixed_feeds_keeps_the_limits() {
     let moves = [
         Move::line(p3(6.0, 20.0, -1.0), 118.0, PathMode::ExactPath, 1),
@@ -66,7 +63,6 @@ fn short_zig_zag_with_mixed_feeds_keeps_the_limits() {
 /// line to an exact-path stop, then two blended lines; the per-sample check moves points
 /// on the second blend (acceleration and jerk up to 1.23 × the limit).
 #[test]
-#[ignore = "known failure: the per-sample check moves set-points on a blend (docs/motion.md)"]
 fn line_to_a_stop_then_two_blends_keeps_the_limits() {
     let moves = [
         Move::line(p3(5.0, 2.8, -12.863), 63.0, PathMode::ExactPath, 1),

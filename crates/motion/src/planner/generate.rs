@@ -1,0 +1,960 @@
+//! The set-point generator: one servo period from a generator state, verified against every
+//! axis's finite-difference box, and the rollback on a dead end.
+//!
+//! Per period: exact bounds of the path acceleration and jerk at the current point, then the
+//! largest path jerk whose end state passes the speed model (stop distance, the braking
+//! curve at the end of the period and along a jerk-limited probe onto the curve's slope),
+//! found by a short bisection around the last period's jerk; then the set-point is computed
+//! once and checked against the box of every axis. A point outside is replaced by the
+//! nearest admissible point on the path (the state then follows that point, so nothing is
+//! moved after the fact); when the path has no admissible point, the generator is at a dead
+//! end and rolls back.
+
+use super::*;
+use crate::otg::{Limits as OtgLimits, State as OtgState, position_profile};
+use crate::piece::jerk_stop_speed;
+use crate::scurve::stop_advance;
+
+/// Share of the projected axis limits the speed policy uses (the set-point check allows the
+/// rest; the margin absorbs the rounding of the check).
+const CONTROL_SHARE: f64 = 0.9999;
+/// Share of the stop model's deceleration the policy plans its stops with.
+pub(super) const STOP_SHARE: f64 = 0.97;
+/// The same for the jerk: the discrete landing on a stop needs a little more jerk than the
+/// continuous profile it follows.
+pub(super) const STOP_JERK_SHARE: f64 = 0.9;
+/// Speed-model scale per rollback attempt at the same dead end (deceleration, jerk and the
+/// braking-curve cap all shrink by this factor per attempt).
+const STRICT_FACTOR: f64 = 0.9;
+/// Set-points dropped by the first rollback at a dead end (doubling per attempt).
+const ROLLBACK_FIRST: usize = 4;
+
+/// What the speed model needs for one period.
+struct Model {
+    t: f64,
+    v: f64,
+    a: f64,
+    at: f64,
+    idx: usize,
+    rem: f64,
+    stop_at: f64,
+    a_lo: f64,
+    a_hi: f64,
+    a_stop: f64,
+    j_stop: f64,
+    /// Jerk and deceleration of the probe onto the braking curve.
+    jb: f64,
+    d_nom: f64,
+    /// Cap on the braking curve (1 unless a rollback made the policy stricter).
+    cap: f64,
+    quick: bool,
+    /// Lowest braking-curve speed within the farthest reach of this period's probes: a
+    /// probe whose speed stays under it needs no lookups.
+    w_floor: f64,
+}
+
+/// Why a path jerk is refused by the model.
+#[derive(PartialEq)]
+enum Verdict {
+    Safe,
+    /// Overshoots the stop (or the hold point), or brakes harder than the path allows.
+    Stop,
+    /// Exceeds the braking curve.
+    Curve,
+}
+
+impl<K: Kinematics> Planner<K> {
+    /// One generator step from the buffer's front; a dead end rolls back instead.
+    pub(super) fn generate_one(&mut self, front: &GenState) {
+        self.stats.generated += 1;
+        match self.step(front, false) {
+            Some(st) => {
+                if let Some(s) = self.strict
+                    && st.at > s.until
+                {
+                    self.strict = None;
+                }
+                if self.trace {
+                    eprintln!(
+                        "GEN at={} v={} a={} ds={:?} land={} state={:?}",
+                        st.at, st.v, st.a, st.ds_hist, st.land_n, st.state
+                    );
+                }
+                self.ahead.push(st);
+            }
+            None if self.ahead.len == 0 => {
+                // Nothing left to roll back: the nearest point is emitted (and counted).
+                let st = self.step(front, true).unwrap_or_else(|| still(*front));
+                self.ahead.push(st);
+            }
+            None => self.rollback(front),
+        }
+    }
+
+    /// A step that always gives a set-point: at a dead end the nearest point on the path,
+    /// counted in `limit_violations`.
+    pub(super) fn generate_forced(&mut self, front: &GenState) -> GenState {
+        self.stats.generated += 1;
+        self.step(front, true).unwrap_or_else(|| still(*front))
+    }
+
+    /// Drops the last set-points (4, 8, 16, ... for repeated dead ends at the same place)
+    /// and makes the policy stricter until the dead end is passed.
+    fn rollback(&mut self, front: &GenState) {
+        self.stats.rollbacks += 1;
+        let reach = 8.0 * front.v * self.period + 1e-9;
+        let attempt = match self.strict {
+            Some(s) if front.at <= s.until + reach => s.attempt + 1,
+            _ => 0,
+        };
+        let until = match self.strict {
+            Some(s) if attempt > 0 => s.until.max(front.at),
+            _ => front.at,
+        };
+        let k = ROLLBACK_FIRST << attempt.min(16);
+        let dropped = self.ahead.drop_back(k);
+        self.stats.rolled_back += dropped as u64;
+        if self.trace {
+            eprintln!(
+                "ROLLBACK at={} v={} a={} attempt={attempt} dropped={dropped}",
+                front.at, front.v, front.a
+            );
+        }
+        self.strict = Some(Strict { until, attempt });
+    }
+
+    /// One period from `prev`: releases finished stops and dwells, then moves. None at a
+    /// dead end (unless `force`).
+    fn step(&mut self, prev: &GenState, force: bool) -> Option<GenState> {
+        let st = self.step_unchecked(prev, force)?;
+        if st.hist[0] == prev.hist[0] && st.hist[1] == prev.hist[0] {
+            // A period at rest is a set-point too: coming to rest must keep the box.
+            let quick = matches!(self.hold, Some(h) if h.kind == StopKind::Quick);
+            let (lo, hi) = self.fd_box(&prev.hist, quick);
+            if !inside(&self.lim, &st.hist[0], &lo, &hi) {
+                if !force {
+                    if self.trace {
+                        eprintln!("DEAD END at rest at={} v={} a={}", prev.at, prev.v, prev.a);
+                    }
+                    return None;
+                }
+                self.stats.limit_violations += 1;
+            }
+        }
+        Some(st)
+    }
+
+    fn step_unchecked(&mut self, prev: &GenState, force: bool) -> Option<GenState> {
+        let t = self.period;
+        let mut st = *prev;
+        st.stopped = false;
+        for _ in 0..=self.q.cap() {
+            if let Some(h) = self.hold
+                && st.v <= 0.0
+                && st.a.abs() <= 1e-9
+            {
+                st.v = 0.0;
+                st.a = 0.0;
+                st.prof_t = None;
+                st.land_n = 0;
+                if h.kind == StopKind::Hold {
+                    st.state = MotionState::Holding;
+                } else {
+                    st.stopped = true;
+                    st.state = MotionState::Idle;
+                }
+                return Some(still(st));
+            }
+            let Some(idx) = self.q.index(st.id) else {
+                st.v = 0.0;
+                st.a = 0.0;
+                st.s = 0.0;
+                st.at = self.cum_end;
+                st.prof_t = None;
+                st.land_n = 0;
+                st.line = 0;
+                st.state = MotionState::Idle;
+                return Some(still(st));
+            };
+            let p = self.q.get(idx);
+            st.line = p.line;
+            if p.len <= 0.0 {
+                let left = st.dwell_left.unwrap_or(p.dwell) - t;
+                if left <= 1e-12 {
+                    st.dwell_left = None;
+                    st.id += 1;
+                    st.s = 0.0;
+                    st.at = p.cum_start;
+                    if p.dwell > 0.0 {
+                        st.state = MotionState::Dwelling;
+                        return Some(still(st));
+                    }
+                    continue;
+                }
+                st.dwell_left = Some(left);
+                st.state = MotionState::Dwelling;
+                return Some(still(st));
+            }
+            let at_end = st.s >= p.len - 1e-12;
+            if at_end && st.v <= 0.0 && (p.stop_at_end || idx + 1 == self.q.len) {
+                st.v = 0.0;
+                st.a = 0.0;
+                st.id += 1;
+                st.s = 0.0;
+                st.at = p.cum_start + p.len;
+                st.land_n = 0;
+                st.prof_t = None;
+                continue;
+            }
+            st.state = MotionState::Moving;
+            if let Some(next) = self.follow_line_profile(&st, idx) {
+                return Some(next);
+            }
+            return self.control(st, idx, force);
+        }
+        Some(still(st))
+    }
+
+    /// The strictness factor at path position `at` (1 outside a rollback's region).
+    fn strictness(&self, at: f64) -> f64 {
+        match self.strict {
+            Some(s) if at <= s.until => STRICT_FACTOR.powi(s.attempt as i32 + 1),
+            _ => 1.0,
+        }
+    }
+
+    /// An isolated straight line (starting at rest, ending in a stop, no hold or stop in
+    /// progress) follows the time-optimal rest-to-rest S-curve of the OTG under the feed and
+    /// the axis limits projected on the line: its duration is the optimum, and every period
+    /// samples the continuous profile, so the finite differences stay within the limits.
+    /// None when the speed policy decides (also when a sample fails the set-point check:
+    /// the policy then takes over from the profile's state).
+    fn follow_line_profile(&mut self, st: &GenState, idx: usize) -> Option<GenState> {
+        let t = self.period;
+        let head = self.q.get(idx);
+        let id = st.id;
+        if st.prof_t.is_none() {
+            let straight = head.stop_at_end
+                && (0..=head.ns).all(|k| head.smp[k].k.iter().all(|c| *c == 0.0))
+                && (0..head.ns).all(|k| head.smp[k].t == head.smp[k + 1].t);
+            if !(straight
+                && self.hold.is_none()
+                && self.strict.is_none()
+                && st.s == 0.0
+                && st.v == 0.0
+                && st.a == 0.0)
+            {
+                return None;
+            }
+        }
+        let profile = match self.profile_of(id) {
+            Some(pr) => pr,
+            None => {
+                // Not planned yet, or evicted (then it was planned from rest as well).
+                let rest = OtgState {
+                    p: 0.0,
+                    v: 0.0,
+                    a: 0.0,
+                };
+                let pr = self.line_profile_from(idx, rest)?;
+                self.keep_profile(id, pr);
+                pr
+            }
+        };
+        let head = self.q.get(idx);
+        let elapsed = st.prof_t.unwrap_or(0.0) + t;
+        let rem = head.len - st.s;
+        let (ds, v, a, done) = if elapsed >= profile.duration() {
+            (rem, 0.0, 0.0, true)
+        } else {
+            let smp = profile.at(elapsed);
+            (clampf(smp.p - st.s, 0.0, rem), smp.v, smp.a, false)
+        };
+        let x = if done { head.end } else { head.pos(st.s + ds) };
+        let (lo, hi) = self.fd_box(&st.hist, false);
+        if !inside(&self.lim, &x, &lo, &hi) {
+            return None;
+        }
+        let mut n = *st;
+        n.prof_t = if done { None } else { Some(elapsed) };
+        n.v = v;
+        n.a = a;
+        n.j_last = 0.0;
+        n.ds_hist = [st.ds_hist[1], ds];
+        n.s = if done {
+            head.len
+        } else {
+            (st.s + ds).min(head.len)
+        };
+        n.at = head.cum_start + n.s;
+        n.hist = [x, st.hist[0], st.hist[1]];
+        Some(n)
+    }
+
+    /// The time-optimal S-curve of the straight piece `idx` from `from` (local arc length,
+    /// speed, acceleration) to rest at its end, under the feed (with the overrides) and the
+    /// axis limits projected on the line, a hair (1e-7) inside them: the set-point check
+    /// shrinks them by 1e-10 relative plus rounding, and the profile runs at them exactly.
+    /// From a moving state (an override changed the feed) the profile must not reverse: when
+    /// slowing down to the new feed first would overshoot the line's end, the speed limit
+    /// stays at the current speed (the stop at the end binds anyway). None when no
+    /// monotonic profile exists.
+    pub(super) fn line_profile_from(&self, idx: usize, from: OtgState) -> Option<Profile> {
+        let head = self.q.get(idx);
+        let vmax = (0..=head.ns)
+            .map(|k| head.vlc(k, self.fo, self.ro))
+            .fold(f64::INFINITY, f64::min);
+        let share = 1.0 - 1e-7;
+        let end = OtgState {
+            p: head.len,
+            v: 0.0,
+            a: 0.0,
+        };
+        if !(vmax > 1e-9) {
+            // An override of 0 %: the speed policy brings the machine to rest on the path.
+            return None;
+        }
+        let t = self.period;
+        for v_lim in [share * vmax, (share * vmax).max(from.v * (1.0 + 1e-9))] {
+            let limits =
+                OtgLimits::symmetric(v_lim, share * head.a_proj[0], share * head.j_proj[0]);
+            let Ok(profile) = position_profile(from, end, &limits) else {
+                continue;
+            };
+            // Monotonic along the path, checked at every period (bounded: the profile is
+            // at most a line's S-curve long).
+            let n = ((profile.duration() / t).ceil() as usize).min(1 << 20);
+            if (0..=n).all(|k| profile.at(k as f64 * t).v >= -1e-9) {
+                return Some(profile);
+            }
+        }
+        None
+    }
+
+    /// Piece index and local arc length `ds` ahead of (`idx`, `s`), never beyond the next
+    /// stop (`stop_at`, path length from the program start), where it is the stop's exact end.
+    #[inline]
+    fn locate(&self, idx: usize, s: f64, at: f64, ds: f64, stop_at: f64) -> (usize, f64) {
+        let p = self.q.get(idx);
+        if s + ds <= p.len {
+            return (idx, (s + ds).max(0.0));
+        }
+        if p.stop_at_end || idx + 1 >= self.q.len {
+            return (idx, p.len);
+        }
+        self.find(idx, at + ds, stop_at)
+    }
+
+    /// The piece containing path position `target` (binary search over the window from
+    /// `from`), never beyond the stop at `stop_at`.
+    fn find(&self, from: usize, target: f64, stop_at: f64) -> (usize, f64) {
+        let clamped = target >= stop_at;
+        let target = target.min(stop_at);
+        // Most targets lie within a few pieces: look there first.
+        let mut lo = from;
+        for _ in 0..3 {
+            if lo + 1 < self.q.len && self.q.get(lo + 1).cum_start < target {
+                lo += 1;
+            } else {
+                let p = self.q.get(lo);
+                if clamped && p.cum_start + p.len >= stop_at - 1e-9 {
+                    return (lo, p.len);
+                }
+                return (lo, (target - p.cum_start).clamp(0.0, p.len));
+            }
+        }
+        let mut hi = self.q.len - 1;
+        while lo < hi {
+            let mid = (lo + hi).div_ceil(2);
+            if self.q.get(mid).cum_start < target {
+                lo = mid;
+            } else {
+                hi = mid - 1;
+            }
+        }
+        let p = self.q.get(lo);
+        if clamped && p.cum_start + p.len >= stop_at - 1e-9 {
+            return (lo, p.len);
+        }
+        (lo, (target - p.cum_start).clamp(0.0, p.len))
+    }
+
+    /// Braking-curve speed and slope at path position `target`.
+    #[inline]
+    fn w_abs(&self, from: usize, target: f64, stop_at: f64) -> (f64, f64) {
+        if target > stop_at {
+            return (0.0, 0.0);
+        }
+        let (i, sl) = self.find(from, target, stop_at);
+        self.q.get(i).w_at(sl, self.fo, self.ro)
+    }
+
+    /// The model's verdict on path jerk `j` for this period.
+    fn judge(&self, m: &Model, j: f64) -> Verdict {
+        let (ds, v1, a1) = advance(0.0, m.v, m.a, j, m.t);
+        if v1 < -1e-9 || ds < 0.0 || ds > m.rem + 1e-12 || a1 < m.a_lo.min(-1e-9) - 1e-9 {
+            return Verdict::Stop;
+        }
+        if a1 > m.a_hi.max(0.0) + 1e-9 {
+            return Verdict::Curve;
+        }
+        let v1 = v1.max(0.0);
+        // A state that decelerates so hard that the speed would reach zero before the
+        // deceleration can be released cannot stop smoothly.
+        if a1 < 0.0 && a1 * a1 > 2.0 * m.j_stop * v1 * (1.0 + 1e-9) + 1e-12 {
+            return Verdict::Stop;
+        }
+        let (dst, _) = stop(v1, a1, m.a_stop, m.j_stop);
+        if ds + dst > m.rem * (1.0 + 1e-12) + 1e-12 {
+            return Verdict::Stop;
+        }
+        let at1 = m.at + ds;
+        // The highest speed of the probe below (where its acceleration crosses zero).
+        let v_peak = v1 + a1.max(0.0) * a1.max(0.0) / (2.0 * m.jb);
+        let quiet = a1 <= 0.0 || self.q.get(m.idx).straight;
+        if v_peak <= m.cap * m.w_floor && quiet {
+            return Verdict::Safe;
+        }
+        let (w1, d1) = self.w_abs(m.idx, at1, m.stop_at);
+        if v1 > m.cap * w1 * (1.0 + 1e-12) + 1e-12 {
+            return Verdict::Curve;
+        }
+        // Probe: ramp the acceleration down to the curve's deceleration (or the nominal
+        // one where the curve is flat) with the braking jerk; the speed must stay under the
+        // curve where the acceleration crosses zero, half-way and at the end of the ramp.
+        let dd = if d1 > 0.0 { d1.min(m.d_nom) } else { m.d_nom };
+        let tau0 = a1.max(0.0) / m.jb;
+        let tau = (a1 + dd) / m.jb;
+        if tau <= 0.0 {
+            return Verdict::Safe;
+        }
+        // While the acceleration is still positive, it must also fit the path bound where
+        // the probe is (on a curve the centripetal load leaves less as the speed grows).
+        for tk in [0.5 * tau0, tau0, 0.5 * (tau0 + tau), tau] {
+            if tk <= 0.0 {
+                continue;
+            }
+            let (dp, vp, ap) = advance(0.0, v1, a1, -m.jb, tk);
+            if vp <= 0.0 {
+                break;
+            }
+            let target = at1 + dp.max(0.0);
+            if target > m.stop_at {
+                return Verdict::Curve;
+            }
+            let (i, sl) = self.find(m.idx, target, m.stop_at);
+            let p = self.q.get(i);
+            let (wp, _) = p.w_at(sl, self.fo, self.ro);
+            if vp > m.cap * wp * (1.0 + 1e-12) + 1e-12 {
+                return Verdict::Curve;
+            }
+            if ap > 0.0 && !p.straight {
+                let (_, a_hi, _, _) = path_bounds(&self.lim, &p.geo_at(sl), vp, ap, m.quick);
+                if ap > a_hi {
+                    return Verdict::Curve;
+                }
+            }
+        }
+        Verdict::Safe
+    }
+
+    /// Lowest braking-curve speed from the current point to the farthest point a probe of
+    /// this period can reach (pieces' `w_low`, and the stop's jerk-limited shape there).
+    fn w_floor(&self, m: &Model, j_hi: f64) -> f64 {
+        let t = m.t;
+        let a1 = m.a.max(0.0) + j_hi.max(0.0) * t;
+        let v1 = m.v + m.a.max(0.0) * t + 0.5 * j_hi.max(0.0) * t * t;
+        let v_peak = v1 + a1 * a1 / (2.0 * m.jb);
+        let reach = v1 * t + v_peak * (a1 + m.d_nom) / m.jb;
+        let end = (m.at + reach).min(m.stop_at);
+        let mut floor = f64::INFINITY;
+        let mut i = m.idx;
+        // Bounded by the window; the reach of one probe covers a few pieces.
+        while i < self.q.len {
+            let p = self.q.get(i);
+            floor = floor.min(p.w_low);
+            if p.cum_start + p.len >= end || p.stop_at_end {
+                break;
+            }
+            i += 1;
+        }
+        let (stop_pos, sa, sj) = self.q.get(m.idx).stop_ahead;
+        if stop_pos.is_finite() && sa > 0.0 && sj > 0.0 {
+            floor = floor.min(jerk_stop_speed((stop_pos - end).max(0.0), sa, sj).0);
+        }
+        floor
+    }
+
+    /// One period of the path-speed policy from `st` (moving, on piece `idx`).
+    fn control(&mut self, st: GenState, idx: usize, force: bool) -> Option<GenState> {
+        let t = self.period;
+        let head = self.q.get(idx);
+        let quick = matches!(self.hold, Some(h) if h.kind == StopKind::Quick);
+        let f = self.strictness(st.at);
+        let stop_at = head.stop_ahead.0;
+        let mut rem = stop_at - st.at;
+        let mut a_stop = if head.a_to_stop.is_finite() && head.a_to_stop > 1e-3 * self.a_min {
+            head.a_to_stop
+        } else {
+            head.a_sub[0].min(self.a_min * BRAKE_SHARE_STRAIGHT)
+        };
+        let mut j_stop = if head.j_to_stop.is_finite() {
+            head.j_to_stop
+        } else {
+            head.j_brake
+        };
+        let mut hold_at = st.hold_at;
+        if let Some(h) = self.hold {
+            // A hold point is soft: when the axes cannot brake as the stop model assumes (on a
+            // curve at speed), it moves on to where the machine can stop from here.
+            let (d_need, _) = stop(
+                st.v,
+                st.a.max(-h.a),
+                STOP_SHARE * h.a * f,
+                STOP_JERK_SHARE * h.j * f,
+            );
+            if st.at + d_need > hold_at && hold_at - st.at > 0.0 {
+                hold_at = st.at + d_need;
+            }
+            let hr = hold_at - st.at;
+            if hr < rem {
+                rem = hr.max(0.0);
+                a_stop = h.a;
+                j_stop = h.j;
+            }
+        }
+        let jm = CONTROL_SHARE * head.j_proj[quick as usize];
+        let (v, a) = (st.v, st.a);
+        // Exact bounds of the path acceleration and jerk at the current point, and of the
+        // acceleration at the point the period is expected to end at (the centripetal load
+        // turns and grows along a curve: the state at the end of the period must fit there).
+        let (a_lo0, a_hi0, j_lo, j_hi) = path_bounds(&self.lim, &head.geo_at(st.s), v, a, quick);
+        let ds_pred = (v * t + 0.5 * a * t * t).max(0.0);
+        let v_pred = (v + a * t).max(0.0);
+        let (k1, s1) = self.locate(idx, st.s, st.at, ds_pred, stop_at);
+        let geo1 = self.q.get(k1).geo_at(s1);
+        let (a_lo1, a_hi1, _, _) = path_bounds(&self.lim, &geo1, v_pred, a, quick);
+        let (mut a_lo, mut a_hi) = (a_lo0.max(a_lo1), a_hi0.min(a_hi1));
+        let a_full = CONTROL_SHARE * head.a_proj[quick as usize];
+        if !(a_lo < a_hi) {
+            (a_lo, a_hi) = (a_lo0, a_hi0);
+        }
+        if !(a_lo < a_hi) {
+            (a_lo, a_hi) = (-a_full, a_full);
+        }
+        let (j_lo, j_hi) = if j_lo < j_hi { (j_lo, j_hi) } else { (-jm, jm) };
+        let (a_lo, a_hi) = (a_lo.max(-a_full), a_hi.min(a_full));
+        let (j_lo, j_hi) = (j_lo.max(-jm), j_hi.min(jm));
+        if self.trace {
+            eprintln!(
+                "CTRL at={} v={v} a={a} a_lo={a_lo} a_hi={a_hi} j_lo={j_lo} j_hi={j_hi} rem={rem} w={}",
+                st.at,
+                self.w_abs(idx, st.at, stop_at).0
+            );
+        }
+        // Whether the stop ahead is a hold's (its point is soft and moves on, see above).
+        let soft = hold_at.is_finite() && hold_at - st.at < stop_at - st.at;
+        let model = Model {
+            t,
+            v,
+            a,
+            at: st.at,
+            idx,
+            rem,
+            stop_at,
+            a_lo,
+            a_hi,
+            // A rollback cannot reach before the hold request, so a stricter model does not
+            // help a hold's stop; it does for a stop of the path.
+            a_stop: STOP_SHARE * a_stop * if soft { 1.0 } else { f },
+            j_stop: STOP_JERK_SHARE * j_stop * if soft { 1.0 } else { f },
+            jb: head.j_brake.min(0.8 * (-j_lo).max(0.1 * jm)) * f,
+            d_nom: (0.95 * (-a_lo).max(0.1 * a_full)).min(a_full) * f,
+            cap: f,
+            quick,
+            w_floor: 0.0,
+        };
+        let mut model = model;
+        model.w_floor = self.w_floor(&model, j_hi);
+
+        // Landing: when the stop is a few periods away, plan the last steps exactly (the
+        // smoothest sequence of steps that ends at the stop and stays there).
+        let (dst0, tst0) = stop(v, a, a_stop, j_stop);
+        let tiny = 0.3 * if quick { self.qj_min } else { self.j_min } * t * t * t;
+        let jl = j_stop.min(-j_lo).min(j_hi).max(0.0);
+        let al = a_stop.min(-a_lo).min(a_hi).max(0.0);
+        let (js, as_) = (jl * t * t * t, al * t * t);
+        // A landing in progress continues with one step fewer (the tail of the smoothest
+        // sequence is the smoothest for what is left).
+        let mut landing = if st.land_n >= 2 && rem >= 0.0 {
+            land_steps(st.ds_hist, rem, st.land_n - 1, js, as_).map(|d| (d, st.land_n - 1))
+        } else {
+            None
+        };
+        if landing.is_none() && rem >= 0.0 && tst0 <= 5.0 * t && dst0 <= rem * 1.5 + tiny {
+            let n0 = ((tst0 / t).ceil() as usize).clamp(1, LAND_MAX);
+            landing = (n0..=LAND_MAX)
+                .find_map(|n| land_steps(st.ds_hist, rem, n, js, as_).map(|d| (d, n)));
+        }
+        let new_land_n = landing.map_or(0, |(_, n)| n);
+        let landing = landing.map(|(d, _)| d);
+        let land = landing.is_some_and(|d1| d1 == rem)
+            || (v.abs() <= 1e-9 && a.abs() <= 1e-6 && rem <= tiny && rem >= 0.0);
+        // State at the end of the period when it is not the constant-jerk one.
+        let mut exact_state: Option<(f64, f64)> = None;
+        let mut j_used = 0.0;
+        // The model's own step (before clamping to the path); NaN for the landing.
+        let mut model_ds = f64::NAN;
+        let ds_target = if land {
+            rem
+        } else if let Some(d1) = landing {
+            d1
+        } else {
+            let j_min = j_lo.max((a_lo - a) / t).min(j_hi);
+            let choice = self.choose_jerk(&model, j_min, j_hi, st.j_last);
+            let choice = choice.or_else(|| {
+                // Nothing passes the model: brake as hard as the path allows while the
+                // deceleration can still be released before the speed reaches zero.
+                self.stats.emergency_brakes += 1;
+                if self.trace {
+                    let name = |v: Verdict| match v {
+                        Verdict::Safe => "safe",
+                        Verdict::Stop => "stop",
+                        Verdict::Curve => "curve",
+                    };
+                    eprintln!(
+                        "  EMERGENCY j_min={j_min}:{} 0:{} j_hi={j_hi}:{} a_stop={} j_stop={}",
+                        name(self.judge(&model, j_min)),
+                        name(self.judge(&model, 0.0)),
+                        name(self.judge(&model, j_hi)),
+                        model.a_stop,
+                        model.j_stop
+                    );
+                }
+                let bj = clampf(brake_jerk(v, a, -a_lo, j_stop, t), j_lo, j_hi);
+                [j_min, bj]
+                    .into_iter()
+                    .find(|c| self.judge(&model, *c) != Verdict::Stop)
+            });
+            match choice {
+                Some(j) => {
+                    j_used = j;
+                    let (ds, _, _) = advance(0.0, v, a, j, t);
+                    model_ds = ds;
+                    clampf(ds, 0.0, rem.max(0.0))
+                }
+                None => {
+                    // No constant jerk over the period keeps the stop: follow the stop
+                    // profile exactly (a switch of its jerk falls inside the period).
+                    // The model's profile while it fits, else with the full stop capability
+                    // (the model's shares are the margin); a hold point moves back to where that stop ends, so that the
+                    // machine does not creep up to it after coming to rest.
+                    let (mut ds, mut v1, mut a1) =
+                        stop_advance(v, a, model.a_stop, model.j_stop, t);
+                    let fits = |ds: f64, v1: f64, a1: f64| {
+                        ds + stop(v1, a1, model.a_stop, model.j_stop).0 <= rem
+                    };
+                    let releasable = !(a < 0.0 && a * a > 2.0 * model.j_stop * v.max(0.0));
+                    // A hold's jerk is a soft choice: a deceleration that would outlast the
+                    // speed under it is released with the path's own jerk bound.
+                    let j_full = if soft && a < 0.0 && a * a > 2.0 * j_stop * v.max(0.0) {
+                        j_stop.max(0.99 * j_hi.min(jm))
+                    } else {
+                        j_stop
+                    };
+                    if !(releasable && fits(ds, v1, a1)) {
+                        (ds, v1, a1) = stop_advance(v, a, a_stop, j_full, t);
+                    }
+                    if soft {
+                        let end = st.at + ds + stop(v1, a1, a_stop, j_full).0;
+                        hold_at = hold_at.min(end);
+                    }
+                    exact_state = Some((v1, a1));
+                    model_ds = ds;
+                    clampf(ds, 0.0, rem.max(0.0))
+                }
+            }
+        };
+        // The set-point, checked against every axis's finite-difference box.
+        let rem0 = rem.max(0.0);
+        let (ds, x, k, sl) = match self.verify(&st, idx, ds_target, rem0, stop_at, quick) {
+            Ok(r) => r,
+            Err(r) if force => {
+                self.stats.limit_violations += 1;
+                if self.trace {
+                    eprintln!("VIOLATION at={} v={} a={}", st.at, st.v, st.a);
+                }
+                r
+            }
+            Err(_) => {
+                if self.trace {
+                    eprintln!(
+                        "DEAD END at={} v={v} a={a} rem={rem} ds_t={ds_target} land={land}",
+                        st.at
+                    );
+                }
+                if self.trace {
+                    let (lo, hi) = self.fd_box(&st.hist, quick);
+                    let (k, sl) = self.locate(idx, st.s, st.at, ds_target, stop_at);
+                    let x = self.q.get(k).pos(sl);
+                    eprintln!(
+                        "  hist={:?}\n  x={:?}\n  lo={:?}\n  hi={:?} ds_hist={:?} land_n={}",
+                        &st.hist.map(|h| [h[0], h[1], h[2]]),
+                        &x[..3],
+                        &lo[..3],
+                        &hi[..3],
+                        st.ds_hist,
+                        st.land_n
+                    );
+                    let hp = self.q.get(idx);
+                    eprintln!(
+                        "  idx={idx} qlen={} len={} s={} cum_start={} stop_at={stop_at} stop_end={} k={k} sl={sl}",
+                        self.q.len, hp.len, st.s, hp.cum_start, hp.stop_at_end
+                    );
+                }
+                return None;
+            }
+        };
+        if ds != ds_target {
+            self.stats.adjusted += 1;
+        }
+        if self.trace {
+            eprintln!(
+                "  chose ds_t={ds_target} ds={ds} model_ds={model_ds} j={j_used} land={land} landing={landing:?}"
+            );
+        }
+        let mut n = st;
+        n.prof_t = None;
+        n.hold_at = hold_at;
+        n.land_n = if ds == ds_target { new_land_n } else { 0 };
+        if land && ds == rem0 {
+            n.v = 0.0;
+            n.a = 0.0;
+            n.j_last = 0.0;
+        } else if landing.is_some() {
+            // Speed and acceleration of the step sequence (backward differences).
+            n.v = ds / t;
+            n.a = (ds - st.ds_hist[1]) / (t * t);
+            n.j_last = 0.0;
+        } else if let (Some((v1, a1)), true) = (exact_state, ds == model_ds) {
+            n.v = v1;
+            n.a = a1;
+            n.j_last = 0.0;
+        } else if ds == model_ds && exact_state.is_none() {
+            let (_, v1, a1) = advance(0.0, v, a, j_used, t);
+            n.v = v1.max(0.0);
+            n.a = a1;
+            n.j_last = j_used;
+        } else {
+            // The set-point check chose another point: the state is the constant-jerk step
+            // that reaches it (within twice the jerk bound, so that a far move cannot throw
+            // the state off), and the model continues from where the axes are.
+            let j_eff = clampf(
+                6.0 * (ds - v * t - 0.5 * a * t * t) / (t * t * t),
+                -2.0 * jm,
+                2.0 * jm,
+            );
+            let (_, v1, a1) = advance(0.0, v, a, j_eff, t);
+            n.v = v1.max(0.0);
+            n.a = a1;
+            n.j_last = clampf(j_eff, j_lo, j_hi);
+        }
+        let p = self.q.get(k);
+        n.id = self.q.head_id + k as u64;
+        // The line of the move the set-point lies on (the period may have crossed into it).
+        n.line = p.line;
+        n.s = sl;
+        n.at = p.cum_start + sl;
+        n.ds_hist = [st.ds_hist[1], ds];
+        n.hist = [x, st.hist[0], st.hist[1]];
+        Some(n)
+    }
+
+    /// The largest path jerk in [`j_min`, `j_hi`] the model accepts: the upper end, else a
+    /// bisection (warm-started next to the last period's jerk). None when even `j_min` fails.
+    fn choose_jerk(&self, m: &Model, j_min: f64, j_hi: f64, j_last: f64) -> Option<f64> {
+        let safe = |j: f64| self.judge(m, j) == Verdict::Safe;
+        if safe(j_hi) {
+            return Some(j_hi);
+        }
+        let step = 0.02 * (j_hi - j_min).max(0.0);
+        let j_prev = clampf(j_last, j_min, j_hi);
+        let (mut lo, mut hi, iters) = if safe(j_prev) {
+            let up = (j_prev + step).min(j_hi);
+            if step > 0.0 && !safe(up) {
+                (j_prev, up, 5)
+            } else {
+                (up, j_hi, 9)
+            }
+        } else if safe(j_min) {
+            (j_min, j_prev, 9)
+        } else {
+            // The hardest braking fails too: braking must be released before the speed
+            // reaches zero, so the admissible jerks start above `j_min`. The fastest stop's
+            // jerk is the lowest of them; else the largest safe point of a coarse grid.
+            let bj = clampf(brake_jerk(m.v, m.a, m.a_stop, m.j_stop, m.t), j_min, j_hi);
+            let lo = if safe(bj) {
+                bj
+            } else {
+                let n = 8;
+                let grid = (1..n)
+                    .rev()
+                    .map(|k| j_min + (j_hi - j_min) * k as f64 / n as f64);
+                grid.into_iter().find(|j| safe(*j))?
+            };
+            (lo, j_hi, 9)
+        };
+        for _ in 0..iters {
+            let mid = 0.5 * (lo + hi);
+            if safe(mid) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        Some(lo)
+    }
+
+    /// Box of the next set-point per axis: every finite difference with the last three
+    /// set-points within the axis's v·T, a·T², j·T³ (shrunk by 1e-10 relative and the
+    /// rounding of the differences).
+    fn fd_box(&self, hist: &[AxisVec; 3], quick: bool) -> (AxisVec, AxisVec) {
+        let t = self.period;
+        let lim = &self.lim;
+        let (p0, p1, p2) = (hist[0], hist[1], hist[2]);
+        let mut lo = [f64::NEG_INFINITY; AXES];
+        let mut hi = [f64::INFINITY; AXES];
+        for i in 0..AXES {
+            if !lim.present[i] {
+                lo[i] = p0[i];
+                hi[i] = p0[i];
+                continue;
+            }
+            let (am, jm) = if quick {
+                (lim.qa[i], lim.qj[i])
+            } else {
+                (lim.a[i], lim.j[i])
+            };
+            let round = 16.0 * f64::EPSILON * (p0[i].abs() + p1[i].abs() + p2[i].abs() + 1.0);
+            let shrink = 1.0 - 1e-10;
+            let rv = lim.v[i] * t * shrink - round;
+            let ra = am * t * t * shrink - round;
+            let rj = jm * t * t * t * shrink - round;
+            let cv = p0[i];
+            let ca = 2.0 * p0[i] - p1[i];
+            let cj = 3.0 * p0[i] - 3.0 * p1[i] + p2[i];
+            lo[i] = (cv - rv).max(ca - ra).max(cj - rj);
+            hi[i] = (cv + rv).min(ca + ra).min(cj + rj);
+        }
+        (lo, hi)
+    }
+
+    /// The set-point `ds0` ahead of `st`, or the nearest point on the path inside the box
+    /// (linearised steps along the tangent). Err carries the last point tried (outside).
+    #[allow(clippy::type_complexity)]
+    fn verify(
+        &self,
+        st: &GenState,
+        idx: usize,
+        ds0: f64,
+        rem: f64,
+        stop_at: f64,
+        quick: bool,
+    ) -> Result<(f64, AxisVec, usize, f64), (f64, AxisVec, usize, f64)> {
+        let (lo, hi) = self.fd_box(&st.hist, quick);
+        let mut ds = ds0;
+        for _ in 0..6 {
+            let (k, sl) = self.locate(idx, st.s, st.at, ds, stop_at);
+            let piece = self.q.get(k);
+            let x = piece.pos(sl);
+            if inside(&self.lim, &x, &lo, &hi) {
+                return Ok((ds, x, k, sl));
+            }
+            let (_, tan) = piece.pos_tangent(sl);
+            let (mut dlo, mut dhi) = (-ds, rem - ds);
+            for i in 0..AXES {
+                if !self.lim.present[i] {
+                    continue;
+                }
+                let ti = tan[i];
+                if ti.abs() > 1e-12 {
+                    let (a, b) = ((lo[i] - x[i]) / ti, (hi[i] - x[i]) / ti);
+                    dlo = dlo.max(a.min(b));
+                    dhi = dhi.min(a.max(b));
+                }
+            }
+            let delta = if dlo <= dhi {
+                // Aim slightly inside the admissible interval against the curve's bending.
+                let m = 1e-3 * (dhi - dlo);
+                clampf(0.0, dlo + m, dhi - m)
+            } else {
+                0.5 * (dlo + dhi)
+            };
+            ds = clampf(ds + delta, 0.0, rem);
+        }
+        let (k, sl) = self.locate(idx, st.s, st.at, ds, stop_at);
+        let x = self.q.get(k).pos(sl);
+        if inside(&self.lim, &x, &lo, &hi) {
+            Ok((ds, x, k, sl))
+        } else {
+            Err((ds, x, k, sl))
+        }
+    }
+}
+
+/// Bounds of the path acceleration and jerk where the path has tangent, curvature vector
+/// and its derivative `geo`, at speed `v` and acceleration `a`, from every axis: |T a + K v²| ≤ A and |T j + 3 K v a + K' v³| ≤ J, with
+/// the 3·K·v·a term kept within half of what the curvature change leaves (so that the
+/// acceleration can always be ramped back with the other half). Infinite where no axis
+/// bounds it.
+fn path_bounds(
+    lim: &Lim,
+    geo: &(AxisVec, AxisVec, AxisVec),
+    v: f64,
+    a: f64,
+    quick: bool,
+) -> (f64, f64, f64, f64) {
+    let (tan, kv, kp) = geo;
+    let (mut a_lo, mut a_hi) = (f64::NEG_INFINITY, f64::INFINITY);
+    let (mut j_lo, mut j_hi) = (f64::NEG_INFINITY, f64::INFINITY);
+    for i in 0..AXES {
+        if !lim.present[i] || tan[i].abs() < 1e-9 {
+            continue;
+        }
+        let (am, jmx) = if quick {
+            (lim.qa[i], lim.qj[i])
+        } else {
+            (lim.a[i], lim.j[i])
+        };
+        let (am, jmx) = (CONTROL_SHARE * am, CONTROL_SHARE * jmx);
+        let ca = kv[i] * v * v;
+        let cj = 3.0 * kv[i] * v * a + kp[i] * v * v * v;
+        let (x0, x1) = ((-am - ca) / tan[i], (am - ca) / tan[i]);
+        a_lo = a_lo.max(x0.min(x1));
+        a_hi = a_hi.min(x0.max(x1));
+        let k3v = 3.0 * kv[i].abs() * v;
+        if k3v > 0.0 {
+            let room = (jmx - (kp[i] * v * v * v).abs()).max(0.0);
+            let a_cap = 0.5 * room / k3v;
+            a_lo = a_lo.max(-a_cap);
+            a_hi = a_hi.min(a_cap);
+        }
+        let (y0, y1) = ((-jmx - cj) / tan[i], (jmx - cj) / tan[i]);
+        j_lo = j_lo.max(y0.min(y1));
+        j_hi = j_hi.min(y0.max(y1));
+    }
+    (a_lo, a_hi, j_lo, j_hi)
+}
+
+/// `x` inside the box on every present axis.
+#[inline]
+fn inside(lim: &Lim, x: &AxisVec, lo: &AxisVec, hi: &AxisVec) -> bool {
+    (0..AXES).all(|i| !lim.present[i] || (x[i] >= lo[i] && x[i] <= hi[i]))
+}
+
+/// A period at rest: the set-point repeats.
+fn still(mut st: GenState) -> GenState {
+    st.hist = [st.hist[0], st.hist[0], st.hist[1]];
+    st.ds_hist = [st.ds_hist[1], 0.0];
+    st
+}
