@@ -5,6 +5,7 @@ use std::f64::consts::PI;
 
 use crate::cia402::{Cia402State, StatusWord, error_code};
 use crate::image::{DriveMode, JointCommand, JointFeedback, LatchFeedback, LatchSource};
+use crate::sim::composed::{ComposedCycle, LinearDrive};
 use crate::sim::config::{SimulatedJointConfig, SwitchRange};
 use crate::sim::motor::MotorModel;
 
@@ -55,6 +56,8 @@ pub(crate) struct SimulatedJoint {
     latch_request: Option<LatchSource>,
     latch: LatchFeedback,
     previous_command: JointCommand,
+    /// A velocity drive's cycle in one step while it is linear (see `composed`).
+    composed: Box<ComposedCycle>,
 }
 
 impl SimulatedJoint {
@@ -98,6 +101,7 @@ impl SimulatedJoint {
             latch_request: None,
             latch: LatchFeedback::default(),
             previous_command: JointCommand::default(),
+            composed: Box::new(ComposedCycle::new()),
         };
         joint.counts = joint.encoder_counts(config.initial_position);
         joint.counts_at_last_exchange = joint.counts;
@@ -249,6 +253,93 @@ impl SimulatedJoint {
             self.update_latch(before, self.motor.position());
             return false;
         }
+        !self.composed_cycle(command, conditions)
+    }
+
+    /// A velocity drive's cycle in one composed step, when the drive is in control, no
+    /// latch is waiting for an edge and every sub-step stays linear (no torque clamp, no
+    /// stop); returns whether it ran.
+    fn composed_cycle(&mut self, command: &JointCommand, conditions: &CycleConditions) -> bool {
+        if self.mode != DriveMode::Velocity
+            || self.state != Cia402State::OperationEnabled
+            || (self.latch.armed && !self.latch.latched && !self.encoder_lost)
+        {
+            return false;
+        }
+        let substeps = conditions.substeps.max(1);
+        let step_s = conditions.step_s;
+        // The sub-steps under the previous command, by the same test as `substep`.
+        let delay_limit = conditions.command_delay_s * (1.0 - 1e-9);
+        let delayed = (0..substeps)
+            .take_while(|&k| (k as f64) * step_s < delay_limit)
+            .count();
+        let (acceleration_per_torque, decay_rate, coulomb) = self.motor.linear_parts();
+        let drive = LinearDrive {
+            units_per_radian: self.units_per_radian,
+            velocity_gain: self.velocity_gain,
+            velocity_integral_gain: self.velocity_integral_gain,
+            acceleration_per_torque,
+            decay_rate,
+        };
+        if self.motor.velocity() == 0.0 {
+            return self.stuck_cycle(command, conditions, delayed, coulomb);
+        }
+        if !self.composed.prepare(&drive, step_s, substeps, delayed) {
+            return false;
+        }
+        let Some(result) = self.composed.run(
+            self.motor.velocity(),
+            self.velocity_integral,
+            self.previous_command.target_velocity,
+            command.target_velocity,
+            coulomb,
+            self.torque_limit,
+        ) else {
+            return false;
+        };
+        self.motor
+            .place(self.motor.position() + result.displacement, result.velocity);
+        self.velocity_integral = result.velocity_integral;
+        self.torque = result.torque;
+        true
+    }
+
+    /// A velocity drive's cycle at rest when stiction holds the load through every
+    /// sub-step: only the velocity loop's integral moves. The same arithmetic as the
+    /// sub-steps (bit for bit); returns false, with nothing changed, when the load would
+    /// break loose or the torque would clamp in some sub-step.
+    fn stuck_cycle(
+        &mut self,
+        command: &JointCommand,
+        conditions: &CycleConditions,
+        delayed: usize,
+        coulomb: f64,
+    ) -> bool {
+        let previous = self.previous_command.target_velocity;
+        let current = command.target_velocity;
+        if !(previous.is_finite() && current.is_finite() && self.velocity_integral.is_finite()) {
+            return false;
+        }
+        let (acceleration_per_torque, _, _) = self.motor.linear_parts();
+        // v = 0: the error is the command over the units per radian.
+        let errors = [
+            (previous - 0.0) / self.units_per_radian,
+            (current - 0.0) / self.units_per_radian,
+        ];
+        let mut integral = self.velocity_integral;
+        let mut torque = self.torque;
+        for k in 0..conditions.substeps.max(1) {
+            let error = errors[usize::from(k >= delayed)];
+            torque = self.velocity_gain * error + integral + 0.0;
+            if !(torque.abs() < self.torque_limit
+                && (torque * acceleration_per_torque).abs() <= coulomb)
+            {
+                return false;
+            }
+            integral += self.velocity_integral_gain * error * conditions.step_s;
+        }
+        self.velocity_integral = integral;
+        self.torque = torque;
         true
     }
 
