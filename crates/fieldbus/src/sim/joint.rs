@@ -20,8 +20,9 @@ pub(crate) struct CycleConditions {
     pub power: bool,
     /// The process-data watchdog expired.
     pub watchdog_expired: bool,
-    /// Time from the sample to a new velocity or torque command acting (s).
-    pub command_delay_s: f64,
+    /// The sub-steps that start before the command delay (the time from the sample to a
+    /// new velocity or torque command acting): the previous command acts in them.
+    pub delayed_substeps: usize,
 }
 
 #[derive(Debug, Clone)]
@@ -268,11 +269,7 @@ impl SimulatedJoint {
         }
         let substeps = conditions.substeps.max(1);
         let step_s = conditions.step_s;
-        // The sub-steps under the previous command, by the same test as `substep`.
-        let delay_limit = conditions.command_delay_s * (1.0 - 1e-9);
-        let delayed = (0..substeps)
-            .take_while(|&k| (k as f64) * step_s < delay_limit)
-            .count();
+        let delayed = conditions.delayed_substeps;
         let (acceleration_per_torque, decay_rate, coulomb) = self.motor.linear_parts();
         let drive = LinearDrive {
             units_per_radian: self.units_per_radian,
@@ -357,8 +354,7 @@ impl SimulatedJoint {
         // Velocity and torque commands reach the motor `command_delay_s` after the sample
         // (the controller's computation and the DAC): until then the previous command acts.
         // A CSP drive's timing is its interpolation.
-        let delayed = started * step_s < conditions.command_delay_s * (1.0 - 1e-9)
-            && self.mode != DriveMode::Csp;
+        let delayed = substep <= conditions.delayed_substeps && self.mode != DriveMode::Csp;
         let previous = self.previous_command;
         let active = if delayed { &previous } else { command };
         let mut demand = self.torque_demand(active, started, substeps, step_s);
