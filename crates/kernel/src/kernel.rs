@@ -332,8 +332,10 @@ impl Kernel {
         let th = thread(&mut b, "machine logic", 1);
         let id = b.periodic(th, "machine logic", t.machine_logic.runs, move |ctx| {
             if ctx.run() == 0 {
-                logic.scan(ctx)
+                logic.scan(ctx);
             }
+            // One scan per activation, whatever `runs` says.
+            ctx.finish_runs();
         });
         b.on_deadline_miss(id, miss.clone());
 
@@ -362,26 +364,23 @@ impl Kernel {
             if ctx.run() == 0 || more {
                 more = c.lock().look_ahead(ctx, &sh);
             }
+            if !more {
+                ctx.finish_runs();
+            }
         });
         b.on_deadline_miss(id, miss.clone());
 
         let th = thread(&mut b, "command parsing", 4);
         let (c, sh) = (core.clone(), shared.clone());
-        let mut drained = false;
         let id = b.periodic(th, "command parsing", t.command_parsing.runs, move |ctx| {
             // The urgent channel is read before this, at the start of every interpolation
             // cycle; here the normal one, a command per run until it is empty.
-            if ctx.run() == 0 {
-                drained = false;
-            }
-            if drained {
-                return;
-            }
+            // Drained: the remaining runs of this period are not made.
             match sh.normal.try_get() {
                 Some(command) => {
                     c.lock().command(ctx, &sh, command);
                 }
-                None => drained = true,
+                None => ctx.finish_runs(),
             }
         });
         b.on_deadline_miss(id, miss.clone());
@@ -392,6 +391,7 @@ impl Kernel {
         let mut status_out = writers.status;
         let mut status = status_out.value();
         let id = b.periodic(th, "status feedback", t.status_feedback.runs, move |ctx| {
+            ctx.finish_runs();
             if ctx.run() != 0 {
                 return;
             }

@@ -65,15 +65,16 @@ impl LogicStage {
     }
 
     pub(crate) fn scan(&mut self, ctx: &mut Context<'_>) {
-        let fb: Feedback = *self.feedback.get();
-        let req: LogicRequests = *self.requests.get();
+        // Borrowed, not copied: the feedback image is several hundred bytes.
+        let fb: &Feedback = self.feedback.get();
+        let req: &LogicRequests = self.requests.get();
         let now = Duration::from_nanos(ctx.release_time().as_nanos());
         let mut out = LogicOutputs::default();
         let mut fault = None;
         let reset = req.reset_count != self.resets_seen;
         self.resets_seen = req.reset_count;
         match &mut self.logic {
-            Logic::Direct => direct(&mut out, &req, &fb, self.has_tool_changer),
+            Logic::Direct => direct(&mut out, req, fb, self.has_tool_changer),
             Logic::Plc(plc) => {
                 if reset {
                     let longest = plc
@@ -90,7 +91,7 @@ impl LogicStage {
                 // scan stand and only what the kernel derives from the feedback is renewed.
                 if plc.is_due(now) {
                     let estop_reset = now <= self.reset_until && self.reset_until > Duration::ZERO;
-                    self.plc = plc_scan(plc, &req, estop_reset, &fb, now);
+                    self.plc = plc_scan(plc, req, estop_reset, fb, now);
                     // A copy into preallocated slots; if the saver holds the snapshot just
                     // now, the next scan refreshes it.
                     if let Some(snapshot) = self.retain.as_ref().and_then(|r| r.try_lock()) {
@@ -101,7 +102,7 @@ impl LogicStage {
                 if self.plc.failed {
                     fault = Some(-1.0);
                 }
-                self.plc.apply(&mut out, &req, &fb, self.has_tool_changer);
+                self.plc.apply(&mut out, req, fb, self.has_tool_changer);
             }
         }
         if out != self.outputs.value() {

@@ -10,7 +10,9 @@ use crate::servo::Sample;
 /// Running maxima over a stream of samples.
 #[derive(Debug, Clone, Default)]
 pub struct RunStats {
-    history: Vec<[f64; AXES]>,
+    /// The last four axis set-points, oldest first (`kept` of them valid).
+    history: [[f64; AXES]; 4],
+    kept: usize,
     /// Samples seen.
     pub samples: u64,
     /// Largest |v| per axis.
@@ -28,22 +30,21 @@ pub struct RunStats {
 impl RunStats {
     /// Empty.
     pub fn new() -> RunStats {
-        RunStats {
-            history: Vec::with_capacity(4),
-            ..RunStats::default()
-        }
+        RunStats::default()
     }
 
     /// Adds one servo cycle; `period_s` is the servo period. `moving_only`: skip cycles
     /// before the first motion (no effect on maxima, which start at zero).
     pub fn add(&mut self, s: &Sample, period_s: f64) {
         self.samples += 1;
-        if self.history.len() == 4 {
-            self.history.remove(0);
+        if self.kept == 4 {
+            self.history.copy_within(1.., 0);
+            self.kept = 3;
         }
-        self.history.push(s.axes);
+        self.history[self.kept] = s.axes;
+        self.kept += 1;
         let h = &self.history;
-        let n = h.len();
+        let n = self.kept;
         for i in 0..AXES {
             if n >= 2 {
                 let v = (h[n - 1][i] - h[n - 2][i]) / period_s;

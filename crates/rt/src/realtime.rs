@@ -189,7 +189,7 @@ fn run_body(
     activation: u64,
     run: u32,
     wake: Wake,
-) -> Next {
+) -> (Next, bool) {
     let TaskSpec {
         name, body, lane, ..
     } = spec;
@@ -205,6 +205,7 @@ fn run_body(
         run,
         wake,
         consumed: 0,
+        runs_finished: false,
         lane: shared.lane(*lane),
         monitor: &shared.monitor,
     };
@@ -217,7 +218,7 @@ fn run_body(
         Body::Reactive(body) => body(&mut ctx),
     };
     set_in_task_body(false);
-    next
+    (next, ctx.runs_finished)
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -259,7 +260,7 @@ fn periodic_thread(
                 let start = if first { wake } else { shared.now() };
                 first = false;
                 shared.state(task, TaskState::Running);
-                run_body(
+                let (_, runs_finished) = run_body(
                     &shared,
                     spec,
                     task,
@@ -287,6 +288,9 @@ fn periodic_thread(
                     &mut missed,
                 ) {
                     raise_miss(&shared, spec, task, end, late);
+                }
+                if runs_finished {
+                    break;
                 }
             }
             shared.state(task, TaskState::Waiting);
@@ -438,7 +442,7 @@ fn event_thread(
         own_token = trigger.source.arm();
         let start = shared.now();
         shared.state(task, TaskState::Running);
-        let next = run_body(&shared, &mut spec, task, start, start, activation, 0, wake);
+        let (next, _) = run_body(&shared, &mut spec, task, start, start, activation, 0, wake);
         activation += 1;
         let end = shared.now();
         if let Some(m) = shared.monitor.task_at(task) {
@@ -509,7 +513,7 @@ fn background_thread(
             ran = true;
             let start = shared.now();
             shared.state(task, TaskState::Running);
-            let next = run_body(&shared, spec, task, start, start, activations[i], 0, wake);
+            let (next, _) = run_body(&shared, spec, task, start, start, activations[i], 0, wake);
             activations[i] += 1;
             let end = shared.now();
             if let Some(m) = shared.monitor.task_at(task) {

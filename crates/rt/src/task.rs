@@ -76,6 +76,8 @@ pub struct Context<'a> {
     pub(crate) run: u32,
     pub(crate) wake: Wake,
     pub(crate) consumed: u64,
+    /// The body said the activation's remaining runs have nothing to do.
+    pub(crate) runs_finished: bool,
     pub(crate) lane: &'a Lane,
     pub(crate) monitor: &'a Monitor,
 }
@@ -117,6 +119,14 @@ impl Context<'_> {
     /// Which of the runs of this activation this is (0-based; see `runs` of a periodic task).
     pub fn run(&self) -> u32 {
         self.run
+    }
+
+    /// Declares that the remaining runs of this periodic activation would find nothing to
+    /// do (a task declared with several `runs` that has drained its work): the executive
+    /// goes on with the thread's next task at once, and the runs not made are neither timed
+    /// nor traced. Both schedulers; no effect on event and background tasks.
+    pub fn finish_runs(&mut self) {
+        self.runs_finished = true;
     }
 
     /// Why the body runs.

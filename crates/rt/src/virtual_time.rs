@@ -182,6 +182,8 @@ struct Cycle {
     missed: Option<usize>,
     /// The task at `pos` has had its miss this cycle.
     task_missed: bool,
+    /// The task at `pos` declared its remaining runs of this cycle empty.
+    runs_finished: bool,
     seq: u64,
     step: Option<Step>,
 }
@@ -494,6 +496,7 @@ impl VirtualRunner {
                     checked: false,
                     missed: None,
                     task_missed: false,
+                    runs_finished: false,
                     seq,
                     step: None,
                 });
@@ -656,6 +659,7 @@ impl VirtualRunner {
             run,
             wake,
             consumed: 0,
+            runs_finished: false,
             lane: &recording.lanes[lane],
             monitor: &recording.monitor,
         }
@@ -730,6 +734,7 @@ impl VirtualRunner {
         }
         set_in_task_body(false);
         let cost = ctx.consumed;
+        cycle.runs_finished = ctx.runs_finished;
         let lateness = Some(now - cycle.release);
         if cost == 0 {
             // Over at once: no step to keep for the scheduler loop.
@@ -801,8 +806,9 @@ impl VirtualRunner {
             _ => 1,
         };
         cycle.run += 1;
-        if cycle.run >= runs {
+        if cycle.run >= runs || cycle.runs_finished {
             cycle.run = 0;
+            cycle.runs_finished = false;
             cycle.pos += 1;
             cycle.checked = false;
             cycle.task_missed = false;

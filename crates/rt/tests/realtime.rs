@@ -285,3 +285,52 @@ fn rtx64_table_starts_in_the_same_order_as_in_virtual_time() {
     }
     assert_eq!(in_window(&real_log), expected);
 }
+
+#[test]
+fn a_task_that_finishes_its_runs_hands_the_cycle_to_the_next_task() {
+    let log: Arc<Mutex<Vec<(&'static str, u32)>>> = Arc::default();
+    let mut b = TaskSet::builder();
+    let thread = b.periodic_thread("worker", Duration::from_millis(1), 50);
+    let l = Arc::clone(&log);
+    b.periodic(thread, "queue", 4, move |ctx| {
+        l.lock().unwrap().push(("queue", ctx.run()));
+        if ctx.run() == 1 {
+            ctx.finish_runs();
+        }
+    });
+    let l = Arc::clone(&log);
+    b.periodic(thread, "after", 1, move |ctx| {
+        l.lock().unwrap().push(("after", ctx.run()))
+    });
+    let config = RealTimeConfig {
+        scheduling: SchedulingMode::BestEffort,
+        lock_memory: false,
+        ..RealTimeConfig::default()
+    };
+    let handle = RealTimeRunner::start(b.build().unwrap(), config).unwrap();
+    wait_until(|| log.lock().unwrap().len() >= 9);
+    let recording = handle.stop();
+    let log = log.lock().unwrap();
+    let cycles = log.len() / 3;
+    let expected: Vec<_> = (0..cycles)
+        .flat_map(|_| [("queue", 0), ("queue", 1), ("after", 0)])
+        .collect();
+    assert_eq!(log[..cycles * 3], expected[..]);
+    let queue = recording
+        .monitor()
+        .task("queue")
+        .unwrap()
+        .stats()
+        .activations;
+    let after = recording
+        .monitor()
+        .task("after")
+        .unwrap()
+        .stats()
+        .activations;
+    // The stop may come between the runs of a cycle.
+    assert!(
+        (2 * after..=2 * after + 2).contains(&queue),
+        "{queue} runs of queue, {after} of after"
+    );
+}

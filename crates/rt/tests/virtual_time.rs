@@ -527,3 +527,49 @@ fn own_deadlines_of_periodic_and_event_tasks_give_exactly_the_expected_misses() 
     b.deadline(task, Duration::from_millis(1));
     assert_eq!(b.build().err().unwrap().code(), "deadline_on_background");
 }
+
+/// A thread's cycle: "queue" (4 runs of 10 µs) declares its remaining runs empty in run 1,
+/// then "after" (5 µs). Worked out: queue runs 0 and 1 at 0 and 10 µs, after at 20 µs, in
+/// every millisecond; the runs not made are not counted.
+fn drained_queue_set(log: &Log) -> TaskSet {
+    let mut b = TaskSet::builder();
+    let thread = b.periodic_thread("worker", Duration::from_millis(1), 50);
+    let l = Arc::clone(log);
+    b.periodic(thread, "queue", 4, move |ctx| {
+        l.lock()
+            .unwrap()
+            .push((ctx.start_time().as_nanos(), "queue", ctx.run()));
+        ctx.consume(Duration::from_micros(10));
+        if ctx.run() == 1 {
+            ctx.finish_runs();
+        }
+    });
+    let l = Arc::clone(log);
+    b.periodic(thread, "after", 1, move |ctx| {
+        l.lock()
+            .unwrap()
+            .push((ctx.start_time().as_nanos(), "after", ctx.run()));
+        ctx.consume(Duration::from_micros(5));
+    });
+    b.build().unwrap()
+}
+
+#[test]
+fn a_task_that_finishes_its_runs_hands_the_cycle_to_the_next_task() {
+    let log: Log = Arc::default();
+    let mut sim = VirtualRunner::new(drained_queue_set(&log));
+    sim.run_for(Duration::from_millis(3)).unwrap();
+    let mut expected = Vec::new();
+    for ms in 0..3 {
+        let t = ms * MS;
+        expected.extend([
+            (t, "queue", 0),
+            (t + 10 * US, "queue", 1),
+            (t + 20 * US, "after", 0),
+        ]);
+    }
+    assert_eq!(*log.lock().unwrap(), expected);
+    let monitor = sim.recording().monitor();
+    assert_eq!(monitor.task("queue").unwrap().stats().activations, 6);
+    assert_eq!(monitor.task("after").unwrap().stats().activations, 3);
+}

@@ -5,6 +5,7 @@ use std::f64::consts::PI;
 
 use crate::cia402::{Cia402State, StatusWord, error_code};
 use crate::image::{DriveMode, JointCommand, JointFeedback, LatchFeedback, LatchSource};
+use crate::sim::composed::{ComposedCycle, LinearDrive};
 use crate::sim::config::{SimulatedJointConfig, SwitchRange};
 use crate::sim::motor::MotorModel;
 
@@ -19,8 +20,9 @@ pub(crate) struct CycleConditions {
     pub power: bool,
     /// The process-data watchdog expired.
     pub watchdog_expired: bool,
-    /// Time from the sample to a new velocity or torque command acting (s).
-    pub command_delay_s: f64,
+    /// The sub-steps that start before the command delay (the time from the sample to a
+    /// new velocity or torque command acting): the previous command acts in them.
+    pub delayed_substeps: usize,
 }
 
 #[derive(Debug, Clone)]
@@ -55,6 +57,8 @@ pub(crate) struct SimulatedJoint {
     latch_request: Option<LatchSource>,
     latch: LatchFeedback,
     previous_command: JointCommand,
+    /// A velocity drive's cycle in one step while it is linear (see `composed`).
+    composed: Box<ComposedCycle>,
 }
 
 impl SimulatedJoint {
@@ -98,6 +102,7 @@ impl SimulatedJoint {
             latch_request: None,
             latch: LatchFeedback::default(),
             previous_command: JointCommand::default(),
+            composed: Box::new(ComposedCycle::new()),
         };
         joint.counts = joint.encoder_counts(config.initial_position);
         joint.counts_at_last_exchange = joint.counts;
@@ -249,6 +254,89 @@ impl SimulatedJoint {
             self.update_latch(before, self.motor.position());
             return false;
         }
+        !self.composed_cycle(command, conditions)
+    }
+
+    /// A velocity drive's cycle in one composed step, when the drive is in control, no
+    /// latch is waiting for an edge and every sub-step stays linear (no torque clamp, no
+    /// stop); returns whether it ran.
+    fn composed_cycle(&mut self, command: &JointCommand, conditions: &CycleConditions) -> bool {
+        if self.mode != DriveMode::Velocity
+            || self.state != Cia402State::OperationEnabled
+            || (self.latch.armed && !self.latch.latched && !self.encoder_lost)
+        {
+            return false;
+        }
+        let substeps = conditions.substeps.max(1);
+        let step_s = conditions.step_s;
+        let delayed = conditions.delayed_substeps;
+        let (acceleration_per_torque, decay_rate, coulomb) = self.motor.linear_parts();
+        let drive = LinearDrive {
+            units_per_radian: self.units_per_radian,
+            velocity_gain: self.velocity_gain,
+            velocity_integral_gain: self.velocity_integral_gain,
+            acceleration_per_torque,
+            decay_rate,
+        };
+        if self.motor.velocity() == 0.0 {
+            return self.stuck_cycle(command, conditions, delayed, coulomb);
+        }
+        if !self.composed.prepare(&drive, step_s, substeps, delayed) {
+            return false;
+        }
+        let Some(result) = self.composed.run(
+            self.motor.velocity(),
+            self.velocity_integral,
+            self.previous_command.target_velocity,
+            command.target_velocity,
+            coulomb,
+            self.torque_limit,
+        ) else {
+            return false;
+        };
+        self.motor
+            .place(self.motor.position() + result.displacement, result.velocity);
+        self.velocity_integral = result.velocity_integral;
+        self.torque = result.torque;
+        true
+    }
+
+    /// A velocity drive's cycle at rest when stiction holds the load through every
+    /// sub-step: only the velocity loop's integral moves. The same arithmetic as the
+    /// sub-steps (bit for bit); returns false, with nothing changed, when the load would
+    /// break loose or the torque would clamp in some sub-step.
+    fn stuck_cycle(
+        &mut self,
+        command: &JointCommand,
+        conditions: &CycleConditions,
+        delayed: usize,
+        coulomb: f64,
+    ) -> bool {
+        let previous = self.previous_command.target_velocity;
+        let current = command.target_velocity;
+        if !(previous.is_finite() && current.is_finite() && self.velocity_integral.is_finite()) {
+            return false;
+        }
+        let (acceleration_per_torque, _, _) = self.motor.linear_parts();
+        // v = 0: the error is the command over the units per radian.
+        let errors = [
+            (previous - 0.0) / self.units_per_radian,
+            (current - 0.0) / self.units_per_radian,
+        ];
+        let mut integral = self.velocity_integral;
+        let mut torque = self.torque;
+        for k in 0..conditions.substeps.max(1) {
+            let error = errors[usize::from(k >= delayed)];
+            torque = self.velocity_gain * error + integral + 0.0;
+            if !(torque.abs() < self.torque_limit
+                && (torque * acceleration_per_torque).abs() <= coulomb)
+            {
+                return false;
+            }
+            integral += self.velocity_integral_gain * error * conditions.step_s;
+        }
+        self.velocity_integral = integral;
+        self.torque = torque;
         true
     }
 
@@ -266,8 +354,7 @@ impl SimulatedJoint {
         // Velocity and torque commands reach the motor `command_delay_s` after the sample
         // (the controller's computation and the DAC): until then the previous command acts.
         // A CSP drive's timing is its interpolation.
-        let delayed = started * step_s < conditions.command_delay_s * (1.0 - 1e-9)
-            && self.mode != DriveMode::Csp;
+        let delayed = substep <= conditions.delayed_substeps && self.mode != DriveMode::Csp;
         let previous = self.previous_command;
         let active = if delayed { &previous } else { command };
         let mut demand = self.torque_demand(active, started, substeps, step_s);

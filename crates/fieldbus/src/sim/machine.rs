@@ -102,6 +102,11 @@ pub struct SimulatedMachine {
     digital_image: Vec<bool>,
     devices: Vec<Device>,
     stuck_inputs: Vec<Option<bool>>,
+    /// Some input is stuck (else the per-cycle passes over `stuck_inputs` are skipped).
+    any_stuck: bool,
+    /// The last period's sub-step count and length and the sub-steps under the previous
+    /// command (the same period comes every cycle).
+    cycle_shape: (f64, usize, f64, usize),
     door_open_requested: bool,
     analog_inputs: Vec<f64>,
     digital_outputs: Vec<bool>,
@@ -142,6 +147,8 @@ impl SimulatedMachine {
             digital_image: vec![false; config.io.digital_inputs],
             devices: config.devices.iter().map(Device::new).collect(),
             stuck_inputs: vec![None; config.io.digital_inputs],
+            any_stuck: false,
+            cycle_shape: (f64::NAN, 1, f64::NAN, 0),
             door_open_requested: false,
             analog_inputs: vec![0.0; config.io.analog_inputs],
             digital_outputs: vec![false; config.io.digital_outputs],
@@ -263,6 +270,7 @@ impl SimulatedMachine {
                             count,
                         })?;
                 *slot = active.then_some(value);
+                self.any_stuck = self.stuck_inputs.iter().any(Option::is_some);
             }
         }
         Ok(())
@@ -326,14 +334,24 @@ impl Fieldbus for SimulatedMachine {
             self.tool_command = outputs.tool_changer;
         }
         let power = !(self.estop_active && self.estop_removes_power);
-        let substeps = self.substeps_for(period_s);
+        if self.cycle_shape.0 != period_s {
+            let substeps = self.substeps_for(period_s).max(1);
+            let step_s = period_s / substeps as f64;
+            // A sub-step is under the previous command while it starts before the delay.
+            let delay_limit = self.command_delay_s * (1.0 - 1e-9);
+            let delayed = (0..substeps)
+                .take_while(|&k| (k as f64) * step_s < delay_limit)
+                .count();
+            self.cycle_shape = (period_s, substeps, step_s, delayed);
+        }
+        let (_, substeps, step_s, delayed_substeps) = self.cycle_shape;
         let conditions = CycleConditions {
             period_s,
             substeps,
-            step_s: period_s / substeps.max(1) as f64,
+            step_s,
             power,
             watchdog_expired: self.silent_ns >= self.watchdog_ns && self.silent_ns > 0,
-            command_delay_s: self.command_delay_s,
+            delayed_substeps,
         };
         self.time_ns = self.time_ns.saturating_add(period_ns);
         let spindle = self.spindle.cycle(&self.spindle_command, power, period_s);
@@ -348,9 +366,11 @@ impl Fieldbus for SimulatedMachine {
         for device in &mut self.devices {
             device.cycle(&device_cycle, &mut self.digital_image);
         }
-        for (level, stuck) in self.digital_image.iter_mut().zip(&self.stuck_inputs) {
-            if let Some(value) = stuck {
-                *level = *value;
+        if self.any_stuck {
+            for (level, stuck) in self.digital_image.iter_mut().zip(&self.stuck_inputs) {
+                if let Some(value) = stuck {
+                    *level = *value;
+                }
             }
         }
         if self.communication_lost {
@@ -400,9 +420,11 @@ impl Fieldbus for SimulatedMachine {
                 &mut self.digital_image,
             );
         }
-        for (level, stuck) in self.digital_image.iter_mut().zip(&self.stuck_inputs) {
-            if let Some(value) = stuck {
-                *level = *value;
+        if self.any_stuck {
+            for (level, stuck) in self.digital_image.iter_mut().zip(&self.stuck_inputs) {
+                if let Some(value) = stuck {
+                    *level = *value;
+                }
             }
         }
         inputs.digital.copy_from_slice(&self.digital_image);

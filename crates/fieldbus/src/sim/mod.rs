@@ -13,6 +13,7 @@
 //! [`SimulatedMachineConfig::substep_s`] (62.5 µs by default); the drives' loops run once
 //! per sub-step and hold their torque over it; the motor integrates that exactly.
 
+mod composed;
 mod config;
 mod devices;
 mod joint;

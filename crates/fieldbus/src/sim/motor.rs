@@ -57,6 +57,16 @@ impl MotorModel {
         self.velocity = velocity;
     }
 
+    /// The constants of the linear part of the model: acceleration per N·m, viscous decay
+    /// rate (1/s), Coulomb friction as an acceleration.
+    pub(crate) fn linear_parts(&self) -> (f64, f64, f64) {
+        (
+            self.acceleration_per_torque,
+            self.decay_rate,
+            self.coulomb_acceleration,
+        )
+    }
+
     /// Advances by `step_s` seconds with `torque` (N·m) held.
     pub fn advance(&mut self, torque: f64, step_s: f64) {
         let drive = torque * self.acceleration_per_torque;

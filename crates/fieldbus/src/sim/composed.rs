@@ -1,0 +1,306 @@
+//! A velocity drive's whole cycle in one step, where its sub-steps are linear.
+//!
+//! Within a cycle of `n` sub-steps a velocity-mode drive in operation enabled runs
+//!
+//! ```text
+//! e = (v_cmd − v)/r          τ = K_p·e + I          I ← I + K_i·e·h
+//! v ← v + (v − a/c)·(e^(−ch) − 1)    with a = g·τ − s·f   (s = sgn v, f Coulomb)
+//! ```
+//!
+//! (the motor's exact solution for the held torque, see [`MotorModel`](super::MotorModel)).
+//! As long as the torque stays inside its limit (no clamping, no anti-windup) and the
+//! velocity keeps its sign (the Coulomb term is a constant), every sub-step is an affine
+//! map of the state `(v, I)` and the inputs `(v_cmd before the command delay, v_cmd after
+//! it, s·f)`, and so is their composition: each sub-step's velocity and torque and the
+//! cycle's end position are fixed linear combinations of
+//! `b = (v₀, I₀, v_cmd,prev, v_cmd, s·f)`. [`ComposedCycle`] holds those combinations,
+//! built once per sub-step length by running the sub-step formulas on coefficient vectors.
+//!
+//! A cycle then costs dot products with no dependency from one sub-step to the next,
+//! instead of a chain of sub-steps each waiting on the last one's divisions. The conditions
+//! are checked on every sub-step's velocity and torque (the velocity is monotonic within a
+//! sub-step under a held torque, so equal signs at both ends mean no stop inside it); when
+//! one fails the caller runs the sub-steps one by one. The results are those of the
+//! sub-steps up to rounding (a few units in the last place).
+
+/// The longest cycle, in sub-steps, that is composed (16 at the default 62.5 µs sub-step
+/// and 1 ms period; longer cycles run sub-step by sub-step).
+pub(crate) const MAX_COMPOSED_SUBSTEPS: usize = 32;
+
+/// Coefficients over `b = (v₀, I₀, v_cmd,prev, v_cmd, s·f)`.
+type Coefficients = [f64; 5];
+
+/// The drive's and motor's constants a composition depends on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct LinearDrive {
+    /// Units per radian `r`.
+    pub units_per_radian: f64,
+    /// Proportional gain `K_p` (N·m per rad/s).
+    pub velocity_gain: f64,
+    /// Integral gain `K_i` (N·m per rad).
+    pub velocity_integral_gain: f64,
+    /// Acceleration per torque `g`.
+    pub acceleration_per_torque: f64,
+    /// Viscous decay rate `c` (1/s).
+    pub decay_rate: f64,
+}
+
+/// The state after a composed cycle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct ComposedResult {
+    pub displacement: f64,
+    pub velocity: f64,
+    pub velocity_integral: f64,
+    /// The torque of the last sub-step.
+    pub torque: f64,
+}
+
+/// The linear combinations of one cycle shape (sub-step length, count, delayed sub-steps).
+#[derive(Debug, Clone)]
+pub(crate) struct ComposedCycle {
+    step_s: f64,
+    substeps: usize,
+    delayed: usize,
+    /// Velocity at the end of sub-step k (k = 0..substeps).
+    velocity: [Coefficients; MAX_COMPOSED_SUBSTEPS],
+    /// Torque of sub-step k (k = 0..substeps).
+    torque: [Coefficients; MAX_COMPOSED_SUBSTEPS],
+    integral: Coefficients,
+    displacement: Coefficients,
+}
+
+fn axpy(a: f64, x: &Coefficients, y: &Coefficients) -> Coefficients {
+    std::array::from_fn(|i| a * x[i] + y[i])
+}
+
+fn dot(x: &Coefficients, b: &Coefficients) -> f64 {
+    // Two chains, so the additions overlap.
+    (x[0] * b[0] + x[2] * b[2] + x[4] * b[4]) + (x[1] * b[1] + x[3] * b[3])
+}
+
+impl ComposedCycle {
+    /// An empty composition (matches no cycle until [`prepare`](Self::prepare)).
+    pub(crate) fn new() -> Self {
+        ComposedCycle {
+            step_s: f64::NAN,
+            substeps: 0,
+            delayed: 0,
+            velocity: [[0.0; 5]; MAX_COMPOSED_SUBSTEPS],
+            torque: [[0.0; 5]; MAX_COMPOSED_SUBSTEPS],
+            integral: [0.0; 5],
+            displacement: [0.0; 5],
+        }
+    }
+
+    /// Makes the composition fit `substeps` sub-steps of `step_s`, the first `delayed` of
+    /// them under the previous command. Returns false when the cycle is too long to
+    /// compose. Rebuilding costs one pass over the sub-steps; it happens only when the
+    /// shape changes.
+    pub(crate) fn prepare(
+        &mut self,
+        drive: &LinearDrive,
+        step_s: f64,
+        substeps: usize,
+        delayed: usize,
+    ) -> bool {
+        if substeps == 0 || substeps > MAX_COMPOSED_SUBSTEPS || !step_s.is_finite() {
+            return false;
+        }
+        if step_s == self.step_s && substeps == self.substeps && delayed == self.delayed {
+            return true;
+        }
+        let unit =
+            |i: usize| -> Coefficients { std::array::from_fn(|j| f64::from(u8::from(i == j))) };
+        let mut v = unit(0);
+        let mut integral = unit(1);
+        let mut displacement = [0.0; 5];
+        let coulomb = unit(4);
+        let c = drive.decay_rate;
+        let decay = (-c * step_s).exp_m1();
+        for k in 0..substeps {
+            let command = if k < delayed { unit(2) } else { unit(3) };
+            let error: Coefficients =
+                std::array::from_fn(|i| (command[i] - v[i]) / drive.units_per_radian);
+            let torque = axpy(drive.velocity_gain, &error, &integral);
+            integral = axpy(drive.velocity_integral_gain * step_s, &error, &integral);
+            let net: Coefficients =
+                std::array::from_fn(|i| torque[i] * drive.acceleration_per_torque - coulomb[i]);
+            if c > 0.0 {
+                let terminal: Coefficients = std::array::from_fn(|i| net[i] / c);
+                let towards: Coefficients = std::array::from_fn(|i| v[i] - terminal[i]);
+                displacement = std::array::from_fn(|i| {
+                    displacement[i] + terminal[i] * step_s - towards[i] * decay / c
+                });
+                v = std::array::from_fn(|i| v[i] + towards[i] * decay);
+            } else {
+                displacement = std::array::from_fn(|i| {
+                    displacement[i] + v[i] * step_s + 0.5 * net[i] * step_s * step_s
+                });
+                v = std::array::from_fn(|i| v[i] + net[i] * step_s);
+            }
+            self.torque[k] = torque;
+            self.velocity[k] = v;
+        }
+        self.integral = integral;
+        self.displacement = displacement;
+        self.step_s = step_s;
+        self.substeps = substeps;
+        self.delayed = delayed;
+        true
+    }
+
+    /// The cycle from velocity `v0` (not zero) and integral `integral0` under the commands,
+    /// the Coulomb friction acceleration `coulomb` and the torque limit; `None` when a
+    /// sub-step would clamp its torque or bring the velocity to zero or past it (then the
+    /// sub-steps must run one by one).
+    #[inline]
+    pub(crate) fn run(
+        &self,
+        v0: f64,
+        integral0: f64,
+        previous_command: f64,
+        command: f64,
+        coulomb: f64,
+        torque_limit: f64,
+    ) -> Option<ComposedResult> {
+        let direction = if v0 > 0.0 {
+            1.0
+        } else if v0 < 0.0 {
+            -1.0
+        } else {
+            return None;
+        };
+        let b = [
+            v0,
+            integral0,
+            previous_command,
+            command,
+            direction * coulomb,
+        ];
+        if !b.iter().all(|x| x.is_finite()) {
+            return None;
+        }
+        let n = self.substeps.min(MAX_COMPOSED_SUBSTEPS);
+        let mut ok = true;
+        for (velocity, torque) in self.velocity.iter().zip(&self.torque).take(n) {
+            // No early exit: the checks vectorise, and failures are rare.
+            ok &= dot(velocity, &b) * direction > 0.0;
+            ok &= dot(torque, &b).abs() < torque_limit;
+        }
+        if !ok || n == 0 {
+            return None;
+        }
+        Some(ComposedResult {
+            displacement: dot(&self.displacement, &b),
+            velocity: dot(&self.velocity[n - 1], &b),
+            velocity_integral: dot(&self.integral, &b),
+            torque: dot(&self.torque[n - 1], &b),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A drive of 5 mm per revolution, 1e-4 kg·m², 0.002 N·m·s viscous friction, velocity
+    /// loop at 400 Hz.
+    fn drive() -> LinearDrive {
+        let inertia = 1e-4;
+        let bandwidth = 2.0 * std::f64::consts::PI * 400.0;
+        let units_per_radian = 5.0 / (2.0 * std::f64::consts::PI);
+        LinearDrive {
+            units_per_radian,
+            velocity_gain: inertia * bandwidth,
+            velocity_integral_gain: inertia * bandwidth * bandwidth / 4.0,
+            acceleration_per_torque: units_per_radian / inertia,
+            decay_rate: 0.002 / inertia,
+        }
+    }
+
+    /// The sub-steps one by one, straight from the model's equations (no stop, no clamp).
+    fn stepwise(
+        d: &LinearDrive,
+        step_s: f64,
+        substeps: usize,
+        delayed: usize,
+        b: [f64; 5],
+    ) -> ComposedResult {
+        let (mut v, mut integral, mut x, mut torque) = (b[0], b[1], 0.0, 0.0);
+        let c = d.decay_rate;
+        for k in 0..substeps {
+            let command = if k < delayed { b[2] } else { b[3] };
+            let e = (command - v) / d.units_per_radian;
+            torque = d.velocity_gain * e + integral;
+            integral += d.velocity_integral_gain * e * step_s;
+            let terminal = (torque * d.acceleration_per_torque - b[4]) / c;
+            let decay = (-c * step_s).exp();
+            x += terminal * step_s + (v - terminal) * (1.0 - decay) / c;
+            v = terminal + (v - terminal) * decay;
+        }
+        ComposedResult {
+            displacement: x,
+            velocity: v,
+            velocity_integral: integral,
+            torque,
+        }
+    }
+
+    fn close(a: f64, b: f64, scale: f64) -> bool {
+        (a - b).abs() <= 1e-12 * scale.max(a.abs()).max(b.abs())
+    }
+
+    #[test]
+    fn a_composed_cycle_equals_its_sub_steps() {
+        let d = drive();
+        let coulomb = 0.05 * d.acceleration_per_torque;
+        for (substeps, delayed) in [(16, 0), (16, 4), (2, 1), (32, 0), (1, 0)] {
+            let step_s = 1e-3 / substeps as f64;
+            let mut cycle = ComposedCycle::new();
+            assert!(cycle.prepare(&d, step_s, substeps, delayed));
+            for (v0, i0, previous, command) in [
+                (50.0, 0.01, 50.0, 51.0),
+                (-20.0, -0.02, -20.5, -21.0),
+                (3.0, 0.0, 3.0, 2.5),
+            ] {
+                let composed = cycle
+                    .run(v0, i0, previous, command, coulomb, 10.0)
+                    .expect("no stop, no clamp");
+                let s = v0.signum() * coulomb;
+                let reference = stepwise(
+                    &d,
+                    step_s,
+                    substeps,
+                    delayed,
+                    [v0, i0, previous, command, s],
+                );
+                assert!(
+                    close(composed.velocity, reference.velocity, 1.0),
+                    "{composed:?} {reference:?}"
+                );
+                assert!(close(composed.displacement, reference.displacement, 1e-3));
+                assert!(close(
+                    composed.velocity_integral,
+                    reference.velocity_integral,
+                    1e-3
+                ));
+                assert!(close(composed.torque, reference.torque, 1e-3));
+            }
+        }
+    }
+
+    #[test]
+    fn a_cycle_that_clamps_its_torque_or_stops_is_not_composed() {
+        let d = drive();
+        let mut cycle = ComposedCycle::new();
+        assert!(cycle.prepare(&d, 62.5e-6, 16, 0));
+        // 100 mm/s of step in the command asks for far more than 0.1 N·m.
+        assert_eq!(cycle.run(10.0, 0.0, 10.0, 110.0, 0.0, 0.1), None);
+        // Commanded to reverse: the velocity passes through zero within the cycle.
+        assert_eq!(cycle.run(0.5, 0.0, -50.0, -50.0, 0.0, 100.0), None);
+        // At rest the direction of the friction is not known.
+        assert_eq!(cycle.run(0.0, 0.0, 1.0, 1.0, 0.0, 100.0), None);
+        // Too many sub-steps to compose.
+        assert!(!cycle.prepare(&d, 1e-6, MAX_COMPOSED_SUBSTEPS + 1, 0));
+    }
+}
