@@ -125,7 +125,10 @@ pub struct GeometryStats {
 
 pub(crate) struct Builder {
     pub pos: AxisVec,
-    run: Option<(LineP, [AxisVec; MERGE_MAX], usize)>,
+    /// The line being merged (G64 Q) and how many inner vertices it has ...
+    run: Option<(LineP, usize)>,
+    /// ... held here, out of the option (moved on every push otherwise).
+    run_vertices: [AxisVec; MERGE_MAX],
     prev: Option<Prim>,
     prev_state: Option<State>,
     pub stats: GeometryStats,
@@ -136,6 +139,7 @@ impl Builder {
         Builder {
             pos,
             run: None,
+            run_vertices: [[0.0; AXES]; MERGE_MAX],
             prev: None,
             prev_state: None,
             stats: GeometryStats::default(),
@@ -173,7 +177,7 @@ impl Builder {
 
     /// Emits everything held back; the path stops at its end.
     pub fn flush(&mut self, lim: &Lim, out: &mut Vec<Piece>) {
-        if let Some((l, _, _)) = self.run.take() {
+        if let Some((l, _)) = self.run.take() {
             self.vertex_stage(Prim::Line(l), lim, out);
         }
         if let Some(prev) = self.prev.take() {
@@ -302,20 +306,21 @@ impl Builder {
             _ => 0.0,
         };
         let Prim::Line(l) = p else {
-            if let Some((r, _, _)) = self.run.take() {
+            if let Some((r, _)) = self.run.take() {
                 self.vertex_stage(Prim::Line(r), lim, out);
             }
             self.vertex_stage(p, lim, out);
             return;
         };
         if q <= 0.0 || l.rapid {
-            if let Some((r, _, _)) = self.run.take() {
+            if let Some((r, _)) = self.run.take() {
                 self.vertex_stage(Prim::Line(r), lim, out);
             }
             self.vertex_stage(p, lim, out);
             return;
         }
-        if let Some((mut r, mut pts, mut n)) = self.run.take() {
+        if let Some((mut r, mut n)) = self.run.take() {
+            let pts = &mut self.run_vertices;
             let compatible = r.mode == l.mode && r.feed == l.feed && n < MERGE_MAX;
             if compatible {
                 // Candidate merged line r.a -> l.b; every inner vertex (pts[..n] and r.b) within q.
@@ -336,14 +341,14 @@ impl Builder {
                         r.dir = dir;
                         r.len = len;
                         self.stats.merged += 1;
-                        self.run = Some((r, pts, n));
+                        self.run = Some((r, n));
                         return;
                     }
                 }
             }
             self.vertex_stage(Prim::Line(r), lim, out);
         }
-        self.run = Some((l, [[0.0; AXES]; MERGE_MAX], 0));
+        self.run = Some((l, 0));
     }
 
     /// Decides the junction between the held-back primitive and `cur`, emits the held-back
@@ -687,14 +692,46 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Piece>
         &scale(&s1.t, lp),
         &scale(&s1.k, lp * lp),
     );
-    // Distance from the programmed segment (the chord lies on it).
+    let Shape::Poly { c } = &shape else {
+        unreachable!("quintic() builds a polynomial")
+    };
+    // Distance from the programmed segment (the chord lies on it) and the soft limits, at
+    // 17 samples, over the axes the span or its chord moves along: on the others the sample
+    // is exactly the start point and every term below an exact zero, so skipping them
+    // gives the full nine-axis values bit for bit.
     let dir = scale(&d, 1.0 / lc);
+    let mut axes = [0usize; AXES];
+    let mut na = 0;
+    let mut outside = false;
+    for i in 0..AXES {
+        let moves = c[0][i] != s0.p[i] || dir[i] != 0.0 || (1..6).any(|k| c[k][i] != 0.0);
+        if moves {
+            axes[na] = i;
+            na += 1;
+        } else if lim.present[i] && (s0.p[i] < lim.min[i] || s0.p[i] > lim.max[i]) {
+            outside = true;
+        }
+    }
+    let axes = &axes[..na];
     let mut dev = [0.0f64; 17];
     for (k, dv) in dev.iter_mut().enumerate() {
         let u = k as f64 / 16.0;
-        let w = sub(&shape.pos(u), &s0.p);
-        let along = dot(&w, &dir).clamp(0.0, lc);
-        *dv = norm(&add_scaled(&w, &dir, -along));
+        let mut w = [0.0; AXES];
+        let mut along = 0.0;
+        for &i in axes {
+            let p = c[0][i]
+                + u * (c[1][i] + u * (c[2][i] + u * (c[3][i] + u * (c[4][i] + u * c[5][i]))));
+            outside |= lim.present[i] && (p < lim.min[i] || p > lim.max[i]);
+            w[i] = p - s0.p[i];
+            along += w[i] * dir[i];
+        }
+        let along = along.clamp(0.0, lc);
+        let mut perp2 = 0.0;
+        for &i in axes {
+            let r = w[i] + dir[i] * -along;
+            perp2 += r * r;
+        }
+        *dv = perp2.sqrt();
     }
     let (km, _) = dev.iter().enumerate().fold(
         (0, 0.0),
@@ -709,19 +746,8 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Piece>
             max_dev = max_dev.max(y1 - 0.125 * (y2 - y0) * (y2 - y0) / den);
         }
     }
-    if max_dev > tol * (1.0 - 1e-3) {
+    if max_dev > tol * (1.0 - 1e-3) || (outside && tol.is_finite()) {
         return None;
-    }
-    for k in 0..=16 {
-        if tol.is_infinite() {
-            break;
-        }
-        let p = shape.pos(k as f64 / 16.0);
-        for i in 0..AXES {
-            if lim.present[i] && (p[i] < lim.min[i] || p[i] > lim.max[i]) {
-                return None;
-            }
-        }
     }
     Some(Piece::new(shape, s0.p, s1.p, l.feed, false, l.line))
 }
