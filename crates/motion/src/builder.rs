@@ -4,11 +4,11 @@
 
 use crate::axes::{AXES, Axis, AxisVec, add_scaled, dot, is_finite, norm, norm_xyz, scale, sub};
 use crate::error::MotionError;
-use crate::geometry::{Helix, Shape, corner_bezier, quintic};
+use crate::geometry::{ArcMap, Helix, Shape, corner_bezier, quintic};
 use crate::input::{Feed, Move, MoveKind, PathMode};
 use crate::limits::Lim;
 use crate::piece::Piece;
-use crate::spline::SplineP;
+use crate::spline::{SPLINE_PIECES, SplineMaps, SplineP};
 
 mod arc_blend;
 
@@ -41,7 +41,7 @@ struct LineP {
     line: u32,
 }
 
-// One primitive is held at a time, by value: a spline with its tables is the largest.
+// One primitive is held at a time, by value (a spline's tables are kept apart, in the builder).
 #[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Copy)]
 enum Prim {
@@ -131,6 +131,8 @@ pub(crate) struct Builder {
     run_vertices: [AxisVec; MERGE_MAX],
     prev: Option<Prim>,
     prev_state: Option<State>,
+    /// Tables of the held-back spline and of a new one (`SplineP::slot`).
+    spline_maps: [SplineMaps; 2],
     pub stats: GeometryStats,
 }
 
@@ -142,6 +144,7 @@ impl Builder {
             run_vertices: [[0.0; AXES]; MERGE_MAX],
             prev: None,
             prev_state: None,
+            spline_maps: [[(ArcMap::Linear { k: 1.0 }, 0.0); SPLINE_PIECES]; 2],
             stats: GeometryStats::default(),
         }
     }
@@ -187,7 +190,7 @@ impl Builder {
         self.prev_state = None;
     }
 
-    fn validate(&self, mv: &Move, lim: &Lim) -> Result<Option<Prim>, MotionError> {
+    fn validate(&mut self, mv: &Move, lim: &Lim) -> Result<Option<Prim>, MotionError> {
         let line = mv.line;
         let a = self.pos;
         match mv.mode {
@@ -289,7 +292,13 @@ impl Builder {
                 }))
             }
             MoveKind::Spline { control, .. } => {
-                let mut sp = SplineP::new(&a, &b, &control, mv.mode, line, lim)?;
+                // The held-back primitive is the only other spline alive.
+                let slot = match &self.prev {
+                    Some(Prim::Spline(held)) => 1 - held.slot,
+                    _ => 0,
+                };
+                let maps = &mut self.spline_maps[slot];
+                let mut sp = SplineP::new(&a, &b, &control, mv.mode, line, lim, maps, slot)?;
                 sp.feed = resolve_feed(&mv.feed, sp.len_xyz, sp.len, line)?;
                 Ok(Some(Prim::Spline(sp)))
             }
@@ -649,7 +658,7 @@ impl Builder {
                 pc.stop_at_end = stop;
                 out.push(pc);
             }
-            Prim::Spline(sp) => sp.emit(stop, out),
+            Prim::Spline(sp) => sp.emit(&self.spline_maps[sp.slot], stop, out),
         }
     }
 }
@@ -731,16 +740,17 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Piece>
             let r = w[i] + dir[i] * -along;
             perp2 += r * r;
         }
-        *dv = perp2.sqrt();
+        *dv = perp2;
     }
+    // (Squared distances: the roots only of the largest and its neighbours.)
     let (km, _) = dev.iter().enumerate().fold(
         (0, 0.0),
         |(bi, bv), (i, v)| if *v > bv { (i, *v) } else { (bi, bv) },
     );
-    let mut max_dev = dev[km];
+    let mut max_dev = dev[km].sqrt();
     if km > 0 && km < 16 {
         // Peak of the parabola through the three samples around the largest.
-        let (y0, y1, y2) = (dev[km - 1], dev[km], dev[km + 1]);
+        let (y0, y1, y2) = (dev[km - 1].sqrt(), max_dev, dev[km + 1].sqrt());
         let den = y0 - 2.0 * y1 + y2;
         if den < 0.0 {
             max_dev = max_dev.max(y1 - 0.125 * (y2 - y0) * (y2 - y0) / den);

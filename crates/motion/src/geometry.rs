@@ -57,6 +57,12 @@ impl Shape {
                 for i in 0..AXES {
                     let (c0, c1, c2, c3, c4, c5) =
                         (c[0][i], c[1][i], c[2][i], c[3][i], c[4][i], c[5][i]);
+                    // An axis the curve does not move (most of the nine): its value, and
+                    // derivatives of exactly zero.
+                    if c1 == 0.0 && c2 == 0.0 && c3 == 0.0 && c4 == 0.0 && c5 == 0.0 {
+                        d.p[i] = c0;
+                        continue;
+                    }
                     d.p[i] = c0 + u * (c1 + u * (c2 + u * (c3 + u * (c4 + u * c5))));
                     d.d1[i] = c1 + u * (2.0 * c2 + u * (3.0 * c3 + u * (4.0 * c4 + u * 5.0 * c5)));
                     d.d2[i] = 2.0 * c2 + u * (6.0 * c3 + u * (12.0 * c4 + u * 20.0 * c5));
