@@ -5,12 +5,13 @@
 //! `cargo run --release -p rtcnc-motion --example lookahead_cost -- [REPS] [setup]`: with
 //! `setup`, the planners are only created (subtract that run's instruction count to get the
 //! pushing alone). `-- 1 run` runs the program to its end and prints the number of periods
-//! and a hash of every set-point's bits (to show that a change leaves the path bit for bit).
+//! and a hash of every set-point's bits (to show that a change leaves the path bit for bit);
+//! `splines` in place of `run` does the same with the bench's chain of 400 G5 arches.
 
 use std::time::Instant;
 
 use rtcnc_motion::{
-    AXES, Axis, AxisLimits, AxisVec, MachineLimits, MotionState, Move, PathMode, Planner,
+    AXES, Axis, AxisLimits, AxisVec, Bezier, MachineLimits, MotionState, Move, PathMode, Planner,
     TrivialKinematics,
 };
 
@@ -38,6 +39,29 @@ fn polyline(turns: f64) -> (AxisVec, Vec<Move>) {
     )
 }
 
+/// Tangent cubic arches along X, alternately up and down (as in the planner bench).
+fn spline_chain(n: usize) -> Vec<Move> {
+    let p = |x: f64, y: f64| {
+        let mut v = [0.0; AXES];
+        v[0] = x;
+        v[1] = y;
+        v
+    };
+    (0..n)
+        .map(|k| {
+            let x = 2.0 * k as f64;
+            let h = if k % 2 == 0 { 1.0 } else { -1.0 };
+            Move::spline(
+                p(x + 2.0, 0.0),
+                Bezier::Cubic([p(x + 0.5, h), p(x + 1.5, h)]),
+                60.0,
+                PathMode::ExactPath,
+                k as u32 + 1,
+            )
+        })
+        .collect()
+}
+
 fn main() {
     let reps: usize = std::env::args()
         .nth(1)
@@ -45,7 +69,11 @@ fn main() {
         .unwrap_or(50);
     let mode = std::env::args().nth(2).unwrap_or_default();
     let setup_only = mode == "setup";
-    let (start, moves) = polyline(4.0);
+    let (start, moves) = if mode == "splines" {
+        ([0.0; AXES], spline_chain(400))
+    } else {
+        polyline(4.0)
+    };
     let lim = MachineLimits::uniform(
         &[Axis::X, Axis::Y, Axis::Z],
         AxisLimits::new(100.0, 1000.0, 50_000.0, -1000.0, 1000.0),
@@ -75,7 +103,7 @@ fn main() {
         }
         pl.flush();
         pushed += moves.len();
-        if mode == "run" {
+        if mode == "run" || mode == "splines" {
             let mut j = [0.0; 3];
             let (mut hash, mut periods) = (0xcbf2_9ce4_8422_2325u64, 0u64);
             loop {

@@ -722,25 +722,38 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Piece>
         }
     }
     let axes = &axes[..na];
-    let mut dev = [0.0f64; 17];
-    for (k, dv) in dev.iter_mut().enumerate() {
-        let u = k as f64 / 16.0;
-        let mut w = [0.0; AXES];
-        let mut along = 0.0;
-        for &i in axes {
-            let p = c[0][i]
-                + u * (c[1][i] + u * (c[2][i] + u * (c[3][i] + u * (c[4][i] + u * c[5][i]))));
+    // Sample by sample inside each axis: independent chains the processor overlaps (each
+    // sample's sums still run over the axes in order, as `dot` and `norm` do).
+    const US: [f64; 17] = {
+        let mut u = [0.0; 17];
+        let mut k = 0;
+        while k < 17 {
+            u[k] = k as f64 / 16.0;
+            k += 1;
+        }
+        u
+    };
+    let mut w = [[0.0f64; 17]; AXES];
+    let mut along = [0.0f64; 17];
+    for (wj, &i) in w.iter_mut().zip(axes) {
+        let ci = [c[0][i], c[1][i], c[2][i], c[3][i], c[4][i], c[5][i]];
+        for k in 0..17 {
+            let u = US[k];
+            let p = ci[0] + u * (ci[1] + u * (ci[2] + u * (ci[3] + u * (ci[4] + u * ci[5]))));
             outside |= lim.present[i] && (p < lim.min[i] || p > lim.max[i]);
-            w[i] = p - s0.p[i];
-            along += w[i] * dir[i];
+            wj[k] = p - s0.p[i];
+            along[k] += wj[k] * dir[i];
         }
-        let along = along.clamp(0.0, lc);
-        let mut perp2 = 0.0;
-        for &i in axes {
-            let r = w[i] + dir[i] * -along;
-            perp2 += r * r;
+    }
+    let mut dev = [0.0f64; 17];
+    for a in along.iter_mut() {
+        *a = a.clamp(0.0, lc);
+    }
+    for (wj, &i) in w.iter().zip(axes) {
+        for k in 0..17 {
+            let r = wj[k] + dir[i] * -along[k];
+            dev[k] += r * r;
         }
-        *dv = perp2;
     }
     // (Squared distances: the roots only of the largest and its neighbours.)
     let (km, _) = dev.iter().enumerate().fold(

@@ -131,6 +131,31 @@ impl SpeedFn<'_> {
             SpeedFn::Other(s) => s.speed(u),
         }
     }
+
+    /// `out[k] = self.at(us[k])`, the same values; for polynomials axis by axis over all
+    /// the parameters, independent chains the processor overlaps.
+    fn fill<const N: usize>(&self, us: &[f64; N], out: &mut [f64; N]) {
+        match self {
+            SpeedFn::Poly(p) => {
+                let mut s2 = [0.0f64; N];
+                for &[c1, c2, c3, c4, c5] in &p.c[..p.n] {
+                    for (acc, &u) in s2.iter_mut().zip(us) {
+                        let d =
+                            c1 + u * (2.0 * c2 + u * (3.0 * c3 + u * (4.0 * c4 + u * 5.0 * c5)));
+                        *acc += d * d;
+                    }
+                }
+                for (o, x) in out.iter_mut().zip(s2) {
+                    *o = x.sqrt();
+                }
+            }
+            SpeedFn::Other(s) => {
+                for (o, &u) in out.iter_mut().zip(us) {
+                    *o = s.speed(u);
+                }
+            }
+        }
+    }
 }
 
 /// |dp/du| of a polynomial shape over the axes it moves along only. An axis whose
@@ -269,15 +294,26 @@ impl ArcMap {
         let mut s = [0.0; MAP_N + 1];
         let mut duds = [0.0; MAP_N + 1];
         let h = 1.0 / MAP_N as f64;
-        let speed = shape.speed_fn();
+        // The parametric speed at the nodes and at the Gauss points of each interval.
+        const NU: usize = 4 * MAP_N + 1;
+        let mut us = [0.0; NU];
         for k in 0..=MAP_N {
-            let sp = speed.at(k as f64 * h);
-            duds[k] = if sp > 0.0 { 1.0 / sp } else { 0.0 };
+            us[k] = k as f64 * h;
             if k > 0 {
                 let u0 = (k - 1) as f64 * h;
+                for g in 0..3 {
+                    us[MAP_N + 1 + 3 * (k - 1) + g] = u0 + GL_X[g] * h;
+                }
+            }
+        }
+        let mut sp = [0.0; NU];
+        shape.speed_fn().fill(&us, &mut sp);
+        for k in 0..=MAP_N {
+            duds[k] = if sp[k] > 0.0 { 1.0 / sp[k] } else { 0.0 };
+            if k > 0 {
                 let mut acc = 0.0;
                 for g in 0..3 {
-                    acc += GL_W[g] * speed.at(u0 + GL_X[g] * h);
+                    acc += GL_W[g] * sp[MAP_N + 1 + 3 * (k - 1) + g];
                 }
                 s[k] = s[k - 1] + acc * h;
             }
@@ -295,10 +331,18 @@ impl ArcMap {
         let mut cum = [0.0; FINE + 1];
         // (Spline pieces are regular: the floor only keeps a degenerate shape finite.)
         let speed = shape.speed_fn();
-        let log_speed = |u: f64| speed.at(u).max(1e-300).ln();
-        let mut prev = log_speed(0.0);
+        let mut sp = [0.0; FINE + 1];
+        {
+            let mut us = [0.0; FINE + 1];
+            for (k, u) in us.iter_mut().enumerate() {
+                *u = k as f64 / FINE as f64;
+            }
+            speed.fill(&us, &mut sp);
+        }
+        let log_speed = |k: usize| sp[k].max(1e-300).ln();
+        let mut prev = log_speed(0);
         for k in 1..=FINE {
-            let ls = log_speed(k as f64 / FINE as f64);
+            let ls = log_speed(k);
             cum[k] = cum[k - 1] + 1.0 / FINE as f64 + (ls - prev).abs();
             prev = ls;
         }
