@@ -4,11 +4,11 @@
 
 use crate::axes::{AXES, Axis, AxisVec, add_scaled, dot, is_finite, norm, norm_xyz, scale, sub};
 use crate::error::MotionError;
-use crate::geometry::{Helix, Shape, corner_bezier, quintic};
+use crate::geometry::{ArcMap, Helix, Shape, corner_bezier, quintic};
 use crate::input::{Feed, Move, MoveKind, PathMode};
 use crate::limits::Lim;
 use crate::piece::Piece;
-use crate::spline::SplineP;
+use crate::spline::{SPLINE_PIECES, SplineMaps, SplineP};
 
 mod arc_blend;
 
@@ -41,7 +41,7 @@ struct LineP {
     line: u32,
 }
 
-// One primitive is held at a time, by value: a spline with its tables is the largest.
+// One primitive is held at a time, by value (a spline's tables are kept apart, in the builder).
 #[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Copy)]
 enum Prim {
@@ -125,9 +125,14 @@ pub struct GeometryStats {
 
 pub(crate) struct Builder {
     pub pos: AxisVec,
-    run: Option<(LineP, [AxisVec; MERGE_MAX], usize)>,
+    /// The line being merged (G64 Q) and how many inner vertices it has ...
+    run: Option<(LineP, usize)>,
+    /// ... held here, out of the option (moved on every push otherwise).
+    run_vertices: [AxisVec; MERGE_MAX],
     prev: Option<Prim>,
     prev_state: Option<State>,
+    /// Tables of the held-back spline and of a new one (`SplineP::slot`).
+    spline_maps: [SplineMaps; 2],
     pub stats: GeometryStats,
 }
 
@@ -136,8 +141,10 @@ impl Builder {
         Builder {
             pos,
             run: None,
+            run_vertices: [[0.0; AXES]; MERGE_MAX],
             prev: None,
             prev_state: None,
+            spline_maps: [[(ArcMap::Linear { k: 1.0 }, 0.0); SPLINE_PIECES]; 2],
             stats: GeometryStats::default(),
         }
     }
@@ -173,7 +180,7 @@ impl Builder {
 
     /// Emits everything held back; the path stops at its end.
     pub fn flush(&mut self, lim: &Lim, out: &mut Vec<Piece>) {
-        if let Some((l, _, _)) = self.run.take() {
+        if let Some((l, _)) = self.run.take() {
             self.vertex_stage(Prim::Line(l), lim, out);
         }
         if let Some(prev) = self.prev.take() {
@@ -183,7 +190,7 @@ impl Builder {
         self.prev_state = None;
     }
 
-    fn validate(&self, mv: &Move, lim: &Lim) -> Result<Option<Prim>, MotionError> {
+    fn validate(&mut self, mv: &Move, lim: &Lim) -> Result<Option<Prim>, MotionError> {
         let line = mv.line;
         let a = self.pos;
         match mv.mode {
@@ -285,7 +292,13 @@ impl Builder {
                 }))
             }
             MoveKind::Spline { control, .. } => {
-                let mut sp = SplineP::new(&a, &b, &control, mv.mode, line, lim)?;
+                // The held-back primitive is the only other spline alive.
+                let slot = match &self.prev {
+                    Some(Prim::Spline(held)) => 1 - held.slot,
+                    _ => 0,
+                };
+                let maps = &mut self.spline_maps[slot];
+                let mut sp = SplineP::new(&a, &b, &control, mv.mode, line, lim, maps, slot)?;
                 sp.feed = resolve_feed(&mv.feed, sp.len_xyz, sp.len, line)?;
                 Ok(Some(Prim::Spline(sp)))
             }
@@ -302,20 +315,21 @@ impl Builder {
             _ => 0.0,
         };
         let Prim::Line(l) = p else {
-            if let Some((r, _, _)) = self.run.take() {
+            if let Some((r, _)) = self.run.take() {
                 self.vertex_stage(Prim::Line(r), lim, out);
             }
             self.vertex_stage(p, lim, out);
             return;
         };
         if q <= 0.0 || l.rapid {
-            if let Some((r, _, _)) = self.run.take() {
+            if let Some((r, _)) = self.run.take() {
                 self.vertex_stage(Prim::Line(r), lim, out);
             }
             self.vertex_stage(p, lim, out);
             return;
         }
-        if let Some((mut r, mut pts, mut n)) = self.run.take() {
+        if let Some((mut r, mut n)) = self.run.take() {
+            let pts = &mut self.run_vertices;
             let compatible = r.mode == l.mode && r.feed == l.feed && n < MERGE_MAX;
             if compatible {
                 // Candidate merged line r.a -> l.b; every inner vertex (pts[..n] and r.b) within q.
@@ -336,14 +350,14 @@ impl Builder {
                         r.dir = dir;
                         r.len = len;
                         self.stats.merged += 1;
-                        self.run = Some((r, pts, n));
+                        self.run = Some((r, n));
                         return;
                     }
                 }
             }
             self.vertex_stage(Prim::Line(r), lim, out);
         }
-        self.run = Some((l, [[0.0; AXES]; MERGE_MAX], 0));
+        self.run = Some((l, 0));
     }
 
     /// Decides the junction between the held-back primitive and `cur`, emits the held-back
@@ -644,7 +658,7 @@ impl Builder {
                 pc.stop_at_end = stop;
                 out.push(pc);
             }
-            Prim::Spline(sp) => sp.emit(stop, out),
+            Prim::Spline(sp) => sp.emit(&self.spline_maps[sp.slot], stop, out),
         }
     }
 }
@@ -687,41 +701,76 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Piece>
         &scale(&s1.t, lp),
         &scale(&s1.k, lp * lp),
     );
-    // Distance from the programmed segment (the chord lies on it).
+    let Shape::Poly { c } = &shape else {
+        unreachable!("quintic() builds a polynomial")
+    };
+    // Distance from the programmed segment (the chord lies on it) and the soft limits, at
+    // 17 samples, over the axes the span or its chord moves along: on the others the sample
+    // is exactly the start point and every term below an exact zero, so skipping them
+    // gives the full nine-axis values bit for bit.
     let dir = scale(&d, 1.0 / lc);
-    let mut dev = [0.0f64; 17];
-    for (k, dv) in dev.iter_mut().enumerate() {
-        let u = k as f64 / 16.0;
-        let w = sub(&shape.pos(u), &s0.p);
-        let along = dot(&w, &dir).clamp(0.0, lc);
-        *dv = norm(&add_scaled(&w, &dir, -along));
+    let mut axes = [0usize; AXES];
+    let mut na = 0;
+    let mut outside = false;
+    for i in 0..AXES {
+        let moves = c[0][i] != s0.p[i] || dir[i] != 0.0 || (1..6).any(|k| c[k][i] != 0.0);
+        if moves {
+            axes[na] = i;
+            na += 1;
+        } else if lim.present[i] && (s0.p[i] < lim.min[i] || s0.p[i] > lim.max[i]) {
+            outside = true;
+        }
     }
+    let axes = &axes[..na];
+    // Sample by sample inside each axis: independent chains the processor overlaps (each
+    // sample's sums still run over the axes in order, as `dot` and `norm` do).
+    const US: [f64; 17] = {
+        let mut u = [0.0; 17];
+        let mut k = 0;
+        while k < 17 {
+            u[k] = k as f64 / 16.0;
+            k += 1;
+        }
+        u
+    };
+    let mut w = [[0.0f64; 17]; AXES];
+    let mut along = [0.0f64; 17];
+    for (wj, &i) in w.iter_mut().zip(axes) {
+        let ci = [c[0][i], c[1][i], c[2][i], c[3][i], c[4][i], c[5][i]];
+        for k in 0..17 {
+            let u = US[k];
+            let p = ci[0] + u * (ci[1] + u * (ci[2] + u * (ci[3] + u * (ci[4] + u * ci[5]))));
+            outside |= lim.present[i] && (p < lim.min[i] || p > lim.max[i]);
+            wj[k] = p - s0.p[i];
+            along[k] += wj[k] * dir[i];
+        }
+    }
+    let mut dev = [0.0f64; 17];
+    for a in along.iter_mut() {
+        *a = a.clamp(0.0, lc);
+    }
+    for (wj, &i) in w.iter().zip(axes) {
+        for k in 0..17 {
+            let r = wj[k] + dir[i] * -along[k];
+            dev[k] += r * r;
+        }
+    }
+    // (Squared distances: the roots only of the largest and its neighbours.)
     let (km, _) = dev.iter().enumerate().fold(
         (0, 0.0),
         |(bi, bv), (i, v)| if *v > bv { (i, *v) } else { (bi, bv) },
     );
-    let mut max_dev = dev[km];
+    let mut max_dev = dev[km].sqrt();
     if km > 0 && km < 16 {
         // Peak of the parabola through the three samples around the largest.
-        let (y0, y1, y2) = (dev[km - 1], dev[km], dev[km + 1]);
+        let (y0, y1, y2) = (dev[km - 1].sqrt(), max_dev, dev[km + 1].sqrt());
         let den = y0 - 2.0 * y1 + y2;
         if den < 0.0 {
             max_dev = max_dev.max(y1 - 0.125 * (y2 - y0) * (y2 - y0) / den);
         }
     }
-    if max_dev > tol * (1.0 - 1e-3) {
+    if max_dev > tol * (1.0 - 1e-3) || (outside && tol.is_finite()) {
         return None;
-    }
-    for k in 0..=16 {
-        if tol.is_infinite() {
-            break;
-        }
-        let p = shape.pos(k as f64 / 16.0);
-        for i in 0..AXES {
-            if lim.present[i] && (p[i] < lim.min[i] || p[i] > lim.max[i]) {
-                return None;
-            }
-        }
     }
     Some(Piece::new(shape, s0.p, s1.p, l.feed, false, l.line))
 }

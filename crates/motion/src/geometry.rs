@@ -57,6 +57,12 @@ impl Shape {
                 for i in 0..AXES {
                     let (c0, c1, c2, c3, c4, c5) =
                         (c[0][i], c[1][i], c[2][i], c[3][i], c[4][i], c[5][i]);
+                    // An axis the curve does not move (most of the nine): its value, and
+                    // derivatives of exactly zero.
+                    if c1 == 0.0 && c2 == 0.0 && c3 == 0.0 && c4 == 0.0 && c5 == 0.0 {
+                        d.p[i] = c0;
+                        continue;
+                    }
                     d.p[i] = c0 + u * (c1 + u * (c2 + u * (c3 + u * (c4 + u * c5))));
                     d.d1[i] = c1 + u * (2.0 * c2 + u * (3.0 * c3 + u * (4.0 * c4 + u * 5.0 * c5)));
                     d.d2[i] = 2.0 * c2 + u * (6.0 * c3 + u * (12.0 * c4 + u * 20.0 * c5));
@@ -99,6 +105,91 @@ impl Shape {
             }
             _ => norm(&self.eval(u).d1),
         }
+    }
+
+    /// `speed` prepared for many evaluations (the arc-length tables).
+    fn speed_fn(&self) -> SpeedFn<'_> {
+        match self {
+            Shape::Poly { c } => SpeedFn::Poly(PolySpeed::new(c)),
+            _ => SpeedFn::Other(self),
+        }
+    }
+}
+
+/// Parametric speed of one shape, evaluated many times (a local, never moved).
+#[allow(clippy::large_enum_variant)]
+enum SpeedFn<'a> {
+    Poly(PolySpeed),
+    Other(&'a Shape),
+}
+
+impl SpeedFn<'_> {
+    #[inline]
+    fn at(&self, u: f64) -> f64 {
+        match self {
+            SpeedFn::Poly(p) => p.at(u),
+            SpeedFn::Other(s) => s.speed(u),
+        }
+    }
+
+    /// `out[k] = self.at(us[k])`, the same values; for polynomials axis by axis over all
+    /// the parameters, independent chains the processor overlaps.
+    fn fill<const N: usize>(&self, us: &[f64; N], out: &mut [f64; N]) {
+        match self {
+            SpeedFn::Poly(p) => {
+                let mut s2 = [0.0f64; N];
+                for &[c1, c2, c3, c4, c5] in &p.c[..p.n] {
+                    for (acc, &u) in s2.iter_mut().zip(us) {
+                        let d =
+                            c1 + u * (2.0 * c2 + u * (3.0 * c3 + u * (4.0 * c4 + u * 5.0 * c5)));
+                        *acc += d * d;
+                    }
+                }
+                for (o, x) in out.iter_mut().zip(s2) {
+                    *o = x.sqrt();
+                }
+            }
+            SpeedFn::Other(s) => {
+                for (o, &u) in out.iter_mut().zip(us) {
+                    *o = s.speed(u);
+                }
+            }
+        }
+    }
+}
+
+/// |dp/du| of a polynomial shape over the axes it moves along only. An axis whose
+/// derivative coefficients are all zero adds exactly 0 to the sum of squares, so the value
+/// is bit for bit that of `Shape::speed` (same operations, same order), at the cost of the
+/// moving axes (two or three of the nine on most paths).
+struct PolySpeed {
+    /// Derivative coefficients c1..c5 of each moving axis, in axis order.
+    c: [[f64; 5]; AXES],
+    n: usize,
+}
+
+impl PolySpeed {
+    fn new(c: &[AxisVec; 6]) -> PolySpeed {
+        let mut d = [[0.0; 5]; AXES];
+        let mut n = 0;
+        for i in 0..AXES {
+            let ci = [c[1][i], c[2][i], c[3][i], c[4][i], c[5][i]];
+            if ci.iter().any(|&x| x != 0.0) {
+                d[n] = ci;
+                n += 1;
+            }
+        }
+        PolySpeed { c: d, n }
+    }
+
+    #[inline]
+    fn at(&self, u: f64) -> f64 {
+        let mut s2 = 0.0;
+        for &[c1, c2, c3, c4, c5] in &self.c[..self.n] {
+            let d = c1 + u * (2.0 * c2 + u * (3.0 * c3 + u * (4.0 * c4 + u * 5.0 * c5)));
+            s2 += d * d;
+        }
+        s2.sqrt()
     }
 }
 
@@ -203,14 +294,26 @@ impl ArcMap {
         let mut s = [0.0; MAP_N + 1];
         let mut duds = [0.0; MAP_N + 1];
         let h = 1.0 / MAP_N as f64;
+        // The parametric speed at the nodes and at the Gauss points of each interval.
+        const NU: usize = 4 * MAP_N + 1;
+        let mut us = [0.0; NU];
         for k in 0..=MAP_N {
-            let sp = shape.speed(k as f64 * h);
-            duds[k] = if sp > 0.0 { 1.0 / sp } else { 0.0 };
+            us[k] = k as f64 * h;
             if k > 0 {
                 let u0 = (k - 1) as f64 * h;
+                for g in 0..3 {
+                    us[MAP_N + 1 + 3 * (k - 1) + g] = u0 + GL_X[g] * h;
+                }
+            }
+        }
+        let mut sp = [0.0; NU];
+        shape.speed_fn().fill(&us, &mut sp);
+        for k in 0..=MAP_N {
+            duds[k] = if sp[k] > 0.0 { 1.0 / sp[k] } else { 0.0 };
+            if k > 0 {
                 let mut acc = 0.0;
                 for g in 0..3 {
-                    acc += GL_W[g] * shape.speed(u0 + GL_X[g] * h);
+                    acc += GL_W[g] * sp[MAP_N + 1 + 3 * (k - 1) + g];
                 }
                 s[k] = s[k - 1] + acc * h;
             }
@@ -227,10 +330,19 @@ impl ArcMap {
         const FINE: usize = 8 * MAP_FINE_N;
         let mut cum = [0.0; FINE + 1];
         // (Spline pieces are regular: the floor only keeps a degenerate shape finite.)
-        let log_speed = |u: f64| shape.speed(u).max(1e-300).ln();
-        let mut prev = log_speed(0.0);
+        let speed = shape.speed_fn();
+        let mut sp = [0.0; FINE + 1];
+        {
+            let mut us = [0.0; FINE + 1];
+            for (k, u) in us.iter_mut().enumerate() {
+                *u = k as f64 / FINE as f64;
+            }
+            speed.fill(&us, &mut sp);
+        }
+        let log_speed = |k: usize| sp[k].max(1e-300).ln();
+        let mut prev = log_speed(0);
         for k in 1..=FINE {
-            let ls = log_speed(k as f64 / FINE as f64);
+            let ls = log_speed(k);
             cum[k] = cum[k - 1] + 1.0 / FINE as f64 + (ls - prev).abs();
             prev = ls;
         }
@@ -267,7 +379,7 @@ impl ArcMap {
                 let mut acc = 0.0;
                 for half in 0..2 {
                     for g in 0..3 {
-                        acc += GL_W[g] * shape.speed(u0 + (half as f64 + GL_X[g]) * 0.5 * h);
+                        acc += GL_W[g] * speed.at(u0 + (half as f64 + GL_X[g]) * 0.5 * h);
                     }
                 }
                 s[k] = s[k - 1] + acc * 0.5 * h;

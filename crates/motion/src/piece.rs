@@ -247,7 +247,8 @@ impl Piece {
         lim: &Lim,
     ) -> (f64, f64) {
         let mut v_axis = f64::INFINITY;
-        let mut v_curve = f64::INFINITY;
+        let mut v2_curve = f64::INFINITY;
+        let mut v_jerk3 = f64::INFINITY;
         for i in 0..AXES {
             if !lim.present[i] {
                 continue;
@@ -268,8 +269,10 @@ impl Piece {
             if ti > 0.0 {
                 v_axis = v_axis.min(lim.v[i] / ti);
             }
+            // The roots are taken once, of the smallest ratio (they are monotone: the same
+            // bound as the smallest root, at a fraction of the cost).
             if ki > 0.0 {
-                v_curve = v_curve.min((lim.a[i] / ki).sqrt());
+                v2_curve = v2_curve.min(lim.a[i] / ki);
             }
             if kpi > 0.0 {
                 let share = if self.corner_blend {
@@ -277,10 +280,10 @@ impl Piece {
                 } else {
                     JERK_SHARE_CURVATURE
                 };
-                v_curve = v_curve.min((share * lim.j[i] / kpi).cbrt());
+                v_jerk3 = v_jerk3.min(share * lim.j[i] / kpi);
             }
         }
-        (v_axis, v_curve)
+        (v_axis, v2_curve.sqrt().min(v_jerk3.cbrt()))
     }
 
     /// Speed limit at sample `k` under the given overrides.

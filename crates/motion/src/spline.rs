@@ -53,9 +53,14 @@ pub(crate) struct SplineP {
     pub len_xyz: f64,
     splits: [f64; SPLINE_PIECES + 1],
     n: usize,
-    /// Arc-length table and length of each piece (built once, when checked).
-    maps: [(ArcMap, f64); SPLINE_PIECES],
+    /// Which of the builder's [`SplineMaps`] holds this curve's tables.
+    pub slot: usize,
 }
+
+/// Arc-length table and length of each piece of a curve (built once, when checked). Kept
+/// by the builder apart from the curve, which is moved through its stages on every push:
+/// with the tables inside, each move would copy kilobytes.
+pub(crate) type SplineMaps = [(ArcMap, f64); SPLINE_PIECES];
 
 fn unit(v: &AxisVec) -> AxisVec {
     let n = norm(v);
@@ -64,7 +69,9 @@ fn unit(v: &AxisVec) -> AxisVec {
 
 impl SplineP {
     /// Validates the curve from `a` through `control` to `b`: finite, inside the envelope
-    /// (analytic extent per axis), regular. The feed is set by the caller.
+    /// (analytic extent per axis), regular; its tables go to `maps`, to be found there
+    /// under `slot`. The feed is set by the caller.
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         a: &AxisVec,
         b: &AxisVec,
@@ -72,6 +79,8 @@ impl SplineP {
         mode: PathMode,
         line: u32,
         lim: &Lim,
+        maps: &mut SplineMaps,
+        slot: usize,
     ) -> Result<SplineP, MotionError> {
         let ctrl: &[AxisVec] = match control {
             Bezier::Quadratic(p) => std::slice::from_ref(p),
@@ -137,14 +146,14 @@ impl SplineP {
             len_xyz: 0.0,
             splits: [0.0; SPLINE_PIECES + 1],
             n: 1,
-            maps: [(ArcMap::Linear { k: 1.0 }, 0.0); SPLINE_PIECES],
+            slot,
         };
         sp.check_regular()?;
         sp.check_extent(lim)?;
         sp.split(false);
-        if sp.check_maps().is_err() {
+        if sp.check_maps(maps).is_err() {
             sp.split(true);
-            sp.check_maps()?;
+            sp.check_maps(maps)?;
         }
         let (len, len_xyz) = sp.lengths();
         sp.len = len;
@@ -431,11 +440,11 @@ impl SplineP {
     /// Refuses a curve on which the arc-length map of some piece would misjudge the path
     /// speed by more than [`MAP_SPEED_TOL`] (the split keeps that from happening on curves
     /// that pass [`SplineP::check_regular`]; this is the guarantee).
-    fn check_maps(&mut self) -> Result<(), MotionError> {
+    fn check_maps(&self, maps: &mut SplineMaps) -> Result<(), MotionError> {
         for m in 0..self.n {
             let shape = self.piece_shape(self.splits[m], self.splits[m + 1]);
             let (map, len) = ArcMap::quintic_table(&shape);
-            self.maps[m] = (map, len);
+            maps[m] = (map, len);
             if map_speed_error(&shape, &map) > MAP_SPEED_TOL {
                 return Err(MotionError::InvalidSpline {
                     line: self.line,
@@ -463,9 +472,9 @@ impl SplineP {
         (l, lx)
     }
 
-    /// The pieces of the curve; the last ends exactly at the end point and stops there when
-    /// `stop`.
-    pub fn emit(&self, stop: bool, out: &mut Vec<Piece>) {
+    /// The pieces of the curve (tables from `maps`, this curve's slot); the last ends
+    /// exactly at the end point and stops there when `stop`.
+    pub fn emit(&self, maps: &SplineMaps, stop: bool, out: &mut Vec<Piece>) {
         for m in 0..self.n {
             let (u0, u1) = (self.splits[m], self.splits[m + 1]);
             let shape = self.piece_shape(u0, u1);
@@ -476,7 +485,7 @@ impl SplineP {
                 self.piece_shape(u1, self.splits[m + 2]).pos(0.0)
             };
             let mut pc = Piece::new(shape, start, end, self.feed, false, self.line);
-            (pc.map, pc.len) = self.maps[m];
+            (pc.map, pc.len) = maps[m];
             pc.dense_bounds = true;
             pc.stop_at_end = stop && m + 1 == self.n;
             out.push(pc);
