@@ -1,7 +1,8 @@
-//! G64 P corners where an arc or helix meets a line or another arc.
+//! G64 P corners where an arc, helix or spline meets a line, an arc or a spline.
 //!
 //! Both neighbours are trimmed by the same length `d` next to the corner (an arc by angle,
-//! so it stays an exact helix), and a quintic joins the two trim points matching position,
+//! so it stays an exact helix; a spline by parameter, so it stays the exact polynomial),
+//! and a quintic joins the two trim points matching position,
 //! tangent and curvature vector on both sides (derivatives `L·T` and `L²·K` for a common
 //! parameter length `L`): the path is curvature-continuous (G2) and the curvature at each
 //! end of the blend is its neighbour's (the arc's, or zero on a line). `d` is the largest
@@ -43,8 +44,21 @@ const D_ITER: usize = 12;
 /// The programmed path between a trim point and the corner.
 #[derive(Debug, Clone, Copy)]
 enum Near {
-    Seg { a: AxisVec, b: AxisVec },
-    Arc { h: Helix, lo: f64, hi: f64 },
+    Seg {
+        a: AxisVec,
+        b: AxisVec,
+    },
+    Arc {
+        h: Helix,
+        lo: f64,
+        hi: f64,
+    },
+    /// A spline's polynomial `c0 + c1 u + c2 u² + c3 u³` over [lo, hi].
+    Poly {
+        c: [AxisVec; 4],
+        lo: f64,
+        hi: f64,
+    },
 }
 
 /// One neighbour trimmed by `d`: the state at the trim point, its helix parameter (arcs),
@@ -85,10 +99,6 @@ impl Builder {
         lim: &Lim,
         out: &mut Vec<Piece>,
     ) -> Option<(Prim, Option<State>)> {
-        // Corners at splines are not blended (they stop): nothing below sees a spline.
-        if matches!(prev, Prim::Spline(_)) || matches!(cur, Prim::Spline(_)) {
-            return None;
-        }
         let feed = feed_of(prev).min(feed_of(cur)).min(V_RAPID_REF);
         let bl = solve(prev, st.as_ref(), cur, tol, feed, lim)?;
         for k in 0..=NSAMP {
@@ -157,7 +167,11 @@ impl Builder {
                 false,
                 *line,
             )),
-            Prim::Spline(_) => return None,
+            Prim::Spline(sp) => {
+                let mut sp = *sp;
+                sp.u1 = bl.from.u;
+                sp.emit(false, out);
+            }
         }
         out.push(b);
         self.stats.blends += 1;
@@ -189,7 +203,10 @@ impl Builder {
                 },
                 None,
             ),
-            Prim::Spline(sp) => (Prim::Spline(sp), None),
+            Prim::Spline(mut sp) => {
+                sp.u0 = bl.to.u;
+                (Prim::Spline(sp), None)
+            }
         })
     }
 }
@@ -306,7 +323,7 @@ fn remaining_len(prim: &Prim, st: Option<&State>) -> f64 {
     match prim {
         Prim::Line(l) => norm(&sub(&l.b, &st.map_or(l.a, |s| s.p))),
         Prim::Arc { h, u0, .. } => helix_len(h) * (1.0 - u0),
-        Prim::Spline(sp) => sp.len,
+        Prim::Spline(sp) => sp.arc_len(sp.u0, sp.u1),
     }
 }
 
@@ -366,7 +383,18 @@ fn max_trim(prim: &Prim, st: Option<&State>, at_end: bool) -> f64 {
                 d
             }
         }
-        Prim::Spline(_) => 0.0,
+        Prim::Spline(sp) => {
+            // As an arc: at most 45 % of what remains, and half a radian at the end's
+            // curvature (a start trim takes at most 45 %, so an end trim leaves a tenth).
+            let d = ARC_TRIM_MAX * sp.arc_len(sp.u0, sp.u1);
+            let (_, _, k) = sp.state(if at_end { sp.u1 } else { sp.u0 });
+            let kn = norm(&k);
+            if kn > 0.0 {
+                d.min(ARC_TRIM_ANGLE / kn)
+            } else {
+                d
+            }
+        }
     }
 }
 
@@ -421,17 +449,19 @@ fn trim(prim: &Prim, d: f64, at_end: bool) -> Trim {
                 near,
             }
         }
-        // Not trimmed (`arc_corner` refuses splines): the end point itself.
+        // By parameter: the remaining curve is the exact polynomial over the rest.
         Prim::Spline(sp) => {
-            let p = if at_end { sp.b } else { sp.a };
+            let u = if d == 0.0 {
+                if at_end { sp.u1 } else { sp.u0 }
+            } else {
+                sp.param_at(d, at_end)
+            };
+            let (p, t, k) = sp.state(u);
+            let (lo, hi) = if at_end { (u, sp.u1) } else { (sp.u0, u) };
             Trim {
-                st: State {
-                    p,
-                    t: [0.0; AXES],
-                    k: [0.0; AXES],
-                },
-                u: if at_end { 1.0 } else { 0.0 },
-                near: Near::Seg { a: p, b: p },
+                st: State { p, t, k },
+                u,
+                near: Near::Poly { c: sp.c, lo, hi },
             }
         }
     }
@@ -453,6 +483,7 @@ fn dist_near(x: &AxisVec, n: &Near) -> f64 {
             };
             norm(&add_scaled(&w, &d, -t))
         }
+        Near::Poly { c, lo, hi } => dist_poly(x, c, *lo, *hi),
         Near::Arc { h, lo, hi } => {
             let sh = Shape::Helix(*h);
             let q = [x[0] - h.centre[0], x[1] - h.centre[1], x[2] - h.centre[2]];
@@ -484,6 +515,46 @@ fn dist_near(x: &AxisVec, n: &Near) -> f64 {
                 .fold(f64::INFINITY, f64::min)
         }
     }
+}
+
+/// Distance of `x` from the cubic `c` over [lo, hi]: the nearest of 17 samples, refined by
+/// Newton steps on the squared distance (clamped to the range); the distance to a point of
+/// the curve, so never below the true distance.
+fn dist_poly(x: &AxisVec, c: &[AxisVec; 4], lo: f64, hi: f64) -> f64 {
+    let eval = |u: f64| {
+        let mut p = [0.0; AXES];
+        let mut d1 = [0.0; AXES];
+        let mut d2 = [0.0; AXES];
+        for i in 0..AXES {
+            p[i] = c[0][i] + u * (c[1][i] + u * (c[2][i] + u * c[3][i]));
+            d1[i] = c[1][i] + u * (2.0 * c[2][i] + u * 3.0 * c[3][i]);
+            d2[i] = 2.0 * c[2][i] + 6.0 * c[3][i] * u;
+        }
+        (p, d1, d2)
+    };
+    const N: usize = 16;
+    let (mut best_u, mut best) = (lo, f64::INFINITY);
+    for k in 0..=N {
+        let u = lo + (hi - lo) * k as f64 / N as f64;
+        let dd = norm(&sub(x, &eval(u).0));
+        if dd < best {
+            best = dd;
+            best_u = u;
+        }
+    }
+    let mut u = best_u;
+    for _ in 0..6 {
+        let (p, d1, d2) = eval(u);
+        let r = sub(&p, x);
+        let g = dot(&r, &d1);
+        let hs = dot(&d1, &d1) + dot(&r, &d2);
+        if !(hs > 0.0) {
+            break;
+        }
+        u = (u - g / hs).clamp(lo, hi);
+        best = best.min(norm(&sub(x, &eval(u).0)));
+    }
+    best
 }
 
 /// Largest distance of the blend from the programmed path near the corner: samples, then
