@@ -473,9 +473,9 @@ fn random_chains_keep_limits_and_tolerance() {
 
 /// Harsher chains (radii and lines from 0.3 mm, corners up to 160°), `N` programs (default
 /// 300) from seed `SEED`: the distance from the path and the end points hold in all of
-/// them; the limits do not yet (10 of 300 with the default seed):
-/// the speed controller brakes towards a slow blend valley and stops dead, the failure
-/// described in docs/motion.md. The same programs in G61 keep the limits. Run with
+/// them; the limits do not yet (1 of 300 with the default seed; 10 before corners whose
+/// blend is slower than a stop stopped): the speed controller brakes towards a slow blend
+/// valley and stops dead, the failure described in docs/motion.md. The same programs in G61 keep the limits. Run with
 /// `cargo test --release -p rtcnc-motion --test arc_blends -- --ignored`.
 #[test]
 #[ignore]
