@@ -38,6 +38,11 @@ const ARC_TRIM_ANGLE: f64 = 0.5;
 const DEV_MARGIN: f64 = 1e-3;
 /// Smallest |dp/du| of a blend relative to `L` (a blend that nearly stops is refused).
 const MIN_PARAM_SPEED: f64 = 0.1;
+/// A blend is chosen only when estimated this much (relative) faster than a stop: the
+/// speed controller passes a slow valley less well than the jerk-limited profile the
+/// estimate assumes (on 200 random chains around splines, 5 came out slower than G61
+/// without the margin, by up to 0.8 %, 1 with it).
+const BLEND_TIME_MARGIN: f64 = 0.1;
 /// Iterations of the search for `d` per parameter length.
 const D_ITER: usize = 12;
 
@@ -295,10 +300,11 @@ impl CornerChoice {
         (stop, blend)
     }
 
-    /// Whether blending is estimated to take no longer than stopping.
+    /// Whether blending is estimated to take less time than stopping, by at least
+    /// [`BLEND_TIME_MARGIN`].
     pub fn blend_pays(&self, lim: &Lim) -> bool {
         let (stop, blend) = self.times(lim);
-        blend <= stop
+        blend <= (1.0 - BLEND_TIME_MARGIN) * stop
     }
 }
 

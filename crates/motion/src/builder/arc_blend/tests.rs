@@ -214,6 +214,7 @@ fn a_blend_leaving_the_soft_limits_is_refused() {
 /// (path limits along X are the axis limits); the blend is 0.4 mm long and replaces 0.4 mm
 /// of the programmed path; the neighbours (10 mm) are long enough to stop from F (0.75 mm).
 ///
+/// A blend is chosen when estimated at least 10 % faster (`BLEND_TIME_MARGIN`).
 /// A jerk-limited speed change Δv from zero acceleration takes t = 2·sqrt(Δv/J) when
 /// Δv ≤ A²/J = 20 mm/s, covering s = Δv·t/2 beyond the lower speed.
 /// - Stop: Δv = 30 > 20: t = 30/1000 + 1000/50 000 = 0.05 s, s = 0.75 mm; the stop and the
@@ -224,7 +225,7 @@ fn a_blend_leaving_the_soft_limits_is_refused() {
 ///   twice; with 0.4 mm at 10 mm/s: 0.04 + 0.026 67 = 0.066 67 s > 0.063 33 s: stop.
 /// - Blend at 20 mm/s: Δv = 10: t = 2·sqrt(10/50 000) = 0.028 284 s, s = 0.141 42 mm,
 ///   distance 20·0.028 284 + 0.141 42 = 0.707 11 mm, so 0.028 284 − 0.707 11/30 =
-///   0.004 714 s, twice; with 0.4/20 = 0.02 s: 0.029 43 s < 0.063 33 s: blend.
+///   0.004 714 s, twice; with 0.4/20 = 0.02 s: 0.029 43 s < 0.9·0.063 33 s: blend.
 #[test]
 fn a_blend_is_chosen_only_where_it_is_faster_than_a_stop() {
     let m = MachineLimits::uniform(
@@ -268,7 +269,8 @@ fn a_blend_is_chosen_only_where_it_is_faster_than_a_stop() {
 ///   at most v = (0.1²·J)^(1/3) = 7.937 mm/s there. Stop: t = 2·sqrt(7.937/J) = 0.025 20 s,
 ///   2·0.025 20 − 2·0.1/7.937 = 0.025 20 s, with 0.4/7.937 = 0.050 40 s: 0.075 60 s. Blend:
 ///   Δv = 0.937, t = 2·sqrt(0.937/J) = 0.008 658 s, s = 0.004 056 mm, 0.008 658 −
-///   (7·0.008 658 + 0.004 056)/7.937 = 0.000 511 s twice, with 0.057 14 s: 0.058 17 s: blend.
+///   (7·0.008 658 + 0.004 056)/7.937 = 0.000 511 s twice, with 0.057 14 s: 0.058 17 s
+///   < 0.9·0.075 60 s: blend.
 #[test]
 fn short_neighbours_limit_the_speed_a_stop_is_weighed_from() {
     let m = MachineLimits::uniform(
