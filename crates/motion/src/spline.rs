@@ -526,39 +526,29 @@ impl SplineP {
     /// polynomial with its own arc-length table, from and to the points the blends meet.
     pub fn emit(&self, stop: bool, out: &mut Vec<Piece>) {
         if self.u0 > 0.0 || self.u1 < 1.0 {
-            let mut first = true;
-            for m in 0..self.n {
-                let lo = self.splits[m].max(self.u0);
-                let hi = self.splits[m + 1].min(self.u1);
-                if !(hi > lo) {
-                    continue;
+            // Cuts: the trim points and the piece splits between them (a split within 1e-6
+            // of a trim point is dropped: no sliver piece).
+            let mut cuts = [0.0; SPLINE_PIECES + 1];
+            cuts[0] = self.u0;
+            let mut k = 1;
+            for &u in &self.splits[1..self.n] {
+                if u > self.u0 + 1e-6 && u < self.u1 - 1e-6 {
+                    cuts[k] = u;
+                    k += 1;
                 }
+            }
+            cuts[k] = self.u1;
+            for m in 0..k {
+                let (lo, hi) = (cuts[m], cuts[m + 1]);
                 let shape = self.piece_shape(lo, hi);
-                let start = if first && self.u0 > 0.0 {
-                    self.pos(self.u0)
-                } else if lo == 0.0 {
-                    self.a
-                } else {
-                    shape.pos(0.0)
-                };
-                first = false;
-                let last = hi >= self.u1;
-                let end = if !last {
-                    self.piece_shape(hi, self.splits[m + 2].min(self.u1))
-                        .pos(0.0)
-                } else if self.u1 < 1.0 {
-                    self.pos(self.u1)
-                } else {
-                    self.b
-                };
+                let start = if lo == 0.0 { self.a } else { self.pos(lo) };
+                let last = m + 1 == k;
+                let end = if hi == 1.0 { self.b } else { self.pos(hi) };
                 let mut pc = Piece::new(shape, start, end, self.feed, false, self.line);
                 (pc.map, pc.len) = ArcMap::quintic_table(&shape);
                 pc.dense_bounds = true;
                 pc.stop_at_end = stop && last;
                 out.push(pc);
-                if last {
-                    break;
-                }
             }
             return;
         }
