@@ -88,3 +88,51 @@ fn zigzag_in_g64_takes_no_longer_than_exact_stops() {
     eprintln!("{n} moves: G64 P 0.1 {g64} periods, G61 {g61}");
     assert!(g64 < g61, "P 0.1: {g64} periods, G61 {g61}");
 }
+
+/// Line corners follow the same choice: a square wave of 2 mm lines turning 90° either way
+/// (too sharp for polyline smoothing). At F 30 every blend is slower than a stop (with the
+/// former threshold P 0.1 blended them and took 3637 periods against 2809 in G61); at F 5
+/// the P 0.1 blends pay.
+#[test]
+fn square_wave_of_lines_in_g64_takes_no_longer_than_exact_stops() {
+    for feed in [30.0, 5.0] {
+        square_wave(feed);
+    }
+}
+
+fn square_wave(feed: f64) {
+    let wave = |mode: PathMode| -> Vec<Move> {
+        let dirs = [[1.0, 0.0], [0.0, 1.0], [1.0, 0.0], [0.0, -1.0]];
+        let mut at = [0.0f64; 2];
+        (0..24)
+            .map(|k| {
+                let d = dirs[k % 4];
+                at = [at[0] + 2.0 * d[0], at[1] + 2.0 * d[1]];
+                Move::line(p3(at[0], at[1], 0.0), feed, mode, k as u32 + 1)
+            })
+            .collect()
+    };
+    let periods = |mode: PathMode| {
+        let lim = limits(V, A, J);
+        let mut pl = planner(&lim, p3(0.0, 0.0, 0.0), 256);
+        let tr = run(&mut pl, &wave(mode), 1_000_000);
+        let (rv, ra, rj) = ratios(&tr, V, A, J);
+        let tol = 1.0 + 1e-9;
+        assert!(
+            rv <= tol && ra <= tol && rj <= tol,
+            "{mode:?}: v {rv} a {ra} j {rj}"
+        );
+        assert_eq!(pl.stats().limit_violations, 0, "{mode:?}");
+        (tr.speed.len(), pl.geometry_stats())
+    };
+    let (g61, _) = periods(PathMode::ExactPath);
+    for p in [0.001, 0.01, 0.1] {
+        let (g64, gs) = periods(blend(p));
+        eprintln!("square wave F {feed} P {p}: {g64} periods, G61 {g61}, {gs:?}");
+        assert!(g64 <= g61, "F {feed} P {p}: {g64} periods, G61 {g61}");
+        if feed < 10.0 && p == 0.1 {
+            assert_eq!(gs.blends, 23);
+            assert!(g64 < g61);
+        }
+    }
+}
