@@ -17,12 +17,7 @@ mod arc_blend;
 pub(crate) const KINK: f64 = 1e-4;
 /// Largest direction change at a vertex that may be smoothed through (rad).
 const SMOOTH_MAX_ANGLE: f64 = 0.35;
-/// A corner blend whose speed limit is below this share of the feed becomes an exact stop.
-const MIN_BLEND_SPEED_SHARE: f64 = 0.05;
-/// ... and a blend slower than this (mm/s) as well: approaching such a low limit with the
-/// deceleration released costs as much as a stop.
-const MIN_BLEND_SPEED: f64 = 2.0;
-/// Feed used for that comparison on rapids (mm/s).
+/// Feed taken for rapids when a corner's blend is weighed against a stop (mm/s).
 const V_RAPID_REF: f64 = 1e3;
 /// Longest run of collinear segments merged into one.
 const MERGE_MAX: usize = 64;
@@ -481,17 +476,29 @@ impl Builder {
                         );
                         b.stop_at_end = false;
                         b.corner_blend = true;
-                        // A blend that would have to be passed at a crawl (tiny tolerance on a
-                        // sharp corner) is no faster than a stop and much harder to follow
-                        // with jerk limits: stop at the corner instead.
+                        // Blend only where that is estimated to take no longer than a
+                        // stop (a tiny tolerance on a sharp corner makes a crawl).
                         b.sample(lim);
                         let v_blend = b.smp[..=b.ns]
                             .iter()
                             .fold(f64::INFINITY, |m, x| m.min(x.v_curve));
-                        if v_blend
-                            < (MIN_BLEND_SPEED_SHARE * lp.feed.min(lc.feed).min(V_RAPID_REF))
-                                .max(MIN_BLEND_SPEED)
-                        {
+                        let h = b.len / b.ns as f64;
+                        let feed = lp.feed.min(lc.feed);
+                        let pass_time = b.smp[..=b.ns]
+                            .windows(2)
+                            .map(|w| h / w[0].v_curve.min(w[1].v_curve).min(feed))
+                            .sum();
+                        let choice = arc_blend::CornerChoice {
+                            feed,
+                            v_blend,
+                            blend_len: b.len,
+                            pass_time,
+                            replaced_len: 2.0 * d,
+                            reach: norm(&sub(&lp.b, &start.p)).min(lc.len),
+                            t_in: lp.dir,
+                            t_out: lc.dir,
+                        };
+                        if !choice.blend_pays(lim) {
                             self.stats.stops += 1;
                             self.emit_prim_to_end(&prev, st, true, lim, out);
                             self.prev = Some(cur);

@@ -51,6 +51,10 @@ pub(crate) struct SplineP {
     /// Arc length (all axes) and its XYZ part.
     pub len: f64,
     pub len_xyz: f64,
+    /// Part of [0, 1] still to run: a corner blend (G64 P) trims the curve by parameter
+    /// at its start (`u0`) or end (`u1`); what remains is still the exact polynomial.
+    pub u0: f64,
+    pub u1: f64,
     splits: [f64; SPLINE_PIECES + 1],
     n: usize,
     /// Which of the builder's [`SplineMaps`] holds this curve's tables.
@@ -144,6 +148,8 @@ impl SplineP {
             line,
             len: 0.0,
             len_xyz: 0.0,
+            u0: 0.0,
+            u1: 1.0,
             splits: [0.0; SPLINE_PIECES + 1],
             n: 1,
             slot,
@@ -181,7 +187,7 @@ impl SplineP {
         d
     }
 
-    fn pos(&self, u: f64) -> AxisVec {
+    pub fn pos(&self, u: f64) -> AxisVec {
         let c = &self.c;
         let mut p = [0.0; AXES];
         for i in 0..AXES {
@@ -195,7 +201,59 @@ impl SplineP {
     }
 
     pub fn start_tangent(&self) -> AxisVec {
-        unit(&self.d1(0.0))
+        unit(&self.d1(self.u0))
+    }
+
+    /// Point, unit tangent and curvature vector at `u`.
+    pub fn state(&self, u: f64) -> (AxisVec, AxisVec, AxisVec) {
+        let (d1, d2) = (self.d1(u), self.d2(u));
+        let t = unit(&d1);
+        let s2 = dot(&d1, &d1);
+        let mut k = [0.0; AXES];
+        if s2 > 0.0 {
+            let along = dot(&d2, &t);
+            for i in 0..AXES {
+                k[i] = (d2[i] - along * t[i]) / s2;
+            }
+        }
+        (self.pos(u), t, k)
+    }
+
+    /// Arc length between parameters `u0` ≤ `u1` (Gauss-Legendre, 3 points on each of 16
+    /// intervals: the parametric speed of a validated curve is smooth).
+    pub fn arc_len(&self, u0: f64, u1: f64) -> f64 {
+        const X: [f64; 3] = [0.112_701_665_379_258_31, 0.5, 0.887_298_334_620_741_7];
+        const W: [f64; 3] = [5.0 / 18.0, 8.0 / 18.0, 5.0 / 18.0];
+        let n = 16;
+        let h = (u1 - u0) / n as f64;
+        let mut l = 0.0;
+        for k in 0..n {
+            for g in 0..3 {
+                l += W[g] * h * norm(&self.d1(u0 + (k as f64 + X[g]) * h));
+            }
+        }
+        l
+    }
+
+    /// The parameter at arc length `d` before the end of the remaining part (`at_end`) or
+    /// after its start (bisection on [`SplineP::arc_len`]).
+    pub fn param_at(&self, d: f64, at_end: bool) -> f64 {
+        let (mut lo, mut hi) = (self.u0, self.u1);
+        for _ in 0..52 {
+            let mid = 0.5 * (lo + hi);
+            let l = if at_end {
+                self.arc_len(mid, self.u1)
+            } else {
+                self.arc_len(self.u0, mid)
+            };
+            // Before the end, the length shrinks as the parameter grows.
+            if (l > d) == at_end {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        0.5 * (lo + hi)
     }
 
     pub fn end_tangent(&self) -> AxisVec {
@@ -473,8 +531,36 @@ impl SplineP {
     }
 
     /// The pieces of the curve (tables from `maps`, this curve's slot); the last ends
-    /// exactly at the end point and stops there when `stop`.
+    /// exactly at the end point and stops there when `stop`. A trimmed curve emits the parts of its pieces inside [u0, u1], each the exact
+    /// polynomial with its own arc-length table, from and to the points the blends meet.
     pub fn emit(&self, maps: &SplineMaps, stop: bool, out: &mut Vec<Piece>) {
+        if self.u0 > 0.0 || self.u1 < 1.0 {
+            // Cuts: the trim points and the piece splits between them (a split within 1e-6
+            // of a trim point is dropped: no sliver piece).
+            let mut cuts = [0.0; SPLINE_PIECES + 1];
+            cuts[0] = self.u0;
+            let mut k = 1;
+            for &u in &self.splits[1..self.n] {
+                if u > self.u0 + 1e-6 && u < self.u1 - 1e-6 {
+                    cuts[k] = u;
+                    k += 1;
+                }
+            }
+            cuts[k] = self.u1;
+            for m in 0..k {
+                let (lo, hi) = (cuts[m], cuts[m + 1]);
+                let shape = self.piece_shape(lo, hi);
+                let start = if lo == 0.0 { self.a } else { self.pos(lo) };
+                let last = m + 1 == k;
+                let end = if hi == 1.0 { self.b } else { self.pos(hi) };
+                let mut pc = Piece::new(shape, start, end, self.feed, false, self.line);
+                (pc.map, pc.len) = ArcMap::quintic_table(&shape);
+                pc.dense_bounds = true;
+                pc.stop_at_end = stop && last;
+                out.push(pc);
+            }
+            return;
+        }
         for m in 0..self.n {
             let (u0, u1) = (self.splits[m], self.splits[m + 1]);
             let shape = self.piece_shape(u0, u1);

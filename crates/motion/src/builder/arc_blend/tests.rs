@@ -158,6 +158,7 @@ fn line_meeting_a_circle_at_a_right_angle() {
 /// The blend is sampled against the soft limits. Its neighbours were checked when pushed,
 /// so here the envelope passed to the corner is narrowed after the fact (Y below the
 /// blend's highest point) to reach the refusal: nothing is emitted and the corner stops.
+/// At F 5 the blend beats a stop (at F 30 this right angle within 0.05 mm would not).
 #[test]
 fn a_blend_leaving_the_soft_limits_is_refused() {
     let m = MachineLimits::uniform(
@@ -170,12 +171,12 @@ fn a_blend_leaving_the_soft_limits_is_refused() {
         merge_tolerance: 0.0,
     };
     let line = Builder::new(p2(-10.0, 0.0))
-        .validate(&Move::line(p2(0.0, 0.0), 30.0, mode, 1), &lim)
+        .validate(&Move::line(p2(0.0, 0.0), 5.0, mode, 1), &lim)
         .unwrap()
         .unwrap();
     let arc = Builder::new(p2(0.0, 0.0))
         .validate(
-            &Move::arc(p2(-R, R), [-R, 0.0, 0.0], [0.0, 0.0, 1.0], 0, 30.0, mode, 2),
+            &Move::arc(p2(-R, R), [-R, 0.0, 0.0], [0.0, 0.0, 1.0], 0, 5.0, mode, 2),
             &lim,
         )
         .unwrap()
@@ -206,4 +207,102 @@ fn a_blend_leaving_the_soft_limits_is_refused() {
             .is_none()
     );
     assert!(out.is_empty());
+}
+
+/// A corner whose blend is slower than a stop, and one whose blend is faster, worked by
+/// hand, for blends whose speed limit is the same all along. Both neighbours run along X at F 30 on axes of 100 mm/s, 1000 mm/s², 50 000 mm/s³
+/// (path limits along X are the axis limits); the blend is 0.4 mm long and replaces 0.4 mm
+/// of the programmed path; the neighbours (10 mm) are long enough to stop from F (0.75 mm).
+///
+/// A blend is chosen when estimated at least 10 % faster (`BLEND_TIME_MARGIN`).
+/// A jerk-limited speed change Δv from zero acceleration takes t = 2·sqrt(Δv/J) when
+/// Δv ≤ A²/J = 20 mm/s, covering s = Δv·t/2 beyond the lower speed.
+/// - Stop: Δv = 30 > 20: t = 30/1000 + 1000/50 000 = 0.05 s, s = 0.75 mm; the stop and the
+///   restart take 2·0.05 − 2·0.75/30 = 0.05 s more than cruising; with the replaced 0.4 mm
+///   at F: 0.4/30 + 0.05 = 0.063 33 s.
+/// - Blend at 10 mm/s: Δv = 20: t = 2·sqrt(20/50 000) = 0.04 s, s = 0.4 mm, distance of one
+///   speed change 10·0.04 + 0.4 = 0.8 mm, so 0.04 − 0.8/30 = 0.013 33 s more than cruising,
+///   twice; with 0.4 mm at 10 mm/s: 0.04 + 0.026 67 = 0.066 67 s > 0.063 33 s: stop.
+/// - Blend at 20 mm/s: Δv = 10: t = 2·sqrt(10/50 000) = 0.028 284 s, s = 0.141 42 mm,
+///   distance 20·0.028 284 + 0.141 42 = 0.707 11 mm, so 0.028 284 − 0.707 11/30 =
+///   0.004 714 s, twice; with 0.4/20 = 0.02 s: 0.029 43 s < 0.9·0.063 33 s: blend.
+#[test]
+fn a_blend_is_chosen_only_where_it_is_faster_than_a_stop() {
+    let m = MachineLimits::uniform(
+        &[Axis::X, Axis::Y, Axis::Z],
+        AxisLimits::new(100.0, 1000.0, 50_000.0, -100.0, 100.0),
+    );
+    let lim = Lim::from(&m);
+    let x = p2(1.0, 0.0);
+    let corner = |v_blend: f64| CornerChoice {
+        feed: 30.0,
+        v_blend,
+        blend_len: 0.4,
+        pass_time: 0.4 / v_blend,
+        replaced_len: 0.4,
+        reach: 10.0,
+        t_in: x,
+        t_out: x,
+    };
+    let (stop, slow) = corner(10.0).times(&lim);
+    assert!((stop - (0.4 / 30.0 + 0.05)).abs() < 1e-12, "{stop}");
+    assert!(
+        (slow - (0.04 + 2.0 * (0.04 - 0.8 / 30.0))).abs() < 1e-12,
+        "{slow}"
+    );
+    assert!(!corner(10.0).blend_pays(&lim));
+    let (_, fast) = corner(20.0).times(&lim);
+    let t = 2.0 * (10.0f64 / 50_000.0).sqrt();
+    let fast_ref = 0.02 + 2.0 * (t - (20.0 * t + 5.0 * t) / 30.0);
+    assert!((fast - fast_ref).abs() < 1e-12, "{fast} {fast_ref}");
+    assert!((fast - 0.029_43).abs() < 1e-5);
+    assert!(corner(20.0).blend_pays(&lim));
+}
+
+/// Neighbours too short to reach the feed: the speed compared is the one the path can stop
+/// from within the shorter neighbour, which turns the choice. Same limits and blend
+/// (0.4 mm, 0.4 mm replaced), the blend's limit 7 mm/s.
+/// - Neighbours of 10 mm (F 30 reached): stop 0.063 33 s as above; blend: Δv = 23 > 20,
+///   t = 0.023 + 0.02 = 0.043 s, s = 23·0.043/2 = 0.4945 mm, 0.043 − (7·0.043 + 0.4945)/30
+///   = 0.016 48 s twice, with 0.4/7 = 0.057 14 s: 0.090 11 s: stop.
+/// - Shorter neighbour of 0.1 mm: a pure-jerk stop covers v·sqrt(v/J), so the path reaches
+///   at most v = (0.1²·J)^(1/3) = 7.937 mm/s there. Stop: t = 2·sqrt(7.937/J) = 0.025 20 s,
+///   2·0.025 20 − 2·0.1/7.937 = 0.025 20 s, with 0.4/7.937 = 0.050 40 s: 0.075 60 s. Blend:
+///   Δv = 0.937, t = 2·sqrt(0.937/J) = 0.008 658 s, s = 0.004 056 mm, 0.008 658 −
+///   (7·0.008 658 + 0.004 056)/7.937 = 0.000 511 s twice, with 0.057 14 s: 0.058 17 s
+///   < 0.9·0.075 60 s: blend.
+#[test]
+fn short_neighbours_limit_the_speed_a_stop_is_weighed_from() {
+    let m = MachineLimits::uniform(
+        &[Axis::X, Axis::Y, Axis::Z],
+        AxisLimits::new(100.0, 1000.0, 50_000.0, -100.0, 100.0),
+    );
+    let lim = Lim::from(&m);
+    let x = p2(1.0, 0.0);
+    let c = CornerChoice {
+        feed: 30.0,
+        v_blend: 7.0,
+        blend_len: 0.4,
+        pass_time: 0.4 / 7.0,
+        replaced_len: 0.4,
+        reach: 0.1,
+        t_in: x,
+        t_out: x,
+    };
+    let j = 50_000.0f64;
+    let f = (0.01 * j).cbrt();
+    let t_f = 2.0 * (f / j).sqrt();
+    let stop_ref = 0.4 / f + 2.0 * t_f - 2.0 * 0.1 / f;
+    let dv = f - 7.0;
+    let t_dv = 2.0 * (dv / j).sqrt();
+    let blend_ref = 0.4 / 7.0 + 2.0 * (t_dv - (7.0 * t_dv + 0.5 * dv * t_dv) / f);
+    let (stop, blend) = c.times(&lim);
+    assert!((stop - stop_ref).abs() < 1e-9, "{stop} {stop_ref}");
+    assert!((blend - blend_ref).abs() < 1e-9, "{blend} {blend_ref}");
+    assert!((stop - 0.075_60).abs() < 1e-5 && (blend - 0.058_17).abs() < 1e-5);
+    assert!(c.blend_pays(&lim));
+    let long = CornerChoice { reach: 10.0, ..c };
+    let (stop, blend) = long.times(&lim);
+    assert!((stop - 0.063_33).abs() < 1e-5 && (blend - 0.090_11).abs() < 1e-5);
+    assert!(!long.blend_pays(&lim));
 }
