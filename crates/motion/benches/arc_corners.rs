@@ -9,9 +9,11 @@ use std::hint::black_box;
 use std::time::Duration;
 
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
-use rtcnc_motion::{
-    AXES, Axis, AxisLimits, AxisVec, MachineLimits, Move, PathMode, Planner, TrivialKinematics,
-};
+use rtcnc_motion::{AXES, AxisVec, Move, PathMode};
+
+#[path = "support/programs.rs"]
+mod programs;
+use programs::planner;
 
 fn zigzag(n: usize) -> (AxisVec, Vec<Move>) {
     let mode = PathMode::Blend {
@@ -55,25 +57,10 @@ fn zigzag(n: usize) -> (AxisVec, Vec<Move>) {
     (p([0.0, 0.0]), moves)
 }
 
-fn planner(start: AxisVec, window: usize) -> Planner<TrivialKinematics> {
-    let lim = MachineLimits::uniform(
-        &[Axis::X, Axis::Y, Axis::Z],
-        AxisLimits::new(100.0, 1000.0, 50_000.0, -10_000.0, 10_000.0),
-    );
-    Planner::new(
-        &lim,
-        TrivialKinematics::identity(&[Axis::X, Axis::Y, Axis::Z]),
-        1e-3,
-        window,
-        start,
-    )
-    .unwrap()
-}
-
 fn bench(c: &mut Criterion) {
     let (start, moves) = zigzag(400);
     let blends = {
-        let mut pl = planner(start, 4 * moves.len() + 16);
+        let mut pl = planner(start, 4 * moves.len() + 16, 10_000.0);
         pl.push_all(&moves).unwrap();
         pl.flush();
         pl.geometry_stats().blends
@@ -84,7 +71,7 @@ fn bench(c: &mut Criterion) {
     g.throughput(Throughput::Elements(moves.len() as u64));
     g.bench_function("look-ahead: push line/arc corners", |b| {
         b.iter_batched(
-            || planner(start, 4 * moves.len() + 16),
+            || planner(start, 4 * moves.len() + 16, 10_000.0),
             |mut pl| {
                 let mut k = 0;
                 while k < moves.len() {

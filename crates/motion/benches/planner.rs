@@ -12,72 +12,11 @@ use std::hint::black_box;
 use std::time::Duration;
 
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
-use rtcnc_motion::{
-    AXES, Axis, AxisLimits, AxisVec, Bezier, MachineLimits, Move, PathMode, Planner,
-    TrivialKinematics,
-};
 
-fn polyline(turns: f64) -> (AxisVec, Vec<Move>) {
-    let (r, tol): (f64, f64) = (10.0, 0.001);
-    let phi = 2.0 * (1.0 - tol / r).acos();
-    let total = 2.0 * std::f64::consts::PI * turns;
-    let n = (total / phi).ceil() as usize;
-    let mode = PathMode::Blend {
-        tolerance: 0.001,
-        merge_tolerance: 0.001,
-    };
-    let pt = |k: usize| {
-        let th = total * k as f64 / n as f64;
-        let mut p = [0.0; AXES];
-        p[0] = r * th.cos();
-        p[1] = r * th.sin();
-        p
-    };
-    (
-        pt(0),
-        (1..=n)
-            .map(|k| Move::line(pt(k), 100.0, mode, k as u32))
-            .collect(),
-    )
-}
-
-/// Tangent cubic arches along X, alternately up and down (each leaves and arrives along +X).
-fn spline_chain(n: usize) -> Vec<Move> {
-    let p = |x: f64, y: f64| {
-        let mut v = [0.0; AXES];
-        v[0] = x;
-        v[1] = y;
-        v
-    };
-    (0..n)
-        .map(|k| {
-            let x = 2.0 * k as f64;
-            let h = if k % 2 == 0 { 1.0 } else { -1.0 };
-            Move::spline(
-                p(x + 2.0, 0.0),
-                Bezier::Cubic([p(x + 0.5, h), p(x + 1.5, h)]),
-                60.0,
-                PathMode::ExactPath,
-                k as u32 + 1,
-            )
-        })
-        .collect()
-}
-
-fn planner(start: AxisVec, window: usize) -> Planner<TrivialKinematics> {
-    let lim = MachineLimits::uniform(
-        &[Axis::X, Axis::Y, Axis::Z],
-        AxisLimits::new(100.0, 1000.0, 50_000.0, -1000.0, 1000.0),
-    );
-    Planner::new(
-        &lim,
-        TrivialKinematics::identity(&[Axis::X, Axis::Y, Axis::Z]),
-        1e-3,
-        window,
-        start,
-    )
-    .unwrap()
-}
+#[path = "support/programs.rs"]
+mod programs;
+use programs::{planner, polyline, spline_chain};
+use rtcnc_motion::AXES;
 
 fn bench(c: &mut Criterion) {
     let (start, moves) = polyline(4.0);
@@ -86,7 +25,7 @@ fn bench(c: &mut Criterion) {
     g.throughput(Throughput::Elements(moves.len() as u64));
     g.bench_function("look-ahead: push segments", |b| {
         b.iter_batched(
-            || planner(start, 4 * moves.len() + 16),
+            || planner(start, 4 * moves.len() + 16, 1000.0),
             |mut pl| {
                 let mut k = 0;
                 while k < moves.len() {
@@ -104,7 +43,7 @@ fn bench(c: &mut Criterion) {
     g.bench_function("interpolate: one servo period (3 axes)", |b| {
         b.iter_batched(
             || {
-                let mut pl = planner(start, 4 * moves.len() + 16);
+                let mut pl = planner(start, 4 * moves.len() + 16, 1000.0);
                 for m in &moves {
                     pl.push(m).unwrap();
                 }
@@ -136,7 +75,7 @@ fn bench_splines(c: &mut Criterion) {
     g.throughput(Throughput::Elements(moves.len() as u64));
     g.bench_function("look-ahead: push splines", |b| {
         b.iter_batched(
-            || planner(start, 4 * moves.len() + 16),
+            || planner(start, 4 * moves.len() + 16, 1000.0),
             |mut pl| {
                 let mut k = 0;
                 while k < moves.len() {
@@ -153,7 +92,7 @@ fn bench_splines(c: &mut Criterion) {
     g.bench_function("interpolate: one servo period (3 axes)", |b| {
         b.iter_batched(
             || {
-                let mut pl = planner(start, 4 * moves.len() + 16);
+                let mut pl = planner(start, 4 * moves.len() + 16, 1000.0);
                 pl.push_all(&moves).unwrap();
                 pl.flush();
                 let mut j = [0.0; 3];

@@ -10,57 +10,11 @@
 
 use std::time::Instant;
 
-use rtcnc_motion::{
-    AXES, Axis, AxisLimits, AxisVec, Bezier, MachineLimits, MotionState, Move, PathMode, Planner,
-    TrivialKinematics,
-};
+use rtcnc_motion::{AXES, MotionState};
 
-fn polyline(turns: f64) -> (AxisVec, Vec<Move>) {
-    let (r, tol): (f64, f64) = (10.0, 0.001);
-    let phi = 2.0 * (1.0 - tol / r).acos();
-    let total = 2.0 * std::f64::consts::PI * turns;
-    let n = (total / phi).ceil() as usize;
-    let mode = PathMode::Blend {
-        tolerance: 0.001,
-        merge_tolerance: 0.001,
-    };
-    let pt = |k: usize| {
-        let th = total * k as f64 / n as f64;
-        let mut p = [0.0; AXES];
-        p[0] = r * th.cos();
-        p[1] = r * th.sin();
-        p
-    };
-    (
-        pt(0),
-        (1..=n)
-            .map(|k| Move::line(pt(k), 100.0, mode, k as u32))
-            .collect(),
-    )
-}
-
-/// Tangent cubic arches along X, alternately up and down (as in the planner bench).
-fn spline_chain(n: usize) -> Vec<Move> {
-    let p = |x: f64, y: f64| {
-        let mut v = [0.0; AXES];
-        v[0] = x;
-        v[1] = y;
-        v
-    };
-    (0..n)
-        .map(|k| {
-            let x = 2.0 * k as f64;
-            let h = if k % 2 == 0 { 1.0 } else { -1.0 };
-            Move::spline(
-                p(x + 2.0, 0.0),
-                Bezier::Cubic([p(x + 0.5, h), p(x + 1.5, h)]),
-                60.0,
-                PathMode::ExactPath,
-                k as u32 + 1,
-            )
-        })
-        .collect()
-}
+#[path = "../benches/support/programs.rs"]
+mod programs;
+use programs::{planner, polyline, spline_chain};
 
 fn main() {
     let reps: usize = std::env::args()
@@ -74,21 +28,8 @@ fn main() {
     } else {
         polyline(4.0)
     };
-    let lim = MachineLimits::uniform(
-        &[Axis::X, Axis::Y, Axis::Z],
-        AxisLimits::new(100.0, 1000.0, 50_000.0, -1000.0, 1000.0),
-    );
     let mut planners: Vec<_> = (0..reps)
-        .map(|_| {
-            Planner::new(
-                &lim,
-                TrivialKinematics::identity(&[Axis::X, Axis::Y, Axis::Z]),
-                1e-3,
-                4 * moves.len() + 16,
-                start,
-            )
-            .expect("valid limits")
-        })
+        .map(|_| planner(start, 4 * moves.len() + 16, 1000.0))
         .collect();
     if setup_only {
         println!("{} planners created", planners.len());
