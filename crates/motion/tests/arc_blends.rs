@@ -228,13 +228,6 @@ fn run_prog(
     (tr, pl.geometry_stats())
 }
 
-/// The path speed stays above zero from the first motion to the last.
-fn never_stops(tr: &Trace) -> bool {
-    let first = tr.speed.iter().position(|v| *v > 0.0).unwrap();
-    let last = tr.speed.iter().rposition(|v| *v > 0.0).unwrap();
-    tr.speed[first..=last].iter().all(|v| *v > 0.0)
-}
-
 /// Whether the trace passes `c` at rest: a set-point on it with zero path speed.
 fn stops_at(tr: &Trace, c: V3) -> bool {
     tr.speed

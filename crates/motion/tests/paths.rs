@@ -32,12 +32,9 @@ fn check_run(moves: &[Move], verts: Option<&[rtcnc_motion::AxisVec]>, p: f64, ma
     tr
 }
 
-/// Whether the trace comes to rest exactly at `c`: the set-point equals it and the steps
-/// before and after are at most J·T³ (the first step from rest is J·T³/6).
+/// Whether the trace comes to rest exactly at `c` (see [`rests_at`]).
 fn stops_at(tr: &Trace, c: &rtcnc_motion::AxisVec) -> bool {
-    tr.pts.windows(3).any(|w| {
-        w[1] == *c && dist(&w[0], &w[1]) <= J * T * T * T && dist(&w[2], &w[1]) <= J * T * T * T
-    })
+    rests_at(tr, c, J * T * T * T)
 }
 
 #[test]

@@ -214,12 +214,6 @@ fn run_prog(
     (tr, pl.geometry_stats())
 }
 
-fn never_stops(tr: &Trace) -> bool {
-    let first = tr.speed.iter().position(|v| *v > 0.0).unwrap();
-    let last = tr.speed.iter().rposition(|v| *v > 0.0).unwrap();
-    tr.speed[first..=last].iter().all(|v| *v > 0.0)
-}
-
 fn stops_at(tr: &Trace, c: V2) -> bool {
     tr.speed
         .iter()

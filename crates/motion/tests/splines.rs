@@ -178,12 +178,9 @@ fn a_spline_with_z_moving_linearly_is_a_helix_like_curve() {
     assert!(dist(tr.pts.last().unwrap(), &pts[3]) <= 1e-12);
 }
 
-/// Whether the trace comes to rest at `c` (a set-point exactly there, with steps around it
-/// no larger than a jerk-limited step from rest).
+/// Whether the trace comes to rest exactly at `c` (see [`rests_at`]).
 fn stops_at(tr: &Trace, c: &AxisVec) -> bool {
-    tr.pts.windows(3).any(|w| {
-        w[1] == *c && dist(&w[0], &w[1]) <= J * T * T * T && dist(&w[2], &w[1]) <= J * T * T * T
-    })
+    rests_at(tr, c, J * T * T * T)
 }
 
 /// Path speed (from set-point steps) where the trace passes nearest to `c`.

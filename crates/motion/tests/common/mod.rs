@@ -261,3 +261,19 @@ pub fn lines(verts: &[AxisVec], feed: f64, mode: PathMode) -> Vec<Move> {
         .map(|(i, v)| Move::line(*v, feed, mode, i as u32 + 1))
         .collect()
 }
+
+/// The path speed stays above zero from the first motion to the last.
+pub fn never_stops(tr: &Trace) -> bool {
+    let first = tr.speed.iter().position(|v| *v > 0.0).unwrap();
+    let last = tr.speed.iter().rposition(|v| *v > 0.0).unwrap();
+    tr.speed[first..=last].iter().all(|v| *v > 0.0)
+}
+
+/// Whether the trace comes to rest exactly at `c`: a set-point equals it and the steps
+/// before and after are at most `step` (J·T³ for jerk J at period T; the first step from
+/// rest is J·T³/6).
+pub fn rests_at(tr: &Trace, c: &AxisVec, step: f64) -> bool {
+    tr.pts
+        .windows(3)
+        .any(|w| w[1] == *c && dist(&w[0], &w[1]) <= step && dist(&w[2], &w[1]) <= step)
+}
