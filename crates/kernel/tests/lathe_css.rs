@@ -3,7 +3,7 @@
 
 mod common;
 use common::*;
-use rtcnc_kernel::{Command, FaultCode, MachineState};
+use rtcnc_kernel::{FaultCode, MachineState};
 
 /// rpm for S m/min at radius r mm: S·1000 / (2π·r), capped at D.
 fn css_rpm(surface_m_per_min: f64, radius_mm: f64, max: f64) -> f64 {
@@ -27,9 +27,7 @@ M5
 M2
 ";
     let cfg = config("sim-lathe.toml");
-    let mut m = Machine::new(&cfg, Some(program(text, "css.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "css.ngc");
     let mut checked = 0;
     let mut at_dwell_end = [0.0; 12];
     for _ in 0..20_000 {
@@ -74,9 +72,7 @@ M2
 fn feed_per_revolution_under_g96_stops_the_program_before_the_move() {
     let text = "G18 G21 G90 G7 G95\nG0 X40 Z2\nG96 S100 D2000 M3\nG1 Z-10 F0.1\nM2\n";
     let cfg = config("sim-lathe.toml");
-    let mut m = Machine::new(&cfg, Some(program(text, "css-g95.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "css-g95.ngc");
     m.cycles(2);
     assert!(m.until(10.0, |s| s.state == MachineState::Idle));
     let f = m

@@ -85,9 +85,7 @@ fn the_mill_logic_stops_the_spindle_before_the_tool_is_unclamped() {
     let text = "G21 G90 G61.1\nS6000 M3\nG1 X1 F600\nT2 M6\nG1 X2\nM2\n";
     let cfg = config("sim-mill.toml");
     assert!(cfg.plc.is_some());
-    let mut m = Machine::new(&cfg, Some(program(text, "change.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "change.ngc");
     let mut turning_at_arrival = None;
     let mut speed_at_unclamp = None;
     for _ in 0..10_000 {

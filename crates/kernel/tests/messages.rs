@@ -20,9 +20,7 @@ M2
 #[test]
 fn messages_show_when_the_motion_before_them_is_done() {
     let cfg = config("bench-xyz.toml");
-    let mut m = Machine::new(&cfg, Some(program(PROGRAM, "messages.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, PROGRAM, "messages.ngc");
     // While the first move runs the interpreter has long read the whole program, yet no
     // message has been shown.
     m.cycles(500);
@@ -70,9 +68,7 @@ fn messages_show_when_the_motion_before_them_is_done() {
 fn an_aborted_run_leaves_no_stale_message_for_the_next() {
     let cfg = config("bench-xyz.toml");
     let text = "G21 G90\nG1 X10 F600\n(MSG,first run only)\nG1 X0\n(MSG,second)\nM2\n";
-    let mut m = Machine::new(&cfg, Some(program(text, "abort-messages.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "abort-messages.ngc");
     m.cycles(300);
     assert!(m.sim.handle().urgent(rtcnc_kernel::Urgent::Abort));
     assert!(m.until(2.0, |s| s.state == MachineState::Idle));

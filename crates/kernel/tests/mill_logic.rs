@@ -441,9 +441,7 @@ fn retained_values_survive_a_restart() {
 
     // First run: the change puts tool 2 in the spindle; mill.st keeps it in RETAIN
     // current_tool, which the background task (every 0.5 s) writes once it changed.
-    let mut m = Machine::new(&cfg, Some(program(text, "retain1.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "retain1.ngc");
     assert!(m.until(10.0, |s| s.program_ended && s.state == MachineState::Idle));
     m.cycles(600);
     let saved = std::fs::read_to_string(&file).unwrap();
@@ -465,9 +463,7 @@ fn retained_values_survive_a_restart() {
         .expect("retain check");
     assert!(found.ends_with(": 2 restored, 0 skipped"), "{found}");
     // ... so asking for tool 2 again finds it in the spindle: the unclamp valve never opens.
-    let mut m = Machine::new(&cfg, Some(program(text, "retain2.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "retain2.ngc");
     let mut valve_opened = false;
     for _ in 0..5000 {
         step(&mut m);

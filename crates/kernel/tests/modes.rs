@@ -9,9 +9,7 @@ fn a_program_ends_exactly_at_its_programmed_end_point() {
     let text =
         "G21 G90 G61.1\nG0 X3 Y4 Z-1\nG1 X12.5 Y7.25 F1500\nG2 X22.5 Y7.25 I5 J0\nG1 Z-2.125\nM2\n";
     let cfg = config("sim-mill.toml");
-    let mut m = Machine::new(&cfg, Some(program(text, "end.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "end.ngc");
     assert!(m.until(10.0, |s| s.program_ended && s.state == MachineState::Idle));
     m.cycles(200);
     let last = m.samples.last().unwrap();
@@ -32,9 +30,7 @@ fn a_program_ends_exactly_at_its_programmed_end_point() {
 fn feed_hold_stops_on_the_path_and_resume_continues_to_the_end() {
     let text = "G21 G90 G61.1\nG1 X100 Y50 F3000\nM2\n";
     let cfg = config("sim-mill.toml");
-    let mut m = Machine::new(&cfg, Some(program(text, "hold.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "hold.ngc");
     m.cycles(600);
     assert!(m.sim.handle().urgent(Urgent::FeedHold));
     assert!(m.until(2.0, |s| s.state == MachineState::Held
@@ -193,15 +189,11 @@ fn work_offsets_persist_in_the_parameter_file_across_runs() {
     let mut cfg = config("sim-mill.toml");
     cfg.files.parameters = Some(var.clone());
     // First run: set G54's X offset to 12.5.
-    let mut m = Machine::new(&cfg, Some(program("G10 L2 P1 X12.5\nM2\n", "set.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, "G10 L2 P1 X12.5\nM2\n", "set.ngc");
     assert!(m.until(2.0, |s| s.program_ended));
     assert!(var.exists());
     // A new kernel (a restart) reads it: X0 in G54 is machine X12.5.
-    let mut m = Machine::new(&cfg, Some(program("G21 G90 G54 G0 X0\nM2\n", "use.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, "G21 G90 G54 G0 X0\nM2\n", "use.ngc");
     assert!(m.until(5.0, |s| s.program_ended && s.state == MachineState::Idle));
     assert_eq!(m.status().axes[0], 12.5);
 }
@@ -288,9 +280,7 @@ fn feed_override_scales_the_path_speed() {
 fn abort_stops_along_the_path_and_a_new_start_runs_the_program_again() {
     let text = "G21 G90 G61.1\nG1 X100 Y50 F3000\nG1 X0 Y0\nM2\n";
     let cfg = config("sim-mill.toml");
-    let mut m = Machine::new(&cfg, Some(program(text, "abort.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "abort.ngc");
     m.cycles(800);
     assert!(m.sim.handle().urgent(Urgent::Abort));
     assert!(m.until(2.0, |s| s.state == MachineState::Idle

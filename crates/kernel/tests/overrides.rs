@@ -98,9 +98,7 @@ fn the_feed_stop_switch_holds_the_path_until_released_unless_m53_p0() {
     let mut cfg = config("bench-xyz.toml");
     cfg.io.feed_stop_input = Some(5);
     let text = "G21 G90 G61.1\nG1 X20 F600\nM53 P0\nG1 X40\nM53 P1\nM2\n";
-    let mut m = Machine::new(&cfg, Some(program(text, "m53.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "m53.ngc");
     m.cycles(500);
     let switch = |m: &mut Machine, on: bool| {
         m.handle_machine(|mach| mach.set_digital_input(5, on).unwrap());
@@ -146,9 +144,7 @@ fn a_tapping_cycle_which_switches_the_overrides_off_runs() {
     // back on after it; the kernel used to refuse that.
     let cfg = config("bench-xyz.toml");
     let text = "G21 G90 G17\nS500 M3\nG0 X0 Y0 Z5\nG98 G84 X10 Y0 Z-5 R2 F500\nG80\nM5\nM2\n";
-    let mut m = Machine::new(&cfg, Some(program(text, "g84.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "g84.ngc");
     assert!(m.until(20.0, |s| s.program_ended && s.state == MachineState::Idle));
     assert!(m.faults.is_empty(), "{:?}", m.faults);
     let bottom = m.samples.iter().map(|s| s.axes[2]).fold(f64::MAX, f64::min);

@@ -79,9 +79,7 @@ fn tool_length_and_cutter_radius_compensation_shape_the_path() {
     // G41 on a 20 mm square traversed counter-clockwise: the cutter (radius 3) keeps to
     // the left, inside the square, so its centre never passes X17 or Y17.
     let text = "G21 G90 G61.1\nT1 M6\nG43 H1\nG0 X-4 Y-4 Z-20\nG41\nG1 X0 Y0 F600\nG1 X20\nG1 Y20\nG1 X0\nG1 Y0\nG40\nG1 X-4 Y-4\nM2\n";
-    let mut m = Machine::new(&cfg, Some(program(text, "comp.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "comp.ngc");
     let ended = m.until(30.0, |s| s.program_ended && s.state == MachineState::Idle);
     assert!(
         ended,
@@ -107,9 +105,7 @@ fn tool_length_and_cutter_radius_compensation_shape_the_path() {
 fn inch_programs_move_in_millimetres_on_the_machine() {
     let cfg = config("sim-mill.toml");
     let text = "G20 G90 G61.1\nG1 X1 Y0.5 F20\nM2\n";
-    let mut m = Machine::new(&cfg, Some(program(text, "inch.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "inch.ngc");
     assert!(m.until(10.0, |s| s.program_ended && s.state == MachineState::Idle));
     assert_eq!(&m.status().axes[..2], &[25.4, 12.7]);
     // F20 in/min along the diagonal: 20 × 25.4 / 60 mm/s.
@@ -305,9 +301,7 @@ fn a_spline_in_inches_in_a_rotated_work_system_is_the_transformed_curve() {
     let text = "G20 G90 G17 G61\nG10 L2 P1 X0.5 Y0.2 R30\nG54 G0 X0 Y0\n\
                 G1 X0.4 F20\nG5 I0.2 J0 P-0.2 Q0 X1.0 Y0.4\nM2\n";
     let cfg = config("sim-mill.toml");
-    let mut m = Machine::new(&cfg, Some(program(text, "inch-spline.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "inch-spline.ngc");
     assert!(
         m.until(60.0, |s| s.program_ended && s.state == MachineState::Idle),
         "{:?} {:?}",

@@ -11,9 +11,7 @@ const LONG_LINE: &str = "G21 G90 G61.1\nG1 X200 F3000\nM2\n";
 /// Runs the long line, optionally pressing e-stop on the urgent channel after `at` cycles.
 fn long_line(estop_after: Option<u64>) -> (Machine, u64) {
     let cfg = config("sim-mill.toml");
-    let mut m = Machine::new(&cfg, Some(program(LONG_LINE, "long-line.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, LONG_LINE, "long-line.ngc");
     let mut put_period = 0;
     match estop_after {
         Some(n) => {
@@ -91,9 +89,7 @@ fn a_hard_limit_switch_stops_the_machine_with_a_fault_naming_the_joint() {
         );
     let mut cfg = rtcnc_kernel::MachineConfig::parse(&text, "limit.toml").unwrap();
     cfg.base_dir = repo().join("configs");
-    let mut m = Machine::new(&cfg, Some(program(LONG_LINE, "long-line.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, LONG_LINE, "long-line.ngc");
     assert!(m.until(5.0, |s| s.state == MachineState::Fault));
     m.cycles(500);
     let f = m
@@ -160,9 +156,7 @@ fn a_following_error_stops_the_machine_with_a_fault_naming_the_joint() {
 fn an_error_in_a_block_ahead_stops_the_machine_before_that_block_naming_its_line() {
     let text = "G21 G90 G61.1\nG1 X10 F3000\nG1 Y10\nG1 X0\nG1 Y0\nG1 X5 Y5 Z-1 Q\nG1 X50\nM2\n";
     let cfg = config("sim-mill.toml");
-    let mut m = Machine::new(&cfg, Some(program(text, "bad-line-6.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "bad-line-6.ngc");
     m.cycles(20);
     // The interpreter is far ahead: the error is already known while line 2 moves.
     assert!(m.samples.last().unwrap().line == 2);
@@ -196,9 +190,7 @@ fn a_tool_change_waits_for_the_machine_logic_before_motion_continues() {
         change_time_s: 1.5,
         initial_tool: 1,
     });
-    let mut m = Machine::new(&cfg, Some(program(text, "tool.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "tool.ngc");
     assert!(m.until(10.0, |s| s.program_ended && s.state == MachineState::Idle));
     let arrived = m.samples.iter().position(|s| s.axes[0] == 10.0).unwrap();
     let left = m.samples.iter().position(|s| s.axes[0] > 10.0).unwrap();
@@ -216,9 +208,7 @@ fn a_tool_change_waits_for_the_machine_logic_before_motion_continues() {
 fn a_move_beyond_a_soft_limit_is_refused_before_the_machine_gets_there() {
     let text = "G21 G90 G61.1\nG1 X50 F3000\nG1 X400\nM2\n";
     let cfg = config("sim-mill.toml");
-    let mut m = Machine::new(&cfg, Some(program(text, "far.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "far.ngc");
     m.cycles(50);
     assert!(m.until(5.0, |s| s.state == MachineState::Idle && s.line == 0));
     let f = m
@@ -309,9 +299,7 @@ fn m66_waits_for_a_digital_input_or_its_timeout() {
     // P0 is digital input 8 (io.program_inputs of sim-mill.toml).
     let text = "G21 G90 G61.1\nG1 X10 F3000\nM66 P0 L3 Q5\nG1 X20\nM66 P1 L3 Q0.5\nG1 X30\nM2\n";
     let cfg = config("sim-mill.toml");
-    let mut m = Machine::new(&cfg, Some(program(text, "m66.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "m66.ngc");
     assert!(m.until(3.0, |s| s.axes[0] == 10.0 && s.path_speed == 0.0));
     m.cycles(1000);
     // Still waiting for the input after a second.
@@ -342,9 +330,7 @@ fn a_probing_move_without_a_probe_input_stops_the_program_before_it() {
     let text = "G21 G90 G61.1\nG1 X10 F3000\nG38.2 Z-5 F100\nG1 X20\nM2\n";
     let mut cfg = config("sim-mill.toml");
     cfg.io.probe_input = None;
-    let mut m = Machine::new(&cfg, Some(program(text, "probe.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "probe.ngc");
     assert!(m.until(5.0, |s| s.state == MachineState::Idle && s.line == 0));
     let f = m
         .faults
@@ -364,9 +350,7 @@ fn a_spline_whose_bulge_leaves_the_envelope_is_refused_with_its_line() {
     // Y202.5, beyond the mill's Y200.
     let text = "G21 G90 G17 G61.1\nG1 X50 F3000\nG5 I0 J270 P0 Q270 X100 Y0\nM2\n";
     let cfg = config("sim-mill.toml");
-    let mut m = Machine::new(&cfg, Some(program(text, "bulge.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "bulge.ngc");
     m.cycles(50);
     assert!(m.until(5.0, |s| s.state == MachineState::Idle && s.line == 0));
     let f = m

@@ -4,7 +4,7 @@
 
 mod common;
 use common::*;
-use rtcnc_kernel::{Command, FaultCode, MachineState};
+use rtcnc_kernel::{FaultCode, MachineState};
 
 #[test]
 fn m19_orients_the_spindle_and_q_waits_for_it_or_stops_the_program() {
@@ -20,9 +20,7 @@ G1 X5
 M2
 ";
     let cfg = config("bench-xyz.toml");
-    let mut m = Machine::new(&cfg, Some(program(text, "m19.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "m19.ngc");
     // (X set-point applied, spindle angle) after every exchange.
     let mut trace: Vec<(f64, f64)> = Vec::new();
     for _ in 0..10_000 {

@@ -103,9 +103,7 @@ M2
 fn a_feed_hold_in_a_thread_pass_takes_effect_at_its_end() {
     let text = "G18 G21 G90 G7\nG0 X20 Z5\nS600 M3\nG33 Z-20 K1.5\nG0 X30\nM2\n";
     let cfg = config("sim-lathe.toml");
-    let mut m = Machine::new(&cfg, Some(program(text, "g33-hold.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "g33-hold.ngc");
     assert!(m.until(10.0, |s| s.axes[2] < 0.0));
     assert!(m.sim.handle().urgent(rtcnc_kernel::Urgent::FeedHold));
     // The pass goes on to its end, then the program waits (X stays at the thread).
@@ -161,9 +159,7 @@ fn a_spindle_too_fast_for_the_pitch_stops_the_program_before_the_pass() {
     // 3000 rpm at 5 mm per revolution is 250 mm/s along Z, over the lathe's 120 mm/s.
     let text = "G18 G21 G90 G7\nG0 X20 Z5\nS3000 M3\nG33 Z-20 K5\nM2\n";
     let cfg = config("sim-lathe.toml");
-    let mut m = Machine::new(&cfg, Some(program(text, "g33-fast.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "g33-fast.ngc");
     m.cycles(2);
     assert!(m.until(10.0, |s| s.state == MachineState::Idle));
     let f = m.faults.iter().find(|f| f.code == FaultCode::SyncFailed);
@@ -176,9 +172,7 @@ fn a_g76_with_tapers_is_refused_before_its_first_chained_move() {
     // E1 L3: taper entry and exit, which chain synchronised moves through corners.
     let text = "G18 G21 G90 G7\nG0 X22 Z5\nS600 M3\nG76 P1.5 Z-20 I-1 J0.3 K0.9 Q0 E1 L3\nM2\n";
     let cfg = config("sim-lathe.toml");
-    let mut m = Machine::new(&cfg, Some(program(text, "g76-taper.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, text, "g76-taper.ngc");
     m.cycles(2);
     assert!(m.until(20.0, |s| s.state == MachineState::Idle));
     let f = m.faults.iter().find(|f| f.code == FaultCode::ProgramError);

@@ -87,6 +87,15 @@ impl Machine {
         self.sim.handle().status()
     }
 
+    /// A machine on `config` with the program `text` (written as `name`), powered on and
+    /// the program started.
+    pub fn started(config: &MachineConfig, text: &str, name: &str) -> Machine {
+        let mut m = Machine::new(config, Some(program(text, name)));
+        m.power_on();
+        m.command(Command::Start { from_line: 0 });
+        m
+    }
+
     /// Reset and wait until the drives are enabled.
     pub fn power_on(&mut self) {
         self.cycles(2);
