@@ -163,6 +163,10 @@ const FLUSH_PIECES: usize = crate::spline::SPLINE_PIECES;
 /// buffer after an on-line change, regenerating after a rollback).
 const GEN_BUDGET: usize = 12;
 
+/// An on-line change lets a stop end when rest is at most this many set-points ahead (see
+/// `Planner::regenerate`).
+const FINISH_STOP: usize = 16;
+
 /// Everything one set-point is generated from: where on the path, the path speed and
 /// acceleration, the last set-points (for the finite-difference box) and the controller's
 /// modes. A copy is kept with every buffered set-point, so that generation can resume from
@@ -259,6 +263,19 @@ impl GenBuffer {
         self.head = (self.head + 1) % self.cap();
         self.len -= 1;
         Some(st)
+    }
+    /// Index of the first entry at rest (speed and acceleration zero) among the first `n`.
+    fn rest_within(&self, n: usize) -> Option<usize> {
+        (0..self.len.min(n)).find(|&i| {
+            let st = &self.buf[(self.head + i) % self.cap()];
+            st.v == 0.0 && st.a == 0.0
+        })
+    }
+    fn for_each(&mut self, mut f: impl FnMut(&mut GenState)) {
+        let c = self.cap();
+        for i in 0..self.len {
+            f(&mut self.buf[(self.head + i) % c]);
+        }
     }
     /// Drops up to `k` entries from the back; returns how many.
     fn drop_back(&mut self, k: usize) -> usize {
@@ -500,6 +517,7 @@ impl<K: Kinematics> Planner<K> {
             self.hold = None;
             self.cur.hold_at = f64::INFINITY;
             self.regenerate();
+            self.ahead.for_each(|st| st.hold_at = f64::INFINITY);
         }
     }
 
@@ -705,10 +723,13 @@ impl<K: Kinematics> Planner<K> {
         }
     }
 
-    /// Drops every generated set-point: generation restarts from the emitted state (after
-    /// an on-line change).
+    /// Drops the generated set-points: generation restarts from the emitted state (after
+    /// an on-line change). Except when the machine comes to rest a few set-points ahead:
+    /// the last periods of a stop are an exact discrete landing that the speed policy
+    /// cannot continue from (releasing the deceleration at its jerk would reverse the path
+    /// within the period), so the landing ends and generation restarts from rest.
     fn regenerate(&mut self) {
-        self.ahead.len = 0;
+        self.ahead.len = self.ahead.rest_within(FINISH_STOP).map_or(0, |k| k + 1);
         self.strict = None;
     }
 

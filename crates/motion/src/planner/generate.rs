@@ -489,6 +489,7 @@ impl<K: Kinematics> Planner<K> {
     fn control(&mut self, st: GenState, idx: usize, force: bool) -> Option<GenState> {
         let t = self.period;
         let head = self.q.get(idx);
+        let head_straight = head.straight;
         let quick = matches!(self.hold, Some(h) if h.kind == StopKind::Quick);
         let f = self.strictness(st.at);
         let stop_at = head.stop_ahead.0;
@@ -503,6 +504,7 @@ impl<K: Kinematics> Planner<K> {
         } else {
             head.j_brake
         };
+        let (path_rem, path_a_stop, path_j_stop) = (rem, a_stop, j_stop);
         let mut hold_at = st.hold_at;
         if let Some(h) = self.hold {
             // A hold point is soft: when the axes cannot brake as the stop model assumes (on a
@@ -553,7 +555,7 @@ impl<K: Kinematics> Planner<K> {
             );
         }
         // Whether the stop ahead is a hold's (its point is soft and moves on, see above).
-        let soft = hold_at.is_finite() && hold_at - st.at < stop_at - st.at;
+        let mut soft = hold_at.is_finite() && hold_at - st.at < stop_at - st.at;
         let model = Model {
             t,
             v,
@@ -576,6 +578,37 @@ impl<K: Kinematics> Planner<K> {
         };
         let mut model = model;
         model.w_floor = self.w_floor(&model, j_hi);
+        // The hold's gentler stop may not follow from here: when the path brakes harder for
+        // a slow stretch ahead than the hold's jerk can release, every jerk overshoots the
+        // hold's model. Then the path's own model decides this period (it keeps the braking
+        // curve) and the hold point moves on; the hold takes over once its stop fits.
+        let j_min = j_lo.max((a_lo - a) / t).min(j_hi);
+        let mut hold_deferred = false;
+        let braking_harder = matches!(self.hold, Some(h) if a < -h.a);
+        if soft && braking_harder && self.choose_jerk(&model, j_min, j_hi, st.j_last).is_none() {
+            let path_model = Model {
+                rem: path_rem,
+                a_stop: STOP_SHARE * path_a_stop * f,
+                j_stop: STOP_JERK_SHARE * path_j_stop * f,
+                ..model
+            };
+            let bj = clampf(brake_jerk(v, a, -a_lo, path_j_stop, t), j_lo, j_hi);
+            let path_can = self
+                .choose_jerk(&path_model, j_min, j_hi, st.j_last)
+                .is_some()
+                || [j_min, bj]
+                    .into_iter()
+                    .any(|c| self.judge(&path_model, c) != Verdict::Stop);
+            if self.trace {
+                eprintln!("HOLD DEFERRED at={} v={v} a={a} path_can={path_can}", st.at);
+            }
+            if path_can {
+                model = path_model;
+                (rem, a_stop, j_stop) = (path_rem, path_a_stop, path_j_stop);
+                soft = false;
+                hold_deferred = true;
+            }
+        }
 
         // Landing: when the stop is a few periods away, plan the last steps exactly (the
         // smoothest sequence of steps that ends at the stop and stays there).
@@ -610,7 +643,6 @@ impl<K: Kinematics> Planner<K> {
         } else if let Some(d1) = landing {
             d1
         } else {
-            let j_min = j_lo.max((a_lo - a) / t).min(j_hi);
             let choice = self.choose_jerk(&model, j_min, j_hi, st.j_last);
             let choice = choice.or_else(|| {
                 // Nothing passes the model: brake as hard as the path allows while the
@@ -668,6 +700,24 @@ impl<K: Kinematics> Planner<K> {
                     if soft {
                         let end = st.at + ds + stop(v1, a1, a_stop, j_full).0;
                         hold_at = hold_at.min(end);
+                    }
+                    if self.hold.is_none()
+                        && head_straight
+                        && ds + stop(v1, a1, a_stop, j_full).0 > rem
+                    {
+                        // Even that stop overshoots: the stop model's deceleration (the
+                        // lowest on the last stretch before the stop) is below what the
+                        // axes have here, and the state came from a model that knew better
+                        // (an override moved the braking curve). Brake as hard as the path
+                        // allows here; the model takes over again once it fits.
+                        if self.trace {
+                            eprintln!("  BRAKE HARD at={} v={v} a={a} rem={rem}", st.at);
+                        }
+                        let jp = j_hi.min(-j_lo).min(jm);
+                        let bj = clampf(brake_jerk(v, a, -a_lo, jp, t), j_lo, j_hi);
+                        j_used = bj;
+                        (ds, v1, a1) = advance(0.0, v, a, bj, t);
+                        v1 = v1.max(0.0);
                     }
                     exact_state = Some((v1, a1));
                     model_ds = ds;
@@ -767,6 +817,11 @@ impl<K: Kinematics> Planner<K> {
         n.at = p.cum_start + sl;
         n.ds_hist = [st.ds_hist[1], ds];
         n.hist = [x, st.hist[0], st.hist[1]];
+        if let (true, Some(h)) = (hold_deferred, self.hold) {
+            // The hold point moves to where the hold's stop from here ends.
+            let (d_need, _) = stop(n.v, n.a.max(-h.a), STOP_SHARE * h.a, STOP_JERK_SHARE * h.j);
+            n.hold_at = n.hold_at.max(n.at + d_need + n.v * t);
+        }
         Some(n)
     }
 
