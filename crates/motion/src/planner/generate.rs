@@ -219,8 +219,8 @@ impl<K: Kinematics> Planner<K> {
         0
     }
 
-    /// Whether generation can restart from `st`: it is on or under the braking curve
-    /// (within the speed one period of the braking jerk changes: the curve is followed to
+    /// Whether generation can restart from `st`: it is on or under the braking curve (up
+    /// to ½·J·T² at the braking jerk: states that follow the curve overshoot it by about
     /// that), and it can still stop at the next stop with the stop model scaled by
     /// `f_stop`. A state above the curve was generated after the model had already lost
     /// it, and the stricter model would only lose it again.
@@ -257,8 +257,10 @@ impl<K: Kinematics> Planner<K> {
         let (a_stop, j_stop) = self.stop_model(p, st.at);
         let (am, jm) = (STOP_SHARE * a_stop * f, STOP_JERK_SHARE * j_stop * f);
         let v = st.v.max(0.0);
-        !(st.a < 0.0 && st.a * st.a > 2.0 * jm * v)
-            && stop(v, st.a, am, jm).0 <= p.stop_ahead.0 - st.at
+        // The model's own tolerances (`judge`).
+        let rem = p.stop_ahead.0 - st.at;
+        !(st.a < 0.0 && st.a * st.a > 2.0 * jm * v * (1.0 + 1e-9) + 1e-12)
+            && stop(v, st.a, am, jm).0 <= rem * (1.0 + 1e-12) + 1e-12
     }
 
     /// The strictest factor of the stop model, down to `f_min`, with which `st` can still
