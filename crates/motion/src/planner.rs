@@ -277,6 +277,14 @@ impl GenBuffer {
             f(&mut self.buf[(self.head + i) % c]);
         }
     }
+    /// The `i`-th entry from the front (the oldest is 0).
+    fn get(&self, i: usize) -> Option<&GenState> {
+        if i < self.len {
+            Some(&self.buf[(self.head + i) % self.cap()])
+        } else {
+            None
+        }
+    }
     /// Drops up to `k` entries from the back; returns how many.
     fn drop_back(&mut self, k: usize) -> usize {
         let k = k.min(self.len);
@@ -291,6 +299,16 @@ impl GenBuffer {
 struct Strict {
     until: f64,
     attempt: u32,
+    /// Scale of the braking curve, the braking jerk and deceleration of the probe.
+    f: f64,
+    /// Scale of the stop model's deceleration and jerk (1 unless the dead end was on the
+    /// way into a stop).
+    f_stop: f64,
+    /// The stop the dead end was on the way into (NaN: none), and the deceleration and jerk
+    /// of the stop model there: the model before it in the region uses no more.
+    stop_at: f64,
+    a_stop: f64,
+    j_stop: f64,
 }
 
 /// Jerk-limited, look-ahead path planner and interpolator. See the crate documentation.

@@ -1,8 +1,8 @@
 //! Seeded random spline programs (G5/G5.1 chains, tangent or not, quadratic and cubic,
 //! G61 and G64, feeds 10-150 mm/s; alone and with lines between them): every one is either
 //! refused as a (near) cusp or ends exactly at its end point within the period budget, and
-//! the limits hold in all but the known few (docs/motion.md). 40 programs of each kind in
-//! debug builds, 150 and 300 in release
+//! the limits hold in every one. 40 programs of each kind in debug builds, 150 and 300 in
+//! release
 //! (`cargo test --release -p rtcnc-motion --test splines_random -- --nocapture`).
 
 mod common;
@@ -87,9 +87,8 @@ fn program(rng: &mut Rng, lines: bool) -> (Vec<Move>, rtcnc_motion::AxisVec) {
     (moves, p)
 }
 
-/// Runs `count` programs from `seed`; at most `known_excess` may exceed a limit (the
-/// controller failures of today, docs/motion.md): more is a regression.
-fn check(count: usize, seed: u64, lines: bool, known_excess: usize) {
+/// Runs `count` programs from `seed`: none may exceed a limit or count a violation.
+fn check(count: usize, seed: u64, lines: bool) {
     let mut rng = Rng(seed);
     let lim = limits(100.0, 1000.0, 50_000.0);
     let (mut run_count, mut excess, mut refused) = (0, Vec::new(), 0);
@@ -116,17 +115,17 @@ fn check(count: usize, seed: u64, lines: bool, known_excess: usize) {
     }
     println!("{run_count} run, {refused} refused as (near) cusps, exceeding: {excess:?}");
     assert!(run_count >= count * 9 / 10, "{refused} refused");
-    assert!(excess.len() <= known_excess, "{excess:?}");
+    assert!(excess.is_empty(), "{excess:?}");
 }
 
 #[test]
 fn random_spline_programs_end_exactly_within_the_limits() {
     let count = if cfg!(debug_assertions) { 40 } else { 150 };
-    check(count, 0x1234_5678_9abc_def1, false, 1);
+    check(count, 0x1234_5678_9abc_def1, false);
 }
 
 #[test]
 fn random_spline_and_line_programs_end_exactly_within_the_limits() {
     let count = if cfg!(debug_assertions) { 40 } else { 300 };
-    check(count, 0x9876_5432_1fed_cba1, true, 0);
+    check(count, 0x9876_5432_1fed_cba1, true);
 }

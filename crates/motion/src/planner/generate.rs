@@ -28,6 +28,8 @@ pub(super) const STOP_JERK_SHARE: f64 = 0.9;
 const STRICT_FACTOR: f64 = 0.9;
 /// Set-points dropped by the first rollback at a dead end (doubling per attempt).
 const ROLLBACK_FIRST: usize = 4;
+/// Buffered entries a rollback looks at, at most, for a state that fits the stricter model.
+const RESTART_CHECKS: usize = 32;
 
 /// What the speed model needs for one period.
 struct Model {
@@ -69,8 +71,9 @@ impl<K: Kinematics> Planner<K> {
         self.stats.generated += 1;
         match self.step(front, false) {
             Some(st) => {
+                // Kept a little past the dead end: one just after it is the same one.
                 if let Some(s) = self.strict
-                    && st.at > s.until
+                    && st.at > s.until + 8.0 * st.v * self.period + 1e-9
                 {
                     self.strict = None;
                 }
@@ -98,29 +101,187 @@ impl<K: Kinematics> Planner<K> {
         self.step(front, true).unwrap_or_else(|| still(*front))
     }
 
-    /// Drops the last set-points (4, 8, 16, ... for repeated dead ends at the same place)
-    /// and makes the policy stricter until the dead end is passed.
+    /// Drops the last set-points and makes the model stricter until the dead end is passed
+    /// (braking-curve cap, probe jerk and deceleration × `STRICT_FACTOR` per attempt at the
+    /// same place; the stop model too when the dead end was on the way into a stop, and
+    /// there no weaker before it than at the dead end). At least 4, 8, 16, ... entries are
+    /// dropped, and more until the newest kept one fits (`restart_fits`): on or under the
+    /// braking curve, able to stop with the stricter stop model. A restart state that is a
+    /// dead end under the stricter model itself only cascades: the rollbacks would reach
+    /// the emitted set-point. When no buffered entry fits, generation restarts from the
+    /// emitted state, with the stop model only as strict as that state allows.
     fn rollback(&mut self, front: &GenState) {
         self.stats.rollbacks += 1;
         let reach = 8.0 * front.v * self.period + 1e-9;
-        let attempt = match self.strict {
-            Some(s) if front.at <= s.until + reach => s.attempt + 1,
-            _ => 0,
+        let prev = self.strict.filter(|s| front.at <= s.until + reach);
+        let attempt = prev.map_or(0, |s| s.attempt + 1);
+        let until = prev.map_or(front.at, |s| s.until.max(front.at));
+        let f = STRICT_FACTOR.powi(attempt as i32 + 1);
+        // The stop model is made stricter only for a dead end on the way into a stop (and
+        // then no weaker anywhere before it than where the dead end was); elsewhere a weaker
+        // stop model only makes the states that brake for a later stop dead ends too.
+        let (mut stop_at, mut a_stop, mut j_stop) = match prev {
+            Some(s) => (s.stop_at, s.a_stop, s.j_stop),
+            None => (f64::NAN, f64::INFINITY, f64::INFINITY),
         };
-        let until = match self.strict {
-            Some(s) if attempt > 0 => s.until.max(front.at),
-            _ => front.at,
-        };
+        if self.braking_for_stop(front)
+            && let Some((_, p)) = self.moving_piece(front)
+        {
+            let (a, j) = self.stop_model(p, front.at);
+            if p.stop_ahead.0 != stop_at {
+                (a_stop, j_stop) = (f64::INFINITY, f64::INFINITY);
+            }
+            stop_at = p.stop_ahead.0;
+            a_stop = a_stop.min(a);
+            j_stop = j_stop.min(j);
+        }
+        let stop = stop_at.is_finite();
+        let mut f_stop = if stop { f } else { 1.0 };
+        // The region's rules apply to the restart search already.
+        self.strict = Some(Strict {
+            until,
+            attempt,
+            f,
+            f_stop,
+            stop_at,
+            a_stop,
+            j_stop,
+        });
         let k = ROLLBACK_FIRST << attempt.min(16);
-        let dropped = self.ahead.drop_back(k);
+        let keep = self.restart_keep(self.ahead.len.saturating_sub(k), f_stop);
+        if keep == 0 {
+            let st = self.cur;
+            f_stop = self.stop_strictness_needed(&st, f_stop).unwrap_or(1.0);
+        }
+        let dropped = self.ahead.drop_back(self.ahead.len - keep);
         self.stats.rolled_back += dropped as u64;
         if self.trace {
             eprintln!(
-                "ROLLBACK at={} v={} a={} attempt={attempt} dropped={dropped}",
+                "ROLLBACK at={} v={} a={} attempt={attempt} dropped={dropped} kept={keep} f={f} f_stop={f_stop}",
                 front.at, front.v, front.a
             );
         }
-        self.strict = Some(Strict { until, attempt });
+        if let Some(s) = &mut self.strict {
+            s.f_stop = f_stop;
+        }
+    }
+
+    /// Whether `st` brakes for the next stop: its stop (with the model's shares) takes
+    /// half of the way there or more.
+    fn braking_for_stop(&self, st: &GenState) -> bool {
+        let Some((_, p)) = self.moving_piece(st) else {
+            return false;
+        };
+        let (a_stop, j_stop) = self.stop_model(p, st.at);
+        let rem = p.stop_ahead.0 - st.at;
+        let (d, _) = stop(st.v, st.a, STOP_SHARE * a_stop, STOP_JERK_SHARE * j_stop);
+        2.0 * d >= rem
+    }
+
+    /// Deceleration and jerk of the stop model at path position `at` on piece `p` (before
+    /// the shares and the strictness): the piece's own, and within a rollback's region no
+    /// more than the dead end met on the way into the same stop (a piece nearer the stop
+    /// may allow less than the pieces before it assumed).
+    fn stop_model(&self, p: &Piece, at: f64) -> (f64, f64) {
+        let mut a_stop = if p.a_to_stop.is_finite() && p.a_to_stop > 1e-3 * self.a_min {
+            p.a_to_stop
+        } else {
+            p.a_sub[0].min(self.a_min * BRAKE_SHARE_STRAIGHT)
+        };
+        let mut j_stop = if p.j_to_stop.is_finite() {
+            p.j_to_stop
+        } else {
+            p.j_brake
+        };
+        if let Some(s) = self.strict
+            && at <= s.until
+            && s.stop_at == p.stop_ahead.0
+        {
+            a_stop = a_stop.min(s.a_stop);
+            j_stop = j_stop.min(s.j_stop);
+        }
+        (a_stop, j_stop)
+    }
+
+    /// How many buffered entries to keep so that generation restarts from a state that
+    /// fits (`restart_fits`): at most `keep`, fewer while the newest kept entry does not
+    /// (bounded: at most `RESTART_CHECKS` entries are looked at, evenly spaced); 0 when
+    /// none does.
+    fn restart_keep(&self, keep: usize, f_stop: f64) -> usize {
+        let stride = keep.div_ceil(RESTART_CHECKS).max(1);
+        let mut n = keep;
+        while n > 0 {
+            match self.ahead.get(n - 1) {
+                Some(st) if !self.restart_fits(st, f_stop) => n = n.saturating_sub(stride),
+                _ => return n,
+            }
+        }
+        0
+    }
+
+    /// Whether generation can restart from `st`: it is on or under the braking curve (up
+    /// to ½·J·T² at the braking jerk: states that follow the curve overshoot it by about
+    /// that), and it can still stop at the next stop with the stop model scaled by
+    /// `f_stop`. A state above the curve was generated after the model had already lost
+    /// it, and the stricter model would only lose it again.
+    fn restart_fits(&self, st: &GenState, f_stop: f64) -> bool {
+        let Some((idx, p)) = self.moving_piece(st) else {
+            return true;
+        };
+        let (w, _) = self.w_abs(idx, st.at, p.stop_ahead.0);
+        let t = self.period;
+        st.v <= w + 0.5 * p.j_brake * t * t && self.stop_fits(st, f_stop)
+    }
+
+    /// The piece `st` moves on (none at rest, in a dwell or on an isolated line's S-curve:
+    /// any model fits there).
+    fn moving_piece(&self, st: &GenState) -> Option<(usize, &Piece)> {
+        if st.prof_t.is_some() || (st.v <= 0.0 && st.a <= 0.0) {
+            return None;
+        }
+        let idx = self.q.index(st.id)?;
+        let p = self.q.get(idx);
+        (p.len > 0.0).then_some((idx, p))
+    }
+
+    /// Whether `st` can still stop at the next stop (and release its deceleration before
+    /// the speed reaches zero) with the stop model scaled by `f`. Always during a hold (its
+    /// stop is not scaled, and a rollback cannot reach before the request).
+    fn stop_fits(&self, st: &GenState, f: f64) -> bool {
+        let Some((_, p)) = self.moving_piece(st) else {
+            return true;
+        };
+        if self.hold.is_some() {
+            return true;
+        }
+        let (a_stop, j_stop) = self.stop_model(p, st.at);
+        let (am, jm) = (STOP_SHARE * a_stop * f, STOP_JERK_SHARE * j_stop * f);
+        let v = st.v.max(0.0);
+        // The model's own tolerances (`judge`).
+        let rem = p.stop_ahead.0 - st.at;
+        !(st.a < 0.0 && st.a * st.a > 2.0 * jm * v * (1.0 + 1e-9) + 1e-12)
+            && stop(v, st.a, am, jm).0 <= rem * (1.0 + 1e-12) + 1e-12
+    }
+
+    /// The strictest factor of the stop model, down to `f_min`, with which `st` can still
+    /// stop (bisection, 12 steps); None when even the unscaled model does not fit.
+    fn stop_strictness_needed(&self, st: &GenState, f_min: f64) -> Option<f64> {
+        if self.stop_fits(st, f_min) {
+            return Some(f_min);
+        }
+        if !self.stop_fits(st, 1.0) {
+            return None;
+        }
+        let (mut lo, mut hi) = (f_min, 1.0);
+        for _ in 0..12 {
+            let mid = 0.5 * (lo + hi);
+            if self.stop_fits(st, mid) {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        Some(hi)
     }
 
     /// One period from `prev`: releases finished stops and dwells, then moves. None at a
@@ -215,11 +376,12 @@ impl<K: Kinematics> Planner<K> {
         Some(still(st))
     }
 
-    /// The strictness factor at path position `at` (1 outside a rollback's region).
-    fn strictness(&self, at: f64) -> f64 {
+    /// The strictness factors (braking curve, stop model) at path position `at` (1 outside
+    /// a rollback's region).
+    fn strictness(&self, at: f64) -> (f64, f64) {
         match self.strict {
-            Some(s) if at <= s.until => STRICT_FACTOR.powi(s.attempt as i32 + 1),
-            _ => 1.0,
+            Some(s) if at <= s.until => (s.f, s.f_stop),
+            _ => (1.0, 1.0),
         }
     }
 
@@ -491,19 +653,10 @@ impl<K: Kinematics> Planner<K> {
         let head = self.q.get(idx);
         let head_straight = head.straight;
         let quick = matches!(self.hold, Some(h) if h.kind == StopKind::Quick);
-        let f = self.strictness(st.at);
+        let (f, f_stop) = self.strictness(st.at);
         let stop_at = head.stop_ahead.0;
         let mut rem = stop_at - st.at;
-        let mut a_stop = if head.a_to_stop.is_finite() && head.a_to_stop > 1e-3 * self.a_min {
-            head.a_to_stop
-        } else {
-            head.a_sub[0].min(self.a_min * BRAKE_SHARE_STRAIGHT)
-        };
-        let mut j_stop = if head.j_to_stop.is_finite() {
-            head.j_to_stop
-        } else {
-            head.j_brake
-        };
+        let (mut a_stop, mut j_stop) = self.stop_model(head, st.at);
         let (path_rem, path_a_stop, path_j_stop) = (rem, a_stop, j_stop);
         let mut hold_at = st.hold_at;
         if let Some(h) = self.hold {
@@ -568,8 +721,8 @@ impl<K: Kinematics> Planner<K> {
             a_hi,
             // A rollback cannot reach before the hold request, so a stricter model does not
             // help a hold's stop; it does for a stop of the path.
-            a_stop: STOP_SHARE * a_stop * if soft { 1.0 } else { f },
-            j_stop: STOP_JERK_SHARE * j_stop * if soft { 1.0 } else { f },
+            a_stop: STOP_SHARE * a_stop * if soft { 1.0 } else { f_stop },
+            j_stop: STOP_JERK_SHARE * j_stop * if soft { 1.0 } else { f_stop },
             jb: head.j_brake.min(0.8 * (-j_lo).max(0.1 * jm)) * f,
             d_nom: (0.95 * (-a_lo).max(0.1 * a_full)).min(a_full) * f,
             cap: f,
@@ -588,8 +741,8 @@ impl<K: Kinematics> Planner<K> {
         if soft && braking_harder && self.choose_jerk(&model, j_min, j_hi, st.j_last).is_none() {
             let path_model = Model {
                 rem: path_rem,
-                a_stop: STOP_SHARE * path_a_stop * f,
-                j_stop: STOP_JERK_SHARE * path_j_stop * f,
+                a_stop: STOP_SHARE * path_a_stop * f_stop,
+                j_stop: STOP_JERK_SHARE * path_j_stop * f_stop,
                 ..model
             };
             let bj = clampf(brake_jerk(v, a, -a_lo, path_j_stop, t), j_lo, j_hi);
