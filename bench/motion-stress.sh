@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Long randomised checks of the path planner (not in CI): random move lists through the
-# planner, every set-point's finite differences against every axis's v, a, j limit.
+# planner, without and with on-line changes, every set-point's finite differences against
+# every axis's v, a, j limit.
 #   bench/motion-stress.sh [PROGRAMS_PER_SEED] [SEEDS]
 # Prints, per seed, how many programs exceeded a limit and the first failing programs in the
 # format of `cargo run -p rtcnc-motion --example debug_line spec` (SPEC="x y z F mode P; ...").
@@ -14,5 +15,13 @@ for s in $seeds; do
   echo "== seed $s"
   target/release/examples/stress "$n" "$s"
 done
+# The same seeds with an override, a hold and resume and (one program in ten) a quick stop
+# at random periods.
+for s in $seeds; do
+  echo "== seed $s, on-line changes"
+  STRESS_ONLINE=1 target/release/examples/stress "$n" "$s"
+done
 echo "== tests/random.rs with 512 cases"
 PROPTEST_CASES=512 cargo test -q --release -p rtcnc-motion --test random
+echo "== tests/online_changes.rs and tests/splines_random.rs (release sizes)"
+cargo test -q --release -p rtcnc-motion --test online_changes --test splines_random
