@@ -294,20 +294,29 @@ impl ArcMap {
         let mut s = [0.0; MAP_N + 1];
         let mut duds = [0.0; MAP_N + 1];
         let h = 1.0 / MAP_N as f64;
-        // The parametric speed at the nodes and at the Gauss points of each interval.
+        // The parametric speed at the nodes and at the Gauss points of each interval (the
+        // parameters computed once, at compile time, with the same operations).
         const NU: usize = 4 * MAP_N + 1;
-        let mut us = [0.0; NU];
-        for k in 0..=MAP_N {
-            us[k] = k as f64 * h;
-            if k > 0 {
-                let u0 = (k - 1) as f64 * h;
-                for g in 0..3 {
-                    us[MAP_N + 1 + 3 * (k - 1) + g] = u0 + GL_X[g] * h;
+        const US: [f64; NU] = {
+            let h = 1.0 / MAP_N as f64;
+            let mut us = [0.0; NU];
+            let mut k = 0;
+            while k <= MAP_N {
+                us[k] = k as f64 * h;
+                if k > 0 {
+                    let u0 = (k - 1) as f64 * h;
+                    let mut g = 0;
+                    while g < 3 {
+                        us[MAP_N + 1 + 3 * (k - 1) + g] = u0 + GL_X[g] * h;
+                        g += 1;
+                    }
                 }
+                k += 1;
             }
-        }
+            us
+        };
         let mut sp = [0.0; NU];
-        shape.speed_fn().fill(&us, &mut sp);
+        shape.speed_fn().fill(&US, &mut sp);
         for k in 0..=MAP_N {
             duds[k] = if sp[k] > 0.0 { 1.0 / sp[k] } else { 0.0 };
             if k > 0 {
