@@ -4,7 +4,7 @@
 
 use crate::axes::{AXES, Axis, AxisVec, add_scaled, dot, is_finite, norm, norm_xyz, scale, sub};
 use crate::error::MotionError;
-use crate::geometry::{ArcMap, Helix, Shape, corner_bezier, quintic};
+use crate::geometry::{ArcMap, Helix, Shape, corner_bezier, quintic, quintic_axis};
 use crate::input::{Feed, Move, MoveKind, PathMode};
 use crate::limits::Lim;
 use crate::piece::Piece;
@@ -434,7 +434,7 @@ impl Builder {
                             if let Some(pc) =
                                 curved_start.or_else(|| span(&lp, &start, &vk, tolerance, lim))
                             {
-                                out.push(pc);
+                                out.push(pc.piece());
                                 self.stats.smoothed += 1;
                                 if scale_k < 1.0 {
                                     self.stats.curvature_backoffs += 1;
@@ -505,8 +505,8 @@ impl Builder {
                             self.prev_state = None;
                             return;
                         }
-                        for pc in first.into_iter().flatten() {
-                            out.push(pc);
+                        for pc in first.iter().flatten() {
+                            out.push(pc.piece());
                         }
                         out.push(b);
                         self.stats.blends += 1;
@@ -584,7 +584,7 @@ impl Builder {
         s1: &State,
         tol: f64,
         lim: &Lim,
-    ) -> [Option<Piece>; 2] {
+    ) -> [Option<Span>; 2] {
         if let Some(p) = span(l, s0, s1, tol, lim) {
             return [Some(p), None];
         }
@@ -644,8 +644,8 @@ impl Builder {
                     Some(p) => [Some(p), None],
                     None => self.span_or_exceed(l, &start, &end, tol, lim),
                 };
-                for pc in pieces.into_iter().flatten() {
-                    out.push(pc);
+                for pc in pieces.iter().flatten() {
+                    out.push(pc.piece());
                 }
                 if let Some(last) = out.last_mut() {
                     last.stop_at_end |= stop;
@@ -673,7 +673,7 @@ impl Builder {
 /// The piece of line `l` from state `s0` to state `s1`: a line when both states lie on the
 /// line's direction with zero curvature, else a quintic whose distance from the line is
 /// checked against `tol` (None when it exceeds it or the span is empty).
-fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Piece> {
+fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Span> {
     let d = sub(&s1.p, &s0.p);
     let lc = norm(&d);
     if lc <= 1e-12 {
@@ -683,14 +683,14 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Piece>
     let straight1 = dot(&s1.t, &l.dir) >= 1.0 - 1e-15 && norm(&s1.k) == 0.0;
     if straight0 && straight1 {
         let dir = scale(&d, 1.0 / lc);
-        return Some(Piece::new(
-            Shape::Line { start: s0.p, dir },
-            s0.p,
-            s1.p,
-            l.feed,
-            l.rapid,
-            l.line,
-        ));
+        return Some(Span {
+            shape: Shape::Line { start: s0.p, dir },
+            a: s0.p,
+            b: s1.p,
+            feed: l.feed,
+            rapid: l.rapid,
+            line: l.line,
+        });
     }
     // Parameter length: arc length of the circular arc over the chord, from the mean curvature.
     let kap = 0.5 * (norm(&s0.k) + norm(&s1.k));
@@ -700,13 +700,60 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Piece>
     } else {
         lc
     };
+    let dir = scale(&d, 1.0 / lc);
+    // The middle sample first, on its own (where a span that bulges too far peaks, between
+    // two vertices of similar curvature): a span already beyond the tolerance there is
+    // refused before the quintic is built. The same arithmetic as the check of all samples
+    // below, so the same decision (the peak estimate there is at least every sample's
+    // distance); over the axes whose end states differ, a superset of the axes moved,
+    // where the others add exact zeros.
+    let lp2 = lp * lp;
+    if lp.is_finite() {
+        let u = 0.5;
+        let mut along = 0.0;
+        let mut w = [0.0f64; AXES];
+        let mut idx = [0usize; AXES];
+        let mut m = 0;
+        for i in 0..AXES {
+            let still = s0.p[i] == s1.p[i]
+                && s0.t[i] == 0.0
+                && s1.t[i] == 0.0
+                && s0.k[i] == 0.0
+                && s1.k[i] == 0.0;
+            if still {
+                continue;
+            }
+            let ci = quintic_axis(
+                s0.p[i],
+                s0.t[i] * lp,
+                s0.k[i] * lp2,
+                s1.p[i],
+                s1.t[i] * lp,
+                s1.k[i] * lp2,
+            );
+            let p = ci[0] + u * (ci[1] + u * (ci[2] + u * (ci[3] + u * (ci[4] + u * ci[5]))));
+            w[m] = p - s0.p[i];
+            along += w[m] * dir[i];
+            idx[m] = i;
+            m += 1;
+        }
+        let along = along.clamp(0.0, lc);
+        let mut dev = 0.0;
+        for (wj, &i) in w[..m].iter().zip(&idx[..m]) {
+            let r = wj + dir[i] * -along;
+            dev += r * r;
+        }
+        if dev.sqrt() > tol * (1.0 - 1e-3) {
+            return None;
+        }
+    }
     let shape = quintic(
         &s0.p,
         &scale(&s0.t, lp),
-        &scale(&s0.k, lp * lp),
+        &scale(&s0.k, lp2),
         &s1.p,
         &scale(&s1.t, lp),
-        &scale(&s1.k, lp * lp),
+        &scale(&s1.k, lp2),
     );
     let Shape::Poly { c } = &shape else {
         unreachable!("quintic() builds a polynomial")
@@ -715,7 +762,6 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Piece>
     // 17 samples, over the axes the span or its chord moves along: on the others the sample
     // is exactly the start point and every term below an exact zero, so skipping them
     // gives the full nine-axis values bit for bit.
-    let dir = scale(&d, 1.0 / lc);
     let mut axes = [0usize; AXES];
     let mut na = 0;
     let mut outside = false;
@@ -728,9 +774,6 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Piece>
             outside = true;
         }
     }
-    let axes = &axes[..na];
-    // Sample by sample inside each axis: independent chains the processor overlaps (each
-    // sample's sums still run over the axes in order, as `dot` and `norm` do).
     const US: [f64; 17] = {
         let mut u = [0.0; 17];
         let mut k = 0;
@@ -740,6 +783,9 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Piece>
         }
         u
     };
+    let axes = &axes[..na];
+    // Sample by sample inside each axis: independent chains the processor overlaps (each
+    // sample's sums still run over the axes in order, as `dot` and `norm` do).
     let mut w = [[0.0f64; 17]; AXES];
     let mut along = [0.0f64; 17];
     for (wj, &i) in w.iter_mut().zip(axes) {
@@ -779,7 +825,32 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Piece>
     if max_dev > tol * (1.0 - 1e-3) || (outside && tol.is_finite()) {
         return None;
     }
-    Some(Piece::new(shape, s0.p, s1.p, l.feed, false, l.line))
+    Some(Span {
+        shape,
+        a: s0.p,
+        b: s1.p,
+        feed: l.feed,
+        rapid: false,
+        line: l.line,
+    })
+}
+
+/// A span `span` accepted: its shape and end points. The piece (a few kB, with its
+/// arc-length table) is built only when it is emitted, not for every candidate.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Span {
+    shape: Shape,
+    a: AxisVec,
+    b: AxisVec,
+    feed: f64,
+    rapid: bool,
+    line: u32,
+}
+
+impl Span {
+    fn piece(&self) -> Piece {
+        Piece::new(self.shape, self.a, self.b, self.feed, self.rapid, self.line)
+    }
 }
 
 /// The state at `at`, the other end of the chord with direction `chord`, that mirrors

@@ -294,20 +294,29 @@ impl ArcMap {
         let mut s = [0.0; MAP_N + 1];
         let mut duds = [0.0; MAP_N + 1];
         let h = 1.0 / MAP_N as f64;
-        // The parametric speed at the nodes and at the Gauss points of each interval.
+        // The parametric speed at the nodes and at the Gauss points of each interval (the
+        // parameters computed once, at compile time, with the same operations).
         const NU: usize = 4 * MAP_N + 1;
-        let mut us = [0.0; NU];
-        for k in 0..=MAP_N {
-            us[k] = k as f64 * h;
-            if k > 0 {
-                let u0 = (k - 1) as f64 * h;
-                for g in 0..3 {
-                    us[MAP_N + 1 + 3 * (k - 1) + g] = u0 + GL_X[g] * h;
+        const US: [f64; NU] = {
+            let h = 1.0 / MAP_N as f64;
+            let mut us = [0.0; NU];
+            let mut k = 0;
+            while k <= MAP_N {
+                us[k] = k as f64 * h;
+                if k > 0 {
+                    let u0 = (k - 1) as f64 * h;
+                    let mut g = 0;
+                    while g < 3 {
+                        us[MAP_N + 1 + 3 * (k - 1) + g] = u0 + GL_X[g] * h;
+                        g += 1;
+                    }
                 }
+                k += 1;
             }
-        }
+            us
+        };
         let mut sp = [0.0; NU];
-        shape.speed_fn().fill(&us, &mut sp);
+        shape.speed_fn().fill(&US, &mut sp);
         for k in 0..=MAP_N {
             duds[k] = if sp[k] > 0.0 { 1.0 / sp[k] } else { 0.0 };
             if k > 0 {
@@ -470,6 +479,75 @@ pub(crate) fn arc_derivs(d: &Deriv) -> (AxisVec, AxisVec, AxisVec) {
     (t, k, kp)
 }
 
+/// The axes a polynomial moves along (some derivative coefficient non-zero), in axis
+/// order, and how many: on the others every derivative is exactly zero.
+pub(crate) fn poly_moving_axes(c: &[AxisVec; 6]) -> ([usize; AXES], usize) {
+    let mut axes = [0; AXES];
+    let mut n = 0;
+    for i in 0..AXES {
+        if (1..6).any(|k| c[k][i] != 0.0) {
+            axes[n] = i;
+            n += 1;
+        }
+    }
+    (axes, n)
+}
+
+/// `arc_derivs(&Shape::Poly { c }.eval(u))` over the moving axes `axes` of the polynomial
+/// (from [`poly_moving_axes`]), written to `t`, `k`, `kp`, bit for bit: the other axes add
+/// exact zeros to the sums (in the same order) and their T, K and dK/ds are +0, as
+/// `arc_derivs` gives them. False, with the outputs unspecified, in the degenerate case
+/// where the parameter derivatives overflow (there the full evaluation gives NaN on the
+/// still axes): the caller then takes the full path.
+pub(crate) fn poly_arc_derivs_into(
+    c: &[AxisVec; 6],
+    axes: &[usize],
+    u: f64,
+    t: &mut AxisVec,
+    k: &mut AxisVec,
+    kp: &mut AxisVec,
+) -> bool {
+    // d/du, d²/du², d³/du³ go to t, k, kp first, then become the arc-length derivatives.
+    *t = [0.0; AXES];
+    *k = [0.0; AXES];
+    *kp = [0.0; AXES];
+    let (mut s11, mut s12, mut s22, mut s13) = (0.0, 0.0, 0.0, 0.0);
+    for &i in axes {
+        let (c1, c2, c3, c4, c5) = (c[1][i], c[2][i], c[3][i], c[4][i], c[5][i]);
+        let a = c1 + u * (2.0 * c2 + u * (3.0 * c3 + u * (4.0 * c4 + u * 5.0 * c5)));
+        let b = 2.0 * c2 + u * (6.0 * c3 + u * (12.0 * c4 + u * 20.0 * c5));
+        let e = 6.0 * c3 + u * (24.0 * c4 + u * 60.0 * c5);
+        (t[i], k[i], kp[i]) = (a, b, e);
+        s11 += a * a;
+        s12 += a * b;
+        s22 += b * b;
+        s13 += a * e;
+    }
+    let sig2 = s11;
+    let sig = sig2.sqrt();
+    if !(sig > 0.0) {
+        *t = [0.0; AXES];
+        *k = [0.0; AXES];
+        *kp = [0.0; AXES];
+        return true;
+    }
+    let sig_u = s12 / sig;
+    let sig_uu = (s22 + s13) / sig - sig_u * sig_u / sig;
+    let u1 = 1.0 / sig;
+    let u2 = -sig_u / (sig2 * sig);
+    let u3 = -sig_uu / (sig2 * sig2) + 3.0 * sig_u * sig_u / (sig2 * sig2 * sig);
+    if !(u1.is_finite() && u2.is_finite() && u3.is_finite()) {
+        return false;
+    }
+    for &i in axes {
+        let (d1, d2, d3) = (t[i], k[i], kp[i]);
+        t[i] = d1 * u1;
+        k[i] = d2 * u1 * u1 + d1 * u2;
+        kp[i] = d3 * u1 * u1 * u1 + 3.0 * d2 * u1 * u2 + d1 * u3;
+    }
+    true
+}
+
 /// Quintic Hermite curve matching position, first and second derivative at both ends
 /// (derivatives with respect to u in [0, 1]).
 pub(crate) fn quintic(
@@ -482,16 +560,25 @@ pub(crate) fn quintic(
 ) -> Shape {
     let mut c = [[0.0; AXES]; 6];
     for i in 0..AXES {
-        c[0][i] = p0[i];
-        c[1][i] = d0[i];
-        c[2][i] = 0.5 * dd0[i];
-        c[3][i] =
-            -10.0 * p0[i] - 6.0 * d0[i] - 1.5 * dd0[i] + 0.5 * dd1[i] - 4.0 * d1[i] + 10.0 * p1[i];
-        c[4][i] = 15.0 * p0[i] + 8.0 * d0[i] + 1.5 * dd0[i] - dd1[i] + 7.0 * d1[i] - 15.0 * p1[i];
-        c[5][i] =
-            -6.0 * p0[i] - 3.0 * d0[i] - 0.5 * dd0[i] + 0.5 * dd1[i] - 3.0 * d1[i] + 6.0 * p1[i];
+        let ci = quintic_axis(p0[i], d0[i], dd0[i], p1[i], d1[i], dd1[i]);
+        for k in 0..6 {
+            c[k][i] = ci[k];
+        }
     }
     Shape::Poly { c }
+}
+
+/// The power-basis coefficients of one axis of [`quintic`].
+#[inline]
+pub(crate) fn quintic_axis(p0: f64, d0: f64, dd0: f64, p1: f64, d1: f64, dd1: f64) -> [f64; 6] {
+    [
+        p0,
+        d0,
+        0.5 * dd0,
+        -10.0 * p0 - 6.0 * d0 - 1.5 * dd0 + 0.5 * dd1 - 4.0 * d1 + 10.0 * p1,
+        15.0 * p0 + 8.0 * d0 + 1.5 * dd0 - dd1 + 7.0 * d1 - 15.0 * p1,
+        -6.0 * p0 - 3.0 * d0 - 0.5 * dd0 + 0.5 * dd1 - 3.0 * d1 + 6.0 * p1,
+    ]
 }
 
 /// Cubic Bézier with both inner control points at the corner `v`: curvature is zero at both
@@ -506,4 +593,74 @@ pub(crate) fn corner_bezier(p0: &AxisVec, v: &AxisVec, p3: &AxisVec) -> Shape {
         c[3][i] = p3[i] - p0[i];
     }
     Shape::Poly { c }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A small deterministic generator (no dependency for a few numbers).
+    fn lcg(state: &mut u64) -> f64 {
+        *state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (*state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    }
+
+    /// The derivatives over the moving axes only are those of the full nine-axis
+    /// evaluation, bit for bit, still axes (+0) included: random quintics moving along one
+    /// to nine axes, at parameters across [0, 1] and at its ends.
+    #[test]
+    fn derivatives_over_the_moving_axes_are_the_full_ones() {
+        let mut st = 7u64;
+        for case in 0..400 {
+            let mut c = [[0.0; AXES]; 6];
+            for i in 0..AXES {
+                c[0][i] = 20.0 * lcg(&mut st);
+                // About half the axes still (their derivative coefficients exactly zero).
+                if lcg(&mut st) > 0.0 || i == case % AXES {
+                    for row in c.iter_mut().skip(1) {
+                        row[i] = 3.0 * lcg(&mut st);
+                    }
+                }
+            }
+            let (axes, n) = poly_moving_axes(&c);
+            for u in [0.0, 1.0, 0.5 + 0.5 * lcg(&mut st), 0.5 + 0.5 * lcg(&mut st)] {
+                let (t, k, kp) = arc_derivs(&Shape::Poly { c }.eval(u));
+                let (mut t2, mut k2, mut kp2) = ([1.0; AXES], [1.0; AXES], [1.0; AXES]);
+                assert!(poly_arc_derivs_into(
+                    &c,
+                    &axes[..n],
+                    u,
+                    &mut t2,
+                    &mut k2,
+                    &mut kp2
+                ));
+                for i in 0..AXES {
+                    assert_eq!(t[i].to_bits(), t2[i].to_bits(), "case {case} u {u} T{i}");
+                    assert_eq!(k[i].to_bits(), k2[i].to_bits(), "case {case} u {u} K{i}");
+                    assert_eq!(kp[i].to_bits(), kp2[i].to_bits(), "case {case} u {u} K'{i}");
+                }
+            }
+        }
+    }
+
+    /// A polynomial that does not move at all: every derivative zero, as `arc_derivs`.
+    #[test]
+    fn a_still_polynomial_has_zero_derivatives() {
+        let mut c = [[0.0; AXES]; 6];
+        c[0][0] = 3.0;
+        let (axes, n) = poly_moving_axes(&c);
+        assert_eq!(n, 0);
+        let (mut t, mut k, mut kp) = ([1.0; AXES], [1.0; AXES], [1.0; AXES]);
+        assert!(poly_arc_derivs_into(
+            &c,
+            &axes[..n],
+            0.3,
+            &mut t,
+            &mut k,
+            &mut kp
+        ));
+        assert_eq!((t, k, kp), ([0.0; AXES], [0.0; AXES], [0.0; AXES]));
+    }
 }

@@ -120,6 +120,10 @@ pub(crate) struct Lim {
     pub max: [f64; AXES],
     pub qa: [f64; AXES],
     pub qj: [f64; AXES],
+    /// The present axes in axis order (the first `n_present`): the per-axis loops of the
+    /// look-ahead run over these only.
+    axes: [usize; AXES],
+    n_present: usize,
 }
 
 impl Lim {
@@ -133,10 +137,14 @@ impl Lim {
             max: [0.0; AXES],
             qa: [0.0; AXES],
             qj: [0.0; AXES],
+            axes: [0; AXES],
+            n_present: 0,
         };
         for i in 0..AXES {
             if let Some(a) = m.axes[i] {
                 l.present[i] = true;
+                l.axes[l.n_present] = i;
+                l.n_present += 1;
                 l.v[i] = a.max_velocity;
                 l.a[i] = a.max_acceleration;
                 l.j[i] = a.max_jerk;
@@ -147,5 +155,11 @@ impl Lim {
             }
         }
         l
+    }
+
+    /// Indices of the present axes, in axis order.
+    #[inline]
+    pub fn present_axes(&self) -> &[usize] {
+        &self.axes[..self.n_present]
     }
 }

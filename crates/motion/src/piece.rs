@@ -1,7 +1,7 @@
 //! A piece of the planned path with its velocity-limit samples and braking curve.
 
 use crate::axes::{AXES, AxisVec, norm_xyz};
-use crate::geometry::{ArcMap, Shape, arc_derivs};
+use crate::geometry::{ArcMap, Shape, arc_derivs, poly_arc_derivs_into, poly_moving_axes};
 use crate::limits::Lim;
 
 /// Most sub-intervals of one piece's velocity-limit samples.
@@ -100,6 +100,9 @@ pub(crate) struct Piece {
     /// the tangent; normal and quick-stop limits), filled with the samples.
     pub a_proj: [f64; 2],
     pub j_proj: [f64; 2],
+    /// The samples are filled ([`Piece::sample`]; a corner blend is sampled by the builder,
+    /// which weighs it against a stop, and not again in the window).
+    pub sampled: bool,
 }
 
 impl Piece {
@@ -159,6 +162,7 @@ impl Piece {
             w_low: 0.0,
             a_proj: [1.0; 2],
             j_proj: [1.0; 2],
+            sampled: false,
         }
     }
 
@@ -218,23 +222,36 @@ impl Piece {
 
     /// Fills the samples (geometry and speed bounds) from the machine limits.
     pub fn sample(&mut self, lim: &Lim) {
+        // Polynomials (blends, smoothing spans, splines) move along two or three of the
+        // nine axes: their derivatives are evaluated over those only, with the same values.
+        let moving = match &self.shape {
+            Shape::Poly { c } => Some(poly_moving_axes(c)),
+            _ => None,
+        };
         for k in 0..=self.ns {
             let s = self.len * k as f64 / self.ns as f64;
-            let d = self.shape.eval(self.map.u(s));
-            let (t, kv, kp) = arc_derivs(&d);
-            let (v_axis, v_curve) = self.point_bounds(&t, &kv, &kp, lim);
-            self.smp[k] = Sample {
-                t,
-                k: kv,
-                kp,
-                v_axis,
-                v_curve: v_curve.min(self.v_cap[k]),
-                t_xyz: norm_xyz(&t),
+            let u = self.map.u(s);
+            let sm = &mut self.smp[k];
+            let fast = match (&self.shape, &moving) {
+                (Shape::Poly { c }, Some((axes, n))) => {
+                    poly_arc_derivs_into(c, &axes[..*n], u, &mut sm.t, &mut sm.k, &mut sm.kp)
+                }
+                _ => false,
             };
+            if !fast {
+                (sm.t, sm.k, sm.kp) = arc_derivs(&self.shape.eval(u));
+            }
+            let sm = &self.smp[k];
+            let (v_axis, v_curve) = self.point_bounds(&sm.t, &sm.k, &sm.kp, lim);
+            let sm = &mut self.smp[k];
+            sm.v_axis = v_axis;
+            sm.v_curve = v_curve.min(self.v_cap[k]);
+            sm.t_xyz = norm_xyz(&sm.t);
         }
         if self.dense_bounds {
             self.tighten_bounds_between_samples(lim);
         }
+        self.sampled = true;
     }
 
     /// Speed bounds (axis velocities; centripetal acceleration and curvature change) at a
@@ -249,10 +266,7 @@ impl Piece {
         let mut v_axis = f64::INFINITY;
         let mut v2_curve = f64::INFINITY;
         let mut v_jerk3 = f64::INFINITY;
-        for i in 0..AXES {
-            if !lim.present[i] {
-                continue;
-            }
+        for &i in lim.present_axes() {
             // Arcs: the per-axis projections rotate along the arc; use their amplitude
             // so that the bound holds on the whole sub-interval.
             let (ti, ki, kpi) = match &self.shape {
@@ -283,7 +297,15 @@ impl Piece {
                 v_jerk3 = v_jerk3.min(share * lim.j[i] / kpi);
             }
         }
-        (v_axis, v2_curve.sqrt().min(v_jerk3.cbrt()))
+        // The cube root only when it can be the smaller: cbrt is within an ulp, so a cube
+        // 1e-12 below v_jerk3 leaves the centripetal bound the minimum, as computed in full.
+        let v_centripetal = v2_curve.sqrt();
+        if v_centripetal.is_finite()
+            && v_centripetal * v_centripetal * v_centripetal * (1.0 + 1e-12) < v_jerk3
+        {
+            return (v_axis, v_centripetal);
+        }
+        (v_axis, v_centripetal.min(v_jerk3.cbrt()))
     }
 
     /// Speed limit at sample `k` under the given overrides.
@@ -306,10 +328,7 @@ impl Piece {
     pub fn decel_available(&self, k: usize, v: f64, lim: &Lim) -> f64 {
         let sm = &self.smp[k];
         let mut d = f64::INFINITY;
-        for i in 0..AXES {
-            if !lim.present[i] {
-                continue;
-            }
+        for &i in lim.present_axes() {
             let ti = sm.t[i];
             let c = v * v * sm.k[i];
             let bound = if ti > 1e-12 {
@@ -337,63 +356,107 @@ impl Piece {
         d.max(0.0) * share
     }
 
-    /// Largest tangential acceleration available at sample `k` at speed `v`, scaled like
-    /// the deceleration.
-    pub fn accel_available(&self, k: usize, v: f64, lim: &Lim) -> f64 {
-        let sm = &self.smp[k];
-        let mut d = f64::INFINITY;
-        for i in 0..AXES {
-            if !lim.present[i] {
-                continue;
-            }
-            let ti = sm.t[i];
-            let c = v * v * sm.k[i];
-            let bound = if ti > 1e-12 {
-                (lim.a[i] - c) / ti
+    /// `decel_available(k, v).min(decel_available(k + 1, v))`, the deceleration of the
+    /// sub-interval after sample `k`, in one pass over the axes (the same values).
+    pub fn decel_available_pair(&self, k: usize, v: f64, lim: &Lim) -> f64 {
+        let (s0, s1) = (&self.smp[k], &self.smp[k + 1]);
+        let (mut d0, mut d1) = (f64::INFINITY, f64::INFINITY);
+        let bound = |ti: f64, c: f64, a: f64| {
+            if ti > 1e-12 {
+                (a + c) / ti
             } else if ti < -1e-12 {
-                (lim.a[i] + c) / -ti
+                (a - c) / -ti
             } else {
                 f64::INFINITY
-            };
-            d = d.min(bound);
+            }
+        };
+        let v2 = v * v;
+        for &i in lim.present_axes() {
+            d0 = d0.min(bound(s0.t[i], v2 * s0.k[i], lim.a[i]));
+            d1 = d1.min(bound(s1.t[i], v2 * s1.k[i], lim.a[i]));
         }
-        d.max(0.0) * BRAKE_SHARE_STRAIGHT
+        let finish = |d: f64| {
+            let d = if d.is_finite() {
+                d
+            } else {
+                lim.present_axes()
+                    .iter()
+                    .fold(f64::INFINITY, |m, &i| m.min(lim.a[i]))
+            };
+            let share = if self.straight {
+                BRAKE_SHARE_STRAIGHT
+            } else {
+                BRAKE_SHARE_CURVED
+            };
+            d.max(0.0) * share
+        };
+        finish(d0).min(finish(d1))
     }
 
-    /// Largest tangential jerk the braking model may use on this piece: each axis's jerk
-    /// limit (on arcs less what the curvature change takes at the piece's speed limit,
-    /// K'·v³; on splines at the speed where stops are jerk-dominated), projected on the
-    /// tangent.
-    pub fn jerk_available(&self, lim: &Lim) -> f64 {
+    /// Largest tangential acceleration available at speed `v` over the sub-interval after
+    /// sample `k` (the lower of its two samples), scaled like the deceleration.
+    pub fn accel_available_pair(&self, k: usize, v: f64, lim: &Lim) -> f64 {
+        let (s0, s1) = (&self.smp[k], &self.smp[k + 1]);
+        let (mut d0, mut d1) = (f64::INFINITY, f64::INFINITY);
+        let bound = |ti: f64, c: f64, a: f64| {
+            if ti > 1e-12 {
+                (a - c) / ti
+            } else if ti < -1e-12 {
+                (a + c) / -ti
+            } else {
+                f64::INFINITY
+            }
+        };
+        let v2 = v * v;
+        for &i in lim.present_axes() {
+            d0 = d0.min(bound(s0.t[i], v2 * s0.k[i], lim.a[i]));
+            d1 = d1.min(bound(s1.t[i], v2 * s1.k[i], lim.a[i]));
+        }
+        (d0.max(0.0) * BRAKE_SHARE_STRAIGHT).min(d1.max(0.0) * BRAKE_SHARE_STRAIGHT)
+    }
+
+    /// Fills the tangential limits of the piece from its samples: `j_brake`, the largest
+    /// tangential jerk the braking model may use (each axis's jerk limit, on arcs less what
+    /// the curvature change takes at the piece's speed limit, K'·v³, on splines at the speed
+    /// where stops are jerk-dominated, projected on the tangent), and `a_proj`, `j_proj`,
+    /// the largest tangential acceleration and jerk (normal and quick-stop limits projected
+    /// on the tangent, ignoring centripetal load; the per-sample check enforces the rest).
+    /// One pass over the samples and the present axes.
+    pub fn set_tangent_limits(&mut self, lim: &Lim) {
         let mut jm = f64::INFINITY;
+        let (mut am, mut qam, mut hjm, mut qjm) =
+            (f64::INFINITY, f64::INFINITY, f64::INFINITY, f64::INFINITY);
+        let helix = matches!(self.shape, Shape::Helix(_));
         for k in 0..=self.ns {
             let sm = &self.smp[k];
             // Only arcs and helices keep their curvature at speed; on blends and smoothing
             // spans the per-period bounds take care of the curvature change.
             let vs = sm.v_axis.min(sm.v_curve);
-            let v3 = if vs.is_finite() && matches!(self.shape, Shape::Helix(_)) {
+            let v3 = if vs.is_finite() && helix {
                 vs * vs * vs
             } else {
                 0.0
             };
-            for i in 0..AXES {
-                if lim.present[i] {
-                    let ti = sm.t[i].abs();
-                    if ti > 1e-12 {
-                        // Splines: the stop model this jerk feeds matters where the stop is
-                        // jerk-dominated, below 2·A²/J; reserve the curvature change there.
-                        // (Without it, stops at the end of random splines overran in 14 of
-                        // 88 programs; with it at the piece's speed limit, stops far from
-                        // the curve's bends became ten times too cautious.)
-                        let v3 = if self.dense_bounds && vs.is_finite() {
-                            let v = vs.min(2.0 * lim.a[i] * lim.a[i] / lim.j[i]);
-                            v * v * v
-                        } else {
-                            v3
-                        };
-                        let room = (lim.j[i] - sm.kp[i].abs() * v3).max(0.1 * lim.j[i]);
-                        jm = jm.min(room / ti);
-                    }
+            for &i in lim.present_axes() {
+                let ti = sm.t[i].abs();
+                if ti > 1e-12 {
+                    // Splines: the stop model this jerk feeds matters where the stop is
+                    // jerk-dominated, below 2·A²/J; reserve the curvature change there.
+                    // (Without it, stops at the end of random splines overran in 14 of
+                    // 88 programs; with it at the piece's speed limit, stops far from
+                    // the curve's bends became ten times too cautious.)
+                    let v3 = if self.dense_bounds && vs.is_finite() {
+                        let v = vs.min(2.0 * lim.a[i] * lim.a[i] / lim.j[i]);
+                        v * v * v
+                    } else {
+                        v3
+                    };
+                    let room = (lim.j[i] - sm.kp[i].abs() * v3).max(0.1 * lim.j[i]);
+                    jm = jm.min(room / ti);
+                    am = am.min(lim.a[i] / ti);
+                    qam = qam.min(lim.qa[i] / ti);
+                    hjm = hjm.min(lim.j[i] / ti);
+                    qjm = qjm.min(lim.qj[i] / ti);
                 }
             }
         }
@@ -405,11 +468,14 @@ impl Piece {
                 .filter(|(_, p)| **p)
                 .fold(f64::INFINITY, |m, (a, _)| m.min(*a));
         }
-        if self.straight {
+        self.j_brake = if self.straight {
             jm * BRAKE_SHARE_STRAIGHT
         } else {
             jm * BRAKE_SHARE_CURVED
-        }
+        };
+        let or_one = |x: f64| if x.is_finite() { x } else { 1.0 };
+        self.a_proj = [or_one(am), or_one(qam)];
+        self.j_proj = [or_one(hjm), or_one(qjm)];
     }
 
     /// Braking-curve speed at local arc length `s` and its deceleration there (0 where the
@@ -465,5 +531,282 @@ pub(crate) fn jerk_stop_speed(d: f64, a: f64, j: f64) -> (f64, f64) {
     } else {
         let v3 = a * a / (2.0 * j);
         ((v3 * v3 + 2.0 * a * (d - d3)).sqrt(), a)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The look-ahead's fast paths (derivatives over the moving axes, the cube root taken
+    //! only when it can bound, the fused per-axis passes) against the computations written
+    //! out plainly over all nine axes: the same bits.
+
+    use super::*;
+    use crate::axes::Axis;
+    use crate::geometry::{Helix, corner_bezier, quintic};
+    use crate::limits::{AxisLimits, MachineLimits};
+    use std::f64::consts::PI;
+
+    fn lcg(state: &mut u64) -> f64 {
+        *state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (*state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    }
+
+    /// Axis-velocity, centripetal and curvature-change bounds.
+    fn plain_bounds(
+        p: &Piece,
+        t: &AxisVec,
+        kv: &AxisVec,
+        kp: &AxisVec,
+        lim: &Lim,
+    ) -> (f64, f64, f64) {
+        let (mut v_axis, mut v2, mut vj3) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+        for i in 0..AXES {
+            if !lim.present[i] {
+                continue;
+            }
+            let (ti, ki, kpi) = match &p.shape {
+                Shape::Helix(h) if i < 3 => {
+                    let amp = (h.e1[i] * h.e1[i] + h.e2[i] * h.e2[i]).sqrt();
+                    let tn = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
+                    let kn = (kv[0] * kv[0] + kv[1] * kv[1] + kv[2] * kv[2]).sqrt();
+                    let kpn = (kp[0] * kp[0] + kp[1] * kp[1] + kp[2] * kp[2]).sqrt();
+                    let axial = (h.rise * h.n[i]).abs() / p.len.max(1e-300);
+                    ((tn * amp + axial).min(1.0), kn * amp, kpn * amp)
+                }
+                _ => (t[i].abs(), kv[i].abs(), kp[i].abs()),
+            };
+            if ti > 0.0 {
+                v_axis = v_axis.min(lim.v[i] / ti);
+            }
+            if ki > 0.0 {
+                v2 = v2.min(lim.a[i] / ki);
+            }
+            if kpi > 0.0 {
+                let share = if p.corner_blend {
+                    JERK_SHARE_CURVATURE_BLEND
+                } else {
+                    JERK_SHARE_CURVATURE
+                };
+                vj3 = vj3.min(share * lim.j[i] / kpi);
+            }
+        }
+        (v_axis, v2.sqrt(), vj3.cbrt())
+    }
+
+    /// The braking jerk of a piece, over all nine axes.
+    fn plain_jerk_available(p: &Piece, lim: &Lim) -> f64 {
+        let mut jm = f64::INFINITY;
+        for k in 0..=p.ns {
+            let sm = &p.smp[k];
+            let vs = sm.v_axis.min(sm.v_curve);
+            let v3 = if vs.is_finite() && matches!(p.shape, Shape::Helix(_)) {
+                vs * vs * vs
+            } else {
+                0.0
+            };
+            for i in 0..AXES {
+                let ti = sm.t[i].abs();
+                if lim.present[i] && ti > 1e-12 {
+                    let v3 = if p.dense_bounds && vs.is_finite() {
+                        let v = vs.min(2.0 * lim.a[i] * lim.a[i] / lim.j[i]);
+                        v * v * v
+                    } else {
+                        v3
+                    };
+                    let room = (lim.j[i] - sm.kp[i].abs() * v3).max(0.1 * lim.j[i]);
+                    jm = jm.min(room / ti);
+                }
+            }
+        }
+        if !jm.is_finite() {
+            jm = (0..AXES)
+                .filter(|i| lim.present[*i])
+                .fold(f64::INFINITY, |m, i| m.min(lim.j[i]));
+        }
+        jm * if p.straight {
+            BRAKE_SHARE_STRAIGHT
+        } else {
+            BRAKE_SHARE_CURVED
+        }
+    }
+
+    /// Deceleration (`sign` 1) or acceleration (−1) at one sample, over all nine axes.
+    fn plain_tangential(p: &Piece, k: usize, v: f64, lim: &Lim, sign: f64) -> f64 {
+        let sm = &p.smp[k];
+        let mut d = f64::INFINITY;
+        for i in 0..AXES {
+            if !lim.present[i] {
+                continue;
+            }
+            let (ti, c) = (sm.t[i], v * v * sm.k[i]);
+            let bound = if ti > 1e-12 {
+                (lim.a[i] + sign * c) / ti
+            } else if ti < -1e-12 {
+                (lim.a[i] - sign * c) / -ti
+            } else {
+                f64::INFINITY
+            };
+            d = d.min(bound);
+        }
+        if sign < 0.0 {
+            return d.max(0.0) * BRAKE_SHARE_STRAIGHT;
+        }
+        if !d.is_finite() {
+            d = (0..AXES)
+                .filter(|i| lim.present[*i])
+                .fold(f64::INFINITY, |m, i| m.min(lim.a[i]));
+        }
+        let share = if p.straight {
+            BRAKE_SHARE_STRAIGHT
+        } else {
+            BRAKE_SHARE_CURVED
+        };
+        d.max(0.0) * share
+    }
+
+    /// Largest tangential value of the per-axis `limit` over the samples.
+    fn plain_head(p: &Piece, lim: &Lim, limit: &AxisVec) -> f64 {
+        let mut m = f64::INFINITY;
+        for k in 0..=p.ns {
+            for i in 0..AXES {
+                let ti = p.smp[k].t[i].abs();
+                if lim.present[i] && ti > 1e-12 {
+                    m = m.min(limit[i] / ti);
+                }
+            }
+        }
+        if m.is_finite() { m } else { 1.0 }
+    }
+
+    fn pieces(st: &mut u64) -> Vec<Piece> {
+        let mut out = Vec::new();
+        for n in 0..60 {
+            let z = if n % 3 == 0 { 1.0 } else { 0.0 };
+            let mut v = |s: f64| {
+                let mut a = [0.0; AXES];
+                a[0] = s * lcg(st);
+                a[1] = s * lcg(st);
+                a[2] = z * s * lcg(st);
+                a
+            };
+            let (p0, d0, dd0, p1, d1, dd1) = (v(5.0), v(1.0), v(0.5), v(5.0), v(1.0), v(0.5));
+            let shape = quintic(&p0, &d0, &dd0, &p1, &d1, &dd1);
+            out.push(Piece::new(shape, p0, p1, 50.0, false, n));
+            let (a, c, b) = (v(2.0), v(2.0), v(2.0));
+            let mut blend = Piece::new(corner_bezier(&a, &c, &b), a, b, 80.0, false, n);
+            blend.corner_blend = true;
+            out.push(blend);
+        }
+        // Spans along circles (as in dense CAM polylines): centripetally bounded.
+        for n in 0..20 {
+            let (r, phi) = (2.0 + n as f64, 0.02 + 0.01 * n as f64);
+            let at = |th: f64, s: f64| {
+                let mut a = [0.0; AXES];
+                a[0] = s * th.cos();
+                a[1] = s * th.sin();
+                a
+            };
+            let (p0, p1) = (at(0.0, r), at(phi, r));
+            let (t0, t1) = (at(0.5 * PI, r * phi), at(0.5 * PI + phi, r * phi));
+            let (k0, k1) = (at(PI, r * phi * phi), at(PI + phi, r * phi * phi));
+            let shape = quintic(&p0, &t0, &k0, &p1, &t1, &k1);
+            out.push(Piece::new(shape, p0, p1, 200.0, false, 200 + n));
+        }
+        let h = Helix {
+            centre: [0.0; 3],
+            e1: [1.0, 0.0, 0.0],
+            e2: [0.0, 1.0, 0.0],
+            n: [0.0, 0.0, 1.0],
+            r0: 2.0,
+            dr: 0.0,
+            sweep: 1.3,
+            rise: 0.4,
+            other0: [0.0; AXES],
+            other_delta: [0.0; AXES],
+        };
+        let (a, b) = (Shape::Helix(h).pos(0.0), Shape::Helix(h).pos(1.0));
+        out.push(Piece::new(Shape::Helix(h), a, b, 30.0, false, 99));
+        out
+    }
+
+    #[test]
+    fn fast_paths_give_the_plain_values() {
+        let lim = Lim::from(&MachineLimits::uniform(
+            &[Axis::X, Axis::Y, Axis::Z],
+            AxisLimits::new(100.0, 1000.0, 50_000.0, -1e3, 1e3),
+        ));
+        let mut st = 11u64;
+        // Samples bounded by the centripetal acceleration (the cube root skipped) and by
+        // the curvature change (taken).
+        let (mut centripetal, mut curvature_change) = (0, 0);
+        for mut p in pieces(&mut st) {
+            p.sample(&lim);
+            p.set_tangent_limits(&lim);
+            for k in 0..=p.ns {
+                let u = p.map.u(p.len * k as f64 / p.ns as f64);
+                let (t, kv, kp) = arc_derivs(&p.shape.eval(u));
+                let sm = p.smp[k];
+                for i in 0..AXES {
+                    assert_eq!(sm.t[i].to_bits(), t[i].to_bits());
+                    assert_eq!(sm.k[i].to_bits(), kv[i].to_bits());
+                    assert_eq!(sm.kp[i].to_bits(), kp[i].to_bits());
+                }
+                let (va, vc, vj) = plain_bounds(&p, &t, &kv, &kp, &lim);
+                assert_eq!(sm.v_axis.to_bits(), va.to_bits());
+                assert_eq!(sm.v_curve.to_bits(), vc.min(vj).to_bits());
+                centripetal += usize::from(vc < vj);
+                curvature_change += usize::from(vj < vc);
+            }
+            for k in 0..p.ns {
+                for v in [0.0, 3.0, 40.0 * (1.0 + lcg(&mut st)), 400.0] {
+                    let d = plain_tangential(&p, k, v, &lim, 1.0).min(plain_tangential(
+                        &p,
+                        k + 1,
+                        v,
+                        &lim,
+                        1.0,
+                    ));
+                    assert_eq!(p.decel_available_pair(k, v, &lim).to_bits(), d.to_bits());
+                    assert_eq!(
+                        p.decel_available(k, v, &lim).to_bits(),
+                        plain_tangential(&p, k, v, &lim, 1.0).to_bits()
+                    );
+                    let a = plain_tangential(&p, k, v, &lim, -1.0).min(plain_tangential(
+                        &p,
+                        k + 1,
+                        v,
+                        &lim,
+                        -1.0,
+                    ));
+                    assert_eq!(p.accel_available_pair(k, v, &lim).to_bits(), a.to_bits());
+                }
+            }
+            assert_eq!(
+                p.j_brake.to_bits(),
+                plain_jerk_available(&p, &lim).to_bits()
+            );
+            assert_eq!(
+                p.a_proj[0].to_bits(),
+                plain_head(&p, &lim, &lim.a).to_bits()
+            );
+            assert_eq!(
+                p.a_proj[1].to_bits(),
+                plain_head(&p, &lim, &lim.qa).to_bits()
+            );
+            assert_eq!(
+                p.j_proj[0].to_bits(),
+                plain_head(&p, &lim, &lim.j).to_bits()
+            );
+            assert_eq!(
+                p.j_proj[1].to_bits(),
+                plain_head(&p, &lim, &lim.qj).to_bits()
+            );
+        }
+        assert!(
+            centripetal > 20 && curvature_change > 20,
+            "{centripetal} {curvature_change}"
+        );
     }
 }

@@ -130,9 +130,9 @@ impl Ring {
             None
         }
     }
-    fn push(&mut self, p: Piece) {
+    fn push(&mut self, p: &Piece) {
         let c = self.cap();
-        self.buf[(self.head + self.len) % c] = p;
+        self.buf[(self.head + self.len) % c] = *p;
         self.len += 1;
     }
     fn pop(&mut self) {
@@ -775,25 +775,17 @@ impl<K: Kinematics> Planner<K> {
     fn append_scratch(&mut self, update: bool) {
         let first_new = self.q.len;
         let n = self.scratch.len();
-        for k in 0..n {
-            let mut p = self.scratch[k];
-            p.sample(&self.lim);
-            p.j_brake = p.jerk_available(&self.lim);
-            p.a_proj = [
-                head_accel(&p, &self.lim, false),
-                head_accel(&p, &self.lim, true),
-            ];
-            p.j_proj = [
-                head_jerk(&p, &self.lim, false),
-                head_jerk(&p, &self.lim, true),
-            ];
+        let lim = self.lim;
+        for p in self.scratch.iter_mut() {
+            // (In place: a piece is a few kB, copied once, into the window.)
+            if !p.sampled {
+                p.sample(&lim);
+            }
+            p.set_tangent_limits(&lim);
             if self.q.len > 0 {
-                let last_idx = self.q.len - 1;
-                let period = self.period;
-                let lim = self.lim;
-                let last = self.q.get_mut(last_idx);
+                let last = self.q.get_mut(self.q.len - 1);
                 if !last.stop_at_end {
-                    junction(last, &mut p, &lim, period);
+                    junction(last, p, &lim, self.period);
                 }
             }
             p.cum_start = self.cum_end;
@@ -877,13 +869,9 @@ impl<K: Kinematics> Planner<K> {
                 for k in (0..ns).rev() {
                     let vl = p.vlc(k, fo, ro).min(p.vlc(k + 1, fo, ro));
                     let w1 = p.w[k + 1];
-                    let d1 = p
-                        .decel_available(k, w1, &lim)
-                        .min(p.decel_available(k + 1, w1, &lim));
+                    let d1 = p.decel_available_pair(k, w1, &lim);
                     let west = vl.min((w1 * w1 + 2.0 * h * d1).sqrt());
-                    let d2 =
-                        p.decel_available(k, west, &lim)
-                            .min(p.decel_available(k + 1, west, &lim));
+                    let d2 = p.decel_available_pair(k, west, &lim);
                     let acc = d1.min(d2);
                     p.a_sub[k] = acc;
                     let wfull = (w1 * w1 + 2.0 * h * acc).sqrt();
@@ -941,9 +929,7 @@ impl<K: Kinematics> Planner<K> {
                 let h = p.len / ns as f64;
                 for k in 0..ns {
                     let w0 = p.w[k];
-                    let acc =
-                        p.accel_available(k, w0, &lim)
-                            .min(p.accel_available(k + 1, w0, &lim));
+                    let acc = p.accel_available_pair(k, w0, &lim);
                     p.acc_sub[k] = acc;
                     p.w[k + 1] = p.w[k + 1].min((w0 * w0 + 2.0 * h * acc).sqrt());
                 }
@@ -1012,23 +998,6 @@ impl<K: Kinematics> Planner<K> {
         }
         self.regenerate();
     }
-}
-
-/// the tangent, ignoring centripetal load; the per-sample check enforces the rest).
-fn head_accel(p: &Piece, lim: &Lim, quick: bool) -> f64 {
-    let mut am = f64::INFINITY;
-    for k in 0..=p.ns {
-        for i in 0..AXES {
-            if lim.present[i] {
-                let ti = p.smp[k].t[i].abs();
-                let ai = if quick { lim.qa[i] } else { lim.a[i] };
-                if ti > 1e-12 {
-                    am = am.min(ai / ti);
-                }
-            }
-        }
-    }
-    if am.is_finite() { am } else { 1.0 }
 }
 
 /// `x` limited to [lo, hi]; never panics: an empty range gives its middle, NaN gives `lo`
@@ -1120,23 +1089,6 @@ fn land_steps(hist: [f64; 2], rem: f64, n: usize, j_step: f64, a_step: f64) -> O
         }
     }
     Some(if n == 1 { rem } else { x[0] })
-}
-
-/// Largest tangential jerk on a piece (axis jerk limits projected on the tangent).
-fn head_jerk(p: &Piece, lim: &Lim, quick: bool) -> f64 {
-    let mut jm = f64::INFINITY;
-    for k in 0..=p.ns {
-        for i in 0..AXES {
-            if lim.present[i] {
-                let ti = p.smp[k].t[i].abs();
-                let ji = if quick { lim.qj[i] } else { lim.j[i] };
-                if ti > 1e-12 {
-                    jm = jm.min(ji / ti);
-                }
-            }
-        }
-    }
-    if jm.is_finite() { jm } else { 1.0 }
 }
 
 /// Jerk of the fastest stop: brake with -J until the speed left equals what releasing the

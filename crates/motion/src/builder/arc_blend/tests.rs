@@ -306,3 +306,63 @@ fn short_neighbours_limit_the_speed_a_stop_is_weighed_from() {
     assert!((stop - 0.063_33).abs() < 1e-5 && (blend - 0.090_11).abs() < 1e-5);
     assert!(!long.blend_pays(&lim));
 }
+
+/// The speed whose jerk-limited stop (1000 mm/s², 50 000 mm/s³) takes a given distance,
+/// worked by hand: 0.1 mm is below A³/J² = 0.4 mm, a pure-jerk stop, v·sqrt(v/J) = 0.1,
+/// v = (0.01·J)^(1/3) = 7.937 005 mm/s; 10 mm is above: v²/(2A) + v·A/(2J) = 10,
+/// v² + 20 v − 20 000 = 0, v = −10 + sqrt(20 100) = 131.774 468 mm/s.
+#[test]
+fn the_speed_whose_stop_takes_a_distance() {
+    let (a, j) = (1000.0, 50_000.0);
+    let v = stop_speed_for_distance(0.1, a, j);
+    assert!((v - 7.937_005_259_840_998).abs() < 1e-12, "{v}");
+    let v = stop_speed_for_distance(10.0, a, j);
+    assert!((v - (-10.0 + 20_100f64.sqrt())).abs() < 1e-12, "{v}");
+    assert!((v - 131.774_468).abs() < 1e-6, "{v}");
+}
+
+/// The bisection for the speed that stops within a neighbour skips the evaluations far
+/// from the closed-form speed: its result is the one of evaluating the stop at every step
+/// (the bisection as first written, below), bit for bit, over reaches from 1 µm to 1 m
+/// (both sides of the pure-jerk regime) and several limits.
+#[test]
+fn the_shortened_bisection_gives_the_full_bisections_speed() {
+    let full = |f: f64, reach: f64, a: f64, j: f64| {
+        if scurve::stop(f, 0.0, a, j).0 > reach {
+            let (mut lo, mut hi) = (0.0, f);
+            for _ in 0..48 {
+                let mid = 0.5 * (lo + hi);
+                if scurve::stop(mid, 0.0, a, j).0 > reach {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            lo
+        } else {
+            f
+        }
+    };
+    let mut n = 0;
+    for (a, j) in [
+        (1000.0, 50_000.0),
+        (300.0, 1e6),
+        (5000.0, 2e4),
+        (1414.2, 70_710.7),
+    ] {
+        for f in [10.0, 100.0, 1000.0] {
+            for k in 0..120 {
+                let reach = 1e-3 * 10f64.powf(k as f64 / 20.0);
+                let want = full(f, reach, a, j);
+                assert_eq!(
+                    speed_stopping_within(f, reach, a, j).to_bits(),
+                    want.to_bits(),
+                    "f {f} reach {reach} a {a} j {j}"
+                );
+                n += usize::from(want < f);
+            }
+        }
+    }
+    // Most cases bisect (a test that never bisects would prove nothing).
+    assert!(n > 900, "{n}");
+}
