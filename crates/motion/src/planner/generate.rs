@@ -28,6 +28,10 @@ pub(super) const STOP_JERK_SHARE: f64 = 0.9;
 const STRICT_FACTOR: f64 = 0.9;
 /// Set-points dropped by the first rollback at a dead end (doubling per attempt).
 const ROLLBACK_FIRST: usize = 4;
+/// Resolution of the jerk search, relative to the width of the admissible range: the
+/// chosen jerk is within this of the largest the model accepts (about 100 mm/s³ for an
+/// axis jerk of 50 000 mm/s³: 5e-5 mm/s of speed left unused over a 1 ms period).
+const JERK_RESOLUTION: f64 = 1.0 / 1024.0;
 
 /// What the speed model needs for one period.
 struct Model {
@@ -54,7 +58,7 @@ struct Model {
 }
 
 /// Why a path jerk is refused by the model.
-#[derive(PartialEq)]
+#[derive(Clone, Copy, PartialEq)]
 enum Verdict {
     Safe,
     /// Overshoots the stop (or the hold point), or brakes harder than the path allows.
@@ -612,7 +616,7 @@ impl<K: Kinematics> Planner<K> {
         } else {
             let j_min = j_lo.max((a_lo - a) / t).min(j_hi);
             let choice = self.choose_jerk(&model, j_min, j_hi, st.j_last);
-            let choice = choice.or_else(|| {
+            let choice = choice.or_else(|v_min| {
                 // Nothing passes the model: brake as hard as the path allows while the
                 // deceleration can still be released before the speed reaches zero.
                 self.stats.emergency_brakes += 1;
@@ -632,18 +636,22 @@ impl<K: Kinematics> Planner<K> {
                     );
                 }
                 let bj = clampf(brake_jerk(v, a, -a_lo, j_stop, t), j_lo, j_hi);
-                [j_min, bj]
-                    .into_iter()
-                    .find(|c| self.judge(&model, *c) != Verdict::Stop)
+                if v_min != Verdict::Stop {
+                    Ok(j_min)
+                } else if self.judge(&model, bj) != Verdict::Stop {
+                    Ok(bj)
+                } else {
+                    Err(())
+                }
             });
             match choice {
-                Some(j) => {
+                Ok(j) => {
                     j_used = j;
                     let (ds, _, _) = advance(0.0, v, a, j, t);
                     model_ds = ds;
                     clampf(ds, 0.0, rem.max(0.0))
                 }
-                None => {
+                Err(()) => {
                     // No constant jerk over the period keeps the stop: follow the stop
                     // profile exactly (a switch of its jerk falls inside the period).
                     // The model's profile while it fits, else with the full stop capability
@@ -770,39 +778,61 @@ impl<K: Kinematics> Planner<K> {
         Some(n)
     }
 
-    /// The largest path jerk in [`j_min`, `j_hi`] the model accepts: the upper end, else a
-    /// bisection (warm-started next to the last period's jerk). None when even `j_min` fails.
-    fn choose_jerk(&self, m: &Model, j_min: f64, j_hi: f64, j_last: f64) -> Option<f64> {
+    /// The largest path jerk in [`j_min`, `j_hi`] the model accepts. Tried first: the jerk
+    /// that brings the acceleration to its bound (anything above fails the model's first
+    /// test), then the jerk that brings the speed onto the braking curve at the end of the
+    /// period (the test that binds while the path runs at its limit), taken when it passes
+    /// and one [`JERK_RESOLUTION`] above it fails; else a bisection warm-started next to
+    /// the last period's jerk. Err when even `j_min` fails, with its verdict.
+    fn choose_jerk(&self, m: &Model, j_min: f64, j_hi: f64, j_last: f64) -> Result<f64, Verdict> {
         let safe = |j: f64| self.judge(m, j) == Verdict::Safe;
-        if safe(j_hi) {
-            return Some(j_hi);
+        // The jerk that brings the acceleration to its bound (any above fails the model).
+        let top = clampf((m.a_hi.max(0.0) - m.a) / m.t, j_min, j_hi);
+        if safe(top) {
+            return Ok(top);
+        }
+        let tol = JERK_RESOLUTION * (j_hi - j_min);
+        if let Some(g) = self.curve_jerk(m, clampf(j_last, j_min, top))
+            && g > j_min
+            && g < top
+            && safe(g)
+            && (g + tol >= top || !safe(g + tol))
+        {
+            return Ok(g);
         }
         let step = 0.02 * (j_hi - j_min).max(0.0);
-        let j_prev = clampf(j_last, j_min, j_hi);
+        let j_prev = clampf(j_last, j_min, top);
         let (mut lo, mut hi, iters) = if safe(j_prev) {
-            let up = (j_prev + step).min(j_hi);
+            let up = (j_prev + step).min(top);
             if step > 0.0 && !safe(up) {
                 (j_prev, up, 5)
             } else {
-                (up, j_hi, 9)
+                (up, top, 9)
             }
-        } else if safe(j_min) {
-            (j_min, j_prev, 9)
         } else {
-            // The hardest braking fails too: braking must be released before the speed
-            // reaches zero, so the admissible jerks start above `j_min`. The fastest stop's
-            // jerk is the lowest of them; else the largest safe point of a coarse grid.
-            let bj = clampf(brake_jerk(m.v, m.a, m.a_stop, m.j_stop, m.t), j_min, j_hi);
-            let lo = if safe(bj) {
-                bj
-            } else {
-                let n = 8;
-                let grid = (1..n)
-                    .rev()
-                    .map(|k| j_min + (j_hi - j_min) * k as f64 / n as f64);
-                grid.into_iter().find(|j| safe(*j))?
-            };
-            (lo, j_hi, 9)
+            match self.judge(m, j_min) {
+                Verdict::Safe => (j_min, j_prev, 9),
+                v_min => {
+                    // The hardest braking fails too: braking must be released before the
+                    // speed reaches zero, so the admissible jerks start above `j_min`. The
+                    // fastest stop's jerk is the lowest of them; else the largest safe
+                    // point of a coarse grid.
+                    let bj = clampf(brake_jerk(m.v, m.a, m.a_stop, m.j_stop, m.t), j_min, j_hi);
+                    let lo = if safe(bj) {
+                        bj
+                    } else {
+                        let n = 8;
+                        let grid = (1..n)
+                            .rev()
+                            .map(|k| j_min + (j_hi - j_min) * k as f64 / n as f64);
+                        match grid.into_iter().find(|j| safe(*j)) {
+                            Some(j) => j,
+                            None => return Err(v_min),
+                        }
+                    };
+                    (lo, j_hi, 9)
+                }
+            }
         };
         for _ in 0..iters {
             let mid = 0.5 * (lo + hi);
@@ -812,7 +842,23 @@ impl<K: Kinematics> Planner<K> {
                 hi = mid;
             }
         }
-        Some(lo)
+        Ok(lo)
+    }
+
+    /// The jerk that brings the speed onto the braking curve at the end of the period
+    /// (the curve linearised along its slope around the point jerk `j0` reaches); None
+    /// where the curve is zero there.
+    fn curve_jerk(&self, m: &Model, j0: f64) -> Option<f64> {
+        let t = m.t;
+        let (ds0, _, _) = advance(0.0, m.v, m.a, j0, t);
+        let (w, slope) = self.w_abs(m.idx, m.at + ds0, m.stop_at);
+        if !(w > 0.0) {
+            return None;
+        }
+        // v + a t + j t²/2 = cap (w - slope/w (j - j0) t³/6)
+        let k = m.cap * slope / w * t * t * t / 6.0;
+        let j = (m.cap * w + k * j0 - m.v - m.a * t) / (0.5 * t * t + k);
+        j.is_finite().then_some(j)
     }
 
     /// Box of the next set-point per axis: every finite difference with the last three
