@@ -74,6 +74,10 @@ pub(crate) struct Piece {
     pub a_sub: [f64; NS_MAX],
     /// Acceleration the forward pass allows on each sub-interval.
     pub acc_sub: [f64; NS_MAX],
+    /// Speed limit on each sub-interval under the current overrides (the lower of its two
+    /// samples), kept by the forward pass, which runs over every piece whose samples or
+    /// overrides change.
+    pub vl_sub: [f64; NS_MAX],
     /// Smallest deceleration from this piece to the next stop, within the stop's reach.
     pub a_to_stop: f64,
     /// Smallest braking jerk from this piece to the next stop.
@@ -149,6 +153,7 @@ impl Piece {
             w: [0.0; NS_MAX + 1],
             a_sub: [0.0; NS_MAX],
             acc_sub: [f64::INFINITY; NS_MAX],
+            vl_sub: [f64::INFINITY; NS_MAX],
             a_to_stop: f64::INFINITY,
             j_to_stop: f64::INFINITY,
             j_brake: f64::INFINITY,
@@ -415,7 +420,7 @@ impl Piece {
     /// Braking-curve speed at local arc length `s` and its deceleration there (0 where the
     /// curve is at the speed limit, i.e. flat).
     #[inline]
-    pub fn w_at(&self, s: f64, fo: f64, ro: f64) -> (f64, f64) {
+    pub fn w_at(&self, s: f64) -> (f64, f64) {
         if self.len <= 0.0 {
             return (self.w[0], 0.0);
         }
@@ -425,7 +430,7 @@ impl Piece {
             k = self.ns - 1;
         }
         let s1 = h * (k + 1) as f64;
-        let vl = self.vlc(k, fo, ro).min(self.vlc(k + 1, fo, ro));
+        let vl = self.vl_sub[k];
         let wn = self.w[k + 1];
         let d = (s1 - s).max(0.0);
         let wb = (wn * wn + 2.0 * self.a_sub[k] * d).sqrt();

@@ -111,14 +111,27 @@ impl Ring {
     fn cap(&self) -> usize {
         self.buf.len()
     }
+    /// Buffer slot of ring position `i` (a subtraction instead of a division: the lookups
+    /// of every servo period go through here).
+    #[inline]
+    fn slot(&self, i: usize) -> usize {
+        let (c, j) = (self.cap(), self.head + i);
+        if j < c {
+            j
+        } else if j - c < c {
+            j - c
+        } else {
+            j % c
+        }
+    }
     #[inline]
     fn get(&self, i: usize) -> &Piece {
-        &self.buf[(self.head + i) % self.cap()]
+        &self.buf[self.slot(i)]
     }
     #[inline]
     fn get_mut(&mut self, i: usize) -> &mut Piece {
-        let c = self.cap();
-        &mut self.buf[(self.head + i) % c]
+        let j = self.slot(i);
+        &mut self.buf[j]
     }
     /// Ring position of piece `id`, if it is in the window.
     #[inline]
@@ -917,6 +930,7 @@ impl<K: Kinematics> Planner<K> {
                 let vl = p
                     .vlc(k, self.fo, self.ro)
                     .min(p.vlc(k + 1, self.fo, self.ro));
+                p.vl_sub[k] = vl;
                 low = low.min(p.w[k + 1]).min(vl);
             }
             p.w_low = low;

@@ -11,6 +11,7 @@
 //! end and rolls back.
 
 use super::*;
+use crate::geometry::Shape;
 use crate::otg::{Limits as OtgLimits, State as OtgState, position_profile};
 use crate::piece::jerk_stop_speed;
 use crate::scurve::stop_advance;
@@ -354,20 +355,20 @@ impl<K: Kinematics> Planner<K> {
     fn find(&self, from: usize, target: f64, stop_at: f64) -> (usize, f64) {
         let clamped = target >= stop_at;
         let target = target.min(stop_at);
-        // Most targets lie within a few pieces: look there first.
+        // Most targets lie within a few pieces: gallop from `from` (strides 1, 2, 4, ...)
+        // to bracket the target, then bisect the bracket.
         let mut lo = from;
-        for _ in 0..3 {
-            if lo + 1 < self.q.len && self.q.get(lo + 1).cum_start < target {
-                lo += 1;
+        let mut hi = self.q.len.saturating_sub(1).max(from);
+        let mut stride = 1;
+        while lo + stride <= hi {
+            if self.q.get(lo + stride).cum_start < target {
+                lo += stride;
+                stride *= 2;
             } else {
-                let p = self.q.get(lo);
-                if clamped && p.cum_start + p.len >= stop_at - 1e-9 {
-                    return (lo, p.len);
-                }
-                return (lo, (target - p.cum_start).clamp(0.0, p.len));
+                hi = lo + stride - 1;
+                break;
             }
         }
-        let mut hi = self.q.len - 1;
         while lo < hi {
             let mid = (lo + hi).div_ceil(2);
             if self.q.get(mid).cum_start < target {
@@ -390,7 +391,7 @@ impl<K: Kinematics> Planner<K> {
             return (0.0, 0.0);
         }
         let (i, sl) = self.find(from, target, stop_at);
-        self.q.get(i).w_at(sl, self.fo, self.ro)
+        self.q.get(i).w_at(sl)
     }
 
     /// The model's verdict on path jerk `j` for this period.
@@ -448,7 +449,7 @@ impl<K: Kinematics> Planner<K> {
             }
             let (i, sl) = self.find(m.idx, target, m.stop_at);
             let p = self.q.get(i);
-            let (wp, _) = p.w_at(sl, self.fo, self.ro);
+            let (wp, _) = p.w_at(sl);
             if vp > m.cap * wp * (1.0 + 1e-12) + 1e-12 {
                 return Verdict::Curve;
             }
@@ -536,8 +537,14 @@ impl<K: Kinematics> Planner<K> {
         let ds_pred = (v * t + 0.5 * a * t * t).max(0.0);
         let v_pred = (v + a * t).max(0.0);
         let (k1, s1) = self.locate(idx, st.s, st.at, ds_pred, stop_at);
-        let geo1 = self.q.get(k1).geo_at(s1);
-        let (a_lo1, a_hi1, _, _) = path_bounds(&self.lim, &geo1, v_pred, a, quick);
+        // On the same line the bounds do not depend on the place or the speed.
+        let (a_lo1, a_hi1) = if k1 == idx && matches!(head.shape, Shape::Line { .. }) {
+            (a_lo0, a_hi0)
+        } else {
+            let geo1 = self.q.get(k1).geo_at(s1);
+            let (a_lo1, a_hi1, _, _) = path_bounds(&self.lim, &geo1, v_pred, a, quick);
+            (a_lo1, a_hi1)
+        };
         let (mut a_lo, mut a_hi) = (a_lo0.max(a_lo1), a_hi0.min(a_hi1));
         let a_full = CONTROL_SHARE * head.a_proj[quick as usize];
         if !(a_lo < a_hi) {
