@@ -1,7 +1,7 @@
 //! A piece of the planned path with its velocity-limit samples and braking curve.
 
 use crate::axes::{AXES, AxisVec, norm_xyz};
-use crate::geometry::{ArcMap, Shape, arc_derivs};
+use crate::geometry::{ArcMap, Shape, arc_derivs, arc_derivs_axes};
 use crate::limits::Lim;
 
 /// Most sub-intervals of one piece's velocity-limit samples.
@@ -44,6 +44,9 @@ pub(crate) struct Sample {
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Piece {
     pub shape: Shape,
+    /// Axes the shape moves ([`Shape::moving_axes`]): the per-period geometry visits only
+    /// these.
+    pub moving: u16,
     pub map: ArcMap,
     pub len: f64,
     pub start: AxisVec,
@@ -135,6 +138,7 @@ impl Piece {
         };
         Piece {
             shape,
+            moving: shape.moving_axes(),
             map,
             len,
             start,
@@ -218,7 +222,10 @@ impl Piece {
         if let Shape::Line { dir, .. } = &self.shape {
             return (*dir, [0.0; AXES], [0.0; AXES]);
         }
-        arc_derivs(&self.shape.eval(self.map.u(s.clamp(0.0, self.len))))
+        let d = self
+            .shape
+            .eval_axes(self.map.u(s.clamp(0.0, self.len)), self.moving);
+        arc_derivs_axes(&d, self.moving)
     }
 
     /// Fills the samples (geometry and speed bounds) from the machine limits.

@@ -4,7 +4,7 @@
 
 mod generate;
 
-use generate::{STOP_JERK_SHARE, STOP_SHARE};
+use generate::{STOP_JERK_SHARE, STOP_SHARE, StepLimits};
 
 use crate::axes::{AXES, AxisVec, norm};
 use crate::builder::{Builder, GeometryStats, KINK};
@@ -293,6 +293,8 @@ struct Strict {
 pub struct Planner<K: Kinematics> {
     kin: K,
     lim: Lim,
+    /// The set-point check's largest steps per axis, from `lim` and `period`.
+    steps: StepLimits,
     period: f64,
     q: Ring,
     builder: Builder,
@@ -392,6 +394,7 @@ impl<K: Kinematics> Planner<K> {
         let cur = GenState::rest(start, 0, 0.0);
         Ok(Planner {
             kin: kinematics,
+            steps: StepLimits::new(&lim, servo_period),
             lim,
             period: servo_period,
             q: Ring::new(window),

@@ -64,8 +64,20 @@ enum Verdict {
     Safe,
     /// Overshoots the stop (or the hold point), or brakes harder than the path allows.
     Stop,
+    /// Its stop from the end of the period (a releasable one) ends beyond the stop or
+    /// hold point; so does every larger jerk's (the stop distance grows with the jerk).
+    Overshoot,
     /// Exceeds the braking curve.
     Curve,
+    /// Ends the period above the path's acceleration bound; so does every larger jerk.
+    AccelBound,
+}
+
+impl Verdict {
+    /// Refused for the stop (either way).
+    fn is_stop(self) -> bool {
+        matches!(self, Verdict::Stop | Verdict::Overshoot)
+    }
 }
 
 impl<K: Kinematics> Planner<K> {
@@ -401,7 +413,7 @@ impl<K: Kinematics> Planner<K> {
             return Verdict::Stop;
         }
         if a1 > m.a_hi.max(0.0) + 1e-9 {
-            return Verdict::Curve;
+            return Verdict::AccelBound;
         }
         let v1 = v1.max(0.0);
         // A state that decelerates so hard that the speed would reach zero before the
@@ -411,7 +423,7 @@ impl<K: Kinematics> Planner<K> {
         }
         let (dst, _) = stop(v1, a1, m.a_stop, m.j_stop);
         if ds + dst > m.rem * (1.0 + 1e-12) + 1e-12 {
-            return Verdict::Stop;
+            return Verdict::Overshoot;
         }
         let at1 = m.at + ds;
         // The highest speed of the probe below (where its acceleration crosses zero).
@@ -631,7 +643,9 @@ impl<K: Kinematics> Planner<K> {
                     let name = |v: Verdict| match v {
                         Verdict::Safe => "safe",
                         Verdict::Stop => "stop",
+                        Verdict::Overshoot => "overshoot",
                         Verdict::Curve => "curve",
+                        Verdict::AccelBound => "acceleration",
                     };
                     eprintln!(
                         "  EMERGENCY j_min={j_min}:{} 0:{} j_hi={j_hi}:{} a_stop={} j_stop={}",
@@ -643,9 +657,9 @@ impl<K: Kinematics> Planner<K> {
                     );
                 }
                 let bj = clampf(brake_jerk(v, a, -a_lo, j_stop, t), j_lo, j_hi);
-                if v_min != Verdict::Stop {
+                if !v_min.is_stop() {
                     Ok(j_min)
-                } else if self.judge(&model, bj) != Verdict::Stop {
+                } else if !self.judge(&model, bj).is_stop() {
                     Ok(bj)
                 } else {
                     Err(())
@@ -795,8 +809,11 @@ impl<K: Kinematics> Planner<K> {
         let safe = |j: f64| self.judge(m, j) == Verdict::Safe;
         // The jerk that brings the acceleration to its bound (any above fails the model).
         let top = clampf((m.a_hi.max(0.0) - m.a) / m.t, j_min, j_hi);
-        if safe(top) {
-            return Ok(top);
+        match self.judge(m, top) {
+            Verdict::Safe => return Ok(top),
+            // Nothing from `j_min` on passes.
+            Verdict::AccelBound if top == j_min => return Err(Verdict::AccelBound),
+            _ => {}
         }
         let tol = JERK_RESOLUTION * (j_hi - j_min);
         if let Some(g) = self.curve_jerk(m, clampf(j_last, j_min, top))
@@ -819,6 +836,8 @@ impl<K: Kinematics> Planner<K> {
         } else {
             match self.judge(m, j_min) {
                 Verdict::Safe => (j_min, j_prev, 9),
+                // Every larger jerk overshoots too.
+                Verdict::Overshoot => return Err(Verdict::Overshoot),
                 v_min => {
                     // The hardest braking fails too: braking must be released before the
                     // speed reaches zero, so the admissible jerks start above `j_min`. The
@@ -852,9 +871,9 @@ impl<K: Kinematics> Planner<K> {
         Ok(lo)
     }
 
-    /// The jerk that brings the speed onto the braking curve at the end of the period
-    /// (the curve linearised along its slope around the point jerk `j0` reaches); None
-    /// where the curve is zero there.
+    /// The jerk that brings the speed onto the braking curve at the end of the period (the
+    /// curve linearised along its slope around the point jerk `j0` reaches); None where
+    /// the curve is zero there.
     fn curve_jerk(&self, m: &Model, j0: f64) -> Option<f64> {
         let t = m.t;
         let (ds0, _, _) = advance(0.0, m.v, m.a, j0, t);
@@ -872,27 +891,19 @@ impl<K: Kinematics> Planner<K> {
     /// set-points within the axis's v·T, a·T², j·T³ (shrunk by 1e-10 relative and the
     /// rounding of the differences).
     fn fd_box(&self, hist: &[AxisVec; 3], quick: bool) -> (AxisVec, AxisVec) {
-        let t = self.period;
-        let lim = &self.lim;
-        let (p0, p1, p2) = (hist[0], hist[1], hist[2]);
-        let mut lo = [f64::NEG_INFINITY; AXES];
-        let mut hi = [f64::INFINITY; AXES];
-        for i in 0..AXES {
-            if !lim.present[i] {
-                lo[i] = p0[i];
-                hi[i] = p0[i];
-                continue;
-            }
-            let (am, jm) = if quick {
-                (lim.qa[i], lim.qj[i])
-            } else {
-                (lim.a[i], lim.j[i])
-            };
+        let (p0, p1, p2) = (&hist[0], &hist[1], &hist[2]);
+        let steps = &self.steps;
+        let q = quick as usize;
+        // Axes without limits stay where they are.
+        let (mut lo, mut hi) = (*p0, *p0);
+        let mut m = steps.present;
+        while m != 0 {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
             let round = 16.0 * f64::EPSILON * (p0[i].abs() + p1[i].abs() + p2[i].abs() + 1.0);
-            let shrink = 1.0 - 1e-10;
-            let rv = lim.v[i] * t * shrink - round;
-            let ra = am * t * t * shrink - round;
-            let rj = jm * t * t * t * shrink - round;
+            let rv = steps.v[i] - round;
+            let ra = steps.a[q][i] - round;
+            let rj = steps.j[q][i] - round;
             let cv = p0[i];
             let ca = 2.0 * p0[i] - p1[i];
             let cj = 3.0 * p0[i] - 3.0 * p1[i] + p2[i];
@@ -952,6 +963,45 @@ impl<K: Kinematics> Planner<K> {
         } else {
             Err((ds, x, k, sl))
         }
+    }
+}
+
+/// Largest set-point steps per axis (first, second and third differences at the servo
+/// period, from the velocity, acceleration and jerk limits, normal and quick-stop, shrunk
+/// by 1e-10 relative), computed once for [`Planner::fd_box`].
+#[derive(Debug, Clone, Copy)]
+pub(super) struct StepLimits {
+    /// Axes with limits, one bit each.
+    present: u16,
+    v: AxisVec,
+    a: [AxisVec; 2],
+    j: [AxisVec; 2],
+}
+
+impl StepLimits {
+    pub(super) fn new(lim: &Lim, t: f64) -> StepLimits {
+        let shrink = 1.0 - 1e-10;
+        let mut sl = StepLimits {
+            present: 0,
+            v: [0.0; AXES],
+            a: [[0.0; AXES]; 2],
+            j: [[0.0; AXES]; 2],
+        };
+        for i in 0..AXES {
+            if !lim.present[i] {
+                continue;
+            }
+            sl.present |= 1 << i;
+            sl.v[i] = lim.v[i] * t * shrink;
+            for (q, (am, jm)) in [(lim.a[i], lim.j[i]), (lim.qa[i], lim.qj[i])]
+                .into_iter()
+                .enumerate()
+            {
+                sl.a[q][i] = am * t * t * shrink;
+                sl.j[q][i] = jm * t * t * t * shrink;
+            }
+        }
+        sl
     }
 }
 
