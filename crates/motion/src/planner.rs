@@ -316,6 +316,8 @@ pub struct Planner<K: Kinematics> {
     /// How far ahead (periods) the generator runs: the longest stop of the machine.
     depth: usize,
     strict: Option<Strict>,
+    /// A resume requested during the last steps of a hold's stop, done when they end.
+    resume_pending: bool,
     /// Time-optimal S-curve of an isolated straight line (rest to rest) with the id of its
     /// piece: such a move follows the OTG's profile instead of the period-by-period policy.
     line_profiles: [Option<(u64, Profile)>; PROFILE_SLOTS],
@@ -413,6 +415,7 @@ impl<K: Kinematics> Planner<K> {
             ahead: GenBuffer::new(depth + 1, cur),
             depth,
             strict: None,
+            resume_pending: false,
             line_profiles: [None; PROFILE_SLOTS],
             trace: std::env::var_os("RTCNC_MOTION_TRACE").is_some(),
         })
@@ -505,14 +508,23 @@ impl<K: Kinematics> Planner<K> {
 
     /// Feed hold: decelerate along the path and stay there until [`Planner::resume`].
     pub fn hold(&mut self) {
+        self.resume_pending = false;
         if self.hold.is_none() {
             self.start_stop(StopKind::Hold);
         }
     }
 
-    /// Resume after a feed hold, from where the machine stopped.
+    /// Resume after a feed hold, from where the machine stopped. Requested during the last
+    /// steps of the hold's stop (planned exactly to rest, at most 8 periods), it takes
+    /// effect when they end: from inside them the speed policy could be left a state it
+    /// cannot continue from, and no rollback reaches back past the request.
     pub fn resume(&mut self) {
         if matches!(self.hold, Some(h) if h.kind == StopKind::Hold) {
+            if self.cur.land_n > 0 {
+                self.resume_pending = true;
+                return;
+            }
+            self.resume_pending = false;
             self.hold = None;
             self.cur.hold_at = f64::INFINITY;
             self.regenerate();
@@ -521,12 +533,14 @@ impl<K: Kinematics> Planner<K> {
 
     /// Abort: decelerate along the path, then drop every queued move.
     pub fn abort(&mut self) {
+        self.resume_pending = false;
         self.start_stop(StopKind::Abort);
     }
 
     /// Quick stop (e-stop): decelerate along the path with the quick-stop deceleration and
     /// jerk, then drop every queued move.
     pub fn quick_stop(&mut self) {
+        self.resume_pending = false;
         self.start_stop(StopKind::Quick);
     }
 
@@ -599,6 +613,9 @@ impl<K: Kinematics> Planner<K> {
             }
         };
         self.emit(st);
+        if self.resume_pending && self.cur.v == 0.0 && self.cur.a == 0.0 {
+            self.resume();
+        }
         let x = self.cur.hist[0];
         self.kin.axes_to_joints(&x, joints);
         let state = match (self.cur.state, self.hold) {
@@ -1194,6 +1211,7 @@ impl<K: Kinematics> Planner<K> {
         self.builder.clear(position);
         self.line_profiles = [None; PROFILE_SLOTS];
         self.hold = None;
+        self.resume_pending = false;
         self.strict = None;
         self.ahead.len = 0;
         self.cur = GenState::rest(position, self.q.head_id, self.cum_end);
