@@ -466,7 +466,7 @@ impl<K: Kinematics> Planner<K> {
                 return Verdict::Curve;
             }
             if ap > 0.0 && !p.straight {
-                let (_, a_hi, _, _) = path_bounds(&self.lim, &p.geo_at(sl), vp, ap, m.quick);
+                let (_, a_hi) = accel_bounds(&self.lim, &p.geo_at(sl), vp, m.quick);
                 if ap > a_hi {
                     return Verdict::Curve;
                 }
@@ -554,8 +554,7 @@ impl<K: Kinematics> Planner<K> {
             (a_lo0, a_hi0)
         } else {
             let geo1 = self.q.get(k1).geo_at(s1);
-            let (a_lo1, a_hi1, _, _) = path_bounds(&self.lim, &geo1, v_pred, a, quick);
-            (a_lo1, a_hi1)
+            accel_bounds(&self.lim, &geo1, v_pred, quick)
         };
         let (mut a_lo, mut a_hi) = (a_lo0.max(a_lo1), a_hi0.min(a_hi1));
         let a_full = CONTROL_SHARE * head.a_proj[quick as usize];
@@ -1017,6 +1016,23 @@ fn path_bounds(
     a: f64,
     quick: bool,
 ) -> (f64, f64, f64, f64) {
+    bounds::<true>(lim, geo, v, a, quick)
+}
+
+/// The acceleration bounds of [`path_bounds`] alone (the same numbers, without the jerk's).
+fn accel_bounds(lim: &Lim, geo: &(AxisVec, AxisVec, AxisVec), v: f64, quick: bool) -> (f64, f64) {
+    let (a_lo, a_hi, _, _) = bounds::<false>(lim, geo, v, 0.0, quick);
+    (a_lo, a_hi)
+}
+
+#[inline]
+fn bounds<const JERK: bool>(
+    lim: &Lim,
+    geo: &(AxisVec, AxisVec, AxisVec),
+    v: f64,
+    a: f64,
+    quick: bool,
+) -> (f64, f64, f64, f64) {
     let (tan, kv, kp) = geo;
     let (mut a_lo, mut a_hi) = (f64::NEG_INFINITY, f64::INFINITY);
     let (mut j_lo, mut j_hi) = (f64::NEG_INFINITY, f64::INFINITY);
@@ -1031,7 +1047,6 @@ fn path_bounds(
         };
         let (am, jmx) = (CONTROL_SHARE * am, CONTROL_SHARE * jmx);
         let ca = kv[i] * v * v;
-        let cj = 3.0 * kv[i] * v * a + kp[i] * v * v * v;
         let (x0, x1) = ((-am - ca) / tan[i], (am - ca) / tan[i]);
         a_lo = a_lo.max(x0.min(x1));
         a_hi = a_hi.min(x0.max(x1));
@@ -1042,9 +1057,12 @@ fn path_bounds(
             a_lo = a_lo.max(-a_cap);
             a_hi = a_hi.min(a_cap);
         }
-        let (y0, y1) = ((-jmx - cj) / tan[i], (jmx - cj) / tan[i]);
-        j_lo = j_lo.max(y0.min(y1));
-        j_hi = j_hi.min(y0.max(y1));
+        if JERK {
+            let cj = 3.0 * kv[i] * v * a + kp[i] * v * v * v;
+            let (y0, y1) = ((-jmx - cj) / tan[i], (jmx - cj) / tan[i]);
+            j_lo = j_lo.max(y0.min(y1));
+            j_hi = j_hi.min(y0.max(y1));
+        }
     }
     (a_lo, a_hi, j_lo, j_hi)
 }
