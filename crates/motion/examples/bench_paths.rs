@@ -67,6 +67,8 @@ struct Measured {
     segments: usize,
     geo: String,
     ns_per_period: f64,
+    /// Calls of `Planner::next` (for instruction counts per period).
+    calls: usize,
 }
 
 fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
@@ -83,6 +85,7 @@ fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
     let mut plan = std::time::Duration::ZERO;
     let mut interp = std::time::Duration::ZERO;
     let mut moving_periods = 0usize;
+    let mut calls = 0usize;
     let mut speeds = Vec::new();
     for _ in 0..10_000_000 {
         let t0 = std::time::Instant::now();
@@ -99,6 +102,7 @@ fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
         plan += t0.elapsed();
         let t1 = std::time::Instant::now();
         let st = pl.next(&mut joints);
+        calls += 1;
         interp += t1.elapsed();
         if st.state == rtcnc_motion::MotionState::Idle && flushed {
             break;
@@ -124,6 +128,7 @@ fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
         plan_s: plan.as_secs_f64(),
         segments: moves.len(),
         ns_per_period: interp.as_secs_f64() * 1e9 / moving_periods.max(1) as f64,
+        calls,
     };
     // Time: periods until the set-point reaches the end and stays.
     let end = moves.last().map(|mv| match mv.kind {
@@ -183,6 +188,7 @@ fn main() {
         "plan[seg/s]",
         "ns/period"
     );
+    let mut calls = 0;
     for (name, tp, lc) in refs {
         let file = dir.join(format!("{name}.ngc"));
         let Ok(text) = std::fs::read_to_string(&file) else {
@@ -191,6 +197,7 @@ fn main() {
         };
         let (start, moves) = read_bench_program(&text);
         let m = run(start, &moves, 1e-3);
+        calls += m.calls;
         println!(
             "{:<11} {:>8.3} {:>7.3} {:>8.3} {:>7.3} {:>8.3} {:>6.1},{:>5.1},{:>5.1} {:>7.0},{:>6.0},{:>6.0} {:>8.1},{:>8.1},{:>8.1} {:>9.1e} {:>5} {:>11.0} {:>10.0}",
             name,
@@ -220,5 +227,7 @@ fn main() {
     if std::env::var("RTCNC_DEBUG_GEO").is_ok() {
         println!("(set RTCNC_DEBUG_GEO to print geometry counters)");
     }
-    println!("limits per axis: 100 mm/s, 1000 mm/s², 50000 mm/s³; servo period 1 ms");
+    println!(
+        "limits per axis: 100 mm/s, 1000 mm/s², 50000 mm/s³; servo period 1 ms; {calls} servo periods"
+    );
 }

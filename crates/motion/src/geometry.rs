@@ -73,6 +73,41 @@ impl Shape {
         }
     }
 
+    /// Axes the shape moves, one bit each: for a polynomial those with a coefficient of
+    /// degree one or more that is not zero, the others all nine.
+    pub fn moving_axes(&self) -> u16 {
+        match self {
+            Shape::Poly { c } => (0..AXES)
+                .filter(|i| (1..6).any(|k| c[k][*i] != 0.0))
+                .fold(0, |m, i| m | 1 << i),
+            _ => (1 << AXES) - 1,
+        }
+    }
+
+    /// `eval` that visits only the axes in `moving` (from [`Shape::moving_axes`]): the
+    /// same numbers (the others keep their value with derivatives of exactly zero).
+    #[inline]
+    pub fn eval_axes(&self, u: f64, moving: u16) -> Deriv {
+        let Shape::Poly { c } = self else {
+            return self.eval(u);
+        };
+        let mut d = Deriv::default();
+        for i in 0..AXES {
+            d.p[i] = c[0][i];
+        }
+        let mut m = moving;
+        while m != 0 {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let (c0, c1, c2, c3, c4, c5) = (c[0][i], c[1][i], c[2][i], c[3][i], c[4][i], c[5][i]);
+            d.p[i] = c0 + u * (c1 + u * (c2 + u * (c3 + u * (c4 + u * c5))));
+            d.d1[i] = c1 + u * (2.0 * c2 + u * (3.0 * c3 + u * (4.0 * c4 + u * 5.0 * c5)));
+            d.d2[i] = 2.0 * c2 + u * (6.0 * c3 + u * (12.0 * c4 + u * 20.0 * c5));
+            d.d3[i] = 6.0 * c3 + u * (24.0 * c4 + u * 60.0 * c5);
+        }
+        d
+    }
+
     /// Position only (cheaper).
     pub fn pos(&self, u: f64) -> AxisVec {
         match self {
@@ -546,6 +581,46 @@ pub(crate) fn poly_arc_derivs_into(
         kp[i] = d3 * u1 * u1 * u1 + 3.0 * d2 * u1 * u2 + d1 * u3;
     }
     true
+}
+
+/// `arc_derivs` over the axes in `moving` only, for a `Deriv` that is zero on the others
+/// ([`Shape::eval_axes`]): the same numbers (the sums skip terms that are exactly zero).
+#[inline]
+pub(crate) fn arc_derivs_axes(d: &Deriv, moving: u16) -> (AxisVec, AxisVec, AxisVec) {
+    if moving == (1 << AXES) - 1 {
+        return arc_derivs(d);
+    }
+    let dot_m = |a: &AxisVec, b: &AxisVec| {
+        let (mut s, mut m) = (0.0, moving);
+        while m != 0 {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            s += a[i] * b[i];
+        }
+        s
+    };
+    let sig2 = dot_m(&d.d1, &d.d1);
+    let sig = sig2.sqrt();
+    if !(sig > 0.0) {
+        return ([0.0; AXES], [0.0; AXES], [0.0; AXES]);
+    }
+    let sig_u = dot_m(&d.d1, &d.d2) / sig;
+    let sig_uu = (dot_m(&d.d2, &d.d2) + dot_m(&d.d1, &d.d3)) / sig - sig_u * sig_u / sig;
+    let u1 = 1.0 / sig;
+    let u2 = -sig_u / (sig2 * sig);
+    let u3 = -sig_uu / (sig2 * sig2) + 3.0 * sig_u * sig_u / (sig2 * sig2 * sig);
+    let mut t = [0.0; AXES];
+    let mut k = [0.0; AXES];
+    let mut kp = [0.0; AXES];
+    let mut m = moving;
+    while m != 0 {
+        let i = m.trailing_zeros() as usize;
+        m &= m - 1;
+        t[i] = d.d1[i] * u1;
+        k[i] = d.d2[i] * u1 * u1 + d.d1[i] * u2;
+        kp[i] = d.d3[i] * u1 * u1 * u1 + 3.0 * d.d2[i] * u1 * u2 + d.d1[i] * u3;
+    }
+    (t, k, kp)
 }
 
 /// Quintic Hermite curve matching position, first and second derivative at both ends

@@ -1,7 +1,9 @@
 //! A piece of the planned path with its velocity-limit samples and braking curve.
 
 use crate::axes::{AXES, AxisVec, norm_xyz};
-use crate::geometry::{ArcMap, Shape, arc_derivs, poly_arc_derivs_into, poly_moving_axes};
+use crate::geometry::{
+    ArcMap, Shape, arc_derivs, arc_derivs_axes, poly_arc_derivs_into, poly_moving_axes,
+};
 use crate::limits::Lim;
 
 /// Most sub-intervals of one piece's velocity-limit samples.
@@ -44,6 +46,9 @@ pub(crate) struct Sample {
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Piece {
     pub shape: Shape,
+    /// Axes the shape moves ([`Shape::moving_axes`]): the per-period geometry visits only
+    /// these.
+    pub moving: u16,
     pub map: ArcMap,
     pub len: f64,
     pub start: AxisVec,
@@ -74,6 +79,10 @@ pub(crate) struct Piece {
     pub a_sub: [f64; NS_MAX],
     /// Acceleration the forward pass allows on each sub-interval.
     pub acc_sub: [f64; NS_MAX],
+    /// Speed limit on each sub-interval under the current overrides (the lower of its two
+    /// samples), kept by the forward pass, which runs over every piece whose samples or
+    /// overrides change.
+    pub vl_sub: [f64; NS_MAX],
     /// Smallest deceleration from this piece to the next stop, within the stop's reach.
     pub a_to_stop: f64,
     /// Smallest braking jerk from this piece to the next stop.
@@ -134,6 +143,7 @@ impl Piece {
         };
         Piece {
             shape,
+            moving: shape.moving_axes(),
             map,
             len,
             start,
@@ -152,6 +162,7 @@ impl Piece {
             w: [0.0; NS_MAX + 1],
             a_sub: [0.0; NS_MAX],
             acc_sub: [f64::INFINITY; NS_MAX],
+            vl_sub: [f64::INFINITY; NS_MAX],
             a_to_stop: f64::INFINITY,
             j_to_stop: f64::INFINITY,
             j_brake: f64::INFINITY,
@@ -217,7 +228,10 @@ impl Piece {
         if let Shape::Line { dir, .. } = &self.shape {
             return (*dir, [0.0; AXES], [0.0; AXES]);
         }
-        arc_derivs(&self.shape.eval(self.map.u(s.clamp(0.0, self.len))))
+        let d = self
+            .shape
+            .eval_axes(self.map.u(s.clamp(0.0, self.len)), self.moving);
+        arc_derivs_axes(&d, self.moving)
     }
 
     /// Fills the samples (geometry and speed bounds) from the machine limits.
@@ -481,7 +495,7 @@ impl Piece {
     /// Braking-curve speed at local arc length `s` and its deceleration there (0 where the
     /// curve is at the speed limit, i.e. flat).
     #[inline]
-    pub fn w_at(&self, s: f64, fo: f64, ro: f64) -> (f64, f64) {
+    pub fn w_at(&self, s: f64) -> (f64, f64) {
         if self.len <= 0.0 {
             return (self.w[0], 0.0);
         }
@@ -491,7 +505,7 @@ impl Piece {
             k = self.ns - 1;
         }
         let s1 = h * (k + 1) as f64;
-        let vl = self.vlc(k, fo, ro).min(self.vlc(k + 1, fo, ro));
+        let vl = self.vl_sub[k];
         let wn = self.w[k + 1];
         let d = (s1 - s).max(0.0);
         let wb = (wn * wn + 2.0 * self.a_sub[k] * d).sqrt();

@@ -4,7 +4,7 @@
 
 mod generate;
 
-use generate::{STOP_JERK_SHARE, STOP_SHARE};
+use generate::{STOP_JERK_SHARE, STOP_SHARE, StepLimits};
 
 use crate::axes::{AXES, AxisVec, norm};
 use crate::builder::{Builder, GeometryStats, KINK};
@@ -111,14 +111,27 @@ impl Ring {
     fn cap(&self) -> usize {
         self.buf.len()
     }
+    /// Buffer slot of ring position `i` (a subtraction instead of a division: the lookups
+    /// of every servo period go through here).
+    #[inline]
+    fn slot(&self, i: usize) -> usize {
+        let (c, j) = (self.cap(), self.head + i);
+        if j < c {
+            j
+        } else if j - c < c {
+            j - c
+        } else {
+            j % c
+        }
+    }
     #[inline]
     fn get(&self, i: usize) -> &Piece {
-        &self.buf[(self.head + i) % self.cap()]
+        &self.buf[self.slot(i)]
     }
     #[inline]
     fn get_mut(&mut self, i: usize) -> &mut Piece {
-        let c = self.cap();
-        &mut self.buf[(self.head + i) % c]
+        let j = self.slot(i);
+        &mut self.buf[j]
     }
     /// Ring position of piece `id`, if it is in the window.
     #[inline]
@@ -315,6 +328,8 @@ struct Strict {
 pub struct Planner<K: Kinematics> {
     kin: K,
     lim: Lim,
+    /// The set-point check's largest steps per axis, from `lim` and `period`.
+    steps: StepLimits,
     period: f64,
     q: Ring,
     builder: Builder,
@@ -414,6 +429,7 @@ impl<K: Kinematics> Planner<K> {
         let cur = GenState::rest(start, 0, 0.0);
         Ok(Planner {
             kin: kinematics,
+            steps: StepLimits::new(&lim, servo_period),
             lim,
             period: servo_period,
             q: Ring::new(window),
@@ -529,7 +545,8 @@ impl<K: Kinematics> Planner<K> {
         }
     }
 
-    /// Resume after a feed hold, from where the machine stopped.
+    /// Resume after a feed hold, from where the machine stopped. Requested during the last
+    /// steps of the hold's stop, it takes effect when they end (see `regenerate`).
     pub fn resume(&mut self) {
         if matches!(self.hold, Some(h) if h.kind == StopKind::Hold) {
             self.hold = None;
@@ -942,6 +959,7 @@ impl<K: Kinematics> Planner<K> {
                 let vl = p
                     .vlc(k, self.fo, self.ro)
                     .min(p.vlc(k + 1, self.fo, self.ro));
+                p.vl_sub[k] = vl;
                 low = low.min(p.w[k + 1]).min(vl);
             }
             p.w_low = low;

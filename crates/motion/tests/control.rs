@@ -341,6 +341,30 @@ fn hold_resume_and_override_on_a_curved_polyline_respect_the_limits() {
 }
 
 #[test]
+fn resume_during_the_last_steps_of_a_hold_keeps_the_limits() {
+    // A resume requested while the hold's stop lands on its point (its last steps are
+    // planned exactly to rest) waits for them to end: from inside them the speed policy was
+    // left a state it could not continue from (a resume at period 674 here exceeded the
+    // jerk limit by 9 %, two counted violations).
+    let verts = circle_polyline(10.0, 0.001, 1.0);
+    let moves = lines(&verts, 100.0, blend(0.001));
+    let lim = limits(V, A, J);
+    for resume_at in 664..=684 {
+        let mut pl = planner(&lim, verts[0], 2048);
+        let tr = run_with(&mut pl, &moves, 50_000, |n, pl| match n {
+            150 => pl.set_feed_override(0.3),
+            260 => pl.set_feed_override(1.5),
+            450 => pl.hold(),
+            n if n == resume_at => pl.resume(),
+            _ => {}
+        });
+        assert_limits(&tr, V, A, J);
+        assert_eq!(pl.stats().limit_violations, 0, "resume at {resume_at}");
+        assert!(dist(tr.pts.last().unwrap(), verts.last().unwrap()) <= 1e-9);
+    }
+}
+
+#[test]
 fn quick_stop_on_a_curve_stays_on_the_path() {
     let verts = circle_polyline(10.0, 0.001, 1.0);
     let moves = lines(&verts, 100.0, blend(0.001));

@@ -11,6 +11,7 @@
 //! end and rolls back.
 
 use super::*;
+use crate::geometry::Shape;
 use crate::otg::{Limits as OtgLimits, State as OtgState, position_profile};
 use crate::piece::jerk_stop_speed;
 use crate::scurve::stop_advance;
@@ -30,6 +31,10 @@ const STRICT_FACTOR: f64 = 0.9;
 const ROLLBACK_FIRST: usize = 4;
 /// Buffered entries a rollback looks at, at most, for a state that fits the stricter model.
 const RESTART_CHECKS: usize = 32;
+/// Resolution of the jerk search, relative to the width of the admissible range: the
+/// chosen jerk is within this of the largest the model accepts (about 100 mm/s³ for an
+/// axis jerk of 50 000 mm/s³: 5e-5 mm/s of speed left unused over a 1 ms period).
+const JERK_RESOLUTION: f64 = 1.0 / 1024.0;
 
 /// What the speed model needs for one period.
 struct Model {
@@ -56,13 +61,25 @@ struct Model {
 }
 
 /// Why a path jerk is refused by the model.
-#[derive(PartialEq)]
+#[derive(Clone, Copy, PartialEq)]
 enum Verdict {
     Safe,
     /// Overshoots the stop (or the hold point), or brakes harder than the path allows.
     Stop,
+    /// Its stop from the end of the period (a releasable one) ends beyond the stop or
+    /// hold point; so does every larger jerk's (the stop distance grows with the jerk).
+    Overshoot,
     /// Exceeds the braking curve.
     Curve,
+    /// Ends the period above the path's acceleration bound; so does every larger jerk.
+    AccelBound,
+}
+
+impl Verdict {
+    /// Refused for the stop (either way).
+    fn is_stop(self) -> bool {
+        matches!(self, Verdict::Stop | Verdict::Overshoot)
+    }
 }
 
 impl<K: Kinematics> Planner<K> {
@@ -512,20 +529,20 @@ impl<K: Kinematics> Planner<K> {
     fn find(&self, from: usize, target: f64, stop_at: f64) -> (usize, f64) {
         let clamped = target >= stop_at;
         let target = target.min(stop_at);
-        // Most targets lie within a few pieces: look there first.
+        // Most targets lie within a few pieces: gallop from `from` (strides 1, 2, 4, ...)
+        // to bracket the target, then bisect the bracket.
         let mut lo = from;
-        for _ in 0..3 {
-            if lo + 1 < self.q.len && self.q.get(lo + 1).cum_start < target {
-                lo += 1;
+        let mut hi = self.q.len.saturating_sub(1).max(from);
+        let mut stride = 1;
+        while lo + stride <= hi {
+            if self.q.get(lo + stride).cum_start < target {
+                lo += stride;
+                stride *= 2;
             } else {
-                let p = self.q.get(lo);
-                if clamped && p.cum_start + p.len >= stop_at - 1e-9 {
-                    return (lo, p.len);
-                }
-                return (lo, (target - p.cum_start).clamp(0.0, p.len));
+                hi = lo + stride - 1;
+                break;
             }
         }
-        let mut hi = self.q.len - 1;
         while lo < hi {
             let mid = (lo + hi).div_ceil(2);
             if self.q.get(mid).cum_start < target {
@@ -548,7 +565,7 @@ impl<K: Kinematics> Planner<K> {
             return (0.0, 0.0);
         }
         let (i, sl) = self.find(from, target, stop_at);
-        self.q.get(i).w_at(sl, self.fo, self.ro)
+        self.q.get(i).w_at(sl)
     }
 
     /// The model's verdict on path jerk `j` for this period.
@@ -558,7 +575,7 @@ impl<K: Kinematics> Planner<K> {
             return Verdict::Stop;
         }
         if a1 > m.a_hi.max(0.0) + 1e-9 {
-            return Verdict::Curve;
+            return Verdict::AccelBound;
         }
         let v1 = v1.max(0.0);
         // A state that decelerates so hard that the speed would reach zero before the
@@ -568,7 +585,7 @@ impl<K: Kinematics> Planner<K> {
         }
         let (dst, _) = stop(v1, a1, m.a_stop, m.j_stop);
         if ds + dst > m.rem * (1.0 + 1e-12) + 1e-12 {
-            return Verdict::Stop;
+            return Verdict::Overshoot;
         }
         let at1 = m.at + ds;
         // The highest speed of the probe below (where its acceleration crosses zero).
@@ -606,12 +623,12 @@ impl<K: Kinematics> Planner<K> {
             }
             let (i, sl) = self.find(m.idx, target, m.stop_at);
             let p = self.q.get(i);
-            let (wp, _) = p.w_at(sl, self.fo, self.ro);
+            let (wp, _) = p.w_at(sl);
             if vp > m.cap * wp * (1.0 + 1e-12) + 1e-12 {
                 return Verdict::Curve;
             }
             if ap > 0.0 && !p.straight {
-                let (_, a_hi, _, _) = path_bounds(&self.lim, &p.geo_at(sl), vp, ap, m.quick);
+                let (_, a_hi) = accel_bounds(&self.lim, &p.geo_at(sl), vp, m.quick);
                 if ap > a_hi {
                     return Verdict::Curve;
                 }
@@ -687,8 +704,13 @@ impl<K: Kinematics> Planner<K> {
         let ds_pred = (v * t + 0.5 * a * t * t).max(0.0);
         let v_pred = (v + a * t).max(0.0);
         let (k1, s1) = self.locate(idx, st.s, st.at, ds_pred, stop_at);
-        let geo1 = self.q.get(k1).geo_at(s1);
-        let (a_lo1, a_hi1, _, _) = path_bounds(&self.lim, &geo1, v_pred, a, quick);
+        // On the same line the bounds do not depend on the place or the speed.
+        let (a_lo1, a_hi1) = if k1 == idx && matches!(head.shape, Shape::Line { .. }) {
+            (a_lo0, a_hi0)
+        } else {
+            let geo1 = self.q.get(k1).geo_at(s1);
+            accel_bounds(&self.lim, &geo1, v_pred, quick)
+        };
         let (mut a_lo, mut a_hi) = (a_lo0.max(a_lo1), a_hi0.min(a_hi1));
         let a_full = CONTROL_SHARE * head.a_proj[quick as usize];
         if !(a_lo < a_hi) {
@@ -738,7 +760,7 @@ impl<K: Kinematics> Planner<K> {
         let j_min = j_lo.max((a_lo - a) / t).min(j_hi);
         let mut hold_deferred = false;
         let braking_harder = matches!(self.hold, Some(h) if a < -h.a);
-        if soft && braking_harder && self.choose_jerk(&model, j_min, j_hi, st.j_last).is_none() {
+        if soft && braking_harder && self.choose_jerk(&model, j_min, j_hi, st.j_last).is_err() {
             let path_model = Model {
                 rem: path_rem,
                 a_stop: STOP_SHARE * path_a_stop * f_stop,
@@ -748,10 +770,10 @@ impl<K: Kinematics> Planner<K> {
             let bj = clampf(brake_jerk(v, a, -a_lo, path_j_stop, t), j_lo, j_hi);
             let path_can = self
                 .choose_jerk(&path_model, j_min, j_hi, st.j_last)
-                .is_some()
+                .is_ok()
                 || [j_min, bj]
                     .into_iter()
-                    .any(|c| self.judge(&path_model, c) != Verdict::Stop);
+                    .any(|c| !self.judge(&path_model, c).is_stop());
             if self.trace {
                 eprintln!("HOLD DEFERRED at={} v={v} a={a} path_can={path_can}", st.at);
             }
@@ -797,7 +819,7 @@ impl<K: Kinematics> Planner<K> {
             d1
         } else {
             let choice = self.choose_jerk(&model, j_min, j_hi, st.j_last);
-            let choice = choice.or_else(|| {
+            let choice = choice.or_else(|v_min| {
                 // Nothing passes the model: brake as hard as the path allows while the
                 // deceleration can still be released before the speed reaches zero.
                 self.stats.emergency_brakes += 1;
@@ -805,7 +827,9 @@ impl<K: Kinematics> Planner<K> {
                     let name = |v: Verdict| match v {
                         Verdict::Safe => "safe",
                         Verdict::Stop => "stop",
+                        Verdict::Overshoot => "overshoot",
                         Verdict::Curve => "curve",
+                        Verdict::AccelBound => "acceleration",
                     };
                     eprintln!(
                         "  EMERGENCY j_min={j_min}:{} 0:{} j_hi={j_hi}:{} a_stop={} j_stop={}",
@@ -817,18 +841,22 @@ impl<K: Kinematics> Planner<K> {
                     );
                 }
                 let bj = clampf(brake_jerk(v, a, -a_lo, j_stop, t), j_lo, j_hi);
-                [j_min, bj]
-                    .into_iter()
-                    .find(|c| self.judge(&model, *c) != Verdict::Stop)
+                if !v_min.is_stop() {
+                    Ok(j_min)
+                } else if !self.judge(&model, bj).is_stop() {
+                    Ok(bj)
+                } else {
+                    Err(())
+                }
             });
             match choice {
-                Some(j) => {
+                Ok(j) => {
                     j_used = j;
                     let (ds, _, _) = advance(0.0, v, a, j, t);
                     model_ds = ds;
                     clampf(ds, 0.0, rem.max(0.0))
                 }
-                None => {
+                Err(()) => {
                     // No constant jerk over the period keeps the stop: follow the stop
                     // profile exactly (a switch of its jerk falls inside the period).
                     // The model's profile while it fits, else with the full stop capability
@@ -978,39 +1006,66 @@ impl<K: Kinematics> Planner<K> {
         Some(n)
     }
 
-    /// The largest path jerk in [`j_min`, `j_hi`] the model accepts: the upper end, else a
-    /// bisection (warm-started next to the last period's jerk). None when even `j_min` fails.
-    fn choose_jerk(&self, m: &Model, j_min: f64, j_hi: f64, j_last: f64) -> Option<f64> {
+    /// The largest path jerk in [`j_min`, `j_hi`] the model accepts. Tried first: the jerk
+    /// that brings the acceleration to its bound (anything above fails the model's first
+    /// test), then the jerk that brings the speed onto the braking curve at the end of the
+    /// period (the test that binds while the path runs at its limit), taken when it passes
+    /// and one [`JERK_RESOLUTION`] above it fails; else a bisection warm-started next to
+    /// the last period's jerk. Err when even `j_min` fails, with its verdict.
+    fn choose_jerk(&self, m: &Model, j_min: f64, j_hi: f64, j_last: f64) -> Result<f64, Verdict> {
         let safe = |j: f64| self.judge(m, j) == Verdict::Safe;
-        if safe(j_hi) {
-            return Some(j_hi);
+        // The jerk that brings the acceleration to its bound (any above fails the model).
+        let top = clampf((m.a_hi.max(0.0) - m.a) / m.t, j_min, j_hi);
+        match self.judge(m, top) {
+            Verdict::Safe => return Ok(top),
+            // Nothing from `j_min` on passes.
+            Verdict::AccelBound if top == j_min => return Err(Verdict::AccelBound),
+            _ => {}
+        }
+        let tol = JERK_RESOLUTION * (j_hi - j_min);
+        if let Some(g) = self.curve_jerk(m, clampf(j_last, j_min, top))
+            && g > j_min
+            && g < top
+            && safe(g)
+            && (g + tol >= top || !safe(g + tol))
+        {
+            return Ok(g);
         }
         let step = 0.02 * (j_hi - j_min).max(0.0);
-        let j_prev = clampf(j_last, j_min, j_hi);
+        let j_prev = clampf(j_last, j_min, top);
         let (mut lo, mut hi, iters) = if safe(j_prev) {
-            let up = (j_prev + step).min(j_hi);
+            let up = (j_prev + step).min(top);
             if step > 0.0 && !safe(up) {
                 (j_prev, up, 5)
             } else {
-                (up, j_hi, 9)
+                (up, top, 9)
             }
-        } else if safe(j_min) {
-            (j_min, j_prev, 9)
         } else {
-            // The hardest braking fails too: braking must be released before the speed
-            // reaches zero, so the admissible jerks start above `j_min`. The fastest stop's
-            // jerk is the lowest of them; else the largest safe point of a coarse grid.
-            let bj = clampf(brake_jerk(m.v, m.a, m.a_stop, m.j_stop, m.t), j_min, j_hi);
-            let lo = if safe(bj) {
-                bj
-            } else {
-                let n = 8;
-                let grid = (1..n)
-                    .rev()
-                    .map(|k| j_min + (j_hi - j_min) * k as f64 / n as f64);
-                grid.into_iter().find(|j| safe(*j))?
-            };
-            (lo, j_hi, 9)
+            match self.judge(m, j_min) {
+                Verdict::Safe => (j_min, j_prev, 9),
+                // Every larger jerk overshoots too.
+                Verdict::Overshoot => return Err(Verdict::Overshoot),
+                v_min => {
+                    // The hardest braking fails too: braking must be released before the
+                    // speed reaches zero, so the admissible jerks start above `j_min`. The
+                    // fastest stop's jerk is the lowest of them; else the largest safe
+                    // point of a coarse grid.
+                    let bj = clampf(brake_jerk(m.v, m.a, m.a_stop, m.j_stop, m.t), j_min, j_hi);
+                    let lo = if safe(bj) {
+                        bj
+                    } else {
+                        let n = 8;
+                        let grid = (1..n)
+                            .rev()
+                            .map(|k| j_min + (j_hi - j_min) * k as f64 / n as f64);
+                        match grid.into_iter().find(|j| safe(*j)) {
+                            Some(j) => j,
+                            None => return Err(v_min),
+                        }
+                    };
+                    (lo, j_hi, 9)
+                }
+            }
         };
         for _ in 0..iters {
             let mid = 0.5 * (lo + hi);
@@ -1020,34 +1075,42 @@ impl<K: Kinematics> Planner<K> {
                 hi = mid;
             }
         }
-        Some(lo)
+        Ok(lo)
+    }
+
+    /// The jerk that brings the speed onto the braking curve at the end of the period (the
+    /// curve linearised along its slope around the point jerk `j0` reaches); None where
+    /// the curve is zero there.
+    fn curve_jerk(&self, m: &Model, j0: f64) -> Option<f64> {
+        let t = m.t;
+        let (ds0, _, _) = advance(0.0, m.v, m.a, j0, t);
+        let (w, slope) = self.w_abs(m.idx, m.at + ds0, m.stop_at);
+        if !(w > 0.0) {
+            return None;
+        }
+        // v + a t + j t²/2 = cap (w - slope/w (j - j0) t³/6)
+        let k = m.cap * slope / w * t * t * t / 6.0;
+        let j = (m.cap * w + k * j0 - m.v - m.a * t) / (0.5 * t * t + k);
+        j.is_finite().then_some(j)
     }
 
     /// Box of the next set-point per axis: every finite difference with the last three
     /// set-points within the axis's v·T, a·T², j·T³ (shrunk by 1e-10 relative and the
     /// rounding of the differences).
     fn fd_box(&self, hist: &[AxisVec; 3], quick: bool) -> (AxisVec, AxisVec) {
-        let t = self.period;
-        let lim = &self.lim;
-        let (p0, p1, p2) = (hist[0], hist[1], hist[2]);
-        let mut lo = [f64::NEG_INFINITY; AXES];
-        let mut hi = [f64::INFINITY; AXES];
-        for i in 0..AXES {
-            if !lim.present[i] {
-                lo[i] = p0[i];
-                hi[i] = p0[i];
-                continue;
-            }
-            let (am, jm) = if quick {
-                (lim.qa[i], lim.qj[i])
-            } else {
-                (lim.a[i], lim.j[i])
-            };
+        let (p0, p1, p2) = (&hist[0], &hist[1], &hist[2]);
+        let steps = &self.steps;
+        let q = quick as usize;
+        // Axes without limits stay where they are.
+        let (mut lo, mut hi) = (*p0, *p0);
+        let mut m = steps.present;
+        while m != 0 {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
             let round = 16.0 * f64::EPSILON * (p0[i].abs() + p1[i].abs() + p2[i].abs() + 1.0);
-            let shrink = 1.0 - 1e-10;
-            let rv = lim.v[i] * t * shrink - round;
-            let ra = am * t * t * shrink - round;
-            let rj = jm * t * t * t * shrink - round;
+            let rv = steps.v[i] - round;
+            let ra = steps.a[q][i] - round;
+            let rj = steps.j[q][i] - round;
             let cv = p0[i];
             let ca = 2.0 * p0[i] - p1[i];
             let cj = 3.0 * p0[i] - 3.0 * p1[i] + p2[i];
@@ -1110,12 +1173,68 @@ impl<K: Kinematics> Planner<K> {
     }
 }
 
+/// Largest set-point steps per axis (first, second and third differences at the servo
+/// period, from the velocity, acceleration and jerk limits, normal and quick-stop, shrunk
+/// by 1e-10 relative), computed once for [`Planner::fd_box`].
+#[derive(Debug, Clone, Copy)]
+pub(super) struct StepLimits {
+    /// Axes with limits, one bit each.
+    present: u16,
+    v: AxisVec,
+    a: [AxisVec; 2],
+    j: [AxisVec; 2],
+}
+
+impl StepLimits {
+    pub(super) fn new(lim: &Lim, t: f64) -> StepLimits {
+        let shrink = 1.0 - 1e-10;
+        let mut sl = StepLimits {
+            present: 0,
+            v: [0.0; AXES],
+            a: [[0.0; AXES]; 2],
+            j: [[0.0; AXES]; 2],
+        };
+        for i in 0..AXES {
+            if !lim.present[i] {
+                continue;
+            }
+            sl.present |= 1 << i;
+            sl.v[i] = lim.v[i] * t * shrink;
+            for (q, (am, jm)) in [(lim.a[i], lim.j[i]), (lim.qa[i], lim.qj[i])]
+                .into_iter()
+                .enumerate()
+            {
+                sl.a[q][i] = am * t * t * shrink;
+                sl.j[q][i] = jm * t * t * t * shrink;
+            }
+        }
+        sl
+    }
+}
+
 /// Bounds of the path acceleration and jerk where the path has tangent, curvature vector
 /// and its derivative `geo`, at speed `v` and acceleration `a`, from every axis: |T a + K v²| ≤ A and |T j + 3 K v a + K' v³| ≤ J, with
 /// the 3·K·v·a term kept within half of what the curvature change leaves (so that the
 /// acceleration can always be ramped back with the other half). Infinite where no axis
 /// bounds it.
 fn path_bounds(
+    lim: &Lim,
+    geo: &(AxisVec, AxisVec, AxisVec),
+    v: f64,
+    a: f64,
+    quick: bool,
+) -> (f64, f64, f64, f64) {
+    bounds::<true>(lim, geo, v, a, quick)
+}
+
+/// The acceleration bounds of [`path_bounds`] alone (the same numbers, without the jerk's).
+fn accel_bounds(lim: &Lim, geo: &(AxisVec, AxisVec, AxisVec), v: f64, quick: bool) -> (f64, f64) {
+    let (a_lo, a_hi, _, _) = bounds::<false>(lim, geo, v, 0.0, quick);
+    (a_lo, a_hi)
+}
+
+#[inline]
+fn bounds<const JERK: bool>(
     lim: &Lim,
     geo: &(AxisVec, AxisVec, AxisVec),
     v: f64,
@@ -1136,7 +1255,6 @@ fn path_bounds(
         };
         let (am, jmx) = (CONTROL_SHARE * am, CONTROL_SHARE * jmx);
         let ca = kv[i] * v * v;
-        let cj = 3.0 * kv[i] * v * a + kp[i] * v * v * v;
         let (x0, x1) = ((-am - ca) / tan[i], (am - ca) / tan[i]);
         a_lo = a_lo.max(x0.min(x1));
         a_hi = a_hi.min(x0.max(x1));
@@ -1147,9 +1265,12 @@ fn path_bounds(
             a_lo = a_lo.max(-a_cap);
             a_hi = a_hi.min(a_cap);
         }
-        let (y0, y1) = ((-jmx - cj) / tan[i], (jmx - cj) / tan[i]);
-        j_lo = j_lo.max(y0.min(y1));
-        j_hi = j_hi.min(y0.max(y1));
+        if JERK {
+            let cj = 3.0 * kv[i] * v * a + kp[i] * v * v * v;
+            let (y0, y1) = ((-jmx - cj) / tan[i], (jmx - cj) / tan[i]);
+            j_lo = j_lo.max(y0.min(y1));
+            j_hi = j_hi.min(y0.max(y1));
+        }
     }
     (a_lo, a_hi, j_lo, j_hi)
 }
