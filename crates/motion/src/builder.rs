@@ -11,6 +11,8 @@ use crate::piece::Piece;
 use crate::spline::{SPLINE_PIECES, SplineMaps, SplineP};
 
 mod arc_blend;
+#[cfg(test)]
+mod smoothing_tests;
 
 /// Direction changes up to this angle (rad) count as tangent: passed without a blend, at a
 /// speed that keeps the velocity step inside the jerk limit.
@@ -413,9 +415,14 @@ impl Builder {
                         });
                         // The vertex curvature comes from the circle through three points;
                         // a slightly smaller one keeps a span that bulges too far within P.
+                        // After a vertex that kept the circle's tangent (the first after a
+                        // stop), the span to the corrected tangent may bulge too far; one
+                        // halfway between recovers within a vertex or two.
                         let (vs, t_plain) = vs;
+                        let t_half = unit(&add_scaled(&vs.t, &t_plain, 1.0));
                         let cands = [
                             (vs.t, 1.0),
+                            (t_half, 1.0),
                             (vs.t, 0.95),
                             (vs.t, 0.85),
                             (t_plain, 1.0),
