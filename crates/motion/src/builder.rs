@@ -128,8 +128,8 @@ pub(crate) struct Builder {
     run_vertices: [AxisVec; MERGE_MAX],
     prev: Option<Prim>,
     prev_state: Option<State>,
-    /// The last smoothed vertex and the polyline point before it (`smooth_state` fits
-    /// through four points when the next vertex follows it).
+    /// The polyline point before the last smoothed vertex, and that vertex: `smooth_state`
+    /// at the next vertex takes the curvature change from their circle and its own.
     smoothed_from: Option<(AxisVec, AxisVec)>,
     /// Tables of the held-back spline and of a new one (`SplineP::slot`).
     spline_maps: [SplineMaps; 2],
@@ -576,6 +576,7 @@ impl Builder {
                 return Some((State { p: lp.b, t, k }, t_plain));
             }
         }
+        // Otherwise κ' comes from the state the run arrives with (signed along this normal).
         let kappa = norm(&k);
         let nrm = unit(&k);
         let t = match before {
