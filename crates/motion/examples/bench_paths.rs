@@ -130,13 +130,15 @@ fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
         ns_per_period: interp.as_secs_f64() * 1e9 / moving_periods.max(1) as f64,
         calls,
     };
-    // Time: periods until the set-point reaches the end and stays.
+    // Time: periods until the set-point reaches the end and stays (within 1e-9 mm: a last
+    // set-point off by a rounding error, 1e-16 mm, is there).
     let end = moves.last().map(|mv| match mv.kind {
         rtcnc_motion::MoveKind::Line { end, .. } => end,
         _ => start,
     });
     let end = end.unwrap_or(start);
-    let last_move = pts.iter().rposition(|p| p != &end).map_or(0, |i| i + 1);
+    let away = |p: &[f64; AXES]| (0..AXES).any(|i| (p[i] - end[i]).abs() > 1e-9);
+    let last_move = pts.iter().rposition(away).map_or(0, |i| i + 1);
     let first_move = pts.iter().position(|p| p != &start).unwrap_or(0);
     m.time = (last_move - first_move + 1) as f64 * t;
     m.end_err = (0..3)

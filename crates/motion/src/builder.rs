@@ -11,6 +11,8 @@ use crate::piece::Piece;
 use crate::spline::{SPLINE_PIECES, SplineMaps, SplineP};
 
 mod arc_blend;
+#[cfg(test)]
+mod smoothing_tests;
 
 /// Direction changes up to this angle (rad) count as tangent: passed without a blend, at a
 /// speed that keeps the velocity step inside the jerk limit.
@@ -126,6 +128,9 @@ pub(crate) struct Builder {
     run_vertices: [AxisVec; MERGE_MAX],
     prev: Option<Prim>,
     prev_state: Option<State>,
+    /// The polyline point before the last smoothed vertex, and that vertex: `smooth_state`
+    /// at the next vertex takes the curvature change from their circle and its own.
+    smoothed_from: Option<(AxisVec, AxisVec)>,
     /// Tables of the held-back spline and of a new one (`SplineP::slot`).
     spline_maps: [SplineMaps; 2],
     pub stats: GeometryStats,
@@ -139,6 +144,7 @@ impl Builder {
             run_vertices: [[0.0; AXES]; MERGE_MAX],
             prev: None,
             prev_state: None,
+            smoothed_from: None,
             spline_maps: [[(ArcMap::Linear { k: 1.0 }, 0.0); SPLINE_PIECES]; 2],
             stats: GeometryStats::default(),
         }
@@ -149,6 +155,7 @@ impl Builder {
         self.run = None;
         self.prev = None;
         self.prev_state = None;
+        self.smoothed_from = None;
     }
 
     /// Validates `mv` and feeds it through; finished pieces go to `out`.
@@ -408,9 +415,14 @@ impl Builder {
                         });
                         // The vertex curvature comes from the circle through three points;
                         // a slightly smaller one keeps a span that bulges too far within P.
+                        // After a vertex that kept the circle's tangent (the first after a
+                        // stop), the span to the corrected tangent may bulge too far; one
+                        // halfway between recovers within a vertex or two.
                         let (vs, t_plain) = vs;
+                        let t_half = unit(&add_scaled(&vs.t, &t_plain, 1.0));
                         let cands = [
                             (vs.t, 1.0),
+                            (t_half, 1.0),
                             (vs.t, 0.95),
                             (vs.t, 0.85),
                             (t_plain, 1.0),
@@ -441,6 +453,7 @@ impl Builder {
                                 }
                                 self.prev = Some(cur);
                                 self.prev_state = Some(vk);
+                                self.smoothed_from = Some((lp.a, lp.b));
                                 return;
                             }
                         }
@@ -544,18 +557,28 @@ impl Builder {
         }
         let a = sub(&lp.b, &lp.a);
         let b = sub(&lc.b, &lc.a);
-        // Tangent of the circle through the three points at the middle one.
-        let t = unit(&add_scaled(&scale(&a, lb / la), &b, la / lb));
-        let ab = dot(&a, &b);
-        let cross2 = (la * la * lb * lb - ab * ab).max(0.0);
-        let chord = norm(&add_scaled(&a, &b, 1.0));
-        let kappa = 2.0 * cross2.sqrt() / (la * lb * chord);
-        // Curvature direction: the turn from a to b, orthogonal to t.
-        let turn = sub(&unit(&b), &unit(&a));
-        let nrm = unit(&add_scaled(&turn, &t, -dot(&turn, &t)));
-        // That tangent is off by κ'·la·lb/6 (towards the normal) where the curvature
-        // changes; κ' comes from the previous smoothed vertex (signed along this normal).
+        let (t, k) = circle_state(&a, &b, la, lb);
         let t_plain = t;
+        // The circle's curvature is the curve's at (lb − la)/3 from the vertex and its
+        // tangent is off by κ'·la·lb/6 where the curvature changes. Following a smoothed
+        // vertex, κ' is the change between the two vertices' circles over the distance
+        // between those points, (l0 + la + lb)/3; both are corrected with it (exact on a
+        // circle; to first order in κ' elsewhere, as across an inflection between
+        // unequal chords).
+        if let (Some(prev), Some((q0, at))) = (before, self.smoothed_from) {
+            let l0 = norm(&sub(&lp.a, &q0));
+            if at == lp.a && prev.p == lp.a && l0 <= 6.0 * la && la <= 6.0 * l0 {
+                let (_, k0) = circle_state(&sub(&lp.a, &q0), &a, l0, la);
+                let dk = scale(&sub(&k, &k0), 3.0 / (l0 + la + lb));
+                let t = unit(&add_scaled(&t, &dk, -la * lb / 6.0));
+                let k = add_scaled(&k, &dk, -(lb - la) / 3.0);
+                let k = add_scaled(&k, &t, -dot(&k, &t));
+                return Some((State { p: lp.b, t, k }, t_plain));
+            }
+        }
+        // Otherwise κ' comes from the state the run arrives with (signed along this normal).
+        let kappa = norm(&k);
+        let nrm = unit(&k);
         let t = match before {
             Some(prev) if norm(&prev.k) > 0.0 => {
                 let kp = (kappa - dot(&prev.k, &nrm)) / la;
@@ -851,6 +874,20 @@ impl Span {
     fn piece(&self) -> Piece {
         Piece::new(self.shape, self.a, self.b, self.feed, self.rapid, self.line)
     }
+}
+
+/// Unit tangent and curvature vector at the middle point of the circle through three points,
+/// from the chords `a` into it and `b` out of it (lengths `la`, `lb`).
+fn circle_state(a: &AxisVec, b: &AxisVec, la: f64, lb: f64) -> (AxisVec, AxisVec) {
+    let t = unit(&add_scaled(&scale(a, lb / la), b, la / lb));
+    let ab = dot(a, b);
+    let cross2 = (la * la * lb * lb - ab * ab).max(0.0);
+    let chord = norm(&add_scaled(a, b, 1.0));
+    let kappa = 2.0 * cross2.sqrt() / (la * lb * chord);
+    // Curvature direction: the turn from a to b, orthogonal to t.
+    let turn = sub(&unit(b), &unit(a));
+    let nrm = unit(&add_scaled(&turn, &t, -dot(&turn, &t)));
+    (t, scale(&nrm, kappa))
 }
 
 /// The state at `at`, the other end of the chord with direction `chord`, that mirrors
