@@ -838,6 +838,12 @@ impl<K: Kinematics> Planner<K> {
         let mut next_braking = true;
         let mut valley: Option<(f64, f64, f64, f64)> = None;
         let mut stop_ahead = (f64::INFINITY, 0.0, 0.0);
+        // Whether the backward run has left the stop's own low-speed stretch (the braking
+        // curve rose above twice the jerk-dominated speed): from there on the stop model's
+        // deceleration and jerk are frozen, not reset, so that it never falls between two
+        // pieces on the way into the stop (see `a_to_stop`).
+        let mut zone_done = false;
+        let t = self.period;
         for i in (0..n).rev() {
             let p = self.q.get_mut(i);
             let is_stop = p.stop_at_end || i + 1 == n;
@@ -857,6 +863,7 @@ impl<K: Kinematics> Planner<K> {
                 next_w = 0.0;
                 run_a = f64::INFINITY;
                 run_j = f64::INFINITY;
+                zone_done = false;
                 next_braking = true;
                 valley = None;
             }
@@ -899,19 +906,37 @@ impl<K: Kinematics> Planner<K> {
                     // The stop model of the controller (constant deceleration, jerk-limited
                     // ends) matters where the stop is jerk-dominated, at low speed; above, the
                     // braking curve with its varying deceleration governs.
-                    if w1 <= v_jerk {
+                    if w1 <= v_jerk && !zone_done {
                         run_a = run_a.min(acc);
                         run_j = run_j.min(p.j_brake);
                     } else if w1 > 2.0 * v_jerk {
-                        // Far from the stop: the braking curve governs; keeping the value
-                        // local also keeps the backward pass short when moves are appended.
-                        run_a = f64::INFINITY;
-                        run_j = f64::INFINITY;
+                        zone_done = true;
                     }
                 }
             }
-            p.a_to_stop = run_a;
-            p.j_to_stop = run_j;
+            // Far from the stop the braking curve governs: a piece from whose end every
+            // state under the curve (accelerating at most as hard as the path allows) can
+            // still stop with the stop's own model keeps none (the generator then takes the
+            // deceleration and jerk at the stop, no less than this model), which also keeps
+            // the backward pass short when moves are appended. Nearer pieces keep the
+            // frozen model: a stop model that fell from one piece to the next (it used to
+            // take a far piece's own deceleration) made states that fit the piece before
+            // unable to stop under the next one.
+            let free = zone_done && run_a.is_finite() && {
+                let v_end = p.w[ns] + 0.5 * run_j * t * t;
+                let (d, _) = stop(
+                    v_end,
+                    p.a_proj[0],
+                    STOP_SHARE * run_a,
+                    STOP_JERK_SHARE * run_j,
+                );
+                d <= stop_ahead.0 - (p.cum_start + p.len)
+            };
+            (p.a_to_stop, p.j_to_stop) = if free {
+                (f64::INFINITY, f64::INFINITY)
+            } else {
+                (run_a, run_j)
+            };
             next_w = p.w[0];
             lowest = i;
             if i < first_new

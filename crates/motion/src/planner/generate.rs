@@ -71,12 +71,7 @@ impl<K: Kinematics> Planner<K> {
         self.stats.generated += 1;
         match self.step(front, false) {
             Some(st) => {
-                // Kept a little past the dead end: one just after it is the same one.
-                if let Some(s) = self.strict
-                    && st.at > s.until + 8.0 * st.v * self.period + 1e-9
-                {
-                    self.strict = None;
-                }
+                self.leave_strict(&st);
                 if self.trace {
                     eprintln!(
                         "GEN at={} v={} a={} ds={:?} land={} state={:?}",
@@ -88,6 +83,7 @@ impl<K: Kinematics> Planner<K> {
             None if self.ahead.len == 0 => {
                 // Nothing left to roll back: the nearest point is emitted (and counted).
                 let st = self.step(front, true).unwrap_or_else(|| still(*front));
+                self.leave_strict(&st);
                 self.ahead.push(st);
             }
             None => self.rollback(front),
@@ -98,7 +94,23 @@ impl<K: Kinematics> Planner<K> {
     /// counted in `limit_violations`.
     pub(super) fn generate_forced(&mut self, front: &GenState) -> GenState {
         self.stats.generated += 1;
-        self.step(front, true).unwrap_or_else(|| still(*front))
+        let st = self.step(front, true).unwrap_or_else(|| still(*front));
+        self.leave_strict(&st);
+        st
+    }
+
+    /// Ends a rollback's stricter model once `st` is past its dead end: a little past it
+    /// (one just after it is the same one), or at rest at the stop it braked for (a dead
+    /// end on the way into a stop: the next piece starts where it was, and the stricter
+    /// model there kept the machine at rest for ever). A state at rest short of the stop
+    /// keeps it (a dead end at rest is met again from there).
+    fn leave_strict(&mut self, st: &GenState) {
+        if let Some(s) = self.strict
+            && (st.at > s.until + 8.0 * st.v * self.period + 1e-9
+                || (st.v <= 0.0 && st.a == 0.0 && st.at >= s.until && st.at >= s.stop_at))
+        {
+            self.strict = None;
+        }
     }
 
     /// Drops the last set-points and makes the model stricter until the dead end is passed
@@ -183,15 +195,21 @@ impl<K: Kinematics> Planner<K> {
     /// more than the dead end met on the way into the same stop (a piece nearer the stop
     /// may allow less than the pieces before it assumed).
     fn stop_model(&self, p: &Piece, at: f64) -> (f64, f64) {
+        // A piece far from the stop keeps no model of its own (`Planner::backward`): from
+        // its end every state under the braking curve can stop with the stop's own model,
+        // so any model at least that capable fits on the way in. It takes its own
+        // deceleration and jerk, but no less than at the stop (which are no less than the
+        // stop's model): the model never falls under a state that fitted the piece before.
+        let (_, a_end, j_end) = p.stop_ahead;
         let mut a_stop = if p.a_to_stop.is_finite() && p.a_to_stop > 1e-3 * self.a_min {
             p.a_to_stop
         } else {
-            p.a_sub[0].min(self.a_min * BRAKE_SHARE_STRAIGHT)
+            p.a_sub[0].min(self.a_min * BRAKE_SHARE_STRAIGHT).max(a_end)
         };
         let mut j_stop = if p.j_to_stop.is_finite() {
             p.j_to_stop
         } else {
-            p.j_brake
+            p.j_brake.max(j_end)
         };
         if let Some(s) = self.strict
             && at <= s.until
