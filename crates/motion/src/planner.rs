@@ -916,12 +916,13 @@ impl<K: Kinematics> Planner<K> {
             }
             // Far from the stop the braking curve governs: a piece from whose end every
             // state under the curve (accelerating at most as hard as the path allows) can
-            // still stop with the stop's own model keeps none (the generator then takes the
-            // deceleration and jerk at the stop, no less than this model), which also keeps
-            // the backward pass short when moves are appended. Nearer pieces keep the
-            // frozen model: a stop model that fell from one piece to the next (it used to
-            // take a far piece's own deceleration) made states that fit the piece before
-            // unable to stop under the next one.
+            // still stop with the stop's own model keeps none (the generator takes the
+            // piece's own deceleration and jerk), which also keeps the backward pass short
+            // when moves are appended. Nearer pieces keep the frozen model, so that a state
+            // that enters them fits it: they used to lose it once the curve rose above
+            // 2·v_jerk inside them and take their first sub-interval's deceleration (a
+            // spline's tight bend: 240 mm/s² after 530 on the piece before), under which
+            // a state that fitted the piece before could not stop.
             let free = zone_done && run_a.is_finite() && {
                 let v_end = p.w[ns] + 0.5 * run_j * t * t;
                 let (d, _) = stop(

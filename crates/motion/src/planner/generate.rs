@@ -195,21 +195,18 @@ impl<K: Kinematics> Planner<K> {
     /// more than the dead end met on the way into the same stop (a piece nearer the stop
     /// may allow less than the pieces before it assumed).
     fn stop_model(&self, p: &Piece, at: f64) -> (f64, f64) {
-        // A piece far from the stop keeps no model of its own (`Planner::backward`): from
-        // its end every state under the braking curve can stop with the stop's own model,
-        // so any model at least that capable fits on the way in. It takes its own
-        // deceleration and jerk, but no less than at the stop (which are no less than the
-        // stop's model): the model never falls under a state that fitted the piece before.
-        let (_, a_end, j_end) = p.stop_ahead;
+        // A piece far from the stop keeps no model (`Planner::backward`): from its end every
+        // state under the braking curve can stop with the model of the pieces after it, and
+        // its own deceleration and jerk keep the stop profile within what it allows here.
         let mut a_stop = if p.a_to_stop.is_finite() && p.a_to_stop > 1e-3 * self.a_min {
             p.a_to_stop
         } else {
-            p.a_sub[0].min(self.a_min * BRAKE_SHARE_STRAIGHT).max(a_end)
+            p.a_sub[0].min(self.a_min * BRAKE_SHARE_STRAIGHT)
         };
         let mut j_stop = if p.j_to_stop.is_finite() {
             p.j_to_stop
         } else {
-            p.j_brake.max(j_end)
+            p.j_brake
         };
         if let Some(s) = self.strict
             && at <= s.until
