@@ -847,6 +847,12 @@ impl<K: Kinematics> Planner<K> {
         let mut next_braking = true;
         let mut valley: Option<(f64, f64, f64, f64)> = None;
         let mut stop_ahead = (f64::INFINITY, 0.0, 0.0);
+        // Whether the backward run has left the stop's own low-speed stretch (the braking
+        // curve rose above twice the jerk-dominated speed): from there on the stop model's
+        // deceleration and jerk are frozen, not reset, so that it never falls between two
+        // pieces on the way into the stop (see `a_to_stop`).
+        let mut zone_done = false;
+        let t = self.period;
         for i in (0..n).rev() {
             let p = self.q.get_mut(i);
             let is_stop = p.stop_at_end || i + 1 == n;
@@ -866,6 +872,7 @@ impl<K: Kinematics> Planner<K> {
                 next_w = 0.0;
                 run_a = f64::INFINITY;
                 run_j = f64::INFINITY;
+                zone_done = false;
                 next_braking = true;
                 valley = None;
             }
@@ -904,19 +911,38 @@ impl<K: Kinematics> Planner<K> {
                     // The stop model of the controller (constant deceleration, jerk-limited
                     // ends) matters where the stop is jerk-dominated, at low speed; above, the
                     // braking curve with its varying deceleration governs.
-                    if w1 <= v_jerk {
+                    if w1 <= v_jerk && !zone_done {
                         run_a = run_a.min(acc);
                         run_j = run_j.min(p.j_brake);
                     } else if w1 > 2.0 * v_jerk {
-                        // Far from the stop: the braking curve governs; keeping the value
-                        // local also keeps the backward pass short when moves are appended.
-                        run_a = f64::INFINITY;
-                        run_j = f64::INFINITY;
+                        zone_done = true;
                     }
                 }
             }
-            p.a_to_stop = run_a;
-            p.j_to_stop = run_j;
+            // Far from the stop the braking curve governs: a piece from whose end every
+            // state under the curve (accelerating at most as hard as the path allows) can
+            // still stop with the stop's own model keeps none (the generator takes the
+            // piece's own deceleration and jerk), which also keeps the backward pass short
+            // when moves are appended. Nearer pieces keep the frozen model, so that a state
+            // that enters them fits it: they used to lose it once the curve rose above
+            // 2·v_jerk inside them and take their first sub-interval's deceleration (a
+            // spline's tight bend: 240 mm/s² after 530 on the piece before), under which
+            // a state that fitted the piece before could not stop.
+            let free = zone_done && run_a.is_finite() && {
+                let v_end = p.w[ns] + 0.5 * run_j * t * t;
+                let (d, _) = stop(
+                    v_end,
+                    p.a_proj[0],
+                    STOP_SHARE * run_a,
+                    STOP_JERK_SHARE * run_j,
+                );
+                d <= stop_ahead.0 - (p.cum_start + p.len)
+            };
+            (p.a_to_stop, p.j_to_stop) = if free {
+                (f64::INFINITY, f64::INFINITY)
+            } else {
+                (run_a, run_j)
+            };
             next_w = p.w[0];
             lowest = i;
             if i < first_new

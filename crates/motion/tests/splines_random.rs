@@ -6,86 +6,10 @@
 //! (`cargo test --release -p rtcnc-motion --test splines_random -- --nocapture`).
 
 mod common;
+#[path = "support/spline_programs.rs"]
+mod spline_programs;
 use common::*;
-use rtcnc_motion::{Bezier, Move, PathMode};
-
-/// xorshift64: the programs are the same on every run.
-struct Rng(u64);
-
-impl Rng {
-    fn f(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
-/// A program of one to four splines; with `lines`, each followed by a line along its end
-/// tangent (60 %) or at a random angle.
-fn program(rng: &mut Rng, lines: bool) -> (Vec<Move>, rtcnc_motion::AxisVec) {
-    let n = 1 + (rng.f() * 4.0) as usize;
-    let feed = 10.0 + rng.f() * 140.0;
-    let mode = if rng.f() < 0.5 {
-        PathMode::ExactPath
-    } else {
-        blend(0.01)
-    };
-    let mut moves = Vec::new();
-    let mut p = p3(0.0, 0.0, 0.0);
-    let mut prev_dir: Option<[f64; 2]> = None;
-    for k in 0..n {
-        let sc = 1.0 + rng.f() * 20.0;
-        let mut c1 = p3(
-            p[0] + (rng.f() - 0.5) * sc,
-            p[1] + (rng.f() - 0.5) * sc,
-            0.0,
-        );
-        if let Some(d) = prev_dir {
-            // Mostly tangent to the move before (as G5 chains are).
-            if rng.f() < 0.7 {
-                let l = rng.f() * sc * 0.5 + 0.1;
-                c1 = p3(p[0] + d[0] * l, p[1] + d[1] * l, 0.0);
-            }
-        }
-        let end = p3(
-            p[0] + (rng.f() - 0.5) * sc,
-            p[1] + (rng.f() - 0.5) * sc,
-            0.0,
-        );
-        let (control, last) = if rng.f() < 0.3 {
-            (Bezier::Quadratic(c1), c1)
-        } else {
-            let c2 = p3(
-                end[0] + (rng.f() - 0.5) * sc,
-                end[1] + (rng.f() - 0.5) * sc,
-                0.0,
-            );
-            (Bezier::Cubic([c1, c2]), c2)
-        };
-        let d = [end[0] - last[0], end[1] - last[1]];
-        let l = d[0].hypot(d[1]);
-        prev_dir = Some([d[0] / l, d[1] / l]);
-        moves.push(Move::spline(end, control, feed, mode, k as u32 + 1));
-        p = end;
-        if lines {
-            let l = rng.f() * sc;
-            let ang = if rng.f() < 0.6 {
-                0.0
-            } else {
-                (rng.f() - 0.5) * 3.0
-            };
-            let (c, s) = (ang.cos(), ang.sin());
-            let d = prev_dir.unwrap();
-            let dir = [c * d[0] - s * d[1], s * d[0] + c * d[1]];
-            let e = p3(p[0] + l * dir[0], p[1] + l * dir[1], 0.0);
-            moves.push(Move::line(e, feed, mode, k as u32 + 100));
-            prev_dir = Some(dir);
-            p = e;
-        }
-    }
-    (moves, p)
-}
+use spline_programs::{Rng, program};
 
 /// Runs `count` programs from `seed`: none may exceed a limit or count a violation.
 fn check(count: usize, seed: u64, lines: bool) {

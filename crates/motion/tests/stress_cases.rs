@@ -106,3 +106,32 @@ fn rollbacks_on_a_tightening_spline_do_not_cascade_into_a_violation() {
         check(&moves, window);
     }
 }
+
+/// Seed 18, program 122 of the spline-and-line programs of `examples/splines_seeds.rs`,
+/// shrunk: a quadratic from rest into an exact stop, then a line. The stop model of the
+/// spline's last piece took the deceleration where that piece starts (a tight bend, about
+/// 240 mm/s²) for the whole stop, where the piece before had taken its own (about
+/// 530 mm/s²): the state entered the last piece at 52 mm/s, still accelerating, under the
+/// braking curve but unable to stop under the new model. The generator followed that
+/// model's stop profile until the set-point check failed some 200 periods later, when
+/// every buffered state was too fast (23 counted violations, acceleration 5.5 ×, jerk
+/// 105 × the limit). After them, the rollback's stricter model stayed in force at the
+/// stop, where the line starts at a braking-curve speed of zero, and kept the machine at
+/// rest for ever: the program never ended. Now the stop model never falls on the way into
+/// a stop, and a stricter model ends at the stop it braked for.
+#[test]
+fn a_spline_into_a_stop_keeps_the_limits_and_the_next_line_starts() {
+    let moves = [
+        Move::spline(
+            p3(-9.7, -5.0, 0.0),
+            Bezier::Quadratic(p3(3.3, -6.0, 0.0)),
+            105.0,
+            PathMode::ExactPath,
+            1,
+        ),
+        Move::line(p3(-20.0, -11.0, 0.0), 105.0, PathMode::ExactPath, 2),
+    ];
+    for window in [64, 256, 2048] {
+        check(&moves, window);
+    }
+}

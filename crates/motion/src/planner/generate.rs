@@ -88,12 +88,7 @@ impl<K: Kinematics> Planner<K> {
         self.stats.generated += 1;
         match self.step(front, false) {
             Some(st) => {
-                // Kept a little past the dead end: one just after it is the same one.
-                if let Some(s) = self.strict
-                    && st.at > s.until + 8.0 * st.v * self.period + 1e-9
-                {
-                    self.strict = None;
-                }
+                self.leave_strict(&st);
                 if self.trace {
                     eprintln!(
                         "GEN at={} v={} a={} ds={:?} land={} state={:?}",
@@ -105,6 +100,7 @@ impl<K: Kinematics> Planner<K> {
             None if self.ahead.len == 0 => {
                 // Nothing left to roll back: the nearest point is emitted (and counted).
                 let st = self.step(front, true).unwrap_or_else(|| still(*front));
+                self.leave_strict(&st);
                 self.ahead.push(st);
             }
             None => self.rollback(front),
@@ -115,7 +111,23 @@ impl<K: Kinematics> Planner<K> {
     /// counted in `limit_violations`.
     pub(super) fn generate_forced(&mut self, front: &GenState) -> GenState {
         self.stats.generated += 1;
-        self.step(front, true).unwrap_or_else(|| still(*front))
+        let st = self.step(front, true).unwrap_or_else(|| still(*front));
+        self.leave_strict(&st);
+        st
+    }
+
+    /// Ends a rollback's stricter model once `st` is past its dead end: a little past it
+    /// (one just after it is the same one), or at rest at the stop it braked for (a dead
+    /// end on the way into a stop: the next piece starts where it was, and the stricter
+    /// model there kept the machine at rest for ever). A state at rest short of the stop
+    /// keeps it (a dead end at rest is met again from there).
+    fn leave_strict(&mut self, st: &GenState) {
+        if let Some(s) = self.strict
+            && (st.at > s.until + 8.0 * st.v * self.period + 1e-9
+                || (st.v <= 0.0 && st.a == 0.0 && st.at >= s.until && st.at >= s.stop_at))
+        {
+            self.strict = None;
+        }
     }
 
     /// Drops the last set-points and makes the model stricter until the dead end is passed
@@ -200,6 +212,9 @@ impl<K: Kinematics> Planner<K> {
     /// more than the dead end met on the way into the same stop (a piece nearer the stop
     /// may allow less than the pieces before it assumed).
     fn stop_model(&self, p: &Piece, at: f64) -> (f64, f64) {
+        // A piece far from the stop keeps no model (`Planner::backward`): from its end every
+        // state under the braking curve can stop with the model of the pieces after it, and
+        // its own deceleration and jerk keep the stop profile within what it allows here.
         let mut a_stop = if p.a_to_stop.is_finite() && p.a_to_stop > 1e-3 * self.a_min {
             p.a_to_stop
         } else {
