@@ -1,5 +1,10 @@
 #![allow(clippy::needless_range_loop)]
 use rtcnc_motion::*;
+
+#[path = "../tests/support/line_programs.rs"]
+mod line_programs;
+use line_programs::parse_spec;
+
 fn main() {
     let mut lim = AxisLimits::new(100.0, 1000.0, 50_000.0, -1000.0, 1000.0);
     if std::env::var("QUICK").is_ok() {
@@ -22,25 +27,8 @@ fn main() {
     let mut e = [0.0; AXES];
     if which == "spec" {
         // SPEC="x y z feed mode P; ..." with mode S (G61.1), E (G61) or B (G64 P).
-        for (n, item) in std::env::var("SPEC").unwrap().split(';').enumerate() {
-            let f: Vec<&str> = item.split_whitespace().collect();
-            if f.len() < 5 {
-                continue;
-            }
-            let mut e = [0.0; AXES];
-            for i in 0..3 {
-                e[i] = f[i].parse().unwrap();
-            }
-            let feed: f64 = f[3].parse().unwrap();
-            let mode = match f[4] {
-                "S" => PathMode::ExactStop,
-                "E" => PathMode::ExactPath,
-                _ => PathMode::Blend {
-                    tolerance: f[5].parse().unwrap(),
-                    merge_tolerance: 0.0,
-                },
-            };
-            pl.push(&Move::line(e, feed, mode, n as u32 + 1)).unwrap();
+        for m in parse_spec(&std::env::var("SPEC").unwrap()) {
+            pl.push(&m).unwrap();
         }
     } else if which == "case3" {
         let pt = |x: f64, y: f64| {

@@ -4,16 +4,9 @@
 #![allow(clippy::needless_range_loop)]
 use rtcnc_motion::*;
 
-struct Lcg(u64);
-impl Lcg {
-    fn f(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
+#[path = "../tests/support/line_programs.rs"]
+mod line_programs;
+use line_programs::{Change, Lcg, random_changes, random_lines};
 
 fn main() {
     let n: usize = std::env::args()
@@ -29,38 +22,7 @@ fn main() {
     let mut failures = 0;
     let (mut periods, mut rollbacks, mut violations, mut generated) = (0u64, 0u64, 0u64, 0u64);
     for case in 0..n {
-        let k = 1 + (rng.f() * 8.0) as usize;
-        let mut spec = String::new();
-        let mut moves = Vec::new();
-        let mut pos = [0.0; AXES];
-        for i in 0..k {
-            let mut e = [0.0; AXES];
-            for a in 0..3 {
-                e[a] = rng.f() * 40.0 - 20.0;
-            }
-            if rng.f() < 0.3 {
-                e[2] = pos[2];
-            }
-            let feed = 5.0 + rng.f() * 145.0;
-            let r = rng.f();
-            let (mode, ms) = if r < 0.2 {
-                (PathMode::ExactStop, "S".to_string())
-            } else if r < 0.4 {
-                (PathMode::ExactPath, "E".to_string())
-            } else {
-                let p = [0.001, 0.01, 0.1][(rng.f() * 3.0) as usize % 3];
-                (
-                    PathMode::Blend {
-                        tolerance: p,
-                        merge_tolerance: 0.0,
-                    },
-                    format!("B {p}"),
-                )
-            };
-            spec += &format!("{} {} {} {} {}; ", e[0], e[1], e[2], feed, ms);
-            moves.push(Move::line(e, feed, mode, i as u32 + 1));
-            pos = e;
-        }
+        let (spec, moves) = random_lines(&mut rng);
         let lim = MachineLimits::uniform(
             &[Axis::X, Axis::Y, Axis::Z],
             AxisLimits::new(vm, am, jm, -1000.0, 1000.0),
@@ -86,15 +48,11 @@ fn main() {
         let online = !online_kinds.is_empty();
         let kind = |c: char| online_kinds.contains(c) || online_kinds == "1";
         // (Drawn only then, so that the programs of a seed stay those of plain runs.)
-        let (mut p_ovr, mut ovr, mut p_hold, mut p_quick) =
-            (usize::MAX, 1.0, usize::MAX, usize::MAX);
-        if online {
-            (p_ovr, ovr) = (30 + (rng.f() * 600.0) as usize, 0.2 + rng.f() * 1.5);
-            p_hold = 30 + (rng.f() * 900.0) as usize;
-            if rng.f() < 0.1 {
-                p_quick = 30 + (rng.f() * 1500.0) as usize;
-            }
-        }
+        let changes = if online {
+            random_changes(&mut rng)
+        } else {
+            Vec::new()
+        };
         // STRESS_ONLY=<case>: run only that program (for a trace with RTCNC_MOTION_TRACE).
         let only = std::env::var("STRESS_ONLY")
             .ok()
@@ -105,30 +63,23 @@ fn main() {
             2_000_000
         };
         for n in 0..periods_max {
-            if online {
-                if n == p_ovr && kind('o') {
-                    if only.is_some() {
-                        eprintln!("OVERRIDE {ovr} at {n}");
-                    }
-                    pl.set_feed_override(ovr);
+            for (at, c) in &changes {
+                let letter = match c {
+                    Change::Override(_) => 'o',
+                    Change::Hold | Change::Resume => 'h',
+                    Change::QuickStop => 'q',
+                };
+                if *at != n || !kind(letter) {
+                    continue;
                 }
-                if n == p_hold && kind('h') {
-                    if only.is_some() {
-                        eprintln!("HOLD at {n}");
-                    }
-                    pl.hold();
+                if only.is_some() {
+                    eprintln!("{c:?} at {n}");
                 }
-                if n == p_hold.saturating_add(300) && kind('h') {
-                    if only.is_some() {
-                        eprintln!("RESUME at {n}");
-                    }
-                    pl.resume();
-                }
-                if n == p_quick && kind('q') {
-                    if only.is_some() {
-                        eprintln!("QUICK at {n}");
-                    }
-                    pl.quick_stop();
+                match *c {
+                    Change::Override(f) => pl.set_feed_override(f),
+                    Change::Hold => pl.hold(),
+                    Change::Resume => pl.resume(),
+                    Change::QuickStop => pl.quick_stop(),
                 }
             }
             let st = pl.next(&mut j);
