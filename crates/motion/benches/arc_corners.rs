@@ -5,7 +5,6 @@
 //!
 //! `cargo bench -p rtcnc-motion --bench arc_corners`
 
-use std::hint::black_box;
 use std::time::Duration;
 
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
@@ -13,7 +12,7 @@ use rtcnc_motion::{AXES, AxisVec, Move, PathMode};
 
 #[path = "support/programs.rs"]
 mod programs;
-use programs::planner;
+use programs::{planner, push_program};
 
 fn zigzag(n: usize) -> (AxisVec, Vec<Move>) {
     let mode = PathMode::Blend {
@@ -73,11 +72,7 @@ fn bench(c: &mut Criterion) {
         b.iter_batched(
             || planner(start, 4 * moves.len() + 16, 10_000.0),
             |mut pl| {
-                let mut k = 0;
-                while k < moves.len() {
-                    k += pl.push_all(black_box(&moves[k..])).unwrap();
-                }
-                pl.flush();
+                push_program(&mut pl, &moves);
                 pl
             },
             BatchSize::LargeInput,

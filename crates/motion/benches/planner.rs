@@ -15,7 +15,7 @@ use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_mai
 
 #[path = "support/programs.rs"]
 mod programs;
-use programs::{planner, polyline, spline_chain};
+use programs::{planner, polyline, push_program, spline_chain};
 use rtcnc_motion::AXES;
 
 fn bench(c: &mut Criterion) {
@@ -27,11 +27,7 @@ fn bench(c: &mut Criterion) {
         b.iter_batched(
             || planner(start, 4 * moves.len() + 16, 1000.0),
             |mut pl| {
-                let mut k = 0;
-                while k < moves.len() {
-                    k += pl.push_all(black_box(&moves[k..])).unwrap();
-                }
-                pl.flush();
+                push_program(&mut pl, &moves);
                 pl
             },
             BatchSize::LargeInput,
@@ -77,11 +73,7 @@ fn bench_splines(c: &mut Criterion) {
         b.iter_batched(
             || planner(start, 4 * moves.len() + 16, 1000.0),
             |mut pl| {
-                let mut k = 0;
-                while k < moves.len() {
-                    k += pl.push_all(black_box(&moves[k..])).unwrap();
-                }
-                pl.flush();
+                push_program(&mut pl, &moves);
                 pl
             },
             BatchSize::LargeInput,

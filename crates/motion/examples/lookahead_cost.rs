@@ -14,7 +14,7 @@ use rtcnc_motion::{AXES, MotionState};
 
 #[path = "../benches/support/programs.rs"]
 mod programs;
-use programs::{planner, polyline, spline_chain};
+use programs::{planner, polyline, push_program, spline_chain};
 
 fn main() {
     let reps: usize = std::env::args()
@@ -38,11 +38,7 @@ fn main() {
     let mut pushed = 0usize;
     let t0 = Instant::now();
     for pl in &mut planners {
-        let mut k = 0;
-        while k < moves.len() {
-            k += pl.push_all(&moves[k..]).expect("pushable program");
-        }
-        pl.flush();
+        push_program(pl, &moves);
         pushed += moves.len();
         if mode == "run" || mode == "splines" {
             let mut j = [0.0; 3];

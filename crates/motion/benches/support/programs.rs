@@ -73,3 +73,13 @@ pub fn planner(start: AxisVec, window: usize, extent: f64) -> Planner<TrivialKin
     )
     .expect("valid benchmark limits")
 }
+
+/// Pushes the whole program through the look-ahead (as much as the window takes per call)
+/// and flushes it.
+pub fn push_program(pl: &mut Planner<TrivialKinematics>, moves: &[Move]) {
+    let mut k = 0;
+    while k < moves.len() {
+        k += pl.push_all(std::hint::black_box(&moves[k..])).unwrap();
+    }
+    pl.flush();
+}
