@@ -279,10 +279,7 @@ impl GenBuffer {
     }
     /// Index of the first entry at rest (speed and acceleration zero) among the first `n`.
     fn rest_within(&self, n: usize) -> Option<usize> {
-        (0..self.len.min(n)).find(|&i| {
-            let st = &self.buf[(self.head + i) % self.cap()];
-            st.v == 0.0 && st.a == 0.0
-        })
+        (0..n).find(|&i| self.get(i).is_some_and(|st| st.v == 0.0 && st.a == 0.0))
     }
     fn for_each(&mut self, mut f: impl FnMut(&mut GenState)) {
         let c = self.cap();
