@@ -569,13 +569,15 @@ impl MotionCore {
         if self.fault {
             return MachineState::Fault;
         }
+        // A hold outranks what the program waits for: whatever the wait ends in, nothing
+        // moves on until a resume, and that is what the operator must see.
+        if self.held || self.logic_paused || self.feed_stop_active {
+            return MachineState::Held;
+        }
         match self.phase {
             Phase::Logic { .. } => return MachineState::WaitingForLogic,
             Phase::Paused { .. } => return MachineState::Paused,
             _ => {}
-        }
-        if self.held || self.logic_paused || self.feed_stop_active {
-            return MachineState::Held;
         }
         if self.moving() || self.homing.is_some() || self.phase != Phase::Idle {
             MachineState::Running
@@ -603,7 +605,10 @@ impl MotionCore {
                     if !self.feed_stop_active {
                         self.planner.resume();
                     }
-                } else if matches!(self.phase, Phase::Paused { .. }) {
+                }
+                // One resume also continues a program paused at M0/M1 or a single block:
+                // the operator's "go on" is the same key on every controller.
+                if matches!(self.phase, Phase::Paused { .. }) {
                     self.start_count = self.start_count.wrapping_add(1);
                 }
             }
@@ -688,24 +693,69 @@ impl MotionCore {
         }
     }
 
+    /// The operator's feed hold. It is latched in every state, moving or not, until a
+    /// resume (or an abort, e-stop or fault): a moving path decelerates along itself, a
+    /// jog or homing stops, and whatever the machine waits for (a machine function, a
+    /// dwell, an input, a pause, the start of a program, the next MDI line) ends without
+    /// the next block starting.
     fn hold(&mut self) {
+        // An e-stop or fault has already stopped everything and ended the program; a hold
+        // latched now would outlive the reset that follows.
+        if self.estop || self.fault {
+            return;
+        }
         match self.source {
             // A thread pass cannot stop in the cut: the hold takes effect at its end (as in
             // LinuxCNC, which holds spindle-synchronised motion only after it).
             Source::Path if self.synced.is_some() => self.hold_after_sync = true,
             Source::Path => {
+                self.held = true;
                 if self.moving() {
-                    self.held = true;
                     self.planner.hold();
                 }
             }
             Source::Manual => {
+                self.held = true;
+                // Homing cannot go on from where a hold stops it: it starts again.
+                self.homing = None;
+                self.handwheel = None;
                 for i in 0..AXES {
                     if self.axis_present[i] {
                         let _ = self.axis_otg[i].stop();
                     }
                 }
+                // Joints of an axis that homing had taken over; independent joints move
+                // beside the program and are not held (as PLCopen axes are not).
+                for j in 0..self.joint_count {
+                    if self.joints[j].axis.is_some() && self.joint_manual & (1 << j) != 0 {
+                        let _ = self.joint_otg[j].stop();
+                    }
+                }
             }
+        }
+    }
+
+    /// Axis joints that homing took over go back to their axis once they stand outside
+    /// the group being homed (their group is done, or homing was stopped), so that the
+    /// axis drives them again from there. Runs after the period's set-point `sp` is made,
+    /// which it corrects for the axis, so the hand-over has no step.
+    fn release_stopped_homing_joints(&mut self, sp: &mut JointSetpoints) {
+        for j in 0..self.joint_count {
+            let bit = 1u32 << j;
+            let Some(i) = self.joints[j].axis else {
+                continue;
+            };
+            let in_group = self.homing.is_some_and(|h| h.step[j].is_some());
+            if self.joint_manual & bit == 0 || in_group || !self.joint_otg[j].is_finished() {
+                continue;
+            }
+            let p = self.joint_otg[j].sample().p;
+            if let Ok(o) = OnlineAxis::new(State::at_rest(p), self.axis_limits[i]) {
+                self.axis_otg[i] = o;
+            }
+            self.joint_manual &= !bit;
+            sp.axes[i] = p;
+            sp.joints[j] = p;
         }
     }
 
@@ -759,7 +809,10 @@ impl MotionCore {
     }
 
     fn command_inner(&mut self, ctx: &mut Context<'_>, shared: &Shared, command: Command) -> bool {
+        // A latched feed hold refuses whatever would start motion (a program, an MDI
+        // line, a jog, homing) until the operator resumes.
         let idle = self.operational()
+            && !self.held
             && !self.moving()
             && self.phase == Phase::Idle
             && self.homing.is_none();
@@ -1079,6 +1132,12 @@ impl MotionCore {
                     if self.moving() {
                         return false;
                     }
+                    // Held: the next block (a machine function, a probing or threading
+                    // move, the program's end) waits for the resume; an error stops the
+                    // program at once.
+                    if (self.held || self.logic_paused) && !matches!(then, Then::Error(_)) {
+                        return false;
+                    }
                     self.after_drain(ctx, shared, then, line);
                 }
                 Phase::Logic {
@@ -1091,7 +1150,7 @@ impl MotionCore {
                     }
                 }
                 Phase::Paused { start_count } => {
-                    if self.start_count == start_count {
+                    if self.start_count == start_count || self.held || self.logic_paused {
                         return false;
                     }
                     self.phase = Phase::Feeding;
@@ -1735,9 +1794,9 @@ impl MotionCore {
         if m.finishing && m.otg.is_finished() {
             self.synced = None;
             let _ = self.planner.reset_at(sp.axes);
-            if std::mem::take(&mut self.hold_after_sync) && self.phase != Phase::Idle {
+            if std::mem::take(&mut self.hold_after_sync) {
                 // Standing between moves now: the next one waits for a resume.
-                self.logic_paused = true;
+                self.held = true;
             }
         } else {
             self.synced = Some(m);
@@ -2024,9 +2083,6 @@ impl MotionCore {
                 sp.axes = status.axes;
                 sp.line = status.line;
                 sp.path_speed = status.path_speed;
-                if self.held && status.state == MotionState::Idle {
-                    self.held = false;
-                }
                 self.last_state = status.state;
                 if status.state == MotionState::Idle && self.phase == Phase::Idle {
                     sp.line = 0;
@@ -2056,6 +2112,9 @@ impl MotionCore {
             if self.joint_manual & (1 << j) != 0 {
                 sp.joints[j] = self.joint_otg[j].step(self.period_s).p;
             }
+        }
+        if self.source == Source::Manual {
+            self.release_stopped_homing_joints(&mut sp);
         }
         self.last = sp;
     }
@@ -2255,22 +2314,8 @@ impl MotionCore {
             }
         }
         if all_done {
-            // Hand the group's axis joints back to their axes, now squared.
-            for j in 0..self.joint_count {
-                if homing.step[j].is_none()
-                    && self.joints[j]
-                        .homing
-                        .is_some_and(|h| h.sequence == homing.sequence)
-                {
-                    if let Some(i) = self.joints[j].axis {
-                        let p = self.joint_otg[j].sample().p;
-                        if let Ok(o) = OnlineAxis::new(State::at_rest(p), self.axis_limits[i]) {
-                            self.axis_otg[i] = o;
-                        }
-                        self.joint_manual &= !(1 << j);
-                    }
-                }
-            }
+            // The group's axis joints, now squared, go back to their axes at the end of
+            // this period (`release_stopped_homing_joints`).
             self.homing = self.next_homing_group(Some(homing.sequence));
             if self.homing.is_none() {
                 // Joints without a sequence are homed where they stand.
