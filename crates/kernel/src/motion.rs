@@ -1405,13 +1405,8 @@ impl MotionCore {
             }
             Aux::WaitOrient { timeout } => {
                 *self.requests_mut() = mi;
-                let periods = if timeout.is_finite() && timeout > 0.0 {
-                    (timeout / self.period_s).ceil() as u64
-                } else {
-                    0
-                };
                 self.phase = Phase::WaitOrient {
-                    deadline: self.cycle + periods,
+                    deadline: self.deadline_after(timeout),
                     line,
                 };
                 return;
@@ -1481,17 +1476,13 @@ impl MotionCore {
                     };
                     return;
                 };
-                let periods = if timeout.is_finite() && timeout > 0.0 {
-                    (timeout / self.period_s).ceil() as u64
-                } else {
-                    0
-                };
+                let deadline = self.deadline_after(timeout);
                 let bit = 1u64 << point;
                 let previous = self.feedback.get().digital_inputs & bit != 0;
                 self.phase = Phase::WaitInput {
                     bit,
                     condition,
-                    deadline: self.cycle + periods,
+                    deadline,
                     previous,
                 };
                 return;
@@ -1588,6 +1579,18 @@ impl MotionCore {
             line,
             released: false,
         };
+    }
+
+    /// The interpolation cycle at which a wait of `seconds` ends: now for 0 (or a
+    /// negative or NaN time, which the interpreter refuses before), never for an infinite
+    /// one, and saturating for one longer than the machine will run.
+    fn deadline_after(&self, seconds: f64) -> u64 {
+        if seconds.is_nan() || seconds <= 0.0 {
+            return self.cycle;
+        }
+        // `as` saturates: infinity and 1e30 s become u64::MAX periods.
+        let periods = (seconds / self.period_s).ceil() as u64;
+        self.cycle.saturating_add(periods)
     }
 
     /// Starts a probing move: refused without a probe input, or when the probe already is

@@ -136,3 +136,26 @@ fn an_unmapped_analogue_input_stops_the_program_at_its_block() {
     assert_eq!(m.status().axes[0], 1.0);
     assert!(m.faults.iter().any(|f| f.line == 3), "{:?}", m.faults);
 }
+
+#[test]
+fn an_m66_time_out_longer_than_the_machine_will_run_waits_for_the_input() {
+    // 10^30 s is as good as forever: the wait must neither end at once (a deadline that
+    // wrapped) nor overflow; the input ends it and the program takes the "high" branch.
+    let text = "G21 G90
+M66 P0 L3 Q[10**30]
+o1 if [#5399 EQ 1]
+  G1 X5 F600
+o1 endif
+M2
+";
+    let mut m = Machine::new(&machine(), Some(program(text, "m66-forever.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    m.cycles(5000);
+    assert!(!m.status().program_ended);
+    assert_eq!(m.status().axes[0], 0.0);
+    m.handle_machine(|mach| mach.set_digital_input(3, true).unwrap());
+    assert!(m.until(10.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert_eq!(m.status().axes[0], 5.0);
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+}

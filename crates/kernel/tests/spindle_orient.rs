@@ -62,3 +62,16 @@ M2
     // Line 9 never moved X again.
     assert!(trace[back..].iter().all(|t| t.0 < 5.0));
 }
+
+#[test]
+fn an_m19_time_out_longer_than_the_machine_will_run_waits_for_the_orientation() {
+    // The orientation takes 249 periods; a time-out of 10^30 s must not wrap to "now".
+    let text = "G21 G90\nM19 R90 Q[10**30]\nG1 X5 F600\nM2\n";
+    let cfg = config("bench-xyz.toml");
+    let mut m = Machine::started(&cfg, text, "m19-forever.ngc");
+    assert!(m.until(10.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert_eq!(m.status().axes[0], 5.0);
+    let angle = m.handle_machine(|mach| mach.spindle_angle_deg());
+    assert!((89.5..=90.0).contains(&angle), "{angle}");
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+}
