@@ -104,6 +104,12 @@ pub struct MachineSection {
     /// Units a program starts in.
     #[serde(default)]
     pub units: LengthUnits,
+    /// The machine has a pallet shuttle: M30 and M60 ask the machine logic to exchange
+    /// the pallets through the user M-code hand-shake, with code 60, before the program
+    /// ends (M30) or stops (M60). Without one (the default) M30 just ends and rewinds the
+    /// program, as LinuxCNC does.
+    #[serde(default)]
+    pub pallet_shuttle: bool,
 }
 
 /// `[axes.<letter>]`: one axis of the program (mm, or degrees for A B C).

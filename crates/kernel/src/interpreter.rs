@@ -44,6 +44,8 @@ pub(crate) struct InterpreterStage {
     spindle_rpm: f64,
     spindle_on: Option<SpindleDirection>,
     diameter_mode: bool,
+    /// M30/M60 exchange pallets through the machine logic.
+    pallet_shuttle: bool,
     parameter_file: Option<PathBuf>,
     /// The G64 P tolerance in force, so that a later Q (naive-CAM merge) can join it.
     blend_tolerance: Option<f64>,
@@ -58,6 +60,9 @@ pub(crate) struct InterpreterStage {
     /// Message texts not yet handed to the look-ahead (its channel was full).
     texts: std::collections::VecDeque<(u32, FixedText)>,
 }
+
+/// The user M-code number with which a pallet shuttle is asked of the machine logic.
+pub const PALLET_SHUTTLE_M_CODE: u16 = 60;
 
 impl InterpreterStage {
     pub(crate) fn new(
@@ -86,6 +91,7 @@ impl InterpreterStage {
             spindle_rpm: 0.0,
             spindle_on: None,
             diameter_mode,
+            pallet_shuttle: false,
             parameter_file: None,
             blend_tolerance: None,
             refused: false,
@@ -94,6 +100,12 @@ impl InterpreterStage {
             message_seq: 0,
             texts: std::collections::VecDeque::with_capacity(8),
         }
+    }
+
+    /// The machine has a pallet shuttle (`machine.pallet_shuttle`).
+    pub(crate) fn with_pallet_shuttle(mut self, on: bool) -> Self {
+        self.pallet_shuttle = on;
+        self
     }
 
     /// Where the parameters (work offsets, #5161..) are saved at the end of every program.
@@ -596,7 +608,15 @@ impl InterpreterStage {
                 p: p.unwrap_or(f64::NAN),
                 q: q.unwrap_or(f64::NAN),
             })),
-            C::ProgramStop | C::PalletShuttle => out.push_back(aux(Aux::ProgramStop)),
+            C::ProgramStop => out.push_back(aux(Aux::ProgramStop)),
+            // LinuxCNC's task does nothing for it; a machine with a shuttle has its logic
+            // exchange the pallets (the user M-code hand-shake, code 60).
+            C::PalletShuttle if self.pallet_shuttle => out.push_back(aux(Aux::UserM {
+                code: PALLET_SHUTTLE_M_CODE,
+                p: f64::NAN,
+                q: f64::NAN,
+            })),
+            C::PalletShuttle => {}
             C::OptionalProgramStop => out.push_back(aux(Aux::OptionalStop)),
             C::ProgramEnd | C::Finish => {
                 out.push_back(ProgramBlock::End { line });

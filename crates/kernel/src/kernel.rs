@@ -306,7 +306,8 @@ impl Kernel {
             parameters,
             config.machine.diameter_mode,
         )
-        .with_parameter_file(config.files.parameters.as_ref().map(|p| config.resolve(p)));
+        .with_parameter_file(config.files.parameters.as_ref().map(|p| config.resolve(p)))
+        .with_pallet_shuttle(config.machine.pallet_shuttle);
         let mut compensation = CompensationStage::new(shared.clone());
 
         let mut b = TaskSet::builder();
