@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use rtcnc_rt::{
     BinarySemaphore, EventSemaphore, Mailbox, Next, RealTimeConfig, RealTimeRunner, SchedulingMode,
-    TaskSet, VirtualRunner, ring,
+    TaskSet, VirtualRunner, lead_queue, ring,
 };
 
 struct Counting;
@@ -56,6 +56,7 @@ fn task_set(watch_in_bodies: bool) -> TaskSet {
     let tick = BinarySemaphore::new("tick");
     let pulse = EventSemaphore::new("cycle");
     let (mut tx, mut rx) = ring::<[f64; 6]>("setpoints", 8).unwrap();
+    let (mut lead_tx, mut lead_rx) = lead_queue::<[f64; 6]>("lead", 16, 0).unwrap();
     let mut b = TaskSet::builder();
     let fast = b.periodic_thread("servo", Duration::from_micros(500), 120);
     let slow = b.periodic_thread("plc", Duration::from_millis(1), 100);
@@ -66,6 +67,13 @@ fn task_set(watch_in_bodies: bool) -> TaskSet {
         }
         let a = ctx.activation() as f64;
         let _ = tx.push([a; 6]);
+        // Written ahead, replaced every tenth activation.
+        lead_tx.catch_up();
+        while lead_tx.lead() < 8 && lead_tx.push([a; 6]).is_ok() {}
+        if ctx.activation() % 10 == 0 {
+            let from = lead_tx.consumer_next();
+            lead_tx.rewind(from);
+        }
         let _ = out.try_put([a; 6]);
         t.signal();
         p.pulse();
@@ -81,6 +89,7 @@ fn task_set(watch_in_bodies: bool) -> TaskSet {
         while let Some(v) = rx.pop() {
             std::hint::black_box(v);
         }
+        let _ = std::hint::black_box(lead_rx.take(ctx.activation()));
         ctx.consume(Duration::from_micros(50));
     });
     let inbox = frames.clone();

@@ -1,7 +1,8 @@
 //! Communication between tasks, with the semantics of SEEDS.md: bounded mailboxes,
 //! binary / counting / event semaphores, a priority-inheritance mutex, a wait-free
-//! single-producer single-consumer ring, a wait-free latest-value cell (triple buffer) and a
-//! single-writer many-reader snapshot (seqlock).
+//! single-producer single-consumer ring, a wait-free latest-value cell (triple buffer), a
+//! single-writer many-reader snapshot (seqlock) and a lead queue (values computed ahead of
+//! the period they are for, replaceable until taken).
 //!
 //! Every object works the same under both schedulers. Non-blocking calls (`try_*`, `put_front`,
 //! `peek`, `clear`, `signal`, `set`, `pulse`) are what task bodies use; a task that must wait
@@ -12,6 +13,7 @@
 //! simulation and on the machine.
 
 mod latest;
+mod lead;
 mod mailbox;
 mod pimutex;
 mod ring;
@@ -20,6 +22,7 @@ mod seqlock;
 mod trigger;
 
 pub use latest::{LatestReader, LatestWriter, latest};
+pub use lead::{LeadConsumer, LeadProducer, Missing, lead_queue};
 pub use mailbox::Mailbox;
 pub use pimutex::{PiMutex, PiMutexGuard};
 pub use ring::{RingConsumer, RingProducer, ring};
