@@ -268,6 +268,22 @@ impl GenBuffer {
             self.len += 1;
         }
     }
+    /// Puts `st` in front of the oldest entry; the newest is dropped when full.
+    fn push_front(&mut self, st: GenState) {
+        let c = self.cap();
+        if self.len == c {
+            self.len -= 1;
+        }
+        self.head = (self.head + c - 1) % c;
+        self.buf[self.head] = st;
+        self.len += 1;
+    }
+    /// Removes and returns the newest entry.
+    fn pop_back(&mut self) -> Option<GenState> {
+        let st = *self.back()?;
+        self.len -= 1;
+        Some(st)
+    }
     fn pop_front(&mut self) -> Option<GenState> {
         if self.len == 0 {
             return None;
@@ -354,6 +370,37 @@ pub struct Planner<K: Kinematics> {
     /// Diagnostic trace of the generator on stderr (`RTCNC_MOTION_TRACE` set when the
     /// planner is built); never enable on a real-time thread.
     trace: bool,
+    /// The last emitted states, newest last (the newest is `cur`), so that emission can go
+    /// back over them ([`Planner::unemit`]); empty capacity: no history. The pieces they
+    /// are on stay in the window.
+    emitted: GenBuffer,
+}
+
+/// Why [`Planner::unemit`] could not go back.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum RewindError {
+    /// Further back than the history kept ([`Planner::with_history`]), or past the end of
+    /// a stop or a reset, which drop the path.
+    #[error("cannot go back {asked} set-points: {kept} are kept")]
+    NotKept {
+        /// Set-points asked to go back over.
+        asked: usize,
+        /// Set-points that can be gone back over now.
+        kept: usize,
+    },
+    /// The state to go back to follows an isolated line's S-curve evicted since.
+    #[error("the line profile of the state to go back to has been evicted")]
+    ProfileEvicted,
+}
+
+impl RewindError {
+    /// Stable code.
+    pub fn code(&self) -> &'static str {
+        match self {
+            RewindError::NotKept { .. } => "motion.rewind_not_kept",
+            RewindError::ProfileEvicted => "motion.rewind_profile_evicted",
+        }
+    }
 }
 
 impl<K: Kinematics> Planner<K> {
@@ -447,6 +494,7 @@ impl<K: Kinematics> Planner<K> {
             strict: None,
             line_profiles: [None; PROFILE_SLOTS],
             trace: std::env::var_os("RTCNC_MOTION_TRACE").is_some(),
+            emitted: GenBuffer::new(0, cur),
         })
     }
 
@@ -513,6 +561,7 @@ impl<K: Kinematics> Planner<K> {
             0.0
         };
         if f != self.fo {
+            self.settle_for_change();
             self.fo = f;
             self.update_curve(0);
             self.replan_line_profile();
@@ -528,6 +577,7 @@ impl<K: Kinematics> Planner<K> {
             0.0
         };
         if f != self.ro {
+            self.settle_for_change();
             self.ro = f;
             self.update_curve(0);
             self.replan_line_profile();
@@ -546,6 +596,7 @@ impl<K: Kinematics> Planner<K> {
     /// steps of the hold's stop, it takes effect when they end (see `regenerate`).
     pub fn resume(&mut self) {
         if matches!(self.hold, Some(h) if h.kind == StopKind::Hold) {
+            self.settle_for_change();
             self.hold = None;
             self.cur.hold_at = f64::INFINITY;
             self.regenerate();
@@ -651,9 +702,13 @@ impl<K: Kinematics> Planner<K> {
     /// Takes `st` as the emitted state: releases the pieces behind it and finishes an abort.
     fn emit(&mut self, st: GenState) {
         self.cur = st;
-        while self.q.len > 0 && self.q.head_id < self.cur.id {
-            self.q.pop();
+        if self.emitted.cap() > 0 {
+            if self.emitted.len == self.emitted.cap() {
+                self.emitted.pop_front();
+            }
+            self.emitted.push(st);
         }
+        self.release_behind();
         if st.stopped {
             self.q.clear();
             self.builder.clear(st.hist[0]);
@@ -669,7 +724,70 @@ impl<K: Kinematics> Planner<K> {
             self.cur.dwell_left = None;
             self.cur.prof_t = None;
             self.cur.land_n = 0;
+            self.restart_history();
         }
+    }
+
+    /// Releases the pieces behind the emitted set-point, except those the history is on.
+    fn release_behind(&mut self) {
+        let keep_from = self.emitted.get(0).map_or(self.cur.id, |oldest| oldest.id);
+        while self.q.len > 0 && self.q.head_id < keep_from.min(self.cur.id) {
+            self.q.pop();
+        }
+    }
+
+    /// The history starts again at the emitted state (the path behind it was dropped).
+    fn restart_history(&mut self) {
+        self.emitted.len = 0;
+        let cur = self.cur;
+        self.emitted.push(cur);
+    }
+
+    /// Keeps the last `periods` emitted set-points so that [`unemit`](Self::unemit) can go
+    /// back over them, for a caller that computes set-points ahead of the period they are
+    /// applied in and must still let an on-line change act at once. The pieces they are on
+    /// stay in the window meanwhile and take room in it ([`free`](Self::free)). Allocates:
+    /// call at set-up.
+    pub fn with_history(mut self, periods: usize) -> Self {
+        self.emitted = GenBuffer::new(periods + 1, self.cur);
+        self.restart_history();
+        self
+    }
+
+    /// Set-points [`unemit`](Self::unemit) can go back over now.
+    pub fn unemittable(&self) -> usize {
+        self.emitted.len.saturating_sub(1)
+    }
+
+    /// Goes back over the last `n` emitted set-points: the next [`next`](Self::next) emits
+    /// the first of them again, exactly as before unless an on-line change (hold, override,
+    /// abort, quick stop) is made in between, which then acts from there on, as if it had
+    /// come when that set-point was due. A change made after those set-points were emitted
+    /// cannot be undone this way: go back before making a change, not after. Allocation-free;
+    /// refused, with nothing changed, beyond the history ([`with_history`](Self::with_history))
+    /// or across the end of a stop or a reset.
+    pub fn unemit(&mut self, n: usize) -> Result<(), RewindError> {
+        if n == 0 {
+            return Ok(());
+        }
+        let kept = self.unemittable();
+        if n > kept {
+            return Err(RewindError::NotKept { asked: n, kept });
+        }
+        let Some(&back_to) = self.emitted.get(self.emitted.len - 1 - n) else {
+            return Err(RewindError::NotKept { asked: n, kept });
+        };
+        if back_to.prof_t.is_some() && self.profile_of(back_to.id).is_none() {
+            return Err(RewindError::ProfileEvicted);
+        }
+        for _ in 0..n {
+            if let Some(st) = self.emitted.pop_back() {
+                self.ahead.push_front(st);
+            }
+        }
+        self.cur = back_to;
+        self.stats.periods = self.stats.periods.saturating_sub(n as u64);
+        Ok(())
     }
 
     /// Fills the buffer up to the generation depth with bounded work.
@@ -735,6 +853,8 @@ impl<K: Kinematics> Planner<K> {
     /// been replanned from a moving state).
     fn keep_profile(&mut self, id: u64, profile: Profile) {
         let cur = self.cur.id;
+        // A piece the history is on may be gone back to: not passed yet in that sense.
+        let passed_before = self.emitted.get(0).map_or(cur, |oldest| oldest.id.min(cur));
         let slots = &self.line_profiles;
         let pick = slots
             .iter()
@@ -743,7 +863,7 @@ impl<K: Kinematics> Planner<K> {
             .or_else(|| {
                 slots
                     .iter()
-                    .position(|e| matches!(e, Some((pid, _)) if *pid < cur))
+                    .position(|e| matches!(e, Some((pid, _)) if *pid < passed_before))
             })
             .or_else(|| {
                 (0..PROFILE_SLOTS)
@@ -761,8 +881,28 @@ impl<K: Kinematics> Planner<K> {
     /// cannot continue from (releasing the deceleration at its jerk would reverse the path
     /// within the period), so the landing ends and generation restarts from rest.
     fn regenerate(&mut self) {
-        self.ahead.len = self.ahead.rest_within(FINISH_STOP).map_or(0, |k| k + 1);
+        let c = &self.cur;
+        // At rest there is no landing to finish: generation restarts from here.
+        self.ahead.len = if c.v == 0.0 && c.a == 0.0 {
+            0
+        } else {
+            self.ahead.rest_within(FINISH_STOP).map_or(0, |k| k + 1)
+        };
         self.strict = None;
+    }
+
+    /// Before an on-line change: the set-points up to a rest within `FINISH_STOP` periods
+    /// (a landing the change lets end) are generated under the settings before it, so that
+    /// what [`regenerate`](Self::regenerate) keeps does not depend on how far generation
+    /// had happened to run ahead (after [`unemit`](Self::unemit) it has run further).
+    fn settle_for_change(&mut self) {
+        while self.ahead.len < FINISH_STOP {
+            let front = *self.ahead.back().unwrap_or(&self.cur);
+            if front.stopped || (front.v == 0.0 && front.a == 0.0) {
+                break;
+            }
+            self.generate_one(&front);
+        }
     }
 
     /// After the braking curve changed from path position `from` on: drops the generated
@@ -1003,6 +1143,7 @@ impl<K: Kinematics> Planner<K> {
     }
 
     fn start_stop(&mut self, kind: StopKind) {
+        self.settle_for_change();
         let (a, j) = match kind {
             StopKind::Quick => (self.qa_min, self.qj_min),
             _ => (0.5 * self.a_min, 0.5 * self.j_min),
@@ -1212,6 +1353,7 @@ impl<K: Kinematics> Planner<K> {
         self.strict = None;
         self.ahead.len = 0;
         self.cur = GenState::rest(position, self.q.head_id, self.cum_end);
+        self.restart_history();
         Ok(())
     }
 }
