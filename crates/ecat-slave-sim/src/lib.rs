@@ -28,6 +28,7 @@ pub mod dio;
 pub mod drive;
 pub mod esc;
 pub mod frame;
+pub mod raw_socket;
 pub mod segment;
 pub mod sii;
 
