@@ -1048,7 +1048,7 @@ fn is_writable_register(address: usize) -> bool {
         0x0500 | 0x0502..=0x050F => true,      // SII interface
         0x0600..=0x06FF => true,               // FMMUs
         0x0800..=0x087F => address % 8 != 5 && address % 8 != 7, // SMs except status bytes
-        0x0900..=0x0903 => true,               // receive time latch (write triggers)
+        0x0900..=0x0903 => false,              // receive time latch: a write only triggers it
         0x0910..=0x0917 => false,              // system time: handled as a DC write
         0x0920..=0x092B => true,               // offset and delay
         0x0930..=0x0935 => true,               // DC control loop parameters

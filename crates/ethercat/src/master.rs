@@ -628,6 +628,8 @@ impl Starting<'_> {
                 }
             }
         }
+        // Inputs mean something once SYNC0 has run: start-up cycles until then.
+        let sync_start_ns = self.clock.now_ns() + SYNC0_START_DELAY.as_nanos() as u64;
         let op = if any_dc {
             let group = self
                 .block_on(
@@ -658,13 +660,23 @@ impl Starting<'_> {
                 .map_err(|e| self.refusal_or(e, "OP", "OP"))?;
             OpGroup::Free(group)
         };
-        self.cycle_until_op(&op, &mut devices)?;
+        let ready_ns = if any_dc {
+            sync_start_ns + 2 * self.period_ns
+        } else {
+            0
+        };
+        self.cycle_until_op(&op, &mut devices, ready_ns)?;
         Ok((op, devices))
     }
 
     /// Sends process data every period (holding the drives disabled where they stand)
-    /// until every device is in OP.
-    fn cycle_until_op(&self, group: &OpGroup, devices: &mut [Device]) -> Result<(), StartError> {
+    /// until every device is in OP and the clock has passed `ready_ns`.
+    fn cycle_until_op(
+        &self,
+        group: &OpGroup,
+        devices: &mut [Device],
+        ready_ns: u64,
+    ) -> Result<(), StartError> {
         let maindevice = self.maindevice;
         let end = Instant::now() + Duration::from_millis(u64::from(self.config.state_timeout_ms));
         let mut next = self.clock.now_ns();
@@ -717,7 +729,7 @@ impl Starting<'_> {
                     }
                 }
             }
-            if states.0 {
+            if states.0 && self.clock.now_ns() >= ready_ns {
                 return Ok(());
             }
             if Instant::now() >= end {

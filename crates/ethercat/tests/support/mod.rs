@@ -75,6 +75,12 @@ pub fn start(
     })
 }
 
+impl std::fmt::Debug for Bus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Bus").field("master", &self.master).finish_non_exhaustive()
+    }
+}
+
 impl Bus {
     /// One cycle: the clock moves one period, then the exchange.
     pub fn cycle(&mut self) -> Result<(), rtcnc_fieldbus::FieldbusError> {
