@@ -327,12 +327,17 @@ impl CoeServer {
         write_u16(&mut sdo, 1, index);
         sdo[3] = sub_index;
         write_u32(&mut sdo, 4, code);
-        self.sdo_reply(response, &sdo)
+        // An abort travels as an SDO request (ETG.1000.6 §5.6.2.7), not a response.
+        self.sdo_message(response, SERVICE_SDO_REQUEST, &sdo)
     }
 
     fn sdo_reply(&mut self, response: &mut [u8], sdo: &[u8]) -> bool {
+        self.sdo_message(response, SERVICE_SDO_RESPONSE, sdo)
+    }
+
+    fn sdo_message(&mut self, response: &mut [u8], service: u16, sdo: &[u8]) -> bool {
         let mut body = Vec::with_capacity(2 + sdo.len());
-        body.extend_from_slice(&(SERVICE_SDO_RESPONSE << 12).to_le_bytes());
+        body.extend_from_slice(&(service << 12).to_le_bytes());
         body.extend_from_slice(sdo);
         self.reply(response, MAILBOX_TYPE_COE, &body)
     }

@@ -202,3 +202,16 @@ impl RawSocket {
         Ok(())
     }
 }
+
+/// `CLOCK_MONOTONIC` in nanoseconds: the time base of a segment run in real time.
+pub fn monotonic_ns() -> u64 {
+    let mut spec = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: the timespec is valid for the call.
+    unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &raw mut spec) };
+    (spec.tv_sec as u64)
+        .saturating_mul(1_000_000_000)
+        .saturating_add(spec.tv_nsec as u64)
+}
