@@ -38,6 +38,9 @@ const FIRST_INDEX: usize = 17;
 /// Frames that may be in flight at once (ethercrab's storage holds no more).
 pub const FRAMES: usize = 16;
 
+/// Round trips in 1 µs bins up to this many µs (the last bin holds everything longer).
+pub const ROUND_TRIP_BINS: usize = 20_000;
+
 /// Counters of the TX/RX.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct TxRxCounters {
@@ -64,6 +67,9 @@ pub struct TxRx {
     sent_at: Instant,
     deadline: Instant,
     counters: TxRxCounters,
+    /// Round trips of accepted replies, 1 µs bins; allocated once.
+    round_trips: Box<[u32; ROUND_TRIP_BINS]>,
+    longest_round_trip_ns: u64,
 }
 
 impl TxRx {
@@ -134,7 +140,11 @@ impl TxRx {
                 self.in_flight.copy_within(at + 1..self.in_flight_count, at);
                 self.in_flight_count -= 1;
                 self.counters.received += 1;
-                self.counters.last_round_trip_ns = self.sent_at.elapsed().as_nanos() as u64;
+                let round_trip = self.sent_at.elapsed().as_nanos() as u64;
+                self.counters.last_round_trip_ns = round_trip;
+                self.longest_round_trip_ns = self.longest_round_trip_ns.max(round_trip);
+                let bin = ((round_trip / 1000) as usize).min(ROUND_TRIP_BINS - 1);
+                self.round_trips[bin] = self.round_trips[bin].saturating_add(1);
             }
             Ok(ReceiveAction::Ignored) => {}
             Err(_) => self.counters.errors += 1,
@@ -192,6 +202,8 @@ impl Driver {
                 sent_at: now,
                 deadline: now,
                 counters: TxRxCounters::default(),
+                round_trips: Box::new([0; ROUND_TRIP_BINS]),
+                longest_round_trip_ns: 0,
             }),
             at_once: AtomicBool::new(false),
         });
@@ -284,6 +296,15 @@ impl Driver {
             .try_lock()
             .map(|s| s.counters)
             .unwrap_or_default()
+    }
+
+    /// The round-trip histogram (1 µs bins) and the longest round trip (ns); `None` if
+    /// the TX/RX is busy.
+    pub fn round_trips(&self) -> Option<(Vec<u32>, u64)> {
+        self.pump
+            .state
+            .try_lock()
+            .map(|s| (s.round_trips.to_vec(), s.longest_round_trip_ns))
     }
 
     /// Whether the link is up.

@@ -338,6 +338,12 @@ impl EthercatMaster {
         }
     }
 
+    /// Round trips of the frames so far: a histogram in 1 µs bins and the longest (ns).
+    /// Not for the real-time path (it copies the histogram).
+    pub fn round_trips(&self) -> Option<(Vec<u32>, u64)> {
+        self.driver.round_trips()
+    }
+
     /// The working counter a good cycle returns.
     pub fn expected_working_counter(&self) -> u16 {
         self.expected_wkc

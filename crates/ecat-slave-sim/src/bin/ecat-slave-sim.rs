@@ -2,8 +2,12 @@
 //! on a network interface (one end of a veth pair, typically), in real time.
 //!
 //! ```text
-//! ecat-slave-sim --interface s0 --config segment.toml
+//! ecat-slave-sim --interface s0 --config segment.toml [--priority 70]
 //! ```
+//!
+//! `--priority` asks for SCHED_FIFO at that priority (and locked memory), so that the
+//! simulated devices answer like hardware even on a loaded machine; refused without the
+//! right to it, which is then printed.
 //!
 //! Prints `ready` once the interface is open. Faults come as lines on standard input:
 //!
@@ -25,7 +29,7 @@ use rtcnc_ecat_slave_sim::raw_socket::RawSocket;
 use rtcnc_ecat_slave_sim::{Fault, Outcome, SegmentConfig};
 
 fn usage() -> ! {
-    eprintln!("usage: ecat-slave-sim --interface NAME --config SEGMENT.toml");
+    eprintln!("usage: ecat-slave-sim --interface NAME --config SEGMENT.toml [--priority N]");
     std::process::exit(2);
 }
 
@@ -94,12 +98,25 @@ fn parse_command(line: &str) -> Result<Command, String> {
 
 fn main() {
     let mut args = std::env::args().skip(1);
-    let (mut interface, mut config_path) = (None, None);
+    let (mut interface, mut config_path, mut priority) = (None, None, None);
     while let Some(arg) = args.next() {
         match arg.as_str() {
             "--interface" => interface = args.next(),
             "--config" => config_path = args.next(),
+            "--priority" => priority = args.next().and_then(|p| p.parse::<i32>().ok()),
             _ => usage(),
+        }
+    }
+    if let Some(priority) = priority {
+        let param = libc::sched_param {
+            sched_priority: priority,
+        };
+        // SAFETY: plain syscalls with valid arguments.
+        let fifo = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &raw const param) };
+        // SAFETY: as above.
+        let locked = unsafe { libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) };
+        if fifo != 0 || locked != 0 {
+            eprintln!("ecat-slave-sim: SCHED_FIFO {priority} or locked memory refused");
         }
     }
     let (Some(interface), Some(config_path)) = (interface, config_path) else {
