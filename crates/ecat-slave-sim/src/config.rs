@@ -130,9 +130,10 @@ impl SegmentConfig {
                     SlaveConfig::CspDrive { drive, .. } => {
                         let mut drive = drive.clone();
                         drive.identity.serial = drive.identity.serial.wrapping_add(k as u32);
-                        Box::new(CspDrive::new(&drive).map_err(|e| {
-                            refuse(format!("slaves[{n}].drive"), e.0.clone())
-                        })?)
+                        Box::new(
+                            CspDrive::new(&drive)
+                                .map_err(|e| refuse(format!("slaves[{n}].drive"), e.0.clone()))?,
+                        )
                     }
                     SlaveConfig::Dio { terminal, .. } => Box::new(DioTerminal::new(terminal)),
                 };

@@ -21,8 +21,8 @@ use crate::application::{Application, TransitionContext};
 use crate::dictionary::{Access, Dictionary, Mapping, abort};
 use crate::esc::{AlState, al_code};
 use crate::sii::{
-    FmmuUse, Identity, MailboxLayout, PROTOCOL_COE, Pdo, PdoEntry, SiiContents,
-    SyncManagerDefault, SyncManagerUse,
+    FmmuUse, Identity, MailboxLayout, PROTOCOL_COE, Pdo, PdoEntry, SiiContents, SyncManagerDefault,
+    SyncManagerUse,
 };
 
 /// Mode of operation "cyclic synchronous position" (0x6060).
@@ -286,7 +286,11 @@ impl CspDrive {
         d.insert(
             0x608F,
             1,
-            &self.config.joint.encoder_counts_per_revolution.to_le_bytes(),
+            &self
+                .config
+                .joint
+                .encoder_counts_per_revolution
+                .to_le_bytes(),
             Ro,
             No,
         );
@@ -437,11 +441,7 @@ impl CspDrive {
         let d = &mut self.dictionary;
         d.set(0x6041, 0, &joint.statusword.0.to_le_bytes());
         d.set(0x603F, 0, &joint.error_code.to_le_bytes());
-        d.set(
-            0x6064,
-            0,
-            &clamp32(joint.position_counts).to_le_bytes(),
-        );
+        d.set(0x6064, 0, &clamp32(joint.position_counts).to_le_bytes());
         d.set(0x606C, 0, &velocity.to_le_bytes());
         d.set(0x6077, 0, &torque.to_le_bytes());
         d.set(0x60F4, 0, &ferror.to_le_bytes());
@@ -551,7 +551,11 @@ impl Application for CspDrive {
             }),
             // SDO, PDO assignment and PDO configuration by SDO.
             coe_details: 0x01 | 0x04 | 0x08,
-            fmmus: vec![FmmuUse::Outputs, FmmuUse::Inputs, FmmuUse::SyncManagerStatus],
+            fmmus: vec![
+                FmmuUse::Outputs,
+                FmmuUse::Inputs,
+                FmmuUse::SyncManagerStatus,
+            ],
             sync_managers: vec![
                 SyncManagerDefault {
                     start: MAILBOX_OUT,

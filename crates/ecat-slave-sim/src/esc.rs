@@ -495,9 +495,8 @@ impl Slave {
         (0..8).find_map(|n| {
             let sm = self.sm(n)?;
             let start = usize::from(sm.start);
-            let active = sm.enabled
-                && sm.length > 0
-                && (sm.is_mailbox() || self.state >= AlState::SafeOp);
+            let active =
+                sm.enabled && sm.length > 0 && (sm.is_mailbox() || self.state >= AlState::SafeOp);
             (active && address >= start && address < start + usize::from(sm.length))
                 .then_some((n, sm))
         })
@@ -634,9 +633,12 @@ impl Slave {
         response.clear();
         response.resize(usize::from(sm_in.length), 0);
         let answered = self.state >= AlState::PreOp
-            && self
-                .coe
-                .handle(&request, &mut response, self.application.as_mut(), self.state);
+            && self.coe.handle(
+                &request,
+                &mut response,
+                self.application.as_mut(),
+                self.state,
+            );
         if answered {
             if self.mailbox_in_full {
                 self.pending_response = Some(response.clone());
@@ -664,7 +666,11 @@ impl Slave {
 
     fn latch_receive_times(&mut self, t: u64) {
         let local_in = self.clock.local(t);
-        write_u32(&mut self.memory, reg::DC_RECEIVE_TIME_PORT0, local_in as u32);
+        write_u32(
+            &mut self.memory,
+            reg::DC_RECEIVE_TIME_PORT0,
+            local_in as u32,
+        );
         write_u64(&mut self.memory, reg::DC_RECEIVE_TIME_PU, local_in);
         // The frame comes back on port 1 after the devices downstream: latched when the
         // segment's walk knows when (`finish_frame`).
@@ -676,7 +682,11 @@ impl Slave {
         if self.return_latch_pending {
             self.return_latch_pending = false;
             let local = self.clock.local(t_return);
-            write_u32(&mut self.memory, reg::DC_RECEIVE_TIME_PORT0 + 4, local as u32);
+            write_u32(
+                &mut self.memory,
+                reg::DC_RECEIVE_TIME_PORT0 + 4,
+                local as u32,
+            );
         }
     }
 
@@ -927,7 +937,13 @@ impl Slave {
 
     /// Moves the bits one FMMU maps between the datagram and memory. Returns whether any
     /// byte was mapped and whether a write reached the last byte of its sync manager.
-    fn map_fmmu(&mut self, fmmu: &Fmmu, address: u32, data: &mut [u8], write: bool) -> (bool, bool) {
+    fn map_fmmu(
+        &mut self,
+        fmmu: &Fmmu,
+        address: u32,
+        data: &mut [u8],
+        write: bool,
+    ) -> (bool, bool) {
         if fmmu.length == 0 {
             return (false, false);
         }
@@ -1007,7 +1023,9 @@ impl Slave {
         let addressed = addressing == Addressing::Addressed;
         match command {
             Command::Nop => 0,
-            Command::Aprd | Command::Fprd if addressed => u16::from(self.read(offset, data, false, t)),
+            Command::Aprd | Command::Fprd if addressed => {
+                u16::from(self.read(offset, data, false, t))
+            }
             Command::Apwr | Command::Fpwr if addressed => u16::from(self.write(offset, data, t)),
             Command::Aprw | Command::Fprw if addressed => self.read_write(offset, data, false, t),
             Command::Brd => u16::from(self.read(offset, data, true, t)),
@@ -1039,22 +1057,22 @@ impl Slave {
 /// registers are read-only).
 fn is_writable_register(address: usize) -> bool {
     match address {
-        0x0010..=0x0013 => true,               // station address and alias
-        0x0100..=0x0103 => true,               // DL control
-        0x0120..=0x0121 => true,               // AL control
-        0x0200..=0x0205 => true,               // event masks
-        0x0300..=0x0313 => true,               // error counters (cleared by writing)
+        0x0010..=0x0013 => true, // station address and alias
+        0x0100..=0x0103 => true, // DL control
+        0x0120..=0x0121 => true, // AL control
+        0x0200..=0x0205 => true, // event masks
+        0x0300..=0x0313 => true, // error counters (cleared by writing)
         0x0400..=0x0401 | 0x0410..=0x0411 | 0x0420..=0x0421 => true, // watchdogs
-        0x0500 | 0x0502..=0x050F => true,      // SII interface
-        0x0600..=0x06FF => true,               // FMMUs
+        0x0500 | 0x0502..=0x050F => true, // SII interface
+        0x0600..=0x06FF => true, // FMMUs
         0x0800..=0x087F => address % 8 != 5 && address % 8 != 7, // SMs except status bytes
-        0x0900..=0x0903 => false,              // receive time latch: a write only triggers it
-        0x0910..=0x0917 => false,              // system time: handled as a DC write
-        0x0920..=0x092B => true,               // offset and delay
-        0x0930..=0x0935 => true,               // DC control loop parameters
-        0x0980..=0x0983 => true,               // cyclic unit control, activation, pulse
-        0x0990..=0x0997 => true,               // start time
-        0x09A0..=0x09A7 => true,               // SYNC0/SYNC1 cycle times
+        0x0900..=0x0903 => false, // receive time latch: a write only triggers it
+        0x0910..=0x0917 => false, // system time: handled as a DC write
+        0x0920..=0x092B => true, // offset and delay
+        0x0930..=0x0935 => true, // DC control loop parameters
+        0x0980..=0x0983 => true, // cyclic unit control, activation, pulse
+        0x0990..=0x0997 => true, // start time
+        0x09A0..=0x09A7 => true, // SYNC0/SYNC1 cycle times
         _ => false,
     }
 }

@@ -91,14 +91,8 @@ impl RawSocket {
     /// Sends one frame.
     pub fn send(&self, frame: &[u8]) -> io::Result<()> {
         // SAFETY: the buffer is valid for its length.
-        let sent = unsafe {
-            libc::send(
-                self.fd.as_raw_fd(),
-                frame.as_ptr().cast(),
-                frame.len(),
-                0,
-            )
-        };
+        let sent =
+            unsafe { libc::send(self.fd.as_raw_fd(), frame.as_ptr().cast(), frame.len(), 0) };
         if sent < 0 {
             return Err(io::Error::last_os_error());
         }
@@ -110,7 +104,11 @@ impl RawSocket {
 
     /// The next frame into `buffer`, waiting at most `timeout` (`None`: forever); `Ok(None)`
     /// when none came in time.
-    pub fn receive(&self, buffer: &mut [u8], timeout: Option<Duration>) -> io::Result<Option<usize>> {
+    pub fn receive(
+        &self,
+        buffer: &mut [u8],
+        timeout: Option<Duration>,
+    ) -> io::Result<Option<usize>> {
         loop {
             // SAFETY: the buffer is valid for its length; MSG_DONTWAIT never blocks.
             let received = unsafe {
@@ -171,7 +169,10 @@ impl RawSocket {
         let mut request: libc::ifreq = unsafe { std::mem::zeroed() };
         let bytes = self.name.as_bytes();
         if bytes.len() >= request.ifr_name.len() {
-            return Err(io::Error::new(io::ErrorKind::InvalidInput, "interface name"));
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                "interface name",
+            ));
         }
         for (d, s) in request.ifr_name.iter_mut().zip(bytes) {
             *d = *s as libc::c_char;

@@ -2,7 +2,7 @@
 //! each device in turn, every device processing every datagram on the fly, back from the
 //! last one through the forwarding path to the master. Faults are injected here.
 
-use crate::esc::{AlState, Addressing, HOP_DELAY_NS, Slave};
+use crate::esc::{Addressing, AlState, HOP_DELAY_NS, Slave};
 use crate::frame::{
     Command, DatagramSpan, FrameError, WKC_LEN, datagrams, read_u16, read_u32, write_u16,
 };

@@ -25,8 +25,14 @@ fn send(segment: &mut Segment, datagrams: &[(Command, u32, &[u8])]) -> Vec<(Vec<
     let mut buffer = vec![0u8; 1514];
     let len = frame::build(&mut buffer, [0x10; 6], &list).expect("frame fits");
     let frame = &mut buffer[..len];
-    assert_eq!(segment.process(frame, 1_000_000).expect("valid"), Outcome::Returned);
-    assert_eq!(frame[6], 0x12, "the reply's source address is locally administered");
+    assert_eq!(
+        segment.process(frame, 1_000_000).expect("valid"),
+        Outcome::Returned
+    );
+    assert_eq!(
+        frame[6], 0x12,
+        "the reply's source address is locally administered"
+    );
     let mut spans = [DatagramSpan {
         header: 0,
         data_len: 0,
@@ -51,7 +57,10 @@ fn address(position_or_station: u16, offset: u16) -> u32 {
 #[test]
 fn broadcast_read_counts_every_device_and_ors_their_data() {
     let mut bus = dio_segment(3);
-    let reply = send(&mut bus, &[(Command::Brd, address(0, reg::TYPE as u16), &[0, 0])]);
+    let reply = send(
+        &mut bus,
+        &[(Command::Brd, address(0, reg::TYPE as u16), &[0, 0])],
+    );
     assert_eq!(reply[0].1, 3);
     assert_eq!(reply[0].0, vec![0x11, 0x00]);
 }
@@ -65,7 +74,11 @@ fn auto_increment_addresses_the_device_that_sees_zero_and_every_device_counts_up
         &[(Command::Apwr, address(0xFFFF, 0x0010), &[0x01, 0x10])],
     );
     assert_eq!(reply[0].1, 1);
-    assert_eq!(reply[0].2 & 0xFFFF, 0x0002, "three devices counted 0xFFFF up");
+    assert_eq!(
+        reply[0].2 & 0xFFFF,
+        0x0002,
+        "three devices counted 0xFFFF up"
+    );
     assert_eq!(bus.slaves()[1].station_address(), 0x1001);
     assert_eq!(bus.slaves()[0].station_address(), 0);
     // Configured-address read: only the device with that address answers.
@@ -83,11 +96,20 @@ fn auto_increment_addresses_the_device_that_sees_zero_and_every_device_counts_up
 #[test]
 fn a_read_write_counts_three() {
     let mut bus = dio_segment(2);
-    send(&mut bus, &[(Command::Apwr, address(0, 0x0010), &[0x00, 0x10])]);
-    let reply = send(&mut bus, &[(Command::Fprw, address(0x1000, 0x0012), &[0x34, 0x12])]);
+    send(
+        &mut bus,
+        &[(Command::Apwr, address(0, 0x0010), &[0x00, 0x10])],
+    );
+    let reply = send(
+        &mut bus,
+        &[(Command::Fprw, address(0x1000, 0x0012), &[0x34, 0x12])],
+    );
     // The read returns the old alias, the write stores the new one.
     assert_eq!((reply[0].0.clone(), reply[0].1), (vec![0, 0], 3));
-    let reply = send(&mut bus, &[(Command::Fprd, address(0x1000, 0x0012), &[0, 0])]);
+    let reply = send(
+        &mut bus,
+        &[(Command::Fprd, address(0x1000, 0x0012), &[0, 0])],
+    );
     assert_eq!(reply[0].0, vec![0x34, 0x12]);
 }
 
@@ -95,11 +117,21 @@ fn a_read_write_counts_three() {
 fn al_control_walks_the_state_machine_and_refuses_a_skipped_state() {
     let mut bus = dio_segment(1);
     let set = |bus: &mut Segment, value: u16| {
-        send(bus, &[(Command::Bwr, address(0, reg::AL_CONTROL as u16), &value.to_le_bytes())])
+        send(
+            bus,
+            &[(
+                Command::Bwr,
+                address(0, reg::AL_CONTROL as u16),
+                &value.to_le_bytes(),
+            )],
+        )
     };
     set(&mut bus, 0x0004); // INIT -> SAFE-OP skips PRE-OP
     assert_eq!(bus.slaves()[0].al_status(), (AlState::Init, true, 0x0011));
-    let reply = send(&mut bus, &[(Command::Brd, address(0, reg::AL_STATUS as u16), &[0, 0])]);
+    let reply = send(
+        &mut bus,
+        &[(Command::Brd, address(0, reg::AL_STATUS as u16), &[0, 0])],
+    );
     assert_eq!(reply[0].0, vec![0x11, 0x00], "INIT with the error flag");
     set(&mut bus, 0x0002); // without acknowledging, the error holds the device
     assert_eq!(bus.slaves()[0].al_status(), (AlState::Init, true, 0x0011));
@@ -116,8 +148,16 @@ fn the_eeprom_interface_reads_eight_bytes_and_the_header_crc_checks() {
     send(
         &mut bus,
         &[
-            (Command::Bwr, address(0, reg::SII_ADDRESS as u16), &[0x08, 0, 0, 0]),
-            (Command::Bwr, address(0, reg::SII_CONTROL as u16), &[0x00, 0x01]),
+            (
+                Command::Bwr,
+                address(0, reg::SII_ADDRESS as u16),
+                &[0x08, 0, 0, 0],
+            ),
+            (
+                Command::Bwr,
+                address(0, reg::SII_CONTROL as u16),
+                &[0x00, 0x01],
+            ),
         ],
     );
     let reply = send(
@@ -142,7 +182,14 @@ fn dio_in_safe_op(count: usize) -> Segment {
     for n in 0..count {
         let station = 0x1000 + n as u16;
         let position = (n as u16).wrapping_neg();
-        send(&mut bus, &[(Command::Apwr, address(position, 0x0010), &station.to_le_bytes())]);
+        send(
+            &mut bus,
+            &[(
+                Command::Apwr,
+                address(position, 0x0010),
+                &station.to_le_bytes(),
+            )],
+        );
         let logical = 0x10000 + 2 * n as u32;
         let mut fmmu0 = [0u8; 16];
         fmmu0[0..4].copy_from_slice(&logical.to_le_bytes());
@@ -164,8 +211,16 @@ fn dio_in_safe_op(count: usize) -> Segment {
                 (Command::Fpwr, address(station, 0x0610), &fmmu1),
                 (Command::Fpwr, address(station, 0x0800), &sm0),
                 (Command::Fpwr, address(station, 0x0808), &sm1),
-                (Command::Fpwr, address(station, reg::AL_CONTROL as u16), &[2, 0]),
-                (Command::Fpwr, address(station, reg::AL_CONTROL as u16), &[4, 0]),
+                (
+                    Command::Fpwr,
+                    address(station, reg::AL_CONTROL as u16),
+                    &[2, 0],
+                ),
+                (
+                    Command::Fpwr,
+                    address(station, reg::AL_CONTROL as u16),
+                    &[4, 0],
+                ),
             ],
         );
         assert_eq!(bus.slaves()[n].al_status(), (AlState::SafeOp, false, 0));
@@ -181,7 +236,10 @@ fn logical_read_write_counts_one_per_read_and_two_per_write_fmmu() {
     let reply = send(&mut bus, &[(Command::Lrd, 0x10000, &[0, 0, 0, 0])]);
     assert_eq!(reply[0].1, 2, "a logical read counts the read FMMUs only");
     let reply = send(&mut bus, &[(Command::Lwr, 0x10002, &[0x0F, 0])]);
-    assert_eq!(reply[0].1, 2, "a logical write reaching one device's write FMMU");
+    assert_eq!(
+        reply[0].1, 2,
+        "a logical write reaching one device's write FMMU"
+    );
     // Outside every FMMU: nobody counts.
     let reply = send(&mut bus, &[(Command::Lrw, 0x20000, &[0, 0])]);
     assert_eq!(reply[0].1, 0);
@@ -216,18 +274,39 @@ fn a_bitwise_fmmu_moves_single_bits() {
     send(&mut bus_inputs, &[(Command::Lwr, 0x10000, &[0])]);
     let reply = send(&mut bus_inputs, &[(Command::Lrd, 0x30000, &[0x0A])]);
     assert_eq!(reply[0].1, 1);
-    assert_eq!(reply[0].0, vec![0x6A], "low nibble kept, bits 0-3 of 0x96 in bits 4-7");
+    assert_eq!(
+        reply[0].0,
+        vec![0x6A],
+        "low nibble kept, bits 0-3 of 0x96 in bits 4-7"
+    );
 }
 
 #[test]
 fn frmw_distributes_the_reference_time_one_read_and_a_write_per_other_device() {
     let mut bus = dio_segment(3);
     for n in 0..3u16 {
-        send(&mut bus, &[(Command::Apwr, address(n.wrapping_neg(), 0x0010), &(0x1000 + n).to_le_bytes())]);
+        send(
+            &mut bus,
+            &[(
+                Command::Apwr,
+                address(n.wrapping_neg(), 0x0010),
+                &(0x1000 + n).to_le_bytes(),
+            )],
+        );
     }
-    let reply = send(&mut bus, &[(Command::Frmw, address(0x1000, reg::DC_SYSTEM_TIME as u16), &[0; 8])]);
+    let reply = send(
+        &mut bus,
+        &[(
+            Command::Frmw,
+            address(0x1000, reg::DC_SYSTEM_TIME as u16),
+            &[0; 8],
+        )],
+    );
     assert_eq!(reply[0].1, 3);
     let reference = bus.slaves()[0].system_time(1_000_000);
     let read = u64::from_le_bytes(reply[0].0.clone().try_into().unwrap());
-    assert_eq!(read, reference, "the reference's time at the frame's arrival");
+    assert_eq!(
+        read, reference,
+        "the reference's time at the frame's arrival"
+    );
 }

@@ -52,8 +52,11 @@ impl Cycler {
         let step = (self.period_ns as i64 - correction.clamp(-50_000, 50_000)) as u64;
         self.next += step;
         rtcnc_ethercat::Clock::Monotonic.sleep_until(self.next);
-        self.master
-            .exchange(self.period_ns as f64 * 1e-9, &self.outputs, &mut self.inputs)
+        self.master.exchange(
+            self.period_ns as f64 * 1e-9,
+            &self.outputs,
+            &mut self.inputs,
+        )
     }
 
     /// Cycles until `done` says so, at most `limit` cycles; returns the cycles taken.
@@ -165,7 +168,9 @@ fn inside_the_namespace() {
 
     // Every frame lost: three in a row are a fault.
     assert_eq!(simulator.command("loss 1"), "ok");
-    let lost = bus.until(10, |result, _| *result == Err(FieldbusError::CommunicationLost));
+    let lost = bus.until(10, |result, _| {
+        *result == Err(FieldbusError::CommunicationLost)
+    });
     assert!(lost.is_some_and(|k| k >= 2), "{lost:?}");
     assert_eq!(simulator.command("loss 0"), "ok");
     assert!(bus.until(20, |result, _| result.is_ok()).is_some());

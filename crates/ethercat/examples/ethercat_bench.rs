@@ -52,7 +52,9 @@ fn main() {
             "--seconds" => seconds = value.parse().expect("--seconds N"),
             "--priority" => priority = value.parse().expect("--priority N"),
             _ => {
-                eprintln!("usage: ethercat_bench --interface NAME [--drives N] [--seconds N] [--priority N]");
+                eprintln!(
+                    "usage: ethercat_bench --interface NAME [--drives N] [--seconds N] [--priority N]"
+                );
                 std::process::exit(2);
             }
         }

@@ -218,10 +218,16 @@ impl EthercatConfig {
             ));
         }
         if self.working_counter_limit == 0 {
-            return Err(ConfigError::new("working_counter_limit", "must be at least 1"));
+            return Err(ConfigError::new(
+                "working_counter_limit",
+                "must be at least 1",
+            ));
         }
         if !(0.05..=0.95).contains(&self.send_phase) {
-            return Err(ConfigError::new("send_phase", "must be between 0.05 and 0.95"));
+            return Err(ConfigError::new(
+                "send_phase",
+                "must be between 0.05 and 0.95",
+            ));
         }
         if self.state_timeout_ms == 0 {
             return Err(ConfigError::new("state_timeout_ms", "must be at least 1"));
@@ -305,10 +311,7 @@ impl EthercatConfig {
                         }
                         let end = start + bits;
                         if ranges.iter().any(|(s, e)| start < *e && end > *s) {
-                            return Err(ConfigError::new(
-                                key(name),
-                                "overlaps another terminal's",
-                            ));
+                            return Err(ConfigError::new(key(name), "overlaps another terminal's"));
                         }
                         ranges.push((start, end));
                     }
@@ -319,7 +322,11 @@ impl EthercatConfig {
         if let Some(missing) = joints.iter().enumerate().find(|(n, j)| *n != **j) {
             return Err(ConfigError::new(
                 "slaves",
-                format!("joints must be numbered 0 to {} without a gap: no joint {}", joints.len() - 1, missing.0),
+                format!(
+                    "joints must be numbered 0 to {} without a gap: no joint {}",
+                    joints.len() - 1,
+                    missing.0
+                ),
             ));
         }
         Ok(())

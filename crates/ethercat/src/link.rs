@@ -103,7 +103,10 @@ impl SimulatedLink {
 impl Link for SimulatedLink {
     fn send(&mut self, frame: &[u8]) -> io::Result<()> {
         if frame.len() > MAX_FRAME {
-            return Err(io::Error::new(io::ErrorKind::InvalidInput, "frame too long"));
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                "frame too long",
+            ));
         }
         if self.count == QUEUE {
             // A full queue drops the oldest reply, as a NIC ring would.

@@ -10,8 +10,7 @@ use ethercrab::{
     SubDeviceState, Timeouts,
 };
 use rtcnc_fieldbus::{
-    DriveMode, Fieldbus, FieldbusError, ProcessInputs, ProcessLayout, ProcessOutputs,
-    check_images,
+    DriveMode, Fieldbus, FieldbusError, ProcessInputs, ProcessLayout, ProcessOutputs, check_images,
 };
 
 use crate::al_status;
@@ -136,7 +135,9 @@ pub enum StartError {
         reason: &'static str,
     },
     /// A device's process data do not have the size its mapping gives.
-    #[error("EtherCAT device {position} ({name}): {what} are {found} bytes, its mapping gives {expected}")]
+    #[error(
+        "EtherCAT device {position} ({name}): {what} are {found} bytes, its mapping gives {expected}"
+    )]
     ProcessData {
         /// Position.
         position: usize,
@@ -397,7 +398,10 @@ impl EthercatMaster {
             .iter()
             .position(|s| *s != SubDeviceState::Op)
             .unwrap_or(0);
-        let state = states.get(position).copied().unwrap_or(SubDeviceState::None);
+        let state = states
+            .get(position)
+            .copied()
+            .unwrap_or(SubDeviceState::None);
         let code = match &self.group {
             OpGroup::Dc(g) => g.subdevice(&self.maindevice, position).ok().and_then(|s| {
                 self.driver
@@ -496,7 +500,9 @@ fn decode(device: &mut Device, bytes: &[u8], period_s: f64, inputs: &mut Process
             ..
         } => {
             for bit in 0..*input_bits {
-                let on = bytes.get(bit / 8).is_some_and(|b| b & (1 << (bit % 8)) != 0);
+                let on = bytes
+                    .get(bit / 8)
+                    .is_some_and(|b| b & (1 << (bit % 8)) != 0);
                 if let Some(input) = inputs.digital.get_mut(*first + bit) {
                     *input = on;
                 }
@@ -936,15 +942,24 @@ impl Fieldbus for EthercatMaster {
         let deadline = Instant::now() + self.reply_timeout;
         let maindevice = &self.maindevice;
         let response = match &self.group {
-            OpGroup::Dc(g) => self.driver.cycle(g.tx_rx_dc(maindevice), deadline).map(|r| {
-                r.map(|r| {
-                    let all_op = r.all_op();
-                    (r.working_counter, all_op, Some(r.extra.dc_system_time), r.subdevice_states)
-                })
-            }),
-            OpGroup::Free(g) => self.driver.cycle(g.tx_rx(maindevice), deadline).map(|r| {
-                r.map(|r| (r.working_counter, r.all_op(), None, r.subdevice_states))
-            }),
+            OpGroup::Dc(g) => self
+                .driver
+                .cycle(g.tx_rx_dc(maindevice), deadline)
+                .map(|r| {
+                    r.map(|r| {
+                        let all_op = r.all_op();
+                        (
+                            r.working_counter,
+                            all_op,
+                            Some(r.extra.dc_system_time),
+                            r.subdevice_states,
+                        )
+                    })
+                }),
+            OpGroup::Free(g) => self
+                .driver
+                .cycle(g.tx_rx(maindevice), deadline)
+                .map(|r| r.map(|r| (r.working_counter, r.all_op(), None, r.subdevice_states))),
         };
         let (wkc, all_op, dc_time, states) = match response {
             Some(Ok(response)) => response,

@@ -139,9 +139,7 @@ fn check<T: Copy + PartialEq>(
     }
     let bytes: usize = objects.iter().map(|o| usize::from(bits(*o)) / 8).sum();
     if bytes > MAX_PDO_BYTES || objects.len() > 8 {
-        return Err(format!(
-            "at most 8 objects and {MAX_PDO_BYTES} bytes"
-        ));
+        return Err(format!("at most 8 objects and {MAX_PDO_BYTES} bytes"));
     }
     Ok(())
 }
@@ -214,14 +212,18 @@ fn get<const N: usize>(buf: &[u8], at: usize) -> [u8; N] {
 
 /// A float to the nearest integer of type range, or `None` if it is not a number.
 fn to_i32(value: f64) -> Option<i32> {
-    value
-        .is_finite()
-        .then(|| value.round().clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32)
+    value.is_finite().then(|| {
+        value
+            .round()
+            .clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
+    })
 }
 
 fn to_i16(value: f64) -> i16 {
     if value.is_finite() {
-        value.round().clamp(f64::from(i16::MIN), f64::from(i16::MAX)) as i16
+        value
+            .round()
+            .clamp(f64::from(i16::MIN), f64::from(i16::MAX)) as i16
     } else {
         0
     }

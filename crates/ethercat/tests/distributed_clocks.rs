@@ -15,7 +15,11 @@ fn difference_ns(memory: &[u8]) -> i64 {
             .unwrap(),
     );
     let magnitude = i64::from(raw & 0x7FFF_FFFF);
-    if raw & 0x8000_0000 != 0 { magnitude } else { -magnitude }
+    if raw & 0x8000_0000 != 0 {
+        magnitude
+    } else {
+        -magnitude
+    }
 }
 
 #[test]
@@ -24,8 +28,12 @@ fn drifting_clocks_stay_on_the_reference_and_the_phase_error_shows_its_drift() {
     // cycle, 40 µs over the half second below if nothing corrected them.
     let segment = "[[slaves]]\nkind = \"csp_drive\"\ncount = 3\ndrift_ppm = 40.0\n\
                    [[slaves]]\nkind = \"csp_drive\"\ncount = 3\ndrift_ppm = -40.0\n";
-    let mut bus = support::start(segment, &support::master_toml(6, false), Duration::from_millis(1))
-        .expect("bus starts");
+    let mut bus = support::start(
+        segment,
+        &support::master_toml(6, false),
+        Duration::from_millis(1),
+    )
+    .expect("bus starts");
     let mut phases = Vec::new();
     for _ in 0..500 {
         bus.cycle().expect("cycle");
@@ -55,8 +63,12 @@ fn drifting_clocks_stay_on_the_reference_and_the_phase_error_shows_its_drift() {
 #[test]
 fn a_cycle_that_follows_the_phase_error_stays_aligned() {
     let segment = "[[slaves]]\nkind = \"csp_drive\"\ncount = 2\ndrift_ppm = 40.0\n";
-    let mut bus = support::start(segment, &support::master_toml(2, false), Duration::from_millis(1))
-        .expect("bus starts");
+    let mut bus = support::start(
+        segment,
+        &support::master_toml(2, false),
+        Duration::from_millis(1),
+    )
+    .expect("bus starts");
     let period = 1_000_000i64;
     let mut phase = 0i64;
     for _ in 0..2000 {

@@ -92,9 +92,15 @@ fn a_drive_fault_shows_its_error_code() {
     let drive = bus.inputs.joints[2];
     assert_eq!(drive.state(), Cia402State::Fault);
     assert_eq!(drive.error_code, 0x2310);
-    assert_eq!(error_code::describe(drive.error_code), "continuous over-current");
+    assert_eq!(
+        error_code::describe(drive.error_code),
+        "continuous over-current"
+    );
     for other in [0, 1, 3] {
-        assert_eq!(bus.inputs.joints[other].state(), Cia402State::OperationEnabled);
+        assert_eq!(
+            bus.inputs.joints[other].state(),
+            Cia402State::OperationEnabled
+        );
     }
     // The cause gone, a fault reset (rising edge of bit 7) clears it.
     bus.segment
@@ -148,7 +154,10 @@ fn a_device_with_another_identity_is_refused_with_both() {
         panic!("{error}");
     };
     assert_eq!((*position, name.as_str()), (1, "J1"));
-    assert_eq!((expected.product_code, found.product_code), (0x0403, 0x0402));
+    assert_eq!(
+        (expected.product_code, found.product_code),
+        (0x0403, 0x0402)
+    );
     assert!(error.to_string().contains("product 0x00000402"), "{error}");
 }
 

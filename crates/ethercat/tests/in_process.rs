@@ -50,9 +50,7 @@ fn drives_enable_and_follow_a_ramp() {
     let mut feedback: Vec<Vec<f64>> = Vec::new();
     for k in 0..600 {
         let t = k as f64 * period;
-        let row: Vec<f64> = (0..12)
-            .map(|j| start[j] + (10.0 + j as f64) * t)
-            .collect();
+        let row: Vec<f64> = (0..12).map(|j| start[j] + (10.0 + j as f64) * t).collect();
         for (j, command) in bus.outputs.joints.iter_mut().enumerate() {
             command.controlword = rtcnc_fieldbus::ControlWord::enable_operation();
             command.target_position = row[j];

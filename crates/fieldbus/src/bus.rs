@@ -39,7 +39,9 @@ pub enum FieldbusError {
     },
     /// A device left the operational state (EtherCAT: its AL state, with the AL status
     /// code it gives as the reason).
-    #[error("fieldbus device {position} ({name}) is in {state}: AL status code {code:#06x}, {reason}")]
+    #[error(
+        "fieldbus device {position} ({name}) is in {state}: AL status code {code:#06x}, {reason}"
+    )]
     DeviceState {
         /// Position of the device on the bus (0 is the first).
         position: u16,
@@ -75,7 +77,7 @@ impl FieldbusError {
 }
 
 /// Drives and I/O reached through one cyclic exchange per servo cycle: the simulated
-/// machine now, an EtherCAT master with CiA 402 drives later.
+/// machine, or an EtherCAT master with CiA 402 drives (`rtcnc-ethercat`).
 ///
 /// The controller's cycle is: read the inputs of the last exchange, compute (servo loops,
 /// machine logic), write the outputs, call [`exchange`](Fieldbus::exchange). The exchange

@@ -32,7 +32,13 @@ pub fn run_inside(inner: &str) -> bool {
     let status = Command::new("unshare")
         .arg("-Urn")
         .arg(exe)
-        .args(["--exact", inner, "--ignored", "--nocapture", "--test-threads=1"])
+        .args([
+            "--exact",
+            inner,
+            "--ignored",
+            "--nocapture",
+            "--test-threads=1",
+        ])
         .env(INSIDE, "1")
         .status()
         .expect("unshare runs");
@@ -47,7 +53,16 @@ pub fn inside() -> bool {
 /// Creates the veth pair and brings both ends up.
 pub fn veth() {
     for args in [
-        vec!["link", "add", MASTER_END, "type", "veth", "peer", "name", SIMULATOR_END],
+        vec![
+            "link",
+            "add",
+            MASTER_END,
+            "type",
+            "veth",
+            "peer",
+            "name",
+            SIMULATOR_END,
+        ],
         vec!["link", "set", MASTER_END, "up"],
         vec!["link", "set", SIMULATOR_END, "up"],
     ] {

@@ -5,8 +5,8 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use rtcnc_ecat_slave_sim::drive::{CspDrive, DRIVE_PRODUCT_CODE, SIMULATOR_VENDOR_ID};
 use rtcnc_ecat_slave_sim::dio::{DIO_PRODUCT_CODE, DioTerminal};
+use rtcnc_ecat_slave_sim::drive::{CspDrive, DRIVE_PRODUCT_CODE, SIMULATOR_VENDOR_ID};
 use rtcnc_ecat_slave_sim::{Segment, SegmentConfig};
 use rtcnc_ethercat::{Clock, EthercatConfig, EthercatMaster, SimulatedLink, StartError};
 use rtcnc_fieldbus::{Fieldbus, ProcessInputs, ProcessOutputs};
@@ -17,9 +17,8 @@ pub const COUNTS_PER_MM: f64 = 131072.0 / 5.0;
 
 /// The segment: `drives` CSP drives, then (if `dio`) one DIO terminal.
 pub fn segment_toml(drives: usize, dio: bool, drift_ppm: f64) -> String {
-    let mut text = format!(
-        "[[slaves]]\nkind = \"csp_drive\"\ncount = {drives}\ndrift_ppm = {drift_ppm:?}\n"
-    );
+    let mut text =
+        format!("[[slaves]]\nkind = \"csp_drive\"\ncount = {drives}\ndrift_ppm = {drift_ppm:?}\n");
     if dio {
         text.push_str("[[slaves]]\nkind = \"dio\"\n");
     }
@@ -52,11 +51,7 @@ pub struct Bus {
     pub inputs: ProcessInputs,
 }
 
-pub fn start(
-    segment: &str,
-    master: &str,
-    period: Duration,
-) -> Result<Bus, StartError> {
+pub fn start(segment: &str, master: &str, period: Duration) -> Result<Bus, StartError> {
     let segment: SegmentConfig = toml::from_str(segment).expect("segment TOML");
     let segment = Arc::new(PiMutex::new(segment.build().expect("segment")));
     let config: EthercatConfig = toml::from_str(master).expect("master TOML");
@@ -77,7 +72,9 @@ pub fn start(
 
 impl std::fmt::Debug for Bus {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Bus").field("master", &self.master).finish_non_exhaustive()
+        f.debug_struct("Bus")
+            .field("master", &self.master)
+            .finish_non_exhaustive()
     }
 }
 
