@@ -643,10 +643,10 @@ impl Application for CspDrive {
                 }
                 self.check_mapping_entry(index, value as u32)?;
             }
-            (0x1C12 | 0x1C13, 0) => {
-                if value > 1 || (value == 1 && self.dictionary.unsigned(index, 1) == 0) {
-                    return Err(abort::VALUE_RANGE);
-                }
+            (0x1C12 | 0x1C13, 0)
+                if value > 1 || (value == 1 && self.dictionary.unsigned(index, 1) == 0) =>
+            {
+                return Err(abort::VALUE_RANGE);
             }
             (0x1C12 | 0x1C13, _) => {
                 if self.dictionary.unsigned(index, 0) != 0 {
@@ -669,10 +669,8 @@ impl Application for CspDrive {
                     return Err(abort::VALUE_RANGE);
                 }
             }
-            (0x1C32 | 0x1C33, 1) => {
-                if !matches!(value, 0..=2) {
-                    return Err(abort::VALUE_RANGE);
-                }
+            (0x1C32 | 0x1C33, 1) if !matches!(value, 0..=2) => {
+                return Err(abort::VALUE_RANGE);
             }
             _ => {}
         }

@@ -72,7 +72,7 @@ const QUEUE: usize = 16;
 pub struct SimulatedLink {
     segment: Arc<PiMutex<Segment>>,
     clock: Clock,
-    slots: Vec<Box<[u8; MAX_FRAME]>>,
+    slots: Vec<[u8; MAX_FRAME]>,
     lengths: [usize; QUEUE],
     head: usize,
     count: usize,
@@ -92,7 +92,7 @@ impl SimulatedLink {
         Self {
             segment,
             clock,
-            slots: (0..QUEUE).map(|_| Box::new([0u8; MAX_FRAME])).collect(),
+            slots: vec![[0u8; MAX_FRAME]; QUEUE],
             lengths: [0; QUEUE],
             head: 0,
             count: 0,
