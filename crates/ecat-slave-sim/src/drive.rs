@@ -648,6 +648,7 @@ impl Application for CspDrive {
             {
                 return Err(abort::VALUE_RANGE);
             }
+            (0x1C12 | 0x1C13, 0) => {}
             (0x1C12 | 0x1C13, _) => {
                 if self.dictionary.unsigned(index, 0) != 0 {
                     return Err(abort::SUB_INDEX_0_NOT_ZERO);

@@ -19,10 +19,10 @@ const DRIVES: usize = 12;
 const COUNTS_PER_MM: f64 = 131072.0 / 5.0;
 
 fn master_config() -> EthercatConfig {
-    // A debug build of the simulator takes a good part of a millisecond per frame for
-    // twelve drives: the master waits up to 0.9 ms for each reply.
+    // A loaded machine can hold a process off its core for long: the master waits up to
+    // 0.9 ms for each reply, the devices 2 s for outputs before they leave OP.
     let mut text = format!(
-        "interface = \"{}\"\nreply_timeout_us = 900\n",
+        "interface = \"{}\"\nreply_timeout_us = 900\nsm_watchdog_ms = 2000\n",
         support::MASTER_END
     );
     for joint in 0..DRIVES {

@@ -35,6 +35,11 @@ pub struct EthercatConfig {
     /// Time a state change (INIT → PRE-OP → SAFE-OP → OP) may take (ms). Default 5000.
     #[serde(default = "defaults::state_timeout_ms")]
     pub state_timeout_ms: u32,
+    /// Sync manager watchdog of every device (ms): how long a device in OP goes without
+    /// new outputs before it drops to SAFE-OP (AL status code 0x001B). Absent: the
+    /// devices' own (usually 100 ms).
+    #[serde(default)]
+    pub sm_watchdog_ms: Option<u16>,
     /// Digital input of the process image that carries the e-stop chain (a normally closed
     /// contact: the e-stop is active while the input is off). Absent: no e-stop input.
     #[serde(default)]
@@ -228,6 +233,9 @@ impl EthercatConfig {
                 "send_phase",
                 "must be between 0.05 and 0.95",
             ));
+        }
+        if self.sm_watchdog_ms.is_some_and(|ms| ms == 0 || ms > 6500) {
+            return Err(ConfigError::new("sm_watchdog_ms", "between 1 and 6500 ms"));
         }
         if self.state_timeout_ms == 0 {
             return Err(ConfigError::new("state_timeout_ms", "must be at least 1"));

@@ -608,6 +608,19 @@ impl Starting<'_> {
         for (position, slave) in self.config.slaves.iter().enumerate() {
             devices.push(self.configure(&group, position, slave)?);
         }
+        if let Some(ms) = self.config.sm_watchdog_ms {
+            // 100 µs watchdog ticks: divider 2498 of the 25 MHz clock ((2498 + 2) × 40 ns).
+            for subdevice in group.iter(maindevice) {
+                let write = async {
+                    subdevice.register_write(0x0400u16, 2498u16).await?;
+                    subdevice
+                        .register_write(0x0420u16, ms.saturating_mul(10))
+                        .await
+                };
+                self.block_on(write, "sync manager watchdog")?
+                    .map_err(bus_error("sync manager watchdog"))?;
+            }
+        }
         let mut group = group;
         let mut any_dc = false;
         if self.config.distributed_clocks {
