@@ -137,3 +137,33 @@ fn quick_stop_and_fault_reset_walk_the_drive_state_machine() {
     }
     assert_eq!(bus.inputs.joints[0].state(), Cia402State::SwitchOnDisabled);
 }
+
+#[test]
+fn the_master_moves_to_the_cycle_thread() {
+    // The kernel builds the bus, then runs its exchanges on the fieldbus thread.
+    let bus = support::start(
+        &support::segment_toml(2, false, 0.0),
+        &support::master_toml(2, false),
+        Duration::from_millis(1),
+    )
+    .expect("bus starts");
+    let support::Bus {
+        mut master,
+        clock,
+        outputs,
+        mut inputs,
+        ..
+    } = bus;
+    let cycles = std::thread::spawn(move || {
+        (0..10)
+            .map(|_| {
+                clock.advance(1_000_000);
+                master.exchange(1e-3, &outputs, &mut inputs)
+            })
+            .filter(Result::is_ok)
+            .count()
+    })
+    .join()
+    .expect("thread");
+    assert_eq!(cycles, 10);
+}
