@@ -11,9 +11,10 @@ if command -v rustup >/dev/null 2>&1; then
 fi
 
 # Debian packages, installed only when missing. Extra ones can be named on the command line
-# (the benchmark scripts ask for rt-tests and stress-ng this way).
+# (the benchmark scripts ask for rt-tests and stress-ng this way). The EtherCAT tests need
+# iproute2 (veth pairs), util-linux (unshare) and python3-venv (pysoem, below).
 missing=()
-for package in "$@"; do
+for package in iproute2 util-linux python3-venv "$@"; do
   dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q "install ok installed" \
     || missing+=("$package")
 done
@@ -22,4 +23,12 @@ if [ ${#missing[@]} -gt 0 ]; then
   [ "$(id -u)" -eq 0 ] || sudo_cmd="sudo"
   $sudo_cmd apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq "${missing[@]}" >/dev/null
+fi
+
+# pysoem (SOEM, an independent EtherCAT master) for the simulator's tests, in a venv under
+# the user's cache; RTCNC_PYSOEM_PYTHON names another Python that has it.
+pysoem_venv="${HOME}/.cache/rtcnc/venv-ethercat"
+if ! "${pysoem_venv}/bin/python" -c "import pysoem" >/dev/null 2>&1; then
+  python3 -m venv "${pysoem_venv}"
+  "${pysoem_venv}/bin/pip" install -q pysoem
 fi

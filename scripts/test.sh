@@ -15,3 +15,5 @@ echo "== cargo clippy -D warnings"
 cargo clippy --workspace --all-targets --locked -- -D warnings
 echo "== cargo test"
 cargo test --workspace --locked
+echo "== EtherCAT over veth, 3 s (bench/ethercat.sh 0.05 --debug)"
+bench/ethercat.sh 0.05 --debug

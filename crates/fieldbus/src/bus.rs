@@ -24,6 +24,42 @@ pub enum FieldbusError {
         /// The period passed in (seconds).
         period_s: f64,
     },
+    /// The bus answered, but with a wrong working counter (some device did not take part)
+    /// `consecutive` cycles in a row: the limit the configuration allows.
+    #[error(
+        "fieldbus working counter {received} instead of {expected}, {consecutive} cycles in a row"
+    )]
+    WorkingCounter {
+        /// The working counter the devices should return.
+        expected: u16,
+        /// The one that came back last.
+        received: u16,
+        /// Wrong or missing answers in a row.
+        consecutive: u32,
+    },
+    /// A device left the operational state (EtherCAT: its AL state, with the AL status
+    /// code it gives as the reason).
+    #[error(
+        "fieldbus device {position} ({name}) is in {state}: AL status code {code:#06x}, {reason}"
+    )]
+    DeviceState {
+        /// Position of the device on the bus (0 is the first).
+        position: u16,
+        /// The device's name in the configuration.
+        name: &'static str,
+        /// The state it is in.
+        state: &'static str,
+        /// The reason code it gives (0 if none).
+        code: u16,
+        /// The code's meaning.
+        reason: &'static str,
+    },
+    /// The network link (cable, port) is down.
+    #[error("fieldbus link down: {interface}")]
+    LinkDown {
+        /// The network interface.
+        interface: &'static str,
+    },
 }
 
 impl FieldbusError {
@@ -33,12 +69,15 @@ impl FieldbusError {
             Self::CommunicationLost => "fieldbus.communication_lost",
             Self::ImageMismatch { .. } => "fieldbus.image_mismatch",
             Self::InvalidPeriod { .. } => "fieldbus.invalid_period",
+            Self::WorkingCounter { .. } => "fieldbus.working_counter",
+            Self::DeviceState { .. } => "fieldbus.device_state",
+            Self::LinkDown { .. } => "fieldbus.link_down",
         }
     }
 }
 
 /// Drives and I/O reached through one cyclic exchange per servo cycle: the simulated
-/// machine now, an EtherCAT master with CiA 402 drives later.
+/// machine, or an EtherCAT master with CiA 402 drives (`rtcnc-ethercat`).
 ///
 /// The controller's cycle is: read the inputs of the last exchange, compute (servo loops,
 /// machine logic), write the outputs, call [`exchange`](Fieldbus::exchange). The exchange
@@ -58,6 +97,15 @@ pub trait Fieldbus {
         outputs: &ProcessOutputs,
         inputs: &mut ProcessInputs,
     ) -> Result<(), FieldbusError>;
+
+    /// For a bus with its own clock (EtherCAT distributed clocks): how far (ns) the last
+    /// exchange came after the instant in the bus cycle it aims for; negative when early.
+    /// A periodic thread that moves its next wake-up by minus a filtered share of this stays
+    /// aligned to the bus clock. `None`: the bus follows the caller's timing (the simulated
+    /// machine).
+    fn cycle_phase_error_ns(&self) -> Option<i64> {
+        None
+    }
 }
 
 /// Checks that both images have the layout's shape.

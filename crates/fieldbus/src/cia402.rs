@@ -29,6 +29,59 @@ pub mod error_code {
     pub const COMMUNICATION: u16 = 0x8130;
     /// Generic error, the default of an injected drive fault.
     pub const GENERIC: u16 = 0x1000;
+    /// Following error beyond the following error window (0x6065).
+    pub const FOLLOWING_ERROR: u16 = 0x8611;
+
+    /// What an error code means, after the emergency error codes of CiA 301 and the drive
+    /// codes of CiA 402 (IEC 61800-7-201 Annex D): the exact code where the standard names
+    /// it, else its group. Manufacturer-specific codes (0xFF00-0xFFFF) say so.
+    pub const fn describe(code: u16) -> &'static str {
+        match code {
+            0x0000 => "no error",
+            0x1000 => "generic error",
+            0x2310 => "continuous over-current",
+            0x2311 => "continuous over-current (device internal)",
+            0x2320 => "short circuit or earth leakage at the output",
+            0x2330 => "earth leakage",
+            0x3110 => "mains over-voltage",
+            0x3120 => "mains under-voltage",
+            0x3130 => "mains phase failure",
+            0x3210 => "DC link over-voltage",
+            0x3220 => "DC link under-voltage",
+            0x4210 => "excess temperature of the device",
+            0x4310 => "excess temperature of the drive",
+            0x4410 => "excess temperature of the supply",
+            0x5112 => "supply voltage of the electronics low",
+            0x5530 => "data storage (non-volatile memory) failure",
+            0x6010 => "software reset (watchdog)",
+            0x6320 => "parameter error",
+            0x7121 => "motor blocked",
+            0x7305 => "incremental position sensor 1 fault",
+            0x7310 => "speed sensor fault",
+            0x7320 => "position sensor fault",
+            0x7500 => "communication error",
+            0x8110 => "process data overrun",
+            0x8130 => "life guard or process data watchdog expired",
+            0x8400 => "velocity speed control error",
+            0x8611 => "following error",
+            0x8612 => "reference limit",
+            0x9000 => "external error",
+            0xFF00..=0xFFFF => "manufacturer-specific error",
+            _ => match code >> 12 {
+                0x1 => "generic error",
+                0x2 => "current",
+                0x3 => "voltage",
+                0x4 => "temperature",
+                0x5 => "device hardware",
+                0x6 => "device software",
+                0x7 => "additional modules (sensors, brake)",
+                0x8 => "monitoring (communication, control)",
+                0x9 => "external error",
+                0xF => "additional functions",
+                _ => "unknown error code",
+            },
+        }
+    }
 }
 
 /// The controlword (object 0x6040).

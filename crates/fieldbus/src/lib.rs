@@ -3,9 +3,9 @@
 //! vocabulary of CiA 402 drives ([`cia402`]: controlword, statusword, the drive state
 //! machine).
 //!
-//! The [`sim`] module holds the in-process simulated machine, the embedded default. An
-//! EtherCAT back-end (CiA 402 drives in cyclic synchronous position mode) is meant to
-//! implement the same trait; it does not exist yet.
+//! The [`sim`] module holds the in-process simulated machine, the embedded default. The
+//! EtherCAT back-end (CiA 402 drives in cyclic synchronous position mode) implements the
+//! same trait in its own crate, `rtcnc-ethercat`.
 //!
 //! A controller's cycle:
 //!

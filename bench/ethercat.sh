@@ -1,0 +1,62 @@
+#!/usr/bin/env bash
+# 12 simulated CSP drives and a DIO terminal at 1 kHz over a veth pair, in a network
+# namespace: the master (rtcnc-ethercat) on one end, the simulator process on the other.
+# Prints cycles, working-counter errors, the frames' round trip p50/p99/max, the master's
+# CPU time per cycle and the cycle thread's wake-up latency, then cyclictest's over the
+# same duration for comparison.
+#
+#   bench/ethercat.sh [MINUTES] [--debug]     # 10 minutes by default; e.g. 0.1 for 6 s
+#
+# --debug uses the test build (target/debug) instead of building optimised binaries.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+minutes="${1:-10}"
+profile=release
+[ "${2:-}" = "--debug" ] && profile=debug
+scripts/setup.sh rt-tests
+seconds=$(python3 -c "print(max(1, round(float('${minutes}') * 60)))")
+
+if [ "$profile" = release ]; then
+  cargo build --release -q -p rtcnc-ecat-slave-sim --bin ecat-slave-sim
+  cargo build --release -q -p rtcnc-ethercat --example ethercat_bench
+else
+  cargo build -q -p rtcnc-ecat-slave-sim --bin ecat-slave-sim
+  cargo build -q -p rtcnc-ethercat --example ethercat_bench
+fi
+sim="target/${profile}/ecat-slave-sim"
+bench="target/${profile}/examples/ethercat_bench"
+segment="$(mktemp)"
+trap 'rm -f "$segment"' EXIT
+printf '[[slaves]]\nkind = "csp_drive"\ncount = 12\n[[slaves]]\nkind = "dio"\n' >"$segment"
+
+# As root, a network namespace alone keeps the right to real-time scheduling; otherwise an
+# unprivileged user namespace owns it (and SCHED_FIFO is refused: the figures say so).
+if [ "$(id -u)" -eq 0 ]; then namespace=(unshare -n); else namespace=(unshare -Urn); fi
+if ! "${namespace[@]}" true 2>/dev/null; then
+  echo "skipped: ${namespace[*]} refused (network namespaces are needed for the veth pair)"
+  exit 0
+fi
+
+echo "== rtcnc EtherCAT master, 12 drives + DIO over veth, 1 ms, ${seconds} s (${profile})"
+"${namespace[@]}" bash -c '
+  set -euo pipefail
+  ip link add m0 type veth peer name s0
+  ip link set m0 up
+  ip link set s0 up
+  mkfifo "$0.in"
+  "$1" --interface s0 --config "$0" --priority 70 <"$0.in" >/dev/null &
+  sim=$!
+  exec 3>"$0.in"
+  rm -f "$0.in"
+  sleep 0.3
+  "$2" --interface m0 --drives 12 --seconds "$3"
+  echo quit >&3
+  wait "$sim"
+' "$segment" "$sim" "$bench" "$seconds"
+
+echo "== cyclictest, 1 ms, ${seconds} s (the machine's own wake-up latency)"
+if command -v cyclictest >/dev/null 2>&1; then
+  cyclictest -m -p 80 -i 1000 -t 1 -D "${seconds}s" -q 2>&1 | tail -n 2 || true
+else
+  echo "cyclictest not installed (scripts/setup.sh rt-tests)"
+fi
