@@ -26,9 +26,11 @@
 
 mod compensation;
 pub mod config;
+mod error;
 mod fault;
 mod interpreter;
 mod kernel;
+mod kinematics;
 mod logic;
 pub mod messages;
 mod motion;
@@ -38,10 +40,12 @@ mod shared;
 mod sim;
 
 pub use config::{ConfigError, MAX_JOINTS, MachineConfig};
+pub use error::{KernelError, SelfTestFailure};
 pub use fault::{Fault, FaultCode, TaskName};
-pub use kernel::{Kernel, KernelError, KernelHandle, KernelOptions, SelfTestReport};
+pub use kernel::{Kernel, KernelHandle, KernelOptions, SelfTestReport};
+pub use kinematics::MachineKinematics;
 pub use messages::{Command, FixedText, MachineState, Mode, OperatorMessage, Status, Urgent};
-pub use motion::{LatchRequest, MotionCore, ServoTarget};
+pub use motion::{LatchRequest, ServoTarget};
 pub use servo::Sample;
 pub use shared::{Feedback, LogicOutputs, LogicRequests};
-pub use sim::Simulation;
+pub use sim::{SimulatedMachineHandle, Simulation};

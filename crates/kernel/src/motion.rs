@@ -6,13 +6,15 @@
 //! Nothing here allocates after construction.
 
 use rtcnc_motion::otg::{Limits, OnlineAxis, State};
-use rtcnc_motion::{AXES, MotionError, MotionState, Move, Planner, TrivialKinematics};
+use rtcnc_motion::{AXES, Kinematics, MotionError, MotionState, Move, Planner};
 use rtcnc_rt::{Context, RingProducer, SeqlockWriter};
 
 use rtcnc_gcode::canon::ProbeKind;
 
 use crate::config::{MAX_JOINTS, MachineConfig};
+use crate::error::KernelError;
 use crate::fault::{Fault, FaultCode, TaskName};
+use crate::kinematics::MachineKinematics;
 use crate::messages::{
     Aux, Command, JointSetpoints, MachineBlock, MachineResult, MachineState, Mode, OperatorMessage,
     Status, Urgent,
@@ -161,8 +163,8 @@ struct JointInfo {
 }
 
 /// The motion core. See the module documentation.
-pub struct MotionCore {
-    planner: Planner<TrivialKinematics>,
+pub(crate) struct MotionCore {
+    planner: Planner<MachineKinematics>,
     planner_joints: [usize; MAX_JOINTS],
     planner_joint_count: usize,
     planner_buf: [f64; MAX_JOINTS],
@@ -280,11 +282,12 @@ fn limits_of(v: f64, a: f64, j: f64) -> Limits {
 
 impl MotionCore {
     /// The core for a validated configuration, at rest at the joints' initial positions.
-    pub fn new(
+    pub(crate) fn new(
         config: &MachineConfig,
+        kinematics: MachineKinematics,
         shared: &Shared,
         requests_out: SeqlockWriter<LogicRequests>,
-    ) -> Result<MotionCore, MotionError> {
+    ) -> Result<MotionCore, KernelError> {
         let period_s = config.servo_period().as_secs_f64();
         let plan = config.axis_plan();
         let mut limits = rtcnc_motion::MachineLimits { axes: [None; AXES] };
@@ -326,7 +329,8 @@ impl MotionCore {
             min: 0.0,
             max: 0.0,
         }; MAX_JOINTS];
-        let mut kin = Vec::new();
+        let mut planner_joint_count = 0;
+        let mut axis_started = [false; AXES];
         let mut planner_joints = [0usize; MAX_JOINTS];
         let mut start = [0.0; AXES];
         let mut initial = [0.0; MAX_JOINTS];
@@ -345,11 +349,11 @@ impl MotionCore {
                     info.max = axis_max[i];
                     // The axis starts where its first joint stands; the others are made to
                     // agree through their offsets until homing squares them.
-                    if !kin.iter().any(|(axis, _)| *axis == a) {
+                    if !std::mem::replace(&mut axis_started[i], true) {
                         start[i] = jc.sim.initial_position;
                     }
-                    planner_joints[kin.len()] = j;
-                    kin.push((a, None));
+                    planner_joints[planner_joint_count] = j;
+                    planner_joint_count += 1;
                 }
                 None => {
                     let l = jc.limits.unwrap_or(crate::config::JointLimitsConfig {
@@ -366,18 +370,22 @@ impl MotionCore {
                 }
             }
         }
-        let planner_joint_count = kin.len();
-        let kinematics = TrivialKinematics::new(kin)?;
+        if kinematics.joint_count() != planner_joint_count {
+            return Err(KernelError::Kinematics {
+                expected: planner_joint_count,
+                found: kinematics.joint_count(),
+            });
+        }
         let planner = Planner::new(&limits, kinematics, period_s, 256, start)?;
         let otg = |p: f64, l: Limits| OnlineAxis::new(State::at_rest(p), l);
-        let mut axis_otg = [otg(0.0, limits_of(1.0, 1.0, 1.0)).map_err(otg_error)?; AXES];
+        let mut axis_otg = [otg(0.0, limits_of(1.0, 1.0, 1.0))?; AXES];
         for i in 0..AXES {
-            axis_otg[i] = otg(start[i], axis_limits[i]).map_err(otg_error)?;
+            axis_otg[i] = otg(start[i], axis_limits[i])?;
         }
         let mut joint_otg = [axis_otg[0]; MAX_JOINTS];
         let mut joint_manual = 0u32;
         for j in 0..joint_count {
-            joint_otg[j] = otg(initial[j], joints[j].limits).map_err(otg_error)?;
+            joint_otg[j] = otg(initial[j], joints[j].limits)?;
             if joints[j].axis.is_none() {
                 joint_manual |= 1 << j;
             }
@@ -397,7 +405,7 @@ impl MotionCore {
         }
         for j in 0..joint_count {
             if let Some(i) = joints[j].axis {
-                joint_otg[j] = otg(start[i], joints[j].limits).map_err(otg_error)?;
+                joint_otg[j] = otg(start[i], joints[j].limits)?;
             }
         }
         Ok(MotionCore {
@@ -465,9 +473,12 @@ impl MotionCore {
                 a
             },
             css: None,
-            spindle_max_rpm: config
-                .simulated_machine()
-                .map_or(f64::INFINITY, |m| m.spindle.max_speed_rpm),
+            // A file without `[spindle]` gets the fieldbus's default spindle, as the
+            // simulated machine does.
+            spindle_max_rpm: config.spindle.map_or_else(
+                || rtcnc_fieldbus::sim::SpindleConfig::default().max_speed_rpm,
+                |s| s.max_speed_rpm,
+            ),
             spindle_override: 1.0,
             feed_override_enabled: true,
             spindle_override_enabled: true,
@@ -2363,8 +2374,4 @@ impl MotionCore {
             status.last_fault = Some(f);
         }
     }
-}
-
-fn otg_error(e: rtcnc_motion::otg::OtgError) -> MotionError {
-    MotionError::Kinematics(format!("on-line generator: {e}"))
 }
