@@ -325,7 +325,7 @@ fn motion_core(
 ) -> Result<Arc<PiMutex<MotionCore>>, KernelError> {
     let mut core = MotionCore::new(config, kinematics, shared, requests)?;
     core.set_has_program(has_program);
-    core.set_ready(true);
+    core.self_test_passed();
     Ok(Arc::new(PiMutex::new(core)))
 }
 

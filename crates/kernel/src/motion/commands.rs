@@ -4,7 +4,7 @@
 
 use rtcnc_rt::Context;
 
-use super::sequencer::Phase;
+use super::state::{Event, State, Step};
 use super::{MotionCore, Source};
 use crate::fault::{FaultCode, TaskName};
 use crate::messages::{Command, Mode, Urgent};
@@ -51,11 +51,7 @@ impl MotionCore {
     fn command_inner(&mut self, shared: &Shared, command: Command) -> bool {
         // A latched feed hold refuses whatever would start motion (a program, an MDI
         // line, a jog, homing) until the operator resumes.
-        let idle = self.operational()
-            && !self.hold.held
-            && !self.moving()
-            && self.program.phase == Phase::Idle
-            && self.homing.is_none();
+        let idle = self.state == State::Idle && !self.hold.held && !self.moving();
         match command {
             Command::Reset => self.reset(),
             Command::Start { from_line } => {
@@ -68,7 +64,7 @@ impl MotionCore {
                         });
                     shared.interpreter_wake.signal();
                     true
-                } else if matches!(self.program.phase, Phase::Paused { .. }) {
+                } else if matches!(self.step_of_program(), Some(Step::Paused { .. })) {
                     self.program.start_count = self.program.start_count.wrapping_add(1);
                     true
                 } else {
@@ -135,10 +131,9 @@ impl MotionCore {
             .try_put(InterpreterRequest::Stop);
         shared.interpreter_wake.signal();
         self.program.pending = None;
-        self.program.phase = Phase::Idle;
+        self.fire(Event::Abort);
         self.hold.held = false;
         self.hold.logic_paused = false;
-        self.homing = None;
         match self.source {
             Source::Path => self.path.planner.abort(),
             Source::Manual => self.stop_manual(false),

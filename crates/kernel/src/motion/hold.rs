@@ -6,7 +6,7 @@
 
 use rtcnc_motion::AXES;
 
-use super::sequencer::Phase;
+use super::state::{Event, Step};
 use super::{MotionCore, Source};
 use crate::messages::Aux;
 
@@ -44,8 +44,9 @@ impl MotionCore {
     /// the next block starting.
     pub(super) fn hold(&mut self) {
         // An e-stop or fault has already stopped everything and ended the program; a hold
-        // latched now would outlive the reset that follows.
-        if self.safety.estop || self.safety.fault {
+        // latched now would outlive the reset that follows. Homing cannot go on from where
+        // a hold stops it: it is given up (and starts again next time).
+        if !self.fire(Event::Hold) {
             return;
         }
         match self.source {
@@ -60,8 +61,6 @@ impl MotionCore {
             }
             Source::Manual => {
                 self.hold.held = true;
-                // Homing cannot go on from where a hold stops it: it starts again.
-                self.homing = None;
                 self.manual.handwheel = None;
                 for i in 0..AXES {
                     if self.machine.axis_present[i] {
@@ -97,7 +96,7 @@ impl MotionCore {
                 self.path.planner.resume();
             }
         }
-        if matches!(self.program.phase, Phase::Paused { .. }) {
+        if matches!(self.step_of_program(), Some(Step::Paused { .. })) {
             self.program.start_count = self.program.start_count.wrapping_add(1);
         }
     }
@@ -108,19 +107,20 @@ impl MotionCore {
     /// wait for a resume.
     pub(super) fn follow_logic_hold(&mut self, request: bool) {
         if request && !self.hold.logic_request {
+            let step = self.step_of_program();
             let spindle_handshake = matches!(
-                self.program.phase,
-                Phase::Logic {
+                step,
+                Some(Step::Logic {
                     aux: Aux::SpindleOn { .. }
                         | Aux::SpindleSpeed { .. }
                         | Aux::ConstantSurfaceSpeed { .. }
                         | Aux::SurfaceSpeedOff,
                     ..
-                }
+                })
             );
             if self.moving() {
                 self.hold();
-            } else if self.program.phase != Phase::Idle && !spindle_handshake {
+            } else if step.is_some() && !spindle_handshake {
                 self.hold.logic_paused = true;
             }
         }

@@ -6,6 +6,7 @@
 use rtcnc_motion::otg::{self, OnlineAxis};
 
 use super::MotionCore;
+use super::state::{Event, State};
 use crate::config::MAX_JOINTS;
 use crate::messages::JointSetpoints;
 use crate::shared::Feedback;
@@ -30,20 +31,32 @@ pub(super) struct Homing {
     step: [Option<HomingStep>; MAX_JOINTS],
 }
 
+#[cfg(test)]
+impl Homing {
+    /// A group of no joints, for the state's tests.
+    pub(super) fn of_sequence(sequence: u8) -> Homing {
+        Homing {
+            sequence,
+            step: [None; MAX_JOINTS],
+        }
+    }
+}
+
 impl MotionCore {
     /// Homes every joint with a homing sequence, group by group; joints without one are
     /// homed where they stand.
     pub(super) fn home_all(&mut self) -> bool {
         self.enter_manual();
         self.homed = 0;
-        self.homing = self.next_homing_group(None);
-        if self.homing.is_none() {
+        let group = self.next_homing_group(None);
+        if group.is_none() {
             self.homed = (1u32 << self.machine.joint_count) - 1;
         }
-        true
+        self.fire(Event::Home(group))
     }
 
-    pub(super) fn next_homing_group(&self, after: Option<u8>) -> Option<Homing> {
+    /// The group of joints that homes after sequence number `after` (the first: none).
+    fn next_homing_group(&self, after: Option<u8>) -> Option<Homing> {
         let sequence = (0..self.machine.joint_count)
             .filter_map(|j| self.machine.joints[j].homing.map(|h| h.sequence))
             .filter(|s| after.is_none_or(|a| *s > a))
@@ -61,7 +74,7 @@ impl MotionCore {
     }
     /// One period of the homing sequence of the current group.
     pub(super) fn homing_step(&mut self, feedback: &Feedback) {
-        let Some(mut homing) = self.homing else {
+        let State::Homing(mut homing) = self.state else {
             return;
         };
         let mut all_done = true;
@@ -173,8 +186,9 @@ impl MotionCore {
         if all_done {
             // The group's axis joints, now squared, go back to their axes at the end of
             // this period (`release_stopped_homing_joints`).
-            self.homing = self.next_homing_group(Some(homing.sequence));
-            if self.homing.is_none() {
+            let next = self.next_homing_group(Some(homing.sequence));
+            self.fire(Event::GroupHomed(next));
+            if next.is_none() {
                 // Joints without a sequence are homed where they stand.
                 for j in 0..self.machine.joint_count {
                     if self.machine.joints[j].homing.is_none() {
@@ -183,8 +197,8 @@ impl MotionCore {
                 }
                 self.requests_mut().homed = true;
             }
-        } else {
-            self.homing = Some(homing);
+        } else if let State::Homing(group) = &mut self.state {
+            *group = homing;
         }
     }
     /// Axis joints that homing took over go back to their axis once they stand outside
@@ -197,7 +211,7 @@ impl MotionCore {
             let Some(i) = self.machine.joints[j].axis else {
                 continue;
             };
-            let in_group = self.homing.is_some_and(|h| h.step[j].is_some());
+            let in_group = matches!(self.state, State::Homing(h) if h.step[j].is_some());
             if self.manual.joint_manual & bit == 0
                 || in_group
                 || !self.manual.joint_otg[j].is_finished()

@@ -6,7 +6,6 @@
 use rtcnc_motion::MotionState;
 use rtcnc_rt::{Context, RingProducer};
 
-use super::sequencer::Phase;
 use super::{LatchRequest, MotionCore, ServoTarget, Source};
 use crate::config::MAX_JOINTS;
 use crate::messages::JointSetpoints;
@@ -110,7 +109,7 @@ impl MotionCore {
         let _ = out.push(ServoTarget {
             setpoints: self.out.last,
             offsets: self.out.offsets,
-            enable: self.safety.enable,
+            enable: self.drives_enabled(),
             reset_count: self.safety.reset_count,
             latch: self.out.latch,
         });
@@ -133,7 +132,7 @@ impl MotionCore {
                 sp.line = status.line;
                 sp.path_speed = status.path_speed;
                 self.path.state = status.state;
-                if status.state == MotionState::Idle && self.program.phase == Phase::Idle {
+                if status.state == MotionState::Idle && self.step_of_program().is_none() {
                     sp.line = 0;
                 }
             }

@@ -6,7 +6,7 @@
 //! messages.
 
 use super::MotionCore;
-use super::sequencer::{Phase, Then};
+use super::state::{Event, State, Step};
 use crate::config::{MAX_PROGRAM_IO, MachineConfig};
 use crate::fault::FaultCode;
 use crate::messages::{Aux, MachineResult, WaitCondition};
@@ -70,20 +70,16 @@ impl ProgramIo {
 }
 
 impl MotionCore {
-    /// Starts the machine function the path stopped for; the phase it leaves the program
-    /// in says what comes next (the logic's answer, a wait, a pause, or the next block).
+    /// Starts the machine function the path stopped for; what comes next is the logic's
+    /// answer, a wait, a pause, or the next block.
     pub(super) fn start_aux(&mut self, shared: &Shared, aux: Aux, line: u32) {
         self.program.aux_cycle = self.out.cycle;
-        let hand_shake = Phase::Logic {
-            aux,
-            line,
-            released: false,
-        };
-        let refused = Phase::Draining {
-            then: Then::Error(FaultCode::AuxRefused),
+        let hand_shake = Event::HandShake { aux, line };
+        let refused = Event::Fail {
+            code: FaultCode::AuxRefused,
             line,
         };
-        self.program.phase = match aux {
+        let next = match aux {
             Aux::SpindleOn { .. }
             | Aux::SpindleOff
             | Aux::SpindleSpeed { .. }
@@ -96,7 +92,7 @@ impl MotionCore {
             // follows at once, and that is waited for).
             Aux::SurfaceSpeedOff => {
                 self.command_spindle(aux);
-                Phase::Feeding
+                Event::Proceed
             }
             // Orientation goes to the spindle drive at once; M19 Q waits for it.
             Aux::SpindleOrient { angle, mode } => {
@@ -107,9 +103,9 @@ impl MotionCore {
                 mi.spindle_orient_angle = angle;
                 mi.spindle_orient_mode = mode;
                 self.program.orient_cycle = self.out.cycle;
-                Phase::Feeding
+                Event::Proceed
             }
-            Aux::WaitOrient { timeout } => Phase::WaitOrient {
+            Aux::WaitOrient { timeout } => Event::WaitOrient {
                 deadline: self.deadline_after(timeout),
                 line,
             },
@@ -155,7 +151,7 @@ impl MotionCore {
                     let deadline = self.deadline_after(timeout);
                     let bit = 1u64 << point;
                     let previous = self.interface.feedback.get().digital_inputs & bit != 0;
-                    Phase::WaitInput {
+                    Event::WaitInput {
                         bit,
                         condition,
                         deadline,
@@ -173,7 +169,7 @@ impl MotionCore {
                 match value {
                     Some(v) => {
                         self.send_result(shared, MachineResult::Input(v));
-                        Phase::Feeding
+                        Event::Proceed
                     }
                     None => refused,
                 }
@@ -185,7 +181,7 @@ impl MotionCore {
                 match mapped.and_then(|i| self.requests_mut().program_analog_outputs.get_mut(i)) {
                     Some(slot) => {
                         *slot = value;
-                        Phase::Feeding
+                        Event::Proceed
                     }
                     None => refused,
                 }
@@ -193,7 +189,7 @@ impl MotionCore {
             Aux::FeedOverrideEnable(on) => {
                 self.overrides.feed_enabled = on;
                 self.apply_feed_overrides();
-                Phase::Feeding
+                Event::Proceed
             }
             Aux::SpindleOverrideEnable(on) => {
                 self.overrides.spindle_enabled = on;
@@ -201,28 +197,29 @@ impl MotionCore {
                     let rpm = self.spindle_command();
                     self.requests_mut().spindle_rpm = rpm;
                 }
-                Phase::Feeding
+                Event::Proceed
             }
             Aux::FeedStopEnable(on) => {
                 self.overrides.feed_stop_enabled = on;
-                Phase::Feeding
+                Event::Proceed
             }
-            Aux::ProgramStop => Phase::Paused {
+            Aux::ProgramStop => Event::Pause {
                 start_count: self.program.start_count,
             },
-            Aux::OptionalStop if self.program.optional_stop => Phase::Paused {
+            Aux::OptionalStop if self.program.optional_stop => Event::Pause {
                 start_count: self.program.start_count,
             },
-            Aux::OptionalStop => Phase::Feeding,
+            Aux::OptionalStop => Event::Proceed,
             Aux::Message { seq } => {
                 self.show_message(shared, seq, line);
-                Phase::Feeding
+                Event::Proceed
             }
         };
+        self.fire(next);
     }
 
     /// Whether the machine logic acknowledged `aux`; drops hand-shake requests once done.
-    pub(super) fn logic_done(&mut self, aux: Aux, line: u32, released: bool) -> bool {
+    pub(super) fn logic_done(&mut self, aux: Aux, released: bool) -> bool {
         let answers = *self.interface.logic.get();
         let done = match aux {
             Aux::SpindleOn { .. }
@@ -245,11 +242,7 @@ impl MotionCore {
                     if answers.tool_change_done {
                         self.requests_mut().tool_change_request = false;
                         self.tool = tool;
-                        self.program.phase = Phase::Logic {
-                            aux,
-                            line,
-                            released: true,
-                        };
+                        self.fire(Event::Answered);
                     }
                     false
                 } else {
@@ -260,11 +253,7 @@ impl MotionCore {
                 if !released {
                     if answers.m_code_done {
                         self.requests_mut().m_code_request = false;
-                        self.program.phase = Phase::Logic {
-                            aux,
-                            line,
-                            released: true,
-                        };
+                        self.fire(Event::Answered);
                     }
                     false
                 } else {
@@ -285,7 +274,7 @@ impl MotionCore {
             | Aux::WaitInput { .. } => true,
         };
         if done {
-            self.program.phase = Phase::Feeding;
+            self.fire(Event::Proceed);
         }
         done
     }
@@ -297,16 +286,15 @@ impl MotionCore {
         let oriented = self.interface.feedback.get().spindle_oriented
             && self.out.cycle >= self.program.orient_cycle + 2;
         if oriented {
-            self.program.phase = Phase::Feeding;
+            self.fire(Event::Proceed)
         } else if self.out.cycle >= deadline {
-            self.program.phase = Phase::Draining {
-                then: Then::Error(FaultCode::SpindleOrientTimeout),
+            self.fire(Event::Fail {
+                code: FaultCode::SpindleOrientTimeout,
                 line,
-            };
+            })
         } else {
-            return false;
+            false
         }
-        true
     }
 
     /// M66 on a digital input: the program goes on when the condition is met or at the
@@ -335,15 +323,12 @@ impl MotionCore {
                 (true, false) => 0.0,
             };
             self.send_result(shared, MachineResult::Input(value));
-            self.program.phase = Phase::Feeding;
-            true
+            self.fire(Event::Proceed)
         } else {
-            self.program.phase = Phase::WaitInput {
-                bit,
-                condition,
-                deadline,
-                previous: now,
-            };
+            // The level this period, for the edge the next one may see.
+            if let State::Program(Step::WaitInput { previous, .. }) = &mut self.state {
+                *previous = now;
+            }
             false
         }
     }

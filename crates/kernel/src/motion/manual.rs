@@ -5,6 +5,7 @@
 use rtcnc_motion::AXES;
 use rtcnc_motion::otg::{self, Limits, OnlineAxis};
 
+use super::state::State;
 use super::{MotionCore, Source};
 use crate::config::MAX_JOINTS;
 use crate::messages::{JointSetpoints, Mode};
@@ -101,8 +102,7 @@ impl MotionCore {
     /// move beside whatever the axes do (the seeds' 12-drive test: independent moves
     /// during three-axis interpolation), but not while homing.
     pub(super) fn joint_move(&mut self, j: usize, position: f64) -> bool {
-        if !(self.operational()
-            && self.homing.is_none()
+        if !(matches!(self.state, State::Idle | State::Program(_))
             && j < self.machine.joint_count
             && self.machine.joints[j].axis.is_none()
             && position.is_finite())

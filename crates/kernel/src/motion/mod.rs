@@ -7,6 +7,7 @@
 //! Nothing here allocates after construction.
 //!
 //! One job per module:
+//! - `state`: the machine's motion state and the table of its transitions;
 //! - `commands`: the operator's commands, urgent and normal;
 //! - `hold`: feed holds (operator, machine logic, feed stop switch) and resume;
 //! - `safety`: e-stop and faults (quick stop, drives off), reset, the logic's e-stop chain;
@@ -30,6 +31,7 @@ mod probing;
 mod safety;
 mod sequencer;
 mod spindle;
+mod state;
 mod synced;
 
 use rtcnc_motion::otg::{self, Limits, OnlineAxis};
@@ -43,7 +45,6 @@ use crate::messages::{JointSetpoints, MachineState, Mode, Status};
 use crate::shared::{Feedback, LogicOutputs, LogicRequests, Shared, Snapshot};
 
 use hold::Hold;
-use homing::Homing;
 use interpolation::Output;
 use machine::{Machine, limits_of};
 use machine_functions::ProgramIo;
@@ -51,8 +52,9 @@ use manual::Manual;
 use overrides::Overrides;
 use probing::Probe;
 use safety::Safety;
-use sequencer::{Phase, Program};
+use sequencer::Program;
 use spindle::Spindle;
+use state::{Event, State, Step, transition};
 use synced::SyncedMove;
 
 /// Latch requests carried with a set-point (bit n for joint n).
@@ -116,6 +118,8 @@ struct MachineInterface {
 
 /// The motion core. See the module documentation.
 pub(crate) struct MotionCore {
+    /// What the machine is doing (changed only by [`MotionCore::fire`]).
+    state: State,
     machine: Machine,
     path: Path,
     manual: Manual,
@@ -126,8 +130,6 @@ pub(crate) struct MotionCore {
     program: Program,
     safety: Safety,
     hold: Hold,
-    /// The homing group in progress.
-    homing: Option<Homing>,
     /// Bit n: joint n is homed.
     homed: u32,
     spindle: Spindle,
@@ -191,6 +193,7 @@ impl MotionCore {
             }
         }
         Ok(MotionCore {
+            state: State::Starting,
             path: Path {
                 planner,
                 joints: start.planner_joints,
@@ -206,7 +209,6 @@ impl MotionCore {
             program: Program::new(),
             safety: Safety::new(),
             hold: Hold::default(),
-            homing: None,
             homed: 0,
             spindle: Spindle::new(config),
             overrides: Overrides::new(),
@@ -238,8 +240,28 @@ impl MotionCore {
     }
 
     /// The self-test passed: the machine may be reset into operation.
-    pub(crate) fn set_ready(&mut self, ready: bool) {
-        self.safety.ready = ready;
+    pub(crate) fn self_test_passed(&mut self) {
+        self.fire(Event::SelfTestPassed);
+    }
+
+    /// The one place that changes the state: to where [`transition`] leads `event`.
+    /// Returns false when the present state does not take the event (nothing changes).
+    fn fire(&mut self, event: Event) -> bool {
+        match transition(&self.state, event) {
+            Some(next) => {
+                self.state = next;
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// The program's step, when a program or MDI line runs.
+    fn step_of_program(&self) -> Option<Step> {
+        match self.state {
+            State::Program(step) => Some(step),
+            _ => None,
+        }
     }
 
     /// A program is loaded (auto mode can start).
@@ -261,9 +283,10 @@ impl MotionCore {
 
     /// The machine state as the status shows it.
     pub(crate) fn state(&self) -> MachineState {
-        if !self.safety.ready {
+        if self.state == State::Starting {
             return MachineState::Starting;
         }
+        // Off and Stopping: the cause.
         if self.safety.estop {
             return MachineState::EStop;
         }
@@ -272,18 +295,15 @@ impl MotionCore {
         }
         // A hold outranks what the program waits for: whatever the wait ends in, nothing
         // moves on until a resume, and that is what the operator must see.
-        if self.hold.held || self.hold.logic_paused || self.hold.feed_stop {
+        if self.hold.latched() || self.hold.feed_stop {
             return MachineState::Held;
         }
-        match self.program.phase {
-            Phase::Logic { .. } => return MachineState::WaitingForLogic,
-            Phase::Paused { .. } => return MachineState::Paused,
-            _ => {}
-        }
-        if self.moving() || self.homing.is_some() || self.program.phase != Phase::Idle {
-            MachineState::Running
-        } else {
-            MachineState::Idle
+        match self.state {
+            State::Program(Step::Logic { .. }) => MachineState::WaitingForLogic,
+            State::Program(Step::Paused { .. }) => MachineState::Paused,
+            State::Homing(_) | State::Program(_) => MachineState::Running,
+            _ if self.moving() => MachineState::Running,
+            _ => MachineState::Idle,
         }
     }
 
@@ -311,7 +331,7 @@ impl MotionCore {
         } else {
             0.0
         };
-        status.ready = self.safety.ready && self.safety.enable && feedback.enabled != 0;
+        status.ready = self.drives_enabled() && feedback.enabled != 0;
         status.geometry = self.path.planner.geometry_stats();
         if let Some(f) = self.safety.last_fault {
             status.last_fault = Some(f);

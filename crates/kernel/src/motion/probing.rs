@@ -8,7 +8,7 @@ use rtcnc_gcode::canon::ProbeKind;
 use rtcnc_motion::{AXES, MotionError, Move};
 
 use super::MotionCore;
-use super::sequencer::{Phase, Then};
+use super::state::Event;
 use crate::fault::FaultCode;
 use crate::messages::MachineResult;
 use crate::shared::{Feedback, Shared};
@@ -32,13 +32,13 @@ impl MotionCore {
     pub(super) fn start_probe(&mut self, shared: &Shared, mv: Move, kind: ProbeKind) {
         let contact = self.interface.feedback.get().digital_inputs & self.io.probe_bit != 0;
         if self.io.probe_bit == 0 || contact == toward(kind) {
-            self.program.phase = Phase::Draining {
-                then: Then::Error(FaultCode::ProbeFailed),
+            self.fire(Event::Fail {
+                code: FaultCode::ProbeFailed,
                 line: mv.line,
-            };
+            });
             return;
         }
-        let probing = Phase::Probing {
+        let probing = Event::Probe {
             kind,
             line: mv.line,
         };
@@ -50,18 +50,18 @@ impl MotionCore {
             Ok(()) => {
                 self.path.planner.flush();
                 self.probe = Some(started);
-                self.program.phase = probing;
+                self.fire(probing);
             }
             // Already there: the probe did not change.
             Err(MotionError::ZeroLength { .. }) => {
                 self.probe = Some(started);
-                self.program.phase = probing;
+                self.fire(probing);
             }
             Err(e) => {
-                self.program.phase = Phase::Draining {
-                    then: Then::Error(FaultCode::MotionError),
+                self.fire(Event::Fail {
+                    code: FaultCode::MotionError,
                     line: e.line().unwrap_or(mv.line),
-                };
+                });
                 *shared.motion_error.lock() = Some(e);
             }
         }
@@ -103,11 +103,10 @@ impl MotionCore {
         let tripped_at = self.probe.take().and_then(|p| p.tripped_at);
         let must_change = matches!(kind, ProbeKind::TowardError | ProbeKind::AwayError);
         if tripped_at.is_none() && must_change {
-            self.program.phase = Phase::Draining {
-                then: Then::Error(FaultCode::ProbeFailed),
+            return self.fire(Event::Fail {
+                code: FaultCode::ProbeFailed,
                 line,
-            };
-            return true;
+            });
         }
         self.send_result(
             shared,
@@ -117,7 +116,6 @@ impl MotionCore {
                 stopped: self.out.last.axes,
             },
         );
-        self.program.phase = Phase::Feeding;
-        true
+        self.fire(Event::Proceed)
     }
 }

@@ -7,24 +7,18 @@ use rtcnc_motion::AXES;
 use rtcnc_motion::otg::{self, OnlineAxis};
 use rtcnc_rt::Context;
 
-use super::sequencer::Phase;
+use super::state::{Event, State, transition};
 use super::{LatchRequest, MotionCore, Source};
 use crate::fault::{Fault, FaultCode, TaskName};
 use crate::shared::{Feedback, InterpreterRequest, Shared};
 
-/// The safety chain's state.
+/// The safety chain's latches (the states `Off` and `Stopping` are the machine state's).
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Safety {
-    /// The power-up self-test passed.
-    pub(super) ready: bool,
     /// An e-stop is latched (until a reset).
     pub(super) estop: bool,
     /// A fault is latched (until a reset).
     pub(super) fault: bool,
-    /// The quick stop after an e-stop or fault runs.
-    pub(super) stopping: bool,
-    /// The drives are enabled.
-    pub(super) enable: bool,
     /// Resets so far: position control clears its latched faults at each.
     pub(super) reset_count: u32,
     /// The logic's e-stop chain has been seen closed since the last reset.
@@ -36,11 +30,8 @@ impl Safety {
     /// At power-up: in e-stop, drives off.
     pub(super) fn new() -> Safety {
         Safety {
-            ready: false,
             estop: true,
             fault: false,
-            stopping: false,
-            enable: false,
             reset_count: 0,
             chain_closed: false,
             last_fault: None,
@@ -49,10 +40,12 @@ impl Safety {
 }
 
 impl MotionCore {
-    /// Drives on, no e-stop or fault.
-    pub(super) fn operational(&self) -> bool {
-        let s = &self.safety;
-        s.ready && !s.estop && !s.fault && s.enable
+    /// The drives are enabled (also during the quick stop).
+    pub(super) fn drives_enabled(&self) -> bool {
+        matches!(
+            self.state,
+            State::Stopping | State::Idle | State::Homing(_) | State::Program(_)
+        )
     }
 
     /// The operator's reset: clears the e-stop and faults and enables the drives. Refused
@@ -60,17 +53,17 @@ impl MotionCore {
     /// stop runs.
     pub(super) fn reset(&mut self) -> bool {
         let feedback = *self.interface.feedback.get();
-        if !self.safety.ready || feedback.estop || self.safety.stopping {
+        if feedback.estop || transition(&self.state, Event::Reset).is_none() {
             return false;
         }
-        if !self.safety.enable && self.out.offsets_known {
+        if self.state == State::Off && self.out.offsets_known {
             // The drives were off (the load may have coasted): the set-points start again
             // from where the machine stands.
             self.resync_to_feedback(&feedback);
         }
         self.safety.estop = false;
         self.safety.fault = false;
-        self.safety.enable = true;
+        self.fire(Event::Reset);
         self.apply_feed_overrides();
         self.safety.chain_closed = false;
         self.safety.reset_count = self.safety.reset_count.wrapping_add(1);
@@ -91,10 +84,11 @@ impl MotionCore {
         } else {
             self.safety.fault = true;
         }
-        if !self.safety.enable {
+        // With the drives off already (power-up, or after an earlier fault) only the
+        // latches change.
+        if !self.fire(Event::Fault) {
             return;
         }
-        self.safety.stopping = true;
         self.probe = None;
         self.stop_synced(true);
         self.program.epoch = self.program.epoch.wrapping_add(1);
@@ -102,10 +96,8 @@ impl MotionCore {
             .interpreter_requests
             .try_put(InterpreterRequest::Stop);
         self.program.pending = None;
-        self.program.phase = Phase::Idle;
         self.hold.held = false;
         self.hold.logic_paused = false;
-        self.homing = None;
         self.out.latch = LatchRequest::default();
         match self.source {
             Source::Path => self.path.planner.quick_stop(),
@@ -128,11 +120,8 @@ impl MotionCore {
 
     /// The quick stop stands: the drives go off.
     pub(super) fn finish_quick_stop(&mut self) {
-        if self.safety.stopping && !self.moving() {
-            self.safety.stopping = false;
-            if self.safety.estop || self.safety.fault {
-                self.safety.enable = false;
-            }
+        if self.state == State::Stopping && !self.moving() {
+            self.fire(Event::Stood);
         }
     }
 
@@ -144,7 +133,7 @@ impl MotionCore {
         shared: &Shared,
         chain_ok: bool,
     ) {
-        if self.safety.enable && !self.safety.estop {
+        if self.drives_enabled() && !self.safety.estop {
             if chain_ok {
                 self.safety.chain_closed = true;
             } else if self.safety.chain_closed {

@@ -3,68 +3,21 @@
 //! needs the machine standing (a machine function, a spindle-synchronised or probing move,
 //! the end, an error), waits for the path to stand, and then starts that.
 
-use rtcnc_gcode::canon::ProbeKind;
 use rtcnc_motion::{AXES, MotionError, Move, MoveKind, PathMode};
 use rtcnc_rt::Context;
 
 use super::MotionCore;
+use super::state::{Event, State, Step, Then};
 use crate::fault::{FaultCode, TaskName};
-use crate::messages::{Aux, MachineBlock, MachineResult, Mode, OperatorMessage, WaitCondition};
+use crate::messages::{MachineBlock, MachineResult, Mode, OperatorMessage};
 use crate::shared::{InterpreterRequest, Shared, Tagged};
 
 /// Steps (blocks taken, phases passed) of one look-ahead run at most, so a run is bounded.
 const LOOK_AHEAD_STEPS: usize = 64;
 
-/// What the sequencer does once the path stands.
-#[derive(Debug, Clone, Copy, PartialEq)]
-// Plain data held in place: boxing the larger variant would allocate on the real-time path.
-#[allow(clippy::large_enum_variant)]
-pub(super) enum Then {
-    /// A spindle-synchronised line to the end point, pitch mm per revolution.
-    Synced([f64; AXES], f64),
-    Probe(Move, ProbeKind),
-    Aux(Aux),
-    /// Stop the program with this fault.
-    Error(FaultCode),
-    End,
-    MdiDone,
-    SingleBlockPause,
-}
-
-/// Where the program is.
-#[derive(Debug, Clone, Copy, PartialEq)]
-// Plain data held in place: boxing the larger variant would allocate on the real-time path.
-#[allow(clippy::large_enum_variant)]
-pub(super) enum Phase {
-    /// No program or MDI.
-    Idle,
-    /// Moving blocks into the planner.
-    Feeding,
-    /// Waiting for the planner to stop, then doing `then` for `line`.
-    Draining { then: Then, line: u32 },
-    /// Waiting for the machine logic's acknowledgement of `aux`.
-    Logic { aux: Aux, line: u32, released: bool },
-    /// Paused at M0/M1/single block until resume.
-    Paused { start_count: u32 },
-    /// G33: the spindle-synchronised move runs.
-    Synced,
-    /// G38.x: the probing move runs (it stops where the probe changes).
-    Probing { kind: ProbeKind, line: u32 },
-    /// M19 Q: waiting for the spindle to report oriented until `deadline`.
-    WaitOrient { deadline: u64, line: u32 },
-    /// M66: waiting for a digital input until `deadline` (an interpolation cycle).
-    WaitInput {
-        bit: u64,
-        condition: WaitCondition,
-        deadline: u64,
-        previous: bool,
-    },
-}
-
 /// The program run.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Program {
-    pub(super) phase: Phase,
     /// The run (program start, MDI line, abort, fault): blocks of an older run still in
     /// the channels are dropped.
     pub(super) epoch: u32,
@@ -91,7 +44,6 @@ pub(super) struct Program {
 impl Program {
     pub(super) fn new() -> Program {
         Program {
-            phase: Phase::Idle,
             epoch: 0,
             pending: None,
             start_count: 0,
@@ -120,26 +72,21 @@ impl MotionCore {
     }
 
     fn look_ahead_runs(&mut self, ctx: &mut Context<'_>, shared: &Shared) -> bool {
-        if !self.operational() || self.safety.stopping {
-            return false;
-        }
         for _ in 0..LOOK_AHEAD_STEPS {
-            // Each handler returns whether the program moved on (look again) or waits for
-            // something only another task can change.
-            let moved_on = match self.program.phase {
-                Phase::Idle => false,
-                Phase::Feeding => self.feeding(shared),
-                Phase::Draining { then, line } => self.draining(ctx, shared, then, line),
-                Phase::Logic {
-                    aux,
-                    line,
-                    released,
-                } => self.logic_done(aux, line, released),
-                Phase::Paused { start_count } => self.paused(start_count),
-                Phase::Synced => self.synced_done(),
-                Phase::Probing { kind, line } => self.probing_done(shared, kind, line),
-                Phase::WaitOrient { deadline, line } => self.waiting_for_orient(deadline, line),
-                Phase::WaitInput {
+            // One handler per step of the program; each returns whether the program moved
+            // on (look again) or waits for something only another task can change.
+            let State::Program(step) = self.state else {
+                return false;
+            };
+            let moved_on = match step {
+                Step::Feeding => self.feeding(shared),
+                Step::Draining { then, line } => self.draining(ctx, shared, then, line),
+                Step::Logic { aux, released, .. } => self.logic_done(aux, released),
+                Step::Paused { start_count } => self.paused(start_count),
+                Step::Synced => self.synced_done(),
+                Step::Probing { kind, line } => self.probing_done(shared, kind, line),
+                Step::WaitOrient { deadline, line } => self.waiting_for_orient(deadline, line),
+                Step::WaitInput {
                     bit,
                     condition,
                     deadline,
@@ -162,7 +109,7 @@ impl MotionCore {
         }
         self.mode = mode;
         self.program.epoch = self.program.epoch.wrapping_add(1);
-        self.program.phase = Phase::Feeding;
+        self.fire(Event::Begin);
         self.hold.logic_paused = false;
         self.program.pending = None;
         self.program.ended = false;
@@ -202,7 +149,7 @@ impl MotionCore {
             MachineBlock::MdiDone => (Then::MdiDone, 0),
         };
         self.path.planner.flush();
-        self.program.phase = Phase::Draining { then, line };
+        self.fire(Event::Drain { then, line });
         true
     }
 
@@ -232,10 +179,10 @@ impl MotionCore {
             Ok(()) => {
                 if self.program.single_block {
                     self.path.planner.flush();
-                    self.program.phase = Phase::Draining {
+                    self.fire(Event::Drain {
                         then: Then::SingleBlockPause,
                         line: mv.line,
-                    };
+                    });
                 }
                 true
             }
@@ -248,10 +195,10 @@ impl MotionCore {
             Err(MotionError::ZeroLength { .. }) => true,
             Err(e) => {
                 self.path.planner.flush();
-                self.program.phase = Phase::Draining {
-                    then: Then::Error(FaultCode::MotionError),
+                self.fire(Event::Fail {
+                    code: FaultCode::MotionError,
                     line: e.line().unwrap_or(mv.line),
-                };
+                });
                 *shared.motion_error.lock() = Some(e);
                 true
             }
@@ -270,20 +217,22 @@ impl MotionCore {
         }
         match then {
             Then::SingleBlockPause => {
-                self.program.phase = Phase::Paused {
+                self.fire(Event::Pause {
                     start_count: self.program.start_count,
-                }
+                });
             }
             Then::End => {
                 self.reset_enables();
-                self.program.phase = Phase::Idle;
+                self.fire(Event::Finish);
                 self.program.ended = true;
                 self.requests_mut().program_running = false;
             }
-            Then::MdiDone => self.program.phase = Phase::Idle,
+            Then::MdiDone => {
+                self.fire(Event::Finish);
+            }
             Then::Error(code) => {
                 shared.raise(ctx, code, TaskName::LookAhead, None, line, 0.0);
-                self.program.phase = Phase::Idle;
+                self.fire(Event::Finish);
                 self.program.epoch = self.program.epoch.wrapping_add(1);
                 let _ = shared
                     .interpreter_requests
@@ -302,8 +251,7 @@ impl MotionCore {
         if self.program.start_count == start_count || self.hold.latched() {
             return false;
         }
-        self.program.phase = Phase::Feeding;
-        true
+        self.fire(Event::Proceed)
     }
 
     /// The interpolation cycle at which a wait of `seconds` ends: now for 0 (or a

@@ -8,7 +8,7 @@ use rtcnc_motion::AXES;
 use rtcnc_motion::otg::{self, Limits, OnlineAxis};
 
 use super::MotionCore;
-use super::sequencer::{Phase, Then};
+use super::state::Event;
 use crate::fault::FaultCode;
 use crate::messages::JointSetpoints;
 use crate::shared::Feedback;
@@ -47,10 +47,7 @@ impl MotionCore {
     /// fast for the pitch and the axes (the axes could not keep up).
     pub(super) fn start_synced(&mut self, end: [f64; AXES], pitch: f64, line: u32) {
         let feedback = *self.interface.feedback.get();
-        let fail = |code| Phase::Draining {
-            then: Then::Error(code),
-            line,
-        };
+        let fail = |code| Event::Fail { code, line };
         let start = self.out.last.axes;
         let mut dir = [0.0; AXES];
         let mut length2 = 0.0;
@@ -60,11 +57,11 @@ impl MotionCore {
         }
         let length = length2.sqrt();
         if !length.is_finite() {
-            self.program.phase = fail(FaultCode::MotionError);
+            self.fire(fail(FaultCode::MotionError));
             return;
         }
         if length == 0.0 {
-            self.program.phase = Phase::Feeding;
+            self.fire(Event::Proceed);
             return;
         }
         let (mut v, mut a, mut j) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
@@ -78,7 +75,7 @@ impl MotionCore {
                 || end[i] < self.machine.axis_min[i]
                 || end[i] > self.machine.axis_max[i]
             {
-                self.program.phase = fail(FaultCode::MotionError);
+                self.fire(fail(FaultCode::MotionError));
                 return;
             }
             let l = self.machine.axis_limits[i];
@@ -104,9 +101,11 @@ impl MotionCore {
                     finishing: false,
                     line,
                 });
-                self.program.phase = Phase::Synced;
+                self.fire(Event::Synced);
             }
-            _ => self.program.phase = fail(FaultCode::SyncFailed),
+            _ => {
+                self.fire(fail(FaultCode::SyncFailed));
+            }
         }
     }
 
@@ -243,7 +242,6 @@ impl MotionCore {
         if self.synced.is_some() {
             return false;
         }
-        self.program.phase = Phase::Feeding;
-        true
+        self.fire(Event::Proceed)
     }
 }
