@@ -1,8 +1,10 @@
 //! `rtcnc-kernel`: the motion kernel (layer 3). It puts the CNC libraries onto the
 //! real-time executive as the task graph of the seeds (command parsing, interpreter, tool
 //! compensation, look-ahead, interpolation, position control, drive I/O, machine logic,
-//! status feedback), built from one machine configuration file, and owns the machine state:
-//! modes, e-stop, faults, the command channels and the status snapshot.
+//! status feedback), built from one machine configuration file over a fieldbus (the
+//! simulated machine the file describes, or any `Fieldbus` handed to
+//! `Kernel::build_with_bus`) and a kinematics, and owns the machine state: modes, e-stop,
+//! faults, the command channels and the status snapshot.
 //!
 //! ```no_run
 //! use rtcnc_kernel::{Command, Kernel, KernelOptions, MachineConfig, Simulation};
