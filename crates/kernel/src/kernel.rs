@@ -160,11 +160,12 @@ impl Kernel {
     /// [`Kernel::build_with`].
     pub fn build(config: &MachineConfig, options: KernelOptions) -> Result<Kernel, KernelError> {
         config.validate()?;
+        let kinematics = MachineKinematics::from_config(config)?;
         match config.fieldbus.kind {
             FieldbusKind::Sim => {
                 let machine = SimulatedMachine::new(&config.simulated_machine()?)
                     .map_err(KernelError::SimulatedMachine)?;
-                Kernel::build_with_bus(config, options, machine)
+                Kernel::assemble(config, options, machine, kinematics)
             }
             FieldbusKind::Ethercat => Err(KernelError::NoBus { kind: "ethercat" }),
         }

@@ -12,7 +12,8 @@ use crate::fault::{FaultCode, TaskName};
 use crate::messages::{MachineBlock, MachineResult, Mode, OperatorMessage};
 use crate::shared::{InterpreterRequest, Shared, Tagged};
 
-/// Steps (blocks taken, phases passed) of one look-ahead run at most, so a run is bounded.
+/// Steps (blocks taken, program steps passed) of one look-ahead run at most, so a run is
+/// bounded.
 const LOOK_AHEAD_STEPS: usize = 64;
 
 /// The program run.
