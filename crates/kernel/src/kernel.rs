@@ -1,5 +1,6 @@
-//! Building the task graph from a machine configuration, the power-up self-test, and the
-//! handle through which the operator side (CLI, tests, a later API server) talks to it.
+//! Building the task graph from a machine configuration, a fieldbus and a kinematics; the
+//! power-up self-test; and the handle through which the operator side (CLI, tests, a later
+//! API server) talks to the kernel.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -8,68 +9,26 @@ use std::time::Duration;
 use rtcnc_fieldbus::Fieldbus;
 use rtcnc_fieldbus::sim::SimulatedMachine;
 use rtcnc_gcode::{Parameters, Settings, ToolTable};
-use rtcnc_rt::{MissReaction, PiMutex, RingConsumer, TaskSet};
+use rtcnc_plc::RetainSnapshot;
+use rtcnc_rt::{
+    MissReaction, PiMutex, RingConsumer, RingProducer, SeqlockWriter, TaskId, TaskSet,
+    TaskSetBuilder, ThreadId,
+};
 use rtcnc_servo::ServoLoop;
 
 use crate::compensation::CompensationStage;
-use crate::config::{LengthUnits, MachineConfig, MissReactionConfig};
-use crate::fault::Fault;
+use crate::config::{FieldbusKind, LengthUnits, MachineConfig, MissReactionConfig, ThreadConfig};
+use crate::fault::{Fault, FaultCode, TaskName};
 use crate::interpreter::InterpreterStage;
+use crate::kinematics::MachineKinematics;
 use crate::logic::{Logic, LogicStage};
 use crate::messages::{Command, OperatorMessage, Status, Urgent};
 use crate::motion::{MotionCore, ServoTarget};
 use crate::servo::{Sample, ServoStage};
-use crate::shared::{Shared, Snapshot};
+use crate::shared::{LogicRequests, Shared, Snapshot, Writers};
+use crate::sim::SimulatedMachineHandle;
 
-/// Why the kernel could not be built or did not pass its self-test.
-#[derive(Debug, thiserror::Error)]
-pub enum KernelError {
-    /// The configuration.
-    #[error("{0}")]
-    Config(#[from] crate::config::ConfigError),
-    /// The simulated machine refused its configuration.
-    #[error("fieldbus: {0}")]
-    Fieldbus(String),
-    /// A servo loop refused its configuration.
-    #[error("{0}")]
-    Servo(String),
-    /// The planner refused the machine.
-    #[error("motion: {0}")]
-    Motion(String),
-    /// The PLC program.
-    #[error("plc: {0}")]
-    Plc(String),
-    /// The executive refused the task set.
-    #[error("executive: {0}")]
-    Executive(String),
-    /// The power-up self-test failed.
-    #[error("self-test: {check}: {reason}")]
-    SelfTest {
-        /// Which check.
-        check: &'static str,
-        /// Why.
-        reason: String,
-    },
-    /// The program file.
-    #[error("program: {0}")]
-    Program(String),
-}
-
-impl KernelError {
-    /// Stable code.
-    pub fn code(&self) -> &'static str {
-        match self {
-            KernelError::Config(e) => e.code(),
-            KernelError::Fieldbus(_) => "kernel.fieldbus",
-            KernelError::Servo(_) => "kernel.servo",
-            KernelError::Motion(_) => "kernel.motion",
-            KernelError::Plc(_) => "kernel.plc",
-            KernelError::Executive(_) => "kernel.executive",
-            KernelError::SelfTest { .. } => "kernel.self_test",
-            KernelError::Program(_) => "kernel.program",
-        }
-    }
-}
+use crate::error::{KernelError, SelfTestFailure};
 
 /// Options of one kernel instance.
 #[derive(Debug, Clone, Default)]
@@ -92,11 +51,24 @@ pub struct SelfTestReport {
     pub checks: Vec<(&'static str, String)>,
 }
 
+/// What the operator side may ask of the drive stage, whatever its fieldbus.
+trait DriveStatus: Send + Sync {
+    /// See [`KernelHandle::setpoint_underruns`].
+    fn setpoint_underruns(&self) -> u64;
+}
+
+impl<B: Fieldbus + Send> DriveStatus for PiMutex<ServoStage<B>> {
+    fn setpoint_underruns(&self) -> u64 {
+        self.lock().underruns()
+    }
+}
+
 /// What the operator side holds: channels in, snapshots and faults out.
 #[derive(Clone)]
 pub struct KernelHandle {
     shared: Shared,
-    servo: Arc<PiMutex<ServoStage<SimulatedMachine>>>,
+    drives: Arc<dyn DriveStatus>,
+    simulated: Option<SimulatedMachineHandle>,
     config: Arc<MachineConfig>,
 }
 
@@ -139,15 +111,16 @@ impl KernelHandle {
         })
     }
 
-    /// Acts on the simulated machine (press the e-stop, turn the handwheel, inject faults).
-    pub fn with_machine<R>(&self, f: impl FnOnce(&mut SimulatedMachine) -> R) -> R {
-        f(&mut self.servo.lock().bus)
+    /// The simulated machine the kernel runs on (press the e-stop, turn the handwheel,
+    /// inject faults); [`KernelError::NotSimulated`] on any other fieldbus.
+    pub fn simulated_machine(&self) -> Result<&SimulatedMachineHandle, KernelError> {
+        self.simulated.as_ref().ok_or(KernelError::NotSimulated)
     }
 
     /// Servo periods in which position control had no fresh set-point (real-time overruns
     /// of interpolation) and extrapolated.
     pub fn setpoint_underruns(&self) -> u64 {
-        self.servo.lock().underruns()
+        self.drives.setpoint_underruns()
     }
 
     /// The configuration.
@@ -182,318 +155,545 @@ pub struct Kernel {
 }
 
 impl Kernel {
-    /// Builds the kernel for a validated configuration on the simulated machine, runs the
-    /// power-up self-test (configuration, drive communication, I/O, persistent files) and
-    /// declares the task graph.
+    /// Builds the kernel for a configuration on the fieldbus its `fieldbus.kind` names
+    /// (`"sim"`: the simulated machine the file describes) with the file's kinematics; see
+    /// [`Kernel::build_with`].
     pub fn build(config: &MachineConfig, options: KernelOptions) -> Result<Kernel, KernelError> {
         config.validate()?;
+        let kinematics = MachineKinematics::from_config(config)?;
+        match config.fieldbus.kind {
+            FieldbusKind::Sim => {
+                let machine = SimulatedMachine::new(&config.simulated_machine()?)
+                    .map_err(KernelError::SimulatedMachine)?;
+                Kernel::assemble(config, options, machine, kinematics)
+            }
+            FieldbusKind::Ethercat => Err(KernelError::NoBus { kind: "ethercat" }),
+        }
+    }
+
+    /// Builds the kernel on a fieldbus opened elsewhere (an EtherCAT master, a simulated
+    /// machine of one's own), with the machine file's kinematics; see
+    /// [`Kernel::build_with`].
+    pub fn build_with_bus<B: Fieldbus + Send + 'static>(
+        config: &MachineConfig,
+        options: KernelOptions,
+        bus: B,
+    ) -> Result<Kernel, KernelError> {
+        config.validate()?;
+        let kinematics = MachineKinematics::from_config(config)?;
+        Kernel::assemble(config, options, bus, kinematics)
+    }
+
+    /// Builds the kernel for a validated configuration on `bus` with `kinematics`: runs the
+    /// power-up self-test (configuration, persistent files, drive communication, I/O) and
+    /// declares the task graph. When `bus` is a [`SimulatedMachine`], the handle reaches
+    /// it ([`KernelHandle::simulated_machine`]).
+    pub fn build_with<B: Fieldbus + Send + 'static>(
+        config: &MachineConfig,
+        options: KernelOptions,
+        bus: B,
+        kinematics: MachineKinematics,
+    ) -> Result<Kernel, KernelError> {
+        config.validate()?;
+        Kernel::assemble(config, options, bus, kinematics)
+    }
+
+    fn assemble<B: Fieldbus + Send + 'static>(
+        config: &MachineConfig,
+        options: KernelOptions,
+        mut bus: B,
+        kinematics: MachineKinematics,
+    ) -> Result<Kernel, KernelError> {
         let config = Arc::new(config.clone());
         let threads = config.tasks_checked()?;
-        let period = threads[0].1;
-        let period_s = period.as_secs_f64();
+        let period_s = threads[0].1.as_secs_f64();
         let mut report = SelfTestReport::default();
         report.checks.push(("configuration", "valid".into()));
-
-        // Persistent files.
         let (parameters, tools) = persistent_files(&config, &mut report)?;
-
-        // Drive communication and I/O.
-        let sim = config
-            .simulated_machine()
-            .map_err(|e| KernelError::Fieldbus(e.to_string()))?;
-        let mut machine =
-            SimulatedMachine::new(&sim).map_err(|e| KernelError::Fieldbus(e.to_string()))?;
-        self_test_bus(&mut machine, &config, period_s, &mut report)?;
-
-        let loops = config
-            .joints
-            .iter()
-            .enumerate()
-            .map(|(j, jc)| {
-                ServoLoop::new(j, &jc.servo)
-                    .map_err(|e| KernelError::Servo(format!("joints[{j}].servo.{}", e)))
-            })
-            .collect::<Result<Vec<_>, _>>()?;
+        self_test_bus(&mut bus, &config, period_s, &mut report)?;
 
         let (shared, writers) = Shared::new();
-        let (target_tx, target_rx) = rtcnc_rt::ring::<ServoTarget>("set-points", 4)
-            .map_err(|e| KernelError::Executive(e.to_string()))?;
-        let (recorder, samples) = if options.record_capacity > 0 {
-            let (tx, rx) = rtcnc_rt::ring::<Sample>("samples", options.record_capacity)
-                .map_err(|e| KernelError::Executive(e.to_string()))?;
-            (Some(tx), Some(rx))
-        } else {
-            (None, None)
-        };
-        let servo = Arc::new(PiMutex::new(
-            ServoStage::new(
-                machine,
-                loops,
-                period_s,
-                target_rx,
-                recorder,
-                shared.clone(),
-                writers.feedback,
-                config.io.program_outputs.clone(),
-            )
-            .with_program_analog_outputs(config.io.program_analog_outputs.clone()),
-        ));
-
-        let mut core = MotionCore::new(&config, &shared, writers.requests)
-            .map_err(|e| KernelError::Motion(e.to_string()))?;
-        core.set_has_program(options.program.is_some());
-        core.set_ready(true);
-        let core = Arc::new(PiMutex::new(core));
-
-        let logic = match &config.plc {
-            None => Logic::Direct,
-            Some(plc) => {
-                let path = config.resolve(&plc.program);
-                let mut runtime = crate::logic::load_plc(&path, &plc.signals, &plc.safe_values)
-                    .map_err(|e| KernelError::Plc(format!("{}: {e}", path.display())))?;
-                report
-                    .checks
-                    .push(("machine logic", format!("{} compiled", path.display())));
-                if let Some(file) = &config.files.plc_retain {
-                    let file = config.resolve(file);
-                    let restored = runtime
-                        .load_retain(&file)
-                        .map_err(|e| KernelError::Plc(format!("{}: {e}", file.display())))?;
-                    report.checks.push((
-                        "plc retain",
-                        format!(
-                            "{}: {} restored, {} skipped",
-                            file.display(),
-                            restored.restored,
-                            restored.skipped
-                        ),
-                    ));
-                }
-                Logic::Plc(Box::new(runtime))
-            }
-        };
-        let retain = match (&logic, &config.files.plc_retain) {
-            (Logic::Plc(runtime), Some(file)) => {
-                let file = config.resolve(file);
-                Some((Arc::new(PiMutex::new(runtime.retain_snapshot())), file))
-            }
-            _ => None,
-        };
-        let mut logic = LogicStage::new(
-            shared.clone(),
+        let Writers {
+            feedback,
+            requests,
+            logic_outputs,
+            status,
+        } = writers;
+        let (setpoints_out, setpoints_in) = setpoint_channel()?;
+        let (recorder, samples) = recording(options.record_capacity)?;
+        let servo = Arc::new(PiMutex::new(drive_stage(
+            &config,
+            bus,
+            period_s,
+            setpoints_in,
+            recorder,
+            &shared,
+            feedback,
+        )?));
+        let simulated = SimulatedMachineHandle::of(&servo);
+        let core = motion_core(
+            &config,
+            kinematics,
+            &shared,
+            requests,
+            options.program.is_some(),
+        )?;
+        let (logic, retain) = logic_stage(&config, &shared, logic_outputs, &mut report)?;
+        let interpreter = interpreter_stage(&config, &shared, &options, parameters, tools);
+        let stages = Stages {
+            servo: servo.clone(),
+            core,
+            setpoints_out,
             logic,
-            writers.logic_outputs,
-            config.tool_changer.is_some(),
-        );
-        if let Some((snapshot, _)) = &retain {
-            logic = logic.with_retain(Arc::clone(snapshot));
-        }
-
-        // The interpreter stops reading after M66 (and G38) until the machine's result is
-        // in, as LinuxCNC's task synchronises before such a block.
-        let mut settings = Settings {
-            wait_for_machine: true,
-            ..Settings::default()
+            status,
+            interpreter,
+            compensation: CompensationStage::new(shared.clone()),
+            retain,
         };
-        if config.machine.units == LengthUnits::Inch {
-            settings.initial_units = rtcnc_gcode::canon::Units::Inches;
-        }
-        let mut interpreter = InterpreterStage::new(
-            shared.clone(),
-            options.program.clone(),
-            settings,
-            tools,
-            parameters,
-            config.machine.diameter_mode,
-        )
-        .with_parameter_file(config.files.parameters.as_ref().map(|p| config.resolve(p)))
-        .with_pallet_shuttle(config.machine.pallet_shuttle);
-        let mut compensation = CompensationStage::new(shared.clone());
-
-        let mut b = TaskSet::builder();
-        if let Some(capacity) = options.trace_capacity {
-            b.trace_capacity(capacity);
-        }
-        let t = &config.tasks;
-        let miss = miss_reaction(config.safety.deadline_miss, &shared);
-        let thread = |b: &mut rtcnc_rt::TaskSetBuilder, name: &str, i: usize| {
-            b.periodic_thread(name, threads[i].1, threads[i].2.priority)
-        };
-
-        let fieldbus = thread(&mut b, "fieldbus", 0);
-        let s = servo.clone();
-        let id = b.periodic(fieldbus, "position control", 1, move |ctx| {
-            s.lock().position_control(ctx)
-        });
-        b.on_deadline_miss(id, miss.clone());
-        let s = servo.clone();
-        let id = b.periodic(fieldbus, "drive io", 1, move |ctx| s.lock().drive_io(ctx));
-        b.on_deadline_miss(id, miss.clone());
-
-        let th = thread(&mut b, "machine logic", 1);
-        let id = b.periodic(th, "machine logic", t.machine_logic.runs, move |ctx| {
-            if ctx.run() == 0 {
-                logic.scan(ctx);
-            }
-            // One scan per activation, whatever `runs` says.
-            ctx.finish_runs();
-        });
-        b.on_deadline_miss(id, miss.clone());
-
-        let th = if t.interpolation_in_fieldbus_thread(period) {
-            fieldbus
-        } else {
-            thread(&mut b, "interpolation", 2)
-        };
-        let (c, sh) = (core.clone(), shared.clone());
-        let mut target_tx = target_tx;
-        let load = options.interpolation_load;
-        let id = b.periodic(th, "interpolation", 1, move |ctx| {
-            c.lock().interpolate(ctx, &sh, &mut target_tx);
-            if let Some(load) = load {
-                ctx.consume(load);
-            }
-        });
-        b.on_deadline_miss(id, miss.clone());
-
-        let th = thread(&mut b, "look-ahead", 3);
-        let (c, sh) = (core.clone(), shared.clone());
-        let mut more = false;
-        let id = b.periodic(th, "look-ahead", t.look_ahead.runs, move |ctx| {
-            // The runs after the first only when the one before stopped at its bound of
-            // steps, not on something only another task can change.
-            if ctx.run() == 0 || more {
-                more = c.lock().look_ahead(ctx, &sh);
-            }
-            if !more {
-                ctx.finish_runs();
-            }
-        });
-        b.on_deadline_miss(id, miss.clone());
-
-        let th = thread(&mut b, "command parsing", 4);
-        let (c, sh) = (core.clone(), shared.clone());
-        let id = b.periodic(th, "command parsing", t.command_parsing.runs, move |ctx| {
-            // The urgent channel is read before this, at the start of every interpolation
-            // cycle; here the normal one, a command per run until it is empty.
-            // Drained: the remaining runs of this period are not made.
-            match sh.normal.try_get() {
-                Some(command) => {
-                    c.lock().command(ctx, &sh, command);
-                }
-                None => ctx.finish_runs(),
-            }
-        });
-        b.on_deadline_miss(id, miss.clone());
-
-        let th = thread(&mut b, "status feedback", 5);
-        let (c, sh) = (core.clone(), shared.clone());
-        let mut feedback = Snapshot::new(shared.feedback.clone());
-        let mut status_out = writers.status;
-        let mut status = status_out.value();
-        let id = b.periodic(th, "status feedback", t.status_feedback.runs, move |ctx| {
-            ctx.finish_runs();
-            if ctx.run() != 0 {
-                return;
-            }
-            c.lock()
-                .status(feedback.get(), ctx.now().as_nanos(), &mut status);
-            status.fault_count = sh.fault_count.load(std::sync::atomic::Ordering::Relaxed);
-            status_out.publish(status);
-        });
-        b.on_deadline_miss(id, miss);
-
-        let sh = shared.clone();
-        b.event(
-            "tool compensation",
-            t.tool_compensation.priority,
-            sh.program_blocks.data_trigger(),
-            move |ctx| compensation.body(ctx),
-        );
-        b.event(
-            "interpreter",
-            t.interpreter.priority,
-            shared.interpreter_wake.trigger(),
-            move |ctx| interpreter.body(ctx),
-        );
-        // Background checks while running, in what time is left: the drive exchange still
-        // advances, the persistent files' folders are still there and writable.
-        let sh = shared.clone();
-        let folders: Vec<PathBuf> = [
-            &config.files.parameters,
-            &config.files.tool_table,
-            &config.files.plc_retain,
-        ]
-        .into_iter()
-        .flatten()
-        .map(|p| {
-            config
-                .resolve(p)
-                .parent()
-                .map_or_else(|| PathBuf::from("."), Path::to_path_buf)
-        })
-        .collect();
-        let mut last_cycle = 0u64;
-        let mut reported = false;
-        let mut feedback = Snapshot::new(shared.feedback.clone());
-        // The RETAIN values are written here, off the real-time tasks, when they changed.
-        let mut retain_saver = retain.map(|(snapshot, file)| (snapshot, file, None, false));
-        b.background("self test", move |ctx| {
-            if let Some((snapshot, file, saved, failing)) = &mut retain_saver {
-                let now = snapshot.lock().clone();
-                if saved.as_ref() != Some(&now) {
-                    let result = now.save(file);
-                    // A failed write is retried every round but reported once.
-                    if result.is_err() && !*failing {
-                        sh.raise(
-                            ctx,
-                            crate::FaultCode::BackgroundCheck,
-                            crate::TaskName::BackgroundCheck,
-                            None,
-                            0,
-                            3.0,
-                        );
-                    }
-                    *failing = result.is_err();
-                    if result.is_ok() {
-                        *saved = Some(now);
-                    }
-                }
-            }
-            let cycle = feedback.get().cycle;
-            let stalled = ctx.activation() > 0 && cycle == last_cycle;
-            last_cycle = cycle;
-            let folder_bad = folders.iter().any(|f| {
-                std::fs::metadata(f).map_or(true, |m| !m.is_dir() || m.permissions().readonly())
-            });
-            if (stalled || folder_bad) && !reported {
-                sh.raise(
-                    ctx,
-                    crate::FaultCode::BackgroundCheck,
-                    crate::TaskName::BackgroundCheck,
-                    None,
-                    0,
-                    if stalled { 1.0 } else { 2.0 },
-                );
-            }
-            reported = stalled || folder_bad;
-            rtcnc_rt::Next::Sleep(Duration::from_millis(500))
-        });
-        let tasks = b
-            .build()
-            .map_err(|e| KernelError::Executive(e.to_string()))?;
+        let tasks = declare_tasks(&config, &threads, &options, &shared, stages)?;
         report.checks.push(("ready", "self-test passed".into()));
         Ok(Kernel {
             tasks,
             handle: KernelHandle {
                 shared,
-                servo,
+                drives: servo,
+                simulated,
                 config,
             },
             samples,
             self_test: report,
         })
     }
+}
+
+/// The set-point channel from interpolation to position control: one [`ServoTarget`] per
+/// servo period, a few periods deep (position control bridges up to four missing ones).
+fn setpoint_channel() -> Result<(RingProducer<ServoTarget>, RingConsumer<ServoTarget>), KernelError>
+{
+    Ok(rtcnc_rt::ring::<ServoTarget>("set-points", 4)?)
+}
+
+/// The ring of recorded servo cycles, when asked for.
+#[allow(clippy::type_complexity)]
+fn recording(
+    capacity: usize,
+) -> Result<(Option<RingProducer<Sample>>, Option<RingConsumer<Sample>>), KernelError> {
+    if capacity == 0 {
+        return Ok((None, None));
+    }
+    let (tx, rx) = rtcnc_rt::ring::<Sample>("samples", capacity)?;
+    Ok((Some(tx), Some(rx)))
+}
+
+/// Position control and drive I/O on `bus`: the servo loop of every joint.
+fn drive_stage<B: Fieldbus>(
+    config: &MachineConfig,
+    bus: B,
+    period_s: f64,
+    setpoints: RingConsumer<ServoTarget>,
+    recorder: Option<RingProducer<Sample>>,
+    shared: &Shared,
+    feedback: SeqlockWriter<crate::shared::Feedback>,
+) -> Result<ServoStage<B>, KernelError> {
+    let loops = config
+        .joints
+        .iter()
+        .enumerate()
+        .map(|(joint, jc)| {
+            ServoLoop::new(joint, &jc.servo).map_err(|source| KernelError::Servo { joint, source })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(ServoStage::new(
+        bus,
+        loops,
+        period_s,
+        setpoints,
+        recorder,
+        shared.clone(),
+        feedback,
+        config.io.program_outputs.clone(),
+    )
+    .with_program_analog_outputs(config.io.program_analog_outputs.clone()))
+}
+
+/// The motion core at rest, ready to be reset into operation.
+fn motion_core(
+    config: &MachineConfig,
+    kinematics: MachineKinematics,
+    shared: &Shared,
+    requests: SeqlockWriter<LogicRequests>,
+    has_program: bool,
+) -> Result<Arc<PiMutex<MotionCore>>, KernelError> {
+    let mut core = MotionCore::new(config, kinematics, shared, requests)?;
+    core.set_has_program(has_program);
+    core.self_test_passed();
+    Ok(Arc::new(PiMutex::new(core)))
+}
+
+/// Where the PLC's RETAIN values wait for the background task to save them, and the file.
+type RetainSaver = (Arc<PiMutex<RetainSnapshot>>, PathBuf);
+
+/// The machine logic: the machine file's PLC program (compiled, its RETAIN values
+/// restored), or the kernel's direct logic.
+fn logic_stage(
+    config: &MachineConfig,
+    shared: &Shared,
+    outputs: SeqlockWriter<crate::shared::LogicOutputs>,
+    report: &mut SelfTestReport,
+) -> Result<(LogicStage, Option<RetainSaver>), KernelError> {
+    let logic = match &config.plc {
+        None => Logic::Direct,
+        Some(plc) => {
+            let path = config.resolve(&plc.program);
+            let mut runtime = crate::logic::load_plc(&path, &plc.signals, &plc.safe_values)?;
+            report
+                .checks
+                .push(("machine logic", format!("{} compiled", path.display())));
+            if let Some(file) = &config.files.plc_retain {
+                let file = config.resolve(file);
+                let restored =
+                    runtime
+                        .load_retain(&file)
+                        .map_err(|source| KernelError::PlcRetain {
+                            path: file.clone(),
+                            source,
+                        })?;
+                report.checks.push((
+                    "plc retain",
+                    format!(
+                        "{}: {} restored, {} skipped",
+                        file.display(),
+                        restored.restored,
+                        restored.skipped
+                    ),
+                ));
+            }
+            Logic::Plc(Box::new(runtime))
+        }
+    };
+    let retain = match (&logic, &config.files.plc_retain) {
+        (Logic::Plc(runtime), Some(file)) => Some((
+            Arc::new(PiMutex::new(runtime.retain_snapshot())),
+            config.resolve(file),
+        )),
+        _ => None,
+    };
+    let mut stage = LogicStage::new(
+        shared.clone(),
+        logic,
+        outputs,
+        config.tool_changer.is_some(),
+    );
+    if let Some((snapshot, _)) = &retain {
+        stage = stage.with_retain(Arc::clone(snapshot));
+    }
+    Ok((stage, retain))
+}
+
+/// The interpreter with the persistent parameters and tool table.
+fn interpreter_stage(
+    config: &MachineConfig,
+    shared: &Shared,
+    options: &KernelOptions,
+    parameters: Parameters,
+    tools: ToolTable,
+) -> InterpreterStage {
+    // The interpreter stops reading after M66 (and G38) until the machine's result is
+    // in, as LinuxCNC's task synchronises before such a block.
+    let mut settings = Settings {
+        wait_for_machine: true,
+        ..Settings::default()
+    };
+    if config.machine.units == LengthUnits::Inch {
+        settings.initial_units = rtcnc_gcode::canon::Units::Inches;
+    }
+    InterpreterStage::new(
+        shared.clone(),
+        options.program.clone(),
+        settings,
+        tools,
+        parameters,
+        config.machine.diameter_mode,
+    )
+    .with_parameter_file(config.files.parameters.as_ref().map(|p| config.resolve(p)))
+    .with_pallet_shuttle(config.machine.pallet_shuttle)
+}
+
+/// The stages the tasks run, built and ready to be moved into the task bodies.
+struct Stages<B: Fieldbus> {
+    servo: Arc<PiMutex<ServoStage<B>>>,
+    core: Arc<PiMutex<MotionCore>>,
+    setpoints_out: RingProducer<ServoTarget>,
+    logic: LogicStage,
+    status: SeqlockWriter<Status>,
+    interpreter: InterpreterStage,
+    compensation: CompensationStage,
+    retain: Option<RetainSaver>,
+}
+
+/// The task graph on the executive: the periodic threads in the order of the seeds'
+/// tables, the event tasks and the background check. The order of declaration is the
+/// order in which tasks of equal priority run.
+fn declare_tasks<B: Fieldbus + Send + 'static>(
+    config: &MachineConfig,
+    threads: &[(&'static str, Duration, &ThreadConfig); 6],
+    options: &KernelOptions,
+    shared: &Shared,
+    stages: Stages<B>,
+) -> Result<TaskSet, KernelError> {
+    let mut b = TaskSet::builder();
+    if let Some(capacity) = options.trace_capacity {
+        b.trace_capacity(capacity);
+    }
+    let t = &config.tasks;
+    let thread = |b: &mut TaskSetBuilder, name: &str, i: usize| {
+        b.periodic_thread(name, threads[i].1, threads[i].2.priority)
+    };
+    let fieldbus = thread(&mut b, "fieldbus", 0);
+    let mut real_time = vec![
+        position_control_task(&mut b, fieldbus, &stages.servo),
+        drive_io_task(&mut b, fieldbus, &stages.servo),
+    ];
+    let th = thread(&mut b, "machine logic", 1);
+    real_time.push(logic_task(&mut b, th, t.machine_logic.runs, stages.logic));
+    let th = if t.interpolation_in_fieldbus_thread(threads[0].1) {
+        fieldbus
+    } else {
+        thread(&mut b, "interpolation", 2)
+    };
+    let load = options.interpolation_load;
+    let core = &stages.core;
+    real_time.push(interpolation_task(
+        &mut b,
+        th,
+        core,
+        shared,
+        stages.setpoints_out,
+        load,
+    ));
+    let th = thread(&mut b, "look-ahead", 3);
+    real_time.push(look_ahead_task(&mut b, th, t.look_ahead.runs, core, shared));
+    let th = thread(&mut b, "command parsing", 4);
+    let runs = t.command_parsing.runs;
+    real_time.push(command_parsing_task(&mut b, th, runs, core, shared));
+    let th = thread(&mut b, "status feedback", 5);
+    let runs = t.status_feedback.runs;
+    real_time.push(status_task(&mut b, th, runs, core, shared, stages.status));
+    let miss = miss_reaction(config.safety.deadline_miss, shared);
+    for id in real_time {
+        b.on_deadline_miss(id, miss.clone());
+    }
+
+    let mut compensation = stages.compensation;
+    b.event(
+        "tool compensation",
+        t.tool_compensation.priority,
+        shared.program_blocks.data_trigger(),
+        move |ctx| compensation.body(ctx),
+    );
+    let mut interpreter = stages.interpreter;
+    b.event(
+        "interpreter",
+        t.interpreter.priority,
+        shared.interpreter_wake.trigger(),
+        move |ctx| interpreter.body(ctx),
+    );
+    background_check(&mut b, config, shared, stages.retain);
+    Ok(b.build()?)
+}
+
+/// Position control: the first function of the fieldbus thread; it takes this period's
+/// set-point from the set-point channel.
+fn position_control_task<B: Fieldbus + Send + 'static>(
+    b: &mut TaskSetBuilder,
+    fieldbus: ThreadId,
+    servo: &Arc<PiMutex<ServoStage<B>>>,
+) -> TaskId {
+    let s = servo.clone();
+    b.periodic(fieldbus, "position control", 1, move |ctx| {
+        s.lock().position_control(ctx)
+    })
+}
+
+/// Drive I/O: the exchange with the drives, after position control.
+fn drive_io_task<B: Fieldbus + Send + 'static>(
+    b: &mut TaskSetBuilder,
+    fieldbus: ThreadId,
+    servo: &Arc<PiMutex<ServoStage<B>>>,
+) -> TaskId {
+    let s = servo.clone();
+    b.periodic(fieldbus, "drive io", 1, move |ctx| s.lock().drive_io(ctx))
+}
+
+/// Machine logic: one scan per activation, whatever `runs` says.
+fn logic_task(
+    b: &mut TaskSetBuilder,
+    thread: ThreadId,
+    runs: u32,
+    mut logic: LogicStage,
+) -> TaskId {
+    b.periodic(thread, "machine logic", runs, move |ctx| {
+        if ctx.run() == 0 {
+            logic.scan(ctx);
+        }
+        ctx.finish_runs();
+    })
+}
+
+/// Interpolation: one set-point per servo period into the set-point channel.
+fn interpolation_task(
+    b: &mut TaskSetBuilder,
+    thread: ThreadId,
+    core: &Arc<PiMutex<MotionCore>>,
+    shared: &Shared,
+    mut setpoints_out: RingProducer<ServoTarget>,
+    load: Option<Duration>,
+) -> TaskId {
+    let (c, sh) = (core.clone(), shared.clone());
+    b.periodic(thread, "interpolation", 1, move |ctx| {
+        c.lock().interpolate(ctx, &sh, &mut setpoints_out);
+        if let Some(load) = load {
+            ctx.consume(load);
+        }
+    })
+}
+
+/// Look-ahead: keeps the planner's window full and sequences the program.
+fn look_ahead_task(
+    b: &mut TaskSetBuilder,
+    thread: ThreadId,
+    runs: u32,
+    core: &Arc<PiMutex<MotionCore>>,
+    shared: &Shared,
+) -> TaskId {
+    let (c, sh) = (core.clone(), shared.clone());
+    let mut more = false;
+    b.periodic(thread, "look-ahead", runs, move |ctx| {
+        // The runs after the first only when the one before stopped at its bound of
+        // steps, not on something only another task can change.
+        if ctx.run() == 0 || more {
+            more = c.lock().look_ahead(ctx, &sh);
+        }
+        if !more {
+            ctx.finish_runs();
+        }
+    })
+}
+
+/// Command parsing: the normal channel, a command per run until it is empty (the urgent
+/// channel is read at the start of every interpolation cycle instead).
+fn command_parsing_task(
+    b: &mut TaskSetBuilder,
+    thread: ThreadId,
+    runs: u32,
+    core: &Arc<PiMutex<MotionCore>>,
+    shared: &Shared,
+) -> TaskId {
+    let (c, sh) = (core.clone(), shared.clone());
+    b.periodic(thread, "command parsing", runs, move |ctx| {
+        // Drained: the remaining runs of this period are not made.
+        match sh.normal.try_get() {
+            Some(command) => {
+                c.lock().command(ctx, &sh, command);
+            }
+            None => ctx.finish_runs(),
+        }
+    })
+}
+
+/// Status feedback: the status snapshot, once per activation.
+fn status_task(
+    b: &mut TaskSetBuilder,
+    thread: ThreadId,
+    runs: u32,
+    core: &Arc<PiMutex<MotionCore>>,
+    shared: &Shared,
+    mut status_out: SeqlockWriter<Status>,
+) -> TaskId {
+    let (c, sh) = (core.clone(), shared.clone());
+    let mut feedback = Snapshot::new(shared.feedback.clone());
+    let mut status = status_out.value();
+    b.periodic(thread, "status feedback", runs, move |ctx| {
+        ctx.finish_runs();
+        if ctx.run() != 0 {
+            return;
+        }
+        c.lock()
+            .status(feedback.get(), ctx.now().as_nanos(), &mut status);
+        status.fault_count = sh.fault_count.load(std::sync::atomic::Ordering::Relaxed);
+        status_out.publish(status);
+    })
+}
+
+/// Background checks while running, in what time is left: the drive exchange still
+/// advances, the persistent files' folders are still there and writable; and the PLC's
+/// RETAIN values are written when they changed, off the real-time tasks.
+fn background_check(
+    b: &mut TaskSetBuilder,
+    config: &MachineConfig,
+    shared: &Shared,
+    retain: Option<RetainSaver>,
+) {
+    let sh = shared.clone();
+    let folders: Vec<PathBuf> = [
+        &config.files.parameters,
+        &config.files.tool_table,
+        &config.files.plc_retain,
+    ]
+    .into_iter()
+    .flatten()
+    .map(|p| {
+        config
+            .resolve(p)
+            .parent()
+            .map_or_else(|| PathBuf::from("."), Path::to_path_buf)
+    })
+    .collect();
+    let mut last_cycle = 0u64;
+    let mut reported = false;
+    let mut feedback = Snapshot::new(shared.feedback.clone());
+    let mut retain_saver = retain.map(|(snapshot, file)| (snapshot, file, None, false));
+    b.background("self test", move |ctx| {
+        if let Some((snapshot, file, saved, failing)) = &mut retain_saver {
+            let now = snapshot.lock().clone();
+            if saved.as_ref() != Some(&now) {
+                let result = now.save(file);
+                // A failed write is retried every round but reported once.
+                if result.is_err() && !*failing {
+                    sh.raise(
+                        ctx,
+                        FaultCode::BackgroundCheck,
+                        TaskName::BackgroundCheck,
+                        None,
+                        0,
+                        3.0,
+                    );
+                }
+                *failing = result.is_err();
+                if result.is_ok() {
+                    *saved = Some(now);
+                }
+            }
+        }
+        let cycle = feedback.get().cycle;
+        let stalled = ctx.activation() > 0 && cycle == last_cycle;
+        last_cycle = cycle;
+        let folder_bad = folders.iter().any(|f| {
+            std::fs::metadata(f).map_or(true, |m| !m.is_dir() || m.permissions().readonly())
+        });
+        if (stalled || folder_bad) && !reported {
+            sh.raise(
+                ctx,
+                FaultCode::BackgroundCheck,
+                TaskName::BackgroundCheck,
+                None,
+                0,
+                if stalled { 1.0 } else { 2.0 },
+            );
+        }
+        reported = stalled || folder_bad;
+        rtcnc_rt::Next::Sleep(Duration::from_millis(500))
+    });
 }
 
 fn miss_reaction(config: MissReactionConfig, shared: &Shared) -> MissReaction {
@@ -515,6 +715,7 @@ fn miss_reaction(config: MissReactionConfig, shared: &Shared) -> MissReaction {
     }
 }
 
+/// The parameter file and the tool table, read (or to be created in a writable folder).
 fn persistent_files(
     config: &MachineConfig,
     report: &mut SelfTestReport,
@@ -524,10 +725,8 @@ fn persistent_files(
         Some(p) => {
             let path = config.resolve(p);
             if path.exists() {
-                let params = Parameters::load(&path).map_err(|e| KernelError::SelfTest {
-                    check: "parameter file",
-                    reason: format!("{}: {e}", path.display()),
-                })?;
+                let params = Parameters::load(&path)
+                    .map_err(|e| KernelError::self_test("parameter file", e))?;
                 report
                     .checks
                     .push(("parameter file", format!("{} read", path.display())));
@@ -546,10 +745,8 @@ fn persistent_files(
         None => ToolTable::new(),
         Some(p) => {
             let path = config.resolve(p);
-            let tools = ToolTable::load(&path).map_err(|e| KernelError::SelfTest {
-                check: "tool table",
-                reason: format!("{}: {e}", path.display()),
-            })?;
+            let tools =
+                ToolTable::load(&path).map_err(|e| KernelError::self_test("tool table", e))?;
             report.checks.push((
                 "tool table",
                 format!("{} read, {} tools", path.display(), tools.tools().len()),
@@ -563,63 +760,67 @@ fn persistent_files(
 fn writable_folder(path: &Path, check: &'static str) -> Result<(), KernelError> {
     let folder = path.parent().filter(|p| !p.as_os_str().is_empty());
     let folder = folder.unwrap_or(Path::new("."));
-    let meta = std::fs::metadata(folder).map_err(|e| KernelError::SelfTest {
-        check,
-        reason: format!("{}: {e}", folder.display()),
+    let meta = std::fs::metadata(folder).map_err(|source| {
+        KernelError::self_test(
+            check,
+            SelfTestFailure::Folder {
+                path: folder.to_path_buf(),
+                source,
+            },
+        )
     })?;
     if meta.permissions().readonly() {
-        return Err(KernelError::SelfTest {
+        return Err(KernelError::self_test(
             check,
-            reason: format!("{} is read-only", folder.display()),
-        });
+            SelfTestFailure::ReadOnly {
+                path: folder.to_path_buf(),
+            },
+        ));
     }
     Ok(())
 }
 
 /// Drive communication and I/O: one exchange with the drives disabled; every configured
 /// joint and I/O point must answer, no drive may be faulted.
-fn self_test_bus(
-    machine: &mut SimulatedMachine,
+fn self_test_bus<B: Fieldbus>(
+    bus: &mut B,
     config: &MachineConfig,
     period_s: f64,
     report: &mut SelfTestReport,
 ) -> Result<(), KernelError> {
-    let layout = machine.layout().clone();
+    const DRIVES: &str = "drive communication";
+    let layout = bus.layout().clone();
     if layout.joints.len() != config.joints.len() {
-        return Err(KernelError::SelfTest {
-            check: "drive communication",
-            reason: format!(
-                "{} drives answer, {} are configured",
-                layout.joints.len(),
-                config.joints.len()
-            ),
-        });
+        return Err(KernelError::self_test(
+            DRIVES,
+            SelfTestFailure::DriveCount {
+                answering: layout.joints.len(),
+                configured: config.joints.len(),
+            },
+        ));
     }
     let outputs = rtcnc_fieldbus::ProcessOutputs::new(&layout);
     let mut inputs = rtcnc_fieldbus::ProcessInputs::new(&layout);
-    machine
-        .exchange(period_s, &outputs, &mut inputs)
-        .map_err(|e| KernelError::SelfTest {
-            check: "drive communication",
-            reason: e.to_string(),
-        })?;
+    bus.exchange(period_s, &outputs, &mut inputs)
+        .map_err(|e| KernelError::self_test(DRIVES, e))?;
     if let Some(j) = inputs.joints.iter().position(|f| f.state().is_fault()) {
-        return Err(KernelError::SelfTest {
-            check: "drive communication",
-            reason: format!("drive {} reports a fault", config.joints[j].name),
-        });
+        return Err(KernelError::self_test(
+            DRIVES,
+            SelfTestFailure::DriveFault {
+                joint: config.joints[j].name.clone(),
+            },
+        ));
     }
-    report.checks.push((
-        "drive communication",
-        format!("{} drives answer", layout.joints.len()),
-    ));
+    report
+        .checks
+        .push((DRIVES, format!("{} drives answer", layout.joints.len())));
     if layout.digital_inputs != config.io.digital_inputs
         || layout.digital_outputs != config.io.digital_outputs
     {
-        return Err(KernelError::SelfTest {
-            check: "i/o",
-            reason: "the process image does not match the configuration".into(),
-        });
+        return Err(KernelError::self_test(
+            "i/o",
+            SelfTestFailure::ImageMismatch,
+        ));
     }
     report.checks.push((
         "i/o",

@@ -1,8 +1,10 @@
 //! `rtcnc-kernel`: the motion kernel (layer 3). It puts the CNC libraries onto the
 //! real-time executive as the task graph of the seeds (command parsing, interpreter, tool
 //! compensation, look-ahead, interpolation, position control, drive I/O, machine logic,
-//! status feedback), built from one machine configuration file, and owns the machine state:
-//! modes, e-stop, faults, the command channels and the status snapshot.
+//! status feedback), built from one machine configuration file over a fieldbus (the
+//! simulated machine the file describes, or any `Fieldbus` handed to
+//! `Kernel::build_with_bus`) and a kinematics, and owns the machine state: modes, e-stop,
+//! faults, the command channels and the status snapshot.
 //!
 //! ```no_run
 //! use rtcnc_kernel::{Command, Kernel, KernelOptions, MachineConfig, Simulation};
@@ -26,9 +28,11 @@
 
 mod compensation;
 pub mod config;
+mod error;
 mod fault;
 mod interpreter;
 mod kernel;
+mod kinematics;
 mod logic;
 pub mod messages;
 mod motion;
@@ -38,10 +42,12 @@ mod shared;
 mod sim;
 
 pub use config::{ConfigError, MAX_JOINTS, MachineConfig};
+pub use error::{KernelError, SelfTestFailure};
 pub use fault::{Fault, FaultCode, TaskName};
-pub use kernel::{Kernel, KernelError, KernelHandle, KernelOptions, SelfTestReport};
+pub use kernel::{Kernel, KernelHandle, KernelOptions, SelfTestReport};
+pub use kinematics::MachineKinematics;
 pub use messages::{Command, FixedText, MachineState, Mode, OperatorMessage, Status, Urgent};
-pub use motion::{LatchRequest, MotionCore, ServoTarget};
+pub use motion::{LatchRequest, ServoTarget};
 pub use servo::Sample;
 pub use shared::{Feedback, LogicOutputs, LogicRequests};
-pub use sim::Simulation;
+pub use sim::{SimulatedMachineHandle, Simulation};

@@ -280,8 +280,12 @@ pub(crate) fn load_plc(
     path: &std::path::Path,
     signals: &std::collections::BTreeMap<String, String>,
     safe_values: &std::collections::BTreeMap<String, String>,
-) -> Result<Runtime, String> {
-    let program = rtcnc_plc::compile_file(path).map_err(|e| e.to_string())?;
+) -> Result<Runtime, crate::error::KernelError> {
+    let program =
+        rtcnc_plc::compile_file(path).map_err(|source| crate::error::KernelError::PlcProgram {
+            path: path.to_path_buf(),
+            source,
+        })?;
     let mut runtime = Runtime::new(Arc::new(program));
     let config = rtcnc_plc::PlcConfig {
         signals: signals.clone(),
@@ -289,6 +293,6 @@ pub(crate) fn load_plc(
     };
     runtime
         .configure(&config)
-        .map_err(|e| format!("plc signals: {e}"))?;
+        .map_err(crate::error::KernelError::PlcSignals)?;
     Ok(runtime)
 }

@@ -125,20 +125,7 @@ impl<B: Fieldbus> ServoStage<B> {
             ctx.activation().saturating_sub(self.exchanges),
             std::sync::atomic::Ordering::Relaxed,
         );
-        // Take the set-points up to this period's, not beyond: on a multi-core machine the
-        // interpolation thread may already have made the next one.
-        while let Some(cycle) = self.targets.peek().map(|t| t.setpoints.cycle) {
-            if cycle > self.exchanges && self.target.is_some() {
-                break;
-            }
-            let Some(t) = self.targets.pop() else {
-                break;
-            };
-            if let Some(previous) = self.target {
-                self.previous_joints = previous.setpoints.joints;
-            }
-            self.target = Some(t);
-        }
+        self.take_setpoint();
         let Some(mut target) = self.target else {
             // Nothing planned yet: keep the drives where they are.
             for (command, feedback) in self.outputs.joints.iter_mut().zip(&self.inputs.joints) {
@@ -279,6 +266,24 @@ impl<B: Fieldbus> ServoStage<B> {
                 line: target.setpoints.line,
                 path_speed: target.setpoints.path_speed,
             });
+        }
+    }
+
+    /// The set-point intake: takes the set-points from the set-point channel up to this
+    /// period's, not beyond (on a multi-core machine the interpolation thread may already
+    /// have made the next one), keeping the one before for extrapolation.
+    fn take_setpoint(&mut self) {
+        while let Some(cycle) = self.targets.peek().map(|t| t.setpoints.cycle) {
+            if cycle > self.exchanges && self.target.is_some() {
+                break;
+            }
+            let Some(t) = self.targets.pop() else {
+                break;
+            };
+            if let Some(previous) = self.target {
+                self.previous_joints = previous.setpoints.joints;
+            }
+            self.target = Some(t);
         }
     }
 

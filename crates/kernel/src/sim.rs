@@ -1,12 +1,44 @@
-//! Running a kernel in virtual time: what `rtcnc sim` and the whole-machine tests use.
+//! The simulation side: a kernel run in virtual time (what `rtcnc sim` and the
+//! whole-machine tests use), and the simulated machine's own accessors for a kernel built
+//! on one.
 
+use std::any::Any;
+use std::sync::Arc;
 use std::time::Duration;
 
-use rtcnc_rt::{RingConsumer, RunError, VirtualRunner};
+use rtcnc_fieldbus::sim::SimulatedMachine;
+use rtcnc_rt::{PiMutex, RingConsumer, RunError, VirtualRunner};
 
 use crate::kernel::{Kernel, KernelHandle};
 use crate::messages::Status;
-use crate::servo::Sample;
+use crate::servo::{Sample, ServoStage};
+
+/// The simulated machine under a running kernel, for what an operator or a test does to
+/// the machine itself: press the e-stop, open the door, turn the handwheel, inject faults.
+/// Got from [`KernelHandle::simulated_machine`] when the kernel's fieldbus is a
+/// [`SimulatedMachine`].
+#[derive(Clone)]
+pub struct SimulatedMachineHandle {
+    drives: Arc<PiMutex<ServoStage<SimulatedMachine>>>,
+}
+
+impl SimulatedMachineHandle {
+    /// The handle when the drive stage's bus is the simulated machine.
+    pub(crate) fn of<B: rtcnc_fieldbus::Fieldbus + 'static>(
+        drives: &Arc<PiMutex<ServoStage<B>>>,
+    ) -> Option<SimulatedMachineHandle> {
+        (drives as &dyn Any)
+            .downcast_ref::<Arc<PiMutex<ServoStage<SimulatedMachine>>>>()
+            .map(|drives| SimulatedMachineHandle {
+                drives: Arc::clone(drives),
+            })
+    }
+
+    /// Acts on the machine, between two exchanges (under the drive stage's lock).
+    pub fn with<R>(&self, f: impl FnOnce(&mut SimulatedMachine) -> R) -> R {
+        f(&mut self.drives.lock().bus)
+    }
+}
 
 /// A kernel on the virtual-time runner.
 pub struct Simulation {

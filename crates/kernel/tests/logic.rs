@@ -44,7 +44,9 @@ fn a_user_m_code_waits_for_the_plc_acknowledgement() {
         lamp_seen |= m
             .sim
             .handle()
-            .with_machine(|machine| machine.digital_output(0) == Some(true));
+            .simulated_machine()
+            .unwrap()
+            .with(|machine| machine.digital_output(0) == Some(true));
     }
     assert!(lamp_seen, "the PLC's %QX0.0 reaches digital output 0");
     assert!(m.until(5.0, |s| s.program_ended && s.state == MachineState::Idle));
@@ -97,7 +99,9 @@ fn the_mill_logic_stops_the_spindle_before_the_tool_is_unclamped() {
         let valve = m
             .sim
             .handle()
-            .with_machine(|machine| machine.digital_output(7) == Some(true));
+            .simulated_machine()
+            .unwrap()
+            .with(|machine| machine.digital_output(7) == Some(true));
         if valve && speed_at_unclamp.is_none() {
             speed_at_unclamp = Some(status.spindle_rpm);
         }
@@ -126,7 +130,9 @@ fn the_e_stop_input_opens_the_chain_and_stops_the_machine() {
     m.cycles(500);
     m.sim
         .handle()
-        .with_machine(|machine| machine.set_estop(true));
+        .simulated_machine()
+        .unwrap()
+        .with(|machine| machine.set_estop(true));
     assert!(m.until(2.0, |s| s.state == MachineState::EStop
         && s.path_speed == 0.0));
     m.cycles(5);
@@ -140,7 +146,9 @@ fn the_e_stop_input_opens_the_chain_and_stops_the_machine() {
     assert_eq!(m.status().state, MachineState::EStop);
     m.sim
         .handle()
-        .with_machine(|machine| machine.set_estop(false));
+        .simulated_machine()
+        .unwrap()
+        .with(|machine| machine.set_estop(false));
     m.cycles(5);
     m.command(Command::Reset);
     let ok = m.until(1.0, |s| s.ready && s.state == MachineState::Idle);

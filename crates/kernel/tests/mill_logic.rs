@@ -57,14 +57,18 @@ fn until(m: &mut Machine, limit: u64, mut done: impl FnMut(&Machine) -> bool) ->
 fn output(m: &Machine, i: usize) -> bool {
     m.sim
         .handle()
-        .with_machine(|machine| machine.digital_output(i).unwrap())
+        .simulated_machine()
+        .unwrap()
+        .with(|machine| machine.digital_output(i).unwrap())
 }
 
 /// Digital input `i` as the machine reported it in the last exchange.
 fn input(m: &Machine, i: usize) -> bool {
     m.sim
         .handle()
-        .with_machine(|machine| machine.digital_input(i).unwrap())
+        .simulated_machine()
+        .unwrap()
+        .with(|machine| machine.digital_input(i).unwrap())
 }
 
 fn next_scan(n: u64) -> u64 {
@@ -122,7 +126,9 @@ fn t2_m6_runs_the_carousel_sequence_of_the_logic_and_motion_waits_for_it() {
     assert_eq!(motor_off, s + 509);
     m.sim
         .handle()
-        .with_machine(|machine| assert_eq!(machine.carousel_pocket(), Some(2)));
+        .simulated_machine()
+        .unwrap()
+        .with(|machine| assert_eq!(machine.carousel_pocket(), Some(2)));
     let valve_closed = until(&mut m, 1000, |m| !output(m, UNCLAMP_VALVE));
     assert_eq!(valve_closed, s + 513);
     // Clamped 0.3 s later, in s + 812 (a scan): the tool is 2, TC_DONE; the scan of s + 816
@@ -148,7 +154,9 @@ fn a_tool_change_with_a_stuck_unclamped_sensor_times_out_and_stops_the_machine()
     };
     m.sim
         .handle()
-        .with_machine(|machine| machine.inject(stuck).unwrap());
+        .simulated_machine()
+        .unwrap()
+        .with(|machine| machine.inject(stuck).unwrap());
     m.power_on();
     m.command(Command::Start { from_line: 0 });
     let v = until(&mut m, 5000, |m| output(m, UNCLAMP_VALVE));
@@ -170,7 +178,9 @@ fn a_tool_change_with_a_stuck_unclamped_sensor_times_out_and_stops_the_machine()
     // With the sensor repaired, a reset clears the logic's fault and the change succeeds.
     m.sim
         .handle()
-        .with_machine(|machine| machine.clear(stuck).unwrap());
+        .simulated_machine()
+        .unwrap()
+        .with(|machine| machine.clear(stuck).unwrap());
     m.command(Command::Reset);
     assert!(m.until(1.0, |s| s.ready && s.state == MachineState::Idle));
     m.command(Command::Start { from_line: 0 });
@@ -190,7 +200,9 @@ fn opening_the_door_holds_the_feed_and_resume_continues_once_it_is_closed() {
     // the next scan asks for a feed hold, and interpolation holds in that same period.
     m.sim
         .handle()
-        .with_machine(|machine| machine.set_door_open(true).unwrap());
+        .simulated_machine()
+        .unwrap()
+        .with(|machine| machine.set_door_open(true).unwrap());
     let d = m.sim.now().as_millis() as u64;
     let held = until(&mut m, 100, |m| m.status().state == MachineState::Held);
     assert_eq!(held, next_scan(d));
@@ -205,7 +217,9 @@ fn opening_the_door_holds_the_feed_and_resume_continues_once_it_is_closed() {
     // Closing the door does not start the machine by itself; resume does.
     m.sim
         .handle()
-        .with_machine(|machine| machine.set_door_open(false).unwrap());
+        .simulated_machine()
+        .unwrap()
+        .with(|machine| machine.set_door_open(false).unwrap());
     m.cycles(200);
     assert_eq!(m.status().state, MachineState::Held);
     assert_eq!(m.status().axes[0], x);
@@ -223,12 +237,16 @@ fn the_door_stays_locked_while_the_spindle_turns() {
     assert!(m.until(3.0, |s| s.path_speed > 0.0));
     m.sim
         .handle()
-        .with_machine(|machine| machine.set_door_open(true).unwrap());
+        .simulated_machine()
+        .unwrap()
+        .with(|machine| machine.set_door_open(true).unwrap());
     m.cycles(500);
     assert_eq!(m.status().state, MachineState::Running);
     m.sim
         .handle()
-        .with_machine(|machine| assert_eq!(machine.door_closed(), Some(true)));
+        .simulated_machine()
+        .unwrap()
+        .with(|machine| assert_eq!(machine.door_closed(), Some(true)));
 }
 
 #[test]
@@ -241,7 +259,9 @@ fn the_estop_chain_opens_with_the_button_and_closes_only_on_a_reset() {
     // scan period drops the safety relay, exchanged one period later.
     m.sim
         .handle()
-        .with_machine(|machine| machine.set_estop(true));
+        .simulated_machine()
+        .unwrap()
+        .with(|machine| machine.set_estop(true));
     let p = m.sim.now().as_millis() as u64;
     let opened = until(&mut m, 10, |m| !output(m, SAFETY_RELAY));
     assert_eq!(opened, next_scan(p) + 1);
@@ -249,7 +269,9 @@ fn the_estop_chain_opens_with_the_button_and_closes_only_on_a_reset() {
     // Released: the chain stays open until a reset.
     m.sim
         .handle()
-        .with_machine(|machine| machine.set_estop(false));
+        .simulated_machine()
+        .unwrap()
+        .with(|machine| machine.set_estop(false));
     m.cycles(100);
     assert!(!output(&m, SAFETY_RELAY));
     // A reset read by command parsing in period r is held for the PLC from period r + 1
@@ -271,7 +293,7 @@ fn the_estop_chain_opens_with_the_button_and_closes_only_on_a_reset() {
 #[test]
 fn no_lubrication_pressure_within_two_seconds_is_a_machine_fault() {
     let mut m = mill("G21 G90 G61.1\nG1 X10 F1200\nM2\n", "lube.ngc");
-    m.sim.handle().with_machine(|machine| {
+    m.sim.handle().simulated_machine().unwrap().with(|machine| {
         machine
             .inject(InjectedFault::StuckInput {
                 input: PRESSURE,
@@ -390,11 +412,15 @@ fn a_door_opened_during_a_tool_change_keeps_the_program_held_until_a_resume() {
     // program waits for the operator.
     m.sim
         .handle()
-        .with_machine(|machine| machine.set_door_open(true).unwrap());
+        .simulated_machine()
+        .unwrap()
+        .with(|machine| machine.set_door_open(true).unwrap());
     m.cycles(100);
     m.sim
         .handle()
-        .with_machine(|machine| machine.set_door_open(false).unwrap());
+        .simulated_machine()
+        .unwrap()
+        .with(|machine| machine.set_door_open(false).unwrap());
     m.cycles(2000);
     assert_eq!(m.status().tool, 2);
     assert_eq!(m.status().state, MachineState::Held);

@@ -96,7 +96,9 @@ fn jog_increments_and_the_handwheel_move_the_axes_by_exact_amounts() {
     m.cycles(5);
     m.sim
         .handle()
-        .with_machine(|machine| machine.turn_handwheel(-250));
+        .simulated_machine()
+        .unwrap()
+        .with(|machine| machine.turn_handwheel(-250));
     m.cycles(5);
     assert!(m.until(5.0, |s| s.state == MachineState::Idle));
     assert!(
@@ -120,7 +122,7 @@ fn homing_finds_switch_and_index_and_ends_at_the_home_positions() {
     assert_eq!(&m.status().axes[..3], &[0.0, 0.0, 0.0]);
     // The index pulses are at multiples of 5 mm of the raw (motor) position and the
     // latched one is declared 305 / 205 / 10: the raw frame agrees with the machine one.
-    m.sim.handle().with_machine(|machine| {
+    m.sim.handle().simulated_machine().unwrap().with(|machine| {
         for j in 0..3 {
             let (x, _) = machine.true_state(j).unwrap();
             assert!(x.abs() < 1e-3, "joint {j} at {x}");
@@ -137,7 +139,9 @@ fn gantry_joints_are_homed_together_and_squared() {
     let true_x = |m: &Machine| -> Vec<f64> {
         m.sim
             .handle()
-            .with_machine(|machine| (0..8).map(|j| machine.true_state(j).unwrap().0).collect())
+            .simulated_machine()
+            .unwrap()
+            .with(|machine| (0..8).map(|j| machine.true_state(j).unwrap().0).collect())
     };
     // Racked at power-up: X1 stands 0.3 mm ahead of X0, Y2 0.2 mm ahead of Y0.
     let before = true_x(&m);

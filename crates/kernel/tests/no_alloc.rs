@@ -67,7 +67,10 @@ fn gantry_homing_jog_handwheel_and_the_plc_mill_allocate_nothing() {
         scale: 100.0,
     });
     sim.run_cycles(5, &mut none).unwrap();
-    handle.with_machine(|m| m.turn_handwheel(100));
+    handle
+        .simulated_machine()
+        .unwrap()
+        .with(|m| m.turn_handwheel(100));
     sim.run_cycles(2000, &mut none).unwrap();
     let allocations = ALLOCATIONS.load(Ordering::SeqCst) - before;
     assert!(handle.take_faults().is_empty());
@@ -93,13 +96,27 @@ fn gantry_homing_jog_handwheel_and_the_plc_mill_allocate_nothing() {
         distance: 5.0,
     });
     sim.run_cycles(3000, &mut none).unwrap();
-    handle.with_machine(|m| m.set_door_open(true)).unwrap();
+    handle
+        .simulated_machine()
+        .unwrap()
+        .with(|m| m.set_door_open(true))
+        .unwrap();
     sim.run_cycles(100, &mut none).unwrap();
-    handle.with_machine(|m| m.set_door_open(false)).unwrap();
+    handle
+        .simulated_machine()
+        .unwrap()
+        .with(|m| m.set_door_open(false))
+        .unwrap();
     sim.run_cycles(3000, &mut none).unwrap();
-    handle.with_machine(|m| m.set_estop(true));
+    handle
+        .simulated_machine()
+        .unwrap()
+        .with(|m| m.set_estop(true));
     sim.run_cycles(100, &mut none).unwrap();
-    handle.with_machine(|m| m.set_estop(false));
+    handle
+        .simulated_machine()
+        .unwrap()
+        .with(|m| m.set_estop(false));
     sim.run_cycles(10, &mut none).unwrap();
     handle.command(Command::Reset);
     sim.run_cycles(100, &mut none).unwrap();

@@ -73,9 +73,12 @@ fn estop_starts_the_stop_in_the_cycle_it_is_read_then_disables_the_drives() {
     assert_eq!(status.fault_count, 1);
     assert_eq!(status.last_fault.map(|f| f.code), Some(FaultCode::EStop));
     assert!(!status.ready);
-    stopped.sim.handle().with_machine(|machine| {
-        assert!((0..3).all(|j| machine.true_state(j).unwrap().1.abs() < 1e-3))
-    });
+    stopped
+        .sim
+        .handle()
+        .simulated_machine()
+        .unwrap()
+        .with(|machine| assert!((0..3).all(|j| machine.true_state(j).unwrap().1.abs() < 1e-3)));
 }
 
 #[test]
@@ -110,7 +113,7 @@ fn a_hard_limit_switch_stops_the_machine_with_a_fault_naming_the_joint() {
     let status = m.status();
     assert_eq!(status.state, MachineState::Fault);
     assert!(!status.ready);
-    m.sim.handle().with_machine(|machine| {
+    m.sim.handle().simulated_machine().unwrap().with(|machine| {
         let (x, v) = machine.true_state(0).unwrap();
         assert!(v.abs() < 1e-3 && x > 50.0 && x < 55.0, "x {x} v {v}");
     });
@@ -129,7 +132,7 @@ fn a_following_error_stops_the_machine_with_a_fault_naming_the_joint() {
     m.power_on();
     m.command(Command::Start { from_line: 0 });
     m.cycles(800);
-    m.sim.handle().with_machine(|machine| {
+    m.sim.handle().simulated_machine().unwrap().with(|machine| {
         machine
             .inject(InjectedFault::EncoderLoss { joint: 1 })
             .unwrap()
@@ -146,7 +149,7 @@ fn a_following_error_stops_the_machine_with_a_fault_naming_the_joint() {
     assert_eq!(f.line, 2);
     assert!(m.sim.handle().describe(f).contains("joint Y"));
     // The drives were quick-stopped: the table stands.
-    m.sim.handle().with_machine(|machine| {
+    m.sim.handle().simulated_machine().unwrap().with(|machine| {
         assert!((0..3).all(|j| machine.true_state(j).unwrap().1.abs() < 1e-3));
     });
     assert!(!m.status().ready);
@@ -306,7 +309,9 @@ fn m66_waits_for_a_digital_input_or_its_timeout() {
     assert_eq!(m.status().axes[0], 10.0);
     m.sim
         .handle()
-        .with_machine(|machine| machine.set_digital_input(8, true).unwrap());
+        .simulated_machine()
+        .unwrap()
+        .with(|machine| machine.set_digital_input(8, true).unwrap());
     assert!(m.until(3.0, |s| s.axes[0] == 20.0 && s.path_speed == 0.0));
     // P1 (input 9) never comes: the program goes on after the 0.5 s timeout.
     let arrived = m.samples.len();

@@ -80,7 +80,7 @@ impl Machine {
         &self,
         f: impl FnOnce(&mut rtcnc_fieldbus::sim::SimulatedMachine) -> R,
     ) -> R {
-        self.sim.handle().with_machine(f)
+        self.sim.handle().simulated_machine().unwrap().with(f)
     }
 
     pub fn status(&self) -> Status {

@@ -1,0 +1,335 @@
+//! Machine functions, once the path stands at their block: the M/S/T hand-shakes with the
+//! machine logic (a request, the logic's answer, and for a tool change or a user M code the
+//! request dropped and the answer awaited falling), program I/O (M62-M68: outputs set,
+//! inputs waited for or read, the result handed to the interpreter), spindle orientation
+//! (M19), the program's say over the overrides (M48-M53), pauses (M0, M1) and operator
+//! messages.
+
+use super::MotionCore;
+use super::state::{Event, State, Step};
+use crate::config::{MAX_PROGRAM_IO, MachineConfig};
+use crate::fault::FaultCode;
+use crate::messages::{Aux, MachineResult, WaitCondition};
+use crate::shared::Shared;
+
+/// The map from the program's I/O numbers to the machine's image points.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct ProgramIo {
+    /// M66 `P n`: digital input point of program input n.
+    inputs: [usize; 16],
+    input_count: usize,
+    /// M66 `E n`: analogue input point of program input n.
+    analog_inputs: [usize; MAX_PROGRAM_IO],
+    analog_input_count: usize,
+    /// M67/M68 `E n` that are mapped (position control maps them to points).
+    analog_output_count: usize,
+    /// Bit of the probe in the digital inputs (0: none).
+    pub(super) probe_bit: u64,
+    /// Bit of the feed stop switch in the digital inputs (0: none).
+    pub(super) feed_stop_bit: u64,
+}
+
+impl ProgramIo {
+    pub(super) fn new(config: &MachineConfig) -> ProgramIo {
+        let io = &config.io;
+        let mut inputs = [0usize; 16];
+        for (slot, &i) in inputs.iter_mut().zip(&io.program_inputs) {
+            *slot = i;
+        }
+        let mut analog_inputs = [0usize; MAX_PROGRAM_IO];
+        for (slot, &i) in analog_inputs.iter_mut().zip(&io.program_analog_inputs) {
+            *slot = i;
+        }
+        ProgramIo {
+            inputs,
+            input_count: io.program_inputs.len().min(16),
+            analog_inputs,
+            analog_input_count: io.program_analog_inputs.len().min(MAX_PROGRAM_IO),
+            analog_output_count: io.program_analog_outputs.len().min(MAX_PROGRAM_IO),
+            probe_bit: io.probe_input.map_or(0, |i| 1u64 << i.min(63)),
+            feed_stop_bit: io.feed_stop_input.map_or(0, |i| 1u64 << i.min(63)),
+        }
+    }
+
+    /// The digital input point of program input `index`, if the machine maps it.
+    fn input(&self, index: u32) -> Option<usize> {
+        usize::try_from(index)
+            .ok()
+            .filter(|&i| i < self.input_count)
+            .map(|i| self.inputs[i])
+            .filter(|&p| p < 64)
+    }
+
+    /// The analogue input point of program input `index`, if the machine maps it.
+    fn analog_input(&self, index: u32) -> Option<usize> {
+        usize::try_from(index)
+            .ok()
+            .filter(|&i| i < self.analog_input_count)
+            .map(|i| self.analog_inputs[i])
+    }
+}
+
+impl MotionCore {
+    /// Starts the machine function the path stopped for; what comes next is the logic's
+    /// answer, a wait, a pause, or the next block.
+    pub(super) fn start_aux(&mut self, shared: &Shared, aux: Aux, line: u32) {
+        self.program.aux_cycle = self.out.cycle;
+        let hand_shake = Event::HandShake { aux, line };
+        let refused = Event::Fail {
+            code: FaultCode::AuxRefused,
+            line,
+        };
+        let next = match aux {
+            Aux::SpindleOn { .. }
+            | Aux::SpindleOff
+            | Aux::SpindleSpeed { .. }
+            | Aux::ConstantSurfaceSpeed { .. }
+            | Aux::SurfaceSpeed { .. } => {
+                self.command_spindle(aux);
+                hand_shake
+            }
+            // The S number in force becomes the rpm; not waited for (an S word usually
+            // follows at once, and that is waited for).
+            Aux::SurfaceSpeedOff => {
+                self.command_spindle(aux);
+                Event::Proceed
+            }
+            // Orientation goes to the spindle drive at once; M19 Q waits for it.
+            Aux::SpindleOrient { angle, mode } => {
+                self.spindle.on = false;
+                let mi = self.requests_mut();
+                mi.spindle_on = false;
+                mi.spindle_orient = true;
+                mi.spindle_orient_angle = angle;
+                mi.spindle_orient_mode = mode;
+                self.program.orient_cycle = self.out.cycle;
+                Event::Proceed
+            }
+            Aux::WaitOrient { timeout } => Event::WaitOrient {
+                deadline: self.deadline_after(timeout),
+                line,
+            },
+            Aux::Mist(on) => {
+                self.requests_mut().mist = on;
+                hand_shake
+            }
+            Aux::Flood(on) => {
+                self.requests_mut().flood = on;
+                hand_shake
+            }
+            Aux::ToolChange { tool } => {
+                let mi = self.requests_mut();
+                mi.tool_number = tool;
+                mi.tool_change_request = true;
+                hand_shake
+            }
+            Aux::UserM { code, p, q } => {
+                let mi = self.requests_mut();
+                mi.m_code = code;
+                mi.m_p = p;
+                mi.m_q = q;
+                mi.m_code_request = true;
+                hand_shake
+            }
+            Aux::DigitalOutput { index, on } => {
+                if index < 64 {
+                    let mi = self.requests_mut();
+                    if on {
+                        mi.program_outputs |= 1 << index;
+                    } else {
+                        mi.program_outputs &= !(1 << index);
+                    }
+                }
+                hand_shake
+            }
+            Aux::WaitInput {
+                index,
+                condition,
+                timeout,
+            } => match self.io.input(index) {
+                Some(point) => {
+                    let deadline = self.deadline_after(timeout);
+                    let bit = 1u64 << point;
+                    let previous = self.interface.feedback.get().digital_inputs & bit != 0;
+                    Event::WaitInput {
+                        bit,
+                        condition,
+                        deadline,
+                        previous,
+                    }
+                }
+                // An input the machine does not map: the program cannot wait on it.
+                None => refused,
+            },
+            Aux::ReadAnalogInput { index } => {
+                let value = self
+                    .io
+                    .analog_input(index)
+                    .and_then(|p| self.interface.feedback.get().analog_inputs.get(p).copied());
+                match value {
+                    Some(v) => {
+                        self.send_result(shared, MachineResult::Input(v));
+                        Event::Proceed
+                    }
+                    None => refused,
+                }
+            }
+            Aux::AnalogOutput { index, value } => {
+                let mapped = usize::try_from(index)
+                    .ok()
+                    .filter(|&i| i < self.io.analog_output_count);
+                match mapped.and_then(|i| self.requests_mut().program_analog_outputs.get_mut(i)) {
+                    Some(slot) => {
+                        *slot = value;
+                        Event::Proceed
+                    }
+                    None => refused,
+                }
+            }
+            Aux::FeedOverrideEnable(on) => {
+                self.overrides.feed_enabled = on;
+                self.apply_feed_overrides();
+                Event::Proceed
+            }
+            Aux::SpindleOverrideEnable(on) => {
+                self.overrides.spindle_enabled = on;
+                if self.interface.requests.spindle_on {
+                    let rpm = self.spindle_command();
+                    self.requests_mut().spindle_rpm = rpm;
+                }
+                Event::Proceed
+            }
+            Aux::FeedStopEnable(on) => {
+                self.overrides.feed_stop_enabled = on;
+                Event::Proceed
+            }
+            Aux::ProgramStop => Event::Pause {
+                start_count: self.program.start_count,
+            },
+            Aux::OptionalStop if self.program.optional_stop => Event::Pause {
+                start_count: self.program.start_count,
+            },
+            Aux::OptionalStop => Event::Proceed,
+            Aux::Message { seq } => {
+                self.show_message(shared, seq, line);
+                Event::Proceed
+            }
+        };
+        self.fire(next);
+    }
+
+    /// Whether the machine logic acknowledged `aux`; drops hand-shake requests once done.
+    pub(super) fn logic_done(&mut self, aux: Aux, released: bool) -> bool {
+        let answers = *self.interface.logic.get();
+        let done = match aux {
+            Aux::SpindleOn { .. }
+            | Aux::SpindleSpeed { .. }
+            | Aux::ConstantSurfaceSpeed { .. }
+            | Aux::SurfaceSpeed { .. }
+            | Aux::SurfaceSpeedOff => {
+                // The logic's at-speed answers the new command only after the drives have
+                // had it (one exchange) and the logic has scanned again.
+                !self.interface.requests.spindle_on
+                    || (answers.spindle_at_speed && self.out.cycle >= self.program.aux_cycle + 2)
+            }
+            Aux::SpindleOff => true,
+            Aux::Mist(on) => answers.out_mist == on,
+            Aux::Flood(on) => answers.out_flood == on,
+            // Two steps: the request stands until the logic answers done, then the
+            // request drops and the hand-shake ends when the answer drops too.
+            Aux::ToolChange { tool } => {
+                if !released {
+                    if answers.tool_change_done {
+                        self.requests_mut().tool_change_request = false;
+                        self.tool = tool;
+                        self.fire(Event::Answered);
+                    }
+                    false
+                } else {
+                    !answers.tool_change_done
+                }
+            }
+            Aux::UserM { .. } => {
+                if !released {
+                    if answers.m_code_done {
+                        self.requests_mut().m_code_request = false;
+                        self.fire(Event::Answered);
+                    }
+                    false
+                } else {
+                    !answers.m_code_done
+                }
+            }
+            Aux::DigitalOutput { .. }
+            | Aux::ProgramStop
+            | Aux::OptionalStop
+            | Aux::Message { .. }
+            | Aux::SpindleOrient { .. }
+            | Aux::WaitOrient { .. }
+            | Aux::FeedOverrideEnable(_)
+            | Aux::SpindleOverrideEnable(_)
+            | Aux::FeedStopEnable(_)
+            | Aux::ReadAnalogInput { .. }
+            | Aux::AnalogOutput { .. }
+            | Aux::WaitInput { .. } => true,
+        };
+        if done {
+            self.fire(Event::Proceed);
+        }
+        done
+    }
+
+    /// M19 Q: the program goes on once the spindle reports oriented, or stops at the
+    /// deadline.
+    pub(super) fn waiting_for_orient(&mut self, deadline: u64, line: u32) -> bool {
+        // The feedback answers the orientation only after the drive had it.
+        let oriented = self.interface.feedback.get().spindle_oriented
+            && self.out.cycle >= self.program.orient_cycle + 2;
+        if oriented {
+            self.fire(Event::Proceed)
+        } else if self.out.cycle >= deadline {
+            self.fire(Event::Fail {
+                code: FaultCode::SpindleOrientTimeout,
+                line,
+            })
+        } else {
+            false
+        }
+    }
+
+    /// M66 on a digital input: the program goes on when the condition is met or at the
+    /// deadline; the interpreter gets the input's level, or -1 on a time-out (#5399, as
+    /// LinuxCNC).
+    pub(super) fn waiting_for_input(
+        &mut self,
+        shared: &Shared,
+        bit: u64,
+        condition: WaitCondition,
+        deadline: u64,
+        previous: bool,
+    ) -> bool {
+        let now = self.interface.feedback.get().digital_inputs & bit != 0;
+        let met = match condition {
+            WaitCondition::Immediate => true,
+            WaitCondition::Rise => now && !previous,
+            WaitCondition::Fall => !now && previous,
+            WaitCondition::High => now,
+            WaitCondition::Low => !now,
+        };
+        if met || self.out.cycle >= deadline {
+            let value = match (met, now) {
+                (false, _) => -1.0,
+                (true, true) => 1.0,
+                (true, false) => 0.0,
+            };
+            self.send_result(shared, MachineResult::Input(value));
+            self.fire(Event::Proceed)
+        } else {
+            // The level this period, for the edge the next one may see.
+            if let State::Program(Step::WaitInput { previous, .. }) = &mut self.state {
+                *previous = now;
+            }
+            false
+        }
+    }
+}

@@ -1,0 +1,101 @@
+//! The operator's overrides (feed, rapid, spindle) and the program's say over them
+//! (M48-M53: overrides and the feed stop switch in force or not). Every program start,
+//! end, abort or fault puts them back in force.
+
+use super::MotionCore;
+
+/// The overrides and whether they are in force.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Overrides {
+    /// Feed override, 0..=2.
+    pub(super) feed: f64,
+    /// Rapid override, 0..=1.
+    pub(super) rapid: f64,
+    /// Spindle override, 0.5..=1.5.
+    pub(super) spindle: f64,
+    /// M48-M50: the feed and rapid overrides in force (else 100 %).
+    pub(super) feed_enabled: bool,
+    /// M48, M49, M51: the spindle override in force.
+    pub(super) spindle_enabled: bool,
+    /// M53: the feed stop switch is heeded.
+    pub(super) feed_stop_enabled: bool,
+}
+
+impl Overrides {
+    pub(super) fn new() -> Overrides {
+        Overrides {
+            feed: 1.0,
+            rapid: 1.0,
+            spindle: 1.0,
+            feed_enabled: true,
+            spindle_enabled: true,
+            feed_stop_enabled: true,
+        }
+    }
+
+    /// M48-M53 as after a reset.
+    pub(super) fn enable_all(&mut self) {
+        self.feed_enabled = true;
+        self.spindle_enabled = true;
+        self.feed_stop_enabled = true;
+    }
+
+    /// The operator's spindle override, or 1 while M49/M51 P0 is in force.
+    pub(super) fn spindle_factor(&self) -> f64 {
+        if self.spindle_enabled {
+            self.spindle
+        } else {
+            1.0
+        }
+    }
+}
+
+/// An override as the operator sent it, within `min..=max`; `otherwise` when not a number.
+fn clamped(value: f64, min: f64, max: f64, otherwise: f64) -> f64 {
+    if value.is_finite() {
+        value.clamp(min, max)
+    } else {
+        otherwise
+    }
+}
+
+impl MotionCore {
+    pub(super) fn set_feed_override(&mut self, value: f64) {
+        self.overrides.feed = clamped(value, 0.0, 2.0, 0.0);
+        self.apply_feed_overrides();
+    }
+
+    pub(super) fn set_rapid_override(&mut self, value: f64) {
+        self.overrides.rapid = clamped(value, 0.0, 1.0, 0.0);
+        self.apply_feed_overrides();
+    }
+
+    pub(super) fn set_spindle_override(&mut self, value: f64) {
+        self.overrides.spindle = clamped(value, 0.5, 1.5, 1.0);
+        if self.interface.requests.spindle_on {
+            let rpm = self.spindle_command();
+            self.requests_mut().spindle_rpm = rpm;
+        }
+    }
+
+    /// The operator's feed and rapid overrides, or 100 % while M49/M50 P0 is in force.
+    pub(super) fn apply_feed_overrides(&mut self) {
+        let (feed, rapid) = if self.overrides.feed_enabled {
+            (self.overrides.feed, self.overrides.rapid)
+        } else {
+            (1.0, 1.0)
+        };
+        self.path.planner.set_feed_override(feed);
+        self.path.planner.set_rapid_override(rapid);
+    }
+
+    /// M48-M53 as after a reset: every override and the feed stop switch in force.
+    pub(super) fn reset_enables(&mut self) {
+        self.overrides.enable_all();
+        self.apply_feed_overrides();
+        if self.interface.requests.spindle_on {
+            let rpm = self.spindle_command();
+            self.requests_mut().spindle_rpm = rpm;
+        }
+    }
+}

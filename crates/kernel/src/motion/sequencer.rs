@@ -1,0 +1,299 @@
+//! The program sequencer (the look-ahead task's part): moves the blocks of a program or
+//! MDI line into the planner's window while it has room, flushes the window before what
+//! needs the machine standing (a machine function, a spindle-synchronised or probing move,
+//! the end, an error), waits for the path to stand, and then starts that.
+
+use rtcnc_motion::{AXES, MotionError, Move, MoveKind, PathMode};
+use rtcnc_rt::Context;
+
+use super::MotionCore;
+use super::state::{Event, State, Step, Then};
+use crate::fault::{FaultCode, TaskName};
+use crate::messages::{MachineBlock, MachineResult, Mode, OperatorMessage};
+use crate::shared::{InterpreterRequest, Shared, Tagged};
+
+/// Steps (blocks taken, program steps passed) of one look-ahead run at most, so a run is
+/// bounded.
+const LOOK_AHEAD_STEPS: usize = 64;
+
+/// The program run.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Program {
+    /// The run (program start, MDI line, abort, fault): blocks of an older run still in
+    /// the channels are dropped.
+    pub(super) epoch: u32,
+    /// The block the planner had no room for.
+    pub(super) pending: Option<MachineBlock>,
+    /// Starts and resumes so far: a pause ends when it changes.
+    pub(super) start_count: u32,
+    pub(super) single_block: bool,
+    pub(super) optional_stop: bool,
+    /// Run from a line: the first line whose motion runs.
+    pub(super) run_from_line: u32,
+    /// Run from a line: where the skipped motion ended (the machine goes there at rapid).
+    pub(super) skipped_to: Option<[f64; AXES]>,
+    /// The program reached its end.
+    pub(super) ended: bool,
+    /// A program is loaded (auto mode can start).
+    pub(super) loaded: bool,
+    /// Interpolation cycle in which the last machine function started.
+    pub(super) aux_cycle: u64,
+    /// Interpolation cycle of the last orientation command.
+    pub(super) orient_cycle: u64,
+}
+
+impl Program {
+    pub(super) fn new() -> Program {
+        Program {
+            epoch: 0,
+            pending: None,
+            start_count: 0,
+            single_block: false,
+            optional_stop: false,
+            run_from_line: 0,
+            skipped_to: None,
+            ended: false,
+            loaded: false,
+            aux_cycle: 0,
+            orient_cycle: 0,
+        }
+    }
+}
+
+impl MotionCore {
+    /// One run of the look-ahead: moves blocks into the planner's window while it has room,
+    /// stops the path before machine functions and errors, and sequences their hand-shakes.
+    /// Returns whether another run in the same period may find more to do: only when this
+    /// one stopped at its bound of steps. Otherwise it stopped on something only another
+    /// task can change (no block, no room, the machine still moving, the logic's answer).
+    pub(crate) fn look_ahead(&mut self, ctx: &mut Context<'_>, shared: &Shared) -> bool {
+        let more = self.look_ahead_runs(ctx, shared);
+        self.publish_requests();
+        more
+    }
+
+    fn look_ahead_runs(&mut self, ctx: &mut Context<'_>, shared: &Shared) -> bool {
+        for _ in 0..LOOK_AHEAD_STEPS {
+            // One handler per step of the program; each returns whether the program moved
+            // on (look again) or waits for something only another task can change.
+            let State::Program(step) = self.state else {
+                return false;
+            };
+            let moved_on = match step {
+                Step::Feeding => self.feeding(shared),
+                Step::Draining { then, line } => self.draining(ctx, shared, then, line),
+                Step::Logic { aux, released, .. } => self.logic_done(aux, released),
+                Step::Paused { start_count } => self.paused(start_count),
+                Step::Synced => self.synced_done(),
+                Step::Probing { kind, line } => self.probing_done(shared, kind, line),
+                Step::WaitOrient { deadline, line } => self.waiting_for_orient(deadline, line),
+                Step::WaitInput {
+                    bit,
+                    condition,
+                    deadline,
+                    previous,
+                } => self.waiting_for_input(shared, bit, condition, deadline, previous),
+            };
+            if !moved_on {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// Starts a program (auto) or an MDI line from where the machine stands.
+    pub(super) fn begin(&mut self, mode: Mode, from_line: u32) {
+        self.enter_path();
+        if mode == Mode::Auto {
+            self.reset_enables();
+            self.spindle.css = None;
+        }
+        self.mode = mode;
+        self.program.epoch = self.program.epoch.wrapping_add(1);
+        self.fire(Event::Begin);
+        self.hold.logic_paused = false;
+        self.program.pending = None;
+        self.program.ended = false;
+        self.program.run_from_line = from_line;
+        self.program.skipped_to = None;
+        self.requests_mut().program_running = mode == Mode::Auto;
+    }
+
+    /// Takes the next block of this run, unless a hold keeps the next move from starting.
+    fn feeding(&mut self, shared: &Shared) -> bool {
+        if self.hold.latched()
+            || ((self.hold.logic_request || self.hold.feed_stop) && !self.moving())
+        {
+            return false;
+        }
+        let block = match self.program.pending.take() {
+            Some(b) => b,
+            None => match shared.machine_blocks.try_get() {
+                Some(Tagged { epoch, block }) if epoch == self.program.epoch => block,
+                // A block of an older run: dropped.
+                Some(_) => return true,
+                None => return false,
+            },
+        };
+        self.feed(shared, block)
+    }
+
+    /// Returns false when the block could not be taken now (kept for the next run).
+    fn feed(&mut self, shared: &Shared, block: MachineBlock) -> bool {
+        let (then, line) = match block {
+            MachineBlock::Motion(mv) => return self.feed_move(shared, block, mv),
+            MachineBlock::Aux { line, aux } => (Then::Aux(aux), line),
+            MachineBlock::Synced { line, end, pitch } => (Then::Synced(end, pitch), line),
+            MachineBlock::Probe { mv, kind } => (Then::Probe(mv, kind), mv.line),
+            MachineBlock::End { line } => (Then::End, line),
+            MachineBlock::Error { line, code } => (Then::Error(code), line),
+            MachineBlock::MdiDone => (Then::MdiDone, 0),
+        };
+        self.path.planner.flush();
+        self.fire(Event::Drain { then, line });
+        true
+    }
+
+    /// A move into the planner's window (`block` is `mv`, kept when there is no room).
+    fn feed_move(&mut self, shared: &Shared, block: MachineBlock, mv: Move) -> bool {
+        if self.program.run_from_line > 1 && mv.line < self.program.run_from_line {
+            if let MoveKind::Line { end, .. }
+            | MoveKind::Arc { end, .. }
+            | MoveKind::Spline { end, .. } = mv.kind
+            {
+                self.program.skipped_to = Some(end);
+            }
+            return true;
+        }
+        if let Some(end) = self.program.skipped_to.take() {
+            // Run from a line: go to where the first executed block starts, at rapid.
+            let approach = Move::rapid(end, PathMode::ExactStop, mv.line);
+            if let Err(e) = self.path.planner.push(&approach) {
+                self.program.skipped_to = Some(end);
+                if matches!(e, MotionError::QueueFull) {
+                    self.program.pending = Some(block);
+                    return false;
+                }
+            }
+        }
+        match self.path.planner.push(&mv) {
+            Ok(()) => {
+                if self.program.single_block {
+                    self.path.planner.flush();
+                    self.fire(Event::Drain {
+                        then: Then::SingleBlockPause,
+                        line: mv.line,
+                    });
+                }
+                true
+            }
+            Err(MotionError::QueueFull) => {
+                self.program.pending = Some(block);
+                false
+            }
+            // A move to where the machine already is: nothing to do (LinuxCNC drops such
+            // moves too).
+            Err(MotionError::ZeroLength { .. }) => true,
+            Err(e) => {
+                self.path.planner.flush();
+                self.fire(Event::Fail {
+                    code: FaultCode::MotionError,
+                    line: e.line().unwrap_or(mv.line),
+                });
+                *shared.motion_error.lock() = Some(e);
+                true
+            }
+        }
+    }
+
+    /// Once the path stands, does what stopped it. Held: the next block (a machine
+    /// function, a probing or threading move, the program's end) waits for the resume; an
+    /// error stops the program at once.
+    fn draining(&mut self, ctx: &mut Context<'_>, shared: &Shared, then: Then, line: u32) -> bool {
+        if self.moving() {
+            return false;
+        }
+        if self.hold.latched() && !matches!(then, Then::Error(_)) {
+            return false;
+        }
+        match then {
+            Then::SingleBlockPause => {
+                self.fire(Event::Pause {
+                    start_count: self.program.start_count,
+                });
+            }
+            Then::End => {
+                self.reset_enables();
+                self.fire(Event::Finish);
+                self.program.ended = true;
+                self.requests_mut().program_running = false;
+            }
+            Then::MdiDone => {
+                self.fire(Event::Finish);
+            }
+            Then::Error(code) => {
+                shared.raise(ctx, code, TaskName::LookAhead, None, line, 0.0);
+                self.fire(Event::Finish);
+                self.program.epoch = self.program.epoch.wrapping_add(1);
+                let _ = shared
+                    .interpreter_requests
+                    .try_put(InterpreterRequest::Stop);
+                self.requests_mut().program_running = false;
+            }
+            Then::Aux(aux) => self.start_aux(shared, aux, line),
+            Then::Probe(mv, kind) => self.start_probe(shared, mv, kind),
+            Then::Synced(end, pitch) => self.start_synced(end, pitch, line),
+        }
+        true
+    }
+
+    /// M0/M1/single block: the program goes on after a start or resume, unless held.
+    fn paused(&mut self, start_count: u32) -> bool {
+        if self.program.start_count == start_count || self.hold.latched() {
+            return false;
+        }
+        self.fire(Event::Proceed)
+    }
+
+    /// The interpolation cycle at which a wait of `seconds` ends: now for 0 (or a
+    /// negative or NaN time, which the interpreter refuses before), never for an infinite
+    /// one, and saturating for one longer than the machine will run.
+    pub(super) fn deadline_after(&self, seconds: f64) -> u64 {
+        if seconds.is_nan() || seconds <= 0.0 {
+            return self.out.cycle;
+        }
+        // `as` saturates: infinity and 1e30 s become u64::MAX periods.
+        let periods = (seconds / self.machine.period_s).ceil() as u64;
+        self.out.cycle.saturating_add(periods)
+    }
+
+    /// Hands the interpreter the result it waits for (it reads on once it has it).
+    pub(super) fn send_result(&self, shared: &Shared, result: MachineResult) {
+        let _ = shared.machine_results.try_put(Tagged {
+            epoch: self.program.epoch,
+            block: result,
+        });
+        shared.interpreter_wake.signal();
+    }
+
+    /// Hands the text of message `seq` to the operator, stamped with the set-point at which
+    /// the path stands at its block. Texts of an aborted run still in the channel are
+    /// older: they are dropped on the way.
+    pub(super) fn show_message(&self, shared: &Shared, seq: u32, line: u32) {
+        for _ in 0..shared.message_texts.capacity() {
+            let Some((s, text)) = shared.message_texts.try_get() else {
+                return;
+            };
+            if s == seq {
+                let cycle = self.out.cycle;
+                let _ = shared.operator_messages.try_put(OperatorMessage {
+                    cycle,
+                    time_ns: cycle.saturating_mul(self.machine.period_ns),
+                    line,
+                    text,
+                });
+                return;
+            }
+        }
+    }
+}

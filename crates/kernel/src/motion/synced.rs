@@ -1,0 +1,247 @@
+//! Spindle-synchronised moves (G33, a G76 pass): once the path stands, the line waits for
+//! the spindle's index, then its progress follows pitch × the spindle's revolutions since
+//! the index, read every period from the drive (position synchronisation, as LinuxCNC).
+//! The gap from rest is closed time-optimally within the axes' limits, planned in the
+//! frame that moves with the spindle; near the end the line goes to rest on its end point.
+
+use rtcnc_motion::AXES;
+use rtcnc_motion::otg::{self, Limits, OnlineAxis};
+
+use super::MotionCore;
+use super::state::Event;
+use crate::fault::FaultCode;
+use crate::messages::JointSetpoints;
+use crate::shared::Feedback;
+
+/// G33 / a G76 pass: a line whose progress follows the spindle's angle.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct SyncedMove {
+    start: [f64; AXES],
+    /// Unit direction.
+    dir: [f64; AXES],
+    length: f64,
+    /// mm per revolution.
+    pitch: f64,
+    /// While tracking: the progress's offset from pitch × revolutions, jerk-limited from
+    /// where it was at the index to 0 (planned in the frame that moves with the spindle,
+    /// so it catches up time-optimally and then stays on it).
+    offset: Option<OnlineAxis>,
+    /// Progress along the line (mm): at rest before the index, to the end after tracking.
+    otg: OnlineAxis,
+    /// Path limits along the line (velocity, acceleration, jerk).
+    limits: (f64, f64, f64),
+    /// Unwrapped spindle angle (degrees) and the last reading (0..360).
+    angle: f64,
+    reading: f64,
+    /// The unwrapped angle of the index the move started at; `None` while waiting for it.
+    index: Option<f64>,
+    /// Going to the end at rest (or stopping): no longer tracking.
+    finishing: bool,
+    line: u32,
+}
+
+impl MotionCore {
+    /// Starts a spindle-synchronised line (G33) from where the machine stands: it waits for
+    /// the spindle's index, then its progress follows pitch × revolutions. Refused when the
+    /// spindle stands, when the line leaves the soft limits, or when the spindle turns too
+    /// fast for the pitch and the axes (the axes could not keep up).
+    pub(super) fn start_synced(&mut self, end: [f64; AXES], pitch: f64, line: u32) {
+        let feedback = *self.interface.feedback.get();
+        let fail = |code| Event::Fail { code, line };
+        let start = self.out.last.axes;
+        let mut dir = [0.0; AXES];
+        let mut length2 = 0.0;
+        for i in 0..AXES {
+            dir[i] = end[i] - start[i];
+            length2 += dir[i] * dir[i];
+        }
+        let length = length2.sqrt();
+        if !length.is_finite() {
+            self.fire(fail(FaultCode::MotionError));
+            return;
+        }
+        if length == 0.0 {
+            self.fire(Event::Proceed);
+            return;
+        }
+        let (mut v, mut a, mut j) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+        for i in 0..AXES {
+            dir[i] /= length;
+            let share = dir[i].abs();
+            if share < 1e-12 {
+                continue;
+            }
+            if !self.machine.axis_present[i]
+                || end[i] < self.machine.axis_min[i]
+                || end[i] > self.machine.axis_max[i]
+            {
+                self.fire(fail(FaultCode::MotionError));
+                return;
+            }
+            let l = self.machine.axis_limits[i];
+            v = v.min(l.max_velocity / share);
+            a = a.min(l.max_acceleration / share);
+            j = j.min(l.max_jerk / share);
+        }
+        let speed = pitch * feedback.spindle_rpm.abs() / 60.0;
+        let progress = OnlineAxis::new(otg::State::at_rest(0.0), Limits::symmetric(v, a, j));
+        match progress {
+            Ok(otg) if self.spindle.on && speed > 0.0 && speed <= 0.9 * v && pitch > 0.0 => {
+                self.synced = Some(SyncedMove {
+                    start,
+                    dir,
+                    length,
+                    pitch,
+                    offset: None,
+                    otg,
+                    limits: (v, a, j),
+                    angle: feedback.spindle_angle_deg,
+                    reading: feedback.spindle_angle_deg,
+                    index: None,
+                    finishing: false,
+                    line,
+                });
+                self.fire(Event::Synced);
+            }
+            _ => {
+                self.fire(fail(FaultCode::SyncFailed));
+            }
+        }
+    }
+
+    /// One period of the synchronised move: follows the spindle's angle (from the last
+    /// exchange) and gives the axis position; finished moves hand the path back to the
+    /// planner where they ended.
+    pub(super) fn synced_step(&mut self, feedback: &Feedback, sp: &mut JointSetpoints) {
+        let Some(mut m) = self.synced else {
+            return;
+        };
+        let dt = self.machine.period_s;
+        let mut delta = feedback.spindle_angle_deg - m.reading;
+        if delta > 180.0 {
+            delta -= 360.0;
+        } else if delta <= -180.0 {
+            delta += 360.0;
+        }
+        m.reading = feedback.spindle_angle_deg;
+        m.angle += delta;
+        if m.index.is_none() {
+            // The index is at angle 0: the first crossing of a whole turn.
+            let (now, before) = (
+                (m.angle / 360.0).floor(),
+                ((m.angle - delta) / 360.0).floor(),
+            );
+            if now != before {
+                m.index = Some(360.0 * now.max(before));
+            }
+        }
+        let mut progress = None;
+        if let (Some(index), false) = (m.index, m.finishing) {
+            let (vmax, a, j) = m.limits;
+            let speed = m.pitch * (delta / 360.0 / dt).abs();
+            let here = m.pitch * ((m.angle - index) / 360.0).abs();
+            if m.offset.is_none() {
+                // At the index: the offset from the spindle's progress now, to be closed.
+                let relative = Limits {
+                    max_velocity: vmax - speed,
+                    min_velocity: -vmax - speed,
+                    max_acceleration: a,
+                    min_acceleration: -a,
+                    max_jerk: j,
+                };
+                let at = m.otg.sample();
+                let start = otg::State::new(at.p - here, at.v - speed, at.a);
+                m.offset = OnlineAxis::new(start, relative)
+                    .and_then(|mut o| o.set_target(otg::State::at_rest(0.0)).map(|()| o))
+                    .ok();
+                if m.offset.is_none() {
+                    m.finishing = true;
+                    let _ = m.otg.stop();
+                }
+            }
+            if let Some(offset) = m.offset.as_mut() {
+                // The set-point is applied in the next period: where the spindle will be.
+                let e = offset.step(dt);
+                let p = here + speed * dt + e.p;
+                let v = speed + e.v;
+                let stopping = 0.5 * v * (v / a + a / j) + v * dt;
+                if p + stopping >= m.length {
+                    // The end: at most this speed, then to rest on the end point.
+                    // (From the last set-point, which `otg` holds.)
+                    m.finishing = true;
+                    let limits = Limits::symmetric(v.abs().max(speed).max(1e-6), a, j);
+                    let _ = m.otg.set_limits(limits);
+                    let _ = m.otg.set_target(otg::State::at_rest(m.length));
+                } else {
+                    progress = Some((p, v));
+                    // Where a stop would start from (abort, fault).
+                    if let Ok(o) = OnlineAxis::new(
+                        otg::State::new(p, v, e.a),
+                        Limits::symmetric(vmax.max(v.abs()), a, j),
+                    ) {
+                        m.otg = o;
+                    }
+                }
+            }
+        }
+        let s = match progress {
+            Some((p, v)) => otg::Sample {
+                p,
+                v,
+                a: 0.0,
+                j: 0.0,
+            },
+            None if m.finishing || m.offset.is_none() => m.otg.step(dt),
+            None => m.otg.sample(),
+        };
+        for i in 0..AXES {
+            sp.axes[i] = m.start[i] + m.dir[i] * s.p;
+        }
+        for jn in 0..self.machine.joint_count {
+            if let Some(i) = self.machine.joints[jn].axis {
+                sp.joints[jn] = sp.axes[i];
+            }
+        }
+        sp.line = m.line;
+        sp.path_speed = s.v.abs();
+        if m.finishing && m.otg.is_finished() {
+            self.synced = None;
+            let _ = self.path.planner.reset_at(sp.axes);
+            if std::mem::take(&mut self.hold.after_sync) {
+                // Standing between moves now: the next one waits for a resume.
+                self.hold.held = true;
+            }
+        } else {
+            self.synced = Some(m);
+        }
+    }
+
+    /// Stops a synchronised move along its line (abort, fault): it no longer tracks.
+    pub(super) fn stop_synced(&mut self, quick: bool) {
+        if let Some(m) = self.synced.as_mut() {
+            m.finishing = true;
+            if quick {
+                let (v, _, _) = m.limits;
+                let (mut a, mut j) = (f64::INFINITY, f64::INFINITY);
+                for i in 0..AXES {
+                    let share = m.dir[i].abs();
+                    if share > 1e-12 {
+                        a = a.min(self.machine.axis_quick[i].max_acceleration / share);
+                        j = j.min(self.machine.axis_quick[i].max_jerk / share);
+                    }
+                }
+                let _ = m.otg.set_limits(Limits::symmetric(v, a, j));
+            }
+            let _ = m.otg.stop();
+        }
+    }
+
+    /// Look-ahead, while the program is in a synchronised move: it goes on once the move
+    /// has handed the path back.
+    pub(super) fn synced_done(&mut self) -> bool {
+        if self.synced.is_some() {
+            return false;
+        }
+        self.fire(Event::Proceed)
+    }
+}
