@@ -254,7 +254,23 @@ pub struct TasksConfig {
     /// period is shorter than [`SEPARATE_INTERPOLATION_MIN_PERIOD`], else in its own thread
     /// (see [`TasksConfig::interpolation_in_fieldbus_thread`]).
     pub interpolation_in_fieldbus_thread: Option<bool>,
+    /// How far ahead of position control interpolation computes the set-points (a
+    /// duration, rounded up to whole servo periods, at most [`MAX_SETPOINT_LEAD`] of
+    /// them): a stall of the interpolation thread this long is ridden through. Urgent
+    /// commands and faults still act in the next servo period: the set-points not yet
+    /// applied are computed again. Unset: [`DEFAULT_SETPOINT_LEAD`] with interpolation in a
+    /// thread of its own, one period in the fieldbus thread (the two cannot stall apart).
+    pub setpoint_lead: Option<String>,
 }
+
+/// The default of `tasks.setpoint_lead` with interpolation in a thread of its own (at most
+/// [`MAX_SETPOINT_LEAD`] periods): longer than the stalls of a thread that a virtual
+/// machine without a real-time kernel shows (cyclictest here: 5-8 ms; `rtcnc run` has
+/// seen 34 ms once while other processes compiled), with room to spare.
+pub const DEFAULT_SETPOINT_LEAD: Duration = Duration::from_millis(50);
+
+/// The most servo periods interpolation may run ahead (memory for them is taken at start).
+pub const MAX_SETPOINT_LEAD: u64 = 256;
 
 /// The shortest servo period at which interpolation runs in a thread of its own unless the
 /// configuration says otherwise. A thread of its own must wake within the four periods
@@ -270,6 +286,30 @@ impl TasksConfig {
     pub fn interpolation_in_fieldbus_thread(&self, servo_period: Duration) -> bool {
         self.interpolation_in_fieldbus_thread
             .unwrap_or(servo_period < SEPARATE_INTERPOLATION_MIN_PERIOD)
+    }
+
+    /// `setpoint_lead` in whole servo periods (at least one), or why it is refused.
+    pub fn setpoint_lead_periods(&self, servo_period: Duration) -> Result<u64, ConfigError> {
+        let lead = match &self.setpoint_lead {
+            Some(text) => rtcnc_rt::parse_duration(text)
+                .map_err(|e| ConfigError::invalid("tasks.setpoint_lead", e.to_string()))?,
+            None if self.interpolation_in_fieldbus_thread(servo_period) => servo_period,
+            None => DEFAULT_SETPOINT_LEAD.min(servo_period * MAX_SETPOINT_LEAD as u32),
+        };
+        let periods = lead
+            .as_nanos()
+            .div_ceil(servo_period.as_nanos().max(1))
+            .max(1);
+        if periods > u128::from(MAX_SETPOINT_LEAD) {
+            return Err(ConfigError::invalid(
+                "tasks.setpoint_lead",
+                format!(
+                    "{} servo periods; at most {MAX_SETPOINT_LEAD} (a shorter lead, or a longer servo period)",
+                    periods
+                ),
+            ));
+        }
+        Ok(periods as u64)
     }
 }
 
@@ -290,6 +330,7 @@ impl Default for TasksConfig {
             tool_compensation: EventTaskConfig { priority: 119 },
             interpreter: EventTaskConfig { priority: 20 },
             interpolation_in_fieldbus_thread: None,
+            setpoint_lead: None,
         }
     }
 }
@@ -853,6 +894,7 @@ impl MachineConfig {
                 "the interpolation gives one set-point per servo period: its period must equal tasks.fieldbus.period, with runs = 1",
             ));
         }
+        t.setpoint_lead_periods(servo)?;
         for (name, priority) in [
             ("tool_compensation", t.tool_compensation.priority),
             ("interpreter", t.interpreter.priority),

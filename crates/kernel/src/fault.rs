@@ -85,6 +85,12 @@ pub enum FaultCode {
     ProbeFailed,
     /// G33/G76: the spindle does not turn, or turns too fast for the pitch and the axes.
     SyncFailed,
+    /// Position control found no set-point for five periods in a row: interpolation
+    /// stalled for longer than the set-point lead (`tasks.setpoint_lead`). Position
+    /// control brings every joint to rest by itself.
+    SetpointsRanDry,
+    /// Interpolation could not queue a set-point (position control stopped taking them).
+    SetpointsLost,
 }
 
 impl FaultCode {
@@ -108,6 +114,8 @@ impl FaultCode {
             FaultCode::SpindleOrientTimeout => "kernel.spindle_orient_timeout",
             FaultCode::ProbeFailed => "kernel.probe_failed",
             FaultCode::SyncFailed => "kernel.sync_failed",
+            FaultCode::SetpointsRanDry => "kernel.setpoints_ran_dry",
+            FaultCode::SetpointsLost => "kernel.setpoints_lost",
         }
     }
 
@@ -136,6 +144,8 @@ impl FaultCode {
             FaultCode::SpindleOrientTimeout => "spindle orientation timed out",
             FaultCode::ProbeFailed => "probing move failed",
             FaultCode::SyncFailed => "spindle-synchronised move impossible",
+            FaultCode::SetpointsRanDry => "set-points ran dry (interpolation stalled)",
+            FaultCode::SetpointsLost => "set-point lost (position control stopped taking)",
         }
     }
 
@@ -152,6 +162,8 @@ impl FaultCode {
                 | FaultCode::Communication
                 | FaultCode::LogicFault
                 | FaultCode::HomingFailed
+                | FaultCode::SetpointsRanDry
+                | FaultCode::SetpointsLost
         )
     }
 }

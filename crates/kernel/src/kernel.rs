@@ -11,8 +11,8 @@ use rtcnc_fieldbus::sim::SimulatedMachine;
 use rtcnc_gcode::{Parameters, Settings, ToolTable};
 use rtcnc_plc::RetainSnapshot;
 use rtcnc_rt::{
-    MissReaction, PiMutex, RingConsumer, RingProducer, SeqlockWriter, TaskId, TaskSet,
-    TaskSetBuilder, ThreadId,
+    LeadConsumer, LeadProducer, MissReaction, PiMutex, RingConsumer, RingProducer, SeqlockWriter,
+    TaskId, TaskSet, TaskSetBuilder, ThreadId,
 };
 use rtcnc_servo::ServoLoop;
 
@@ -42,6 +42,10 @@ pub struct KernelOptions {
     /// Processor time the interpolation task declares per run on top of its own work:
     /// virtual time charges it, real time spins for it. For load and deadline-miss tests.
     pub interpolation_load: Option<Duration>,
+    /// One stall of interpolation: at its activation `.0` it declares `.1` of processor
+    /// time on top of its work (virtual time charges it; real time spins), as a thread
+    /// that its processor does not run for that long. For the set-point lead's tests.
+    pub interpolation_stall: Option<(u64, Duration)>,
 }
 
 /// The result of the power-up self-test.
@@ -121,6 +125,23 @@ impl KernelHandle {
     /// of interpolation) and extrapolated.
     pub fn setpoint_underruns(&self) -> u64 {
         self.drives.setpoint_underruns()
+    }
+
+    /// The set-point lead in servo periods, and the most exchanges with the drives
+    /// between two runs of interpolation since start-up (1 without a stall): a gap up to
+    /// the lead is ridden through; beyond it the set-points run dry
+    /// (`kernel.setpoints_ran_dry`).
+    pub fn setpoint_lead(&self) -> (u64, u64) {
+        let lead = self
+            .config
+            .tasks
+            .setpoint_lead_periods(self.config.servo_period())
+            .unwrap_or(1);
+        let gap = self
+            .shared
+            .interpolation_gap
+            .load(std::sync::atomic::Ordering::Relaxed);
+        (lead, gap)
     }
 
     /// The configuration.
@@ -219,7 +240,7 @@ impl Kernel {
             logic_outputs,
             status,
         } = writers;
-        let (setpoints_out, setpoints_in) = setpoint_channel()?;
+        let (setpoints_out, setpoints_in) = setpoint_channel(&config)?;
         let (recorder, samples) = recording(options.record_capacity)?;
         let servo = Arc::new(PiMutex::new(drive_stage(
             &config,
@@ -236,6 +257,7 @@ impl Kernel {
             kinematics,
             &shared,
             requests,
+            setpoints_out,
             options.program.is_some(),
         )?;
         let (logic, retain) = logic_stage(&config, &shared, logic_outputs, &mut report)?;
@@ -243,7 +265,6 @@ impl Kernel {
         let stages = Stages {
             servo: servo.clone(),
             core,
-            setpoints_out,
             logic,
             status,
             interpreter,
@@ -266,11 +287,21 @@ impl Kernel {
     }
 }
 
-/// The set-point channel from interpolation to position control: one [`ServoTarget`] per
-/// servo period, a few periods deep (position control bridges up to four missing ones).
-fn setpoint_channel() -> Result<(RingProducer<ServoTarget>, RingConsumer<ServoTarget>), KernelError>
-{
-    Ok(rtcnc_rt::ring::<ServoTarget>("set-points", 4)?)
+/// The set-point channel from interpolation to position control: a lead queue with room
+/// for the configured lead and the periods a late interpolation run catches up on.
+fn setpoint_channel(
+    config: &MachineConfig,
+) -> Result<(LeadProducer<ServoTarget>, LeadConsumer<ServoTarget>), KernelError> {
+    let lead = config.tasks.setpoint_lead_periods(config.servo_period())?;
+    let capacity = usize::try_from(lead)
+        .unwrap_or(usize::MAX)
+        .saturating_add(16);
+    // Numbered by exchange: the first set-point is for the first exchange.
+    Ok(rtcnc_rt::lead_queue::<ServoTarget>(
+        "set-points",
+        capacity,
+        1,
+    )?)
 }
 
 /// The ring of recorded servo cycles, when asked for.
@@ -290,7 +321,7 @@ fn drive_stage<B: Fieldbus>(
     config: &MachineConfig,
     bus: B,
     period_s: f64,
-    setpoints: RingConsumer<ServoTarget>,
+    setpoints: LeadConsumer<ServoTarget>,
     recorder: Option<RingProducer<Sample>>,
     shared: &Shared,
     feedback: SeqlockWriter<crate::shared::Feedback>,
@@ -313,7 +344,8 @@ fn drive_stage<B: Fieldbus>(
         feedback,
         config.io.program_outputs.clone(),
     )
-    .with_program_analog_outputs(config.io.program_analog_outputs.clone()))
+    .with_program_analog_outputs(config.io.program_analog_outputs.clone())
+    .with_stop_limits(crate::motion::joint_quick_stop_limits(config)))
 }
 
 /// The motion core at rest, ready to be reset into operation.
@@ -322,9 +354,10 @@ fn motion_core(
     kinematics: MachineKinematics,
     shared: &Shared,
     requests: SeqlockWriter<LogicRequests>,
+    setpoints_out: LeadProducer<ServoTarget>,
     has_program: bool,
 ) -> Result<Arc<PiMutex<MotionCore>>, KernelError> {
-    let mut core = MotionCore::new(config, kinematics, shared, requests)?;
+    let mut core = MotionCore::new(config, kinematics, shared, requests, setpoints_out)?;
     core.set_has_program(has_program);
     core.self_test_passed();
     Ok(Arc::new(PiMutex::new(core)))
@@ -423,7 +456,6 @@ fn interpreter_stage(
 struct Stages<B: Fieldbus> {
     servo: Arc<PiMutex<ServoStage<B>>>,
     core: Arc<PiMutex<MotionCore>>,
-    setpoints_out: RingProducer<ServoTarget>,
     logic: LogicStage,
     status: SeqlockWriter<Status>,
     interpreter: InterpreterStage,
@@ -462,15 +494,9 @@ fn declare_tasks<B: Fieldbus + Send + 'static>(
         thread(&mut b, "interpolation", 2)
     };
     let load = options.interpolation_load;
+    let stall = options.interpolation_stall;
     let core = &stages.core;
-    real_time.push(interpolation_task(
-        &mut b,
-        th,
-        core,
-        shared,
-        stages.setpoints_out,
-        load,
-    ));
+    real_time.push(interpolation_task(&mut b, th, core, shared, load, stall));
     let th = thread(&mut b, "look-ahead", 3);
     real_time.push(look_ahead_task(&mut b, th, t.look_ahead.runs, core, shared));
     let th = thread(&mut b, "command parsing", 4);
@@ -540,20 +566,25 @@ fn logic_task(
     })
 }
 
-/// Interpolation: one set-point per servo period into the set-point channel.
+/// Interpolation: the set-points up to the lead into the set-point channel.
 fn interpolation_task(
     b: &mut TaskSetBuilder,
     thread: ThreadId,
     core: &Arc<PiMutex<MotionCore>>,
     shared: &Shared,
-    mut setpoints_out: RingProducer<ServoTarget>,
     load: Option<Duration>,
+    stall: Option<(u64, Duration)>,
 ) -> TaskId {
     let (c, sh) = (core.clone(), shared.clone());
     b.periodic(thread, "interpolation", 1, move |ctx| {
-        c.lock().interpolate(ctx, &sh, &mut setpoints_out);
+        c.lock().interpolate(ctx, &sh);
         if let Some(load) = load {
             ctx.consume(load);
+        }
+        if let Some((at, stall)) = stall
+            && ctx.activation() == at
+        {
+            ctx.consume(stall);
         }
     })
 }

@@ -7,7 +7,8 @@
 use rtcnc_fieldbus::{
     Cia402State, ControlWord, Fieldbus, LatchSource, ProcessInputs, ProcessOutputs,
 };
-use rtcnc_rt::{Context, RingConsumer, RingProducer, SeqlockWriter};
+use rtcnc_motion::otg::{self, Limits, OnlineAxis};
+use rtcnc_rt::{Context, LeadConsumer, RingProducer, SeqlockWriter};
 use rtcnc_servo::{ServoCommand, ServoLoop, SetPointDifferentiator};
 
 use crate::config::MAX_JOINTS;
@@ -45,7 +46,7 @@ pub(crate) struct ServoStage<B: Fieldbus> {
     joint_count: usize,
     period_s: f64,
     target: Option<ServoTarget>,
-    targets: RingConsumer<ServoTarget>,
+    targets: LeadConsumer<ServoTarget>,
     recorder: Option<RingProducer<Sample>>,
     shared: Shared,
     feedback_out: SeqlockWriter<Feedback>,
@@ -64,7 +65,16 @@ pub(crate) struct ServoStage<B: Fieldbus> {
     program_analog_outputs: Vec<usize>,
     previous_joints: [f64; MAX_JOINTS],
     underruns: u64,
+    /// Per joint: the limits of its quick stop (for a stop of position control's own).
+    stop_limits: Vec<Limits>,
+    /// Interpolation let the set-points run dry: position control brings each joint to
+    /// rest by itself along these generators, until the next reset.
+    dry_stop: Option<[OnlineAxis; MAX_JOINTS]>,
 }
+
+/// Periods without a set-point that position control bridges by going on along the last
+/// two; the next one without is a fault (`kernel.setpoints_ran_dry`).
+const BRIDGED_PERIODS: u64 = 4;
 
 impl<B: Fieldbus> ServoStage<B> {
     // Every argument is one of the stage's own parts, handed over once at build time.
@@ -73,7 +83,7 @@ impl<B: Fieldbus> ServoStage<B> {
         bus: B,
         loops: Vec<ServoLoop>,
         period_s: f64,
-        targets: RingConsumer<ServoTarget>,
+        targets: LeadConsumer<ServoTarget>,
         recorder: Option<RingProducer<Sample>>,
         shared: Shared,
         feedback_out: SeqlockWriter<Feedback>,
@@ -110,7 +120,16 @@ impl<B: Fieldbus> ServoStage<B> {
             program_analog_outputs: Vec::new(),
             previous_joints: [0.0; MAX_JOINTS],
             underruns: 0,
+            stop_limits: Vec::new(),
+            dry_stop: None,
         }
+    }
+
+    /// The quick-stop limits of every joint, for the stop position control makes by itself
+    /// when the set-points run dry.
+    pub(crate) fn with_stop_limits(mut self, limits: Vec<Limits>) -> Self {
+        self.stop_limits = limits;
+        self
     }
 
     /// M67/M68 `E n` drive analogue output `points[n]`.
@@ -121,10 +140,6 @@ impl<B: Fieldbus> ServoStage<B> {
 
     /// Position control: one servo cycle.
     pub(crate) fn position_control(&mut self, ctx: &mut Context<'_>) {
-        self.shared.fieldbus_skipped.store(
-            ctx.activation().saturating_sub(self.exchanges),
-            std::sync::atomic::Ordering::Relaxed,
-        );
         self.take_setpoint();
         let Some(mut target) = self.target else {
             // Nothing planned yet: keep the drives where they are.
@@ -146,21 +161,30 @@ impl<B: Fieldbus> ServoStage<B> {
             self.drive_fault_latched = 0;
             self.comm_fault = false;
             self.estop_latched = false;
+            self.dry_stop = None;
         }
-        // Interpolation made the set-point for this period in the previous one. When it was
-        // late (a real-time overrun), go on along the last two set-points for up to four
-        // periods instead of standing still; it catches up by computing the missed ones.
-        // Every period without a fresh set-point counts, also those beyond the four that
-        // are bridged (the set-point then stands until interpolation catches up).
+        // Interpolation computes the set-points ahead (`tasks.setpoint_lead`); one is
+        // missing only when it stalled for longer than that. Then go on along the last two
+        // set-points for a few periods; beyond them it is a fault, and every joint is
+        // brought to rest here with its quick-stop limits, since interpolation cannot.
         let missing = self.exchanges.saturating_sub(target.setpoints.cycle);
         if missing > 0 && target.enable {
             self.underruns += 1;
         }
-        if missing > 0 && missing <= 4 && target.enable {
-            let k = missing as f64;
+        if missing > 0 && target.enable && self.dry_stop.is_none() {
+            let k = missing.min(BRIDGED_PERIODS) as f64;
+            let mut step = [0.0; MAX_JOINTS];
             for j in 0..self.joint_count {
-                let v = target.setpoints.joints[j] - self.previous_joints[j];
-                target.setpoints.joints[j] += v * k;
+                step[j] = target.setpoints.joints[j] - self.previous_joints[j];
+                target.setpoints.joints[j] += step[j] * k;
+            }
+            if missing > BRIDGED_PERIODS {
+                self.start_dry_stop(ctx, &target, &step);
+            }
+        }
+        if let Some(stops) = self.dry_stop.as_mut() {
+            for (j, stop) in stops.iter_mut().enumerate().take(self.joint_count) {
+                target.setpoints.joints[j] = stop.step(self.period_s).p;
             }
         }
         let period = self.period_s;
@@ -269,22 +293,55 @@ impl<B: Fieldbus> ServoStage<B> {
         }
     }
 
-    /// The set-point intake: takes the set-points from the set-point channel up to this
-    /// period's, not beyond (on a multi-core machine the interpolation thread may already
-    /// have made the next one), keeping the one before for extrapolation.
+    /// The set-point intake: takes this period's set-point from the lead queue (the one
+    /// for this exchange, however far ahead interpolation has computed), keeping the one
+    /// before for extrapolation.
     fn take_setpoint(&mut self) {
-        while let Some(cycle) = self.targets.peek().map(|t| t.setpoints.cycle) {
-            if cycle > self.exchanges && self.target.is_some() {
-                break;
-            }
-            let Some(t) = self.targets.pop() else {
-                break;
-            };
+        if let Ok(t) = self.targets.take(self.exchanges) {
             if let Some(previous) = self.target {
                 self.previous_joints = previous.setpoints.joints;
             }
             self.target = Some(t);
         }
+    }
+
+    /// The set-points ran dry: a fault, and from the extrapolated set-point of every joint
+    /// (its velocity that of the last two set-points) a quick stop of position control's
+    /// own, until the reset after it.
+    fn start_dry_stop(&mut self, ctx: &mut Context<'_>, target: &ServoTarget, step: &[f64]) {
+        let rest = OnlineAxis::new(otg::State::at_rest(0.0), Limits::symmetric(1.0, 1.0, 1.0));
+        let Ok(rest) = rest else {
+            return;
+        };
+        let mut stops = [rest; MAX_JOINTS];
+        for (j, stop) in stops.iter_mut().enumerate().take(self.joint_count) {
+            // The last bridged set-point (the extrapolation stops growing past the bridged
+            // periods), moving on at the velocity of the last two.
+            let p = target.setpoints.joints[j];
+            let v = step[j] / self.period_s;
+            let limits = self
+                .stop_limits
+                .get(j)
+                .copied()
+                .unwrap_or_else(|| Limits::symmetric(v.abs().max(1.0), 1e3, 1e5));
+            let limits = Limits::symmetric(
+                limits.max_velocity.max(v.abs()),
+                limits.max_acceleration,
+                limits.max_jerk,
+            );
+            *stop = OnlineAxis::new(otg::State::new(p, v, 0.0), limits)
+                .or_else(|_| OnlineAxis::new(otg::State::at_rest(p), limits))
+                .unwrap_or(rest);
+        }
+        self.dry_stop = Some(stops);
+        self.shared.raise(
+            ctx,
+            FaultCode::SetpointsRanDry,
+            TaskName::PositionControl,
+            None,
+            target.setpoints.line,
+            (self.exchanges - target.setpoints.cycle) as f64,
+        );
     }
 
     /// Drive I/O: one exchange.

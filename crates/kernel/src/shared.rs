@@ -250,11 +250,10 @@ pub struct Shared {
     pub error_text: std::sync::Arc<PiMutex<Option<String>>>,
     /// Faults raised so far (for the status snapshot).
     pub fault_count: std::sync::Arc<std::sync::atomic::AtomicU32>,
-    /// Servo periods the fieldbus thread has skipped so far (its period index minus the
-    /// exchanges done), written by position control at the start of every cycle: with it
-    /// interpolation numbers each set-point by the exchange it is for without looking at
-    /// how far drive I/O has got in the current period (see `MotionCore::interpolate`).
-    pub fieldbus_skipped: std::sync::Arc<std::sync::atomic::AtomicU64>,
+    /// The most exchanges with the drives between two runs of interpolation since
+    /// start-up (1 when it never stalled): the longest stall the set-point lead had to
+    /// ride through, in servo periods.
+    pub interpolation_gap: std::sync::Arc<std::sync::atomic::AtomicU64>,
     /// The last move the planner refused (moved in, not formatted, by the look-ahead).
     pub motion_error: std::sync::Arc<PiMutex<Option<rtcnc_motion::MotionError>>>,
 }
@@ -290,7 +289,7 @@ impl Shared {
             error_text: std::sync::Arc::new(PiMutex::new(None)),
             motion_error: std::sync::Arc::new(PiMutex::new(None)),
             fault_count: std::sync::Arc::new(std::sync::atomic::AtomicU32::new(0)),
-            fieldbus_skipped: std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0)),
+            interpolation_gap: std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0)),
         };
         (shared, writers)
     }

@@ -630,9 +630,18 @@ impl<K: Kinematics> Planner<K> {
         self.builder.stats
     }
 
-    /// Pieces in the look-ahead window.
+    /// Pieces in the look-ahead window (with those kept behind the emitted set-point for
+    /// [`unemit`](Self::unemit)).
     pub fn window_len(&self) -> usize {
         self.q.len
+    }
+
+    /// Pieces from the emitted set-point's on: the path still to run.
+    pub fn pieces_ahead(&self) -> usize {
+        let behind = self.cur.id.saturating_sub(self.q.head_id);
+        self.q
+            .len
+            .saturating_sub(usize::try_from(behind).unwrap_or(usize::MAX))
     }
 
     /// How many servo periods the generator runs ahead of the emitted set-point at most

@@ -239,8 +239,25 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             stats.deadline_misses
         );
     }
+    let (lead, gap) = handle.setpoint_lead();
+    let period_ms = config.servo_period().as_secs_f64() * 1e3;
+    let latest = recording
+        .monitor()
+        .stats()
+        .into_iter()
+        .filter(|s| s.name == "interpolation" || s.name == "position control")
+        .map(|s| (s.name, s.lateness.max))
+        .fold(String::new(), |text, (name, max)| {
+            format!("{text}  {name} {:.3} ms", max as f64 / 1e6)
+        });
+    println!("latest start after release:{latest}");
     println!(
-        "set-point underruns (extrapolated periods): {}",
+        "set-point lead {lead} periods ({:.1} ms); longest gap between interpolation runs {gap} periods ({:.1} ms)",
+        lead as f64 * period_ms,
+        gap as f64 * period_ms,
+    );
+    println!(
+        "set-point underruns (periods without a set-point): {}",
         handle.setpoint_underruns()
     );
     for f in faults

@@ -135,7 +135,10 @@ impl MotionCore {
         self.hold.held = false;
         self.hold.logic_paused = false;
         match self.source {
-            Source::Path => self.path.planner.abort(),
+            Source::Path => {
+                self.take_back();
+                self.path.planner.abort();
+            }
             Source::Manual => self.stop_manual(false),
         }
         let mi = self.requests_mut();

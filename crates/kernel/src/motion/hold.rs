@@ -56,6 +56,7 @@ impl MotionCore {
             Source::Path => {
                 self.hold.held = true;
                 if self.moving() {
+                    self.take_back();
                     self.path.planner.hold();
                 }
             }
@@ -93,6 +94,7 @@ impl MotionCore {
             self.hold.logic_paused = false;
             // The feed stop switch keeps holding until it is released.
             if !self.hold.feed_stop {
+                self.take_back();
                 self.path.planner.resume();
             }
         }
@@ -137,9 +139,11 @@ impl MotionCore {
             if self.source == Source::Path {
                 if stop_now {
                     if self.moving() {
+                        self.take_back();
                         self.path.planner.hold();
                     }
                 } else if !self.hold.latched() {
+                    self.take_back();
                     self.path.planner.resume();
                 }
             }

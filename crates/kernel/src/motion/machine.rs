@@ -172,3 +172,13 @@ impl Machine {
         (machine, power_up)
     }
 }
+
+/// Every joint's quick-stop limits (the limits of its axis' quick stop; an independent
+/// joint's own), for a stop position control makes by itself.
+pub(crate) fn joint_quick_stop_limits(config: &MachineConfig) -> Vec<Limits> {
+    let (machine, _) = Machine::from_config(config);
+    machine.joints[..machine.joint_count]
+        .iter()
+        .map(|j| j.quick)
+        .collect()
+}

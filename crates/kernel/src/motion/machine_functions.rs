@@ -73,7 +73,7 @@ impl MotionCore {
     /// Starts the machine function the path stopped for; what comes next is the logic's
     /// answer, a wait, a pause, or the next block.
     pub(super) fn start_aux(&mut self, shared: &Shared, aux: Aux, line: u32) {
-        self.program.aux_cycle = self.out.cycle;
+        self.program.aux_cycle = self.now();
         let hand_shake = Event::HandShake { aux, line };
         let refused = Event::Fail {
             code: FaultCode::AuxRefused,
@@ -102,7 +102,7 @@ impl MotionCore {
                 mi.spindle_orient = true;
                 mi.spindle_orient_angle = angle;
                 mi.spindle_orient_mode = mode;
-                self.program.orient_cycle = self.out.cycle;
+                self.program.orient_cycle = self.now();
                 Event::Proceed
             }
             Aux::WaitOrient { timeout } => Event::WaitOrient {
@@ -230,7 +230,7 @@ impl MotionCore {
                 // The logic's at-speed answers the new command only after the drives have
                 // had it (one exchange) and the logic has scanned again.
                 !self.interface.requests.spindle_on
-                    || (answers.spindle_at_speed && self.out.cycle >= self.program.aux_cycle + 2)
+                    || (answers.spindle_at_speed && self.now() >= self.program.aux_cycle + 2)
             }
             Aux::SpindleOff => true,
             Aux::Mist(on) => answers.out_mist == on,
@@ -284,10 +284,10 @@ impl MotionCore {
     pub(super) fn waiting_for_orient(&mut self, deadline: u64, line: u32) -> bool {
         // The feedback answers the orientation only after the drive had it.
         let oriented = self.interface.feedback.get().spindle_oriented
-            && self.out.cycle >= self.program.orient_cycle + 2;
+            && self.now() >= self.program.orient_cycle + 2;
         if oriented {
             self.fire(Event::Proceed)
-        } else if self.out.cycle >= deadline {
+        } else if self.now() >= deadline {
             self.fire(Event::Fail {
                 code: FaultCode::SpindleOrientTimeout,
                 line,
@@ -316,7 +316,7 @@ impl MotionCore {
             WaitCondition::High => now,
             WaitCondition::Low => !now,
         };
-        if met || self.out.cycle >= deadline {
+        if met || self.now() >= deadline {
             let value = match (met, now) {
                 (false, _) => -1.0,
                 (true, true) => 1.0,

@@ -122,6 +122,9 @@ impl MotionCore {
         if self.source == Source::Manual {
             return;
         }
+        // The jog starts from where the machine is, not after the path's set-points
+        // produced ahead.
+        self.discard_ahead();
         let axes = self.out.last.axes;
         for i in 0..AXES {
             if self.machine.axis_present[i] {

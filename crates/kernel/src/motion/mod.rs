@@ -36,7 +36,7 @@ mod synced;
 
 use rtcnc_motion::otg::{self, Limits, OnlineAxis};
 use rtcnc_motion::{AXES, Kinematics, MotionState, Planner};
-use rtcnc_rt::SeqlockWriter;
+use rtcnc_rt::{LeadProducer, SeqlockWriter};
 
 use crate::config::{MAX_JOINTS, MachineConfig};
 use crate::error::KernelError;
@@ -46,6 +46,7 @@ use crate::shared::{Feedback, LogicOutputs, LogicRequests, Shared, Snapshot};
 
 use hold::Hold;
 use interpolation::Output;
+pub(crate) use machine::joint_quick_stop_limits;
 use machine::{Machine, limits_of};
 use machine_functions::ProgramIo;
 use manual::Manual;
@@ -124,7 +125,7 @@ pub(crate) struct MotionCore {
     path: Path,
     manual: Manual,
     source: Source,
-    /// The set-point of the last period and what goes with it to position control.
+    /// The set-points produced ahead and what goes with them to position control.
     out: Output,
     mode: Mode,
     program: Program,
@@ -151,6 +152,7 @@ impl MotionCore {
         kinematics: MachineKinematics,
         shared: &Shared,
         requests_out: SeqlockWriter<LogicRequests>,
+        setpoints_out: LeadProducer<ServoTarget>,
     ) -> Result<MotionCore, KernelError> {
         let (machine, start) = Machine::from_config(config);
         if kinematics.joint_count() != start.planner_joint_count {
@@ -159,7 +161,14 @@ impl MotionCore {
                 found: kinematics.joint_count(),
             });
         }
-        let planner = Planner::new(&start.limits, kinematics, machine.period_s, 256, start.axes)?;
+        let lead = config.tasks.setpoint_lead_periods(config.servo_period())?;
+        // The planner keeps the set-points of the lead (and a few more), so that it can go
+        // back over those position control has not taken.
+        let history = usize::try_from(lead)
+            .unwrap_or(usize::MAX)
+            .saturating_add(8);
+        let planner = Planner::new(&start.limits, kinematics, machine.period_s, 256, start.axes)?
+            .with_history(history);
         let at_rest = |p: f64, l: Limits| OnlineAxis::new(otg::State::at_rest(p), l);
         let mut axis_otg = [at_rest(0.0, limits_of(1.0, 1.0, 1.0))?; AXES];
         for i in 0..AXES {
@@ -192,6 +201,10 @@ impl MotionCore {
                 joint_otg[j] = at_rest(start.axes[i], joints[j].limits)?;
             }
         }
+        let independent_joints = joints
+            .iter()
+            .take(machine.joint_count)
+            .any(|j| j.axis.is_none());
         Ok(MotionCore {
             state: State::Starting,
             path: Path {
@@ -204,7 +217,7 @@ impl MotionCore {
             manual: Manual::new(axis_otg, joint_otg, joint_manual),
             machine,
             source: Source::Path,
-            out: Output::new(last),
+            out: Output::new(last, setpoints_out, lead, independent_joints, &joint_otg),
             mode: Mode::Manual,
             program: Program::new(),
             safety: Safety::new(),
@@ -269,16 +282,25 @@ impl MotionCore {
         self.program.loaded = has;
     }
 
-    /// Whether anything of the path or the manual generators still moves.
+    /// Whether anything of the path or the manual generators still moves: at the
+    /// set-point position control applies next, or in those produced after it, or in the
+    /// moves not started yet.
     fn moving(&self) -> bool {
         match self.source {
             Source::Path => {
                 self.synced.is_some()
+                    || self.out.now().state != MotionState::Idle
                     || self.path.state != MotionState::Idle
-                    || self.path.planner.window_len() > 0
+                    || self.path.planner.pieces_ahead() > 0
             }
             Source::Manual => self.manual_moving(),
         }
+    }
+
+    /// The servo period the machine is in, by the set-point position control applies
+    /// next (the clock of the sequencer's waits).
+    fn now(&self) -> u64 {
+        self.out.consumer_next()
     }
 
     /// The machine state as the status shows it.
@@ -309,8 +331,8 @@ impl MotionCore {
 
     /// Fills the status snapshot (called by the status task).
     pub(crate) fn status(&self, feedback: &Feedback, time_ns: u64, status: &mut Status) {
-        let last = &self.out.last;
-        status.cycle = self.out.cycle;
+        let last = &self.out.now().target.setpoints;
+        status.cycle = last.cycle;
         status.time_ns = time_ns;
         status.state = self.state();
         status.mode = self.mode;

@@ -85,6 +85,7 @@ impl MotionCore {
         } else {
             (1.0, 1.0)
         };
+        self.take_back();
         self.path.planner.set_feed_override(feed);
         self.path.planner.set_rapid_override(rapid);
     }

@@ -46,6 +46,7 @@ impl MotionCore {
             kind,
             tripped_at: None,
         };
+        self.before_new_motion();
         match self.path.planner.push(&mv) {
             Ok(()) => {
                 self.path.planner.flush();
@@ -81,7 +82,7 @@ impl MotionCore {
         if contact != toward(kind) {
             return;
         }
-        let mut at = self.out.last.axes;
+        let mut at = self.out.now().target.setpoints.axes;
         for i in 0..AXES {
             if let Some(j) = self.machine.axis_joint[i] {
                 at[i] = feedback.position[j] + self.out.offsets[j];
@@ -91,6 +92,7 @@ impl MotionCore {
             kind,
             tripped_at: Some(at),
         });
+        self.take_back();
         self.path.planner.abort();
     }
 
@@ -112,8 +114,8 @@ impl MotionCore {
             shared,
             MachineResult::Probe {
                 tripped: tripped_at.is_some(),
-                at: tripped_at.unwrap_or(self.out.last.axes),
-                stopped: self.out.last.axes,
+                at: tripped_at.unwrap_or(self.out.now().target.setpoints.axes),
+                stopped: self.out.now().target.setpoints.axes,
             },
         );
         self.fire(Event::Proceed)

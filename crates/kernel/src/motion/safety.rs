@@ -100,7 +100,10 @@ impl MotionCore {
         self.hold.logic_paused = false;
         self.out.latch = LatchRequest::default();
         match self.source {
-            Source::Path => self.path.planner.quick_stop(),
+            Source::Path => {
+                self.take_back();
+                self.path.planner.quick_stop();
+            }
             Source::Manual => {
                 self.manual.handwheel = None;
                 self.stop_manual(true);
@@ -147,6 +150,7 @@ impl MotionCore {
     /// gantry axis that no longer agree lose their homed state (their offsets absorb the
     /// difference; homing squares them again).
     fn resync_to_feedback(&mut self, feedback: &Feedback) {
+        self.discard_ahead();
         let mut axes = self.out.last.axes;
         let mut axis_set = [false; AXES];
         for j in 0..self.machine.joint_count {

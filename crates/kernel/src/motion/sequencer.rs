@@ -149,6 +149,7 @@ impl MotionCore {
             MachineBlock::Error { line, code } => (Then::Error(code), line),
             MachineBlock::MdiDone => (Then::MdiDone, 0),
         };
+        self.before_new_motion();
         self.path.planner.flush();
         self.fire(Event::Drain { then, line });
         true
@@ -165,6 +166,7 @@ impl MotionCore {
             }
             return true;
         }
+        self.before_new_motion();
         if let Some(end) = self.program.skipped_to.take() {
             // Run from a line: go to where the first executed block starts, at rapid.
             let approach = Move::rapid(end, PathMode::ExactStop, mv.line);
@@ -260,11 +262,11 @@ impl MotionCore {
     /// one, and saturating for one longer than the machine will run.
     pub(super) fn deadline_after(&self, seconds: f64) -> u64 {
         if seconds.is_nan() || seconds <= 0.0 {
-            return self.out.cycle;
+            return self.now();
         }
         // `as` saturates: infinity and 1e30 s become u64::MAX periods.
         let periods = (seconds / self.machine.period_s).ceil() as u64;
-        self.out.cycle.saturating_add(periods)
+        self.now().saturating_add(periods)
     }
 
     /// Hands the interpreter the result it waits for (it reads on once it has it).
@@ -285,7 +287,7 @@ impl MotionCore {
                 return;
             };
             if s == seq {
-                let cycle = self.out.cycle;
+                let cycle = self.now();
                 let _ = shared.operator_messages.try_put(OperatorMessage {
                     cycle,
                     time_ns: cycle.saturating_mul(self.machine.period_ns),

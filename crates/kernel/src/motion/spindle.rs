@@ -54,7 +54,7 @@ impl MotionCore {
         let factor = self.overrides.spindle_factor();
         match self.spindle.css {
             Some(c) => {
-                let radius = (self.out.last.axes[0] - c.x_centre).abs();
+                let radius = (self.out.now().target.setpoints.axes[0] - c.x_centre).abs();
                 let rpm = if radius > 0.0 {
                     c.factor / radius
                 } else {

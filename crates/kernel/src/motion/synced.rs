@@ -48,6 +48,8 @@ impl MotionCore {
     pub(super) fn start_synced(&mut self, end: [f64; AXES], pitch: f64, line: u32) {
         let feedback = *self.interface.feedback.get();
         let fail = |code| Event::Fail { code, line };
+        // From where the machine stands, not after the set-points produced ahead there.
+        self.discard_ahead();
         let start = self.out.last.axes;
         let mut dir = [0.0; AXES];
         let mut length2 = 0.0;
