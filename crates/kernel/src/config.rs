@@ -509,12 +509,40 @@ pub enum MissReactionConfig {
 }
 
 /// `[safety]`.
-#[derive(Debug, Clone, Copy, Deserialize, Default)]
+#[derive(Debug, Clone, Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 pub struct SafetySection {
     /// Reaction to a deadline miss.
     #[serde(default)]
     pub deadline_miss: MissReactionConfig,
+    /// How long a program's path may stand still while it should move (its planner
+    /// moving, speed zero, no hold, no dwell, overrides above zero) before the stall
+    /// watchdog stops the program with `kernel.motion_stalled` at the line; a duration.
+    /// Default [`DEFAULT_STALL_TIMEOUT`].
+    #[serde(default)]
+    pub stall_timeout: Option<String>,
+}
+
+/// The default of `safety.stall_timeout`: far longer than any legitimate standstill of a
+/// moving path (an exact stop lasts a period or two).
+pub const DEFAULT_STALL_TIMEOUT: Duration = Duration::from_secs(2);
+
+impl SafetySection {
+    /// `stall_timeout` in servo periods, or why it is refused.
+    pub fn stall_timeout_periods(&self, servo_period: Duration) -> Result<u64, ConfigError> {
+        let timeout = match &self.stall_timeout {
+            Some(text) => rtcnc_rt::parse_duration(text)
+                .map_err(|e| ConfigError::invalid("safety.stall_timeout", e.to_string()))?,
+            None => DEFAULT_STALL_TIMEOUT,
+        };
+        if timeout < Duration::from_millis(10) {
+            return Err(ConfigError::invalid(
+                "safety.stall_timeout",
+                "at least 10 ms (an exact stop stands still for a period or two)",
+            ));
+        }
+        Ok(timeout.as_nanos().div_ceil(servo_period.as_nanos().max(1)) as u64)
+    }
 }
 
 /// `[files]`: persistent state, relative to the configuration file.
@@ -895,6 +923,7 @@ impl MachineConfig {
             ));
         }
         t.setpoint_lead_periods(servo)?;
+        self.safety.stall_timeout_periods(servo)?;
         for (name, priority) in [
             ("tool_compensation", t.tool_compensation.priority),
             ("interpreter", t.interpreter.priority),

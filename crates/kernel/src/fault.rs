@@ -91,6 +91,9 @@ pub enum FaultCode {
     SetpointsRanDry,
     /// Interpolation could not queue a set-point (position control stopped taking them).
     SetpointsLost,
+    /// The stall watchdog: a program's path stood still while it should move for longer
+    /// than `safety.stall_timeout`; the program is stopped at the line.
+    MotionStalled,
 }
 
 impl FaultCode {
@@ -116,6 +119,7 @@ impl FaultCode {
             FaultCode::SyncFailed => "kernel.sync_failed",
             FaultCode::SetpointsRanDry => "kernel.setpoints_ran_dry",
             FaultCode::SetpointsLost => "kernel.setpoints_lost",
+            FaultCode::MotionStalled => "kernel.motion_stalled",
         }
     }
 
@@ -146,6 +150,7 @@ impl FaultCode {
             FaultCode::SyncFailed => "spindle-synchronised move impossible",
             FaultCode::SetpointsRanDry => "set-points ran dry (interpolation stalled)",
             FaultCode::SetpointsLost => "set-point lost (position control stopped taking)",
+            FaultCode::MotionStalled => "the path stood still while it should move",
         }
     }
 

@@ -46,6 +46,10 @@ pub struct KernelOptions {
     /// time on top of its work (virtual time charges it; real time spins), as a thread
     /// that its processor does not run for that long. For the set-point lead's tests.
     pub interpolation_stall: Option<(u64, Duration)>,
+    /// Fault injection: from the set-point with this number on the planner makes no
+    /// progress (its set-point stands while it says it moves), as a planner that stalls.
+    /// For the stall watchdog's test.
+    pub freeze_path_from: Option<u64>,
 }
 
 /// The result of the power-up self-test.
@@ -259,6 +263,7 @@ impl Kernel {
             requests,
             setpoints_out,
             options.program.is_some(),
+            options.freeze_path_from,
         )?;
         let (logic, retain) = logic_stage(&config, &shared, logic_outputs, &mut report)?;
         let interpreter = interpreter_stage(&config, &shared, &options, parameters, tools);
@@ -356,8 +361,10 @@ fn motion_core(
     requests: SeqlockWriter<LogicRequests>,
     setpoints_out: LeadProducer<ServoTarget>,
     has_program: bool,
+    freeze_path_from: Option<u64>,
 ) -> Result<Arc<PiMutex<MotionCore>>, KernelError> {
     let mut core = MotionCore::new(config, kinematics, shared, requests, setpoints_out)?;
+    core.freeze_path_from(freeze_path_from);
     core.set_has_program(has_program);
     core.self_test_passed();
     Ok(Arc::new(PiMutex::new(core)))

@@ -172,6 +172,7 @@ impl MotionCore {
             ctx.mark("line", u64::from(now_line));
         }
         self.follow_surface_speed();
+        self.watch_for_stall(ctx, shared);
         self.finish_quick_stop();
         self.publish_requests();
         self.out.interpolating = false;
@@ -305,6 +306,11 @@ impl MotionCore {
         sp.cycle = self.out.cycle;
         match self.source {
             Source::Path if self.synced.is_some() => self.synced_step(feedback, &mut sp),
+            Source::Path if self.path_frozen() => {
+                // Injected: the planner makes no progress, its set-point stands.
+                sp.path_speed = 0.0;
+                self.path.state = MotionState::Moving;
+            }
             Source::Path => {
                 let n = self.path.joint_count;
                 let status = self.path.planner.next(&mut self.path.buf[..n]);

@@ -31,6 +31,7 @@ mod probing;
 mod safety;
 mod sequencer;
 mod spindle;
+mod stall;
 mod state;
 mod synced;
 
@@ -55,6 +56,7 @@ use probing::Probe;
 use safety::Safety;
 use sequencer::Program;
 use spindle::Spindle;
+use stall::StallWatch;
 use state::{Event, State, Step, transition};
 use synced::SyncedMove;
 
@@ -143,6 +145,7 @@ pub(crate) struct MotionCore {
     /// The tool in the spindle.
     tool: u32,
     interface: MachineInterface,
+    stall: StallWatch,
 }
 
 impl MotionCore {
@@ -162,6 +165,7 @@ impl MotionCore {
             });
         }
         let lead = config.tasks.setpoint_lead_periods(config.servo_period())?;
+        let stall_limit = config.safety.stall_timeout_periods(config.servo_period())?;
         // The planner keeps the set-points of the lead (and a few more), so that it can go
         // back over those position control has not taken.
         let history = usize::try_from(lead)
@@ -229,6 +233,7 @@ impl MotionCore {
             probe: None,
             synced: None,
             tool: config.tool_changer.map_or(0, |t| t.initial_tool),
+            stall: StallWatch::new(stall_limit),
             interface: MachineInterface {
                 feedback: Snapshot::new(shared.feedback.clone()),
                 logic: Snapshot::new(shared.logic_outputs.clone()),

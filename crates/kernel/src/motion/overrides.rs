@@ -78,13 +78,19 @@ impl MotionCore {
         }
     }
 
-    /// The operator's feed and rapid overrides, or 100 % while M49/M50 P0 is in force.
-    pub(super) fn apply_feed_overrides(&mut self) {
-        let (feed, rapid) = if self.overrides.feed_enabled {
+    /// The feed and rapid overrides in force: the operator's, or 100 % while M49/M50 P0
+    /// is in force.
+    pub(super) fn effective_feed_overrides(&self) -> (f64, f64) {
+        if self.overrides.feed_enabled {
             (self.overrides.feed, self.overrides.rapid)
         } else {
             (1.0, 1.0)
-        };
+        }
+    }
+
+    /// The operator's feed and rapid overrides, or 100 % while M49/M50 P0 is in force.
+    pub(super) fn apply_feed_overrides(&mut self) {
+        let (feed, rapid) = self.effective_feed_overrides();
         self.take_back();
         self.path.planner.set_feed_override(feed);
         self.path.planner.set_rapid_override(rapid);
