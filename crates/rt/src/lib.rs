@@ -55,8 +55,8 @@ mod virtual_time;
 pub use error::ConfigError;
 pub use ipc::{
     BinarySemaphore, CountingSemaphore, EventSemaphore, IpcError, LatestReader, LatestWriter,
-    Mailbox, PiMutex, PiMutexGuard, Rejected, RingConsumer, RingProducer, SeqlockReader,
-    SeqlockWriter, Trigger, latest, ring, seqlock,
+    Mailbox, PiMutex, PiMutexGuard, Rejected, RingConsumer, RingProducer, SeqlockCell,
+    SeqlockReader, SeqlockWriter, SpscCell, Trigger, latest, ring, seqlock,
 };
 pub use monitor::{
     Fault, FaultCode, FaultRecord, MissReaction, Monitor, TaskKind, TaskMonitor, TaskState,
