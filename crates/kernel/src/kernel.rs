@@ -83,6 +83,9 @@ pub struct KernelOptions {
     /// Processor time the interpolation task declares per run on top of its own work:
     /// virtual time charges it, real time spins for it. For load and deadline-miss tests.
     pub interpolation_load: Option<Duration>,
+    /// The shared-memory link to an API process (`rtcnc machine`): its tasks run first in
+    /// the interpolation thread, in command parsing and after status feedback.
+    pub link: Option<crate::link::MachineLink>,
 }
 
 /// The result of the power-up self-test.
@@ -98,6 +101,7 @@ pub struct KernelHandle {
     shared: Shared,
     servo: Arc<PiMutex<ServoStage<SimulatedMachine>>>,
     config: Arc<MachineConfig>,
+    plc: Option<Arc<PiMutex<rtcnc_plc::Runtime>>>,
 }
 
 impl KernelHandle {
@@ -148,6 +152,11 @@ impl KernelHandle {
     /// of interpolation) and extrapolated.
     pub fn setpoint_underruns(&self) -> u64 {
         self.servo.lock().underruns()
+    }
+
+    /// The PLC runtime, shared with the machine-logic task (hold it briefly).
+    pub fn plc(&self) -> Option<&Arc<PiMutex<rtcnc_plc::Runtime>>> {
+        self.plc.as_ref()
     }
 
     /// The configuration.
@@ -218,8 +227,12 @@ impl Kernel {
         let (shared, writers) = Shared::new();
         let (target_tx, target_rx) = rtcnc_rt::ring::<ServoTarget>("set-points", 4)
             .map_err(|e| KernelError::Executive(e.to_string()))?;
-        let (recorder, samples) = if options.record_capacity > 0 {
-            let (tx, rx) = rtcnc_rt::ring::<Sample>("samples", options.record_capacity)
+        let record_capacity = match options.link {
+            Some(_) => options.record_capacity.max(64),
+            None => options.record_capacity,
+        };
+        let (recorder, mut samples) = if record_capacity > 0 {
+            let (tx, rx) = rtcnc_rt::ring::<Sample>("samples", record_capacity)
                 .map_err(|e| KernelError::Executive(e.to_string()))?;
             (Some(tx), Some(rx))
         } else {
@@ -241,7 +254,8 @@ impl Kernel {
 
         let mut core = MotionCore::new(&config, &shared, writers.requests)
             .map_err(|e| KernelError::Motion(e.to_string()))?;
-        core.set_has_program(options.program.is_some());
+        // With a link, programs are loaded at run time (the link refuses a start without one).
+        core.set_has_program(options.program.is_some() || options.link.is_some());
         core.set_ready(true);
         let core = Arc::new(PiMutex::new(core));
 
@@ -269,13 +283,18 @@ impl Kernel {
                         ),
                     ));
                 }
-                Logic::Plc(Box::new(runtime))
+                Logic::Plc(Arc::new(PiMutex::new(runtime)))
             }
+        };
+        let plc = match &logic {
+            Logic::Plc(runtime) => Some(Arc::clone(runtime)),
+            Logic::Direct => None,
         };
         let retain = match (&logic, &config.files.plc_retain) {
             (Logic::Plc(runtime), Some(file)) => {
                 let file = config.resolve(file);
-                Some((Arc::new(PiMutex::new(runtime.retain_snapshot())), file))
+                let snapshot = runtime.lock().retain_snapshot();
+                Some((Arc::new(PiMutex::new(snapshot)), file))
             }
             _ => None,
         };
@@ -306,7 +325,21 @@ impl Kernel {
             parameters,
             config.machine.diameter_mode,
         )
-        .with_parameter_file(config.files.parameters.as_ref().map(|p| config.resolve(p)));
+        .with_parameter_file(config.files.parameters.as_ref().map(|p| config.resolve(p)))
+        .with_tool_table_file(config.files.tool_table.as_ref().map(|p| config.resolve(p)));
+        let (modal_writer, modal) = rtcnc_rt::seqlock("modal state", Default::default());
+        interpreter = interpreter.with_modal(modal_writer);
+        let link = match &options.link {
+            Some(l) => Some(
+                l.ports(&shared, modal, samples.take())
+                    .map_err(|e| KernelError::Executive(e.to_string()))?,
+            ),
+            None => None,
+        };
+        let (mut urgent_port, mut command_port, mut publisher) = match link {
+            Some((u, c, p)) => (Some(u), Some(c), Some(p)),
+            None => (None, None, None),
+        };
         let mut compensation = CompensationStage::new(shared.clone());
 
         let mut b = TaskSet::builder();
@@ -344,6 +377,12 @@ impl Kernel {
         } else {
             thread(&mut b, "interpolation", 2)
         };
+        if let Some(mut port) = urgent_port.take() {
+            // First in the interpolation thread: urgent commands reach interpolation within
+            // the period they are read in.
+            let sh = shared.clone();
+            b.periodic(th, "link urgent", 1, move |ctx| port.run(ctx, &sh));
+        }
         let (c, sh) = (core.clone(), shared.clone());
         let mut target_tx = target_tx;
         let load = options.interpolation_load;
@@ -376,9 +415,16 @@ impl Kernel {
             // The urgent channel is read before this, at the start of every interpolation
             // cycle; here the normal one, a command per run until it is empty.
             // Drained: the remaining runs of this period are not made.
-            match sh.normal.try_get() {
-                Some(command) => {
-                    c.lock().command(ctx, &sh, command);
+            let next = match sh.normal.try_get() {
+                Some(command) => Some((0, command)),
+                None => command_port.as_mut().and_then(|p| p.next(ctx)),
+            };
+            match next {
+                Some((serial, command)) => {
+                    let ok = c.lock().command(ctx, &sh, command);
+                    if let Some(p) = command_port.as_mut() {
+                        p.result(ctx, serial, command, ok);
+                    }
                 }
                 None => ctx.finish_runs(),
             }
@@ -401,6 +447,9 @@ impl Kernel {
             status_out.publish(status);
         });
         b.on_deadline_miss(id, miss);
+        if let Some(mut publisher) = publisher.take() {
+            b.periodic(th, "link status", 1, move |ctx| publisher.run(ctx));
+        }
 
         let sh = shared.clone();
         b.event(
@@ -488,6 +537,7 @@ impl Kernel {
                 shared,
                 servo,
                 config,
+                plc,
             },
             samples,
             self_test: report,
