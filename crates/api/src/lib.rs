@@ -301,7 +301,7 @@ pub fn tool_table(tools: &[models::Tool]) -> Result<rtcnc_gcode::ToolTable, Prob
         }
         let mut tool = rtcnc_gcode::Tool::new(t.number, t.pocket);
         let mut o = [0.0; 9];
-        for (letter, v) in &t.offset {
+        for (letter, v) in &t.offset.0 {
             let i = machine::AXIS_LETTERS
                 .iter()
                 .position(|l| l.eq_ignore_ascii_case(letter))

@@ -5,8 +5,23 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-/// Positions by axis letter (only the machine's axes).
-pub type AxisMap = BTreeMap<String, f64>;
+/// Values by axis letter (only the machine's axes), e.g. `{"X": 1.5, "Y": 0}`.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, ToSchema, PartialEq)]
+#[serde(transparent)]
+pub struct AxisMap(pub BTreeMap<String, f64>);
+
+impl AxisMap {
+    /// Empty.
+    pub fn new() -> AxisMap {
+        AxisMap::default()
+    }
+}
+
+impl FromIterator<(String, f64)> for AxisMap {
+    fn from_iter<I: IntoIterator<Item = (String, f64)>>(iter: I) -> Self {
+        AxisMap(iter.into_iter().collect())
+    }
+}
 
 /// The machine's status snapshot.
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema, PartialEq)]

@@ -750,7 +750,7 @@ pub async fn set_offset(
         .ok_or_else(|| Problem::unprocessable("command.bad_value", "the system is G54 .. G59.3"))?;
     let meta = app.machine.meta();
     let mut line = format!("G10 L2 P{p}");
-    for (letter, v) in &body.offset {
+    for (letter, v) in &body.offset.0 {
         if meta.axis_index(letter).is_none() || !v.is_finite() {
             return Err(Problem::unprocessable("command.bad_value", format!("axis {letter}: not on this machine or not a number")));
         }
