@@ -177,6 +177,7 @@ pub fn router(app: Arc<App>) -> Router {
         .route("/api/diagnostics/trace", get(r::trace))
         .fallback(|| async { Problem::not_found("api.not_found", "no such endpoint") })
         .layer(DefaultBodyLimit::max(MAX_JSON_BODY))
+        .layer(axum::middleware::map_response(problem::as_problem))
         .with_state(app)
 }
 

@@ -594,6 +594,7 @@ impl MachineConn {
         let mut last_status = Instant::now();
         let mut last_machine_seq = 0u64;
         let mut batch: Vec<TraceSample> = Vec::with_capacity(256);
+        let mut wire_events: Vec<WireEvent> = Vec::with_capacity(256);
         let mut was_connected = false;
         while !self.stop.load(Ordering::Relaxed) {
             if attached.is_none() && last_try.elapsed() >= Duration::from_millis(100) {
@@ -641,7 +642,19 @@ impl MachineConn {
             if let (Some((client, ..)), true) = (attached.as_ref(), was_connected) {
                 let client = Arc::clone(client);
                 let meta = self.meta();
-                client.drain_events(|w| self.on_wire_event(&w, &meta, &mut last_machine_seq));
+                wire_events.clear();
+                client.drain_events(|w| wire_events.push(w));
+                // The status first, then the events: whoever an event wakes reads a status at
+                // least as new as the event (the machine publishes its status before its
+                // events).
+                if !wire_events.is_empty() {
+                    last_status = Instant::now();
+                    let doc = self.document(&client, &meta);
+                    self.status_tx.send_replace(Arc::new(doc));
+                }
+                for w in &wire_events {
+                    self.on_wire_event(w, &meta, &mut last_machine_seq);
+                }
                 batch.clear();
                 client.drain_trace(|s| batch.push(*s));
                 if !batch.is_empty() {

@@ -92,6 +92,10 @@ impl PathBuilder {
         }
         let extend = self.paths.last().is_some_and(|l| l.kind == kind);
         if !extend {
+            for i in 0..3 {
+                self.min[i] = self.min[i].min(self.at[i]);
+                self.max[i] = self.max[i].max(self.at[i]);
+            }
             self.paths.push(Polyline {
                 kind: kind.into(),
                 lines: Vec::new(),

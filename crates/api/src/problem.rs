@@ -113,3 +113,28 @@ impl IntoResponse for Problem {
 
 /// A handler's result.
 pub type ApiResult<T> = Result<T, Problem>;
+
+/// Turns every other error answer (a rejected body, query or path, a body over its limit)
+/// into a problem document too.
+pub async fn as_problem(response: Response) -> Response {
+    let status = response.status();
+    let is_problem = response
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .is_some_and(|v| v.as_bytes().starts_with(b"application/problem+json"));
+    if status.as_u16() < 400 || is_problem {
+        return response;
+    }
+    let body = axum::body::to_bytes(response.into_body(), 64 * 1024)
+        .await
+        .unwrap_or_default();
+    let code = match status {
+        StatusCode::PAYLOAD_TOO_LARGE => "api.too_large",
+        StatusCode::METHOD_NOT_ALLOWED => "api.method_not_allowed",
+        StatusCode::UNSUPPORTED_MEDIA_TYPE => "api.media_type",
+        StatusCode::NOT_FOUND => "api.not_found",
+        s if s.is_server_error() => "api.internal",
+        _ => "api.bad_request",
+    };
+    Problem::new(status, code, String::from_utf8_lossy(&body).into_owned()).into_response()
+}

@@ -114,8 +114,9 @@ class Client:
     def _headers(self) -> dict[str, str]:
         return {"Authorization": f"Bearer {self.token}"} if self.token else {}
 
-    def _request(self, method: str, path: str, **kwargs: Any) -> httpx.Response:
-        r = self._http.request(method, path, headers=self._headers(), **kwargs)
+    def _request(self, method: str, path: str, headers: dict[str, str] | None = None,
+                 **kwargs: Any) -> httpx.Response:
+        r = self._http.request(method, path, headers={**self._headers(), **(headers or {})}, **kwargs)
         _raise_for(r)
         return r
 
@@ -233,7 +234,7 @@ class Client:
     def upload_program(self, name: str, text: str | bytes) -> models.ProgramInfo:
         data = text.encode() if isinstance(text, str) else text
         r = self._request("PUT", f"/api/programs/{name}", content=data,
-                          headers={**self._headers(), "content-type": "text/plain"})
+                          headers={"content-type": "text/plain"})
         return models.ProgramInfo.model_validate(r.json())
 
     def read_program(self, name: str) -> str:
@@ -253,7 +254,7 @@ class Client:
         return [models.Tool.model_validate(t) for t in self._request("GET", "/api/setup/tools").json()]
 
     def set_tools(self, tools: list[models.Tool]) -> Acknowledgement:
-        r = self._request("PUT", "/api/setup/tools", json=[t.model_dump() for t in tools])
+        r = self._request("PUT", "/api/setup/tools", json=[t.model_dump(exclude_none=True) for t in tools])
         return Acknowledgement(self, models.Ack.model_validate(r.json()))
 
     def offsets(self) -> list[models.WorkOffset]:
@@ -328,8 +329,9 @@ class AsyncClient:
     def _headers(self) -> dict[str, str]:
         return {"Authorization": f"Bearer {self.token}"} if self.token else {}
 
-    async def _request(self, method: str, path: str, **kwargs: Any) -> httpx.Response:
-        r = await self._http.request(method, path, headers=self._headers(), **kwargs)
+    async def _request(self, method: str, path: str, headers: dict[str, str] | None = None,
+                       **kwargs: Any) -> httpx.Response:
+        r = await self._http.request(method, path, headers={**self._headers(), **(headers or {})}, **kwargs)
         _raise_for(r)
         return r
 
@@ -395,7 +397,7 @@ class AsyncClient:
     async def upload_program(self, name: str, text: str | bytes) -> models.ProgramInfo:
         data = text.encode() if isinstance(text, str) else text
         r = await self._request("PUT", f"/api/programs/{name}", content=data,
-                                headers={**self._headers(), "content-type": "text/plain"})
+                                headers={"content-type": "text/plain"})
         return models.ProgramInfo.model_validate(r.json())
 
     def _ws_url(self) -> str:

@@ -682,81 +682,9 @@ impl Publisher {
                 }
             });
         }
-        // Events: acknowledgements first (they are the oldest), then faults and messages.
-        while let Some(e) = self.from_urgent.pop() {
-            self.emit(e, &status);
-        }
-        while let Some(e) = self.from_commands.pop() {
-            self.emit(e, &status);
-        }
-        while let Some(f) = self.shared.faults.try_get() {
-            let mut e = WireEvent {
-                kind: event::FAULT,
-                code: f.code.number(),
-                time_ns: f.time_ns,
-                line: f.line,
-                joint: f.joint.map_or(-1, i32::from),
-                value: f.value,
-                ..WireEvent::default()
-            };
-            use crate::fault::FaultCode as F;
-            if matches!(
-                f.code,
-                F::ProgramError | F::CompensationError | F::MotionError
-            ) {
-                if let Some(text) = self.shared.error_text.try_lock() {
-                    if let Some(t) = text.as_deref() {
-                        e.text.push(t);
-                    }
-                }
-                if e.text.len == 0 {
-                    if let Some(m) = self.shared.motion_error.try_lock() {
-                        if let Some(err) = m.as_ref() {
-                            use std::fmt::Write as _;
-                            let _ = write!(e.text, "planner: {err}");
-                        }
-                    }
-                }
-            }
-            self.emit(e, &status);
-        }
-        while let Some(m) = self.shared.operator_messages.try_get() {
-            let e = WireEvent {
-                kind: event::MESSAGE,
-                time_ns: m.time_ns,
-                cycle: m.cycle,
-                line: m.line,
-                joint: -1,
-                text: WireText::new(m.text.as_str()),
-                ..WireEvent::default()
-            };
-            self.emit(e, &status);
-        }
+        // The status first: a client that sees an event then reads a status at least as new
+        // as what the event reports.
         let state = state_number(status.state);
-        if state != self.last_state {
-            let e = WireEvent {
-                kind: event::STATE,
-                code: state,
-                number: u64::from(self.last_state),
-                value: f64::from(mode_number(status.mode)),
-                line: status.line,
-                joint: -1,
-                ..WireEvent::default()
-            };
-            self.last_state = state;
-            self.emit(e, &status);
-        }
-        if status.program_ended && !self.ended {
-            let e = WireEvent {
-                kind: event::PROGRAM_END,
-                line: status.line,
-                joint: -1,
-                ..WireEvent::default()
-            };
-            self.emit(e, &status);
-        }
-        self.ended = status.program_ended;
-
         let fb = *self.feedback.get();
         let req = *self.requests.get();
         let outputs = *self.outputs.get();
@@ -820,5 +748,79 @@ impl Publisher {
         o.trace_dropped = seg.trace_dropped.load(Ordering::Relaxed);
         // SAFETY: the publisher is the status cell's only writer.
         unsafe { seg.status.publish(self.out) };
+        // Events: acknowledgements first (they are the oldest), then faults and messages.
+        while let Some(e) = self.from_urgent.pop() {
+            self.emit(e, &status);
+        }
+        while let Some(e) = self.from_commands.pop() {
+            self.emit(e, &status);
+        }
+        while let Some(f) = self.shared.faults.try_get() {
+            let mut e = WireEvent {
+                kind: event::FAULT,
+                code: f.code.number(),
+                time_ns: f.time_ns,
+                line: f.line,
+                joint: f.joint.map_or(-1, i32::from),
+                value: f.value,
+                ..WireEvent::default()
+            };
+            use crate::fault::FaultCode as F;
+            if matches!(
+                f.code,
+                F::ProgramError | F::CompensationError | F::MotionError
+            ) {
+                if let Some(text) = self.shared.error_text.try_lock() {
+                    if let Some(t) = text.as_deref() {
+                        e.text.push(t);
+                    }
+                }
+                if e.text.len == 0 {
+                    if let Some(m) = self.shared.motion_error.try_lock() {
+                        if let Some(err) = m.as_ref() {
+                            use std::fmt::Write as _;
+                            let _ = write!(e.text, "planner: {err}");
+                        }
+                    }
+                }
+            }
+            self.emit(e, &status);
+        }
+        while let Some(m) = self.shared.operator_messages.try_get() {
+            let e = WireEvent {
+                kind: event::MESSAGE,
+                time_ns: m.time_ns,
+                cycle: m.cycle,
+                line: m.line,
+                joint: -1,
+                text: WireText::new(m.text.as_str()),
+                ..WireEvent::default()
+            };
+            self.emit(e, &status);
+        }
+        if state != self.last_state {
+            let e = WireEvent {
+                kind: event::STATE,
+                code: state,
+                number: u64::from(self.last_state),
+                value: f64::from(mode_number(status.mode)),
+                line: status.line,
+                joint: -1,
+                ..WireEvent::default()
+            };
+            self.last_state = state;
+            self.emit(e, &status);
+        }
+        if status.program_ended && !self.ended {
+            let e = WireEvent {
+                kind: event::PROGRAM_END,
+                line: status.line,
+                joint: -1,
+                ..WireEvent::default()
+            };
+            self.emit(e, &status);
+        }
+        self.ended = status.program_ended;
+
     }
 }
