@@ -15,3 +15,8 @@ echo "== cargo clippy -D warnings"
 cargo clippy --workspace --all-targets --locked -- -D warnings
 echo "== cargo test"
 cargo test --workspace --locked
+
+echo "== Python client (sdk/python) against a real rtcnc serve"
+scripts/setup-python.sh
+cargo build -p rtcnc --locked
+(cd sdk/python && ../../target/python-venv/bin/python -m pytest -q -p no:cacheprovider tests)

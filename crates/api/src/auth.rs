@@ -93,8 +93,8 @@ fn hex(bytes: &[u8]) -> String {
 
 /// The argon2id hash of a password.
 pub fn hash_password(password: &str) -> anyhow::Result<String> {
-    let salt = SaltString::encode_b64(&random_bytes::<16>())
-        .map_err(|e| anyhow::anyhow!("salt: {e}"))?;
+    let salt =
+        SaltString::encode_b64(&random_bytes::<16>()).map_err(|e| anyhow::anyhow!("salt: {e}"))?;
     Ok(argon2()
         .hash_password(password.as_bytes(), &salt)
         .map_err(|e| anyhow::anyhow!("hashing: {e}"))?
@@ -102,8 +102,7 @@ pub fn hash_password(password: &str) -> anyhow::Result<String> {
 }
 
 fn verify(password: &str, hash: &str) -> bool {
-    PasswordHash::new(hash)
-        .is_ok_and(|h| argon2().verify_password(password.as_bytes(), &h).is_ok())
+    PasswordHash::new(hash).is_ok_and(|h| argon2().verify_password(password.as_bytes(), &h).is_ok())
 }
 
 /// Reads a users file.
@@ -269,7 +268,12 @@ impl Auth {
     }
 
     /// Logs in; returns the token and the session.
-    pub fn login(&self, from: IpAddr, user: &str, password: &str) -> Result<(String, Session), Problem> {
+    pub fn login(
+        &self,
+        from: IpAddr,
+        user: &str,
+        password: &str,
+    ) -> Result<(String, Session), Problem> {
         {
             let mut f = self.failures.lock().unwrap_or_else(|e| e.into_inner());
             if let Some((n, since)) = f.get(&from).copied() {
@@ -329,7 +333,11 @@ impl Auth {
     /// The live session of a token, or 401.
     pub fn session(&self, token: Option<&str>) -> Result<Session, Problem> {
         let unauthorized = |detail: &str| {
-            Problem::new(StatusCode::UNAUTHORIZED, "auth.unauthorized", detail.to_string())
+            Problem::new(
+                StatusCode::UNAUTHORIZED,
+                "auth.unauthorized",
+                detail.to_string(),
+            )
         };
         let token = token.ok_or_else(|| {
             unauthorized("log in first (POST /api/session) and send the token as a Bearer")
@@ -376,7 +384,11 @@ impl Auth {
         }
         let mut users = self.users.lock().unwrap_or_else(|e| e.into_inner());
         let Some(u) = users.iter_mut().find(|u| u.name == session.user) else {
-            return Err(Problem::new(StatusCode::UNAUTHORIZED, "auth.unauthorized", "no such user"));
+            return Err(Problem::new(
+                StatusCode::UNAUTHORIZED,
+                "auth.unauthorized",
+                "no such user",
+            ));
         };
         if !verify(old, &u.hash) {
             return Err(Problem::new(

@@ -125,13 +125,27 @@ pub fn router(app: Arc<App>) -> Router {
     use routes as r;
     let upload = DefaultBodyLimit::max(app.options.max_upload_bytes + 1);
     Router::new()
-        .route("/api/openapi.json", get(|| async {
-            ([(axum::http::header::CONTENT_TYPE, "application/json")], openapi_json())
-        }))
+        .route(
+            "/api/openapi.json",
+            get(|| async {
+                (
+                    [(axum::http::header::CONTENT_TYPE, "application/json")],
+                    openapi_json(),
+                )
+            }),
+        )
         .route("/api", get(r::info))
-        .route("/api/session", post(r::login).get(r::session_info).delete(r::logout))
+        .route(
+            "/api/session",
+            post(r::login).get(r::session_info).delete(r::logout),
+        )
         .route("/api/session/password", post(r::change_password))
-        .route("/api/lease", get(r::lease).post(r::acquire_lease).delete(r::release_lease))
+        .route(
+            "/api/lease",
+            get(r::lease)
+                .post(r::acquire_lease)
+                .delete(r::release_lease),
+        )
         .route("/api/status", get(r::status))
         .route("/api/events", get(r::events))
         .route("/api/ws", get(ws::ws))
@@ -170,7 +184,10 @@ pub fn router(app: Arc<App>) -> Router {
         .route("/api/plc/variables/{path}", get(r::plc_read))
         .route("/api/plc/watch", put(r::plc_watch))
         .route("/api/plc/force", post(r::plc_force))
-        .route("/api/plc/force/{path}", axum::routing::delete(r::plc_unforce))
+        .route(
+            "/api/plc/force/{path}",
+            axum::routing::delete(r::plc_unforce),
+        )
         .route("/api/faults", get(r::faults))
         .route("/api/faults/acknowledge", post(r::acknowledge_faults))
         .route("/api/diagnostics/timing", get(r::timing))
@@ -215,7 +232,10 @@ impl App {
             .as_ref()
             .map(|p| self.config.resolve(p))
             .ok_or_else(|| {
-                Problem::not_found("setup.no_tool_table", "the machine file names no tool table ([files] tool_table)")
+                Problem::not_found(
+                    "setup.no_tool_table",
+                    "the machine file names no tool table ([files] tool_table)",
+                )
             })
     }
 
@@ -225,7 +245,8 @@ impl App {
             Some(p) => {
                 let path = self.config.resolve(p);
                 if path.exists() {
-                    rtcnc_gcode::Parameters::load(&path).map_err(|e| Problem::internal(e.to_string()))?
+                    rtcnc_gcode::Parameters::load(&path)
+                        .map_err(|e| Problem::internal(e.to_string()))?
                 } else {
                     rtcnc_gcode::Parameters::new()
                 }
@@ -233,7 +254,9 @@ impl App {
             None => rtcnc_gcode::Parameters::new(),
         };
         let meta = self.machine.meta();
-        let names = ["G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3"];
+        let names = [
+            "G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3",
+        ];
         Ok(names
             .iter()
             .enumerate()
@@ -264,7 +287,9 @@ pub fn valid_program_name(name: &str) -> bool {
 
 /// `G54`..`G59.3` as 1..9.
 pub fn work_system_number(name: &str) -> Option<u32> {
-    let names = ["G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3"];
+    let names = [
+        "G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3",
+    ];
     names
         .iter()
         .position(|n| n.eq_ignore_ascii_case(name))
@@ -297,7 +322,10 @@ pub fn tool_table(tools: &[models::Tool]) -> Result<rtcnc_gcode::ToolTable, Prob
         if t.number < 0 || t.pocket < 0 || !seen.insert(t.number) {
             return Err(Problem::unprocessable(
                 "setup.bad_tool",
-                format!("tool {}: numbers and pockets are >= 0 and numbers unique", t.number),
+                format!(
+                    "tool {}: numbers and pockets are >= 0 and numbers unique",
+                    t.number
+                ),
             ));
         }
         let mut tool = rtcnc_gcode::Tool::new(t.number, t.pocket);
@@ -306,7 +334,9 @@ pub fn tool_table(tools: &[models::Tool]) -> Result<rtcnc_gcode::ToolTable, Prob
             let i = machine::AXIS_LETTERS
                 .iter()
                 .position(|l| l.eq_ignore_ascii_case(letter))
-                .ok_or_else(|| Problem::unprocessable("setup.bad_tool", format!("no axis {letter}")))?;
+                .ok_or_else(|| {
+                    Problem::unprocessable("setup.bad_tool", format!("no axis {letter}"))
+                })?;
             o[i] = *v;
         }
         let numbers = o
@@ -314,7 +344,10 @@ pub fn tool_table(tools: &[models::Tool]) -> Result<rtcnc_gcode::ToolTable, Prob
             .chain([&t.diameter, &t.front_angle, &t.back_angle])
             .all(|v| v.is_finite());
         if !numbers {
-            return Err(Problem::unprocessable("setup.bad_tool", format!("tool {}: a value is not a number", t.number)));
+            return Err(Problem::unprocessable(
+                "setup.bad_tool",
+                format!("tool {}: a value is not a number", t.number),
+            ));
         }
         tool.offset = rtcnc_gcode::Pose::from_array(o);
         tool.diameter = t.diameter;
@@ -338,7 +371,10 @@ pub fn json_escape(s: &str) -> String {
 pub fn ws_keep_alive(app: &App, caller: &routes::Caller, axis: &str) -> Result<(), Problem> {
     app.auth.require_lease(&caller.session)?;
     let axis = app.machine.meta().axis_index(axis).ok_or_else(|| {
-        Problem::unprocessable("command.bad_axis", format!("no axis {axis} on this machine"))
+        Problem::unprocessable(
+            "command.bad_axis",
+            format!("no axis {axis} on this machine"),
+        )
     })?;
     let mut w = rtcnc_kernel::link::layout::WireCommand {
         kind: rtcnc_kernel::link::layout::command::JOG_KEEP_ALIVE,
@@ -350,8 +386,12 @@ pub fn ws_keep_alive(app: &App, caller: &routes::Caller, axis: &str) -> Result<(
 
 /// Runs the API server until SIGINT or SIGTERM.
 pub fn run(options: ApiOptions) -> anyhow::Result<()> {
-    let config = MachineConfig::load(&options.config_path)
-        .map_err(|e| anyhow::anyhow!("machine configuration {}: {e}", options.config_path.display()))?;
+    let config = MachineConfig::load(&options.config_path).map_err(|e| {
+        anyhow::anyhow!(
+            "machine configuration {}: {e}",
+            options.config_path.display()
+        )
+    })?;
     let loopback = options.listen.ip().is_loopback();
     if !loopback && options.tls.is_none() && !options.insecure_http {
         anyhow::bail!(
@@ -385,8 +425,7 @@ pub fn run(options: ApiOptions) -> anyhow::Result<()> {
         .enable_all()
         .build()?;
     let result = runtime.block_on(async move {
-        let service =
-            router(Arc::clone(&app)).into_make_service_with_connect_info::<ClientAddr>();
+        let service = router(Arc::clone(&app)).into_make_service_with_connect_info::<ClientAddr>();
         let tcp = tokio::net::TcpListener::bind(options.listen)
             .await
             .map_err(|e| anyhow::anyhow!("listening on {}: {e}", options.listen))?;
@@ -418,7 +457,8 @@ pub fn run(options: ApiOptions) -> anyhow::Result<()> {
 #[derive(Debug, Clone, Copy)]
 pub struct ClientAddr(pub SocketAddr);
 
-impl axum::extract::connect_info::Connected<axum::serve::IncomingStream<'_, tokio::net::TcpListener>>
+impl
+    axum::extract::connect_info::Connected<axum::serve::IncomingStream<'_, tokio::net::TcpListener>>
     for ClientAddr
 {
     fn connect_info(stream: axum::serve::IncomingStream<'_, tokio::net::TcpListener>) -> Self {
@@ -436,7 +476,10 @@ impl axum::extract::connect_info::Connected<axum::serve::IncomingStream<'_, tls:
 
 async fn shutdown() {
     use tokio::signal::unix::{SignalKind, signal};
-    let (Ok(mut term), Ok(mut int)) = (signal(SignalKind::terminate()), signal(SignalKind::interrupt())) else {
+    let (Ok(mut term), Ok(mut int)) = (
+        signal(SignalKind::terminate()),
+        signal(SignalKind::interrupt()),
+    ) else {
         return std::future::pending().await;
     };
     tokio::select! {

@@ -10,8 +10,8 @@ use std::time::{Duration, Instant};
 
 use rtcnc_kernel::FaultCode;
 use rtcnc_kernel::link::layout::{
-    self, ServiceReply, ServiceRequest, TraceSample, WireCommand, WireEvent, WireStatus,
-    WireText, WireUrgent, ack, event, flags,
+    self, ServiceReply, ServiceRequest, TraceSample, WireCommand, WireEvent, WireStatus, WireText,
+    WireUrgent, ack, event, flags,
 };
 use rtcnc_kernel::link::{Client, Refusal, mode_name, state_name};
 use tokio::sync::{broadcast, watch};
@@ -373,7 +373,10 @@ impl MachineConn {
             if states.contains(&now.state.as_str()) {
                 return Some(now);
             }
-            if tokio::time::timeout_at(deadline, rx.changed()).await.is_err() {
+            if tokio::time::timeout_at(deadline, rx.changed())
+                .await
+                .is_err()
+            {
                 return self.ack(serial);
             }
         }
@@ -413,7 +416,10 @@ impl MachineConn {
             {
                 return Ok(r);
             }
-            if tokio::time::timeout_at(deadline, rx.changed()).await.is_err() {
+            if tokio::time::timeout_at(deadline, rx.changed())
+                .await
+                .is_err()
+            {
                 return Err(Problem::new(
                     axum::http::StatusCode::GATEWAY_TIMEOUT,
                     "link.timeout",
@@ -482,9 +488,12 @@ impl MachineConn {
             );
         }
         *last_machine_seq = w.seq;
-        let joint = usize::try_from(w.joint)
-            .ok()
-            .map(|j| meta.joints.get(j).cloned().unwrap_or_else(|| format!("#{j}")));
+        let joint = usize::try_from(w.joint).ok().map(|j| {
+            meta.joints
+                .get(j)
+                .cloned()
+                .unwrap_or_else(|| format!("#{j}"))
+        });
         let mut e = Event {
             seq: 0,
             kind: String::new(),
@@ -729,7 +738,10 @@ impl MachineConn {
     }
 
     fn program_name(&self) -> Option<String> {
-        self.program.lock().unwrap_or_else(|e| e.into_inner()).clone()
+        self.program
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
     }
 }
 

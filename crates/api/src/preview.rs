@@ -254,7 +254,11 @@ fn arc(b: &mut PathBuilder, line: u32, a: &rtcnc_gcode::canon::Arc, plane: Plane
 /// The cycle time of the program at `program` on this machine, in virtual time: the kernel
 /// as `rtcnc sim` runs it, with copies of the persistent files (the machine's own are not
 /// written).
-pub fn estimate(config: &MachineConfig, program: &Path, limit: Duration) -> anyhow::Result<Estimate> {
+pub fn estimate(
+    config: &MachineConfig,
+    program: &Path,
+    limit: Duration,
+) -> anyhow::Result<Estimate> {
     let started = Instant::now();
     let scratch = std::env::temp_dir().join(format!(
         "rtcnc-estimate-{}-{}",

@@ -75,11 +75,10 @@ pub async fn login(
 ) -> ApiResult<Json<SessionInfo>> {
     let app2 = Arc::clone(&app);
     // argon2 takes tens of milliseconds: off the async threads.
-    let (token, session) = tokio::task::spawn_blocking(move || {
-        app2.auth.login(from.ip(), &body.user, &body.password)
-    })
-    .await
-    .map_err(|e| Problem::internal(e.to_string()))??;
+    let (token, session) =
+        tokio::task::spawn_blocking(move || app2.auth.login(from.ip(), &body.user, &body.password))
+            .await
+            .map_err(|e| Problem::internal(e.to_string()))??;
     Ok(Json(SessionInfo {
         token: Some(token),
         user: session.user.clone(),
@@ -226,10 +225,10 @@ pub async fn events(
     Query(q): Query<Since>,
 ) -> ApiResult<Json<EventPage>> {
     caller.viewer()?;
-    Ok(Json(
-        app.machine
-            .events_since(q.since, q.limit.unwrap_or(1000).clamp(1, 10_000)),
-    ))
+    Ok(Json(app.machine.events_since(
+        q.since,
+        q.limit.unwrap_or(1000).clamp(1, 10_000),
+    )))
 }
 
 #[derive(Debug, Deserialize, IntoParams)]
@@ -379,12 +378,18 @@ pub async fn load_program(
     app.auth.require_lease(&caller.session)?;
     let path = app.program_path(&body.name)?;
     if !path.is_file() {
-        return Err(Problem::not_found("program.not_found", format!("no program {}", body.name)));
+        return Err(Problem::not_found(
+            "program.not_found",
+            format!("no program {}", body.name),
+        ));
     }
     let mut w = wire(command::LOAD_PROGRAM);
     w.text = WireText::new(&path.to_string_lossy());
     if w.text.as_str() != path.to_string_lossy() {
-        return Err(Problem::unprocessable("program.path_too_long", "the program's path is longer than 256 bytes"));
+        return Err(Problem::unprocessable(
+            "program.path_too_long",
+            "the program's path is longer than 256 bytes",
+        ));
     }
     let r = run_command(&app, w).await?;
     app.machine.set_program(Some(body.name));
@@ -414,21 +419,33 @@ fn switch(kind: u32, on: bool) -> WireCommand {
 /// Single block on or off.
 #[utoipa::path(post, path = "/api/control/single-block", tag = "control", security(("bearer" = [])),
     request_body = Switch, responses((status = 200, body = Ack), (status = 409, body = Problem, content_type = "application/problem+json")))]
-pub async fn single_block(State(app): State<Arc<App>>, caller: Caller, Json(b): Json<Switch>) -> ApiResult<Response> {
+pub async fn single_block(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Json(b): Json<Switch>,
+) -> ApiResult<Response> {
     control(&app, &caller, switch(command::SINGLE_BLOCK, b.on)).await
 }
 
 /// Optional stop (M1) on or off.
 #[utoipa::path(post, path = "/api/control/optional-stop", tag = "control", security(("bearer" = [])),
     request_body = Switch, responses((status = 200, body = Ack), (status = 409, body = Problem, content_type = "application/problem+json")))]
-pub async fn optional_stop(State(app): State<Arc<App>>, caller: Caller, Json(b): Json<Switch>) -> ApiResult<Response> {
+pub async fn optional_stop(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Json(b): Json<Switch>,
+) -> ApiResult<Response> {
     control(&app, &caller, switch(command::OPTIONAL_STOP, b.on)).await
 }
 
 /// Block delete (`/`) on or off, from the next program start.
 #[utoipa::path(post, path = "/api/control/block-delete", tag = "control", security(("bearer" = [])),
     request_body = Switch, responses((status = 200, body = Ack), (status = 409, body = Problem, content_type = "application/problem+json")))]
-pub async fn block_delete(State(app): State<Arc<App>>, caller: Caller, Json(b): Json<Switch>) -> ApiResult<Response> {
+pub async fn block_delete(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Json(b): Json<Switch>,
+) -> ApiResult<Response> {
     control(&app, &caller, switch(command::BLOCK_DELETE, b.on)).await
 }
 
@@ -436,7 +453,10 @@ fn mdi_wire(line: &str) -> ApiResult<WireCommand> {
     let mut w = wire(command::MDI);
     w.text = WireText::new(line);
     if w.text.as_str() != line || line.contains('\n') {
-        return Err(Problem::unprocessable("command.bad_value", "an MDI line is one line of at most 256 bytes"));
+        return Err(Problem::unprocessable(
+            "command.bad_value",
+            "an MDI line is one line of at most 256 bytes",
+        ));
     }
     Ok(w)
 }
@@ -445,13 +465,20 @@ fn mdi_wire(line: &str) -> ApiResult<WireCommand> {
 #[utoipa::path(post, path = "/api/control/mdi", tag = "control", security(("bearer" = [])),
     request_body = Mdi, responses((status = 200, body = Ack), (status = 409, body = Problem, content_type = "application/problem+json"),
         (status = 422, body = Problem, content_type = "application/problem+json")))]
-pub async fn mdi(State(app): State<Arc<App>>, caller: Caller, Json(b): Json<Mdi>) -> ApiResult<Response> {
+pub async fn mdi(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Json(b): Json<Mdi>,
+) -> ApiResult<Response> {
     control(&app, &caller, mdi_wire(&b.line)?).await
 }
 
 fn axis_of(app: &App, letter: &str) -> ApiResult<u32> {
     app.machine.meta().axis_index(letter).ok_or_else(|| {
-        Problem::unprocessable(Refusal::BadAxis.code(), format!("no axis {letter} on this machine"))
+        Problem::unprocessable(
+            Refusal::BadAxis.code(),
+            format!("no axis {letter} on this machine"),
+        )
     })
 }
 
@@ -460,7 +487,11 @@ fn axis_of(app: &App, letter: &str) -> ApiResult<u32> {
 #[utoipa::path(post, path = "/api/control/jog", tag = "control", security(("bearer" = [])),
     request_body = Jog, responses((status = 200, body = Ack), (status = 409, body = Problem, content_type = "application/problem+json"),
         (status = 422, body = Problem, content_type = "application/problem+json")))]
-pub async fn jog(State(app): State<Arc<App>>, caller: Caller, Json(b): Json<Jog>) -> ApiResult<Response> {
+pub async fn jog(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Json(b): Json<Jog>,
+) -> ApiResult<Response> {
     let axis = axis_of(&app, &b.axis)?;
     let mut w = match (b.velocity, b.distance) {
         (Some(v), None) => {
@@ -473,7 +504,12 @@ pub async fn jog(State(app): State<Arc<App>>, caller: Caller, Json(b): Json<Jog>
             w.value = d;
             w
         }
-        _ => return Err(Problem::unprocessable("command.bad_value", "give either velocity or distance")),
+        _ => {
+            return Err(Problem::unprocessable(
+                "command.bad_value",
+                "give either velocity or distance",
+            ));
+        }
     };
     w.axis = axis;
     control(&app, &caller, w).await
@@ -482,7 +518,11 @@ pub async fn jog(State(app): State<Arc<App>>, caller: Caller, Json(b): Json<Jog>
 /// Keeps a continuous jog going for another 200 ms.
 #[utoipa::path(post, path = "/api/control/jog/keep-alive", tag = "control", security(("bearer" = [])),
     request_body = AxisRef, responses((status = 204), (status = 409, body = Problem, content_type = "application/problem+json")))]
-pub async fn jog_keep_alive(State(app): State<Arc<App>>, caller: Caller, Json(b): Json<AxisRef>) -> ApiResult<StatusCode> {
+pub async fn jog_keep_alive(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Json(b): Json<AxisRef>,
+) -> ApiResult<StatusCode> {
     app.auth.require_lease(&caller.session)?;
     let mut w = wire(command::JOG_KEEP_ALIVE);
     w.axis = axis_of(&app, &b.axis)?;
@@ -493,7 +533,11 @@ pub async fn jog_keep_alive(State(app): State<Arc<App>>, caller: Caller, Json(b)
 /// Stops a jog (through the urgent ring).
 #[utoipa::path(post, path = "/api/control/jog/stop", tag = "control", security(("bearer" = [])),
     request_body = AxisRef, responses((status = 200, body = Ack), (status = 409, body = Problem, content_type = "application/problem+json")))]
-pub async fn jog_stop(State(app): State<Arc<App>>, caller: Caller, Json(b): Json<AxisRef>) -> ApiResult<Response> {
+pub async fn jog_stop(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Json(b): Json<AxisRef>,
+) -> ApiResult<Response> {
     app.auth.require_lease(&caller.session)?;
     let axis = axis_of(&app, &b.axis)?;
     urgent_command(&app, urgent::JOG_STOP, axis, 0.0).await
@@ -509,7 +553,11 @@ pub async fn home(State(app): State<Arc<App>>, caller: Caller) -> ApiResult<Resp
 /// Sets overrides (urgent: read by the next servo period).
 #[utoipa::path(post, path = "/api/control/overrides", tag = "control", security(("bearer" = [])),
     request_body = OverridesRequest, responses((status = 200, body = Vec<Ack>), (status = 409, body = Problem, content_type = "application/problem+json")))]
-pub async fn overrides(State(app): State<Arc<App>>, caller: Caller, Json(b): Json<OverridesRequest>) -> ApiResult<Json<Vec<Ack>>> {
+pub async fn overrides(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Json(b): Json<OverridesRequest>,
+) -> ApiResult<Json<Vec<Ack>>> {
     app.auth.require_lease(&caller.session)?;
     let mut acks = Vec::new();
     for (kind, v) in [
@@ -519,10 +567,21 @@ pub async fn overrides(State(app): State<Arc<App>>, caller: Caller, Json(b): Jso
     ] {
         if let Some(v) = v {
             if !v.is_finite() {
-                return Err(Problem::unprocessable("command.bad_value", "an override is a number"));
+                return Err(Problem::unprocessable(
+                    "command.bad_value",
+                    "an override is a number",
+                ));
             }
             let serial = app.machine.send_urgent(kind, 0, v)?;
-            if let Some(a) = app.machine.wait_ack(serial, &["done", "refused", "failed"], Duration::from_secs(1)).await {
+            if let Some(a) = app
+                .machine
+                .wait_ack(
+                    serial,
+                    &["done", "refused", "failed"],
+                    Duration::from_secs(1),
+                )
+                .await
+            {
                 acks.push(a);
             }
         }
@@ -545,16 +604,28 @@ async fn mdi_lines(app: &App, caller: &Caller, lines: &[String]) -> ApiResult<Re
 #[utoipa::path(post, path = "/api/control/spindle", tag = "control", security(("bearer" = [])),
     request_body = SpindleRequest, responses((status = 200, body = Ack), (status = 409, body = Problem, content_type = "application/problem+json"),
         (status = 422, body = Problem, content_type = "application/problem+json")))]
-pub async fn spindle(State(app): State<Arc<App>>, caller: Caller, Json(b): Json<SpindleRequest>) -> ApiResult<Response> {
+pub async fn spindle(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Json(b): Json<SpindleRequest>,
+) -> ApiResult<Response> {
     let rpm = b.rpm.unwrap_or(0.0);
     if !rpm.is_finite() || rpm < 0.0 {
-        return Err(Problem::unprocessable("command.bad_value", "rpm is a number >= 0"));
+        return Err(Problem::unprocessable(
+            "command.bad_value",
+            "rpm is a number >= 0",
+        ));
     }
     let line = match b.direction.as_str() {
         "cw" => format!("M3 S{rpm}"),
         "ccw" => format!("M4 S{rpm}"),
         "off" => "M5".to_string(),
-        _ => return Err(Problem::unprocessable("command.bad_value", "direction is cw, ccw or off")),
+        _ => {
+            return Err(Problem::unprocessable(
+                "command.bad_value",
+                "direction is cw, ccw or off",
+            ));
+        }
     };
     mdi_lines(&app, &caller, &[line]).await
 }
@@ -562,7 +633,11 @@ pub async fn spindle(State(app): State<Arc<App>>, caller: Caller, Json(b): Json<
 /// Coolant: MDI lines (M9, then M7 and/or M8), so the machine must be idle.
 #[utoipa::path(post, path = "/api/control/coolant", tag = "control", security(("bearer" = [])),
     request_body = CoolantRequest, responses((status = 200, body = Ack), (status = 409, body = Problem, content_type = "application/problem+json")))]
-pub async fn coolant(State(app): State<Arc<App>>, caller: Caller, Json(b): Json<CoolantRequest>) -> ApiResult<Response> {
+pub async fn coolant(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Json(b): Json<CoolantRequest>,
+) -> ApiResult<Response> {
     let mut lines = vec!["M9".to_string()];
     if b.mist {
         lines.push("M7".into());
@@ -578,10 +653,14 @@ pub async fn coolant(State(app): State<Arc<App>>, caller: Caller, Json(b): Json<
 /// The program store.
 #[utoipa::path(get, path = "/api/programs", tag = "programs", security(("bearer" = [])),
     responses((status = 200, body = Vec<ProgramInfo>)))]
-pub async fn list_programs(State(app): State<Arc<App>>, caller: Caller) -> ApiResult<Json<Vec<ProgramInfo>>> {
+pub async fn list_programs(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+) -> ApiResult<Json<Vec<ProgramInfo>>> {
     caller.viewer()?;
     let mut out = Vec::new();
-    let dir = std::fs::read_dir(&app.options.programs_dir).map_err(|e| Problem::internal(e.to_string()))?;
+    let dir = std::fs::read_dir(&app.options.programs_dir)
+        .map_err(|e| Problem::internal(e.to_string()))?;
     for entry in dir.flatten() {
         let name = entry.file_name().to_string_lossy().into_owned();
         if crate::valid_program_name(&name) && entry.path().is_file() {
@@ -601,7 +680,11 @@ pub async fn list_programs(State(app): State<Arc<App>>, caller: Caller) -> ApiRe
 #[utoipa::path(get, path = "/api/programs/{name}", tag = "programs", security(("bearer" = [])),
     params(("name" = String, Path, description = "File name")),
     responses((status = 200, body = String, content_type = "text/plain"), (status = 404, body = Problem, content_type = "application/problem+json")))]
-pub async fn read_program(State(app): State<Arc<App>>, caller: Caller, Path(name): Path<String>) -> ApiResult<Response> {
+pub async fn read_program(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Path(name): Path<String>,
+) -> ApiResult<Response> {
     caller.viewer()?;
     let text = app.read_program(&name)?;
     Ok(([(header::CONTENT_TYPE, "text/plain; charset=utf-8")], text).into_response())
@@ -624,40 +707,66 @@ pub async fn upload_program(
     caller.session.require(Role::Operator)?;
     let path = app.program_path(&name)?;
     if body.len() > app.options.max_upload_bytes {
-        return Err(Problem::new(StatusCode::PAYLOAD_TOO_LARGE, "program.too_large",
-            format!("a program has at most {} bytes", app.options.max_upload_bytes)));
+        return Err(Problem::new(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            "program.too_large",
+            format!(
+                "a program has at most {} bytes",
+                app.options.max_upload_bytes
+            ),
+        ));
     }
     let text = std::str::from_utf8(&body).map_err(|e| {
-        Problem::unprocessable("program.encoding", format!("not UTF-8 text: invalid byte at offset {}", e.valid_up_to()))
+        Problem::unprocessable(
+            "program.encoding",
+            format!("not UTF-8 text: invalid byte at offset {}", e.valid_up_to()),
+        )
     })?;
     if let Some(at) = text.find('\0') {
-        return Err(Problem::unprocessable("program.encoding", format!("a NUL byte at offset {at}")));
+        return Err(Problem::unprocessable(
+            "program.encoding",
+            format!("a NUL byte at offset {at}"),
+        ));
     }
     let config = Arc::clone(&app.config);
     let (text2, name2) = (text.to_string(), name.clone());
-    let errors = tokio::task::spawn_blocking(move || crate::preview::check(&config, &name2, &text2))
-        .await
-        .map_err(|e| Problem::internal(e.to_string()))?;
+    let errors =
+        tokio::task::spawn_blocking(move || crate::preview::check(&config, &name2, &text2))
+            .await
+            .map_err(|e| Problem::internal(e.to_string()))?;
     if !errors.is_empty() {
-        return Err(Problem::unprocessable("program.errors", format!("{} error(s) in the program", errors.len()))
-            .with_extra(serde_json::json!({ "errors": errors })));
+        return Err(Problem::unprocessable(
+            "program.errors",
+            format!("{} error(s) in the program", errors.len()),
+        )
+        .with_extra(serde_json::json!({ "errors": errors })));
     }
-    crate::files::write_atomically(&path, text.as_bytes(), 0o644).map_err(|e| Problem::internal(e.to_string()))?;
-    Ok((StatusCode::CREATED, Json(ProgramInfo {
-        name,
-        size: body.len() as u64,
-        lines: text.lines().count() as u64,
-    })).into_response())
+    crate::files::write_atomically(&path, text.as_bytes(), 0o644)
+        .map_err(|e| Problem::internal(e.to_string()))?;
+    Ok((
+        StatusCode::CREATED,
+        Json(ProgramInfo {
+            name,
+            size: body.len() as u64,
+            lines: text.lines().count() as u64,
+        }),
+    )
+        .into_response())
 }
 
 /// Deletes a program.
 #[utoipa::path(delete, path = "/api/programs/{name}", tag = "programs", security(("bearer" = [])),
     params(("name" = String, Path, description = "File name")),
     responses((status = 204), (status = 404, body = Problem, content_type = "application/problem+json")))]
-pub async fn delete_program(State(app): State<Arc<App>>, caller: Caller, Path(name): Path<String>) -> ApiResult<StatusCode> {
+pub async fn delete_program(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Path(name): Path<String>,
+) -> ApiResult<StatusCode> {
     caller.session.require(Role::Operator)?;
     let path = app.program_path(&name)?;
-    std::fs::remove_file(&path).map_err(|_| Problem::not_found("program.not_found", format!("no program {name}")))?;
+    std::fs::remove_file(&path)
+        .map_err(|_| Problem::not_found("program.not_found", format!("no program {name}")))?;
     Ok(StatusCode::NO_CONTENT)
 }
 
@@ -665,7 +774,11 @@ pub async fn delete_program(State(app): State<Arc<App>>, caller: Caller, Path(na
 #[utoipa::path(get, path = "/api/programs/{name}/preview", tag = "programs", security(("bearer" = [])),
     params(("name" = String, Path, description = "File name")),
     responses((status = 200, body = Preview), (status = 404, body = Problem, content_type = "application/problem+json")))]
-pub async fn preview(State(app): State<Arc<App>>, caller: Caller, Path(name): Path<String>) -> ApiResult<Json<Preview>> {
+pub async fn preview(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Path(name): Path<String>,
+) -> ApiResult<Json<Preview>> {
     caller.viewer()?;
     let text = app.read_program(&name)?;
     let config = Arc::clone(&app.config);
@@ -680,18 +793,27 @@ pub async fn preview(State(app): State<Arc<App>>, caller: Caller, Path(name): Pa
 #[utoipa::path(get, path = "/api/programs/{name}/estimate", tag = "programs", security(("bearer" = [])),
     params(("name" = String, Path, description = "File name")),
     responses((status = 200, body = Estimate), (status = 404, body = Problem, content_type = "application/problem+json")))]
-pub async fn estimate(State(app): State<Arc<App>>, caller: Caller, Path(name): Path<String>) -> ApiResult<Json<Estimate>> {
+pub async fn estimate(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Path(name): Path<String>,
+) -> ApiResult<Json<Estimate>> {
     caller.viewer()?;
     let path = app.program_path(&name)?;
     if !path.is_file() {
-        return Err(Problem::not_found("program.not_found", format!("no program {name}")));
+        return Err(Problem::not_found(
+            "program.not_found",
+            format!("no program {name}"),
+        ));
     }
     let _one = app.estimating.lock().await;
     let config = Arc::clone(&app.config);
-    let e = tokio::task::spawn_blocking(move || crate::preview::estimate(&config, &path, Duration::from_secs(4 * 3600)))
-        .await
-        .map_err(|e| Problem::internal(e.to_string()))?
-        .map_err(|e| Problem::unprocessable("program.estimate", e.to_string()))?;
+    let e = tokio::task::spawn_blocking(move || {
+        crate::preview::estimate(&config, &path, Duration::from_secs(4 * 3600))
+    })
+    .await
+    .map_err(|e| Problem::internal(e.to_string()))?
+    .map_err(|e| Problem::unprocessable("program.estimate", e.to_string()))?;
     Ok(Json(e))
 }
 
@@ -703,8 +825,15 @@ pub async fn estimate(State(app): State<Arc<App>>, caller: Caller, Path(name): P
 pub async fn tools(State(app): State<Arc<App>>, caller: Caller) -> ApiResult<Json<Vec<Tool>>> {
     caller.viewer()?;
     let path = app.tool_table_path()?;
-    let table = rtcnc_gcode::ToolTable::load(&path).map_err(|e| Problem::internal(e.to_string()))?;
-    Ok(Json(table.tools().iter().map(|t| crate::tool_model(t, &app.machine.meta())).collect()))
+    let table =
+        rtcnc_gcode::ToolTable::load(&path).map_err(|e| Problem::internal(e.to_string()))?;
+    Ok(Json(
+        table
+            .tools()
+            .iter()
+            .map(|t| crate::tool_model(t, &app.machine.meta()))
+            .collect(),
+    ))
 }
 
 /// Replaces the tool table: written atomically (write, fsync, rename), then the machine
@@ -712,23 +841,34 @@ pub async fn tools(State(app): State<Arc<App>>, caller: Caller) -> ApiResult<Jso
 #[utoipa::path(put, path = "/api/setup/tools", tag = "setup", security(("bearer" = [])),
     request_body = Vec<Tool>, responses((status = 200, body = Ack), (status = 403, body = Problem, content_type = "application/problem+json"),
         (status = 409, body = Problem, content_type = "application/problem+json"), (status = 422, body = Problem, content_type = "application/problem+json")))]
-pub async fn set_tools(State(app): State<Arc<App>>, caller: Caller, Json(tools): Json<Vec<Tool>>) -> ApiResult<Response> {
+pub async fn set_tools(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Json(tools): Json<Vec<Tool>>,
+) -> ApiResult<Response> {
     caller.session.require(Role::Setter)?;
     let path = app.tool_table_path()?;
     let table = crate::tool_table(&tools)?;
     let state = app.status_now().state;
     if !matches!(state.as_str(), "idle" | "estop" | "fault") {
-        return Err(Problem::conflict(Refusal::Busy.code(), "the tool table changes only while the machine is idle"));
+        return Err(Problem::conflict(
+            Refusal::Busy.code(),
+            "the tool table changes only while the machine is idle",
+        ));
     }
     app.machine.client()?;
-    crate::files::write_atomically(&path, table.to_text().as_bytes(), 0o644).map_err(|e| Problem::internal(e.to_string()))?;
+    crate::files::write_atomically(&path, table.to_text().as_bytes(), 0o644)
+        .map_err(|e| Problem::internal(e.to_string()))?;
     run_command(&app, wire(command::RELOAD_TOOL_TABLE)).await
 }
 
 /// The work offsets G54..G59.3 as persisted (the parameter file).
 #[utoipa::path(get, path = "/api/setup/offsets", tag = "setup", security(("bearer" = [])),
     responses((status = 200, body = Vec<WorkOffset>)))]
-pub async fn offsets(State(app): State<Arc<App>>, caller: Caller) -> ApiResult<Json<Vec<WorkOffset>>> {
+pub async fn offsets(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+) -> ApiResult<Json<Vec<WorkOffset>>> {
     caller.viewer()?;
     Ok(Json(app.work_offsets()?))
 }
@@ -752,7 +892,10 @@ pub async fn set_offset(
     let mut line = format!("G10 L2 P{p}");
     for (letter, v) in &body.offset.0 {
         if meta.axis_index(letter).is_none() || !v.is_finite() {
-            return Err(Problem::unprocessable("command.bad_value", format!("axis {letter}: not on this machine or not a number")));
+            return Err(Problem::unprocessable(
+                "command.bad_value",
+                format!("axis {letter}: not on this machine or not a number"),
+            ));
         }
         line.push_str(&format!(" {}{v}", letter.to_uppercase()));
     }
@@ -771,7 +914,11 @@ async fn plc_call(app: &App, kind: u32, path: &str, value: &str) -> ApiResult<St
         Ok(r.text.as_str().to_string())
     } else {
         let code = r.code.as_str();
-        let status = if code == "plc.absent" || code == "plc.unknown-variable" { StatusCode::NOT_FOUND } else { StatusCode::UNPROCESSABLE_ENTITY };
+        let status = if code == "plc.absent" || code == "plc.unknown-variable" {
+            StatusCode::NOT_FOUND
+        } else {
+            StatusCode::UNPROCESSABLE_ENTITY
+        };
         Err(Problem::new(status, code, r.text.as_str()))
     }
 }
@@ -780,7 +927,11 @@ async fn plc_call(app: &App, kind: u32, path: &str, value: &str) -> ApiResult<St
 #[utoipa::path(get, path = "/api/plc/variables/{path}", tag = "plc", security(("bearer" = [])),
     params(("path" = String, Path, description = "Variable path")),
     responses((status = 200, body = PlcVariable), (status = 404, body = Problem, content_type = "application/problem+json")))]
-pub async fn plc_read(State(app): State<Arc<App>>, caller: Caller, Path(path): Path<String>) -> ApiResult<Json<PlcVariable>> {
+pub async fn plc_read(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Path(path): Path<String>,
+) -> ApiResult<Json<PlcVariable>> {
     caller.viewer()?;
     let value = plc_call(&app, service::PLC_READ, &path, "").await?;
     Ok(Json(PlcVariable { path, value }))
@@ -789,7 +940,11 @@ pub async fn plc_read(State(app): State<Arc<App>>, caller: Caller, Path(path): P
 /// Sets the PLC watch list; the values come in the status (`plc_watch`) every period.
 #[utoipa::path(put, path = "/api/plc/watch", tag = "plc", security(("bearer" = [])),
     request_body = PlcWatch, responses((status = 204), (status = 422, body = Problem, content_type = "application/problem+json")))]
-pub async fn plc_watch(State(app): State<Arc<App>>, caller: Caller, Json(b): Json<PlcWatch>) -> ApiResult<StatusCode> {
+pub async fn plc_watch(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Json(b): Json<PlcWatch>,
+) -> ApiResult<StatusCode> {
     caller.session.require(Role::Operator)?;
     plc_call(&app, service::PLC_WATCH, &b.paths.join(","), "").await?;
     app.machine.set_watch_paths(b.paths);
@@ -800,17 +955,28 @@ pub async fn plc_watch(State(app): State<Arc<App>>, caller: Caller, Json(b): Jso
 #[utoipa::path(post, path = "/api/plc/force", tag = "plc", security(("bearer" = [])),
     request_body = PlcForce, responses((status = 200, body = PlcVariable), (status = 403, body = Problem, content_type = "application/problem+json"),
         (status = 422, body = Problem, content_type = "application/problem+json")))]
-pub async fn plc_force(State(app): State<Arc<App>>, caller: Caller, Json(b): Json<PlcForce>) -> ApiResult<Json<PlcVariable>> {
+pub async fn plc_force(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Json(b): Json<PlcForce>,
+) -> ApiResult<Json<PlcVariable>> {
     caller.session.require(Role::Setter)?;
     let value = plc_call(&app, service::PLC_FORCE, &b.path, &b.value).await?;
-    Ok(Json(PlcVariable { path: b.path, value }))
+    Ok(Json(PlcVariable {
+        path: b.path,
+        value,
+    }))
 }
 
 /// Releases a PLC force (setter).
 #[utoipa::path(delete, path = "/api/plc/force/{path}", tag = "plc", security(("bearer" = [])),
     params(("path" = String, Path, description = "Variable path")),
     responses((status = 204), (status = 403, body = Problem, content_type = "application/problem+json")))]
-pub async fn plc_unforce(State(app): State<Arc<App>>, caller: Caller, Path(path): Path<String>) -> ApiResult<StatusCode> {
+pub async fn plc_unforce(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Path(path): Path<String>,
+) -> ApiResult<StatusCode> {
     caller.session.require(Role::Setter)?;
     plc_call(&app, service::PLC_UNFORCE, &path, "").await?;
     Ok(StatusCode::NO_CONTENT)
@@ -821,7 +987,10 @@ pub async fn plc_unforce(State(app): State<Arc<App>>, caller: Caller, Path(path)
 /// The fault history (since the API started).
 #[utoipa::path(get, path = "/api/faults", tag = "diagnostics", security(("bearer" = [])),
     responses((status = 200, body = Vec<FaultRecord>)))]
-pub async fn faults(State(app): State<Arc<App>>, caller: Caller) -> ApiResult<Json<Vec<FaultRecord>>> {
+pub async fn faults(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+) -> ApiResult<Json<Vec<FaultRecord>>> {
     caller.viewer()?;
     Ok(Json(app.machine.faults()))
 }
@@ -829,7 +998,11 @@ pub async fn faults(State(app): State<Arc<App>>, caller: Caller) -> ApiResult<Js
 /// Acknowledges the faults up to a sequence number (operator).
 #[utoipa::path(post, path = "/api/faults/acknowledge", tag = "diagnostics", security(("bearer" = [])),
     request_body = FaultAck, responses((status = 200, body = Vec<FaultRecord>)))]
-pub async fn acknowledge_faults(State(app): State<Arc<App>>, caller: Caller, Json(b): Json<FaultAck>) -> ApiResult<Json<Vec<FaultRecord>>> {
+pub async fn acknowledge_faults(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Json(b): Json<FaultAck>,
+) -> ApiResult<Json<Vec<FaultRecord>>> {
     caller.session.require(Role::Operator)?;
     app.machine.acknowledge_faults(b.up_to_seq);
     Ok(Json(app.machine.faults()))

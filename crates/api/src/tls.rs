@@ -12,9 +12,7 @@ use tokio_rustls::server::TlsStream;
 
 /// The server configuration from a PEM certificate chain and key.
 pub fn server_config(cert: &Path, key: &Path) -> anyhow::Result<Arc<ServerConfig>> {
-    let read = |p: &Path| {
-        std::fs::read(p).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))
-    };
+    let read = |p: &Path| std::fs::read(p).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()));
     let certs = rustls_pemfile::certs(&mut read(cert)?.as_slice())
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| anyhow::anyhow!("{}: {e}", cert.display()))?;
@@ -55,7 +53,9 @@ impl TlsListener {
                 let (acceptor, tx) = (acceptor.clone(), tx.clone());
                 tokio::spawn(async move {
                     let handshake = acceptor.accept(stream);
-                    if let Ok(Ok(tls)) = tokio::time::timeout(Duration::from_secs(10), handshake).await {
+                    if let Ok(Ok(tls)) =
+                        tokio::time::timeout(Duration::from_secs(10), handshake).await
+                    {
                         let _ = tx.send((tls, addr)).await;
                     }
                 });

@@ -51,7 +51,11 @@ enum ClientMessage {
     params(("token" = Option<String>, Query, description = "The session token, for clients that cannot set headers")),
     responses((status = 101, description = "Switching to the WebSocket protocol"),
         (status = 401, body = crate::problem::Problem, content_type = "application/problem+json")))]
-pub async fn ws(State(app): State<Arc<App>>, caller: Caller, upgrade: WebSocketUpgrade) -> ApiResult<Response> {
+pub async fn ws(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    upgrade: WebSocketUpgrade,
+) -> ApiResult<Response> {
     caller.session.require(Role::Viewer)?;
     Ok(upgrade
         .max_message_size(crate::MAX_WS_MESSAGE)
@@ -89,7 +93,11 @@ async fn session(app: Arc<App>, caller: Caller, socket: WebSocket) {
         "user": caller.session.user,
         "role": caller.session.role.as_str(),
     });
-    if tx.send(Message::Text(hello.to_string().into())).await.is_err() {
+    if tx
+        .send(Message::Text(hello.to_string().into()))
+        .await
+        .is_err()
+    {
         return;
     }
     let mut last = status;

@@ -109,9 +109,15 @@ fn mill() -> MachineConfig {
 fn a_command_is_acknowledged_by_serial_and_done_when_its_motion_ends() {
     let mut r = rig("mdi", &mill());
     r.run_ms(20);
-    assert_eq!(r.state(), "estop", "the machine starts in e-stop, as LinuxCNC");
+    assert_eq!(
+        r.state(),
+        "estop",
+        "the machine starts in e-stop, as LinuxCNC"
+    );
     r.reset();
-    let s = r.send(layout::command::MDI, |c| c.text = WireText::new("G0 X10 Y-5"));
+    let s = r.send(layout::command::MDI, |c| {
+        c.text = WireText::new("G0 X10 Y-5")
+    });
     r.run_ms(5);
     assert_eq!(r.acks(s), [layout::ack::ACCEPTED], "accepted, not yet done");
     r.run_ms(3000);
@@ -126,7 +132,10 @@ fn a_command_is_acknowledged_by_serial_and_done_when_its_motion_ends() {
     );
     // The serials of the acknowledgements and their order: accepted before done.
     let seqs: Vec<u64> = r.events.iter().map(|e| e.seq).collect();
-    assert!(seqs.windows(2).all(|w| w[1] == w[0] + 1), "no gap: {seqs:?}");
+    assert!(
+        seqs.windows(2).all(|w| w[1] == w[0] + 1),
+        "no gap: {seqs:?}"
+    );
 }
 
 #[test]
@@ -254,7 +263,11 @@ fn the_loss_of_the_client_stops_a_jog_and_holds_a_program_when_configured() {
     assert_eq!(seg.client_pid.load(Ordering::Relaxed), 0);
     let events = &mut r.events;
     r.client.drain_events(|e| events.push(e));
-    assert!(r.events.iter().any(|e| e.kind == layout::event::CLIENT_LOST));
+    assert!(
+        r.events
+            .iter()
+            .any(|e| e.kind == layout::event::CLIENT_LOST)
+    );
 }
 
 #[test]

@@ -117,6 +117,9 @@ class Server:
     def kill_api(self) -> None:
         """kill -9 of the API process; waits until `rtcnc serve` has started another."""
         old = self.api_pid
+        with self._cv:
+            # The new API process listens on another free port.
+            self.url = ""
         os.kill(old, signal.SIGKILL)
         self.wait_for(lambda: self.api_pid != old)
 

@@ -94,8 +94,16 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             .join(name)
     };
     let tls = match (
-        args.tls_cert.clone().or_else(|| config.hmi.tls_certificate.as_ref().map(|p| config.resolve(p))),
-        args.tls_key.clone().or_else(|| config.hmi.tls_key.as_ref().map(|p| config.resolve(p))),
+        args.tls_cert.clone().or_else(|| {
+            config
+                .hmi
+                .tls_certificate
+                .as_ref()
+                .map(|p| config.resolve(p))
+        }),
+        args.tls_key
+            .clone()
+            .or_else(|| config.hmi.tls_key.as_ref().map(|p| config.resolve(p))),
     ) {
         (Some(c), Some(k)) => Some((c, k)),
         (None, None) => None,
@@ -114,10 +122,13 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             .users
             .clone()
             .unwrap_or_else(|| rtcnc_api::default_users_file(&config, &args.machine)),
-        programs_dir: args.programs.clone().unwrap_or_else(|| match &config.hmi.programs {
-            Some(p) => config.resolve(p),
-            None => beside("programs"),
-        }),
+        programs_dir: args
+            .programs
+            .clone()
+            .unwrap_or_else(|| match &config.hmi.programs {
+                Some(p) => config.resolve(p),
+                None => beside("programs"),
+            }),
         session_ttl: Duration::from_secs(args.session_seconds.max(1)),
         max_upload_bytes: args.max_upload,
     };

@@ -35,7 +35,13 @@ pub fn default_segment(machine: &std::path::Path) -> String {
         .unwrap_or_else(|| "machine".into());
     let clean: String = stem
         .chars()
-        .map(|c| if c.is_ascii_alphanumeric() || "._-".contains(c) { c } else { '_' })
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || "._-".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
         .collect();
     format!("rtcnc-{clean}")
 }

@@ -42,7 +42,11 @@ impl Supervised {
     fn watch(&mut self) -> anyhow::Result<()> {
         if let Some(child) = self.child.as_mut() {
             if let Some(status) = child.try_wait()? {
-                println!("rtcnc serve: {} process {} ended ({status})", self.what, child.id());
+                println!(
+                    "rtcnc serve: {} process {} ended ({status})",
+                    self.what,
+                    child.id()
+                );
                 self.child = None;
             }
         }

@@ -183,11 +183,13 @@ impl Client {
 
     /// Leaves the machine (a clean exit; a killed client is found by its heartbeat).
     pub fn detach(&self) {
-        let _ = self.map.segment().client_pid.compare_exchange(
-            self.pid,
-            0,
-            Ordering::AcqRel,
-            Ordering::Relaxed,
-        );
+        let seg = self.map.segment();
+        if seg
+            .client_pid
+            .compare_exchange(self.pid, 0, Ordering::AcqRel, Ordering::Relaxed)
+            .is_ok()
+        {
+            seg.client_detaches.fetch_add(1, Ordering::AcqRel);
+        }
     }
 }

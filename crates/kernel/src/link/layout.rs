@@ -554,6 +554,9 @@ pub struct Segment {
     pub _pad: u32,
     /// Times the machine declared its client lost.
     pub client_losses: AtomicU64,
+    /// Times a client left cleanly (a client that replaces another without this having
+    /// changed means the other was lost).
+    pub client_detaches: AtomicU64,
     /// Events dropped (ring full).
     pub events_dropped: AtomicU64,
     /// Trace samples dropped (ring full).

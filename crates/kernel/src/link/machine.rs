@@ -78,7 +78,11 @@ impl MachineLink {
             }
         })?;
         let state = LinkState::default();
-        for o in [&state.feed_override, &state.rapid_override, &state.spindle_override] {
+        for o in [
+            &state.feed_override,
+            &state.rapid_override,
+            &state.spindle_override,
+        ] {
             o.store(1f64.to_bits(), Ordering::Relaxed);
         }
         Ok(MachineLink {
@@ -114,6 +118,8 @@ impl MachineLink {
                 last_seen_ns: 0,
                 loss_timeout_ns: header.loss_timeout_ns,
                 on_loss: header.on_loss,
+                known_pid: 0,
+                known_detaches: 0,
             },
             CommandPort {
                 map: self.map.clone(),
@@ -198,6 +204,10 @@ pub(crate) struct UrgentPort {
     last_seen_ns: u64,
     loss_timeout_ns: u64,
     on_loss: u32,
+    /// The client seen last period (0: none).
+    known_pid: u32,
+    /// Its clean departures counted then.
+    known_detaches: u64,
 }
 
 impl UrgentPort {
@@ -213,14 +223,20 @@ impl UrgentPort {
             self.last_heartbeat = beat;
             self.last_seen_ns = now;
         }
+        // The client is lost when its heartbeat stops, or when another process took its
+        // place without it having left (it was killed and a new one attached at once).
         let pid = seg.client_pid.load(Ordering::Acquire);
-        if pid != 0
+        let detaches = seg.client_detaches.load(Ordering::Acquire);
+        let replaced =
+            self.known_pid != 0 && pid != self.known_pid && detaches == self.known_detaches;
+        let stale = pid != 0
             && now.saturating_sub(self.last_seen_ns) > self.loss_timeout_ns
             && seg
                 .client_pid
                 .compare_exchange(pid, 0, Ordering::AcqRel, Ordering::Relaxed)
-                .is_ok()
-        {
+                .is_ok();
+        if replaced || stale {
+            self.last_seen_ns = now;
             seg.client_losses.fetch_add(1, Ordering::Relaxed);
             let status = *self.status.get();
             // A jog (or homing) never goes on without its operator.
@@ -236,14 +252,17 @@ impl UrgentPort {
                 }
                 _ => {}
             }
+            let lost = if replaced { self.known_pid } else { pid };
             let _ = self.events.push(WireEvent {
                 kind: event::CLIENT_LOST,
                 code: self.on_loss,
-                number: u64::from(pid),
+                number: u64::from(lost),
                 joint: -1,
                 ..WireEvent::default()
             });
         }
+        self.known_pid = if stale { 0 } else { pid };
+        self.known_detaches = detaches;
         // SAFETY: this task is the urgent ring's only consumer.
         while let Some(u) = unsafe { seg.urgent.pop() } {
             let acted_ns = monotonic_ns();
@@ -257,7 +276,9 @@ impl UrgentPort {
                 urgent::ABORT => Some(Urgent::Abort),
                 urgent::FEED_OVERRIDE => {
                     let v = clamp(u.value, 0.0, 2.0, 0.0);
-                    self.state.feed_override.store(v.to_bits(), Ordering::Relaxed);
+                    self.state
+                        .feed_override
+                        .store(v.to_bits(), Ordering::Relaxed);
                     Some(Urgent::FeedOverride(v))
                 }
                 urgent::RAPID_OVERRIDE => {
@@ -543,9 +564,8 @@ impl CommandPort {
     fn why_refused(&mut self, cmd: &Command) -> Refusal {
         let status = *self.status.get();
         let estop_input = self.feedback.get().estop;
-        let axis_ok = |axis: u8| {
-            usize::from(axis) < layout::AXES && self.axes_present & (1 << axis) != 0
-        };
+        let axis_ok =
+            |axis: u8| usize::from(axis) < layout::AXES && self.axes_present & (1 << axis) != 0;
         match *cmd {
             _ if status.state == MachineState::Starting => Refusal::NotReady,
             Command::Reset if estop_input => Refusal::EstopInput,
@@ -559,7 +579,8 @@ impl CommandPort {
                 }
             }
             Command::JogIncrement { axis, .. } if !axis_ok(axis) => Refusal::BadAxis,
-            Command::JogContinuous { velocity: v, .. } | Command::JogIncrement { distance: v, .. }
+            Command::JogContinuous { velocity: v, .. }
+            | Command::JogIncrement { distance: v, .. }
                 if !v.is_finite() =>
             {
                 Refusal::BadValue
@@ -821,6 +842,5 @@ impl Publisher {
             self.emit(e, &status);
         }
         self.ended = status.program_ended;
-
     }
 }

@@ -66,7 +66,10 @@ impl Refusal {
 
     /// The reason of a number.
     pub fn from_number(n: u64) -> Option<Refusal> {
-        Self::ALL.iter().copied().find(|r| u64::from(r.number()) == n)
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|r| u64::from(r.number()) == n)
     }
 
     /// Stable code.

@@ -108,9 +108,7 @@ impl ServiceThread {
                             reply.ok = 1;
                             reply.text = WireText::new(&value.to_string());
                         }
-                        Err(e) => {
-                            refuse(&mut reply, &format!("plc.{}", e.code()), &e.to_string())
-                        }
+                        Err(e) => refuse(&mut reply, &format!("plc.{}", e.code()), &e.to_string()),
                     },
                     Err(e) => refuse(&mut reply, "plc.bad-value", &e.to_string()),
                 },

@@ -283,7 +283,10 @@ mod tests {
             assert_eq!(cell.push(3), Err(3), "full at its capacity");
             assert_eq!(cell.pop(), Some(1));
             assert_eq!(cell.push(3), Ok(()));
-            assert_eq!((cell.pop(), cell.pop(), cell.pop()), (Some(2), Some(3), None));
+            assert_eq!(
+                (cell.pop(), cell.pop(), cell.pop()),
+                (Some(2), Some(3), None)
+            );
             // A consumer that died with a corrupted tail ahead of the head.
             cell.tail.store(10, Ordering::Relaxed);
             assert_eq!(cell.push(4), Err(4));
