@@ -95,10 +95,8 @@ impl ModalSnapshot {
             49
         };
         let list = [spindle, coolant[0], coolant[1], overrides];
-        let mut n = 0;
-        for c in list.into_iter().filter(|&c| c >= 0) {
+        for (n, c) in list.into_iter().filter(|&c| c >= 0).enumerate() {
             mc[n] = c;
-            n += 1;
         }
         ModalSnapshot {
             valid: true,
