@@ -5,7 +5,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 venv=target/python-venv
 if [ ! -x "$venv/bin/python" ]; then
-  python3 -m venv "$venv"
+  # Debian's python3 needs its venv module as a package of its own.
+  python3 -m venv "$venv" 2>/dev/null || { rm -rf "$venv"; scripts/setup.sh python3-venv; python3 -m venv "$venv"; }
 fi
 stamp="$venv/.installed"
 if [ ! -f "$stamp" ] || [ sdk/python/pyproject.toml -nt "$stamp" ]; then

@@ -3,7 +3,8 @@
 # property tests of every crate. CI (.ci/run) calls exactly this.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-scripts/setup.sh
+# openssl makes the TLS test's certificate.
+scripts/setup.sh openssl
 
 # Property tests draw from a fixed seed here, so a commit passes or fails the same way every
 # time; the long randomised runs live in scripts/ and bench/ and pick fresh seeds.
