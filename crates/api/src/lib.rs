@@ -1,6 +1,11 @@
 //! `rtcnc-api`: the API server (layer 4). REST and one WebSocket over the machine's
 //! shared-memory link (`rtcnc_kernel::link`), with users and roles, one control lease, and
 //! an OpenAPI 3.1 document generated from this code. docs/api.md describes it.
+// A handler's error is its HTTP answer (a problem document), made once per failed request:
+// boxing it would buy nothing.
+#![allow(clippy::result_large_err)]
+// Axis-indexed arrays read best with the axis index.
+#![allow(clippy::needless_range_loop)]
 
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};

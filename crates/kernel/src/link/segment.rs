@@ -97,16 +97,21 @@ pub fn segment_path(name: &str) -> Result<PathBuf, LinkError> {
     Ok(segment_dir().join(name))
 }
 
-/// A mapped segment. Dropping the last clone unmaps it.
+/// A mapped segment. Dropping the last clone unmaps it; a clone only counts a reference
+/// (the real-time tasks clone it without allocating).
 #[derive(Clone)]
 pub struct Mapping {
-    map: Arc<MmapRaw>,
+    inner: Arc<Mapped>,
+}
+
+struct Mapped {
+    map: MmapRaw,
     path: PathBuf,
 }
 
 impl std::fmt::Debug for Mapping {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "Mapping({})", self.path.display())
+        write!(f, "Mapping({})", self.inner.path.display())
     }
 }
 
@@ -123,12 +128,12 @@ impl Mapping {
         // made or opened), page-aligned, and lives as long as `self`; every field of
         // `Segment` is valid for any bytes a process may leave there except that the
         // cells' counters must be sane, which the cells check themselves.
-        unsafe { &*self.map.as_ptr().cast::<Segment>() }
+        unsafe { &*self.inner.map.as_ptr().cast::<Segment>() }
     }
 
     /// The file.
     pub fn path(&self) -> &Path {
-        &self.path
+        &self.inner.path
     }
 
     /// Makes a new segment called `name` (replacing a stale one of a machine that died):
@@ -175,8 +180,7 @@ impl Mapping {
         }
         std::fs::rename(&tmp, &path).map_err(io)?;
         Ok(Mapping {
-            map: Arc::new(map),
-            path,
+            inner: Arc::new(Mapped { map, path }),
         })
     }
 
@@ -232,8 +236,7 @@ impl Mapping {
             });
         }
         Ok(Mapping {
-            map: Arc::new(map),
-            path,
+            inner: Arc::new(Mapped { map, path }),
         })
     }
 
@@ -241,9 +244,9 @@ impl Mapping {
     /// have replaced it).
     pub fn unlink(&self) {
         let mine = self.segment().header.instance;
-        if let Ok(other) = Mapping::open_path(&self.path) {
+        if let Ok(other) = Mapping::open_path(self.path()) {
             if other.segment().header.instance == mine {
-                let _ = std::fs::remove_file(&self.path);
+                let _ = std::fs::remove_file(self.path());
             }
         }
     }
