@@ -101,8 +101,12 @@ async fn session(app: Arc<App>, caller: Caller, socket: WebSocket) {
         return;
     }
     let mut last = status;
+    // A client slower than its rate gets fewer, newer patches, not a burst of stale ones.
+    let skip = tokio::time::MissedTickBehavior::Skip;
     let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / rate));
+    tick.set_missed_tick_behavior(skip);
     let mut beat = tokio::time::interval(Duration::from_secs(1));
+    beat.set_missed_tick_behavior(skip);
     loop {
         let out: Option<Value> = tokio::select! {
             _ = tick.tick() => {
@@ -152,6 +156,7 @@ async fn session(app: Arc<App>, caller: Caller, socket: WebSocket) {
                     Ok(ClientMessage::Subscribe { rate_hz, events, trace, trace_decimation }) => {
                         rate = rate_hz.unwrap_or(rate).clamp(1.0, 100.0);
                         tick = tokio::time::interval(Duration::from_secs_f64(1.0 / rate));
+                        tick.set_missed_tick_behavior(skip);
                         want_events = events.unwrap_or(want_events);
                         want_trace = trace.unwrap_or(want_trace);
                         decimation = trace_decimation.unwrap_or(decimation).max(1);
