@@ -407,6 +407,11 @@ pub fn run(options: ApiOptions) -> anyhow::Result<()> {
     }
     std::fs::create_dir_all(&options.programs_dir)
         .map_err(|e| anyhow::anyhow!("{}: {e}", options.programs_dir.display()))?;
+    // What writers killed mid-write (kill -9, power loss) left beside the files.
+    files::remove_stale_temporaries(&options.users_file);
+    if let Some(t) = &config.files.tool_table {
+        files::remove_stale_temporaries(&config.resolve(t));
+    }
     let (auth, first_password) = auth::Auth::open(&options.users_file, options.session_ttl)?;
     if let Some(password) = first_password {
         // Printed once, to the terminal that started the server; never logged elsewhere.

@@ -81,5 +81,12 @@ fn kill_9_during_tool_table_writes_leaves_the_old_or_the_new_table() {
     }
     // The kills fell in the middle of writing: both tables were found.
     assert!(seen[0] > 0 && seen[1] > 0, "{seen:?}");
+    // The killed writers' temporary files are cleared away, the table stays.
+    rtcnc_api::files::remove_stale_temporaries(&path);
+    let left: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(left, ["tools.tbl"]);
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -323,3 +323,30 @@ fn a_client_of_another_layout_is_refused_naming_both_versions() {
     std::fs::remove_file(&path).unwrap();
     assert!(matches!(Client::attach(&name), Err(LinkError::Absent(_))));
 }
+
+#[test]
+fn a_client_replaced_without_leaving_counts_as_lost_and_a_clean_detach_does_not() {
+    let mut r = rig("replaced", &mill());
+    r.run_ms(20);
+    let map = r.link.mapping().clone();
+    let seg = map.segment();
+    // Another process takes the place of the attached one, which never left (killed).
+    let before = seg.client_losses.load(Ordering::Relaxed);
+    seg.client_pid.store(1, Ordering::Release);
+    r.run_ms(5);
+    assert_eq!(seg.client_losses.load(Ordering::Relaxed), before + 1);
+    // That client leaves cleanly (what `Client::detach` does), then another attaches at
+    // once: no loss.
+    seg.client_pid.store(0, Ordering::Release);
+    seg.client_detaches.fetch_add(1, Ordering::AcqRel);
+    seg.client_pid.store(std::process::id(), Ordering::Release);
+    r.run_ms(5);
+    assert_eq!(seg.client_losses.load(Ordering::Relaxed), before + 1);
+    assert!(
+        r.events
+            .iter()
+            .filter(|e| e.kind == layout::event::CLIENT_LOST)
+            .count()
+            == 1
+    );
+}

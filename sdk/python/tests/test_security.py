@@ -4,6 +4,7 @@ the log-in rate limit, the body limit. Without a machine every machine endpoint 
 
 from __future__ import annotations
 
+import json
 import re
 import ssl
 import subprocess
@@ -108,5 +109,41 @@ def test_tls_with_a_certificate(tmp_path):
         assert r.status_code == 200 and r.json()["openapi"] == "3.1.0"
         with pytest.raises(httpx.HTTPError):
             httpx.get(url.replace("https://", "http://") + "/api/openapi.json", timeout=5)
+    finally:
+        stop(p)
+
+
+def test_sessions_expire_and_websocket_messages_are_limited(tmp_path):
+    import asyncio
+
+    import websockets
+
+    from conftest import add_users, PASSWORDS
+
+    add_users(tmp_path / "users.toml")
+    p, url, _ = start_api(tmp_path, "--listen", "127.0.0.1:0", "--session-seconds", "2")
+    try:
+        c = rtcnc.Client(url)
+        c.login("viewer", PASSWORDS["viewer"][1])
+        assert c.session().user == "viewer"
+
+        async def oversize() -> bool:
+            ws_url = url.replace("http://", "ws://") + f"/api/ws?token={c.token}"
+            async with websockets.connect(ws_url) as ws:
+                first = json.loads(await ws.recv())
+                assert first["type"] == "snapshot"
+                await ws.send("x" * 10_000)
+                try:
+                    while True:
+                        await asyncio.wait_for(ws.recv(), 5)
+                except websockets.ConnectionClosed:
+                    return True
+            return False
+
+        assert asyncio.run(oversize()), "a message over 4 KiB closes the socket"
+        time.sleep(3)  # longer than the session's 2 s
+        with pytest.raises(rtcnc.Unauthorized) as e:
+            c.session()
+        assert e.value.code == "auth.expired"
     finally:
         stop(p)
