@@ -199,8 +199,41 @@ pub fn router(app: Arc<App>) -> Router {
         .route("/api/diagnostics/trace", get(r::trace))
         .fallback(|| async { Problem::not_found("api.not_found", "no such endpoint") })
         .layer(DefaultBodyLimit::max(MAX_JSON_BODY))
+        .layer(axum::middleware::from_fn_with_state(
+            Arc::clone(&app),
+            read_body_first,
+        ))
         .layer(axum::middleware::map_response(problem::as_problem))
         .with_state(app)
+}
+
+/// Reads the whole request body (within its limit) before the handler runs: a handler that
+/// answers without reading it (a 401, 403 or 409 before the body matters) would otherwise
+/// make the server close the connection, and a client that reuses it finds it gone.
+async fn read_body_first(
+    axum::extract::State(app): axum::extract::State<Arc<App>>,
+    request: axum::extract::Request,
+    next: axum::middleware::Next,
+) -> axum::response::Response {
+    use axum::response::IntoResponse as _;
+    let limit = if request.uri().path().starts_with("/api/programs/") {
+        app.options.max_upload_bytes
+    } else {
+        MAX_JSON_BODY
+    };
+    let (parts, body) = request.into_parts();
+    match axum::body::to_bytes(body, limit + 1).await {
+        Ok(bytes) => {
+            let request = axum::extract::Request::from_parts(parts, axum::body::Body::from(bytes));
+            next.run(request).await
+        }
+        Err(_) => Problem::new(
+            axum::http::StatusCode::PAYLOAD_TOO_LARGE,
+            "api.too_large",
+            format!("the request body is larger than {limit} bytes"),
+        )
+        .into_response(),
+    }
 }
 
 impl App {

@@ -129,6 +129,8 @@ class Server:
         self.wait_for(lambda: self.machine_pid != old)
 
     def stop(self) -> None:
+        # What both processes printed, for a failed run.
+        (self.folder / "serve.log").write_text("\n".join(self.lines) + "\n")
         self.process.send_signal(signal.SIGTERM)
         try:
             self.process.wait(timeout=15)
