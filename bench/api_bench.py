@@ -60,7 +60,7 @@ def timing_summary(c: rtcnc.Client) -> tuple[int, float]:
 
 def run_program_phase(with_clients: bool) -> dict:
     folder = Path(tempfile.mkdtemp(prefix="rtcnc-api-bench-"))
-    server = Server(folder)
+    server = Server(folder, loose_following_error=False)
     try:
         c = operator(server)
         c.upload_program("bench.ngc", PROGRAM)

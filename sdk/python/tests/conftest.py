@@ -30,8 +30,14 @@ PASSWORDS = {
 }
 
 
-def machine_file(folder: Path, on_loss: str = "continue") -> Path:
+def machine_file(folder: Path, on_loss: str = "continue", loose_following_error: bool = True) -> Path:
+    """The simulated mill, in `folder`. These tests are about processes and the API, and this
+    VM stalls real-time threads for milliseconds (docs/kernel.md "Timing"): with the mill's
+    own following-error limits a stall can stop a program mid-test, so they are loosened
+    unless asked otherwise (bench/api.sh keeps them)."""
     text = (REPO / "configs" / "sim-mill.toml").read_text()
+    if loose_following_error:
+        text = text.replace("min_ferror = 0.02, ferror = 0.2", "min_ferror = 5.0, ferror = 5.0")
     text = text.replace('program = "../examples/plc/mill.st"', f'program = "{REPO}/examples/plc/mill.st"')
     text = text.replace('tool_table = "sim-mill.tbl"', 'tool_table = "sim-mill.tbl"\nparameters = "sim-mill.var"')
     text += f'\n[hmi]\non_loss = "{on_loss}"\n'
@@ -50,9 +56,9 @@ def add_users(users: Path) -> None:
 class Server:
     """One `rtcnc serve`; the pids of its current machine and API processes."""
 
-    def __init__(self, folder: Path, on_loss: str = "continue"):
+    def __init__(self, folder: Path, on_loss: str = "continue", loose_following_error: bool = True):
         self.folder = folder
-        self.config = machine_file(folder, on_loss)
+        self.config = machine_file(folder, on_loss, loose_following_error)
         self.users = folder / "users.toml"
         add_users(self.users)
         self.segment = f"rtcnc-pytest-{os.getpid()}-{on_loss}"

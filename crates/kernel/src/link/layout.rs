@@ -447,8 +447,6 @@ pub mod service {
     pub const PLC_UNFORCE: u32 = 3;
     /// Watch the comma-separated paths in `text` (replaces the watch list).
     pub const PLC_WATCH: u32 = 4;
-    /// List the PLC's variables (names, comma-separated, in the reply; may be cut).
-    pub const PLC_LIST: u32 = 5;
 }
 
 /// A request to the machine's service thread.
