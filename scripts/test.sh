@@ -3,7 +3,8 @@
 # property tests of every crate. CI (.ci/run) calls exactly this.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-scripts/setup.sh
+# openssl makes the TLS test's certificate.
+scripts/setup.sh openssl
 
 # Property tests draw from a fixed seed here, so a commit passes or fails the same way every
 # time; the long randomised runs live in scripts/ and bench/ and pick fresh seeds.
@@ -17,3 +18,8 @@ echo "== cargo test"
 cargo test --workspace --locked
 echo "== EtherCAT over veth, 3 s (bench/ethercat.sh 0.05 --debug)"
 bench/ethercat.sh 0.05 --debug
+
+echo "== Python client (sdk/python) against a real rtcnc serve"
+scripts/setup-python.sh
+cargo build -p rtcnc --locked
+(cd sdk/python && ../../target/python-venv/bin/python -m pytest -q -p no:cacheprovider tests)

@@ -30,6 +30,14 @@ enum Command {
     Sim(commands::sim::Args),
     /// Run a program in real time on the configured machine.
     Run(commands::run::Args),
+    /// Run the machine process and the API server (two processes).
+    Serve(commands::serve::ServeArgs),
+    /// Run the machine process alone (the kernel in real time with its shared-memory segment).
+    Machine(commands::machine::Args),
+    /// Run the API server alone, attached to a machine process.
+    Api(commands::api::Args),
+    /// Manage the API's users.
+    User(commands::user::Args),
 }
 
 fn main() -> ExitCode {
@@ -40,6 +48,10 @@ fn main() -> ExitCode {
         Command::Plc(args) => commands::plc::run(args),
         Command::Sim(args) => commands::sim::run(args),
         Command::Run(args) => commands::run::run(args),
+        Command::Serve(args) => commands::serve::run(args),
+        Command::Machine(args) => commands::machine::run(args),
+        Command::Api(args) => commands::api::run(args),
+        Command::User(args) => commands::user::run(args),
     };
     match result {
         Ok(code) => code,

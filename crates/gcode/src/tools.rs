@@ -160,12 +160,8 @@ impl ToolTable {
         &self.tools
     }
 
-    /// Writes the table in `.tbl` format atomically (temporary file, fsync, rename).
-    pub fn save(&self, path: &Path) -> Result<(), ToolTableError> {
-        let io = |source| ToolTableError::Io {
-            path: path.display().to_string(),
-            source,
-        };
+    /// The table in `.tbl` format.
+    pub fn to_text(&self) -> String {
         let mut text = Vec::new();
         for t in &self.tools {
             let _ = write!(text, "T{} P{}", t.number, t.pocket);
@@ -189,6 +185,16 @@ impl ToolTable {
             }
             let _ = writeln!(text, " ;{}", t.comment);
         }
+        String::from_utf8(text).unwrap_or_default()
+    }
+
+    /// Writes the table in `.tbl` format atomically (temporary file, fsync, rename).
+    pub fn save(&self, path: &Path) -> Result<(), ToolTableError> {
+        let io = |source| ToolTableError::Io {
+            path: path.display().to_string(),
+            source,
+        };
+        let text = self.to_text().into_bytes();
         let tmp = path.with_extension("tbl.tmp");
         let mut f = std::fs::File::create(&tmp).map_err(io)?;
         f.write_all(&text).map_err(io)?;

@@ -560,6 +560,40 @@ pub struct FilesSection {
     pub plc_retain: Option<PathBuf>,
 }
 
+/// What the machine does when its API process is lost (no heartbeat): a jog always stops.
+#[derive(Debug, Clone, Copy, Deserialize, Default, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum OnLoss {
+    /// A running program goes on (as LinuxCNC).
+    #[default]
+    Continue,
+    /// Feed hold.
+    Hold,
+    /// Emergency stop.
+    Estop,
+}
+
+/// `[hmi]`.
+#[derive(Debug, Clone, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct HmiSection {
+    /// Reaction to the loss of the API process.
+    #[serde(default)]
+    pub on_loss: OnLoss,
+    /// TLS certificate (PEM) of the API server, relative to the machine file.
+    #[serde(default)]
+    pub tls_certificate: Option<PathBuf>,
+    /// Its private key (PEM).
+    #[serde(default)]
+    pub tls_key: Option<PathBuf>,
+    /// The users file (default: `users.toml` beside the machine file).
+    #[serde(default)]
+    pub users: Option<PathBuf>,
+    /// Where uploaded programs live (default: `programs/` beside the machine file).
+    #[serde(default)]
+    pub programs: Option<PathBuf>,
+}
+
 /// `[handwheel]`.
 #[derive(Debug, Clone, Copy, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -613,6 +647,9 @@ pub struct MachineConfig {
     /// `[handwheel]`.
     #[serde(default)]
     pub handwheel: HandwheelSection,
+    /// `[hmi]`: the operator's surfaces in processes of their own.
+    #[serde(default)]
+    pub hmi: HmiSection,
     /// Folder of the file (paths are relative to it); set by [`MachineConfig::load`].
     #[serde(skip)]
     pub base_dir: PathBuf,

@@ -97,6 +97,32 @@ pub enum FaultCode {
 }
 
 impl FaultCode {
+    /// Every code, in number order.
+    pub const ALL: [FaultCode; 17] = [
+        FaultCode::EStop,
+        FaultCode::HardLimit,
+        FaultCode::FollowingError,
+        FaultCode::DriveFault,
+        FaultCode::Communication,
+        FaultCode::DeadlineMiss,
+        FaultCode::ProgramError,
+        FaultCode::CompensationError,
+        FaultCode::MotionError,
+        FaultCode::LogicFault,
+        FaultCode::AuxRefused,
+        FaultCode::HomingFailed,
+        FaultCode::CommandRefused,
+        FaultCode::BackgroundCheck,
+        FaultCode::SpindleOrientTimeout,
+        FaultCode::ProbeFailed,
+        FaultCode::SyncFailed,
+    ];
+
+    /// The code of a [`number`](Self::number).
+    pub fn from_number(number: u32) -> Option<FaultCode> {
+        Self::ALL.iter().copied().find(|c| c.number() == number)
+    }
+
     /// Stable code.
     pub fn as_str(self) -> &'static str {
         match self {

@@ -59,6 +59,12 @@ pub(crate) struct InterpreterStage {
     message_seq: u32,
     /// Message texts not yet handed to the look-ahead (its channel was full).
     texts: std::collections::VecDeque<(u32, FixedText)>,
+    /// The tool table file (read again on request).
+    tool_table_file: Option<PathBuf>,
+    /// Where the modal state goes after every activation.
+    modal: Option<rtcnc_rt::SeqlockWriter<crate::modal::ModalSnapshot>>,
+    /// `tools` was read again: the next interpreter takes it instead of the last one's.
+    tools_fresh: bool,
 }
 
 /// The user M-code number with which a pallet shuttle is asked of the machine logic.
@@ -99,12 +105,30 @@ impl InterpreterStage {
             sync_hold: None,
             message_seq: 0,
             texts: std::collections::VecDeque::with_capacity(8),
+            tool_table_file: None,
+            modal: None,
+            tools_fresh: false,
         }
     }
 
     /// The machine has a pallet shuttle (`machine.pallet_shuttle`).
     pub(crate) fn with_pallet_shuttle(mut self, on: bool) -> Self {
         self.pallet_shuttle = on;
+        self
+    }
+
+    /// The tool table file, read again on `InterpreterRequest::ReloadToolTable`.
+    pub(crate) fn with_tool_table_file(mut self, path: Option<PathBuf>) -> Self {
+        self.tool_table_file = path;
+        self
+    }
+
+    /// Publishes the modal state there after every activation.
+    pub(crate) fn with_modal(
+        mut self,
+        writer: rtcnc_rt::SeqlockWriter<crate::modal::ModalSnapshot>,
+    ) -> Self {
+        self.modal = Some(writer);
         self
     }
 
@@ -120,11 +144,11 @@ impl InterpreterStage {
             .as_ref()
             .map(|i| i.parameters().clone())
             .unwrap_or_else(|| self.parameters.clone());
-        let tools = self
-            .interp
-            .as_ref()
-            .map(|i| i.tool_table().clone())
-            .unwrap_or_else(|| self.tools.clone());
+        let tools = match &self.interp {
+            Some(i) if !self.tools_fresh => i.tool_table().clone(),
+            _ => self.tools.clone(),
+        };
+        self.tools_fresh = false;
         let mut interp = Interpreter::new(self.settings.clone(), tools, parameters);
         if self.diameter_mode {
             // A lathe in diameter mode: G18 and G7 before the program, as LinuxCNC's
@@ -136,6 +160,17 @@ impl InterpreterStage {
     }
 
     pub(crate) fn body(&mut self, ctx: &mut Context<'_>) -> Next {
+        let next = self.run(ctx);
+        if let (Some(w), Some(interp)) = (self.modal.as_mut(), self.interp.as_ref()) {
+            let m = crate::modal::ModalSnapshot::of(interp.modal_state());
+            if w.value() != m {
+                w.publish(m);
+            }
+        }
+        next
+    }
+
+    fn run(&mut self, ctx: &mut Context<'_>) -> Next {
         while let Some(request) = self.shared.interpreter_requests.try_get() {
             match request {
                 InterpreterRequest::Run { epoch } => {
@@ -171,7 +206,7 @@ impl InterpreterStage {
                     self.refused = false;
                     self.outbox.clear();
                     self.texts.clear();
-                    if self.interp.is_none() {
+                    if self.interp.is_none() || self.tools_fresh {
                         self.interp = Some(self.fresh_interpreter());
                     }
                     if let Some(interp) = self.interp.as_mut() {
@@ -197,6 +232,8 @@ impl InterpreterStage {
                     self.texts.clear();
                 }
                 InterpreterRequest::BlockDelete(on) => self.settings.block_delete = on,
+                InterpreterRequest::Open(path) => self.program = Some(path.as_str().into()),
+                InterpreterRequest::ReloadToolTable => self.reload_tool_table(),
             }
         }
         for _ in 0..BLOCKS_PER_ACTIVATION {
@@ -657,6 +694,22 @@ impl InterpreterStage {
             }
         }
         None
+    }
+
+    /// Reads the tool table file again; the next program or MDI line uses it (MDI then
+    /// starts with a fresh interpreter; a running program keeps the table it started with). A file that does not read keeps the old table and says
+    /// why as the last error.
+    fn reload_tool_table(&mut self) {
+        let Some(path) = &self.tool_table_file else {
+            return;
+        };
+        match ToolTable::load(path) {
+            Ok(table) => {
+                self.tools = table;
+                self.tools_fresh = true;
+            }
+            Err(e) => *self.shared.error_text.lock() = Some(e.to_string()),
+        }
     }
 
     /// Writes the parameter file (atomically: the interpreter's `Parameters::save`).

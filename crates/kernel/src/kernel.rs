@@ -50,6 +50,9 @@ pub struct KernelOptions {
     /// progress (its set-point stands while it says it moves), as a planner that stalls.
     /// For the stall watchdog's test.
     pub freeze_path_from: Option<u64>,
+    /// The shared-memory link to an API process (`rtcnc machine`): its tasks run first in
+    /// the interpolation thread, in command parsing and after status feedback.
+    pub link: Option<crate::link::MachineLink>,
 }
 
 /// The result of the power-up self-test.
@@ -78,6 +81,7 @@ pub struct KernelHandle {
     drives: Arc<dyn DriveStatus>,
     simulated: Option<SimulatedMachineHandle>,
     config: Arc<MachineConfig>,
+    plc: Option<Arc<PiMutex<rtcnc_plc::Runtime>>>,
 }
 
 impl KernelHandle {
@@ -146,6 +150,11 @@ impl KernelHandle {
             .interpolation_gap
             .load(std::sync::atomic::Ordering::Relaxed);
         (lead, gap)
+    }
+
+    /// The PLC runtime, shared with the machine-logic task (hold it briefly).
+    pub fn plc(&self) -> Option<&Arc<PiMutex<rtcnc_plc::Runtime>>> {
+        self.plc.as_ref()
     }
 
     /// The configuration.
@@ -245,7 +254,12 @@ impl Kernel {
             status,
         } = writers;
         let (setpoints_out, setpoints_in) = setpoint_channel(&config)?;
-        let (recorder, samples) = recording(options.record_capacity)?;
+        // The link's trace ring takes the recorded samples.
+        let record_capacity = match options.link {
+            Some(_) => options.record_capacity.max(64),
+            None => options.record_capacity,
+        };
+        let (recorder, mut samples) = recording(record_capacity)?;
         let servo = Arc::new(PiMutex::new(drive_stage(
             &config,
             bus,
@@ -262,11 +276,19 @@ impl Kernel {
             &shared,
             requests,
             setpoints_out,
-            options.program.is_some(),
+            // With a link, programs are loaded at run time (the link refuses a start
+            // without one).
+            options.program.is_some() || options.link.is_some(),
             options.freeze_path_from,
         )?;
-        let (logic, retain) = logic_stage(&config, &shared, logic_outputs, &mut report)?;
-        let interpreter = interpreter_stage(&config, &shared, &options, parameters, tools);
+        let (logic, retain, plc) = logic_stage(&config, &shared, logic_outputs, &mut report)?;
+        let (modal_writer, modal) = rtcnc_rt::seqlock("modal state", Default::default());
+        let interpreter = interpreter_stage(&config, &shared, &options, parameters, tools)
+            .with_modal(modal_writer);
+        let link = match &options.link {
+            Some(l) => Some(l.ports(&shared, modal, samples.take())?),
+            None => None,
+        };
         let stages = Stages {
             servo: servo.clone(),
             core,
@@ -275,6 +297,7 @@ impl Kernel {
             interpreter,
             compensation: CompensationStage::new(shared.clone()),
             retain,
+            link,
         };
         let tasks = declare_tasks(&config, &threads, &options, &shared, stages)?;
         report.checks.push(("ready", "self-test passed".into()));
@@ -285,6 +308,7 @@ impl Kernel {
                 drives: servo,
                 simulated,
                 config,
+                plc,
             },
             samples,
             self_test: report,
@@ -373,6 +397,9 @@ fn motion_core(
 /// Where the PLC's RETAIN values wait for the background task to save them, and the file.
 type RetainSaver = (Arc<PiMutex<RetainSnapshot>>, PathBuf);
 
+/// The PLC runtime, shared by the machine-logic task and the operator side.
+type SharedPlc = Arc<PiMutex<rtcnc_plc::Runtime>>;
+
 /// The machine logic: the machine file's PLC program (compiled, its RETAIN values
 /// restored), or the kernel's direct logic.
 fn logic_stage(
@@ -380,7 +407,7 @@ fn logic_stage(
     shared: &Shared,
     outputs: SeqlockWriter<crate::shared::LogicOutputs>,
     report: &mut SelfTestReport,
-) -> Result<(LogicStage, Option<RetainSaver>), KernelError> {
+) -> Result<(LogicStage, Option<RetainSaver>, Option<SharedPlc>), KernelError> {
     let logic = match &config.plc {
         None => Logic::Direct,
         Some(plc) => {
@@ -408,12 +435,16 @@ fn logic_stage(
                     ),
                 ));
             }
-            Logic::Plc(Box::new(runtime))
+            Logic::Plc(Arc::new(PiMutex::new(runtime)))
         }
+    };
+    let plc = match &logic {
+        Logic::Plc(runtime) => Some(Arc::clone(runtime)),
+        Logic::Direct => None,
     };
     let retain = match (&logic, &config.files.plc_retain) {
         (Logic::Plc(runtime), Some(file)) => Some((
-            Arc::new(PiMutex::new(runtime.retain_snapshot())),
+            Arc::new(PiMutex::new(runtime.lock().retain_snapshot())),
             config.resolve(file),
         )),
         _ => None,
@@ -427,7 +458,7 @@ fn logic_stage(
     if let Some((snapshot, _)) = &retain {
         stage = stage.with_retain(Arc::clone(snapshot));
     }
-    Ok((stage, retain))
+    Ok((stage, retain, plc))
 }
 
 /// The interpreter with the persistent parameters and tool table.
@@ -456,6 +487,7 @@ fn interpreter_stage(
         config.machine.diameter_mode,
     )
     .with_parameter_file(config.files.parameters.as_ref().map(|p| config.resolve(p)))
+    .with_tool_table_file(config.files.tool_table.as_ref().map(|p| config.resolve(p)))
     .with_pallet_shuttle(config.machine.pallet_shuttle)
 }
 
@@ -468,6 +500,12 @@ struct Stages<B: Fieldbus> {
     interpreter: InterpreterStage,
     compensation: CompensationStage,
     retain: Option<RetainSaver>,
+    /// The shared-memory link's ports: urgent commands, normal commands, the publisher.
+    link: Option<(
+        crate::link::UrgentPort,
+        crate::link::CommandPort,
+        crate::link::Publisher,
+    )>,
 }
 
 /// The task graph on the executive: the periodic threads in the order of the seeds'
@@ -500,6 +538,16 @@ fn declare_tasks<B: Fieldbus + Send + 'static>(
     } else {
         thread(&mut b, "interpolation", 2)
     };
+    let (urgent_port, command_port, publisher) = match stages.link {
+        Some((u, c, p)) => (Some(u), Some(c), Some(p)),
+        None => (None, None, None),
+    };
+    if let Some(mut port) = urgent_port {
+        // First in the interpolation thread: urgent commands from the link reach
+        // interpolation within the period they are read in.
+        let sh = shared.clone();
+        real_time.push(b.periodic(th, "link urgent", 1, move |ctx| port.run(ctx, &sh)));
+    }
     let load = options.interpolation_load;
     let stall = options.interpolation_stall;
     let core = &stages.core;
@@ -508,10 +556,21 @@ fn declare_tasks<B: Fieldbus + Send + 'static>(
     real_time.push(look_ahead_task(&mut b, th, t.look_ahead.runs, core, shared));
     let th = thread(&mut b, "command parsing", 4);
     let runs = t.command_parsing.runs;
-    real_time.push(command_parsing_task(&mut b, th, runs, core, shared));
+    real_time.push(command_parsing_task(
+        &mut b,
+        th,
+        runs,
+        core,
+        shared,
+        command_port,
+    ));
     let th = thread(&mut b, "status feedback", 5);
     let runs = t.status_feedback.runs;
     real_time.push(status_task(&mut b, th, runs, core, shared, stages.status));
+    if let Some(mut publisher) = publisher {
+        // After the status, every period: the link's status, events and trace.
+        real_time.push(b.periodic(th, "link status", 1, move |ctx| publisher.run(ctx)));
+    }
     let miss = miss_reaction(config.safety.deadline_miss, shared);
     for id in real_time {
         b.on_deadline_miss(id, miss.clone());
@@ -626,13 +685,26 @@ fn command_parsing_task(
     runs: u32,
     core: &Arc<PiMutex<MotionCore>>,
     shared: &Shared,
+    mut link: Option<crate::link::CommandPort>,
 ) -> TaskId {
     let (c, sh) = (core.clone(), shared.clone());
     b.periodic(thread, "command parsing", runs, move |ctx| {
-        // Drained: the remaining runs of this period are not made.
-        match sh.normal.try_get() {
-            Some(command) => {
-                c.lock().command(ctx, &sh, command);
+        // The kernel's own normal channel, then the link's commands, one per run; each
+        // link command is answered with the kernel's verdict. Drained: the remaining runs
+        // of this period are not made.
+        let next = match sh.normal.try_get() {
+            Some(command) => Some((None, command)),
+            None => link
+                .as_mut()
+                .and_then(|p| p.next(ctx))
+                .map(|(serial, command)| (Some(serial), command)),
+        };
+        match next {
+            Some((serial, command)) => {
+                let ok = c.lock().command(ctx, &sh, command);
+                if let (Some(serial), Some(port)) = (serial, link.as_mut()) {
+                    port.result(ctx, serial, command, ok);
+                }
             }
             None => ctx.finish_runs(),
         }

@@ -14,7 +14,9 @@ use crate::shared::{Feedback, LogicOutputs, LogicRequests, Shared, Snapshot};
 
 pub(crate) enum Logic {
     Direct,
-    Plc(Box<Runtime>),
+    /// Shared under a PI mutex with the operator side (PLC variables: read, force), which
+    /// holds it only for a look-up.
+    Plc(Arc<PiMutex<Runtime>>),
 }
 
 pub(crate) struct LogicStage {
@@ -76,6 +78,8 @@ impl LogicStage {
         match &mut self.logic {
             Logic::Direct => direct(&mut out, req, fb, self.has_tool_changer),
             Logic::Plc(plc) => {
+                let mut plc = plc.lock();
+                let plc: &mut Runtime = &mut plc;
                 if reset {
                     let longest = plc
                         .program()

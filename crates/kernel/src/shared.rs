@@ -42,6 +42,10 @@ pub enum InterpreterRequest {
     Stop,
     /// Block delete setting for the next run.
     BlockDelete(bool),
+    /// Load the program at this path (the next `Run` reads it).
+    Open(FixedText),
+    /// Read the tool table file again.
+    ReloadToolTable,
 }
 
 /// The feedback image, published by drive I/O after every exchange (raw joint positions,

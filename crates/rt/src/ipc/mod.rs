@@ -25,9 +25,9 @@ pub use latest::{LatestReader, LatestWriter, latest};
 pub use lead::{LeadConsumer, LeadProducer, Missing, lead_queue};
 pub use mailbox::Mailbox;
 pub use pimutex::{PiMutex, PiMutexGuard};
-pub use ring::{RingConsumer, RingProducer, ring};
+pub use ring::{RingConsumer, RingProducer, SpscCell, ring};
 pub use semaphore::{BinarySemaphore, CountingSemaphore, EventSemaphore};
-pub use seqlock::{SLOTS as SEQLOCK_SLOTS, SeqlockReader, SeqlockWriter, seqlock};
+pub use seqlock::{SLOTS as SEQLOCK_SLOTS, SeqlockCell, SeqlockReader, SeqlockWriter, seqlock};
 pub use trigger::Trigger;
 pub(crate) use trigger::WaitResult;
 

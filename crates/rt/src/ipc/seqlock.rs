@@ -24,14 +24,23 @@ const ATTEMPTS: usize = 4;
 /// The version of a slot being written (never a publication number).
 const WRITING: u64 = u64::MAX;
 
+#[repr(C)]
 struct Slot<T> {
     /// The publication number the slot holds, or `WRITING`.
     version: AtomicU64,
     value: UnsafeCell<MaybeUninit<T>>,
 }
 
-struct Shared<T> {
-    name: String,
+/// The seqlock itself, in place: a publication counter and [`SLOTS`] slots, `#[repr(C)]`
+/// and free of pointers, so it can live in memory shared between processes (a mapping at a
+/// different address in each) as well as behind the [`SeqlockWriter`] / [`SeqlockReader`]
+/// pair. The single-writer rule is the caller's: [`SeqlockCell::publish`] is `unsafe`.
+///
+/// In memory another process writes, `T` must be plain data for which every bit pattern is
+/// a value (integers, floats, arrays of them): a reader keeps only copies the protocol
+/// proves whole, but it cannot prove that the other side wrote a valid `T`.
+#[repr(C)]
+pub struct SeqlockCell<T> {
     /// Number of the newest publication; it lives in slot `published % SLOTS`.
     published: AtomicU64,
     slots: [Slot<T>; SLOTS],
@@ -42,7 +51,116 @@ struct Shared<T> {
 // only when the slot's version was the same, published number before and after the copy,
 // i.e. when no store overlapped it (the protocol of a seqlock, as crossbeam's `AtomicCell`
 // uses for values without a native atomic). `T: Copy` makes the copies plain bytes.
-unsafe impl<T: Copy + Send> Sync for Shared<T> {}
+unsafe impl<T: Copy + Send> Sync for SeqlockCell<T> {}
+
+impl<T: Copy> SeqlockCell<T> {
+    /// A cell holding `initial` as publication 0.
+    pub fn new(initial: T) -> Self {
+        let slot = |version| Slot {
+            version: AtomicU64::new(version),
+            value: UnsafeCell::new(MaybeUninit::new(initial)),
+        };
+        SeqlockCell {
+            published: AtomicU64::new(0),
+            slots: [slot(0), slot(WRITING), slot(WRITING), slot(WRITING)],
+        }
+    }
+
+    /// Writes a cell holding `initial` at `cell`, whatever the memory held before (a fresh
+    /// shared mapping).
+    ///
+    /// # Safety
+    /// `cell` is valid for writes and aligned, and nobody else uses the memory meanwhile.
+    pub unsafe fn init_at(cell: *mut Self, initial: T) {
+        // SAFETY: the caller's promise; `write` does not read the old bytes.
+        unsafe { cell.write(SeqlockCell::new(initial)) };
+    }
+
+    /// Makes `value` the newest (wait-free: a few stores and one copy of `T`).
+    ///
+    /// # Safety
+    /// Only one thread, in one process, publishes into a cell.
+    pub unsafe fn publish(&self, value: T) {
+        let next = self.begin();
+        // SAFETY: the slot is marked `WRITING`, no reader keeps what it copies from it.
+        unsafe { std::ptr::write_volatile(self.slot_value(next), MaybeUninit::new(value)) };
+        self.commit(next);
+    }
+
+    /// The newest value as its writer sees it (no retry).
+    ///
+    /// # Safety
+    /// Called by the cell's one writer (nobody stores meanwhile).
+    pub unsafe fn writer_value(&self) -> T {
+        let n = self.published.load(Ordering::Relaxed);
+        // SAFETY: only the writer stores into slots, and not while this reads; the newest
+        // slot is always initialised.
+        unsafe { (*self.slot_value(n)).assume_init() }
+    }
+
+    /// The newest value, or `None` when the writer, running on another processor, replaced
+    /// every slot during each of a few attempts (a real-time reader then keeps its previous
+    /// value). Never waits.
+    pub fn try_read(&self) -> Option<T> {
+        for _ in 0..ATTEMPTS {
+            let n = self.published.load(Ordering::Acquire);
+            let slot = &self.slots[(n % SLOTS as u64) as usize];
+            if slot.version.load(Ordering::Acquire) != n {
+                continue;
+            }
+            // SAFETY: a possibly torn copy of plain bytes, kept only if the check below
+            // proves that no store overlapped it.
+            let copy = unsafe { std::ptr::read_volatile(slot.value.get()) };
+            fence(Ordering::Acquire);
+            if slot.version.load(Ordering::Relaxed) == n {
+                // SAFETY: the slot held publication `n`, fully written, for the whole copy.
+                return Some(unsafe { copy.assume_init() });
+            }
+        }
+        None
+    }
+
+    /// The newest value, trying until a read succeeds (for threads that may wait).
+    pub fn read(&self) -> T {
+        loop {
+            if let Some(v) = self.try_read() {
+                return v;
+            }
+            std::hint::spin_loop();
+        }
+    }
+
+    /// Publications so far.
+    pub fn version(&self) -> u64 {
+        self.published.load(Ordering::Acquire)
+    }
+
+    fn slot_value(&self, n: u64) -> *mut MaybeUninit<T> {
+        self.slots[(n % SLOTS as u64) as usize].value.get()
+    }
+
+    /// Marks the slot of the next publication as being written; returns its number.
+    fn begin(&self) -> u64 {
+        let next = self.published.load(Ordering::Relaxed) + 1;
+        let slot = &self.slots[(next % SLOTS as u64) as usize];
+        slot.version.store(WRITING, Ordering::Relaxed);
+        // The mark is visible before any byte of the new value.
+        fence(Ordering::Release);
+        next
+    }
+
+    /// Makes publication `next` (written into its slot) the newest.
+    fn commit(&self, next: u64) {
+        let slot = &self.slots[(next % SLOTS as u64) as usize];
+        slot.version.store(next, Ordering::Release);
+        self.published.store(next, Ordering::Release);
+    }
+}
+
+struct Shared<T> {
+    name: String,
+    cell: SeqlockCell<T>,
+}
 
 /// The publishing end (one per value; not `Clone`).
 pub struct SeqlockWriter<T> {
@@ -64,14 +182,9 @@ impl<T> Clone for SeqlockReader<T> {
 
 /// A snapshot channel called `name`, holding `initial` until the first publication.
 pub fn seqlock<T: Copy + Send>(name: &str, initial: T) -> (SeqlockWriter<T>, SeqlockReader<T>) {
-    let slot = |version| Slot {
-        version: AtomicU64::new(version),
-        value: UnsafeCell::new(MaybeUninit::new(initial)),
-    };
     let shared = Arc::new(Shared {
         name: name.to_string(),
-        published: AtomicU64::new(0),
-        slots: [slot(0), slot(WRITING), slot(WRITING), slot(WRITING)],
+        cell: SeqlockCell::new(initial),
     });
     (
         SeqlockWriter {
@@ -84,10 +197,8 @@ pub fn seqlock<T: Copy + Send>(name: &str, initial: T) -> (SeqlockWriter<T>, Seq
 impl<T: Copy + Send> SeqlockWriter<T> {
     /// Makes `value` the newest (wait-free: a few stores and one copy of `T`).
     pub fn publish(&mut self, value: T) {
-        let next = self.begin();
-        // SAFETY: the slot is marked `WRITING`, no reader keeps what it copies from it.
-        unsafe { std::ptr::write_volatile(self.slot_value(next), MaybeUninit::new(value)) };
-        self.commit(next);
+        // SAFETY: this writer is the cell's only one (not `Clone`, `&mut self`).
+        unsafe { self.shared.cell.publish(value) }
     }
 
     /// Publishes the newest value changed by `update` (the closure edits a copy of it).
@@ -99,14 +210,13 @@ impl<T: Copy + Send> SeqlockWriter<T> {
 
     /// The newest value (the writer's own, read without a retry).
     pub fn value(&self) -> T {
-        let n = self.shared.published.load(Ordering::Relaxed);
-        // SAFETY: only this writer stores into slots, and not while this reads.
-        unsafe { (*self.slot_value(n)).assume_init() }
+        // SAFETY: this is the cell's only writer.
+        unsafe { self.shared.cell.writer_value() }
     }
 
     /// Publications so far.
     pub fn version(&self) -> u64 {
-        self.shared.published.load(Ordering::Relaxed)
+        self.shared.cell.published.load(Ordering::Relaxed)
     }
 
     /// The channel's name.
@@ -121,25 +231,19 @@ impl<T: Copy + Send> SeqlockWriter<T> {
         }
     }
 
+    #[cfg(test)]
     fn slot_value(&self, n: u64) -> *mut MaybeUninit<T> {
-        self.shared.slots[(n % SLOTS as u64) as usize].value.get()
+        self.shared.cell.slot_value(n)
     }
 
-    /// Marks the slot of the next publication as being written; returns its number.
+    #[cfg(test)]
     fn begin(&mut self) -> u64 {
-        let next = self.shared.published.load(Ordering::Relaxed) + 1;
-        let slot = &self.shared.slots[(next % SLOTS as u64) as usize];
-        slot.version.store(WRITING, Ordering::Relaxed);
-        // The mark is visible before any byte of the new value.
-        fence(Ordering::Release);
-        next
+        self.shared.cell.begin()
     }
 
-    /// Makes publication `next` (written into its slot) the newest.
+    #[cfg(test)]
     fn commit(&mut self, next: u64) {
-        let slot = &self.shared.slots[(next % SLOTS as u64) as usize];
-        slot.version.store(next, Ordering::Release);
-        self.shared.published.store(next, Ordering::Release);
+        self.shared.cell.commit(next)
     }
 }
 
@@ -148,22 +252,7 @@ impl<T: Copy + Send> SeqlockReader<T> {
     /// every slot during each of a few attempts (a real-time reader then keeps its previous
     /// value). Never waits.
     pub fn try_read(&self) -> Option<T> {
-        for _ in 0..ATTEMPTS {
-            let n = self.shared.published.load(Ordering::Acquire);
-            let slot = &self.shared.slots[(n % SLOTS as u64) as usize];
-            if slot.version.load(Ordering::Acquire) != n {
-                continue;
-            }
-            // SAFETY: a possibly torn copy of plain bytes, kept only if the check below
-            // proves that no store overlapped it.
-            let copy = unsafe { std::ptr::read_volatile(slot.value.get()) };
-            fence(Ordering::Acquire);
-            if slot.version.load(Ordering::Relaxed) == n {
-                // SAFETY: the slot held publication `n`, fully written, for the whole copy.
-                return Some(unsafe { copy.assume_init() });
-            }
-        }
-        None
+        self.shared.cell.try_read()
     }
 
     /// Reads into `value` and returns true, or leaves it alone and returns false (see
@@ -181,17 +270,12 @@ impl<T: Copy + Send> SeqlockReader<T> {
     /// The newest value, trying until a read succeeds: for threads outside the task set
     /// (an HMI, a test), which may wait. A real-time task uses [`try_read`](Self::try_read).
     pub fn read(&self) -> T {
-        loop {
-            if let Some(v) = self.try_read() {
-                return v;
-            }
-            std::hint::spin_loop();
-        }
+        self.shared.cell.read()
     }
 
     /// Publications so far (a cheap test for news).
     pub fn version(&self) -> u64 {
-        self.shared.published.load(Ordering::Acquire)
+        self.shared.cell.version()
     }
 
     /// The channel's name.
