@@ -475,7 +475,7 @@ def adaptive_pocket_6mm():
                  HelixAngle=5, HelixDiameterLimit=0, Tolerance=0.1)
 
 
-@part("adaptive clearing, inside pocket, 3 mm, 15 %, fine tolerance", g64="G64")
+@part("adaptive clearing, inside pocket, 3 mm, 18 %, fine tolerance", g64="G64")
 def adaptive_pocket_3mm():
     adaptive_job("adaptive-pocket-3mm", plate_with_pocket(20, 20, 84, 60, 44, 30, 4, 1.5),
                  lambda m: faces_at(m, -1.5), 2, 2000, 250, 20000, "G64", "mm",
