@@ -27,13 +27,24 @@ trap 'rm -rf "$work"' EXIT
 for ngc in "${programs[@]}"; do
   name=$(basename "$ngc" .ngc)
   dir="$work/$name"
-  if "$run_sim" "$ngc" --vel 100 --acc 1000 --timeout 900 \
-       --set "EMCIO.TOOL_TABLE=$(readlink -f $corpus/tools.tbl)" --out "$dir" > "$dir.log" 2>&1; then
-    seconds=$(python3 -c 'import json,sys; print("%.3f" % json.load(open(sys.argv[1]))["motion_time_s"])' "$dir/summary.json")
-  else
-    seconds=NA
-    echo "linuxcnc-times: $name: $(grep -h '^result=\|^error=' "$dir/run_status.txt" 2>/dev/null | tr '\n' ' ')" >&2
-  fi
+  # A run counts when run_sim.sh reports OK and the last line LinuxCNC moved on is within
+  # five lines of the program's last line with an axis word (CAM output repeats its last
+  # retract, which does not move): on a loaded machine its user-space motion module
+  # can miss a command ("USRMOT: ERROR: command timeout") and stop the program early while
+  # the run still looks finished. Such a run is tried again, twice at most.
+  last_move=$(grep -n -i '^[^(;]*[XYZ] *[-+.0-9]' "$ngc" | tail -1 | cut -d: -f1)
+  seconds=NA
+  for attempt in 1 2 3; do
+    rm -rf "$dir"
+    if "$run_sim" "$ngc" --vel 100 --acc 1000 --timeout 900 \
+         --set "EMCIO.TOOL_TABLE=$(readlink -f $corpus/tools.tbl)" --out "$dir" > "$dir.log" 2>&1 \
+       && python3 -c 'import json,sys; sys.exit(json.load(open(sys.argv[1]))["last_program_line"] < int(sys.argv[2]) - 5)' \
+            "$dir/summary.json" "$last_move"; then
+      seconds=$(python3 -c 'import json,sys; print("%.3f" % json.load(open(sys.argv[1]))["motion_time_s"])' "$dir/summary.json")
+      break
+    fi
+    echo "linuxcnc-times: $name (attempt $attempt): $(grep -h '^result=\|^error=' "$dir/run_status.txt" 2>/dev/null | tr '\n' ' ') $(grep -h 'ERROR' "$dir/linuxcnc.log" 2>/dev/null | head -1)" >&2
+  done
   # Replace the program's row, keep the others.
   grep -v -P "^\Q$name\E\t" "$out" > "$work/tsv" || true
   printf '%s\t%s\t%s\n' "$name" "$seconds" "$how" >> "$work/tsv"

@@ -32,6 +32,9 @@ ezdxf in `dxf_parts.py`; the CAM runs are `freecad_parts.py`, `dxf2gcode_parts.p
 - A program's first line is a comment naming it and how it was made; the rest is the CAM
   tool's output, unchanged except that FreeCAD's header (`--no-header`) and dxf2gcode's
   "(Time: ...)" line, which carry the date, are left out.
+- Regenerating gives byte-identical programs except three of FreeCAD's adaptive clearing
+  (`adaptive-boss-inch`, `adaptive-pocket-3mm`, `adaptive-profile-8mm`), whose paths differ
+  slightly from run to run; make.sh then rewrites their canonical output and times too.
 - `bench/cam-corpus.sh` runs all of them with `rtcnc sim`;
   `crates/kernel/tests/cam_corpus.rs` runs them in the tests.
 
