@@ -96,7 +96,9 @@ for name, ok, why, v, a, j, t, l in rows:
         name, "yes" if ok else "NO", v, a, j, t, l,
         "-" if math.isnan(ratio) else "%.3f" % ratio, "" if ok else why[:150]))
 print()
-print("ended within the run: %d / %d" % (ended, len(rows)))
+within = sum(1 for r in rows if r[1] == "1" and all(float(x) <= 1 + 1e-6 for x in r[3:6]))
+print("ended without a fault: %d / %d; and within every limit: %d / %d"
+      % (ended, len(rows), within, len(rows)))
 for k, what in (("v", "velocity"), ("a", "acceleration"), ("j", "jerk")):
     r, name = worst[k]
     print("largest %-12s / limit: %.4f (%s)%s" % (what, r, name, "  EXCEEDED" if r > 1 + 1e-6 else ""))
