@@ -340,6 +340,21 @@ pub struct SpindleSection {
     /// Simulated spindle: oriented within this many degrees.
     #[serde(default = "orient_tolerance")]
     pub orient_tolerance_deg: f64,
+    /// What an S word above `max_speed_rpm` does.
+    #[serde(default)]
+    pub over_speed: OverSpeed,
+}
+
+/// `spindle.over_speed`: what an S word above the spindle's highest speed does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum OverSpeed {
+    /// Error in program at the S word's block: the program stops before it.
+    #[default]
+    Refuse,
+    /// The spindle runs at `max_speed_rpm`, and the operator gets a message when the
+    /// machine reaches the block.
+    Clamp,
 }
 
 fn orient_speed() -> f64 {

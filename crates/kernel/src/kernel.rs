@@ -306,7 +306,8 @@ impl Kernel {
             parameters,
             config.machine.diameter_mode,
         )
-        .with_parameter_file(config.files.parameters.as_ref().map(|p| config.resolve(p)));
+        .with_parameter_file(config.files.parameters.as_ref().map(|p| config.resolve(p)))
+        .with_spindle_limit(config.spindle.map(|s| (s.max_speed_rpm, s.over_speed)));
         let mut compensation = CompensationStage::new(shared.clone());
 
         let mut b = TaskSet::builder();
