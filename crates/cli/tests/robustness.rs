@@ -238,3 +238,41 @@ fn sigterm_makes_a_controlled_stop_and_prints_the_summary() {
     assert!(stdout.contains("position control"), "{stdout}");
     assert!(stderr.contains("feed hold, abort, drives off"), "{stderr}");
 }
+
+#[test]
+fn an_error_names_its_cause_once() {
+    let count = |text: &str, what: &str| text.matches(what).count();
+    let out = rtcnc()
+        .args([
+            "sim",
+            "examples/bracket.ngc",
+            "--machine",
+            "configs/no-such-machine.toml",
+        ])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert_eq!(count(&stderr, "no-such-machine.toml"), 1, "{stderr}");
+    assert_eq!(count(&stderr, "No such file or directory"), 1, "{stderr}");
+
+    // A machine file whose tool table is missing: the self-test names the file once.
+    let dir = scratch("cause-once");
+    let text = std::fs::read_to_string(repo().join("configs/sim-mill.toml"))
+        .unwrap()
+        .replace(
+            "\"../examples/plc/mill.st\"",
+            &format!("{:?}", repo().join("examples/plc/mill.st")),
+        );
+    assert!(text.contains("sim-mill.tbl"));
+    std::fs::write(dir.join("mill.toml"), text).unwrap();
+    let out = rtcnc()
+        .args(["sim", "examples/bracket.ngc", "--machine"])
+        .arg(dir.join("mill.toml"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert_eq!(count(&stderr, "sim-mill.tbl"), 1, "{stderr}");
+    assert_eq!(count(&stderr, "No such file or directory"), 1, "{stderr}");
+}

@@ -249,8 +249,9 @@ impl Kernel {
             None => Logic::Direct,
             Some(plc) => {
                 let path = config.resolve(&plc.program);
+                // Its errors name the file (file:line:column, or the file it cannot read).
                 let mut runtime = crate::logic::load_plc(&path, &plc.signals, &plc.safe_values)
-                    .map_err(|e| KernelError::Plc(format!("{}: {e}", path.display())))?;
+                    .map_err(KernelError::Plc)?;
                 report
                     .checks
                     .push(("machine logic", format!("{} compiled", path.display())));
@@ -524,9 +525,10 @@ fn persistent_files(
         Some(p) => {
             let path = config.resolve(p);
             if path.exists() {
+                // The error names the file.
                 let params = Parameters::load(&path).map_err(|e| KernelError::SelfTest {
                     check: "parameter file",
-                    reason: format!("{}: {e}", path.display()),
+                    reason: e.to_string(),
                 })?;
                 report
                     .checks
@@ -548,7 +550,7 @@ fn persistent_files(
             let path = config.resolve(p);
             let tools = ToolTable::load(&path).map_err(|e| KernelError::SelfTest {
                 check: "tool table",
-                reason: format!("{}: {e}", path.display()),
+                reason: e.to_string(),
             })?;
             report.checks.push((
                 "tool table",

@@ -41,6 +41,7 @@
 //! assert_eq!(sim.recording().monitor().task("log").unwrap().stats().activations, 10);
 //! ```
 
+pub mod check;
 mod error;
 pub mod histogram;
 pub mod ipc;
@@ -52,6 +53,7 @@ mod time;
 mod trace;
 mod virtual_time;
 
+pub use check::FieldError;
 pub use error::ConfigError;
 pub use ipc::{
     BinarySemaphore, CountingSemaphore, EventSemaphore, IpcError, LatestReader, LatestWriter,

@@ -143,7 +143,8 @@ fn controlled_stop(handle: &rtcnc_kernel::KernelHandle) {
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let config = MachineConfig::load(&args.machine)
-        .with_context(|| format!("machine configuration {}", args.machine.display()))?;
+        // The error names the file.
+        .context("machine configuration")?;
     if args.program.is_none() && args.idle.is_none() {
         bail!("give a PROGRAM, or --idle SECONDS");
     }

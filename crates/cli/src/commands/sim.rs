@@ -57,7 +57,8 @@ pub struct Summary {
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let config = MachineConfig::load(&args.machine)
-        .with_context(|| format!("machine configuration {}", args.machine.display()))?;
+        // The error names the file.
+        .context("machine configuration")?;
     if !args.program.is_file() {
         bail!("{}: no such program file", args.program.display());
     }
