@@ -1,7 +1,7 @@
 //! Fuzzing of the lexer, parser and compiler (and a few scans of whatever compiles):
 //! nothing may panic, every failure must be a positioned error or a fault value.
 //! `PLC_FUZZ_CASES` sets the number of cases per property (default: a short run);
-//! `scripts/fuzz-plc.sh` runs a long one.
+//! `scripts/fuzz.sh` runs the coverage-guided fuzzer (fuzz/) for long runs.
 
 use std::sync::Arc;
 use std::time::Duration;
