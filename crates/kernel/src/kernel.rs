@@ -163,9 +163,16 @@ impl KernelHandle {
             .map_or_else(|| format!("#{joint}"), |j| j.name.clone())
     }
 
-    /// A fault in words, with the joint's name.
+    /// A fault in words, with the joint's name; a PLC fault with the PLC's code, POU and
+    /// line.
     pub fn describe(&self, fault: &Fault) -> String {
-        fault.describe(|j| self.joint_name(j))
+        let text = fault.describe(|j| self.joint_name(j));
+        match &*self.shared.plc_fault.lock() {
+            Some(plc) if fault.code == crate::FaultCode::LogicFault && fault.value == 0.0 => {
+                format!("{text}: {plc}")
+            }
+            _ => text,
+        }
     }
 }
 
