@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Sets up and runs every test of rtcnc: formatting, lints, unit, integration and
-# property tests of every crate. CI (.ci/run) calls exactly this.
+# property tests of every crate, and a few seconds of each fuzz target. CI (.ci/run) calls
+# exactly this.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
@@ -11,7 +12,10 @@ export PROPTEST_RNG_SEED="${PROPTEST_RNG_SEED:-20261122}"
 
 echo "== cargo fmt --check"
 cargo fmt --all -- --check
+(cd fuzz && cargo fmt -- --check)
 echo "== cargo clippy -D warnings"
 cargo clippy --workspace --all-targets --locked -- -D warnings
 echo "== cargo test"
 cargo test --workspace --locked
+echo "== fuzz targets, a short run (scripts/fuzz.sh; the dedicated run is in docs/fuzzing.md)"
+scripts/fuzz.sh --seconds "${FUZZ_SECONDS:-5}"

@@ -65,10 +65,33 @@ fn clear_status_line() {
 
 /// Prints a warning above the status line (redrawn by the next status update).
 fn warn(text: &str, tty: bool) {
-    if tty {
-        clear_status_line();
-    }
-    eprintln!("rtcnc: warning: {text}");
+    eprint!("{}", warning_text(text, tty));
+}
+
+/// A warning as printed: on a terminal it first wipes the status line it replaces, so the
+/// warning stands on a line of its own and the status line is drawn again below it.
+fn warning_text(text: &str, tty: bool) -> String {
+    let clear = if tty { "\r\x1b[2K" } else { "" };
+    format!("{clear}rtcnc: warning: {text}\n")
+}
+
+/// The live status line: drawn over the previous one (wiped first), with the count of
+/// warnings printed above it so far.
+fn status_text(elapsed_s: f64, s: &rtcnc_kernel::Status, warnings: u64) -> String {
+    let warnings = if warnings > 0 {
+        format!("  warnings {warnings}")
+    } else {
+        String::new()
+    };
+    format!(
+        "\r\x1b[2K{elapsed_s:>8.1} s  line {:5}  X{:9.3} Y{:9.3} Z{:9.3}  F{:8.1} mm/min  {}{warnings}",
+        s.line,
+        s.axes[0],
+        s.axes[1],
+        s.axes[2],
+        s.path_speed * 60.0,
+        s.state.as_str()
+    )
 }
 
 static INTERRUPTS: AtomicU32 = AtomicU32::new(0);
@@ -251,20 +274,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             print_messages(&handle, kernel_start, tty);
             let s = handle.status();
             if tty {
-                let warnings = if misses.count > 0 {
-                    format!("  warnings {}", misses.count)
-                } else {
-                    String::new()
-                };
                 eprint!(
-                    "\r\x1b[2K{:>8.1} s  line {:5}  X{:9.3} Y{:9.3} Z{:9.3}  F{:8.1} mm/min  {}{warnings}",
-                    started.elapsed().as_secs_f64(),
-                    s.line,
-                    s.axes[0],
-                    s.axes[1],
-                    s.axes[2],
-                    s.path_speed * 60.0,
-                    s.state.as_str()
+                    "{}",
+                    status_text(started.elapsed().as_secs_f64(), &s, misses.count)
                 );
                 let _ = std::io::stderr().flush();
             }
@@ -380,4 +392,28 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     } else {
         ExitCode::from(1)
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_warning_takes_the_status_lines_place_and_the_line_counts_it() {
+        // On a terminal the warning wipes the status line first and ends its own line: the
+        // next status update is drawn below it, whole.
+        let w = warning_text("late", true);
+        assert!(w.starts_with("\r\x1b[2K"), "{w:?}");
+        assert!(w.ends_with("rtcnc: warning: late\n"), "{w:?}");
+        assert_eq!(warning_text("late", false), "rtcnc: warning: late\n");
+        let status = rtcnc_kernel::Status {
+            line: 12,
+            ..rtcnc_kernel::Status::default()
+        };
+        let line = status_text(1.5, &status, 0);
+        assert!(line.starts_with("\r\x1b[2K"), "{line:?}");
+        assert!(!line.contains("warnings"), "{line:?}");
+        assert!(!line.contains('\n'), "{line:?}");
+        assert!(status_text(1.5, &status, 3).ends_with("  warnings 3"));
+    }
 }
