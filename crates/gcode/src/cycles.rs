@@ -274,7 +274,8 @@ impl Interpreter {
             ));
         }
         // The pecks of every repeat are queued at once: their number is bounded.
-        if needs_q && !(((r - cc) / delta).ceil() * repeats as f64 <= MAX_PECKS) {
+        let pecks = ((r - cc) / delta).ceil() * repeats as f64;
+        if needs_q && (pecks.is_nan() || pecks > MAX_PECKS) {
             return Err(self.cycle_err(
                 b,
                 ErrorKind::BadValue,
