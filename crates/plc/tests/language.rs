@@ -797,3 +797,17 @@ fn real_to_integer_conversions_saturate_outside_the_range() {
     assert_eq!(int(&rt, "u1"), 0);
     assert_eq!(int(&rt, "ud"), 4_294_967_295);
 }
+
+/// Found by the structure-aware fuzz target (fuzz/src/st_generated.rs): a comparison of two
+/// constants that the compiler does not fold (the left one is NaN) was refused as a bare
+/// "type mismatch".
+#[test]
+fn constants_left_unfolded_compare_as_lreal() {
+    let rt = eval(
+        "b1 : BOOL := TRUE; b2 : BOOL;",
+        "b1 := SIN(SQRT(1.0E308 + 1.0E308)) > 1.0E308; b2 := SIN(SQRT(1.0E308 + 1.0E308)) <> 1.0;",
+    );
+    // SIN(+inf) is NaN: NaN > x is false, NaN <> x true (IEC 60559).
+    assert_eq!(get(&rt, "b1"), Value::Bool(false));
+    assert_eq!(get(&rt, "b2"), Value::Bool(true));
+}

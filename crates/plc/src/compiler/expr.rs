@@ -720,6 +720,12 @@ impl<'a> Compiler<'a> {
                     )),
                 }
             }
+            // Two constants the folding left alone (a non-finite value, e.g. SIN of an
+            // infinity): computed in the widest type of their kind.
+            (Ty::AnyReal(_), Ty::AnyReal(_) | Ty::AnyInt(_)) | (Ty::AnyInt(_), Ty::AnyReal(_)) => {
+                Ok(Type::Elem(Elem::LReal))
+            }
+            (Ty::AnyInt(_), Ty::AnyInt(_)) => Ok(Type::Elem(Elem::LInt)),
             _ => Err(self.e(pos, ErrorKind::TypeMismatch, "type mismatch")),
         }
     }
