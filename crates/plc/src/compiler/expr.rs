@@ -726,7 +726,6 @@ impl<'a> Compiler<'a> {
                 Ok(Type::Elem(Elem::LReal))
             }
             (Ty::AnyInt(_), Ty::AnyInt(_)) => Ok(Type::Elem(Elem::LInt)),
-            _ => Err(self.e(pos, ErrorKind::TypeMismatch, "type mismatch")),
         }
     }
 
