@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Sets up and runs every test of rtcnc: formatting, lints, unit, integration and
-# property tests of every crate. CI (.ci/run) calls exactly this.
+# property tests of every crate, and a few seconds of each fuzz target. CI (.ci/run) calls
+# exactly this.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # openssl makes the TLS test's certificate.
@@ -12,6 +13,7 @@ export PROPTEST_RNG_SEED="${PROPTEST_RNG_SEED:-20261122}"
 
 echo "== cargo fmt --check"
 cargo fmt --all -- --check
+(cd fuzz && cargo fmt -- --check)
 echo "== cargo clippy -D warnings"
 cargo clippy --workspace --all-targets --locked -- -D warnings
 echo "== cargo test"
@@ -23,3 +25,6 @@ echo "== Python client (sdk/python) against a real rtcnc serve"
 scripts/setup-python.sh
 cargo build -p rtcnc --locked
 (cd sdk/python && ../../target/python-venv/bin/python -m pytest -q -p no:cacheprovider tests)
+
+echo "== fuzz targets, a short run (scripts/fuzz.sh; the dedicated run is in docs/fuzzing.md)"
+scripts/fuzz.sh --seconds "${FUZZ_SECONDS:-5}"

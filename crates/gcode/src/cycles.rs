@@ -13,6 +13,9 @@ type Res<T> = Result<T, GcodeError>;
 /// Most repeats (L) of one canned cycle block: its moves are queued at once.
 const MAX_REPEATS: u64 = 10_000;
 
+/// Most pecks (over all repeats) of one G73/G83 block: they are queued at once.
+const MAX_PECKS: f64 = 100_000.0;
+
 /// The plane's axes as pose indices: (first, second, normal) and the letters of the words.
 struct Axes {
     a: usize,
@@ -268,6 +271,15 @@ impl Interpreter {
                 b,
                 ErrorKind::BadValue,
                 "negative or zero Q value in peck cycle",
+            ));
+        }
+        // The pecks of every repeat are queued at once: their number is bounded.
+        let pecks = ((r - cc) / delta).ceil() * repeats as f64;
+        if needs_q && (pecks.is_nan() || pecks > MAX_PECKS) {
+            return Err(self.cycle_err(
+                b,
+                ErrorKind::BadValue,
+                format!("Q too small: more than {MAX_PECKS} pecks in one peck-cycle block"),
             ));
         }
         let (ci, cj, ck) = if motion == 870 {

@@ -17,6 +17,9 @@ use crate::params::{Parameters, sys};
 use crate::source::{Location, ReadLineError, Sources};
 use crate::tools::ToolTable;
 
+/// The error of a line longer than [`crate::source::MAX_LINE`] bytes.
+pub(crate) const TOO_LONG: &str = "line too long (more than 16 KiB)";
+
 /// How the interpreter is set up for a machine.
 #[derive(Clone, Debug)]
 pub struct Settings {
@@ -39,8 +42,9 @@ pub struct Settings {
     /// [`Interpreter::input_result`]), since later lines may read it (#5061-#5070, #5399).
     /// When false the results are modelled as LinuxCNC's stand-alone interpreter does.
     pub wait_for_machine: bool,
-    /// A program that runs this many lines without issuing any command is stopped with an
-    /// error (an endless o-word loop would otherwise never return).
+    /// A program that runs this many lines of loops or subroutines without issuing any
+    /// command is stopped with an error (an endless o-word loop would otherwise never
+    /// return). Lines read straight through the file are not counted: they end.
     pub max_lines_without_output: u64,
     /// The same in inches.
     pub arc_radius_tolerance_inch: f64,
@@ -236,6 +240,8 @@ pub struct Interpreter {
     pub(crate) lines_without_output: u64,
     pub(crate) pending_error: Option<GcodeError>,
     pub(crate) at_eof: bool,
+    /// The file could not be read: nothing after the error can be.
+    pub(crate) unreadable: bool,
     /// Tool length offset in force at the last move (see `resync_position`).
     pub(crate) tool_at_last_move: Pose,
     pub(crate) value: f64,
@@ -272,6 +278,7 @@ impl Interpreter {
             lines_without_output: 0,
             pending_error: None,
             at_eof: false,
+            unreadable: false,
             tool_at_last_move: Pose::ZERO,
             value: 0.0,
             value_returned: false,
@@ -360,6 +367,7 @@ impl Interpreter {
         self.failed = false;
         self.pending_error = None;
         self.at_eof = false;
+        self.unreadable = false;
         self.percent_seen = false;
         self.started = false;
         self.lines_without_output = 0;
@@ -403,7 +411,11 @@ impl Interpreter {
             if !self.running || self.failed || self.waiting {
                 return None;
             }
-            self.lines_without_output += 1;
+            // Only lines run again can run forever: a loop's or a subroutine's (read
+            // straight through, a file of any length ends).
+            if !self.loops.is_empty() || !self.calls.is_empty() {
+                self.lines_without_output += 1;
+            }
             if self.lines_without_output > self.settings.max_lines_without_output {
                 self.failed = true;
                 self.running = false;
@@ -471,9 +483,15 @@ impl Interpreter {
 
     /// After an error from a program file, continue with the line after the one that
     /// failed (to report further errors; the state may be off after a failed line). Returns
-    /// false when there is nothing left to read.
+    /// false when there is nothing left to read, the file cannot be read, or the error is
+    /// inside a loop or subroutine (going on would repeat it).
     pub fn resume_after_error(&mut self) -> bool {
-        if !self.failed || self.src.current().is_none() || self.at_eof {
+        if !self.failed || self.src.current().is_none() || self.at_eof || self.unreadable {
+            return false;
+        }
+        if !self.loops.is_empty() || !self.calls.is_empty() {
+            // Inside a loop or a subroutine the failed line would come round again, and
+            // the same error with it, as often as the loop runs (or forever).
             return false;
         }
         self.failed = false;
@@ -515,16 +533,12 @@ impl Interpreter {
                 return self.end_of_file();
             }
             Err(ReadLineError::TooLong) => {
-                return Err(self.error_at(ErrorKind::Syntax, 0, "line too long"));
+                self.source = self.src.line_start.source();
+                return Err(self.error_at(ErrorKind::Syntax, 0, TOO_LONG));
             }
             Err(ReadLineError::Io(e)) => return Err(self.io_error(e)),
         }
-        let loc = self.src.line_start;
-        self.source = Source {
-            file: loc.file,
-            line: loc.line,
-            n: None,
-        };
+        self.source = self.src.line_start.source();
         self.run_line().map(|_| ())
     }
 
@@ -683,7 +697,8 @@ impl Interpreter {
         }
     }
 
-    pub(crate) fn io_error(&self, e: std::io::Error) -> GcodeError {
+    pub(crate) fn io_error(&mut self, e: std::io::Error) -> GcodeError {
+        self.unreadable = true;
         self.error_at(ErrorKind::Io, 0, format!("cannot read: {e}"))
     }
 

@@ -14,6 +14,7 @@ use rtcnc_gcode::{Canon, Interpreter, Parameters, Settings, ToolTable};
 use rtcnc_motion::{Bezier, PathMode};
 use rtcnc_rt::{Context, Next};
 
+use crate::config::OverSpeed;
 use crate::fault::FaultCode;
 use crate::messages::{Aux, FixedText, MachineResult, ProgramBlock, WaitCondition};
 use crate::shared::{InterpreterRequest, Shared, Tagged};
@@ -65,6 +66,8 @@ pub(crate) struct InterpreterStage {
     modal: Option<rtcnc_rt::SeqlockWriter<crate::modal::ModalSnapshot>>,
     /// `tools` was read again: the next interpreter takes it instead of the last one's.
     tools_fresh: bool,
+    /// The spindle's highest speed (rpm) and what an S word above it does.
+    spindle_limit: Option<(f64, OverSpeed)>,
 }
 
 /// The user M-code number with which a pallet shuttle is asked of the machine logic.
@@ -108,6 +111,7 @@ impl InterpreterStage {
             tool_table_file: None,
             modal: None,
             tools_fresh: false,
+            spindle_limit: None,
         }
     }
 
@@ -129,6 +133,12 @@ impl InterpreterStage {
         writer: rtcnc_rt::SeqlockWriter<crate::modal::ModalSnapshot>,
     ) -> Self {
         self.modal = Some(writer);
+        self
+    }
+
+    /// S words above `max_rpm` are refused or clamped (`spindle.over_speed`).
+    pub(crate) fn with_spindle_limit(mut self, limit: Option<(f64, OverSpeed)>) -> Self {
+        self.spindle_limit = limit;
         self
     }
 
@@ -426,7 +436,57 @@ impl InterpreterStage {
             self.sync_hold = Some(vec![canon]);
             return;
         }
+        let Some(canon) = self.spindle_within_limit(canon) else {
+            return;
+        };
         self.convert_now(canon);
+    }
+
+    /// An S word (in rpm, not a G96 surface speed) above the spindle's highest speed: the
+    /// run stops before it, or the speed is clamped with a message to the operator, as
+    /// `spindle.over_speed` says. A G96 speed cap (D) above it, or none (D0), becomes it.
+    fn spindle_within_limit(&mut self, mut canon: Canon) -> Option<Canon> {
+        let Some((max_rpm, policy)) = self.spindle_limit else {
+            return Some(canon);
+        };
+        match &mut canon.command {
+            CanonCommand::SetSpindleSpeed { speed, .. }
+                if self.css_max.is_none() && speed.abs() > max_rpm =>
+            {
+                let asked = *speed;
+                match policy {
+                    OverSpeed::Refuse => {
+                        let text = format!(
+                            "S{asked} is above the spindle's highest speed, {max_rpm} rpm \
+                             (spindle.max_speed_rpm; spindle.over_speed = \"clamp\" runs it \
+                             at that speed instead)"
+                        );
+                        self.refuse_because(&canon, &text);
+                        return None;
+                    }
+                    OverSpeed::Clamp => {
+                        *speed = max_rpm.copysign(asked);
+                        let note = Canon {
+                            command: CanonCommand::Message(
+                                format!(
+                                    "S{asked} clamped to {max_rpm} rpm (spindle.max_speed_rpm)"
+                                )
+                                .into(),
+                            ),
+                            source: canon.source,
+                        };
+                        self.convert_now(note);
+                    }
+                }
+            }
+            CanonCommand::SetSpindleMode {
+                constant_surface_speed: true,
+                max_rpm: cap,
+                ..
+            } if *cap <= 0.0 || *cap > max_rpm => *cap = max_rpm,
+            _ => {}
+        }
+        Some(canon)
     }
 
     fn convert_now(&mut self, canon: Canon) {
@@ -669,14 +729,21 @@ impl InterpreterStage {
     /// Stops the run before a block the kernel cannot carry out: "error in program" at
     /// that block, like an interpreter error found ahead.
     fn refuse(&mut self, canon: &Canon, what: &str) {
+        self.refuse_because(
+            canon,
+            &format!("{what} is not supported by the motion kernel yet"),
+        );
+    }
+
+    /// Stops the run before `canon`'s block, for `reason`.
+    fn refuse_because(&mut self, canon: &Canon, reason: &str) {
         let line = canon.source.line;
         let file = self
             .interp
             .as_ref()
             .map_or_else(|| "MDI".into(), |i| i.file_name(canon.source.file));
         *self.shared.error_text.lock() = Some(format!(
-            "{file}:{line}: {what} is not supported by the motion kernel yet; \
-             the program stops before this block"
+            "{file}:{line}: {reason}; the program stops before this block"
         ));
         self.outbox.push_back(ProgramBlock::Error {
             line,
