@@ -347,8 +347,9 @@ impl Interpreter {
                 "K word with no G2, G3 or G87 to use it",
             ));
         }
+        // As in LinuxCNC, G74 takes no L word (the other canned cycles do).
         if b.has(b'l')
-            && !(cycle
+            && !((cycle && motion != 740)
                 || motion == 760
                 || g10
                 || matches!(b.g[gg::CUTTER], 410 | 420 | 411 | 421)
@@ -359,7 +360,7 @@ impl Interpreter {
                 b,
                 b'l',
                 ErrorKind::UnusedWord,
-                "L word with no G10, cutter compensation, canned cycle, M66 or M98 to use it",
+                "L word with no G10, cutter compensation, canned cycle (but G74), M66 or M98 to use it",
             ));
         }
         if let Some(p) = b.get(b'p') {
