@@ -614,7 +614,7 @@ impl Interpreter {
         Ok(true)
     }
 
-    fn assign(&mut self, b: &mut Block) {
+    pub(crate) fn assign(&mut self, b: &mut Block) {
         for (target, value) in b.assigns.drain(..) {
             match target {
                 ParamRef::Numbered(i) => self.params.set(i, value),

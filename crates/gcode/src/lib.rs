@@ -26,6 +26,8 @@ mod cycles;
 pub mod error;
 mod exec;
 mod interp;
+mod lathe_cycles;
+mod lathe_profile;
 mod mcodes;
 mod motion;
 mod offsets;

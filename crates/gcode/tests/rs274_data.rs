@@ -1,8 +1,9 @@
 //! The programs of `tests/data/` against what LinuxCNC 2.9's `rs274` printed for them
 //! (`NAME.canon`, `NAME.err`, made by `data/regenerate.sh`), run as `rtcnc check --canon`
-//! runs them (cutter compensation after the interpreter): the canned cycles in the three
-//! planes. Where rs274 is wrong on purpose-built programs, the reference is rs274's own
-//! output for an equivalent program, said so at each test.
+//! runs them (cutter compensation after the interpreter): the G70-G72 lathe cycles, the
+//! canned cycles in the three planes. Where rs274 is wrong on
+//! purpose-built programs, the reference is rs274's own output for an equivalent program,
+//! said so at each test.
 
 mod common;
 
@@ -12,6 +13,11 @@ fn data(folder: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("tests/data")
         .join(folder)
+}
+
+#[test]
+fn lathe_cycles_match_rs274() {
+    common::all_match(&data("lathe_cycles"), true, &[], 45);
 }
 
 /// rs274 2.9 taps along the wrong axes in G18 and G19: its G74/G84 feed moves pass the
@@ -77,4 +83,43 @@ fn canned_cycles_in_g18_and_g19_are_the_g17_cycles_on_other_axes() {
         }
     }
     assert_eq!(compared, 22);
+}
+
+/// Where rs274 2.9 goes wrong in a lathe cycle, `data/equivalents/NAME.rtcnc` is run here
+/// and compared with rs274's output for `NAME.ngc`, a program that does the same without
+/// the defect: g70_comp (G70 under G41/G42: rs274 computes the compensated entry from the
+/// end of the profile it has just read, a stray rapid) is compared with the G70's moves
+/// written out under the same compensation; g91_start (G91 G71 X Z: rs274 rapids to X and
+/// Z taken as absolute) with the cycle started by an explicit G0. The title comment, the
+/// notes of G90.1/G91.1 and repeated rapids to the same point are left out of both.
+#[test]
+fn lathe_cycles_where_rs274_is_wrong_match_equivalent_programs() {
+    let dir = data("equivalents");
+    let keep = |s: &str| -> String {
+        let mut out = String::new();
+        let mut last = "";
+        for (n, l) in s.lines().enumerate() {
+            let title = n == 6 && l.starts_with("COMMENT(");
+            let ijk = l.starts_with("COMMENT(\"interpreter: IJK distance mode");
+            let repeated = l == last && l.starts_with("STRAIGHT_TRAVERSE(");
+            if !(title || ijk || repeated) {
+                out.push_str(l);
+                out.push('\n');
+            }
+            last = l;
+        }
+        out
+    };
+    let mut compared = 0;
+    for reference in common::programs(&dir) {
+        let ours = reference.with_extension("rtcnc");
+        let expected = std::fs::read_to_string(reference.with_extension("canon")).unwrap();
+        let (output, error) = common::run(&ours, true);
+        assert_eq!(error, None, "{}", ours.display());
+        if let Err(e) = common::compare_lines(&keep(&output), &keep(&expected)) {
+            panic!("{}: {e}", ours.display());
+        }
+        compared += 1;
+    }
+    assert_eq!(compared, 2);
 }
