@@ -212,7 +212,7 @@ impl Interpreter {
                     ),
                 ));
             }
-            if !axis && !matches!(mode1, 0 | 10 | 20 | 30 | 700 | 710..=712 | 720..=722) {
+            if !axis && !matches!(mode1, 0 | 10 | 20 | 30 | 52 | 700 | 710..=712 | 720..=722) {
                 return Err(self.g_err(
                     b,
                     gg::MOTION,
@@ -234,13 +234,14 @@ impl Interpreter {
             return Ok(-1);
         }
         if axis {
-            if self.state.motion == 800 && !matches!(b.g[gg::LENGTH], 431 | 432) {
+            // -1: no motion mode after a NURBS block (G5.3), as in LinuxCNC.
+            if matches!(self.state.motion, 800 | -1) && !matches!(b.g[gg::LENGTH], 431 | 432) {
                 let first = AXES.iter().find(|c| b.has(**c)).copied().unwrap_or(b'x');
                 return Err(self.err(
                     b,
                     first,
                     ErrorKind::UnusedWord,
-                    "axis word with no motion mode in effect (G80): give G0, G1, ... first",
+                    "axis word with no motion mode in effect (after G80 or G5.3): give G0, G1, ... first",
                 ));
             }
             if matches!(b.g[gg::LENGTH], 431 | 432) {
@@ -269,6 +270,14 @@ impl Interpreter {
                 gg::NON_MODAL,
                 ErrorKind::MissingWord,
                 "G4 needs a P word (seconds)",
+            ));
+        }
+        if mode0 == 53 && b.g[gg::MOTION] != -1 && b.g[gg::MOTION] != 52 {
+            return Err(self.g_err(
+                b,
+                gg::MOTION,
+                ErrorKind::Conflict,
+                "only G5.2 may be on a line with G5.3",
             ));
         }
         if lathe_cycle {
@@ -376,6 +385,7 @@ impl Interpreter {
         if b.has(b'l')
             && !((cycle && motion != 740)
                 || motion == 760
+                || motion == 52
                 || g10
                 || matches!(b.g[gg::CUTTER], 410 | 420 | 411 | 421)
                 || m(mg::IO, 66)
@@ -385,7 +395,7 @@ impl Interpreter {
                 b,
                 b'l',
                 ErrorKind::UnusedWord,
-                "L word with no G10, cutter compensation, canned cycle (but G74), M66 or M98 to use it",
+                "L word with no G10, cutter compensation, canned cycle (but G74), G5.2, M66 or M98 to use it",
             ));
         }
         if let Some(p) = b.get(b'p') {
@@ -394,7 +404,7 @@ impl Interpreter {
                 || b.g[gg::CONTROL] == 640
                 || matches!(
                     motion,
-                    820 | 860 | 880 | 890 | 50 | 20 | 30 | 700 | 740 | 840 | 760
+                    820 | 860 | 880 | 890 | 50 | 52 | 20 | 30 | 700 | 740 | 840 | 760
                 )
                 || matches!(b.m[mg::OVERRIDE], 50..=53)
                 || matches!(b.m[mg::IO], 62..=66)
@@ -402,7 +412,7 @@ impl Interpreter {
                 || user_m
                 || b.m98;
             if !ok {
-                return Err(self.err(b, b'p', ErrorKind::UnusedWord, "P word with no G2 G3 G4 G5 G10 G64 G70 G74 G82 G84 G86 G88 G89, M50-M53, M62-M66, M19, M98 or user M code to use it"));
+                return Err(self.err(b, b'p', ErrorKind::UnusedWord, "P word with no G2 G3 G4 G5 G5.2 G10 G64 G70 G74 G82 G84 G86 G88 G89, M50-M53, M62-M66, M19, M98 or user M code to use it"));
             }
             if (matches!(motion, 20 | 30) || m(mg::SPINDLE, 19)) && (p - p.round()).abs() > 0.001 {
                 return Err(self.err(
@@ -807,6 +817,7 @@ impl Interpreter {
                 self.pose_to_params(base, &m);
             }
             520 | 920..=923 => self.g92(b)?,
+            53 => self.nurbs_end(b)?,
             _ => {}
         }
         if motion != -1 {

@@ -30,6 +30,7 @@ mod lathe_cycles;
 mod lathe_profile;
 mod mcodes;
 mod motion;
+mod nurbs;
 mod offsets;
 pub mod params;
 mod program_end;
@@ -37,7 +38,7 @@ mod source;
 mod threading;
 pub mod tools;
 
-pub use canon::{Canon, CanonCommand, Pose, Source};
+pub use canon::{Canon, CanonCommand, Nurbs, NurbsPoint, Pose, Source};
 pub use error::{ErrorKind, GcodeError};
 pub use interp::{Interpreter, ModalState, Settings};
 pub use params::Parameters;

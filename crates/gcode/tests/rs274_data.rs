@@ -1,7 +1,7 @@
 //! The programs of `tests/data/` against what LinuxCNC 2.9's `rs274` printed for them
 //! (`NAME.canon`, `NAME.err`, made by `data/regenerate.sh`), run as `rtcnc check --canon`
 //! runs them (cutter compensation after the interpreter): the G70-G72 lathe cycles, the
-//! canned cycles in the three planes. Where rs274 is wrong on
+//! canned cycles in the three planes, G5.2/G5.3 NURBS blocks. Where rs274 is wrong on
 //! purpose-built programs, the reference is rs274's own output for an equivalent program,
 //! said so at each test.
 
@@ -83,6 +83,11 @@ fn canned_cycles_in_g18_and_g19_are_the_g17_cycles_on_other_axes() {
         }
     }
     assert_eq!(compared, 22);
+}
+
+#[test]
+fn nurbs_blocks_match_rs274() {
+    common::all_match(&data("nurbs"), true, &[], 20);
 }
 
 /// Where rs274 2.9 goes wrong in a lathe cycle, `data/equivalents/NAME.rtcnc` is run here
