@@ -1,8 +1,8 @@
 //! The geometry of the G70, G71 and G72 lathe cycles: a profile of lines and arcs in the
-//! ZX plane, offset by a distance, and the passes that rough out the material outside it or
-//! finish along it. The algorithm is LinuxCNC 2.9's, step for step (the same turns, the same
-//! tolerances, the same order of arithmetic), so that the moves are the ones `rs274`
-//! prints; it is written anew here.
+//! ZX plane, offset by a distance, and the passes that rough out the material between the
+//! start point and it, or finish along it. The algorithm is LinuxCNC 2.9's, step for step
+//! (the same turns, the same tolerances, the same order of arithmetic), so that the moves
+//! are the ones `rs274` prints; it is written anew here.
 //!
 //! Points are complex numbers with Z as the real and X as the imaginary part. Before
 //! cutting, the profile is turned (G72) and mirrored so that it runs towards -Z and -X; the
