@@ -73,9 +73,10 @@ pub(crate) mod mg {
 pub(crate) fn g_group(code: i32) -> Option<usize> {
     use gg::*;
     Some(match code {
-        40 | 100 | 280 | 281 | 300 | 301 | 520 | 530 | 920 | 921 | 922 | 923 => NON_MODAL,
-        0 | 10 | 20 | 30 | 50 | 51 | 330 | 331 | 382 | 383 | 384 | 385 | 730 | 740 | 760 | 800
-        | 810 | 820 | 830 | 840 | 850 | 860 | 870 | 880 | 890 => MOTION,
+        40 | 53 | 100 | 280 | 281 | 300 | 301 | 520 | 530 | 920 | 921 | 922 | 923 => NON_MODAL,
+        0 | 10 | 20 | 30 | 50 | 51 | 52 | 330 | 331 | 382 | 383 | 384 | 385 | 700 | 710 | 711
+        | 712 | 720 | 721 | 722 | 730 | 740 | 760 | 800 | 810 | 820 | 830 | 840 | 850 | 860
+        | 870 | 880 | 890 => MOTION,
         170 | 180 | 190 | 171 | 181 | 191 => PLANE,
         900 | 910 => DISTANCE,
         901 | 911 => IJK,
@@ -517,15 +518,11 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
                     self.i += 1;
                     let code = self.code(col, b'g')?;
                     let Some(group) = g_group(code) else {
-                        let what = if code == 52 || code == 53 {
-                            format!(
-                                "G{} NURBS blocks are not supported (G5 and G5.1 splines are)",
-                                fmt_code(code)
-                            )
-                        } else {
-                            format!("unknown G code G{}", fmt_code(code))
-                        };
-                        return err(ErrorKind::UnknownWord, col, what);
+                        return err(
+                            ErrorKind::UnknownWord,
+                            col,
+                            format!("unknown G code G{}", fmt_code(code)),
+                        );
                     };
                     // As in LinuxCNC, G80 gives way to another motion code on the line.
                     if group == gg::MOTION && (code == 800 || b.g[group] == 800) && b.g[group] != -1

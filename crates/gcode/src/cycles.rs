@@ -439,8 +439,19 @@ impl Interpreter {
                     self.restart_spindle(direction);
                 }
                 870 => {
-                    let k = if self.state.absolute { ck } else { cc + ck };
-                    let (oa, ob) = (aa + ci, bb + cj);
+                    // The words of the plane's own axes offset the back-boring point; the
+                    // word of its normal axis is the top of the bore.
+                    let (off_a, off_b, middle) = match self.state.plane {
+                        Plane::XY | Plane::UV => (ci, cj, ck),
+                        Plane::XZ | Plane::WU => (ck, ci, cj),
+                        Plane::YZ | Plane::VW => (cj, ck, ci),
+                    };
+                    let k = if self.state.absolute {
+                        middle
+                    } else {
+                        cc + middle
+                    };
+                    let (oa, ob) = (aa + off_a, bb + off_b);
                     self.cycle_move(&ax, false, oa, ob, r);
                     self.emit(C::StopSpindle { spindle: 0 });
                     self.orient_for_cycle(direction);

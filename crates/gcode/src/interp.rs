@@ -8,8 +8,8 @@ use std::sync::Arc;
 
 use crate::block::{self, Block, ParamRef, ParamSource};
 use crate::canon::{
-    Canon, CanonCommand, CompensationSide, FeedMode, FileId, PathMode, Plane, Pose, Source,
-    SpindleDirection, Units,
+    Canon, CanonCommand, CompensationSide, FeedMode, FileId, NurbsPoint, PathMode, Plane, Pose,
+    Source, SpindleDirection, Units,
 };
 use crate::control::{CallFrame, LoopFrame, SubDef};
 use crate::error::{ErrorKind, GcodeError};
@@ -246,6 +246,10 @@ pub struct Interpreter {
     pub(crate) tool_at_last_move: Pose,
     pub(crate) value: f64,
     pub(crate) value_returned: bool,
+    /// Control points of an open G5.2 block.
+    pub(crate) nurbs: Vec<NurbsPoint>,
+    /// Its order (L).
+    pub(crate) nurbs_order: u32,
 }
 
 impl Interpreter {
@@ -282,6 +286,8 @@ impl Interpreter {
             tool_at_last_move: Pose::ZERO,
             value: 0.0,
             value_returned: false,
+            nurbs: Vec::new(),
+            nurbs_order: 3,
         };
         // #5599 enables (DEBUG,...) messages.
         it.params.set(5599, 1.0);
@@ -372,6 +378,7 @@ impl Interpreter {
         self.started = false;
         self.lines_without_output = 0;
         self.waiting = false;
+        self.nurbs.clear();
     }
 
     /// Executes one line of MDI. Its commands are queued for [`Interpreter::next_canon`].
@@ -452,6 +459,7 @@ impl Interpreter {
         self.loops.clear();
         self.ifs.clear();
         self.params.reset_scopes();
+        self.nurbs.clear();
     }
 
     /// True when the interpreter waits for [`Interpreter::probe_result`] or
@@ -628,7 +636,7 @@ impl Interpreter {
         Ok(true)
     }
 
-    fn assign(&mut self, b: &mut Block) {
+    pub(crate) fn assign(&mut self, b: &mut Block) {
         for (target, value) in b.assigns.drain(..) {
             match target {
                 ParamRef::Numbered(i) => self.params.set(i, value),
@@ -659,6 +667,7 @@ impl Interpreter {
         self.loops.clear();
         self.ifs.clear();
         self.params.reset_scopes();
+        self.nurbs.clear();
         Ok(())
     }
 
@@ -671,6 +680,7 @@ impl Interpreter {
                 | CanonCommand::StraightFeed(_)
                 | CanonCommand::ArcFeed(_)
                 | CanonCommand::SplineFeed(_)
+                | CanonCommand::NurbsFeed(_)
                 | CanonCommand::StraightProbe { .. }
                 | CanonCommand::RigidTap { .. }
         ) {

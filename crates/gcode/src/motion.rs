@@ -80,6 +80,8 @@ impl Interpreter {
             0 | 10 => self.straight(b, motion),
             20 | 30 => self.arc(b, motion),
             50 | 51 => self.spline(b, motion),
+            52 => self.nurbs_point(b),
+            700 | 710..=712 | 720..=722 => self.lathe_cycle(b, motion),
             382..=385 => self.probe(b, motion),
             330 => self.g33(b),
             331 => self.g33_1(b),

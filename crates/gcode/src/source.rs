@@ -238,6 +238,11 @@ impl Sources {
         Ok(true)
     }
 
+    /// Stops reading files (after an MDI command read a subroutine for itself).
+    pub fn detach(&mut self) {
+        self.current = None;
+    }
+
     /// Sets the one line of an MDI command as the line to execute.
     pub fn set_mdi_line(&mut self, text: &str) {
         self.line.clear();

@@ -796,6 +796,7 @@ fn not_carried_out(command: &CanonCommand) -> Option<&'static str> {
     use CanonCommand as C;
     match command {
         C::RigidTap { .. } => Some("rigid tapping (G33.1)"),
+        C::NurbsFeed(_) => Some("a NURBS curve (G5.2/G5.3)"),
         C::StartSpeedFeedSync {
             velocity_mode: true,
             ..

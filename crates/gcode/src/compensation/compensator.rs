@@ -309,7 +309,15 @@ impl Compensator {
                 return Err(CompError::new(K::Probe, src));
             }
             C::StraightProbe { end, .. } => self.programmed = *end,
-            C::SplineFeed(_) if active => return Err(CompError::new(K::Spline, src)),
+            C::SplineFeed(_) | C::NurbsFeed(_) if active => {
+                return Err(CompError::new(K::Spline, src));
+            }
+            C::NurbsFeed(n) => {
+                if let Some(last) = n.points.last() {
+                    self.programmed.x = last.x;
+                    self.programmed.y = last.y;
+                }
+            }
             C::SplineFeed(s) => {
                 self.programmed.x = s.end[0];
                 self.programmed.y = s.end[1];
