@@ -89,9 +89,10 @@ pub(crate) struct Piece {
     pub j_to_stop: f64,
     /// Braking jerk of this piece.
     pub j_brake: f64,
-    /// Path length from the start of the program to the start of this piece.
+    /// Path position of the start of this piece (counted from the planner's moving
+    /// origin, `Planner::rebase`).
     pub cum_start: f64,
-    /// The next stop at or after this piece: (path length from the program start,
+    /// The next stop at or after this piece: (path position,
     /// deceleration and jerk of the braking into it).
     pub stop_ahead: (f64, f64, f64),
     /// First valley of the braking curve inside this piece: (local s, speed, deceleration
@@ -99,7 +100,7 @@ pub(crate) struct Piece {
     /// braking section ends on a lower limit; the controller must arrive there with its
     /// deceleration released.
     pub valley_in: Option<(f64, f64, f64, f64)>,
-    /// The next valley after this piece: (path length from the program start, speed,
+    /// The next valley after this piece: (path position, speed,
     /// deceleration, jerk).
     pub valley_next: Option<(f64, f64, f64, f64)>,
     /// Lowest value of the braking curve on this piece (a lower bound of `w_at` over the

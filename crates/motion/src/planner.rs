@@ -180,6 +180,10 @@ const GEN_BUDGET: usize = 12;
 /// `Planner::regenerate`).
 const FINISH_STOP: usize = 16;
 
+/// Path length (mm) after which the origin of path positions moves to the emitted piece
+/// (`Planner::rebase`): positions stay under a few times this plus the window's length.
+const REBASE_AFTER: f64 = 1024.0;
+
 /// Everything one set-point is generated from: where on the path, the path speed and
 /// acceleration, the last set-points (for the finite-difference box) and the controller's
 /// modes. A copy is kept with every buffered set-point, so that generation can resume from
@@ -189,8 +193,9 @@ struct GenState {
     /// Piece id and local arc length of the set-point.
     id: u64,
     s: f64,
-    /// Path length from the program start (piece start plus `s`; the window end once past
-    /// the last piece).
+    /// Path position (piece start plus `s`; the window end once past the last piece).
+    /// Path positions count from an origin that moves forward with the emitted set-point
+    /// (`Planner::rebase`), not from the program start.
     at: f64,
     v: f64,
     a: f64,
@@ -205,7 +210,7 @@ struct GenState {
     prof_t: Option<f64>,
     /// Path jerk of the last step (warm start of the next search).
     j_last: f64,
-    /// Hold point (path length from the program start); infinite without a hold.
+    /// Hold point (path position); infinite without a hold.
     hold_at: f64,
     state: MotionState,
     line: u32,
@@ -339,7 +344,7 @@ pub struct Planner<K: Kinematics> {
     j_min: f64,
     qa_min: f64,
     qj_min: f64,
-    /// Path length from the program start to the end of the window.
+    /// Path position of the end of the window.
     cum_end: f64,
     /// State of the last emitted set-point.
     cur: GenState,
@@ -669,6 +674,73 @@ impl<K: Kinematics> Planner<K> {
             self.cur.dwell_left = None;
             self.cur.prof_t = None;
             self.cur.land_n = 0;
+        }
+        self.rebase();
+    }
+
+    /// Moves the origin of path positions to the start of the emitted piece once that is
+    /// [`REBASE_AFTER`] from it, so that positions stay as fine as near the program start
+    /// on a path of any length (the spacing of doubles passes the 1e-12 mm within which
+    /// a piece's end counts as reached at 8 192 mm). The positions are computed again as
+    /// they were built: piece starts as the running sum of the lengths, stops as their
+    /// piece's start plus length, a generator state's position as its piece's start plus
+    /// its local arc length, so that every equality between them holds as before (a state
+    /// at a stop is exactly there). Hold points and a rollback's region, which are compared
+    /// by order only, move by the same amount. Bounded work (the window and the buffer),
+    /// once per [`REBASE_AFTER`] of path.
+    fn rebase(&mut self) {
+        let base = if self.q.len > 0 {
+            self.q.get(0).cum_start
+        } else {
+            self.cum_end
+        };
+        if !(base >= REBASE_AFTER) {
+            return;
+        }
+        let old_stop = self.strict.map(|s| s.stop_at);
+        let mut new_stop = None;
+        let mut c = 0.0;
+        for i in 0..self.q.len {
+            let p = self.q.get_mut(i);
+            p.cum_start = c;
+            c += p.len;
+        }
+        self.cum_end = c;
+        // Stops (and the valleys, compared by order only) backward from the window's end.
+        let mut stop = (f64::INFINITY, f64::INFINITY);
+        for i in (0..self.q.len).rev() {
+            let last = i + 1 == self.q.len;
+            let p = self.q.get_mut(i);
+            if p.stop_at_end || last {
+                stop = (p.stop_ahead.0, p.cum_start + p.len);
+            }
+            if p.stop_ahead.0 == stop.0 {
+                if old_stop == Some(p.stop_ahead.0) {
+                    new_stop = Some(stop.1);
+                }
+                p.stop_ahead.0 = stop.1;
+            } else {
+                p.stop_ahead.0 -= base;
+            }
+            if let Some(v) = &mut p.valley_next {
+                v.0 -= base;
+            }
+        }
+        let q = &self.q;
+        let cum_end = self.cum_end;
+        let place = |st: &mut GenState| {
+            st.at = match q.index(st.id) {
+                Some(i) => q.get(i).cum_start + st.s,
+                None if st.id >= q.head_id => cum_end,
+                None => st.at - base,
+            };
+            st.hold_at -= base;
+        };
+        place(&mut self.cur);
+        self.ahead.for_each(place);
+        if let Some(s) = &mut self.strict {
+            s.until -= base;
+            s.stop_at = new_stop.unwrap_or(s.stop_at - base);
         }
     }
 
@@ -1213,5 +1285,76 @@ impl<K: Kinematics> Planner<K> {
         self.ahead.len = 0;
         self.cur = GenState::rest(position, self.q.head_id, self.cum_end);
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod rebase_tests {
+    use super::*;
+    use crate::axes::Axis;
+    use crate::input::PathMode;
+    use crate::kinematics::TrivialKinematics;
+    use crate::limits::AxisLimits;
+
+    /// Path positions stay within the rebase threshold plus the window's length however far
+    /// the program goes, and the stop positions the pieces hold stay exactly the ends of
+    /// their stop pieces (the subtraction of the origin is exact).
+    #[test]
+    fn path_positions_stay_small_and_exact_on_a_long_program() {
+        let lim = MachineLimits::uniform(
+            &[Axis::X, Axis::Y],
+            AxisLimits::new(1e4, 1e5, 5e6, -1000.0, 1000.0),
+        );
+        let kin = TrivialKinematics::identity(&[Axis::X, Axis::Y]);
+        let mut pl = Planner::new(&lim, kin, 1e-3, 64, [0.0; AXES]).unwrap();
+        let mode = PathMode::Blend {
+            tolerance: 0.01,
+            merge_tolerance: 0.0,
+        };
+        // A zigzag of 200 mm lines (blended, the reversals stop): 4·10^4 mm of path.
+        let moves: Vec<Move> = (0..200)
+            .map(|k| {
+                let mut p = [0.0; AXES];
+                p[0] = if k % 2 == 0 { 190.0 } else { -10.0 };
+                p[1] = if k % 4 < 2 { 20.0 } else { 0.0 };
+                Move::line(p, 5e3, mode, k + 1)
+            })
+            .collect();
+        let mut k = 0;
+        let mut joints = [0.0; 2];
+        let mut largest: f64 = 0.0;
+        for _ in 0..200_000 {
+            while k < moves.len() && pl.free() > 0 {
+                pl.push(&moves[k]).unwrap();
+                k += 1;
+            }
+            if k == moves.len() {
+                pl.flush();
+            }
+            let st = pl.next(&mut joints);
+            largest = largest.max(pl.cur.at);
+            for i in 0..pl.q.len {
+                let p = pl.q.get(i);
+                if p.stop_at_end || i + 1 == pl.q.len {
+                    assert_eq!(
+                        p.stop_ahead.0,
+                        p.cum_start + p.len,
+                        "{i} {} {} {} {}",
+                        pl.q.len,
+                        p.stop_at_end,
+                        p.len,
+                        pl.cum_end
+                    );
+                }
+            }
+            if k == moves.len() && st.state == MotionState::Idle {
+                break;
+            }
+        }
+        assert_eq!(k, moves.len());
+        assert!(pl.cur.hist[0][0] == -10.0, "{:?}", pl.cur.hist[0]);
+        // 64 pieces of at most about 200 mm ahead of an origin at most REBASE_AFTER behind.
+        assert!(largest < REBASE_AFTER + 64.0 * 210.0, "{largest}");
+        assert!(largest < 2e4);
     }
 }
