@@ -156,6 +156,7 @@ impl CompensationStage {
                 centre,
                 normal,
                 turns,
+                radius_tolerance,
             } => {
                 let end_m = self.to_machine(&end);
                 let mut c = [0.0; AXES];
@@ -176,6 +177,7 @@ impl CompensationStage {
                         centre: [c[0], c[1], c[2]],
                         normal: n,
                         turns,
+                        radius_tolerance: radius_tolerance * self.mm_per_unit,
                     },
                     feed: self.feed(),
                     mode: self.mode,

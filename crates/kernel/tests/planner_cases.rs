@@ -59,3 +59,51 @@ fn long_path_stall_runs_to_its_end_within_the_limits() {
         "{last:?}"
     );
 }
+
+/// A G2 whose end radius is 0.5 µm longer than its start radius (CAM output rounded to four
+/// decimals): the interpreter accepted it and the planner refused it ("arc radius
+/// mismatch"). It runs as LinuxCNC runs it: a spiral whose radius grows linearly with the
+/// angle from 10 to 10.0005 mm over the quarter turn.
+#[test]
+fn an_arc_with_a_half_micron_radius_difference_runs_as_a_spiral() {
+    let samples = run_case("sim-mill.toml", "arc-radius-0.5um.ngc", 10.0);
+    let limits = [
+        (100.0, 1000.0, 50_000.0),
+        (100.0, 1000.0, 50_000.0),
+        (50.0, 800.0, 40_000.0),
+    ];
+    let worst = worst_ratio(&samples, 1e-3, &limits);
+    assert!(worst <= 1.0 + 1e-9, "{worst}");
+    // G2 X10 Y10.0005 I10 J0 from the origin: centre (10, 0), clockwise from the angle π
+    // to π/2.
+    let on_arc: Vec<_> = samples.iter().filter(|s| s.line == 3).collect();
+    assert!(on_arc.len() > 100, "{}", on_arc.len());
+    for s in on_arc {
+        let (x, y) = (s.axes[0] - 10.0, s.axes[1]);
+        let swept = std::f64::consts::PI - y.atan2(x);
+        let expected = 10.0 + 0.0005 * swept / std::f64::consts::FRAC_PI_2;
+        assert!((x.hypot(y) - expected).abs() <= 1e-9, "{:?}", s.axes);
+    }
+    let last = samples.last().unwrap().axes;
+    assert!((last[0] - 20.0).abs() < 1e-9 && (last[1] - 10.0005).abs() < 1e-9);
+}
+
+/// In an inch program the interpreter's tolerance is LinuxCNC's inch one (2·0.001·√2 in):
+/// an arc whose radius grows by 0.0028 in (0.071 mm, more than the millimetre tolerance)
+/// runs to its end, a spiral ending exactly at its end point.
+#[test]
+fn an_inch_arc_within_the_inch_tolerance_runs() {
+    let cfg = config("sim-mill.toml");
+    let text = "G20 G90 G17 G64 P0.0004\nF40\nG0 X0 Y0 Z0\nG2 X2.0028 Y0 I1 J0\nM2\n";
+    let mut m = Machine::new(&cfg, Some(program(text, "inch-spiral.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    let ended = m.until(20.0, |s| s.program_ended && s.state == MachineState::Idle);
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    assert!(ended);
+    let last = m.samples.last().unwrap().axes;
+    assert!(
+        (last[0] - 2.0028 * 25.4).abs() < 1e-9 && last[1].abs() < 1e-9,
+        "{last:?}"
+    );
+}

@@ -23,8 +23,9 @@ const SMOOTH_MAX_ANGLE: f64 = 0.35;
 const V_RAPID_REF: f64 = 1e3;
 /// Longest run of collinear segments merged into one.
 const MERGE_MAX: usize = 64;
-/// Relative tolerance of arc radii (plus an absolute 1e-6 mm).
-const ARC_RADIUS_REL_TOL: f64 = 1e-6;
+/// Rounding allowed on an arc's radius difference beyond the caller's tolerance, relative
+/// to the size of the coordinates (the kernel's offsets, rotation and unit conversion).
+const ARC_RADIUS_ROUNDING: f64 = 1e-9;
 
 #[derive(Debug, Clone, Copy)]
 struct LineP {
@@ -266,6 +267,7 @@ impl Builder {
                 centre,
                 normal,
                 turns,
+                radius_tolerance,
                 ..
             } => {
                 if !(centre.iter().all(|x| x.is_finite()) && normal.iter().all(|x| x.is_finite())) {
@@ -274,12 +276,24 @@ impl Builder {
                         what: "arc centre or normal",
                     });
                 }
-                let h = make_helix(&a, &b, centre, normal, turns, line)?;
+                if !(radius_tolerance.is_finite() && radius_tolerance >= 0.0) {
+                    return Err(MotionError::InvalidTolerance {
+                        line,
+                        value: radius_tolerance,
+                    });
+                }
+                let h = make_helix(&a, &b, centre, normal, turns, radius_tolerance, line)?;
                 let shape = Shape::Helix(h);
-                let len = shape.speed(0.0);
+                // A spiral's parametric speed changes with the radius: its length from the
+                // arc-length table, the XYZ share from the start.
+                let len = if h.dr == 0.0 {
+                    shape.speed(0.0)
+                } else {
+                    ArcMap::table(&shape).1
+                };
                 let len_xyz = {
                     let d1 = shape.eval(0.0).d1;
-                    norm_xyz(&d1)
+                    len * norm_xyz(&d1) / norm(&d1)
                 };
                 let feed = resolve_feed(&mv.feed, len_xyz, len, line)?;
                 check_helix_extent(&h, &a, &b, lim, line)?;
@@ -949,6 +963,7 @@ fn make_helix(
     centre: [f64; 3],
     normal: [f64; 3],
     turns: u32,
+    radius_tolerance: f64,
     line: u32,
 ) -> Result<Helix, MotionError> {
     let nn = (normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]).sqrt();
@@ -989,11 +1004,13 @@ fn make_helix(
         sb[2] - rise * n[2],
     ];
     let r1 = d3(&q, &q).sqrt();
-    if (r1 - r0).abs() > 1e-6 + ARC_RADIUS_REL_TOL * r0 {
+    let size = 1.0 + r0.max(r1) + centre.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+    if (r1 - r0).abs() > radius_tolerance + ARC_RADIUS_ROUNDING * size {
         return Err(MotionError::ArcRadiusMismatch {
             line,
             start_radius: r0,
             end_radius: r1,
+            tolerance: radius_tolerance,
         });
     }
     let mut ang = d3(&q, &e2).atan2(d3(&q, &e1));

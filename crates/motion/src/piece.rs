@@ -282,16 +282,19 @@ impl Piece {
         let mut v2_curve = f64::INFINITY;
         let mut v_jerk3 = f64::INFINITY;
         for &i in lim.present_axes() {
-            // Arcs: the per-axis projections rotate along the arc; use their amplitude
-            // so that the bound holds on the whole sub-interval.
+            // Arcs: the per-axis projections of the in-plane parts rotate along the arc; use
+            // their amplitude so that the bound holds on the whole sub-interval. The parts
+            // along the normal do not rotate (a helix's rise; on a spiral, whose speed
+            // changes with the radius, the curvature has one too).
             let (ti, ki, kpi) = match &self.shape {
                 Shape::Helix(h) if i < 3 => {
                     let amp = (h.e1[i] * h.e1[i] + h.e2[i] * h.e2[i]).sqrt();
-                    let tn = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
-                    let kn = (kv[0] * kv[0] + kv[1] * kv[1] + kv[2] * kv[2]).sqrt();
-                    let kpn = (kp[0] * kp[0] + kp[1] * kp[1] + kp[2] * kp[2]).sqrt();
-                    let axial = (h.rise * h.n[i]).abs() / self.len.max(1e-300);
-                    ((tn * amp + axial).min(1.0), kn * amp, kpn * amp)
+                    let on_axis = |v: &AxisVec| {
+                        let vn = v[0] * h.n[0] + v[1] * h.n[1] + v[2] * h.n[2];
+                        let all = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+                        (all - vn * vn).max(0.0).sqrt() * amp + (vn * h.n[i]).abs()
+                    };
+                    (on_axis(t).min(1.0), on_axis(kv), on_axis(kp))
                 }
                 _ => (t[i].abs(), kv[i].abs(), kp[i].abs()),
             };
@@ -583,12 +586,14 @@ mod tests {
             }
             let (ti, ki, kpi) = match &p.shape {
                 Shape::Helix(h) if i < 3 => {
+                    // In-plane part times its amplitude on the axis, plus the normal part.
                     let amp = (h.e1[i] * h.e1[i] + h.e2[i] * h.e2[i]).sqrt();
-                    let tn = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
-                    let kn = (kv[0] * kv[0] + kv[1] * kv[1] + kv[2] * kv[2]).sqrt();
-                    let kpn = (kp[0] * kp[0] + kp[1] * kp[1] + kp[2] * kp[2]).sqrt();
-                    let axial = (h.rise * h.n[i]).abs() / p.len.max(1e-300);
-                    ((tn * amp + axial).min(1.0), kn * amp, kpn * amp)
+                    let bound = |v: &AxisVec| {
+                        let vn = v[0] * h.n[0] + v[1] * h.n[1] + v[2] * h.n[2];
+                        let all = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+                        (all - vn * vn).max(0.0).sqrt() * amp + (vn * h.n[i]).abs()
+                    };
+                    (bound(t).min(1.0), bound(kv), bound(kp))
                 }
                 _ => (t[i].abs(), kv[i].abs(), kp[i].abs()),
             };
