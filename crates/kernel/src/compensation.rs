@@ -17,7 +17,10 @@ pub(crate) struct CompensationStage {
     g92: [f64; AXES],
     rotation_deg: f64,
     tool: [f64; AXES],
-    feed_per_minute: f64,
+    /// Feed rate in mm (per minute, or per revolution), converted with the units in force
+    /// when it was set, as LinuxCNC's canonical layer does: `G20 F6` sets the feed before
+    /// the units (RS274/NGC's order of execution), so F6 is in the units before G20.
+    feed_mm: f64,
     per_revolution: bool,
     spindle_rpm: f64,
     mode: PathMode,
@@ -35,7 +38,7 @@ impl CompensationStage {
             g92: [0.0; AXES],
             rotation_deg: 0.0,
             tool: [0.0; AXES],
-            feed_per_minute: 0.0,
+            feed_mm: 0.0,
             per_revolution: false,
             spindle_rpm: 0.0,
             mode: PathMode::ExactPath,
@@ -85,7 +88,7 @@ impl CompensationStage {
     }
 
     fn feed(&self) -> Feed {
-        let mm = self.feed_per_minute * self.mm_per_unit;
+        let mm = self.feed_mm;
         if self.per_revolution {
             Feed::PerRevolution {
                 mm_per_rev: mm,
@@ -107,7 +110,7 @@ impl CompensationStage {
                 rate,
                 per_revolution,
             } => {
-                self.feed_per_minute = rate;
+                self.feed_mm = rate * self.mm_per_unit;
                 self.per_revolution = per_revolution;
             }
             // G64 P and Q are lengths in the program's units when they were given.

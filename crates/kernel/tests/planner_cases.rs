@@ -107,3 +107,45 @@ fn an_inch_arc_within_the_inch_tolerance_runs() {
         "{last:?}"
     );
 }
+
+/// RS274/NGC executes F before G20/G21, and LinuxCNC's canonical layer converts a feed rate
+/// with the units in force when it is set: rs274 prints `SET_FEED_RATE(60)` before
+/// `USE_LENGTH_UNITS(CANON_UNITS_INCHES)` for `G20 F60`
+/// (`rtcnc-gcode/tests/corpus/221_units_and_feed_in_one_block.canon`), so F60 there is 60
+/// mm/min, and F120 on `G21 F120` is 120 in/min. The kernel applied the units of the move
+/// instead (25.4 × too fast, and too slow).
+#[test]
+fn a_feed_on_the_block_that_changes_the_units_is_in_the_units_before() {
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../gcode/tests/corpus/221_units_and_feed_in_one_block.ngc"),
+    )
+    .unwrap();
+    let cfg = config("bench-xyz.toml");
+    let mut m = Machine::new(&cfg, Some(program(&text, "feed-units.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(60.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    // (program line, feed in mm/s): F600 mm/min; F60 set in mm; F120 set in inches; F10 in
+    // inches.
+    for (line, feed) in [
+        (5, 10.0),
+        (7, 1.0),
+        (9, 120.0 * 25.4 / 60.0),
+        (11, 10.0 * 25.4 / 60.0),
+    ] {
+        // The cruise speed: the middle sample of the line.
+        let on_line: Vec<f64> = m
+            .samples
+            .iter()
+            .filter(|s| s.line == line)
+            .map(|s| s.path_speed)
+            .collect();
+        let top = on_line[on_line.len() / 2];
+        assert!(
+            (top - feed).abs() <= 1e-3 * feed,
+            "line {line}: {top} mm/s, F {feed}"
+        );
+    }
+}
