@@ -149,3 +149,42 @@ fn a_feed_on_the_block_that_changes_the_units_is_in_the_units_before() {
         );
     }
 }
+
+/// An adaptive-clearing-like program: rows of trochoidal loops (circles of R 2.87 mm in
+/// 85 chords of 0.21 mm, advancing 0.56 mm per loop, F3000, G64 P0.02), each row ending at
+/// a corner into a rapid retract. At the end of the first row the path arrived at the
+/// corner braking harder than the curve allowed (a dead end); its rollback's stricter model
+/// was dropped at every push of the moves that kept arriving behind it (the look-ahead re-ran
+/// the braking curve back to that stop), so the same dead end was met again and again with
+/// fewer set-points left to roll back each time, until none were left: set-points 124 ×
+/// over the jerk limit and 7 × over the acceleration limit were emitted. Through the
+/// kernel, since the moves must arrive while the machine runs.
+#[test]
+fn trochoidal_rows_ending_in_corners_keep_the_limits() {
+    let (r, advance, chord, rows, loops) = (2.87f64, 0.56f64, 0.21f64, 3, 10);
+    let n = (std::f64::consts::TAU * r / chord) as usize;
+    let mut text = String::from("G21 G90 G17 G40 G49 G80\nG64 P0.02\nG0 Z5.000\n");
+    let (x, mut y) = (10.0, 30.0);
+    text += &format!("G0 X{:.3} Y{y:.3}\nG1 Z-3.000 F300.0\n", x + r);
+    for _ in 0..rows {
+        for k in 0..loops {
+            let cx = x + k as f64 * advance;
+            for j in 1..=n {
+                let a = std::f64::consts::TAU * j as f64 / n as f64;
+                let px = cx + r * a.cos() + advance * j as f64 / n as f64;
+                text += &format!("G1 X{px:.3} Y{:.3} F3000.0\n", y + r * a.sin());
+            }
+        }
+        y += 2.0 * r;
+        text += &format!("G0 Z1.000\nG0 X{:.3} Y{y:.3}\nG1 Z-3.000 F300.0\n", x + r);
+    }
+    text += "G0 Z5.000\nM2\n";
+    let cfg = config("bench-xyz.toml");
+    let mut m = Machine::new(&cfg, Some(program(&text, "trochoid.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(60.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    let worst = worst_ratio(&m.samples, 1e-3, &[(100.0, 1000.0, 50_000.0); 3]);
+    assert!(worst <= 1.0 + 1e-9, "{worst}");
+}

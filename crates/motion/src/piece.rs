@@ -36,8 +36,14 @@ pub(crate) struct Sample {
     pub kp: AxisVec,
     /// Speed bound from axis velocities.
     pub v_axis: f64,
-    /// Speed bound from centripetal acceleration, curvature change and junction jumps.
+    /// Speed bound from centripetal acceleration and curvature change (it holds around
+    /// the sample: the speed limit of the sub-intervals next to it).
     pub v_curve: f64,
+    /// Speed bound at the sample's point alone: the step of the tangent or the curvature
+    /// at a junction (infinite elsewhere). It must not cap the sub-intervals next to it: a
+    /// line between two tangent arcs (a CAM profile's rounded corners) has one
+    /// sub-interval, which ran at the junctions' speed from end to end.
+    pub v_point: f64,
     /// |T_xyz| (feed applies to the XYZ speed); 0 when XYZ does not move.
     pub t_xyz: f64,
 }
@@ -159,7 +165,10 @@ impl Piece {
             dense_bounds: false,
             v_cap: [f64::INFINITY; NS_MAX + 1],
             ns: if straight { 1 } else { NS_MAX },
-            smp: [Sample::default(); NS_MAX + 1],
+            smp: [Sample {
+                v_point: f64::INFINITY,
+                ..Sample::default()
+            }; NS_MAX + 1],
             w: [0.0; NS_MAX + 1],
             a_sub: [0.0; NS_MAX],
             acc_sub: [f64::INFINITY; NS_MAX],
@@ -326,9 +335,19 @@ impl Piece {
         (v_axis, v_centripetal.min(v_jerk3.cbrt()))
     }
 
-    /// Speed limit at sample `k` under the given overrides.
+    /// Speed limit at sample `k` under the given overrides: around it
+    /// ([`Piece::vlc_span`]) and at its point (a junction's step).
     #[inline]
     pub fn vlc(&self, k: usize, feed_override: f64, rapid_override: f64) -> f64 {
+        self.vlc_span(k, feed_override, rapid_override)
+            .min(self.smp[k].v_point)
+    }
+
+    /// Speed limit around sample `k` under the given overrides (feed, axis speeds,
+    /// centripetal acceleration and curvature change): the sub-intervals next to it are
+    /// capped by the lower of their two samples' limits.
+    #[inline]
+    pub fn vlc_span(&self, k: usize, feed_override: f64, rapid_override: f64) -> f64 {
         let sm = &self.smp[k];
         if self.rapid {
             return (sm.v_axis * rapid_override).min(sm.v_curve);

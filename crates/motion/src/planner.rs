@@ -353,6 +353,9 @@ pub struct Planner<K: Kinematics> {
     /// How far ahead (periods) the generator runs: the longest stop of the machine.
     depth: usize,
     strict: Option<Strict>,
+    /// A rollback's model the generator has passed, kept until the emitted set-point has
+    /// passed it too (see `leave_strict`).
+    strict_passed: Option<Strict>,
     /// Time-optimal S-curve of an isolated straight line (rest to rest) with the id of its
     /// piece: such a move follows the OTG's profile instead of the period-by-period policy.
     line_profiles: [Option<(u64, Profile)>; PROFILE_SLOTS],
@@ -450,6 +453,7 @@ impl<K: Kinematics> Planner<K> {
             ahead: GenBuffer::new(depth + 1, cur),
             depth,
             strict: None,
+            strict_passed: None,
             line_profiles: [None; PROFILE_SLOTS],
             trace: std::env::var_os("RTCNC_MOTION_TRACE").is_some(),
         })
@@ -656,6 +660,12 @@ impl<K: Kinematics> Planner<K> {
     /// Takes `st` as the emitted state: releases the pieces behind it and finishes an abort.
     fn emit(&mut self, st: GenState) {
         self.cur = st;
+        if let Some(s) = self.strict_passed
+            && st.at > s.until
+            && !(st.at < s.stop_at)
+        {
+            self.strict_passed = None;
+        }
         while self.q.len > 0 && self.q.head_id < self.cur.id {
             self.q.pop();
         }
@@ -665,6 +675,7 @@ impl<K: Kinematics> Planner<K> {
             self.hold = None;
             self.ahead.len = 0;
             self.strict = None;
+            self.strict_passed = None;
             self.line_profiles = [None; PROFILE_SLOTS];
             self.cur.stopped = false;
             self.cur.id = self.q.head_id;
@@ -697,8 +708,8 @@ impl<K: Kinematics> Planner<K> {
         if !(base >= REBASE_AFTER) {
             return;
         }
-        let old_stop = self.strict.map(|s| s.stop_at);
-        let mut new_stop = None;
+        let old_stops = [self.strict, self.strict_passed].map(|s| s.map(|s| s.stop_at));
+        let mut new_stops = [None; 2];
         let mut c = 0.0;
         for i in 0..self.q.len {
             let p = self.q.get_mut(i);
@@ -715,8 +726,10 @@ impl<K: Kinematics> Planner<K> {
                 stop = (p.stop_ahead.0, p.cum_start + p.len);
             }
             if p.stop_ahead.0 == stop.0 {
-                if old_stop == Some(p.stop_ahead.0) {
-                    new_stop = Some(stop.1);
+                for (old, new) in old_stops.iter().zip(new_stops.iter_mut()) {
+                    if *old == Some(p.stop_ahead.0) {
+                        *new = Some(stop.1);
+                    }
                 }
                 p.stop_ahead.0 = stop.1;
             } else {
@@ -738,9 +751,14 @@ impl<K: Kinematics> Planner<K> {
         };
         place(&mut self.cur);
         self.ahead.for_each(place);
-        if let Some(s) = &mut self.strict {
-            s.until -= base;
-            s.stop_at = new_stop.unwrap_or(s.stop_at - base);
+        for (s, new_stop) in [&mut self.strict, &mut self.strict_passed]
+            .into_iter()
+            .zip(new_stops)
+        {
+            if let Some(s) = s {
+                s.until -= base;
+                s.stop_at = new_stop.unwrap_or(s.stop_at - base);
+            }
         }
     }
 
@@ -835,6 +853,7 @@ impl<K: Kinematics> Planner<K> {
     fn regenerate(&mut self) {
         self.ahead.len = self.ahead.rest_within(FINISH_STOP).map_or(0, |k| k + 1);
         self.strict = None;
+        self.strict_passed = None;
     }
 
     /// After the braking curve changed from path position `from` on: drops the generated
@@ -849,10 +868,19 @@ impl<K: Kinematics> Planner<K> {
                 break;
             }
         }
-        if let Some(s) = self.strict
-            && s.until >= from
+        // A rollback's stricter model stays in force where set-points are generated again
+        // before its dead end, also where the braking curve changed (moves appended far
+        // ahead re-run the pass back to the last real stop, the curve at the dead end
+        // being the same): dropping it restarted its escalation from the first attempt at
+        // every push (see `leave_strict`). A model stricter than the new curve needs only
+        // costs speed up to the dead end.
+        let back = self.ahead.back().map_or(self.cur.at, |b| b.at);
+        if self.strict.is_none()
+            && let Some(s) = self.strict_passed
+            && back <= s.until
         {
-            self.strict = None;
+            self.strict = Some(s);
+            self.strict_passed = None;
         }
     }
 
@@ -960,7 +988,7 @@ impl<K: Kinematics> Planner<K> {
             } else {
                 let h = p.len / ns as f64;
                 for k in (0..ns).rev() {
-                    let vl = p.vlc(k, fo, ro).min(p.vlc(k + 1, fo, ro));
+                    let vl = p.vlc_span(k, fo, ro).min(p.vlc_span(k + 1, fo, ro));
                     let w1 = p.w[k + 1];
                     let d1 = p.decel_available_pair(k, w1, &lim);
                     let west = vl.min((w1 * w1 + 2.0 * h * d1).sqrt());
@@ -968,7 +996,7 @@ impl<K: Kinematics> Planner<K> {
                     let acc = d1.min(d2);
                     p.a_sub[k] = acc;
                     let wfull = (w1 * w1 + 2.0 * h * acc).sqrt();
-                    p.w[k] = vl.min(wfull);
+                    p.w[k] = vl.min(wfull).min(p.smp[k].v_point);
                     // A braking section that ends at sample k+1 on a limit (not at a stop).
                     let braking_here = wfull < vl;
                     if braking_here && !next_braking && w1 > 0.0 {
@@ -1052,8 +1080,8 @@ impl<K: Kinematics> Planner<K> {
             let mut low = p.w[0];
             for k in 0..ns {
                 let vl = p
-                    .vlc(k, self.fo, self.ro)
-                    .min(p.vlc(k + 1, self.fo, self.ro));
+                    .vlc_span(k, self.fo, self.ro)
+                    .min(p.vlc_span(k + 1, self.fo, self.ro));
                 p.vl_sub[k] = vl;
                 low = low.min(p.w[k + 1]).min(vl);
             }
@@ -1262,8 +1290,8 @@ fn junction(a: &mut Piece, b: &mut Piece, lim: &Lim, period: f64) {
         };
         vj = vj.min(v);
     }
-    a.smp[ea].v_curve = a.smp[ea].v_curve.min(vj);
-    b.smp[0].v_curve = b.smp[0].v_curve.min(vj);
+    a.smp[ea].v_point = a.smp[ea].v_point.min(vj);
+    b.smp[0].v_point = b.smp[0].v_point.min(vj);
 }
 
 impl<K: Kinematics> Planner<K> {
@@ -1282,6 +1310,7 @@ impl<K: Kinematics> Planner<K> {
         self.line_profiles = [None; PROFILE_SLOTS];
         self.hold = None;
         self.strict = None;
+        self.strict_passed = None;
         self.ahead.len = 0;
         self.cur = GenState::rest(position, self.q.head_id, self.cum_end);
         Ok(())

@@ -180,3 +180,69 @@ fn a_long_path_without_stops_reaches_its_end() {
         11_000,
     );
 }
+
+/// A CAM profile with rounded corners: lines tangent to quarter arcs of R 3.175 mm (a
+/// 1/4 in end mill's corners, as FreeCAD's profile with cutter compensation writes them).
+/// The curvature steps where a line meets an arc (0 to 1/R) bound the speed there, at the
+/// junction only: the line's one sub-interval was capped by its end samples and ran at the
+/// junctions' 8.9 mm/s from end to end (the program took 1.7 × LinuxCNC's time). Between
+/// the arcs, the 100 mm lines run at the programmed feed (16.93 mm/s: F40 in/min), which
+/// takes less than a millimetre to reach from the junction's speed (hand-checked: from 8.9
+/// to 16.9 mm/s at 1000 mm/s² with a 50 000 mm/s³ jerk is under 0.3 mm).
+#[test]
+fn lines_between_tangent_arcs_run_at_their_feed() {
+    let (r, f) = (3.175, 40.0 * 25.4 / 60.0);
+    let mode = blend(0.01);
+    // Counter-clockwise around a 100 x 40 mm rectangle from (r, 0).
+    let corners = [
+        ([100.0 + r, r], [100.0 + 2.0 * r, r], [100.0 + r, 0.0]),
+        (
+            [100.0 + r, 40.0 + r],
+            [100.0 + r, 40.0 + 2.0 * r],
+            [100.0 + 2.0 * r, 40.0 + r],
+        ),
+        ([r, 40.0 + r], [0.0, 40.0 + r], [r, 40.0 + 2.0 * r]),
+        ([r, r], [r, 0.0], [0.0, r]),
+    ];
+    let mut moves = Vec::new();
+    let mut n = 0;
+    for (centre, end, line_end) in corners {
+        n += 1;
+        moves.push(Move::line(p3(line_end[0], line_end[1], 0.0), f, mode, n));
+        n += 1;
+        moves.push(Move::arc(
+            p3(end[0], end[1], 0.0),
+            [centre[0], centre[1], 0.0],
+            [0.0, 0.0, 1.0],
+            0,
+            f,
+            mode,
+            n,
+        ));
+    }
+    let lim = limits(V, A, J);
+    let mut pl = planner(&lim, p3(r, 0.0, 0.0), 256);
+    let tr = run(&mut pl, &moves, 100_000);
+    assert_limits(&tr, V, A, J);
+    assert!(dist(tr.pts.last().unwrap(), &p3(r, 0.0, 0.0)) <= 1e-9);
+    // On the long lines (y = 0 and y = 40 + 2r, away from the corners by more than 1 mm)
+    // the speed is the feed.
+    let on_long_lines: Vec<f64> = tr
+        .pts
+        .windows(2)
+        .zip(&tr.speed)
+        .filter(|(w, _)| {
+            let p = w[1];
+            (p[1].abs() < 1e-9 || (p[1] - 40.0 - 2.0 * r).abs() < 1e-9)
+                && p[0] > r + 1.0
+                && p[0] < 100.0 + r - 1.0
+        })
+        .map(|(_, v)| *v)
+        .collect();
+    assert!(on_long_lines.len() > 10_000, "{}", on_long_lines.len());
+    let slowest = on_long_lines.iter().cloned().fold(f64::INFINITY, f64::min);
+    assert!(
+        (slowest - f).abs() <= 1e-4 * f,
+        "{slowest} mm/s on the lines, F {f}"
+    );
+}

@@ -120,12 +120,19 @@ impl<K: Kinematics> Planner<K> {
     /// (one just after it is the same one), or at rest at the stop it braked for (a dead
     /// end on the way into a stop: the next piece starts where it was, and the stricter
     /// model there kept the machine at rest for ever). A state at rest short of the stop
-    /// keeps it (a dead end at rest is met again from there).
+    /// keeps it (a dead end at rest is met again from there). The model is kept aside
+    /// until the emitted set-point has passed it too ([`Planner::strict_passed`]): set-points
+    /// regenerated before it (a push re-runs the braking curve back to the last real stop
+    /// and drops what saw it) take it again, and a dead end met there continues its
+    /// escalation instead of starting from the first attempt (a trochoid loop into a
+    /// corner met the same dead end at every push, each time with fewer set-points left
+    /// to roll back, until none were left and one 158 × over the jerk limit was emitted).
     fn leave_strict(&mut self, st: &GenState) {
         if let Some(s) = self.strict
             && (st.at > s.until + 8.0 * st.v * self.period + 1e-9
                 || (st.v <= 0.0 && st.a == 0.0 && st.at >= s.until && st.at >= s.stop_at))
         {
+            self.strict_passed = Some(s);
             self.strict = None;
         }
     }
@@ -142,7 +149,10 @@ impl<K: Kinematics> Planner<K> {
     fn rollback(&mut self, front: &GenState) {
         self.stats.rollbacks += 1;
         let reach = 8.0 * front.v * self.period + 1e-9;
-        let prev = self.strict.filter(|s| front.at <= s.until + reach);
+        let prev = self
+            .strict
+            .or(self.strict_passed)
+            .filter(|s| front.at <= s.until + reach);
         let attempt = prev.map_or(0, |s| s.attempt + 1);
         let until = prev.map_or(front.at, |s| s.until.max(front.at));
         let f = STRICT_FACTOR.powi(attempt as i32 + 1);
@@ -516,7 +526,7 @@ impl<K: Kinematics> Planner<K> {
     pub(super) fn line_profile_from(&self, idx: usize, from: OtgState) -> Option<Profile> {
         let head = self.q.get(idx);
         let vmax = (0..=head.ns)
-            .map(|k| head.vlc(k, self.fo, self.ro))
+            .map(|k| head.vlc_span(k, self.fo, self.ro))
             .fold(f64::INFINITY, f64::min);
         let t = self.period;
         // Shares of the speed, acceleration and jerk limits.
