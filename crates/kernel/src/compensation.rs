@@ -24,13 +24,15 @@ pub(crate) struct CompensationStage {
     per_revolution: bool,
     spindle_rpm: f64,
     mode: PathMode,
+    /// The blend tolerance of plain G64 (mm), from the machine file.
+    default_blend_tolerance: f64,
     /// G33/G76: the pitch (mm per revolution) of the synchronised feed moves.
     sync_pitch: Option<f64>,
     pending: Option<Tagged<MachineBlock>>,
 }
 
 impl CompensationStage {
-    pub(crate) fn new(shared: Shared) -> Self {
+    pub(crate) fn new(shared: Shared, default_blend_tolerance: f64) -> Self {
         CompensationStage {
             shared,
             mm_per_unit: 1.0,
@@ -42,6 +44,7 @@ impl CompensationStage {
             per_revolution: false,
             spindle_rpm: 0.0,
             mode: PathMode::ExactPath,
+            default_blend_tolerance,
             sync_pitch: None,
             pending: None,
         }
@@ -113,14 +116,19 @@ impl CompensationStage {
                 self.feed_mm = rate * self.mm_per_unit;
                 self.per_revolution = per_revolution;
             }
-            // G64 P and Q are lengths in the program's units when they were given.
+            // G64 P and Q are lengths in the program's units when they were given. Plain G64
+            // (P0), LinuxCNC's "best speed" without a bound, is the machine file's tolerance.
             ProgramBlock::PathMode(m) => {
                 self.mode = match m {
                     PathMode::Blend {
                         tolerance,
                         merge_tolerance,
                     } => PathMode::Blend {
-                        tolerance: tolerance * self.mm_per_unit,
+                        tolerance: if tolerance > 0.0 {
+                            tolerance * self.mm_per_unit
+                        } else {
+                            self.default_blend_tolerance
+                        },
                         merge_tolerance: merge_tolerance * self.mm_per_unit,
                     },
                     other => other,

@@ -307,7 +307,8 @@ impl Kernel {
             config.machine.diameter_mode,
         )
         .with_parameter_file(config.files.parameters.as_ref().map(|p| config.resolve(p)));
-        let mut compensation = CompensationStage::new(shared.clone());
+        let mut compensation =
+            CompensationStage::new(shared.clone(), config.motion.default_blend_tolerance);
 
         let mut b = TaskSet::builder();
         if let Some(capacity) = options.trace_capacity {
