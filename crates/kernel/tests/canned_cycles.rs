@@ -65,8 +65,8 @@ const CYCLES: [&str; 11] = [
 ];
 
 /// One program: every cycle in `plane`, absolute or incremental, G98 or G99, each with L
-/// repeats (2-4 holes 1.5-4 mm apart along the row), the R plane 0-2 mm below the start
-/// level, 1-8 mm deep.
+/// repeats (2-4 holes 1.5-4 mm apart along the row), the R plane from 2 mm below to 2 mm
+/// above the start level, 1-8 mm deep.
 fn program(rng: &mut Lcg, plane: &Plane, incremental: bool, retract: &str) -> String {
     let (lr, lo, lc) = (plane.row.0, plane.other.0, plane.c.0);
     let mut text = format!(
@@ -79,7 +79,8 @@ fn program(rng: &mut Lcg, plane: &Plane, incremental: bool, retract: &str) -> St
     text += &format!("G0 {lr}{at} {lo}{other} {lc}{start_c}\n");
     for cycle in CYCLES {
         text += if cycle == "G74" { "M4\n" } else { "M3\n" };
-        let r_above = rng.range(0.0, 2.0);
+        // R from 2 mm below to 2 mm above the start level (above: the cycle first rises to it).
+        let r_above = rng.range(-2.0, 2.0);
         let r = start_c - r_above;
         let depth = rng.range(1.0, 8.0);
         let bottom = r - depth;
