@@ -9,6 +9,7 @@ use generate::{STOP_JERK_SHARE, STOP_SHARE, StepLimits};
 use crate::axes::{AXES, AxisVec, norm};
 use crate::builder::{Builder, GeometryStats, KINK};
 use crate::error::MotionError;
+use crate::geometry::Shape;
 use crate::input::Move;
 use crate::kinematics::Kinematics;
 use crate::limits::{Lim, MachineLimits};
@@ -1290,8 +1291,26 @@ fn junction(a: &mut Piece, b: &mut Piece, lim: &Lim, period: f64) {
         };
         vj = vj.min(v);
     }
-    a.smp[ea].v_point = a.smp[ea].v_point.min(vj);
-    b.smp[0].v_point = b.smp[0].v_point.min(vj);
+    // Where a line meets an arc (a CAM profile's rounded corners), the line is capped at
+    // the junction's point only and the arc over its sub-interval next to it: the braking
+    // curve then has a plateau on the arc that the jerk-limited speed settles on. Elsewhere
+    // both sides are capped over their sub-intervals: a cap at a point alone on both sides
+    // is a V-shaped dip the speed cannot follow (set-points 1000 × over the jerk limit at
+    // the tangent junctions of a G5 chain), and next to a spline's short last sub-interval
+    // even a line's point cap was lost (5 ×, random programs of lines and splines).
+    let arc = |p: &Piece| matches!(p.shape, Shape::Helix(_));
+    let (point_a, point_b) = match (a.straight && arc(b), arc(a) && b.straight) {
+        (true, _) => (true, false),
+        (_, true) => (false, true),
+        _ => (false, false),
+    };
+    for (sm, point) in [(&mut a.smp[ea], point_a), (&mut b.smp[0], point_b)] {
+        if point {
+            sm.v_point = sm.v_point.min(vj);
+        } else {
+            sm.v_curve = sm.v_curve.min(vj);
+        }
+    }
 }
 
 impl<K: Kinematics> Planner<K> {
