@@ -512,7 +512,10 @@ impl InterpreterStage {
             C::ArcFeed(arc) => {
                 let (end, centre, normal, turns) = arc_geometry(&arc, self.plane, &self.position);
                 // The radius difference the interpreter accepts for this arc: the planner
-                // runs it as a spiral (as LinuxCNC does) and refuses no less.
+                // runs it as a spiral (as LinuxCNC does) and refuses no less. Cutter
+                // compensation keeps the programmed difference while it changes the radii
+                // (the interpreter accepted it for the programmed ones): at least the arc's
+                // own difference.
                 let radius = |p: &[f64; 9]| {
                     let d = [p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]];
                     let along = d[0] * normal[0] + d[1] * normal[1] + d[2] * normal[2];
@@ -520,10 +523,12 @@ impl InterpreterStage {
                         .max(0.0)
                         .sqrt()
                 };
+                let (r_start, r_end) = (radius(&self.position), radius(&end));
                 let radius_tolerance = self
                     .settings
                     .arc_radius_tolerance(self.units)
-                    .largest_difference(radius(&self.position).max(radius(&end)));
+                    .largest_difference(r_start.max(r_end))
+                    .max((r_start - r_end).abs());
                 self.position = end;
                 out.push_back(ProgramBlock::Arc {
                     line,

@@ -188,3 +188,34 @@ fn trochoidal_rows_ending_in_corners_keep_the_limits() {
     let worst = worst_ratio(&m.samples, 1e-3, &[(100.0, 1000.0, 50_000.0); 3]);
     assert!(worst <= 1.0 + 1e-9, "{worst}");
 }
+
+/// Cutter compensation keeps an arc's radius difference while it changes its radii: an arc
+/// of R 30 whose end radius is 0.029 mm longer (accepted: under 0.1 % of 30.029 mm) is
+/// 0.029 mm off at R 27 inside a 6 mm cutter, which the rule alone would refuse at R 27
+/// (0.0283 mm); the planner took the rule for the compensated radii and refused it.
+#[test]
+fn a_compensated_arc_keeps_the_radius_difference_the_interpreter_accepted() {
+    let dir = std::env::temp_dir().join(format!("rtcnc-planner-cases-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let tools = dir.join("tools.tbl");
+    std::fs::write(&tools, "T1 P1 D6.0 Z+40.0 ;6 mm flat end mill\n").unwrap();
+    let toml = std::fs::read_to_string(repo().join("configs/bench-xyz.toml")).unwrap()
+        + &format!(
+            "\n[files]\ntool_table = {:?}\n",
+            tools.display().to_string()
+        );
+    let cfg = rtcnc_kernel::MachineConfig::parse(&toml, "bench-xyz+tools").unwrap();
+    let text = "G21 G90 G17 G64 P0.01\nT1 M6\nG0 X0 Y-10 Z0\nG41 D1\nG1 X0 Y0 F600\n\
+                G3 X60.029 Y0 I30 J0\nG1 X60.029 Y-10\nG40\nG0 X0 Y-20\nM2\n";
+    let mut m = Machine::new(&cfg, Some(program(text, "crc-spiral.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    let ended = m.until(30.0, |s| s.program_ended && s.state == MachineState::Idle);
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    assert!(ended);
+    let last = m.samples.last().unwrap().axes;
+    assert!(
+        last[0].abs() < 1e-9 && (last[1] + 20.0).abs() < 1e-9,
+        "{last:?}"
+    );
+}
