@@ -6,6 +6,7 @@ use std::collections::{HashMap, VecDeque};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use crate::arc_tolerance::ArcRadiusTolerance;
 use crate::block::{self, Block, ParamRef, ParamSource};
 use crate::canon::{
     Canon, CanonCommand, CompensationSide, FeedMode, FileId, NurbsPoint, PathMode, Plane, Pose,
@@ -32,7 +33,9 @@ pub struct Settings {
     pub subroutine_path: Vec<PathBuf>,
     /// Skip lines starting with `/`.
     pub block_delete: bool,
-    /// Tolerance of the radius difference of centre-format arcs (mm).
+    /// Absolute part of the tolerance of the radius difference of centre-format arcs in
+    /// millimetre programs (LinuxCNC's `CENTER_ARC_RADIUS_TOLERANCE_MM`; see
+    /// [`ArcRadiusTolerance`]).
     pub arc_radius_tolerance_mm: f64,
     /// Accept tool numbers that are not in the tool table, as tools with no offsets and
     /// their number for a pocket (to check a program without the machine's table).
@@ -46,7 +49,7 @@ pub struct Settings {
     /// command is stopped with an error (an endless o-word loop would otherwise never
     /// return). Lines read straight through the file are not counted: they end.
     pub max_lines_without_output: u64,
-    /// The same in inches.
+    /// The same in inch programs (`CENTER_ARC_RADIUS_TOLERANCE_INCH`), in inches.
     pub arc_radius_tolerance_inch: f64,
 }
 
@@ -57,8 +60,8 @@ impl Default for Settings {
             initial_units: Units::Mm,
             subroutine_path: Vec::new(),
             block_delete: false,
-            arc_radius_tolerance_mm: 2.0 * 0.01 * std::f64::consts::SQRT_2,
-            arc_radius_tolerance_inch: 2.0 * 0.001 * std::f64::consts::SQRT_2,
+            arc_radius_tolerance_mm: ArcRadiusTolerance::MM.absolute,
+            arc_radius_tolerance_inch: ArcRadiusTolerance::INCH.absolute,
             max_lines_without_output: 10_000_000,
             wait_for_machine: false,
             accept_unknown_tools: false,
@@ -67,6 +70,18 @@ impl Default for Settings {
 }
 
 impl Settings {
+    /// The tolerance of the radius difference of centre-format arcs in `units`.
+    pub fn arc_radius_tolerance(&self, units: Units) -> ArcRadiusTolerance {
+        let absolute = match units {
+            Units::Mm => self.arc_radius_tolerance_mm,
+            Units::Inches => self.arc_radius_tolerance_inch,
+        };
+        ArcRadiusTolerance {
+            absolute,
+            ..ArcRadiusTolerance::default_for(units)
+        }
+    }
+
     /// Settings as LinuxCNC's stand-alone `rs274` uses them (user units are inches).
     pub fn rs274() -> Settings {
         Settings {

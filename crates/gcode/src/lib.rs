@@ -18,6 +18,7 @@
 
 #![warn(missing_docs)]
 
+mod arc_tolerance;
 mod block;
 pub mod canon;
 pub mod compensation;
@@ -38,6 +39,7 @@ mod source;
 mod threading;
 pub mod tools;
 
+pub use arc_tolerance::ArcRadiusTolerance;
 pub use canon::{Canon, CanonCommand, Nurbs, NurbsPoint, Pose, Source};
 pub use error::{ErrorKind, GcodeError};
 pub use interp::{Interpreter, ModalState, Settings};

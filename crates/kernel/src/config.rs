@@ -631,6 +631,31 @@ pub struct HmiSection {
     pub programs: Option<PathBuf>,
 }
 
+/// `[motion]`: the path planner's settings.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MotionSection {
+    /// Largest distance (mm) of the path from the programmed corners under plain `G64`
+    /// (no P, or P0), which LinuxCNC blends "at the best speed" with no bound: the planner
+    /// blends and smooths at the best speed within this one.
+    #[serde(default = "MotionSection::default_blend_tolerance")]
+    pub default_blend_tolerance: f64,
+}
+
+impl MotionSection {
+    fn default_blend_tolerance() -> f64 {
+        0.05
+    }
+}
+
+impl Default for MotionSection {
+    fn default() -> Self {
+        MotionSection {
+            default_blend_tolerance: MotionSection::default_blend_tolerance(),
+        }
+    }
+}
+
 /// `[handwheel]`.
 #[derive(Debug, Clone, Copy, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -687,6 +712,9 @@ pub struct MachineConfig {
     /// `[hmi]`: the operator's surfaces in processes of their own.
     #[serde(default)]
     pub hmi: HmiSection,
+    /// `[motion]`.
+    #[serde(default)]
+    pub motion: MotionSection,
     /// Folder of the file (paths are relative to it); set by [`MachineConfig::load`].
     #[serde(skip)]
     pub base_dir: PathBuf,
@@ -928,6 +956,10 @@ impl MachineConfig {
             }
         }
         self.tasks_checked()?;
+        positive_finite(
+            "motion.default_blend_tolerance",
+            self.motion.default_blend_tolerance,
+        )?;
         if let Some(s) = &self.spindle {
             positive_finite("spindle.max_speed_rpm", s.max_speed_rpm)?;
         }

@@ -41,6 +41,8 @@ pub(crate) struct InterpreterStage {
     /// Program position, for arcs (program coordinates).
     position: [f64; 9],
     plane: Plane,
+    /// Length units of the canonical commands (for the arcs' radius tolerance).
+    units: Units,
     selected_tool: i32,
     spindle_rpm: f64,
     spindle_on: Option<SpindleDirection>,
@@ -96,6 +98,7 @@ impl InterpreterStage {
             outbox: std::collections::VecDeque::with_capacity(256),
             position: [0.0; 9],
             plane: Plane::XY,
+            units: Units::Mm,
             selected_tool: 0,
             spindle_rpm: 0.0,
             spindle_on: None,
@@ -495,10 +498,13 @@ impl InterpreterStage {
         let out = &mut self.outbox;
         let aux = |aux| ProgramBlock::Aux { line, aux };
         match canon.command {
-            C::UseLengthUnits(u) => out.push_back(ProgramBlock::Units(match u {
-                Units::Mm => 1.0,
-                Units::Inches => 25.4,
-            })),
+            C::UseLengthUnits(u) => {
+                self.units = u;
+                out.push_back(ProgramBlock::Units(match u {
+                    Units::Mm => 1.0,
+                    Units::Inches => 25.4,
+                }))
+            }
             C::SetG5xOffset { offset, .. } => {
                 out.push_back(ProgramBlock::WorkOffset(offset.to_array()))
             }
@@ -614,6 +620,24 @@ impl InterpreterStage {
             }
             C::ArcFeed(arc) => {
                 let (end, centre, normal, turns) = arc_geometry(&arc, self.plane, &self.position);
+                // The radius difference the interpreter accepts for this arc: the planner
+                // runs it as a spiral (as LinuxCNC does) and refuses no less. Cutter
+                // compensation keeps the programmed difference while it changes the radii
+                // (the interpreter accepted it for the programmed ones): at least the arc's
+                // own difference.
+                let radius = |p: &[f64; 9]| {
+                    let d = [p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]];
+                    let along = d[0] * normal[0] + d[1] * normal[1] + d[2] * normal[2];
+                    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - along * along)
+                        .max(0.0)
+                        .sqrt()
+                };
+                let (r_start, r_end) = (radius(&self.position), radius(&end));
+                let radius_tolerance = self
+                    .settings
+                    .arc_radius_tolerance(self.units)
+                    .largest_difference(r_start.max(r_end))
+                    .max((r_start - r_end).abs());
                 self.position = end;
                 out.push_back(ProgramBlock::Arc {
                     line,
@@ -621,6 +645,7 @@ impl InterpreterStage {
                     centre,
                     normal,
                     turns,
+                    radius_tolerance,
                 });
             }
             C::SplineFeed(sp) => {

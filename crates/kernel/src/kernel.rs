@@ -302,7 +302,10 @@ impl Kernel {
             logic,
             status,
             interpreter,
-            compensation: CompensationStage::new(shared.clone()),
+            compensation: CompensationStage::new(
+                shared.clone(),
+                config.motion.default_blend_tolerance,
+            ),
             retain,
             link,
         };
