@@ -330,10 +330,15 @@ impl MotionCore {
                 self.homing_step(feedback);
             }
         }
-        // Joints on their own generator (homing, independent joints).
+        // Joints on their own generator (homing, independent joints). The axis a homing
+        // joint belongs to is where its joint is (the status and the recording show the
+        // joint moving, and the hand-over back to the axis has no step).
         for j in 0..self.machine.joint_count {
             if self.manual.joint_manual & (1 << j) != 0 {
                 sp.joints[j] = self.manual.joint_otg[j].step(self.machine.period_s).p;
+                if let Some(i) = self.machine.joints[j].axis {
+                    sp.axes[i] = sp.joints[j];
+                }
             }
         }
         if self.source == Source::Manual {
