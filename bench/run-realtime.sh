@@ -2,7 +2,8 @@
 # The shipped example in real time on this machine: `rtcnc run examples/bracket.ngc` on the
 # simulated mill, RUNS times idle and RUNS times under `stress-ng --cpu 2` (two processes
 # keeping both processors busy at normal priority), with the default set-point lead.
-# Prints one line per run (ended, set-point underruns, the longest gap between two runs of
+# Prints one line per run (ended, whether its path is `rtcnc sim`'s (bench/compare-paths.py
+# on both recordings, within 1 µm), set-point underruns, the longest gap between two runs of
 # interpolation, the latest start of interpolation and of position control after their
 # release, deadline misses) and the completed count of each series.
 #
@@ -26,9 +27,14 @@ cleanup() {
 }
 trap cleanup EXIT
 
+"$bin" sim "$program" --machine "$machine" -q --out "$tmp/sim" >/dev/null || true
+
 one_run() {
   local out="$tmp/run.txt"
-  timeout 600 "$bin" run "$program" --machine "$machine" >"$out" 2>"$tmp/stderr.txt" || true
+  rm -rf "$tmp/run"
+  timeout 600 "$bin" run "$program" --machine "$machine" --out "$tmp/run" >"$out" 2>"$tmp/stderr.txt" || true
+  local path
+  path=$(bench/compare-paths.py "$tmp/sim" "$tmp/run" 0.001 >/dev/null 2>&1 && echo "same path" || echo "OTHER PATH")
   local ended underruns gap latest misses
   ended=$(grep -c '^program ended' "$out" || true)
   underruns=$(sed -n 's/^set-point underruns (periods without a set-point): \([0-9]*\)/\1/p' "$out")
@@ -37,10 +43,10 @@ one_run() {
   misses=$(awk '/^task /{t=1; next} t && NF>=7 && $NF ~ /^[0-9]+$/ {m+=$NF} END {print m+0}' "$out")
   local fault
   fault=$(grep -m1 '^fault' "$out" | cut -c1-110 || true)
-  printf '%-6s underruns %-4s longest gap %-4s periods  latest start: %s  deadline misses %s %s\n' \
-    "$([ "$ended" = 1 ] && echo ended || echo FAILED)" "${underruns:-?}" "${gap:-?}" \
+  printf '%-6s %-10s underruns %-4s longest gap %-4s periods  latest start: %s  deadline misses %s %s\n' \
+    "$([ "$ended" = 1 ] && echo ended || echo FAILED)" "$path" "${underruns:-?}" "${gap:-?}" \
     "${latest:-?}" "$misses" "$fault"
-  [ "$ended" = 1 ]
+  [ "$ended" = 1 ] && [ "$path" = "same path" ]
 }
 
 series() {
@@ -49,7 +55,7 @@ series() {
   for i in $(seq 1 "$runs"); do
     if one_run; then ok=$((ok + 1)); fi
   done
-  echo "== $name: $ok of $runs ended"
+  echo "== $name: $ok of $runs ended on the path of rtcnc sim"
 }
 
 grep -m1 -q . /proc/cpuinfo && echo "processors: $(nproc)"

@@ -225,3 +225,102 @@ fn sim_runs_the_spline_example_on_the_mill() {
     assert!(stdout.contains("limits      respected"), "{stdout}");
     assert!(stdout.contains("faults      none"), "{stdout}");
 }
+
+/// A hard limit at 40 mm hit at 50 mm/s: the quick stop (1000 mm/s², jerk 10 000 mm/s³:
+/// a triangular deceleration of 2·√(50/10 000) = 0.141 s over 50 · 0.0707 = 3.5 mm) ends
+/// near X43.5. The recording goes on until the load stands, so the CSV shows the whole
+/// stop and ends standing (20 ms after the fault, X would still move near X41).
+#[test]
+fn sim_records_a_fault_until_the_load_stands() {
+    let dir = std::env::temp_dir().join(format!("rtcnc-sim-stop-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let machine = dir.join("limit-at-40.toml");
+    std::fs::write(
+        &machine,
+        std::fs::read_to_string(repo().join("configs/experiment-1.toml"))
+            .unwrap()
+            .replace(
+                "sim = { drive = \"velocity\" }",
+                "sim = { drive = \"velocity\", positive_limit_switch = 40.0 }",
+            ),
+    )
+    .unwrap();
+    let program = temp_program("to-the-limit", "G21 G90 G61\nG1 X90 F3000\nM2\n");
+    let out = rtcnc()
+        .arg("sim")
+        .arg(&program)
+        .arg("--machine")
+        .arg(&machine)
+        .args(["-q", "--out"])
+        .arg(dir.join("out"))
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(!out.status.success(), "{stdout}");
+    assert!(
+        stdout.contains("hard limit") || stdout.contains("hard_limit"),
+        "{stdout}"
+    );
+    let csv = std::fs::read_to_string(dir.join("out/setpoints.csv")).unwrap();
+    let x: Vec<f64> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(4).unwrap().parse().unwrap())
+        .collect();
+    let last = *x.last().unwrap();
+    assert!(last > 42.5 && last < 44.5, "the load stopped at X{last}");
+    assert!(
+        x[x.len() - 20..].iter().all(|v| *v == last),
+        "the recording ends before the load stands: {:?}",
+        &x[x.len() - 20..]
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `rtcnc run --out` records every servo period into the files `rtcnc sim --out` writes:
+/// the same columns, one row per period, and experiment 1's move from X0 to X6.
+#[test]
+fn run_records_the_files_sim_writes() {
+    let dir = std::env::temp_dir().join(format!("rtcnc-run-out-{}", std::process::id()));
+    let out = rtcnc()
+        .args([
+            "run",
+            "examples/experiment-1.ngc",
+            "--machine",
+            "configs/experiment-1.toml",
+            "--out",
+        ])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("recording"))
+        .unwrap_or_else(|| panic!("{stdout}"));
+    let rows: u64 = line.split_whitespace().nth(1).unwrap().parse().unwrap();
+    let csv = std::fs::read_to_string(dir.join("setpoints.csv")).unwrap();
+    assert!(csv.starts_with("time_s,cycle,line,path_speed,X,X_setpoint\n"));
+    assert_eq!(csv.lines().count() as u64, rows + 1, "{line}");
+    let feedback = std::fs::read_to_string(dir.join("feedback.csv")).unwrap();
+    assert_eq!(feedback.lines().count(), csv.lines().count());
+    let x: Vec<f64> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(4).unwrap().parse().unwrap())
+        .collect();
+    // The cycles are consecutive unless the line says some were missing.
+    if line.ends_with("; 0 periods missing") {
+        let cycles: Vec<u64> = csv
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').nth(1).unwrap().parse().unwrap())
+            .collect();
+        assert!(cycles.windows(2).all(|w| w[1] == w[0] + 1), "{line}");
+    }
+    if stdout.contains("program ended") {
+        assert_eq!(*x.last().unwrap(), 6.0);
+        assert!(x.windows(2).all(|w| w[1] >= w[0]), "X only moves forward");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -17,6 +17,7 @@ use rtcnc_kernel::{Command, Kernel, KernelOptions, MachineConfig, MachineState, 
 use rtcnc_rt::{RealTimeConfig, RealTimeRunner, SchedulingMode};
 
 use crate::commands::seconds;
+use crate::recording::SampleCsv;
 use crate::say;
 
 /// Exit status after SIGTERM's controlled stop (128 + SIGTERM, as a shell reports a process
@@ -44,6 +45,51 @@ pub struct Args {
     /// Give up after this many seconds.
     #[arg(long, default_value = "3600", value_parser = seconds)]
     limit: Duration,
+    /// Record every servo period into setpoints.csv and feedback.csv in this folder (the
+    /// files of `rtcnc sim --out`, so the two runs compare column by column).
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+}
+
+/// Servo periods the recording ring holds: far more than the 100 ms between two drains.
+const RECORD_CAPACITY: usize = 1 << 15;
+
+/// The recording of `--out`: the kernel's sample ring drained into the CSV files, with the
+/// periods the ring lost (a drain later than the ring is long) counted, not hidden.
+struct Recording {
+    samples: rtcnc_rt::ipc::RingConsumer<rtcnc_kernel::Sample>,
+    csv: SampleCsv,
+    joints: usize,
+    rows: u64,
+    last_cycle: Option<u64>,
+    missing: u64,
+    error: Option<std::io::Error>,
+}
+
+impl Recording {
+    fn drain(&mut self) {
+        let Recording {
+            samples,
+            csv,
+            joints,
+            rows,
+            last_cycle,
+            missing,
+            error,
+        } = self;
+        samples.drain_with(|s| {
+            if let Some(last) = *last_cycle {
+                *missing += s.cycle.saturating_sub(last + 1);
+            }
+            *last_cycle = Some(s.cycle);
+            *rows += 1;
+            if error.is_none() {
+                if let Err(e) = csv.write(s, *joints) {
+                    *error = Some(e);
+                }
+            }
+        });
+    }
 }
 
 /// Prints the operator messages the machine reached since the last call (time since the
@@ -180,11 +226,27 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         &config,
         KernelOptions {
             program: args.program.clone(),
-            record_capacity: 0,
+            record_capacity: if args.out.is_some() {
+                RECORD_CAPACITY
+            } else {
+                0
+            },
             trace_capacity: Some(4096),
             ..KernelOptions::default()
         },
     )?;
+    let mut recording = match (&args.out, kernel.samples) {
+        (Some(dir), Some(samples)) => Some(Recording {
+            samples,
+            csv: SampleCsv::create(dir, &config)?,
+            joints: config.joints.len(),
+            rows: 0,
+            last_cycle: None,
+            missing: 0,
+            error: None,
+        }),
+        _ => None,
+    };
     let handle = kernel.handle.clone();
     let tty = std::io::stderr().is_terminal();
     let runner = RealTimeRunner::start(
@@ -236,6 +298,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             if warn_misses {
                 misses.poll(&runner, false);
             }
+            if let Some(r) = recording.as_mut() {
+                r.drain();
+            }
         }
         if TERMINATED.load(Ordering::SeqCst) {
             controlled_stop(&handle);
@@ -271,6 +336,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             if warn_misses {
                 misses.poll(&runner, tty);
             }
+            if let Some(r) = recording.as_mut() {
+                r.drain();
+            }
             print_messages(&handle, kernel_start, tty);
             let s = handle.status();
             if tty {
@@ -305,8 +373,22 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let terminated = TERMINATED.load(Ordering::SeqCst);
     let elapsed = started.elapsed().as_secs_f64();
     let fifo = runner.is_fifo();
-    let recording = runner.stop();
+    let executive = runner.stop();
     let faults = handle.take_faults();
+    if let Some(mut r) = recording {
+        r.drain();
+        let dir = args.out.as_deref().unwrap_or(std::path::Path::new("."));
+        if let Some(e) = r.error {
+            bail!("{}: {e}", dir.display());
+        }
+        r.csv.finish()?;
+        say!(
+            "recording   {} periods in {}/setpoints.csv, feedback.csv; {} periods missing",
+            r.rows,
+            dir.display(),
+            r.missing
+        );
+    }
     if terminated {
         say!("terminated (SIGTERM) after {elapsed:.3} s: feed hold, abort, drives off");
     } else if args.program.is_some() {
@@ -346,7 +428,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         };
         Some((rtcnc_rt::parse_duration(p).ok()?, runs))
     };
-    for stats in recording.monitor().stats() {
+    for stats in executive.monitor().stats() {
         let e = &stats.execution;
         let share = period_of(&stats.name).map(|(period, runs)| {
             // Mean time of one body run × runs per activation / period.
@@ -373,7 +455,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     let (lead, gap) = handle.setpoint_lead();
     let period_ms = config.servo_period().as_secs_f64() * 1e3;
-    let latest = recording
+    let latest = executive
         .monitor()
         .stats()
         .into_iter()

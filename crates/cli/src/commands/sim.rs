@@ -4,17 +4,27 @@
 //! feedback as CSV, an SVG plot, the executive's trace and `summary.json`.
 
 use std::fmt::Write as _;
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
 use rtcnc_kernel::report::RunStats;
+
 use rtcnc_kernel::{
     Command, Fault, FaultCode, Kernel, KernelOptions, MachineConfig, MachineState, Sample,
     Simulation,
 };
+
+use crate::recording::SampleCsv;
+
+/// After the program, the recording goes on until every joint has stood still for this
+/// many periods...
+const SETTLED_PERIODS: u32 = 20;
+/// ...or at most this long (a load that never settles is itself worth seeing).
+const SETTLE_LIMIT: Duration = Duration::from_secs(5);
+/// A simulated joint slower than this (units/s) stands.
+const STANDING_VELOCITY: f64 = 1e-6;
 
 /// Run a G-code program on a simulated machine in virtual time.
 #[derive(Debug, clap::Args)]
@@ -86,7 +96,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let handle = sim.handle().clone();
 
     let mut writers = match &args.out {
-        Some(dir) => Some(Outputs::create(dir, &config)?),
+        Some(dir) => Some(SampleCsv::create(dir, &config)?),
         None => None,
     };
     let mut stats = RunStats::new();
@@ -168,8 +178,27 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }
     }
     let cycle_time = (sim.now() - start).as_secs_f64();
-    // Let the machine settle a moment so the feedback of the last move is recorded.
-    sim.run_cycles(20, &mut sink)?;
+    // Record until the load stands (after a fault it may coast or quick-stop for a few
+    // hundred milliseconds: the recording shows the whole stop), then a moment more.
+    // The simulated load's true velocity says it (the feedback is stale once the fieldbus
+    // is lost); another bus has its feedback.
+    let machine = handle.simulated_machine().ok();
+    let mut last_feedback = None;
+    let mut standing_periods = 0u32;
+    sim.run_until(SETTLE_LIMIT, &mut sink, |s| {
+        let standing = match &machine {
+            Some(m) => m.with(|m| {
+                (0..config.joints.len()).all(|j| {
+                    m.true_state(j)
+                        .is_none_or(|(_, v)| v.abs() < STANDING_VELOCITY)
+                })
+            }),
+            None => last_feedback == Some(s.joint_feedback),
+        };
+        last_feedback = Some(s.joint_feedback);
+        standing_periods = if standing { standing_periods + 1 } else { 0 };
+        standing_periods >= SETTLED_PERIODS
+    })?;
     faults.extend(handle.take_faults());
     take_messages(&handle, start, &bar, &mut messages);
     if let Some(bar) = bar {
@@ -403,106 +432,6 @@ fn progress_bar(quiet: bool) -> Option<indicatif::ProgressBar> {
         bar.set_style(style);
     }
     Some(bar)
-}
-
-/// The CSV files, written row by row into buffers that go to the files in large pieces; the
-/// numbers are formatted by `decimal` (the standard formatter's text, several times
-/// faster), so that recording every period stays a small part of a run.
-struct Outputs {
-    setpoints: std::fs::File,
-    feedback: std::fs::File,
-    setpoints_buf: Vec<u8>,
-    feedback_buf: Vec<u8>,
-    axes: Vec<usize>,
-}
-
-/// Bytes gathered before a write to a CSV file.
-const CSV_CHUNK: usize = 1 << 16;
-
-impl Outputs {
-    fn create(dir: &Path, config: &MachineConfig) -> anyhow::Result<Outputs> {
-        std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
-        let open = |name: &str| -> anyhow::Result<std::fs::File> {
-            let path = dir.join(name);
-            std::fs::File::create(&path).with_context(|| format!("{}", path.display()))
-        };
-        let setpoints = open("setpoints.csv")?;
-        let feedback = open("feedback.csv")?;
-        let mut head = String::from("time_s,cycle,line,path_speed");
-        for p in config.axis_plan() {
-            let _ = write!(head, ",{}", p.axis.letter());
-        }
-        for j in &config.joints {
-            let _ = write!(head, ",{}_setpoint", j.name);
-        }
-        head.push('\n');
-        let mut setpoints_buf = Vec::with_capacity(2 * CSV_CHUNK);
-        setpoints_buf.extend_from_slice(head.as_bytes());
-        let mut head = String::from("time_s,cycle");
-        for j in &config.joints {
-            let _ = write!(head, ",{}_feedback,{}_following_error", j.name, j.name);
-        }
-        head.push('\n');
-        let mut feedback_buf = Vec::with_capacity(2 * CSV_CHUNK);
-        feedback_buf.extend_from_slice(head.as_bytes());
-        Ok(Outputs {
-            setpoints,
-            feedback,
-            setpoints_buf,
-            feedback_buf,
-            axes: config.axis_plan().iter().map(|p| p.axis as usize).collect(),
-        })
-    }
-
-    fn write(&mut self, s: &Sample, joints: usize) -> std::io::Result<()> {
-        use crate::decimal::{push_fixed, push_u64};
-        let t = s.time_ns as f64 * 1e-9;
-        let out = &mut self.setpoints_buf;
-        push_fixed(out, t, 6);
-        out.push(b',');
-        push_u64(out, s.cycle);
-        out.push(b',');
-        push_u64(out, u64::from(s.line));
-        out.push(b',');
-        push_fixed(out, s.path_speed, 6);
-        for &i in &self.axes {
-            out.push(b',');
-            push_fixed(out, s.axes[i], 6);
-        }
-        for j in 0..joints {
-            out.push(b',');
-            push_fixed(out, s.setpoint[j], 6);
-        }
-        out.push(b'\n');
-        let out = &mut self.feedback_buf;
-        push_fixed(out, t, 6);
-        out.push(b',');
-        push_u64(out, s.cycle);
-        for j in 0..joints {
-            out.push(b',');
-            push_fixed(out, s.feedback[j], 6);
-            out.push(b',');
-            push_fixed(out, s.following_error[j], 7);
-        }
-        out.push(b'\n');
-        if self.setpoints_buf.len() >= CSV_CHUNK {
-            self.setpoints.write_all(&self.setpoints_buf)?;
-            self.setpoints_buf.clear();
-        }
-        if self.feedback_buf.len() >= CSV_CHUNK {
-            self.feedback.write_all(&self.feedback_buf)?;
-            self.feedback_buf.clear();
-        }
-        Ok(())
-    }
-
-    fn finish(mut self) -> anyhow::Result<()> {
-        self.setpoints.write_all(&self.setpoints_buf)?;
-        self.feedback.write_all(&self.feedback_buf)?;
-        self.setpoints.flush()?;
-        self.feedback.flush()?;
-        Ok(())
-    }
 }
 
 /// Whether a fault leaves the program stopped (and `sim` with nothing more to wait for):
