@@ -180,6 +180,8 @@ const GEN_BUDGET: usize = 12;
 /// An on-line change lets a stop end when rest is at most this many set-points ahead (see
 /// `Planner::regenerate`).
 const FINISH_STOP: usize = 16;
+/// Generator steps [`Planner::settle_for_change`] may take (rollbacks included).
+const SETTLE_STEPS: usize = 8 * FINISH_STOP;
 
 /// Path length (mm) after which the origin of path positions moves to the emitted piece
 /// (`Planner::rebase`): positions stay under a few times this plus the window's length.
@@ -999,7 +1001,14 @@ impl<K: Kinematics> Planner<K> {
     /// what [`regenerate`](Self::regenerate) keeps does not depend on how far generation
     /// had happened to run ahead (after [`unemit`](Self::unemit) it has run further).
     fn settle_for_change(&mut self) {
-        while self.ahead.len < FINISH_STOP {
+        // Bounded: a dead end in the landing rolls back to the emitted state, and the same
+        // steps can meet it again for ever (a rapid at a 0 % override stopping short of its
+        // end did). Nothing is emitted here, so the dead end is left to `next`, whose
+        // rollbacks escalate between emitted set-points.
+        for _ in 0..SETTLE_STEPS {
+            if self.ahead.len >= FINISH_STOP {
+                break;
+            }
             let front = *self.ahead.back().unwrap_or(&self.cur);
             if front.stopped || (front.v == 0.0 && front.a == 0.0) {
                 break;
