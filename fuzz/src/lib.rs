@@ -7,6 +7,7 @@
 
 pub mod cli_args;
 pub mod gcode;
+pub mod kernel;
 pub mod machine_file;
 pub mod st_generated;
 pub mod st_text;
@@ -16,6 +17,7 @@ pub fn run_target(target: &str, data: &[u8]) -> bool {
     match target {
         "cli_args" => cli_args::run(data),
         "gcode" => gcode::run(data),
+        "kernel" => kernel::run(data),
         "machine_file" => machine_file::run(data),
         "st_generated" => st_generated::run(data),
         "st_text" => st_text::run(data),
