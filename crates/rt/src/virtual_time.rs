@@ -867,9 +867,7 @@ impl VirtualRunner {
         };
         th.cycle = None;
         let period = th.spec.period_ns;
-        th.offset = th
-            .offset
-            .saturating_add(clamp_release_shift(shift, period));
+        th.offset = th.offset.saturating_add(clamp_release_shift(shift, period));
         let (next, skipped) = next_shifted_release(base, period, th.offset, now);
         th.next_base = next;
         th.next_release = shifted(next, th.offset);

@@ -381,5 +381,8 @@ fn a_thread_nudges_its_phase_in_real_time_as_in_virtual_time() {
         );
     }
     let activations: Vec<u64> = log.iter().map(|e| e.1).collect();
-    assert!(activations.windows(2).all(|w| w[1] > w[0]), "{activations:?}");
+    assert!(
+        activations.windows(2).all(|w| w[1] > w[0]),
+        "{activations:?}"
+    );
 }
