@@ -1287,6 +1287,12 @@ impl MachineConfig {
                     "EtherCAT drives run in cyclic synchronous position: \"csp\"",
                 ));
             }
+            if j.homing.is_some_and(|h| h.use_index) {
+                return Err(ConfigError::invalid(
+                    format!("joints[{i}].homing.use_index"),
+                    "the EtherCAT drives' touch probe is not mapped, so no index latch: home on the switch's edge (use_index = false)",
+                ));
+            }
         }
         for (key, configured, bus) in [
             ("io.digital_inputs", self.io.digital_inputs, inputs),

@@ -129,6 +129,17 @@ impl SimulatedEthercatHandle {
         true
     }
 
+    /// The output levels of the I/O terminal at bus position `position`, if one is there.
+    pub fn terminal_outputs(&self, position: usize) -> Option<u8> {
+        let mut segment = self.segment.lock();
+        segment
+            .slave_mut(position)?
+            .application_mut()
+            .as_any_mut()
+            .downcast_mut::<DioTerminal>()
+            .map(|t| t.outputs())
+    }
+
     /// Acts on the segment directly (its devices, counters), between two exchanges.
     pub fn with<R>(&self, f: impl FnOnce(&mut Segment) -> R) -> R {
         f(&mut self.segment.lock())

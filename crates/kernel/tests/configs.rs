@@ -145,6 +145,15 @@ fn an_ethercat_machine_file_is_checked_against_the_bus() {
         refusal(&format!("{}{}", &text[..p2], &text[next..])),
         "fieldbus.slaves: no drive moves joint 11 (P2)"
     );
+    // No index latch over EtherCAT yet (the touch probe is not mapped).
+    let text = ethercat_text().replacen("use_index = false, ", "", 1);
+    assert!(
+        refusal(&text).starts_with(
+            "joints[0].homing.use_index: the EtherCAT drives' touch probe is not mapped"
+        ),
+        "{}",
+        refusal(&text)
+    );
     // A position loop of the controller's own cannot drive a CSP drive.
     let text = ethercat_text().replacen(
         "servo = { loop = \"csp\", following_error",

@@ -92,6 +92,60 @@ fn the_gantry_runs_on_ethercat_drives_as_on_the_simulated_machine() {
     assert!((three - one - 0.2).abs() < 1e-3, "{three} {one}");
 }
 
+/// Homing on the home switches squares the gantry (X1 and Y2 start racked) as on the
+/// simulated machine homing on the same switches: the master latches a switch's edge at
+/// the cycle it shows in the inputs, with the position sampled with it, so each load ends
+/// within a period's travel at the latch velocity (2 µm at 2 mm/s) of where the simulated
+/// machine's exact edge puts it.
+#[test]
+fn homing_on_the_switches_squares_the_gantry_as_on_the_simulated_machine() {
+    let home = |config: &rtcnc_kernel::MachineConfig| {
+        let mut m = Machine::new(config, None);
+        m.power_on();
+        m.command(Command::HomeAll);
+        m.cycles(5);
+        assert!(
+            m.until(300.0, |s| s.state == MachineState::Idle),
+            "homing ends"
+        );
+        m.cycles(10);
+        assert!(m.faults.is_empty(), "{:?}", m.faults);
+        assert_eq!(
+            m.status().homed.count_ones(),
+            12,
+            "every joint (P0..P2 where they stand)"
+        );
+        m
+    };
+    let text = std::fs::read_to_string(repo().join("configs/sim-gantry-12.toml")).unwrap();
+    let mut on_switches = rtcnc_kernel::MachineConfig::parse(
+        &text.replace(
+            "homing = { sequence",
+            "homing = { use_index = false, sequence",
+        ),
+        "sim-gantry-12.toml",
+    )
+    .unwrap();
+    on_switches.base_dir = repo().join("configs");
+    let reference = home(&on_switches);
+    let bus = home(&config("ethercat-sim-12.toml"));
+    // A period at the latch velocity (2 mm/s × 1 ms), and an encoder increment.
+    let step = 2.0 * 1e-3 + 5.0 / 131072.0;
+    for (j, (x, y)) in loads(&reference).iter().zip(loads(&bus)).enumerate() {
+        assert!((x - y).abs() <= step, "joint {j}: {x} {y}");
+    }
+    // Squared: the four X loads stand together, the four Y loads too.
+    let at = loads(&bus);
+    assert!(
+        at[..4].iter().all(|x| (x - at[0]).abs() <= 2.0 * step),
+        "{at:?}"
+    );
+    assert!(
+        at[4..8].iter().all(|y| (y - at[4]).abs() <= 2.0 * step),
+        "{at:?}"
+    );
+}
+
 /// The devices' clocks run 20 ppm fast (`drift_ppm`): SYNC0 comes every 1 ms of theirs,
 /// 999 980 ns of the executive's. The fieldbus thread, nudged by a tenth of the phase error
 /// every cycle, settles on that period and stays in phase.
@@ -240,4 +294,38 @@ fn a_device_out_of_op_keeps_the_machine_faulted() {
             .skip(1)
             .any(|f| f.code == FaultCode::DeviceState)
     );
+}
+
+/// The I/O terminal is the machine's digital I/O: a program's M64/M65 switch its outputs,
+/// its inputs release an M66 wait, and its input 7 is the e-stop chain (normally closed):
+/// opening it is the e-stop.
+#[test]
+fn the_io_terminal_is_the_machines_digital_io_and_carries_the_estop_chain() {
+    let text = std::fs::read_to_string(repo().join("configs/ethercat-sim-12.toml"))
+        .unwrap()
+        .replacen(
+            "analog_outputs = 0\n",
+            "analog_outputs = 0\nprogram_outputs = [0, 1]\nprogram_inputs = [0, 1]\n",
+            1,
+        );
+    let mut cfg = rtcnc_kernel::MachineConfig::parse(&text, "io.toml").unwrap();
+    cfg.base_dir = repo().join("configs");
+    let mut m = Machine::started(&cfg, "M64 P1\nM66 P0 L3 Q10\nM65 P1\nM2\n", "io.ngc");
+    let bus = m.sim.handle().simulated_ethercat().unwrap().clone();
+    let terminal = 12;
+    m.cycles(50);
+    assert_eq!(bus.terminal_outputs(terminal), Some(0b10), "M64 P1");
+    assert!(!m.status().program_ended, "waits for input 0");
+    // Input 0 on, the e-stop chain (input 7) still closed.
+    assert!(bus.set_terminal_inputs(terminal, 0b1000_0001));
+    assert!(m.until(1.0, |s| s.program_ended), "M66 released");
+    // Through the next exchanges to the terminal's SYNC0.
+    m.cycles(3);
+    assert_eq!(bus.terminal_outputs(terminal), Some(0), "M65 P1");
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    // The e-stop chain opens.
+    assert!(bus.set_terminal_inputs(terminal, 0b0000_0001));
+    m.cycles(5);
+    assert_eq!(m.faults[0].code, FaultCode::EStop);
+    assert!(m.until(1.0, |s| s.state == MachineState::EStop));
 }
