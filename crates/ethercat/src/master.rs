@@ -1001,6 +1001,9 @@ impl Fieldbus for EthercatMaster {
             return Err(FieldbusError::InvalidPeriod { period_s });
         }
         self.statistics.cycles += 1;
+        // Measured afresh by each exchange that brings the reference clock's time back:
+        // a lost frame measures nothing, and a caller must not correct twice for the last.
+        self.phase_error_ns = None;
         self.write_outputs(outputs);
         let deadline = Instant::now() + self.reply_timeout;
         let maindevice = &self.maindevice;

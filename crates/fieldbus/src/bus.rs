@@ -102,7 +102,7 @@ pub trait Fieldbus {
     /// exchange came after the instant in the bus cycle it aims for; negative when early.
     /// A periodic thread that moves its next wake-up by minus a filtered share of this stays
     /// aligned to the bus clock. `None`: the bus follows the caller's timing (the simulated
-    /// machine).
+    /// machine), or the last exchange measured nothing (its frame was lost).
     fn cycle_phase_error_ns(&self) -> Option<i64> {
         None
     }
