@@ -329,3 +329,38 @@ fn the_io_terminal_is_the_machines_digital_io_and_carries_the_estop_chain() {
     assert_eq!(m.faults[0].code, FaultCode::EStop);
     assert!(m.until(1.0, |s| s.state == MachineState::EStop));
 }
+
+/// Frames lost at 2 % from the start (`[fieldbus.simulation] frame_loss_rate`): fewer than
+/// `working_counter_limit` in a row are ridden through on the last good inputs, checked as
+/// they stood, so the gantry program runs to its end without a fault and its loads end
+/// where they end without loss.
+#[test]
+fn lost_frames_below_the_limit_are_ridden_through() {
+    let text = std::fs::read_to_string(repo().join("configs/ethercat-sim-12.toml"))
+        .unwrap()
+        .replacen(
+            "drift_ppm = 20.0\n",
+            "drift_ppm = 20.0\nframe_loss_rate = 0.02\nseed = 7\n",
+            1,
+        );
+    let mut lossy = rtcnc_kernel::MachineConfig::parse(&text, "lossy.toml").unwrap();
+    lossy.base_dir = repo().join("configs");
+    let mut m = Machine::new(&lossy, Some(repo().join(GANTRY)));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(20.0, |s| s.program_ended), "the program ends");
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    let (frames, lost) = m
+        .sim
+        .handle()
+        .simulated_ethercat()
+        .unwrap()
+        .with(|segment| (segment.frames, segment.lost));
+    let rate = lost as f64 / frames as f64;
+    assert!((0.015..0.025).contains(&rate), "{lost} of {frames}");
+    let clean = gantry("ethercat-sim-12.toml");
+    let count = 5.0 / 131072.0;
+    for (j, (x, y)) in loads(&clean).iter().zip(loads(&m)).enumerate() {
+        assert!((x - y).abs() <= count, "joint {j}: {x} {y}");
+    }
+}
