@@ -3,7 +3,9 @@
 # namespace: the master (rtcnc-ethercat) on one end, the simulator process on the other.
 # Prints cycles, working-counter errors, the frames' round trip p50/p99/max, the master's
 # CPU time per cycle and the cycle thread's wake-up latency, then cyclictest's over the
-# same duration for comparison.
+# same duration for comparison. Then the same bus under the whole kernel: `rtcnc run --idle`
+# on configs/ethercat-sim-12.toml (without its in-process simulation, on the veth pair),
+# the drives enabled, every task's CPU time and the fieldbus thread's lateness.
 #
 #   bench/ethercat.sh [MINUTES] [--debug]     # 10 minutes by default; e.g. 0.1 for 6 s
 #
@@ -19,15 +21,23 @@ seconds=$(python3 -c "print(max(1, round(float('${minutes}') * 60)))")
 if [ "$profile" = release ]; then
   cargo build --release -q -p rtcnc-ecat-slave-sim --bin ecat-slave-sim
   cargo build --release -q -p rtcnc-ethercat --example ethercat_bench
+  cargo build --release -q -p rtcnc --bin rtcnc
 else
   cargo build -q -p rtcnc-ecat-slave-sim --bin ecat-slave-sim
   cargo build -q -p rtcnc-ethercat --example ethercat_bench
+  cargo build -q -p rtcnc --bin rtcnc
 fi
+rtcnc="target/${profile}/rtcnc"
 sim="target/${profile}/ecat-slave-sim"
 bench="target/${profile}/examples/ethercat_bench"
 segment="$(mktemp)"
-trap 'rm -f "$segment"' EXIT
-printf '[[slaves]]\nkind = "csp_drive"\ncount = 12\n[[slaves]]\nkind = "dio"\n' >"$segment"
+machine="$(mktemp --suffix .toml)"
+trap 'rm -f "$segment" "$machine"' EXIT
+# The 12-drive gantry on the veth pair: the devices on m0 instead of in the process.
+sed -e '/^\[fieldbus.simulation\]/,/^$/d' -e 's/^interface = "ecat0"/interface = "m0"/' \
+  configs/ethercat-sim-12.toml >"$machine"
+# The DIO terminal's input 7 is the gantry's e-stop chain (normally closed): closed.
+printf '[[slaves]]\nkind = "csp_drive"\ncount = 12\n[[slaves]]\nkind = "dio"\nterminal = { initial_inputs = 128 }\n' >"$segment"
 
 # As root, a network namespace alone keeps the right to real-time scheduling; otherwise an
 # unprivileged user namespace owns it (and SCHED_FIFO is refused: the figures say so).
@@ -53,6 +63,23 @@ echo "== rtcnc EtherCAT master, 12 drives + DIO over veth, 1 ms, ${seconds} s ($
   echo quit >&3
   wait "$sim"
 ' "$segment" "$sim" "$bench" "$seconds"
+
+echo "== rtcnc run --idle ${seconds} s, configs/ethercat-sim-12.toml on the veth pair (${profile})"
+"${namespace[@]}" bash -c '
+  set -euo pipefail
+  ip link add m0 type veth peer name s0
+  ip link set m0 up
+  ip link set s0 up
+  mkfifo "$0.in"
+  "$1" --interface s0 --config "$0" --priority 70 <"$0.in" >/dev/null &
+  sim=$!
+  exec 3>"$0.in"
+  rm -f "$0.in"
+  sleep 0.3
+  "$2" run --idle "$3" --machine "$4" | grep -v "^\s*$" || true
+  echo quit >&3
+  wait "$sim"
+' "$segment" "$sim" "$rtcnc" "$seconds" "$machine"
 
 echo "== cyclictest, 1 ms, ${seconds} s (the machine's own wake-up latency)"
 if command -v cyclictest >/dev/null 2>&1; then

@@ -283,7 +283,9 @@ fn estimate_in(
     limit: Duration,
     scratch: &Path,
 ) -> anyhow::Result<(f64, bool, Vec<String>)> {
-    let mut config = config.clone();
+    // A machine on real EtherCAT devices is previewed on simulated drives, never with a
+    // second master on its bus.
+    let mut config = config.for_virtual_time();
     let copy = |p: &Option<PathBuf>, name: &str| -> Option<PathBuf> {
         let p = p.as_ref()?;
         let src = config.resolve(p);

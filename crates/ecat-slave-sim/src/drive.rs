@@ -192,7 +192,12 @@ impl CspDrive {
 
     /// The load's true position (joint units) before the encoder.
     pub fn true_position(&self) -> f64 {
-        self.machine.true_state(0).map_or(0.0, |(x, _)| x)
+        self.true_state().0
+    }
+
+    /// The load's true position and velocity (joint units, per second).
+    pub fn true_state(&self) -> (f64, f64) {
+        self.machine.true_state(0).unwrap_or((0.0, 0.0))
     }
 
     /// The drive's CiA 402 state.

@@ -326,6 +326,12 @@ impl Slave {
     /// SYNC0 events and the sync manager watchdog.
     pub fn advance_to(&mut self, t: u64) {
         self.frames_seen += 1;
+        self.run_until(t);
+    }
+
+    /// Runs the device's own time up to `t` without a frame (one that was lost on the
+    /// way): SYNC0 events and the sync manager watchdog go on by themselves.
+    pub fn run_until(&mut self, t: u64) {
         let system = self.system_time(t);
         if self.state == AlState::Op
             && let Some(last) = self.last_outputs_write

@@ -34,6 +34,13 @@ pub enum Fault {
     },
     /// The cable to the first device is pulled: no frame comes back.
     LinkDown,
+    /// A device stops serving the process data (its logical datagrams pass it untouched,
+    /// its working counter share goes missing) while it stays in OP and answers every
+    /// other datagram, as one whose process data interface failed.
+    ProcessDataLoss {
+        /// Position of the device.
+        slave: usize,
+    },
 }
 
 /// A request naming something the segment does not have.
@@ -75,6 +82,8 @@ pub struct Segment {
     loss_rate: f64,
     random: u64,
     spans: [DatagramSpan; MAX_DATAGRAMS],
+    /// Per device: its process data are not served (`Fault::ProcessDataLoss`).
+    no_process_data: Vec<bool>,
     /// Frames offered to the segment.
     pub frames: u64,
     /// Frames lost by injection or a down link.
@@ -92,6 +101,7 @@ impl Segment {
             slaves,
             link_up: true,
             loss_rate: 0.0,
+            no_process_data: vec![false; count],
             random: seed.max(1),
             spans: [DatagramSpan {
                 header: 0,
@@ -159,6 +169,13 @@ impl Segment {
                 }
             }
             Fault::LinkDown => self.link_up = !active,
+            Fault::ProcessDataLoss { slave } => {
+                let flag = self
+                    .no_process_data
+                    .get_mut(slave)
+                    .ok_or(SegmentError::NoSuchSlave { slave, count })?;
+                *flag = active;
+            }
         }
         Ok(())
     }
@@ -178,12 +195,13 @@ impl Segment {
     /// reply, as the first device sends it back.
     pub fn process(&mut self, frame: &mut [u8], now_ns: u64) -> Result<Outcome, FrameError> {
         self.frames += 1;
-        if !self.link_up {
+        if !self.link_up || (self.loss_rate > 0.0 && self.draw() < self.loss_rate) {
             self.lost += 1;
-            return Ok(Outcome::Lost);
-        }
-        if self.loss_rate > 0.0 && self.draw() < self.loss_rate {
-            self.lost += 1;
+            // The devices' clocks run on without the frame: SYNC0 events and watchdogs
+            // happen on time, as on a real segment.
+            for (position, slave) in self.slaves.iter_mut().enumerate() {
+                slave.run_until(now_ns + position as u64 * HOP_DELAY_NS);
+            }
             return Ok(Outcome::Lost);
         }
         let count = datagrams(frame, &mut self.spans)?;
@@ -192,8 +210,9 @@ impl Segment {
         for (position, slave) in self.slaves.iter_mut().enumerate() {
             let t = now_ns + position as u64 * HOP_DELAY_NS;
             slave.advance_to(t);
+            let serves_process_data = !self.no_process_data.get(position).copied().unwrap_or(false);
             for span in &spans[..count] {
-                process_datagram(slave, frame, span, t);
+                process_datagram(slave, frame, span, t, serves_process_data);
             }
         }
         // Back through the forwarding path: device n sees the frame again on port 1 after
@@ -211,11 +230,20 @@ impl Segment {
     }
 }
 
-fn process_datagram(slave: &mut Slave, frame: &mut [u8], span: &DatagramSpan, t: u64) {
+fn process_datagram(
+    slave: &mut Slave,
+    frame: &mut [u8],
+    span: &DatagramSpan,
+    t: u64,
+    serves_process_data: bool,
+) {
     let header = span.header;
     let Some(command) = frame.get(header).copied().and_then(Command::from_code) else {
         return;
     };
+    if !serves_process_data && matches!(command, Command::Lrd | Command::Lwr | Command::Lrw) {
+        return;
+    }
     let Some(address) = read_u32(frame, header + 2) else {
         return;
     };

@@ -9,6 +9,8 @@
 //! - Each [`exchange`](rtcnc_fieldbus::Fieldbus::exchange) sends the outputs and reads the
 //!   inputs in one frame with the reference clock's time, checks every device's state
 //!   and the working counter, and reports the cycle's phase against SYNC0.
+//! - [`simulation`] makes the simulated devices a configuration lists, to run a machine
+//!   without hardware.
 //! - [`driver`] explains how ethercrab's futures run on the caller's real-time thread.
 //!
 //! See docs/ethercat.md for the configuration keys.
@@ -20,11 +22,13 @@ pub mod driver;
 pub mod link;
 mod master;
 pub mod pdo;
+pub mod simulation;
 
 pub use clock::Clock;
 pub use config::{ConfigError, EthercatConfig, ExpectedIdentity, SdoWrite, SlaveConfig};
 pub use link::{Link, NetworkLink, SimulatedLink};
 pub use master::{EthercatMaster, MAX_PDI, MasterStatistics, StartError};
+pub use simulation::{SimulatedBus, SimulationConfig, simulated_segment};
 
 /// Mode of operation "cyclic synchronous position" (0x6060).
 pub const MODE_CSP: i8 = 8;

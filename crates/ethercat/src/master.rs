@@ -65,8 +65,18 @@ pub enum StartError {
     #[error("EtherCAT cycle period {0:?} must be between 50 µs and 100 ms")]
     Period(Duration),
     /// The network interface could not be opened.
-    #[error("EtherCAT interface {interface}: {reason} (a raw socket needs CAP_NET_RAW)")]
+    #[error("EtherCAT interface {interface}: {reason}")]
     Interface {
+        /// The interface.
+        interface: String,
+        /// The system's reason.
+        reason: String,
+    },
+    /// The process may not open a raw socket.
+    #[error(
+        "EtherCAT interface {interface}: a raw socket was refused ({reason}): the master needs CAP_NET_RAW; run as root, or give the program the capability (setcap cap_net_raw+ep)"
+    )]
+    NoRawSocketPermission {
         /// The interface.
         interface: String,
         /// The system's reason.
@@ -159,6 +169,7 @@ impl StartError {
             Self::Config(e) => e.code(),
             Self::Period(_) => "ethercat.period",
             Self::Interface { .. } => "ethercat.interface",
+            Self::NoRawSocketPermission { .. } => "ethercat.permission",
             Self::Bus { .. } => "ethercat.bus",
             Self::DeviceCount { .. } => "ethercat.device_count",
             Self::Identity { .. } => "ethercat.identity",
@@ -228,6 +239,9 @@ fn stalled(phase: &'static str) -> impl Fn(Stalled) -> StartError {
     }
 }
 
+/// Stack of the start-up thread.
+const START_UP_STACK: usize = 32 << 20;
+
 /// The interpolation time period (0x60C2) for `period_ns`: a value and a power of ten of
 /// seconds, the value fitting in a byte.
 fn interpolation_period(period_ns: u64) -> Option<(u8, i8)> {
@@ -244,15 +258,24 @@ impl EthercatMaster {
     /// Starts the bus on the configured network interface, for a cycle of `period`.
     pub fn start(config: &EthercatConfig, period: Duration) -> Result<Self, StartError> {
         config.validate()?;
-        let link = NetworkLink::open(&config.interface).map_err(|e| StartError::Interface {
-            interface: config.interface.clone(),
-            reason: e.to_string(),
+        let link = NetworkLink::open(&config.interface).map_err(|e| {
+            let interface = config.interface.clone();
+            let reason = e.to_string();
+            if e.kind() == std::io::ErrorKind::PermissionDenied {
+                StartError::NoRawSocketPermission { interface, reason }
+            } else {
+                StartError::Interface { interface, reason }
+            }
         })?;
         Self::start_with_link(config, period, Box::new(link), Clock::Monotonic)
     }
 
     /// Starts the bus on `link` with `clock` as time base (a simulated segment and a
     /// virtual clock in tests). Start-up paces its cycles with the clock.
+    ///
+    /// Start-up runs on a thread of its own with a large stack: ethercrab's start-up
+    /// futures are deep (several megabytes unoptimised), more than a program's secondary
+    /// threads have. The master is then handed back to the caller's thread.
     pub fn start_with_link(
         config: &EthercatConfig,
         period: Duration,
@@ -260,6 +283,30 @@ impl EthercatMaster {
         clock: Clock,
     ) -> Result<Self, StartError> {
         config.validate()?;
+        let config = config.clone();
+        std::thread::Builder::new()
+            .name("ethercat start-up".into())
+            .stack_size(START_UP_STACK)
+            .spawn(move || Self::start_here(&config, period, link, clock))
+            .map_err(|e| StartError::Bus {
+                phase: "start-up thread",
+                reason: e.to_string(),
+            })?
+            .join()
+            .unwrap_or_else(|_| {
+                Err(StartError::Bus {
+                    phase: "start-up",
+                    reason: "the start-up thread panicked".into(),
+                })
+            })
+    }
+
+    fn start_here(
+        config: &EthercatConfig,
+        period: Duration,
+        link: Box<dyn Link>,
+        clock: Clock,
+    ) -> Result<Self, StartError> {
         if period < Duration::from_micros(50) || period > Duration::from_millis(100) {
             return Err(StartError::Period(period));
         }
@@ -283,7 +330,10 @@ impl EthercatMaster {
                 // Longer than any cyclic wait: a cyclic frame is given up by the exchange,
                 // never retried by ethercrab.
                 pdu: STARTUP_REPLY_TIMEOUT,
-                eeprom: Duration::from_millis(100),
+                // A device's EEPROM answers within microseconds; the margin is for a host
+                // that does not run the start-up for a while (a loaded machine, where
+                // simulated devices share its processors).
+                eeprom: Duration::from_secs(1),
                 wait_loop_delay: Duration::ZERO,
                 mailbox_echo: Duration::from_millis(500),
                 mailbox_response: Duration::from_millis(2000),
@@ -951,6 +1001,9 @@ impl Fieldbus for EthercatMaster {
             return Err(FieldbusError::InvalidPeriod { period_s });
         }
         self.statistics.cycles += 1;
+        // Measured afresh by each exchange that brings the reference clock's time back:
+        // a lost frame measures nothing, and a caller must not correct twice for the last.
+        self.phase_error_ns = None;
         self.write_outputs(outputs);
         let deadline = Instant::now() + self.reply_timeout;
         let maindevice = &self.maindevice;
@@ -1001,5 +1054,9 @@ impl Fieldbus for EthercatMaster {
 
     fn cycle_phase_error_ns(&self) -> Option<i64> {
         self.phase_error_ns
+    }
+
+    fn inputs_fresh(&self) -> bool {
+        self.consecutive_bad == 0
     }
 }

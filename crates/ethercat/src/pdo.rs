@@ -2,7 +2,9 @@
 //! outputs; transmit PDO: inputs), their place in the PDO, and the conversion between the
 //! process image's joint units and the drive's increments.
 
-use rtcnc_fieldbus::{ControlWord, JointCommand, JointFeedback, LatchFeedback, StatusWord};
+use rtcnc_fieldbus::{
+    ControlWord, JointCommand, JointFeedback, LatchFeedback, LatchSource, StatusWord,
+};
 use serde::Deserialize;
 
 /// An object the master writes (receive PDO of the drive).
@@ -181,6 +183,10 @@ pub struct DriveCodec {
     torque_unit: f64,
     last_target: i32,
     last_position: Option<i64>,
+    /// The latch the controller asks for, and the home switch level when it was armed.
+    latch_request: Option<LatchSource>,
+    latch_reference: Option<bool>,
+    latch: LatchFeedback,
 }
 
 fn layout<T: Copy>(objects: &[T], bits: impl Fn(T) -> u8) -> (Vec<(T, usize)>, usize) {
@@ -248,6 +254,9 @@ impl DriveCodec {
             torque_unit: rated_torque_nm * 1e-3,
             last_target: 0,
             last_position: None,
+            latch_request: None,
+            latch_reference: None,
+            latch: LatchFeedback::default(),
         }
     }
 
@@ -264,6 +273,12 @@ impl DriveCodec {
     /// Writes `command` into the drive's outputs. A target that is not a number holds the
     /// last one sent.
     pub fn encode(&mut self, command: &JointCommand, outputs: &mut [u8]) {
+        if command.latch != self.latch_request {
+            // A new request (or none) re-arms the latch from the next inputs.
+            self.latch_request = command.latch;
+            self.latch_reference = None;
+            self.latch = LatchFeedback::default();
+        }
         if let Some(target) = self.counts(command.target_position) {
             self.last_target = target;
         }
@@ -355,6 +370,36 @@ impl DriveCodec {
         feedback.negative_limit = digital & 0x1 != 0;
         feedback.positive_limit = digital & 0x2 != 0;
         feedback.home_switch = digital & 0x4 != 0;
-        feedback.latch = LatchFeedback::default();
+        self.latch_home_switch(feedback);
+        feedback.latch = self.latch;
+    }
+
+    /// The position latch, as far as the process data allow: the home switch's edge is
+    /// latched by the master at the cycle it shows in the inputs (the position sampled with
+    /// it, so within one period's travel of the edge). The drive's touch probe (0x60B8..
+    /// 0x60BA) is not mapped: an index-pulse latch stays unarmed.
+    fn latch_home_switch(&mut self, feedback: &JointFeedback) {
+        if self.latch_request != Some(LatchSource::HomeSwitch) {
+            self.latch = LatchFeedback::default();
+            return;
+        }
+        match self.latch_reference {
+            None => {
+                self.latch_reference = Some(feedback.home_switch);
+                self.latch = LatchFeedback {
+                    armed: true,
+                    latched: false,
+                    position: 0.0,
+                };
+            }
+            Some(level) if !self.latch.latched && feedback.home_switch != level => {
+                self.latch = LatchFeedback {
+                    armed: false,
+                    latched: true,
+                    position: feedback.position,
+                };
+            }
+            Some(_) => {}
+        }
     }
 }

@@ -167,3 +167,54 @@ fn the_master_moves_to_the_cycle_thread() {
     .expect("thread");
     assert_eq!(cycles, 10);
 }
+
+/// The home switch's edge is latched by the master at the cycle it shows in the inputs, with
+/// the position sampled with it; an index-pulse latch stays unarmed (the touch probe is not
+/// mapped).
+#[test]
+fn the_home_switch_edge_is_latched_and_the_index_is_not() {
+    let segment = "[[slaves]]\nkind = \"csp_drive\"\n[slaves.drive.joint]\ndrive = \"csp\"\n\
+                   home_switch = { from = 1.0, to = 5.0 }\n";
+    let mut bus = support::start(
+        segment,
+        &support::master_toml(1, false),
+        Duration::from_millis(1),
+    )
+    .expect("bus starts");
+    enable(&mut bus);
+    bus.outputs.joints[0].latch = Some(rtcnc_fieldbus::LatchSource::IndexPulse);
+    bus.cycle().expect("cycle");
+    assert!(!bus.inputs.joints[0].latch.armed);
+    bus.outputs.joints[0].latch = Some(rtcnc_fieldbus::LatchSource::HomeSwitch);
+    bus.cycle().expect("cycle");
+    assert!(bus.inputs.joints[0].latch.armed);
+    let start = bus.inputs.joints[0].position;
+    let mut previous = start;
+    let mut latched = None;
+    for k in 1..400 {
+        // 10 mm/s towards the switch at 1 mm.
+        bus.outputs.joints[0].target_position = start + 0.01 * f64::from(k);
+        bus.outputs.joints[0].velocity_offset = 10.0;
+        bus.cycle().expect("cycle");
+        let feedback = bus.inputs.joints[0];
+        if feedback.latch.latched {
+            latched = Some((previous, feedback.latch.position, feedback.position));
+            break;
+        }
+        assert!(!feedback.home_switch, "the switch shows with the latch");
+        previous = feedback.position;
+    }
+    let (before, at, now) = latched.expect("the switch edge is latched");
+    // The latched position is the first sample on the switch: the one before lies short of
+    // the edge, and it lies past it by at most one period's travel (10 µm).
+    let count = 1.0 / support::COUNTS_PER_MM;
+    assert_eq!(at, now);
+    assert!(
+        before < 1.0 && at >= 1.0 - count && at - 1.0 < 0.010 + count,
+        "{before} {at}"
+    );
+    // It stays latched while the request stands.
+    bus.cycle().expect("cycle");
+    assert_eq!(bus.inputs.joints[0].latch.position, at);
+    assert!(bus.inputs.joints[0].latch.latched);
+}

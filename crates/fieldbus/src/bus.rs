@@ -102,9 +102,26 @@ pub trait Fieldbus {
     /// exchange came after the instant in the bus cycle it aims for; negative when early.
     /// A periodic thread that moves its next wake-up by minus a filtered share of this stays
     /// aligned to the bus clock. `None`: the bus follows the caller's timing (the simulated
-    /// machine).
+    /// machine), or the last exchange measured nothing (its frame was lost).
     fn cycle_phase_error_ns(&self) -> Option<i64> {
         None
+    }
+
+    /// The caller's clock (ns since it started), given just before each exchange. A bus
+    /// whose devices are simulated in the same process on a virtual clock takes it as their
+    /// time, so that they run in the caller's time, virtual or real, and follow its phase
+    /// corrections; a bus on hardware, and the simulated machine (which integrates
+    /// `period_s`), ignore it.
+    fn set_time_ns(&mut self, now_ns: u64) {
+        let _ = now_ns;
+    }
+
+    /// Whether the last exchange brought fresh inputs. False when it rode through a lost
+    /// frame or a wrong working counter below the bus's limit: the inputs are then those of
+    /// the last good cycle, and a position loop must not read the set-point's progress
+    /// since as following error.
+    fn inputs_fresh(&self) -> bool {
+        true
     }
 }
 

@@ -183,14 +183,24 @@ pub struct JointConfig {
     pub name: String,
     /// Position loop (rtcnc-servo): `loop = "pid"` or `"csp"`.
     pub servo: ServoLoopConfig,
-    /// The simulated drive (rtcnc-fieldbus) when `fieldbus.kind = "sim"`.
-    pub sim: SimulatedJointConfig,
+    /// The simulated drive (rtcnc-fieldbus): required with `fieldbus.kind = "sim"` and with
+    /// simulated EtherCAT devices (`[fieldbus.simulation]`, its motor), unused on hardware.
+    #[serde(default)]
+    pub sim: Option<SimulatedJointConfig>,
     /// Homing sequence; absent: the joint is homed where it stands.
     #[serde(default)]
     pub homing: Option<HomingConfig>,
     /// Limits of a joint no axis drives (an independent joint); required for such a joint.
     #[serde(default)]
     pub limits: Option<JointLimitsConfig>,
+}
+
+impl JointConfig {
+    /// Where the joint stands at power-up, as far as the file knows (the simulated
+    /// drive's initial position; 0 on hardware, whose feedback tells).
+    pub fn initial_position(&self) -> f64 {
+        self.sim.as_ref().map_or(0.0, |s| s.initial_position)
+    }
 }
 
 /// Limits of an independent joint.
@@ -357,28 +367,117 @@ impl Default for TasksConfig {
     }
 }
 
-/// `[fieldbus]`.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
+/// `[fieldbus]`: `kind` chooses the drive I/O; the other keys are that kind's.
+#[derive(Debug, Clone)]
 pub struct FieldbusConfig {
-    /// `sim` (the in-process simulated machine) or `ethercat` (refused: not available yet).
+    /// `sim` (the in-process simulated machine) or `ethercat` (the EtherCAT master).
     pub kind: FieldbusKind,
     /// Simulated machine: longest integration step (s).
-    #[serde(default)]
     pub substep_s: Option<f64>,
     /// Simulated machine: computation + DAC delay of velocity and torque commands (s).
-    #[serde(default)]
     pub command_delay_s: Option<f64>,
     /// Simulated machine: the e-stop input removes drive power.
-    #[serde(default)]
     pub estop_removes_power: Option<bool>,
     /// Simulated machine: communication watchdog of the drives (s).
-    #[serde(default)]
     pub communication_watchdog_s: Option<f64>,
     /// Simulated machine: devices on the digital I/O (`[[fieldbus.devices]]`, rtcnc-fieldbus'
     /// `DeviceConfig`: e-stop contact, door, delayed inputs, carousel).
-    #[serde(default)]
     pub devices: Vec<DeviceConfig>,
+    /// `kind = "ethercat"`: the master's configuration and, for a machine without hardware,
+    /// its simulated devices.
+    pub ethercat: Option<EthercatSection>,
+}
+
+/// `[fieldbus]` with `kind = "ethercat"`.
+#[derive(Debug, Clone)]
+pub struct EthercatSection {
+    /// Every key of the section but `kind` and `simulation`: `rtcnc-ethercat`'s
+    /// configuration (interface, working-counter limit, distributed clocks, the devices in
+    /// bus order with their identities and PDO mapping).
+    pub master: rtcnc_ethercat::EthercatConfig,
+    /// `[fieldbus.simulation]`: the devices are simulated in this process (rtcnc-ecat-slave-sim
+    /// on an in-process link) instead of being on `interface`; their motors are the
+    /// joints' `sim` drives.
+    pub simulation: Option<rtcnc_ethercat::SimulationConfig>,
+}
+
+/// The simulated machine's keys of `[fieldbus]`.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SimulatedBusKeys {
+    #[serde(default)]
+    substep_s: Option<f64>,
+    #[serde(default)]
+    command_delay_s: Option<f64>,
+    #[serde(default)]
+    estop_removes_power: Option<bool>,
+    #[serde(default)]
+    communication_watchdog_s: Option<f64>,
+    #[serde(default)]
+    devices: Vec<DeviceConfig>,
+}
+
+impl<'de> Deserialize<'de> for FieldbusConfig {
+    /// `kind` first, then the rest of the table as that kind's keys: an unknown key (or a
+    /// key of the other kind) is refused with its name and path below `fieldbus`.
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        use serde::de::Error as _;
+        let mut table = toml::Table::deserialize(deserializer)?;
+        let kind = table
+            .remove("kind")
+            .ok_or_else(|| D::Error::missing_field("kind"))?;
+        let kind = FieldbusKind::deserialize(kind)
+            .map_err(|e| D::Error::custom(format!("fieldbus.kind: {}", e.message())))?;
+        fn keys<T: serde::de::DeserializeOwned>(
+            value: toml::Value,
+            section: &str,
+        ) -> Result<T, String> {
+            serde_path_to_error::deserialize(value).map_err(|e| {
+                let path = e.path().to_string();
+                let message = e.inner().message();
+                if path == "." {
+                    format!("{section}: {message}")
+                } else {
+                    format!("{section}.{path}: {message}")
+                }
+            })
+        }
+        match kind {
+            FieldbusKind::Sim => {
+                let k: SimulatedBusKeys =
+                    keys(toml::Value::Table(table), "fieldbus").map_err(D::Error::custom)?;
+                Ok(FieldbusConfig {
+                    kind,
+                    substep_s: k.substep_s,
+                    command_delay_s: k.command_delay_s,
+                    estop_removes_power: k.estop_removes_power,
+                    communication_watchdog_s: k.communication_watchdog_s,
+                    devices: k.devices,
+                    ethercat: None,
+                })
+            }
+            FieldbusKind::Ethercat => {
+                let simulation = match table.remove("simulation") {
+                    Some(value) => Some(
+                        keys::<rtcnc_ethercat::SimulationConfig>(value, "fieldbus.simulation")
+                            .map_err(D::Error::custom)?,
+                    ),
+                    None => None,
+                };
+                let master =
+                    keys(toml::Value::Table(table), "fieldbus").map_err(D::Error::custom)?;
+                Ok(FieldbusConfig {
+                    kind,
+                    substep_s: None,
+                    command_delay_s: None,
+                    estop_removes_power: None,
+                    communication_watchdog_s: None,
+                    devices: Vec::new(),
+                    ethercat: Some(EthercatSection { master, simulation }),
+                })
+            }
+        }
+    }
 }
 
 /// Which fieldbus back-end.
@@ -768,12 +867,7 @@ impl MachineConfig {
                 format!("at most {MAX_JOINTS} joints are supported"),
             ));
         }
-        if self.fieldbus.kind == FieldbusKind::Ethercat {
-            return Err(ConfigError::invalid(
-                "fieldbus.kind",
-                "\"ethercat\" is not available yet in this build; use \"sim\"",
-            ));
-        }
+        self.validate_fieldbus()?;
         for (i, j) in self.joints.iter().enumerate() {
             if j.name.is_empty() {
                 return Err(ConfigError::invalid(
@@ -811,9 +905,15 @@ impl MachineConfig {
                 )?;
             }
         }
-        self.simulated_machine()?
-            .validate()
-            .map_err(|e| ConfigError::invalid(sim_key(&e.field), e.reason))?;
+        let simulated = match &self.fieldbus.ethercat {
+            None => true,
+            Some(e) => e.simulation.is_some(),
+        };
+        if simulated {
+            self.simulated_machine()?
+                .validate()
+                .map_err(|e| ConfigError::invalid(sim_key(&e.field), e.reason))?;
+        }
         let mut driven = vec![None::<String>; self.joints.len()];
         if self.axes.is_empty() {
             return Err(ConfigError::invalid("axes", "at least one axis is needed"));
@@ -1136,6 +1236,138 @@ impl MachineConfig {
             .map(|(_, a)| a)
     }
 
+    /// The `[fieldbus]` section against the rest: the simulated machine needs every
+    /// joint's `sim`; EtherCAT needs one CSP drive per joint, a position loop of `"csp"`,
+    /// the I/O image its terminals give, and (simulated) a motor per joint.
+    fn validate_fieldbus(&self) -> Result<(), ConfigError> {
+        let Some(ethercat) = &self.fieldbus.ethercat else {
+            self.simulated_joints()?;
+            return Ok(());
+        };
+        let master = &ethercat.master;
+        master
+            .validate()
+            .map_err(|e| ConfigError::invalid(format!("fieldbus.{}", e.key), e.reason))?;
+        let joints = self.joints.len();
+        let mut driven = vec![false; joints];
+        let (mut inputs, mut outputs) = (0, 0);
+        for (n, slave) in master.slaves.iter().enumerate() {
+            match slave {
+                rtcnc_ethercat::SlaveConfig::Cia402 { joint, .. } => match driven.get_mut(*joint) {
+                    Some(d) => *d = true,
+                    None => {
+                        return Err(ConfigError::invalid(
+                            format!("fieldbus.slaves[{n}].joint"),
+                            format!("no joint {joint}: the machine has {joints} joints"),
+                        ));
+                    }
+                },
+                rtcnc_ethercat::SlaveConfig::Dio {
+                    inputs: first_in,
+                    outputs: first_out,
+                    input_bits,
+                    output_bits,
+                    ..
+                } => {
+                    inputs = inputs.max(first_in + input_bits);
+                    outputs = outputs.max(first_out + output_bits);
+                }
+            }
+        }
+        if let Some(j) = driven.iter().position(|d| !d) {
+            return Err(ConfigError::invalid(
+                "fieldbus.slaves",
+                format!("no drive moves joint {j} ({})", self.joints[j].name),
+            ));
+        }
+        for (i, j) in self.joints.iter().enumerate() {
+            if !matches!(j.servo, ServoLoopConfig::Csp(_)) {
+                return Err(ConfigError::invalid(
+                    format!("joints[{i}].servo.loop"),
+                    "EtherCAT drives run in cyclic synchronous position: \"csp\"",
+                ));
+            }
+            if j.homing.is_some_and(|h| h.use_index) {
+                return Err(ConfigError::invalid(
+                    format!("joints[{i}].homing.use_index"),
+                    "the EtherCAT drives' touch probe is not mapped, so no index latch: home on the switch's edge (use_index = false)",
+                ));
+            }
+        }
+        for (key, configured, bus) in [
+            ("io.digital_inputs", self.io.digital_inputs, inputs),
+            ("io.digital_outputs", self.io.digital_outputs, outputs),
+            ("io.analog_inputs", self.io.analog_inputs, 0),
+            ("io.analog_outputs", self.io.analog_outputs, 0),
+        ] {
+            if configured != bus {
+                return Err(ConfigError::invalid(
+                    key,
+                    format!("{configured}, but the EtherCAT terminals give {bus}"),
+                ));
+            }
+        }
+        for (key, present) in [
+            ("spindle", self.spindle.is_some()),
+            ("tool_changer", self.tool_changer.is_some()),
+        ] {
+            if present {
+                return Err(ConfigError::invalid(
+                    key,
+                    "the EtherCAT master carries no spindle or tool changer yet; drive them from the PLC through I/O terminals",
+                ));
+            }
+        }
+        if let Some(simulation) = &ethercat.simulation {
+            rtcnc_ethercat::simulated_segment(master, &self.simulated_joints()?, simulation)
+                .map_err(|e| ConfigError::invalid(format!("fieldbus.{}", e.key), e.reason))?;
+        }
+        Ok(())
+    }
+
+    /// The machine as a run in virtual time can have it (`rtcnc sim`, a program's
+    /// preview): the file itself on the simulated machine or on simulated EtherCAT devices;
+    /// a machine on real EtherCAT devices becomes the simulated machine with a CSP drive per
+    /// joint (its own `sim` where the file gives one), never a second master on its bus.
+    pub fn for_virtual_time(&self) -> MachineConfig {
+        let mut config = self.clone();
+        let on_hardware = matches!(&self.fieldbus.ethercat, Some(e) if e.simulation.is_none());
+        if on_hardware {
+            let csp: Option<SimulatedJointConfig> = toml::from_str("drive = \"csp\"").ok();
+            for joint in &mut config.joints {
+                if joint.sim.is_none() {
+                    joint.sim = csp.clone();
+                }
+            }
+            config.fieldbus = FieldbusConfig {
+                kind: FieldbusKind::Sim,
+                substep_s: None,
+                command_delay_s: None,
+                estop_removes_power: None,
+                communication_watchdog_s: None,
+                devices: Vec::new(),
+                ethercat: None,
+            };
+        }
+        config
+    }
+
+    /// Every joint's simulated drive (`joints[i].sim`), refused where one is missing.
+    pub fn simulated_joints(&self) -> Result<Vec<SimulatedJointConfig>, ConfigError> {
+        self.joints
+            .iter()
+            .enumerate()
+            .map(|(i, j)| {
+                j.sim.clone().ok_or_else(|| {
+                    ConfigError::invalid(
+                        format!("joints[{i}].sim"),
+                        "the simulated drive is required on a simulated machine",
+                    )
+                })
+            })
+            .collect()
+    }
+
     /// The simulated machine this file describes.
     pub fn simulated_machine(&self) -> Result<SimulatedMachineConfig, ConfigError> {
         let mut sim: SimulatedMachineConfig = toml::from_str("joints = []")
@@ -1152,7 +1384,7 @@ impl MachineConfig {
         if let Some(v) = self.fieldbus.communication_watchdog_s {
             sim.communication_watchdog_s = v;
         }
-        sim.joints = self.joints.iter().map(|j| j.sim.clone()).collect();
+        sim.joints = self.simulated_joints()?;
         sim.devices = self.fieldbus.devices.clone();
         if let Some(s) = &self.spindle {
             sim.spindle = SpindleConfig {

@@ -17,14 +17,10 @@ pub enum KernelError {
     /// The machine file.
     #[error(transparent)]
     Config(#[from] ConfigError),
-    /// `fieldbus.kind` names a bus that `Kernel::build` does not open itself.
-    #[error(
-        "fieldbus.kind = \"{kind}\": this build has no such bus; open it and pass it to Kernel::build_with_bus"
-    )]
-    NoBus {
-        /// The kind.
-        kind: &'static str,
-    },
+    /// The EtherCAT master did not bring the bus up (interface, identities, SDOs, AL
+    /// states).
+    #[error("EtherCAT start-up")]
+    Ethercat(#[source] rtcnc_ethercat::StartError),
     /// The simulated machine refused its configuration.
     #[error("simulated machine")]
     SimulatedMachine(#[source] rtcnc_fieldbus::sim::ConfigError),
@@ -87,7 +83,9 @@ pub enum KernelError {
         source: SelfTestFailure,
     },
     /// The simulated machine's accessors were asked of a kernel on another fieldbus.
-    #[error("the kernel's fieldbus is not the simulated machine (fieldbus.kind = \"sim\")")]
+    #[error(
+        "the kernel's fieldbus is not the simulated machine, or the simulated EtherCAT devices, asked for (fieldbus.kind = \"sim\", or \"ethercat\" with [fieldbus.simulation])"
+    )]
     NotSimulated,
 }
 
@@ -96,7 +94,8 @@ impl KernelError {
     pub fn code(&self) -> &'static str {
         match self {
             KernelError::Config(e) => e.code(),
-            KernelError::NoBus { .. } | KernelError::SimulatedMachine(_) => "kernel.fieldbus",
+            KernelError::SimulatedMachine(_) => "kernel.fieldbus",
+            KernelError::Ethercat(e) => e.code(),
             KernelError::Servo { .. } => "kernel.servo",
             KernelError::Kinematics { .. } => "kernel.kinematics",
             KernelError::Motion(_) | KernelError::Generator(_) => "kernel.motion",

@@ -94,11 +94,19 @@ pub enum FaultCode {
     /// The stall watchdog: a program's path stood still while it should move for longer
     /// than `safety.stall_timeout`; the program is stopped at the line.
     MotionStalled,
+    /// The fieldbus answered with a wrong working counter (a device did not take part in
+    /// the process data) as many cycles in a row as the machine file allows.
+    WorkingCounter,
+    /// A fieldbus device left its operational state (EtherCAT: it dropped out of OP, with
+    /// its AL status code).
+    DeviceState,
+    /// The fieldbus's network link (cable, port) is down.
+    LinkDown,
 }
 
 impl FaultCode {
     /// Every code, in number order.
-    pub const ALL: [FaultCode; 17] = [
+    pub const ALL: [FaultCode; 23] = [
         FaultCode::EStop,
         FaultCode::HardLimit,
         FaultCode::FollowingError,
@@ -116,6 +124,12 @@ impl FaultCode {
         FaultCode::SpindleOrientTimeout,
         FaultCode::ProbeFailed,
         FaultCode::SyncFailed,
+        FaultCode::SetpointsRanDry,
+        FaultCode::SetpointsLost,
+        FaultCode::MotionStalled,
+        FaultCode::WorkingCounter,
+        FaultCode::DeviceState,
+        FaultCode::LinkDown,
     ];
 
     /// The code of a [`number`](Self::number).
@@ -146,6 +160,9 @@ impl FaultCode {
             FaultCode::SetpointsRanDry => "kernel.setpoints_ran_dry",
             FaultCode::SetpointsLost => "kernel.setpoints_lost",
             FaultCode::MotionStalled => "kernel.motion_stalled",
+            FaultCode::WorkingCounter => "kernel.working_counter",
+            FaultCode::DeviceState => "kernel.device_state",
+            FaultCode::LinkDown => "kernel.link_down",
         }
     }
 
@@ -177,6 +194,9 @@ impl FaultCode {
             FaultCode::SetpointsRanDry => "set-points ran dry (interpolation stalled)",
             FaultCode::SetpointsLost => "set-point lost (position control stopped taking)",
             FaultCode::MotionStalled => "the path stood still while it should move",
+            FaultCode::WorkingCounter => "fieldbus working counter wrong",
+            FaultCode::DeviceState => "fieldbus device left its operational state",
+            FaultCode::LinkDown => "fieldbus link down",
         }
     }
 
@@ -195,6 +215,9 @@ impl FaultCode {
                 | FaultCode::HomingFailed
                 | FaultCode::SetpointsRanDry
                 | FaultCode::SetpointsLost
+                | FaultCode::WorkingCounter
+                | FaultCode::DeviceState
+                | FaultCode::LinkDown
         )
     }
 }
@@ -232,7 +255,18 @@ impl Fault {
         if self.line > 0 {
             s.push_str(&format!(", line {}", self.line));
         }
-        if self.value != 0.0 && self.value.is_finite() {
+        if self.code == FaultCode::DriveFault && self.value > 0.0 && self.value <= 65535.0 {
+            // The drive's error code (0x603F), in hexadecimal as drive manuals list it.
+            let code = self.value as u16;
+            s.push_str(&format!(
+                " (error code {code:#06x}: {})",
+                rtcnc_fieldbus::cia402::error_code::describe(code)
+            ));
+        } else if self.code == FaultCode::DeviceState && self.value > 0.0 {
+            s.push_str(&format!(" (AL status code {:#06x})", self.value as u16));
+        } else if self.code == FaultCode::WorkingCounter {
+            s.push_str(&format!(" (working counter {})", self.value));
+        } else if self.value != 0.0 && self.value.is_finite() {
             s.push_str(&format!(" ({})", self.value));
         }
         s

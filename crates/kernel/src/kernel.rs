@@ -26,7 +26,7 @@ use crate::messages::{Command, OperatorMessage, Status, Urgent};
 use crate::motion::{MotionCore, ServoTarget};
 use crate::servo::{Sample, ServoStage};
 use crate::shared::{LogicRequests, Shared, Snapshot, Writers};
-use crate::sim::SimulatedMachineHandle;
+use crate::sim::{SimulatedEthercatHandle, SimulatedMachineHandle};
 
 use crate::error::{KernelError, SelfTestFailure};
 
@@ -80,6 +80,7 @@ pub struct KernelHandle {
     shared: Shared,
     drives: Arc<dyn DriveStatus>,
     simulated: Option<SimulatedMachineHandle>,
+    simulated_ethercat: Option<SimulatedEthercatHandle>,
     config: Arc<MachineConfig>,
     plc: Option<Arc<PiMutex<rtcnc_plc::Runtime>>>,
 }
@@ -129,6 +130,15 @@ impl KernelHandle {
         self.simulated.as_ref().ok_or(KernelError::NotSimulated)
     }
 
+    /// The simulated EtherCAT devices the kernel's master runs on (`[fieldbus.simulation]`:
+    /// inject frame loss, a device's fall to SAFE-OP, a drive fault, link down);
+    /// [`KernelError::NotSimulated`] on any other fieldbus.
+    pub fn simulated_ethercat(&self) -> Result<&SimulatedEthercatHandle, KernelError> {
+        self.simulated_ethercat
+            .as_ref()
+            .ok_or(KernelError::NotSimulated)
+    }
+
     /// Servo periods in which position control had no fresh set-point (real-time overruns
     /// of interpolation) and extrapolated.
     pub fn setpoint_underruns(&self) -> u64 {
@@ -174,8 +184,18 @@ impl KernelHandle {
     /// line.
     pub fn describe(&self, fault: &Fault) -> String {
         let text = fault.describe(|j| self.joint_name(j));
+        if matches!(
+            fault.code,
+            FaultCode::Communication
+                | FaultCode::WorkingCounter
+                | FaultCode::DeviceState
+                | FaultCode::LinkDown
+        ) && let Some(error) = &*self.shared.fieldbus_error.lock()
+        {
+            return format!("{text}: {error}");
+        }
         match &*self.shared.plc_fault.lock() {
-            Some(plc) if fault.code == crate::FaultCode::LogicFault && fault.value == 0.0 => {
+            Some(plc) if fault.code == FaultCode::LogicFault && fault.value == 0.0 => {
                 format!("{text}: {plc}")
             }
             _ => text,
@@ -208,7 +228,32 @@ impl Kernel {
                     .map_err(KernelError::SimulatedMachine)?;
                 Kernel::assemble(config, options, machine, kinematics)
             }
-            FieldbusKind::Ethercat => Err(KernelError::NoBus { kind: "ethercat" }),
+            FieldbusKind::Ethercat => {
+                let Some(section) = &config.fieldbus.ethercat else {
+                    return Err(KernelError::Config(crate::ConfigError::Invalid {
+                        key: "fieldbus".into(),
+                        reason: "kind = \"ethercat\" without the master's keys".into(),
+                    }));
+                };
+                let period = config.servo_period();
+                match &section.simulation {
+                    Some(simulation) => {
+                        let bus = rtcnc_ethercat::SimulatedBus::start(
+                            &section.master,
+                            &config.simulated_joints()?,
+                            simulation,
+                            period,
+                        )
+                        .map_err(KernelError::Ethercat)?;
+                        Kernel::assemble(config, options, bus, kinematics)
+                    }
+                    None => {
+                        let bus = rtcnc_ethercat::EthercatMaster::start(&section.master, period)
+                            .map_err(KernelError::Ethercat)?;
+                        Kernel::assemble(config, options, bus, kinematics)
+                    }
+                }
+            }
         }
     }
 
@@ -277,6 +322,7 @@ impl Kernel {
             feedback,
         )?));
         let simulated = SimulatedMachineHandle::of(&servo);
+        let simulated_ethercat = SimulatedEthercatHandle::of(&servo, &config);
         let core = motion_core(
             &config,
             kinematics,
@@ -317,6 +363,7 @@ impl Kernel {
                 shared,
                 drives: servo,
                 simulated,
+                simulated_ethercat,
                 config,
                 plc,
             },

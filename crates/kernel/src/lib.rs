@@ -52,4 +52,4 @@ pub use messages::{Command, FixedText, MachineState, Mode, OperatorMessage, Stat
 pub use motion::{LatchRequest, ServoTarget};
 pub use servo::Sample;
 pub use shared::{Feedback, LogicOutputs, LogicRequests};
-pub use sim::{SimulatedMachineHandle, Simulation};
+pub use sim::{SimulatedEthercatHandle, SimulatedMachineHandle, Simulation};

@@ -542,7 +542,7 @@ pub struct Status {
     pub spindle_rpm: f64,
     /// Spindle speed commanded (after the override and G96), rpm; 0 while off.
     pub spindle_command_rpm: f64,
-    /// The self-test passed and the drives are enabled.
+    /// The self-test passed and every drive is enabled.
     pub ready: bool,
     /// The planner's geometry counters since start-up (moves, G64 Q merges, blends,
     /// smoothed vertices, exact stops).

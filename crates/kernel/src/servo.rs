@@ -58,6 +58,10 @@ pub(crate) struct ServoStage<B: Fieldbus> {
     limit_latched: u32,
     drive_fault_latched: u32,
     comm_fault: bool,
+    /// The last exchange brought no fresh inputs (a lost frame the bus rode through).
+    stale_inputs: bool,
+    /// Per joint, the set-point of the last cycle that had fresh inputs.
+    fresh_setpoint: [f64; MAX_JOINTS],
     estop_latched: bool,
     exchanges: u64,
     following_error: [f64; MAX_JOINTS],
@@ -70,6 +74,26 @@ pub(crate) struct ServoStage<B: Fieldbus> {
     /// Interpolation let the set-points run dry: position control brings each joint to
     /// rest by itself along these generators, until the next reset.
     dry_stop: Option<[OnlineAxis; MAX_JOINTS]>,
+}
+
+/// Cycles the fault-reset bit stays high, then low, while a faulted drive is to be enabled.
+const FAULT_RESET_PULSE: u64 = 4;
+
+/// The fieldbus thread corrects 1/this of the bus's phase error per cycle.
+const PHASE_GAIN_DIVISOR: i64 = 10;
+
+/// The kernel's fault for a failed exchange, and the value it carries (the AL status code
+/// of a device that left OP, the working counter that came back).
+fn fault_of(error: &rtcnc_fieldbus::FieldbusError) -> (FaultCode, f64) {
+    use rtcnc_fieldbus::FieldbusError as E;
+    match *error {
+        E::WorkingCounter { received, .. } => (FaultCode::WorkingCounter, f64::from(received)),
+        E::DeviceState { code, .. } => (FaultCode::DeviceState, f64::from(code)),
+        E::LinkDown { .. } => (FaultCode::LinkDown, 0.0),
+        E::CommunicationLost | E::ImageMismatch { .. } | E::InvalidPeriod { .. } => {
+            (FaultCode::Communication, 0.0)
+        }
+    }
 }
 
 /// Periods without a set-point that position control bridges by going on along the last
@@ -113,6 +137,8 @@ impl<B: Fieldbus> ServoStage<B> {
             limit_latched: 0,
             drive_fault_latched: 0,
             comm_fault: false,
+            stale_inputs: false,
+            fresh_setpoint: [0.0; MAX_JOINTS],
             estop_latched: false,
             exchanges: 0,
             following_error: [0.0; MAX_JOINTS],
@@ -201,7 +227,11 @@ impl<B: Fieldbus> ServoStage<B> {
             let state = feedback.state();
             if state.is_fault() && target.enable {
                 // A drive fault is reset by the master's explicit decision: a reset command.
-                command.controlword = if self.was_enabled & bit == 0 {
+                // CiA 402 resets on the rising edge of the fault-reset bit: pulsed, so a
+                // drive whose cause was still there at the first edge resets at a later
+                // one once it is gone.
+                let pulse_high = (self.exchanges / FAULT_RESET_PULSE) % 2 == 1;
+                command.controlword = if self.was_enabled & bit == 0 && pulse_high {
                     ControlWord::fault_reset()
                 } else {
                     ControlWord::disable_voltage()
@@ -242,7 +272,15 @@ impl<B: Fieldbus> ServoStage<B> {
                 diff.reset();
             }
             let setpoint = diff.next(raw_target, period);
-            match servo.update(setpoint, feedback.position, period) {
+            // Inputs left over from the last good cycle are compared as they were then: as
+            // if the load had followed the set-points since.
+            let measured = if self.stale_inputs {
+                feedback.position + (setpoint.position - self.fresh_setpoint[j])
+            } else {
+                self.fresh_setpoint[j] = setpoint.position;
+                feedback.position
+            };
+            match servo.update(setpoint, measured, period) {
                 Ok(ServoCommand::Velocity(v)) => command.target_velocity = v,
                 Ok(ServoCommand::Position(c)) => {
                     command.target_position = c.position;
@@ -381,20 +419,28 @@ impl<B: Fieldbus> ServoStage<B> {
                 }
             }
         }
+        self.bus.set_time_ns(ctx.now().as_nanos());
         let result = self
             .bus
             .exchange(self.period_s, &self.outputs, &mut self.inputs);
         self.exchanges += 1;
-        if result.is_err() && !self.comm_fault {
+        self.stale_inputs = !self.bus.inputs_fresh();
+        if let Some(error) = self.bus.cycle_phase_error_ns() {
+            // Follow the bus's clock (EtherCAT distributed clocks): move the next wake-up
+            // by a tenth of how late this exchange came, a first-order loop that settles
+            // within a few tens of cycles and filters the exchange's own jitter.
+            ctx.shift_next_release(-(error / PHASE_GAIN_DIVISOR));
+        }
+        if let Err(error) = result
+            && !self.comm_fault
+        {
             self.comm_fault = true;
-            self.shared.raise(
-                ctx,
-                FaultCode::Communication,
-                TaskName::DriveIo,
-                None,
-                0,
-                0.0,
-            );
+            if let Some(mut slot) = self.shared.fieldbus_error.try_lock() {
+                *slot = Some(error);
+            }
+            let (code, value) = fault_of(&error);
+            self.shared
+                .raise(ctx, code, TaskName::DriveIo, None, 0, value);
         }
         let mut fb = Feedback {
             cycle: self.exchanges,

@@ -263,6 +263,9 @@ pub struct Shared {
     /// The PLC's last run-time fault (its code, POU and line), for the operator; put here
     /// by the machine-logic task (a clone of the PLC's record: no allocation).
     pub plc_fault: std::sync::Arc<PiMutex<Option<rtcnc_plc::Fault>>>,
+    /// The fieldbus's reason for its last communication fault (a device's name, state and
+    /// AL status code, the working counter), for the operator; put here by drive I/O.
+    pub fieldbus_error: std::sync::Arc<PiMutex<Option<rtcnc_fieldbus::FieldbusError>>>,
 }
 
 impl Shared {
@@ -296,6 +299,7 @@ impl Shared {
             error_text: std::sync::Arc::new(PiMutex::new(None)),
             motion_error: std::sync::Arc::new(PiMutex::new(None)),
             plc_fault: std::sync::Arc::new(PiMutex::new(None)),
+            fieldbus_error: std::sync::Arc::new(PiMutex::new(None)),
             fault_count: std::sync::Arc::new(std::sync::atomic::AtomicU32::new(0)),
             interpolation_gap: std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0)),
         };

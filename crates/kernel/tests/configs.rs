@@ -24,6 +24,7 @@ fn every_shipped_configuration_builds_a_kernel() {
         names,
         [
             "bench-xyz.toml",
+            "ethercat-sim-12.toml",
             "experiment-1.toml",
             "sim-gantry-12.toml",
             "sim-lathe.toml",
@@ -64,13 +65,117 @@ fn an_unknown_key_is_refused_naming_it() {
     assert!(e.starts_with("test.toml:"), "{e}");
 }
 
+fn ethercat_text() -> String {
+    std::fs::read_to_string(repo().join("configs/ethercat-sim-12.toml")).unwrap()
+}
+
+/// The template for real drives loads and validates (it is not built: that opens its
+/// network interface).
 #[test]
-fn ethercat_is_refused_as_not_available() {
-    let text = mill_text().replace("kind = \"sim\"", "kind = \"ethercat\"");
+fn the_real_drive_template_validates() {
+    let path = repo().join("configs/templates/ethercat-drives.toml");
+    let config = MachineConfig::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let section = config
+        .fieldbus
+        .ethercat
+        .as_ref()
+        .expect("an EtherCAT section");
+    assert!(section.simulation.is_none());
+    assert!(config.joints.iter().all(|j| j.sim.is_none()));
+    // In virtual time (rtcnc sim, a preview) it runs on simulated CSP drives instead of
+    // opening its bus.
+    let copy = config.for_virtual_time();
+    assert!(copy.fieldbus.ethercat.is_none());
+    let kernel = Kernel::build(&copy, KernelOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+    assert!(kernel.self_test.checks.iter().any(|(c, _)| *c == "ready"));
+}
+
+#[test]
+fn an_ethercat_machine_file_is_checked_against_the_bus() {
+    let cases = [
+        // A key of the simulated machine in the EtherCAT section.
+        (
+            (
+                "kind = \"ethercat\"",
+                "kind = \"ethercat\"\nsubstep_s = 0.001",
+            ),
+            "fieldbus.substep_s: unknown field `substep_s`",
+        ),
+        (
+            ("drift_ppm = 20.0", "drift_ppm = 20.0\nloss = 1"),
+            "fieldbus.simulation.loss: unknown field `loss`",
+        ),
+        (
+            ("joint = 11\n", "joint = 10\n"),
+            "fieldbus.slaves[11].joint: another drive has it",
+        ),
+        (
+            ("joint = 11\n", "joint = 12\n"),
+            "fieldbus.slaves: joints must be numbered 0 to 11 without a gap: no joint 11",
+        ),
+        (
+            ("digital_inputs = 8", "digital_inputs = 16"),
+            "io.digital_inputs: 16, but the EtherCAT terminals give 8",
+        ),
+        (
+            ("working_counter_limit = 3", "working_counter_limit = 0"),
+            "fieldbus.working_counter_limit: must be at least 1",
+        ),
+        (
+            (
+                "counts_per_unit = 26214.4\nrated_torque_nm = 1.27\n\n[[fieldbus.slaves]]\nkind = \"cia402\"\nname = \"X1\"",
+                "counts_per_unit = 1000.0\nrated_torque_nm = 1.27\n\n[[fieldbus.slaves]]\nkind = \"cia402\"\nname = \"X1\"",
+            ),
+            "fieldbus.slaves[0].counts_per_unit: 1000 is not the simulated drive's 26214.4 (encoder_counts_per_revolution / units_per_revolution of joint 0)",
+        ),
+    ];
+    for ((from, to), expected) in cases {
+        let text = ethercat_text();
+        assert!(text.contains(from), "{from}");
+        let e = refusal(&text.replacen(from, to, 1));
+        assert!(e.contains(expected), "{e:?} does not say {expected:?}");
+    }
+    // Every joint needs its drive.
+    let text = ethercat_text();
+    let p2 = text
+        .find("[[fieldbus.slaves]]\nkind = \"cia402\"\nname = \"P2\"")
+        .unwrap();
+    let next = p2 + text[p2 + 1..].find("[[fieldbus.slaves]]").unwrap() + 1;
+    assert_eq!(
+        refusal(&format!("{}{}", &text[..p2], &text[next..])),
+        "fieldbus.slaves: no drive moves joint 11 (P2)"
+    );
+    // No index latch over EtherCAT yet (the touch probe is not mapped).
+    let text = ethercat_text().replacen("use_index = false, ", "", 1);
+    assert!(
+        refusal(&text).starts_with(
+            "joints[0].homing.use_index: the EtherCAT drives' touch probe is not mapped"
+        ),
+        "{}",
+        refusal(&text)
+    );
+    // A position loop of the controller's own cannot drive a CSP drive.
+    let text = ethercat_text().replacen(
+        "servo = { loop = \"csp\", following_error",
+        "servo = { loop = \"pid\", following_error",
+        1,
+    );
     assert_eq!(
         refusal(&text),
-        "fieldbus.kind: \"ethercat\" is not available yet in this build; use \"sim\""
+        "joints[0].servo.loop: EtherCAT drives run in cyclic synchronous position: \"csp\""
     );
+    // The simulated devices need each joint's simulated drive, hardware does not.
+    let without_sim = ethercat_text().replacen(
+        "sim = { drive = \"csp\", initial_position = 0.3,",
+        "# sim = {",
+        1,
+    );
+    assert_eq!(
+        refusal(&without_sim),
+        "joints[1].sim: the simulated drive is required on a simulated machine"
+    );
+    let hardware = without_sim.replacen("[fieldbus.simulation]\ndrift_ppm = 20.0\n", "", 1);
+    MachineConfig::parse(&hardware, "test.toml").expect("hardware needs no simulated drive");
 }
 
 #[test]

@@ -8,6 +8,7 @@ mod common;
 use common::*;
 use std::time::Duration;
 
+use rtcnc_ecat_slave_sim::Fault as SegmentFault;
 use rtcnc_fieldbus::sim::InjectedFault;
 use rtcnc_kernel::{
     FaultCode, Kernel, KernelOptions, MachineConfig, MachineState, Simulation, Urgent,
@@ -71,23 +72,30 @@ struct Trace {
     x: Vec<f64>,
 }
 
+/// The load's true state (position, velocity) of a joint: the simulated machine's, or the
+/// simulated EtherCAT drive's.
+fn true_state(m: &Machine, joint: usize) -> (f64, f64) {
+    let handle = m.sim.handle();
+    match handle.simulated_machine() {
+        Ok(machine) => machine.with(|machine| machine.true_state(joint).unwrap()),
+        Err(_) => handle
+            .simulated_ethercat()
+            .unwrap()
+            .true_state(joint)
+            .unwrap(),
+    }
+}
+
 fn true_x(m: &Machine) -> f64 {
-    m.sim
-        .handle()
-        .simulated_machine()
-        .unwrap()
-        .with(|machine| machine.true_state(0).unwrap().0)
+    true_state(m, 0).0
 }
 
 fn any_axis_moves(m: &Machine) -> bool {
-    m.sim
-        .handle()
-        .simulated_machine()
-        .unwrap()
-        .with(|machine| (0..3).any(|j| machine.true_state(j).unwrap().1.abs() > 1e-6))
+    let joints = m.sim.handle().config().joints.len();
+    (0..joints).any(|j| true_state(m, j).1.abs() > 1e-6)
 }
 
-/// The mill (as configured for `cause`) running the program from power-on, stepped one
+/// The machine (as configured for `cause`) running the program from power-on, stepped one
 /// period at a time; `act` is called before every period with the period's number.
 fn run_mill(
     cfg: &MachineConfig,
@@ -231,29 +239,45 @@ fn measure(cause: Cause) -> Stop {
 struct Row {
     fault: String,
     code: String,
+    /// What the fault's text names (the EtherCAT table).
+    says: String,
     category: u8,
     travel_mm: f64,
     time_ms: f64,
 }
 
 fn documented_matrix() -> Vec<Row> {
+    documented_table("| fault | code |")
+}
+
+/// The table of docs/safety.md whose header starts with `header`; the EtherCAT table has a
+/// column of what the fault's text says after its code.
+fn documented_table(header: &str) -> Vec<Row> {
     let text = std::fs::read_to_string(repo().join("docs/safety.md")).unwrap();
+    let says = header.starts_with("| EtherCAT");
     let table = text
-        .split("| fault | code |")
+        .split(header)
         .nth(1)
-        .expect("docs/safety.md has the fault matrix");
+        .expect("docs/safety.md has the table");
     table
         .lines()
         .skip(2)
         .take_while(|l| l.starts_with('|'))
         .map(|l| {
             let cells: Vec<&str> = l.split('|').map(str::trim).collect();
+            // The EtherCAT table has "says" after the code.
+            let k = usize::from(says);
             Row {
                 fault: cells[1].to_string(),
                 code: cells[2].trim_matches('`').to_string(),
-                category: cells[5].parse().unwrap(),
-                travel_mm: cells[6].parse().unwrap(),
-                time_ms: cells[7].parse().unwrap(),
+                says: if says {
+                    cells[3].trim_matches('`').to_string()
+                } else {
+                    String::new()
+                },
+                category: cells[5 + k].parse().unwrap(),
+                travel_mm: cells[6 + k].parse().unwrap(),
+                time_ms: cells[7 + k].parse().unwrap(),
             }
         })
         .collect()
@@ -290,6 +314,123 @@ fn every_fault_stops_the_load_within_its_documented_travel_and_time() {
         );
         // Categories 0 and 1 both end with the drives off: the machine is in its safe
         // state and waits for a reset.
+        assert!(matches!(row.category, 0 | 1), "{}", row.fault);
+        assert!(
+            matches!(stop.state, MachineState::EStop | MachineState::Fault),
+            "{}: {:?}",
+            row.fault,
+            stop.state
+        );
+    }
+}
+
+/// A fault of the EtherCAT bus, injected into the simulated devices when X passes `AT_X`.
+#[derive(Debug, Clone, Copy)]
+enum BusCause {
+    FrameLoss,
+    ProcessDataLoss,
+    SafeOp,
+    DriveFault,
+    LinkDown,
+}
+
+impl BusCause {
+    fn from_row(name: &str) -> BusCause {
+        match name {
+            "frame loss" => BusCause::FrameLoss,
+            "process data missing" => BusCause::ProcessDataLoss,
+            "device leaves OP" => BusCause::SafeOp,
+            "drive fault (0x603F)" => BusCause::DriveFault,
+            "link down" => BusCause::LinkDown,
+            other => {
+                panic!("docs/safety.md names an EtherCAT fault this test does not know: {other}")
+            }
+        }
+    }
+
+    fn fault(self, drive: usize) -> SegmentFault {
+        match self {
+            BusCause::FrameLoss => SegmentFault::FrameLoss { rate: 0.5 },
+            BusCause::ProcessDataLoss => SegmentFault::ProcessDataLoss { slave: drive },
+            BusCause::SafeOp => SegmentFault::FallToSafeOp {
+                slave: drive,
+                code: 0x001A,
+            },
+            BusCause::DriveFault => SegmentFault::DriveFault {
+                slave: drive,
+                error_code: 0x2310,
+            },
+            BusCause::LinkDown => SegmentFault::LinkDown,
+        }
+    }
+}
+
+fn measure_bus(cause: BusCause) -> (Stop, String) {
+    let cfg = config("ethercat-sim-12.toml");
+    let options = KernelOptions {
+        program: Some(program(PROGRAM, &format!("matrix-{cause:?}.ngc"))),
+        record_capacity: 1 << 14,
+        ..KernelOptions::default()
+    };
+    let mut injected = false;
+    let (m, trace) = run_mill(&cfg, options, |_, m| {
+        if !injected && true_x(m) >= AT_X {
+            injected = true;
+            let bus = m.sim.handle().simulated_ethercat().unwrap();
+            // X0's drive.
+            let drive = bus.drive_position(0).unwrap();
+            bus.inject(cause.fault(drive)).unwrap();
+        }
+        true
+    });
+    let first = m.faults.first().expect("a fault");
+    let text = m.sim.handle().describe(first);
+    let t0 = (first.time_ns / 1_000_000) as usize;
+    let start = m.sim.now().as_millis() as usize - trace.x.len();
+    let i0 = t0.saturating_sub(start).min(trace.x.len() - 1);
+    let stood = trace.x.len() - 50;
+    let stop = Stop {
+        travel_mm: trace.x[stood] - trace.x[i0],
+        time_ms: (stood - i0) as f64,
+        faults: m.faults.iter().map(|f| f.code).collect(),
+        state: m.status().state,
+    };
+    (stop, text)
+}
+
+/// The EtherCAT table of docs/safety.md: each fault of the bus, injected into the simulated
+/// devices of configs/ethercat-sim-12.toml while X runs at 100 mm/s, raises its code with
+/// the bus's reason in words and stops X0's load within the stated travel and time, the
+/// machine in its safe state.
+#[test]
+fn every_ethercat_fault_stops_the_load_within_its_documented_travel_and_time() {
+    let rows = documented_table("| EtherCAT fault | code |");
+    assert_eq!(rows.len(), 5, "a row per fault of the bus");
+    for row in rows {
+        let (stop, text) = measure_bus(BusCause::from_row(&row.fault));
+        eprintln!("{}: {stop:?}\n  {text}", row.fault);
+        assert_eq!(stop.faults[0].as_str(), row.code, "{}: {stop:?}", row.fault);
+        assert!(
+            text.contains(&row.says),
+            "{}: {text:?} lacks {:?}",
+            row.fault,
+            row.says
+        );
+        assert!(stop.travel_mm > 0.1, "{}: {stop:?}", row.fault);
+        assert!(
+            stop.travel_mm <= row.travel_mm,
+            "{}: {:.2} mm > {} mm",
+            row.fault,
+            stop.travel_mm,
+            row.travel_mm
+        );
+        assert!(
+            stop.time_ms <= row.time_ms,
+            "{}: {} ms > {} ms",
+            row.fault,
+            stop.time_ms,
+            row.time_ms
+        );
         assert!(matches!(row.category, 0 | 1), "{}", row.fault);
         assert!(
             matches!(stop.state, MachineState::EStop | MachineState::Fault),

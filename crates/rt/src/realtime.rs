@@ -25,7 +25,9 @@ use crate::task::{
 };
 use crate::time::{Time, duration_ns};
 use crate::trace::{EventKind, Lane, TraceEvent};
-use crate::virtual_time::{next_release, periodic_miss, reactive_miss, record_miss};
+use crate::virtual_time::{
+    clamp_release_shift, next_shifted_release, periodic_miss, reactive_miss, record_miss, shifted,
+};
 
 static WARNED_NO_FIFO: AtomicBool = AtomicBool::new(false);
 static WARNED_NO_MLOCK: AtomicBool = AtomicBool::new(false);
@@ -192,6 +194,14 @@ fn setup_thread(name: &str, priority: Option<i32>, config: &RealTimeConfig) -> b
     }
 }
 
+/// What a body run leaves for its runner: what a reactive task waits for next, whether a
+/// periodic task's remaining runs are empty, and the shift of its thread's next release.
+struct Ran {
+    next: Next,
+    runs_finished: bool,
+    release_shift: i64,
+}
+
 /// Runs one body with a context of real time.
 #[allow(clippy::too_many_arguments)]
 fn run_body(
@@ -203,7 +213,7 @@ fn run_body(
     activation: u64,
     run: u32,
     wake: Wake,
-) -> (Next, bool) {
+) -> Ran {
     let TaskSpec {
         name, body, lane, ..
     } = spec;
@@ -220,6 +230,7 @@ fn run_body(
         wake,
         consumed: 0,
         runs_finished: false,
+        release_shift: 0,
         lane: shared.lane(*lane),
         monitor: &shared.monitor,
     };
@@ -232,7 +243,11 @@ fn run_body(
         Body::Reactive(body) => body(&mut ctx),
     };
     set_in_task_body(false);
-    (next, ctx.runs_finished)
+    Ran {
+        next,
+        runs_finished: ctx.runs_finished,
+        release_shift: ctx.release_shift,
+    }
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -249,6 +264,9 @@ fn periodic_thread(
     if !await_start(&mut shared, ready, fifo) {
         return;
     }
+    // The release on the period grid, and how far the thread's phase is moved from it.
+    let mut base = 0u64;
+    let mut offset = 0i64;
     let mut release = 0u64;
     loop {
         sleep_until_monotonic(shared.epoch.saturating_add(release));
@@ -256,7 +274,8 @@ fn periodic_thread(
         if shared.stop.load(Ordering::Acquire) {
             break;
         }
-        let activation = release / period.max(1);
+        let activation = base / period.max(1);
+        let mut shift = 0i64;
         let mut missed: Option<usize> = None;
         let mut first = true;
         for (task, spec) in tasks.iter_mut() {
@@ -274,7 +293,7 @@ fn periodic_thread(
                 let start = if first { wake } else { shared.now() };
                 first = false;
                 shared.state(task, TaskState::Running);
-                let (_, runs_finished) = run_body(
+                let ran = run_body(
                     &shared,
                     spec,
                     task,
@@ -284,6 +303,7 @@ fn periodic_thread(
                     run,
                     Wake::Period,
                 );
+                shift = shift.saturating_add(ran.release_shift);
                 let end = shared.now();
                 if let Some(m) = shared.monitor.task_at(task) {
                     m.record_run(
@@ -303,19 +323,21 @@ fn periodic_thread(
                 ) {
                     raise_miss(&shared, spec, task, end, late);
                 }
-                if runs_finished {
+                if ran.runs_finished {
                     break;
                 }
             }
             shared.state(task, TaskState::Waiting);
         }
-        let (next, skipped) = next_release(release, period, shared.now());
+        offset = offset.saturating_add(clamp_release_shift(shift, period));
+        let (next, skipped) = next_shifted_release(base, period, offset, shared.now());
         if skipped > 0 {
             if let Some(m) = missed.and_then(|t| shared.monitor.task_at(t)) {
                 m.record_skipped(skipped);
             }
         }
-        release = next;
+        base = next;
+        release = shifted(base, offset);
     }
 }
 
@@ -456,7 +478,7 @@ fn event_thread(
         own_token = trigger.source.arm();
         let start = shared.now();
         shared.state(task, TaskState::Running);
-        let (next, _) = run_body(&shared, &mut spec, task, start, start, activation, 0, wake);
+        let next = run_body(&shared, &mut spec, task, start, start, activation, 0, wake).next;
         activation += 1;
         let end = shared.now();
         if let Some(m) = shared.monitor.task_at(task) {
@@ -527,7 +549,7 @@ fn background_thread(
             ran = true;
             let start = shared.now();
             shared.state(task, TaskState::Running);
-            let (next, _) = run_body(&shared, spec, task, start, start, activations[i], 0, wake);
+            let next = run_body(&shared, spec, task, start, start, activations[i], 0, wake).next;
             activations[i] += 1;
             let end = shared.now();
             if let Some(m) = shared.monitor.task_at(task) {

@@ -78,6 +78,8 @@ pub struct Context<'a> {
     pub(crate) consumed: u64,
     /// The body said the activation's remaining runs have nothing to do.
     pub(crate) runs_finished: bool,
+    /// What the body asked its periodic thread's next release to move by (ns).
+    pub(crate) release_shift: i64,
     pub(crate) lane: &'a Lane,
     pub(crate) monitor: &'a Monitor,
 }
@@ -127,6 +129,16 @@ impl Context<'_> {
     /// nor traced. Both schedulers; no effect on event and background tasks.
     pub fn finish_runs(&mut self) {
         self.runs_finished = true;
+    }
+
+    /// Moves the next release of this task's periodic thread, and every release after it,
+    /// by `ns` (negative: earlier), so that a thread can follow a clock outside the
+    /// executive (a fieldbus's distributed clock) by nudging its phase. The shifts asked
+    /// during one cycle add up; the executive moves a cycle by at most a quarter of the
+    /// period, so a nudge never skips a cycle or runs two back to back. Activations go on
+    /// counting one per cycle. Both schedulers; no effect on event and background tasks.
+    pub fn shift_next_release(&mut self, ns: i64) {
+        self.release_shift = self.release_shift.saturating_add(ns);
     }
 
     /// Why the body runs.

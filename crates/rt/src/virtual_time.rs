@@ -63,6 +63,28 @@ pub(crate) fn next_release(release: u64, period: u64, end: u64) -> (u64, u64) {
     (nominal + skipped * period, skipped)
 }
 
+/// The most a periodic thread's release moves in one cycle (see
+/// [`Context::shift_next_release`]): a quarter of the period.
+pub(crate) fn clamp_release_shift(shift: i64, period: u64) -> i64 {
+    let most = i64::try_from(period / 4).unwrap_or(i64::MAX);
+    shift.clamp(-most, most)
+}
+
+/// The release of a thread whose cycles are moved by `offset` from the period grid: a cycle
+/// of grid time `base` is released at `base + offset` (never before 0).
+pub(crate) fn shifted(base: u64, offset: i64) -> u64 {
+    u64::try_from((i128::from(base) + i128::from(offset)).max(0)).unwrap_or(u64::MAX)
+}
+
+/// When a cycle of a thread moved by `offset` (grid time `base`) ends at `end`: the next
+/// release on the grid, and the boundaries skipped ([`next_release`] in the thread's own
+/// frame).
+pub(crate) fn next_shifted_release(base: u64, period: u64, offset: i64, end: u64) -> (u64, u64) {
+    let end_on_grid =
+        u64::try_from((i128::from(end) - i128::from(offset)).max(0)).unwrap_or(u64::MAX);
+    next_release(base, period, end_on_grid)
+}
+
 /// Decides whether a periodic run that ended at `end` is a deadline miss, with the same rule
 /// under both runners: a task with its own deadline misses when it ends later than
 /// `release + deadline`; otherwise the first run of the cycle that ends after the next
@@ -175,6 +197,10 @@ struct EndedStep {
 
 struct Cycle {
     release: u64,
+    /// The release on the period grid (`release` minus the thread's offset).
+    base: u64,
+    /// Shifts of the thread's next release asked in this cycle (ns).
+    shift: i64,
     activation: u64,
     pos: usize,
     run: u32,
@@ -191,6 +217,10 @@ struct Cycle {
 struct VThread {
     spec: ThreadSpec,
     next_release: u64,
+    /// `next_release` on the period grid.
+    next_base: u64,
+    /// How far the thread's releases are moved from the grid (ns).
+    offset: i64,
     cycle: Option<Cycle>,
 }
 
@@ -322,6 +352,8 @@ impl VirtualRunner {
                 .map(|spec| VThread {
                     spec,
                     next_release: 0,
+                    next_base: 0,
+                    offset: 0,
                     cycle: None,
                 })
                 .collect(),
@@ -485,11 +517,14 @@ impl VirtualRunner {
             let th = &self.threads[i];
             if th.cycle.is_none() && th.next_release <= self.now {
                 let release = th.next_release;
-                let activation = release / th.spec.period_ns.max(1);
+                let base = th.next_base;
+                let activation = base / th.spec.period_ns.max(1);
                 let seq = self.next_seq();
                 let th = &mut self.threads[i];
                 th.cycle = Some(Cycle {
                     release,
+                    base,
+                    shift: 0,
                     activation,
                     pos: 0,
                     run: 0,
@@ -660,6 +695,7 @@ impl VirtualRunner {
             wake,
             consumed: 0,
             runs_finished: false,
+            release_shift: 0,
             lane: &recording.lanes[lane],
             monitor: &recording.monitor,
         }
@@ -735,6 +771,7 @@ impl VirtualRunner {
         set_in_task_body(false);
         let cost = ctx.consumed;
         cycle.runs_finished = ctx.runs_finished;
+        cycle.shift = cycle.shift.saturating_add(ctx.release_shift);
         let lateness = Some(now - cycle.release);
         if cost == 0 {
             // Over at once: no step to keep for the scheduler loop.
@@ -824,12 +861,16 @@ impl VirtualRunner {
     fn finish_cycle(&mut self, i: usize) {
         let now = self.now;
         let th = &mut self.threads[i];
-        let Some((release, missed)) = th.cycle.as_ref().map(|c| (c.release, c.missed)) else {
+        let Some((base, shift, missed)) = th.cycle.as_ref().map(|c| (c.base, c.shift, c.missed))
+        else {
             return;
         };
         th.cycle = None;
-        let (next, skipped) = next_release(release, th.spec.period_ns, now);
-        th.next_release = next;
+        let period = th.spec.period_ns;
+        th.offset = th.offset.saturating_add(clamp_release_shift(shift, period));
+        let (next, skipped) = next_shifted_release(base, period, th.offset, now);
+        th.next_base = next;
+        th.next_release = shifted(next, th.offset);
         if skipped > 0 {
             if let Some(m) = missed.and_then(|t| self.recording.monitor.task_at(t)) {
                 m.record_skipped(skipped);

@@ -334,3 +334,55 @@ fn a_task_that_finishes_its_runs_hands_the_cycle_to_the_next_task() {
         "{queue} runs of queue, {after} of after"
     );
 }
+
+/// `Context::shift_next_release` under real time: the releases (the instants the thread is
+/// woken for, as the runner computes them) move by the shifts asked, clamped to a quarter of
+/// the period per cycle, and activations keep numbering the grid's periods.
+#[test]
+fn a_thread_nudges_its_phase_in_real_time_as_in_virtual_time() {
+    let log: Arc<Mutex<Vec<(u64, u64, u64)>>> = Arc::default();
+    let mut b = TaskSet::builder();
+    let thread = b.periodic_thread("bus", Duration::from_millis(1), 50);
+    let l = Arc::clone(&log);
+    let mut cycles = 0u64;
+    b.periodic(thread, "exchange", 1, move |ctx| {
+        l.lock()
+            .unwrap()
+            .push((ctx.release_time().as_nanos(), ctx.activation(), cycles));
+        // Counted in cycles run, not activations: a cycle skipped after an overrun on a
+        // loaded machine must not lose a shift.
+        match cycles {
+            2 => ctx.shift_next_release(200_000),
+            4 => ctx.shift_next_release(-1_000_000),
+            _ => {}
+        }
+        cycles += 1;
+    });
+    let config = RealTimeConfig {
+        scheduling: SchedulingMode::BestEffort,
+        lock_memory: false,
+        ..RealTimeConfig::default()
+    };
+    let handle = RealTimeRunner::start(b.build().unwrap(), config).unwrap();
+    wait_until(|| log.lock().unwrap().len() >= 8);
+    drop(handle.stop());
+    let log = log.lock().unwrap();
+    for &(release, activation, cycle) in log.iter() {
+        // +200 µs after the third cycle, then −1 ms clamped to −250 µs: −50 µs in all.
+        let offset: i64 = match cycle {
+            0..=2 => 0,
+            3..=4 => 200_000,
+            _ => -50_000,
+        };
+        assert_eq!(
+            release as i64,
+            activation as i64 * 1_000_000 + offset,
+            "cycle {cycle}"
+        );
+    }
+    let activations: Vec<u64> = log.iter().map(|e| e.1).collect();
+    assert!(
+        activations.windows(2).all(|w| w[1] > w[0]),
+        "{activations:?}"
+    );
+}

@@ -573,3 +573,88 @@ fn a_task_that_finishes_its_runs_hands_the_cycle_to_the_next_task() {
     assert_eq!(monitor.task("queue").unwrap().stats().activations, 6);
     assert_eq!(monitor.task("after").unwrap().stats().activations, 3);
 }
+
+/// A thread that nudges its own phase (`Context::shift_next_release`), as the fieldbus thread
+/// follows a bus's distributed clock: every release after a shift moves by it, the shifts of
+/// one cycle add up and are clamped to a quarter of the period, activations count on by one
+/// per cycle, and a thread that asks nothing keeps the period grid.
+#[test]
+fn a_thread_nudges_its_phase_and_the_other_threads_keep_the_grid() {
+    let log: ValueLog = Arc::default();
+    let mut b = TaskSet::builder();
+    let bus = b.periodic_thread("bus", Duration::from_millis(1), 100);
+    let l = Arc::clone(&log);
+    b.periodic(bus, "exchange", 1, move |ctx| {
+        l.lock()
+            .unwrap()
+            .push((ctx.release_time().as_nanos(), "exchange", ctx.activation()));
+        match ctx.activation() {
+            // +30 µs, then +100 µs asked in two calls of one cycle.
+            2 => ctx.shift_next_release(30_000),
+            4 => {
+                ctx.shift_next_release(60_000);
+                ctx.shift_next_release(40_000);
+            }
+            // Far more than a quarter period earlier: moved by 250 µs only.
+            6 => ctx.shift_next_release(-900_000),
+            _ => {}
+        }
+    });
+    let second = Arc::clone(&log);
+    b.periodic(bus, "after", 1, move |ctx| {
+        // The thread's second function sees the same release and may nudge it too.
+        if ctx.activation() == 8 {
+            ctx.shift_next_release(-5_000);
+        }
+        second
+            .lock()
+            .unwrap()
+            .push((ctx.start_time().as_nanos(), "after", ctx.activation()));
+    });
+    let other = b.periodic_thread("other", Duration::from_millis(1), 50);
+    let l = Arc::clone(&log);
+    b.periodic(other, "other", 1, move |ctx| {
+        l.lock()
+            .unwrap()
+            .push((ctx.release_time().as_nanos(), "other", ctx.activation()));
+    });
+    let mut sim = VirtualRunner::new(b.build().unwrap());
+    sim.run_for(Duration::from_micros(10_500)).unwrap();
+    let log = log.lock().unwrap();
+    // Worked out from the rules: offset 0 up to activation 2, 30 µs from 3, 130 µs from 5,
+    // 130 − 250 = −120 µs from 7, −125 µs from 9.
+    let offset = |k: i64| match k {
+        0..=2 => 0,
+        3..=4 => 30_000,
+        5..=6 => 130_000,
+        7..=8 => -120_000,
+        _ => -125_000,
+    };
+    let exchanges: Vec<(u64, u64)> = log
+        .iter()
+        .filter(|e| e.1 == "exchange")
+        .map(|e| (e.0, e.2))
+        .collect();
+    let expected: Vec<(u64, u64)> = (0..11i64)
+        .map(|k| ((k * 1_000_000 + offset(k)) as u64, k as u64))
+        .collect();
+    assert_eq!(exchanges, expected);
+    // The second function runs right after the first, in the same shifted cycle.
+    let after: Vec<(u64, u64)> = log
+        .iter()
+        .filter(|e| e.1 == "after")
+        .map(|e| (e.0, e.2))
+        .collect();
+    assert_eq!(after, expected);
+    let others: Vec<(u64, u64)> = log
+        .iter()
+        .filter(|e| e.1 == "other")
+        .map(|e| (e.0, e.2))
+        .collect();
+    let grid: Vec<(u64, u64)> = (0..11u64).map(|k| (k * MS, k)).collect();
+    assert_eq!(others, grid);
+    // No release was late: a nudge is not a wake-up latency.
+    let monitor = sim.recording().monitor();
+    let stats = monitor.task("exchange").unwrap().stats();
+    assert_eq!(stats.deadline_misses, 0);
+}

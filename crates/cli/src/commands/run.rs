@@ -280,6 +280,19 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     handle.command(Command::Reset);
     wait("enabling the drives", Duration::from_secs(2), &|| {
         handle.status().ready
+    })
+    .map_err(|e| {
+        // Say why: the faults that kept the drives off.
+        let faults: Vec<String> = handle
+            .take_faults()
+            .iter()
+            .map(|f| handle.describe(f))
+            .collect();
+        if faults.is_empty() {
+            e
+        } else {
+            e.context(faults.join("; "))
+        }
     })?;
     if args.home {
         handle.command(Command::HomeAll);

@@ -68,7 +68,9 @@ pub struct Summary {
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let config = MachineConfig::load(&args.machine)
         // The error names the file.
-        .context("machine configuration")?;
+        .context("machine configuration")?
+        // Never a master on a real bus in virtual time.
+        .for_virtual_time();
     if !args.program.is_file() {
         bail!("{}: no such program file", args.program.display());
     }

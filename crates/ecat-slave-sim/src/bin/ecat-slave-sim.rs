@@ -16,6 +16,7 @@
 //! safeop 3 0x001a           device 3 falls to SAFE-OP with AL status code 0x001A
 //! drive-fault 2 0x2310      drive 2 faults with error code 0x2310
 //! drive-clear 2             the cause of drive 2's fault goes away
+//! pd-loss 4 | pd-clear 4    device 4 stops (resumes) serving the process data
 //! link down | link up       take the interface down (the master sees no carrier) or up
 //! stats                     print frames seen and lost
 //! quit                      end
@@ -82,6 +83,18 @@ fn parse_command(line: &str) -> Result<Command, String> {
             Fault::DriveFault {
                 slave: number(1)? as usize,
                 error_code: 0,
+            },
+            false,
+        )),
+        Some("pd-loss") => Ok(Command::Fault(
+            Fault::ProcessDataLoss {
+                slave: number(1)? as usize,
+            },
+            true,
+        )),
+        Some("pd-clear") => Ok(Command::Fault(
+            Fault::ProcessDataLoss {
+                slave: number(1)? as usize,
             },
             false,
         )),

@@ -13,12 +13,28 @@ pub const INSIDE: &str = "RTCNC_ECAT_INSIDE_NETNS";
 pub const MASTER_END: &str = "m0";
 pub const SIMULATOR_END: &str = "s0";
 
+/// As root, a network namespace alone keeps the right to real-time scheduling (the
+/// simulator then answers at SCHED_FIFO, as hardware would); otherwise an unprivileged
+/// user namespace owns it.
+fn unshare_flags() -> &'static str {
+    if is_root() { "-n" } else { "-Urn" }
+}
+
+fn is_root() -> bool {
+    // SAFETY: a plain query.
+    unsafe { libc::geteuid() == 0 }
+}
+
 /// Why namespaces cannot be used here, if they cannot.
 pub fn namespaces_refused() -> Option<String> {
-    match Command::new("unshare").args(["-Urn", "true"]).output() {
+    match Command::new("unshare")
+        .args([unshare_flags(), "true"])
+        .output()
+    {
         Ok(output) if output.status.success() => None,
         Ok(output) => Some(format!(
-            "unshare -Urn refused: {}",
+            "unshare {} refused: {}",
+            unshare_flags(),
             String::from_utf8_lossy(&output.stderr).trim()
         )),
         Err(e) => Some(format!("unshare not available: {e}")),
@@ -30,7 +46,7 @@ pub fn namespaces_refused() -> Option<String> {
 pub fn run_inside(inner: &str) -> bool {
     let exe = std::env::current_exe().expect("test binary");
     let status = Command::new("unshare")
-        .arg("-Urn")
+        .arg(unshare_flags())
         .arg(exe)
         .args([
             "--exact",
@@ -86,9 +102,14 @@ impl Simulator {
         std::fs::create_dir_all(&dir).expect("temp dir");
         let config = dir.join("segment.toml");
         std::fs::write(&config, segment_toml).expect("segment file");
-        let mut child = Command::new(env!("CARGO_BIN_EXE_ecat-slave-sim"))
+        let mut command = Command::new(env!("CARGO_BIN_EXE_ecat-slave-sim"));
+        command
             .args(["--interface", SIMULATOR_END, "--config"])
-            .arg(&config)
+            .arg(&config);
+        if is_root() {
+            command.args(["--priority", "70"]);
+        }
+        let mut child = command
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .spawn()

@@ -106,7 +106,7 @@ impl Machine {
         let mut start = [0.0; AXES];
         let mut initial = [0.0; MAX_JOINTS];
         for (j, jc) in config.joints.iter().enumerate().take(joint_count) {
-            initial[j] = jc.sim.initial_position;
+            initial[j] = jc.initial_position();
             let axis = plan.iter().find(|p| p.joints.contains(&j)).map(|p| p.axis);
             let info = &mut joints[j];
             info.homing = jc.homing;
@@ -121,7 +121,7 @@ impl Machine {
                     // The axis starts where its first joint stands; the others are made to
                     // agree through their offsets until homing squares them.
                     if !std::mem::replace(&mut axis_started[i], true) {
-                        start[i] = jc.sim.initial_position;
+                        start[i] = jc.initial_position();
                     }
                     planner_joints[planner_joint_count] = j;
                     planner_joint_count += 1;

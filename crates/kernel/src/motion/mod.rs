@@ -358,7 +358,10 @@ impl MotionCore {
         } else {
             0.0
         };
-        status.ready = self.drives_enabled() && feedback.enabled != 0;
+        // Every drive, not some: a drive left in fault (its cause still there after the
+        // reset's fault reset) keeps the machine from being ready.
+        let all = u32::MAX >> (32 - self.machine.joint_count.clamp(1, 32));
+        status.ready = self.drives_enabled() && feedback.enabled & all == all;
         status.geometry = self.path.planner.geometry_stats();
         if let Some(f) = self.safety.last_fault {
             status.last_fault = Some(f);

@@ -1,0 +1,264 @@
+//! Simulated devices for a master configuration: the segment of `rtcnc-ecat-slave-sim`
+//! devices that a configuration lists, so that a machine configured for EtherCAT runs
+//! without hardware (in the same process, on [`SimulatedLink`](crate::SimulatedLink)).
+//!
+//! Each CiA 402 entry becomes a simulated CSP drive whose motor, encoder and switches are
+//! the given simulated joint; each DIO entry an 8-in/8-out terminal. The devices keep the
+//! simulator's own identities, so the master's identity check still compares the
+//! configuration with what the devices' EEPROMs say.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use rtcnc_ecat_slave_sim::config::SlaveConfig as SimulatedSlave;
+use rtcnc_ecat_slave_sim::dio::DioConfig;
+use rtcnc_ecat_slave_sim::drive::DriveConfig;
+use rtcnc_ecat_slave_sim::{Segment, SegmentConfig};
+use rtcnc_fieldbus::sim::SimulatedJointConfig;
+use rtcnc_fieldbus::{
+    DriveMode, Fieldbus, FieldbusError, ProcessInputs, ProcessLayout, ProcessOutputs,
+};
+use rtcnc_rt::PiMutex;
+use serde::Deserialize;
+
+use crate::clock::Clock;
+use crate::config::{ConfigError, EthercatConfig, SlaveConfig};
+use crate::link::SimulatedLink;
+use crate::master::{EthercatMaster, StartError};
+
+/// Where the simulated bus's clock starts (ns): far enough from 0 that no time before it
+/// is ever needed.
+const START_NS: u64 = 1_000_000_000;
+
+/// The master on simulated devices in this process (a machine configured for EtherCAT
+/// without hardware). The devices run in the caller's time: each cycle's
+/// [`set_time_ns`](Fieldbus::set_time_ns) moves the bus's virtual clock to it (plus the
+/// start-up's length), so a kernel on the virtual-time runner is deterministic and one on
+/// the real-time runner runs its devices in real time. A cycle without it moves the clock
+/// one period.
+pub struct SimulatedBus {
+    master: EthercatMaster,
+    segment: Arc<PiMutex<Segment>>,
+    clock: Clock,
+    /// The bus's clock minus the caller's, fixed by the first `set_time_ns`.
+    offset_ns: Option<u64>,
+    /// `set_time_ns` was given for the coming exchange.
+    timed: bool,
+}
+
+impl std::fmt::Debug for SimulatedBus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SimulatedBus")
+            .field("master", &self.master)
+            .finish_non_exhaustive()
+    }
+}
+
+impl SimulatedBus {
+    /// Builds the devices `config` lists (see [`simulated_segment`]) and starts the master
+    /// on them, for a cycle of `period`: scan, identities, PDO mapping, distributed clocks,
+    /// INIT to OP, all in virtual time.
+    pub fn start(
+        config: &EthercatConfig,
+        joints: &[SimulatedJointConfig],
+        simulation: &SimulationConfig,
+        period: Duration,
+    ) -> Result<Self, StartError> {
+        let segment = Arc::new(PiMutex::new(simulated_segment(config, joints, simulation)?));
+        let clock = Clock::new_virtual(START_NS);
+        let link = SimulatedLink::new(Arc::clone(&segment), clock);
+        let master = EthercatMaster::start_with_link(config, period, Box::new(link), clock)?;
+        Ok(Self {
+            master,
+            segment,
+            clock,
+            offset_ns: None,
+            timed: false,
+        })
+    }
+
+    /// The simulated devices (to inject faults, read a load's true position).
+    pub fn segment(&self) -> &Arc<PiMutex<Segment>> {
+        &self.segment
+    }
+
+    /// The master.
+    pub fn master(&self) -> &EthercatMaster {
+        &self.master
+    }
+}
+
+impl Fieldbus for SimulatedBus {
+    fn layout(&self) -> &ProcessLayout {
+        self.master.layout()
+    }
+
+    fn exchange(
+        &mut self,
+        period_s: f64,
+        outputs: &ProcessOutputs,
+        inputs: &mut ProcessInputs,
+    ) -> Result<(), FieldbusError> {
+        if !std::mem::take(&mut self.timed) && period_s.is_finite() && period_s > 0.0 {
+            self.clock.advance((period_s.min(1.0) * 1e9) as u64);
+        }
+        self.master.exchange(period_s, outputs, inputs)
+    }
+
+    fn cycle_phase_error_ns(&self) -> Option<i64> {
+        self.master.cycle_phase_error_ns()
+    }
+
+    fn inputs_fresh(&self) -> bool {
+        self.master.inputs_fresh()
+    }
+
+    fn set_time_ns(&mut self, now_ns: u64) {
+        let clock = self.clock;
+        let offset = *self
+            .offset_ns
+            .get_or_insert_with(|| clock.now_ns().saturating_sub(now_ns));
+        // Never backwards: the devices' clocks only run forward.
+        clock.sleep_until(now_ns.saturating_add(offset));
+        self.timed = true;
+    }
+}
+
+/// Inputs and outputs of the simulated DIO terminal.
+pub const SIMULATED_DIO_BITS: usize = 8;
+
+/// How the simulated devices behave (the machine file's `[fieldbus.simulation]`).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimulationConfig {
+    /// Rate error of every device's clock against the master's (ppm): the distributed
+    /// clocks compensate it, and the cycle follows the reference clock. Default 0.
+    #[serde(default)]
+    pub drift_ppm: f64,
+    /// Frames lost at this rate from the start (0 to 1). Default 0.
+    #[serde(default)]
+    pub frame_loss_rate: f64,
+    /// Seed of the frame-loss draw. Default 1.
+    #[serde(default = "one")]
+    pub seed: u64,
+}
+
+fn one() -> u64 {
+    1
+}
+
+impl Default for SimulationConfig {
+    fn default() -> Self {
+        Self {
+            drift_ppm: 0.0,
+            frame_loss_rate: 0.0,
+            seed: 1,
+        }
+    }
+}
+
+/// The segment of simulated devices that `config` lists, in bus order. `joints[k]` is the
+/// simulated motor of the drive that moves process-image joint `k` (its drive mode is CSP
+/// whatever it says). Refusals name the key below `fieldbus`.
+pub fn simulated_segment(
+    config: &EthercatConfig,
+    joints: &[SimulatedJointConfig],
+    simulation: &SimulationConfig,
+) -> Result<Segment, ConfigError> {
+    let refuse = |key: String, reason: String| ConfigError { key, reason };
+    if !(0.0..=1.0).contains(&simulation.frame_loss_rate) {
+        return Err(refuse(
+            "simulation.frame_loss_rate".into(),
+            "must be between 0 and 1".into(),
+        ));
+    }
+    if !(simulation.drift_ppm.is_finite() && simulation.drift_ppm.abs() <= 1000.0) {
+        return Err(refuse(
+            "simulation.drift_ppm".into(),
+            "must be within ±1000 ppm".into(),
+        ));
+    }
+    let mut slaves = Vec::with_capacity(config.slaves.len());
+    for (n, slave) in config.slaves.iter().enumerate() {
+        let key = |k: &str| format!("slaves[{n}].{k}");
+        let device = match slave {
+            SlaveConfig::Cia402 {
+                joint,
+                counts_per_unit,
+                rated_torque_nm,
+                ..
+            } => {
+                let Some(motor) = joints.get(*joint) else {
+                    return Err(refuse(
+                        key("joint"),
+                        format!(
+                            "joint {joint} has no simulated drive ({} are simulated)",
+                            joints.len()
+                        ),
+                    ));
+                };
+                let mut motor = motor.clone();
+                motor.drive = DriveMode::Csp;
+                let simulated =
+                    f64::from(motor.encoder_counts_per_revolution) / motor.units_per_revolution;
+                if (simulated - counts_per_unit).abs() > 1e-9 * simulated.abs() {
+                    return Err(refuse(
+                        key("counts_per_unit"),
+                        format!(
+                            "{counts_per_unit} is not the simulated drive's {simulated} \
+                             (encoder_counts_per_revolution / units_per_revolution of joint {joint})"
+                        ),
+                    ));
+                }
+                SimulatedSlave::CspDrive {
+                    count: 1,
+                    drift_ppm: simulation.drift_ppm,
+                    drive: DriveConfig {
+                        rated_torque_mnm: (rated_torque_nm * 1000.0).round().clamp(1.0, 1e9) as u32,
+                        joint: motor,
+                        ..DriveConfig::default()
+                    },
+                }
+            }
+            SlaveConfig::Dio {
+                input_bits,
+                output_bits,
+                inputs,
+                ..
+            } => {
+                for (what, bits) in [("input_bits", input_bits), ("output_bits", output_bits)] {
+                    if *bits != SIMULATED_DIO_BITS {
+                        return Err(refuse(
+                            key(what),
+                            format!("the simulated terminal has {SIMULATED_DIO_BITS}"),
+                        ));
+                    }
+                }
+                // A simulated machine powers up with its e-stop chain closed.
+                let initial_inputs = match config.estop_input {
+                    Some(e) if (*inputs..inputs + SIMULATED_DIO_BITS).contains(&e) => {
+                        1u8 << (e - inputs)
+                    }
+                    _ => 0,
+                };
+                SimulatedSlave::Dio {
+                    count: 1,
+                    drift_ppm: simulation.drift_ppm,
+                    terminal: DioConfig {
+                        initial_inputs,
+                        ..DioConfig::default()
+                    },
+                }
+            }
+        };
+        slaves.push(device);
+    }
+    let segment = SegmentConfig {
+        seed: simulation.seed,
+        frame_loss_rate: simulation.frame_loss_rate,
+        slaves,
+    };
+    segment
+        .build()
+        .map_err(|e| refuse(format!("simulation.{}", e.field), e.reason))
+}
