@@ -66,7 +66,9 @@ pub use monitor::{
     TaskStats,
 };
 pub use realtime::{RealTimeConfig, RealTimeHandle, RealTimeRunner, RtStartError, SchedulingMode};
-pub use sys::{allowed_cpus, executive_priority_for_os, os_fifo_range, os_priority};
+pub use sys::{
+    allowed_cpus, executive_priority_for_os, in_periodic_body, os_fifo_range, os_priority,
+};
 pub use task::{
     Context, Next, PRIORITY_RANGE, Recording, TaskControl, TaskId, TaskSet, TaskSetBuilder,
     ThreadId, Wake,
