@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 
 pub mod commands;
 mod decimal;
+pub mod machines;
 pub mod output;
 
 /// The command line.
@@ -41,6 +42,8 @@ enum Command {
     Api(commands::api::Args),
     /// Manage the API's users.
     User(commands::user::Args),
+    /// List the machines built into rtcnc (`--machine NAME`), or write one into a folder.
+    Machines(commands::machines::Args),
 }
 
 /// Exit status of an error that stopped a command (bad arguments, unreadable files).
@@ -67,6 +70,7 @@ pub fn main() -> ExitCode {
         Command::Machine(args) => commands::machine::run(args),
         Command::Api(args) => commands::api::run(args),
         Command::User(args) => commands::user::run(args),
+        Command::Machines(args) => commands::machines::run(args),
     };
     match result {
         Ok(code) => code,

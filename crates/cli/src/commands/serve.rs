@@ -73,7 +73,9 @@ impl Supervised {
     }
 }
 
-pub fn run(args: ServeArgs) -> anyhow::Result<ExitCode> {
+pub fn run(mut args: ServeArgs) -> anyhow::Result<ExitCode> {
+    // Located once here: both processes get the machine file's path.
+    args.api.machine = crate::machines::locate(&args.api.machine)?;
     let segment = args
         .api
         .segment

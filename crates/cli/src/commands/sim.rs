@@ -21,8 +21,8 @@ use rtcnc_kernel::{
 pub struct Args {
     /// The part program.
     program: PathBuf,
-    /// Machine configuration (TOML).
-    #[arg(long, default_value = "configs/sim-mill.toml")]
+    /// Machine: a shipped machine's name (`rtcnc machines`) or a machine file (TOML).
+    #[arg(long, default_value = crate::machines::DEFAULT)]
     machine: PathBuf,
     /// Write CSV files, plot, trace and summary.json into this folder.
     #[arg(long, value_name = "DIR")]
@@ -55,7 +55,8 @@ pub struct Summary {
     pub messages: Vec<(f64, u32, String)>,
 }
 
-pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
+    args.machine = crate::machines::locate(&args.machine)?;
     let config = MachineConfig::load(&args.machine)
         // The error names the file.
         .context("machine configuration")?;
