@@ -2,6 +2,10 @@
 //! `commands/` and only calls the public API of the layers below. The library holds the
 //! argument grammar, so that tests and the fuzz targets parse exactly what the binary does.
 
+// The doc comments of the argument types are clap's help texts, written as plain text
+// (`[hmi] users`, `rtcnc-<machine file name>`), not as rustdoc's Markdown.
+#![allow(rustdoc::broken_intra_doc_links, rustdoc::invalid_html_tags)]
+
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};

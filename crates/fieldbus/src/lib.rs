@@ -30,6 +30,8 @@
 //! assert_eq!(inputs.joints[0].state(), rtcnc_fieldbus::Cia402State::OperationEnabled);
 //! ```
 
+#![forbid(unsafe_code)]
+
 mod bus;
 pub mod cia402;
 mod image;

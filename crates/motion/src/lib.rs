@@ -12,7 +12,7 @@
 //!   point-to-point moves).
 //!
 //! See `docs/motion.md` for the methods and their guarantees.
-#![warn(missing_docs)]
+#![forbid(unsafe_code)]
 // Numeric code over fixed 9-axis arrays reads best with index loops; negated comparisons are
 // how NaN is refused (`!(x > 0.0)` is true for NaN).
 #![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]

@@ -28,6 +28,8 @@
 //! assert_eq!(plc.read_name("t.ET").unwrap(), rtcnc_plc::Value::Time(20_000_000));
 //! ```
 
+#![forbid(unsafe_code)]
+
 mod ast;
 mod builtins;
 mod compiler;

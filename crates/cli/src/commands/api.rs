@@ -80,6 +80,7 @@ impl Args {
     }
 }
 
+/// Runs `rtcnc api`.
 pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
     if args.print_openapi {
         print!("{}", rtcnc_api::openapi_json());

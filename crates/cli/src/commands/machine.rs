@@ -52,6 +52,7 @@ extern "C" fn on_signal(_: libc::c_int) {
     STOP.store(true, Ordering::SeqCst);
 }
 
+/// Runs `rtcnc machine`.
 pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
     args.machine = crate::machines::locate(&args.machine)?;
     // The error names the file.

@@ -14,6 +14,7 @@ pub struct Args {
     write: Option<Vec<String>>,
 }
 
+/// Runs `rtcnc machines`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if let Some(write) = args.write {
         let [name, dir] = [&write[0], &write[1]];

@@ -164,6 +164,7 @@ fn controlled_stop(handle: &rtcnc_kernel::KernelHandle) {
     });
 }
 
+/// Runs `rtcnc run`.
 pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
     args.machine = crate::machines::locate(&args.machine)?;
     let config = MachineConfig::load(&args.machine)

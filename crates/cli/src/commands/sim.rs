@@ -47,14 +47,19 @@ const MAX_KEPT_MESSAGES: usize = 10_000;
 
 /// What `summary.json` holds.
 pub struct Summary {
+    /// From the start command to the program's end (or to where the run stopped), s.
     pub cycle_time_s: f64,
+    /// Whether the program reached its end.
     pub ended: bool,
+    /// Whether a set-point exceeded an axis's velocity, acceleration or jerk limit.
     pub limits_exceeded: bool,
+    /// The faults, described.
     pub faults: Vec<String>,
     /// Operator messages: time since the program start (s), line, text.
     pub messages: Vec<(f64, u32, String)>,
 }
 
+/// Runs `rtcnc sim`.
 pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
     args.machine = crate::machines::locate(&args.machine)?;
     let config = MachineConfig::load(&args.machine)

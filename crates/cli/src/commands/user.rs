@@ -37,6 +37,7 @@ enum UserCommand {
     },
 }
 
+/// Runs `rtcnc user`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     match args.command {
         UserCommand::Add {
