@@ -376,8 +376,8 @@ pub struct Planner<K: Kinematics> {
     /// Time-optimal S-curve of an isolated straight line (rest to rest) with the id of its
     /// piece: such a move follows the OTG's profile instead of the period-by-period policy.
     line_profiles: [Option<(u64, Profile)>; PROFILE_SLOTS],
-    /// Diagnostic trace of the generator on stderr (`RTCNC_MOTION_TRACE` set when the
-    /// planner is built); never enable on a real-time thread.
+    /// Diagnostic trace of the generator on stderr: the `trace` feature and
+    /// `RTCNC_MOTION_TRACE` set when the planner is built (see `trace!`).
     trace: bool,
     /// The last emitted states, newest last (the newest is `cur`), so that emission can go
     /// back over them ([`Planner::unemit`]); empty capacity: no history. The pieces they
@@ -503,7 +503,7 @@ impl<K: Kinematics> Planner<K> {
             strict: None,
             strict_passed: None,
             line_profiles: [None; PROFILE_SLOTS],
-            trace: std::env::var_os("RTCNC_MOTION_TRACE").is_some(),
+            trace: cfg!(feature = "trace") && std::env::var_os("RTCNC_MOTION_TRACE").is_some(),
             emitted: GenBuffer::new(0, cur),
         })
     }
@@ -1202,9 +1202,10 @@ impl<K: Kinematics> Planner<K> {
                 break;
             }
         }
-        if self.trace {
-            eprintln!("BACKWARD n={n} first_new={first_new} lowest={lowest}");
-        }
+        trace!(
+            self.trace,
+            "BACKWARD n={n} first_new={first_new} lowest={lowest}"
+        );
         // Forward pass: a rise of the curve is capped by the acceleration available, so that
         // the curve has no notches finer than the controller can follow.
         let mut wf = if lowest > 0 {
