@@ -17,6 +17,8 @@ cargo fmt --all -- --check
 (cd fuzz && cargo fmt -- --check)
 echo "== cargo clippy -D warnings"
 cargo clippy --workspace --all-targets --locked -- -D warnings
+# The motion crate's debugging tools build only with its diagnostics feature.
+cargo clippy -p rtcnc-motion --all-targets --features diagnostics --locked -- -D warnings
 echo "== cargo doc, warnings denied"
 RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked
 echo "== cargo test"

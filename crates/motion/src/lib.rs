@@ -18,19 +18,19 @@
 #![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
 
 /// The planner's diagnostic lines on stderr, for debugging the generator: compiled in only
-/// with the crate's `trace` feature, and printed only when the planner's trace is on
+/// with the crate's `diagnostics` feature, and printed only when the planner's trace is on
 /// (`RTCNC_MOTION_TRACE` set when it was built). Without the feature the condition is a
 /// constant false and the line is dead code (still type-checked), so the real-time paths
 /// neither print nor allocate. `trace!(on, "format", args..)` prints a line;
 /// `trace!(on, { statements })` runs a block that prints.
 macro_rules! trace {
     ($on:expr, { $($body:tt)* }) => {
-        if cfg!(feature = "trace") && $on {
+        if cfg!(feature = "diagnostics") && $on {
             $($body)*
         }
     };
     ($on:expr, $($arg:tt)+) => {
-        if cfg!(feature = "trace") && $on {
+        if cfg!(feature = "diagnostics") && $on {
             eprintln!($($arg)+);
         }
     };

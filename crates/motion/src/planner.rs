@@ -85,7 +85,7 @@ struct Hold {
 }
 
 /// Diagnostic dump of one piece: length, braking curve, axis-speed and curvature bounds.
-#[doc(hidden)]
+#[cfg(feature = "diagnostics")]
 pub type PieceDump = (f64, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
 
 /// Fixed-capacity ring of pieces. Pieces carry an id (count since construction): the piece
@@ -376,7 +376,7 @@ pub struct Planner<K: Kinematics> {
     /// Time-optimal S-curve of an isolated straight line (rest to rest) with the id of its
     /// piece: such a move follows the OTG's profile instead of the period-by-period policy.
     line_profiles: [Option<(u64, Profile)>; PROFILE_SLOTS],
-    /// Diagnostic trace of the generator on stderr: the `trace` feature and
+    /// Diagnostic trace of the generator on stderr: the `diagnostics` feature and
     /// `RTCNC_MOTION_TRACE` set when the planner is built (see `trace!`).
     trace: bool,
     /// The last emitted states, newest last (the newest is `cur`), so that emission can go
@@ -503,7 +503,8 @@ impl<K: Kinematics> Planner<K> {
             strict: None,
             strict_passed: None,
             line_profiles: [None; PROFILE_SLOTS],
-            trace: cfg!(feature = "trace") && std::env::var_os("RTCNC_MOTION_TRACE").is_some(),
+            trace: cfg!(feature = "diagnostics")
+                && std::env::var_os("RTCNC_MOTION_TRACE").is_some(),
             emitted: GenBuffer::new(0, cur),
         })
     }
@@ -661,8 +662,8 @@ impl<K: Kinematics> Planner<K> {
     }
 
     /// Diagnostics: per piece of the window, (length, braking curve, axis-speed bound,
-    /// curvature bound) at its samples.
-    #[doc(hidden)]
+    /// curvature bound) at its samples. A debugging aid (feature `diagnostics`); allocates.
+    #[cfg(feature = "diagnostics")]
     pub fn debug_window(&self) -> Vec<PieceDump> {
         (0..self.q.len)
             .map(|i| {
