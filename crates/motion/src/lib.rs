@@ -12,6 +12,18 @@
 //!   point-to-point moves).
 //!
 //! See `docs/motion.md` for the methods and their guarantees.
+//!
+//! # Real-time use
+//!
+//! These may run on a real-time path (no allocation, no blocking call, bounded time; the
+//! planner's are counted by `tests/no_alloc.rs`): [`Planner::push`], [`Planner::push_all`],
+//! [`Planner::flush`], [`Planner::next`], the overrides, [`Planner::hold`],
+//! [`Planner::resume`], [`Planner::abort`], [`Planner::quick_stop`], [`Planner::unemit`],
+//! [`Planner::reset_at`] and the planner's read-only accessors; the [`Move`] constructors;
+//! the [`otg`] functions and their profiles' evaluation. The rest is set-up and may
+//! allocate: [`Planner::new`] and [`Planner::with_history`] (memory is fixed there),
+//! [`TrivialKinematics`]' constructors, [`MachineLimits::validate`] (its error names the
+//! limit), and formatting an error's message.
 #![forbid(unsafe_code)]
 // Numeric code over fixed 9-axis arrays reads best with index loops; negated comparisons are
 // how NaN is refused (`!(x > 0.0)` is true for NaN).
