@@ -4,7 +4,7 @@
 # every axis's v, a, j limit.
 #   bench/motion-stress.sh [PROGRAMS_PER_SEED] [SEEDS]
 # Prints, per seed, how many programs exceeded a limit and the first failing programs in the
-# format of `cargo run -p rtcnc-motion --example debug_line spec` (SPEC="x y z F mode P; ...").
+# format of `cargo run -p rtcnc-motion --features diagnostics --example debug_line spec` (SPEC="x y z F mode P; ...").
 # Then the proptest of tests/random.rs with more cases, and 10^6 mm of path (examples/long_paths.rs).
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -4,8 +4,9 @@
 # exactly this.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-# openssl makes the TLS test's certificate.
-scripts/setup.sh openssl
+# openssl makes the TLS test's certificate; binutils' objdump reads the glibc version the
+# Debian package depends on.
+scripts/setup.sh openssl binutils
 
 # Property tests draw from a fixed seed here, so a commit passes or fails the same way every
 # time; the long randomised runs live in scripts/ and bench/ and pick fresh seeds.
@@ -16,6 +17,10 @@ cargo fmt --all -- --check
 (cd fuzz && cargo fmt -- --check)
 echo "== cargo clippy -D warnings"
 cargo clippy --workspace --all-targets --locked -- -D warnings
+# The motion crate's debugging tools build only with its diagnostics feature.
+cargo clippy -p rtcnc-motion --all-targets --features diagnostics --locked -- -D warnings
+echo "== cargo doc, warnings denied"
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked
 echo "== cargo test"
 cargo test --workspace --locked
 echo "== EtherCAT over veth, 3 s (bench/ethercat.sh 0.05 --debug)"
@@ -25,6 +30,9 @@ echo "== Python client (sdk/python) against a real rtcnc serve"
 scripts/setup-python.sh
 cargo build -p rtcnc --locked
 (cd sdk/python && ../../target/python-venv/bin/python -m pytest -q -p no:cacheprovider tests)
+
+echo "== Debian package (scripts/test-deb.sh: built from the debug build, checked unpacked)"
+scripts/test-deb.sh
 
 echo "== fuzz targets, a short run (scripts/fuzz.sh; the dedicated run is in docs/fuzzing.md)"
 scripts/fuzz.sh --seconds "${FUZZ_SECONDS:-5}"

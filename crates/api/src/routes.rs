@@ -145,6 +145,7 @@ pub async fn lease(State(app): State<Arc<App>>, caller: Caller) -> ApiResult<Jso
     }))
 }
 
+/// Query of `POST /api/lease`.
 #[derive(Debug, Deserialize, IntoParams)]
 pub struct TakeOver {
     /// An admin takes the lease from whoever holds it.
@@ -206,6 +207,7 @@ pub async fn status(State(app): State<Arc<App>>, caller: Caller) -> ApiResult<Js
     Ok(Json(app.status_now()))
 }
 
+/// Query of `GET /api/events`: where to start.
 #[derive(Debug, Deserialize, IntoParams)]
 pub struct Since {
     /// Events after this sequence number (0: all the API keeps).
@@ -231,6 +233,7 @@ pub async fn events(
     )))
 }
 
+/// Query of a command: how long to wait for its acknowledgement.
 #[derive(Debug, Deserialize, IntoParams)]
 pub struct AckWait {
     /// Wait until the acknowledgement is `accepted` or later, or `done` (or refused, failed).

@@ -2,12 +2,17 @@
 //! `commands/` and only calls the public API of the layers below. The library holds the
 //! argument grammar, so that tests and the fuzz targets parse exactly what the binary does.
 
+// The doc comments of the argument types are clap's help texts, written as plain text
+// (`[hmi] users`, `rtcnc-<machine file name>`), not as rustdoc's Markdown.
+#![allow(rustdoc::broken_intra_doc_links, rustdoc::invalid_html_tags)]
+
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
 pub mod commands;
 mod decimal;
+pub mod machines;
 pub mod output;
 pub mod recording;
 
@@ -42,6 +47,8 @@ enum Command {
     Api(commands::api::Args),
     /// Manage the API's users.
     User(commands::user::Args),
+    /// List the machines built into rtcnc (`--machine NAME`), or write one into a folder.
+    Machines(commands::machines::Args),
 }
 
 /// Exit status of an error that stopped a command (bad arguments, unreadable files).
@@ -68,6 +75,7 @@ pub fn main() -> ExitCode {
         Command::Machine(args) => commands::machine::run(args),
         Command::Api(args) => commands::api::run(args),
         Command::User(args) => commands::user::run(args),
+        Command::Machines(args) => commands::machines::run(args),
     };
     match result {
         Ok(code) => code,

@@ -6,6 +6,8 @@ use std::process::Command;
 fn rtcnc() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_rtcnc"));
     c.current_dir(repo());
+    // The shipped machines are written under the data folder: not the user's.
+    c.env("XDG_DATA_HOME", env!("CARGO_TARGET_TMPDIR"));
     c
 }
 

@@ -1,6 +1,9 @@
 //! Cost of one exchange (1 ms, and 100 µs) of the simulated machine with 12 joints (the seeds' 12-drive
 //! machine), per drive mode. A velocity or CSP cycle runs 16 sub-steps of 62.5 µs per joint.
 
+// criterion_group! and criterion_main! make public functions without docs.
+#![allow(missing_docs)]
+
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};

@@ -3,6 +3,12 @@
 //! vocabulary of CiA 402 drives ([`cia402`]: controlword, statusword, the drive state
 //! machine).
 //!
+//! On a real-time path: [`Fieldbus::exchange`] (implementations allocate nothing there),
+//! the trait's other methods, [`check_images`], and the simulated machine's exchange and
+//! its inputs' setters and outputs' getters (`set_estop`, `turn_handwheel`,
+//! `set_digital_input`, ...). Set-up only: the constructors (`SimulatedMachine::new`,
+//! [`ProcessOutputs::new`], [`ProcessInputs::new`] allocate the images).
+//!
 //! The [`sim`] module holds the in-process simulated machine, the embedded default. The
 //! EtherCAT back-end (CiA 402 drives in cyclic synchronous position mode) implements the
 //! same trait in its own crate, `rtcnc-ethercat`.
@@ -29,6 +35,8 @@
 //! }
 //! assert_eq!(inputs.joints[0].state(), rtcnc_fieldbus::Cia402State::OperationEnabled);
 //! ```
+
+#![forbid(unsafe_code)]
 
 mod bus;
 pub mod cia402;

@@ -3,6 +3,9 @@
 //! `cargo bench -p rtcnc-gcode --bench compensation`; bench/compensation.sh puts the figure
 //! next to LinuxCNC rs274's on the same path.
 
+// criterion_group! and criterion_main! make public functions without docs.
+#![allow(missing_docs)]
+
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use rtcnc_gcode::canon::{Canon, CanonCommand, CompensationSide, Pose, Source};
 use rtcnc_gcode::compensation::Compensator;

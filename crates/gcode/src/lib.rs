@@ -16,7 +16,7 @@
 //! # Ok::<(), rtcnc_gcode::GcodeError>(())
 //! ```
 
-#![warn(missing_docs)]
+#![forbid(unsafe_code)]
 
 mod arc_tolerance;
 mod block;

@@ -23,7 +23,6 @@
 //!
 //! Messages between stages are plain data (`messages`); per-cycle code does not allocate.
 //! See `docs/configuration.md` for the machine file and `docs/kernel.md` for the graph.
-#![warn(missing_docs)]
 #![allow(clippy::needless_range_loop)]
 
 mod compensation;

@@ -1,20 +1,48 @@
 //! The real-time tasks allocate nothing per cycle: homing, jogging and the handwheel on the
-//! 12-drive gantry (no interpreter involved; the interpreter task may allocate, it is not
-//! real-time) run thousands of cycles under a counting allocator; so does the mill with
-//! its Structured Text logic and simulated devices.
+//! 12-drive gantry (no interpreter involved) run thousands of cycles under a counting
+//! allocator; so does the mill with its Structured Text logic and simulated devices; and
+//! whole programs (lines, arcs, helices, splines, canned cycles, tool changes, spindle-
+//! synchronised threading) run through every real-time task, whose allocations are counted
+//! apart from the interpreter's and tool compensation's (event tasks, not real-time: they
+//! may allocate).
 
 use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::cell::Cell;
 use std::time::Duration;
 
 use rtcnc_kernel::{Command, Kernel, KernelOptions, MachineConfig, MachineState, Simulation};
 
+mod common;
+
 struct Counting;
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+
+thread_local! {
+    /// Every allocation of this thread (the tests of this file run on parallel threads; a
+    /// simulation runs all its tasks on the thread that runs it).
+    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
+    /// The allocations this thread made inside the body of a periodic (real-time) task.
+    static IN_PERIODIC: Cell<u64> = const { Cell::new(0) };
+}
+
+fn count() {
+    // `try_with`: the allocator also runs while thread-locals are torn down.
+    let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
+    if rtcnc_rt::in_periodic_body() {
+        let _ = IN_PERIODIC.try_with(|n| n.set(n.get() + 1));
+    }
+}
+
+fn allocated() -> u64 {
+    ALLOCATIONS.with(Cell::get)
+}
+
+fn in_periodic() -> u64 {
+    IN_PERIODIC.with(Cell::get)
+}
 
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        count();
         // SAFETY: forwarded unchanged.
         unsafe { System.alloc(layout) }
     }
@@ -23,7 +51,7 @@ unsafe impl GlobalAlloc for Counting {
         unsafe { System.dealloc(ptr, layout) }
     }
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        count();
         // SAFETY: forwarded unchanged.
         unsafe { System.realloc(ptr, layout, new_size) }
     }
@@ -44,7 +72,7 @@ fn gantry_homing_jog_handwheel_and_the_plc_mill_allocate_nothing() {
     sim.run_cycles(2, &mut none).unwrap();
     handle.command(Command::Reset);
     sim.run_cycles(20, &mut none).unwrap();
-    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    let before = allocated();
     handle.command(Command::HomeAll);
     sim.run_cycles(5, &mut none).unwrap();
     let homed = sim
@@ -72,7 +100,7 @@ fn gantry_homing_jog_handwheel_and_the_plc_mill_allocate_nothing() {
         .unwrap()
         .with(|m| m.turn_handwheel(100));
     sim.run_cycles(2000, &mut none).unwrap();
-    let allocations = ALLOCATIONS.load(Ordering::SeqCst) - before;
+    let allocations = allocated() - before;
     assert!(handle.take_faults().is_empty());
     assert!(homed);
     let status = handle.status();
@@ -90,7 +118,7 @@ fn gantry_homing_jog_handwheel_and_the_plc_mill_allocate_nothing() {
     sim.run_cycles(2, &mut none).unwrap();
     handle.command(Command::Reset);
     sim.run_cycles(20, &mut none).unwrap();
-    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    let before = allocated();
     handle.command(Command::JogIncrement {
         axis: 0,
         distance: 5.0,
@@ -120,11 +148,83 @@ fn gantry_homing_jog_handwheel_and_the_plc_mill_allocate_nothing() {
     sim.run_cycles(10, &mut none).unwrap();
     handle.command(Command::Reset);
     sim.run_cycles(100, &mut none).unwrap();
-    let allocations = ALLOCATIONS.load(Ordering::SeqCst) - before;
+    let allocations = allocated() - before;
     let faults: Vec<_> = handle.take_faults().iter().map(|f| f.code).collect();
     assert_eq!(faults, [rtcnc_kernel::FaultCode::EStop]);
     let status = handle.status();
     assert_eq!(status.axes[0], 5.0);
     assert!(status.ready);
     assert_eq!(allocations, 0, "allocations on the mill");
+}
+
+/// Canned cycles (drilling, peck and chip-breaking), a tool change, spindle and coolant.
+const DRILLING: &str = "G21 G90 G17 G94
+T2 M6
+S3000 M3 M8
+G0 X10 Y10 Z2
+G98 G81 X10 Y10 Z-5 R1 F300
+X20
+G83 X30 Y10 Z-8 R1 Q2 F300
+G99 G73 X40 Z-6 R1 Q1.5
+G80
+G0 Z4
+M9 M5
+M2
+";
+
+/// Runs `program` (in `examples/`, or "drilling") on `machine` to its end and returns the allocations made
+/// in periodic task bodies meanwhile (from the start command to the end).
+fn periodic_allocations_of(machine: &str, program: &str) -> u64 {
+    let config = common::config(machine);
+    let path = match program {
+        "drilling" => common::program(DRILLING, "drilling.ngc"),
+        _ => common::repo().join("examples").join(program),
+    };
+    let mut m = common::Machine::new(&config, Some(path));
+    m.power_on();
+    let before = in_periodic();
+    m.command(Command::Start { from_line: 0 });
+    let ended = m.until(600.0, |s| s.program_ended && s.state == MachineState::Idle);
+    let allocations = in_periodic() - before;
+    assert!(
+        ended && m.faults.is_empty(),
+        "{program}: ended {ended}, {:?} {:?}",
+        m.faults,
+        m.sim.handle().error_text()
+    );
+    allocations
+}
+
+#[test]
+fn whole_programs_allocate_nothing_in_the_real_time_tasks() {
+    for (machine, program) in [
+        ("sim-mill.toml", "bracket.ngc"),
+        ("sim-mill.toml", "gcode/arc_corners.ngc"),
+        ("sim-mill.toml", "gcode/splines.ngc"),
+        ("sim-mill.toml", "drilling"),
+        ("sim-mill.toml", "gcode/pocket.ngc"),
+        ("sim-lathe.toml", "lathe-thread.ngc"),
+        ("sim-lathe.toml", "gcode/lathe_roughing.ngc"),
+    ] {
+        let n = periodic_allocations_of(machine, program);
+        assert_eq!(
+            n, 0,
+            "{program} on {machine}: {n} allocations in real-time tasks"
+        );
+    }
+}
+
+/// The count sees what a periodic body allocates, and only that.
+#[test]
+fn the_counter_counts_periodic_bodies_only() {
+    let mut b = rtcnc_rt::TaskSet::builder();
+    let thread = b.periodic_thread("servo", Duration::from_millis(1), 10);
+    b.periodic(thread, "allocates", 1, |ctx| {
+        std::hint::black_box(vec![ctx.activation(); 4]);
+    });
+    let mut runner = rtcnc_rt::VirtualRunner::new(b.build().unwrap());
+    let before = in_periodic();
+    std::hint::black_box(vec![0u8; 16]);
+    runner.run_for(Duration::from_millis(3)).unwrap();
+    assert_eq!(in_periodic() - before, 3);
 }

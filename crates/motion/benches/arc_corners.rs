@@ -5,6 +5,9 @@
 //!
 //! `cargo bench -p rtcnc-motion --bench arc_corners`
 
+// criterion_group! and criterion_main! make public functions without docs.
+#![allow(missing_docs)]
+
 use std::time::Duration;
 
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};

@@ -4,6 +4,9 @@
 //! `cargo bench -p rtcnc-motion --bench otg`; `bench/otg-vs-ruckig.sh` puts ruckig's figures
 //! next to these.
 
+// criterion_group! and criterion_main! make public functions without docs.
+#![allow(missing_docs)]
+
 use std::hint::black_box;
 use std::time::Duration;
 

@@ -1,3 +1,5 @@
+//! A debugging tool: runs one of a few hand-made programs (or `SPEC=...`) through the planner
+//! and prints its statistics; `debug_window` dumps the window.
 #![allow(clippy::needless_range_loop)]
 use rtcnc_motion::*;
 

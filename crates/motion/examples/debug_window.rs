@@ -1,3 +1,5 @@
+//! A debugging tool: prints the planner's look-ahead window (piece lengths, speed bounds)
+//! for a program.
 #![allow(clippy::needless_range_loop)]
 use rtcnc_motion::*;
 fn main() {

@@ -4,7 +4,7 @@
 //! every seed N, COUNT programs of splines alone and COUNT with lines between them, the
 //! test's xorshift generator seeded with N (spline-only) and N + 1000 (with lines).
 //! `SPLINES_ONLY=<lines|splines>:<seed>:<case>` runs one program and prints its moves
-//! (with `RTCNC_MOTION_TRACE=1` for a trace).
+//! (built with `--features diagnostics` and run with `RTCNC_MOTION_TRACE=1` for a trace).
 #![allow(clippy::needless_range_loop)]
 
 #[path = "../tests/support/spline_programs.rs"]

@@ -53,7 +53,7 @@ fn main() {
         } else {
             Vec::new()
         };
-        // STRESS_ONLY=<case>: run only that program (for a trace with RTCNC_MOTION_TRACE).
+        // STRESS_ONLY=<case>: run only that program (for a trace: `--features diagnostics` and RTCNC_MOTION_TRACE=1).
         let only = std::env::var("STRESS_ONLY")
             .ok()
             .and_then(|x| x.parse::<usize>().ok());

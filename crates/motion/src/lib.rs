@@ -12,10 +12,41 @@
 //!   point-to-point moves).
 //!
 //! See `docs/motion.md` for the methods and their guarantees.
-#![warn(missing_docs)]
+//!
+//! # Real-time use
+//!
+//! These may run on a real-time path (no allocation, no blocking call, bounded time; the
+//! planner's are counted by `tests/no_alloc.rs`): [`Planner::push`], [`Planner::push_all`],
+//! [`Planner::flush`], [`Planner::next`], the overrides, [`Planner::hold`],
+//! [`Planner::resume`], [`Planner::abort`], [`Planner::quick_stop`], [`Planner::unemit`],
+//! [`Planner::reset_at`] and the planner's read-only accessors; the [`Move`] constructors;
+//! the [`otg`] functions and their profiles' evaluation. The rest is set-up and may
+//! allocate: [`Planner::new`] and [`Planner::with_history`] (memory is fixed there),
+//! [`TrivialKinematics`]' constructors, [`MachineLimits::validate`] (its error names the
+//! limit), and formatting an error's message.
+#![forbid(unsafe_code)]
 // Numeric code over fixed 9-axis arrays reads best with index loops; negated comparisons are
 // how NaN is refused (`!(x > 0.0)` is true for NaN).
 #![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
+
+/// The planner's diagnostic lines on stderr, for debugging the generator: compiled in only
+/// with the crate's `diagnostics` feature, and printed only when the planner's trace is on
+/// (`RTCNC_MOTION_TRACE` set when it was built). Without the feature the condition is a
+/// constant false and the line is dead code (still type-checked), so the real-time paths
+/// neither print nor allocate. `trace!(on, "format", args..)` prints a line;
+/// `trace!(on, { statements })` runs a block that prints.
+macro_rules! trace {
+    ($on:expr, { $($body:tt)* }) => {
+        if cfg!(feature = "diagnostics") && $on {
+            $($body)*
+        }
+    };
+    ($on:expr, $($arg:tt)+) => {
+        if cfg!(feature = "diagnostics") && $on {
+            eprintln!($($arg)+);
+        }
+    };
+}
 
 mod axes;
 mod builder;

@@ -85,7 +85,7 @@ struct Hold {
 }
 
 /// Diagnostic dump of one piece: length, braking curve, axis-speed and curvature bounds.
-#[doc(hidden)]
+#[cfg(feature = "diagnostics")]
 pub type PieceDump = (f64, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
 
 /// Fixed-capacity ring of pieces. Pieces carry an id (count since construction): the piece
@@ -378,8 +378,8 @@ pub struct Planner<K: Kinematics> {
     /// Time-optimal S-curve of an isolated straight line (rest to rest) with the id of its
     /// piece: such a move follows the OTG's profile instead of the period-by-period policy.
     line_profiles: [Option<(u64, Profile)>; PROFILE_SLOTS],
-    /// Diagnostic trace of the generator on stderr (`RTCNC_MOTION_TRACE` set when the
-    /// planner is built); never enable on a real-time thread.
+    /// Diagnostic trace of the generator on stderr: the `diagnostics` feature and
+    /// `RTCNC_MOTION_TRACE` set when the planner is built (see `trace!`).
     trace: bool,
     /// The last emitted states, newest last (the newest is `cur`), so that emission can go
     /// back over them ([`Planner::unemit`]); empty capacity: no history. The pieces they
@@ -505,7 +505,8 @@ impl<K: Kinematics> Planner<K> {
             strict: None,
             strict_passed: None,
             line_profiles: [None; PROFILE_SLOTS],
-            trace: std::env::var_os("RTCNC_MOTION_TRACE").is_some(),
+            trace: cfg!(feature = "diagnostics")
+                && std::env::var_os("RTCNC_MOTION_TRACE").is_some(),
             emitted: GenBuffer::new(0, cur),
         })
     }
@@ -663,8 +664,8 @@ impl<K: Kinematics> Planner<K> {
     }
 
     /// Diagnostics: per piece of the window, (length, braking curve, axis-speed bound,
-    /// curvature bound) at its samples.
-    #[doc(hidden)]
+    /// curvature bound) at its samples. A debugging aid (feature `diagnostics`); allocates.
+    #[cfg(feature = "diagnostics")]
     pub fn debug_window(&self) -> Vec<PieceDump> {
         (0..self.q.len)
             .map(|i| {
@@ -1211,9 +1212,10 @@ impl<K: Kinematics> Planner<K> {
                 break;
             }
         }
-        if self.trace {
-            eprintln!("BACKWARD n={n} first_new={first_new} lowest={lowest}");
-        }
+        trace!(
+            self.trace,
+            "BACKWARD n={n} first_new={first_new} lowest={lowest}"
+        );
         // Forward pass: a rise of the curve is capped by the acceleration available, so that
         // the curve has no notches finer than the controller can follow.
         let mut wf = if lowest > 0 {

@@ -421,50 +421,57 @@ impl SplineP {
         self.splits[0] = 0.0;
         if at_dip && n >= 2 {
             // Cuts at the deepest interior minima of the parametric speed, then at the cost
-            // midpoint of the costliest piece.
-            let speed: Vec<f64> = (0..=GRID)
-                .map(|k| norm(&self.d1(k as f64 / GRID as f64)))
-                .collect();
+            // midpoint of the costliest piece. Fixed arrays: this runs inside `push`.
+            let mut speed = [0.0; GRID + 1];
+            for (k, s) in speed.iter_mut().enumerate() {
+                *s = norm(&self.d1(k as f64 / GRID as f64));
+            }
             let top = speed.iter().cloned().fold(0.0, f64::max);
-            let mut dips: Vec<usize> = (2..GRID - 1)
-                .filter(|&k| speed[k] < speed[k - 1] && speed[k] <= speed[k + 1])
-                .filter(|&k| speed[k] < 0.5 * top)
-                .collect();
-            dips.sort_by(|a, b| speed[*a].total_cmp(&speed[*b]));
-            dips.truncate(n - 1);
+            let mut dips = [0usize; GRID];
+            let mut n_dips = 0;
+            for k in 2..GRID - 1 {
+                if speed[k] < speed[k - 1] && speed[k] <= speed[k + 1] && speed[k] < 0.5 * top {
+                    dips[n_dips] = k;
+                    n_dips += 1;
+                }
+            }
+            // Deepest first, the earlier of equal depths first.
+            dips[..n_dips].sort_unstable_by(|a, b| speed[*a].total_cmp(&speed[*b]).then(a.cmp(b)));
+            let n_dips = n_dips.min(n - 1);
             // Each minimum refined by golden-section search within its grid cells.
-            let mut cuts: Vec<f64> = dips
-                .iter()
-                .map(|&k| {
-                    let h = 1.0 / GRID as f64;
-                    let (mut lo, mut hi) = ((k - 1) as f64 * h, (k + 1) as f64 * h);
-                    let g = 0.5 * (5f64.sqrt() - 1.0);
-                    for _ in 0..50 {
-                        let (x1, x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
-                        if norm(&self.d1(x1)) < norm(&self.d1(x2)) {
-                            hi = x2;
-                        } else {
-                            lo = x1;
-                        }
+            let mut cuts = [0.0; SPLINE_PIECES];
+            for (cut, &k) in cuts.iter_mut().zip(&dips[..n_dips]) {
+                let h = 1.0 / GRID as f64;
+                let (mut lo, mut hi) = ((k - 1) as f64 * h, (k + 1) as f64 * h);
+                let g = 0.5 * (5f64.sqrt() - 1.0);
+                for _ in 0..50 {
+                    let (x1, x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
+                    if norm(&self.d1(x1)) < norm(&self.d1(x2)) {
+                        hi = x2;
+                    } else {
+                        lo = x1;
                     }
-                    0.5 * (lo + hi)
-                })
-                .collect();
+                }
+                *cut = 0.5 * (lo + hi);
+            }
+            let mut n_cuts = n_dips;
             let cost_at = |u: f64| cum[((u * GRID as f64).round() as usize).min(GRID)];
-            while cuts.len() < n - 1 {
-                cuts.sort_by(f64::total_cmp);
-                let mut bounds = vec![0.0];
-                bounds.extend(cuts.iter().cloned());
-                bounds.push(1.0);
-                let (i, _) = bounds
+            while n_cuts < n - 1 {
+                cuts[..n_cuts].sort_unstable_by(f64::total_cmp);
+                let mut bounds = [0.0; SPLINE_PIECES + 1];
+                bounds[1..=n_cuts].copy_from_slice(&cuts[..n_cuts]);
+                bounds[n_cuts + 1] = 1.0;
+                let (i, _) = bounds[..n_cuts + 2]
                     .windows(2)
                     .enumerate()
                     .map(|(i, w)| (i, cost_at(w[1]) - cost_at(w[0])))
                     .fold((0, f64::MIN), |m, x| if x.1 > m.1 { x } else { m });
                 let mid = 0.5 * (cost_at(bounds[i]) + cost_at(bounds[i + 1]));
-                cuts.push(at_cost(mid));
+                cuts[n_cuts] = at_cost(mid);
+                n_cuts += 1;
             }
-            cuts.sort_by(f64::total_cmp);
+            let cuts = &mut cuts[..n_cuts];
+            cuts.sort_unstable_by(f64::total_cmp);
             for (m, u) in cuts.iter().enumerate() {
                 self.splits[m + 1] = *u;
             }

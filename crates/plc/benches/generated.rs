@@ -4,6 +4,7 @@
 
 use std::fmt::Write as _;
 
+/// The program of `rungs` statements, as ST source text.
 pub fn ladder_program(rungs: usize) -> String {
     let timers = rungs / 4;
     let coils = rungs - timers;

@@ -199,329 +199,398 @@ pub(crate) fn call(
         ));
     }
     let args = ordered(c, f, args)?;
-    let mut a = c.b_args(&args, sc, f)?;
+    let a = c.b_args(&args, sc, f)?;
     match f {
-        "ABS" => {
-            count(c, f, &a, 1, 1, pos)?;
-            match a[0].0.ty {
-                Ty::AnyInt(v) => return Ok(Compiler::te(Ty::AnyInt(v.abs()), vm::Expr::Const(0))),
-                Ty::AnyReal(v) => {
-                    return Ok(Compiler::te(Ty::AnyReal(v.abs()), vm::Expr::Const(0)));
-                }
-                Ty::T(_) => {}
-            }
-            let (t, p) = (a[0].0.ty.clone(), a[0].1);
-            let ty = match &t {
-                Ty::AnyInt(_) => Type::Elem(Elem::DInt),
-                Ty::AnyReal(_) => Type::Elem(Elem::LReal),
-                Ty::T(t) => t
-                    .elem()
-                    .filter(|e| e.is_num())
-                    .map(Type::Elem)
-                    .ok_or_else(|| wrong(c, f, &Ty::T(t.clone()), p, "a number"))?,
-            };
-            let e = ty.elem().unwrap_or(Elem::DInt);
-            let x = c.coerce_to(a.remove(0).0, &ty, p)?;
-            let b = if e.is_real() {
-                Builtin::AbsR(e == Elem::Real)
-            } else {
-                Builtin::AbsI(ik(e))
-            };
-            Ok(Compiler::te(
-                Ty::T(ty),
-                c.folded(builtin_expr(b, vec![x], 0)),
-            ))
-        }
+        "ABS" => abs(c, f, a, pos),
         "SQRT" | "LN" | "LOG" | "EXP" | "SIN" | "COS" | "TAN" | "ASIN" | "ACOS" | "ATAN" => {
-            count(c, f, &a, 1, 1, pos)?;
-            let literal = match a[0].0.ty {
-                Ty::AnyInt(v) => Some(v as f64),
-                Ty::AnyReal(v) => Some(v),
-                Ty::T(_) => None,
-            };
-            if let Some(x) = literal {
-                // A function of a literal is a literal (and takes the type it is used as).
-                let v = match f {
-                    "SQRT" => x.sqrt(),
-                    "LN" => x.ln(),
-                    "LOG" => x.log10(),
-                    "EXP" => x.exp(),
-                    "SIN" => x.sin(),
-                    "COS" => x.cos(),
-                    "TAN" => x.tan(),
-                    "ASIN" => x.asin(),
-                    "ACOS" => x.acos(),
-                    _ => x.atan(),
-                };
-                return Ok(Compiler::te(Ty::AnyReal(v), vm::Expr::Const(0)));
-            }
-            let p = a[0].1;
-            let e = real_type(&a[0].0.ty).ok_or_else(|| wrong(c, f, &a[0].0.ty, p, "a real"))?;
-            let x = c.coerce_to(a.remove(0).0, &Type::Elem(e), p)?;
-            let s = e == Elem::Real;
-            let b = match f {
-                "SQRT" => Builtin::Sqrt(s),
-                "LN" => Builtin::Ln(s),
-                "LOG" => Builtin::Log(s),
-                "EXP" => Builtin::Exp(s),
-                "SIN" => Builtin::Sin(s),
-                "COS" => Builtin::Cos(s),
-                "TAN" => Builtin::Tan(s),
-                "ASIN" => Builtin::Asin(s),
-                "ACOS" => Builtin::Acos(s),
-                _ => Builtin::Atan(s),
-            };
-            Ok(Compiler::te(
-                Ty::T(Type::Elem(e)),
-                builtin_expr(b, vec![x], 0),
-            ))
+            real_function(c, f, a, pos)
         }
-        "ATAN2" | "EXPT" => {
-            count(c, f, &a, 2, 2, pos)?;
-            let lit = |t: &Ty| match t {
-                Ty::AnyInt(v) => Some(*v as f64),
-                Ty::AnyReal(v) => Some(*v),
-                Ty::T(_) => None,
-            };
-            if let (Some(x), Some(y)) = (lit(&a[0].0.ty), lit(&a[1].0.ty)) {
-                let v = if f == "EXPT" { x.powf(y) } else { x.atan2(y) };
-                return Ok(Compiler::te(Ty::AnyReal(v), vm::Expr::Const(0)));
-            }
-            let p0 = a[0].1;
-            let e = real_type(&a[0].0.ty).ok_or_else(|| wrong(c, f, &a[0].0.ty, p0, "a real"))?;
-            let t = Type::Elem(e);
-            let (x, y) = (a.remove(0), a.remove(0));
-            let xe = c.coerce_to(x.0, &t, x.1)?;
-            let ye = if f == "EXPT" {
-                let ey = real_type(&y.0.ty).ok_or_else(|| wrong(c, f, &y.0.ty, y.1, "a number"))?;
-                let ee = c.coerce_to(y.0, &Type::Elem(ey), y.1)?;
-                c.conversion(ee, ey, Elem::LReal)
-            } else {
-                c.coerce_to(y.0, &t, y.1)?
-            };
-            let s = e == Elem::Real;
-            if f == "EXPT" {
-                let xl = c.conversion(xe, e, Elem::LReal);
-                let r = vm::Expr::Bin(vm::Bin::PowR(s), Box::new((xl, ye)));
-                Ok(Compiler::te(Ty::T(t), c.folded(r)))
-            } else {
-                Ok(Compiler::te(
-                    Ty::T(t),
-                    builtin_expr(Builtin::Atan2(s), vec![xe, ye], 0),
-                ))
-            }
-        }
-        "ADD" | "MUL" | "SUB" | "DIV" | "MOD" | "AND" | "OR" | "XOR" => {
-            let (min, max) = if matches!(f, "ADD" | "MUL" | "AND" | "OR" | "XOR") {
-                (2, usize::MAX)
-            } else {
-                (2, 2)
-            };
-            count(c, f, &a, min, max, pos)?;
-            let op = match f {
-                "ADD" => BinOp::Add,
-                "MUL" => BinOp::Mul,
-                "SUB" => BinOp::Sub,
-                "DIV" => BinOp::Div,
-                "AND" => BinOp::And,
-                "OR" => BinOp::Or,
-                "XOR" => BinOp::Xor,
-                _ => BinOp::Mod,
-            };
-            let mut it = a.into_iter();
-            let Some((mut acc, _)) = it.next() else {
-                return Err(c.err_at(pos, ErrorKind::WrongArgument, "arguments missing"));
-            };
-            for (x, p) in it {
-                acc = c.binary_op(op, acc, x, p)?;
-            }
-            Ok(acc)
-        }
-        "MOVE" => {
-            count(c, f, &a, 1, 1, pos)?;
-            Ok(a.remove(0).0)
-        }
-        "SHL" | "SHR" | "ROL" | "ROR" => {
-            count(c, f, &a, 2, 2, pos)?;
-            let (x, n) = (a.remove(0), a.remove(0));
-            let ty = match &x.0.ty {
-                Ty::T(t) if t.elem().is_some_and(|e| e.is_bit()) => t.clone(),
-                Ty::AnyInt(_) => Type::Elem(Elem::DWord),
-                t => {
-                    return Err(wrong(
-                        c,
-                        f,
-                        t,
-                        x.1,
-                        "a bit string (BYTE, WORD, DWORD, LWORD)",
-                    ));
-                }
-            };
-            let k = ik(ty.elem().unwrap_or(Elem::DWord));
-            let xe = c.coerce_to(x.0, &ty, x.1)?;
-            let ne = int_arg(c, f, n)?;
-            let b = match f {
-                "SHL" => Builtin::Shl(k),
-                "SHR" => Builtin::Shr(k),
-                "ROL" => Builtin::Rol(k),
-                _ => Builtin::Ror(k),
-            };
-            Ok(Compiler::te(Ty::T(ty), builtin_expr(b, vec![xe, ne], 0)))
-        }
-        "SEL" => {
-            count(c, f, &a, 3, 3, pos)?;
-            let g = a.remove(0);
-            let ge = c.coerce_to(g.0, &Type::BOOL, g.1).map_err(|_| {
-                c.err_at(g.1, ErrorKind::WrongArgument, "SEL needs a BOOL selector G")
-            })?;
-            let (ty, vals) = common_values(c, f, a, pos, expect)?;
-            let mut v = vec![ge];
-            v.extend(vals);
-            Ok(Compiler::te(Ty::T(ty), builtin_expr(Builtin::Sel, v, 0)))
-        }
-        "MUX" => {
-            count(c, f, &a, 2, usize::MAX, pos)?;
-            let k = a.remove(0);
-            let ke = int_arg(c, f, k)?;
-            let (ty, vals) = common_values(c, f, a, pos, expect)?;
-            let mut v = vec![ke];
-            v.extend(vals);
-            Ok(Compiler::te(Ty::T(ty), builtin_expr(Builtin::Mux, v, 0)))
-        }
-        "MAX" | "MIN" | "LIMIT" => {
-            if f == "LIMIT" {
-                count(c, f, &a, 3, 3, pos)?;
-            } else {
-                count(c, f, &a, 2, usize::MAX, pos)?;
-            }
-            let (ty, vals) = common_values(c, f, a, pos, expect)?;
-            let Some(e) = ty
-                .elem()
-                .filter(|e| e.is_num() || e.is_bit() || *e == Elem::Time)
-            else {
-                return Err(c.err_at(
-                    pos,
-                    ErrorKind::WrongArgument,
-                    format!("{f} needs numbers, bit strings or TIME"),
-                ));
-            };
-            let b = match (f, e.is_real()) {
-                ("MAX", true) => Builtin::MaxR,
-                ("MIN", true) => Builtin::MinR,
-                ("LIMIT", true) => Builtin::LimitR,
-                ("MAX", false) => Builtin::MaxI(ik(e).signed()),
-                ("MIN", false) => Builtin::MinI(ik(e).signed()),
-                _ => Builtin::LimitI(ik(e).signed()),
-            };
-            Ok(Compiler::te(Ty::T(ty), builtin_expr(b, vals, 0)))
-        }
-        "GT" | "GE" | "EQ" | "LE" | "LT" | "NE" => {
-            let max = if f == "NE" { 2 } else { usize::MAX };
-            count(c, f, &a, 2, max, pos)?;
-            let op = match f {
-                "GT" => BinOp::Gt,
-                "GE" => BinOp::Ge,
-                "EQ" => BinOp::Eq,
-                "LE" => BinOp::Le,
-                "LT" => BinOp::Lt,
-                _ => BinOp::Ne,
-            };
-            if a.len() == 2 {
-                let (x, y) = (a.remove(0), a.remove(0));
-                return c.binary_op(op, x.0, y.0, y.1);
-            }
-            // GT(a, b, c) = (a > b) AND (b > c): middle inputs are compiled into two
-            // comparisons, so they may not call anything (no double side effects).
-            for arg in &args[1..args.len() - 1] {
-                if let Arg::Positional(e) = arg {
-                    if has_call(e) {
-                        return Err(c.err_at(
-                            e.pos(),
-                            ErrorKind::WrongArgument,
-                            format!(
-                                "{f}: middle inputs of a chained comparison may not call functions"
-                            ),
-                        ));
-                    }
-                }
-            }
-            let mut acc: Option<TE> = None;
-            for i in 0..args.len() - 1 {
-                let mut pair = c.b_args(&args[i..i + 2], sc, f)?;
-                let (x, y) = (pair.remove(0), pair.remove(0));
-                let cmp = c.binary_op(op, x.0, y.0, y.1)?;
-                acc = Some(match acc {
-                    None => cmp,
-                    Some(prev) => c.binary_op(BinOp::And, prev, cmp, pos)?,
-                });
-            }
-            acc.ok_or_else(|| c.err_at(pos, ErrorKind::WrongArgument, format!("{f} needs inputs")))
-        }
-        "LEN" => {
-            count(c, f, &a, 1, 1, pos)?;
-            let s = string_arg(c, f, a.remove(0))?;
-            let e = builtin_expr(Builtin::Len, vec![s], 0);
-            Ok(Compiler::te(Ty::T(Type::Elem(Elem::Int)), e))
-        }
-        "FIND" => {
-            count(c, f, &a, 2, 2, pos)?;
-            let s1 = string_arg(c, f, a.remove(0))?;
-            let s2 = string_arg(c, f, a.remove(0))?;
-            Ok(Compiler::te(
-                Ty::T(Type::Elem(Elem::Int)),
-                builtin_expr(Builtin::Find, vec![s1, s2], 0),
-            ))
-        }
+        "ATAN2" | "EXPT" => real_pair(c, f, a, pos),
+        "ADD" | "MUL" | "SUB" | "DIV" | "MOD" | "AND" | "OR" | "XOR" => arithmetic(c, f, a, pos),
+        "MOVE" => move_value(c, f, a, pos),
+        "SHL" | "SHR" | "ROL" | "ROR" => shift(c, f, a, pos),
+        "SEL" => select(c, f, a, expect, pos),
+        "MUX" => multiplex(c, f, a, expect, pos),
+        "MAX" | "MIN" | "LIMIT" => extremum(c, f, a, expect, pos),
+        "GT" | "GE" | "EQ" | "LE" | "LT" | "NE" => comparison(c, f, a, &args, sc, pos),
+        "LEN" => length(c, f, a, pos),
+        "FIND" => find(c, f, a, pos),
         "LEFT" | "RIGHT" | "MID" | "CONCAT" | "INSERT" | "DELETE" | "REPLACE" => {
-            let (b, shape): (Builtin, &[bool]) = match f {
-                "LEFT" => (Builtin::Left, &[true, false]),
-                "RIGHT" => (Builtin::Right, &[true, false]),
-                "MID" => (Builtin::Mid, &[true, false, false]),
-                "INSERT" => (Builtin::Insert, &[true, true, false]),
-                "DELETE" => (Builtin::Delete, &[true, false, false]),
-                "REPLACE" => (Builtin::Replace, &[true, true, false, false]),
-                _ => (Builtin::Concat, &[]),
-            };
-            let mut vals = Vec::new();
-            if f == "CONCAT" {
-                count(c, f, &a, 2, usize::MAX, pos)?;
-                for x in a {
-                    vals.push(string_arg(c, f, x)?);
-                }
-            } else {
-                count(c, f, &a, shape.len(), shape.len(), pos)?;
-                for (x, is_str) in a.into_iter().zip(shape.iter()) {
-                    vals.push(if *is_str {
-                        string_arg(c, f, x)?
-                    } else {
-                        int_arg(c, f, x)?
-                    });
-                }
-            }
-            let dest = c.new_string_temp(pos)?;
-            Ok(Compiler::te(
-                Ty::T(Type::String(MAX_STRING_LEN)),
-                builtin_expr(b, vals, dest),
-            ))
+            string_function(c, f, a, pos)
         }
-        "TRUNC" => {
-            count(c, f, &a, 1, 1, pos)?;
-            let p = a[0].1;
-            let e = real_type(&a[0].0.ty)
-                .filter(|e| e.is_real())
-                .ok_or_else(|| wrong(c, f, &a[0].0.ty, p, "a real"))?;
-            let x = c.coerce_to(a.remove(0).0, &Type::Elem(e), p)?;
-            Ok(Compiler::te(
-                Ty::T(Type::Elem(Elem::DInt)),
-                c.folded(vm::Expr::Conv(Conv::RealTrunc(IntKind::I32), Box::new(x))),
-            ))
-        }
+        "TRUNC" => trunc(c, f, a, pos),
         _ => Err(c.err_at(
             name.pos,
             ErrorKind::Undeclared,
             format!("'{f}' is not a declared function"),
         )),
     }
+}
+
+/// `ABS`: of a literal, a literal; else the same number type.
+fn abs(c: &mut Compiler, f: &str, mut a: Vec<(TE, Pos)>, pos: Pos) -> R<TE> {
+    count(c, f, &a, 1, 1, pos)?;
+    match a[0].0.ty {
+        Ty::AnyInt(v) => return Ok(Compiler::te(Ty::AnyInt(v.abs()), vm::Expr::Const(0))),
+        Ty::AnyReal(v) => {
+            return Ok(Compiler::te(Ty::AnyReal(v.abs()), vm::Expr::Const(0)));
+        }
+        Ty::T(_) => {}
+    }
+    let (t, p) = (a[0].0.ty.clone(), a[0].1);
+    let ty = match &t {
+        Ty::AnyInt(_) => Type::Elem(Elem::DInt),
+        Ty::AnyReal(_) => Type::Elem(Elem::LReal),
+        Ty::T(t) => t
+            .elem()
+            .filter(|e| e.is_num())
+            .map(Type::Elem)
+            .ok_or_else(|| wrong(c, f, &Ty::T(t.clone()), p, "a number"))?,
+    };
+    let e = ty.elem().unwrap_or(Elem::DInt);
+    let x = c.coerce_to(a.remove(0).0, &ty, p)?;
+    let b = if e.is_real() {
+        Builtin::AbsR(e == Elem::Real)
+    } else {
+        Builtin::AbsI(ik(e))
+    };
+    Ok(Compiler::te(
+        Ty::T(ty),
+        c.folded(builtin_expr(b, vec![x], 0)),
+    ))
+}
+
+/// `SQRT`, `LN`, `LOG`, `EXP` and the trigonometric functions of one real.
+fn real_function(c: &mut Compiler, f: &str, mut a: Vec<(TE, Pos)>, pos: Pos) -> R<TE> {
+    count(c, f, &a, 1, 1, pos)?;
+    let literal = match a[0].0.ty {
+        Ty::AnyInt(v) => Some(v as f64),
+        Ty::AnyReal(v) => Some(v),
+        Ty::T(_) => None,
+    };
+    if let Some(x) = literal {
+        // A function of a literal is a literal (and takes the type it is used as).
+        let v = match f {
+            "SQRT" => x.sqrt(),
+            "LN" => x.ln(),
+            "LOG" => x.log10(),
+            "EXP" => x.exp(),
+            "SIN" => x.sin(),
+            "COS" => x.cos(),
+            "TAN" => x.tan(),
+            "ASIN" => x.asin(),
+            "ACOS" => x.acos(),
+            _ => x.atan(),
+        };
+        return Ok(Compiler::te(Ty::AnyReal(v), vm::Expr::Const(0)));
+    }
+    let p = a[0].1;
+    let e = real_type(&a[0].0.ty).ok_or_else(|| wrong(c, f, &a[0].0.ty, p, "a real"))?;
+    let x = c.coerce_to(a.remove(0).0, &Type::Elem(e), p)?;
+    let s = e == Elem::Real;
+    let b = match f {
+        "SQRT" => Builtin::Sqrt(s),
+        "LN" => Builtin::Ln(s),
+        "LOG" => Builtin::Log(s),
+        "EXP" => Builtin::Exp(s),
+        "SIN" => Builtin::Sin(s),
+        "COS" => Builtin::Cos(s),
+        "TAN" => Builtin::Tan(s),
+        "ASIN" => Builtin::Asin(s),
+        "ACOS" => Builtin::Acos(s),
+        _ => Builtin::Atan(s),
+    };
+    Ok(Compiler::te(
+        Ty::T(Type::Elem(e)),
+        builtin_expr(b, vec![x], 0),
+    ))
+}
+
+/// `ATAN2` and `EXPT` (a real to the power of any number).
+fn real_pair(c: &mut Compiler, f: &str, mut a: Vec<(TE, Pos)>, pos: Pos) -> R<TE> {
+    count(c, f, &a, 2, 2, pos)?;
+    let lit = |t: &Ty| match t {
+        Ty::AnyInt(v) => Some(*v as f64),
+        Ty::AnyReal(v) => Some(*v),
+        Ty::T(_) => None,
+    };
+    if let (Some(x), Some(y)) = (lit(&a[0].0.ty), lit(&a[1].0.ty)) {
+        let v = if f == "EXPT" { x.powf(y) } else { x.atan2(y) };
+        return Ok(Compiler::te(Ty::AnyReal(v), vm::Expr::Const(0)));
+    }
+    let p0 = a[0].1;
+    let e = real_type(&a[0].0.ty).ok_or_else(|| wrong(c, f, &a[0].0.ty, p0, "a real"))?;
+    let t = Type::Elem(e);
+    let (x, y) = (a.remove(0), a.remove(0));
+    let xe = c.coerce_to(x.0, &t, x.1)?;
+    let ye = if f == "EXPT" {
+        let ey = real_type(&y.0.ty).ok_or_else(|| wrong(c, f, &y.0.ty, y.1, "a number"))?;
+        let ee = c.coerce_to(y.0, &Type::Elem(ey), y.1)?;
+        c.conversion(ee, ey, Elem::LReal)
+    } else {
+        c.coerce_to(y.0, &t, y.1)?
+    };
+    let s = e == Elem::Real;
+    if f == "EXPT" {
+        let xl = c.conversion(xe, e, Elem::LReal);
+        let r = vm::Expr::Bin(vm::Bin::PowR(s), Box::new((xl, ye)));
+        Ok(Compiler::te(Ty::T(t), c.folded(r)))
+    } else {
+        Ok(Compiler::te(
+            Ty::T(t),
+            builtin_expr(Builtin::Atan2(s), vec![xe, ye], 0),
+        ))
+    }
+}
+
+/// `ADD`, `MUL`, `AND`, `OR`, `XOR` of two or more inputs; `SUB`, `DIV`, `MOD` of two.
+fn arithmetic(c: &mut Compiler, f: &str, a: Vec<(TE, Pos)>, pos: Pos) -> R<TE> {
+    let (min, max) = if matches!(f, "ADD" | "MUL" | "AND" | "OR" | "XOR") {
+        (2, usize::MAX)
+    } else {
+        (2, 2)
+    };
+    count(c, f, &a, min, max, pos)?;
+    let op = match f {
+        "ADD" => BinOp::Add,
+        "MUL" => BinOp::Mul,
+        "SUB" => BinOp::Sub,
+        "DIV" => BinOp::Div,
+        "AND" => BinOp::And,
+        "OR" => BinOp::Or,
+        "XOR" => BinOp::Xor,
+        _ => BinOp::Mod,
+    };
+    let mut it = a.into_iter();
+    let Some((mut acc, _)) = it.next() else {
+        return Err(c.err_at(pos, ErrorKind::WrongArgument, "arguments missing"));
+    };
+    for (x, p) in it {
+        acc = c.binary_op(op, acc, x, p)?;
+    }
+    Ok(acc)
+}
+
+/// `MOVE`: its input.
+fn move_value(c: &mut Compiler, f: &str, mut a: Vec<(TE, Pos)>, pos: Pos) -> R<TE> {
+    count(c, f, &a, 1, 1, pos)?;
+    Ok(a.remove(0).0)
+}
+
+/// `SHL`, `SHR`, `ROL`, `ROR` of a bit string.
+fn shift(c: &mut Compiler, f: &str, mut a: Vec<(TE, Pos)>, pos: Pos) -> R<TE> {
+    count(c, f, &a, 2, 2, pos)?;
+    let (x, n) = (a.remove(0), a.remove(0));
+    let ty = match &x.0.ty {
+        Ty::T(t) if t.elem().is_some_and(|e| e.is_bit()) => t.clone(),
+        Ty::AnyInt(_) => Type::Elem(Elem::DWord),
+        t => {
+            return Err(wrong(
+                c,
+                f,
+                t,
+                x.1,
+                "a bit string (BYTE, WORD, DWORD, LWORD)",
+            ));
+        }
+    };
+    let k = ik(ty.elem().unwrap_or(Elem::DWord));
+    let xe = c.coerce_to(x.0, &ty, x.1)?;
+    let ne = int_arg(c, f, n)?;
+    let b = match f {
+        "SHL" => Builtin::Shl(k),
+        "SHR" => Builtin::Shr(k),
+        "ROL" => Builtin::Rol(k),
+        _ => Builtin::Ror(k),
+    };
+    Ok(Compiler::te(Ty::T(ty), builtin_expr(b, vec![xe, ne], 0)))
+}
+
+/// `SEL`: one of two values by a BOOL.
+fn select(
+    c: &mut Compiler,
+    f: &str,
+    mut a: Vec<(TE, Pos)>,
+    expect: Option<&Type>,
+    pos: Pos,
+) -> R<TE> {
+    count(c, f, &a, 3, 3, pos)?;
+    let g = a.remove(0);
+    let ge = c
+        .coerce_to(g.0, &Type::BOOL, g.1)
+        .map_err(|_| c.err_at(g.1, ErrorKind::WrongArgument, "SEL needs a BOOL selector G"))?;
+    let (ty, vals) = common_values(c, f, a, pos, expect)?;
+    let mut v = vec![ge];
+    v.extend(vals);
+    Ok(Compiler::te(Ty::T(ty), builtin_expr(Builtin::Sel, v, 0)))
+}
+
+/// `MUX`: one of n values by an integer.
+fn multiplex(
+    c: &mut Compiler,
+    f: &str,
+    mut a: Vec<(TE, Pos)>,
+    expect: Option<&Type>,
+    pos: Pos,
+) -> R<TE> {
+    count(c, f, &a, 2, usize::MAX, pos)?;
+    let k = a.remove(0);
+    let ke = int_arg(c, f, k)?;
+    let (ty, vals) = common_values(c, f, a, pos, expect)?;
+    let mut v = vec![ke];
+    v.extend(vals);
+    Ok(Compiler::te(Ty::T(ty), builtin_expr(Builtin::Mux, v, 0)))
+}
+
+/// `MAX`, `MIN` of two or more values, `LIMIT` of three.
+fn extremum(
+    c: &mut Compiler,
+    f: &str,
+    a: Vec<(TE, Pos)>,
+    expect: Option<&Type>,
+    pos: Pos,
+) -> R<TE> {
+    if f == "LIMIT" {
+        count(c, f, &a, 3, 3, pos)?;
+    } else {
+        count(c, f, &a, 2, usize::MAX, pos)?;
+    }
+    let (ty, vals) = common_values(c, f, a, pos, expect)?;
+    let Some(e) = ty
+        .elem()
+        .filter(|e| e.is_num() || e.is_bit() || *e == Elem::Time)
+    else {
+        return Err(c.err_at(
+            pos,
+            ErrorKind::WrongArgument,
+            format!("{f} needs numbers, bit strings or TIME"),
+        ));
+    };
+    let b = match (f, e.is_real()) {
+        ("MAX", true) => Builtin::MaxR,
+        ("MIN", true) => Builtin::MinR,
+        ("LIMIT", true) => Builtin::LimitR,
+        ("MAX", false) => Builtin::MaxI(ik(e).signed()),
+        ("MIN", false) => Builtin::MinI(ik(e).signed()),
+        _ => Builtin::LimitI(ik(e).signed()),
+    };
+    Ok(Compiler::te(Ty::T(ty), builtin_expr(b, vals, 0)))
+}
+
+/// `GT`, `GE`, `EQ`, `LE`, `LT` of two or more inputs (chained), `NE` of two.
+fn comparison(
+    c: &mut Compiler,
+    f: &str,
+    mut a: Vec<(TE, Pos)>,
+    args: &[Arg],
+    sc: &mut Scope,
+    pos: Pos,
+) -> R<TE> {
+    let max = if f == "NE" { 2 } else { usize::MAX };
+    count(c, f, &a, 2, max, pos)?;
+    let op = match f {
+        "GT" => BinOp::Gt,
+        "GE" => BinOp::Ge,
+        "EQ" => BinOp::Eq,
+        "LE" => BinOp::Le,
+        "LT" => BinOp::Lt,
+        _ => BinOp::Ne,
+    };
+    if a.len() == 2 {
+        let (x, y) = (a.remove(0), a.remove(0));
+        return c.binary_op(op, x.0, y.0, y.1);
+    }
+    // GT(a, b, c) = (a > b) AND (b > c): middle inputs are compiled into two
+    // comparisons, so they may not call anything (no double side effects).
+    for arg in &args[1..args.len() - 1] {
+        if let Arg::Positional(e) = arg {
+            if has_call(e) {
+                return Err(c.err_at(
+                    e.pos(),
+                    ErrorKind::WrongArgument,
+                    format!("{f}: middle inputs of a chained comparison may not call functions"),
+                ));
+            }
+        }
+    }
+    let mut acc: Option<TE> = None;
+    for i in 0..args.len() - 1 {
+        let mut pair = c.b_args(&args[i..i + 2], sc, f)?;
+        let (x, y) = (pair.remove(0), pair.remove(0));
+        let cmp = c.binary_op(op, x.0, y.0, y.1)?;
+        acc = Some(match acc {
+            None => cmp,
+            Some(prev) => c.binary_op(BinOp::And, prev, cmp, pos)?,
+        });
+    }
+    acc.ok_or_else(|| c.err_at(pos, ErrorKind::WrongArgument, format!("{f} needs inputs")))
+}
+
+/// `LEN` of a string.
+fn length(c: &mut Compiler, f: &str, mut a: Vec<(TE, Pos)>, pos: Pos) -> R<TE> {
+    count(c, f, &a, 1, 1, pos)?;
+    let s = string_arg(c, f, a.remove(0))?;
+    let e = builtin_expr(Builtin::Len, vec![s], 0);
+    Ok(Compiler::te(Ty::T(Type::Elem(Elem::Int)), e))
+}
+
+/// `FIND`: where a string occurs in another.
+fn find(c: &mut Compiler, f: &str, mut a: Vec<(TE, Pos)>, pos: Pos) -> R<TE> {
+    count(c, f, &a, 2, 2, pos)?;
+    let s1 = string_arg(c, f, a.remove(0))?;
+    let s2 = string_arg(c, f, a.remove(0))?;
+    Ok(Compiler::te(
+        Ty::T(Type::Elem(Elem::Int)),
+        builtin_expr(Builtin::Find, vec![s1, s2], 0),
+    ))
+}
+
+/// `LEFT`, `RIGHT`, `MID`, `CONCAT`, `INSERT`, `DELETE`, `REPLACE`: into a string temporary.
+fn string_function(c: &mut Compiler, f: &str, a: Vec<(TE, Pos)>, pos: Pos) -> R<TE> {
+    let (b, shape): (Builtin, &[bool]) = match f {
+        "LEFT" => (Builtin::Left, &[true, false]),
+        "RIGHT" => (Builtin::Right, &[true, false]),
+        "MID" => (Builtin::Mid, &[true, false, false]),
+        "INSERT" => (Builtin::Insert, &[true, true, false]),
+        "DELETE" => (Builtin::Delete, &[true, false, false]),
+        "REPLACE" => (Builtin::Replace, &[true, true, false, false]),
+        _ => (Builtin::Concat, &[]),
+    };
+    let mut vals = Vec::new();
+    if f == "CONCAT" {
+        count(c, f, &a, 2, usize::MAX, pos)?;
+        for x in a {
+            vals.push(string_arg(c, f, x)?);
+        }
+    } else {
+        count(c, f, &a, shape.len(), shape.len(), pos)?;
+        for (x, is_str) in a.into_iter().zip(shape.iter()) {
+            vals.push(if *is_str {
+                string_arg(c, f, x)?
+            } else {
+                int_arg(c, f, x)?
+            });
+        }
+    }
+    let dest = c.new_string_temp(pos)?;
+    Ok(Compiler::te(
+        Ty::T(Type::String(MAX_STRING_LEN)),
+        builtin_expr(b, vals, dest),
+    ))
+}
+
+/// `TRUNC`: a real to DINT, towards zero.
+fn trunc(c: &mut Compiler, f: &str, mut a: Vec<(TE, Pos)>, pos: Pos) -> R<TE> {
+    count(c, f, &a, 1, 1, pos)?;
+    let p = a[0].1;
+    let e = real_type(&a[0].0.ty)
+        .filter(|e| e.is_real())
+        .ok_or_else(|| wrong(c, f, &a[0].0.ty, p, "a real"))?;
+    let x = c.coerce_to(a.remove(0).0, &Type::Elem(e), p)?;
+    Ok(Compiler::te(
+        Ty::T(Type::Elem(Elem::DInt)),
+        c.folded(vm::Expr::Conv(Conv::RealTrunc(IntKind::I32), Box::new(x))),
+    ))
 }
 
 /// Brings value arguments of MAX/MIN/LIMIT/SEL/MUX to their common type.

@@ -10,6 +10,12 @@
 //! violation, watchdog budget) stop the PLC, drive outputs to their safe values and come
 //! back as a [`Fault`] value.
 //!
+//! On a real-time path: [`Runtime::scan`], [`Runtime::is_due`] and the reads and writes of
+//! resolved variables of elementary types ([`Runtime::read`], [`Runtime::write`]; a
+//! refused write's error names the type, which allocates). Set-up and tools only (they
+//! allocate): [`compile`], [`compile_file`], [`Runtime::new`], [`Runtime::resolve`],
+//! [`Runtime::read_name`] and every value of a `STRING` type.
+//!
 //! ```
 //! use std::{sync::Arc, time::Duration};
 //! let src = "PROGRAM Main
@@ -27,6 +33,8 @@
 //! assert_eq!(plc.read_name("lamp").unwrap(), rtcnc_plc::Value::Bool(true));
 //! assert_eq!(plc.read_name("t.ET").unwrap(), rtcnc_plc::Value::Time(20_000_000));
 //! ```
+
+#![forbid(unsafe_code)]
 
 mod ast;
 mod builtins;

@@ -1,6 +1,9 @@
 //! IPC costs on one thread (no contention): mailbox put+get, ring push+pop, semaphore
 //! signal+take.
 
+// criterion_group! and criterion_main! make public functions without docs.
+#![allow(missing_docs)]
+
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};

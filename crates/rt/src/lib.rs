@@ -20,6 +20,17 @@
 //! activations, execution time, start lateness and deadline misses; the trace exports as
 //! Chrome trace-event JSON.
 //!
+//! # Real-time use
+//!
+//! A periodic task's body may call the IPC objects' non-blocking operations (`try_put`,
+//! `try_get`, `peek`, `try_wait`, `signal`, `set`, `pulse`, `reset`), [`PiMutex::lock`],
+//! the producer and consumer sides of [`ring`], [`seqlock`], [`latest`] and
+//! [`lead_queue`], and [`Context`]'s methods; [`in_periodic_body`] tells whether the caller
+//! is one. The blocking calls (`put`, `get`, `wait` and their `_timeout` forms) refuse to
+//! run inside any task body ([`IpcError::BlockingInTask`]) rather than block it. The
+//! constructors, [`TaskSetBuilder`], the runners and the exports of the monitor and the
+//! trace are set-up or reporting and may allocate.
+//!
 //! ```
 //! use std::time::Duration;
 //! use rtcnc_rt::{Mailbox, Next, TaskSet, VirtualRunner};
@@ -66,7 +77,9 @@ pub use monitor::{
     TaskStats,
 };
 pub use realtime::{RealTimeConfig, RealTimeHandle, RealTimeRunner, RtStartError, SchedulingMode};
-pub use sys::{allowed_cpus, executive_priority_for_os, os_fifo_range, os_priority};
+pub use sys::{
+    allowed_cpus, executive_priority_for_os, in_periodic_body, os_fifo_range, os_priority,
+};
 pub use task::{
     Context, Next, PRIORITY_RANGE, Recording, TaskControl, TaskId, TaskSet, TaskSetBuilder,
     ThreadId, Wake,

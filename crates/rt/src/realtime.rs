@@ -18,7 +18,7 @@ use crate::monitor::{FaultCode, MissReaction, Monitor, TaskState};
 use crate::sys::{
     SchedOutcome, hold_cpu_dma_latency, lock_all_memory, may_lock_all_memory, monotonic_ns,
     os_priority, prefault_stack, set_current_thread_affinity, set_current_thread_fifo,
-    set_in_task_body, sleep_until_monotonic, warn_once,
+    set_in_periodic_body, set_in_task_body, sleep_until_monotonic, warn_once,
 };
 use crate::task::{
     Body, ClockSource, Context, DeclKind, Next, Recording, TaskControl, TaskSet, TaskSpec, Wake,
@@ -237,7 +237,9 @@ fn run_body(
     set_in_task_body(true);
     let next = match body {
         Body::Periodic(body) => {
+            set_in_periodic_body(true);
             body(&mut ctx);
+            set_in_periodic_body(false);
             Next::Done
         }
         Body::Reactive(body) => body(&mut ctx),

@@ -275,6 +275,7 @@ pub(crate) fn prefault_stack(bytes: usize) {
 
 thread_local! {
     static IN_TASK_BODY: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+    static IN_PERIODIC_BODY: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
     /// Set whenever this thread took the lock of a blocking IPC object (every change of a
     /// mailbox, semaphore or start event happens under it): the virtual-time runner polls
     /// its triggers only after that.
@@ -293,6 +294,18 @@ pub(crate) fn in_task_body() -> bool {
 
 pub(crate) fn set_in_task_body(on: bool) {
     IN_TASK_BODY.with(|f| f.set(on));
+}
+
+/// True while the calling thread is executing the body of a periodic task, under either
+/// scheduler: the code that must not allocate, block or take a lock other than a PI mutex.
+/// An allocation-counting test reads it from its global allocator (a plain thread-local
+/// read: it neither allocates nor blocks). May run on a real-time path.
+pub fn in_periodic_body() -> bool {
+    IN_PERIODIC_BODY.with(|f| f.get())
+}
+
+pub(crate) fn set_in_periodic_body(on: bool) {
+    IN_PERIODIC_BODY.with(|f| f.set(on));
 }
 
 /// Prints a message once per process for a given flag.

@@ -15,7 +15,7 @@ use thiserror::Error;
 
 use crate::ipc::Trigger;
 use crate::monitor::{Fault, FaultCode, MissReaction, TaskState};
-use crate::sys::{set_in_task_body, take_ipc_touched};
+use crate::sys::{set_in_periodic_body, set_in_task_body, take_ipc_touched};
 use crate::task::{
     Body, ClockSource, Context, DeclKind, Next, Recording, TaskControl, TaskSet, TaskSpec,
     ThreadSpec, Wake,
@@ -763,7 +763,9 @@ impl VirtualRunner {
         set_in_task_body(true);
         let host_start = self.host.is_some().then(std::time::Instant::now);
         if let Body::Periodic(body) = body {
+            set_in_periodic_body(true);
             body(&mut ctx);
+            set_in_periodic_body(false);
         }
         if let (Some(profile), Some(start)) = (self.host.as_mut(), host_start) {
             profile.charge(task, start);

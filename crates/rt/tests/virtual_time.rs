@@ -658,3 +658,41 @@ fn a_thread_nudges_its_phase_and_the_other_threads_keep_the_grid() {
     let stats = monitor.task("exchange").unwrap().stats();
     assert_eq!(stats.deadline_misses, 0);
 }
+
+#[test]
+fn only_periodic_bodies_are_marked_as_periodic() {
+    // (task, what `in_periodic_body` said inside it)
+    let seen: Arc<Mutex<Vec<(&'static str, bool)>>> = Arc::default();
+    let frames: Mailbox<u64> = Mailbox::new("frames", 4).unwrap();
+    let mut b = TaskSet::builder();
+    let thread = b.periodic_thread("servo", Duration::from_millis(1), 10);
+    let (s, out) = (Arc::clone(&seen), frames.clone());
+    b.periodic(thread, "control", 1, move |ctx| {
+        s.lock()
+            .unwrap()
+            .push(("control", rtcnc_rt::in_periodic_body()));
+        out.try_put(ctx.activation()).unwrap();
+    });
+    let (s, inbox) = (Arc::clone(&seen), frames.clone());
+    b.event("consumer", 5, frames.data_trigger(), move |_| {
+        inbox.try_get();
+        s.lock()
+            .unwrap()
+            .push(("consumer", rtcnc_rt::in_periodic_body()));
+        Next::Done
+    });
+    let s = Arc::clone(&seen);
+    b.background("self test", move |_| {
+        s.lock()
+            .unwrap()
+            .push(("self test", rtcnc_rt::in_periodic_body()));
+        Next::Sleep(Duration::from_millis(1))
+    });
+    let mut sim = VirtualRunner::new(b.build().unwrap());
+    sim.run_for(Duration::from_micros(500)).unwrap();
+    assert!(!rtcnc_rt::in_periodic_body());
+    assert_eq!(
+        *seen.lock().unwrap(),
+        [("control", true), ("consumer", false), ("self test", false)]
+    );
+}

@@ -1,5 +1,8 @@
 //! Cost of one servo cycle for one joint: PID update (velocity-output loop) and CSP loop.
 
+// criterion_group! and criterion_main! make public functions without docs.
+#![allow(missing_docs)]
+
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};

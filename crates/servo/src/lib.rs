@@ -18,7 +18,10 @@
 //! `FERROR`).
 //!
 //! Every per-cycle call is allocation-free and never panics on data: a non-finite input or
-//! period is a [`ServoFault`], never a NaN output. The caller passes the period each cycle.
+//! period is a [`ServoFault`], never a NaN output. On a real-time path: the loops' `update`
+//! and `reset`, [`FollowingErrorMonitor::check`], [`SetPointDifferentiator::next`] and the
+//! accessors. Set-up only (they validate, and an error names the field): the constructors,
+//! the configurations' `validate` and [`PidController::set_gains`]. The caller passes the period each cycle.
 //! Configuration structs deserialize with serde (the machine TOML) and validate with errors
 //! that name the field.
 //!
@@ -37,6 +40,8 @@
 //! assert_eq!(fault.code(), "servo.following_error");
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
+
+#![forbid(unsafe_code)]
 
 mod config;
 mod csp;

@@ -1,3 +1,5 @@
+//! Position loops in cyclic synchronous position mode, and the servo configuration's checks.
+
 use rtcnc_servo::{
     CspCommand, CspConfig, CspLoop, FollowingErrorLimits, PidConfig, PidController, ServoFault,
     SetPoint, SetPointDifferentiator,

@@ -11,8 +11,8 @@ use rtcnc_kernel::MachineConfig;
 /// Run the API server (REST + WebSocket) for a machine process.
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
-    /// Machine configuration (TOML): the same file the machine process runs.
-    #[arg(long, default_value = "configs/sim-mill.toml")]
+    /// Machine: a shipped machine's name (`rtcnc machines`) or a machine file (TOML).
+    #[arg(long, default_value = crate::machines::DEFAULT)]
     pub machine: PathBuf,
     /// Segment name under /dev/shm (default: rtcnc-<machine file name>).
     #[arg(long)]
@@ -80,13 +80,15 @@ impl Args {
     }
 }
 
-pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+/// Runs `rtcnc api`.
+pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
     if args.print_openapi {
         print!("{}", rtcnc_api::openapi_json());
         return Ok(ExitCode::SUCCESS);
     }
-    let config = MachineConfig::load(&args.machine)
-        .with_context(|| format!("machine configuration {}", args.machine.display()))?;
+    args.machine = crate::machines::locate(&args.machine)?;
+    // The error names the file.
+    let config = MachineConfig::load(&args.machine).context("machine configuration")?;
     let beside = |name: &str| {
         args.machine
             .parent()

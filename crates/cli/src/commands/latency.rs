@@ -84,6 +84,7 @@ fn us(ns: u64) -> f64 {
     ns as f64 / 1000.0
 }
 
+/// Runs `rtcnc latency`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let period_ns = u64::try_from(args.period.as_nanos()).unwrap_or(u64::MAX);
     let bins = usize::try_from(args.histogram_us).unwrap_or(10_000);

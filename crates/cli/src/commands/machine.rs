@@ -16,8 +16,8 @@ use rtcnc_rt::{RealTimeConfig, RealTimeRunner, SchedulingMode};
 /// Run the machine process (the kernel in real time, with its shared-memory segment).
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Machine configuration (TOML).
-    #[arg(long, default_value = "configs/sim-mill.toml")]
+    /// Machine: a shipped machine's name (`rtcnc machines`) or a machine file (TOML).
+    #[arg(long, default_value = crate::machines::DEFAULT)]
     pub machine: PathBuf,
     /// Segment name under /dev/shm (default: rtcnc-<machine file name>).
     #[arg(long)]
@@ -52,9 +52,11 @@ extern "C" fn on_signal(_: libc::c_int) {
     STOP.store(true, Ordering::SeqCst);
 }
 
-pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let config = MachineConfig::load(&args.machine)
-        .with_context(|| format!("machine configuration {}", args.machine.display()))?;
+/// Runs `rtcnc machine`.
+pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
+    args.machine = crate::machines::locate(&args.machine)?;
+    // The error names the file.
+    let config = MachineConfig::load(&args.machine).context("machine configuration")?;
     let segment = args
         .segment
         .clone()

@@ -3,6 +3,7 @@ pub mod api;
 pub mod check;
 pub mod latency;
 pub mod machine;
+pub mod machines;
 pub mod plc;
 pub mod run;
 pub mod serve;

@@ -29,8 +29,8 @@ pub const EXIT_TERMINATED: u8 = 143;
 pub struct Args {
     /// The part program (omit with --idle to only run the task graph).
     program: Option<PathBuf>,
-    /// Machine configuration (TOML).
-    #[arg(long, default_value = "configs/sim-mill.toml")]
+    /// Machine: a shipped machine's name (`rtcnc machines`) or a machine file (TOML).
+    #[arg(long, default_value = crate::machines::DEFAULT)]
     machine: PathBuf,
     /// Home the machine before the program starts.
     #[arg(long)]
@@ -210,7 +210,9 @@ fn controlled_stop(handle: &rtcnc_kernel::KernelHandle) {
     });
 }
 
-pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+/// Runs `rtcnc run`.
+pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
+    args.machine = crate::machines::locate(&args.machine)?;
     let config = MachineConfig::load(&args.machine)
         // The error names the file.
         .context("machine configuration")?;

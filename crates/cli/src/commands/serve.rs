@@ -8,6 +8,7 @@ use std::time::{Duration, Instant};
 /// Run the machine and the API server as two processes.
 #[derive(Debug, clap::Args)]
 pub struct ServeArgs {
+    /// The API server's arguments (the machine process takes the machine and segment).
     #[command(flatten)]
     pub api: super::api::Args,
     /// Refuse to run without SCHED_FIFO.
@@ -73,7 +74,10 @@ impl Supervised {
     }
 }
 
-pub fn run(args: ServeArgs) -> anyhow::Result<ExitCode> {
+/// Runs `rtcnc serve`.
+pub fn run(mut args: ServeArgs) -> anyhow::Result<ExitCode> {
+    // Located once here: both processes get the machine file's path.
+    args.api.machine = crate::machines::locate(&args.api.machine)?;
     let segment = args
         .api
         .segment

@@ -31,8 +31,8 @@ const STANDING_VELOCITY: f64 = 1e-6;
 pub struct Args {
     /// The part program.
     program: PathBuf,
-    /// Machine configuration (TOML).
-    #[arg(long, default_value = "configs/sim-mill.toml")]
+    /// Machine: a shipped machine's name (`rtcnc machines`) or a machine file (TOML).
+    #[arg(long, default_value = crate::machines::DEFAULT)]
     machine: PathBuf,
     /// Write CSV files, plot, trace and summary.json into this folder.
     #[arg(long, value_name = "DIR")]
@@ -57,15 +57,21 @@ const MAX_KEPT_MESSAGES: usize = 10_000;
 
 /// What `summary.json` holds.
 pub struct Summary {
+    /// From the start command to the program's end (or to where the run stopped), s.
     pub cycle_time_s: f64,
+    /// Whether the program reached its end.
     pub ended: bool,
+    /// Whether a set-point exceeded an axis's velocity, acceleration or jerk limit.
     pub limits_exceeded: bool,
+    /// The faults, described.
     pub faults: Vec<String>,
     /// Operator messages: time since the program start (s), line, text.
     pub messages: Vec<(f64, u32, String)>,
 }
 
-pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+/// Runs `rtcnc sim`.
+pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
+    args.machine = crate::machines::locate(&args.machine)?;
     let config = MachineConfig::load(&args.machine)
         // The error names the file.
         .context("machine configuration")?

@@ -28,8 +28,8 @@ enum UserCommand {
         /// Users file (default: the one of --machine).
         #[arg(long)]
         users: Option<PathBuf>,
-        /// Machine configuration whose users file to use.
-        #[arg(long, default_value = "configs/sim-mill.toml")]
+        /// Machine: a shipped machine's name (`rtcnc machines`) or a machine file (TOML).
+        #[arg(long, default_value = crate::machines::DEFAULT)]
         machine: PathBuf,
         /// Read the password from the first line of standard input (else it is asked for).
         #[arg(long)]
@@ -37,6 +37,7 @@ enum UserCommand {
     },
 }
 
+/// Runs `rtcnc user`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     match args.command {
         UserCommand::Add {
@@ -51,8 +52,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             let users = match users {
                 Some(u) => u,
                 None => {
-                    let config = MachineConfig::load(&machine)
-                        .with_context(|| format!("machine configuration {}", machine.display()))?;
+                    let machine = crate::machines::locate(&machine)?;
+                    // The error names the file.
+                    let config = MachineConfig::load(&machine).context("machine configuration")?;
                     rtcnc_api::default_users_file(&config, &machine)
                 }
             };

@@ -89,12 +89,16 @@ impl<K: Kinematics> Planner<K> {
         match self.step(front, false) {
             Some(st) => {
                 self.leave_strict(&st);
-                if self.trace {
-                    eprintln!(
-                        "GEN at={} v={} a={} ds={:?} land={} state={:?}",
-                        st.at, st.v, st.a, st.ds_hist, st.land_n, st.state
-                    );
-                }
+                trace!(
+                    self.trace,
+                    "GEN at={} v={} a={} ds={:?} land={} state={:?}",
+                    st.at,
+                    st.v,
+                    st.a,
+                    st.ds_hist,
+                    st.land_n,
+                    st.state
+                );
                 self.ahead.push(st);
             }
             None if self.ahead.len == 0 => {
@@ -194,12 +198,13 @@ impl<K: Kinematics> Planner<K> {
         }
         let dropped = self.ahead.drop_back(self.ahead.len - keep);
         self.stats.rolled_back += dropped as u64;
-        if self.trace {
-            eprintln!(
-                "ROLLBACK at={} v={} a={} attempt={attempt} dropped={dropped} kept={keep} f={f} f_stop={f_stop}",
-                front.at, front.v, front.a
-            );
-        }
+        trace!(
+            self.trace,
+            "ROLLBACK at={} v={} a={} attempt={attempt} dropped={dropped} kept={keep} f={f} f_stop={f_stop}",
+            front.at,
+            front.v,
+            front.a
+        );
         if let Some(s) = &mut self.strict {
             s.f_stop = f_stop;
         }
@@ -352,9 +357,10 @@ impl<K: Kinematics> Planner<K> {
             let (lo, hi) = self.fd_box(&prev.hist, quick);
             if !inside(&self.lim, &st.hist[0], &lo, &hi) {
                 if !force {
-                    if self.trace {
-                        eprintln!("DEAD END at rest at={} v={} a={}", prev.at, prev.v, prev.a);
-                    }
+                    trace!(
+                        self.trace,
+                        "DEAD END at rest at={} v={} a={}", prev.at, prev.v, prev.a
+                    );
                     return None;
                 }
                 self.stats.limit_violations += 1;
@@ -786,13 +792,12 @@ impl<K: Kinematics> Planner<K> {
         let (j_lo, j_hi) = if j_lo < j_hi { (j_lo, j_hi) } else { (-jm, jm) };
         let (a_lo, a_hi) = (a_lo.max(-a_full), a_hi.min(a_full));
         let (j_lo, j_hi) = (j_lo.max(-jm), j_hi.min(jm));
-        if self.trace {
-            eprintln!(
-                "CTRL at={} v={v} a={a} a_lo={a_lo} a_hi={a_hi} j_lo={j_lo} j_hi={j_hi} rem={rem} w={}",
-                st.at,
-                self.w_abs(idx, st.at, stop_at).0
-            );
-        }
+        trace!(
+            self.trace,
+            "CTRL at={} v={v} a={a} a_lo={a_lo} a_hi={a_hi} j_lo={j_lo} j_hi={j_hi} rem={rem} w={}",
+            st.at,
+            self.w_abs(idx, st.at, stop_at).0
+        );
         // Whether the stop ahead is a hold's (its point is soft and moves on, see above).
         let mut soft = hold_at.is_finite() && hold_at - st.at < stop_at - st.at;
         let model = Model {
@@ -838,9 +843,10 @@ impl<K: Kinematics> Planner<K> {
                 || [j_min, bj]
                     .into_iter()
                     .any(|c| !self.judge(&path_model, c).is_stop());
-            if self.trace {
-                eprintln!("HOLD DEFERRED at={} v={v} a={a} path_can={path_can}", st.at);
-            }
+            trace!(
+                self.trace,
+                "HOLD DEFERRED at={} v={v} a={a} path_can={path_can}", st.at
+            );
             if path_can {
                 model = path_model;
                 (rem, a_stop, j_stop) = (path_rem, path_a_stop, path_j_stop);
@@ -887,7 +893,7 @@ impl<K: Kinematics> Planner<K> {
                 // Nothing passes the model: brake as hard as the path allows while the
                 // deceleration can still be released before the speed reaches zero.
                 self.stats.emergency_brakes += 1;
-                if self.trace {
+                trace!(self.trace, {
                     let name = |v: Verdict| match v {
                         Verdict::Safe => "safe",
                         Verdict::Stop => "stop",
@@ -903,7 +909,7 @@ impl<K: Kinematics> Planner<K> {
                         model.a_stop,
                         model.j_stop
                     );
-                }
+                });
                 let bj = clampf(brake_jerk(v, a, -a_lo, j_stop, t), j_lo, j_hi);
                 if !v_min.is_stop() {
                     Ok(j_min)
@@ -955,9 +961,10 @@ impl<K: Kinematics> Planner<K> {
                         // axes have here, and the state came from a model that knew better
                         // (an override moved the braking curve). Brake as hard as the path
                         // allows here; the model takes over again once it fits.
-                        if self.trace {
-                            eprintln!("  BRAKE HARD at={} v={v} a={a} rem={rem}", st.at);
-                        }
+                        trace!(
+                            self.trace,
+                            "  BRAKE HARD at={} v={v} a={a} rem={rem}", st.at
+                        );
                         let jp = j_hi.min(-j_lo).min(jm);
                         let bj = clampf(brake_jerk(v, a, -a_lo, jp, t), j_lo, j_hi);
                         j_used = bj;
@@ -976,19 +983,15 @@ impl<K: Kinematics> Planner<K> {
             Ok(r) => r,
             Err(r) if force => {
                 self.stats.limit_violations += 1;
-                if self.trace {
-                    eprintln!("VIOLATION at={} v={} a={}", st.at, st.v, st.a);
-                }
+                trace!(self.trace, "VIOLATION at={} v={} a={}", st.at, st.v, st.a);
                 r
             }
             Err(_) => {
-                if self.trace {
-                    eprintln!(
-                        "DEAD END at={} v={v} a={a} rem={rem} ds_t={ds_target} land={land}",
-                        st.at
-                    );
-                }
-                if self.trace {
+                trace!(
+                    self.trace,
+                    "DEAD END at={} v={v} a={a} rem={rem} ds_t={ds_target} land={land}", st.at
+                );
+                trace!(self.trace, {
                     let (lo, hi) = self.fd_box(&st.hist, quick);
                     let (k, sl) = self.locate(idx, st.s, st.at, ds_target, stop_at);
                     let x = self.q.get(k).pos(sl);
@@ -1006,18 +1009,17 @@ impl<K: Kinematics> Planner<K> {
                         "  idx={idx} qlen={} len={} s={} cum_start={} stop_at={stop_at} stop_end={} k={k} sl={sl}",
                         self.q.len, hp.len, st.s, hp.cum_start, hp.stop_at_end
                     );
-                }
+                });
                 return None;
             }
         };
         if ds != ds_target {
             self.stats.adjusted += 1;
         }
-        if self.trace {
-            eprintln!(
-                "  chose ds_t={ds_target} ds={ds} model_ds={model_ds} j={j_used} land={land} landing={landing:?}"
-            );
-        }
+        trace!(
+            self.trace,
+            "  chose ds_t={ds_target} ds={ds} model_ds={model_ds} j={j_used} land={land} landing={landing:?}"
+        );
         let mut n = st;
         n.prof_t = None;
         n.hold_at = hold_at;
