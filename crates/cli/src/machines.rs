@@ -70,6 +70,11 @@ pub const SHIPPED: &[Shipped] = &[
         files: &[],
     },
     Shipped {
+        name: "ethercat-sim-12",
+        machine_file: include_str!("../../../configs/ethercat-sim-12.toml"),
+        files: &[],
+    },
+    Shipped {
         name: "bench-xyz",
         machine_file: include_str!("../../../configs/bench-xyz.toml"),
         files: &[],

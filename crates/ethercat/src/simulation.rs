@@ -1,6 +1,6 @@
 //! Simulated devices for a master configuration: the segment of `rtcnc-ecat-slave-sim`
 //! devices that a configuration lists, so that a machine configured for EtherCAT runs
-//! without hardware (in the same process, on [`SimulatedLink`](crate::SimulatedLink)).
+//! without hardware (in the same process, on [`SimulatedLink`]).
 //!
 //! Each CiA 402 entry becomes a simulated CSP drive whose motor, encoder and switches are
 //! the given simulated joint; each DIO entry an 8-in/8-out terminal. The devices keep the
