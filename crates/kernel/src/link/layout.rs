@@ -118,6 +118,9 @@ pub mod command {
     pub const JOG_KEEP_ALIVE: u32 = 12;
     /// Read the tool table file again.
     pub const RELOAD_TOOL_TABLE: u32 = 13;
+    /// The handwheel on `axis` with `value` times `handwheel.units_per_count` per count;
+    /// `axis` = `u32::MAX` releases it.
+    pub const HANDWHEEL: u32 = 14;
 }
 
 /// One normal command, acknowledged by its serial number.

@@ -399,6 +399,10 @@ impl CommandPort {
                 },
                 command::JOG_STOP => Command::JogStop { axis },
                 command::HOME_ALL => Command::HomeAll,
+                command::HANDWHEEL => Command::Handwheel {
+                    axis: (c.axis != u32::MAX).then_some(axis),
+                    scale: c.value,
+                },
                 command::SINGLE_BLOCK => {
                     self.set_flag(flags::SINGLE_BLOCK, on);
                     Command::SingleBlock(on)
@@ -579,6 +583,12 @@ impl CommandPort {
                 }
             }
             Command::JogIncrement { axis, .. } if !axis_ok(axis) => Refusal::BadAxis,
+            Command::Handwheel {
+                axis: Some(axis), ..
+            } if !axis_ok(axis) => Refusal::BadAxis,
+            Command::Handwheel { scale, .. } if !(scale.is_finite() && scale > 0.0) => {
+                Refusal::BadValue
+            }
             Command::JogContinuous { velocity: v, .. }
             | Command::JogIncrement { distance: v, .. }
                 if !v.is_finite() =>
