@@ -98,7 +98,7 @@ pub enum FaultCode {
 
 impl FaultCode {
     /// Every code, in number order.
-    pub const ALL: [FaultCode; 17] = [
+    pub const ALL: [FaultCode; 20] = [
         FaultCode::EStop,
         FaultCode::HardLimit,
         FaultCode::FollowingError,
@@ -116,6 +116,9 @@ impl FaultCode {
         FaultCode::SpindleOrientTimeout,
         FaultCode::ProbeFailed,
         FaultCode::SyncFailed,
+        FaultCode::SetpointsRanDry,
+        FaultCode::SetpointsLost,
+        FaultCode::MotionStalled,
     ];
 
     /// The code of a [`number`](Self::number).
@@ -236,5 +239,25 @@ impl Fault {
             s.push_str(&format!(" ({})", self.value));
         }
         s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::FaultCode;
+
+    #[test]
+    fn every_code_comes_back_from_its_number() {
+        // The numbers are the variants' order from 100, so ALL lists each once, in order;
+        // the last variant closes the list (a code missing from ALL reads as unknown on the
+        // other side of the shared-memory link).
+        for (i, code) in FaultCode::ALL.iter().enumerate() {
+            assert_eq!(code.number(), 100 + i as u32);
+            assert_eq!(FaultCode::from_number(code.number()), Some(*code));
+        }
+        assert_eq!(
+            FaultCode::ALL.last().copied(),
+            Some(FaultCode::MotionStalled)
+        );
     }
 }
