@@ -3,8 +3,8 @@
 # property tests of every crate. CI (.ci/run) calls exactly this.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-# openssl makes the TLS test's certificate.
-scripts/setup.sh openssl
+# openssl makes the TLS test's certificate; Chromium runs the web HMI's end-to-end tests.
+scripts/setup.sh openssl chromium-headless-shell
 
 # Property tests draw from a fixed seed here, so a commit passes or fails the same way every
 # time; the long randomised runs live in scripts/ and bench/ and pick fresh seeds.
@@ -23,3 +23,8 @@ echo "== Python client (sdk/python) against a real rtcnc serve"
 scripts/setup-python.sh
 cargo build -p rtcnc --locked
 (cd sdk/python && ../../target/python-venv/bin/python -m pytest -q -p no:cacheprovider tests)
+
+echo "== web HMI: types, unit tests, the committed bundle (scripts/hmi.sh check)"
+scripts/hmi.sh check
+echo "== web HMI in headless Chromium against a real rtcnc serve (scripts/hmi.sh e2e)"
+scripts/hmi.sh e2e

@@ -77,3 +77,11 @@ export function feed(unitsPerS: number | undefined | null): string {
   if (unitsPerS === undefined || unitsPerS === null || !Number.isFinite(unitsPerS)) return '—';
   return String(Math.round(unitsPerS * 60));
 }
+
+/** A plot's tick label: three significant digits, exponents outside 0.01..1000, never "-0". */
+export function axisNumber(v: number): string {
+  if (v === 0) return '0';
+  const a = Math.abs(v);
+  const s = a >= 1000 || a < 0.01 ? v.toExponential(1) : v.toPrecision(3).replace(/(\.\d*?)0+$/, '$1').replace(/\.$/, '');
+  return s.replace('-', '−');
+}

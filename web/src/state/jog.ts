@@ -12,6 +12,11 @@ export interface JogTransport {
   keepAlive(axis: string): boolean;
   /** Stops the jog (`POST /api/control/jog/stop`). */
   stop(axis: string): Promise<void>;
+  /**
+   * Whether the machine still jogs: a jog the machine already stopped (its keep-alive
+   * lapsed) is not stopped again, which the kernel would refuse and record.
+   */
+  jogging(axis: string): boolean;
 }
 
 export interface Timers {
@@ -66,7 +71,7 @@ export class JogController {
     if (!h) return;
     this.drop(axis);
     void h.started.then((ok) => {
-      if (ok) this.transport.stop(axis).catch((e) => this.onError(axis, e));
+      if (ok && this.transport.jogging(axis)) this.transport.stop(axis).catch((e) => this.onError(axis, e));
     });
   }
 

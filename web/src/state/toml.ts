@@ -1,6 +1,6 @@
 // The machine file by section: its TOML text cut at the top-level tables (`[axes.x]` and
 // `[axes.y]` both belong to `axes`, every `[[joints]]` to `joints`), comments kept with the
-// section they stand before, so that the sections put back together are the file again.
+// section they stand right before, so that the sections put back together are the file again.
 
 export interface Section {
   /** Top-level key (`machine`, `axes`, `joints`, …); '' for what comes before any table. */
@@ -25,10 +25,9 @@ export function splitSections(text: string): Section[] {
     const current = sections[sections.length - 1];
     if (m) {
       const name = m[1].replace(/"/g, '');
-      // Comments and blank lines right before a header introduce it.
+      // Comment lines right before a header (no blank line between) introduce it.
       let k = pending.length;
-      while (k > 0 && (pending[k - 1].trim() === '' || pending[k - 1].trim().startsWith('#'))) k--;
-      while (k < pending.length && pending[k].trim() === '') k++;
+      while (k > 0 && pending[k - 1].trim().startsWith('#')) k--;
       const intro = pending.slice(k);
       pending = pending.slice(0, k);
       flush(current);

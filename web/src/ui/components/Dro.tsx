@@ -47,7 +47,7 @@ export function Dro() {
                 {position(s?.machine_position[a], units)}
               </td>
               <td class="togo">{togo === null ? '—' : position(togo, units)}</td>
-              <td class={h ? 'homed yes' : 'homed no'}>{h === undefined ? '—' : h ? '● homed' : '○ not homed'}</td>
+              <td class={h ? 'homed yes' : 'homed no'}>{h === undefined ? '—' : h ? '● yes' : '○ no'}</td>
             </tr>
           );
         })}

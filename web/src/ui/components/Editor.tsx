@@ -33,7 +33,7 @@ export function Editor({ text, onText, errors, label }: Props) {
   for (let i = first; i < last; i++) {
     const errs = byLine.get(i + 1);
     rows.push(
-      <div key={i} class={`eline${errs ? ' has-error' : ''}`} style={{ top: i * ROW - scroll.top }}>
+      <div key={i} class={`eline${errs ? ' has-error' : ''}`} style={{ top: `${i * ROW - scroll.top}px` }}>
         <span class="lineno">{i + 1}</span>
         <span class="code" style={{ transform: `translateX(${-scroll.left}px)` }}>
           <Highlighted text={lines[i]} />

@@ -4,6 +4,7 @@ import { useEffect, useRef } from 'preact/hooks';
 import uPlot from 'uplot';
 import 'uplot/dist/uPlot.min.css';
 import type { TraceSample } from '../../api/socket';
+import { axisNumber } from '../../format';
 import { traceListeners } from '../../state/store';
 
 const PALETTE = ['#4fc3f7', '#ffb74d', '#81c784', '#f06292', '#ba68c8', '#fff176', '#90a4ae', '#e57373', '#64b5f6'];
@@ -33,7 +34,14 @@ export function LivePlot({ title, unit, series, pick, seconds = 10, testid }: Pr
         scales: { x: { time: false } },
         axes: [
           { stroke: '#c9d1d9', grid: { stroke: '#2b333d' }, ticks: { stroke: '#2b333d' }, label: 'machine time (s)' },
-          { stroke: '#c9d1d9', grid: { stroke: '#2b333d' }, ticks: { stroke: '#2b333d' }, label: unit, size: 60 },
+          {
+            stroke: '#c9d1d9',
+            grid: { stroke: '#2b333d' },
+            ticks: { stroke: '#2b333d' },
+            label: unit,
+            size: 70,
+            values: (_u: uPlot, ticks: number[]) => ticks.map((t) => axisNumber(t)),
+          },
         ],
         series: [{ label: 't' }, ...series.map((s, i) => ({ label: s, stroke: PALETTE[i % PALETTE.length], width: 1.5 }))],
         legend: { show: true },

@@ -35,6 +35,16 @@ function Slider(props: { name: 'feed' | 'rapid' | 'spindle'; label: string; min:
     }, 60);
   };
   useEffect(() => () => void (timer.current && clearTimeout(timer.current)), []);
+  // The slider shows what was asked until the machine reports it (or gives up on it).
+  useEffect(() => {
+    if (dragging === null) return undefined;
+    if (Math.abs(value - dragging) < 1e-6) {
+      setDragging(null);
+      return undefined;
+    }
+    const t = setTimeout(() => setDragging(null), 1500);
+    return () => clearTimeout(t);
+  }, [value, dragging]);
   const shown = dragging ?? value;
   const id = `ovr-${name}`;
   return (
@@ -61,7 +71,6 @@ function Slider(props: { name: 'feed' | 'rapid' | 'spindle'; label: string; min:
             setDragging(v);
             send(v);
           }}
-          onChange={() => setDragging(null)}
         />
         <button type="button" class="btn small" disabled={!!why} title={why ?? undefined} aria-label={`${label} +10 %`} onClick={() => send(Math.min(max, Math.round((value + 0.1) * 10) / 10))}>
           +

@@ -54,7 +54,7 @@ export function ProgramText({ lines, current, chosen = 0, onChoose, errors, labe
       <div
         key={n}
         class={`line${n === current ? ' current' : ''}${n === chosen ? ' chosen' : ''}${err ? ' has-error' : ''}`}
-        style={{ top: i * ROW }}
+        style={{ top: `${i * ROW}px` }}
         data-line={n}
         aria-current={n === current ? 'step' : undefined}
         title={err}
@@ -78,7 +78,7 @@ export function ProgramText({ lines, current, chosen = 0, onChoose, errors, labe
       data-current={current}
       onScroll={(e) => setTop(e.currentTarget.scrollTop)}
     >
-      <div class="program-rows" style={{ height: lines.length * ROW }}>
+      <div class="program-rows" style={{ height: `${lines.length * ROW}px` }}>
         {rows}
       </div>
     </div>

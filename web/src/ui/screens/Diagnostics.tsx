@@ -75,7 +75,7 @@ function Alarms() {
                 {f.acknowledged ? (
                   'acknowledged'
                 ) : (
-                  <Button why={why} onClick={() => ack(f.seq)} testid={`ack-${f.seq}`}>
+                  <Button why={why} class="small" onClick={() => ack(f.seq)} testid={`ack-${f.seq}`}>
                     Acknowledge
                   </Button>
                 )}
@@ -139,7 +139,7 @@ function Plots() {
     <section class="panel plots" aria-label="Live plots">
       <h2>Live plots</h2>
       <LivePlot title="Velocity per joint (set-point)" unit="units/s" series={joints} pick={velocity} testid="plot-velocity" />
-      <LivePlot title="Following error per joint" unit="units" series={joints} pick={(s) => s.following_error} testid="plot-ferror" />
+      <LivePlot title="Following error per joint" unit="µm (mm × 1000)" series={joints} pick={(s) => s.following_error.map((e) => e * 1000)} testid="plot-ferror" />
       <div class="buttons">
         <Button testid="trace-download" onClick={() => void download()}>
           Download the last 10 s (Perfetto JSON)
@@ -247,7 +247,7 @@ function PlcMonitor() {
               <tr key={p} class={w?.forced ? 'forced' : ''}>
                 <th scope="row">
                   {p}
-                  <Button label={`Stop watching ${p}`} why={canWatch} onClick={() => setList(watch.filter((x) => x !== p))}>
+                  <Button label={`Stop watching ${p}`} class="small" why={canWatch} onClick={() => setList(watch.filter((x) => x !== p))}>
                     ✕
                   </Button>
                 </th>
@@ -255,12 +255,12 @@ function PlcMonitor() {
                   {w ? w.value : '—'}
                   {w?.forced ? ' (forced)' : ''}
                 </td>
-                <td>
+                <td class="force">
                   <input aria-label={`Force value of ${p}`} value={values[p] ?? ''} placeholder="TRUE, 42, T#1s" disabled={!!canForce} onInput={(e) => setValues({ ...values, [p]: e.currentTarget.value })} />
-                  <Button why={first(canForce, values[p] ? null : 'give a value')} onClick={() => run(`Force ${p}`, () => api('/api/plc/force', { method: 'POST', json: { path: p, value: values[p] } }))}>
+                  <Button class="small" why={first(canForce, values[p] ? null : 'give a value')} onClick={() => run(`Force ${p}`, () => api('/api/plc/force', { method: 'POST', json: { path: p, value: values[p] } }))}>
                     Force
                   </Button>
-                  <Button why={first(canForce, w?.forced ? null : 'not forced')} onClick={() => run(`Release ${p}`, () => api('/api/plc/force/{path}', { method: 'DELETE', params: { path: p } }))}>
+                  <Button class="small" why={first(canForce, w?.forced ? null : 'not forced')} onClick={() => run(`Release ${p}`, () => api('/api/plc/force/{path}', { method: 'DELETE', params: { path: p } }))}>
                     Release
                   </Button>
                 </td>

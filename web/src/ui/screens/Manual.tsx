@@ -14,6 +14,7 @@ export const jog = new JogController(
     start: (axis, velocity) => command('/api/control/jog', { axis, velocity }).then(() => undefined),
     keepAlive: (axis) => link.send({ type: 'jog_keep_alive', axis }),
     stop: (axis) => command('/api/control/jog/stop', { axis }).then(() => undefined),
+    jogging: () => status.value?.mode === 'manual' && status.value?.state === 'running',
   },
   (axis, e) => notify(`Jog ${axis}: ${errorText(e)}`, 'error'),
 );

@@ -112,8 +112,8 @@ export function Operate() {
           </div>
           <div class="toggles">
             <Toggle name="single-block" label="Single block" on={!!s?.single_block} why={lease} />
-            <Toggle name="optional-stop" label="Optional stop (M1)" on={!!s?.optional_stop} why={lease} />
-            <Toggle name="block-delete" label="Block delete (/)" on={!!s?.block_delete} why={lease} />
+            <Toggle name="optional-stop" label="Opt. stop M1" on={!!s?.optional_stop} why={lease} />
+            <Toggle name="block-delete" label="Block delete /" on={!!s?.block_delete} why={lease} />
           </div>
         </section>
         <Overrides />

@@ -1,0 +1,89 @@
+import { describe, expect, it } from 'vitest';
+import { KIND_FEED, KIND_RAPID, KIND_START, advance, blockEnd, decodePreview, indexOfLine } from '../src/api/preview';
+
+/** The binary layout of crates/api/src/preview.rs, written here by hand. */
+function encode(points: [number, number, number][], lines: number[], kinds: number[], errors = '[]') {
+  const n = points.length;
+  const err = new TextEncoder().encode(errors);
+  const buf = new ArrayBuffer(40 + 17 * n + err.length);
+  const v = new DataView(buf);
+  new Uint8Array(buf).set(new TextEncoder().encode('RTCNCPV1'), 0);
+  v.setUint32(8, n, true);
+  v.setUint32(12, err.length, true);
+  const min = [0, 1, 2].map((i) => Math.min(...points.map((p) => p[i])));
+  const max = [0, 1, 2].map((i) => Math.max(...points.map((p) => p[i])));
+  [...min, ...max].forEach((x, i) => v.setFloat32(16 + 4 * i, x, true));
+  points.forEach((p, i) => p.forEach((x, k) => v.setFloat32(40 + 12 * i + 4 * k, x, true)));
+  lines.forEach((l, i) => v.setUint32(40 + 12 * n + 4 * i, l, true));
+  kinds.forEach((k, i) => v.setUint8(40 + 16 * n + i, k));
+  new Uint8Array(buf).set(err, 40 + 17 * n);
+  return buf;
+}
+
+// A square by hand: a rapid to (0, 0, 5) (line 2), down at feed (line 3), then X to 10 in
+// two chords of line 4 and Y to 10 (line 5).
+const square = encode(
+  [
+    [0, 0, 10],
+    [0, 0, 5],
+    [0, 0, 0],
+    [5, 0, 0],
+    [10, 0, 0],
+    [10, 10, 0],
+  ],
+  [0, 2, 3, 4, 4, 5],
+  [KIND_START, KIND_RAPID, KIND_FEED, KIND_FEED, KIND_FEED, KIND_FEED],
+);
+
+describe('the binary preview', () => {
+  it('is read without parsing: points, lines, kinds, bounds and path length', () => {
+    const c = decodePreview(square);
+    expect(c.count).toBe(6);
+    expect([...c.positions.subarray(9, 12)]).toEqual([5, 0, 0]);
+    expect([...c.lines]).toEqual([0, 2, 3, 4, 4, 5]);
+    expect(c.kinds[1]).toBe(KIND_RAPID);
+    expect(c.min).toEqual([0, 0, 0]);
+    expect(c.max).toEqual([10, 10, 10]);
+    // 5 + 5 + 10 + 10 mm.
+    expect(c.distance[5]).toBeCloseTo(30, 6);
+    expect(c.errors).toEqual([]);
+  });
+
+  it('carries the interpreter errors, and refuses what is not a preview', () => {
+    const e = '[{"line":7,"column":3,"code":"G-SYNTAX","message":"number expected"}]';
+    const c = decodePreview(encode([[0, 0, 0]], [0], [KIND_START], e));
+    expect(c.errors[0].line).toBe(7);
+    expect(() => decodePreview(new ArrayBuffer(40))).toThrow();
+    expect(() => decodePreview(square.slice(0, 100))).toThrow();
+  });
+});
+
+describe('the run along the path', () => {
+  const c = decodePreview(square);
+
+  it('follows the executing line and the tool within it', () => {
+    let cur = { index: 0 };
+    cur = advance(c, cur, 2, [0, 0, 7]);
+    expect(cur.index).toBe(0);
+    cur = advance(c, cur, 4, [2.5, 0, 0]);
+    // On the first chord of line 4: from point 2 on.
+    expect(cur.index).toBe(2);
+    cur = advance(c, cur, 4, [7, 0, 0]);
+    expect(cur.index).toBe(3);
+    cur = advance(c, cur, 5, [10, 10, 0]);
+    expect(cur.index).toBe(5);
+  });
+
+  it('never goes back, and ignores a line it does not find ahead', () => {
+    const at = advance(c, { index: 4 }, 3, [0, 0, 0]);
+    expect(at.index).toBe(4);
+    expect(advance(c, { index: 2 }, 99, [0, 0, 0]).index).toBe(2);
+  });
+
+  it('gives the end of the executing block (for the distance to go) and where a line starts', () => {
+    expect(blockEnd(c, { index: 2 }, 4)).toEqual([10, 0, 0]);
+    expect(blockEnd(c, { index: 4 }, 5)).toEqual([10, 10, 0]);
+    expect(indexOfLine(c, 4)).toBe(2);
+    expect(indexOfLine(c, 1)).toBe(0);
+  });
+});
