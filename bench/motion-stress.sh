@@ -5,7 +5,7 @@
 #   bench/motion-stress.sh [PROGRAMS_PER_SEED] [SEEDS]
 # Prints, per seed, how many programs exceeded a limit and the first failing programs in the
 # format of `cargo run -p rtcnc-motion --example debug_line spec` (SPEC="x y z F mode P; ...").
-# Then the proptest of tests/random.rs with more cases.
+# Then the proptest of tests/random.rs with more cases, and 10^6 mm of path (examples/long_paths.rs).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 n="${1:-500}"
@@ -25,3 +25,5 @@ echo "== tests/random.rs with 512 cases"
 PROPTEST_CASES=512 cargo test -q --release -p rtcnc-motion --test random
 echo "== tests/online_changes.rs and tests/splines_random.rs (release sizes)"
 cargo test -q --release -p rtcnc-motion --test online_changes --test splines_random
+echo "== 10^6 mm of path at the benchmark machine's limits"
+cargo run -q --release -p rtcnc-motion --example long_paths -- 1e6

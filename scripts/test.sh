@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Sets up and runs every test of rtcnc: formatting, lints, unit, integration and
-# property tests of every crate. CI (.ci/run) calls exactly this.
+# property tests of every crate, and a few seconds of each fuzz target. CI (.ci/run) calls
+# exactly this.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # openssl makes the TLS test's certificate; Chromium runs the web HMI's end-to-end tests.
@@ -12,6 +13,7 @@ export PROPTEST_RNG_SEED="${PROPTEST_RNG_SEED:-20261122}"
 
 echo "== cargo fmt --check"
 cargo fmt --all -- --check
+(cd fuzz && cargo fmt -- --check)
 echo "== cargo clippy -D warnings"
 cargo clippy --workspace --all-targets --locked -- -D warnings
 echo "== cargo test"
@@ -23,6 +25,9 @@ echo "== Python client (sdk/python) against a real rtcnc serve"
 scripts/setup-python.sh
 cargo build -p rtcnc --locked
 (cd sdk/python && ../../target/python-venv/bin/python -m pytest -q -p no:cacheprovider tests)
+
+echo "== fuzz targets, a short run (scripts/fuzz.sh; the dedicated run is in docs/fuzzing.md)"
+scripts/fuzz.sh --seconds "${FUZZ_SECONDS:-5}"
 
 echo "== web HMI: types, unit tests, the committed bundle (scripts/hmi.sh check)"
 scripts/hmi.sh check

@@ -73,9 +73,10 @@ pub(crate) mod mg {
 pub(crate) fn g_group(code: i32) -> Option<usize> {
     use gg::*;
     Some(match code {
-        40 | 100 | 280 | 281 | 300 | 301 | 520 | 530 | 920 | 921 | 922 | 923 => NON_MODAL,
-        0 | 10 | 20 | 30 | 50 | 51 | 330 | 331 | 382 | 383 | 384 | 385 | 730 | 740 | 760 | 800
-        | 810 | 820 | 830 | 840 | 850 | 860 | 870 | 880 | 890 => MOTION,
+        40 | 53 | 100 | 280 | 281 | 300 | 301 | 520 | 530 | 920 | 921 | 922 | 923 => NON_MODAL,
+        0 | 10 | 20 | 30 | 50 | 51 | 52 | 330 | 331 | 382 | 383 | 384 | 385 | 700 | 710 | 711
+        | 712 | 720 | 721 | 722 | 730 | 740 | 760 | 800 | 810 | 820 | 830 | 840 | 850 | 860
+        | 870 | 880 | 890 => MOTION,
         170 | 180 | 190 | 171 | 181 | 191 => PLANE,
         900 | 910 => DISTANCE,
         901 | 911 => IJK,
@@ -517,15 +518,11 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
                     self.i += 1;
                     let code = self.code(col, b'g')?;
                     let Some(group) = g_group(code) else {
-                        let what = if code == 52 || code == 53 {
-                            format!(
-                                "G{} NURBS blocks are not supported (G5 and G5.1 splines are)",
-                                fmt_code(code)
-                            )
-                        } else {
-                            format!("unknown G code G{}", fmt_code(code))
-                        };
-                        return err(ErrorKind::UnknownWord, col, what);
+                        return err(
+                            ErrorKind::UnknownWord,
+                            col,
+                            format!("unknown G code G{}", fmt_code(code)),
+                        );
                     };
                     // As in LinuxCNC, G80 gives way to another motion code on the line.
                     if group == gg::MOTION && (code == 800 || b.g[group] == 800) && b.g[group] != -1
@@ -916,6 +913,7 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
         let mut i = self.i;
         let mut mant: u64 = 0;
         let mut significant = 0u32;
+        // Digit counts saturate: a number of more than 2^31 digits is out of any range anyway.
         let mut frac = 0i32;
         let mut dropped = 0i32;
         let mut seen_point = false;
@@ -931,10 +929,10 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
                         significant += 1;
                     }
                     if seen_point {
-                        frac += 1;
+                        frac = frac.saturating_add(1);
                     }
                 } else if !seen_point {
-                    dropped += 1;
+                    dropped = dropped.saturating_add(1);
                 }
             } else if c == b'.' && !seen_point {
                 seen_point = true;
@@ -952,7 +950,7 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
             1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
         ];
         let m = mant as f64;
-        let exp = dropped - frac;
+        let exp = dropped.saturating_sub(frac);
         // Exact when the mantissa fits 53 bits and the power of ten is exact.
         Ok(if exp <= 0 && ((-exp) as usize) < POW10.len() {
             m / POW10[(-exp) as usize]
@@ -972,33 +970,40 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
         ];
         let s = self.s;
         let mut i = self.i;
+        // At most 15 digits are read here (the mantissa then stays below 10^15 and exact);
+        // a longer number is left to `number`.
         let mut mant: u64 = 0;
-        let start = i;
+        let mut digits = 0usize;
         while i < s.len() {
             let d = s[i].wrapping_sub(b'0');
             if d >= 10 {
                 break;
             }
+            if digits == 15 {
+                return None;
+            }
             mant = mant * 10 + u64::from(d);
+            digits += 1;
             i += 1;
         }
-        let int_digits = i - start;
         let mut frac = 0;
         if i < s.len() && s[i] == b'.' {
             i += 1;
-            let fstart = i;
             while i < s.len() {
                 let d = s[i].wrapping_sub(b'0');
                 if d >= 10 {
                     break;
                 }
+                if digits == 15 {
+                    return None;
+                }
                 mant = mant * 10 + u64::from(d);
+                digits += 1;
+                frac += 1;
                 i += 1;
             }
-            frac = i - fstart;
         }
-        let digits = int_digits + frac;
-        if digits == 0 || digits > 15 {
+        if digits == 0 {
             return None;
         }
         // A space may continue the number ("1 2.5" is 12.5): look past blanks.
@@ -1440,6 +1445,29 @@ mod tests {
         assert_eq!(eval("-.5"), -0.5);
         assert_eq!(eval("+3"), 3.0);
         assert_eq!(eval("0.001"), 0.001);
+    }
+
+    /// Numbers of any length read without overflow (unit tests run with overflow checks):
+    /// the value is the nearest double of the decimal number, as Rust's parser gives it,
+    /// to within the rounding of the 18 significant digits that are kept.
+    #[test]
+    fn numbers_of_any_length() {
+        let close = |text: &str| {
+            let want: f64 = text.replace(' ', "").parse().unwrap();
+            let got = eval(text);
+            assert!(
+                (got - want).abs() <= want.abs() * 1e-15,
+                "{text}: {got} against {want}"
+            );
+        };
+        close("99999999999999999999");
+        close("123456789012345678901234567890");
+        close("1234567890123456.5");
+        close("0.00000000000000000000000012345678901234567890");
+        close(&"9".repeat(300));
+        close(&format!("0.{}1", "0".repeat(400)));
+        assert_eq!(eval(&"9".repeat(400)), f64::INFINITY);
+        assert_eq!(eval(&format!("-{}", "9".repeat(16))), -9999999999999999.0);
     }
 
     #[test]

@@ -237,6 +237,30 @@ pub struct Spline {
     pub end: [f64; 2],
 }
 
+/// A control point of a NURBS curve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NurbsPoint {
+    /// X.
+    pub x: f64,
+    /// Y.
+    pub y: f64,
+    /// Weight (positive).
+    pub weight: f64,
+}
+
+/// A G5.2/G5.3 NURBS curve in the XY plane: the rational B-spline of order `order` (degree
+/// `order - 1`) with these control points (the first is the start point, the last the end
+/// point) on LinuxCNC's clamped uniform knot vector, for `n = points.len() - 1` and
+/// `k = order`: `k` knots 0, then `1, 2, ..., n - k + 1`, then `k` knots `n - k + 2`; the
+/// parameter runs from 0 to `n - k + 2`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Nurbs {
+    /// Order k (at least 3 as LinuxCNC reads L; at most the number of points).
+    pub order: u32,
+    /// Control points, start point first.
+    pub points: Vec<NurbsPoint>,
+}
+
 /// A tool table entry as G10 L1/L10/L11 sets it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ToolEntry {
@@ -378,6 +402,8 @@ pub enum CanonCommand {
     ArcFeed(Arc),
     /// G5 / G5.1.
     SplineFeed(Spline),
+    /// G5.2 ... G5.3.
+    NurbsFeed(Nurbs),
     /// Before a G38 move.
     TurnProbeOn,
     /// After a G38 move.
@@ -553,6 +579,18 @@ impl CanonCommand {
                     ..*sp
                 })
             }
+            C::NurbsFeed(n) => C::NurbsFeed(Nurbs {
+                order: n.order,
+                points: n
+                    .points
+                    .iter()
+                    .map(|p| NurbsPoint {
+                        x: p.x * f,
+                        y: p.y * f,
+                        weight: p.weight,
+                    })
+                    .collect(),
+            }),
             C::StartSpeedFeedSync {
                 spindle,
                 feed_per_revolution,
@@ -796,6 +834,12 @@ impl Canon {
                 // rs274 prints only the order of the NURBS it builds.
                 o.extend_from_slice(b"NURBS_FEED(");
                 push_int(o, i64::from(s.order));
+                o.extend_from_slice(b", ...)");
+            }
+            C::NurbsFeed(n) => {
+                // rs274 prints the number of control points.
+                o.extend_from_slice(b"NURBS_FEED(");
+                push_int(o, n.points.len() as i64);
                 o.extend_from_slice(b", ...)");
             }
             C::StartSpeedFeedSync {

@@ -332,7 +332,8 @@ impl Interpreter {
                     });
                 }
                 Err(ReadLineError::TooLong) => {
-                    break Err(self.error_at(ErrorKind::Syntax, 0, "line too long"));
+                    self.source = self.src.line_start.source();
+                    break Err(self.error_at(ErrorKind::Syntax, 0, crate::interp::TOO_LONG));
                 }
                 Err(ReadLineError::Io(e)) => break Err(self.io_error(e)),
             }

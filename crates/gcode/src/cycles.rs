@@ -13,6 +13,9 @@ type Res<T> = Result<T, GcodeError>;
 /// Most repeats (L) of one canned cycle block: its moves are queued at once.
 const MAX_REPEATS: u64 = 10_000;
 
+/// Most pecks (over all repeats) of one G73/G83 block: they are queued at once.
+const MAX_PECKS: f64 = 100_000.0;
+
 /// The plane's axes as pose indices: (first, second, normal) and the letters of the words.
 struct Axes {
     a: usize,
@@ -270,6 +273,15 @@ impl Interpreter {
                 "negative or zero Q value in peck cycle",
             ));
         }
+        // The pecks of every repeat are queued at once: their number is bounded.
+        let pecks = ((r - cc) / delta).ceil() * repeats as f64;
+        if needs_q && (pecks.is_nan() || pecks > MAX_PECKS) {
+            return Err(self.cycle_err(
+                b,
+                ErrorKind::BadValue,
+                format!("Q too small: more than {MAX_PECKS} pecks in one peck-cycle block"),
+            ));
+        }
         let (ci, cj, ck) = if motion == 870 {
             let i = b.get(b'i').or(same.then_some(self.cycle.i));
             let j = b.get(b'j').or(same.then_some(self.cycle.j));
@@ -427,8 +439,19 @@ impl Interpreter {
                     self.restart_spindle(direction);
                 }
                 870 => {
-                    let k = if self.state.absolute { ck } else { cc + ck };
-                    let (oa, ob) = (aa + ci, bb + cj);
+                    // The words of the plane's own axes offset the back-boring point; the
+                    // word of its normal axis is the top of the bore.
+                    let (off_a, off_b, middle) = match self.state.plane {
+                        Plane::XY | Plane::UV => (ci, cj, ck),
+                        Plane::XZ | Plane::WU => (ck, ci, cj),
+                        Plane::YZ | Plane::VW => (cj, ck, ci),
+                    };
+                    let k = if self.state.absolute {
+                        middle
+                    } else {
+                        cc + middle
+                    };
+                    let (oa, ob) = (aa + off_a, bb + off_b);
                     self.cycle_move(&ax, false, oa, ob, r);
                     self.emit(C::StopSpindle { spindle: 0 });
                     self.orient_for_cycle(direction);

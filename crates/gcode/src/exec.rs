@@ -212,7 +212,7 @@ impl Interpreter {
                     ),
                 ));
             }
-            if !axis && !matches!(mode1, 0 | 10 | 20 | 30) {
+            if !axis && !matches!(mode1, 0 | 10 | 20 | 30 | 52 | 700 | 710..=712 | 720..=722) {
                 return Err(self.g_err(
                     b,
                     gg::MOTION,
@@ -234,13 +234,14 @@ impl Interpreter {
             return Ok(-1);
         }
         if axis {
-            if self.state.motion == 800 && !matches!(b.g[gg::LENGTH], 431 | 432) {
+            // -1: no motion mode after a NURBS block (G5.3), as in LinuxCNC.
+            if matches!(self.state.motion, 800 | -1) && !matches!(b.g[gg::LENGTH], 431 | 432) {
                 let first = AXES.iter().find(|c| b.has(**c)).copied().unwrap_or(b'x');
                 return Err(self.err(
                     b,
                     first,
                     ErrorKind::UnusedWord,
-                    "axis word with no motion mode in effect (G80): give G0, G1, ... first",
+                    "axis word with no motion mode in effect (after G80 or G5.3): give G0, G1, ... first",
                 ));
             }
             if matches!(b.g[gg::LENGTH], 431 | 432) {
@@ -258,6 +259,8 @@ impl Interpreter {
     pub(crate) fn check_words(&self, b: &Block, motion: i32) -> Res<()> {
         let mode0 = b.g[gg::NON_MODAL];
         let cycle = matches!(motion, 730 | 740 | 810..=890);
+        let lathe_cycle = matches!(motion, 700 | 710..=712 | 720..=722);
+        let roughing = lathe_cycle && motion != 700;
         let g10 = mode0 == 100;
         let user_m = b.m[mg::USER] != -1;
         let m = |g: usize, v: i32| b.m[g] == v;
@@ -268,6 +271,32 @@ impl Interpreter {
                 ErrorKind::MissingWord,
                 "G4 needs a P word (seconds)",
             ));
+        }
+        if mode0 == 53 && b.g[gg::MOTION] != -1 && b.g[gg::MOTION] != 52 {
+            return Err(self.g_err(
+                b,
+                gg::MOTION,
+                ErrorKind::Conflict,
+                "only G5.2 may be on a line with G5.3",
+            ));
+        }
+        if lathe_cycle {
+            // LinuxCNC 2.9 reads U and W on these lines as finishing allowances of a
+            // machine with U and W axes only; rs274 refuses them.
+            for l in [b'u', b'w'] {
+                if b.has(l) {
+                    return Err(self.err(
+                        b,
+                        l,
+                        ErrorKind::UnusedWord,
+                        format!(
+                            "a {} word cannot be used with G{}",
+                            l.to_ascii_uppercase() as char,
+                            fmt_code(motion)
+                        ),
+                    ));
+                }
+            }
         }
         if mode0 == 530 {
             if motion != 0 && motion != 10 {
@@ -299,20 +328,23 @@ impl Interpreter {
         if b.has(b'd')
             && !matches!(b.g[gg::CUTTER], 410 | 420 | 411 | 421)
             && b.g[gg::SPINDLE] != 960
+            && !lathe_cycle
         {
             return Err(self.err(
                 b,
                 b'd',
                 ErrorKind::UnusedWord,
-                "D word with no G41, G41.1, G42, G42.1 or G96 to use it",
+                "D word with no G41, G41.1, G42, G42.1, G70, G71, G72 or G96 to use it",
             ));
         }
-        if b.has(b'e') && !(motion == 760 || m(mg::IO, 66) || m(mg::IO, 67) || m(mg::IO, 68)) {
+        if b.has(b'e')
+            && !(motion == 760 || motion == 700 || m(mg::IO, 66) || m(mg::IO, 67) || m(mg::IO, 68))
+        {
             return Err(self.err(
                 b,
                 b'e',
                 ErrorKind::UnusedWord,
-                "E word with no M66, M67 or M68 to use it",
+                "E word with no G70, G76, M66, M67 or M68 to use it",
             ));
         }
         if b.has(b'h') && !matches!(b.g[gg::LENGTH], 430 | 432) && motion != 760 {
@@ -323,12 +355,14 @@ impl Interpreter {
                 "H word with no G43 or G43.2 to use it",
             ));
         }
-        if b.has(b'i') && !(matches!(motion, 20 | 30 | 50 | 51 | 331 | 760 | 870) || g10) {
+        if b.has(b'i')
+            && !(matches!(motion, 20 | 30 | 50 | 51 | 331 | 760 | 870) || g10 || roughing)
+        {
             return Err(self.err(
                 b,
                 b'i',
                 ErrorKind::UnusedWord,
-                "I word with no G2, G3, G5, G5.1, G10 or G87 to use it",
+                "I word with no G2, G3, G5, G5.1, G10, G71, G72 or G87 to use it",
             ));
         }
         if b.has(b'j') && !(matches!(motion, 20 | 30 | 50 | 51 | 760 | 870) || g10) {
@@ -347,9 +381,11 @@ impl Interpreter {
                 "K word with no G2, G3 or G87 to use it",
             ));
         }
+        // As in LinuxCNC, G74 takes no L word (the other canned cycles do).
         if b.has(b'l')
-            && !(cycle
+            && !((cycle && motion != 740)
                 || motion == 760
+                || motion == 52
                 || g10
                 || matches!(b.g[gg::CUTTER], 410 | 420 | 411 | 421)
                 || m(mg::IO, 66)
@@ -359,7 +395,7 @@ impl Interpreter {
                 b,
                 b'l',
                 ErrorKind::UnusedWord,
-                "L word with no G10, cutter compensation, canned cycle, M66 or M98 to use it",
+                "L word with no G10, cutter compensation, canned cycle (but G74), G5.2, M66 or M98 to use it",
             ));
         }
         if let Some(p) = b.get(b'p') {
@@ -368,7 +404,7 @@ impl Interpreter {
                 || b.g[gg::CONTROL] == 640
                 || matches!(
                     motion,
-                    820 | 860 | 880 | 890 | 50 | 20 | 30 | 740 | 840 | 760
+                    820 | 860 | 880 | 890 | 50 | 52 | 20 | 30 | 700 | 740 | 840 | 760
                 )
                 || matches!(b.m[mg::OVERRIDE], 50..=53)
                 || matches!(b.m[mg::IO], 62..=66)
@@ -376,7 +412,7 @@ impl Interpreter {
                 || user_m
                 || b.m98;
             if !ok {
-                return Err(self.err(b, b'p', ErrorKind::UnusedWord, "P word with no G2 G3 G4 G5 G10 G64 G82 G84 G86 G88 G89, M50-M53, M62-M66, M19, M98 or user M code to use it"));
+                return Err(self.err(b, b'p', ErrorKind::UnusedWord, "P word with no G2 G3 G4 G5 G5.2 G10 G64 G70 G74 G82 G84 G86 G88 G89, M50-M53, M62-M66, M19, M98 or user M code to use it"));
             }
             if (matches!(motion, 20 | 30) || m(mg::SPINDLE, 19)) && (p - p.round()).abs() > 0.001 {
                 return Err(self.err(
@@ -405,6 +441,7 @@ impl Interpreter {
         }
         if b.has(b'q') {
             let ok = matches!(motion, 830 | 730 | 50 | 760)
+                || lathe_cycle
                 || user_m
                 || matches!(b.m[mg::IO], 66..=68)
                 || g10
@@ -412,12 +449,13 @@ impl Interpreter {
                 || b.g[gg::CONTROL] == 640
                 || m(mg::SPINDLE, 19);
             if !ok {
-                return Err(self.err(b, b'q', ErrorKind::UnusedWord, "Q word with no G5, G10, G64, G73, G83, M19, M61, M66, M67, M68 or user M code that uses it"));
+                return Err(self.err(b, b'q', ErrorKind::UnusedWord, "Q word with no G5, G10, G64, G70, G71, G72, G73, G83, M19, M61, M66, M67, M68 or user M code that uses it"));
             }
         }
         if let Some(r) = b.get(b'r') {
             let ok = matches!(motion, 20 | 30 | 760)
                 || cycle
+                || roughing
                 || g10
                 || m(mg::SPINDLE, 19)
                 || matches!(b.g[gg::CUTTER], 411 | 421);
@@ -779,6 +817,7 @@ impl Interpreter {
                 self.pose_to_params(base, &m);
             }
             520 | 920..=923 => self.g92(b)?,
+            53 => self.nurbs_end(b)?,
             _ => {}
         }
         if motion != -1 {

@@ -6,16 +6,20 @@ use std::collections::{HashMap, VecDeque};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use crate::arc_tolerance::ArcRadiusTolerance;
 use crate::block::{self, Block, ParamRef, ParamSource};
 use crate::canon::{
-    Canon, CanonCommand, CompensationSide, FeedMode, FileId, PathMode, Plane, Pose, Source,
-    SpindleDirection, Units,
+    Canon, CanonCommand, CompensationSide, FeedMode, FileId, NurbsPoint, PathMode, Plane, Pose,
+    Source, SpindleDirection, Units,
 };
 use crate::control::{CallFrame, LoopFrame, SubDef};
 use crate::error::{ErrorKind, GcodeError};
 use crate::params::{Parameters, sys};
 use crate::source::{Location, ReadLineError, Sources};
 use crate::tools::ToolTable;
+
+/// The error of a line longer than [`crate::source::MAX_LINE`] bytes.
+pub(crate) const TOO_LONG: &str = "line too long (more than 16 KiB)";
 
 /// How the interpreter is set up for a machine.
 #[derive(Clone, Debug)]
@@ -29,7 +33,9 @@ pub struct Settings {
     pub subroutine_path: Vec<PathBuf>,
     /// Skip lines starting with `/`.
     pub block_delete: bool,
-    /// Tolerance of the radius difference of centre-format arcs (mm).
+    /// Absolute part of the tolerance of the radius difference of centre-format arcs in
+    /// millimetre programs (LinuxCNC's `CENTER_ARC_RADIUS_TOLERANCE_MM`; see
+    /// [`ArcRadiusTolerance`]).
     pub arc_radius_tolerance_mm: f64,
     /// Accept tool numbers that are not in the tool table, as tools with no offsets and
     /// their number for a pocket (to check a program without the machine's table).
@@ -39,10 +45,11 @@ pub struct Settings {
     /// [`Interpreter::input_result`]), since later lines may read it (#5061-#5070, #5399).
     /// When false the results are modelled as LinuxCNC's stand-alone interpreter does.
     pub wait_for_machine: bool,
-    /// A program that runs this many lines without issuing any command is stopped with an
-    /// error (an endless o-word loop would otherwise never return).
+    /// A program that runs this many lines of loops or subroutines without issuing any
+    /// command is stopped with an error (an endless o-word loop would otherwise never
+    /// return). Lines read straight through the file are not counted: they end.
     pub max_lines_without_output: u64,
-    /// The same in inches.
+    /// The same in inch programs (`CENTER_ARC_RADIUS_TOLERANCE_INCH`), in inches.
     pub arc_radius_tolerance_inch: f64,
 }
 
@@ -53,8 +60,8 @@ impl Default for Settings {
             initial_units: Units::Mm,
             subroutine_path: Vec::new(),
             block_delete: false,
-            arc_radius_tolerance_mm: 2.0 * 0.01 * std::f64::consts::SQRT_2,
-            arc_radius_tolerance_inch: 2.0 * 0.001 * std::f64::consts::SQRT_2,
+            arc_radius_tolerance_mm: ArcRadiusTolerance::MM.absolute,
+            arc_radius_tolerance_inch: ArcRadiusTolerance::INCH.absolute,
             max_lines_without_output: 10_000_000,
             wait_for_machine: false,
             accept_unknown_tools: false,
@@ -63,6 +70,18 @@ impl Default for Settings {
 }
 
 impl Settings {
+    /// The tolerance of the radius difference of centre-format arcs in `units`.
+    pub fn arc_radius_tolerance(&self, units: Units) -> ArcRadiusTolerance {
+        let absolute = match units {
+            Units::Mm => self.arc_radius_tolerance_mm,
+            Units::Inches => self.arc_radius_tolerance_inch,
+        };
+        ArcRadiusTolerance {
+            absolute,
+            ..ArcRadiusTolerance::default_for(units)
+        }
+    }
+
     /// Settings as LinuxCNC's stand-alone `rs274` uses them (user units are inches).
     pub fn rs274() -> Settings {
         Settings {
@@ -236,10 +255,16 @@ pub struct Interpreter {
     pub(crate) lines_without_output: u64,
     pub(crate) pending_error: Option<GcodeError>,
     pub(crate) at_eof: bool,
+    /// The file could not be read: nothing after the error can be.
+    pub(crate) unreadable: bool,
     /// Tool length offset in force at the last move (see `resync_position`).
     pub(crate) tool_at_last_move: Pose,
     pub(crate) value: f64,
     pub(crate) value_returned: bool,
+    /// Control points of an open G5.2 block.
+    pub(crate) nurbs: Vec<NurbsPoint>,
+    /// Its order (L).
+    pub(crate) nurbs_order: u32,
 }
 
 impl Interpreter {
@@ -272,9 +297,12 @@ impl Interpreter {
             lines_without_output: 0,
             pending_error: None,
             at_eof: false,
+            unreadable: false,
             tool_at_last_move: Pose::ZERO,
             value: 0.0,
             value_returned: false,
+            nurbs: Vec::new(),
+            nurbs_order: 3,
         };
         // #5599 enables (DEBUG,...) messages.
         it.params.set(5599, 1.0);
@@ -360,10 +388,12 @@ impl Interpreter {
         self.failed = false;
         self.pending_error = None;
         self.at_eof = false;
+        self.unreadable = false;
         self.percent_seen = false;
         self.started = false;
         self.lines_without_output = 0;
         self.waiting = false;
+        self.nurbs.clear();
     }
 
     /// Executes one line of MDI. Its commands are queued for [`Interpreter::next_canon`].
@@ -403,7 +433,11 @@ impl Interpreter {
             if !self.running || self.failed || self.waiting {
                 return None;
             }
-            self.lines_without_output += 1;
+            // Only lines run again can run forever: a loop's or a subroutine's (read
+            // straight through, a file of any length ends).
+            if !self.loops.is_empty() || !self.calls.is_empty() {
+                self.lines_without_output += 1;
+            }
             if self.lines_without_output > self.settings.max_lines_without_output {
                 self.failed = true;
                 self.running = false;
@@ -440,6 +474,7 @@ impl Interpreter {
         self.loops.clear();
         self.ifs.clear();
         self.params.reset_scopes();
+        self.nurbs.clear();
     }
 
     /// True when the interpreter waits for [`Interpreter::probe_result`] or
@@ -471,9 +506,15 @@ impl Interpreter {
 
     /// After an error from a program file, continue with the line after the one that
     /// failed (to report further errors; the state may be off after a failed line). Returns
-    /// false when there is nothing left to read.
+    /// false when there is nothing left to read, the file cannot be read, or the error is
+    /// inside a loop or subroutine (going on would repeat it).
     pub fn resume_after_error(&mut self) -> bool {
-        if !self.failed || self.src.current().is_none() || self.at_eof {
+        if !self.failed || self.src.current().is_none() || self.at_eof || self.unreadable {
+            return false;
+        }
+        if !self.loops.is_empty() || !self.calls.is_empty() {
+            // Inside a loop or a subroutine the failed line would come round again, and
+            // the same error with it, as often as the loop runs (or forever).
             return false;
         }
         self.failed = false;
@@ -515,16 +556,12 @@ impl Interpreter {
                 return self.end_of_file();
             }
             Err(ReadLineError::TooLong) => {
-                return Err(self.error_at(ErrorKind::Syntax, 0, "line too long"));
+                self.source = self.src.line_start.source();
+                return Err(self.error_at(ErrorKind::Syntax, 0, TOO_LONG));
             }
             Err(ReadLineError::Io(e)) => return Err(self.io_error(e)),
         }
-        let loc = self.src.line_start;
-        self.source = Source {
-            file: loc.file,
-            line: loc.line,
-            n: None,
-        };
+        self.source = self.src.line_start.source();
         self.run_line().map(|_| ())
     }
 
@@ -614,7 +651,7 @@ impl Interpreter {
         Ok(true)
     }
 
-    fn assign(&mut self, b: &mut Block) {
+    pub(crate) fn assign(&mut self, b: &mut Block) {
         for (target, value) in b.assigns.drain(..) {
             match target {
                 ParamRef::Numbered(i) => self.params.set(i, value),
@@ -645,6 +682,7 @@ impl Interpreter {
         self.loops.clear();
         self.ifs.clear();
         self.params.reset_scopes();
+        self.nurbs.clear();
         Ok(())
     }
 
@@ -657,6 +695,7 @@ impl Interpreter {
                 | CanonCommand::StraightFeed(_)
                 | CanonCommand::ArcFeed(_)
                 | CanonCommand::SplineFeed(_)
+                | CanonCommand::NurbsFeed(_)
                 | CanonCommand::StraightProbe { .. }
                 | CanonCommand::RigidTap { .. }
         ) {
@@ -683,7 +722,8 @@ impl Interpreter {
         }
     }
 
-    pub(crate) fn io_error(&self, e: std::io::Error) -> GcodeError {
+    pub(crate) fn io_error(&mut self, e: std::io::Error) -> GcodeError {
+        self.unreadable = true;
         self.error_at(ErrorKind::Io, 0, format!("cannot read: {e}"))
     }
 

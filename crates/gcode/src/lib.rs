@@ -18,6 +18,7 @@
 
 #![warn(missing_docs)]
 
+mod arc_tolerance;
 mod block;
 pub mod canon;
 pub mod compensation;
@@ -26,8 +27,11 @@ mod cycles;
 pub mod error;
 mod exec;
 mod interp;
+mod lathe_cycles;
+mod lathe_profile;
 mod mcodes;
 mod motion;
+mod nurbs;
 mod offsets;
 pub mod params;
 mod program_end;
@@ -35,7 +39,8 @@ mod source;
 mod threading;
 pub mod tools;
 
-pub use canon::{Canon, CanonCommand, Pose, Source};
+pub use arc_tolerance::ArcRadiusTolerance;
+pub use canon::{Canon, CanonCommand, Nurbs, NurbsPoint, Pose, Source};
 pub use error::{ErrorKind, GcodeError};
 pub use interp::{Interpreter, ModalState, Settings};
 pub use params::Parameters;

@@ -9,7 +9,6 @@ use crate::params::sys;
 
 /// Internal radius tolerance of R-format arcs (inch), as LinuxCNC.
 const RADIUS_TOLERANCE_INCH: f64 = 0.00005;
-const SPIRAL_RELATIVE_TOLERANCE: f64 = 0.001;
 
 type Res<T> = Result<T, GcodeError>;
 
@@ -80,6 +79,8 @@ impl Interpreter {
             0 | 10 => self.straight(b, motion),
             20 | 30 => self.arc(b, motion),
             50 | 51 => self.spline(b, motion),
+            52 => self.nurbs_point(b),
+            700 | 710..=712 | 720..=722 => self.lathe_cycle(b, motion),
             382..=385 => self.probe(b, motion),
             330 => self.g33(b),
             331 => self.g33_1(b),
@@ -317,15 +318,12 @@ impl Interpreter {
                     "zero-radius arc: start=({n1c}{c1:.4},{n2c}{c2:.4}) center=({n1c}{cc1:.4},{n2c}{cc2:.4}) end=({n1c}{e1:.4},{n2c}{e2:.4}) r1={r1:.4} r2={r2:.4}"
                 )));
             }
-            let spiral_abs = if inch {
-                self.settings.arc_radius_tolerance_inch
-            } else {
-                self.settings.arc_radius_tolerance_mm
-            };
             let abs_err = (r1 - r2).abs();
             let rel_err = abs_err / r1.max(r2);
-            if abs_err > spiral_abs * 100.0
-                || (rel_err > SPIRAL_RELATIVE_TOLERANCE && abs_err > spiral_abs)
+            if !self
+                .settings
+                .arc_radius_tolerance(self.state.units)
+                .accepts(r1, r2)
             {
                 return Err(self.g_err(b, gg::MOTION, ErrorKind::Arc, format!(
                     "radius to end of arc differs from radius to start: start=({n1c}{c1:.4},{n2c}{c2:.4}) center=({n1c}{cc1:.4},{n2c}{cc2:.4}) end=({n1c}{e1:.4},{n2c}{e2:.4}) r1={r1:.4} r2={r2:.4} abs_err={abs_err:.4} rel_err={:.4}%",

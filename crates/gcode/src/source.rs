@@ -21,6 +21,17 @@ pub(crate) struct Location {
     pub line: u32,
 }
 
+impl Location {
+    /// The canonical commands' source of this line (no N word yet).
+    pub fn source(self) -> crate::canon::Source {
+        crate::canon::Source {
+            file: self.file,
+            line: self.line,
+            n: None,
+        }
+    }
+}
+
 /// Where the text of a program comes from.
 enum Text {
     File(BufReader<File>),
@@ -205,19 +216,31 @@ impl Sources {
         self.line_start = Location {
             file: id,
             offset: f.offset,
-            line: f.line + 1,
+            line: f.line.saturating_add(1),
         };
         f.offset += n as u64;
-        f.line += 1;
+        f.line = f.line.saturating_add(1);
         if self.line.last() == Some(&b'\n') {
             self.line.pop();
             if self.line.last() == Some(&b'\r') {
                 self.line.pop();
             }
         } else if n > MAX_LINE {
+            // The rest of the line goes too, so that it is refused once and the lines after
+            // it keep their numbers.
+            let rest = reader
+                .reader()
+                .skip_until(b'\n')
+                .map_err(ReadLineError::Io)?;
+            f.offset += rest as u64;
             return Err(ReadLineError::TooLong);
         }
         Ok(true)
+    }
+
+    /// Stops reading files (after an MDI command read a subroutine for itself).
+    pub fn detach(&mut self) {
+        self.current = None;
     }
 
     /// Sets the one line of an MDI command as the line to execute.

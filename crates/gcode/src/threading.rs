@@ -6,6 +6,9 @@ use crate::canon::{CanonCommand as C, Pose};
 use crate::error::{ErrorKind, GcodeError};
 use crate::interp::Interpreter;
 
+/// Most passes (depth and spring passes together) one G76 block may expand to.
+const MAX_PASSES: u32 = 10_000;
+
 type Res<T> = Result<T, GcodeError>;
 
 /// The geometry of one G76 job, in the active length units.
@@ -121,6 +124,14 @@ impl Interpreter {
             compound = -compound;
         }
         let spring_cuts = b.get(b'h').map_or(0, |h| h.round().max(0.0) as u32);
+        // The passes are expanded at once: their number is bounded like the depth passes'.
+        if spring_cuts > MAX_PASSES {
+            return Err(self.sync_err(
+                b,
+                ErrorKind::BadValue,
+                "G76 H: more than 10000 spring passes",
+            ));
+        }
         let degression = b.get(b'r').filter(|r| *r >= 1.0).unwrap_or(1.0);
         let mut taper_dist = b.get(b'e').unwrap_or(0.0).max(0.0);
         let taper_pitch = if taper_dist > 0.0 {
@@ -153,13 +164,20 @@ impl Interpreter {
             self.threading_pass(&t, depth, zoff);
             pass += 1;
             depth = full_dia_depth + cut_increment * f64::from(pass).powf(1.0 / degression);
-            if pass > 10_000 {
+            if pass > MAX_PASSES {
                 return Err(self.sync_err(
                     b,
                     ErrorKind::BadValue,
                     "G76 would need more than 10000 passes",
                 ));
             }
+        }
+        if pass.saturating_add(spring_cuts) > MAX_PASSES {
+            return Err(self.sync_err(
+                b,
+                ErrorKind::BadValue,
+                "G76 would need more than 10000 passes",
+            ));
         }
         let zoff = (end_depth - full_dia_depth) * compound.tan();
         for _ in 0..=spring_cuts {

@@ -1,6 +1,6 @@
 //! Property test: the interpreter never panics, whatever the program. Programs are made of
 //! G-code-like tokens (codes, words, expressions, o-words, comments) mixed with random
-//! bytes. A short run is part of the normal tests; `scripts/fuzz-gcode.sh` runs a long one
+//! bytes. A short run is part of the normal tests; `scripts/fuzz.sh` runs the coverage-guided fuzzer (fuzz/) for long runs
 //! (FUZZ_CASES inputs).
 
 use proptest::prelude::*;

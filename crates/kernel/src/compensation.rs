@@ -17,17 +17,22 @@ pub(crate) struct CompensationStage {
     g92: [f64; AXES],
     rotation_deg: f64,
     tool: [f64; AXES],
-    feed_per_minute: f64,
+    /// Feed rate in mm (per minute, or per revolution), converted with the units in force
+    /// when it was set, as LinuxCNC's canonical layer does: `G20 F6` sets the feed before
+    /// the units (RS274/NGC's order of execution), so F6 is in the units before G20.
+    feed_mm: f64,
     per_revolution: bool,
     spindle_rpm: f64,
     mode: PathMode,
+    /// The blend tolerance of plain G64 (mm), from the machine file.
+    default_blend_tolerance: f64,
     /// G33/G76: the pitch (mm per revolution) of the synchronised feed moves.
     sync_pitch: Option<f64>,
     pending: Option<Tagged<MachineBlock>>,
 }
 
 impl CompensationStage {
-    pub(crate) fn new(shared: Shared) -> Self {
+    pub(crate) fn new(shared: Shared, default_blend_tolerance: f64) -> Self {
         CompensationStage {
             shared,
             mm_per_unit: 1.0,
@@ -35,10 +40,11 @@ impl CompensationStage {
             g92: [0.0; AXES],
             rotation_deg: 0.0,
             tool: [0.0; AXES],
-            feed_per_minute: 0.0,
+            feed_mm: 0.0,
             per_revolution: false,
             spindle_rpm: 0.0,
             mode: PathMode::ExactPath,
+            default_blend_tolerance,
             sync_pitch: None,
             pending: None,
         }
@@ -85,7 +91,7 @@ impl CompensationStage {
     }
 
     fn feed(&self) -> Feed {
-        let mm = self.feed_per_minute * self.mm_per_unit;
+        let mm = self.feed_mm;
         if self.per_revolution {
             Feed::PerRevolution {
                 mm_per_rev: mm,
@@ -107,17 +113,22 @@ impl CompensationStage {
                 rate,
                 per_revolution,
             } => {
-                self.feed_per_minute = rate;
+                self.feed_mm = rate * self.mm_per_unit;
                 self.per_revolution = per_revolution;
             }
-            // G64 P and Q are lengths in the program's units when they were given.
+            // G64 P and Q are lengths in the program's units when they were given. Plain G64
+            // (P0), LinuxCNC's "best speed" without a bound, is the machine file's tolerance.
             ProgramBlock::PathMode(m) => {
                 self.mode = match m {
                     PathMode::Blend {
                         tolerance,
                         merge_tolerance,
                     } => PathMode::Blend {
-                        tolerance: tolerance * self.mm_per_unit,
+                        tolerance: if tolerance > 0.0 {
+                            tolerance * self.mm_per_unit
+                        } else {
+                            self.default_blend_tolerance
+                        },
                         merge_tolerance: merge_tolerance * self.mm_per_unit,
                     },
                     other => other,
@@ -156,6 +167,7 @@ impl CompensationStage {
                 centre,
                 normal,
                 turns,
+                radius_tolerance,
             } => {
                 let end_m = self.to_machine(&end);
                 let mut c = [0.0; AXES];
@@ -176,6 +188,7 @@ impl CompensationStage {
                         centre: [c[0], c[1], c[2]],
                         normal: n,
                         turns,
+                        radius_tolerance: radius_tolerance * self.mm_per_unit,
                     },
                     feed: self.feed(),
                     mode: self.mode,

@@ -49,6 +49,15 @@ pub enum ConfigError {
     },
 }
 
+impl From<rtcnc_rt::FieldError> for ConfigError {
+    fn from(e: rtcnc_rt::FieldError) -> Self {
+        ConfigError::Invalid {
+            key: e.field,
+            reason: e.reason,
+        }
+    }
+}
+
 impl ConfigError {
     /// Stable code.
     pub fn code(&self) -> &'static str {
@@ -272,6 +281,19 @@ pub const DEFAULT_SETPOINT_LEAD: Duration = Duration::from_millis(50);
 /// The most servo periods interpolation may run ahead (memory for them is taken at start).
 pub const MAX_SETPOINT_LEAD: u64 = 256;
 
+/// The shortest period of a thread. The seeds' fastest real-time task runs every 100 µs; a
+/// host without a real-time kernel has wake-up latencies of that order, and set-points
+/// differentiated over much shorter periods carry the planner's rounding as huge
+/// accelerations and jerks (1 µs: 130 000 000 mm/s³ measured against a 50 000 limit), while
+/// virtual time crawls (1 ns: 10^9 periods per simulated second).
+pub const MIN_PERIOD: Duration = Duration::from_micros(50);
+
+/// The longest servo period: ten times the seeds' 1 ms fieldbus cycle.
+pub const MAX_SERVO_PERIOD: Duration = Duration::from_millis(10);
+
+/// The longest period of any other thread.
+pub const MAX_THREAD_PERIOD: Duration = Duration::from_secs(1);
+
 /// The shortest servo period at which interpolation runs in a thread of its own unless the
 /// configuration says otherwise. A thread of its own must wake within the four periods
 /// position control can bridge by extrapolating; on a virtual machine without a real-time
@@ -387,6 +409,21 @@ pub struct SpindleSection {
     /// Simulated spindle: oriented within this many degrees.
     #[serde(default = "orient_tolerance")]
     pub orient_tolerance_deg: f64,
+    /// What an S word above `max_speed_rpm` does.
+    #[serde(default)]
+    pub over_speed: OverSpeed,
+}
+
+/// `spindle.over_speed`: what an S word above the spindle's highest speed does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum OverSpeed {
+    /// Error in program at the S word's block: the program stops before it.
+    #[default]
+    Refuse,
+    /// The spindle runs at `max_speed_rpm`, and the operator gets a message when the
+    /// machine reaches the block.
+    Clamp,
 }
 
 fn orient_speed() -> f64 {
@@ -594,6 +631,31 @@ pub struct HmiSection {
     pub programs: Option<PathBuf>,
 }
 
+/// `[motion]`: the path planner's settings.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MotionSection {
+    /// Largest distance (mm) of the path from the programmed corners under plain `G64`
+    /// (no P, or P0), which LinuxCNC blends "at the best speed" with no bound: the planner
+    /// blends and smooths at the best speed within this one.
+    #[serde(default = "MotionSection::default_blend_tolerance")]
+    pub default_blend_tolerance: f64,
+}
+
+impl MotionSection {
+    fn default_blend_tolerance() -> f64 {
+        0.05
+    }
+}
+
+impl Default for MotionSection {
+    fn default() -> Self {
+        MotionSection {
+            default_blend_tolerance: MotionSection::default_blend_tolerance(),
+        }
+    }
+}
+
 /// `[handwheel]`.
 #[derive(Debug, Clone, Copy, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -650,6 +712,9 @@ pub struct MachineConfig {
     /// `[hmi]`: the operator's surfaces in processes of their own.
     #[serde(default)]
     pub hmi: HmiSection,
+    /// `[motion]`.
+    #[serde(default)]
+    pub motion: MotionSection,
     /// Folder of the file (paths are relative to it); set by [`MachineConfig::load`].
     #[serde(skip)]
     pub base_dir: PathBuf,
@@ -768,13 +833,36 @@ impl MachineConfig {
             ] {
                 positive_finite(&format!("{key}.{field}"), value)?;
             }
-            for (field, value) in [
-                ("quick_stop_acceleration", a.quick_stop_acceleration),
-                ("quick_stop_jerk", a.quick_stop_jerk),
-                ("jog_velocity", a.jog_velocity),
+            // A quick stop (e-stop, hard limit) must brake at least as hard as a normal stop:
+            // a softer one would stop far beyond where the normal limits say.
+            for (field, value, normal, normal_key) in [
+                (
+                    "quick_stop_acceleration",
+                    a.quick_stop_acceleration,
+                    a.max_acceleration,
+                    "max_acceleration",
+                ),
+                ("quick_stop_jerk", a.quick_stop_jerk, a.max_jerk, "max_jerk"),
             ] {
                 if let Some(v) = value {
                     positive_finite(&format!("{key}.{field}"), v)?;
+                    if v < normal {
+                        return Err(ConfigError::invalid(
+                            format!("{key}.{field}"),
+                            format!(
+                                "{v} is below {normal_key} ({normal}): a quick stop must brake at least as hard as a normal one"
+                            ),
+                        ));
+                    }
+                }
+            }
+            if let Some(v) = a.jog_velocity {
+                positive_finite(&format!("{key}.jog_velocity"), v)?;
+                if v > a.max_velocity {
+                    return Err(ConfigError::invalid(
+                        format!("{key}.jog_velocity"),
+                        format!("{v} is above max_velocity ({})", a.max_velocity),
+                    ));
                 }
             }
             finite(&format!("{key}.min_position"), a.min_position)?;
@@ -845,7 +933,33 @@ impl MachineConfig {
                 (Some(_), None) => {}
             }
         }
+        // A joint goes home to a position inside its limits (the switch, and so the latched
+        // position, may lie beyond them).
+        for (i, joint) in self.joints.iter().enumerate() {
+            let Some(h) = &joint.homing else { continue };
+            let (min, max) = match (&driven[i], &joint.limits) {
+                (Some(letter), _) => {
+                    let a = &self.axes[letter];
+                    (a.min_position, a.max_position)
+                }
+                (None, Some(l)) => (l.min_position, l.max_position),
+                (None, None) => continue,
+            };
+            if !(min..=max).contains(&h.home_position) {
+                return Err(ConfigError::invalid(
+                    format!("joints[{i}].homing.home_position"),
+                    format!(
+                        "{} is outside the joint's limits {min}..{max}",
+                        h.home_position
+                    ),
+                ));
+            }
+        }
         self.tasks_checked()?;
+        positive_finite(
+            "motion.default_blend_tolerance",
+            self.motion.default_blend_tolerance,
+        )?;
         if let Some(s) = &self.spindle {
             positive_finite("spindle.max_speed_rpm", s.max_speed_rpm)?;
         }
@@ -939,6 +1053,17 @@ impl MachineConfig {
         for (name, period, thread) in &mut out {
             *period = rtcnc_rt::parse_duration(&thread.period)
                 .map_err(|e| ConfigError::invalid(format!("tasks.{name}.period"), e.to_string()))?;
+            let longest = if *name == "fieldbus" {
+                MAX_SERVO_PERIOD
+            } else {
+                MAX_THREAD_PERIOD
+            };
+            if *period < MIN_PERIOD || *period > longest {
+                return Err(ConfigError::invalid(
+                    format!("tasks.{name}.period"),
+                    format!("{:?} is outside {MIN_PERIOD:?}..={longest:?}", *period),
+                ));
+            }
             if !rtcnc_rt::PRIORITY_RANGE.contains(&thread.priority) {
                 return Err(ConfigError::invalid(
                     format!("tasks.{name}.priority"),
@@ -1090,18 +1215,9 @@ fn sim_key(field: &str) -> String {
 }
 
 fn finite(key: &str, v: f64) -> Result<(), ConfigError> {
-    if v.is_finite() {
-        Ok(())
-    } else {
-        Err(ConfigError::invalid(key, "must be a finite number"))
-    }
+    Ok(rtcnc_rt::check::finite(key, v)?)
 }
 
 fn positive_finite(key: &str, v: f64) -> Result<(), ConfigError> {
-    finite(key, v)?;
-    if v > 0.0 {
-        Ok(())
-    } else {
-        Err(ConfigError::invalid(key, "must be greater than zero"))
-    }
+    Ok(rtcnc_rt::check::positive(key, v)?)
 }

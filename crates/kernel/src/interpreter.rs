@@ -14,6 +14,7 @@ use rtcnc_gcode::{Canon, Interpreter, Parameters, Settings, ToolTable};
 use rtcnc_motion::{Bezier, PathMode};
 use rtcnc_rt::{Context, Next};
 
+use crate::config::OverSpeed;
 use crate::fault::FaultCode;
 use crate::messages::{Aux, FixedText, MachineResult, ProgramBlock, WaitCondition};
 use crate::shared::{InterpreterRequest, Shared, Tagged};
@@ -40,6 +41,8 @@ pub(crate) struct InterpreterStage {
     /// Program position, for arcs (program coordinates).
     position: [f64; 9],
     plane: Plane,
+    /// Length units of the canonical commands (for the arcs' radius tolerance).
+    units: Units,
     selected_tool: i32,
     spindle_rpm: f64,
     spindle_on: Option<SpindleDirection>,
@@ -65,6 +68,8 @@ pub(crate) struct InterpreterStage {
     modal: Option<rtcnc_rt::SeqlockWriter<crate::modal::ModalSnapshot>>,
     /// `tools` was read again: the next interpreter takes it instead of the last one's.
     tools_fresh: bool,
+    /// The spindle's highest speed (rpm) and what an S word above it does.
+    spindle_limit: Option<(f64, OverSpeed)>,
 }
 
 /// The user M-code number with which a pallet shuttle is asked of the machine logic.
@@ -93,6 +98,7 @@ impl InterpreterStage {
             outbox: std::collections::VecDeque::with_capacity(256),
             position: [0.0; 9],
             plane: Plane::XY,
+            units: Units::Mm,
             selected_tool: 0,
             spindle_rpm: 0.0,
             spindle_on: None,
@@ -108,6 +114,7 @@ impl InterpreterStage {
             tool_table_file: None,
             modal: None,
             tools_fresh: false,
+            spindle_limit: None,
         }
     }
 
@@ -129,6 +136,12 @@ impl InterpreterStage {
         writer: rtcnc_rt::SeqlockWriter<crate::modal::ModalSnapshot>,
     ) -> Self {
         self.modal = Some(writer);
+        self
+    }
+
+    /// S words above `max_rpm` are refused or clamped (`spindle.over_speed`).
+    pub(crate) fn with_spindle_limit(mut self, limit: Option<(f64, OverSpeed)>) -> Self {
+        self.spindle_limit = limit;
         self
     }
 
@@ -426,7 +439,57 @@ impl InterpreterStage {
             self.sync_hold = Some(vec![canon]);
             return;
         }
+        let Some(canon) = self.spindle_within_limit(canon) else {
+            return;
+        };
         self.convert_now(canon);
+    }
+
+    /// An S word (in rpm, not a G96 surface speed) above the spindle's highest speed: the
+    /// run stops before it, or the speed is clamped with a message to the operator, as
+    /// `spindle.over_speed` says. A G96 speed cap (D) above it, or none (D0), becomes it.
+    fn spindle_within_limit(&mut self, mut canon: Canon) -> Option<Canon> {
+        let Some((max_rpm, policy)) = self.spindle_limit else {
+            return Some(canon);
+        };
+        match &mut canon.command {
+            CanonCommand::SetSpindleSpeed { speed, .. }
+                if self.css_max.is_none() && speed.abs() > max_rpm =>
+            {
+                let asked = *speed;
+                match policy {
+                    OverSpeed::Refuse => {
+                        let text = format!(
+                            "S{asked} is above the spindle's highest speed, {max_rpm} rpm \
+                             (spindle.max_speed_rpm; spindle.over_speed = \"clamp\" runs it \
+                             at that speed instead)"
+                        );
+                        self.refuse_because(&canon, &text);
+                        return None;
+                    }
+                    OverSpeed::Clamp => {
+                        *speed = max_rpm.copysign(asked);
+                        let note = Canon {
+                            command: CanonCommand::Message(
+                                format!(
+                                    "S{asked} clamped to {max_rpm} rpm (spindle.max_speed_rpm)"
+                                )
+                                .into(),
+                            ),
+                            source: canon.source,
+                        };
+                        self.convert_now(note);
+                    }
+                }
+            }
+            CanonCommand::SetSpindleMode {
+                constant_surface_speed: true,
+                max_rpm: cap,
+                ..
+            } if *cap <= 0.0 || *cap > max_rpm => *cap = max_rpm,
+            _ => {}
+        }
+        Some(canon)
     }
 
     fn convert_now(&mut self, canon: Canon) {
@@ -435,10 +498,13 @@ impl InterpreterStage {
         let out = &mut self.outbox;
         let aux = |aux| ProgramBlock::Aux { line, aux };
         match canon.command {
-            C::UseLengthUnits(u) => out.push_back(ProgramBlock::Units(match u {
-                Units::Mm => 1.0,
-                Units::Inches => 25.4,
-            })),
+            C::UseLengthUnits(u) => {
+                self.units = u;
+                out.push_back(ProgramBlock::Units(match u {
+                    Units::Mm => 1.0,
+                    Units::Inches => 25.4,
+                }))
+            }
             C::SetG5xOffset { offset, .. } => {
                 out.push_back(ProgramBlock::WorkOffset(offset.to_array()))
             }
@@ -554,6 +620,24 @@ impl InterpreterStage {
             }
             C::ArcFeed(arc) => {
                 let (end, centre, normal, turns) = arc_geometry(&arc, self.plane, &self.position);
+                // The radius difference the interpreter accepts for this arc: the planner
+                // runs it as a spiral (as LinuxCNC does) and refuses no less. Cutter
+                // compensation keeps the programmed difference while it changes the radii
+                // (the interpreter accepted it for the programmed ones): at least the arc's
+                // own difference.
+                let radius = |p: &[f64; 9]| {
+                    let d = [p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]];
+                    let along = d[0] * normal[0] + d[1] * normal[1] + d[2] * normal[2];
+                    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - along * along)
+                        .max(0.0)
+                        .sqrt()
+                };
+                let (r_start, r_end) = (radius(&self.position), radius(&end));
+                let radius_tolerance = self
+                    .settings
+                    .arc_radius_tolerance(self.units)
+                    .largest_difference(r_start.max(r_end))
+                    .max((r_start - r_end).abs());
                 self.position = end;
                 out.push_back(ProgramBlock::Arc {
                     line,
@@ -561,6 +645,7 @@ impl InterpreterStage {
                     centre,
                     normal,
                     turns,
+                    radius_tolerance,
                 });
             }
             C::SplineFeed(sp) => {
@@ -669,14 +754,21 @@ impl InterpreterStage {
     /// Stops the run before a block the kernel cannot carry out: "error in program" at
     /// that block, like an interpreter error found ahead.
     fn refuse(&mut self, canon: &Canon, what: &str) {
+        self.refuse_because(
+            canon,
+            &format!("{what} is not supported by the motion kernel yet"),
+        );
+    }
+
+    /// Stops the run before `canon`'s block, for `reason`.
+    fn refuse_because(&mut self, canon: &Canon, reason: &str) {
         let line = canon.source.line;
         let file = self
             .interp
             .as_ref()
             .map_or_else(|| "MDI".into(), |i| i.file_name(canon.source.file));
         *self.shared.error_text.lock() = Some(format!(
-            "{file}:{line}: {what} is not supported by the motion kernel yet; \
-             the program stops before this block"
+            "{file}:{line}: {reason}; the program stops before this block"
         ));
         self.outbox.push_back(ProgramBlock::Error {
             line,
@@ -729,6 +821,7 @@ fn not_carried_out(command: &CanonCommand) -> Option<&'static str> {
     use CanonCommand as C;
     match command {
         C::RigidTap { .. } => Some("rigid tapping (G33.1)"),
+        C::NurbsFeed(_) => Some("a NURBS curve (G5.2/G5.3)"),
         C::StartSpeedFeedSync {
             velocity_mode: true,
             ..

@@ -170,9 +170,16 @@ impl KernelHandle {
             .map_or_else(|| format!("#{joint}"), |j| j.name.clone())
     }
 
-    /// A fault in words, with the joint's name.
+    /// A fault in words, with the joint's name; a PLC fault with the PLC's code, POU and
+    /// line.
     pub fn describe(&self, fault: &Fault) -> String {
-        fault.describe(|j| self.joint_name(j))
+        let text = fault.describe(|j| self.joint_name(j));
+        match &*self.shared.plc_fault.lock() {
+            Some(plc) if fault.code == crate::FaultCode::LogicFault && fault.value == 0.0 => {
+                format!("{text}: {plc}")
+            }
+            _ => text,
+        }
     }
 }
 
@@ -295,7 +302,10 @@ impl Kernel {
             logic,
             status,
             interpreter,
-            compensation: CompensationStage::new(shared.clone()),
+            compensation: CompensationStage::new(
+                shared.clone(),
+                config.motion.default_blend_tolerance,
+            ),
             retain,
             link,
         };
@@ -489,6 +499,7 @@ fn interpreter_stage(
     .with_parameter_file(config.files.parameters.as_ref().map(|p| config.resolve(p)))
     .with_tool_table_file(config.files.tool_table.as_ref().map(|p| config.resolve(p)))
     .with_pallet_shuttle(config.machine.pallet_shuttle)
+    .with_spindle_limit(config.spindle.map(|s| (s.max_speed_rpm, s.over_speed)))
 }
 
 /// The stages the tasks run, built and ready to be moved into the task bodies.

@@ -104,7 +104,19 @@ impl LogicStage {
                     }
                 }
                 if self.plc.failed {
-                    fault = Some(-1.0);
+                    // The kernel's fault says "logic"; the PLC's own record (code, POU,
+                    // line) goes beside it for the operator.
+                    fault = Some(0.0);
+                    if !self.fault_latched {
+                        if let Some(mut slot) = self.shared.plc_fault.try_lock() {
+                            *slot = plc.fault().cloned();
+                        }
+                    }
+                } else if self.fault_latched {
+                    // Running again after a reset: the record is history.
+                    if let Some(mut slot) = self.shared.plc_fault.try_lock() {
+                        *slot = None;
+                    }
                 }
                 self.plc.apply(&mut out, req, fb, self.has_tool_changer);
             }
@@ -212,7 +224,7 @@ impl PlcAnswers {
 }
 
 /// One PLC scan on the machine interface. The details of a runtime fault are in the PLC's
-/// own fault record; the kernel's fault says "logic".
+/// own fault record (`Runtime::fault`); the kernel's fault says "logic".
 fn plc_scan(
     plc: &mut Runtime,
     req: &LogicRequests,

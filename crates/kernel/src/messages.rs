@@ -397,6 +397,9 @@ pub enum ProgramBlock {
         normal: [f64; 3],
         /// Extra turns.
         turns: u32,
+        /// Largest difference of the end radius from the start radius the interpreter
+        /// accepts (program units).
+        radius_tolerance: f64,
     },
     /// G33/G76: the following feed move advances `pitch` (program units) per spindle
     /// revolution, position-synchronised; `None` ends it.

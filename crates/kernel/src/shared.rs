@@ -260,6 +260,9 @@ pub struct Shared {
     pub interpolation_gap: std::sync::Arc<std::sync::atomic::AtomicU64>,
     /// The last move the planner refused (moved in, not formatted, by the look-ahead).
     pub motion_error: std::sync::Arc<PiMutex<Option<rtcnc_motion::MotionError>>>,
+    /// The PLC's last run-time fault (its code, POU and line), for the operator; put here
+    /// by the machine-logic task (a clone of the PLC's record: no allocation).
+    pub plc_fault: std::sync::Arc<PiMutex<Option<rtcnc_plc::Fault>>>,
 }
 
 impl Shared {
@@ -292,6 +295,7 @@ impl Shared {
             status,
             error_text: std::sync::Arc::new(PiMutex::new(None)),
             motion_error: std::sync::Arc::new(PiMutex::new(None)),
+            plc_fault: std::sync::Arc::new(PiMutex::new(None)),
             fault_count: std::sync::Arc::new(std::sync::atomic::AtomicU32::new(0)),
             interpolation_gap: std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0)),
         };

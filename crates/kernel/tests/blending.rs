@@ -108,3 +108,67 @@ fn g64_p_and_q_in_an_inch_program_are_inches() {
     let (_, merged) = run(&text, "merge-inch.ngc");
     assert_eq!(merged, 39);
 }
+
+/// Runs `text` on the benchmark machine with `[motion] default_blend_tolerance` set.
+fn run_with_default_tolerance(text: &str, name: &str, tolerance: f64) -> Vec<Sample> {
+    let toml = std::fs::read_to_string(repo().join("configs/bench-xyz.toml")).unwrap()
+        + &format!("\n[motion]\ndefault_blend_tolerance = {tolerance}\n");
+    let cfg = rtcnc_kernel::MachineConfig::parse(&toml, "bench-xyz+motion").unwrap();
+    let mut m = Machine::new(&cfg, Some(common::program(text, name)));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(30.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    m.samples
+}
+
+/// Plain G64 (LinuxCNC: "best speed", no bound) blends within the machine file's
+/// `default_blend_tolerance`: the same path, set-point for set-point, as `G64 P` with that
+/// value (it used to be P0: a stop at every corner). A zigzag of 2 mm lines with 30°
+/// corners at F1800.
+#[test]
+fn plain_g64_blends_within_the_machine_files_tolerance() {
+    let zigzag = |mode: &str| {
+        let mut text = format!("G21 G90 G17\nG0 X0 Y0 Z0\n{mode}\nF1800\n");
+        for k in 1..=20 {
+            let a = if k % 2 == 0 { 15f64 } else { -15f64 }.to_radians();
+            text += &format!("G91 G1 X{:.6} Y{:.6}\n", 2.0 * a.cos(), 2.0 * a.sin());
+        }
+        text + "G90\nM2\n"
+    };
+    for tolerance in [0.01, 0.05] {
+        let plain = run_with_default_tolerance(&zigzag("G64"), "plain.ngc", tolerance);
+        let with_p = run_with_default_tolerance(
+            &zigzag(&format!("G64 P{tolerance}")),
+            "with-p.ngc",
+            tolerance,
+        );
+        assert_eq!(plain.len(), with_p.len());
+        for (a, b) in plain.iter().zip(&with_p) {
+            assert_eq!(a.axes, b.axes);
+        }
+        // At 0.05 mm the corners are blended: the path never comes to rest between its
+        // start and its end (at 0.01 mm a stop is faster than the blend it allows).
+        let moving: Vec<&Sample> = plain.iter().filter(|s| s.path_speed > 0.0).collect();
+        let (first, last) = (moving[0].cycle, moving[moving.len() - 1].cycle);
+        let stopped = last - first + 1 - moving.len() as u64;
+        assert_eq!(
+            stopped > 0,
+            tolerance < 0.05,
+            "P {tolerance}: {stopped} periods at rest"
+        );
+    }
+}
+
+#[test]
+fn the_default_blend_tolerance_must_be_positive() {
+    let base = std::fs::read_to_string(repo().join("configs/bench-xyz.toml")).unwrap();
+    for bad in ["0.0", "-0.01", "nan"] {
+        let toml = base.clone() + &format!("\n[motion]\ndefault_blend_tolerance = {bad}\n");
+        let err = rtcnc_kernel::MachineConfig::parse(&toml, "bad").unwrap_err();
+        assert!(
+            err.to_string().contains("motion.default_blend_tolerance"),
+            "{err}"
+        );
+    }
+}

@@ -233,3 +233,64 @@ fn a_simulated_device_on_a_missing_input_is_refused_naming_the_key() {
         "fieldbus.devices[0]: digital input 40 is outside the 32 inputs"
     );
 }
+
+#[test]
+fn servo_periods_outside_the_executives_range_are_refused() {
+    // 1 ns hung the simulation (10^9 periods per simulated second); 1 µs gave set-point
+    // jerks of 130 000 000 against a limit of 50 000.
+    for period in ["1ns", "1us", "20us", "11ms"] {
+        let text = mill_text()
+            .replace(
+                "fieldbus = { period = \"1ms\"",
+                &format!("fieldbus = {{ period = \"{period}\""),
+            )
+            .replace(
+                "interpolation = { period = \"1ms\"",
+                &format!("interpolation = {{ period = \"{period}\""),
+            );
+        let refused = refusal(&text);
+        assert!(refused.starts_with("tasks.fieldbus.period: "), "{refused}");
+        assert!(refused.contains("50µs..=10ms"), "{refused}");
+    }
+    let text = mill_text().replace(
+        "status_feedback = { period = \"1ms\"",
+        "status_feedback = { period = \"2s\"",
+    );
+    assert!(refusal(&text).starts_with("tasks.status_feedback.period: "));
+}
+
+#[test]
+fn a_quick_stop_softer_than_a_normal_stop_is_refused() {
+    // A hard-limit trip at 100 mm/s ended 104 mm past the switch instead of 4.2 mm.
+    let text = mill_text().replacen(
+        "quick_stop_acceleration = 2000.0",
+        "quick_stop_acceleration = 10.0",
+        1,
+    );
+    assert_eq!(
+        refusal(&text),
+        "axes.x.quick_stop_acceleration: 10 is below max_acceleration (1000): a quick stop \
+         must brake at least as hard as a normal one"
+    );
+    let text = mill_text().replacen("quick_stop_jerk = 100000.0", "quick_stop_jerk = 1.0", 1);
+    assert!(refusal(&text).starts_with("axes.x.quick_stop_jerk: 1 is below max_jerk"));
+}
+
+#[test]
+fn relations_between_keys_are_checked() {
+    let text = mill_text().replacen(
+        "max_jerk = 50000.0",
+        "max_jerk = 50000.0\njog_velocity = 500.0",
+        1,
+    );
+    assert_eq!(
+        refusal(&text),
+        "axes.x.jog_velocity: 500 is above max_velocity (100)"
+    );
+    let text = mill_text().replacen("home_position = 0.0", "home_position = 1000.0", 1);
+    assert!(
+        refusal(&text).starts_with("joints[0].homing.home_position: 1000 is outside"),
+        "{}",
+        refusal(&text)
+    );
+}

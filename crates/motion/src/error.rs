@@ -36,9 +36,10 @@ pub enum MotionError {
         /// Resolved feed in mm/s.
         feed: f64,
     },
-    /// Arc start and end are at different distances from the centre.
+    /// Arc start and end are at distances from the centre that differ by more than the
+    /// move's `radius_tolerance`.
     #[error(
-        "line {line}: arc radius mismatch: start radius {start_radius} mm, end radius {end_radius} mm"
+        "line {line}: arc radius mismatch: start radius {start_radius} mm, end radius {end_radius} mm (tolerance {tolerance} mm)"
     )]
     ArcRadiusMismatch {
         /// Program line.
@@ -47,6 +48,8 @@ pub enum MotionError {
         start_radius: f64,
         /// Distance of the end point from the centre.
         end_radius: f64,
+        /// The move's tolerance.
+        tolerance: f64,
     },
     /// Arc geometry that defines no arc (zero radius, zero normal).
     #[error("line {line}: invalid arc: {why}")]

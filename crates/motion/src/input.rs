@@ -51,6 +51,9 @@ pub enum MoveKind {
     /// Arc or helix: around `centre` counter-clockwise seen from the tip of `normal`
     /// (right-hand rule; a G2 in G17 has normal (0,0,-1)), `turns` extra full turns, ending
     /// at `end`. The component along the normal and the axes A..W move linearly (helix).
+    /// When the end point's distance from the centre (in the plane) differs from the start
+    /// point's, the radius changes linearly with the angle (a spiral, as LinuxCNC runs
+    /// such an arc), provided the difference is within `radius_tolerance`.
     Arc {
         /// End point.
         end: AxisVec,
@@ -60,6 +63,11 @@ pub enum MoveKind {
         normal: [f64; 3],
         /// Additional full turns (0 for an arc of less than one turn).
         turns: u32,
+        /// Largest difference between the end and the start radius the caller accepts, mm
+        /// (the interpreter's tolerance, e.g. `rtcnc_gcode::ArcRadiusTolerance`); a larger
+        /// one is refused with [`crate::MotionError::ArcRadiusMismatch`]. 0 for an exact
+        /// circle (the rounding of the coordinates is always allowed).
+        radius_tolerance: f64,
     },
     /// Polynomial spline (G5 cubic, G5.1 quadratic) in Bézier form, from the start point
     /// through the control points to `end`, evaluated exactly as the polynomial. Every axis
@@ -121,7 +129,7 @@ impl Move {
         }
     }
 
-    /// An arc or helix at `feed` mm/s.
+    /// An arc or helix at `feed` mm/s, an exact circle (see [`Move::with_radius_tolerance`]).
     pub fn arc(
         end: AxisVec,
         centre: [f64; 3],
@@ -137,11 +145,24 @@ impl Move {
                 centre,
                 normal,
                 turns,
+                radius_tolerance: 0.0,
             },
             feed: Feed::UnitsPerSecond(feed),
             mode,
             line,
         }
+    }
+
+    /// The same move, an arc whose end radius may differ from its start radius by up to
+    /// `tolerance` mm (run as a spiral); other moves are returned unchanged.
+    pub fn with_radius_tolerance(mut self, tolerance: f64) -> Self {
+        if let MoveKind::Arc {
+            radius_tolerance, ..
+        } = &mut self.kind
+        {
+            *radius_tolerance = tolerance;
+        }
+        self
     }
 
     /// A spline (G5, G5.1) at `feed` mm/s.

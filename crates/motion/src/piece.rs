@@ -36,8 +36,14 @@ pub(crate) struct Sample {
     pub kp: AxisVec,
     /// Speed bound from axis velocities.
     pub v_axis: f64,
-    /// Speed bound from centripetal acceleration, curvature change and junction jumps.
+    /// Speed bound from centripetal acceleration and curvature change (it holds around
+    /// the sample: the speed limit of the sub-intervals next to it).
     pub v_curve: f64,
+    /// Speed bound at the sample's point alone: the step of the tangent or the curvature
+    /// at a junction (infinite elsewhere). It must not cap the sub-intervals next to it: a
+    /// line between two tangent arcs (a CAM profile's rounded corners) has one
+    /// sub-interval, which ran at the junctions' speed from end to end.
+    pub v_point: f64,
     /// |T_xyz| (feed applies to the XYZ speed); 0 when XYZ does not move.
     pub t_xyz: f64,
 }
@@ -89,9 +95,10 @@ pub(crate) struct Piece {
     pub j_to_stop: f64,
     /// Braking jerk of this piece.
     pub j_brake: f64,
-    /// Path length from the start of the program to the start of this piece.
+    /// Path position of the start of this piece (counted from the planner's moving
+    /// origin, `Planner::rebase`).
     pub cum_start: f64,
-    /// The next stop at or after this piece: (path length from the program start,
+    /// The next stop at or after this piece: (path position,
     /// deceleration and jerk of the braking into it).
     pub stop_ahead: (f64, f64, f64),
     /// First valley of the braking curve inside this piece: (local s, speed, deceleration
@@ -99,7 +106,7 @@ pub(crate) struct Piece {
     /// braking section ends on a lower limit; the controller must arrive there with its
     /// deceleration released.
     pub valley_in: Option<(f64, f64, f64, f64)>,
-    /// The next valley after this piece: (path length from the program start, speed,
+    /// The next valley after this piece: (path position, speed,
     /// deceleration, jerk).
     pub valley_next: Option<(f64, f64, f64, f64)>,
     /// Lowest value of the braking curve on this piece (a lower bound of `w_at` over the
@@ -158,7 +165,10 @@ impl Piece {
             dense_bounds: false,
             v_cap: [f64::INFINITY; NS_MAX + 1],
             ns: if straight { 1 } else { NS_MAX },
-            smp: [Sample::default(); NS_MAX + 1],
+            smp: [Sample {
+                v_point: f64::INFINITY,
+                ..Sample::default()
+            }; NS_MAX + 1],
             w: [0.0; NS_MAX + 1],
             a_sub: [0.0; NS_MAX],
             acc_sub: [f64::INFINITY; NS_MAX],
@@ -281,16 +291,19 @@ impl Piece {
         let mut v2_curve = f64::INFINITY;
         let mut v_jerk3 = f64::INFINITY;
         for &i in lim.present_axes() {
-            // Arcs: the per-axis projections rotate along the arc; use their amplitude
-            // so that the bound holds on the whole sub-interval.
+            // Arcs: the per-axis projections of the in-plane parts rotate along the arc; use
+            // their amplitude so that the bound holds on the whole sub-interval. The parts
+            // along the normal do not rotate (a helix's rise; on a spiral, whose speed
+            // changes with the radius, the curvature has one too).
             let (ti, ki, kpi) = match &self.shape {
                 Shape::Helix(h) if i < 3 => {
                     let amp = (h.e1[i] * h.e1[i] + h.e2[i] * h.e2[i]).sqrt();
-                    let tn = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
-                    let kn = (kv[0] * kv[0] + kv[1] * kv[1] + kv[2] * kv[2]).sqrt();
-                    let kpn = (kp[0] * kp[0] + kp[1] * kp[1] + kp[2] * kp[2]).sqrt();
-                    let axial = (h.rise * h.n[i]).abs() / self.len.max(1e-300);
-                    ((tn * amp + axial).min(1.0), kn * amp, kpn * amp)
+                    let on_axis = |v: &AxisVec| {
+                        let vn = v[0] * h.n[0] + v[1] * h.n[1] + v[2] * h.n[2];
+                        let all = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+                        (all - vn * vn).max(0.0).sqrt() * amp + (vn * h.n[i]).abs()
+                    };
+                    (on_axis(t).min(1.0), on_axis(kv), on_axis(kp))
                 }
                 _ => (t[i].abs(), kv[i].abs(), kp[i].abs()),
             };
@@ -322,9 +335,19 @@ impl Piece {
         (v_axis, v_centripetal.min(v_jerk3.cbrt()))
     }
 
-    /// Speed limit at sample `k` under the given overrides.
+    /// Speed limit at sample `k` under the given overrides: around it
+    /// ([`Piece::vlc_span`]) and at its point (a junction's step).
     #[inline]
     pub fn vlc(&self, k: usize, feed_override: f64, rapid_override: f64) -> f64 {
+        self.vlc_span(k, feed_override, rapid_override)
+            .min(self.smp[k].v_point)
+    }
+
+    /// Speed limit around sample `k` under the given overrides (feed, axis speeds,
+    /// centripetal acceleration and curvature change): the sub-intervals next to it are
+    /// capped by the lower of their two samples' limits.
+    #[inline]
+    pub fn vlc_span(&self, k: usize, feed_override: f64, rapid_override: f64) -> f64 {
         let sm = &self.smp[k];
         if self.rapid {
             return (sm.v_axis * rapid_override).min(sm.v_curve);
@@ -582,12 +605,14 @@ mod tests {
             }
             let (ti, ki, kpi) = match &p.shape {
                 Shape::Helix(h) if i < 3 => {
+                    // In-plane part times its amplitude on the axis, plus the normal part.
                     let amp = (h.e1[i] * h.e1[i] + h.e2[i] * h.e2[i]).sqrt();
-                    let tn = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
-                    let kn = (kv[0] * kv[0] + kv[1] * kv[1] + kv[2] * kv[2]).sqrt();
-                    let kpn = (kp[0] * kp[0] + kp[1] * kp[1] + kp[2] * kp[2]).sqrt();
-                    let axial = (h.rise * h.n[i]).abs() / p.len.max(1e-300);
-                    ((tn * amp + axial).min(1.0), kn * amp, kpn * amp)
+                    let bound = |v: &AxisVec| {
+                        let vn = v[0] * h.n[0] + v[1] * h.n[1] + v[2] * h.n[2];
+                        let all = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+                        (all - vn * vn).max(0.0).sqrt() * amp + (vn * h.n[i]).abs()
+                    };
+                    (bound(t).min(1.0), bound(kv), bound(kp))
                 }
                 _ => (t[i].abs(), kv[i].abs(), kp[i].abs()),
             };

@@ -9,6 +9,7 @@ use generate::{STOP_JERK_SHARE, STOP_SHARE, StepLimits};
 use crate::axes::{AXES, AxisVec, norm};
 use crate::builder::{Builder, GeometryStats, KINK};
 use crate::error::MotionError;
+use crate::geometry::Shape;
 use crate::input::Move;
 use crate::kinematics::Kinematics;
 use crate::limits::{Lim, MachineLimits};
@@ -180,6 +181,10 @@ const GEN_BUDGET: usize = 12;
 /// `Planner::regenerate`).
 const FINISH_STOP: usize = 16;
 
+/// Path length (mm) after which the origin of path positions moves to the emitted piece
+/// (`Planner::rebase`): positions stay under a few times this plus the window's length.
+const REBASE_AFTER: f64 = 1024.0;
+
 /// Everything one set-point is generated from: where on the path, the path speed and
 /// acceleration, the last set-points (for the finite-difference box) and the controller's
 /// modes. A copy is kept with every buffered set-point, so that generation can resume from
@@ -189,8 +194,9 @@ struct GenState {
     /// Piece id and local arc length of the set-point.
     id: u64,
     s: f64,
-    /// Path length from the program start (piece start plus `s`; the window end once past
-    /// the last piece).
+    /// Path position (piece start plus `s`; the window end once past the last piece).
+    /// Path positions count from an origin that moves forward with the emitted set-point
+    /// (`Planner::rebase`), not from the program start.
     at: f64,
     v: f64,
     a: f64,
@@ -205,7 +211,7 @@ struct GenState {
     prof_t: Option<f64>,
     /// Path jerk of the last step (warm start of the next search).
     j_last: f64,
-    /// Hold point (path length from the program start); infinite without a hold.
+    /// Hold point (path position); infinite without a hold.
     hold_at: f64,
     state: MotionState,
     line: u32,
@@ -355,7 +361,7 @@ pub struct Planner<K: Kinematics> {
     j_min: f64,
     qa_min: f64,
     qj_min: f64,
-    /// Path length from the program start to the end of the window.
+    /// Path position of the end of the window.
     cum_end: f64,
     /// State of the last emitted set-point.
     cur: GenState,
@@ -364,6 +370,9 @@ pub struct Planner<K: Kinematics> {
     /// How far ahead (periods) the generator runs: the longest stop of the machine.
     depth: usize,
     strict: Option<Strict>,
+    /// A rollback's model the generator has passed, kept until the emitted set-point has
+    /// passed it too (see `leave_strict`).
+    strict_passed: Option<Strict>,
     /// Time-optimal S-curve of an isolated straight line (rest to rest) with the id of its
     /// piece: such a move follows the OTG's profile instead of the period-by-period policy.
     line_profiles: [Option<(u64, Profile)>; PROFILE_SLOTS],
@@ -492,6 +501,7 @@ impl<K: Kinematics> Planner<K> {
             ahead: GenBuffer::new(depth + 1, cur),
             depth,
             strict: None,
+            strict_passed: None,
             line_profiles: [None; PROFILE_SLOTS],
             trace: std::env::var_os("RTCNC_MOTION_TRACE").is_some(),
             emitted: GenBuffer::new(0, cur),
@@ -717,6 +727,12 @@ impl<K: Kinematics> Planner<K> {
             }
             self.emitted.push(st);
         }
+        if let Some(s) = self.strict_passed
+            && st.at > s.until
+            && !(st.at < s.stop_at)
+        {
+            self.strict_passed = None;
+        }
         self.release_behind();
         if st.stopped {
             self.q.clear();
@@ -724,6 +740,7 @@ impl<K: Kinematics> Planner<K> {
             self.hold = None;
             self.ahead.len = 0;
             self.strict = None;
+            self.strict_passed = None;
             self.line_profiles = [None; PROFILE_SLOTS];
             self.cur.stopped = false;
             self.cur.id = self.q.head_id;
@@ -734,6 +751,82 @@ impl<K: Kinematics> Planner<K> {
             self.cur.prof_t = None;
             self.cur.land_n = 0;
             self.restart_history();
+        }
+        self.rebase();
+    }
+
+    /// Moves the origin of path positions to the start of the emitted piece once that is
+    /// [`REBASE_AFTER`] from it, so that positions stay as fine as near the program start
+    /// on a path of any length (the spacing of doubles passes the 1e-12 mm within which
+    /// a piece's end counts as reached at 8 192 mm). The positions are computed again as
+    /// they were built: piece starts as the running sum of the lengths, stops as their
+    /// piece's start plus length, a generator state's position as its piece's start plus
+    /// its local arc length, so that every equality between them holds as before (a state
+    /// at a stop is exactly there). Hold points and a rollback's region, which are compared
+    /// by order only, move by the same amount. Bounded work (the window and the buffer),
+    /// once per [`REBASE_AFTER`] of path.
+    fn rebase(&mut self) {
+        let base = if self.q.len > 0 {
+            self.q.get(0).cum_start
+        } else {
+            self.cum_end
+        };
+        if !(base >= REBASE_AFTER) {
+            return;
+        }
+        let old_stops = [self.strict, self.strict_passed].map(|s| s.map(|s| s.stop_at));
+        let mut new_stops = [None; 2];
+        let mut c = 0.0;
+        for i in 0..self.q.len {
+            let p = self.q.get_mut(i);
+            p.cum_start = c;
+            c += p.len;
+        }
+        self.cum_end = c;
+        // Stops (and the valleys, compared by order only) backward from the window's end.
+        let mut stop = (f64::INFINITY, f64::INFINITY);
+        for i in (0..self.q.len).rev() {
+            let last = i + 1 == self.q.len;
+            let p = self.q.get_mut(i);
+            if p.stop_at_end || last {
+                stop = (p.stop_ahead.0, p.cum_start + p.len);
+            }
+            if p.stop_ahead.0 == stop.0 {
+                for (old, new) in old_stops.iter().zip(new_stops.iter_mut()) {
+                    if *old == Some(p.stop_ahead.0) {
+                        *new = Some(stop.1);
+                    }
+                }
+                p.stop_ahead.0 = stop.1;
+            } else {
+                p.stop_ahead.0 -= base;
+            }
+            if let Some(v) = &mut p.valley_next {
+                v.0 -= base;
+            }
+        }
+        let q = &self.q;
+        let cum_end = self.cum_end;
+        let place = |st: &mut GenState| {
+            st.at = match q.index(st.id) {
+                Some(i) => q.get(i).cum_start + st.s,
+                None if st.id >= q.head_id => cum_end,
+                None => st.at - base,
+            };
+            st.hold_at -= base;
+        };
+        place(&mut self.cur);
+        self.ahead.for_each(place);
+        // The history too: a set-point gone back to must be in the new frame.
+        self.emitted.for_each(place);
+        for (s, new_stop) in [&mut self.strict, &mut self.strict_passed]
+            .into_iter()
+            .zip(new_stops)
+        {
+            if let Some(s) = s {
+                s.until -= base;
+                s.stop_at = new_stop.unwrap_or(s.stop_at - base);
+            }
         }
     }
 
@@ -898,6 +991,7 @@ impl<K: Kinematics> Planner<K> {
             self.ahead.rest_within(FINISH_STOP).map_or(0, |k| k + 1)
         };
         self.strict = None;
+        self.strict_passed = None;
     }
 
     /// Before an on-line change: the set-points up to a rest within `FINISH_STOP` periods
@@ -926,10 +1020,19 @@ impl<K: Kinematics> Planner<K> {
                 break;
             }
         }
-        if let Some(s) = self.strict
-            && s.until >= from
+        // A rollback's stricter model stays in force where set-points are generated again
+        // before its dead end, also where the braking curve changed (moves appended far
+        // ahead re-run the pass back to the last real stop, the curve at the dead end
+        // being the same): dropping it restarted its escalation from the first attempt at
+        // every push (see `leave_strict`). A model stricter than the new curve needs only
+        // costs speed up to the dead end.
+        let back = self.ahead.back().map_or(self.cur.at, |b| b.at);
+        if self.strict.is_none()
+            && let Some(s) = self.strict_passed
+            && back <= s.until
         {
-            self.strict = None;
+            self.strict = Some(s);
+            self.strict_passed = None;
         }
     }
 
@@ -1037,7 +1140,7 @@ impl<K: Kinematics> Planner<K> {
             } else {
                 let h = p.len / ns as f64;
                 for k in (0..ns).rev() {
-                    let vl = p.vlc(k, fo, ro).min(p.vlc(k + 1, fo, ro));
+                    let vl = p.vlc_span(k, fo, ro).min(p.vlc_span(k + 1, fo, ro));
                     let w1 = p.w[k + 1];
                     let d1 = p.decel_available_pair(k, w1, &lim);
                     let west = vl.min((w1 * w1 + 2.0 * h * d1).sqrt());
@@ -1045,7 +1148,7 @@ impl<K: Kinematics> Planner<K> {
                     let acc = d1.min(d2);
                     p.a_sub[k] = acc;
                     let wfull = (w1 * w1 + 2.0 * h * acc).sqrt();
-                    p.w[k] = vl.min(wfull);
+                    p.w[k] = vl.min(wfull).min(p.smp[k].v_point);
                     // A braking section that ends at sample k+1 on a limit (not at a stop).
                     let braking_here = wfull < vl;
                     if braking_here && !next_braking && w1 > 0.0 {
@@ -1129,8 +1232,8 @@ impl<K: Kinematics> Planner<K> {
             let mut low = p.w[0];
             for k in 0..ns {
                 let vl = p
-                    .vlc(k, self.fo, self.ro)
-                    .min(p.vlc(k + 1, self.fo, self.ro));
+                    .vlc_span(k, self.fo, self.ro)
+                    .min(p.vlc_span(k + 1, self.fo, self.ro));
                 p.vl_sub[k] = vl;
                 low = low.min(p.w[k + 1]).min(vl);
             }
@@ -1340,8 +1443,26 @@ fn junction(a: &mut Piece, b: &mut Piece, lim: &Lim, period: f64) {
         };
         vj = vj.min(v);
     }
-    a.smp[ea].v_curve = a.smp[ea].v_curve.min(vj);
-    b.smp[0].v_curve = b.smp[0].v_curve.min(vj);
+    // Where a line meets an arc (a CAM profile's rounded corners), the line is capped at
+    // the junction's point only and the arc over its sub-interval next to it: the braking
+    // curve then has a plateau on the arc that the jerk-limited speed settles on. Elsewhere
+    // both sides are capped over their sub-intervals: a cap at a point alone on both sides
+    // is a V-shaped dip the speed cannot follow (set-points 1000 × over the jerk limit at
+    // the tangent junctions of a G5 chain), and next to a spline's short last sub-interval
+    // even a line's point cap was lost (5 ×, random programs of lines and splines).
+    let arc = |p: &Piece| matches!(p.shape, Shape::Helix(_));
+    let (point_a, point_b) = match (a.straight && arc(b), arc(a) && b.straight) {
+        (true, _) => (true, false),
+        (_, true) => (false, true),
+        _ => (false, false),
+    };
+    for (sm, point) in [(&mut a.smp[ea], point_a), (&mut b.smp[0], point_b)] {
+        if point {
+            sm.v_point = sm.v_point.min(vj);
+        } else {
+            sm.v_curve = sm.v_curve.min(vj);
+        }
+    }
 }
 
 impl<K: Kinematics> Planner<K> {
@@ -1360,9 +1481,81 @@ impl<K: Kinematics> Planner<K> {
         self.line_profiles = [None; PROFILE_SLOTS];
         self.hold = None;
         self.strict = None;
+        self.strict_passed = None;
         self.ahead.len = 0;
         self.cur = GenState::rest(position, self.q.head_id, self.cum_end);
         self.restart_history();
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod rebase_tests {
+    use super::*;
+    use crate::axes::Axis;
+    use crate::input::PathMode;
+    use crate::kinematics::TrivialKinematics;
+    use crate::limits::AxisLimits;
+
+    /// Path positions stay within the rebase threshold plus the window's length however far
+    /// the program goes, and the stop positions the pieces hold stay exactly the ends of
+    /// their stop pieces (the subtraction of the origin is exact).
+    #[test]
+    fn path_positions_stay_small_and_exact_on_a_long_program() {
+        let lim = MachineLimits::uniform(
+            &[Axis::X, Axis::Y],
+            AxisLimits::new(1e4, 1e5, 5e6, -1000.0, 1000.0),
+        );
+        let kin = TrivialKinematics::identity(&[Axis::X, Axis::Y]);
+        let mut pl = Planner::new(&lim, kin, 1e-3, 64, [0.0; AXES]).unwrap();
+        let mode = PathMode::Blend {
+            tolerance: 0.01,
+            merge_tolerance: 0.0,
+        };
+        // A zigzag of 200 mm lines (blended, the reversals stop): 4·10^4 mm of path.
+        let moves: Vec<Move> = (0..200)
+            .map(|k| {
+                let mut p = [0.0; AXES];
+                p[0] = if k % 2 == 0 { 190.0 } else { -10.0 };
+                p[1] = if k % 4 < 2 { 20.0 } else { 0.0 };
+                Move::line(p, 5e3, mode, k + 1)
+            })
+            .collect();
+        let mut k = 0;
+        let mut joints = [0.0; 2];
+        let mut largest: f64 = 0.0;
+        for _ in 0..200_000 {
+            while k < moves.len() && pl.free() > 0 {
+                pl.push(&moves[k]).unwrap();
+                k += 1;
+            }
+            if k == moves.len() {
+                pl.flush();
+            }
+            let st = pl.next(&mut joints);
+            largest = largest.max(pl.cur.at);
+            for i in 0..pl.q.len {
+                let p = pl.q.get(i);
+                if p.stop_at_end || i + 1 == pl.q.len {
+                    assert_eq!(
+                        p.stop_ahead.0,
+                        p.cum_start + p.len,
+                        "{i} {} {} {} {}",
+                        pl.q.len,
+                        p.stop_at_end,
+                        p.len,
+                        pl.cum_end
+                    );
+                }
+            }
+            if k == moves.len() && st.state == MotionState::Idle {
+                break;
+            }
+        }
+        assert_eq!(k, moves.len());
+        assert!(pl.cur.hist[0][0] == -10.0, "{:?}", pl.cur.hist[0]);
+        // 64 pieces of at most about 200 mm ahead of an origin at most REBASE_AFTER behind.
+        assert!(largest < REBASE_AFTER + 64.0 * 210.0, "{largest}");
+        assert!(largest < 2e4);
     }
 }

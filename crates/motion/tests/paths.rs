@@ -180,3 +180,123 @@ fn a_long_path_without_stops_reaches_its_end() {
         11_000,
     );
 }
+
+/// A CAM profile with rounded corners: lines tangent to quarter arcs of R 3.175 mm (a
+/// 1/4 in end mill's corners, as FreeCAD's profile with cutter compensation writes them).
+/// The curvature steps where a line meets an arc (0 to 1/R) bound the speed there, at the
+/// junction only: the line's one sub-interval was capped by its end samples and ran at the
+/// junctions' 8.9 mm/s from end to end (the program took 1.7 × LinuxCNC's time). Between
+/// the arcs, the 100 mm lines run at the programmed feed (16.93 mm/s: F40 in/min), which
+/// takes less than a millimetre to reach from the junction's speed (hand-checked: from 8.9
+/// to 16.9 mm/s at 1000 mm/s² with a 50 000 mm/s³ jerk is under 0.3 mm).
+#[test]
+fn lines_between_tangent_arcs_run_at_their_feed() {
+    let (r, f) = (3.175, 40.0 * 25.4 / 60.0);
+    let mode = blend(0.01);
+    // Counter-clockwise around a 100 x 40 mm rectangle from (r, 0).
+    let corners = [
+        ([100.0 + r, r], [100.0 + 2.0 * r, r], [100.0 + r, 0.0]),
+        (
+            [100.0 + r, 40.0 + r],
+            [100.0 + r, 40.0 + 2.0 * r],
+            [100.0 + 2.0 * r, 40.0 + r],
+        ),
+        ([r, 40.0 + r], [0.0, 40.0 + r], [r, 40.0 + 2.0 * r]),
+        ([r, r], [r, 0.0], [0.0, r]),
+    ];
+    let mut moves = Vec::new();
+    let mut n = 0;
+    for (centre, end, line_end) in corners {
+        n += 1;
+        moves.push(Move::line(p3(line_end[0], line_end[1], 0.0), f, mode, n));
+        n += 1;
+        moves.push(Move::arc(
+            p3(end[0], end[1], 0.0),
+            [centre[0], centre[1], 0.0],
+            [0.0, 0.0, 1.0],
+            0,
+            f,
+            mode,
+            n,
+        ));
+    }
+    let lim = limits(V, A, J);
+    let mut pl = planner(&lim, p3(r, 0.0, 0.0), 256);
+    let tr = run(&mut pl, &moves, 100_000);
+    assert_limits(&tr, V, A, J);
+    assert!(dist(tr.pts.last().unwrap(), &p3(r, 0.0, 0.0)) <= 1e-9);
+    // On the long lines (y = 0 and y = 40 + 2r, away from the corners by more than 1 mm)
+    // the speed is the feed.
+    let on_long_lines: Vec<f64> = tr
+        .pts
+        .windows(2)
+        .zip(&tr.speed)
+        .filter(|(w, _)| {
+            let p = w[1];
+            (p[1].abs() < 1e-9 || (p[1] - 40.0 - 2.0 * r).abs() < 1e-9)
+                && p[0] > r + 1.0
+                && p[0] < 100.0 + r - 1.0
+        })
+        .map(|(_, v)| *v)
+        .collect();
+    assert!(on_long_lines.len() > 10_000, "{}", on_long_lines.len());
+    let slowest = on_long_lines.iter().cloned().fold(f64::INFINITY, f64::min);
+    assert!(
+        (slowest - f).abs() <= 1e-4 * f,
+        "{slowest} mm/s on the lines, F {f}"
+    );
+}
+
+/// A raster row of a 3-D surface as CAM writes it: 0.24 mm steps whose direction changes
+/// by under 1e-4 rad at some vertices (tangent: passed as they are) and by a few 1e-3 rad
+/// at the others (smoothed). After a tangent vertex the next smoothed span used to start
+/// curved, as after a stop, turned by half its vertex's angle from the line it continued:
+/// a step of the tangent that forced a stop there (a plain-G64 raster took 2.2 × LinuxCNC's
+/// time). The row runs without a stop, within P of the polyline.
+#[test]
+fn a_raster_row_with_tangent_vertices_does_not_stop() {
+    // z = 2 sin(0.1 x), rounded to 1 µm as a post-processor prints it: consecutive steps
+    // differ by a few µm in z, some not at all (tangent: within 1e-4 rad).
+    let verts: Vec<_> = (0..=200)
+        .map(|k| {
+            let x = 0.24 * k as f64;
+            let z = (2.0 * (0.1 * x).sin() * 1000.0).round() / 1000.0;
+            p3(x, 0.0, z)
+        })
+        .collect();
+    let p = 0.05;
+    let tr = check_run(&lines(&verts, 33.0, blend(p)), Some(&verts), p, 20_000);
+    assert!(never_stops(&tr));
+}
+
+/// G64 Q merges consecutive lines whose inner vertices lie within Q of one line. On a run
+/// that follows a curve, the vertices' smoothing must still stay within P of the merged
+/// chord, which cuts the curve by the vertices' distance from it: a curved run merges only
+/// where that distance is at most 0.85 P. Circles in chords of c: two merged chords cut the
+/// circle by the sagitta (2c)²/(8R) (hand-checked): 0.54²/(8·3.76) = 0.0097 mm > 0.0085 mm
+/// (no merge), 0.40²/(8·3.06) = 0.0065 mm (merged). Merging the first made an adaptive-like
+/// clearing 2.6 × slower than not merging.
+#[test]
+fn curved_runs_merge_only_where_the_smoothing_keeps_p() {
+    for (r, chord, merges) in [(3.76, 0.27, false), (3.06, 0.20, true)] {
+        let n = (std::f64::consts::TAU * r / chord).round() as usize;
+        let verts: Vec<_> = (0..=n / 4)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / n as f64;
+                p3(r * a.cos(), r * a.sin(), 0.0)
+            })
+            .collect();
+        let mode = PathMode::Blend {
+            tolerance: 0.01,
+            merge_tolerance: 0.01,
+        };
+        let lim = limits(V, A, J);
+        let mut pl = planner(&lim, verts[0], 256);
+        let tr = run(&mut pl, &lines(&verts, 50.0, mode), 20_000);
+        assert_limits(&tr, V, A, J);
+        let merged = pl.geometry_stats().merged;
+        assert_eq!(merged > 0, merges, "R {r}, chords {chord}: {merged} merged");
+        // Within P + Q of the programmed polyline.
+        assert!(max_deviation(&tr, &verts) <= 0.02 + 1e-9);
+    }
+}

@@ -4,17 +4,24 @@ use crate::ast::*;
 use crate::error::{CompileError, ErrorKind, Pos};
 use crate::lexer::{Tok, Token};
 
-/// Deepest nesting of sub-expressions, and of statements, accepted. Parsing, compiling
-/// and running recurse along the nesting; these limits keep the worst case inside 1 MiB
-/// of stack even in debug builds (tests/fuzz.rs checks it).
+/// Deepest nesting of sub-expressions (parentheses, unary operators, arguments), and of
+/// statements, accepted.
 const MAX_EXPR_DEPTH: u32 = 64;
 const MAX_STMT_DEPTH: u32 = 32;
+/// Deepest expression tree accepted: the nesting plus the operators of a left-to-right
+/// chain (`a + b - c + ...` is a tree as deep as its operators; AND/OR/XOR chains are
+/// balanced). Parsing, compiling and running recurse along the tree; this limit and the
+/// ones above keep the worst case inside 1 MiB of stack even in debug builds
+/// (tests/fuzz.rs checks it).
+const MAX_TREE_DEPTH: u32 = 128;
 
 pub(crate) struct Parser<'a> {
     toks: &'a [Token],
     i: usize,
     file: &'a str,
     depth: u32,
+    /// Depth of the expression tree being built (nesting and chains).
+    tree: u32,
     stmt_depth: u32,
 }
 
@@ -26,6 +33,7 @@ pub(crate) fn parse(toks: &[Token], file: &str) -> PResult<Unit> {
         i: 0,
         file,
         depth: 0,
+        tree: 0,
         stmt_depth: 0,
     };
     p.unit()
@@ -211,6 +219,23 @@ impl Parser<'_> {
         self.depth += 1;
         if self.depth > MAX_EXPR_DEPTH {
             return Err(self.err(format!("expression nested more than {MAX_EXPR_DEPTH} deep")));
+        }
+        self.deeper_tree()
+    }
+
+    fn leave(&mut self) {
+        self.depth -= 1;
+        self.tree -= 1;
+    }
+
+    /// One more level of the expression tree (an operator of a chain, or a nesting).
+    fn deeper_tree(&mut self) -> PResult<()> {
+        self.tree += 1;
+        if self.tree > MAX_TREE_DEPTH {
+            return Err(self.err(format!(
+                "expression too long: a tree more than {MAX_TREE_DEPTH} operators deep \
+                 (split it with intermediate variables)"
+            )));
         }
         Ok(())
     }
@@ -969,7 +994,7 @@ impl Parser<'_> {
     pub(crate) fn expr(&mut self) -> PResult<Expr> {
         self.enter()?;
         let r = self.binary(0);
-        self.depth -= 1;
+        self.leave();
         r
     }
 
@@ -1016,7 +1041,7 @@ impl Parser<'_> {
     /// Precedence climbing: one stack frame per nesting level, not per precedence level.
     fn binary(&mut self, min_level: u8) -> PResult<Expr> {
         let mut lhs = self.unary()?;
-        let depth_before = self.depth;
+        let (depth_before, tree_before) = (self.depth, self.tree);
         let result = loop {
             let Some((op, level)) = self.binop().filter(|(_, l)| *l >= min_level) else {
                 break Ok(lhs);
@@ -1048,8 +1073,9 @@ impl Parser<'_> {
                 lhs = balanced(op, operands, pos);
                 continue;
             }
-            // Other chains build a tree as deep as nesting does.
-            if let Err(e) = self.enter() {
+            // Other chains build a tree one level deeper per operator: not nesting, but
+            // bounded all the same.
+            if let Err(e) = self.deeper_tree() {
                 break Err(e);
             }
             match self.binary(level + 1) {
@@ -1058,6 +1084,7 @@ impl Parser<'_> {
             }
         };
         self.depth = depth_before;
+        self.tree = tree_before;
         result
     }
 
@@ -1077,7 +1104,7 @@ impl Parser<'_> {
                 self.bump();
                 self.enter()?;
                 let e = self.unary();
-                self.depth -= 1;
+                self.leave();
                 let e = e?;
                 // Fold a minus into a numeric literal so INT#-32768 style bounds work.
                 if op == UnOp::Neg {

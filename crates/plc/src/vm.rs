@@ -1075,11 +1075,22 @@ pub(crate) fn conv(cv: Conv, v: u64) -> u64 {
     }
 }
 
+/// A real to an integer type (already rounded or truncated). IEC 61131-3 leaves a value
+/// outside the target's range implementation-defined; here it saturates: the nearest end of
+/// the range, and NaN gives 0 (as Rust's `as` casts and IEC 60559's conversions to integer
+/// with clamping). CODESYS and TwinCAT hand such a value to the processor's conversion,
+/// whose result (e.g. -2147483648 for any out-of-range DINT on x86) is neither near nor
+/// repeatable across targets.
 fn real_to_int(x: f64, k: IntKind) -> u64 {
-    // Saturating float-to-int casts; the caller wraps to the target width.
-    if !k.signed() && x >= 0.0 {
-        x as u64
+    let (low, high) = k.range();
+    let v: i128 = if x.is_nan() {
+        0
+    } else if x <= low as f64 {
+        low
+    } else if x >= high as f64 {
+        high
     } else {
-        x as i64 as u64
-    }
+        x as i128
+    };
+    v as u64
 }

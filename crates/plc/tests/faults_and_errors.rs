@@ -281,3 +281,35 @@ fn programs_and_runtimes_can_move_to_the_plc_thread() {
     share::<rtcnc_plc::Program>();
     share::<rtcnc_plc::Fault>();
 }
+
+#[test]
+fn a_signal_is_refused_on_a_variable_of_another_kind() {
+    let src = "PROGRAM Main
+        VAR flag : BOOL; span : TIME; speed : LREAL; count : DINT; mask : WORD; END_VAR
+        flag := NOT flag;
+        END_PROGRAM";
+    let refused = |signal: &str, variable: &str| {
+        let mut rt = plc(src);
+        let cfg: PlcConfig =
+            toml::from_str(&format!("[signals]\n{signal} = \"{variable}\"\n")).unwrap();
+        match rt.configure(&cfg) {
+            Ok(()) => false,
+            Err(e) => {
+                let text = e.to_string();
+                assert!(text.contains(signal) && text.contains(variable), "{text}");
+                true
+            }
+        }
+    };
+    // A number (the S word) or an integer (the T word) in a BOOL reads as 0 or 1, in a
+    // TIME as nanoseconds: both refused, naming the signal and the variable.
+    assert!(refused("spindle_speed_command", "flag"));
+    assert!(refused("spindle_speed_out", "flag"));
+    assert!(refused("tool_number", "flag"));
+    assert!(refused("spindle_speed_command", "span"));
+    assert!(refused("limit_min", "flag"));
+    // Their own kinds are taken.
+    assert!(!refused("spindle_speed_command", "speed"));
+    assert!(!refused("tool_number", "count"));
+    assert!(!refused("spindle_on", "flag"));
+}

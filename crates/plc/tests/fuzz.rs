@@ -1,7 +1,7 @@
 //! Fuzzing of the lexer, parser and compiler (and a few scans of whatever compiles):
 //! nothing may panic, every failure must be a positioned error or a fault value.
 //! `PLC_FUZZ_CASES` sets the number of cases per property (default: a short run);
-//! `scripts/fuzz-plc.sh` runs a long one.
+//! `scripts/fuzz.sh` runs the coverage-guided fuzzer (fuzz/) for long runs.
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -305,4 +305,47 @@ fn long_contact_chains_are_fine() {
     rt.scan(Duration::ZERO).unwrap();
     assert_eq!(rt.read_name("q").unwrap(), rtcnc_plc::Value::Bool(true));
     assert_eq!(rt.read_name("r").unwrap(), rtcnc_plc::Value::Bool(false));
+}
+
+#[test]
+fn a_flat_sum_is_no_nesting_and_the_deepest_tree_fits_a_small_stack() {
+    // A sum of 65 terms was refused as "nested more than 64 deep".
+    let sum = |terms: usize| format!("x := {};", vec!["1"; terms].join(" + "));
+    for terms in [65, 120] {
+        let p = compile(&in_program(&sum(terms)), "sum.st").unwrap_or_else(|e| panic!("{e}"));
+        let mut rt = Runtime::new(Arc::new(p));
+        rt.scan(Duration::ZERO).unwrap();
+        assert_eq!(
+            rt.read_name("x").unwrap(),
+            rtcnc_plc::Value::Int(terms as i64)
+        );
+    }
+    let e = compile(&in_program(&sum(130)), "sum.st")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("expression too long"), "{e}");
+    on_small_stack(|| {
+        // The tree limit reached inside the deepest nesting, inside the deepest IFs, in a
+        // variable's chain (not constants, which would be folded).
+        let mut deepest = None;
+        for terms in (20..130).rev() {
+            let chain = vec!["x"; terms].join(" - ");
+            let e = format!("{}{chain}{}", "-(".repeat(31), ")".repeat(31));
+            let body = format!(
+                "x := 1;{}x := {e};{}",
+                "IF NOT y THEN ".repeat(31),
+                " END_IF;".repeat(31)
+            );
+            if let Ok(p) = compile(&in_program(&body), "deep.st") {
+                let mut rt = Runtime::new(Arc::new(p));
+                rt.scan(Duration::ZERO).unwrap();
+                // 1 - 1 - ... (terms times) = 2 - terms; 31 minus signs negate it.
+                let want = -(2 - terms as i64);
+                assert_eq!(rt.read_name("x").unwrap(), rtcnc_plc::Value::Int(want));
+                deepest = Some(terms);
+                break;
+            }
+        }
+        assert!(deepest.is_some_and(|t| t >= 60), "{deepest:?}");
+    });
 }

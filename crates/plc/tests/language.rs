@@ -769,3 +769,45 @@ fn remaining_standard_functions_and_operators() {
     assert_eq!(int(&rt, "t"), -2);
     assert_eq!(int(&rt, "u"), -2);
 }
+
+/// IEC 61131-3 leaves a real-to-integer conversion of a value outside the target's range
+/// implementation-defined. rtcnc saturates: the nearest end of the range; NaN gives 0.
+/// (Before, the 64-bit result was wrapped to the target: LREAL_TO_DINT(1E10) gave
+/// 1410065408, of 4294967295.0 gave -1.)
+#[test]
+fn real_to_integer_conversions_saturate_outside_the_range() {
+    let rt = eval(
+        "big : LREAL := 1.0E10; huge : LREAL := 1.0E300; neg : LREAL := -1.0E10;
+         u32max : LREAL := 4294967295.0; tie : LREAL := 2147483646.5; m : LREAL := -1.0;
+         d1, d2, d3, d4, d5, d6, d7 : DINT; i1 : INT; u1 : UINT; ud : UDINT; n : LREAL;",
+        "d1 := LREAL_TO_DINT(big); d2 := LREAL_TO_DINT(neg); d3 := LREAL_TO_DINT(u32max);
+         d4 := LREAL_TO_DINT(tie); d5 := LREAL_TO_DINT(huge); d6 := TRUNC(neg);
+         n := SQRT(m); d7 := LREAL_TO_DINT(n);
+         i1 := LREAL_TO_INT(big); u1 := LREAL_TO_UINT(neg); ud := LREAL_TO_UDINT(big);",
+    );
+    assert_eq!(int(&rt, "d1"), 2_147_483_647);
+    assert_eq!(int(&rt, "d2"), -2_147_483_648);
+    assert_eq!(int(&rt, "d3"), 2_147_483_647);
+    // In range, rounding is to the nearest, ties to even (IEC 60559), as before.
+    assert_eq!(int(&rt, "d4"), 2_147_483_646);
+    assert_eq!(int(&rt, "d5"), 2_147_483_647);
+    assert_eq!(int(&rt, "d6"), -2_147_483_648);
+    assert_eq!(int(&rt, "d7"), 0);
+    assert_eq!(int(&rt, "i1"), 32_767);
+    assert_eq!(int(&rt, "u1"), 0);
+    assert_eq!(int(&rt, "ud"), 4_294_967_295);
+}
+
+/// Found by the structure-aware fuzz target (fuzz/src/st_generated.rs): a comparison of two
+/// constants that the compiler does not fold (the left one is NaN) was refused as a bare
+/// "type mismatch".
+#[test]
+fn constants_left_unfolded_compare_as_lreal() {
+    let rt = eval(
+        "b1 : BOOL := TRUE; b2 : BOOL;",
+        "b1 := SIN(SQRT(1.0E308 + 1.0E308)) > 1.0E308; b2 := SIN(SQRT(1.0E308 + 1.0E308)) <> 1.0;",
+    );
+    // SIN(+inf) is NaN: NaN > x is false, NaN <> x true (IEC 60559).
+    assert_eq!(get(&rt, "b1"), Value::Bool(false));
+    assert_eq!(get(&rt, "b2"), Value::Bool(true));
+}

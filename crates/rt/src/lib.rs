@@ -41,6 +41,7 @@
 //! assert_eq!(sim.recording().monitor().task("log").unwrap().stats().activations, 10);
 //! ```
 
+pub mod check;
 mod error;
 pub mod histogram;
 pub mod ipc;
@@ -52,6 +53,7 @@ mod time;
 mod trace;
 mod virtual_time;
 
+pub use check::FieldError;
 pub use error::ConfigError;
 pub use ipc::{
     BinarySemaphore, CountingSemaphore, EventSemaphore, IpcError, LatestReader, LatestWriter,
@@ -64,7 +66,7 @@ pub use monitor::{
     TaskStats,
 };
 pub use realtime::{RealTimeConfig, RealTimeHandle, RealTimeRunner, RtStartError, SchedulingMode};
-pub use sys::{executive_priority_for_os, os_fifo_range, os_priority};
+pub use sys::{allowed_cpus, executive_priority_for_os, os_fifo_range, os_priority};
 pub use task::{
     Context, Next, PRIORITY_RANGE, Recording, TaskControl, TaskId, TaskSet, TaskSetBuilder,
     ThreadId, Wake,

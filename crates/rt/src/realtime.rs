@@ -60,6 +60,10 @@ pub struct RealTimeConfig {
     pub cpu_dma_latency_us: Option<u32>,
     /// Time between the moment every thread is set up and the first release.
     pub start_delay: Duration,
+    /// Print a warning on stderr for each deadline miss of a task whose reaction is
+    /// `Warn`. A caller that draws its own display (a live status line) turns this off and
+    /// reads the misses from [`RealTimeHandle::monitor`] instead.
+    pub print_warnings: bool,
 }
 
 impl Default for RealTimeConfig {
@@ -71,6 +75,7 @@ impl Default for RealTimeConfig {
             thread_cpus: Vec::new(),
             cpu_dma_latency_us: Some(0),
             start_delay: Duration::from_millis(5),
+            print_warnings: true,
         }
     }
 }
@@ -91,6 +96,14 @@ pub enum RtStartError {
         /// The OS error.
         source: std::io::Error,
     },
+    /// A thread was to be pinned to a CPU this process may not run on.
+    #[error("CPU {cpu} is not available to this process (available: {available:?})")]
+    CpuUnavailable {
+        /// The CPU asked for.
+        cpu: usize,
+        /// The CPUs of the process's affinity mask.
+        available: Vec<usize>,
+    },
 }
 
 impl RtStartError {
@@ -99,6 +112,7 @@ impl RtStartError {
         match self {
             RtStartError::FifoNotPermitted => "fifo_not_permitted",
             RtStartError::Spawn { .. } => "spawn_failed",
+            RtStartError::CpuUnavailable { .. } => "cpu_unavailable",
         }
     }
 }
@@ -553,6 +567,18 @@ pub struct RealTimeHandle {
 impl RealTimeRunner {
     /// Starts every thread of `set`; the first release is `config.start_delay` from now.
     pub fn start(set: TaskSet, config: RealTimeConfig) -> Result<RealTimeHandle, RtStartError> {
+        // A CPU outside the affinity mask would leave a thread unpinned without a word.
+        let available = crate::sys::allowed_cpus();
+        let asked = config
+            .cpus
+            .iter()
+            .flatten()
+            .chain(config.thread_cpus.iter().flat_map(|(_, cpus)| cpus));
+        for &cpu in asked {
+            if !available.contains(&cpu) {
+                return Err(RtStartError::CpuUnavailable { cpu, available });
+            }
+        }
         if config.lock_memory {
             // With a finite RLIMIT_MEMLOCK, MCL_FUTURE would make later allocations (thread
             // stacks, buffers) fail once the limit is reached: lock only without a limit.
@@ -666,7 +692,8 @@ impl RealTimeRunner {
         let mut shared = shared;
         shared.epoch = monotonic_ns() + duration_ns(config.start_delay);
         shared.epoch_cell.store(shared.epoch, Ordering::Release);
-        let supervisor = warn_tasks.iter().any(|&w| w).then(|| {
+        let print_warnings = config.print_warnings && warn_tasks.iter().any(|&w| w);
+        let supervisor = print_warnings.then(|| {
             let sh = shared.clone();
             std::thread::spawn(move || supervise(sh, warn_tasks))
         });

@@ -1,62 +1,8 @@
 use serde::Deserialize;
 
-/// A configuration value was refused: `field` names it (a dotted path inside the servo
-/// section, e.g. `gains.p`), `reason` says why.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{field}: {reason}")]
-pub struct ConfigError {
-    /// Dotted path of the refused field.
-    pub field: String,
-    /// Why it was refused.
-    pub reason: String,
-}
-
-impl ConfigError {
-    fn new(field: &str, reason: impl Into<String>) -> Self {
-        Self {
-            field: field.to_owned(),
-            reason: reason.into(),
-        }
-    }
-
-    /// The same error with `prefix.` put in front of the field, for a caller that nests
-    /// this configuration (e.g. `joints[2].servo`).
-    pub fn within(mut self, prefix: &str) -> Self {
-        self.field = format!("{prefix}.{}", self.field);
-        self
-    }
-
-    /// Stable code of every configuration error of this crate.
-    pub fn code(&self) -> &'static str {
-        "servo.config"
-    }
-}
-
-fn finite(field: &str, value: f64) -> Result<(), ConfigError> {
-    if value.is_finite() {
-        Ok(())
-    } else {
-        Err(ConfigError::new(field, "must be a finite number"))
-    }
-}
-
-fn non_negative(field: &str, value: f64) -> Result<(), ConfigError> {
-    finite(field, value)?;
-    if value >= 0.0 {
-        Ok(())
-    } else {
-        Err(ConfigError::new(field, "must not be negative"))
-    }
-}
-
-fn positive(field: &str, value: f64) -> Result<(), ConfigError> {
-    finite(field, value)?;
-    if value > 0.0 {
-        Ok(())
-    } else {
-        Err(ConfigError::new(field, "must be greater than zero"))
-    }
-}
+/// A refused value names its field; the one type and checks of every machine-file crate.
+pub use rtcnc_rt::FieldError as ConfigError;
+use rtcnc_rt::check::{finite, non_negative, positive};
 
 /// Gains of the velocity-output position loop. Units follow from the output being a
 /// velocity command in joint units per second.

@@ -129,6 +129,13 @@ fn run_scans(
     if period_ns <= 0 {
         bail!("--period must be positive");
     }
+    // The PLC's clock counts nanoseconds in an i64 (about 292 years).
+    if scans
+        .checked_mul(period_ns as u64)
+        .is_none_or(|end| end > i64::MAX as u64)
+    {
+        bail!("--scans {scans} of {period} go past the PLC clock's range (about 292 years)");
+    }
     let program = match load(file)? {
         Ok(p) => p,
         Err(code) => return Ok(code),

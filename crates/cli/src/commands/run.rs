@@ -1,17 +1,27 @@
 //! `rtcnc run`: runs a part program in real time on the configured machine, with a live
-//! status line. Ctrl-C asks for a feed hold, a second Ctrl-C aborts the program.
+//! status line (warnings are printed above it and counted in it). Ctrl-C asks for a feed
+//! hold, a second Ctrl-C aborts the program. SIGTERM is a controlled stop: feed hold, abort,
+//! drives off, then the summary and exit status [`EXIT_TERMINATED`].
 //! At the end it prints each real-time task's execution time and CPU share of its period,
-//! from the executive's timing monitor.
+//! from the executive's timing monitor. A closed standard output does not stop the machine:
+//! what can no longer be printed is dropped.
 
 use std::io::{IsTerminal, Write as _};
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
 use rtcnc_kernel::{Command, Kernel, KernelOptions, MachineConfig, MachineState, Urgent};
 use rtcnc_rt::{RealTimeConfig, RealTimeRunner, SchedulingMode};
+
+use crate::commands::seconds;
+use crate::say;
+
+/// Exit status after SIGTERM's controlled stop (128 + SIGTERM, as a shell reports a process
+/// the signal ended).
+pub const EXIT_TERMINATED: u8 = 143;
 
 /// Run a G-code program in real time on the configured machine.
 #[derive(Debug, clap::Args)]
@@ -26,14 +36,14 @@ pub struct Args {
     home: bool,
     /// No program: run the task graph with the drives enabled for this long (seconds),
     /// then report the CPU shares (the benchmark of bench/kernel-cpu.sh).
-    #[arg(long, value_name = "SECONDS")]
-    idle: Option<f64>,
+    #[arg(long, value_name = "SECONDS", value_parser = seconds)]
+    idle: Option<Duration>,
     /// Refuse to run without SCHED_FIFO.
     #[arg(long)]
     require_fifo: bool,
     /// Give up after this many seconds.
-    #[arg(long, default_value_t = 3600.0)]
-    limit: f64,
+    #[arg(long, default_value = "3600", value_parser = seconds)]
+    limit: Duration,
 }
 
 /// Prints the operator messages the machine reached since the last call (time since the
@@ -42,29 +52,122 @@ fn print_messages(handle: &rtcnc_kernel::KernelHandle, start_ns: u64, tty: bool)
     for m in handle.take_messages() {
         let t = m.time_ns.saturating_sub(start_ns) as f64 * 1e-9;
         if tty {
-            eprint!("\r{:100}\r", "");
+            clear_status_line();
         }
-        println!("message  t {t:.3} s  line {}: {}", m.line, m.text.as_str());
+        say!("message  t {t:.3} s  line {}: {}", m.line, m.text.as_str());
     }
 }
 
+/// Wipes the status line, so that what is printed next starts on a clean line above it.
+fn clear_status_line() {
+    eprint!("\r\x1b[2K");
+}
+
+/// Prints a warning above the status line (redrawn by the next status update).
+fn warn(text: &str, tty: bool) {
+    eprint!("{}", warning_text(text, tty));
+}
+
+/// A warning as printed: on a terminal it first wipes the status line it replaces, so the
+/// warning stands on a line of its own and the status line is drawn again below it.
+fn warning_text(text: &str, tty: bool) -> String {
+    let clear = if tty { "\r\x1b[2K" } else { "" };
+    format!("{clear}rtcnc: warning: {text}\n")
+}
+
+/// The live status line: drawn over the previous one (wiped first), with the count of
+/// warnings printed above it so far.
+fn status_text(elapsed_s: f64, s: &rtcnc_kernel::Status, warnings: u64) -> String {
+    let warnings = if warnings > 0 {
+        format!("  warnings {warnings}")
+    } else {
+        String::new()
+    };
+    format!(
+        "\r\x1b[2K{elapsed_s:>8.1} s  line {:5}  X{:9.3} Y{:9.3} Z{:9.3}  F{:8.1} mm/min  {}{warnings}",
+        s.line,
+        s.axes[0],
+        s.axes[1],
+        s.axes[2],
+        s.path_speed * 60.0,
+        s.state.as_str()
+    )
+}
+
 static INTERRUPTS: AtomicU32 = AtomicU32::new(0);
+static TERMINATED: AtomicBool = AtomicBool::new(false);
 
 extern "C" fn on_sigint(_: libc::c_int) {
     INTERRUPTS.fetch_add(1, Ordering::SeqCst);
 }
 
-fn install_sigint() {
-    let handler: extern "C" fn(libc::c_int) = on_sigint;
-    // SAFETY: the handler only touches an atomic, which is async-signal-safe.
+extern "C" fn on_sigterm(_: libc::c_int) {
+    TERMINATED.store(true, Ordering::SeqCst);
+}
+
+fn install_signal_handlers() {
+    let sigint: extern "C" fn(libc::c_int) = on_sigint;
+    let sigterm: extern "C" fn(libc::c_int) = on_sigterm;
+    // SAFETY: the handlers only touch atomics, which is async-signal-safe. SIGPIPE is
+    // ignored so that a closed output is an error `say!` drops, not the end of the process.
     unsafe {
-        libc::signal(libc::SIGINT, handler as libc::sighandler_t);
+        libc::signal(libc::SIGINT, sigint as libc::sighandler_t);
+        libc::signal(libc::SIGTERM, sigterm as libc::sighandler_t);
+        libc::signal(libc::SIGPIPE, libc::SIG_IGN);
     }
+}
+
+/// The deadline misses the executive recorded since the last call, as warnings (when the
+/// machine file's reaction is `warn`).
+struct MissWarnings {
+    seen: usize,
+    count: u64,
+}
+
+impl MissWarnings {
+    fn poll(&mut self, runner: &rtcnc_rt::RealTimeHandle, tty: bool) {
+        let monitor = runner.monitor();
+        let faults = monitor.raw_faults();
+        for f in faults.iter().skip(self.seen) {
+            if f.code == rtcnc_rt::FaultCode::DeadlineMiss {
+                self.count += 1;
+                warn(&monitor.describe(f).to_string(), tty);
+            }
+        }
+        self.seen = faults.len();
+    }
+}
+
+/// SIGTERM: feed hold until the path stands, abort, then drives off (e-stop at standstill).
+/// Each step waits a bounded time; the e-stop comes whatever the steps before found.
+fn controlled_stop(handle: &rtcnc_kernel::KernelHandle) {
+    let wait = |limit: Duration, done: &dyn Fn(&rtcnc_kernel::Status) -> bool| {
+        let start = Instant::now();
+        while start.elapsed() < limit && !done(&handle.status()) {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    };
+    handle.urgent(Urgent::FeedHold);
+    wait(Duration::from_secs(5), &|s| {
+        s.path_speed.abs() < 1e-9 && s.state != MachineState::Running
+    });
+    handle.urgent(Urgent::Abort);
+    wait(Duration::from_secs(2), &|s| {
+        matches!(
+            s.state,
+            MachineState::Idle | MachineState::Fault | MachineState::EStop
+        )
+    });
+    handle.urgent(Urgent::EStop);
+    wait(Duration::from_secs(2), &|s| {
+        matches!(s.state, MachineState::EStop | MachineState::Fault)
+    });
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let config = MachineConfig::load(&args.machine)
-        .with_context(|| format!("machine configuration {}", args.machine.display()))?;
+        // The error names the file.
+        .context("machine configuration")?;
     if args.program.is_none() && args.idle.is_none() {
         bail!("give a PROGRAM, or --idle SECONDS");
     }
@@ -83,6 +186,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         },
     )?;
     let handle = kernel.handle.clone();
+    let tty = std::io::stderr().is_terminal();
     let runner = RealTimeRunner::start(
         kernel.tasks,
         RealTimeConfig {
@@ -91,13 +195,18 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             } else {
                 SchedulingMode::BestEffort
             },
+            // Printed here, above the status line.
+            print_warnings: false,
             ..RealTimeConfig::default()
         },
     )?;
-    install_sigint();
+    install_signal_handlers();
+    let warn_misses = config.safety.deadline_miss == rtcnc_kernel::config::MissReactionConfig::Warn;
+    let mut misses = MissWarnings { seen: 0, count: 0 };
     let wait = |what: &str, limit: Duration, done: &dyn Fn() -> bool| -> anyhow::Result<()> {
         let start = Instant::now();
-        while !done() {
+        // SIGTERM ends the wait; the run loop then makes the controlled stop.
+        while !done() && !TERMINATED.load(Ordering::SeqCst) {
             if start.elapsed() > limit {
                 bail!("{what} did not happen within {limit:?}");
             }
@@ -117,40 +226,57 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             handle.status().state != MachineState::Running
         })?;
     }
-    let tty = std::io::stderr().is_terminal();
     let started = Instant::now();
     let mut ended = false;
     if let Some(idle) = args.idle {
-        std::thread::sleep(Duration::from_secs_f64(idle.max(0.0)));
+        while started.elapsed() < idle && !TERMINATED.load(Ordering::SeqCst) {
+            std::thread::sleep(
+                (idle - started.elapsed().min(idle)).min(Duration::from_millis(100)),
+            );
+            if warn_misses {
+                misses.poll(&runner, false);
+            }
+        }
+        if TERMINATED.load(Ordering::SeqCst) {
+            controlled_stop(&handle);
+        }
     } else {
         handle.command(Command::Start { from_line: 0 });
         let kernel_start = handle.status().time_ns;
         let mut seen = 0;
         loop {
             std::thread::sleep(Duration::from_millis(100));
+            if TERMINATED.load(Ordering::SeqCst) {
+                if tty {
+                    clear_status_line();
+                }
+                eprintln!("rtcnc: SIGTERM: feed hold, abort, drives off");
+                controlled_stop(&handle);
+                break;
+            }
             let interrupts = INTERRUPTS.load(Ordering::SeqCst);
             if interrupts > seen {
                 seen = interrupts;
+                if tty {
+                    clear_status_line();
+                }
                 if seen == 1 {
                     handle.urgent(Urgent::FeedHold);
-                    eprintln!("\nrtcnc: feed hold (Ctrl-C again to abort)");
+                    eprintln!("rtcnc: feed hold (Ctrl-C again to abort)");
                 } else {
                     handle.urgent(Urgent::Abort);
-                    eprintln!("\nrtcnc: abort");
+                    eprintln!("rtcnc: abort");
                 }
+            }
+            if warn_misses {
+                misses.poll(&runner, tty);
             }
             print_messages(&handle, kernel_start, tty);
             let s = handle.status();
             if tty {
                 eprint!(
-                    "\r{:>8.1} s  line {:5}  X{:9.3} Y{:9.3} Z{:9.3}  F{:8.1} mm/min  {:18}",
-                    started.elapsed().as_secs_f64(),
-                    s.line,
-                    s.axes[0],
-                    s.axes[1],
-                    s.axes[2],
-                    s.path_speed * 60.0,
-                    s.state.as_str()
+                    "{}",
+                    status_text(started.elapsed().as_secs_f64(), &s, misses.count)
                 );
                 let _ = std::io::stderr().flush();
             }
@@ -164,7 +290,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             if seen >= 2 && s.state == MachineState::Idle {
                 break;
             }
-            if started.elapsed().as_secs_f64() > args.limit {
+            if started.elapsed() > args.limit {
                 break;
             }
         }
@@ -173,12 +299,18 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }
         print_messages(&handle, kernel_start, false);
     }
+    if warn_misses {
+        misses.poll(&runner, false);
+    }
+    let terminated = TERMINATED.load(Ordering::SeqCst);
     let elapsed = started.elapsed().as_secs_f64();
     let fifo = runner.is_fifo();
     let recording = runner.stop();
     let faults = handle.take_faults();
-    if args.program.is_some() {
-        println!(
+    if terminated {
+        say!("terminated (SIGTERM) after {elapsed:.3} s: feed hold, abort, drives off");
+    } else if args.program.is_some() {
+        say!(
             "{} in {elapsed:.3} s",
             if ended {
                 "program ended"
@@ -187,7 +319,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             }
         );
     }
-    println!(
+    say!(
         "scheduling  {}",
         if fifo {
             "SCHED_FIFO"
@@ -195,7 +327,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             "normal threads (no SCHED_FIFO permission)"
         }
     );
-    println!(
+    say!(
         "task                 runs     mean µs   p99 µs   max µs   CPU share of its period   misses"
     );
     let t = &config.tasks;
@@ -220,7 +352,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             // Mean time of one body run × runs per activation / period.
             e.mean as f64 * f64::from(runs) / period.as_nanos() as f64 * 100.0
         });
-        println!(
+        say!(
             "{:18} {:8} {:10.2} {:8.2} {:8.2}   {:>10}                {}",
             stats.name,
             stats.activations,
@@ -250,25 +382,55 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         .fold(String::new(), |text, (name, max)| {
             format!("{text}  {name} {:.3} ms", max as f64 / 1e6)
         });
-    println!("latest start after release:{latest}");
-    println!(
+    say!("latest start after release:{latest}");
+    say!(
         "set-point lead {lead} periods ({:.1} ms); longest gap between interpolation runs {gap} periods ({:.1} ms)",
         lead as f64 * period_ms,
         gap as f64 * period_ms,
     );
-    println!(
+    say!(
         "set-point underruns (periods without a set-point): {}",
         handle.setpoint_underruns()
     );
-    for f in faults
-        .iter()
-        .filter(|f| f.code != rtcnc_kernel::FaultCode::CommandRefused)
-    {
-        println!("fault  {}", handle.describe(f));
+    if misses.count > 0 {
+        say!("deadline-miss warnings: {}", misses.count);
     }
-    Ok(if ended || args.idle.is_some() {
+    for f in faults.iter().filter(|f| {
+        f.code != rtcnc_kernel::FaultCode::CommandRefused
+            // The drives-off step of SIGTERM's stop is no fault of the machine.
+            && !(terminated && f.code == rtcnc_kernel::FaultCode::EStop)
+    }) {
+        say!("fault  {}", handle.describe(f));
+    }
+    Ok(if terminated {
+        ExitCode::from(EXIT_TERMINATED)
+    } else if ended || args.idle.is_some() {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_warning_takes_the_status_lines_place_and_the_line_counts_it() {
+        // On a terminal the warning wipes the status line first and ends its own line: the
+        // next status update is drawn below it, whole.
+        let w = warning_text("late", true);
+        assert!(w.starts_with("\r\x1b[2K"), "{w:?}");
+        assert!(w.ends_with("rtcnc: warning: late\n"), "{w:?}");
+        assert_eq!(warning_text("late", false), "rtcnc: warning: late\n");
+        let status = rtcnc_kernel::Status {
+            line: 12,
+            ..rtcnc_kernel::Status::default()
+        };
+        let line = status_text(1.5, &status, 0);
+        assert!(line.starts_with("\r\x1b[2K"), "{line:?}");
+        assert!(!line.contains("warnings"), "{line:?}");
+        assert!(!line.contains('\n'), "{line:?}");
+        assert!(status_text(1.5, &status, 3).ends_with("  warnings 3"));
+    }
 }

@@ -12,7 +12,8 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, bail};
 use rtcnc_kernel::report::RunStats;
 use rtcnc_kernel::{
-    Command, Fault, Kernel, KernelOptions, MachineConfig, MachineState, Sample, Simulation,
+    Command, Fault, FaultCode, Kernel, KernelOptions, MachineConfig, MachineState, Sample,
+    Simulation,
 };
 
 /// Run a G-code program on a simulated machine in virtual time.
@@ -27,8 +28,8 @@ pub struct Args {
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
     /// Give up after this much machine time, in seconds.
-    #[arg(long, default_value_t = 3600.0)]
-    limit: f64,
+    #[arg(long, default_value = "3600", value_parser = crate::commands::seconds)]
+    limit: Duration,
     /// Home the machine before the program starts.
     #[arg(long)]
     home: bool,
@@ -40,6 +41,9 @@ pub struct Args {
     #[arg(long)]
     profile: bool,
 }
+
+/// Most operator messages `summary.json` lists (all are printed).
+const MAX_KEPT_MESSAGES: usize = 10_000;
 
 /// What `summary.json` holds.
 pub struct Summary {
@@ -53,7 +57,8 @@ pub struct Summary {
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let config = MachineConfig::load(&args.machine)
-        .with_context(|| format!("machine configuration {}", args.machine.display()))?;
+        // The error names the file.
+        .context("machine configuration")?;
     if !args.program.is_file() {
         bail!("{}: no such program file", args.program.display());
     }
@@ -85,14 +90,17 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         None => None,
     };
     let mut stats = RunStats::new();
-    let mut plot = PlotData::default();
+    // Only --out draws the plot; its points are decimated to a bounded number.
+    let mut plot = args.out.as_ref().map(|_| PlotData::default());
     let mut faults: Vec<Fault> = Vec::new();
     let mut io_error: Option<std::io::Error> = None;
     let profile = args.profile;
     let mut sink = |s: &Sample| {
         let t0 = profile.then(Instant::now);
         stats.add(s, period_s);
-        plot.add(s);
+        if let Some(plot) = plot.as_mut() {
+            plot.add(s);
+        }
         if let Some(w) = writers.as_mut() {
             if let Err(e) = w.write(s, config.joints.len()) {
                 io_error.get_or_insert(e);
@@ -122,7 +130,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let wall = Instant::now();
     let bar = progress_bar(args.quiet);
     let mut messages: Vec<(f64, u32, String)> = Vec::new();
-    let limit = Duration::from_secs_f64(args.limit.max(0.001));
+    let limit = args.limit;
     let mut ended = false;
     loop {
         let done = sim.run_until(Duration::from_millis(100), &mut sink, |s| {
@@ -152,14 +160,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         if sim.now() - start > limit {
             break;
         }
-        // A program error stops the program and leaves the machine idle.
-        if status.state == MachineState::Idle
-            && faults.iter().any(|f| {
-                f.code.as_str().starts_with("kernel.program")
-                    || f.code.as_str().starts_with("kernel.compensation")
-                    || f.code.as_str().starts_with("kernel.motion")
-            })
-        {
+        // A block the kernel refused (a program error, a machine function it cannot carry
+        // out, an impossible synchronised move) stops the program and leaves the machine
+        // idle: nothing more will happen.
+        if status.state == MachineState::Idle && faults.iter().any(|f| stops_program(f.code)) {
             break;
         }
     }
@@ -205,7 +209,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     let fault_texts: Vec<String> = faults
         .iter()
-        .filter(|f| f.code != rtcnc_kernel::FaultCode::CommandRefused)
+        .filter(|f| f.code != FaultCode::CommandRefused)
         .map(|f| handle.describe(f))
         .collect();
     let error_text = handle.error_text();
@@ -294,6 +298,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             },
             error_text.as_deref(),
         )?;
+        let plot = plot.unwrap_or_default();
         std::fs::write(dir.join("plot.svg"), plot.svg(&config))
             .with_context(|| format!("{}", dir.join("plot.svg").display()))?;
         let runner = sim.into_runner();
@@ -380,7 +385,11 @@ fn take_messages(
             Some(bar) => bar.suspend(|| println!("{text}")),
             None => println!("{text}"),
         }
-        messages.push((t, m.line, m.text.as_str().to_string()));
+        // The summary keeps the first ones; a program that prints in an endless loop
+        // must not fill the memory.
+        if messages.len() < MAX_KEPT_MESSAGES {
+            messages.push((t, m.line, m.text.as_str().to_string()));
+        }
     }
 }
 
@@ -496,15 +505,54 @@ impl Outputs {
     }
 }
 
-#[derive(Default)]
+/// Whether a fault leaves the program stopped (and `sim` with nothing more to wait for):
+/// every fault but a refused operator command and the ones that only warn.
+fn stops_program(code: FaultCode) -> bool {
+    !matches!(
+        code,
+        FaultCode::CommandRefused | FaultCode::DeadlineMiss | FaultCode::BackgroundCheck
+    )
+}
+
+/// Most points the plot keeps: once twice this many are gathered, every other one goes and
+/// only every other servo period is taken from then on, so memory stays bounded however
+/// long the program runs.
+const PLOT_POINTS: usize = 20_000;
+
 struct PlotData {
     points: Vec<(f64, f64, f64, f64)>,
+    /// A point is kept every `stride` samples.
+    stride: u64,
+    samples: u64,
+}
+
+impl Default for PlotData {
+    fn default() -> Self {
+        PlotData {
+            points: Vec::with_capacity(2 * PLOT_POINTS),
+            stride: 1,
+            samples: 0,
+        }
+    }
 }
 
 impl PlotData {
     fn add(&mut self, s: &Sample) {
+        let keep = self.samples % self.stride == 0;
+        self.samples += 1;
+        if !keep {
+            return;
+        }
         self.points
             .push((s.time_ns as f64 * 1e-9, s.axes[0], s.axes[1], s.path_speed));
+        if self.points.len() >= 2 * PLOT_POINTS {
+            let mut i = 0;
+            self.points.retain(|_| {
+                i += 1;
+                i % 2 == 1
+            });
+            self.stride *= 2;
+        }
     }
 
     /// Tool path (X-Y, or Z-X on a lathe) and path speed over time, hand-written SVG.
@@ -672,4 +720,49 @@ fn write_summary(
     std::fs::write(path, serde_json::to_string_pretty(&value)? + "\n")
         .with_context(|| format!("{}", path.display()))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample(cycle: u64) -> Sample {
+        Sample {
+            time_ns: cycle * 1_000_000,
+            cycle,
+            setpoint: [0.0; 16],
+            feedback: [0.0; 16],
+            following_error: [0.0; 16],
+            axes: [0.0; 9],
+            line: 0,
+            path_speed: 0.0,
+        }
+    }
+
+    #[test]
+    fn the_plot_keeps_a_bounded_number_of_evenly_spaced_points() {
+        let mut plot = PlotData::default();
+        // An hour of 1 ms periods.
+        for cycle in 0..3_600_000 {
+            plot.add(&sample(cycle));
+        }
+        assert!(plot.points.len() < 2 * PLOT_POINTS, "{}", plot.points.len());
+        assert!(plot.points.len() >= PLOT_POINTS / 2);
+        // Evenly spaced: every kept point is `stride` periods after the one before.
+        let step = plot.points[1].0 - plot.points[0].0;
+        assert!((step - plot.stride as f64 * 1e-3).abs() < 1e-9);
+        for w in plot.points.windows(2) {
+            assert!((w[1].0 - w[0].0 - step).abs() < 1e-6);
+        }
+        assert_eq!(plot.points[0].0, 0.0);
+    }
+
+    #[test]
+    fn a_refused_block_stops_the_program_a_warning_does_not() {
+        assert!(stops_program(FaultCode::AuxRefused));
+        assert!(stops_program(FaultCode::SyncFailed));
+        assert!(stops_program(FaultCode::ProgramError));
+        assert!(!stops_program(FaultCode::DeadlineMiss));
+        assert!(!stops_program(FaultCode::CommandRefused));
+    }
 }

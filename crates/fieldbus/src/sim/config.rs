@@ -5,63 +5,9 @@ use serde::Deserialize;
 use crate::image::DriveMode;
 use crate::sim::devices::{DeviceConfig, validate_devices};
 
-/// A configuration value was refused: `field` names it (dotted path, e.g.
-/// `joints[1].motor.inertia`), `reason` says why.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{field}: {reason}")]
-pub struct ConfigError {
-    /// Dotted path of the refused field.
-    pub field: String,
-    /// Why it was refused.
-    pub reason: String,
-}
-
-impl ConfigError {
-    fn new(field: impl Into<String>, reason: impl Into<String>) -> Self {
-        Self {
-            field: field.into(),
-            reason: reason.into(),
-        }
-    }
-
-    /// The same error with `prefix.` in front of the field, for a caller that nests this
-    /// configuration (e.g. `fieldbus`).
-    pub fn within(mut self, prefix: &str) -> Self {
-        self.field = format!("{prefix}.{}", self.field);
-        self
-    }
-
-    /// Stable code of every configuration error of this crate.
-    pub fn code(&self) -> &'static str {
-        "fieldbus.config"
-    }
-}
-
-fn finite(field: &str, value: f64) -> Result<(), ConfigError> {
-    if value.is_finite() {
-        Ok(())
-    } else {
-        Err(ConfigError::new(field, "must be a finite number"))
-    }
-}
-
-fn non_negative(field: &str, value: f64) -> Result<(), ConfigError> {
-    finite(field, value)?;
-    if value >= 0.0 {
-        Ok(())
-    } else {
-        Err(ConfigError::new(field, "must not be negative"))
-    }
-}
-
-fn positive(field: &str, value: f64) -> Result<(), ConfigError> {
-    finite(field, value)?;
-    if value > 0.0 {
-        Ok(())
-    } else {
-        Err(ConfigError::new(field, "must be greater than zero"))
-    }
-}
+/// A refused value names its field; the one type and checks of every machine-file crate.
+pub use rtcnc_rt::FieldError as ConfigError;
+use rtcnc_rt::check::{finite, non_negative, positive};
 
 /// The whole simulated machine.
 #[derive(Debug, Clone, PartialEq, Deserialize)]

@@ -8,14 +8,11 @@ use super::geometry::{
     CORNER_TOLERANCE, EQUAL_TOLERANCE, P2, concave_retreat, direction, distance, from_plane,
     lathe_origin_shift, line_offset_end, polar, side_angle, sweep, to_plane, tool_inside_arc,
 };
+use crate::arc_tolerance::ArcRadiusTolerance;
 use crate::canon::{Arc, Canon, CanonCommand, CompensationSide, Plane, Pose, Source, Units};
 
 /// How many commands may wait in the stage by default (see [`Compensator::with_capacity`]).
 pub const DEFAULT_CAPACITY: usize = 256;
-
-/// Tolerance on the radius mismatch of a compensated entry arc (LinuxCNC's default
-/// `CENTER_ARC_RADIUS_TOLERANCE`), in millimetres.
-const SPIRAL_TOLERANCE_MM: f64 = 2.0 * 0.01 * std::f64::consts::SQRT_2;
 
 /// Largest allowed change of an arc's radius when its end point is moved (a consistency
 /// check: it never changes for a correct corner).
@@ -309,7 +306,15 @@ impl Compensator {
                 return Err(CompError::new(K::Probe, src));
             }
             C::StraightProbe { end, .. } => self.programmed = *end,
-            C::SplineFeed(_) if active => return Err(CompError::new(K::Spline, src)),
+            C::SplineFeed(_) | C::NurbsFeed(_) if active => {
+                return Err(CompError::new(K::Spline, src));
+            }
+            C::NurbsFeed(n) => {
+                if let Some(last) = n.points.last() {
+                    self.programmed.x = last.x;
+                    self.programmed.y = last.y;
+                }
+            }
             C::SplineFeed(s) => {
                 self.programmed.x = s.end[0];
                 self.programmed.y = s.end[1];
@@ -721,7 +726,9 @@ impl Compensator {
                 return Err(CompError::new(K::ToolRadiusNotLessThanArcRadius, src));
             }
             let new_centre = polar(new_end, b_len / a_ang.cos(), ab_ang);
-            let spiral = SPIRAL_TOLERANCE_MM / self.units.mm_per_unit();
+            // A consistency check of the construction, with LinuxCNC's absolute tolerance of
+            // the arc's radius difference in the program's units.
+            let spiral = ArcRadiusTolerance::default_for(self.units).absolute;
             if (distance(new_centre, new_end) - distance(new_centre, c2)).abs() > spiral {
                 return Err(CompError::new(K::Internal, src));
             }

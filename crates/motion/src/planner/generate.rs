@@ -120,12 +120,19 @@ impl<K: Kinematics> Planner<K> {
     /// (one just after it is the same one), or at rest at the stop it braked for (a dead
     /// end on the way into a stop: the next piece starts where it was, and the stricter
     /// model there kept the machine at rest for ever). A state at rest short of the stop
-    /// keeps it (a dead end at rest is met again from there).
+    /// keeps it (a dead end at rest is met again from there). The model is kept aside
+    /// until the emitted set-point has passed it too ([`Planner::strict_passed`]): set-points
+    /// regenerated before it (a push re-runs the braking curve back to the last real stop
+    /// and drops what saw it) take it again, and a dead end met there continues its
+    /// escalation instead of starting from the first attempt (a trochoid loop into a
+    /// corner met the same dead end at every push, each time with fewer set-points left
+    /// to roll back, until none were left and one 158 × over the jerk limit was emitted).
     fn leave_strict(&mut self, st: &GenState) {
         if let Some(s) = self.strict
             && (st.at > s.until + 8.0 * st.v * self.period + 1e-9
                 || (st.v <= 0.0 && st.a == 0.0 && st.at >= s.until && st.at >= s.stop_at))
         {
+            self.strict_passed = Some(s);
             self.strict = None;
         }
     }
@@ -142,7 +149,10 @@ impl<K: Kinematics> Planner<K> {
     fn rollback(&mut self, front: &GenState) {
         self.stats.rollbacks += 1;
         let reach = 8.0 * front.v * self.period + 1e-9;
-        let prev = self.strict.filter(|s| front.at <= s.until + reach);
+        let prev = self
+            .strict
+            .or(self.strict_passed)
+            .filter(|s| front.at <= s.until + reach);
         let attempt = prev.map_or(0, |s| s.attempt + 1);
         let until = prev.map_or(front.at, |s| s.until.max(front.at));
         let f = STRICT_FACTOR.powi(attempt as i32 + 1);
@@ -202,7 +212,7 @@ impl<K: Kinematics> Planner<K> {
             return false;
         };
         let (a_stop, j_stop) = self.stop_model(p, st.at);
-        let rem = p.stop_ahead.0 - st.at;
+        let rem = self.to_stop(st, p);
         let (d, _) = stop(st.v, st.a, STOP_SHARE * a_stop, STOP_JERK_SHARE * j_stop);
         2.0 * d >= rem
     }
@@ -265,6 +275,22 @@ impl<K: Kinematics> Planner<K> {
         st.v <= w + 0.5 * p.j_brake * t * t && self.stop_fits(st, f_stop)
     }
 
+    /// Path length from `st` on piece `p` to the next stop: the rest of the piece, exact
+    /// (local arc lengths), plus the pieces from its end to the stop (none when the piece
+    /// ends in it). The last step onto a stop then lands on the piece's end exactly,
+    /// wherever the piece is on the path (the difference of two path positions is only as
+    /// fine as their size: a step that fell short of the end by that much and found
+    /// nothing left to go left the machine at rest for ever).
+    fn to_stop(&self, st: &GenState, p: &Piece) -> f64 {
+        let rest = p.len - st.s;
+        let ends_in_stop = p.stop_at_end || self.q.index(st.id).is_none_or(|i| i + 1 >= self.q.len);
+        if ends_in_stop {
+            rest
+        } else {
+            rest + (p.stop_ahead.0 - (p.cum_start + p.len))
+        }
+    }
+
     /// The piece `st` moves on (none at rest, in a dwell or on an isolated line's S-curve:
     /// any model fits there).
     fn moving_piece(&self, st: &GenState) -> Option<(usize, &Piece)> {
@@ -290,7 +316,7 @@ impl<K: Kinematics> Planner<K> {
         let (am, jm) = (STOP_SHARE * a_stop * f, STOP_JERK_SHARE * j_stop * f);
         let v = st.v.max(0.0);
         // The model's own tolerances (`judge`).
-        let rem = p.stop_ahead.0 - st.at;
+        let rem = self.to_stop(st, p);
         !(st.a < 0.0 && st.a * st.a > 2.0 * jm * v * (1.0 + 1e-9) + 1e-12)
             && stop(v, st.a, am, jm).0 <= rem * (1.0 + 1e-12) + 1e-12
     }
@@ -487,8 +513,12 @@ impl<K: Kinematics> Planner<K> {
 
     /// The time-optimal S-curve of the straight piece `idx` from `from` (local arc length,
     /// speed, acceleration) to rest at its end, under the feed (with the overrides) and the
-    /// axis limits projected on the line, a hair (1e-7) inside them: the set-point check
-    /// shrinks them by 1e-10 relative plus rounding, and the profile runs at them exactly.
+    /// axis limits projected on the line, a hair inside them: 1e-7, and more where the
+    /// set-point check's allowance for the rounding of the coordinates (16 ulp of the
+    /// three positions it differences) eats into the jerk step J·T³ (the profile runs at
+    /// its limits exactly; from about 400 mm from the origin at 50 000 mm/s³ and 1 ms the
+    /// 1e-7 alone no longer covered it, the profile's samples failed the check while
+    /// braking and the speed policy, handed a state at the full limits, could not follow).
     /// From a moving state (an override changed the feed) the profile must not reverse: when
     /// slowing down to the new feed first would overshoot the line's end, the speed limit
     /// stays at the current speed (the stop at the end binds anyway). None when no
@@ -496,9 +526,26 @@ impl<K: Kinematics> Planner<K> {
     pub(super) fn line_profile_from(&self, idx: usize, from: OtgState) -> Option<Profile> {
         let head = self.q.get(idx);
         let vmax = (0..=head.ns)
-            .map(|k| head.vlc(k, self.fo, self.ro))
+            .map(|k| head.vlc_span(k, self.fo, self.ro))
             .fold(f64::INFINITY, f64::min);
-        let share = 1.0 - 1e-7;
+        let t = self.period;
+        // Shares of the speed, acceleration and jerk limits.
+        let mut share: [f64; 3] = [1.0 - 1e-7; 3];
+        for &i in self.lim.present_axes() {
+            // The coordinates the check differences, the profile's own position along the
+            // line, and their evaluation, each within a few ulp, against the steps v·T,
+            // a·T², j·T³.
+            let size = head.start[i].abs().max(head.end[i].abs()) + head.len + 1.0;
+            let rounding = 64.0 * f64::EPSILON * size;
+            let steps = [
+                self.lim.v[i] * t,
+                self.lim.a[i] * t * t,
+                self.lim.j[i] * t * t * t,
+            ];
+            for (sh, step) in share.iter_mut().zip(steps) {
+                *sh = sh.min(1.0 - 1e-7 - rounding / step).max(0.5);
+            }
+        }
         let end = OtgState {
             p: head.len,
             v: 0.0,
@@ -508,10 +555,12 @@ impl<K: Kinematics> Planner<K> {
             // An override of 0 %: the speed policy brings the machine to rest on the path.
             return None;
         }
-        let t = self.period;
-        for v_lim in [share * vmax, (share * vmax).max(from.v * (1.0 + 1e-9))] {
+        for v_lim in [
+            share[0] * vmax,
+            (share[0] * vmax).max(from.v * (1.0 + 1e-9)),
+        ] {
             let limits =
-                OtgLimits::symmetric(v_lim, share * head.a_proj[0], share * head.j_proj[0]);
+                OtgLimits::symmetric(v_lim, share[1] * head.a_proj[0], share[2] * head.j_proj[0]);
             let Ok(profile) = position_profile(from, end, &limits) else {
                 continue;
             };
@@ -526,7 +575,7 @@ impl<K: Kinematics> Planner<K> {
     }
 
     /// Piece index and local arc length `ds` ahead of (`idx`, `s`), never beyond the next
-    /// stop (`stop_at`, path length from the program start), where it is the stop's exact end.
+    /// stop (at path position `stop_at`), where it is the stop's exact end.
     #[inline]
     fn locate(&self, idx: usize, s: f64, at: f64, ds: f64, stop_at: f64) -> (usize, f64) {
         let p = self.q.get(idx);
@@ -687,7 +736,7 @@ impl<K: Kinematics> Planner<K> {
         let quick = matches!(self.hold, Some(h) if h.kind == StopKind::Quick);
         let (f, f_stop) = self.strictness(st.at);
         let stop_at = head.stop_ahead.0;
-        let mut rem = stop_at - st.at;
+        let mut rem = self.to_stop(&st, head);
         let (mut a_stop, mut j_stop) = self.stop_model(head, st.at);
         let (path_rem, path_a_stop, path_j_stop) = (rem, a_stop, j_stop);
         let mut hold_at = st.hold_at;

@@ -407,14 +407,25 @@ impl<'a> Compiler<'a> {
                 let te = self.expr(inner, sc, expect)?;
                 self.unary(*op, te, *pos)
             }
-            AExpr::Binary(op, l, r, pos) => {
-                let lt = self.expr(l, sc, expect)?;
-                let hint = match &lt.ty {
-                    Ty::T(t) => Some(t.clone()),
-                    _ => expect.cloned(),
-                };
-                let rt = self.expr(r, sc, hint.as_ref())?;
-                self.binary(*op, lt, rt, *pos)
+            AExpr::Binary(..) => {
+                // `a + b - c + ...` is a left-deep tree: its left spine is walked here in a
+                // loop, not by recursion, so a long chain costs no stack per operator.
+                let mut spine = Vec::new();
+                let mut leftmost = e;
+                while let AExpr::Binary(op, l, r, pos) = leftmost {
+                    spine.push((*op, &**r, *pos));
+                    leftmost = l;
+                }
+                let mut lt = self.expr(leftmost, sc, expect)?;
+                for (op, r, pos) in spine.into_iter().rev() {
+                    let hint = match &lt.ty {
+                        Ty::T(t) => Some(t.clone()),
+                        _ => expect.cloned(),
+                    };
+                    let rt = self.expr(r, sc, hint.as_ref())?;
+                    lt = self.binary(op, lt, rt, pos)?;
+                }
+                Ok(lt)
             }
             AExpr::MethodCall(target, args, pos) => {
                 let (prefix, m) = &**target;
@@ -709,7 +720,12 @@ impl<'a> Compiler<'a> {
                     )),
                 }
             }
-            _ => Err(self.e(pos, ErrorKind::TypeMismatch, "type mismatch")),
+            // Two constants the folding left alone (a non-finite value, e.g. SIN of an
+            // infinity): computed in the widest type of their kind.
+            (Ty::AnyReal(_), Ty::AnyReal(_) | Ty::AnyInt(_)) | (Ty::AnyInt(_), Ty::AnyReal(_)) => {
+                Ok(Type::Elem(Elem::LReal))
+            }
+            (Ty::AnyInt(_), Ty::AnyInt(_)) => Ok(Type::Elem(Elem::LInt)),
         }
     }
 

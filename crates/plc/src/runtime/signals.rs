@@ -15,8 +15,11 @@ impl Runtime {
                 error,
             })?;
             let e = r.elem().filter(|_| r.bit.is_none());
+            // BOOL and TIME are integer-like inside, but neither holds a number: a speed
+            // in a BOOL would read as 0 or 1, in a TIME as nanoseconds.
             let ok = match (sig.kind(), e) {
                 (SignalKind::Bool, Some(Elem::Bool)) => true,
+                (_, Some(Elem::Bool | Elem::Time)) => false,
                 (SignalKind::Number, Some(e)) => e.is_num(),
                 (SignalKind::Integer, Some(e)) => e.is_int() || e.is_bit(),
                 (SignalKind::Mask, Some(e)) => {

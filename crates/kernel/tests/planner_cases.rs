@@ -1,0 +1,221 @@
+//! Programs that showed planner defects when run as a user would (the cases of the
+//! project's defect list, copied into `data/cases/`): each runs to its end within every
+//! axis's limits.
+
+mod common;
+use common::*;
+use rtcnc_kernel::{Command, MachineState, Sample};
+
+/// Largest |v|, |a|, |j| of the axis set-points over their limits (finite differences at
+/// the servo period, as the planner checks them).
+fn worst_ratio(samples: &[Sample], period: f64, limits: &[(f64, f64, f64)]) -> f64 {
+    let mut worst: f64 = 0.0;
+    for w in samples.windows(4) {
+        for (i, &(v, a, j)) in limits.iter().enumerate() {
+            let x: Vec<f64> = w.iter().map(|s| s.axes[i]).collect();
+            let d1 = (x[3] - x[2]) / period;
+            let d2 = (x[3] - 2.0 * x[2] + x[1]) / (period * period);
+            let d3 = (x[3] - 3.0 * x[2] + 3.0 * x[1] - x[0]) / (period * period * period);
+            worst = worst.max(d1.abs() / v).max(d2.abs() / a).max(d3.abs() / j);
+        }
+    }
+    worst
+}
+
+/// Runs a case on a machine of `configs/` until the program ends (at most `limit_s` of
+/// machine time); the samples.
+fn run_case(config_name: &str, case: &str, limit_s: f64) -> Vec<Sample> {
+    let cfg = config(config_name);
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/data/cases")
+            .join(case),
+    )
+    .unwrap();
+    let mut m = Machine::new(&cfg, Some(program(&text, case)));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    let ended = m.until(limit_s, |s| {
+        s.program_ended && s.state == MachineState::Idle
+    });
+    assert!(m.faults.is_empty(), "{case}: {:?}", m.faults);
+    assert!(ended, "{case}: did not end within {limit_s} s");
+    m.samples
+}
+
+/// Twelve 1800 mm rapids (10.8 km of path), then a polyline: the machine came to rest at
+/// the end of the last rapid and never moved again (the end of a stop piece was missed by
+/// the rounding of path positions counted from the program start), and each rapid beyond
+/// about 400 mm from the origin exceeded the jerk limit 8 × while braking.
+#[test]
+fn long_path_stall_runs_to_its_end_within_the_limits() {
+    let samples = run_case("bench-xyz.toml", "long-path-stall.ngc", 400.0);
+    let worst = worst_ratio(&samples, 1e-3, &[(100.0, 1000.0, 50_000.0); 3]);
+    assert!(worst <= 1.0 + 1e-9, "{worst}");
+    let last = samples.last().unwrap().axes;
+    // The program's last point.
+    assert!(
+        (last[0] + 8.6521).abs() < 1e-9 && (last[1] + 5.0141).abs() < 1e-9,
+        "{last:?}"
+    );
+}
+
+/// A G2 whose end radius is 0.5 µm longer than its start radius (CAM output rounded to four
+/// decimals): the interpreter accepted it and the planner refused it ("arc radius
+/// mismatch"). It runs as LinuxCNC runs it: a spiral whose radius grows linearly with the
+/// angle from 10 to 10.0005 mm over the quarter turn.
+#[test]
+fn an_arc_with_a_half_micron_radius_difference_runs_as_a_spiral() {
+    let samples = run_case("sim-mill.toml", "arc-radius-0.5um.ngc", 10.0);
+    let limits = [
+        (100.0, 1000.0, 50_000.0),
+        (100.0, 1000.0, 50_000.0),
+        (50.0, 800.0, 40_000.0),
+    ];
+    let worst = worst_ratio(&samples, 1e-3, &limits);
+    assert!(worst <= 1.0 + 1e-9, "{worst}");
+    // G2 X10 Y10.0005 I10 J0 from the origin: centre (10, 0), clockwise from the angle π
+    // to π/2.
+    let on_arc: Vec<_> = samples.iter().filter(|s| s.line == 3).collect();
+    assert!(on_arc.len() > 100, "{}", on_arc.len());
+    for s in on_arc {
+        let (x, y) = (s.axes[0] - 10.0, s.axes[1]);
+        let swept = std::f64::consts::PI - y.atan2(x);
+        let expected = 10.0 + 0.0005 * swept / std::f64::consts::FRAC_PI_2;
+        assert!((x.hypot(y) - expected).abs() <= 1e-9, "{:?}", s.axes);
+    }
+    let last = samples.last().unwrap().axes;
+    assert!((last[0] - 20.0).abs() < 1e-9 && (last[1] - 10.0005).abs() < 1e-9);
+}
+
+/// In an inch program the interpreter's tolerance is LinuxCNC's inch one (2·0.001·√2 in):
+/// an arc whose radius grows by 0.0028 in (0.071 mm, more than the millimetre tolerance)
+/// runs to its end, a spiral ending exactly at its end point.
+#[test]
+fn an_inch_arc_within_the_inch_tolerance_runs() {
+    let cfg = config("sim-mill.toml");
+    let text = "G20 G90 G17 G64 P0.0004\nF40\nG0 X0 Y0 Z0\nG2 X2.0028 Y0 I1 J0\nM2\n";
+    let mut m = Machine::new(&cfg, Some(program(text, "inch-spiral.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    let ended = m.until(20.0, |s| s.program_ended && s.state == MachineState::Idle);
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    assert!(ended);
+    let last = m.samples.last().unwrap().axes;
+    assert!(
+        (last[0] - 2.0028 * 25.4).abs() < 1e-9 && last[1].abs() < 1e-9,
+        "{last:?}"
+    );
+}
+
+/// RS274/NGC executes F before G20/G21, and LinuxCNC's canonical layer converts a feed rate
+/// with the units in force when it is set: rs274 prints `SET_FEED_RATE(60)` before
+/// `USE_LENGTH_UNITS(CANON_UNITS_INCHES)` for `G20 F60`
+/// (`rtcnc-gcode/tests/corpus/221_units_and_feed_in_one_block.canon`), so F60 there is 60
+/// mm/min, and F120 on `G21 F120` is 120 in/min. The kernel applied the units of the move
+/// instead (25.4 × too fast, and too slow).
+#[test]
+fn a_feed_on_the_block_that_changes_the_units_is_in_the_units_before() {
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../gcode/tests/corpus/221_units_and_feed_in_one_block.ngc"),
+    )
+    .unwrap();
+    let cfg = config("bench-xyz.toml");
+    let mut m = Machine::new(&cfg, Some(program(&text, "feed-units.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(60.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    // (program line, feed in mm/s): F600 mm/min; F60 set in mm; F120 set in inches; F10 in
+    // inches.
+    for (line, feed) in [
+        (5, 10.0),
+        (7, 1.0),
+        (9, 120.0 * 25.4 / 60.0),
+        (11, 10.0 * 25.4 / 60.0),
+    ] {
+        // The cruise speed: the middle sample of the line.
+        let on_line: Vec<f64> = m
+            .samples
+            .iter()
+            .filter(|s| s.line == line)
+            .map(|s| s.path_speed)
+            .collect();
+        let top = on_line[on_line.len() / 2];
+        assert!(
+            (top - feed).abs() <= 1e-3 * feed,
+            "line {line}: {top} mm/s, F {feed}"
+        );
+    }
+}
+
+/// An adaptive-clearing-like program: rows of trochoidal loops (circles of R 2.87 mm in
+/// 85 chords of 0.21 mm, advancing 0.56 mm per loop, F3000, G64 P0.02), each row ending at
+/// a corner into a rapid retract. At the end of the first row the path arrived at the
+/// corner braking harder than the curve allowed (a dead end); its rollback's stricter model
+/// was dropped at every push of the moves that kept arriving behind it (the look-ahead re-ran
+/// the braking curve back to that stop), so the same dead end was met again and again with
+/// fewer set-points left to roll back each time, until none were left: set-points 124 ×
+/// over the jerk limit and 7 × over the acceleration limit were emitted. Through the
+/// kernel, since the moves must arrive while the machine runs.
+#[test]
+fn trochoidal_rows_ending_in_corners_keep_the_limits() {
+    let (r, advance, chord, rows, loops) = (2.87f64, 0.56f64, 0.21f64, 3, 10);
+    let n = (std::f64::consts::TAU * r / chord) as usize;
+    let mut text = String::from("G21 G90 G17 G40 G49 G80\nG64 P0.02\nG0 Z5.000\n");
+    let (x, mut y) = (10.0, 30.0);
+    text += &format!("G0 X{:.3} Y{y:.3}\nG1 Z-3.000 F300.0\n", x + r);
+    for _ in 0..rows {
+        for k in 0..loops {
+            let cx = x + k as f64 * advance;
+            for j in 1..=n {
+                let a = std::f64::consts::TAU * j as f64 / n as f64;
+                let px = cx + r * a.cos() + advance * j as f64 / n as f64;
+                text += &format!("G1 X{px:.3} Y{:.3} F3000.0\n", y + r * a.sin());
+            }
+        }
+        y += 2.0 * r;
+        text += &format!("G0 Z1.000\nG0 X{:.3} Y{y:.3}\nG1 Z-3.000 F300.0\n", x + r);
+    }
+    text += "G0 Z5.000\nM2\n";
+    let cfg = config("bench-xyz.toml");
+    let mut m = Machine::new(&cfg, Some(program(&text, "trochoid.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(60.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    let worst = worst_ratio(&m.samples, 1e-3, &[(100.0, 1000.0, 50_000.0); 3]);
+    assert!(worst <= 1.0 + 1e-9, "{worst}");
+}
+
+/// Cutter compensation keeps an arc's radius difference while it changes its radii: an arc
+/// of R 30 whose end radius is 0.029 mm longer (accepted: under 0.1 % of 30.029 mm) is
+/// 0.029 mm off at R 27 inside a 6 mm cutter, which the rule alone would refuse at R 27
+/// (0.0283 mm); the planner took the rule for the compensated radii and refused it.
+#[test]
+fn a_compensated_arc_keeps_the_radius_difference_the_interpreter_accepted() {
+    let dir = std::env::temp_dir().join(format!("rtcnc-planner-cases-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let tools = dir.join("tools.tbl");
+    std::fs::write(&tools, "T1 P1 D6.0 Z+40.0 ;6 mm flat end mill\n").unwrap();
+    let toml = std::fs::read_to_string(repo().join("configs/bench-xyz.toml")).unwrap()
+        + &format!(
+            "\n[files]\ntool_table = {:?}\n",
+            tools.display().to_string()
+        );
+    let cfg = rtcnc_kernel::MachineConfig::parse(&toml, "bench-xyz+tools").unwrap();
+    let text = "G21 G90 G17 G64 P0.01\nT1 M6\nG0 X0 Y-10 Z0\nG41 D1\nG1 X0 Y0 F600\n\
+                G3 X60.029 Y0 I30 J0\nG1 X60.029 Y-10\nG40\nG0 X0 Y-20\nM2\n";
+    let mut m = Machine::new(&cfg, Some(program(text, "crc-spiral.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    let ended = m.until(30.0, |s| s.program_ended && s.state == MachineState::Idle);
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    assert!(ended);
+    let last = m.samples.last().unwrap().axes;
+    assert!(
+        last[0].abs() < 1e-9 && (last[1] + 20.0).abs() < 1e-9,
+        "{last:?}"
+    );
+}
