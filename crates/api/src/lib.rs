@@ -91,7 +91,7 @@ pub struct App {
         routes::reset, routes::estop, routes::feed_hold, routes::resume, routes::stop,
         routes::load_program, routes::cycle_start, routes::single_block, routes::optional_stop,
         routes::block_delete, routes::mdi, routes::jog, routes::jog_keep_alive, routes::jog_stop,
-        routes::home, routes::handwheel, routes::overrides, routes::spindle, routes::coolant,
+        routes::home, routes::home_axis, routes::mode, routes::handwheel, routes::overrides, routes::spindle, routes::coolant,
         routes::list_programs, routes::read_program, routes::upload_program, routes::delete_program,
         routes::check_program, routes::preview, routes::estimate,
         routes::tools, routes::set_tools, routes::offsets, routes::set_offset,
@@ -178,6 +178,8 @@ pub fn router(app: Arc<App>) -> Router {
         .route("/api/control/jog/keep-alive", post(r::jog_keep_alive))
         .route("/api/control/jog/stop", post(r::jog_stop))
         .route("/api/control/home", post(r::home))
+        .route("/api/control/home/{axis}", post(r::home_axis))
+        .route("/api/control/mode", post(r::mode))
         .route("/api/control/handwheel", post(r::handwheel))
         .route("/api/control/overrides", post(r::overrides))
         .route("/api/control/spindle", post(r::spindle))
@@ -219,7 +221,9 @@ pub fn router(app: Arc<App>) -> Router {
         .route("/api/diagnostics/trace", get(r::trace))
         .route(
             "/api/{*rest}",
-            axum::routing::any(|| async { Problem::not_found("api.not_found", "no such endpoint") }),
+            axum::routing::any(|| async {
+                Problem::not_found("api.not_found", "no such endpoint")
+            }),
         )
         .fallback(hmi::serve)
         .layer(DefaultBodyLimit::max(MAX_JSON_BODY))

@@ -45,12 +45,14 @@ pub fn validate(config_path: &Path, text: &str) -> Result<(), String> {
 
 /// The variables of the machine's PLC program (compiled from its file here, as the
 /// machine compiles it), or why there are none.
-pub fn plc_variables(config: &MachineConfig) -> Result<Vec<crate::models::PlcVariableInfo>, String> {
-    let plc = config
-        .plc
-        .as_ref()
-        .ok_or_else(|| "the machine file has no [plc]: the kernel's direct logic runs".to_string())?;
-    let program = rtcnc_plc::compile_file(&config.resolve(&plc.program)).map_err(|e| e.to_string())?;
+pub fn plc_variables(
+    config: &MachineConfig,
+) -> Result<Vec<crate::models::PlcVariableInfo>, String> {
+    let plc = config.plc.as_ref().ok_or_else(|| {
+        "the machine file has no [plc]: the kernel's direct logic runs".to_string()
+    })?;
+    let program =
+        rtcnc_plc::compile_file(&config.resolve(&plc.program)).map_err(|e| e.to_string())?;
     Ok(program
         .variables()
         .into_iter()

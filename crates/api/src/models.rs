@@ -53,6 +53,10 @@ pub struct Status {
     /// Work position (program coordinates: work offset, G92, tool length offset and XY
     /// rotation taken off), program units.
     pub work_position: AxisMap,
+    /// Distance to go: from the machine position to the end of the executing program or
+    /// MDI line (its path as planned), per axis, mm or degrees; zero in manual motion and
+    /// at rest.
+    pub distance_to_go: AxisMap,
     /// Per joint.
     pub joints: Vec<Joint>,
     /// Path speed, units/s.
@@ -438,6 +442,25 @@ pub struct Jog {
 pub struct AxisRef {
     /// Axis letter.
     pub axis: String,
+}
+
+/// The machine's mode.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, ToSchema, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum ModeName {
+    /// Jog, handwheel, homing.
+    Manual,
+    /// Programs.
+    Auto,
+    /// MDI lines.
+    Mdi,
+}
+
+/// A mode switch.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct ModeRequest {
+    /// The mode.
+    pub mode: ModeName,
 }
 
 /// Overrides to set (absent: unchanged).

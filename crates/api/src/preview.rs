@@ -442,11 +442,15 @@ mod tests {
         let pts = 40;
         assert_eq!(
             (0..12).map(|i| f32_at(&b, pts + 4 * i)).collect::<Vec<_>>(),
-            vec![0.0, 0.0, 0.0, 10.0, 10.0, 0.0, 20.0, 10.0, 0.0, 20.0, 0.0, -1.5]
+            vec![
+                0.0, 0.0, 0.0, 10.0, 10.0, 0.0, 20.0, 10.0, 0.0, 20.0, 0.0, -1.5
+            ]
         );
         let lines = pts + 12 * n;
         assert_eq!(
-            (0..4).map(|i| u32_at(&b, lines + 4 * i)).collect::<Vec<_>>(),
+            (0..4)
+                .map(|i| u32_at(&b, lines + 4 * i))
+                .collect::<Vec<_>>(),
             vec![0, 2, 3, 4]
         );
         let kinds = lines + 4 * n;

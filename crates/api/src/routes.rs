@@ -550,6 +550,40 @@ pub async fn home(State(app): State<Arc<App>>, caller: Caller) -> ApiResult<Resp
     control(&app, &caller, wire(command::HOME_ALL)).await
 }
 
+/// Homes the joints of one axis (a gantry's together), whatever their sequence numbers;
+/// the other axes keep their homed state.
+#[utoipa::path(post, path = "/api/control/home/{axis}", tag = "control", security(("bearer" = [])),
+    params(("axis" = String, Path, description = "Axis letter")),
+    responses((status = 200, body = Ack), (status = 409, body = Problem, content_type = "application/problem+json"),
+        (status = 422, body = Problem, content_type = "application/problem+json")))]
+pub async fn home_axis(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Path(axis): Path<String>,
+) -> ApiResult<Response> {
+    let mut w = wire(command::HOME_AXIS);
+    w.axis = axis_of(&app, &axis)?;
+    control(&app, &caller, w).await
+}
+
+/// Switches the mode (manual, auto, MDI) while the machine is idle, as a mode key does;
+/// cycle start, MDI, jog and homing still switch to the mode they need.
+#[utoipa::path(post, path = "/api/control/mode", tag = "control", security(("bearer" = [])),
+    request_body = ModeRequest, responses((status = 200, body = Ack), (status = 409, body = Problem, content_type = "application/problem+json")))]
+pub async fn mode(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Json(b): Json<ModeRequest>,
+) -> ApiResult<Response> {
+    let mut w = wire(command::SET_MODE);
+    w.number = match b.mode {
+        ModeName::Manual => 0,
+        ModeName::Auto => 1,
+        ModeName::Mdi => 2,
+    };
+    control(&app, &caller, w).await
+}
+
 /// The handwheel: puts it on an axis with a scale (×1, ×10, ×100 of the machine's
 /// `handwheel.units_per_count` per count), or releases it (`axis` absent). Manual mode; the
 /// machine must be idle.

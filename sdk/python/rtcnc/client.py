@@ -212,8 +212,15 @@ class Client:
     def jog_stop(self, axis: str) -> Acknowledgement:
         return self._command("/api/control/jog/stop", {"axis": axis})
 
-    def home(self) -> Acknowledgement:
-        return self._command("/api/control/home")
+    def home(self, axis: str | None = None) -> Acknowledgement:
+        """Homes every joint in sequence, or only the joints of `axis`."""
+        if axis is None:
+            return self._command("/api/control/home")
+        return self._command(f"/api/control/home/{axis}")
+
+    def set_mode(self, mode: str) -> Acknowledgement:
+        """Switches to "manual", "auto" or "mdi" (the machine must be idle)."""
+        return self._command("/api/control/mode", {"mode": mode})
 
     def handwheel(self, axis: str | None, scale: float = 1.0) -> Acknowledgement:
         """Puts the handwheel on `axis` (×`scale` of the machine's units per count), or

@@ -199,6 +199,15 @@ class Modal(BaseModel):
     work_offset: AxisMap = Field(description="Work offset in force, program units.")
     work_system: str = Field(description="`G54` .. `G59.3`.")
 
+ModeName = str
+"""The machine's mode."""
+
+class ModeRequest(BaseModel):
+    """A mode switch."""
+    model_config = ConfigDict(extra="allow", populate_by_name=True)
+
+    mode: ModeName = Field(description="The mode.")
+
 class Overrides(BaseModel):
     """Overrides, as factors (1 = 100 %)."""
     model_config = ConfigDict(extra="allow", populate_by_name=True)
@@ -341,6 +350,7 @@ class Status(BaseModel):
     deadline_misses: int = Field(description="Deadline misses of the real-time tasks so far.")
     digital_inputs: int = Field(description="Digital inputs, bit n = input n.")
     digital_outputs: int = Field(description="Digital outputs.")
+    distance_to_go: AxisMap = Field(description="Distance to go: from the machine position to the end of the executing program or MDI line (its path as planned), per axis, mm or degrees; zero in manual motion and at rest.")
     estop_input: bool = Field(description="The e-stop input is pressed.")
     fault_count: int = Field(description="Faults raised since the machine started.")
     flood: bool = Field(description="Flood coolant on.")
@@ -447,6 +457,7 @@ MachineFile.model_rebuild()
 MachineFileSaved.model_rebuild()
 Mdi.model_rebuild()
 Modal.model_rebuild()
+ModeRequest.model_rebuild()
 Overrides.model_rebuild()
 OverridesRequest.model_rebuild()
 PasswordChange.model_rebuild()
