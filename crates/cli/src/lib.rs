@@ -9,6 +9,7 @@ use clap::{Parser, Subcommand};
 pub mod commands;
 mod decimal;
 pub mod output;
+mod plot;
 
 /// The command line.
 #[derive(Debug, Parser)]
