@@ -1,5 +1,8 @@
 #!/usr/bin/env bash
-# scripts/hmi.sh build | check | e2e - the web HMI (web/).
+# scripts/hmi.sh open | build | check | e2e - the web HMI (web/).
+#   open:  the HMI on the simulated mill: builds rtcnc and runs `rtcnc serve` on
+#          http://127.0.0.1:8080 (users and programs in target/hmi-demo; the first start
+#          prints the admin's one-time password). Needs no Node.js.
 #   build: install the npm packages of web/package-lock.json, generate the API types from
 #          docs/openapi.json, build the bundle into web/dist (committed: the rtcnc binary
 #          embeds it, so a Rust build needs no Node).
@@ -11,6 +14,15 @@
 set -euo pipefail
 cd "$(dirname "$0")/../web"
 what=${1:-check}
+
+if [ "$what" = open ]; then
+  cd ..
+  cargo build -p rtcnc --locked
+  mkdir -p target/hmi-demo
+  echo "the HMI: http://127.0.0.1:8080 (Ctrl-C stops the machine)"
+  exec target/debug/rtcnc serve --machine configs/sim-mill.toml \
+    --users target/hmi-demo/users.toml --programs target/hmi-demo/programs
+fi
 
 if ! command -v node >/dev/null || ! node -e 'const [a,b]=process.versions.node.split(".").map(Number); process.exit(a>20||(a==20&&b>=19)?0:1)'; then
   echo "the web HMI needs Node.js 20.19 or newer with npm (found: $(node --version 2>/dev/null || echo none))" >&2
@@ -51,7 +63,7 @@ case "$what" in
     node --test --test-concurrency=1 e2e/
     ;;
   *)
-    echo "usage: scripts/hmi.sh build | check | e2e" >&2
+    echo "usage: scripts/hmi.sh open | build | check | e2e" >&2
     exit 2
     ;;
 esac

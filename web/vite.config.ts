@@ -2,7 +2,7 @@
 import { defineConfig } from 'vite';
 
 // The bundle is committed (web/dist) and embedded in the rtcnc binary; the build must give
-// the same bytes from the same sources (scripts/check-hmi-bundle.sh compares them).
+// the same bytes from the same sources (scripts/hmi.sh check compares them).
 export default defineConfig({
   esbuild: { jsx: 'automatic', jsxImportSource: 'preact' },
   build: {

@@ -26,7 +26,13 @@ async function until(what, f, timeoutMs = 20_000, everyMs = 50) {
     if (last) return last;
     await new Promise((r) => setTimeout(r, everyMs));
   }
-  throw new Error(`timed out waiting for ${what}; last ${JSON.stringify(last)}`);
+  // What the machine was doing, for the report.
+  const s = await status().catch(() => null);
+  const faults = await fetch(`${server.url}/api/faults`, { headers: { Authorization: `Bearer ${token}` } })
+    .then((r) => r.json())
+    .catch(() => []);
+  const machine = s ? `state ${s.state}, mode ${s.mode}, line ${s.line}, at ${JSON.stringify(s.machine_position)}` : 'no status';
+  throw new Error(`timed out waiting for ${what}; last ${JSON.stringify(last)}; ${machine}; last faults ${JSON.stringify(faults.slice(-3).map((f) => `${f.code}: ${f.message}`))}`);
 }
 
 async function status() {
@@ -163,6 +169,12 @@ describe('an operator', () => {
     }, 30_000, 20);
     assert.ok(slow.overrides.feed === 0.5);
     assert.notEqual(await page.textContent('[data-testid=dro-work-X]'), x0, 'the DRO advanced');
+    // Distance to go on line 9 (G1 X60 from X-5): shown, and what the status says.
+    await until('distance to go on line 9', async () => {
+      const s = await status();
+      const shown = Number((await page.textContent('[data-testid=dro-togo-X]')).replace('−', '-'));
+      return s.line === 9 && shown > 1 && shown < 65 && Math.abs(shown - (60 - (await status()).machine_position.X)) < 5;
+    }, 10_000, 20);
     const run1 = Number(await page.getAttribute('[data-testid=operate-toolpath]', 'data-executed'));
     assert.ok(run1 > 0, `the run path advanced (${run1})`);
     await page.click('[data-testid=override-feed-slider] ~ button:has-text("100 %")');
@@ -192,8 +204,24 @@ describe('an operator', () => {
     await until('stopped', async () => (await status()).state === 'idle');
   });
 
-  it('moves with MDI G0', async () => {
+  it('homes one axis and switches the mode', async () => {
     await screen('manual');
+    const before = (await status()).joints.map((j) => j.homed);
+    await page.click('[data-testid=home-Z]');
+    await until('Z homed', async () => {
+      const s = await status();
+      return s.state === 'idle' && s.joints[2].homed && Math.abs(s.machine_position.Z) < 1e-9;
+    }, 60_000);
+    assert.deepEqual((await status()).joints.map((j) => j.homed).slice(0, 2), before.slice(0, 2), 'X and Y keep their state');
+    await page.waitForSelector('[data-testid=dro-homed-Z]:has-text("yes")');
+    await page.click('[data-testid=mode-mdi]');
+    await until('MDI mode', async () => (await status()).mode === 'mdi');
+    await page.waitForSelector('[data-testid=mode-mdi][aria-pressed=true]');
+    await page.click('[data-testid=mode-manual]');
+    await until('manual mode', async () => (await status()).mode === 'manual');
+  });
+
+  it('moves with MDI G0', async () => {
     await page.fill('[data-testid=mdi-input]', 'G0 X12 Y20 Z-1');
     await page.press('[data-testid=mdi-input]', 'Enter');
     await until('at X12 Y20 Z-1', async () => {

@@ -1,5 +1,5 @@
 import { describe, expect, it } from 'vitest';
-import { KIND_FEED, KIND_RAPID, KIND_START, advance, blockEnd, decodePreview, indexOfLine } from '../src/api/preview';
+import { KIND_FEED, KIND_RAPID, KIND_START, advance, decodePreview, indexOfLine } from '../src/api/preview';
 
 /** The binary layout of crates/api/src/preview.rs, written here by hand. */
 function encode(points: [number, number, number][], lines: number[], kinds: number[], errors = '[]') {
@@ -80,9 +80,7 @@ describe('the run along the path', () => {
     expect(advance(c, { index: 2 }, 99, [0, 0, 0]).index).toBe(2);
   });
 
-  it('gives the end of the executing block (for the distance to go) and where a line starts', () => {
-    expect(blockEnd(c, { index: 2 }, 4)).toEqual([10, 0, 0]);
-    expect(blockEnd(c, { index: 4 }, 5)).toEqual([10, 10, 0]);
+  it('gives where a line starts (run from line)', () => {
     expect(indexOfLine(c, 4)).toBe(2);
     expect(indexOfLine(c, 1)).toBe(0);
   });

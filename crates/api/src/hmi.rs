@@ -1,5 +1,5 @@
 //! The web HMI: the built bundle of `web/` (committed in `web/dist`, checked against the
-//! sources by `scripts/check-hmi-bundle.sh`) embedded in the binary and served at `/`.
+//! sources by `scripts/hmi.sh check`) embedded in the binary and served at `/`.
 //! docs/hmi.md describes it.
 
 use axum::http::{HeaderValue, StatusCode, Uri, header};

@@ -95,20 +95,6 @@ export function advance(chain: PathChain, cursor: Cursor, line: number, tool: [n
   return { index: Math.max(best, from) };
 }
 
-/** The end point of the block the cursor is in (the last point of its line's run). */
-export function blockEnd(chain: PathChain, cursor: Cursor, line: number): [number, number, number] | null {
-  const { lines, positions, count } = chain;
-  let k = cursor.index + 1;
-  if (k >= count) return null;
-  if (lines[k] !== line) {
-    // The tool is at the end of a point: its block ends at the next run of the line.
-    if (lines[cursor.index] !== line) return null;
-    k = cursor.index;
-  }
-  while (k + 1 < count && lines[k + 1] === line) k++;
-  return [positions[3 * k], positions[3 * k + 1], positions[3 * k + 2]];
-}
-
 /** The first point of a run from `line` on (run from line). */
 export function indexOfLine(chain: PathChain, line: number): number {
   for (let k = 0; k < chain.count; k++) if (chain.lines[k] >= line) return Math.max(k - 1, 0);

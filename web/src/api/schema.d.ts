@@ -161,6 +161,26 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/control/home/{axis}": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /**
+         * Homes the joints of one axis (a gantry's together), whatever their sequence numbers;
+         *     the other axes keep their homed state.
+         */
+        post: operations["home_axis"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/control/jog": {
         parameters: {
             query?: never;
@@ -226,6 +246,26 @@ export interface paths {
         put?: never;
         /** One MDI line. */
         post: operations["mdi"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/control/mode": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /**
+         * Switches the mode (manual, auto, MDI) while the machine is idle, as a mode key does;
+         *     cycle start, MDI, jog and homing still switch to the mode they need.
+         */
+        post: operations["mode"];
         delete?: never;
         options?: never;
         head?: never;
@@ -1174,6 +1214,16 @@ export interface components {
             /** @description `G54` .. `G59.3`. */
             work_system: string;
         };
+        /**
+         * @description The machine's mode.
+         * @enum {string}
+         */
+        ModeName: "manual" | "auto" | "mdi";
+        /** @description A mode switch. */
+        ModeRequest: {
+            /** @description The mode. */
+            mode: components["schemas"]["ModeName"];
+        };
         /** @description Overrides, as factors (1 = 100 %). */
         Overrides: {
             /**
@@ -1400,6 +1450,12 @@ export interface components {
              * @description Digital outputs.
              */
             digital_outputs: number;
+            /**
+             * @description Distance to go: from the machine position to the end of the executing program or
+             *     MDI line (its path as planned), per axis, mm or degrees; zero in manual motion and
+             *     at rest.
+             */
+            distance_to_go: components["schemas"]["AxisMap"];
             /** @description The e-stop input is pressed. */
             estop_input: boolean;
             /**
@@ -1887,6 +1943,44 @@ export interface operations {
             };
         };
     };
+    home_axis: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description Axis letter */
+                axis: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["Ack"];
+                };
+            };
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+        };
+    };
     jog: {
         parameters: {
             query?: never;
@@ -2016,6 +2110,37 @@ export interface operations {
                 };
             };
             422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+        };
+    };
+    mode: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["ModeRequest"];
+            };
+        };
+        responses: {
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["Ack"];
+                };
+            };
+            409: {
                 headers: {
                     [name: string]: unknown;
                 };

@@ -321,8 +321,8 @@ export function onLogout(f: () => void) {
 // ----- commands -----------------------------------------------------------------------
 
 /** A control command; waits for the kernel to take it. */
-export function command(path: Parameters<typeof api>[0], json: unknown = {}): Promise<Ack> {
-  return api<Ack>(path, { method: 'POST', json });
+export function command(path: Parameters<typeof api>[0], json: unknown = {}, params?: Record<string, string>): Promise<Ack> {
+  return api<Ack>(path, { method: 'POST', json, params });
 }
 
 export async function takeLease(takeOver = false) {

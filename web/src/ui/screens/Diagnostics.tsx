@@ -54,24 +54,22 @@ function Alarms() {
         <thead>
           <tr>
             <th scope="col">Time</th>
-            <th scope="col">Code</th>
-            <th scope="col">Message</th>
+            <th scope="col">Alarm</th>
             <th scope="col">State</th>
           </tr>
         </thead>
         <tbody>
           {[...list].reverse().map((f) => (
             <tr key={f.seq} class={f.acknowledged ? 'acked' : 'open'} data-seq={f.seq}>
-              <td>{machineTime(f.time_s)}</td>
-              <td>
-                <code>{f.code}</code>
-              </td>
-              <td>
+              <td class="nowrap">{machineTime(f.time_s)}</td>
+              <td class="alarm-text">
                 {f.message}
                 {f.line ? ` (line ${f.line})` : ''}
                 {f.joint ? ` [${f.joint}]` : ''}
+                <br />
+                <code>{f.code}</code>
               </td>
-              <td>
+              <td class="nowrap">
                 {f.acknowledged ? (
                   'acknowledged'
                 ) : (

@@ -153,10 +153,26 @@ function Homing() {
           Home all
         </Button>
         {axes.map((a) => (
-          <Button why="homing one axis is not in the API: the kernel homes every joint in its sequence">Home {a}</Button>
+          <Button key={a} testid={`home-${a}`} why={why} onClick={() => run(`Home ${a}`, () => command('/api/control/home/{axis}', undefined, { axis: a }))}>
+            Home {a}
+          </Button>
         ))}
       </div>
-      <p class="hint">Mode: {s?.mode ?? '—'}. The mode follows the command (jog and homing: manual, MDI: MDI, cycle start: auto); the API has no switch of its own.</p>
+      <h3>Mode</h3>
+      <div class="choice" role="group" aria-label="Mode">
+        {(['manual', 'mdi', 'auto'] as const).map((m) => (
+          <Button
+            key={m}
+            testid={`mode-${m}`}
+                        pressed={s?.mode === m}
+            why={why}
+            onClick={() => run(`Mode ${m}`, () => command('/api/control/mode', { mode: m }))}
+          >
+            {m === 'mdi' ? 'MDI' : m[0].toUpperCase() + m.slice(1)}
+          </Button>
+        ))}
+      </div>
+      <p class="hint">Cycle start, MDI, jog and homing also switch to the mode they need.</p>
     </section>
   );
 }

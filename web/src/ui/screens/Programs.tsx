@@ -1,5 +1,5 @@
 import { signal } from '@preact/signals';
-import { useEffect, useRef, useState } from 'preact/hooks';
+import { useEffect, useMemo, useRef, useState } from 'preact/hooks';
 import { api, apiText } from '../../api/client';
 import type { PathChain } from '../../api/preview';
 import type { Estimate, ProgramCheck, ProgramError, ProgramInfo } from '../../api/types';
@@ -9,6 +9,7 @@ import { first, whyNotIdle } from '../../state/permissions';
 import { command, errorText, fetchChain, forgetChain, notify, reason, run, status } from '../../state/store';
 import { Button, Why } from '../components/Button';
 import { Editor } from '../components/Editor';
+import { ProgramText } from '../components/ProgramText';
 import { ToolPath } from '../components/ToolPath';
 
 export const programs = signal<ProgramInfo[]>([]);
@@ -54,6 +55,12 @@ export function ProgramPicker() {
 }
 
 const CHECK_DELAY_MS = 350;
+/**
+ * Larger programs (CAM output) are shown read-only: a browser's text area lays out its
+ * whole text, which takes seconds for a million lines. They are edited in a text editor
+ * and uploaded again.
+ */
+export const EDIT_MAX_BYTES = 128 << 10;
 
 export function Programs() {
   const [selected, setSelected] = useState<string | null>(null);
@@ -74,10 +81,12 @@ export function Programs() {
     setEstimate(null);
     setErrors([]);
     try {
-      const t = await apiText('/api/programs/{name}', { params: { name } });
+      // The preview and the text come in parallel; the preview is drawn when it is there.
+      const text = apiText('/api/programs/{name}', { params: { name } });
+      setChain(await fetchChain(name));
+      const t = await text;
       setText(t);
       setSaved(t);
-      setChain(await fetchChain(name));
     } catch (e) {
       notify(`${name}: ${errorText(e)}`, 'error');
     }
@@ -145,6 +154,8 @@ export function Programs() {
   const names = programs.value.map((p) => p.name);
   const version = selected ? nextVersion(selected, names) : null;
   const dirty = text !== saved;
+  const large = text.length > EDIT_MAX_BYTES;
+  const lines = useMemo(() => (large ? text.split('\n') : []), [text, large]);
   return (
     <div class="programs">
       <section class="panel list" aria-label="Program store">
@@ -211,7 +222,16 @@ export function Programs() {
         </h2>
         {selected && (
           <>
-            <Editor text={text} onText={onText} errors={errors} label={`G-code of ${selected}`} />
+            {large ? (
+              <>
+                <ProgramText lines={lines} current={0} label={`G-code of ${selected} (read-only)`} />
+                <p class="hint" data-testid="read-only">
+                  {lines.length} lines, {bytes(text.length)}: too large to edit here (up to {bytes(EDIT_MAX_BYTES)}); edit it in a text editor and upload it again.
+                </p>
+              </>
+            ) : (
+              <Editor text={text} onText={onText} errors={errors} label={`G-code of ${selected}`} />
+            )}
             <div class="buttons">
               <Button testid="save-version" tone="primary" why={first(operator, errors.length ? 'the program has errors' : null)} onClick={() => version && save(version)}>
                 Save as {version}

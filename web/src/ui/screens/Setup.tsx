@@ -49,8 +49,8 @@ function Tools() {
           <tr>
             <th scope="col">T</th>
             <th scope="col">Pocket</th>
-            <th scope="col">Length (Z)</th>
-            <th scope="col">Diameter</th>
+            <th scope="col">Length Z (mm)</th>
+            <th scope="col">Diameter (mm)</th>
             <th scope="col">Comment</th>
             <th scope="col">
               <span class="sr-only">Remove</span>
@@ -130,7 +130,7 @@ function Offsets() {
           <tr>
             <th scope="col">System</th>
             {axes.map((a) => (
-              <th scope="col">{a}</th>
+              <th scope="col">{a} ({'ABC'.includes(a) ? '°' : 'mm'})</th>
             ))}
             <th scope="col">Rotation (°)</th>
             <th scope="col">
