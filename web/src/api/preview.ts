@@ -100,3 +100,87 @@ export function indexOfLine(chain: PathChain, line: number): number {
   for (let k = 0; k < chain.count; k++) if (chain.lines[k] >= line) return Math.max(k - 1, 0);
   return Math.max(chain.count - 1, 0);
 }
+
+/** The points of a chain that are drawn, with the chain index of each (for what has run). */
+export interface DrawnPath {
+  positions: Float32Array;
+  kinds: Uint8Array;
+  /** Chain index of each drawn point, as a float (exact below 2^24). */
+  index: Float32Array;
+  count: number;
+}
+
+/**
+ * The chain with the points dropped that lie within `tolerance` (mm) of the straight line
+ * the path follows (Reumann-Witkam: one pass, no allocation per point): a CAM program's
+ * million short segments on lines and gentle curves become the few thousand a panel can
+ * show apart, every dropped point within `tolerance` of the line drawn through it. The
+ * first and last points, the ends of every rapid and feed run and every turn back along
+ * the line are kept; a drawn segment ending at chain point j stands for the chain's
+ * segments up to j, all of one kind.
+ */
+export function simplifyForDrawing(chain: PathChain, tolerance: number): DrawnPath {
+  const { positions: p, kinds: k, count: n } = chain;
+  const keep = new Uint32Array(Math.max(n, 1));
+  let m = 0;
+  const tol2 = tolerance * tolerance;
+  let a = 0;
+  let dx = 0;
+  let dy = 0;
+  let dz = 0;
+  let hasDir = false;
+  let tMax = 0;
+  /** Starts a new line at kept point `i`, aimed at point `j` if it is far enough. */
+  const restart = (i: number, j: number) => {
+    a = i;
+    keep[m++] = i;
+    aim(j);
+  };
+  const aim = (j: number) => {
+    const vx = p[3 * j] - p[3 * a];
+    const vy = p[3 * j + 1] - p[3 * a + 1];
+    const vz = p[3 * j + 2] - p[3 * a + 2];
+    const len = Math.sqrt(vx * vx + vy * vy + vz * vz);
+    hasDir = len > tolerance;
+    if (hasDir) {
+      dx = vx / len;
+      dy = vy / len;
+      dz = vz / len;
+      tMax = len;
+    }
+  };
+  if (n > 0) keep[m++] = 0;
+  for (let i = 1; i < n; i++) {
+    if (i > 1 && k[i] !== k[i - 1] && a !== i - 1) {
+      restart(i - 1, i);
+      continue;
+    }
+    if (!hasDir) {
+      aim(i);
+      continue;
+    }
+    const vx = p[3 * i] - p[3 * a];
+    const vy = p[3 * i + 1] - p[3 * a + 1];
+    const vz = p[3 * i + 2] - p[3 * a + 2];
+    const t = vx * dx + vy * dy + vz * dz;
+    const perp2 = vx * vx + vy * vy + vz * vz - t * t;
+    if (perp2 > tol2 || t < tMax - tolerance) {
+      restart(i - 1, i);
+    } else if (t > tMax) {
+      tMax = t;
+    }
+  }
+  if (n > 1 && keep[m - 1] !== n - 1) keep[m++] = n - 1;
+  const positions = new Float32Array(3 * m);
+  const kinds = new Uint8Array(m);
+  const index = new Float32Array(m);
+  for (let q = 0; q < m; q++) {
+    const i = keep[q];
+    positions[3 * q] = p[3 * i];
+    positions[3 * q + 1] = p[3 * i + 1];
+    positions[3 * q + 2] = p[3 * i + 2];
+    kinds[q] = k[i];
+    index[q] = i;
+  }
+  return { positions, kinds, index, count: m };
+}

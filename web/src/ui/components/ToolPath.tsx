@@ -5,7 +5,7 @@
 import { useEffect, useRef, useState } from 'preact/hooks';
 import * as THREE from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
-import type { PathChain } from '../../api/preview';
+import { type PathChain, simplifyForDrawing } from '../../api/preview';
 import type { Status } from '../../api/types';
 import { toolInChainFrame } from '../../state/store';
 
@@ -30,12 +30,13 @@ export const COLORS = {
 
 const vertexShader = `
 attribute float kind;
+attribute float index;
 uniform float executed;
 flat varying float vKind;
 flat varying float vDone;
 void main() {
   vKind = kind;
-  vDone = float(gl_VertexID) <= executed ? 1.0 : 0.0;
+  vDone = index <= executed ? 1.0 : 0.0;
   gl_Position = projectionMatrix * modelViewMatrix * vec4(position, 1.0);
 }`;
 
@@ -52,6 +53,12 @@ void main() {
 }`;
 
 const TRAIL = 50_000;
+/**
+ * Above this many points the path is drawn simplified to a 5000th of its extent (well under
+ * a pixel of the panel at full view): software GL, as in a VM, rasterises a million
+ * segments in seconds.
+ */
+const DRAW_ALL_UP_TO = 200_000;
 
 class Scene {
   renderer: THREE.WebGLRenderer;
@@ -83,6 +90,8 @@ class Scene {
   height = 1;
   /** Milliseconds each frame took to draw (for the measurements in docs/hmi.md). */
   frameMs: number[] = [];
+  /** Points of the path drawn. */
+  drawn = 0;
 
   constructor(canvas: HTMLCanvasElement) {
     this.renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
@@ -110,10 +119,18 @@ class Scene {
       this.path.geometry.dispose();
       this.path = null;
     }
+    this.drawn = 0;
     if (chain && chain.count > 0) {
       const g = new THREE.BufferGeometry();
-      g.setAttribute('position', new THREE.BufferAttribute(chain.positions, 3));
-      g.setAttribute('kind', new THREE.BufferAttribute(chain.kinds, 1));
+      const extent = Math.hypot(...chain.max.map((v, i) => v - chain.min[i]));
+      const d =
+        chain.count > DRAW_ALL_UP_TO
+          ? simplifyForDrawing(chain, extent / 5000)
+          : { positions: chain.positions, kinds: chain.kinds, index: Float32Array.from({ length: chain.count }, (_, i) => i), count: chain.count };
+      this.drawn = d.count;
+      g.setAttribute('position', new THREE.BufferAttribute(d.positions, 3));
+      g.setAttribute('kind', new THREE.BufferAttribute(d.kinds, 1));
+      g.setAttribute('index', new THREE.BufferAttribute(d.index, 1));
       this.path = new THREE.Line(g, this.material);
       this.path.frustumCulled = false;
       this.scene.add(this.path);
