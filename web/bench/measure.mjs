@@ -124,10 +124,6 @@ try {
   await page.click('[data-testid="open-big.ngc"]');
   await until(async () => Number(await page.getAttribute('[data-testid=preview-toolpath]', 'data-points')) === points, 120_000);
   const loadedMs = performance.now() - t;
-  if (process.env.PROBE) {
-    await page.waitForSelector('[data-testid=read-only]', { timeout: 60_000 });
-    console.log(`  (probe) text shown at ${(performance.now() - t).toFixed(0)} ms`);
-  }
   await until(async () => (await page.evaluate(() => window.__toolpath?.frameMs.length ?? 0)) > drawnBefore, 60_000, 5);
   const drawnMs = performance.now() - t;
   const [view, drawn] = await page.evaluate(() => [window.__toolpath.frameMs.slice(-1)[0], window.__toolpath.drawn]);
