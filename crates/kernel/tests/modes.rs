@@ -421,8 +421,8 @@ fn distance_to_go_is_from_the_set_point_to_the_programmed_end_of_the_line() {
             if s.line != line {
                 break;
             }
-            for a in 0..3 {
-                let expected = end[a] - s.axes[a];
+            for (a, e) in end.iter().enumerate() {
+                let expected = e - s.axes[a];
                 assert!(
                     (s.distance_to_go[a] - expected).abs() < 1e-9,
                     "line {line} axis {a}: {} vs {expected}",
