@@ -5,8 +5,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # openssl makes the TLS test's certificate; binutils' objdump reads the glibc version the
-# Debian package depends on.
-scripts/setup.sh openssl binutils
+# Debian package depends on; Chromium runs the web HMI's end-to-end tests.
+scripts/setup.sh openssl binutils chromium-headless-shell
 
 # Property tests draw from a fixed seed here, so a commit passes or fails the same way every
 # time; the long randomised runs live in scripts/ and bench/ and pick fresh seeds.
@@ -36,3 +36,8 @@ scripts/test-deb.sh
 
 echo "== fuzz targets, a short run (scripts/fuzz.sh; the dedicated run is in docs/fuzzing.md)"
 scripts/fuzz.sh --seconds "${FUZZ_SECONDS:-5}"
+
+echo "== web HMI: types, unit tests, the committed bundle (scripts/hmi.sh check)"
+scripts/hmi.sh check
+echo "== web HMI in headless Chromium against a real rtcnc serve (scripts/hmi.sh e2e)"
+scripts/hmi.sh e2e

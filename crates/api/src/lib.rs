@@ -20,7 +20,9 @@ use utoipa::OpenApi;
 
 pub mod auth;
 pub mod files;
+pub mod hmi;
 pub mod machine;
+pub mod machine_file;
 pub mod models;
 pub mod preview;
 pub mod problem;
@@ -33,6 +35,8 @@ use problem::Problem;
 
 /// Largest JSON body, bytes.
 pub const MAX_JSON_BODY: usize = 64 * 1024;
+/// Largest machine file written over the API, bytes.
+pub const MAX_MACHINE_FILE: usize = 1 << 20;
 /// Largest WebSocket message from a client, bytes.
 pub const MAX_WS_MESSAGE: usize = 4096;
 
@@ -71,6 +75,9 @@ pub struct App {
     pub auth: auth::Auth,
     /// One estimate at a time.
     pub estimating: tokio::sync::Mutex<()>,
+    /// The machine file's text when this process started (what the machine runs, unless
+    /// it was restarted since).
+    pub config_text_at_start: String,
 }
 
 /// The OpenAPI document.
@@ -84,11 +91,12 @@ pub struct App {
         routes::reset, routes::estop, routes::feed_hold, routes::resume, routes::stop,
         routes::load_program, routes::cycle_start, routes::single_block, routes::optional_stop,
         routes::block_delete, routes::mdi, routes::jog, routes::jog_keep_alive, routes::jog_stop,
-        routes::home, routes::overrides, routes::spindle, routes::coolant,
+        routes::home, routes::home_axis, routes::mode, routes::handwheel, routes::overrides, routes::spindle, routes::coolant,
         routes::list_programs, routes::read_program, routes::upload_program, routes::delete_program,
-        routes::preview, routes::estimate,
+        routes::check_program, routes::preview, routes::estimate,
         routes::tools, routes::set_tools, routes::offsets, routes::set_offset,
-        routes::plc_read, routes::plc_watch, routes::plc_force, routes::plc_unforce,
+        routes::machine_file, routes::set_machine_file,
+        routes::plc_variables, routes::plc_read, routes::plc_watch, routes::plc_force, routes::plc_unforce,
         routes::faults, routes::acknowledge_faults, routes::timing, routes::trace,
     ),
     components(schemas(problem::Problem)),
@@ -98,7 +106,7 @@ pub struct App {
         (name = "status", description = "Status snapshot, events, the WebSocket"),
         (name = "control", description = "Commands (operator with the lease; e-stop and feed hold: any operator)"),
         (name = "programs", description = "The program store, preview, cycle-time estimate"),
-        (name = "setup", description = "Tool table and work offsets (setter writes)"),
+        (name = "setup", description = "Tool table and work offsets (setter writes), the machine file (admin writes)"),
         (name = "plc", description = "PLC variables"),
         (name = "diagnostics", description = "Faults, task timing, trace"),
     )
@@ -170,6 +178,9 @@ pub fn router(app: Arc<App>) -> Router {
         .route("/api/control/jog/keep-alive", post(r::jog_keep_alive))
         .route("/api/control/jog/stop", post(r::jog_stop))
         .route("/api/control/home", post(r::home))
+        .route("/api/control/home/{axis}", post(r::home_axis))
+        .route("/api/control/mode", post(r::mode))
+        .route("/api/control/handwheel", post(r::handwheel))
         .route("/api/control/overrides", post(r::overrides))
         .route("/api/control/spindle", post(r::spindle))
         .route("/api/control/coolant", post(r::coolant))
@@ -181,11 +192,22 @@ pub fn router(app: Arc<App>) -> Router {
                 .delete(r::delete_program)
                 .layer(upload),
         )
+        .route(
+            "/api/programs/{name}/check",
+            post(r::check_program).layer(DefaultBodyLimit::max(app.options.max_upload_bytes + 1)),
+        )
         .route("/api/programs/{name}/preview", get(r::preview))
         .route("/api/programs/{name}/estimate", get(r::estimate))
         .route("/api/setup/tools", get(r::tools).put(r::set_tools))
         .route("/api/setup/offsets", get(r::offsets))
         .route("/api/setup/offsets/{system}", put(r::set_offset))
+        .route(
+            "/api/setup/machine",
+            get(r::machine_file)
+                .put(r::set_machine_file)
+                .layer(DefaultBodyLimit::max(MAX_MACHINE_FILE)),
+        )
+        .route("/api/plc/variables", get(r::plc_variables))
         .route("/api/plc/variables/{path}", get(r::plc_read))
         .route("/api/plc/watch", put(r::plc_watch))
         .route("/api/plc/force", post(r::plc_force))
@@ -197,7 +219,13 @@ pub fn router(app: Arc<App>) -> Router {
         .route("/api/faults/acknowledge", post(r::acknowledge_faults))
         .route("/api/diagnostics/timing", get(r::timing))
         .route("/api/diagnostics/trace", get(r::trace))
-        .fallback(|| async { Problem::not_found("api.not_found", "no such endpoint") })
+        .route(
+            "/api/{*rest}",
+            axum::routing::any(|| async {
+                Problem::not_found("api.not_found", "no such endpoint")
+            }),
+        )
+        .fallback(hmi::serve)
         .layer(DefaultBodyLimit::max(MAX_JSON_BODY))
         .layer(axum::middleware::from_fn_with_state(
             Arc::clone(&app),
@@ -218,6 +246,8 @@ async fn read_body_first(
     use axum::response::IntoResponse as _;
     let limit = if request.uri().path().starts_with("/api/programs/") {
         app.options.max_upload_bytes
+    } else if request.uri().path() == "/api/setup/machine" {
+        MAX_MACHINE_FILE
     } else {
         MAX_JSON_BODY
     };
@@ -454,6 +484,7 @@ pub fn run(options: ApiOptions) -> anyhow::Result<()> {
             options.users_file.display()
         );
     }
+    let config_text_at_start = std::fs::read_to_string(&options.config_path).unwrap_or_default();
     let machine = MachineConn::new(&options.segment, &config.machine.name);
     let link_thread = machine.start();
     let app = Arc::new(App {
@@ -462,6 +493,7 @@ pub fn run(options: ApiOptions) -> anyhow::Result<()> {
         machine: Arc::clone(&machine),
         auth,
         estimating: tokio::sync::Mutex::new(()),
+        config_text_at_start,
     });
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)

@@ -114,6 +114,7 @@ impl MachineConn {
             estop_input: false,
             machine_position: AxisMap::new(),
             work_position: AxisMap::new(),
+            distance_to_go: AxisMap::new(),
             joints: Vec::new(),
             path_speed: 0.0,
             overrides: models::Overrides {
@@ -845,6 +846,7 @@ pub fn status_document(
         estop_input: f(flags::ESTOP_INPUT),
         machine_position: axis_map(meta, &w.axes),
         work_position: axis_map(meta, &work),
+        distance_to_go: axis_map(meta, &w.distance_to_go),
         joints,
         path_speed: w.path_speed,
         overrides: models::Overrides {

@@ -53,6 +53,10 @@ pub struct Status {
     /// Work position (program coordinates: work offset, G92, tool length offset and XY
     /// rotation taken off), program units.
     pub work_position: AxisMap,
+    /// Distance to go: from the machine position to the end of the executing program or
+    /// MDI line (its path as planned), per axis, mm or degrees; zero in manual motion and
+    /// at rest.
+    pub distance_to_go: AxisMap,
     /// Per joint.
     pub joints: Vec<Joint>,
     /// Path speed, units/s.
@@ -440,6 +444,25 @@ pub struct AxisRef {
     pub axis: String,
 }
 
+/// The machine's mode.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, ToSchema, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum ModeName {
+    /// Jog, handwheel, homing.
+    Manual,
+    /// Programs.
+    Auto,
+    /// MDI lines.
+    Mdi,
+}
+
+/// A mode switch.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct ModeRequest {
+    /// The mode.
+    pub mode: ModeName,
+}
+
 /// Overrides to set (absent: unchanged).
 #[derive(Debug, Clone, Default, Serialize, Deserialize, ToSchema)]
 pub struct OverridesRequest {
@@ -575,4 +598,65 @@ pub struct ApiInfo {
     pub max_ws_message_bytes: u64,
     /// Continuous jog keep-alive period, s.
     pub jog_keep_alive_s: f64,
+}
+
+/// The interpreter's verdict on a program text (nothing is stored).
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct ProgramCheck {
+    /// Every error (up to 100), with line and column; empty: the program is good.
+    pub errors: Vec<ProgramError>,
+    /// Lines in the text.
+    pub lines: u64,
+}
+
+/// The handwheel (manual pulse generator): which axis it moves and its scale.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct HandwheelRequest {
+    /// Axis letter; absent or null releases the handwheel.
+    #[serde(default)]
+    pub axis: Option<String>,
+    /// Multiplier of the machine's `handwheel.units_per_count` (×1, ×10, ×100).
+    #[serde(default = "one")]
+    pub scale: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// The machine file.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct MachineFile {
+    /// Its path on the machine's computer.
+    pub path: String,
+    /// Its text (TOML).
+    pub text: String,
+    /// The file differs from the one the API process started with: the machine process
+    /// takes the new one at its next start.
+    pub changed_since_start: bool,
+    /// Travel per handwheel count at ×1 (`[handwheel] units_per_count`), in the file the
+    /// API process started with.
+    pub handwheel_units_per_count: f64,
+}
+
+/// A machine file written.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct MachineFileSaved {
+    /// Bytes written.
+    pub size: u64,
+    /// Always true: the machine process reads its file only when it starts.
+    pub applies_at_next_start: bool,
+}
+
+/// A variable of the PLC program.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct PlcVariableInfo {
+    /// Path (`GLOBAL`, `INSTANCE.VAR`, `A[3]`), as `GET /api/plc/variables/{path}` takes it.
+    pub path: String,
+    /// IEC type (`BOOL`, `INT`, `TIME`, …).
+    pub type_name: String,
+    /// Declared RETAIN.
+    pub retain: bool,
+    /// Direct address of a located variable (`%IX0.1`).
+    pub location: Option<String>,
 }

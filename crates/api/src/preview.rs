@@ -342,3 +342,122 @@ fn estimate_in(
     };
     Ok(((sim.now() - start).as_secs_f64(), ended, faults))
 }
+
+/// Magic of the binary preview.
+pub const BINARY_MAGIC: &[u8; 8] = b"RTCNCPV1";
+
+/// The preview as one chain of points in a compact binary form (a million segments are
+/// 17 MB here against about 60 MB of JSON, and a browser reads it without parsing), all
+/// little-endian:
+///
+/// | bytes | what |
+/// |---|---|
+/// | 8 | `RTCNCPV1` |
+/// | 4 | `n`, u32: points |
+/// | 4 | `m`, u32: bytes of the error list |
+/// | 24 | bounding box, f32: min X Y Z, max X Y Z (mm) |
+/// | 12 n | points, f32 X Y Z (mm) |
+/// | 4 n | u32: program line of the move that ends at each point (0 for the first) |
+/// | n | u8: 0 the first point, 1 reached by a rapid, 2 by a feed |
+/// | m | the errors, a JSON array of `ProgramError` |
+pub fn encode_binary(p: &Preview) -> Vec<u8> {
+    let mut points: Vec<[f64; 3]> = Vec::new();
+    let mut lines: Vec<u32> = Vec::new();
+    let mut kinds: Vec<u8> = Vec::new();
+    for (k, poly) in p.paths.iter().enumerate() {
+        let kind = if poly.kind == "rapid" { 1 } else { 2 };
+        // Each polyline starts where the one before ended.
+        if k == 0 {
+            if let Some(first) = poly.points.first() {
+                points.push(*first);
+                lines.push(0);
+                kinds.push(0);
+            }
+        }
+        for (pt, line) in poly.points.iter().skip(1).zip(&poly.lines) {
+            points.push(*pt);
+            lines.push(*line);
+            kinds.push(kind);
+        }
+    }
+    let errors = serde_json::to_vec(&p.errors).unwrap_or_else(|_| b"[]".to_vec());
+    let n = points.len();
+    let mut out = Vec::with_capacity(40 + 17 * n + errors.len());
+    out.extend_from_slice(BINARY_MAGIC);
+    out.extend_from_slice(&(n as u32).to_le_bytes());
+    out.extend_from_slice(&(errors.len() as u32).to_le_bytes());
+    for v in p.min.iter().chain(&p.max) {
+        out.extend_from_slice(&(*v as f32).to_le_bytes());
+    }
+    for pt in &points {
+        for v in pt {
+            out.extend_from_slice(&(*v as f32).to_le_bytes());
+        }
+    }
+    for l in &lines {
+        out.extend_from_slice(&l.to_le_bytes());
+    }
+    out.extend_from_slice(&kinds);
+    out.extend_from_slice(&errors);
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn f32_at(b: &[u8], at: usize) -> f32 {
+        f32::from_le_bytes(b[at..at + 4].try_into().unwrap())
+    }
+
+    fn u32_at(b: &[u8], at: usize) -> u32 {
+        u32::from_le_bytes(b[at..at + 4].try_into().unwrap())
+    }
+
+    #[test]
+    fn the_binary_preview_is_one_chain_with_the_kind_and_line_of_every_move() {
+        // By hand: a rapid from the origin to (10, 10), then a feed to (20, 10) and (20, 0).
+        let p = Preview {
+            paths: vec![
+                Polyline {
+                    kind: "rapid".into(),
+                    lines: vec![2],
+                    points: vec![[0.0, 0.0, 0.0], [10.0, 10.0, 0.0]],
+                },
+                Polyline {
+                    kind: "feed".into(),
+                    lines: vec![3, 4],
+                    points: vec![[10.0, 10.0, 0.0], [20.0, 10.0, 0.0], [20.0, 0.0, -1.5]],
+                },
+            ],
+            min: [0.0, 0.0, -1.5],
+            max: [20.0, 10.0, 0.0],
+            errors: vec![],
+        };
+        let b = encode_binary(&p);
+        assert_eq!(&b[..8], BINARY_MAGIC);
+        let n = u32_at(&b, 8) as usize;
+        assert_eq!(n, 4);
+        assert_eq!(u32_at(&b, 12), 2);
+        assert_eq!(f32_at(&b, 16 + 8), -1.5);
+        assert_eq!(f32_at(&b, 16 + 12), 20.0);
+        let pts = 40;
+        assert_eq!(
+            (0..12).map(|i| f32_at(&b, pts + 4 * i)).collect::<Vec<_>>(),
+            vec![
+                0.0, 0.0, 0.0, 10.0, 10.0, 0.0, 20.0, 10.0, 0.0, 20.0, 0.0, -1.5
+            ]
+        );
+        let lines = pts + 12 * n;
+        assert_eq!(
+            (0..4)
+                .map(|i| u32_at(&b, lines + 4 * i))
+                .collect::<Vec<_>>(),
+            vec![0, 2, 3, 4]
+        );
+        let kinds = lines + 4 * n;
+        assert_eq!(&b[kinds..kinds + 4], &[0, 1, 2, 2]);
+        assert_eq!(&b[kinds + 4..], b"[]");
+        assert_eq!(b.len(), 40 + 17 * n + 2);
+    }
+}

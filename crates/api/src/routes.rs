@@ -553,6 +553,66 @@ pub async fn home(State(app): State<Arc<App>>, caller: Caller) -> ApiResult<Resp
     control(&app, &caller, wire(command::HOME_ALL)).await
 }
 
+/// Homes the joints of one axis (a gantry's together), whatever their sequence numbers;
+/// the other axes keep their homed state.
+#[utoipa::path(post, path = "/api/control/home/{axis}", tag = "control", security(("bearer" = [])),
+    params(("axis" = String, Path, description = "Axis letter")),
+    responses((status = 200, body = Ack), (status = 409, body = Problem, content_type = "application/problem+json"),
+        (status = 422, body = Problem, content_type = "application/problem+json")))]
+pub async fn home_axis(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Path(axis): Path<String>,
+) -> ApiResult<Response> {
+    let mut w = wire(command::HOME_AXIS);
+    w.axis = axis_of(&app, &axis)?;
+    control(&app, &caller, w).await
+}
+
+/// Switches the mode (manual, auto, MDI) while the machine is idle, as a mode key does;
+/// cycle start, MDI, jog and homing still switch to the mode they need.
+#[utoipa::path(post, path = "/api/control/mode", tag = "control", security(("bearer" = [])),
+    request_body = ModeRequest, responses((status = 200, body = Ack), (status = 409, body = Problem, content_type = "application/problem+json")))]
+pub async fn mode(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Json(b): Json<ModeRequest>,
+) -> ApiResult<Response> {
+    let mut w = wire(command::SET_MODE);
+    w.number = match b.mode {
+        ModeName::Manual => 0,
+        ModeName::Auto => 1,
+        ModeName::Mdi => 2,
+    };
+    control(&app, &caller, w).await
+}
+
+/// The handwheel: puts it on an axis with a scale (×1, ×10, ×100 of the machine's
+/// `handwheel.units_per_count` per count), or releases it (`axis` absent). Manual mode; the
+/// machine must be idle.
+#[utoipa::path(post, path = "/api/control/handwheel", tag = "control", security(("bearer" = [])),
+    request_body = HandwheelRequest, responses((status = 200, body = Ack), (status = 409, body = Problem, content_type = "application/problem+json"),
+        (status = 422, body = Problem, content_type = "application/problem+json")))]
+pub async fn handwheel(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Json(b): Json<HandwheelRequest>,
+) -> ApiResult<Response> {
+    let mut w = wire(command::HANDWHEEL);
+    w.axis = match b.axis.as_deref() {
+        Some(letter) => axis_of(&app, letter)?,
+        None => u32::MAX,
+    };
+    if !(b.scale.is_finite() && b.scale > 0.0) {
+        return Err(Problem::unprocessable(
+            "command.bad_value",
+            "the scale is a number > 0",
+        ));
+    }
+    w.value = b.scale;
+    control(&app, &caller, w).await
+}
+
 /// Sets overrides (urgent: read by the next servo period).
 #[utoipa::path(post, path = "/api/control/overrides", tag = "control", security(("bearer" = [])),
     request_body = OverridesRequest, responses((status = 200, body = Vec<Ack>), (status = 409, body = Problem, content_type = "application/problem+json")))]
@@ -693,6 +753,33 @@ pub async fn read_program(
     Ok(([(header::CONTENT_TYPE, "text/plain; charset=utf-8")], text).into_response())
 }
 
+/// A program's bytes as text: within the upload limit, UTF-8, no NUL byte.
+fn program_text<'a>(app: &App, body: &'a [u8]) -> ApiResult<&'a str> {
+    if body.len() > app.options.max_upload_bytes {
+        return Err(Problem::new(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            "program.too_large",
+            format!(
+                "a program has at most {} bytes",
+                app.options.max_upload_bytes
+            ),
+        ));
+    }
+    let text = std::str::from_utf8(body).map_err(|e| {
+        Problem::unprocessable(
+            "program.encoding",
+            format!("not UTF-8 text: invalid byte at offset {}", e.valid_up_to()),
+        )
+    })?;
+    if let Some(at) = text.find('\0') {
+        return Err(Problem::unprocessable(
+            "program.encoding",
+            format!("a NUL byte at offset {at}"),
+        ));
+    }
+    Ok(text)
+}
+
 /// Uploads a program (UTF-8 text, no NUL bytes, at most the upload limit). It is stored
 /// only when the interpreter finds no error; otherwise every error comes back with its line
 /// and column (422, `extra.errors`).
@@ -709,28 +796,7 @@ pub async fn upload_program(
 ) -> ApiResult<Response> {
     caller.session.require(Role::Operator)?;
     let path = app.program_path(&name)?;
-    if body.len() > app.options.max_upload_bytes {
-        return Err(Problem::new(
-            StatusCode::PAYLOAD_TOO_LARGE,
-            "program.too_large",
-            format!(
-                "a program has at most {} bytes",
-                app.options.max_upload_bytes
-            ),
-        ));
-    }
-    let text = std::str::from_utf8(&body).map_err(|e| {
-        Problem::unprocessable(
-            "program.encoding",
-            format!("not UTF-8 text: invalid byte at offset {}", e.valid_up_to()),
-        )
-    })?;
-    if let Some(at) = text.find('\0') {
-        return Err(Problem::unprocessable(
-            "program.encoding",
-            format!("a NUL byte at offset {at}"),
-        ));
-    }
+    let text = program_text(&app, &body)?;
     let config = Arc::clone(&app.config);
     let (text2, name2) = (text.to_string(), name.clone());
     let errors =
@@ -757,6 +823,30 @@ pub async fn upload_program(
         .into_response())
 }
 
+/// Checks a program text with the interpreter as an upload would, without storing it
+/// (an editor checks as the operator types).
+#[utoipa::path(post, path = "/api/programs/{name}/check", tag = "programs", security(("bearer" = [])),
+    params(("name" = String, Path, description = "The name the text would have (errors name it)")),
+    request_body(content = String, content_type = "text/plain"),
+    responses((status = 200, body = ProgramCheck), (status = 413, body = Problem, content_type = "application/problem+json"),
+        (status = 422, body = Problem, content_type = "application/problem+json")))]
+pub async fn check_program(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    Path(name): Path<String>,
+    body: Bytes,
+) -> ApiResult<Json<ProgramCheck>> {
+    caller.viewer()?;
+    app.program_path(&name)?;
+    let text = program_text(&app, &body)?.to_string();
+    let config = Arc::clone(&app.config);
+    let lines = text.lines().count() as u64;
+    let errors = tokio::task::spawn_blocking(move || crate::preview::check(&config, &name, &text))
+        .await
+        .map_err(|e| Problem::internal(e.to_string()))?;
+    Ok(Json(ProgramCheck { errors, lines }))
+}
+
 /// Deletes a program.
 #[utoipa::path(delete, path = "/api/programs/{name}", tag = "programs", security(("bearer" = [])),
     params(("name" = String, Path, description = "File name")),
@@ -773,22 +863,54 @@ pub async fn delete_program(
     Ok(StatusCode::NO_CONTENT)
 }
 
+#[derive(Debug, Deserialize, IntoParams)]
+pub struct PreviewFormat {
+    /// `json` (default) or `binary`: one chain of points, f32 coordinates (the layout is in
+    /// docs/hmi.md and `preview::encode_binary`), for programs of a million segments.
+    #[serde(default)]
+    format: Option<String>,
+}
+
 /// The tool path: the canonical motion as polylines (arcs within 0.01 mm).
 #[utoipa::path(get, path = "/api/programs/{name}/preview", tag = "programs", security(("bearer" = [])),
-    params(("name" = String, Path, description = "File name")),
-    responses((status = 200, body = Preview), (status = 404, body = Problem, content_type = "application/problem+json")))]
+    params(("name" = String, Path, description = "File name"), PreviewFormat),
+    responses((status = 200, body = Preview),
+        (status = 200, description = "`format=binary`: the chain of points (docs/hmi.md)", content_type = "application/octet-stream"),
+        (status = 404, body = Problem, content_type = "application/problem+json")))]
 pub async fn preview(
     State(app): State<Arc<App>>,
     caller: Caller,
     Path(name): Path<String>,
-) -> ApiResult<Json<Preview>> {
+    Query(q): Query<PreviewFormat>,
+) -> ApiResult<Response> {
     caller.viewer()?;
+    let binary = match q.format.as_deref() {
+        None | Some("json") => false,
+        Some("binary") => true,
+        Some(_) => {
+            return Err(Problem::bad_request(
+                "api.bad_query",
+                "format is json or binary",
+            ));
+        }
+    };
     let text = app.read_program(&name)?;
     let config = Arc::clone(&app.config);
-    let p = tokio::task::spawn_blocking(move || crate::preview::preview(&config, &name, &text))
-        .await
-        .map_err(|e| Problem::internal(e.to_string()))?;
-    Ok(Json(p))
+    let r = tokio::task::spawn_blocking(move || {
+        let p = crate::preview::preview(&config, &name, &text);
+        if binary {
+            (
+                [(header::CONTENT_TYPE, "application/octet-stream")],
+                crate::preview::encode_binary(&p),
+            )
+                .into_response()
+        } else {
+            Json(p).into_response()
+        }
+    })
+    .await
+    .map_err(|e| Problem::internal(e.to_string()))?;
+    Ok(r)
 }
 
 /// The cycle time from the planner on this machine file in virtual time (what `rtcnc sim`
@@ -909,6 +1031,55 @@ pub async fn set_offset(
     finish(&app, serial, true).await
 }
 
+/// The machine file (TOML) and whether it changed since the API process started.
+#[utoipa::path(get, path = "/api/setup/machine", tag = "setup", security(("bearer" = [])),
+    responses((status = 200, body = MachineFile)))]
+pub async fn machine_file(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+) -> ApiResult<Json<MachineFile>> {
+    caller.viewer()?;
+    let path = &app.options.config_path;
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| Problem::internal(format!("{}: {e}", path.display())))?;
+    Ok(Json(MachineFile {
+        path: path.display().to_string(),
+        changed_since_start: text != app.config_text_at_start,
+        text,
+        handwheel_units_per_count: app.config.handwheel.units_per_count,
+    }))
+}
+
+/// Replaces the machine file (admin): checked as the machine checks it at its start (the
+/// TOML, every value, the kernel built on it with its PLC program), written atomically,
+/// taken by the machine process at its next start. Refused with the key and the reason.
+#[utoipa::path(put, path = "/api/setup/machine", tag = "setup", security(("bearer" = [])),
+    request_body(content = String, content_type = "text/plain"),
+    responses((status = 200, body = MachineFileSaved), (status = 403, body = Problem, content_type = "application/problem+json"),
+        (status = 422, body = Problem, content_type = "application/problem+json")))]
+pub async fn set_machine_file(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+    body: Bytes,
+) -> ApiResult<Json<MachineFileSaved>> {
+    caller.session.require(Role::Admin)?;
+    let text = std::str::from_utf8(&body)
+        .map_err(|_| Problem::unprocessable("setup.machine_invalid", "not UTF-8 text"))?
+        .to_string();
+    let path = app.options.config_path.clone();
+    let (path2, text2) = (path.clone(), text.clone());
+    tokio::task::spawn_blocking(move || crate::machine_file::validate(&path2, &text2))
+        .await
+        .map_err(|e| Problem::internal(e.to_string()))?
+        .map_err(|e| Problem::unprocessable("setup.machine_invalid", e))?;
+    crate::files::write_atomically(&path, text.as_bytes(), 0o644)
+        .map_err(|e| Problem::internal(e.to_string()))?;
+    Ok(Json(MachineFileSaved {
+        size: text.len() as u64,
+        applies_at_next_start: true,
+    }))
+}
+
 // ----- PLC -------------------------------------------------------------------------------
 
 async fn plc_call(app: &App, kind: u32, path: &str, value: &str) -> ApiResult<String> {
@@ -924,6 +1095,22 @@ async fn plc_call(app: &App, kind: u32, path: &str, value: &str) -> ApiResult<St
         };
         Err(Problem::new(status, code, r.text.as_str()))
     }
+}
+
+/// Every variable of the PLC program (compiled from the machine file's `[plc] program`).
+#[utoipa::path(get, path = "/api/plc/variables", tag = "plc", security(("bearer" = [])),
+    responses((status = 200, body = Vec<PlcVariableInfo>), (status = 404, body = Problem, content_type = "application/problem+json")))]
+pub async fn plc_variables(
+    State(app): State<Arc<App>>,
+    caller: Caller,
+) -> ApiResult<Json<Vec<PlcVariableInfo>>> {
+    caller.viewer()?;
+    let config = Arc::clone(&app.config);
+    tokio::task::spawn_blocking(move || crate::machine_file::plc_variables(&config))
+        .await
+        .map_err(|e| Problem::internal(e.to_string()))?
+        .map(Json)
+        .map_err(|e| Problem::not_found("plc.absent", e))
 }
 
 /// Reads a PLC variable.

@@ -14,6 +14,7 @@ pub mod commands;
 mod decimal;
 pub mod machines;
 pub mod output;
+mod plot;
 pub mod recording;
 
 /// The command line.

@@ -58,7 +58,9 @@ fn sim_runs_experiment_1_and_writes_its_report() {
     assert!(last.ends_with(",6.000000,6.000000"), "{last}");
     let svg = std::fs::read_to_string(dir.join("plot.svg")).unwrap();
     assert!(
-        svg.starts_with("<svg") && svg.contains("tool path") && svg.contains("velocity over time")
+        svg.starts_with("<svg")
+            && svg.contains("top (X-Y)")
+            && svg.contains("path speed over time")
     );
     let trace: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("trace.json")).unwrap()).unwrap();

@@ -272,3 +272,23 @@ impl Fault {
         s
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::FaultCode;
+
+    #[test]
+    fn every_code_comes_back_from_its_number() {
+        // The numbers are the variants' order from 100, so ALL lists each once, in order;
+        // the last variant closes the list (a code missing from ALL reads as unknown on the
+        // other side of the shared-memory link).
+        for (i, code) in FaultCode::ALL.iter().enumerate() {
+            assert_eq!(code.number(), 100 + i as u32);
+            assert_eq!(FaultCode::from_number(code.number()), Some(*code));
+        }
+        assert_eq!(
+            FaultCode::ALL.last().copied(),
+            Some(FaultCode::MotionStalled)
+        );
+    }
+}

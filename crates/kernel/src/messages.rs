@@ -130,6 +130,14 @@ pub enum Command {
     },
     /// Home every joint with a homing sequence (in sequence order).
     HomeAll,
+    /// Switch the mode while the machine is idle, as an operator's mode key does; the
+    /// commands that need a mode (cycle start, MDI, jog, homing) still switch to it.
+    SetMode(Mode),
+    /// Home the joints of one axis (together, whatever their sequence numbers).
+    HomeAxis {
+        /// Axis index.
+        axis: u8,
+    },
     /// Move an independent joint (one no axis drives) to `position`.
     JointMove {
         /// Joint index.
@@ -465,6 +473,9 @@ pub struct JointSetpoints {
     pub line: u32,
     /// Path speed (units/s).
     pub path_speed: f64,
+    /// Where the executing program or MDI line ends (axes, machine coordinates); equal to
+    /// `axes` in manual motion.
+    pub move_end: [f64; AXES],
 }
 
 /// What the status snapshot says the machine is doing.
@@ -526,6 +537,8 @@ pub struct Status {
     pub joint_feedback: [f64; MAX_JOINTS],
     /// Path speed, units/s.
     pub path_speed: f64,
+    /// Distance to go per axis: from the set-point to the end of the executing line.
+    pub distance_to_go: [f64; AXES],
     /// Feed override.
     pub feed_override: f64,
     /// Bit n: joint n is homed.

@@ -356,3 +356,116 @@ fn rapid_and_spindle_overrides() {
         m.status().spindle_rpm
     );
 }
+
+#[test]
+fn homing_one_axis_homes_its_joints_only() {
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::new(&cfg, None);
+    m.power_on();
+    m.command(Command::JogIncrement {
+        axis: 0,
+        distance: 10.0,
+    });
+    m.cycles(5);
+    assert!(m.until(5.0, |s| s.state == MachineState::Idle));
+    m.command(Command::HomeAxis { axis: 1 });
+    m.cycles(5);
+    assert!(m.until(120.0, |s| s.state == MachineState::Idle));
+    assert_eq!(m.status().homed, 0b010);
+    // Y at its home position; X where the jog left it, Z where it was.
+    assert_eq!(&m.status().axes[..3], &[10.0, 0.0, 0.0]);
+    m.sim.handle().simulated_machine().unwrap().with(|machine| {
+        let (y, _) = machine.true_state(1).unwrap();
+        assert!(y.abs() < 1e-3, "Y at {y}");
+    });
+    m.command(Command::HomeAxis { axis: 0 });
+    m.cycles(5);
+    assert!(m.until(120.0, |s| s.state == MachineState::Idle));
+    assert_eq!(m.status().homed, 0b011);
+    assert_eq!(&m.status().axes[..3], &[0.0, 0.0, 0.0]);
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+}
+
+#[test]
+fn homing_a_gantry_axis_squares_its_joints_and_leaves_the_others() {
+    let cfg = config("sim-gantry-12.toml");
+    let mut m = Machine::new(&cfg, None);
+    m.power_on();
+    m.command(Command::HomeAxis { axis: 0 });
+    m.cycles(5);
+    assert!(m.until(300.0, |s| s.state == MachineState::Idle));
+    // X's four joints (0..4, as in the homing-all test) and no other.
+    assert_eq!(m.status().homed, 0b1111);
+    let x: Vec<f64> = m
+        .sim
+        .handle()
+        .simulated_machine()
+        .unwrap()
+        .with(|machine| (0..4).map(|j| machine.true_state(j).unwrap().0).collect());
+    for (j, p) in x.iter().enumerate() {
+        assert!(p.abs() < 1e-3, "joint {j} at {p}");
+    }
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+}
+
+#[test]
+fn distance_to_go_is_from_the_set_point_to_the_programmed_end_of_the_line() {
+    let text = "G21 G90 G61.1\nG1 X100 F3000\nG1 Y50 Z-5\nM2\n";
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::started(&cfg, text, "togo.ngc");
+    for (line, end) in [(2, [100.0, 0.0, 0.0]), (3, [100.0, 50.0, -5.0])] {
+        assert!(m.until(10.0, |s| s.line == line && s.path_speed > 10.0));
+        for _ in 0..50 {
+            m.cycles(7);
+            let s = m.status();
+            if s.line != line {
+                break;
+            }
+            for (a, e) in end.iter().enumerate() {
+                let expected = e - s.axes[a];
+                assert!(
+                    (s.distance_to_go[a] - expected).abs() < 1e-9,
+                    "line {line} axis {a}: {} vs {expected}",
+                    s.distance_to_go[a]
+                );
+            }
+        }
+    }
+    assert!(m.until(10.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert_eq!(&m.status().distance_to_go[..3], &[0.0, 0.0, 0.0]);
+}
+
+#[test]
+fn the_mode_switches_when_idle_only() {
+    use rtcnc_kernel::Mode;
+    let text = "G21 G90 G61.1\nG1 X50 F3000\nM2\n";
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::started(&cfg, text, "mode.ngc");
+    assert!(m.until(5.0, |s| s.state == MachineState::Running));
+    assert_eq!(m.status().mode, Mode::Auto);
+    m.command(Command::SetMode(Mode::Manual));
+    m.cycles(10);
+    assert_eq!(
+        m.status().mode,
+        Mode::Auto,
+        "refused while the program runs"
+    );
+    assert_eq!(m.status().state, MachineState::Running);
+    assert!(m.until(10.0, |s| s.program_ended && s.state == MachineState::Idle));
+    for mode in [Mode::Mdi, Mode::Manual, Mode::Auto] {
+        m.command(Command::SetMode(mode));
+        m.cycles(5);
+        assert_eq!(m.status().mode, mode);
+    }
+    // From manual a jog works, and the axis stays where the program left it until then.
+    m.command(Command::SetMode(Mode::Manual));
+    m.cycles(5);
+    assert_eq!(m.status().axes[0], 50.0);
+    m.command(Command::JogIncrement {
+        axis: 0,
+        distance: -5.0,
+    });
+    m.cycles(5);
+    assert!(m.until(5.0, |s| s.state == MachineState::Idle));
+    assert_eq!(m.status().axes[0], 45.0);
+}

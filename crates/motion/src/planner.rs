@@ -657,6 +657,19 @@ impl<K: Kinematics> Planner<K> {
             .saturating_sub(usize::try_from(behind).unwrap_or(usize::MAX))
     }
 
+    /// Where the program line of the emitted set-point ends, as far as the window holds its
+    /// path: the end of the last of the consecutive pieces of that line from the emitted
+    /// one on (a line's span and its corner blend, or every piece of a spline). `None` when
+    /// the emitted set-point is on no piece. No allocation: for the status of every period.
+    pub fn move_end(&self) -> Option<AxisVec> {
+        let mut i = self.q.index(self.cur.id)?;
+        let line = self.q.get(i).line;
+        while i + 1 < self.q.len && self.q.get(i + 1).line == line {
+            i += 1;
+        }
+        Some(self.q.get(i).end)
+    }
+
     /// How many servo periods the generator runs ahead of the emitted set-point at most
     /// (the machine's longest stop; the buffer is allocated at construction).
     pub fn generation_depth(&self) -> usize {

@@ -212,8 +212,20 @@ class Client:
     def jog_stop(self, axis: str) -> Acknowledgement:
         return self._command("/api/control/jog/stop", {"axis": axis})
 
-    def home(self) -> Acknowledgement:
-        return self._command("/api/control/home")
+    def home(self, axis: str | None = None) -> Acknowledgement:
+        """Homes every joint in sequence, or only the joints of `axis`."""
+        if axis is None:
+            return self._command("/api/control/home")
+        return self._command(f"/api/control/home/{axis}")
+
+    def set_mode(self, mode: str) -> Acknowledgement:
+        """Switches to "manual", "auto" or "mdi" (the machine must be idle)."""
+        return self._command("/api/control/mode", {"mode": mode})
+
+    def handwheel(self, axis: str | None, scale: float = 1.0) -> Acknowledgement:
+        """Puts the handwheel on `axis` (×`scale` of the machine's units per count), or
+        releases it with `axis=None`."""
+        return self._command("/api/control/handwheel", {"axis": axis, "scale": scale})
 
     def set_overrides(self, feed: float | None = None, rapid: float | None = None,
                       spindle: float | None = None) -> list[models.Ack]:
@@ -249,7 +261,27 @@ class Client:
     def estimate(self, name: str) -> models.Estimate:
         return models.Estimate.model_validate(self._request("GET", f"/api/programs/{name}/estimate").json())
 
+    def check_program(self, name: str, text: str | bytes) -> models.ProgramCheck:
+        """The interpreter's errors in a text, nothing stored."""
+        data = text.encode() if isinstance(text, str) else text
+        r = self._request("POST", f"/api/programs/{name}/check", content=data,
+                          headers={"content-type": "text/plain"})
+        return models.ProgramCheck.model_validate(r.json())
+
+    def preview_binary(self, name: str) -> bytes:
+        """The preview as one chain of points (docs/hmi.md has the layout)."""
+        return self._request("GET", f"/api/programs/{name}/preview", params={"format": "binary"}).content
+
     # Setup.
+    def machine_file(self) -> models.MachineFile:
+        return models.MachineFile.model_validate(self._request("GET", "/api/setup/machine").json())
+
+    def set_machine_file(self, text: str) -> models.MachineFileSaved:
+        """Admin: replaces the machine file (checked as at the machine's start)."""
+        r = self._request("PUT", "/api/setup/machine", content=text.encode(),
+                          headers={"content-type": "text/plain"})
+        return models.MachineFileSaved.model_validate(r.json())
+
     def tools(self) -> list[models.Tool]:
         return [models.Tool.model_validate(t) for t in self._request("GET", "/api/setup/tools").json()]
 
@@ -266,6 +298,9 @@ class Client:
         return _ack_result(models.Ack.model_validate(r.json()))
 
     # PLC.
+    def plc_variables(self) -> list[models.PlcVariableInfo]:
+        return [models.PlcVariableInfo.model_validate(v) for v in self._request("GET", "/api/plc/variables").json()]
+
     def plc_read(self, path: str) -> str:
         return models.PlcVariable.model_validate(self._request("GET", f"/api/plc/variables/{path}").json()).value
 

@@ -108,6 +108,13 @@ class FaultRecord(BaseModel):
     seq: int = Field(description="The event's sequence number (acknowledge up to it).")
     time_s: float = Field(description="Machine time, s.")
 
+class HandwheelRequest(BaseModel):
+    """The handwheel (manual pulse generator): which axis it moves and its scale."""
+    model_config = ConfigDict(extra="allow", populate_by_name=True)
+
+    axis: str | None = Field(default=None, description="Axis letter; absent or null releases the handwheel.")
+    scale: float | None = Field(default=None, description="Multiplier of the machine's `handwheel.units_per_count` (×1, ×10, ×100).")
+
 class Jog(BaseModel):
     """A jog."""
     model_config = ConfigDict(extra="allow", populate_by_name=True)
@@ -155,6 +162,22 @@ class Login(BaseModel):
     password: str = Field(description="Password.")
     user: str = Field(description="User name.")
 
+class MachineFile(BaseModel):
+    """The machine file."""
+    model_config = ConfigDict(extra="allow", populate_by_name=True)
+
+    changed_since_start: bool = Field(description="The file differs from the one the API process started with: the machine process takes the new one at its next start.")
+    handwheel_units_per_count: float = Field(description="Travel per handwheel count at ×1 (`[handwheel] units_per_count`), in the file the API process started with.")
+    path: str = Field(description="Its path on the machine's computer.")
+    text: str = Field(description="Its text (TOML).")
+
+class MachineFileSaved(BaseModel):
+    """A machine file written."""
+    model_config = ConfigDict(extra="allow", populate_by_name=True)
+
+    applies_at_next_start: bool = Field(description="Always true: the machine process reads its file only when it starts.")
+    size: int = Field(description="Bytes written.")
+
 class Mdi(BaseModel):
     """An MDI line."""
     model_config = ConfigDict(extra="allow", populate_by_name=True)
@@ -175,6 +198,15 @@ class Modal(BaseModel):
     units: str = Field(description="`mm` or `inch`.")
     work_offset: AxisMap = Field(description="Work offset in force, program units.")
     work_system: str = Field(description="`G54` .. `G59.3`.")
+
+ModeName = str
+"""The machine's mode."""
+
+class ModeRequest(BaseModel):
+    """A mode switch."""
+    model_config = ConfigDict(extra="allow", populate_by_name=True)
+
+    mode: ModeName = Field(description="The mode.")
 
 class Overrides(BaseModel):
     """Overrides, as factors (1 = 100 %)."""
@@ -213,6 +245,15 @@ class PlcVariable(BaseModel):
     path: str = Field(description="Path (`GLOBAL`, `INSTANCE.VAR`, `timer.ET`, `word.3`).")
     value: str = Field(description="Value as IEC text (`TRUE`, `42`, `T#1s`).")
 
+class PlcVariableInfo(BaseModel):
+    """A variable of the PLC program."""
+    model_config = ConfigDict(extra="allow", populate_by_name=True)
+
+    location: str | None = Field(default=None, description="Direct address of a located variable (`%IX0.1`).")
+    path: str = Field(description="Path (`GLOBAL`, `INSTANCE.VAR`, `A[3]`), as `GET /api/plc/variables/{path}` takes it.")
+    retain: bool = Field(description="Declared RETAIN.")
+    type_name: str = Field(description="IEC type (`BOOL`, `INT`, `TIME`, …).")
+
 class PlcWatch(BaseModel):
     """The watch list."""
     model_config = ConfigDict(extra="allow", populate_by_name=True)
@@ -246,6 +287,13 @@ class Problem(BaseModel):
     status: int = Field(description="The HTTP status.")
     title: str = Field(description="Short summary of the kind of problem.")
     type_: str = Field(alias="type", description="`urn:rtcnc:problem:` followed by the code.")
+
+class ProgramCheck(BaseModel):
+    """The interpreter's verdict on a program text (nothing is stored)."""
+    model_config = ConfigDict(extra="allow", populate_by_name=True)
+
+    errors: list[ProgramError] = Field(description="Every error (up to 100), with line and column; empty: the program is good.")
+    lines: int = Field(description="Lines in the text.")
 
 class ProgramError(BaseModel):
     """An interpreter error in an uploaded program."""
@@ -302,6 +350,7 @@ class Status(BaseModel):
     deadline_misses: int = Field(description="Deadline misses of the real-time tasks so far.")
     digital_inputs: int = Field(description="Digital inputs, bit n = input n.")
     digital_outputs: int = Field(description="Digital outputs.")
+    distance_to_go: AxisMap = Field(description="Distance to go: from the machine position to the end of the executing program or MDI line (its path as planned), per axis, mm or degrees; zero in manual motion and at rest.")
     estop_input: bool = Field(description="The e-stop input is pressed.")
     fault_count: int = Field(description="Faults raised since the machine started.")
     flood: bool = Field(description="Flood coolant on.")
@@ -397,23 +446,29 @@ Event.model_rebuild()
 EventPage.model_rebuild()
 FaultAck.model_rebuild()
 FaultRecord.model_rebuild()
+HandwheelRequest.model_rebuild()
 Jog.model_rebuild()
 Joint.model_rebuild()
 Lease.model_rebuild()
 LinkCounters.model_rebuild()
 LoadProgram.model_rebuild()
 Login.model_rebuild()
+MachineFile.model_rebuild()
+MachineFileSaved.model_rebuild()
 Mdi.model_rebuild()
 Modal.model_rebuild()
+ModeRequest.model_rebuild()
 Overrides.model_rebuild()
 OverridesRequest.model_rebuild()
 PasswordChange.model_rebuild()
 PlcForce.model_rebuild()
 PlcVariable.model_rebuild()
+PlcVariableInfo.model_rebuild()
 PlcWatch.model_rebuild()
 Polyline.model_rebuild()
 Preview.model_rebuild()
 Problem.model_rebuild()
+ProgramCheck.model_rebuild()
 ProgramError.model_rebuild()
 ProgramInfo.model_rebuild()
 SessionInfo.model_rebuild()

@@ -3,11 +3,13 @@
 //! cycle time, limits, following errors, faults; with `--out` also the set-points and
 //! feedback as CSV, an SVG plot, the executive's trace and `summary.json`.
 
+use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
+use crate::plot::{LineKind, PlotData};
 use anyhow::{Context as _, bail};
 use rtcnc_kernel::report::RunStats;
 
@@ -336,7 +338,9 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
             error_text.as_deref(),
         )?;
         let plot = plot.unwrap_or_default();
-        std::fs::write(dir.join("plot.svg"), plot.svg(&config))
+        let lathe = config.machine.kind == rtcnc_kernel::config::MachineKind::Lathe;
+        let svg = plot.svg(&line_kinds(&config, &args.program), lathe);
+        std::fs::write(dir.join("plot.svg"), svg)
             .with_context(|| format!("{}", dir.join("plot.svg").display()))?;
         let runner = sim.into_runner();
         runner
@@ -451,159 +455,30 @@ fn stops_program(code: FaultCode) -> bool {
     )
 }
 
-/// Most points the plot keeps: once twice this many are gathered, every other one goes and
-/// only every other servo period is taken from then on, so memory stays bounded however
-/// long the program runs.
-const PLOT_POINTS: usize = 20_000;
-
-struct PlotData {
-    points: Vec<(f64, f64, f64, f64)>,
-    /// A point is kept every `stride` samples.
-    stride: u64,
-    samples: u64,
-}
-
-impl Default for PlotData {
-    fn default() -> Self {
-        PlotData {
-            points: Vec::with_capacity(2 * PLOT_POINTS),
-            stride: 1,
-            samples: 0,
+/// Which program lines move at rapid and which feed, from the interpreter's canonical
+/// output (the HMI's preview); a line with both (a canned cycle) counts as a feed.
+fn line_kinds(config: &MachineConfig, program: &Path) -> HashMap<u32, LineKind> {
+    let mut kinds = HashMap::new();
+    let Ok(text) = std::fs::read_to_string(program) else {
+        return kinds;
+    };
+    let name = program
+        .file_name()
+        .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    for path in rtcnc_api::preview::preview(config, &name, &text).paths {
+        let kind = if path.kind == "rapid" {
+            LineKind::Rapid
+        } else {
+            LineKind::Feed
+        };
+        for line in path.lines {
+            let k = kinds.entry(line).or_insert(kind);
+            if kind == LineKind::Feed {
+                *k = LineKind::Feed;
+            }
         }
     }
-}
-
-impl PlotData {
-    fn add(&mut self, s: &Sample) {
-        let keep = self.samples % self.stride == 0;
-        self.samples += 1;
-        if !keep {
-            return;
-        }
-        self.points
-            .push((s.time_ns as f64 * 1e-9, s.axes[0], s.axes[1], s.path_speed));
-        if self.points.len() >= 2 * PLOT_POINTS {
-            let mut i = 0;
-            self.points.retain(|_| {
-                i += 1;
-                i % 2 == 1
-            });
-            self.stride *= 2;
-        }
-    }
-
-    /// Tool path (X-Y, or Z-X on a lathe) and path speed over time, hand-written SVG.
-    fn svg(&self, config: &MachineConfig) -> String {
-        let lathe = config.machine.kind == rtcnc_kernel::config::MachineKind::Lathe;
-        let stride = (self.points.len() / 20_000).max(1);
-        let pts: Vec<_> = self.points.iter().step_by(stride).copied().collect();
-        let (w, h) = (520.0, 420.0);
-        let mut out = String::new();
-        let _ = write!(
-            out,
-            r#"<svg xmlns="http://www.w3.org/2000/svg" width="1100" height="480" font-family="sans-serif" font-size="12">
-<rect width="1100" height="480" fill="white"/>
-"#
-        );
-        // Tool path.
-        let xy: Vec<(f64, f64)> = pts
-            .iter()
-            .map(|p| if lathe { (p.2, p.1) } else { (p.1, p.2) })
-            .collect();
-        let (label_x, label_y) = if lathe { ("Z", "X") } else { ("X", "Y") };
-        panel(
-            &mut out,
-            40.0,
-            30.0,
-            w,
-            h,
-            &xy,
-            label_x,
-            label_y,
-            "tool path",
-            true,
-        );
-        let speed: Vec<(f64, f64)> = pts.iter().map(|p| (p.0, p.3)).collect();
-        panel(
-            &mut out,
-            600.0,
-            30.0,
-            w - 40.0,
-            h,
-            &speed,
-            "t (s)",
-            "path speed (mm/s)",
-            "velocity over time",
-            false,
-        );
-        out.push_str("</svg>\n");
-        out
-    }
-}
-
-#[allow(clippy::too_many_arguments)]
-fn panel(
-    out: &mut String,
-    x0: f64,
-    y0: f64,
-    w: f64,
-    h: f64,
-    pts: &[(f64, f64)],
-    label_x: &str,
-    label_y: &str,
-    title: &str,
-    equal: bool,
-) {
-    let finite = pts.iter().filter(|p| p.0.is_finite() && p.1.is_finite());
-    let (mut xmin, mut xmax, mut ymin, mut ymax) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    for p in finite {
-        xmin = xmin.min(p.0);
-        xmax = xmax.max(p.0);
-        ymin = ymin.min(p.1);
-        ymax = ymax.max(p.1);
-    }
-    if xmin > xmax {
-        (xmin, xmax, ymin, ymax) = (0.0, 1.0, 0.0, 1.0);
-    }
-    if xmax - xmin < 1e-9 {
-        xmax = xmin + 1.0;
-    }
-    if ymax - ymin < 1e-9 {
-        ymax = ymin + 1.0;
-    }
-    let (mut sx, mut sy) = (w / (xmax - xmin), h / (ymax - ymin));
-    if equal {
-        let s = sx.min(sy);
-        sx = s;
-        sy = s;
-    }
-    let _ = writeln!(
-        out,
-        r##"<g><rect x="{x0}" y="{y0}" width="{w}" height="{h}" fill="none" stroke="#999"/>
-<text x="{}" y="{}" text-anchor="middle" font-weight="bold">{title}</text>
-<text x="{}" y="{}" text-anchor="middle">{label_x}: {xmin:.2} … {xmax:.2}</text>
-<text x="{}" y="{}" text-anchor="middle" transform="rotate(-90 {} {})">{label_y}: {ymin:.2} … {ymax:.2}</text>"##,
-        x0 + w / 2.0,
-        y0 - 10.0,
-        x0 + w / 2.0,
-        y0 + h + 18.0,
-        x0 - 12.0,
-        y0 + h / 2.0,
-        x0 - 12.0,
-        y0 + h / 2.0
-    );
-    out.push_str(r##"<polyline fill="none" stroke="#1565c0" stroke-width="1" points=""##);
-    for p in pts {
-        if p.0.is_finite() && p.1.is_finite() {
-            let _ = write!(
-                out,
-                "{:.2},{:.2} ",
-                x0 + (p.0 - xmin) * sx,
-                y0 + h - (p.1 - ymin) * sy
-            );
-        }
-    }
-    out.push_str("\"/></g>\n");
+    kinds
 }
 
 fn write_summary(
@@ -662,37 +537,6 @@ fn write_summary(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn sample(cycle: u64) -> Sample {
-        Sample {
-            time_ns: cycle * 1_000_000,
-            cycle,
-            setpoint: [0.0; 16],
-            feedback: [0.0; 16],
-            following_error: [0.0; 16],
-            axes: [0.0; 9],
-            line: 0,
-            path_speed: 0.0,
-        }
-    }
-
-    #[test]
-    fn the_plot_keeps_a_bounded_number_of_evenly_spaced_points() {
-        let mut plot = PlotData::default();
-        // An hour of 1 ms periods.
-        for cycle in 0..3_600_000 {
-            plot.add(&sample(cycle));
-        }
-        assert!(plot.points.len() < 2 * PLOT_POINTS, "{}", plot.points.len());
-        assert!(plot.points.len() >= PLOT_POINTS / 2);
-        // Evenly spaced: every kept point is `stride` periods after the one before.
-        let step = plot.points[1].0 - plot.points[0].0;
-        assert!((step - plot.stride as f64 * 1e-3).abs() < 1e-9);
-        for w in plot.points.windows(2) {
-            assert!((w[1].0 - w[0].0 - step).abs() < 1e-6);
-        }
-        assert_eq!(plot.points[0].0, 0.0);
-    }
 
     #[test]
     fn a_refused_block_stops_the_program_a_warning_does_not() {

@@ -12,7 +12,7 @@ use crate::config::{MAX_JOINTS, MAX_PROGRAM_IO};
 /// "RTCNCSHM", little-endian: the first eight bytes of a segment.
 pub const MAGIC: u64 = u64::from_le_bytes(*b"RTCNCSHM");
 /// The layout version; a client of another layout is refused.
-pub const LAYOUT_VERSION: u32 = 1;
+pub const LAYOUT_VERSION: u32 = 2;
 /// Axes X Y Z A B C U V W.
 pub const AXES: usize = rtcnc_motion::AXES;
 /// Bytes of a text in a command, event or reply.
@@ -118,6 +118,13 @@ pub mod command {
     pub const JOG_KEEP_ALIVE: u32 = 12;
     /// Read the tool table file again.
     pub const RELOAD_TOOL_TABLE: u32 = 13;
+    /// The handwheel on `axis` with `value` times `handwheel.units_per_count` per count;
+    /// `axis` = `u32::MAX` releases it.
+    pub const HANDWHEEL: u32 = 14;
+    /// Home the joints of `axis`.
+    pub const HOME_AXIS: u32 = 15;
+    /// Switch the mode: `number` 0 manual, 1 auto, 2 MDI.
+    pub const SET_MODE: u32 = 16;
 }
 
 /// One normal command, acknowledged by its serial number.
@@ -313,6 +320,8 @@ pub struct WireStatus {
     pub following_error: [f64; MAX_JOINTS],
     /// Path speed, units/s.
     pub path_speed: f64,
+    /// Distance to go per axis, machine units: to the end of the executing line.
+    pub distance_to_go: [f64; AXES],
     /// Feed override.
     pub feed_override: f64,
     /// Rapid override.

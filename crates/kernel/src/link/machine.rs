@@ -399,6 +399,20 @@ impl CommandPort {
                 },
                 command::JOG_STOP => Command::JogStop { axis },
                 command::HOME_ALL => Command::HomeAll,
+                command::HOME_AXIS => Command::HomeAxis { axis },
+                command::SET_MODE => match c.number {
+                    0 => Command::SetMode(Mode::Manual),
+                    1 => Command::SetMode(Mode::Auto),
+                    2 => Command::SetMode(Mode::Mdi),
+                    _ => {
+                        self.refuse(c.serial, Refusal::BadValue);
+                        continue;
+                    }
+                },
+                command::HANDWHEEL => Command::Handwheel {
+                    axis: (c.axis != u32::MAX).then_some(axis),
+                    scale: c.value,
+                },
                 command::SINGLE_BLOCK => {
                     self.set_flag(flags::SINGLE_BLOCK, on);
                     Command::SingleBlock(on)
@@ -475,12 +489,14 @@ impl CommandPort {
                 | Command::JogContinuous { .. }
                 | Command::JogIncrement { .. }
                 | Command::HomeAll
+                | Command::HomeAxis { .. }
         );
         let kind = match cmd {
             Command::Start { .. } => command::START,
             Command::Mdi(_) => command::MDI,
             Command::JogContinuous { .. } => command::JOG_CONTINUOUS,
             Command::JogIncrement { .. } => command::JOG_INCREMENT,
+            Command::HomeAxis { .. } => command::HOME_AXIS,
             _ => command::HOME_ALL,
         };
         let _ = self.events.push(ack_event(serial, ack::ACCEPTED, None));
@@ -578,7 +594,15 @@ impl CommandPort {
                     Refusal::BadAxis
                 }
             }
-            Command::JogIncrement { axis, .. } if !axis_ok(axis) => Refusal::BadAxis,
+            Command::JogIncrement { axis, .. } | Command::HomeAxis { axis } if !axis_ok(axis) => {
+                Refusal::BadAxis
+            }
+            Command::Handwheel {
+                axis: Some(axis), ..
+            } if !axis_ok(axis) => Refusal::BadAxis,
+            Command::Handwheel { scale, .. } if !(scale.is_finite() && scale > 0.0) => {
+                Refusal::BadValue
+            }
             Command::JogContinuous { velocity: v, .. }
             | Command::JogIncrement { distance: v, .. }
                 if !v.is_finite() =>
@@ -746,6 +770,7 @@ impl Publisher {
         o.joint_velocity = fb.velocity;
         o.following_error = self.following_error;
         o.path_speed = status.path_speed;
+        o.distance_to_go = status.distance_to_go;
         o.feed_override = status.feed_override;
         o.rapid_override = f64::from_bits(self.state.rapid_override.load(Ordering::Relaxed));
         o.spindle_override = f64::from_bits(self.state.spindle_override.load(Ordering::Relaxed));

@@ -102,6 +102,8 @@ impl MotionCore {
                 scale,
             } => idle && self.select_handwheel(usize::from(axis), scale),
             Command::HomeAll => idle && self.home_all(),
+            Command::HomeAxis { axis } => idle && self.home_axis(usize::from(axis)),
+            Command::SetMode(mode) => idle && self.set_mode(mode),
             Command::JointMove { joint, position } => self.joint_move(usize::from(joint), position),
             Command::SingleBlock(on) => {
                 self.program.single_block = on;

@@ -26,7 +26,9 @@ enum HomingStep {
 /// The group of joints homing now.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct Homing {
-    sequence: u8,
+    /// The group's sequence number; `None` for the joints of one axis homed alone (no
+    /// group follows them).
+    sequence: Option<u8>,
     /// Joints of the current group with their step.
     step: [Option<HomingStep>; MAX_JOINTS],
 }
@@ -36,7 +38,7 @@ impl Homing {
     /// A group of no joints, for the state's tests.
     pub(super) fn of_sequence(sequence: u8) -> Homing {
         Homing {
-            sequence,
+            sequence: Some(sequence),
             step: [None; MAX_JOINTS],
         }
     }
@@ -70,7 +72,48 @@ impl MotionCore {
                 *slot = Some(HomingStep::Search);
             }
         }
-        Some(Homing { sequence, step })
+        Some(Homing {
+            sequence: Some(sequence),
+            step,
+        })
+    }
+
+    /// Homes the joints of axis `i` alone, together (a gantry's joints square themselves
+    /// as in their sequence); those without a homing sequence are homed where they stand.
+    /// Refused for an axis that no joint drives.
+    pub(super) fn home_axis(&mut self, i: usize) -> bool {
+        let joints =
+            (0..self.machine.joint_count).filter(|&j| self.machine.joints[j].axis == Some(i));
+        let mut step = [None; MAX_JOINTS];
+        let (mut any, mut searching) = (false, false);
+        for j in joints {
+            any = true;
+            self.homed &= !(1u32 << j);
+            if self.machine.joints[j].homing.is_some() {
+                step[j] = Some(HomingStep::Search);
+                searching = true;
+            } else {
+                self.homed |= 1 << j;
+            }
+        }
+        if !any {
+            return false;
+        }
+        self.enter_manual();
+        let group = searching.then_some(Homing {
+            sequence: None,
+            step,
+        });
+        if group.is_none() {
+            self.requests_mut().homed = self.all_homed();
+        }
+        self.fire(Event::Home(group))
+    }
+
+    /// Every joint is homed.
+    fn all_homed(&self) -> bool {
+        let all = (1u32 << self.machine.joint_count) - 1;
+        self.homed & all == all
     }
     /// One period of the homing sequence of the current group.
     pub(super) fn homing_step(&mut self, feedback: &Feedback) {
@@ -186,16 +229,20 @@ impl MotionCore {
         if all_done {
             // The group's axis joints, now squared, go back to their axes at the end of
             // this period (`release_stopped_homing_joints`).
-            let next = self.next_homing_group(Some(homing.sequence));
+            let next = homing
+                .sequence
+                .and_then(|s| self.next_homing_group(Some(s)));
             self.fire(Event::GroupHomed(next));
             if next.is_none() {
-                // Joints without a sequence are homed where they stand.
-                for j in 0..self.machine.joint_count {
-                    if self.machine.joints[j].homing.is_none() {
-                        self.homed |= 1 << j;
+                if homing.sequence.is_some() {
+                    // Joints without a sequence are homed where they stand.
+                    for j in 0..self.machine.joint_count {
+                        if self.machine.joints[j].homing.is_none() {
+                            self.homed |= 1 << j;
+                        }
                     }
                 }
-                self.requests_mut().homed = true;
+                self.requests_mut().homed = self.all_homed();
             }
         } else if let State::Homing(group) = &mut self.state {
             *group = homing;

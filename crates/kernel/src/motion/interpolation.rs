@@ -320,14 +320,17 @@ impl MotionCore {
                 sp.axes = status.axes;
                 sp.line = status.line;
                 sp.path_speed = status.path_speed;
+                sp.move_end = self.path.planner.move_end().unwrap_or(status.axes);
                 self.path.state = status.state;
                 if status.state == MotionState::Idle && self.step_of_program().is_none() {
                     sp.line = 0;
+                    sp.move_end = status.axes;
                 }
             }
             Source::Manual => {
                 self.manual_step(feedback, &mut sp);
                 self.homing_step(feedback);
+                sp.move_end = sp.axes;
             }
         }
         // Joints on their own generator (homing, independent joints). The axis a homing

@@ -117,6 +117,16 @@ impl MotionCore {
     }
 
     /// Hands motion to the on-line generators, from where the path stands.
+    /// The operator's mode switch (idle only): manual hands the axes to the jog generators
+    /// at once; auto and MDI take the path when their command comes.
+    pub(super) fn set_mode(&mut self, mode: Mode) -> bool {
+        match mode {
+            Mode::Manual => self.enter_manual(),
+            Mode::Auto | Mode::Mdi => self.mode = mode,
+        }
+        true
+    }
+
     pub(super) fn enter_manual(&mut self) {
         self.mode = Mode::Manual;
         if self.source == Source::Manual {

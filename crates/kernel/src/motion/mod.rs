@@ -193,6 +193,7 @@ impl MotionCore {
             axes: start.axes,
             line: 0,
             path_speed: 0.0,
+            move_end: start.axes,
         };
         for j in 0..machine.joint_count {
             last.joints[j] = match joints[j].axis {
@@ -348,6 +349,13 @@ impl MotionCore {
             status.joint_feedback[j] = feedback.position[j] + self.out.offsets[j];
         }
         status.path_speed = last.path_speed;
+        for (d, (end, at)) in status
+            .distance_to_go
+            .iter_mut()
+            .zip(last.move_end.iter().zip(&last.axes))
+        {
+            *d = end - at;
+        }
         status.feed_override = self.overrides.feed;
         status.homed = self.homed;
         status.program_ended = self.program.ended;

@@ -198,6 +198,7 @@ impl MotionCore {
         };
         for i in 0..AXES {
             sp.axes[i] = m.start[i] + m.dir[i] * s.p;
+            sp.move_end[i] = m.start[i] + m.dir[i] * m.length;
         }
         for jn in 0..self.machine.joint_count {
             if let Some(i) = self.machine.joints[jn].axis {
