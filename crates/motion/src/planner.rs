@@ -1237,6 +1237,10 @@ impl<K: Kinematics> Planner<K> {
                 p.vl_sub[k] = vl;
                 low = low.min(p.w[k + 1]).min(vl);
             }
+            // The jerk-limited approach to a valley after the piece is lowest at its end.
+            if let Some((dist, v0, a, j)) = p.valley_ahead(p.len) {
+                low = low.min(crate::piece::jerk_valley_speed(dist, v0, a, j).0);
+            }
             p.w_low = low;
         }
         // Pieces before the early break keep their curve, but the next stop may have moved
