@@ -558,6 +558,7 @@ impl Builder {
                             .sum();
                         let choice = arc_blend::CornerChoice {
                             feed,
+                            feeds: [lp.feed, lc.feed],
                             v_blend,
                             blend_len: b.len,
                             pass_time,
