@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # CAM-like generated programs (bench/cam_like.py: contours of dense polylines, pockets,
-# 3-D rasters, trochoidal clearing, engraving; one program per family and seed) on the
+# 3-D rasters, trochoidal clearing, engraving, zigzags; one program per family and seed) on the
 # benchmark machine (configs/bench-xyz.toml) in virtual time with `rtcnc sim`, and, with
 # --linuxcnc, on LinuxCNC 2.9's simulator (the peers' run_sim.sh, same limits; it runs in
 # real time, some 25 minutes for the default seeds).

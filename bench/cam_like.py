@@ -16,6 +16,8 @@ Families (each program some 10-40 s on the benchmark machine):
   trochoid  adaptive-clearing-like loops (circles advancing along a line) as polylines of
             0.1-0.3 mm, with G0 links between passes
   engrave   text-like strokes: polylines with sharp corners, plunges and retracts
+  zigzag    sawtooth polylines: every vertex turns by the same angle (2-120°, one per row)
+            on segments of one length (0.1-2 mm, one per row), five rows per program
 """
 import math
 import os
@@ -212,7 +214,30 @@ def engrave(rng, seed):
     return p
 
 
-FAMILIES = {"contour": contour, "pocket": pocket, "raster": raster, "trochoid": trochoid, "engrave": engrave}
+def zigzag(rng, seed):
+    rows = [(rng.choice([0.1, 0.25, 0.5, 1.0, 2.0]), rng.choice([2, 5, 10, 20, 45, 90, 120]))
+            for _ in range(5)]
+    p = Prog("zigzag seed %d: segment mm / turn degrees %s" % (
+        seed, ", ".join("%g/%d" % r for r in rows)), mode_for(rng))
+    feed = rng.choice([1000, 2000, 3000])
+    y = 10.0
+    for seg, turn_deg in rows:
+        turn = math.radians(turn_deg)
+        # Alternate headings of ±turn/2 about +X: each vertex turns by `turn`.
+        n = max(10, int(40 / (seg * math.cos(turn / 2))))
+        x = 10.0
+        p.g("G0", x, y)
+        p.g("G1", z=-1.0, f=300)
+        for k in range(n):
+            h = turn / 2 if k % 2 == 0 else -turn / 2
+            x += seg * math.cos(h)
+            p.g("G1", x, y + (seg * math.sin(turn / 2) if k % 2 == 0 else 0.0), f=feed)
+        p.g("G0", z=2.0)
+        y += 8.0
+    return p
+
+
+FAMILIES = {"contour": contour, "pocket": pocket, "raster": raster, "trochoid": trochoid, "engrave": engrave, "zigzag": zigzag}
 
 
 def main():

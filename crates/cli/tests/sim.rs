@@ -328,3 +328,61 @@ fn run_records_the_files_sim_writes() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The cycle time `rtcnc sim` prints ("cycle time  12.345 s").
+fn cycle_time(stdout: &str) -> f64 {
+    stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("cycle time"))
+        .and_then(|l| l.split_whitespace().next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("no cycle time in {stdout}"))
+}
+
+/// M0 pauses the program until the operator resumes it: without `--resume-after-pause` the
+/// run stays there to its time limit (and says how to go on); with it the program ends, and
+/// the wait given adds exactly that much to the cycle time.
+#[test]
+fn sim_resumes_after_a_program_pause_when_asked() {
+    let program = temp_program("pause", "G21 G90\nG1 X10 F600\nM0\nG1 X20\nM2\n");
+    let run = |extra: &[&str]| {
+        let out = rtcnc()
+            .args(["sim"])
+            .arg(&program)
+            .args(["--machine", "configs/bench-xyz.toml", "-q", "--limit", "8"])
+            .args(extra)
+            .output()
+            .unwrap();
+        (
+            out.status.success(),
+            String::from_utf8_lossy(&out.stdout).to_string(),
+        )
+    };
+    let (ok, stdout) = run(&[]);
+    assert!(!ok, "{stdout}");
+    assert!(stdout.contains("did not reach the end"), "{stdout}");
+    assert!(stdout.contains("(M0/M1); --resume-after-pause"), "{stdout}");
+    let (ok, at_once) = run(&["--resume-after-pause"]);
+    assert!(ok, "{at_once}");
+    assert!(
+        at_once.contains("(M0/M1); resumed after 0.000 s"),
+        "{at_once}"
+    );
+    let (ok, after_2s) = run(&["--resume-after-pause", "2"]);
+    assert!(ok, "{after_2s}");
+    // Two 10 mm rest-to-rest moves at 10 mm/s: 1 + 2·sqrt(10/50000) s each.
+    let moves = 2.0 * (1.0 + 2.0 * (10.0f64 / 50_000.0).sqrt());
+    let (t0, t2) = (cycle_time(&at_once), cycle_time(&after_2s));
+    assert!(t0 > moves && t0 < moves + 0.05, "{t0}");
+    assert!((t2 - t0 - 2.0).abs() <= 0.0015, "{t0} {t2}");
+    assert!(
+        rtcnc()
+            .args(["sim"])
+            .arg(&program)
+            .args(["--resume-after-pause", "-1"])
+            .output()
+            .unwrap()
+            .stderr
+            .starts_with(b"error")
+    );
+}

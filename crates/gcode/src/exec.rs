@@ -539,6 +539,9 @@ impl Interpreter {
 
     pub(crate) fn comment(&mut self, b: &Block) -> Res<()> {
         match b.comment_kind {
+            // rs274 writes nothing for a block whose (last) comment is `()`; `( )` is an
+            // empty COMMENT.
+            Comment::Plain if b.comment.is_empty() => {}
             Comment::Plain => {
                 let t = b.comment.trim_start_matches([' ', '\t']).to_string();
                 self.emit(C::Comment(t.into()));

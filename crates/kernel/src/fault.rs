@@ -222,6 +222,57 @@ impl FaultCode {
     }
 }
 
+/// Why a probing move failed: the `value` of a [`FaultCode::ProbeFailed`] fault, worded
+/// as LinuxCNC 2.9's motion controller words it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ProbeFailure {
+    /// The machine file names no probe input.
+    NoProbeInput,
+    /// G38.2/G38.3 started with the probe in contact.
+    AlreadyTripped,
+    /// G38.4/G38.5 started with the probe clear.
+    AlreadyClear,
+    /// G38.2 reached its end point without contact.
+    NoContact,
+    /// G38.4 reached its end point without losing contact.
+    ContactNotBroken,
+}
+
+impl ProbeFailure {
+    const ALL: [ProbeFailure; 5] = [
+        ProbeFailure::NoProbeInput,
+        ProbeFailure::AlreadyTripped,
+        ProbeFailure::AlreadyClear,
+        ProbeFailure::NoContact,
+        ProbeFailure::ContactNotBroken,
+    ];
+
+    /// The fault's `value` for this failure (1 to 5).
+    pub fn value(self) -> f64 {
+        f64::from(self as u8 + 1)
+    }
+
+    /// The failure a fault's `value` names.
+    pub fn from_value(value: f64) -> Option<ProbeFailure> {
+        Self::ALL.into_iter().find(|f| f.value() == value)
+    }
+
+    /// The operator's text (LinuxCNC's, except for the missing input, which it does not have).
+    pub fn message(self) -> &'static str {
+        match self {
+            ProbeFailure::NoProbeInput => "no probe input in the machine file",
+            ProbeFailure::AlreadyTripped => {
+                "Probe is already tripped when starting G38.2 or G38.3 move"
+            }
+            ProbeFailure::AlreadyClear => {
+                "Probe is already clear when starting G38.4 or G38.5 move"
+            }
+            ProbeFailure::NoContact => "G38.2 move finished without making contact.",
+            ProbeFailure::ContactNotBroken => "G38.4 move finished without breaking contact.",
+        }
+    }
+}
+
 /// One fault.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Fault {
@@ -242,9 +293,13 @@ pub struct Fault {
 impl Fault {
     /// Text for the operator; `joint_name` gives a joint's configured name.
     pub fn describe(&self, joint_name: impl Fn(usize) -> String) -> String {
+        let probe_failure = match self.code {
+            FaultCode::ProbeFailed => ProbeFailure::from_value(self.value),
+            _ => None,
+        };
         let mut s = format!(
             "{} [{}] at {:.6} s in {}",
-            self.code.message(),
+            probe_failure.map_or(self.code.message(), ProbeFailure::message),
             self.code.as_str(),
             self.time_ns as f64 * 1e-9,
             self.task.as_str()
@@ -266,7 +321,7 @@ impl Fault {
             s.push_str(&format!(" (AL status code {:#06x})", self.value as u16));
         } else if self.code == FaultCode::WorkingCounter {
             s.push_str(&format!(" (working counter {})", self.value));
-        } else if self.value != 0.0 && self.value.is_finite() {
+        } else if self.value != 0.0 && self.value.is_finite() && probe_failure.is_none() {
             s.push_str(&format!(" ({})", self.value));
         }
         s

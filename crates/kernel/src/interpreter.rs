@@ -650,8 +650,28 @@ impl InterpreterStage {
             }
             C::SplineFeed(sp) => {
                 let (end, control) = spline_geometry(&sp, &self.position);
+                if control.is_followable(&self.position, &end) {
+                    out.push_back(ProgramBlock::Spline { line, end, control });
+                } else {
+                    // A cusp or near cusp (the curve stops and turns back) has no speed the
+                    // planner can follow along the curve: it runs as chords within
+                    // SPLINE_CHORD_ERROR_MM of it, blended as lines are, stopping where they
+                    // reverse (LinuxCNC runs every spline as arcs).
+                    let tolerance = match self.units {
+                        Units::Mm => SPLINE_CHORD_ERROR_MM,
+                        Units::Inches => SPLINE_CHORD_ERROR_MM / 25.4,
+                    };
+                    let mut points = Vec::new();
+                    control.flatten(&self.position, &end, tolerance, &mut points);
+                    for end in points {
+                        out.push_back(ProgramBlock::Line {
+                            line,
+                            end,
+                            rapid: false,
+                        });
+                    }
+                }
                 self.position = end;
-                out.push_back(ProgramBlock::Spline { line, end, control });
             }
             C::SetDigitalOutput { index, on, .. } => {
                 out.push_back(aux(Aux::DigitalOutput { index, on }))
@@ -837,6 +857,10 @@ fn signed(rpm: f64, direction: SpindleDirection) -> f64 {
         SpindleDirection::CounterClockwise => -rpm.abs(),
     }
 }
+
+/// Largest distance of the chords a spline the planner cannot follow is run as from the
+/// curve, mm.
+const SPLINE_CHORD_ERROR_MM: f64 = 0.001;
 
 /// The end point and Bézier control points (nine axes) of a canonical spline. The
 /// interpreter gives G5/G5.1 in the XY plane only and refuses other axis words on them, so

@@ -44,7 +44,7 @@ mod sim;
 
 pub use config::{ConfigError, MAX_JOINTS, MachineConfig};
 pub use error::{KernelError, SelfTestFailure};
-pub use fault::{Fault, FaultCode, TaskName};
+pub use fault::{Fault, FaultCode, ProbeFailure, TaskName};
 pub use kernel::{Kernel, KernelHandle, KernelOptions, SelfTestReport};
 pub use kinematics::MachineKinematics;
 pub use messages::{Command, FixedText, MachineState, Mode, OperatorMessage, Status, Urgent};

@@ -219,3 +219,149 @@ fn a_compensated_arc_keeps_the_radius_difference_the_interpreter_accepted() {
         "{last:?}"
     );
 }
+
+/// The cubic Bézier through `c` at parameter t (Bernstein form), XY.
+fn cubic_at(c: &[[f64; 2]; 4], t: f64) -> [f64; 2] {
+    let s = 1.0 - t;
+    let w = [s * s * s, 3.0 * s * s * t, 3.0 * s * t * t, t * t * t];
+    [0, 1].map(|i| (0..4).map(|k| w[k] * c[k][i]).sum())
+}
+
+/// Distance of `p` from the curve: the grid's nearest point refined by ternary search on
+/// the cells next to every local minimum.
+fn distance_to_cubic(c: &[[f64; 2]; 4], p: [f64; 2]) -> f64 {
+    let d2 = |t: f64| {
+        let q = cubic_at(c, t);
+        (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)
+    };
+    let n = 400;
+    let h = 1.0 / n as f64;
+    let grid: Vec<f64> = (0..=n).map(|k| d2(k as f64 * h)).collect();
+    let mut best = f64::INFINITY;
+    for k in 0..=n {
+        if (k > 0 && grid[k] > grid[k - 1]) || (k < n && grid[k] > grid[k + 1]) {
+            continue;
+        }
+        let (mut lo, mut hi) = ((k as f64 * h - h).max(0.0), (k as f64 * h + h).min(1.0));
+        for _ in 0..100 {
+            let (a, b) = (lo + (hi - lo) / 3.0, hi - (hi - lo) / 3.0);
+            if d2(a) < d2(b) {
+                hi = b;
+            } else {
+                lo = a;
+            }
+        }
+        best = best.min(d2(0.5 * (lo + hi))).min(grid[k]);
+    }
+    best.sqrt()
+}
+
+/// `stall-splines.ngc` (3000 random lines and G5 curves, G64 P0.05) stood still at line
+/// 574 (the long-path defect), then stopped with MOTION-012 at line 712: a curve that turns
+/// on a radius below 0.1 µm, which the planner cannot follow at any speed; so does the next
+/// one. Such a curve now runs as chords within 1 µm of it (LinuxCNC runs it too, as arcs).
+/// The whole case runs to its end in `rtcnc sim` (3160 s of machine time, too long for a
+/// debug test); here its lines 712-716, from the end point of line 711: every set-point of
+/// the two curves within P + 1 µm of them, the limits kept, the end exact.
+#[test]
+fn near_cusp_splines_run_as_chords_within_the_tolerance() {
+    let case = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/cases/stall-splines.ngc"),
+    )
+    .unwrap();
+    let lines: Vec<&str> = case.lines().collect();
+    assert_eq!(lines[710], "G1 X259.970670 Y-21.319841");
+    let text = format!(
+        "{}\nG0 X259.970670 Y-21.319841\n{}\nM2\n",
+        lines[0],
+        lines[711..716].join("\n")
+    );
+    // Lines 712 and 713 of the case, 3 and 4 here (G5: I J from the start, P Q from the end).
+    assert_eq!(
+        &lines[711..713],
+        [
+            "G5 I12.968389 J-11.520088 P0.991439 Q9.027087 X258.437133 Y-27.590159",
+            "G5 I-5.606241 J11.766226 P0.284900 Q-0.324211 X264.849927 Y-30.396029"
+        ]
+    );
+    let cubic = |a: [f64; 2], ij: [f64; 2], pq: [f64; 2], b: [f64; 2]| {
+        [
+            a,
+            [a[0] + ij[0], a[1] + ij[1]],
+            [b[0] + pq[0], b[1] + pq[1]],
+            b,
+        ]
+    };
+    let (a, b, c) = (
+        [259.970670, -21.319841],
+        [258.437133, -27.590159],
+        [264.849927, -30.396029],
+    );
+    let curves = [
+        (
+            3,
+            cubic(a, [12.968389, -11.520088], [0.991439, 9.027087], b),
+        ),
+        (
+            4,
+            cubic(b, [-5.606241, 11.766226], [0.284900, -0.324211], c),
+        ),
+    ];
+    for (_, curve) in &curves {
+        // Near cusps the planner refuses: the smallest radius of curvature (from the
+        // Bernstein derivatives, on a fine grid) is below 0.1 µm.
+        let radius = |t: f64| {
+            let s = 1.0 - t;
+            let d1 = [0, 1].map(|i| {
+                3.0 * (s * s * (curve[1][i] - curve[0][i])
+                    + 2.0 * s * t * (curve[2][i] - curve[1][i])
+                    + t * t * (curve[3][i] - curve[2][i]))
+            });
+            let d2 = [0, 1].map(|i| {
+                6.0 * (s * (curve[2][i] - 2.0 * curve[1][i] + curve[0][i])
+                    + t * (curve[3][i] - 2.0 * curve[2][i] + curve[1][i]))
+            });
+            let speed = d1[0].hypot(d1[1]);
+            speed.powi(3) / (d1[0] * d2[1] - d1[1] * d2[0]).abs()
+        };
+        let r_min = (0..=200_000)
+            .map(|k| radius(k as f64 / 200_000.0))
+            .fold(f64::INFINITY, f64::min);
+        assert!(r_min < 1e-4, "{r_min}");
+    }
+
+    let cfg = config("bench-xyz.toml");
+    let mut m = Machine::new(&cfg, Some(program(&text, "near-cusp.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    let ended = m.until(60.0, |s| s.program_ended && s.state == MachineState::Idle);
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    assert!(ended);
+    let worst = worst_ratio(&m.samples, 1e-3, &[(100.0, 1000.0, 50_000.0); 3]);
+    assert!(worst <= 1.0 + 1e-9, "{worst}");
+    // The corners at the curves' ends are blended within P of the programmed path there:
+    // the rapid before them and the line after them count too.
+    let segment = |p: [f64; 2], q: [f64; 2], x: [f64; 2]| {
+        let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
+        let t = (((x[0] - p[0]) * dx + (x[1] - p[1]) * dy) / (dx * dx + dy * dy)).clamp(0.0, 1.0);
+        (x[0] - p[0] - t * dx).hypot(x[1] - p[1] - t * dy)
+    };
+    for (line, _) in &curves {
+        let on_curve: Vec<_> = m.samples.iter().filter(|s| s.line == *line).collect();
+        assert!(on_curve.len() > 100, "{}", on_curve.len());
+        for s in on_curve {
+            let x = [s.axes[0], s.axes[1]];
+            let d = curves
+                .iter()
+                .map(|(_, curve)| distance_to_cubic(curve, x))
+                .fold(segment([0.0, 0.0], a, x), f64::min)
+                .min(segment(c, [260.868909, -30.340011], x));
+            assert!(d <= 0.05 + 0.001 + 1e-9, "{d} at {x:?}");
+        }
+    }
+    let last = m.samples.last().unwrap().axes;
+    assert!(
+        (last[0] - 250.163492).abs() < 1e-9 && (last[1] + 41.008107).abs() < 1e-9,
+        "{last:?}"
+    );
+}

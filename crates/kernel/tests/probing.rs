@@ -5,7 +5,7 @@
 mod common;
 use common::*;
 use rtcnc_fieldbus::sim::{DeviceConfig, ProbeSide};
-use rtcnc_kernel::{Command, FaultCode, MachineConfig, MachineState};
+use rtcnc_kernel::{Command, FaultCode, MachineConfig, MachineState, ProbeFailure};
 
 fn machine() -> MachineConfig {
     let mut cfg = config("bench-xyz.toml");
@@ -83,6 +83,17 @@ M2
         .find(|f| f.code == FaultCode::ProbeFailed)
         .unwrap();
     assert_eq!(f.line, 11);
+    // With LinuxCNC's words (its motion controller's message for this case).
+    assert_eq!(
+        ProbeFailure::from_value(f.value),
+        Some(ProbeFailure::NoContact)
+    );
+    assert!(
+        f.describe(|_| String::new())
+            .starts_with("G38.2 move finished without making contact. [kernel.probe_failed]"),
+        "{}",
+        f.describe(|_| String::new())
+    );
     assert!(!m.status().program_ended);
     assert_eq!(m.status().axes[2], -2.5);
 }
@@ -101,7 +112,58 @@ fn a_probe_already_in_contact_refuses_g38_2() {
         .find(|f| f.code == FaultCode::ProbeFailed)
         .unwrap();
     assert_eq!(f.line, 3);
+    assert_eq!(
+        ProbeFailure::from_value(f.value),
+        Some(ProbeFailure::AlreadyTripped)
+    );
+    assert!(
+        f.describe(|_| String::new())
+            .starts_with("Probe is already tripped when starting G38.2 or G38.3 move"),
+        "{}",
+        f.describe(|_| String::new())
+    );
     assert_eq!(m.status().axes[2], -4.0);
+}
+
+/// G38.4 from Z-4 (in contact, the surface is at Z-3) to Z-3.5 stays in contact: the
+/// program stops at the move's end with LinuxCNC's "G38.4 move finished without breaking
+/// contact.", and G38.5 there (no error wanted) refuses to start with the probe clear.
+#[test]
+fn a_g38_4_that_never_loses_contact_stops_the_program_with_linuxcncs_error() {
+    for (text, line, failure, z) in [
+        (
+            "G21 G90\nG0 Z-4\nG38.4 Z-3.5 F60\nM2\n",
+            3,
+            ProbeFailure::ContactNotBroken,
+            -3.5,
+        ),
+        (
+            "G21 G90\nG0 Z-2\nG38.5 Z0 F60\nM2\n",
+            3,
+            ProbeFailure::AlreadyClear,
+            -2.0,
+        ),
+    ] {
+        let mut m = Machine::new(&machine(), Some(program(text, "probe-away.ngc")));
+        m.power_on();
+        m.command(Command::Start { from_line: 0 });
+        m.cycles(2);
+        assert!(m.until(10.0, |s| s.state == MachineState::Idle));
+        let f = m
+            .faults
+            .iter()
+            .find(|f| f.code == FaultCode::ProbeFailed)
+            .unwrap();
+        assert_eq!(f.line, line);
+        assert_eq!(ProbeFailure::from_value(f.value), Some(failure));
+        assert!(
+            f.describe(|_| String::new()).starts_with(failure.message()),
+            "{}",
+            f.describe(|_| String::new())
+        );
+        assert!(!m.status().program_ended);
+        assert_eq!(m.status().axes[2], z);
+    }
 }
 
 #[test]

@@ -343,6 +343,10 @@ fn a_probing_move_without_a_probe_input_stops_the_program_before_it() {
         .find(|f| f.code == FaultCode::ProbeFailed)
         .expect("probe failed");
     assert_eq!(f.line, 3);
+    assert_eq!(
+        rtcnc_kernel::ProbeFailure::from_value(f.value),
+        Some(rtcnc_kernel::ProbeFailure::NoProbeInput)
+    );
     // Line 2 ran to its end (X10); nothing of line 3 or later moved.
     assert!(m.samples.iter().all(|s| s.line <= 2));
     let last = m.samples.last().unwrap();

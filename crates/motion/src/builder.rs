@@ -4,7 +4,7 @@
 
 use crate::axes::{AXES, Axis, AxisVec, add_scaled, dot, is_finite, norm, norm_xyz, scale, sub};
 use crate::error::MotionError;
-use crate::geometry::{ArcMap, Helix, Shape, corner_bezier, quintic, quintic_axis};
+use crate::geometry::{ArcMap, CORNER_MIDDLE, Helix, Shape, corner_blend, quintic, quintic_axis};
 use crate::input::{Feed, Move, MoveKind, PathMode};
 use crate::limits::Lim;
 use crate::piece::Piece;
@@ -511,10 +511,12 @@ impl Builder {
                             }
                         }
                     }
-                    // Corner blend.
-                    let d = (4.0 * tolerance / (0.5 * theta).sin())
-                        .min(0.5 * lp.len)
-                        .min(0.5 * lc.len);
+                    // Corner blend: its middle, at CORNER_MIDDLE·d·sin(θ/2) from the
+                    // corner, is cos(θ/2) of that from both lines.
+                    let d = (tolerance
+                        / (CORNER_MIDDLE * (0.5 * theta).sin() * (0.5 * theta).cos()))
+                    .min(0.5 * lp.len)
+                    .min(0.5 * lc.len);
                     if d <= 1e-9 {
                         stop(self, out);
                     } else {
@@ -531,7 +533,7 @@ impl Builder {
                             k: [0.0; AXES],
                         });
                         let first = self.span_or_exceed(&lp, &start, &end_state, tolerance, lim);
-                        let shape = corner_bezier(&p0, &v, &p3);
+                        let shape = corner_blend(&v, &lp.dir, &lc.dir, d);
                         let mut b = Piece::new(
                             shape,
                             p0,
@@ -556,6 +558,7 @@ impl Builder {
                             .sum();
                         let choice = arc_blend::CornerChoice {
                             feed,
+                            feeds: [lp.feed, lc.feed],
                             v_blend,
                             blend_len: b.len,
                             pass_time,

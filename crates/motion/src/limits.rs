@@ -157,6 +157,24 @@ impl Lim {
         l
     }
 
+    /// Every axis present, without limits (for checks of a path's shape alone).
+    pub fn unbounded() -> Lim {
+        let mut l = Lim::from(&MachineLimits { axes: [None; AXES] });
+        for i in 0..AXES {
+            l.present[i] = true;
+            l.axes[i] = i;
+            l.v[i] = f64::INFINITY;
+            l.a[i] = f64::INFINITY;
+            l.j[i] = f64::INFINITY;
+            l.min[i] = f64::NEG_INFINITY;
+            l.max[i] = f64::INFINITY;
+            l.qa[i] = f64::INFINITY;
+            l.qj[i] = f64::INFINITY;
+        }
+        l.n_present = AXES;
+        l
+    }
+
     /// Indices of the present axes, in axis order.
     #[inline]
     pub fn present_axes(&self) -> &[usize] {

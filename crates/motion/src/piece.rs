@@ -553,8 +553,68 @@ impl Piece {
                 }
             }
         }
+        // Likewise before a valley, which the controller must reach with its deceleration
+        // released: an acceleration-limited curve into it has the jerk-limited path arrive
+        // braking, and it undershoots the valley by far (down to a near stop between two
+        // corners of a dense polyline).
+        if let Some((dist, v0, a, j)) = self.valley_ahead(s) {
+            let (wv, av) = jerk_valley_speed(dist, v0, a, j);
+            if wv < w {
+                w = wv;
+                slope = av;
+            }
+        }
         (w, slope)
     }
+
+    /// The next valley of the braking curve from local arc length `s`: its distance,
+    /// speed, deceleration and jerk.
+    #[inline]
+    pub fn valley_ahead(&self, s: f64) -> Option<(f64, f64, f64, f64)> {
+        let (dist, v0, a, j) = match (self.valley_in, self.valley_next) {
+            (Some((sv, v0, a, j)), _) if s <= sv => (sv - s, v0, a, j),
+            (_, Some((at, v0, a, j))) => (at - (self.cum_start + s), v0, a, j),
+            _ => return None,
+        };
+        (dist >= 0.0 && v0 > 0.0 && a > 0.0 && j > 0.0 && a.is_finite() && j.is_finite())
+            .then_some((dist, v0, a, j))
+    }
+}
+
+/// Speed of the time-optimal jerk-limited deceleration (deceleration `a`, jerk `j`) that
+/// arrives at speed `v0` with no deceleration left, at distance `d` before it, and its
+/// deceleration there: the jerk-limited stop's speed profile raised by `v0`, over the
+/// time τ still to go (d = v0·τ + the stop's distance in τ, found by bisection).
+pub(crate) fn jerk_valley_speed(d: f64, v0: f64, a: f64, j: f64) -> (f64, f64) {
+    let t1 = a / j;
+    // Speed above v0 and distance of the stop profile τ before its end.
+    let profile = |tau: f64| {
+        if tau <= t1 {
+            (0.5 * j * tau * tau, j * tau * tau * tau / 6.0, j * tau)
+        } else {
+            let u = a * tau - 0.5 * a * t1;
+            let du = a * a * a / (6.0 * j * j) + 0.5 * a * (tau * tau - t1 * t1)
+                - 0.5 * a * t1 * (tau - t1);
+            (u, du, a)
+        }
+    };
+    // τ is below d / v0 (the distance at v0 alone) and below the stop's own time.
+    let hi_stop = if d <= a * a * a / (6.0 * j * j) {
+        (6.0 * d / j).cbrt()
+    } else {
+        t1 + (2.0 * d / a).sqrt()
+    };
+    let (mut lo, mut hi) = (0.0, (d / v0).min(hi_stop));
+    for _ in 0..40 {
+        let mid = 0.5 * (lo + hi);
+        if v0 * mid + profile(mid).1 <= d {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let (u, _, decel) = profile(lo);
+    (v0 + u, decel)
 }
 
 /// Speed of the time-optimal jerk-limited stop (deceleration `a`, jerk `j`) at distance `d`
@@ -579,7 +639,7 @@ mod tests {
 
     use super::*;
     use crate::axes::Axis;
-    use crate::geometry::{Helix, corner_bezier, quintic};
+    use crate::geometry::{Helix, corner_blend, quintic};
     use crate::limits::{AxisLimits, MachineLimits};
     use std::f64::consts::PI;
 
@@ -733,8 +793,16 @@ mod tests {
             let (p0, d0, dd0, p1, d1, dd1) = (v(5.0), v(1.0), v(0.5), v(5.0), v(1.0), v(0.5));
             let shape = quintic(&p0, &d0, &dd0, &p1, &d1, &dd1);
             out.push(Piece::new(shape, p0, p1, 50.0, false, n));
-            let (a, c, b) = (v(2.0), v(2.0), v(2.0));
-            let mut blend = Piece::new(corner_bezier(&a, &c, &b), a, b, 80.0, false, n);
+            let (c, ta, tb) = (v(2.0), v(1.0), v(1.0));
+            let (ta, tb) = (
+                crate::axes::scale(&ta, 1.0 / crate::axes::norm(&ta)),
+                crate::axes::scale(&tb, 1.0 / crate::axes::norm(&tb)),
+            );
+            let (a, b) = (
+                crate::axes::add_scaled(&c, &ta, -1.5),
+                crate::axes::add_scaled(&c, &tb, 1.5),
+            );
+            let mut blend = Piece::new(corner_blend(&c, &ta, &tb, 1.5), a, b, 80.0, false, n);
             blend.corner_blend = true;
             out.push(blend);
         }

@@ -697,6 +697,44 @@ impl<K: Kinematics> Planner<K> {
             .collect()
     }
 
+    /// One line per piece of the window, for diagnosis: kind, program line, length,
+    /// flags and, at each sample, the braking curve and the speed bounds.
+    #[doc(hidden)]
+    pub fn debug_pieces(&self) -> Vec<String> {
+        (0..self.q.len)
+            .map(|i| {
+                let p = self.q.get(i);
+                let kind = match (&p.shape, p.corner_blend) {
+                    (crate::geometry::Shape::Line { .. }, _) => "line",
+                    (crate::geometry::Shape::Helix(_), _) => "arc",
+                    (_, true) => "blend",
+                    _ => "poly",
+                };
+                let f = |v: &mut dyn Iterator<Item = f64>| {
+                    v.map(|x| format!("{x:.1}")).collect::<Vec<_>>().join(",")
+                };
+                format!(
+                    "{kind:5} l{} from ({:.4},{:.4}) len={:.3} stop={} feed={:.1} w=[{}] va=[{}] vc=[{}] vp=[{}] k=[{}]",
+                    p.line,
+                    p.start[0],
+                    p.start[1],
+                    p.len,
+                    p.stop_at_end as u8,
+                    p.feed,
+                    f(&mut p.w[..=p.ns].iter().copied()),
+                    f(&mut p.smp[..=p.ns].iter().map(|s| s.v_axis)),
+                    f(&mut p.smp[..=p.ns].iter().map(|s| s.v_curve)),
+                    f(&mut p.smp[..=p.ns].iter().map(|s| s.v_point)),
+                    p.smp[..=p.ns]
+                        .iter()
+                        .map(|s| format!("{:.2}", crate::axes::norm(&s.k)))
+                        .collect::<Vec<_>>()
+                        .join(","),
+                )
+            })
+            .collect()
+    }
+
     /// The kinematics.
     pub fn kinematics(&self) -> &K {
         &self.kin
@@ -1260,6 +1298,10 @@ impl<K: Kinematics> Planner<K> {
                     .min(p.vlc_span(k + 1, self.fo, self.ro));
                 p.vl_sub[k] = vl;
                 low = low.min(p.w[k + 1]).min(vl);
+            }
+            // The jerk-limited approach to a valley after the piece is lowest at its end.
+            if let Some((dist, v0, a, j)) = p.valley_ahead(p.len) {
+                low = low.min(crate::piece::jerk_valley_speed(dist, v0, a, j).0);
             }
             p.w_low = low;
         }

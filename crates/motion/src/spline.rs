@@ -643,3 +643,81 @@ impl Piece {
         }
     }
 }
+
+impl Bezier {
+    /// Whether a planner takes the curve from `a` through these control points to `b` as
+    /// a spline, whatever the machine: `false` for the shapes it refuses with MOTION-012
+    /// (a cusp or near cusp, a control point on an end point, a parametric speed its
+    /// arc-length tables cannot follow). The caller can run such a curve as the lines of
+    /// [`Bezier::flatten`] instead, as LinuxCNC runs every spline as arcs.
+    pub fn is_followable(&self, a: &AxisVec, b: &AxisVec) -> bool {
+        let lim = Lim::unbounded();
+        let mut maps = [(ArcMap::Linear { k: 1.0 }, 0.0); SPLINE_PIECES];
+        !matches!(
+            SplineP::new(a, b, self, PathMode::ExactStop, 0, &lim, &mut maps, 0),
+            Err(MotionError::InvalidSpline { .. })
+        )
+    }
+
+    /// Points along the curve from `a` to `b` (excluding `a`, ending exactly at `b`) whose
+    /// chords stay within `tolerance` of it: the curve is halved (de Casteljau) until the
+    /// control points of each part lie within `tolerance` of its chord, which bounds the
+    /// curve's distance from that chord. At most 2^12 chords.
+    pub fn flatten(&self, a: &AxisVec, b: &AxisVec, tolerance: f64, out: &mut Vec<AxisVec>) {
+        let cubic = match *self {
+            // Degree elevation: the same curve as a cubic.
+            Bezier::Quadratic(q) => {
+                let mut c1 = [0.0; AXES];
+                let mut c2 = [0.0; AXES];
+                for i in 0..AXES {
+                    c1[i] = a[i] + 2.0 / 3.0 * (q[i] - a[i]);
+                    c2[i] = b[i] + 2.0 / 3.0 * (q[i] - b[i]);
+                }
+                [*a, c1, c2, *b]
+            }
+            Bezier::Cubic([c1, c2]) => [*a, c1, c2, *b],
+        };
+        flatten_cubic(&cubic, tolerance, 12, out);
+        // The last point is the end point exactly.
+        if let Some(last) = out.last_mut() {
+            *last = *b;
+        }
+    }
+}
+
+/// Distance of `p` from the segment `a`-`b`.
+fn distance_to_segment(p: &AxisVec, a: &AxisVec, b: &AxisVec) -> f64 {
+    let ab = sub(b, a);
+    let l2 = dot(&ab, &ab);
+    let t = if l2 > 0.0 {
+        (dot(&sub(p, a), &ab) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let mut q = *a;
+    for i in 0..AXES {
+        q[i] += t * ab[i];
+    }
+    norm(&sub(p, &q))
+}
+
+fn flatten_cubic(c: &[AxisVec; 4], tolerance: f64, depth: u32, out: &mut Vec<AxisVec>) {
+    let flat =
+        distance_to_segment(&c[1], &c[0], &c[3]).max(distance_to_segment(&c[2], &c[0], &c[3]));
+    if depth == 0 || !(flat > tolerance) {
+        out.push(c[3]);
+        return;
+    }
+    let mid = |p: &AxisVec, q: &AxisVec| {
+        let mut m = [0.0; AXES];
+        for i in 0..AXES {
+            m[i] = 0.5 * (p[i] + q[i]);
+        }
+        m
+    };
+    let (p01, p12, p23) = (mid(&c[0], &c[1]), mid(&c[1], &c[2]), mid(&c[2], &c[3]));
+    let (p012, p123) = (mid(&p01, &p12), mid(&p12, &p23));
+    let m = mid(&p012, &p123);
+    flatten_cubic(&[c[0], p01, p012, m], tolerance, depth - 1, out);
+    flatten_cubic(&[m, p123, p23, c[3]], tolerance, depth - 1, out);
+}

@@ -528,3 +528,52 @@ fn hold_resume_and_override_on_a_spline_stay_on_the_curve() {
     );
     assert!(dist(tr.pts.last().unwrap(), &pts[3]) <= 1e-12);
 }
+
+/// `Bezier::is_followable` says which curves the planner refuses for their shape (the ones
+/// above with MOTION-012), and `Bezier::flatten` gives chords within the tolerance of the
+/// curve (measured against the Bernstein form) ending exactly at its end.
+#[test]
+fn a_curve_the_planner_refuses_flattens_into_chords_within_the_tolerance() {
+    let o = p3(0.0, 0.0, 0.0);
+    // The textbook cusp: the derivative vanishes at t = 0.5.
+    let cusp = [o, p3(1.0, 1.0, 0.0), p3(0.0, 1.0, 0.0), p3(1.0, 0.0, 0.0)];
+    let arch = [o, p3(1.0, 1.0, 0.0), p3(2.0, 1.0, 0.0), p3(3.0, 0.0, 0.0)];
+    let parabola = [o, p3(1.0, 2.0, 0.5), p3(2.0, 0.0, 1.0)];
+    let refused_by_the_planner = |pts: &[AxisVec]| {
+        let control = match pts.len() {
+            3 => Bezier::Quadratic(pts[1]),
+            _ => Bezier::Cubic([pts[1], pts[2]]),
+        };
+        let mut pl = planner(&limits(V, A, J), o, 64);
+        let refused = matches!(
+            pl.push(&Move::spline(*pts.last().unwrap(), control, 50.0, PathMode::ExactPath, 1)),
+            Err(e) if e.code() == "MOTION-012"
+        );
+        (control, refused)
+    };
+    for (pts, followable) in [(&cusp[..], false), (&arch[..], true), (&parabola[..], true)] {
+        let (control, refused) = refused_by_the_planner(pts);
+        let end = *pts.last().unwrap();
+        assert_eq!(control.is_followable(&o, &end), followable);
+        assert_eq!(refused, !followable);
+        for tolerance in [1e-3, 1e-5] {
+            let mut points = Vec::new();
+            control.flatten(&o, &end, tolerance, &mut points);
+            assert_eq!(*points.last().unwrap(), end);
+            let mut prev = o;
+            for p in &points {
+                // Every vertex on the curve, every chord's middle and quarters within the
+                // tolerance of it.
+                assert!(distance_to_curve(pts, p) <= 1e-12, "{p:?}");
+                for f in [0.25, 0.5, 0.75] {
+                    let q: AxisVec = std::array::from_fn(|i| prev[i] + f * (p[i] - prev[i]));
+                    assert!(distance_to_curve(pts, &q) <= tolerance, "{q:?}");
+                }
+                prev = *p;
+            }
+            // And the curve within the tolerance of the chords: as many chords as the
+            // curvature asks for, not one per sample.
+            assert!(points.len() < 200 || tolerance < 1e-4, "{}", points.len());
+        }
+    }
+}

@@ -16,6 +16,14 @@ use std::time::Duration;
 /// any run, and well inside what a `Duration` holds.
 pub const MAX_SECONDS: f64 = 1e9;
 
+/// A time in seconds that may be 0 (`--resume-after-pause`).
+pub fn seconds_or_zero(text: &str) -> Result<Duration, String> {
+    if text.trim().parse::<f64>() == Ok(0.0) {
+        return Ok(Duration::ZERO);
+    }
+    seconds(text)
+}
+
 /// A time in seconds (`--limit`, `--idle`): a finite number greater than zero and at most
 /// [`MAX_SECONDS`].
 pub fn seconds(text: &str) -> Result<Duration, String> {

@@ -15,7 +15,7 @@ use rtcnc_kernel::report::RunStats;
 
 use rtcnc_kernel::{
     Command, Fault, FaultCode, Kernel, KernelOptions, MachineConfig, MachineState, Sample,
-    Simulation,
+    Simulation, Urgent,
 };
 
 use crate::recording::SampleCsv;
@@ -48,6 +48,12 @@ pub struct Args {
     /// No progress bar.
     #[arg(long, short)]
     quiet: bool,
+    /// At a program pause (M0, M1 with the optional stop on) press Resume after this long
+    /// (default 0 s: at once), as an operator would, so that the cycle time counts the whole
+    /// program. Without it the run stays paused until the time limit.
+    #[arg(long, value_name = "SECONDS", num_args = 0..=1, default_missing_value = "0",
+          value_parser = crate::commands::seconds_or_zero)]
+    resume_after_pause: Option<Duration>,
     /// Print where the host processor time went: each task, the recording, the executive
     /// (measuring adds two clock readings per task run, so the run itself is slower).
     #[arg(long)]
@@ -152,12 +158,34 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
     let mut messages: Vec<(f64, u32, String)> = Vec::new();
     let limit = args.limit;
     let mut ended = false;
+    // Program pauses met: times since the start.
+    let mut pauses: Vec<f64> = Vec::new();
+    let mut was_paused = false;
     loop {
+        let resume_after = args.resume_after_pause;
         let done = sim.run_until(Duration::from_millis(100), &mut sink, |s| {
             (s.program_ended && s.state == MachineState::Idle)
                 || matches!(s.state, MachineState::Fault | MachineState::EStop)
+                || (resume_after.is_some() && s.state == MachineState::Paused)
         })?;
         let status = handle.status();
+        if let (Some(wait), MachineState::Paused) = (resume_after, status.state) {
+            pauses.push((sim.now() - start).as_secs_f64());
+            let periods = (wait.as_secs_f64() / period_s).round() as u64;
+            sim.run_cycles(periods, &mut sink)?;
+            handle.urgent(Urgent::Resume);
+            // The pause ends within a period or two.
+            sim.run_until(Duration::from_millis(100), &mut sink, |s| {
+                s.state != MachineState::Paused
+            })?;
+            continue;
+        }
+        let paused = status.state == MachineState::Paused;
+        if paused && !was_paused {
+            // Without --resume-after-pause: reported once, it lasts to the time limit.
+            pauses.push((sim.now() - start).as_secs_f64());
+        }
+        was_paused = paused;
         faults.extend(handle.take_faults());
         take_messages(&handle, start, &bar, &mut messages);
         if let Some(bar) = &bar {
@@ -290,6 +318,17 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
     println!("joint  max following error");
     for (j, jc) in config.joints.iter().enumerate() {
         println!("{:6} {:.6}", jc.name, stats.max_following_error[j]);
+    }
+    for t in &pauses {
+        match args.resume_after_pause {
+            Some(wait) => println!(
+                "paused      at {t:.3} s (M0/M1); resumed after {:.3} s",
+                wait.as_secs_f64()
+            ),
+            None => {
+                println!("paused      at {t:.3} s (M0/M1); --resume-after-pause [SECONDS] goes on")
+            }
+        }
     }
     if exceeded.is_empty() {
         println!("limits      respected");

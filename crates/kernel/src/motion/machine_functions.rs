@@ -78,6 +78,7 @@ impl MotionCore {
         let refused = Event::Fail {
             code: FaultCode::AuxRefused,
             line,
+            value: 0.0,
         };
         let next = match aux {
             Aux::SpindleOn { .. }
@@ -291,6 +292,7 @@ impl MotionCore {
             self.fire(Event::Fail {
                 code: FaultCode::SpindleOrientTimeout,
                 line,
+                value: 0.0,
             })
         } else {
             false

@@ -9,7 +9,7 @@ use rtcnc_motion::{AXES, MotionError, Move};
 
 use super::MotionCore;
 use super::state::Event;
-use crate::fault::FaultCode;
+use crate::fault::{FaultCode, ProbeFailure};
 use crate::messages::MachineResult;
 use crate::shared::{Feedback, Shared};
 
@@ -31,10 +31,22 @@ impl MotionCore {
     /// where the move looks for (LinuxCNC's "probe is already tripped" / "not tripped").
     pub(super) fn start_probe(&mut self, shared: &Shared, mv: Move, kind: ProbeKind) {
         let contact = self.interface.feedback.get().digital_inputs & self.io.probe_bit != 0;
-        if self.io.probe_bit == 0 || contact == toward(kind) {
+        let refused = if self.io.probe_bit == 0 {
+            Some(ProbeFailure::NoProbeInput)
+        } else if contact == toward(kind) {
+            Some(if toward(kind) {
+                ProbeFailure::AlreadyTripped
+            } else {
+                ProbeFailure::AlreadyClear
+            })
+        } else {
+            None
+        };
+        if let Some(failure) = refused {
             self.fire(Event::Fail {
                 code: FaultCode::ProbeFailed,
                 line: mv.line,
+                value: failure.value(),
             });
             return;
         }
@@ -62,6 +74,7 @@ impl MotionCore {
                 self.fire(Event::Fail {
                     code: FaultCode::MotionError,
                     line: e.line().unwrap_or(mv.line),
+                    value: 0.0,
                 });
                 *shared.motion_error.lock() = Some(e);
             }
@@ -105,9 +118,15 @@ impl MotionCore {
         let tripped_at = self.probe.take().and_then(|p| p.tripped_at);
         let must_change = matches!(kind, ProbeKind::TowardError | ProbeKind::AwayError);
         if tripped_at.is_none() && must_change {
+            let failure = if toward(kind) {
+                ProbeFailure::NoContact
+            } else {
+                ProbeFailure::ContactNotBroken
+            };
             return self.fire(Event::Fail {
                 code: FaultCode::ProbeFailed,
                 line,
+                value: failure.value(),
             });
         }
         self.send_result(

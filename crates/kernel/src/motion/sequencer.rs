@@ -146,7 +146,7 @@ impl MotionCore {
             MachineBlock::Synced { line, end, pitch } => (Then::Synced(end, pitch), line),
             MachineBlock::Probe { mv, kind } => (Then::Probe(mv, kind), mv.line),
             MachineBlock::End { line } => (Then::End, line),
-            MachineBlock::Error { line, code } => (Then::Error(code), line),
+            MachineBlock::Error { line, code } => (Then::Error(code, 0.0), line),
             MachineBlock::MdiDone => (Then::MdiDone, 0),
         };
         self.before_new_motion();
@@ -201,6 +201,7 @@ impl MotionCore {
                 self.fire(Event::Fail {
                     code: FaultCode::MotionError,
                     line: e.line().unwrap_or(mv.line),
+                    value: 0.0,
                 });
                 *shared.motion_error.lock() = Some(e);
                 true
@@ -215,7 +216,7 @@ impl MotionCore {
         if self.moving() {
             return false;
         }
-        if self.hold.latched() && !matches!(then, Then::Error(_)) {
+        if self.hold.latched() && !matches!(then, Then::Error(..)) {
             return false;
         }
         match then {
@@ -233,8 +234,8 @@ impl MotionCore {
             Then::MdiDone => {
                 self.fire(Event::Finish);
             }
-            Then::Error(code) => {
-                shared.raise(ctx, code, TaskName::LookAhead, None, line, 0.0);
+            Then::Error(code, value) => {
+                shared.raise(ctx, code, TaskName::LookAhead, None, line, value);
                 self.fire(Event::Finish);
                 self.program.epoch = self.program.epoch.wrapping_add(1);
                 let _ = shared

@@ -73,8 +73,9 @@ pub(super) enum Then {
     Synced([f64; AXES], f64),
     Probe(Move, ProbeKind),
     Aux(Aux),
-    /// Stop the program with this fault.
-    Error(FaultCode),
+    /// Stop the program with this fault and value (the fault's `value`: what failed, for
+    /// the codes that say so, e.g. [`ProbeFailure`](crate::fault::ProbeFailure)).
+    Error(FaultCode, f64),
     End,
     MdiDone,
     SingleBlockPause,
@@ -106,7 +107,11 @@ pub(super) enum Event {
     /// A block that needs the path standing: flush the planner, then `then`.
     Drain { then: Then, line: u32 },
     /// The program cannot go on: stop it with `code` at `line` once the path stands.
-    Fail { code: FaultCode, line: u32 },
+    Fail {
+        code: FaultCode,
+        line: u32,
+        value: f64,
+    },
     /// A machine function waits for the logic's answer.
     HandShake { aux: Aux, line: u32 },
     /// The logic answered a tool change or user M code; its request is dropped.
@@ -157,9 +162,9 @@ pub(super) fn transition(from: &State, event: Event) -> Option<State> {
         (S::Program(P::Feeding), E::Drain { then, line }) => program(P::Draining { then, line }),
         (
             S::Program(P::Feeding | P::Draining { .. } | P::Probing { .. } | P::WaitOrient { .. }),
-            E::Fail { code, line },
+            E::Fail { code, line, value },
         ) => program(P::Draining {
-            then: Then::Error(code),
+            then: Then::Error(code, value),
             line,
         }),
         (S::Program(P::Draining { .. }), E::HandShake { aux, line }) => program(P::Logic {
@@ -369,6 +374,7 @@ mod tests {
                 Event::Fail {
                     code: FaultCode::ProbeFailed,
                     line: 9,
+                    value: 0.0,
                 },
             ),
             ("hand-shake", Event::HandShake { aux: AUX, line: 9 }),
@@ -509,11 +515,12 @@ mod tests {
                 &draining,
                 Event::Fail {
                     code: FaultCode::AuxRefused,
-                    line: 3
+                    line: 3,
+                    value: 0.0,
                 }
             ),
             Some(State::Program(Step::Draining {
-                then: Then::Error(FaultCode::AuxRefused),
+                then: Then::Error(FaultCode::AuxRefused, 0.0),
                 line: 3
             }))
         );

@@ -47,7 +47,11 @@ impl MotionCore {
     /// fast for the pitch and the axes (the axes could not keep up).
     pub(super) fn start_synced(&mut self, end: [f64; AXES], pitch: f64, line: u32) {
         let feedback = *self.interface.feedback.get();
-        let fail = |code| Event::Fail { code, line };
+        let fail = |code| Event::Fail {
+            code,
+            line,
+            value: 0.0,
+        };
         // From where the machine stands, not after the set-points produced ahead there.
         self.discard_ahead();
         let start = self.out.last.axes;

@@ -235,8 +235,11 @@ fn path_limits(t: &AxisVec, lim: &Lim) -> (f64, f64, f64) {
 /// sees them.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct CornerChoice {
-    /// Programmed feed of the slower neighbour (mm/s; rapids: infinite).
+    /// Programmed feed of the slower neighbour (mm/s; rapids: infinite): the blend's.
     pub feed: f64,
+    /// Programmed feeds of the incoming and the outgoing neighbour: a stop runs each half
+    /// of the replaced path at its own (a rapid into a slow plunge).
+    pub feeds: [f64; 2],
     /// Lowest speed limit along the blend.
     pub v_blend: f64,
     /// Length of the blend.
@@ -266,26 +269,39 @@ impl CornerChoice {
     ///   that passes it at `v`; where the limit rises away from its lowest point the speed
     ///   changes partly overlap the blend and the estimate errs towards the blend's cost.
     ///
+    /// Where the neighbours' feeds differ, each half counts with its own speed `F`: the
+    /// stop runs its half of the replaced path at it, the blend slows from the incoming
+    /// `F` and speeds up to the outgoing one, and runs at most at the slower feed.
+    ///
     /// Acceleration and jerk are the path's along the two tangents, the lower of the two.
     pub fn times(&self, lim: &Lim) -> (f64, f64) {
         let (v1, a1, j1) = path_limits(&self.t_in, lim);
         let (v2, a2, j2) = path_limits(&self.t_out, lim);
         let (a, j) = (a1.min(a2), j1.min(j2));
-        let f = self.feed.min(v1).min(v2).min(V_RAPID_REF);
-        // The speed from which the path can stop within the shorter neighbour.
-        let f = speed_stopping_within(f, self.reach, a, j);
-        if !(f > 0.0) {
+        // The speed from which the path can stop within the shorter neighbour, each side.
+        let side = |feed: f64| {
+            let f = feed.min(v1).min(v2);
+            speed_stopping_within(f.min(V_RAPID_REF), self.reach, a, j)
+        };
+        let fs = [side(self.feeds[0]), side(self.feeds[1])];
+        let f_blend = side(self.feed).min(fs[0]).min(fs[1]);
+        if !(f_blend > 0.0) {
             return (0.0, f64::INFINITY);
         }
-        let (s_stop, t_stop) = scurve::stop(f, 0.0, a, j);
-        let stop = self.replaced_len / f + 2.0 * t_stop - 2.0 * s_stop / f;
-        let v = self.v_blend.min(f);
+        let mut stop = 0.0;
+        for f in fs {
+            let (s_stop, t_stop) = scurve::stop(f, 0.0, a, j);
+            stop += 0.5 * self.replaced_len / f + t_stop - s_stop / f;
+        }
+        let v = self.v_blend.min(f_blend);
         if !(v > 0.0) {
             return (stop, f64::INFINITY);
         }
-        let (s_dv, t_dv) = scurve::stop(f - v, 0.0, a, j);
-        let pass = self.pass_time.max(self.blend_len / f);
-        let blend = pass + 2.0 * (t_dv - (v * t_dv + s_dv) / f);
+        let mut blend = self.pass_time.max(self.blend_len / f_blend);
+        for f in fs {
+            let (s_dv, t_dv) = scurve::stop(f - v, 0.0, a, j);
+            blend += t_dv - (v * t_dv + s_dv) / f;
+        }
         (stop, blend)
     }
 
@@ -378,6 +394,7 @@ fn corner_choice(
     let (_, blend_len) = blend_speed(&bl.shape, 0.0, None, NSAMP)?;
     Some(CornerChoice {
         feed,
+        feeds: [feed_of(prev), feed_of(cur)],
         v_blend: bl.speed,
         blend_len,
         pass_time,

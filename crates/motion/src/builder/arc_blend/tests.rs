@@ -236,6 +236,7 @@ fn a_blend_is_chosen_only_where_it_is_faster_than_a_stop() {
     let x = p2(1.0, 0.0);
     let corner = |v_blend: f64| CornerChoice {
         feed: 30.0,
+        feeds: [30.0; 2],
         v_blend,
         blend_len: 0.4,
         pass_time: 0.4 / v_blend,
@@ -281,6 +282,7 @@ fn short_neighbours_limit_the_speed_a_stop_is_weighed_from() {
     let x = p2(1.0, 0.0);
     let c = CornerChoice {
         feed: 30.0,
+        feeds: [30.0; 2],
         v_blend: 7.0,
         blend_len: 0.4,
         pass_time: 0.4 / 7.0,
@@ -305,6 +307,44 @@ fn short_neighbours_limit_the_speed_a_stop_is_weighed_from() {
     let (stop, blend) = long.times(&lim);
     assert!((stop - 0.063_33).abs() < 1e-5 && (blend - 0.090_11).abs() < 1e-5);
     assert!(!long.blend_pays(&lim));
+}
+
+/// Neighbours of different feeds: a rapid (100 mm/s on this machine) into a plunge at
+/// 5 mm/s, 90°, each half of the replaced path 1 mm, the blend 1.8 mm at its limit 5 mm/s.
+/// - Stop: the rapid's half at 100 mm/s and its stop, t(100) = 0.1 + 0.02 = 0.12 s over
+///   s = 6 mm: 0.01 + 0.12 − 0.06 = 0.07 s; the plunge's half at 5 mm/s and its start,
+///   t(5) = 2·sqrt(5/50 000) = 0.02 s over 0.05 mm: 0.2 + 0.02 − 0.01 = 0.21 s; 0.28 s.
+/// - Blend: 1.8/5 = 0.36 s, and slowing from 100 to 5 before it: Δv = 95, t = 0.095 + 0.02
+///   = 0.115 s over 5·0.115 + 95·0.115/2 = 6.0375 mm, 0.115 − 6.0375/100 = 0.054 625 s;
+///   0.414 625 s: stop. (Weighed at the slower feed on both sides, as before: stop
+///   2·0.21 = 0.42 s, blend 0.36 s, and the blend paid.)
+#[test]
+fn a_rapid_into_a_slow_feed_weighs_each_half_at_its_own_feed() {
+    let m = MachineLimits::uniform(
+        &[Axis::X, Axis::Y, Axis::Z],
+        AxisLimits::new(100.0, 1000.0, 50_000.0, -100.0, 100.0),
+    );
+    let lim = Lim::from(&m);
+    let c = CornerChoice {
+        feed: 5.0,
+        feeds: [f64::INFINITY, 5.0],
+        v_blend: 5.0,
+        blend_len: 1.8,
+        pass_time: 1.8 / 5.0,
+        replaced_len: 2.0,
+        reach: 50.0,
+        t_in: p2(1.0, 0.0),
+        t_out: p2(0.0, 1.0),
+    };
+    let (stop, blend) = c.times(&lim);
+    assert!((stop - 0.28).abs() < 1e-9, "{stop}");
+    assert!((blend - 0.414_625).abs() < 1e-9, "{blend}");
+    assert!(!c.blend_pays(&lim));
+    let as_before = CornerChoice {
+        feeds: [5.0; 2],
+        ..c
+    };
+    assert!(as_before.blend_pays(&lim));
 }
 
 /// The speed whose jerk-limited stop (1000 mm/s², 50 000 mm/s³) takes a given distance,
