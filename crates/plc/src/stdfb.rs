@@ -112,6 +112,18 @@ impl StdFb {
             StdFb::Rs => "RS",
         }
     }
+    /// The IEC name of an input CODESYS and TwinCAT spell otherwise (`RESET` for `R`,
+    /// `LOAD` for `LD`, `SET1`/`SET` for `S1`/`S`, `RESET1` for `R1`).
+    pub(crate) fn iec_input_name(self, name: &str) -> Option<&'static str> {
+        Some(match (self, name) {
+            (StdFb::Ctu | StdFb::Ctud | StdFb::Sr, "RESET") => "R",
+            (StdFb::Ctd | StdFb::Ctud, "LOAD") => "LD",
+            (StdFb::Sr, "SET1") => "S1",
+            (StdFb::Rs, "SET") => "S",
+            (StdFb::Rs, "RESET1") => "R1",
+            _ => return None,
+        })
+    }
     /// Public members in slot order (offset = index).
     pub(crate) fn members(self) -> &'static [Member] {
         match self {

@@ -208,6 +208,13 @@ pub enum Type {
     Struct(TypeId),
     /// Function block instance (index into the FB type table).
     Fb(TypeId),
+    /// `POINTER TO T`: one slot holding a byte address (slot × 8), 0 for none.
+    Pointer(Arc<Type>),
+    /// `REFERENCE TO T`: as a pointer, but every use reads or writes the target.
+    Reference(Arc<Type>),
+    /// An interface: one slot holding the byte address of a function block instance
+    /// that implements it, 0 for none.
+    Interface(TypeId),
 }
 
 /// An array type: dimensions and element.
@@ -272,8 +279,16 @@ impl Type {
             Type::Elem(e) => Some(*e),
             Type::Subrange(e, _, _) => Some(*e),
             Type::Enum(_) => Some(Elem::DInt),
+            Type::Pointer(_) | Type::Reference(_) | Type::Interface(_) => Some(Elem::LWord),
             _ => None,
         }
+    }
+    /// Pointers, references and interfaces: a slot holding an address.
+    pub fn is_address(&self) -> bool {
+        matches!(
+            self,
+            Type::Pointer(_) | Type::Reference(_) | Type::Interface(_)
+        )
     }
     /// The elementary type, if this is exactly an elementary type or a subrange of one.
     pub fn elem(&self) -> Option<Elem> {

@@ -34,6 +34,9 @@ pub(crate) struct DynPlace {
     pub indirect: bool,
     pub offset: u32,
     pub steps: Box<[IndexStep]>,
+    /// The base slot is itself at a computed place (a pointer or reference reached
+    /// through an index or another pointer); `indirect` is then set.
+    pub inner: Option<Box<DynPlace>>,
 }
 
 #[derive(Debug)]
@@ -176,6 +179,8 @@ pub(crate) enum Expr {
     Load(Box<DynPlace>),
     /// Address of an aggregate (STRING, array, structure) or the target of a VAR_IN_OUT.
     AddrOf(Place),
+    /// Byte address (slot × 8) of a place: the value of a pointer, reference or interface.
+    RefOf(Place),
     Un(Un, Box<Expr>),
     /// Both operands in one allocation, next to each other in memory.
     Bin(Bin, Box<(Expr, Expr)>),
@@ -189,6 +194,18 @@ pub(crate) enum Expr {
     Builtin(Builtin, Box<[Expr]>, u32),
     Call(Box<FnCall>),
     CallMethod(Box<MethodCall>),
+    /// A method called through an interface, a reference or THIS: the instance's type
+    /// tag picks the implementation.
+    CallVirtual(Box<VirtualCall>),
+}
+
+/// A method call resolved at run time by the type tag in the instance's first slot.
+#[derive(Debug)]
+pub(crate) struct VirtualCall {
+    pub instance: Place,
+    /// (type tag, index into `calls`).
+    pub cases: Box<[(u64, u32)]>,
+    pub calls: Box<[FnCall]>,
 }
 
 /// How a value is stored into a location.
@@ -405,9 +422,20 @@ impl Vm {
     }
 
     fn dyn_addr(&mut self, c: &Code, d: &DynPlace) -> usize {
-        let mut a = self.base(d.base);
+        let mut a = match &d.inner {
+            Some(inner) => self.dyn_addr(c, inner),
+            None => self.base(d.base),
+        };
         if d.indirect {
-            a = self.ld(a) as usize;
+            let target = self.ld(a);
+            if target < 8 {
+                // Slot 0 is never a variable: a null pointer lands there harmlessly while
+                // the fault stops the statement.
+                self.raise(FaultKind::NullReference);
+                a = 0;
+            } else {
+                a = (target >> 3) as usize;
+            }
         }
         a += d.offset as usize;
         for s in d.steps.iter() {
@@ -436,6 +464,7 @@ impl Vm {
                 self.ld(a)
             }
             Expr::AddrOf(p) => self.addr(c, p) as u64,
+            Expr::RefOf(p) => (self.addr(c, p) as u64) << 3,
             Expr::Un(op, a) => {
                 let v = self.eval(c, a);
                 match *op {
@@ -470,6 +499,25 @@ impl Vm {
             Expr::CallMethod(m) => {
                 let inst = self.addr(c, &m.instance);
                 self.call_fn_in(c, &m.call, Some(inst))
+            }
+            Expr::CallVirtual(v) => {
+                let inst = self.addr(c, &v.instance);
+                if self.budget == 0 {
+                    return 0;
+                }
+                let tag = self.ld(inst);
+                let call = v
+                    .cases
+                    .iter()
+                    .find(|(t, _)| *t == tag)
+                    .and_then(|(_, k)| v.calls.get(*k as usize));
+                match call {
+                    Some(call) => self.call_fn_in(c, call, Some(inst)),
+                    None => {
+                        self.raise(FaultKind::NullReference);
+                        0
+                    }
+                }
             }
         }
     }

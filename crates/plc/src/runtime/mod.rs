@@ -391,7 +391,7 @@ impl Runtime {
         let fault = Fault {
             kind,
             pou: name,
-            line,
+            line: self.program.lines.locate(line).1,
             scan: self.scans,
         };
         self.images[1].copy_from_slice(&self.safe_outputs);
