@@ -125,3 +125,24 @@ fn string_and_call_heavy_scans_and_faults_allocate_nothing() {
         Value::String("tool 250 / 125".into())
     );
 }
+
+#[test]
+fn method_and_interface_heavy_scans_allocate_nothing() {
+    const STATIONS: &str = include_str!("../../../examples/plc/stations.st");
+    let mut rt = Runtime::new(Arc::new(compile(STATIONS, "stations.st").unwrap()));
+    let n = allocations(|| {
+        for k in 0..2000u64 {
+            rt.scan(Duration::from_millis(4 * k)).unwrap();
+        }
+    });
+    assert_eq!(n, 0);
+    // A single station works 40 ms: a cycle is one scan to start, ten 4 ms scans of work
+    // and one to count its part, so 2000 scans make 166 parts. A double station works
+    // 40 + 20 ms (SUPER^.Duration() + T#20ms): 17 scans, 117 cycles of 2 parts = 234.
+    // 25 of each: 25 * (166 + 234).
+    assert_eq!(rt.read_name("Cell.total").unwrap(), Value::Int(10_000));
+    assert_eq!(
+        rt.read_name("Cell.single[3].parts_").unwrap(),
+        Value::Int(166)
+    );
+}
