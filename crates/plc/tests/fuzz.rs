@@ -10,6 +10,7 @@ use proptest::prelude::*;
 use rtcnc_plc::{Runtime, RuntimeOptions, compile};
 
 const MILL: &str = include_str!("../../../examples/plc/mill.st");
+const STATIONS: &str = include_str!("../../../examples/plc/stations.st");
 
 fn cases() -> u32 {
     std::env::var("PLC_FUZZ_CASES")
@@ -151,6 +152,29 @@ const VOCAB: &[&str] = &[
     "STRING_TO_TIME",
     "AND(",
     "THIS",
+    "^",
+    "THIS^.",
+    "SUPER^.",
+    "REF=",
+    "POINTER TO",
+    "REFERENCE TO",
+    "ADR(",
+    "SIZEOF(",
+    "__ISVALIDREF(",
+    "EXTENDS",
+    "IMPLEMENTS",
+    "INTERFACE",
+    "END_INTERFACE",
+    "PROPERTY",
+    "END_PROPERTY",
+    "GET",
+    "END_GET",
+    "SET",
+    "END_SET",
+    "VAR_INST",
+    "{attribute 'x'}",
+    "EN :=",
+    "ENO =>",
 ];
 
 /// A skeleton that makes token soups land inside a POU body more often.
@@ -195,6 +219,19 @@ proptest! {
         let text: Vec<&str> = toks.iter().map(|i| VOCAB[*i]).collect();
         let body = text.join(" ");
         let src = if wrap { in_program(&body) } else { body };
+        run_some(&src);
+    }
+
+    #[test]
+    fn mutated_stations_never_panic(edits in proptest::collection::vec((0..STATIONS.len(), 0..40usize, 0..VOCAB.len()), 1..6)) {
+        let mut src = STATIONS.to_string();
+        for (at, len, tok) in edits {
+            let at = at.min(src.len());
+            let end = (at + len).min(src.len());
+            if src.is_char_boundary(at) && src.is_char_boundary(end) {
+                src.replace_range(at..end, VOCAB[tok]);
+            }
+        }
         run_some(&src);
     }
 
