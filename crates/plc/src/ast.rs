@@ -209,6 +209,7 @@ pub(crate) enum Literal {
     Time(i128),
     Str(Vec<u8>),
     Bool(bool),
+    Moment(crate::dates::Moment, i64),
 }
 
 #[derive(Debug, Clone)]

@@ -20,6 +20,8 @@ pub(crate) enum Tok {
     Real(f64),
     /// Duration literal in nanoseconds.
     Time(i128),
+    /// DATE, TIME_OF_DAY or DATE_AND_TIME literal in nanoseconds.
+    Moment(crate::dates::Moment, i64),
     Str(Vec<u8>),
     /// `TYPE#` prefix of a typed literal (`INT#5`, `Mode#Idle`).
     TypedPrefix(String),
@@ -544,7 +546,28 @@ impl Lexer<'_> {
     fn typed_literal(&mut self, prefix: String, pos: Pos) -> Result<Tok, CompileError> {
         match prefix.as_str() {
             "T" | "TIME" | "LTIME" | "LT" => self.duration(pos),
-            _ => Ok(Tok::TypedPrefix(prefix)),
+            p => match crate::dates::literal_kind(p) {
+                Some(kind) => {
+                    let start = self.i;
+                    while matches!(self.peek(0), b'0'..=b'9' | b'-' | b':' | b'.') {
+                        self.bump();
+                    }
+                    let text = &self.src[start..self.i];
+                    let ns = crate::dates::parse(kind, text).ok_or_else(|| {
+                        let form = match kind {
+                            crate::dates::Moment::Date => "D#yyyy-mm-dd",
+                            crate::dates::Moment::Tod => "TOD#hh:mm:ss[.fff]",
+                            crate::dates::Moment::Dt => "DT#yyyy-mm-dd-hh:mm:ss[.fff]",
+                        };
+                        self.err(
+                            pos,
+                            format!("not a valid {prefix}# literal: write {form} (1970 to 2262)"),
+                        )
+                    })?;
+                    Ok(Tok::Moment(kind, ns))
+                }
+                None => Ok(Tok::TypedPrefix(prefix)),
+            },
         }
     }
 

@@ -31,6 +31,7 @@
 mod ast;
 mod builtins;
 mod compiler;
+mod dates;
 mod error;
 mod lexer;
 mod parser;

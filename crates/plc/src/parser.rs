@@ -45,6 +45,7 @@ fn describe(t: &Tok) -> String {
         Tok::Int(v) => format!("number {v}"),
         Tok::Real(v) => format!("number {v}"),
         Tok::Time(_) => "duration literal".into(),
+        Tok::Moment(..) => "date or time-of-day literal".into(),
         Tok::Str(_) => "string literal".into(),
         Tok::TypedPrefix(s) => format!("'{s}#'"),
         Tok::Direct(d) => format!("'{d}'"),
@@ -1202,7 +1203,7 @@ impl Parser<'_> {
             k += 1;
         }
         match self.peek_at(k) {
-            Tok::Int(_) | Tok::Real(_) | Tok::Str(_) | Tok::Time(_) => {}
+            Tok::Int(_) | Tok::Real(_) | Tok::Str(_) | Tok::Time(_) | Tok::Moment(..) => {}
             Tok::TypedPrefix(_) => {
                 k += 1;
             }
@@ -1443,6 +1444,10 @@ impl Parser<'_> {
             Tok::Time(v) => {
                 self.bump();
                 Ok(Expr::Lit(Literal::Time(v), pos))
+            }
+            Tok::Moment(k, v) => {
+                self.bump();
+                Ok(Expr::Lit(Literal::Moment(k, v), pos))
             }
             Tok::Str(s) => {
                 self.bump();

@@ -32,11 +32,17 @@ pub enum Elem {
     Real,
     LReal,
     Time,
+    /// DATE (and LDATE): nanoseconds from 1970-01-01 to midnight of the day.
+    Date,
+    /// TIME_OF_DAY (TOD, LTOD): nanoseconds from midnight.
+    Tod,
+    /// DATE_AND_TIME (DT, LDT): nanoseconds from 1970-01-01-00:00:00.
+    Dt,
 }
 
 impl Elem {
     /// All elementary types, for name look-ups.
-    pub const ALL: [Elem; 16] = [
+    pub const ALL: [Elem; 19] = [
         Elem::Bool,
         Elem::SInt,
         Elem::Int,
@@ -53,6 +59,9 @@ impl Elem {
         Elem::Real,
         Elem::LReal,
         Elem::Time,
+        Elem::Date,
+        Elem::Tod,
+        Elem::Dt,
     ];
     /// IEC name.
     pub fn name(self) -> &'static str {
@@ -73,18 +82,29 @@ impl Elem {
             Elem::Real => "REAL",
             Elem::LReal => "LREAL",
             Elem::Time => "TIME",
+            Elem::Date => "DATE",
+            Elem::Tod => "TIME_OF_DAY",
+            Elem::Dt => "DATE_AND_TIME",
         }
     }
     /// Look up by (upper-case) name; LTIME is accepted as TIME (both count nanoseconds).
     pub fn from_name(n: &str) -> Option<Elem> {
-        if n == "LTIME" {
-            return Some(Elem::Time);
+        match n {
+            "LTIME" => return Some(Elem::Time),
+            "LDATE" => return Some(Elem::Date),
+            "TOD" | "LTOD" | "LTIME_OF_DAY" => return Some(Elem::Tod),
+            "DT" | "LDT" | "LDATE_AND_TIME" => return Some(Elem::Dt),
+            _ => {}
         }
         Elem::ALL.iter().copied().find(|e| e.name() == n)
     }
     /// Signed or unsigned integer types.
     pub fn is_int(self) -> bool {
-        self.int_kind().is_some() && !self.is_bit()
+        self.int_kind().is_some() && !self.is_bit() && !self.is_moment()
+    }
+    /// DATE, TIME_OF_DAY, DATE_AND_TIME.
+    pub fn is_moment(self) -> bool {
+        matches!(self, Elem::Date | Elem::Tod | Elem::Dt)
     }
     /// BYTE, WORD, DWORD, LWORD (BOOL is handled apart).
     pub fn is_bit(self) -> bool {
@@ -104,7 +124,7 @@ impl Elem {
             Elem::SInt => IntKind::I8,
             Elem::Int => IntKind::I16,
             Elem::DInt => IntKind::I32,
-            Elem::LInt | Elem::Time => IntKind::I64,
+            Elem::LInt | Elem::Time | Elem::Date | Elem::Tod | Elem::Dt => IntKind::I64,
             Elem::USInt | Elem::Byte => IntKind::U8,
             Elem::UInt | Elem::Word => IntKind::U16,
             Elem::UDInt | Elem::DWord => IntKind::U32,

@@ -122,6 +122,12 @@ pub(crate) enum Conv {
     /// Binary-coded decimal.
     ToBcd(IntKind),
     FromBcd,
+    /// DATE and DATE_AND_TIME (ns) to seconds and back.
+    NsToS,
+    SToNs,
+    /// DATE_AND_TIME to its DATE (midnight) and to its TIME_OF_DAY.
+    DayFloor,
+    DayRem,
 }
 
 /// Built-in functions, chosen by type at compile time.
@@ -169,6 +175,12 @@ pub(crate) enum Builtin {
     StrToReal(bool),
     StrToBool,
     StrToTime,
+    ConcatDate,
+    ConcatTod,
+    ConcatDt,
+    DayOfWeek,
+    MomentToStr(crate::dates::Moment),
+    StrToMoment(crate::dates::Moment),
 }
 
 #[derive(Debug)]
@@ -739,6 +751,13 @@ impl Vm {
                 let hi = f(arg(self, 2));
                 v.max(lo).min(hi).to_bits()
             }
+            Builtin::ConcatDate | Builtin::ConcatTod | Builtin::ConcatDt | Builtin::DayOfWeek => {
+                let mut vals = [0u64; 7];
+                for (i, slot) in vals.iter_mut().enumerate().take(args.len()) {
+                    *slot = arg(self, i);
+                }
+                crate::dates::concat(b, &vals)
+            }
             Builtin::Len
             | Builtin::Left
             | Builtin::Right
@@ -755,7 +774,9 @@ impl Vm {
             | Builtin::StrToInt(_)
             | Builtin::StrToReal(_)
             | Builtin::StrToBool
-            | Builtin::StrToTime => {
+            | Builtin::StrToTime
+            | Builtin::MomentToStr(_)
+            | Builtin::StrToMoment(_) => {
                 let mut vals = [0u64; 8];
                 // CONCAT is extensible: fold pairwise through the destination.
                 if matches!(b, Builtin::Concat) {
@@ -1096,6 +1117,12 @@ pub(crate) fn conv(cv: Conv, v: u64) -> u64 {
         Conv::RealToBool => (f(v) != 0.0) as u64,
         Conv::NsToMs => ((v as i64) / 1_000_000) as u64,
         Conv::MsToNs => (v as i64).wrapping_mul(1_000_000) as u64,
+        Conv::NsToS => ((v as i64) / 1_000_000_000) as u64,
+        Conv::SToNs => (v as i64).wrapping_mul(1_000_000_000) as u64,
+        Conv::DayFloor => {
+            ((v as i64).div_euclid(crate::dates::NS_PER_DAY) * crate::dates::NS_PER_DAY) as u64
+        }
+        Conv::DayRem => (v as i64).rem_euclid(crate::dates::NS_PER_DAY) as u64,
         Conv::RealMsToNs => (f(v) * 1e6).round() as i64 as u64,
         Conv::NsToRealMs(s) => r(v as i64 as f64 / 1e6, s),
         Conv::ToBcd(k) => {

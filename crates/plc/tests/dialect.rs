@@ -521,3 +521,68 @@ END_PROGRAM");
     }
     assert_eq!(int(&rt, "cycles"), 1);
 }
+
+#[test]
+fn dates_and_times_of_day() {
+    let mut rt = plc("PROGRAM P
+VAR
+  d : DATE := D#2024-02-28;
+  start : TOD := TOD#23:30:00;
+  stamp : DT;
+  later : TOD;
+  shift, gap : TIME;
+  dow, dow2 : INT;
+  leap : DATE;
+  secs : UDINT;
+  ms : UDINT;
+  text, text2 : STRING;
+  back : DT;
+  before : BOOL;
+END_VAR
+stamp := CONCAT_DATE_TOD(d, start);
+later := start + T#45m;                      (* wraps past midnight *)
+shift := SUB_TOD_TOD(TOD#06:00:00, TOD#22:00:00) + T#24h;
+gap := DT#2024-03-01-00:00:00 - stamp;
+dow := DAY_OF_WEEK(d);
+leap := CONCAT_DATE(2024, 2, 29);
+dow2 := DAY_OF_WEEK(leap);
+secs := DATE_TO_UDINT(D#1970-01-02);
+ms := TOD_TO_UDINT(TOD#00:00:01.5);
+text := DT_TO_STRING(ADD_DT_TIME(stamp, T#1h15m30s250ms));
+back := STRING_TO_DT(text);
+text2 := TOD_TO_STRING(DT_TO_TOD(back));
+before := DT_TO_DATE(back) > d;
+END_PROGRAM");
+    scan(&mut rt, 0);
+    // 2024-02-28 23:30 + 1 h 15 min 30.25 s = 2024-02-29 00:45:30.25 (a leap year).
+    assert_eq!(string(&rt, "text"), "DT#2024-02-29-00:45:30.25");
+    assert_eq!(string(&rt, "text2"), "TOD#00:45:30.25");
+    assert!(boolean(&rt, "before"));
+    assert_eq!(get(&rt, "later"), get(&plc_tod("00:15:00"), "t"));
+    assert_eq!(time_ms(&rt, "shift"), 8.0 * 3_600_000.0); // 22:00 to 06:00
+    // From 2024-02-28 23:30 to 2024-03-01 00:00: 24 h 30 min.
+    assert_eq!(time_ms(&rt, "gap"), 24.5 * 3_600_000.0);
+    // 2024-02-28 was a Wednesday (3; 0 is Sunday), the 29th a Thursday.
+    assert_eq!((int(&rt, "dow"), int(&rt, "dow2")), (3, 4));
+    assert_eq!(uint(&rt, "secs"), 86_400);
+    assert_eq!(uint(&rt, "ms"), 1_500);
+
+    let err = error_of("PROGRAM P VAR d : DATE := D#2023-02-29; END_VAR END_PROGRAM");
+    assert!(
+        err.contains("not a valid D# literal: write D#yyyy-mm-dd"),
+        "{err}"
+    );
+    let err = error_of("PROGRAM P VAR d : DATE; e : DATE; END_VAR d := d + e; END_PROGRAM");
+    assert!(
+        err.contains("operator ADD does not apply to DATE and DATE"),
+        "{err}"
+    );
+}
+
+fn plc_tod(t: &str) -> Runtime {
+    let mut rt = plc(&format!(
+        "PROGRAM Q VAR t : TOD := TOD#{t}; END_VAR END_PROGRAM"
+    ));
+    scan(&mut rt, 0);
+    rt
+}

@@ -466,6 +466,10 @@ impl<'a> Compiler<'a> {
                     ty: Ty::T(Type::BOOL),
                     e: vm::Expr::Const(*b as u64),
                 },
+                Literal::Moment(k, ns) => TE {
+                    ty: Ty::T(Type::Elem(k.elem())),
+                    e: vm::Expr::Const(*ns as u64),
+                },
                 Literal::Str(s) => return self.string_literal(s, *pos),
             }),
             AExpr::Typed(tn, inner) => {
@@ -925,6 +929,20 @@ impl<'a> Compiler<'a> {
                 });
             }
         }
+        if let Some(te) = self.moment_binary(op, &l, &r, pos)? {
+            let (le, re) = (l.e, r.e);
+            let (ty, bin, wrap_day) = te;
+            let e = vm::Expr::Bin(bin, Box::new((le, re)));
+            let e = if wrap_day {
+                vm::Expr::Conv(Conv::DayRem, Box::new(e))
+            } else {
+                e
+            };
+            return Ok(TE {
+                ty: Ty::T(Type::Elem(ty)),
+                e: self.fold(e),
+            });
+        }
         let ct = self.common(&l.ty, &r.ty, pos)?;
         let (lt_name, rt_name) = (self.ty_name(&l.ty), self.ty_name(&r.ty));
         let le = self.coerce(l, &ct, pos)?;
@@ -1024,6 +1042,48 @@ impl<'a> Compiler<'a> {
             ty: Ty::T(ty),
             e: self.fold(vm::Expr::Bin(bin, Box::new((le, re)))),
         })
+    }
+
+    /// TOD/DT ± TIME (a TOD wraps at midnight) and the difference of two dates, times of
+    /// day or dates and times: (result type, operation, wrap to a day). Comparisons of two
+    /// values of one type go the usual way (`None`).
+    #[allow(clippy::type_complexity)]
+    fn moment_binary(&self, op: BinOp, l: &TE, r: &TE, pos: Pos) -> R<Option<(Elem, Bin, bool)>> {
+        let (Some(a), Some(b)) = (elem_of(&l.ty), elem_of(&r.ty)) else {
+            return Ok(None);
+        };
+        if !a.is_moment() && !b.is_moment() {
+            return Ok(None);
+        }
+        let k = IntKind::I64;
+        Ok(Some(match (op, a, b) {
+            (BinOp::Add | BinOp::Sub, Elem::Tod | Elem::Dt, Elem::Time) => {
+                let bin = if op == BinOp::Add {
+                    Bin::AddI(k)
+                } else {
+                    Bin::SubI(k)
+                };
+                (a, bin, a == Elem::Tod)
+            }
+            (BinOp::Sub, x, y) if x == y => (Elem::Time, Bin::SubI(k), false),
+            (BinOp::Eq | BinOp::Ne | BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge, x, y)
+                if x == y =>
+            {
+                return Ok(None);
+            }
+            _ => {
+                return Err(self.e(
+                    pos,
+                    ErrorKind::TypeMismatch,
+                    format!(
+                        "operator {} does not apply to {} and {} (TOD and DT take + and - of a TIME; two of one type subtract to a TIME)",
+                        format!("{op:?}").to_uppercase(),
+                        a.name(),
+                        b.name()
+                    ),
+                ));
+            }
+        }))
     }
 
     /// Operators on pointers and interfaces: comparison with each other or with 0, and
@@ -1178,6 +1238,9 @@ impl<'a> Compiler<'a> {
         let c = |cv: Conv, e: vm::Expr| vm::Expr::Conv(cv, Box::new(e));
         if f == t {
             return e;
+        }
+        if f.is_moment() || t.is_moment() {
+            return crate::dates::convert(e, f, t).unwrap_or(vm::Expr::Const(0));
         }
         match (f, t) {
             (_, Elem::Bool) if f.is_real() => c(Conv::RealToBool, e),
