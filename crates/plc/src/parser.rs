@@ -390,6 +390,12 @@ impl Parser<'_> {
                 pos,
             });
         }
+        if self.is_kw("UNION") {
+            return Err(self.err(
+                "UNION is not supported: memory is 8-byte slots, so members cannot share bytes; \
+                 use a STRUCT, bit access (w.3) or SHL/SHR",
+            ));
+        }
         if self.eat_kw("STRUCT") {
             let mut fields = Vec::new();
             while !self.eat_kw("END_STRUCT") {

@@ -246,6 +246,8 @@ pub(crate) struct ArgOut {
     pub target: Place,
     pub store: Store,
     pub negate: bool,
+    /// Wrap the value to this width on the way (a counter's INT CV into a WORD).
+    pub wrap: Option<IntKind>,
 }
 
 #[derive(Debug)]
@@ -859,7 +861,11 @@ impl Vm {
             let v = match o.store {
                 Store::Scalar | Store::Range(..) => {
                     let v = self.ld(src);
-                    if o.negate { v ^ 1 } else { v }
+                    let v = if o.negate { v ^ 1 } else { v };
+                    match o.wrap {
+                        Some(k) => k.wrap(v),
+                        None => v,
+                    }
                 }
                 Store::String(_) | Store::Block(_) => src as u64,
             };

@@ -586,3 +586,32 @@ fn plc_tod(t: &str) -> Runtime {
     scan(&mut rt, 0);
     rt
 }
+
+#[test]
+fn counters_take_word_preset_and_count_as_codesys_declares_them() {
+    let mut rt = plc("PROGRAM P
+VAR
+  pulse : BOOL;
+  limit : WORD := 2;
+  up : CTU; down : CTD;
+  count : WORD;
+  left : UINT;
+  full : BOOL;
+END_VAR
+up(CU := pulse, PV := limit, Q => full, CV => count);
+down(CD := pulse, PV := limit, CV => left);
+END_PROGRAM");
+    // down starts at 0 (never loaded): three rising edges take it to -3, which a UINT
+    // shows as 65536 - 3; up reaches its WORD preset of 2 on the second edge.
+    for k in 0..6u64 {
+        set(&mut rt, "pulse", Value::Bool(k % 2 == 0));
+        scan(&mut rt, k);
+    }
+    assert_eq!((uint(&rt, "count"), boolean(&rt, "full")), (3, true));
+    assert_eq!(uint(&rt, "left"), 65_533);
+    let err = error_of("TYPE U : UNION a : DWORD; b : ARRAY[0..3] OF BYTE; END_UNION END_TYPE");
+    assert!(
+        err.contains("UNION is not supported: memory is 8-byte slots"),
+        "{err}"
+    );
+}

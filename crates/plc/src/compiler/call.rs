@@ -2,6 +2,10 @@
 
 use super::*;
 
+fn is_counter(pou: &str) -> bool {
+    matches!(pou, "CTU" | "CTD" | "CTUD")
+}
+
 /// Bound call arguments: whether they may be written straight into the parameters, the
 /// inputs and the `=>` outputs.
 type BoundArgs = (bool, Box<[ArgIn]>, Box<[ArgOut]>);
@@ -194,7 +198,16 @@ impl<'a> Compiler<'a> {
                             "only BOOL outputs can be negated",
                         ));
                     }
-                    let ok = lv.ty == m.ty
+                    // CODESYS and TwinCAT declare the counters' CV as WORD: any integer
+                    // or bit-string target takes it, wrapped to its width.
+                    let counter_cv = is_counter(pou) && m.name == "CV";
+                    let wrap = lv
+                        .ty
+                        .elem()
+                        .filter(|e| counter_cv && (e.is_int() || e.is_bit()) && *e != Elem::Int)
+                        .map(ik);
+                    let ok = wrap.is_some()
+                        || lv.ty == m.ty
                         || matches!((&m.ty, &lv.ty), (Type::String(_), Type::String(_)))
                         || matches!((m.ty.elem(), lv.ty.elem()), (Some(a), Some(b)) if widens(a, b) && !matches!(lv.ty, Type::Subrange(..)));
                     if !ok || lv.bit.is_some() {
@@ -209,7 +222,8 @@ impl<'a> Compiler<'a> {
                             ),
                         ));
                     }
-                    if m.ty.elem() != lv.ty.elem()
+                    if wrap.is_none()
+                        && m.ty.elem() != lv.ty.elem()
                         && m.ty.scalar().is_some()
                         && m.ty.elem() != Some(Elem::Bool)
                     {
@@ -237,6 +251,7 @@ impl<'a> Compiler<'a> {
                         target: self.place(lv),
                         store,
                         negate: *negate,
+                        wrap,
                     });
                 }
             }
@@ -332,6 +347,22 @@ impl<'a> Compiler<'a> {
             });
         }
         let te = self.expr(e, sc, Some(&m.ty))?;
+        // The counters' PV is a WORD in CODESYS and TwinCAT: any integer or bit string.
+        if is_counter(pou) && m.name == "PV" {
+            if let Ty::T(Type::Elem(from)) = &te.ty {
+                let from = *from;
+                if (from.is_int() || from.is_bit()) && from != Elem::Int {
+                    let value = self.conversion(te.e, from, Elem::Int);
+                    let temp = self.alloc(1, e.pos())?;
+                    return Ok(ArgIn {
+                        value,
+                        temp,
+                        param: m.offset,
+                        store: Store::Scalar,
+                    });
+                }
+            }
+        }
         let value = self.coerce(te, &m.ty, e.pos()).map_err(|mut er| {
             er.kind = ErrorKind::WrongArgument;
             er.message = format!("argument '{}' of {pou}: {}", m.name, er.message);
