@@ -35,6 +35,7 @@ mod dates;
 mod error;
 mod lexer;
 mod parser;
+mod plcopen;
 mod program;
 mod runtime;
 mod signals;
@@ -50,6 +51,7 @@ pub use error::{
     CompileError, CompileErrors, ErrorKind, Fault, FaultKind, LoadError, Pos, Warning,
 };
 pub use lexer::{AddrSize, Area, DirectAddr};
+pub use plcopen::{AxisConfig, AxisState, AxisStatus, error_id as motion_error_id};
 pub use program::{Program, TaskDesc, VariableInfo};
 pub use runtime::{
     MonitorError, Restart, RetainReport, RetainSnapshot, Runtime, RuntimeOptions, VarRef,

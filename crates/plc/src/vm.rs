@@ -372,6 +372,8 @@ pub(crate) struct Vm {
     /// POU and line where the fault was seen first.
     pub fault_at: Option<(u32, u32)>,
     pub pou: u32,
+    /// Auxiliary axes the PLCopen motion blocks command.
+    pub axes: Vec<crate::plcopen::Axis>,
 }
 
 #[inline(always)]
@@ -927,7 +929,11 @@ impl Vm {
             FbKind::Std(fb) => {
                 let end = (inst + fb.size() as usize).min(self.mem.len());
                 if let Some(s) = self.mem.get_mut(inst..end) {
-                    fb.run(s, self.now);
+                    if fb.is_motion() {
+                        crate::plcopen::run(fb, s, &mut self.axes);
+                    } else {
+                        fb.run(s, self.now);
+                    }
                 }
             }
             FbKind::User(id) => {

@@ -146,3 +146,28 @@ fn method_and_interface_heavy_scans_allocate_nothing() {
         Value::Int(166)
     );
 }
+
+#[test]
+fn plcopen_motion_scans_allocate_nothing() {
+    const CAROUSEL: &str = include_str!("../../../examples/plc/carousel.st");
+    const CAROUSEL_TOML: &str = include_str!("../../../examples/plc/carousel.toml");
+    let mut rt = Runtime::new(Arc::new(compile(CAROUSEL, "carousel.st").unwrap()));
+    let cfg: PlcConfig = toml::from_str(CAROUSEL_TOML).unwrap();
+    rt.configure(&cfg).unwrap();
+    rt.set_signal_bool(Signal::MachineOnRequest, true);
+    rt.set_signal(Signal::ToolNumber, 7.0);
+    let n = allocations(|| {
+        for k in 0..1300u64 {
+            // Requests toggle every 300 scans: each turn plans a new profile.
+            rt.set_signal_bool(Signal::ToolChangeRequest, (k / 300) % 2 == 0 && k > 5);
+            if k == 600 {
+                rt.set_signal(Signal::ToolNumber, 2.0);
+            }
+            rt.scan(Duration::from_millis(4 * k)).unwrap();
+        }
+    });
+    assert_eq!(n, 0);
+    // Tool 7 at 180 degrees, then tool 2 at 30 (150 degrees: 1.61 s from scan 600).
+    let p = rt.axis("turret").unwrap().position;
+    assert!((p - 30.0).abs() < 1e-9, "{p}");
+}

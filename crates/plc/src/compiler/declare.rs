@@ -15,6 +15,10 @@ impl<'a> Compiler<'a> {
         if n.text == "STRING" {
             return Ok((Type::String(DEFAULT_STRING_LEN), None));
         }
+        // The PLCopen axis reference holds the number of a configured axis.
+        if matches!(n.text.as_str(), "AXIS_REF" | "AXIS_REF_SM3") {
+            return Ok((Type::Elem(Elem::UDInt), None));
+        }
         if let Some(id) = self.fb_id(n)? {
             return Ok((Type::Fb(id), None));
         }

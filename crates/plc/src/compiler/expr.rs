@@ -675,6 +675,7 @@ impl<'a> Compiler<'a> {
             fault: None,
             fault_at: None,
             pou: 0,
+            axes: Vec::new(),
         };
         let code = Code {
             functions: Vec::new(),
