@@ -185,3 +185,35 @@ fn a_program_of_several_files_runs_and_its_warnings_are_shown() {
         "{stderr}"
     );
 }
+
+#[test]
+fn run_takes_a_configuration_with_plcopen_axes() {
+    let out = rtcnc(&[
+        "plc",
+        "run",
+        &repo("examples/plc/carousel.st"),
+        "--config",
+        &repo("examples/plc/carousel.toml"),
+        "--scans",
+        "265",
+        "--set",
+        "Carousel.machine_on=TRUE",
+        "--set",
+        "Carousel.tool_number=4",
+        "--set",
+        "Carousel.tool_change_request=TRUE@11",
+        "--watch",
+        "Carousel.angle.Position",
+        "--watch",
+        "Carousel.tool_change_done",
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // The 90 degree turn starts at 44 ms and takes 1.01 s (see the plc crate's tests).
+    assert!(stdout.contains("\n264\tT#1s52ms\t"), "{stdout}");
+    assert!(stdout.ends_with("265\tT#1s56ms\t90.0\tTRUE\n"), "{stdout}");
+}

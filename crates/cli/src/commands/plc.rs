@@ -41,6 +41,10 @@ enum PlcCommand {
         /// A comment ends at the first `*)` (sources that rely on comments not nesting).
         #[arg(long)]
         flat_comments: bool,
+        /// PLC configuration (TOML, as examples/plc/mill.toml): `[signals]` and
+        /// `[safe_values]`, and `[axes]` for the PLCopen motion blocks' axes.
+        #[arg(long)]
+        config: Option<PathBuf>,
         /// Number of scans to run.
         #[arg(long)]
         scans: u64,
@@ -68,11 +72,20 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         PlcCommand::Run {
             file,
             flat_comments,
+            config,
             scans,
             period,
             set,
             watch,
-        } => run_scans(&file, flat_comments, scans, &period, &set, &watch),
+        } => run_scans(
+            &file,
+            flat_comments,
+            config.as_deref(),
+            scans,
+            &period,
+            &set,
+            &watch,
+        ),
     }
 }
 
@@ -153,6 +166,7 @@ struct Force {
 fn run_scans(
     file: &[PathBuf],
     flat_comments: bool,
+    config: Option<&Path>,
     scans: u64,
     period: &str,
     sets: &[String],
@@ -175,6 +189,14 @@ fn run_scans(
         Err(code) => return Ok(code),
     };
     let mut plc = Runtime::new(Arc::new(program));
+    if let Some(path) = config {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        let cfg: rtcnc_plc::PlcConfig =
+            toml::from_str(&text).with_context(|| format!("{}", path.display()))?;
+        plc.configure(&cfg)
+            .with_context(|| format!("{}", path.display()))?;
+    }
     let mut forces = Vec::new();
     for s in sets {
         let (name, rest) = s
