@@ -1132,7 +1132,9 @@ pub(crate) fn conv(cv: Conv, v: u64) -> u64 {
         Conv::NsToS => ((v as i64) / 1_000_000_000) as u64,
         Conv::SToNs => (v as i64).wrapping_mul(1_000_000_000) as u64,
         Conv::DayFloor => {
-            ((v as i64).div_euclid(crate::dates::NS_PER_DAY) * crate::dates::NS_PER_DAY) as u64
+            ((v as i64)
+                .div_euclid(crate::dates::NS_PER_DAY)
+                .wrapping_mul(crate::dates::NS_PER_DAY)) as u64
         }
         Conv::DayRem => (v as i64).rem_euclid(crate::dates::NS_PER_DAY) as u64,
         Conv::RealMsToNs => (f(v) * 1e6).round() as i64 as u64,

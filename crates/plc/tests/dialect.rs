@@ -615,3 +615,18 @@ END_PROGRAM");
         "{err}"
     );
 }
+
+#[test]
+fn extreme_dates_convert_without_overflow() {
+    // A DATE_AND_TIME far outside the calendar (from the most negative TIME) still
+    // converts and prints.
+    let mut rt = plc("PROGRAM P
+VAR tm : TIME := T#-106751d23h47m16s854ms775us807ns; t : DT; d : DATE; s : STRING; tod : TOD; END_VAR
+t := TIME_TO_DT(tm);
+d := DT_TO_DATE(t);
+tod := DT_TO_TOD(t);
+s := DT_TO_STRING(t);
+END_PROGRAM");
+    scan(&mut rt, 0);
+    assert!(string(&rt, "s").starts_with("DT#"));
+}
