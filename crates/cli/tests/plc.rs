@@ -155,3 +155,65 @@ fn check_lists_variables_on_request() {
         "{stdout}"
     );
 }
+
+#[test]
+fn a_program_of_several_files_runs_and_its_warnings_are_shown() {
+    let gvl = temp_st(
+        "gvl.st",
+        "VAR_GLOBAL CONSTANT\n  N : INT := 3;\nEND_VAR\nVAR_GLOBAL\n  total : INT;\nEND_VAR\n",
+    );
+    let fb = temp_st(
+        "fb_add.st",
+        "FUNCTION_BLOCK FB_Add\nVAR_INPUT k : INT; END_VAR\nVAR a : ARRAY[1..N] OF INT; END_VAR\nk := k + 1;\ntotal := total + k;\nEND_FUNCTION_BLOCK\n",
+    );
+    let main = temp_st(
+        "main.st",
+        "PROGRAM Main\nVAR add : FB_Add; END_VAR\nadd(k := 1);\nEND_PROGRAM\n",
+    );
+    let out = rtcnc(&[
+        "plc", "run", &gvl, &fb, &main, "--scans", "2", "--watch", "total",
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stdout}{stderr}");
+    // k arrives as 1 and the block adds k + 1 = 2 per scan.
+    assert!(stdout.contains("1\tT#0s\t2\n2\tT#4ms\t4"), "{stdout}");
+    assert!(
+        stderr.contains(&format!(
+            "{fb}:4:1: warning[assign-to-input]: 'k' is a VAR_INPUT"
+        )),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn run_takes_a_configuration_with_plcopen_axes() {
+    let out = rtcnc(&[
+        "plc",
+        "run",
+        &repo("examples/plc/carousel.st"),
+        "--config",
+        &repo("examples/plc/carousel.toml"),
+        "--scans",
+        "265",
+        "--set",
+        "Carousel.machine_on=TRUE",
+        "--set",
+        "Carousel.tool_number=4",
+        "--set",
+        "Carousel.tool_change_request=TRUE@11",
+        "--watch",
+        "Carousel.angle.Position",
+        "--watch",
+        "Carousel.tool_change_done",
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // The 90 degree turn starts at 44 ms and takes 1.01 s (see the plc crate's tests).
+    assert!(stdout.contains("\n264\tT#1s52ms\t"), "{stdout}");
+    assert!(stdout.ends_with("265\tT#1s56ms\t90.0\tTRUE\n"), "{stdout}");
+}

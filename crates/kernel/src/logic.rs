@@ -306,6 +306,7 @@ pub(crate) fn load_plc(
     let config = rtcnc_plc::PlcConfig {
         signals: signals.clone(),
         safe_values: safe_values.clone(),
+        ..Default::default()
     };
     runtime
         .configure(&config)

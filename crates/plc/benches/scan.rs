@@ -1,4 +1,5 @@
-//! Scan time of the mill logic and of a 2000-rung generated program, and compile time.
+//! Scan time of the mill logic, of a 2000-rung generated program and of 50 object-oriented
+//! stations called through an interface (examples/plc/stations.st), and compile time.
 //! Goals: mill scan <= 5 us; 2000 rungs <= 200 us per scan (<= 100 ns per statement).
 
 // criterion_group! and criterion_main! make public functions without docs.
@@ -14,6 +15,7 @@ mod generated;
 
 const MILL: &str = include_str!("../../../examples/plc/mill.st");
 const MILL_TOML: &str = include_str!("../../../examples/plc/mill.toml");
+const STATIONS: &str = include_str!("../../../examples/plc/stations.st");
 
 fn mill_running() -> Runtime {
     let mut rt = Runtime::new(Arc::new(compile(MILL, "mill.st").unwrap()));
@@ -79,6 +81,12 @@ fn bench(c: &mut Criterion) {
         *b = (i as u8).wrapping_mul(37) | 1;
     }
     bench_both(c, "2000-rung scan", &mut ladder, 4);
+
+    let mut stations = Runtime::new(Arc::new(compile(STATIONS, "stations.st").unwrap()));
+    for k in 0..100 {
+        stations.scan(Duration::from_millis(4 * k)).unwrap();
+    }
+    bench_both(c, "50-station method scan", &mut stations, 4);
 }
 
 criterion_group! {

@@ -15,6 +15,27 @@ pub(crate) struct Unit {
     pub pous: Vec<Pou>,
     pub globals: Vec<VarBlock>,
     pub configs: Vec<Config>,
+    pub interfaces: Vec<Interface>,
+}
+
+/// An INTERFACE: method and property prototypes.
+#[derive(Debug)]
+pub(crate) struct Interface {
+    pub name: Name,
+    pub extends: Vec<Name>,
+    pub methods: Vec<Method>,
+    pub properties: Vec<Property>,
+}
+
+/// A PROPERTY of a function block (or its prototype in an interface). The getter is a
+/// method returning the property's type in a variable of the property's name; the setter
+/// a method with one VAR_INPUT of the property's name.
+#[derive(Debug)]
+pub(crate) struct Property {
+    pub name: Name,
+    pub ty: TypeSpec,
+    pub get: Option<Method>,
+    pub set: Option<Method>,
 }
 
 #[derive(Debug)]
@@ -50,6 +71,10 @@ pub(crate) enum TypeSpec {
         low: Expr,
         high: Expr,
     },
+    /// `POINTER TO T`.
+    Pointer(Box<TypeSpec>),
+    /// `REFERENCE TO T` (and IEC's `REF_TO T`).
+    Reference(Box<TypeSpec>, Pos),
 }
 
 #[derive(Debug, Clone)]
@@ -70,6 +95,8 @@ pub(crate) enum VarKind {
     Global,
     External,
     Temp,
+    /// VAR_INST of a METHOD: kept in the instance between calls.
+    Inst,
 }
 
 #[derive(Debug, Clone)]
@@ -99,6 +126,11 @@ pub(crate) enum PouKind {
 pub(crate) struct Pou {
     pub kind: PouKind,
     pub name: Name,
+    /// `EXTENDS Base` of a function block.
+    pub extends: Option<Name>,
+    /// `IMPLEMENTS I1, I2` of a function block.
+    pub implements: Vec<Name>,
+    pub properties: Vec<Property>,
     pub ret: Option<TypeSpec>,
     pub vars: Vec<VarBlock>,
     pub methods: Vec<Method>,
@@ -177,6 +209,7 @@ pub(crate) enum Literal {
     Time(i128),
     Str(Vec<u8>),
     Bool(bool),
+    Moment(crate::dates::Moment, i64),
 }
 
 #[derive(Debug, Clone)]
@@ -222,6 +255,8 @@ pub(crate) enum Part {
     Field(Name),
     Index(Vec<Expr>, Pos),
     Bit(u8, Pos),
+    /// `^`: dereference a pointer (`p^`), or `THIS^` / `SUPER^`.
+    Deref(Pos),
 }
 
 #[derive(Debug, Clone)]
@@ -242,6 +277,8 @@ pub(crate) struct CaseArm {
 #[derive(Debug, Clone)]
 pub(crate) enum Stmt {
     Assign(Access, Expr, Pos),
+    /// `r REF= x`: point a REFERENCE at a variable.
+    RefAssign(Access, Expr, Pos),
     /// A call of an FB instance or a function as a statement.
     Call(Access, Vec<Arg>, Pos),
     If(Vec<(Expr, Vec<Stmt>)>, Vec<Stmt>, Pos),

@@ -185,6 +185,9 @@ pub(crate) fn call(
     if let Some(te) = conversion(c, f, args, sc, pos)? {
         return Ok(te);
     }
+    if let Some(te) = crate::dates::call(c, name, args, sc, pos)? {
+        return Ok(te);
+    }
     let known = [
         "ABS", "SQRT", "LN", "LOG", "EXP", "SIN", "COS", "TAN", "ASIN", "ACOS", "ATAN", "ATAN2",
         "EXPT", "ADD", "SUB", "MUL", "DIV", "MOD", "AND", "OR", "XOR", "MOVE", "SHL", "SHR", "ROL",
@@ -792,6 +795,8 @@ fn conversion(c: &mut Compiler, f: &str, args: &[Arg], sc: &mut Scope, pos: Pos)
                 Builtin::RealToStr(s == Elem::Real)
             } else if s == Elem::Time {
                 Builtin::TimeToStr
+            } else if let Some(m) = crate::dates::Moment::of(s) {
+                Builtin::MomentToStr(m)
             } else {
                 Builtin::IntToStr(ik(s).signed())
             };
@@ -804,6 +809,8 @@ fn conversion(c: &mut Compiler, f: &str, args: &[Arg], sc: &mut Scope, pos: Pos)
                 Builtin::StrToReal(t == Elem::Real)
             } else if t == Elem::Time {
                 Builtin::StrToTime
+            } else if let Some(m) = crate::dates::Moment::of(t) {
+                Builtin::StrToMoment(m)
             } else {
                 Builtin::StrToInt(ik(t))
             };

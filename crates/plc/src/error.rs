@@ -78,6 +78,21 @@ impl CompileError {
     }
 }
 
+/// A construct the compiler accepts but a reader should look at (CODESYS and TwinCAT
+/// accept it too, with the same warning).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{file}:{}:{}: warning[{code}]: {message}", pos.line, pos.col)]
+pub struct Warning {
+    /// The file name given to the compiler.
+    pub file: String,
+    /// Line and column.
+    pub pos: Pos,
+    /// Stable short code (`assign-to-input`).
+    pub code: &'static str,
+    /// Plain message.
+    pub message: String,
+}
+
 /// All errors found in one compilation (at least one).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct CompileErrors(pub Vec<CompileError>);
@@ -165,6 +180,9 @@ pub enum FaultKind {
     },
     /// A FOR loop with a step of zero.
     ZeroForStep,
+    /// A pointer, reference or interface that points nowhere was used, or an interface
+    /// holds an instance of no type that implements the method called.
+    NullReference,
 }
 
 /// A runtime fault: the PLC stopped, its outputs went to their safe values.
@@ -190,6 +208,7 @@ impl Fault {
             FaultKind::SubrangeViolation { .. } => "subrange-violation",
             FaultKind::WatchdogExceeded { .. } => "watchdog",
             FaultKind::ZeroForStep => "zero-for-step",
+            FaultKind::NullReference => "null-reference",
         }
     }
     /// Plain message.
@@ -208,6 +227,9 @@ impl Fault {
                 )
             }
             FaultKind::ZeroForStep => "FOR loop with step 0".into(),
+            FaultKind::NullReference => {
+                "a pointer, reference or interface that points to nothing was used".into()
+            }
         }
     }
 }

@@ -20,6 +20,8 @@ pub(crate) enum Tok {
     Real(f64),
     /// Duration literal in nanoseconds.
     Time(i128),
+    /// DATE, TIME_OF_DAY or DATE_AND_TIME literal in nanoseconds.
+    Moment(crate::dates::Moment, i64),
     Str(Vec<u8>),
     /// `TYPE#` prefix of a typed literal (`INT#5`, `Mode#Idle`).
     TypedPrefix(String),
@@ -136,6 +138,7 @@ pub(crate) struct Lexer<'a> {
     line: u32,
     line_start: usize,
     file: &'a str,
+    nested_comments: bool,
 }
 
 fn is_ident_start(c: u8) -> bool {
@@ -147,12 +150,23 @@ fn is_ident(c: u8) -> bool {
 
 /// Splits the whole source into tokens (ending with `Eof`) or returns the first lexical error.
 pub(crate) fn tokenize(src: &str, file: &str) -> Result<Vec<Token>, CompileError> {
+    tokenize_with(src, file, true)
+}
+
+/// As [`tokenize`]; `nested_comments` says whether `(* (* *) *)` nests (IEC 61131-3 3rd
+/// edition, CODESYS) or ends at the first `*)` (older sources that rely on it).
+pub(crate) fn tokenize_with(
+    src: &str,
+    file: &str,
+    nested_comments: bool,
+) -> Result<Vec<Token>, CompileError> {
     let mut lx = Lexer {
         src: src.as_bytes(),
         i: 0,
         line: 1,
         line_start: 0,
         file,
+        nested_comments,
     };
     let mut out = Vec::with_capacity(src.len() / 3 + 1);
     loop {
@@ -209,7 +223,10 @@ impl Lexer<'_> {
                 let mut depth = 1u32;
                 loop {
                     if self.i >= self.src.len() {
-                        return Err(self.err(start, "comment is not closed"));
+                        let end = if close == b')' { "*)" } else { "*/" };
+                        return Err(
+                            self.err(start, format!("comment is not closed: '{end}' expected"))
+                        );
                     }
                     if self.peek(0) == b'*' && self.peek(1) == close {
                         self.bump();
@@ -218,7 +235,7 @@ impl Lexer<'_> {
                         if depth == 0 {
                             break;
                         }
-                    } else if self.peek(0) == open && self.peek(1) == b'*' {
+                    } else if self.nested_comments && self.peek(0) == open && self.peek(1) == b'*' {
                         self.bump();
                         self.bump();
                         depth += 1;
@@ -227,14 +244,25 @@ impl Lexer<'_> {
                     }
                 }
             } else if c == b'{' {
+                // Pragmas (`{attribute 'qualified_only'}`, `{IF defined (x)}`) mean nothing
+                // here; nested braces are skipped whole.
                 let start = self.pos();
-                while self.peek(0) != b'}' {
+                let mut depth = 0u32;
+                loop {
                     if self.i >= self.src.len() {
-                        return Err(self.err(start, "pragma is not closed"));
+                        return Err(self.err(start, "pragma is not closed: '}' expected"));
                     }
-                    self.bump();
+                    match self.bump() {
+                        b'{' => depth += 1,
+                        b'}' => {
+                            depth -= 1;
+                            if depth == 0 {
+                                break;
+                            }
+                        }
+                        _ => {}
+                    }
                 }
-                self.bump();
             } else {
                 return Ok(());
             }
@@ -259,7 +287,7 @@ impl Lexer<'_> {
             let word = std::str::from_utf8(&self.src[start..self.i])
                 .unwrap_or("")
                 .to_ascii_uppercase();
-            if word.contains("__") {
+            if word.get(2..).is_some_and(|rest| rest.contains("__")) || word == "__" {
                 // IEC forbids double underscores: they make names ambiguous.
                 return Err(self.err(pos, "identifier may not contain two underscores in a row"));
             }
@@ -518,7 +546,28 @@ impl Lexer<'_> {
     fn typed_literal(&mut self, prefix: String, pos: Pos) -> Result<Tok, CompileError> {
         match prefix.as_str() {
             "T" | "TIME" | "LTIME" | "LT" => self.duration(pos),
-            _ => Ok(Tok::TypedPrefix(prefix)),
+            p => match crate::dates::literal_kind(p) {
+                Some(kind) => {
+                    let start = self.i;
+                    while matches!(self.peek(0), b'0'..=b'9' | b'-' | b':' | b'.') {
+                        self.bump();
+                    }
+                    let text = &self.src[start..self.i];
+                    let ns = crate::dates::parse(kind, text).ok_or_else(|| {
+                        let form = match kind {
+                            crate::dates::Moment::Date => "D#yyyy-mm-dd",
+                            crate::dates::Moment::Tod => "TOD#hh:mm:ss[.fff]",
+                            crate::dates::Moment::Dt => "DT#yyyy-mm-dd-hh:mm:ss[.fff]",
+                        };
+                        self.err(
+                            pos,
+                            format!("not a valid {prefix}# literal: write {form} (1970 to 2262)"),
+                        )
+                    })?;
+                    Ok(Tok::Moment(kind, ns))
+                }
+                None => Ok(Tok::TypedPrefix(prefix)),
+            },
         }
     }
 

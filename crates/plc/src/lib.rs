@@ -39,9 +39,11 @@
 mod ast;
 mod builtins;
 mod compiler;
+mod dates;
 mod error;
 mod lexer;
 mod parser;
+mod plcopen;
 mod program;
 mod runtime;
 mod signals;
@@ -53,8 +55,11 @@ mod vm;
 
 use std::path::Path;
 
-pub use error::{CompileError, CompileErrors, ErrorKind, Fault, FaultKind, LoadError, Pos};
+pub use error::{
+    CompileError, CompileErrors, ErrorKind, Fault, FaultKind, LoadError, Pos, Warning,
+};
 pub use lexer::{AddrSize, Area, DirectAddr};
+pub use plcopen::{AxisConfig, AxisState, AxisStatus, error_id as motion_error_id};
 pub use program::{Program, TaskDesc, VariableInfo};
 pub use runtime::{
     MonitorError, Restart, RetainReport, RetainSnapshot, Runtime, RuntimeOptions, VarRef,
@@ -63,16 +68,55 @@ pub use signals::{ConfigError, Direction, PlcConfig, Signal, SignalKind};
 pub use stdfb::StdFb;
 pub use value::{FmtTime, Value, ValueError, parse_time};
 
+/// Choices of dialect the source needs.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CompileOptions {
+    /// `(* (* *) *)` nests (IEC 61131-3 3rd edition, CODESYS, TwinCAT; the default).
+    /// Sources written for tools where a comment ends at the first `*)` need `false`.
+    pub nested_comments: bool,
+}
+
+impl Default for CompileOptions {
+    fn default() -> Self {
+        CompileOptions {
+            nested_comments: true,
+        }
+    }
+}
+
 /// Compiles Structured Text source; `file` names the source in error messages.
 pub fn compile(source: &str, file: &str) -> Result<Program, CompileErrors> {
-    compiler::compile(source, file)
+    compiler::compile(&[(source, file)], &CompileOptions::default())
+}
+
+/// Compiles one program from several sources (`(text, file name)`: global variable
+/// lists, type declarations, POUs), as CODESYS and TwinCAT projects keep them. Errors and
+/// faults name the file and the line in it.
+pub fn compile_sources(
+    sources: &[(&str, &str)],
+    options: &CompileOptions,
+) -> Result<Program, CompileErrors> {
+    compiler::compile(sources, options)
 }
 
 /// Reads and compiles a Structured Text file.
 pub fn compile_file(path: &Path) -> Result<Program, LoadError> {
-    let text = std::fs::read_to_string(path).map_err(|source| LoadError::Io {
-        path: path.display().to_string(),
-        source,
-    })?;
-    compile(&text, &path.display().to_string()).map_err(LoadError::Compile)
+    compile_files(&[path], &CompileOptions::default())
+}
+
+/// Reads and compiles the files of one program, in the order given.
+pub fn compile_files(paths: &[&Path], options: &CompileOptions) -> Result<Program, LoadError> {
+    let mut texts = Vec::with_capacity(paths.len());
+    for path in paths {
+        let text = std::fs::read_to_string(path).map_err(|source| LoadError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        texts.push((text, path.display().to_string()));
+    }
+    let sources: Vec<(&str, &str)> = texts
+        .iter()
+        .map(|(t, f)| (t.as_str(), f.as_str()))
+        .collect();
+    compile_sources(&sources, options).map_err(LoadError::Compile)
 }

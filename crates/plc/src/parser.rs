@@ -45,6 +45,7 @@ fn describe(t: &Tok) -> String {
         Tok::Int(v) => format!("number {v}"),
         Tok::Real(v) => format!("number {v}"),
         Tok::Time(_) => "duration literal".into(),
+        Tok::Moment(..) => "date or time-of-day literal".into(),
         Tok::Str(_) => "string literal".into(),
         Tok::TypedPrefix(s) => format!("'{s}#'"),
         Tok::Direct(d) => format!("'{d}'"),
@@ -143,7 +144,39 @@ const RESERVED: &[&str] = &[
     "NON_RETAIN",
     "METHOD",
     "END_METHOD",
+    "PROPERTY",
+    "END_PROPERTY",
+    "INTERFACE",
+    "END_INTERFACE",
+    "END_GET",
+    "END_SET",
+    "VAR_INST",
+    "EXTENDS",
+    "IMPLEMENTS",
+    "END_STRUCT",
+    "END_UNION",
 ];
+
+/// Words that end a block: meeting one where a statement or declaration should start
+/// means a block above was not closed.
+fn closes_a_block(word: &str) -> bool {
+    word.starts_with("END_")
+        || matches!(
+            word,
+            "ELSE"
+                | "ELSIF"
+                | "UNTIL"
+                | "PROGRAM"
+                | "FUNCTION"
+                | "FUNCTION_BLOCK"
+                | "TYPE"
+                | "METHOD"
+                | "PROPERTY"
+                | "INTERFACE"
+                | "CONFIGURATION"
+                | "VAR_GLOBAL"
+        )
+}
 
 impl Parser<'_> {
     fn peek(&self) -> &Tok {
@@ -171,6 +204,36 @@ impl Parser<'_> {
             describe(self.peek())
         ))
     }
+    /// `"END_IF expected to close the IF at 12:5, found 'END_PROGRAM'"`.
+    fn unclosed(&self, end: &str, opener: &str, at: Pos) -> CompileError {
+        self.err(format!(
+            "{end} expected to close the {opener} at {}:{}, found {}",
+            at.line,
+            at.col,
+            describe(self.peek())
+        ))
+    }
+    /// Expects keyword `kw` that continues the construct `what` started at `at`.
+    fn expect_kw_in(&mut self, kw: &str, what: &str, at: Pos) -> PResult<()> {
+        if self.eat_kw(kw) {
+            Ok(())
+        } else {
+            Err(self.err(format!(
+                "{kw} expected in the {what} at {}:{}, found {}",
+                at.line,
+                at.col,
+                describe(self.peek())
+            )))
+        }
+    }
+    /// True when the cursor is at end of file or at a word that closes some block.
+    fn at_block_end(&self) -> bool {
+        match self.peek() {
+            Tok::Eof => true,
+            Tok::Ident(s) => closes_a_block(s),
+            _ => false,
+        }
+    }
     fn is_kw(&self, kw: &str) -> bool {
         matches!(self.peek(), Tok::Ident(s) if s == kw)
     }
@@ -180,13 +243,6 @@ impl Parser<'_> {
             true
         } else {
             false
-        }
-    }
-    fn expect_kw(&mut self, kw: &str) -> PResult<()> {
-        if self.eat_kw(kw) {
-            Ok(())
-        } else {
-            Err(self.unexpected(kw))
         }
     }
     fn eat(&mut self, t: &Tok) -> bool {
@@ -248,11 +304,17 @@ impl Parser<'_> {
                 Tok::Ident(s) => {
                     match s.as_str() {
                         "TYPE" => {
+                            let at = self.pos();
                             self.bump();
                             while !self.eat_kw("END_TYPE") {
+                                if self.at_block_end() {
+                                    return Err(self.unclosed("END_TYPE", "TYPE", at));
+                                }
                                 u.types.push(self.type_decl()?);
                             }
+                            self.eat(&Tok::Semi);
                         }
+                        "INTERFACE" => u.interfaces.push(self.interface()?),
                         "PROGRAM" => u.pous.push(self.pou(PouKind::Program, "END_PROGRAM")?),
                         "FUNCTION" => u.pous.push(self.pou(PouKind::Function, "END_FUNCTION")?),
                         "FUNCTION_BLOCK" => u
@@ -261,13 +323,17 @@ impl Parser<'_> {
                         "VAR_GLOBAL" => u.globals.push(self.var_block()?),
                         "CONFIGURATION" => u.configs.push(self.config()?),
                         _ => return Err(self.unexpected(
-                            "TYPE, PROGRAM, FUNCTION, FUNCTION_BLOCK, VAR_GLOBAL or CONFIGURATION",
+                            "TYPE, PROGRAM, FUNCTION, FUNCTION_BLOCK, INTERFACE, VAR_GLOBAL or CONFIGURATION",
                         )),
                     }
                 }
+                Tok::Semi => {
+                    // `END_FUNCTION_BLOCK;` and the like, as some exports write them.
+                    self.bump();
+                }
                 _ => {
                     return Err(self.unexpected(
-                        "TYPE, PROGRAM, FUNCTION, FUNCTION_BLOCK, VAR_GLOBAL or CONFIGURATION",
+                        "TYPE, PROGRAM, FUNCTION, FUNCTION_BLOCK, INTERFACE, VAR_GLOBAL or CONFIGURATION",
                     ));
                 }
             }
@@ -283,12 +349,26 @@ impl Parser<'_> {
         } else {
             None
         };
-        self.expect(&Tok::Semi)?;
+        // CODESYS writes `END_STRUCT` straight before `END_TYPE`.
+        if !self.eat(&Tok::Semi) && !self.is_kw("END_TYPE") {
+            return Err(self.unexpected("';' after the type declaration"));
+        }
         Ok(TypeDecl { name, spec, init })
     }
 
     fn type_spec(&mut self) -> PResult<TypeSpec> {
         let pos = self.pos();
+        if self.eat_kw("POINTER") {
+            self.expect_kw_in("TO", "POINTER TO declaration", pos)?;
+            return Ok(TypeSpec::Pointer(Box::new(self.type_spec()?)));
+        }
+        if self.eat_kw("REFERENCE") {
+            self.expect_kw_in("TO", "REFERENCE TO declaration", pos)?;
+            return Ok(TypeSpec::Reference(Box::new(self.type_spec()?), pos));
+        }
+        if self.eat_kw("REF_TO") {
+            return Ok(TypeSpec::Reference(Box::new(self.type_spec()?), pos));
+        }
         if self.eat_kw("ARRAY") {
             self.expect(&Tok::LBracket)?;
             let mut dims = Vec::new();
@@ -302,7 +382,7 @@ impl Parser<'_> {
                 }
             }
             self.expect(&Tok::RBracket)?;
-            self.expect_kw("OF")?;
+            self.expect_kw_in("OF", "ARRAY declaration", pos)?;
             let elem = self.type_spec()?;
             return Ok(TypeSpec::Array {
                 dims,
@@ -310,9 +390,18 @@ impl Parser<'_> {
                 pos,
             });
         }
+        if self.is_kw("UNION") {
+            return Err(self.err(
+                "UNION is not supported: memory is 8-byte slots, so members cannot share bytes; \
+                 use a STRUCT, bit access (w.3) or SHL/SHR",
+            ));
+        }
         if self.eat_kw("STRUCT") {
             let mut fields = Vec::new();
             while !self.eat_kw("END_STRUCT") {
+                if self.at_block_end() {
+                    return Err(self.unclosed("END_STRUCT", "STRUCT", pos));
+                }
                 fields.push(self.var_decl(false)?);
             }
             return Ok(TypeSpec::Struct { fields, pos });
@@ -333,11 +422,12 @@ impl Parser<'_> {
                 }
             }
             self.expect(&Tok::RParen)?;
-            return Ok(TypeSpec::Enum {
-                values,
-                base: None,
-                pos,
-            });
+            // CODESYS and TwinCAT write the base type after the values: `(A, B) UINT`.
+            let base = match self.peek() {
+                Tok::Ident(s) if !RESERVED.contains(&s.as_str()) => Some(self.name()?),
+                _ => None,
+            };
+            return Ok(TypeSpec::Enum { values, base, pos });
         }
         if self.is_kw("STRING") {
             self.bump();
@@ -439,10 +529,13 @@ impl Parser<'_> {
                 "VAR_GLOBAL" => VarKind::Global,
                 "VAR_EXTERNAL" => VarKind::External,
                 "VAR_TEMP" => VarKind::Temp,
+                "VAR_INST" => VarKind::Inst,
                 _ => return Err(self.unexpected("a VAR block")),
             },
             _ => return Err(self.unexpected("a VAR block")),
         };
+        let (opener, at) = (describe(self.peek()), self.pos());
+        let opener = opener.trim_matches('\'').to_string();
         self.bump();
         let mut constant = false;
         let mut retain = false;
@@ -459,6 +552,9 @@ impl Parser<'_> {
         }
         let mut decls = Vec::new();
         while !self.eat_kw("END_VAR") {
+            if self.at_block_end() || self.is_var_block_start() || self.is_kw("IF") {
+                return Err(self.unclosed("END_VAR", &opener, at));
+            }
             decls.push(self.var_decl(true)?);
         }
         Ok(VarBlock {
@@ -502,11 +598,39 @@ impl Parser<'_> {
     }
 
     fn is_var_block_start(&self) -> bool {
-        matches!(self.peek(), Tok::Ident(s) if matches!(s.as_str(), "VAR" | "VAR_INPUT" | "VAR_OUTPUT" | "VAR_IN_OUT" | "VAR_GLOBAL" | "VAR_EXTERNAL" | "VAR_TEMP"))
+        matches!(self.peek(), Tok::Ident(s) if matches!(s.as_str(), "VAR" | "VAR_INPUT" | "VAR_OUTPUT" | "VAR_IN_OUT" | "VAR_GLOBAL" | "VAR_EXTERNAL" | "VAR_TEMP" | "VAR_INST"))
+    }
+
+    /// Access and inheritance modifiers; returns true for PRIVATE or PROTECTED.
+    fn modifiers(&mut self) -> bool {
+        let mut private = false;
+        loop {
+            if self.eat_kw("PUBLIC")
+                || self.eat_kw("INTERNAL")
+                || self.eat_kw("FINAL")
+                || self.eat_kw("ABSTRACT")
+            {
+                continue;
+            }
+            if self.eat_kw("PRIVATE") || self.eat_kw("PROTECTED") {
+                private = true;
+                continue;
+            }
+            return private;
+        }
     }
 
     fn pou(&mut self, kind: PouKind, end: &str) -> PResult<Pou> {
+        let at = self.pos();
+        let opener = match kind {
+            PouKind::Program => "PROGRAM",
+            PouKind::Function => "FUNCTION",
+            PouKind::FunctionBlock => "FUNCTION_BLOCK",
+        };
         self.bump();
+        if kind == PouKind::FunctionBlock {
+            self.modifiers();
+        }
         let name = self.name()?;
         let ret = if kind == PouKind::Function {
             // A function without `: type` returns nothing (3rd edition).
@@ -518,19 +642,61 @@ impl Parser<'_> {
         } else {
             None
         };
+        let mut extends = None;
+        let mut implements = Vec::new();
+        if kind == PouKind::FunctionBlock {
+            if self.eat_kw("EXTENDS") {
+                extends = Some(self.name()?);
+            }
+            if self.eat_kw("IMPLEMENTS") {
+                loop {
+                    implements.push(self.name()?);
+                    if !self.eat(&Tok::Comma) {
+                        break;
+                    }
+                }
+            }
+        }
         let mut vars = Vec::new();
         while self.is_var_block_start() {
             vars.push(self.var_block()?);
         }
         let mut methods = Vec::new();
-        while kind == PouKind::FunctionBlock && self.is_kw("METHOD") {
-            methods.push(self.method()?);
+        let mut properties = Vec::new();
+        let fb = kind == PouKind::FunctionBlock;
+        let mut members = |p: &mut Self| -> PResult<()> {
+            loop {
+                if p.is_kw("METHOD") {
+                    methods.push(p.method(false)?);
+                } else if p.is_kw("PROPERTY") {
+                    properties.push(p.property(false)?);
+                } else {
+                    return Ok(());
+                }
+            }
+        };
+        if fb {
+            members(self)?;
         }
-        let body = self.stmts(&[end])?;
-        self.expect_kw(end)?;
+        // The body; in a function block, METHODs and PROPERTYs may also follow it.
+        let ends: &[&str] = if fb {
+            &[end, "METHOD", "PROPERTY"]
+        } else {
+            &[end]
+        };
+        let body = self.stmts(ends, opener, at)?;
+        if fb {
+            members(self)?;
+        }
+        if !self.eat_kw(end) {
+            return Err(self.unclosed(end, opener, at));
+        }
         Ok(Pou {
             kind,
             name,
+            extends,
+            implements,
+            properties,
             ret,
             vars,
             methods,
@@ -538,31 +704,31 @@ impl Parser<'_> {
         })
     }
 
-    fn method(&mut self) -> PResult<Method> {
+    /// A METHOD; `prototype` (in an INTERFACE) has declarations but no body.
+    fn method(&mut self, prototype: bool) -> PResult<Method> {
+        let at = self.pos();
         self.bump();
-        let mut private = false;
-        loop {
-            if self.eat_kw("PUBLIC") || self.eat_kw("INTERNAL") || self.eat_kw("FINAL") {
-                continue;
-            }
-            if self.eat_kw("PRIVATE") || self.eat_kw("PROTECTED") {
-                private = true;
-                continue;
-            }
-            break;
-        }
+        let private = self.modifiers();
         let name = self.name()?;
         let ret = if self.eat(&Tok::Colon) {
             Some(self.type_spec()?)
         } else {
             None
         };
+        self.eat(&Tok::Semi);
         let mut vars = Vec::new();
         while self.is_var_block_start() {
             vars.push(self.var_block()?);
         }
-        let body = self.stmts(&["END_METHOD"])?;
-        self.expect_kw("END_METHOD")?;
+        let body = if prototype {
+            Vec::new()
+        } else {
+            self.stmts(&["END_METHOD"], "METHOD", at)?
+        };
+        if !self.eat_kw("END_METHOD") {
+            return Err(self.unclosed("END_METHOD", "METHOD", at));
+        }
+        self.eat(&Tok::Semi);
         Ok(Method {
             name,
             ret,
@@ -570,6 +736,111 @@ impl Parser<'_> {
             body,
             private,
         })
+    }
+
+    /// `PROPERTY name : type  GET ... END_GET  SET ... END_SET  END_PROPERTY`.
+    fn property(&mut self, prototype: bool) -> PResult<Property> {
+        let at = self.pos();
+        self.bump();
+        let private = self.modifiers();
+        let name = self.name()?;
+        self.expect(&Tok::Colon)?;
+        let ty = self.type_spec()?;
+        self.eat(&Tok::Semi);
+        let mut get = None;
+        let mut set = None;
+        let accessor = |setter: bool, vars: Vec<VarBlock>, body: Vec<Stmt>| Method {
+            name: name.clone(),
+            ret: if setter { None } else { Some(ty.clone()) },
+            vars: if setter {
+                let mut v = vec![VarBlock {
+                    kind: VarKind::Input,
+                    constant: false,
+                    retain: false,
+                    decls: vec![VarDecl {
+                        names: vec![name.clone()],
+                        at: None,
+                        ty: ty.clone(),
+                        init: None,
+                    }],
+                }];
+                v.extend(vars);
+                v
+            } else {
+                vars
+            },
+            body,
+            private,
+        };
+        loop {
+            let part_at = self.pos();
+            let (setter, end, word) = if self.eat_kw("GET") {
+                (false, "END_GET", "GET")
+            } else if self.eat_kw("SET") {
+                (true, "END_SET", "SET")
+            } else {
+                break;
+            };
+            let mut vars = Vec::new();
+            while self.is_var_block_start() {
+                vars.push(self.var_block()?);
+            }
+            let body = self.stmts(&[end], word, part_at)?;
+            if !self.eat_kw(end) {
+                return Err(self.unclosed(end, word, part_at));
+            }
+            self.eat(&Tok::Semi);
+            let m = accessor(setter, vars, body);
+            if setter {
+                set = Some(m);
+            } else {
+                get = Some(m);
+            }
+        }
+        if !self.eat_kw("END_PROPERTY") {
+            return Err(self.unclosed("END_PROPERTY", "PROPERTY", at));
+        }
+        self.eat(&Tok::Semi);
+        if get.is_none() && set.is_none() && prototype {
+            // An interface property without GET or SET has both.
+            get = Some(accessor(false, Vec::new(), Vec::new()));
+            set = Some(accessor(true, Vec::new(), Vec::new()));
+        }
+        Ok(Property { name, ty, get, set })
+    }
+
+    fn interface(&mut self) -> PResult<Interface> {
+        let at = self.pos();
+        self.bump();
+        let name = self.name()?;
+        let mut extends = Vec::new();
+        if self.eat_kw("EXTENDS") {
+            loop {
+                extends.push(self.name()?);
+                if !self.eat(&Tok::Comma) {
+                    break;
+                }
+            }
+        }
+        let mut methods = Vec::new();
+        let mut properties = Vec::new();
+        loop {
+            if self.is_kw("METHOD") {
+                methods.push(self.method(true)?);
+            } else if self.is_kw("PROPERTY") {
+                properties.push(self.property(true)?);
+            } else if self.eat_kw("END_INTERFACE") {
+                self.eat(&Tok::Semi);
+                return Ok(Interface {
+                    name,
+                    extends,
+                    methods,
+                    properties,
+                });
+            } else {
+                return Err(self.unclosed("END_INTERFACE", "INTERFACE", at));
+            }
+        }
     }
 
     fn config(&mut self) -> PResult<Config> {
@@ -688,7 +959,8 @@ impl Parser<'_> {
         }
     }
 
-    fn stmts(&mut self, ends: &[&str]) -> PResult<Vec<Stmt>> {
+    /// Statements up to one of `ends`, inside the construct `opener` that starts at `at`.
+    fn stmts(&mut self, ends: &[&str], opener: &str, at: Pos) -> PResult<Vec<Stmt>> {
         let mut out = Vec::new();
         loop {
             if let Tok::Ident(s) = self.peek() {
@@ -696,8 +968,12 @@ impl Parser<'_> {
                     return Ok(out);
                 }
             }
-            if self.peek() == &Tok::Eof {
-                return Err(self.unexpected(&ends.join(" or ")));
+            if self.at_block_end() {
+                let end = ends
+                    .iter()
+                    .rev()
+                    .find(|e| e.starts_with("END_") || **e == "UNTIL");
+                return Err(self.unclosed(end.copied().unwrap_or(ends[0]), opener, at));
             }
             let s = self.stmt()?;
             if !matches!(s, Stmt::Empty) {
@@ -749,22 +1025,22 @@ impl Parser<'_> {
                 self.bump();
                 let mut branches = Vec::new();
                 let c = self.expr()?;
-                self.expect_kw("THEN")?;
-                let b = self.stmts(&["ELSIF", "ELSE", "END_IF"])?;
+                self.expect_kw_in("THEN", "IF", pos)?;
+                let b = self.stmts(&["ELSIF", "ELSE", "END_IF"], "IF", pos)?;
                 branches.push((c, b));
                 let mut els = Vec::new();
                 loop {
                     if self.eat_kw("ELSIF") {
                         let c = self.expr()?;
-                        self.expect_kw("THEN")?;
-                        let b = self.stmts(&["ELSIF", "ELSE", "END_IF"])?;
+                        self.expect_kw_in("THEN", "IF", pos)?;
+                        let b = self.stmts(&["ELSIF", "ELSE", "END_IF"], "IF", pos)?;
                         branches.push((c, b));
                     } else if self.eat_kw("ELSE") {
-                        els = self.stmts(&["END_IF"])?;
-                        self.expect_kw("END_IF")?;
+                        els = self.stmts(&["END_IF"], "IF", pos)?;
+                        self.eat_kw("END_IF");
                         break;
                     } else {
-                        self.expect_kw("END_IF")?;
+                        self.eat_kw("END_IF");
                         break;
                     }
                 }
@@ -773,14 +1049,17 @@ impl Parser<'_> {
             "CASE" => {
                 self.bump();
                 let sel = self.expr()?;
-                self.expect_kw("OF")?;
+                self.expect_kw_in("OF", "CASE", pos)?;
                 let mut arms = Vec::new();
                 let mut els = Vec::new();
                 loop {
                     if self.eat_kw("ELSE") {
-                        els = self.stmts(&["END_CASE"])?;
-                        self.expect_kw("END_CASE")?;
+                        els = self.stmts(&["END_CASE"], "CASE", pos)?;
+                        self.eat_kw("END_CASE");
                         break;
+                    }
+                    if self.at_block_end() && !self.is_kw("END_CASE") {
+                        return Err(self.unclosed("END_CASE", "CASE", pos));
                     }
                     if self.eat_kw("END_CASE") {
                         break;
@@ -798,8 +1077,15 @@ impl Parser<'_> {
                             break;
                         }
                     }
-                    self.expect(&Tok::Colon)?;
-                    let body = self.case_body()?;
+                    if !self.eat(&Tok::Colon) {
+                        return Err(self.err(format!(
+                            "':' expected after the CASE label (CASE at {}:{}), found {}",
+                            pos.line,
+                            pos.col,
+                            describe(self.peek())
+                        )));
+                    }
+                    let body = self.case_body(pos)?;
                     arms.push(CaseArm { labels, body });
                 }
                 Stmt::Case(sel, arms, els, pos)
@@ -809,16 +1095,16 @@ impl Parser<'_> {
                 let var = self.name()?;
                 self.expect(&Tok::Assign)?;
                 let from = self.expr()?;
-                self.expect_kw("TO")?;
+                self.expect_kw_in("TO", "FOR", pos)?;
                 let to = self.expr()?;
                 let by = if self.eat_kw("BY") {
                     Some(self.expr()?)
                 } else {
                     None
                 };
-                self.expect_kw("DO")?;
-                let body = self.stmts(&["END_FOR"])?;
-                self.expect_kw("END_FOR")?;
+                self.expect_kw_in("DO", "FOR", pos)?;
+                let body = self.stmts(&["END_FOR"], "FOR", pos)?;
+                self.eat_kw("END_FOR");
                 Stmt::For {
                     var,
                     from,
@@ -831,17 +1117,17 @@ impl Parser<'_> {
             "WHILE" => {
                 self.bump();
                 let c = self.expr()?;
-                self.expect_kw("DO")?;
-                let body = self.stmts(&["END_WHILE"])?;
-                self.expect_kw("END_WHILE")?;
+                self.expect_kw_in("DO", "WHILE", pos)?;
+                let body = self.stmts(&["END_WHILE"], "WHILE", pos)?;
+                self.eat_kw("END_WHILE");
                 Stmt::While(c, body, pos)
             }
             "REPEAT" => {
                 self.bump();
-                let body = self.stmts(&["UNTIL"])?;
-                self.expect_kw("UNTIL")?;
+                let body = self.stmts(&["UNTIL"], "REPEAT", pos)?;
+                self.eat_kw("UNTIL");
                 let c = self.expr()?;
-                self.expect_kw("END_REPEAT")?;
+                self.expect_kw_in("END_REPEAT", "REPEAT", pos)?;
                 Stmt::Repeat(body, c, pos)
             }
             "EXIT" => {
@@ -857,6 +1143,9 @@ impl Parser<'_> {
                 Stmt::Return(pos)
             }
             _ => {
+                if RESERVED.contains(&kw.as_str()) {
+                    return Err(self.unexpected("a statement"));
+                }
                 let target = self.access()?;
                 if self.peek() == &Tok::LParen {
                     let args = self.args()?;
@@ -864,26 +1153,43 @@ impl Parser<'_> {
                 } else if self.eat(&Tok::Assign) {
                     let e = self.expr()?;
                     Stmt::Assign(target, e, pos)
+                } else if self.is_kw("REF") && self.peek_at(1) == &Tok::Eq {
+                    self.bump();
+                    self.bump();
+                    let e = self.expr()?;
+                    Stmt::RefAssign(target, e, pos)
                 } else {
-                    return Err(self.unexpected("':=' or '('"));
+                    return Err(self.unexpected("':=', 'REF=' or '(' after the name"));
                 }
             }
         };
-        if !matches!(s, Stmt::Empty) {
-            self.expect(&Tok::Semi)?;
+        let compound = matches!(
+            s,
+            Stmt::If(..) | Stmt::Case(..) | Stmt::For { .. } | Stmt::While(..) | Stmt::Repeat(..)
+        );
+        if compound {
+            // CODESYS and TwinCAT take END_IF with or without the `;`.
+            self.eat(&Tok::Semi);
+        } else if !matches!(s, Stmt::Empty) && !self.eat(&Tok::Semi) {
+            return Err(self.err(format!(
+                "';' expected to end the statement at {}:{}, found {}",
+                pos.line,
+                pos.col,
+                describe(self.peek())
+            )));
         }
         Ok(s)
     }
 
     /// Statements of one CASE arm: up to the next label (`expr :` / `expr ..`), ELSE or END_CASE.
-    fn case_body(&mut self) -> PResult<Vec<Stmt>> {
+    fn case_body(&mut self, at: Pos) -> PResult<Vec<Stmt>> {
         let mut out = Vec::new();
         loop {
             if self.is_kw("ELSE") || self.is_kw("END_CASE") {
                 return Ok(out);
             }
-            if self.peek() == &Tok::Eof {
-                return Err(self.unexpected("END_CASE"));
+            if self.at_block_end() {
+                return Err(self.unclosed("END_CASE", "CASE", at));
             }
             if self.looks_like_label() {
                 return Ok(out);
@@ -903,11 +1209,17 @@ impl Parser<'_> {
             k += 1;
         }
         match self.peek_at(k) {
-            Tok::Int(_) | Tok::Real(_) | Tok::Str(_) | Tok::Time(_) => {}
+            Tok::Int(_) | Tok::Real(_) | Tok::Str(_) | Tok::Time(_) | Tok::Moment(..) => {}
             Tok::TypedPrefix(_) => {
                 k += 1;
             }
-            Tok::Ident(s) if !RESERVED.contains(&s.as_str()) || s == "TRUE" || s == "FALSE" => {}
+            Tok::Ident(s) if !RESERVED.contains(&s.as_str()) || s == "TRUE" || s == "FALSE" => {
+                // `E_Mode.Idle :`
+                if self.peek_at(k + 1) == &Tok::Dot && matches!(self.peek_at(k + 2), Tok::Ident(_))
+                {
+                    k += 2;
+                }
+            }
             _ => return false,
         }
         k += 1;
@@ -939,6 +1251,9 @@ impl Parser<'_> {
                     }
                     _ => parts.push(Part::Field(self.name()?)),
                 }
+            } else if self.peek() == &Tok::Caret {
+                parts.push(Part::Deref(self.pos()));
+                self.bump();
             } else if self.peek() == &Tok::LBracket {
                 let pos = self.pos();
                 self.bump();
@@ -1135,6 +1450,10 @@ impl Parser<'_> {
             Tok::Time(v) => {
                 self.bump();
                 Ok(Expr::Lit(Literal::Time(v), pos))
+            }
+            Tok::Moment(k, v) => {
+                self.bump();
+                Ok(Expr::Lit(Literal::Moment(k, v), pos))
             }
             Tok::Str(s) => {
                 self.bump();

@@ -102,6 +102,8 @@ pub struct Program {
     pub(crate) structs: Vec<StructType>,
     pub(crate) fbs: Vec<FbLayout>,
     pub(crate) located: Vec<Located>,
+    pub(crate) warnings: Vec<crate::error::Warning>,
+    pub(crate) lines: crate::compiler::LineMap,
     pub(crate) image_sizes: [usize; 3],
     pub(crate) pou_count: usize,
 }
@@ -110,6 +112,11 @@ impl Program {
     /// The file name the program was compiled from.
     pub fn file(&self) -> &str {
         &self.file
+    }
+    /// What the compiler accepted with a warning (an assignment to a VAR_INPUT inside
+    /// its own POU, ...).
+    pub fn warnings(&self) -> &[crate::error::Warning] {
+        &self.warnings
     }
     /// Tasks declared by the CONFIGURATION (or the implicit `DEFAULT` task).
     pub fn tasks(&self) -> &[TaskDesc] {
@@ -257,6 +264,9 @@ impl Program {
                 .fbs
                 .get(*id as usize)
                 .map_or("FB".into(), |f| f.name.clone()),
+            Type::Pointer(t) => format!("POINTER TO {}", self.type_name(t)),
+            Type::Reference(t) => format!("REFERENCE TO {}", self.type_name(t)),
+            Type::Interface(_) => "INTERFACE".into(),
         }
     }
 }

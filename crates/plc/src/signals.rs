@@ -135,6 +135,9 @@ pub struct PlcConfig {
     /// PLC) → value it takes when the PLC faults, in IEC text (`TRUE`, `0`, `T#1s`).
     #[serde(default)]
     pub safe_values: BTreeMap<String, String>,
+    /// AXIS_REF variable name → the auxiliary axis it refers to (PLCopen motion blocks).
+    #[serde(default)]
+    pub axes: BTreeMap<String, crate::plcopen::AxisConfig>,
 }
 
 /// Why a configuration cannot be applied.
@@ -171,6 +174,14 @@ pub enum ConfigError {
         /// Reason.
         message: String,
     },
+    /// A bad `[axes]` entry.
+    #[error("axis '{variable}': {message}")]
+    Axis {
+        /// The AXIS_REF variable.
+        variable: String,
+        /// Reason.
+        message: String,
+    },
 }
 
 impl ConfigError {
@@ -181,6 +192,7 @@ impl ConfigError {
             ConfigError::Variable { .. } => "signal-variable",
             ConfigError::Type { .. } => "signal-type",
             ConfigError::SafeValue { .. } => "safe-value",
+            ConfigError::Axis { .. } => "axis",
         }
     }
 }

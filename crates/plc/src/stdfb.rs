@@ -27,7 +27,46 @@ pub enum StdFb {
     Sr,
     /// Reset-dominant bistable.
     Rs,
+    /// PLCopen MC_Power.
+    McPower,
+    /// PLCopen MC_Home.
+    McHome,
+    /// PLCopen MC_Reset.
+    McReset,
+    /// PLCopen MC_Stop.
+    McStop,
+    /// PLCopen MC_Halt.
+    McHalt,
+    /// PLCopen MC_MoveAbsolute.
+    McMoveAbsolute,
+    /// PLCopen MC_MoveRelative.
+    McMoveRelative,
+    /// PLCopen MC_MoveAdditive.
+    McMoveAdditive,
+    /// PLCopen MC_MoveVelocity.
+    McMoveVelocity,
+    /// PLCopen MC_ReadActualPosition.
+    McReadActualPosition,
+    /// PLCopen MC_ReadStatus.
+    McReadStatus,
+    /// PLCopen MC_ReadAxisError.
+    McReadAxisError,
 }
+
+const MOTION: [(StdFb, &str); 12] = [
+    (StdFb::McPower, "MC_POWER"),
+    (StdFb::McHome, "MC_HOME"),
+    (StdFb::McReset, "MC_RESET"),
+    (StdFb::McStop, "MC_STOP"),
+    (StdFb::McHalt, "MC_HALT"),
+    (StdFb::McMoveAbsolute, "MC_MOVEABSOLUTE"),
+    (StdFb::McMoveRelative, "MC_MOVERELATIVE"),
+    (StdFb::McMoveAdditive, "MC_MOVEADDITIVE"),
+    (StdFb::McMoveVelocity, "MC_MOVEVELOCITY"),
+    (StdFb::McReadActualPosition, "MC_READACTUALPOSITION"),
+    (StdFb::McReadStatus, "MC_READSTATUS"),
+    (StdFb::McReadAxisError, "MC_READAXISERROR"),
+];
 
 /// Direction of a member of a standard FB.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -94,7 +133,7 @@ impl StdFb {
             "F_TRIG" => StdFb::FTrig,
             "SR" => StdFb::Sr,
             "RS" => StdFb::Rs,
-            _ => return None,
+            _ => return MOTION.iter().find(|(_, x)| *x == n).map(|(f, _)| *f),
         })
     }
     /// IEC name.
@@ -110,7 +149,23 @@ impl StdFb {
             StdFb::FTrig => "F_TRIG",
             StdFb::Sr => "SR",
             StdFb::Rs => "RS",
+            m => MOTION
+                .iter()
+                .find(|(f, _)| *f == m)
+                .map_or("MC", |(_, n)| n),
         }
+    }
+    /// The IEC name of an input CODESYS and TwinCAT spell otherwise (`RESET` for `R`,
+    /// `LOAD` for `LD`, `SET1`/`SET` for `S1`/`S`, `RESET1` for `R1`).
+    pub(crate) fn iec_input_name(self, name: &str) -> Option<&'static str> {
+        Some(match (self, name) {
+            (StdFb::Ctu | StdFb::Ctud | StdFb::Sr, "RESET") => "R",
+            (StdFb::Ctd | StdFb::Ctud, "LOAD") => "LD",
+            (StdFb::Sr, "SET1") => "S1",
+            (StdFb::Rs, "SET") => "S",
+            (StdFb::Rs, "RESET1") => "R1",
+            _ => return None,
+        })
     }
     /// Public members in slot order (offset = index).
     pub(crate) fn members(self) -> &'static [Member] {
@@ -122,7 +177,22 @@ impl StdFb {
             StdFb::Ctu => CTU,
             StdFb::Ctd => CTD,
             StdFb::Ctud => CTUD,
+            StdFb::McPower => crate::plcopen::POWER,
+            StdFb::McHome => crate::plcopen::HOME,
+            StdFb::McReset => crate::plcopen::RESET,
+            StdFb::McStop => crate::plcopen::STOP,
+            StdFb::McHalt => crate::plcopen::HALT,
+            StdFb::McMoveAbsolute => crate::plcopen::MOVE_ABSOLUTE,
+            StdFb::McMoveRelative | StdFb::McMoveAdditive => crate::plcopen::MOVE_DISTANCE,
+            StdFb::McMoveVelocity => crate::plcopen::MOVE_VELOCITY,
+            StdFb::McReadActualPosition => crate::plcopen::READ_POSITION,
+            StdFb::McReadStatus => crate::plcopen::READ_STATUS,
+            StdFb::McReadAxisError => crate::plcopen::READ_ERROR,
         }
+    }
+    /// A PLCopen motion block (run by the runtime, which owns the axes).
+    pub fn is_motion(self) -> bool {
+        MOTION.iter().any(|(f, _)| *f == self)
     }
     /// Slots of an instance: the public members, then the hidden state.
     pub(crate) fn size(self) -> u32 {
@@ -132,6 +202,7 @@ impl StdFb {
                 StdFb::RTrig | StdFb::FTrig | StdFb::Ctu | StdFb::Ctd => 1,
                 StdFb::Ctud => 2,
                 StdFb::Sr | StdFb::Rs => 0,
+                _ => crate::plcopen::HIDDEN,
             }
     }
     /// Initial values of the hidden state (F_TRIG's memory starts TRUE, as the standard
@@ -168,6 +239,8 @@ impl StdFb {
             }
             StdFb::Sr => s[2] = (s[0] | (!s[1] & s[2])) & 1,
             StdFb::Rs => s[2] = (!s[1] & (s[0] | s[2])) & 1,
+            // Motion blocks need the axes: the VM runs them (`plcopen::run`).
+            _ if self.is_motion() => {}
             StdFb::Ctu => {
                 let edge = s[0] & !s[5] & 1 != 0;
                 s[5] = s[0] & 1;
@@ -216,6 +289,7 @@ impl StdFb {
                 s[5] = (cv >= pv) as u64;
                 s[6] = (cv <= 0) as u64;
             }
+            _ => {}
         }
     }
 }

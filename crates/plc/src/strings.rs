@@ -188,6 +188,15 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
             write(mem, dest, cap, &out[..k]);
             dest as u64
         }
+        Builtin::MomentToStr(kind) => {
+            let k = crate::dates::format(kind, arg(0) as i64, &mut out);
+            write(mem, dest, cap, &out[..k]);
+            dest as u64
+        }
+        Builtin::StrToMoment(kind) => {
+            let n = read(mem, arg(0) as usize, &mut s);
+            crate::dates::parse_prefixed(kind, &s[..n]).unwrap_or(0) as u64
+        }
         Builtin::BoolToStr => {
             let text: &[u8] = if arg(0) & 1 != 0 { b"TRUE" } else { b"FALSE" };
             write(mem, dest, cap, text);

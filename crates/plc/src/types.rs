@@ -32,11 +32,17 @@ pub enum Elem {
     Real,
     LReal,
     Time,
+    /// DATE (and LDATE): nanoseconds from 1970-01-01 to midnight of the day.
+    Date,
+    /// TIME_OF_DAY (TOD, LTOD): nanoseconds from midnight.
+    Tod,
+    /// DATE_AND_TIME (DT, LDT): nanoseconds from 1970-01-01-00:00:00.
+    Dt,
 }
 
 impl Elem {
     /// All elementary types, for name look-ups.
-    pub const ALL: [Elem; 16] = [
+    pub const ALL: [Elem; 19] = [
         Elem::Bool,
         Elem::SInt,
         Elem::Int,
@@ -53,6 +59,9 @@ impl Elem {
         Elem::Real,
         Elem::LReal,
         Elem::Time,
+        Elem::Date,
+        Elem::Tod,
+        Elem::Dt,
     ];
     /// IEC name.
     pub fn name(self) -> &'static str {
@@ -73,18 +82,29 @@ impl Elem {
             Elem::Real => "REAL",
             Elem::LReal => "LREAL",
             Elem::Time => "TIME",
+            Elem::Date => "DATE",
+            Elem::Tod => "TIME_OF_DAY",
+            Elem::Dt => "DATE_AND_TIME",
         }
     }
     /// Look up by (upper-case) name; LTIME is accepted as TIME (both count nanoseconds).
     pub fn from_name(n: &str) -> Option<Elem> {
-        if n == "LTIME" {
-            return Some(Elem::Time);
+        match n {
+            "LTIME" => return Some(Elem::Time),
+            "LDATE" => return Some(Elem::Date),
+            "TOD" | "LTOD" | "LTIME_OF_DAY" => return Some(Elem::Tod),
+            "DT" | "LDT" | "LDATE_AND_TIME" => return Some(Elem::Dt),
+            _ => {}
         }
         Elem::ALL.iter().copied().find(|e| e.name() == n)
     }
     /// Signed or unsigned integer types.
     pub fn is_int(self) -> bool {
-        self.int_kind().is_some() && !self.is_bit()
+        self.int_kind().is_some() && !self.is_bit() && !self.is_moment()
+    }
+    /// DATE, TIME_OF_DAY, DATE_AND_TIME.
+    pub fn is_moment(self) -> bool {
+        matches!(self, Elem::Date | Elem::Tod | Elem::Dt)
     }
     /// BYTE, WORD, DWORD, LWORD (BOOL is handled apart).
     pub fn is_bit(self) -> bool {
@@ -104,7 +124,7 @@ impl Elem {
             Elem::SInt => IntKind::I8,
             Elem::Int => IntKind::I16,
             Elem::DInt => IntKind::I32,
-            Elem::LInt | Elem::Time => IntKind::I64,
+            Elem::LInt | Elem::Time | Elem::Date | Elem::Tod | Elem::Dt => IntKind::I64,
             Elem::USInt | Elem::Byte => IntKind::U8,
             Elem::UInt | Elem::Word => IntKind::U16,
             Elem::UDInt | Elem::DWord => IntKind::U32,
@@ -208,6 +228,13 @@ pub enum Type {
     Struct(TypeId),
     /// Function block instance (index into the FB type table).
     Fb(TypeId),
+    /// `POINTER TO T`: one slot holding a byte address (slot × 8), 0 for none.
+    Pointer(Arc<Type>),
+    /// `REFERENCE TO T`: as a pointer, but every use reads or writes the target.
+    Reference(Arc<Type>),
+    /// An interface: one slot holding the byte address of a function block instance
+    /// that implements it, 0 for none.
+    Interface(TypeId),
 }
 
 /// An array type: dimensions and element.
@@ -272,8 +299,16 @@ impl Type {
             Type::Elem(e) => Some(*e),
             Type::Subrange(e, _, _) => Some(*e),
             Type::Enum(_) => Some(Elem::DInt),
+            Type::Pointer(_) | Type::Reference(_) | Type::Interface(_) => Some(Elem::LWord),
             _ => None,
         }
+    }
+    /// Pointers, references and interfaces: a slot holding an address.
+    pub fn is_address(&self) -> bool {
+        matches!(
+            self,
+            Type::Pointer(_) | Type::Reference(_) | Type::Interface(_)
+        )
     }
     /// The elementary type, if this is exactly an elementary type or a subrange of one.
     pub fn elem(&self) -> Option<Elem> {

@@ -200,6 +200,10 @@ impl Value {
             },
             Elem::Real | Elem::LReal => body.parse::<f64>().map(Value::Real).map_err(|_| bad()),
             Elem::Time => parse_time(&body).map(Value::Time).ok_or_else(bad),
+            Elem::Date | Elem::Tod | Elem::Dt => crate::dates::Moment::of(e)
+                .and_then(|m| crate::dates::parse_prefixed(m, upper.as_bytes()))
+                .map(Value::Int)
+                .ok_or_else(bad),
             _ => {
                 let (neg, digits) = match body.strip_prefix('-') {
                     Some(d) => (true, d),

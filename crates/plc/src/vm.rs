@@ -34,6 +34,9 @@ pub(crate) struct DynPlace {
     pub indirect: bool,
     pub offset: u32,
     pub steps: Box<[IndexStep]>,
+    /// The base slot is itself at a computed place (a pointer or reference reached
+    /// through an index or another pointer); `indirect` is then set.
+    pub inner: Option<Box<DynPlace>>,
 }
 
 #[derive(Debug)]
@@ -119,6 +122,12 @@ pub(crate) enum Conv {
     /// Binary-coded decimal.
     ToBcd(IntKind),
     FromBcd,
+    /// DATE and DATE_AND_TIME (ns) to seconds and back.
+    NsToS,
+    SToNs,
+    /// DATE_AND_TIME to its DATE (midnight) and to its TIME_OF_DAY.
+    DayFloor,
+    DayRem,
 }
 
 /// Built-in functions, chosen by type at compile time.
@@ -166,6 +175,12 @@ pub(crate) enum Builtin {
     StrToReal(bool),
     StrToBool,
     StrToTime,
+    ConcatDate,
+    ConcatTod,
+    ConcatDt,
+    DayOfWeek,
+    MomentToStr(crate::dates::Moment),
+    StrToMoment(crate::dates::Moment),
 }
 
 #[derive(Debug)]
@@ -176,6 +191,8 @@ pub(crate) enum Expr {
     Load(Box<DynPlace>),
     /// Address of an aggregate (STRING, array, structure) or the target of a VAR_IN_OUT.
     AddrOf(Place),
+    /// Byte address (slot × 8) of a place: the value of a pointer, reference or interface.
+    RefOf(Place),
     Un(Un, Box<Expr>),
     /// Both operands in one allocation, next to each other in memory.
     Bin(Bin, Box<(Expr, Expr)>),
@@ -189,6 +206,18 @@ pub(crate) enum Expr {
     Builtin(Builtin, Box<[Expr]>, u32),
     Call(Box<FnCall>),
     CallMethod(Box<MethodCall>),
+    /// A method called through an interface, a reference or THIS: the instance's type
+    /// tag picks the implementation.
+    CallVirtual(Box<VirtualCall>),
+}
+
+/// A method call resolved at run time by the type tag in the instance's first slot.
+#[derive(Debug)]
+pub(crate) struct VirtualCall {
+    pub instance: Place,
+    /// (type tag, index into `calls`).
+    pub cases: Box<[(u64, u32)]>,
+    pub calls: Box<[FnCall]>,
 }
 
 /// How a value is stored into a location.
@@ -217,6 +246,8 @@ pub(crate) struct ArgOut {
     pub target: Place,
     pub store: Store,
     pub negate: bool,
+    /// Wrap the value to this width on the way (a counter's INT CV into a WORD).
+    pub wrap: Option<IntKind>,
 }
 
 #[derive(Debug)]
@@ -341,6 +372,8 @@ pub(crate) struct Vm {
     /// POU and line where the fault was seen first.
     pub fault_at: Option<(u32, u32)>,
     pub pou: u32,
+    /// Auxiliary axes the PLCopen motion blocks command.
+    pub axes: Vec<crate::plcopen::Axis>,
 }
 
 #[inline(always)]
@@ -405,9 +438,20 @@ impl Vm {
     }
 
     fn dyn_addr(&mut self, c: &Code, d: &DynPlace) -> usize {
-        let mut a = self.base(d.base);
+        let mut a = match &d.inner {
+            Some(inner) => self.dyn_addr(c, inner),
+            None => self.base(d.base),
+        };
         if d.indirect {
-            a = self.ld(a) as usize;
+            let target = self.ld(a);
+            if target < 8 {
+                // Slot 0 is never a variable: a null pointer lands there harmlessly while
+                // the fault stops the statement.
+                self.raise(FaultKind::NullReference);
+                a = 0;
+            } else {
+                a = (target >> 3) as usize;
+            }
         }
         a += d.offset as usize;
         for s in d.steps.iter() {
@@ -436,6 +480,7 @@ impl Vm {
                 self.ld(a)
             }
             Expr::AddrOf(p) => self.addr(c, p) as u64,
+            Expr::RefOf(p) => (self.addr(c, p) as u64) << 3,
             Expr::Un(op, a) => {
                 let v = self.eval(c, a);
                 match *op {
@@ -470,6 +515,25 @@ impl Vm {
             Expr::CallMethod(m) => {
                 let inst = self.addr(c, &m.instance);
                 self.call_fn_in(c, &m.call, Some(inst))
+            }
+            Expr::CallVirtual(v) => {
+                let inst = self.addr(c, &v.instance);
+                if self.budget == 0 {
+                    return 0;
+                }
+                let tag = self.ld(inst);
+                let call = v
+                    .cases
+                    .iter()
+                    .find(|(t, _)| *t == tag)
+                    .and_then(|(_, k)| v.calls.get(*k as usize));
+                match call {
+                    Some(call) => self.call_fn_in(c, call, Some(inst)),
+                    None => {
+                        self.raise(FaultKind::NullReference);
+                        0
+                    }
+                }
             }
         }
     }
@@ -691,6 +755,13 @@ impl Vm {
                 let hi = f(arg(self, 2));
                 v.max(lo).min(hi).to_bits()
             }
+            Builtin::ConcatDate | Builtin::ConcatTod | Builtin::ConcatDt | Builtin::DayOfWeek => {
+                let mut vals = [0u64; 7];
+                for (i, slot) in vals.iter_mut().enumerate().take(args.len()) {
+                    *slot = arg(self, i);
+                }
+                crate::dates::concat(b, &vals)
+            }
             Builtin::Len
             | Builtin::Left
             | Builtin::Right
@@ -707,7 +778,9 @@ impl Vm {
             | Builtin::StrToInt(_)
             | Builtin::StrToReal(_)
             | Builtin::StrToBool
-            | Builtin::StrToTime => {
+            | Builtin::StrToTime
+            | Builtin::MomentToStr(_)
+            | Builtin::StrToMoment(_) => {
                 let mut vals = [0u64; 8];
                 // CONCAT is extensible: fold pairwise through the destination.
                 if matches!(b, Builtin::Concat) {
@@ -790,7 +863,11 @@ impl Vm {
             let v = match o.store {
                 Store::Scalar | Store::Range(..) => {
                     let v = self.ld(src);
-                    if o.negate { v ^ 1 } else { v }
+                    let v = if o.negate { v ^ 1 } else { v };
+                    match o.wrap {
+                        Some(k) => k.wrap(v),
+                        None => v,
+                    }
                 }
                 Store::String(_) | Store::Block(_) => src as u64,
             };
@@ -852,7 +929,11 @@ impl Vm {
             FbKind::Std(fb) => {
                 let end = (inst + fb.size() as usize).min(self.mem.len());
                 if let Some(s) = self.mem.get_mut(inst..end) {
-                    fb.run(s, self.now);
+                    if fb.is_motion() {
+                        crate::plcopen::run(fb, s, &mut self.axes);
+                    } else {
+                        fb.run(s, self.now);
+                    }
                 }
             }
             FbKind::User(id) => {
@@ -1048,6 +1129,14 @@ pub(crate) fn conv(cv: Conv, v: u64) -> u64 {
         Conv::RealToBool => (f(v) != 0.0) as u64,
         Conv::NsToMs => ((v as i64) / 1_000_000) as u64,
         Conv::MsToNs => (v as i64).wrapping_mul(1_000_000) as u64,
+        Conv::NsToS => ((v as i64) / 1_000_000_000) as u64,
+        Conv::SToNs => (v as i64).wrapping_mul(1_000_000_000) as u64,
+        Conv::DayFloor => {
+            ((v as i64)
+                .div_euclid(crate::dates::NS_PER_DAY)
+                .wrapping_mul(crate::dates::NS_PER_DAY)) as u64
+        }
+        Conv::DayRem => (v as i64).rem_euclid(crate::dates::NS_PER_DAY) as u64,
         Conv::RealMsToNs => (f(v) * 1e6).round() as i64 as u64,
         Conv::NsToRealMs(s) => r(v as i64 as f64 / 1e6, s),
         Conv::ToBcd(k) => {

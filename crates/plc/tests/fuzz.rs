@@ -10,6 +10,8 @@ use proptest::prelude::*;
 use rtcnc_plc::{Runtime, RuntimeOptions, compile};
 
 const MILL: &str = include_str!("../../../examples/plc/mill.st");
+const STATIONS: &str = include_str!("../../../examples/plc/stations.st");
+const CAROUSEL: &str = include_str!("../../../examples/plc/carousel.st");
 
 fn cases() -> u32 {
     std::env::var("PLC_FUZZ_CASES")
@@ -151,6 +153,38 @@ const VOCAB: &[&str] = &[
     "STRING_TO_TIME",
     "AND(",
     "THIS",
+    "^",
+    "THIS^.",
+    "SUPER^.",
+    "REF=",
+    "POINTER TO",
+    "REFERENCE TO",
+    "ADR(",
+    "SIZEOF(",
+    "__ISVALIDREF(",
+    "EXTENDS",
+    "IMPLEMENTS",
+    "INTERFACE",
+    "END_INTERFACE",
+    "PROPERTY",
+    "END_PROPERTY",
+    "GET",
+    "END_GET",
+    "SET",
+    "END_SET",
+    "VAR_INST",
+    "{attribute 'x'}",
+    "EN :=",
+    "ENO =>",
+    "D#2024-02-29",
+    "TOD#23:59:59.5",
+    "DT#2024-01-01-00:00:00",
+    "DT_TO_DATE(",
+    "CONCAT_DATE(",
+    "TIME_TO_DT(",
+    "AXIS_REF",
+    "MC_MoveAbsolute",
+    "MC_Power",
 ];
 
 /// A skeleton that makes token soups land inside a POU body more often.
@@ -161,6 +195,11 @@ fn in_program(body: &str) -> String {
 }
 
 fn run_some(src: &str) {
+    run_configured(src, None)
+}
+
+/// As `run_some`, with a PLC configuration (axes for the motion blocks) when it applies.
+fn run_configured(src: &str, cfg: Option<&rtcnc_plc::PlcConfig>) {
     if let Ok(p) = compile(src, "fuzz.st") {
         let mut rt = Runtime::with_options(
             Arc::new(p),
@@ -169,7 +208,14 @@ fn run_some(src: &str) {
                 ..Default::default()
             },
         );
-        for k in 0..3 {
+        if let Some(c) = cfg {
+            let _ = rt.configure(c);
+            rt.set_signal_bool(rtcnc_plc::Signal::MachineOnRequest, true);
+            rt.set_signal_bool(rtcnc_plc::Signal::ToolChangeRequest, true);
+            rt.set_signal(rtcnc_plc::Signal::ToolNumber, 5.0);
+        }
+        let scans = if cfg.is_some() { 40 } else { 3 };
+        for k in 0..scans {
             if rt.scan(Duration::from_millis(4 * k)).is_err() {
                 break;
             }
@@ -196,6 +242,34 @@ proptest! {
         let body = text.join(" ");
         let src = if wrap { in_program(&body) } else { body };
         run_some(&src);
+    }
+
+    #[test]
+    fn mutated_stations_never_panic(edits in proptest::collection::vec((0..STATIONS.len(), 0..40usize, 0..VOCAB.len()), 1..6)) {
+        let mut src = STATIONS.to_string();
+        for (at, len, tok) in edits {
+            let at = at.min(src.len());
+            let end = (at + len).min(src.len());
+            if src.is_char_boundary(at) && src.is_char_boundary(end) {
+                src.replace_range(at..end, VOCAB[tok]);
+            }
+        }
+        run_some(&src);
+    }
+
+    #[test]
+    fn mutated_carousel_never_panics(edits in proptest::collection::vec((0..CAROUSEL.len(), 0..40usize, 0..VOCAB.len()), 1..6)) {
+        let mut src = CAROUSEL.to_string();
+        for (at, len, tok) in edits {
+            let at = at.min(src.len());
+            let end = (at + len).min(src.len());
+            if src.is_char_boundary(at) && src.is_char_boundary(end) {
+                src.replace_range(at..end, VOCAB[tok]);
+            }
+        }
+        let cfg: rtcnc_plc::PlcConfig =
+            toml::from_str(include_str!("../../../examples/plc/carousel.toml")).unwrap();
+        run_configured(&src, Some(&cfg));
     }
 
     #[test]

@@ -125,3 +125,49 @@ fn string_and_call_heavy_scans_and_faults_allocate_nothing() {
         Value::String("tool 250 / 125".into())
     );
 }
+
+#[test]
+fn method_and_interface_heavy_scans_allocate_nothing() {
+    const STATIONS: &str = include_str!("../../../examples/plc/stations.st");
+    let mut rt = Runtime::new(Arc::new(compile(STATIONS, "stations.st").unwrap()));
+    let n = allocations(|| {
+        for k in 0..2000u64 {
+            rt.scan(Duration::from_millis(4 * k)).unwrap();
+        }
+    });
+    assert_eq!(n, 0);
+    // A single station works 40 ms: a cycle is one scan to start, ten 4 ms scans of work
+    // and one to count its part, so 2000 scans make 166 parts. A double station works
+    // 40 + 20 ms (SUPER^.Duration() + T#20ms): 17 scans, 117 cycles of 2 parts = 234.
+    // 25 of each: 25 * (166 + 234).
+    assert_eq!(rt.read_name("Cell.total").unwrap(), Value::Int(10_000));
+    assert_eq!(
+        rt.read_name("Cell.single[3].parts_").unwrap(),
+        Value::Int(166)
+    );
+}
+
+#[test]
+fn plcopen_motion_scans_allocate_nothing() {
+    const CAROUSEL: &str = include_str!("../../../examples/plc/carousel.st");
+    const CAROUSEL_TOML: &str = include_str!("../../../examples/plc/carousel.toml");
+    let mut rt = Runtime::new(Arc::new(compile(CAROUSEL, "carousel.st").unwrap()));
+    let cfg: PlcConfig = toml::from_str(CAROUSEL_TOML).unwrap();
+    rt.configure(&cfg).unwrap();
+    rt.set_signal_bool(Signal::MachineOnRequest, true);
+    rt.set_signal(Signal::ToolNumber, 7.0);
+    let n = allocations(|| {
+        for k in 0..1300u64 {
+            // Requests toggle every 300 scans: each turn plans a new profile.
+            rt.set_signal_bool(Signal::ToolChangeRequest, (k / 300) % 2 == 0 && k > 5);
+            if k == 600 {
+                rt.set_signal(Signal::ToolNumber, 2.0);
+            }
+            rt.scan(Duration::from_millis(4 * k)).unwrap();
+        }
+    });
+    assert_eq!(n, 0);
+    // Tool 7 at 180 degrees, then tool 2 at 30 (150 degrees: 1.61 s from scan 600).
+    let p = rt.axis("turret").unwrap().position;
+    assert!((p - 30.0).abs() < 1e-9, "{p}");
+}

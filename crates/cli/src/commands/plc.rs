@@ -7,7 +7,9 @@ use std::time::Duration;
 
 use anyhow::{Context, bail};
 use clap::Subcommand;
-use rtcnc_plc::{FmtTime, LoadError, Runtime, Value, VarRef, compile_file, parse_time};
+use rtcnc_plc::{
+    CompileOptions, FmtTime, LoadError, Runtime, Value, VarRef, compile_files, parse_time,
+};
 
 /// Soft PLC: check or run a Structured Text program.
 #[derive(Debug, clap::Args)]
@@ -18,18 +20,31 @@ pub struct Args {
 
 #[derive(Debug, Subcommand)]
 enum PlcCommand {
-    /// Compile FILE.st and report errors with file, line and column.
+    /// Compile FILE.st (or the files of one program: global variable lists, types, POUs)
+    /// and report errors and warnings with file, line and column.
     Check {
-        /// The Structured Text source.
-        file: PathBuf,
+        /// The Structured Text sources of one program, in order.
+        #[arg(required = true, num_args = 1..)]
+        file: Vec<PathBuf>,
+        /// A comment ends at the first `*)` (sources that rely on comments not nesting).
+        #[arg(long)]
+        flat_comments: bool,
         /// Also list every variable that `run --watch` / `--set` can name.
         #[arg(long)]
         vars: bool,
     },
     /// Run FILE.st in virtual time and print the watched variables after every scan.
     Run {
-        /// The Structured Text source.
-        file: PathBuf,
+        /// The Structured Text sources of one program, in order.
+        #[arg(required = true, num_args = 1..)]
+        file: Vec<PathBuf>,
+        /// A comment ends at the first `*)` (sources that rely on comments not nesting).
+        #[arg(long)]
+        flat_comments: bool,
+        /// PLC configuration (TOML, as examples/plc/mill.toml): `[signals]` and
+        /// `[safe_values]`, and `[axes]` for the PLCopen motion blocks' axes.
+        #[arg(long)]
+        config: Option<PathBuf>,
         /// Number of scans to run.
         #[arg(long)]
         scans: u64,
@@ -49,39 +64,70 @@ enum PlcCommand {
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     match args.command {
-        PlcCommand::Check { file, vars } => check(&file, vars),
+        PlcCommand::Check {
+            file,
+            vars,
+            flat_comments,
+        } => check(&file, flat_comments, vars),
         PlcCommand::Run {
             file,
+            flat_comments,
+            config,
             scans,
             period,
             set,
             watch,
-        } => run_scans(&file, scans, &period, &set, &watch),
+        } => run_scans(
+            &file,
+            flat_comments,
+            config.as_deref(),
+            scans,
+            &period,
+            &set,
+            &watch,
+        ),
     }
 }
 
-fn load(file: &Path) -> anyhow::Result<Result<rtcnc_plc::Program, ExitCode>> {
-    match compile_file(file) {
-        Ok(p) => Ok(Ok(p)),
+fn shown(files: &[PathBuf]) -> String {
+    let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
+    names.join(", ")
+}
+
+fn load(
+    files: &[PathBuf],
+    flat_comments: bool,
+) -> anyhow::Result<Result<rtcnc_plc::Program, ExitCode>> {
+    let paths: Vec<&Path> = files.iter().map(PathBuf::as_path).collect();
+    let options = CompileOptions {
+        nested_comments: !flat_comments,
+    };
+    match compile_files(&paths, &options) {
+        Ok(p) => {
+            for w in p.warnings() {
+                eprintln!("{w}");
+            }
+            Ok(Ok(p))
+        }
         Err(LoadError::Compile(errors)) => {
             for e in &errors.0 {
                 eprintln!("{e}");
             }
-            eprintln!("{}: {} error(s)", file.display(), errors.0.len());
+            eprintln!("{}: {} error(s)", shown(files), errors.0.len());
             Ok(Err(ExitCode::from(1)))
         }
         Err(e) => Err(e.into()),
     }
 }
 
-fn check(file: &Path, vars: bool) -> anyhow::Result<ExitCode> {
-    let program = match load(file)? {
+fn check(file: &[PathBuf], flat_comments: bool, vars: bool) -> anyhow::Result<ExitCode> {
+    let program = match load(file, flat_comments)? {
         Ok(p) => p,
         Err(code) => return Ok(code),
     };
     println!(
         "{}: ok: {} POUs, {} slots of memory, images %I {} B, %Q {} B, %M {} B",
-        file.display(),
+        shown(file),
         program.pou_count(),
         program.memory_slots(),
         program.image_size(rtcnc_plc::Area::Input),
@@ -118,7 +164,9 @@ struct Force {
 }
 
 fn run_scans(
-    file: &Path,
+    file: &[PathBuf],
+    flat_comments: bool,
+    config: Option<&Path>,
     scans: u64,
     period: &str,
     sets: &[String],
@@ -136,11 +184,19 @@ fn run_scans(
     {
         bail!("--scans {scans} of {period} go past the PLC clock's range (about 292 years)");
     }
-    let program = match load(file)? {
+    let program = match load(file, flat_comments)? {
         Ok(p) => p,
         Err(code) => return Ok(code),
     };
     let mut plc = Runtime::new(Arc::new(program));
+    if let Some(path) = config {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        let cfg: rtcnc_plc::PlcConfig =
+            toml::from_str(&text).with_context(|| format!("{}", path.display()))?;
+        plc.configure(&cfg)
+            .with_context(|| format!("{}", path.display()))?;
+    }
     let mut forces = Vec::new();
     for s in sets {
         let (name, rest) = s
@@ -193,7 +249,7 @@ fn run_scans(
         }
         println!("{row}");
         if let Err(fault) = result {
-            eprintln!("{}: {fault}", file.display());
+            eprintln!("{}: {fault}", shown(file));
             return Ok(ExitCode::from(1));
         }
     }

@@ -15,8 +15,15 @@ impl<'a> Compiler<'a> {
         if n.text == "STRING" {
             return Ok((Type::String(DEFAULT_STRING_LEN), None));
         }
+        // The PLCopen axis reference holds the number of a configured axis.
+        if matches!(n.text.as_str(), "AXIS_REF" | "AXIS_REF_SM3") {
+            return Ok((Type::Elem(Elem::UDInt), None));
+        }
         if let Some(id) = self.fb_id(n)? {
             return Ok((Type::Fb(id), None));
+        }
+        if self.iface_asts.contains_key(&n.text) {
+            return Ok((Type::Interface(self.iface(n)?), None));
         }
         let Some(decl) = self.type_asts.get(&n.text).copied() else {
             return Err(self.e(
@@ -61,6 +68,21 @@ impl<'a> Compiler<'a> {
     ) -> R<(Type, Option<Vec<u64>>)> {
         match spec {
             TypeSpec::Named(n) => self.named_type(n),
+            TypeSpec::Pointer(t) => {
+                let (t, _) = self.type_spec(t, None, scope)?;
+                Ok((Type::Pointer(Arc::new(t)), None))
+            }
+            TypeSpec::Reference(t, pos) => {
+                let (t, _) = self.type_spec(t, None, scope)?;
+                if matches!(t, Type::Reference(_)) {
+                    return Err(self.e(
+                        *pos,
+                        ErrorKind::Invalid,
+                        "a REFERENCE TO a REFERENCE is not allowed; use one REFERENCE",
+                    ));
+                }
+                Ok((Type::Reference(Arc::new(t)), None))
+            }
             TypeSpec::String { len, pos } => {
                 let n = match len {
                     Some(e) => self.const_int_in(e, scope)?,
@@ -222,7 +244,7 @@ impl<'a> Compiler<'a> {
     /// Default initial slots of a type.
     pub(super) fn template(&self, t: &Type) -> Vec<u64> {
         match t {
-            Type::Elem(_) => vec![0],
+            Type::Elem(_) | Type::Pointer(_) | Type::Reference(_) | Type::Interface(_) => vec![0],
             Type::String(n) => vec![0; string_slots(*n) as usize],
             Type::Enum(id) => vec![self.enums[*id as usize].values[0].1 as u64],
             // IEC: a subrange starts at its lower limit unless initialised.
@@ -399,6 +421,10 @@ impl<'a> Compiler<'a> {
                 std: Some(s),
                 body: 0,
                 methods: Vec::new(),
+                base: None,
+                interfaces: Vec::new(),
+                properties: Vec::new(),
+                own_start: 0,
             });
             self.fb_by_name.insert(n.text.clone(), Lookup::Found(id));
             return Ok(Some(id));
@@ -417,8 +443,11 @@ impl<'a> Compiler<'a> {
         self.fb_by_name.insert(n.text.clone(), Lookup::Busy);
         let r = self.fb_layout(pou);
         match r {
-            Ok(info) => {
+            Ok(mut info) => {
                 let id = self.fbs.len() as u32;
+                if let Some(t) = info.template.get_mut(TAG_SLOT as usize) {
+                    *t = id as u64 + 1;
+                }
                 self.fbs.push(info);
                 self.fb_by_name.insert(n.text.clone(), Lookup::Found(id));
                 Ok(id)
@@ -432,9 +461,53 @@ impl<'a> Compiler<'a> {
 
     pub(super) fn fb_layout(&mut self, pou: &'a ast::Pou) -> R<FbInfo> {
         let mut members: Vec<Member> = Vec::new();
-        let mut off = 0u32;
-        let mut template: Vec<u64> = Vec::new();
-        let scope = Scope {
+        let mut off = 1u32; // TAG_SLOT
+        let mut template: Vec<u64> = vec![0];
+        let mut base = None;
+        let mut methods = Vec::new();
+        let mut properties = Vec::new();
+        if let Some(bn) = &pou.extends {
+            let id = match self.fb_id(bn)? {
+                Some(id) if self.fbs[id as usize].std.is_none() => id,
+                Some(_) => {
+                    return Err(self.e(
+                        bn.pos,
+                        ErrorKind::Invalid,
+                        format!(
+                            "'{}' is a standard function block; EXTENDS needs a FUNCTION_BLOCK of this program",
+                            bn.text
+                        ),
+                    ));
+                }
+                None => {
+                    return Err(self.e(
+                        bn.pos,
+                        ErrorKind::Undeclared,
+                        format!("no FUNCTION_BLOCK named '{}' to extend", bn.text),
+                    ));
+                }
+            };
+            let b = &self.fbs[id as usize];
+            members = b.members.clone();
+            template = b.template.clone();
+            off = b.size;
+            methods = b.methods.clone();
+            properties = b.properties.clone();
+            base = Some(id);
+        }
+        let own_start = off;
+        let mut interfaces = Vec::new();
+        for i in &pou.implements {
+            if !self.iface_asts.contains_key(&i.text) {
+                return Err(self.e(
+                    i.pos,
+                    ErrorKind::Undeclared,
+                    format!("no INTERFACE named '{}'", i.text),
+                ));
+            }
+            interfaces.push(self.iface(i)?);
+        }
+        let mut scope = Scope {
             vars: HashMap::new(),
             kind: PouKind::FunctionBlock,
             pou: 0,
@@ -444,12 +517,30 @@ impl<'a> Compiler<'a> {
             for_vars: Vec::new(),
         };
         // VAR_TEMP members go last, so the slots re-initialised per call are contiguous.
+        // A METHOD's VAR_INST lives in the instance as `METHOD.NAME`.
+        let inst_vars: Vec<(String, &ast::VarBlock)> = pou
+            .methods
+            .iter()
+            .flat_map(|m| {
+                m.vars
+                    .iter()
+                    .filter(|b| b.kind == VarKind::Inst)
+                    .map(move |b| (format!("{}.", m.name.text), b))
+            })
+            .collect();
         let ordered = pou
             .vars
             .iter()
             .filter(|b| b.kind != VarKind::Temp)
-            .chain(pou.vars.iter().filter(|b| b.kind == VarKind::Temp));
-        for b in ordered {
+            .map(|b| (String::new(), b))
+            .chain(inst_vars)
+            .chain(
+                pou.vars
+                    .iter()
+                    .filter(|b| b.kind == VarKind::Temp)
+                    .map(|b| (String::new(), b)),
+            );
+        for (prefix, b) in ordered {
             if matches!(b.kind, VarKind::Global) {
                 return Err(self.e(
                     pou.name.pos,
@@ -470,11 +561,17 @@ impl<'a> Compiler<'a> {
                 }
                 let (t, tpl) = self.type_spec(&d.ty, None, &scope)?;
                 for n in &d.names {
-                    if members.iter().any(|m| m.name == n.text) {
+                    let name = format!("{prefix}{}", n.text);
+                    if let Some(m) = members.iter().find(|m| m.name == name) {
+                        let inherited = m.offset < own_start;
                         return Err(self.e(
                             n.pos,
                             ErrorKind::Duplicate,
-                            format!("'{}' is already declared", n.text),
+                            if inherited {
+                                format!("'{}' is already declared in the base block", n.text)
+                            } else {
+                                format!("'{}' is already declared", n.text)
+                            },
                         ));
                     }
                     let size = if b.kind == VarKind::InOut {
@@ -491,11 +588,29 @@ impl<'a> Compiler<'a> {
                         self.apply_init(&t, i, &mut sub, 0, &scope)?;
                     }
                     template.extend_from_slice(&sub);
+                    // Named constants serve as bounds of the declarations that follow.
+                    if b.constant && prefix.is_empty() && t.scalar().is_some() {
+                        scope.vars.insert(
+                            n.text.clone(),
+                            VarInfo {
+                                ty: t.clone(),
+                                loc: Loc::Rel(off),
+                                kind: b.kind,
+                                constant: true,
+                                const_val: sub.first().copied(),
+                                input_area: false,
+                            },
+                        );
+                    }
                     members.push(Member {
-                        name: n.text.clone(),
+                        name,
                         ty: t.clone(),
                         offset: off,
-                        kind: b.kind,
+                        kind: if b.kind == VarKind::Inst {
+                            VarKind::Local
+                        } else {
+                            b.kind
+                        },
                         constant: b.constant,
                         retain: b.retain,
                     });
@@ -519,7 +634,11 @@ impl<'a> Compiler<'a> {
             template,
             std: None,
             body,
-            methods: Vec::new(),
+            methods,
+            base,
+            interfaces,
+            properties,
+            own_start,
         })
     }
 
@@ -556,7 +675,7 @@ impl<'a> Compiler<'a> {
         vars: &[ast::VarBlock],
         shown: &str,
     ) -> R<u32> {
-        let scope = Scope {
+        let mut scope = Scope {
             vars: HashMap::new(),
             kind: PouKind::Function,
             pou: 0,
@@ -606,6 +725,9 @@ impl<'a> Compiler<'a> {
                     "VAR_GLOBAL is not allowed inside a function",
                 ));
             }
+            if b.kind == VarKind::Inst {
+                continue; // laid out in the instance by fb_layout
+            }
             for d in &b.decls {
                 if b.kind == VarKind::External {
                     for n in &d.names {
@@ -646,6 +768,19 @@ impl<'a> Compiler<'a> {
                         None
                     };
                     let loc = if inout { Loc::IndAbs(a) } else { Loc::Abs(a) };
+                    if b.constant && const_val.is_some() {
+                        scope.vars.insert(
+                            n.text.clone(),
+                            VarInfo {
+                                ty: t.clone(),
+                                loc,
+                                kind: b.kind,
+                                constant: true,
+                                const_val,
+                                input_area: false,
+                            },
+                        );
+                    }
                     locals.insert(
                         n.text.clone(),
                         VarInfo {
@@ -936,41 +1071,248 @@ impl<'a> Compiler<'a> {
         Ok(scope)
     }
 
-    /// Lays out the METHODs of a function block (after its members are known).
+    /// Lays out the METHODs and PROPERTYs of a function block (after its members are
+    /// known), after those of its base: a method of the same name overrides the base's.
     pub(super) fn declare_methods(&mut self, n: &Name) -> R<()> {
         let id = self.fb_type(n)?;
+        if !self.methods_declared.insert(id) {
+            return Ok(());
+        }
         let pou = self.fb_asts[&n.text];
+        if let Some(b) = &pou.extends {
+            self.declare_methods(b)?;
+            // Inherit what the base declared after this block's layout copied its tables.
+            let base = self.fbs[id as usize].base.map(|b| b as usize);
+            if let Some(b) = base {
+                self.fbs[id as usize].methods = self.fbs[b].methods.clone();
+                self.fbs[id as usize].properties = self.fbs[b].properties.clone();
+            }
+        }
+        let spelled =
+            |c: &Self, t: &str| c.spelling.get(t).cloned().unwrap_or_else(|| t.to_string());
+        let own_members_clash =
+            |c: &Self, name: &str| c.fbs[id as usize].members.iter().any(|x| x.name == name);
+        let mut own: Vec<String> = Vec::new();
         for m in &pou.methods {
-            let clash = self.fbs[id as usize]
-                .methods
-                .iter()
-                .any(|(x, _, _)| x == &m.name.text)
-                || self.fbs[id as usize]
-                    .members
-                    .iter()
-                    .any(|x| x.name == m.name.text);
-            if clash {
+            if own.contains(&m.name.text) || own_members_clash(self, &m.name.text) {
                 return Err(self.e(
                     m.name.pos,
                     ErrorKind::Duplicate,
-                    format!("'{}' is already declared in {}", m.name.text, n.text),
+                    format!("'{}' is already declared in '{}'", m.name.text, n.text),
                 ));
             }
-            let spelled = |t: &str| {
-                self.spelling
-                    .get(t)
-                    .cloned()
-                    .unwrap_or_else(|| t.to_string())
-            };
-            let shown = format!("{}.{}", spelled(&n.text), spelled(&m.name.text));
+            own.push(m.name.text.clone());
+            let shown = format!("{}.{}", spelled(self, &n.text), spelled(self, &m.name.text));
             let f = self.callable(&m.name, &m.ret, &m.vars, &shown)?;
-            self.fbs[id as usize]
-                .methods
-                .push((m.name.text.clone(), f, m.private));
+            let table = &mut self.fbs[id as usize].methods;
+            match table.iter_mut().find(|x| x.0 == m.name.text) {
+                Some(slot) => *slot = (m.name.text.clone(), f, m.private),
+                None => table.push((m.name.text.clone(), f, m.private)),
+            }
             self.method_asts.insert(f, (id, m));
             self.method_names.insert(m.name.text.clone());
         }
+        for p in &pou.properties {
+            if own.contains(&p.name.text) || own_members_clash(self, &p.name.text) {
+                return Err(self.e(
+                    p.name.pos,
+                    ErrorKind::Duplicate,
+                    format!("'{}' is already declared in '{}'", p.name.text, n.text),
+                ));
+            }
+            own.push(p.name.text.clone());
+            let empty = Scope {
+                vars: HashMap::new(),
+                kind: PouKind::Function,
+                pou: 0,
+                loops: 0,
+                calls: Vec::new(),
+                fb: None,
+                for_vars: Vec::new(),
+            };
+            self.type_spec(&p.ty, None, &empty)?;
+            let mut info = PropInfo {
+                name: p.name.text.clone(),
+                get: None,
+                set: None,
+                private: false,
+            };
+            for (acc, word) in [(&p.get, "GET"), (&p.set, "SET")] {
+                let Some(m) = acc else { continue };
+                let shown = format!(
+                    "{}.{}.{word}",
+                    spelled(self, &n.text),
+                    spelled(self, &p.name.text)
+                );
+                let f = self.callable(&m.name, &m.ret, &m.vars, &shown)?;
+                self.method_asts.insert(f, (id, m));
+                info.private = m.private;
+                if word == "GET" {
+                    info.get = Some(f);
+                } else {
+                    info.set = Some(f);
+                }
+            }
+            let table = &mut self.fbs[id as usize].properties;
+            match table.iter_mut().find(|x| x.name == info.name) {
+                Some(slot) => {
+                    // An override may define only one accessor; the other is inherited.
+                    slot.get = info.get.or(slot.get);
+                    slot.set = info.set.or(slot.set);
+                    slot.private = info.private;
+                }
+                None => table.push(info),
+            }
+        }
         Ok(())
+    }
+
+    /// An INTERFACE's id, declaring it (and the interfaces it extends) on first use.
+    pub(super) fn iface(&mut self, n: &Name) -> R<u32> {
+        match self.iface_by_name.get(&n.text) {
+            Some(Lookup::Found(id)) => return Ok(*id),
+            Some(Lookup::Busy) => {
+                return Err(self.e(
+                    n.pos,
+                    ErrorKind::Invalid,
+                    format!("interface '{}' extends itself", n.text),
+                ));
+            }
+            _ => {}
+        }
+        let Some(ast) = self.iface_asts.get(&n.text).copied() else {
+            return Err(self.e(
+                n.pos,
+                ErrorKind::Undeclared,
+                format!("no INTERFACE named '{}'", n.text),
+            ));
+        };
+        self.iface_by_name.insert(n.text.clone(), Lookup::Busy);
+        let r = (|| {
+            let mut extends = Vec::new();
+            let mut methods = Vec::new();
+            let mut properties = Vec::new();
+            for e in &ast.extends {
+                let id = self.iface(e)?;
+                let base = &self.ifaces[id as usize];
+                methods.extend(base.methods.iter().cloned());
+                properties.extend(base.properties.iter().cloned());
+                extends.push(id);
+            }
+            let empty = Scope {
+                vars: HashMap::new(),
+                kind: PouKind::Function,
+                pou: 0,
+                loops: 0,
+                calls: Vec::new(),
+                fb: None,
+                for_vars: Vec::new(),
+            };
+            for m in &ast.methods {
+                let ret = match &m.ret {
+                    Some(TypeSpec::Named(t)) if t.text == "VOID" => None,
+                    Some(t) => Some(self.type_spec(t, None, &empty)?.0),
+                    None => None,
+                };
+                methods.push((m.name.text.clone(), ret));
+            }
+            for p in &ast.properties {
+                let (t, _) = self.type_spec(&p.ty, None, &empty)?;
+                properties.push((p.name.text.clone(), t));
+            }
+            Ok(IfaceInfo {
+                name: ast.name.text.clone(),
+                extends,
+                methods,
+                properties,
+            })
+        })();
+        match r {
+            Ok(info) => {
+                let id = self.ifaces.len() as u32;
+                self.ifaces.push(info);
+                self.iface_by_name.insert(n.text.clone(), Lookup::Found(id));
+                Ok(id)
+            }
+            Err(e) => {
+                self.iface_by_name.insert(n.text.clone(), Lookup::Missing);
+                Err(e)
+            }
+        }
+    }
+
+    /// Every method and property an implemented interface requires is there.
+    pub(super) fn check_implements(&mut self, n: &Name) -> R<()> {
+        let id = self.fb_type(n)?;
+        let pou = self.fb_asts[&n.text];
+        for (k, i) in pou.implements.iter().enumerate() {
+            let Some(&iid) = self.fbs[id as usize].interfaces.get(k) else {
+                continue;
+            };
+            let fb = &self.fbs[id as usize];
+            let it = &self.ifaces[iid as usize];
+            for (m, _) in &it.methods {
+                if !fb.methods.iter().any(|x| &x.0 == m) {
+                    return Err(self.e(
+                        i.pos,
+                        ErrorKind::Invalid,
+                        format!(
+                            "'{}' implements '{}' but has no METHOD '{m}': add it",
+                            fb.name, it.name
+                        ),
+                    ));
+                }
+            }
+            for (p, _) in &it.properties {
+                if !fb.properties.iter().any(|x| &x.name == p) {
+                    return Err(self.e(
+                        i.pos,
+                        ErrorKind::Invalid,
+                        format!(
+                            "'{}' implements '{}' but has no PROPERTY '{p}': add it",
+                            fb.name, it.name
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Does function block `fb` extend `base` (or is it `base`)?
+    pub(super) fn fb_extends(&self, fb: u32, base: u32) -> bool {
+        let mut cur = Some(fb);
+        while let Some(c) = cur {
+            if c == base {
+                return true;
+            }
+            cur = self.fbs.get(c as usize).and_then(|f| f.base);
+        }
+        false
+    }
+
+    /// Does interface `i` extend `target` (or is it `target`)?
+    pub(super) fn iface_extends(&self, i: u32, target: u32) -> bool {
+        i == target
+            || self
+                .ifaces
+                .get(i as usize)
+                .is_some_and(|x| x.extends.iter().any(|e| self.iface_extends(*e, target)))
+    }
+
+    /// Does function block `fb` (or a base of it) implement interface `i`?
+    pub(super) fn fb_implements(&self, fb: u32, i: u32) -> bool {
+        let mut cur = Some(fb);
+        while let Some(c) = cur {
+            let Some(f) = self.fbs.get(c as usize) else {
+                return false;
+            };
+            if f.interfaces.iter().any(|x| self.iface_extends(*x, i)) {
+                return true;
+            }
+            cur = f.base;
+        }
+        false
     }
 
     /// Compiles a METHOD: the function block's members relative to the instance, the
@@ -991,6 +1333,13 @@ impl<'a> Compiler<'a> {
         };
         let mut scope = self.fb_scope(fb, pou, pou_id)?;
         scope.kind = PouKind::Function;
+        let prefix = format!("{}.", m.name.text);
+        let inst: Vec<(String, VarInfo)> = scope
+            .vars
+            .iter()
+            .filter_map(|(k, v)| k.strip_prefix(&prefix).map(|n| (n.to_string(), v.clone())))
+            .collect();
+        scope.vars.extend(inst);
         scope.vars.extend(locals);
         let stmts = self.block(&m.body, &mut scope)?;
         self.fn_calls[fid as usize] = std::mem::take(&mut scope.calls);
@@ -1017,7 +1366,11 @@ impl<'a> Compiler<'a> {
         let mut scope = self.fb_scope(id, pou, pou_id)?;
         let stmts = self.block(&pou.body, &mut scope)?;
         // VAR_TEMP members are re-initialised on every call.
-        let temps: Vec<&Member> = members.iter().filter(|m| m.kind == VarKind::Temp).collect();
+        let own_start = self.fbs[id as usize].own_start;
+        let temps: Vec<&Member> = members
+            .iter()
+            .filter(|m| m.kind == VarKind::Temp && m.offset >= own_start)
+            .collect();
         let reinit = match (temps.first(), temps.last()) {
             (Some(f), Some(l)) => {
                 let start = f.offset;

@@ -2,6 +2,10 @@
 
 use super::*;
 
+fn address(t: &Ty) -> bool {
+    matches!(t, Ty::T(x) if x.is_address())
+}
+
 impl<'a> Compiler<'a> {
     // ---------------------------------------------------------------- variable access
 
@@ -13,6 +17,102 @@ impl<'a> Compiler<'a> {
     }
 
     pub(super) fn access(&mut self, a: &Access, sc: &mut Scope) -> R<Lv> {
+        self.access_opt(a, sc, false)
+    }
+
+    /// A place as a pointer or reference reads it: `lv` holds a byte address, the result
+    /// is what it points to.
+    pub(super) fn deref_lv(&self, lv: Lv, target: Type) -> Lv {
+        let simple = lv.steps.is_empty() && !lv.indirect && lv.inner.is_none();
+        let (base, inner) = if simple {
+            let b = match lv.base {
+                Base::Abs(a) => Base::Abs(a + lv.offset),
+                Base::Rel(o) => Base::Rel(o + lv.offset),
+            };
+            (b, None)
+        } else {
+            let inner = DynPlace {
+                base: lv.base,
+                indirect: lv.indirect,
+                offset: lv.offset,
+                steps: lv.steps.into_boxed_slice(),
+                inner: lv.inner,
+            };
+            (Base::Abs(0), Some(Box::new(inner)))
+        };
+        Lv {
+            ty: target,
+            base,
+            indirect: true,
+            offset: 0,
+            steps: Vec::new(),
+            bit: None,
+            readonly: None,
+            const_val: None,
+            inner,
+            warn_on_write: None,
+        }
+    }
+
+    /// The instance `THIS^` or `SUPER^` names inside a function block (SUPER^ as the base
+    /// type).
+    fn this_lv(&self, a: &Access, sc: &Scope) -> R<Option<Lv>> {
+        let is_this = a.root.text == "THIS";
+        let is_super = a.root.text == "SUPER";
+        if !(is_this || is_super) || sc.vars.contains_key(&a.root.text) {
+            return Ok(None);
+        }
+        let Some(fb) = sc.fb else {
+            return Err(self.e(
+                a.root.pos,
+                ErrorKind::Invalid,
+                format!("{} belongs inside a FUNCTION_BLOCK", a.root.text),
+            ));
+        };
+        if !matches!(a.parts.first(), Some(Part::Deref(_))) {
+            return Err(self.e(
+                a.root.pos,
+                ErrorKind::Syntax,
+                format!("write {}^ (with '^')", a.root.text),
+            ));
+        }
+        let ty = if is_super {
+            match self.fbs[fb as usize].base {
+                Some(b) => b,
+                None => {
+                    return Err(self.e(
+                        a.root.pos,
+                        ErrorKind::Invalid,
+                        format!(
+                            "SUPER^ needs a base block: '{}' has no EXTENDS",
+                            self.fbs[fb as usize].name
+                        ),
+                    ));
+                }
+            }
+        } else {
+            fb
+        };
+        Ok(Some(Lv {
+            ty: Type::Fb(ty),
+            base: Base::Rel(0),
+            indirect: false,
+            offset: 0,
+            steps: Vec::new(),
+            bit: None,
+            readonly: None,
+            const_val: None,
+            inner: None,
+            warn_on_write: None,
+        }))
+    }
+
+    /// A variable access; `keep_ref` leaves a final REFERENCE as the reference itself
+    /// (the target of `REF=`) instead of what it points to.
+    pub(super) fn access_opt(&mut self, a: &Access, sc: &mut Scope, keep_ref: bool) -> R<Lv> {
+        if let Some(lv) = self.this_lv(a, sc)? {
+            return self.access_parts(lv, a, &a.parts[1..], sc, keep_ref);
+        }
         if a.root.text.starts_with('%') && self.lookup(&a.root, sc).is_none() {
             let toks = crate::lexer::tokenize(&a.root.text, self.file)?;
             if let Some(crate::lexer::Tok::Direct(d)) = toks.first().map(|t| &t.kind) {
@@ -37,11 +137,6 @@ impl<'a> Compiler<'a> {
                 ErrorKind::AssignToConstant,
                 format!("'{}' is a CONSTANT", a.root.text),
             ))
-        } else if v.kind == VarKind::Input {
-            Some((
-                ErrorKind::AssignToInput,
-                format!("'{}' is an input of this POU", a.root.text),
-            ))
         } else if v.input_area {
             Some((
                 ErrorKind::AssignToInput,
@@ -50,7 +145,13 @@ impl<'a> Compiler<'a> {
         } else {
             None
         };
-        let mut lv = Lv {
+        let warn_on_write = (v.kind == VarKind::Input && !v.constant).then(|| {
+            format!(
+                "'{}' is a VAR_INPUT of this POU: writing it hides the caller's value until the next call",
+                a.root.text
+            )
+        });
+        let lv = Lv {
             ty: v.ty.clone(),
             base,
             indirect,
@@ -59,8 +160,30 @@ impl<'a> Compiler<'a> {
             bit: None,
             readonly,
             const_val: v.const_val,
+            inner: None,
+            warn_on_write,
         };
-        for p in &a.parts {
+        self.access_parts(lv, a, &a.parts, sc, keep_ref)
+    }
+
+    fn access_parts(
+        &mut self,
+        mut lv: Lv,
+        a: &Access,
+        parts: &[Part],
+        sc: &mut Scope,
+        keep_ref: bool,
+    ) -> R<Lv> {
+        if let Type::Reference(t) = lv.ty.clone() {
+            if !(keep_ref && parts.is_empty()) {
+                // Writing through a reference input writes the caller's variable: no warning.
+                let ro = lv.readonly.take();
+                lv = self.deref_lv(lv, (*t).clone());
+                lv.readonly = ro;
+            }
+        }
+        for (k, p) in parts.iter().enumerate() {
+            let last = k + 1 == parts.len();
             if lv.bit.is_some() {
                 return Err(self.e(
                     a.root.pos,
@@ -69,7 +192,21 @@ impl<'a> Compiler<'a> {
                 ));
             }
             lv.const_val = None;
+            lv.warn_on_write = None;
             match p {
+                Part::Deref(pos) => {
+                    let Type::Pointer(t) = lv.ty.clone() else {
+                        return Err(self.e(
+                            *pos,
+                            ErrorKind::TypeMismatch,
+                            format!(
+                                "'^' dereferences a POINTER; here it follows a {}",
+                                self.type_name(&lv.ty)
+                            ),
+                        ));
+                    };
+                    lv = self.deref_lv(lv, (*t).clone());
+                }
                 Part::Field(f) => match lv.ty.clone() {
                     Type::Struct(id) => {
                         let st = &self.structs[id as usize].0;
@@ -92,7 +229,11 @@ impl<'a> Compiler<'a> {
                                 format!("{} has no member '{}'", fb.name, f.text),
                             ));
                         };
-                        if !matches!(m.kind, VarKind::Input | VarKind::Output | VarKind::InOut) {
+                        // Inside the block (THIS^.x) or a block derived from it, every member.
+                        let inside = sc.fb.is_some_and(|s| self.fb_extends(s, id));
+                        if !inside
+                            && !matches!(m.kind, VarKind::Input | VarKind::Output | VarKind::InOut)
+                        {
                             return Err(self.e(
                                 f.pos,
                                 ErrorKind::Invalid,
@@ -106,7 +247,7 @@ impl<'a> Compiler<'a> {
                                 "VAR_IN_OUT members cannot be accessed from outside",
                             ));
                         }
-                        if m.kind == VarKind::Output && lv.readonly.is_none() {
+                        if m.kind == VarKind::Output && !inside && lv.readonly.is_none() {
                             lv.readonly = Some((
                                 ErrorKind::Invalid,
                                 format!(
@@ -222,12 +363,19 @@ impl<'a> Compiler<'a> {
                     lv.bit = Some(*b);
                 }
             }
+            if let Type::Reference(t) = lv.ty.clone() {
+                if !(keep_ref && last) {
+                    let ro = lv.readonly.take();
+                    lv = self.deref_lv(lv, (*t).clone());
+                    lv.readonly = ro;
+                }
+            }
         }
         Ok(lv)
     }
 
     pub(super) fn place(&self, lv: Lv) -> Place {
-        if lv.steps.is_empty() && !lv.indirect {
+        if lv.steps.is_empty() && !lv.indirect && lv.inner.is_none() {
             match lv.base {
                 Base::Abs(a) => Place::Abs(a + lv.offset),
                 Base::Rel(o) => Place::Rel(o + lv.offset),
@@ -238,6 +386,7 @@ impl<'a> Compiler<'a> {
                 indirect: lv.indirect,
                 offset: lv.offset,
                 steps: lv.steps.into_boxed_slice(),
+                inner: lv.inner,
             }))
         }
     }
@@ -317,6 +466,10 @@ impl<'a> Compiler<'a> {
                     ty: Ty::T(Type::BOOL),
                     e: vm::Expr::Const(*b as u64),
                 },
+                Literal::Moment(k, ns) => TE {
+                    ty: Ty::T(Type::Elem(k.elem())),
+                    e: vm::Expr::Const(*ns as u64),
+                },
                 Literal::Str(s) => return self.string_literal(s, *pos),
             }),
             AExpr::Typed(tn, inner) => {
@@ -351,6 +504,17 @@ impl<'a> Compiler<'a> {
                 })
             }
             AExpr::Var(a) => {
+                // `E_Mode.Idle`: a qualified enumeration value (CODESYS, TwinCAT).
+                if let [Part::Field(v)] = a.parts.as_slice() {
+                    if self.lookup(&a.root, sc).is_none()
+                        && self.type_asts.contains_key(&a.root.text)
+                    {
+                        return self.expr(&AExpr::EnumValue(a.root.clone(), v.clone()), sc, expect);
+                    }
+                }
+                if let Some((r, p)) = self.property_of(a, sc)? {
+                    return self.invoke(r, &p, Invoke::Get, &[], sc, p.pos);
+                }
                 if a.parts.is_empty() && self.lookup(&a.root, sc).is_none() {
                     if let Some(cands) = self.enum_values.get(&a.root.text) {
                         let pick = match expect {
@@ -379,7 +543,10 @@ impl<'a> Compiler<'a> {
                     }
                 }
                 let lv = self.access(a, sc)?;
-                if let Type::Fb(_) = lv.ty {
+                // An instance given where an interface (or VAR_IN_OUT of its type) is
+                // expected stands for itself.
+                let to_interface = matches!(expect, Some(Type::Interface(_)));
+                if let (Type::Fb(_), false) = (&lv.ty, to_interface) {
                     return Err(self.e(
                         a.root.pos,
                         ErrorKind::TypeMismatch,
@@ -508,6 +675,7 @@ impl<'a> Compiler<'a> {
             fault: None,
             fault_at: None,
             pou: 0,
+            axes: Vec::new(),
         };
         let code = Code {
             functions: Vec::new(),
@@ -733,6 +901,9 @@ impl<'a> Compiler<'a> {
         if let Some(te) = self.literal_fold(op, &l.ty, &r.ty, pos)? {
             return Ok(te);
         }
+        if address(&l.ty) || address(&r.ty) {
+            return self.address_binary(op, l, r, pos);
+        }
         let time = Type::Elem(Elem::Time);
         // TIME * number and TIME / number.
         if matches!(op, BinOp::Mul | BinOp::Div)
@@ -758,6 +929,20 @@ impl<'a> Compiler<'a> {
                     e: self.fold(vm::Expr::Bin(bin, Box::new((l.e, rv)))),
                 });
             }
+        }
+        if let Some(te) = self.moment_binary(op, &l, &r, pos)? {
+            let (le, re) = (l.e, r.e);
+            let (ty, bin, wrap_day) = te;
+            let e = vm::Expr::Bin(bin, Box::new((le, re)));
+            let e = if wrap_day {
+                vm::Expr::Conv(Conv::DayRem, Box::new(e))
+            } else {
+                e
+            };
+            return Ok(TE {
+                ty: Ty::T(Type::Elem(ty)),
+                e: self.fold(e),
+            });
         }
         let ct = self.common(&l.ty, &r.ty, pos)?;
         let (lt_name, rt_name) = (self.ty_name(&l.ty), self.ty_name(&r.ty));
@@ -860,6 +1045,101 @@ impl<'a> Compiler<'a> {
         })
     }
 
+    /// TOD/DT ± TIME (a TOD wraps at midnight) and the difference of two dates, times of
+    /// day or dates and times: (result type, operation, wrap to a day). Comparisons of two
+    /// values of one type go the usual way (`None`).
+    #[allow(clippy::type_complexity)]
+    fn moment_binary(&self, op: BinOp, l: &TE, r: &TE, pos: Pos) -> R<Option<(Elem, Bin, bool)>> {
+        let (Some(a), Some(b)) = (elem_of(&l.ty), elem_of(&r.ty)) else {
+            return Ok(None);
+        };
+        if !a.is_moment() && !b.is_moment() {
+            return Ok(None);
+        }
+        let k = IntKind::I64;
+        Ok(Some(match (op, a, b) {
+            (BinOp::Add | BinOp::Sub, Elem::Tod | Elem::Dt, Elem::Time) => {
+                let bin = if op == BinOp::Add {
+                    Bin::AddI(k)
+                } else {
+                    Bin::SubI(k)
+                };
+                (a, bin, a == Elem::Tod)
+            }
+            (BinOp::Sub, x, y) if x == y => (Elem::Time, Bin::SubI(k), false),
+            (BinOp::Eq | BinOp::Ne | BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge, x, y)
+                if x == y =>
+            {
+                return Ok(None);
+            }
+            _ => {
+                return Err(self.e(
+                    pos,
+                    ErrorKind::TypeMismatch,
+                    format!(
+                        "operator {} does not apply to {} and {} (TOD and DT take + and - of a TIME; two of one type subtract to a TIME)",
+                        format!("{op:?}").to_uppercase(),
+                        a.name(),
+                        b.name()
+                    ),
+                ));
+            }
+        }))
+    }
+
+    /// Operators on pointers and interfaces: comparison with each other or with 0, and
+    /// pointer ± integer (in bytes).
+    fn address_binary(&mut self, op: BinOp, l: TE, r: TE, pos: Pos) -> R<TE> {
+        let message = format!(
+            "operator {} does not apply to {} and {}",
+            format!("{op:?}").to_uppercase(),
+            self.ty_name(&l.ty),
+            self.ty_name(&r.ty)
+        );
+        let mismatch = |c: &Compiler| c.e(pos, ErrorKind::TypeMismatch, message.clone());
+        let raw = |c: &Compiler, t: TE| -> R<vm::Expr> {
+            match t.ty {
+                Ty::AnyInt(v) if (0..=u64::MAX as i128).contains(&v) => {
+                    Ok(vm::Expr::Const(v as u64))
+                }
+                Ty::T(ref x) if x.is_address() => Ok(t.e),
+                Ty::T(ref x) if x.elem().is_some_and(|e| e.is_int() || e.is_bit()) => {
+                    let e = x.elem().unwrap_or(Elem::LWord);
+                    Ok(c.fold(c.convert(t.e, e, Elem::LInt)))
+                }
+                _ => Err(mismatch(c)),
+            }
+        };
+        match op {
+            BinOp::Eq | BinOp::Ne => {
+                let bin = if op == BinOp::Eq { Bin::Eq } else { Bin::Ne };
+                let le = raw(self, l)?;
+                let re = raw(self, r)?;
+                Ok(TE {
+                    ty: Ty::T(Type::BOOL),
+                    e: self.fold(vm::Expr::Bin(bin, Box::new((le, re)))),
+                })
+            }
+            BinOp::Add | BinOp::Sub
+                if matches!(&l.ty, Ty::T(Type::Pointer(_))) && !address(&r.ty) =>
+            {
+                let ty = l.ty.clone();
+                let bin = if op == BinOp::Add {
+                    Bin::AddI(IntKind::U64)
+                } else {
+                    Bin::SubI(IntKind::U64)
+                };
+                let le = raw(self, l)?;
+                let re = raw(self, r)?;
+                Ok(TE {
+                    ty,
+                    e: self.fold(vm::Expr::Bin(bin, Box::new((le, re)))),
+                })
+            }
+            _ => Err(mismatch(self)),
+        }
+    }
+
     /// Converts an expression to type `to` if IEC allows it implicitly.
     pub(super) fn coerce(&self, te: TE, to: &Type, pos: Pos) -> R<vm::Expr> {
         let mismatch = |c: &Compiler, from: &Ty| {
@@ -918,6 +1198,29 @@ impl<'a> Compiler<'a> {
                 match (from, to) {
                     (Type::String(_), Type::String(_)) => return Ok(te.e),
                     (Type::Subrange(a, _, _), Type::Subrange(b, _, _)) if a == b => return Ok(te.e),
+                    (Type::Fb(x), Type::Interface(i)) if self.fb_implements(*x, *i) => {
+                        // The interface holds the instance's byte address.
+                        if let vm::Expr::AddrOf(p) = te.e {
+                            return Ok(vm::Expr::RefOf(p));
+                        }
+                        return Err(mismatch(self, &te.ty));
+                    }
+                    (Type::Interface(j), Type::Interface(i)) if self.iface_extends(*j, *i) => {
+                        return Ok(te.e);
+                    }
+                    (Type::Pointer(a), Type::Pointer(b))
+                        if a == b
+                            || matches!(**a, Type::Elem(Elem::Byte))
+                            || matches!(**b, Type::Elem(Elem::Byte))
+                            || matches!((&**a, &**b), (Type::Fb(x), Type::Fb(y)) if self.fb_extends(*x, *y)) =>
+                    {
+                        return Ok(te.e);
+                    }
+                    // CODESYS and TwinCAT take pointers to and from 64-bit words.
+                    (Type::Pointer(_), Type::Elem(Elem::LWord | Elem::ULInt))
+                    | (Type::Elem(Elem::LWord | Elem::ULInt), Type::Pointer(_)) => {
+                        return Ok(te.e);
+                    }
                     _ => {}
                 }
                 let (Some(f), Some(t)) = (from.elem(), to.elem()) else {
@@ -936,6 +1239,9 @@ impl<'a> Compiler<'a> {
         let c = |cv: Conv, e: vm::Expr| vm::Expr::Conv(cv, Box::new(e));
         if f == t {
             return e;
+        }
+        if f.is_moment() || t.is_moment() {
+            return crate::dates::convert(e, f, t).unwrap_or(vm::Expr::Const(0));
         }
         match (f, t) {
             (_, Elem::Bool) if f.is_real() => c(Conv::RealToBool, e),

@@ -20,7 +20,7 @@ use crate::ast::{
     self, Access, Arg, BinOp, Expr as AExpr, Init, Literal, Name, Part, PouKind, TypeSpec, UnOp,
     VarKind,
 };
-use crate::error::{CompileError, CompileErrors, ErrorKind, Pos};
+use crate::error::{CompileError, CompileErrors, ErrorKind, Pos, Warning};
 use crate::lexer::{AddrSize, Area, DirectAddr};
 use crate::program::{FbLayout, Located, Program, ProgramInstance, Symbol, TaskDesc, area_index};
 use crate::stdfb::{Dir, StdFb};
@@ -80,9 +80,54 @@ struct FbInfo {
     template: Vec<u64>,
     std: Option<StdFb>,
     body: u32,
-    /// METHODs: name, function id, private.
+    /// METHODs, inherited ones included: name, function id, private.
     methods: Vec<(String, u32, bool)>,
+    /// `EXTENDS`: the base function block.
+    base: Option<u32>,
+    /// `IMPLEMENTS`: the interfaces named.
+    interfaces: Vec<u32>,
+    /// PROPERTYs, inherited ones included.
+    properties: Vec<PropInfo>,
+    /// Slots of the members this block declares itself start here (after the base's).
+    own_start: u32,
 }
+
+#[derive(Debug, Clone)]
+struct PropInfo {
+    name: String,
+    get: Option<u32>,
+    set: Option<u32>,
+    private: bool,
+}
+
+/// An INTERFACE: the methods (with their result type) and properties it requires.
+struct IfaceInfo {
+    name: String,
+    extends: Vec<u32>,
+    methods: Vec<(String, Option<Type>)>,
+    properties: Vec<(String, Type)>,
+}
+
+/// What a method-like call on an instance invokes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Invoke {
+    Method,
+    Get,
+    Set,
+}
+
+/// The instance a method or property is called on: its place (None: the running
+/// instance), its static type, and the types it may have at run time.
+pub(crate) struct Receiver {
+    instance: Option<Place>,
+    static_fb: Option<u32>,
+    iface: Option<u32>,
+    cands: Vec<u32>,
+}
+
+/// The first slot of every user function block instance holds its type tag (the FB
+/// type id + 1), for calls through interfaces, references and THIS.
+const TAG_SLOT: u32 = 0;
 
 struct FuncInfo {
     name: String,
@@ -142,6 +187,11 @@ pub(crate) struct Compiler<'a> {
     code_fns: Vec<Option<vm::Function>>,
     code_fbs: Vec<Option<vm::Body>>,
     string_lits: HashMap<Vec<u8>, u32>,
+    warnings: Vec<Warning>,
+    iface_asts: HashMap<String, &'a ast::Interface>,
+    ifaces: Vec<IfaceInfo>,
+    iface_by_name: HashMap<String, Lookup<u32>>,
+    methods_declared: HashSet<u32>,
 }
 
 fn err(file: &str, pos: Pos, kind: ErrorKind, msg: impl Into<String>) -> CompileError {
@@ -150,7 +200,9 @@ fn err(file: &str, pos: Pos, kind: ErrorKind, msg: impl Into<String>) -> Compile
 
 fn elem_of(ty: &Ty) -> Option<Elem> {
     match ty {
-        Ty::T(t) => t.scalar().filter(|_| !matches!(t, Type::Enum(_))),
+        Ty::T(t) => t
+            .scalar()
+            .filter(|_| !matches!(t, Type::Enum(_)) && !t.is_address()),
         _ => None,
     }
 }
@@ -166,6 +218,7 @@ fn ik(e: Elem) -> IntKind {
 fn size_of(c: &Compiler, t: &Type) -> u32 {
     match t {
         Type::Elem(_) | Type::Enum(_) | Type::Subrange(..) => 1,
+        Type::Pointer(_) | Type::Reference(_) | Type::Interface(_) => 1,
         Type::String(n) => string_slots(*n),
         Type::Array(a) => (a.len() as u32).saturating_mul(a.elem_size),
         Type::Struct(id) => c.structs.get(*id as usize).map_or(1, |s| s.0.size),
@@ -177,13 +230,89 @@ fn size_of(c: &Compiler, t: &Type) -> u32 {
 /// an allocation failure.
 const MAX_SLOTS: u64 = 16 << 20;
 
-pub(crate) fn compile(src: &str, file: &str) -> Result<Program, CompileErrors> {
-    let toks = crate::lexer::tokenize(src, file)?;
-    let spelling = spellings(src, &toks);
+/// Where the lines of each source file start in the joined token stream.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct LineMap {
+    /// (first line in the joined stream, file name), in order.
+    files: Vec<(u32, String)>,
+}
+
+impl LineMap {
+    /// File name and line within it of a line of the joined stream.
+    pub(crate) fn locate(&self, line: u32) -> (&str, u32) {
+        let k = self.files.partition_point(|(start, _)| *start <= line);
+        match self.files.get(k.saturating_sub(1)) {
+            Some((start, f)) => (f.as_str(), line - start + 1),
+            None => ("", line),
+        }
+    }
+    fn fix(&self, e: &mut CompileError) {
+        let (f, l) = self.locate(e.pos.line);
+        e.file = f.to_string();
+        e.pos.line = l;
+    }
+}
+
+/// Compiles one program made of one or more source files (global variable lists, type
+/// files, POU files), in the order given.
+pub(crate) fn compile(
+    sources: &[(&str, &str)],
+    options: &crate::CompileOptions,
+) -> Result<Program, CompileErrors> {
+    let mut toks: Vec<crate::lexer::Token> = Vec::new();
+    let mut spelling: HashMap<String, String> = HashMap::new();
+    let mut lines = LineMap::default();
+    let mut first_line = 1u32;
+    for (text, file) in sources {
+        let mut t = crate::lexer::tokenize_with(text, file, options.nested_comments)?;
+        for (k, v) in spellings(text, &t) {
+            spelling.entry(k).or_insert(v);
+        }
+        lines.files.push((first_line, file.to_string()));
+        let shift = first_line - 1;
+        for tok in &mut t {
+            tok.pos.line += shift;
+        }
+        let n = text.bytes().filter(|b| *b == b'\n').count() as u32 + 1;
+        first_line = first_line.saturating_add(n);
+        if !toks.is_empty() {
+            toks.pop(); // the previous file's end
+        }
+        toks.extend(t);
+    }
+    if toks.is_empty() {
+        toks.push(crate::lexer::Token {
+            kind: crate::lexer::Tok::Eof,
+            pos: Pos { line: 1, col: 1 },
+        });
+    }
+    let file = sources.first().map_or("", |s| s.1);
     let unit = crate::parser::parse(&toks, file).map_err(|mut e| {
         e.message = respell(&spelling, &e.message);
+        lines.fix(&mut e);
         e
     })?;
+    let mut result = compile_unit(&unit, file, spelling, options);
+    match &mut result {
+        Ok(p) => {
+            for w in &mut p.warnings {
+                let (f, l) = lines.locate(w.pos.line);
+                w.file = f.to_string();
+                w.pos.line = l;
+            }
+            p.lines = lines;
+        }
+        Err(es) => es.0.iter_mut().for_each(|e| lines.fix(e)),
+    }
+    result
+}
+
+fn compile_unit(
+    unit: &ast::Unit,
+    file: &str,
+    spelling: HashMap<String, String>,
+    options: &crate::CompileOptions,
+) -> Result<Program, CompileErrors> {
     let mut c = Compiler {
         spelling,
         file,
@@ -211,14 +340,26 @@ pub(crate) fn compile(src: &str, file: &str) -> Result<Program, CompileErrors> {
         code_fns: Vec::new(),
         code_fbs: Vec::new(),
         string_lits: HashMap::new(),
+        warnings: Vec::new(),
+        iface_asts: HashMap::new(),
+        ifaces: Vec::new(),
+        iface_by_name: HashMap::new(),
+        methods_declared: HashSet::new(),
     };
-    let program = c.unit(&unit);
+    // Slot 0 is never a variable: a null pointer or reference points there.
+    c.image.push(0);
+    let _ = options;
+    let program = c.unit(unit);
     // A program instantiated twice reports its body's errors once.
     let mut seen = HashSet::new();
     c.errors
         .retain(|e| seen.insert((e.pos.line, e.pos.col, e.message.clone())));
     match program {
-        Ok(p) if c.errors.is_empty() => Ok(p),
+        Ok(mut p) if c.errors.is_empty() => {
+            p.warnings = std::mem::take(&mut c.warnings);
+            p.warnings.sort_by_key(|w| (w.pos.line, w.pos.col));
+            Ok(p)
+        }
         Ok(_) => Err(CompileErrors(c.errors)),
         Err(e) => {
             c.errors.push(e);
@@ -260,6 +401,9 @@ impl<'a> Compiler<'a> {
             Type::Array(a) => format!("ARRAY OF {}", self.type_name(&a.elem)),
             Type::Struct(id) => self.structs[*id as usize].0.name.clone(),
             Type::Fb(id) => self.fbs[*id as usize].name.clone(),
+            Type::Pointer(t) => format!("POINTER TO {}", self.type_name(t)),
+            Type::Reference(t) => format!("REFERENCE TO {}", self.type_name(t)),
+            Type::Interface(id) => self.ifaces[*id as usize].name.clone(),
         }
     }
     fn ty_name(&self, t: &Ty) -> String {
@@ -304,6 +448,10 @@ impl<'a> Compiler<'a> {
             check_dup(self, &t.name)?;
             self.type_asts.insert(t.name.text.clone(), t);
         }
+        for i in &u.interfaces {
+            check_dup(self, &i.name)?;
+            self.iface_asts.insert(i.name.text.clone(), i);
+        }
         let mut programs: Vec<&'a ast::Pou> = Vec::new();
         for p in &u.pous {
             check_dup(self, &p.name)?;
@@ -322,34 +470,7 @@ impl<'a> Compiler<'a> {
                 self.errors.push(e);
             }
         }
-        let fb_names: Vec<Name> = u
-            .pous
-            .iter()
-            .filter(|p| p.kind == PouKind::FunctionBlock)
-            .map(|p| p.name.clone())
-            .collect();
-        for n in &fb_names {
-            if let Err(e) = self.fb_type(n) {
-                self.errors.push(e);
-            }
-        }
-        for n in &fb_names {
-            if let Err(e) = self.declare_methods(n) {
-                self.errors.push(e);
-            }
-        }
-        let fn_names: Vec<Name> = u
-            .pous
-            .iter()
-            .filter(|p| p.kind == PouKind::Function)
-            .map(|p| p.name.clone())
-            .collect();
-        for n in &fn_names {
-            if let Err(e) = self.func(n) {
-                self.errors.push(e);
-            }
-        }
-        // Globals: top level and of the configurations.
+        // Globals first: their constants may bound the arrays of blocks and functions.
         let mut global_blocks: Vec<&ast::VarBlock> = u.globals.iter().collect();
         for cfg in &u.configs {
             global_blocks.extend(cfg.globals.iter());
@@ -368,6 +489,43 @@ impl<'a> Compiler<'a> {
                 if let Err(e) = self.declare_global(b, d, &scope) {
                     self.errors.push(e);
                 }
+            }
+        }
+        let fb_names: Vec<Name> = u
+            .pous
+            .iter()
+            .filter(|p| p.kind == PouKind::FunctionBlock)
+            .map(|p| p.name.clone())
+            .collect();
+        for n in &fb_names {
+            if let Err(e) = self.fb_type(n) {
+                self.errors.push(e);
+            }
+        }
+        for i in &u.interfaces {
+            if let Err(e) = self.iface(&i.name) {
+                self.errors.push(e);
+            }
+        }
+        for n in &fb_names {
+            if let Err(e) = self.declare_methods(n) {
+                self.errors.push(e);
+            }
+        }
+        for n in &fb_names {
+            if let Err(e) = self.check_implements(n) {
+                self.errors.push(e);
+            }
+        }
+        let fn_names: Vec<Name> = u
+            .pous
+            .iter()
+            .filter(|p| p.kind == PouKind::Function)
+            .map(|p| p.name.clone())
+            .collect();
+        for n in &fn_names {
+            if let Err(e) = self.func(n) {
+                self.errors.push(e);
             }
         }
         if !self.errors.is_empty() {
@@ -589,6 +747,8 @@ impl<'a> Compiler<'a> {
                 })
                 .collect(),
             located: std::mem::take(&mut self.located),
+            warnings: Vec::new(),
+            lines: LineMap::default(),
             image_sizes: sizes,
             pou_count: u.pous.len(),
         })
@@ -828,6 +988,10 @@ struct Lv {
     bit: Option<u8>,
     readonly: Option<(ErrorKind, String)>,
     const_val: Option<u64>,
+    /// The base is a pointer at a computed place.
+    inner: Option<Box<DynPlace>>,
+    /// Writing it deserves a warning (a VAR_INPUT of the POU itself).
+    warn_on_write: Option<String>,
 }
 
 impl Compiler<'_> {

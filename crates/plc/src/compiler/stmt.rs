@@ -28,7 +28,17 @@ impl<'a> Compiler<'a> {
             ast::Stmt::Assign(target, value, pos) => {
                 (pos.line, self.assign(target, value, sc, *pos)?)
             }
+            ast::Stmt::RefAssign(target, value, pos) => {
+                (pos.line, self.ref_assign(target, value, sc)?)
+            }
             ast::Stmt::Call(target, args, pos) => {
+                let is = |a: &Arg, n: &str| match a {
+                    Arg::Input(x, _) | Arg::Output(x, _, _) => x.text == n,
+                    Arg::Positional(_) => false,
+                };
+                if args.iter().any(|a| is(a, "EN") || is(a, "ENO")) {
+                    return self.call_with_en(target, args, sc, *pos).map(Some);
+                }
                 (pos.line, self.call_stmt(target, args, sc, *pos)?)
             }
             ast::Stmt::If(branches, els, pos) => {
@@ -208,6 +218,65 @@ impl<'a> Compiler<'a> {
         Ok(Some(Stmt { line, kind }))
     }
 
+    /// A call with `EN := c` and/or `ENO => v`: the call runs only while EN is TRUE, and
+    /// ENO tells whether it ran (no call here ends with an error).
+    fn call_with_en(&mut self, target: &Access, args: &[Arg], sc: &mut Scope, pos: Pos) -> R<Stmt> {
+        let mut en = None;
+        let mut eno = None;
+        let mut rest = Vec::new();
+        for a in args {
+            match a {
+                Arg::Input(n, e) if n.text == "EN" => en = Some(e),
+                Arg::Output(n, t, neg) if n.text == "ENO" => eno = Some((t, *neg, n.pos)),
+                Arg::Input(n, _) if n.text == "ENO" => {
+                    return Err(self.e(
+                        n.pos,
+                        ErrorKind::WrongArgument,
+                        "ENO is an output: write ENO => variable",
+                    ));
+                }
+                a => rest.push(a.clone()),
+            }
+        }
+        let call = Stmt {
+            line: pos.line,
+            kind: self.call_stmt(target, &rest, sc, pos)?,
+        };
+        let cond = match en {
+            Some(e) => self.cond(e, sc)?,
+            None => vm::Expr::Const(1),
+        };
+        let mut eno_store = |c: &mut Self, v: u64| -> R<Option<Stmt>> {
+            let Some((Some(t), neg, _)) = &eno else {
+                return Ok(None);
+            };
+            let lv = c.access(t, sc)?;
+            c.check_writable(&lv, t.root.pos)?;
+            if !lv.ty.is_bool() {
+                return Err(c.e(t.root.pos, ErrorKind::WrongArgument, "ENO goes to a BOOL"));
+            }
+            let v = if *neg { v ^ 1 } else { v };
+            let kind = match lv.bit {
+                Some(b) => StmtKind::StoreBit(c.place(lv), b, vm::Expr::Const(v)),
+                None => StmtKind::Store(c.place(lv), vm::Expr::Const(v), Store::Scalar),
+            };
+            Ok(Some(Stmt {
+                line: pos.line,
+                kind,
+            }))
+        };
+        let mut then = vec![call];
+        then.extend(eno_store(self, 1)?);
+        let otherwise: Vec<Stmt> = eno_store(self, 0)?.into_iter().collect();
+        Ok(Stmt {
+            line: pos.line,
+            kind: StmtKind::If(
+                vec![(cond, then.into_boxed_slice())].into_boxed_slice(),
+                otherwise.into_boxed_slice(),
+            ),
+        })
+    }
+
     pub(super) fn case_label(&mut self, e: &AExpr, t: &Type, sc: &mut Scope) -> R<i64> {
         let te = self.expr(e, sc, Some(t))?;
         match self.coerce(te, t, e.pos())? {
@@ -242,6 +311,11 @@ impl<'a> Compiler<'a> {
                 ),
             ));
         }
+        if let Some((r, p)) = self.property_of(target, sc)? {
+            let arg = Arg::Input(p.clone(), value.clone());
+            let te = self.invoke(r, &p, Invoke::Set, &[arg], sc, pos)?;
+            return Ok(StmtKind::Eval(te.e));
+        }
         let lv = self.access(target, sc)?;
         self.check_writable(&lv, target.root.pos)?;
         if let Type::Fb(_) = lv.ty {
@@ -274,10 +348,80 @@ impl<'a> Compiler<'a> {
         Ok(StmtKind::Store(p, v, st))
     }
 
-    pub(super) fn check_writable(&self, lv: &Lv, pos: Pos) -> R<()> {
+    pub(super) fn check_writable(&mut self, lv: &Lv, pos: Pos) -> R<()> {
         match &lv.readonly {
-            None => Ok(()),
+            None => {
+                if let Some(w) = &lv.warn_on_write {
+                    let message = self.respell(w);
+                    self.warnings.push(Warning {
+                        file: self.file.to_string(),
+                        pos,
+                        code: ErrorKind::AssignToInput.code(),
+                        message,
+                    });
+                }
+                Ok(())
+            }
             Some((k, m)) => Err(self.e(pos, *k, m.clone())),
+        }
+    }
+
+    /// `r REF= x`: `r` (a REFERENCE TO T) now points at `x` (of type T), or at nothing
+    /// for `REF= 0`.
+    pub(super) fn ref_assign(
+        &mut self,
+        target: &Access,
+        value: &AExpr,
+        sc: &mut Scope,
+    ) -> R<StmtKind> {
+        let lv = self.access_opt(target, sc, true)?;
+        let Type::Reference(t) = lv.ty.clone() else {
+            return Err(self.e(
+                target.root.pos,
+                ErrorKind::TypeMismatch,
+                format!(
+                    "REF= needs a REFERENCE on its left; '{}' is {}",
+                    target.root.text,
+                    self.type_name(&lv.ty)
+                ),
+            ));
+        };
+        self.check_writable(&lv, target.root.pos)?;
+        let v = match value {
+            AExpr::Lit(Literal::Int(0), _) => vm::Expr::Const(0),
+            AExpr::Var(a) => {
+                let x = self.access(a, sc)?;
+                if !self.same_or_derived(&x.ty, &t) || x.bit.is_some() {
+                    return Err(self.e(
+                        value.pos(),
+                        ErrorKind::TypeMismatch,
+                        format!(
+                            "a REFERENCE TO {} cannot refer to a {}",
+                            self.type_name(&t),
+                            self.type_name(&x.ty)
+                        ),
+                    ));
+                }
+                vm::Expr::RefOf(self.place(x))
+            }
+            _ => {
+                return Err(self.e(
+                    value.pos(),
+                    ErrorKind::Invalid,
+                    "REF= needs a variable on its right (or 0)",
+                ));
+            }
+        };
+        Ok(StmtKind::Store(self.place(lv), v, Store::Scalar))
+    }
+
+    /// May a variable of type `from` be referred to where `to` is expected: the same
+    /// type, or a function block derived from `to`.
+    pub(super) fn same_or_derived(&self, from: &Type, to: &Type) -> bool {
+        match (from, to) {
+            (Type::Fb(a), Type::Fb(b)) => self.fb_extends(*a, *b),
+            (Type::String(a), Type::String(b)) => a == b,
+            (a, b) => a == b,
         }
     }
 }

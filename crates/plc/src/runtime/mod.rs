@@ -145,6 +145,8 @@ pub struct Runtime {
     options: RuntimeOptions,
     fault: Option<Fault>,
     scans: u64,
+    /// AXIS_REF variables and the axis numbers they hold.
+    axis_bindings: Vec<(u32, u64)>,
     next_due: Vec<Option<i64>>,
     /// Trigger values seen on the previous scan (event tasks).
     trigger_prev: Vec<bool>,
@@ -180,6 +182,7 @@ impl Runtime {
                 budget: 0,
                 fault: None,
                 fault_at: None,
+                axes: Vec::new(),
                 pou: 0,
             },
             images: [vec![0; sizes[0]], vec![0; sizes[1]], vec![0; sizes[2]]],
@@ -188,6 +191,7 @@ impl Runtime {
             options,
             fault: None,
             scans: 0,
+            axis_bindings: Vec::new(),
             next_due: vec![None; n_tasks],
             trigger_prev: vec![false; n_tasks],
             signals: vec![None; Signal::ALL.len()],
@@ -207,6 +211,21 @@ impl Runtime {
         self.scans
     }
 
+    /// State and set-point of the auxiliary axis bound to AXIS_REF variable `name` (as in
+    /// the configuration's `[axes]`).
+    pub fn axis(&self, name: &str) -> Option<crate::plcopen::AxisStatus> {
+        self.vm
+            .axes
+            .iter()
+            .find(|a| a.name == name)
+            .map(|a| a.status())
+    }
+
+    /// Every configured auxiliary axis: its AXIS_REF variable and status.
+    pub fn axes(&self) -> impl Iterator<Item = (&str, crate::plcopen::AxisStatus)> {
+        self.vm.axes.iter().map(|a| (a.name.as_str(), a.status()))
+    }
+
     /// The fault that stopped the PLC, if any.
     pub fn fault(&self) -> Option<&Fault> {
         self.fault.as_ref()
@@ -214,6 +233,9 @@ impl Runtime {
 
     /// Restarts after a fault or on request. Forces and the signal mapping stay.
     pub fn restart(&mut self, kind: Restart) {
+        for a in self.vm.axes.iter_mut() {
+            a.reset();
+        }
         let mut kept: Vec<(u32, Vec<u64>)> = Vec::new();
         if kind == Restart::Warm {
             for l in self.retain.iter() {
@@ -323,6 +345,15 @@ impl Runtime {
         }
         self.scans += 1;
         self.vm.now = now;
+        // The motion task: every axis to this scan's time before the programs command.
+        for a in self.vm.axes.iter_mut() {
+            a.step(now);
+        }
+        for &(slot, number) in &self.axis_bindings {
+            if let Some(s) = self.vm.mem.get_mut(slot as usize) {
+                *s = number;
+            }
+        }
         self.vm.budget = self.options.watchdog_budget.max(2);
         let program = &self.program;
         for l in program.located.iter() {
@@ -391,7 +422,7 @@ impl Runtime {
         let fault = Fault {
             kind,
             pou: name,
-            line,
+            line: self.program.lines.locate(line).1,
             scan: self.scans,
         };
         self.images[1].copy_from_slice(&self.safe_outputs);

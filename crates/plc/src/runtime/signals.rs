@@ -71,9 +71,29 @@ impl Runtime {
                 ));
             }
         }
+        let mut axes = Vec::with_capacity(cfg.axes.len());
+        let mut bindings = Vec::with_capacity(cfg.axes.len());
+        for (var, axis) in &cfg.axes {
+            let bad = |message: String| ConfigError::Axis {
+                variable: var.clone(),
+                message,
+            };
+            let r = self.resolve(var).map_err(|e| bad(e.to_string()))?;
+            if r.elem() != Some(Elem::UDInt) || r.bit.is_some() {
+                return Err(bad(format!(
+                    "is {}, not an AXIS_REF",
+                    self.program.type_name(&r.ty)
+                )));
+            }
+            let a = crate::plcopen::Axis::new(var, *axis).map_err(bad)?;
+            axes.push(a);
+            bindings.push((r.slot, axes.len() as u64));
+        }
         self.signals = signals;
         self.safe_slots = safe_slots;
         self.safe_outputs = safe_outputs;
+        self.vm.axes = axes;
+        self.axis_bindings = bindings;
         Ok(())
     }
 
