@@ -863,6 +863,7 @@ pub async fn delete_program(
     Ok(StatusCode::NO_CONTENT)
 }
 
+/// The query of the tool-path preview.
 #[derive(Debug, Deserialize, IntoParams)]
 pub struct PreviewFormat {
     /// `json` (default) or `binary`: one chain of points, f32 coordinates (the layout is in

@@ -4,7 +4,6 @@
 //! feedback as CSV, an SVG plot, the executive's trace and `summary.json`.
 
 use std::collections::HashMap;
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
