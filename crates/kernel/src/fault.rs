@@ -341,9 +341,6 @@ mod tests {
             assert_eq!(code.number(), 100 + i as u32);
             assert_eq!(FaultCode::from_number(code.number()), Some(*code));
         }
-        assert_eq!(
-            FaultCode::ALL.last().copied(),
-            Some(FaultCode::MotionStalled)
-        );
+        assert_eq!(FaultCode::ALL.last().copied(), Some(FaultCode::LinkDown));
     }
 }
