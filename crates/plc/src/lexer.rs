@@ -647,6 +647,11 @@ impl Lexer<'_> {
         if !any {
             return Err(self.err(pos, "duration literal has no value"));
         }
+        // The fractional parts in f64 may be of any size (`T#1.5e300h` is not a thing, but
+        // `T#99…9.5h` is): out of the i64 range they are too large, never an overflow.
+        if !total.is_finite() || total.abs() > i64::MAX as f64 {
+            return Err(self.err(pos, "duration is too large"));
+        }
         let ns = exact + total.round() as i128;
         if ns > i64::MAX as i128 {
             return Err(self.err(pos, "duration is too large"));

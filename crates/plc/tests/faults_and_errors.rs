@@ -321,3 +321,19 @@ fn a_signal_is_refused_on_a_variable_of_another_kind() {
     assert!(!refused("tool_number", "count"));
     assert!(!refused("spindle_on", "flag"));
 }
+
+/// A duration whose fractional part alone is beyond TIME's range (about 292 years) is
+/// refused, not an overflow (found by the st_text fuzz target:
+/// `T#222222h999…9.2…23m`).
+#[test]
+fn a_duration_with_a_huge_fractional_part_is_too_large() {
+    let huge = format!("T#1h{}.5m", "9".repeat(200));
+    let src = format!("PROGRAM P VAR t : TIME; END_VAR t := {huge}; END_PROGRAM");
+    let e = compile(&src, "t.st").unwrap_err();
+    assert!(e.to_string().contains("duration is too large"), "{e}");
+    // At the end of the range, as a whole number and as a fraction: accepted.
+    for ok in ["T#106751d23h47m16s854ms775us807ns", "T#2562047.5h"] {
+        let src = format!("PROGRAM P VAR t : TIME; END_VAR t := {ok}; END_PROGRAM");
+        assert!(compile(&src, "t.st").is_ok(), "{ok}");
+    }
+}
