@@ -283,6 +283,32 @@ fn documented_table(header: &str) -> Vec<Row> {
         .collect()
 }
 
+/// The stop keeps the row's travel and time, and ends in the safe state: categories 0 and 1
+/// both end with the drives off, the machine waiting for a reset.
+fn assert_within_row(row: &Row, stop: &Stop) {
+    assert!(
+        stop.travel_mm <= row.travel_mm,
+        "{}: {:.2} mm > {} mm",
+        row.fault,
+        stop.travel_mm,
+        row.travel_mm
+    );
+    assert!(
+        stop.time_ms <= row.time_ms,
+        "{}: {} ms > {} ms",
+        row.fault,
+        stop.time_ms,
+        row.time_ms
+    );
+    assert!(matches!(row.category, 0 | 1), "{}", row.fault);
+    assert!(
+        matches!(stop.state, MachineState::EStop | MachineState::Fault),
+        "{}: {:?}",
+        row.fault,
+        stop.state
+    );
+}
+
 #[test]
 fn every_fault_stops_the_load_within_its_documented_travel_and_time() {
     let rows = documented_matrix();
@@ -298,29 +324,7 @@ fn every_fault_stops_the_load_within_its_documented_travel_and_time() {
         );
         // Stopped at speed: the bound is not met by stopping early or by standing still.
         assert!(stop.travel_mm > 1.0, "{}: {stop:?}", row.fault);
-        assert!(
-            stop.travel_mm <= row.travel_mm,
-            "{}: {:.2} mm > {} mm",
-            row.fault,
-            stop.travel_mm,
-            row.travel_mm
-        );
-        assert!(
-            stop.time_ms <= row.time_ms,
-            "{}: {} ms > {} ms",
-            row.fault,
-            stop.time_ms,
-            row.time_ms
-        );
-        // Categories 0 and 1 both end with the drives off: the machine is in its safe
-        // state and waits for a reset.
-        assert!(matches!(row.category, 0 | 1), "{}", row.fault);
-        assert!(
-            matches!(stop.state, MachineState::EStop | MachineState::Fault),
-            "{}: {:?}",
-            row.fault,
-            stop.state
-        );
+        assert_within_row(&row, &stop);
     }
 }
 
@@ -417,26 +421,6 @@ fn every_ethercat_fault_stops_the_load_within_its_documented_travel_and_time() {
             row.says
         );
         assert!(stop.travel_mm > 0.1, "{}: {stop:?}", row.fault);
-        assert!(
-            stop.travel_mm <= row.travel_mm,
-            "{}: {:.2} mm > {} mm",
-            row.fault,
-            stop.travel_mm,
-            row.travel_mm
-        );
-        assert!(
-            stop.time_ms <= row.time_ms,
-            "{}: {} ms > {} ms",
-            row.fault,
-            stop.time_ms,
-            row.time_ms
-        );
-        assert!(matches!(row.category, 0 | 1), "{}", row.fault);
-        assert!(
-            matches!(stop.state, MachineState::EStop | MachineState::Fault),
-            "{}: {:?}",
-            row.fault,
-            stop.state
-        );
+        assert_within_row(&row, &stop);
     }
 }
