@@ -56,9 +56,10 @@ def add_users(users: Path) -> None:
 class Server:
     """One `rtcnc serve`; the pids of its current machine and API processes."""
 
-    def __init__(self, folder: Path, on_loss: str = "continue", loose_following_error: bool = True):
+    def __init__(self, folder: Path, on_loss: str = "continue", loose_following_error: bool = True,
+                 config: Path | None = None):
         self.folder = folder
-        self.config = machine_file(folder, on_loss, loose_following_error)
+        self.config = config or machine_file(folder, on_loss, loose_following_error)
         self.users = folder / "users.toml"
         add_users(self.users)
         self.segment = f"rtcnc-pytest-{os.getpid()}-{on_loss}"
