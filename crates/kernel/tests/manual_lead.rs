@@ -374,6 +374,9 @@ fn a_stall_during_a_thread_pass_is_ridden_through_on_the_same_helix() {
     let reference = thread("50ms", None);
     assert!(reference.faults.is_empty(), "{:?}", reference.faults);
     assert!(reference.status.program_ended);
+    // The lead changes nothing without a stall.
+    let one = thread("1ms", None);
+    assert_eq!(first_difference(&one, &reference, 2, 0.0), None);
     // The middle of the pass: line 4 with Z moving.
     let on_line: Vec<u64> = reference
         .samples
