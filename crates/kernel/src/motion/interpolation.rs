@@ -240,12 +240,20 @@ impl MotionCore {
 
     /// Produces the set-points up to the lead ahead of position control, a bounded number
     /// per run (a run after a stall catches up over the next ones). When the on-line
-    /// generators have something to decide, the set-points after the one position control
-    /// takes next are taken back first, and the first produced decides.
+    /// generators have something to decide, the first produced decides, in place of the
+    /// one position control takes next and those after it.
     fn produce(&mut self, ctx: &mut Context<'_>, shared: &Shared, feedback: &Feedback) {
         let mut decide = self.decisions_due(feedback);
+        let mut replace_from = None;
         if decide {
-            self.take_back();
+            let from = self.out.consumer_next().max(self.out.floor + 1);
+            if self.out.cycle >= from {
+                // The generators go back now; the queue only once the set-point that
+                // replaces the first is computed, so that position control, taking it on
+                // another processor meanwhile, still finds one.
+                replace_from = Some((from, self.out.cycle));
+                self.restore(from - 1);
+            }
         }
         let target = self.out.consumer_next() + self.out.lead - 1;
         let most = self.out.lead + 8;
@@ -259,6 +267,14 @@ impl MotionCore {
             if decide {
                 self.out.floor = self.out.cycle;
                 decide = false;
+            }
+            let mut taken_meanwhile = false;
+            if let Some((from, latest)) = replace_from.take() {
+                let first_free = self.out.queue.rewind(from);
+                self.out.taken_back += (latest + 1).saturating_sub(first_free);
+                // Position control took the one computed before: the decision acts from
+                // the next exchange (off by what it changed in one period).
+                taken_meanwhile = first_free > from;
             }
             let state = if generators && self.source == Source::Manual {
                 if self.manual_moving() {
@@ -283,6 +299,10 @@ impl MotionCore {
             self.out.produced[slot] = produced;
             if !self.out.independent.is_empty() {
                 self.out.independent[slot] = self.manual.joint_otg;
+            }
+            if taken_meanwhile {
+                steps += 1;
+                continue;
             }
             if self.out.queue.push(produced.target).is_err() {
                 // The queue holds the lead and more: full only if position control stopped
