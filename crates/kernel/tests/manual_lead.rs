@@ -197,7 +197,7 @@ fn stands_from(r: &Run) -> u64 {
 }
 
 #[test]
-fn jog_release_hold_and_estop_act_in_the_next_period_with_any_lead() {
+fn jog_release_hold_abort_and_estop_act_in_the_next_period_with_any_lead() {
     // X at 50 mm/s, acceleration 1000 mm/s², jerk 50 000 mm/s³: a jerk-limited stop takes
     // v/a + a/j = 0.05 + 0.02 s = 70 periods (the acceleration ramp a/j = 20 ms fits
     // within v/a). With the quick-stop limits (2000, 100 000): 0.025 + 0.02 = 45 periods.
@@ -236,7 +236,11 @@ fn jog_release_hold_and_estop_act_in_the_next_period_with_any_lead() {
             |cycle, s| cycle > 400 && s.path_speed == 0.0,
         )
     };
-    for (command, stop_periods) in [(Urgent::FeedHold, 70), (Urgent::EStop, 45)] {
+    for (command, stop_periods) in [
+        (Urgent::FeedHold, 70),
+        (Urgent::Abort, 70),
+        (Urgent::EStop, 45),
+    ] {
         let ahead = urgent("50ms", command);
         let reference = urgent("1ms", command);
         assert_eq!(
