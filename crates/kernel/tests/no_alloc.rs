@@ -4,7 +4,7 @@
 //! whole programs (lines, arcs, helices, splines, canned cycles, tool changes, spindle-
 //! synchronised threading) run through every real-time task, whose allocations are counted
 //! apart from the interpreter's and tool compensation's (event tasks, not real-time: they
-//! may allocate).
+//! may allocate); so do homing, a jog and thread passes through a stall of interpolation.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -212,6 +212,73 @@ fn whole_programs_allocate_nothing_in_the_real_time_tasks() {
             "{program} on {machine}: {n} allocations in real-time tasks"
         );
     }
+}
+
+/// Homing, a jog and a thread pass through stalls of interpolation shorter than the lead:
+/// the set-points computed ahead are taken back and computed again after each, without
+/// allocating in the real-time tasks (the executive's deadline-miss reports are not).
+#[test]
+fn manual_motions_through_a_stall_allocate_nothing_in_the_real_time_tasks() {
+    let stalled = |machine: &str, at: u64, program: Option<std::path::PathBuf>| {
+        let config = common::config(machine);
+        let options = KernelOptions {
+            interpolation_stall: Some((at, Duration::from_millis(15))),
+            program,
+            record_capacity: 1 << 14,
+            ..KernelOptions::default()
+        };
+        let kernel = Kernel::build(&config, options).unwrap();
+        let mut sim = Simulation::new(kernel);
+        let mut none = |_: &rtcnc_kernel::Sample| {};
+        sim.run_cycles(2, &mut none).unwrap();
+        sim.handle().command(Command::Reset);
+        sim.run_cycles(20, &mut none).unwrap();
+        (sim, none)
+    };
+    // The gantry homes from activation 22 on, for seconds.
+    let (mut sim, mut none) = stalled("sim-gantry-12.toml", 300, None);
+    let before = in_periodic();
+    sim.handle().command(Command::HomeAll);
+    sim.run_cycles(5, &mut none).unwrap();
+    let homed = sim
+        .run_until(Duration::from_secs(300), &mut none, |s| {
+            s.state == MachineState::Idle
+        })
+        .unwrap();
+    assert!(homed && sim.handle().take_faults().is_empty());
+    assert_eq!(in_periodic() - before, 0, "homing");
+    // A jog on the mill, at speed at activation 300.
+    let (mut sim, mut none) = stalled("sim-mill.toml", 300, None);
+    let before = in_periodic();
+    sim.handle().command(Command::JogIncrement {
+        axis: 0,
+        distance: 20.0,
+    });
+    sim.run_cycles(3000, &mut none).unwrap();
+    assert!(sim.handle().take_faults().is_empty());
+    assert_eq!(sim.handle().status().axes[0], 20.0);
+    assert_eq!(in_periodic() - before, 0, "jog");
+    // A G33 pass on the lathe, cutting at activation 1400.
+    let text = "G18 G21 G90 G7\nG0 X20 Z5\nS600 M3\nG33 Z-20 K1.5\nG0 X30\nM5\nM2\n";
+    let thread = common::program(text, "no-alloc-g33.ngc");
+    let (mut sim, _) = stalled("sim-lathe.toml", 1400, Some(thread));
+    let mut lines = Vec::with_capacity(10_000);
+    let mut sink = |s: &rtcnc_kernel::Sample| {
+        if lines.len() < lines.capacity() {
+            lines.push((s.cycle, s.line));
+        }
+    };
+    let before = in_periodic();
+    sim.handle().command(Command::Start { from_line: 0 });
+    let ended = sim
+        .run_until(Duration::from_secs(60), &mut sink, |s| {
+            s.program_ended && s.state == MachineState::Idle
+        })
+        .unwrap();
+    assert!(ended && sim.handle().take_faults().is_empty());
+    assert!(lines.contains(&(1400, 4)));
+    assert!(sim.handle().setpoint_lead().1 >= 15);
+    assert_eq!(in_periodic() - before, 0, "thread");
 }
 
 /// The count sees what a periodic body allocates, and only that.

@@ -160,6 +160,29 @@ fn online_target_change_mid_move() {
     assert_eq!((end.p, end.v, end.a), (3000.0, 0.0, 0.0));
 }
 
+/// Pure-jerk rest to rest over L = 2 (j = 1): T1 = 1, the middle at t = 2 is p = L/2. A
+/// clock put back gives the same set-points again; a bad time leaves the clock.
+#[test]
+fn online_clock_put_back_replays_the_same_set_points() {
+    let limits = Limits::symmetric(100.0, 100.0, 1.0);
+    let mut axis = OnlineAxis::new(State::at_rest(0.0), limits).unwrap();
+    axis.set_target(State::at_rest(2.0)).unwrap();
+    let head: Vec<_> = (0..10).map(|_| axis.step(0.1)).collect();
+    let mark = axis.time();
+    let tail: Vec<_> = (0..20).map(|_| axis.step(0.1)).collect();
+    assert!(close(tail[9].p, 1.0, 1e-12));
+    assert!(close(head[9].v, 0.5, 1e-12));
+    let at = axis.time();
+    assert!(close(at, 3.0, 1e-12));
+    axis.set_time(mark);
+    let again: Vec<_> = (0..20).map(|_| axis.step(0.1)).collect();
+    assert_eq!(again, tail);
+    for bad in [f64::NAN, -1.0, f64::INFINITY] {
+        axis.set_time(bad);
+        assert_eq!(axis.time(), at);
+    }
+}
+
 #[test]
 fn bad_input_is_an_error_value_with_a_code() {
     let good = Limits::symmetric(1.0, 1.0, 1.0);

@@ -124,6 +124,8 @@ impl MotionCore {
     /// is queued is dropped, the interpreter stops reading.
     pub(super) fn abort(&mut self, shared: &Shared) {
         self.probe = None;
+        // Whatever stops, stops from the next exchange.
+        self.take_back();
         self.stop_synced(false);
         // A stopped program leaves no override disabled behind (M49, M50 P0, M53 P0).
         self.reset_enables();
@@ -137,10 +139,7 @@ impl MotionCore {
         self.hold.held = false;
         self.hold.logic_paused = false;
         match self.source {
-            Source::Path => {
-                self.take_back();
-                self.path.planner.abort();
-            }
+            Source::Path => self.path.planner.abort(),
             Source::Manual => self.stop_manual(false),
         }
         let mi = self.requests_mut();

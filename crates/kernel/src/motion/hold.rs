@@ -62,6 +62,7 @@ impl MotionCore {
             }
             Source::Manual => {
                 self.hold.held = true;
+                self.take_back();
                 self.manual.handwheel = None;
                 for i in 0..AXES {
                     if self.machine.axis_present[i] {

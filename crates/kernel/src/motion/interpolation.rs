@@ -10,14 +10,26 @@
 //! hold of the machine logic, a probe, new moves into a planner at rest) first takes back
 //! the set-points position control has not taken ([`MotionCore::take_back`]): the planner
 //! goes back over them and computes them again with the change, so that it acts from the
-//! next exchange as if every set-point had been computed just in time. Jog, handwheel,
-//! homing and spindle-synchronised moves follow the feedback period by period and are
-//! computed one period ahead.
+//! next exchange as if every set-point had been computed just in time.
+//!
+//! Jog, handwheel, homing and spindle-synchronised moves (the on-line generators) have the
+//! same lead. What they decide on the feedback (a home switch, a latch, the handwheel's
+//! counts, the spindle's angle) is decided in the set-point for the next exchange only:
+//! in every period that brings such a decision, the set-points after it are taken back
+//! and computed again from the new feedback. The set-points beyond it go on with what the
+//! generators do by themselves (a jog, a search, a homing stop, a thread pass with the
+//! spindle turning on at the speed it had), so that a stall is ridden through; a decision
+//! due meanwhile waits for the next run (a homing phase that ended stands until then).
+//! A decision or a command changes the generators from one set-point on (the floor): no
+//! take-back goes back before it, so that what is taken back is only the generators'
+//! clocks (and a synchronised move's state), saved with every set-point.
 
-use rtcnc_motion::MotionState;
 use rtcnc_motion::otg::OnlineAxis;
+use rtcnc_motion::{AXES, MotionState};
 use rtcnc_rt::{Context, LeadProducer};
 
+use super::state::State;
+use super::synced::SyncedMove;
 use super::{LatchRequest, MotionCore, ServoTarget, Source};
 use crate::config::MAX_JOINTS;
 use crate::messages::JointSetpoints;
@@ -28,8 +40,18 @@ use crate::shared::{Feedback, Shared};
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Produced {
     pub(super) target: ServoTarget,
-    /// The planner's state after this set-point.
+    /// The planner's state after this set-point; with the on-line generators, `Moving`
+    /// while one of them still moves after it.
     pub(super) state: MotionState,
+}
+
+/// The on-line generators as after one set-point, to go back to: with the floor, no
+/// target of theirs changes after it, so their clocks are all that differs.
+#[derive(Debug, Clone, Copy)]
+struct Generators {
+    axes: [f64; AXES],
+    joints: [f64; MAX_JOINTS],
+    synced: Option<SyncedMove>,
 }
 
 /// The set-points produced ahead and what goes with them to position control.
@@ -53,6 +75,12 @@ pub(super) struct Output {
     /// The generators of the independent joints after each produced set-point (only when
     /// the machine has such joints), by number modulo the length.
     independent: Box<[[OnlineAxis; MAX_JOINTS]]>,
+    /// The on-line generators after each set-point they produced, by number modulo the
+    /// length (saved before the next one is produced, so with the changes made between).
+    generators: Box<[Generators]>,
+    /// The on-line generators' decisions and the commands that change them act from the
+    /// set-point after this one on: no take-back goes before it.
+    pub(super) floor: u64,
     /// Interpolation's own run is under way: a change made now acts from the set-point
     /// position control takes next; from another task, from the one after it (as when
     /// every set-point was computed in the period before its exchange).
@@ -91,6 +119,11 @@ impl Output {
         } else {
             Vec::new()
         };
+        let generators = Generators {
+            axes: [0.0; AXES],
+            joints: [0.0; MAX_JOINTS],
+            synced: None,
+        };
         Output {
             cycle: 0,
             last,
@@ -101,6 +134,8 @@ impl Output {
             lead,
             produced: vec![first; len].into_boxed_slice(),
             independent: independent.into_boxed_slice(),
+            generators: vec![generators; len].into_boxed_slice(),
+            floor: 0,
             interpolating: false,
             taken_back: 0,
             last_consumer: 1,
@@ -178,24 +213,78 @@ impl MotionCore {
         self.out.interpolating = false;
     }
 
-    /// How far ahead to produce: the lead along the path; one period for the generators
-    /// that follow the feedback every period.
-    fn production_lead(&self) -> u64 {
-        if self.source == Source::Path && self.synced.is_none() {
-            self.out.lead
-        } else {
-            1
+    /// Whether the set-points are the on-line generators' (jog, handwheel, homing, a
+    /// spindle-synchronised move) rather than the planner's.
+    fn generators_lead(&self) -> bool {
+        self.source == Source::Manual || self.synced.is_some()
+    }
+
+    /// Whether the on-line generators may decide something on this period's feedback: a
+    /// homing sequence, a handwheel whose counter moved, homing joints still to hand back
+    /// to their axis, a synchronised move (it follows the spindle's angle).
+    fn decisions_due(&self, feedback: &Feedback) -> bool {
+        match self.source {
+            Source::Path => self.synced.is_some(),
+            Source::Manual => {
+                let axis_joints_taken = (0..self.machine.joint_count).any(|j| {
+                    self.machine.joints[j].axis.is_some()
+                        && self.manual.joint_manual & (1 << j) != 0
+                });
+                matches!(self.state, State::Homing(_))
+                    || axis_joints_taken
+                    || (self.manual.handwheel.is_some()
+                        && self.manual.handwheel_counts != Some(feedback.handwheel_counts))
+            }
         }
     }
 
     /// Produces the set-points up to the lead ahead of position control, a bounded number
-    /// per run (a run after a stall catches up over the next ones).
+    /// per run (a run after a stall catches up over the next ones). When the on-line
+    /// generators have something to decide, the first produced decides, in place of the
+    /// one position control takes next and those after it.
     fn produce(&mut self, ctx: &mut Context<'_>, shared: &Shared, feedback: &Feedback) {
-        let target = self.out.consumer_next() + self.production_lead() - 1;
+        let mut decide = self.decisions_due(feedback);
+        let mut replace_from = None;
+        if decide {
+            let from = self.out.consumer_next().max(self.out.floor + 1);
+            if self.out.cycle >= from {
+                // The generators go back now; the queue only once the set-point that
+                // replaces the first is computed, so that position control, taking it on
+                // another processor meanwhile, still finds one.
+                replace_from = Some((from, self.out.cycle));
+                self.restore(from - 1);
+            }
+        }
+        let target = self.out.consumer_next() + self.out.lead - 1;
         let most = self.out.lead + 8;
         let mut steps = 0;
         while self.out.cycle < target && steps < most {
-            self.step(feedback);
+            let generators = self.generators_lead();
+            if generators {
+                self.save_generators();
+            }
+            self.step(feedback, decide);
+            if decide {
+                self.out.floor = self.out.cycle;
+                decide = false;
+            }
+            let mut taken_meanwhile = false;
+            if let Some((from, latest)) = replace_from.take() {
+                let first_free = self.out.queue.rewind(from);
+                self.out.taken_back += (latest + 1).saturating_sub(first_free);
+                // Position control took the one computed before: the decision acts from
+                // the next exchange (off by what it changed in one period).
+                taken_meanwhile = first_free > from;
+            }
+            let state = if generators && self.source == Source::Manual {
+                if self.manual_moving() {
+                    MotionState::Moving
+                } else {
+                    MotionState::Idle
+                }
+            } else {
+                self.path.state
+            };
             let produced = Produced {
                 target: ServoTarget {
                     setpoints: self.out.last,
@@ -204,12 +293,16 @@ impl MotionCore {
                     reset_count: self.safety.reset_count,
                     latch: self.out.latch,
                 },
-                state: self.path.state,
+                state,
             };
             let slot = self.out.slot(self.out.cycle);
             self.out.produced[slot] = produced;
             if !self.out.independent.is_empty() {
                 self.out.independent[slot] = self.manual.joint_otg;
+            }
+            if taken_meanwhile {
+                steps += 1;
+                continue;
             }
             if self.out.queue.push(produced.target).is_err() {
                 // The queue holds the lead and more: full only if position control stopped
@@ -228,17 +321,31 @@ impl MotionCore {
         }
     }
 
-    /// Before a change of the path: takes back the set-points position control has not
-    /// taken, from the next one (in interpolation's own run) or the one after it (from
-    /// another task), and has the planner go back over them, so that the change acts from
-    /// there. Where the planner cannot go back (its history does not reach), the same
-    /// set-points are queued again and the change acts after them. Only along the path:
-    /// the other generators produce one period ahead.
+    /// Saves the on-line generators as after the last produced set-point.
+    fn save_generators(&mut self) {
+        let slot = self.out.slot(self.out.cycle);
+        let g = &mut self.out.generators[slot];
+        for i in 0..AXES {
+            g.axes[i] = self.manual.axis_otg[i].time();
+        }
+        for j in 0..self.machine.joint_count {
+            g.joints[j] = self.manual.joint_otg[j].time();
+        }
+        g.synced = self.synced;
+    }
+
+    /// Before a change of the path or of the on-line generators: takes back the
+    /// set-points position control has not taken, from the next one (in interpolation's
+    /// own run) or the one after it (from another task), so that the change acts from
+    /// there. The planner goes back over them; where it cannot (its history does not
+    /// reach), the same set-points are queued again and the change acts after them. The
+    /// on-line generators go back to their saved state, never before their floor.
     pub(super) fn take_back(&mut self) {
-        if self.source != Source::Path || self.synced.is_some() {
+        let from = self.out.consumer_next() + u64::from(!self.out.interpolating);
+        if self.generators_lead() {
+            self.take_back_generators(from);
             return;
         }
-        let from = self.out.consumer_next() + u64::from(!self.out.interpolating);
         if self.out.cycle < from {
             return;
         }
@@ -262,12 +369,31 @@ impl MotionCore {
         }
     }
 
+    /// Takes back the on-line generators' set-points from `from` (not before the floor)
+    /// and puts the generators as after the last one kept; a change made now acts from
+    /// the next one produced, which becomes the floor.
+    fn take_back_generators(&mut self, from: u64) {
+        let from = from.max(self.out.floor + 1);
+        if self.out.cycle < from {
+            self.out.floor = self.out.floor.max(self.out.cycle);
+            return;
+        }
+        let first_free = self.out.queue.rewind(from);
+        self.out.taken_back += (self.out.cycle + 1).saturating_sub(first_free);
+        self.restore(first_free - 1);
+    }
+
     /// Drops the set-points position control has not taken, from the one after its next,
     /// for a caller that puts every generator somewhere new (a reset after the drives were
     /// off): the next produced set-point follows the one position control takes next.
     pub(super) fn discard_ahead(&mut self) {
         let from = self.out.consumer_next() + 1;
+        if self.generators_lead() {
+            self.take_back_generators(from);
+            return;
+        }
         if self.out.cycle < from {
+            self.out.floor = self.out.floor.max(self.out.cycle);
             return;
         }
         let first_free = self.out.queue.rewind(from);
@@ -277,8 +403,24 @@ impl MotionCore {
     /// The generators' output and the independent joints as after set-point `number`.
     fn restore(&mut self, number: u64) {
         let p = *self.out.at(number);
-        self.out.cycle = number;
+        let latest = std::mem::replace(&mut self.out.cycle, number);
         self.out.last = p.target.setpoints;
+        self.out.floor = self.out.floor.max(number);
+        if self.generators_lead() {
+            if number < latest {
+                let saved = self.out.generators[self.out.slot(number)];
+                for i in 0..AXES {
+                    self.manual.axis_otg[i].set_time(saved.axes[i]);
+                }
+                for j in 0..self.machine.joint_count {
+                    self.manual.joint_otg[j].set_time(saved.joints[j]);
+                }
+                if self.synced.is_some() {
+                    self.synced = saved.synced;
+                }
+            }
+            return;
+        }
         self.path.state = p.state;
         if !self.out.independent.is_empty() {
             let saved = self.out.independent[self.out.slot(number)];
@@ -299,13 +441,14 @@ impl MotionCore {
         }
     }
 
-    /// One servo period of the set-point generators.
-    fn step(&mut self, feedback: &Feedback) {
+    /// One servo period of the set-point generators; `decide`: the on-line generators
+    /// decide on the feedback (only in the set-point for the next exchange).
+    fn step(&mut self, feedback: &Feedback, decide: bool) {
         self.out.cycle += 1;
         let mut sp = self.out.last;
         sp.cycle = self.out.cycle;
         match self.source {
-            Source::Path if self.synced.is_some() => self.synced_step(feedback, &mut sp),
+            Source::Path if self.synced.is_some() => self.synced_step(feedback, &mut sp, decide),
             Source::Path if self.path_frozen() => {
                 // Injected: the planner makes no progress, its set-point stands.
                 sp.path_speed = 0.0;
@@ -328,8 +471,13 @@ impl MotionCore {
                 }
             }
             Source::Manual => {
-                self.manual_step(feedback, &mut sp);
-                self.homing_step(feedback);
+                if decide {
+                    self.handwheel_step(feedback);
+                }
+                self.manual_step(&mut sp);
+                if decide {
+                    self.homing_step(feedback);
+                }
                 sp.move_end = sp.axes;
             }
         }
@@ -344,7 +492,7 @@ impl MotionCore {
                 }
             }
         }
-        if self.source == Source::Manual {
+        if self.source == Source::Manual && decide {
             self.release_stopped_homing_joints(&mut sp);
         }
         self.out.last = sp;

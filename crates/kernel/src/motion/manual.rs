@@ -80,10 +80,11 @@ impl MotionCore {
 
     /// Stops a jog of axis `i`.
     pub(super) fn jog_stop(&mut self, i: usize) -> bool {
-        self.source == Source::Manual
-            && i < AXES
-            && self.machine.axis_present[i]
-            && self.manual.axis_otg[i].stop().is_ok()
+        if !(self.source == Source::Manual && i < AXES && self.machine.axis_present[i]) {
+            return false;
+        }
+        self.take_back();
+        self.manual.axis_otg[i].stop().is_ok()
     }
 
     /// The handwheel on axis `i`, `scale` times `handwheel.units_per_count` per count.
@@ -109,6 +110,7 @@ impl MotionCore {
         {
             return false;
         }
+        self.take_back();
         let info = self.machine.joints[j];
         let target = position.clamp(info.min, info.max);
         let otg = &mut self.manual.joint_otg[j];
@@ -130,6 +132,8 @@ impl MotionCore {
     pub(super) fn enter_manual(&mut self) {
         self.mode = Mode::Manual;
         if self.source == Source::Manual {
+            // What follows changes the generators from the next exchange on.
+            self.take_back();
             return;
         }
         // The jog starts from where the machine is, not after the path's set-points
@@ -152,6 +156,8 @@ impl MotionCore {
         if self.source == Source::Path {
             return;
         }
+        // From the set-point position control takes next, not after the generators' lead.
+        self.discard_ahead();
         let _ = self.path.planner.reset_at(self.out.last.axes);
         self.manual.handwheel = None;
         self.source = Source::Path;
@@ -181,10 +187,9 @@ impl MotionCore {
             || (0..self.machine.joint_count).any(|j| !self.manual.joint_otg[j].is_finished())
     }
 
-    /// One period of the axis generators: the handwheel's counts since the last period
-    /// move its axis' target, every axis steps, the axis joints follow their axis.
-    pub(super) fn manual_step(&mut self, feedback: &Feedback, sp: &mut JointSetpoints) {
-        self.handwheel_step(feedback);
+    /// One period of the axis generators: every axis steps, the axis joints follow their
+    /// axis.
+    pub(super) fn manual_step(&mut self, sp: &mut JointSetpoints) {
         let mut speed2 = 0.0;
         for i in 0..AXES {
             if self.machine.axis_present[i] {
@@ -201,7 +206,8 @@ impl MotionCore {
         }
     }
 
-    fn handwheel_step(&mut self, feedback: &Feedback) {
+    /// The handwheel's counts since it was last read move its axis' target.
+    pub(super) fn handwheel_step(&mut self, feedback: &Feedback) {
         let Some((i, per_count)) = self.manual.handwheel else {
             self.manual.handwheel_counts = None;
             return;

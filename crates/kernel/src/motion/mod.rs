@@ -299,7 +299,7 @@ impl MotionCore {
                     || self.path.state != MotionState::Idle
                     || self.path.planner.pieces_ahead() > 0
             }
-            Source::Manual => self.manual_moving(),
+            Source::Manual => self.manual_moving() || self.out.now().state != MotionState::Idle,
         }
     }
 

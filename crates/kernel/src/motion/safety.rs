@@ -90,6 +90,8 @@ impl MotionCore {
             return;
         }
         self.probe = None;
+        // Whatever stops, stops from the next exchange.
+        self.take_back();
         self.stop_synced(true);
         self.program.epoch = self.program.epoch.wrapping_add(1);
         let _ = shared
@@ -100,10 +102,7 @@ impl MotionCore {
         self.hold.logic_paused = false;
         self.out.latch = LatchRequest::default();
         match self.source {
-            Source::Path => {
-                self.take_back();
-                self.path.planner.quick_stop();
-            }
+            Source::Path => self.path.planner.quick_stop(),
             Source::Manual => {
                 self.manual.handwheel = None;
                 self.stop_manual(true);

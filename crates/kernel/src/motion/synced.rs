@@ -30,9 +30,11 @@ pub(super) struct SyncedMove {
     otg: OnlineAxis,
     /// Path limits along the line (velocity, acceleration, jerk).
     limits: (f64, f64, f64),
-    /// Unwrapped spindle angle (degrees) and the last reading (0..360).
+    /// Unwrapped spindle angle (degrees), the last reading (0..360) and the change over
+    /// the period before it (set-points computed ahead go on with it).
     angle: f64,
     reading: f64,
+    delta: f64,
     /// The unwrapped angle of the index the move started at; `None` while waiting for it.
     index: Option<f64>,
     /// Going to the end at rest (or stopping): no longer tracking.
@@ -103,6 +105,7 @@ impl MotionCore {
                     limits: (v, a, j),
                     angle: feedback.spindle_angle_deg,
                     reading: feedback.spindle_angle_deg,
+                    delta: 0.0,
                     index: None,
                     finishing: false,
                     line,
@@ -116,20 +119,33 @@ impl MotionCore {
     }
 
     /// One period of the synchronised move: follows the spindle's angle (from the last
-    /// exchange) and gives the axis position; finished moves hand the path back to the
-    /// planner where they ended.
-    pub(super) fn synced_step(&mut self, feedback: &Feedback, sp: &mut JointSetpoints) {
+    /// exchange when `decide`, else as if the spindle turned on as in the period before)
+    /// and gives the axis position; a finished move hands the path back to the planner
+    /// where it ended (when `decide`; until then it stands there).
+    pub(super) fn synced_step(
+        &mut self,
+        feedback: &Feedback,
+        sp: &mut JointSetpoints,
+        decide: bool,
+    ) {
         let Some(mut m) = self.synced else {
             return;
         };
         let dt = self.machine.period_s;
-        let mut delta = feedback.spindle_angle_deg - m.reading;
-        if delta > 180.0 {
-            delta -= 360.0;
-        } else if delta <= -180.0 {
-            delta += 360.0;
-        }
-        m.reading = feedback.spindle_angle_deg;
+        let delta = if decide {
+            let mut delta = feedback.spindle_angle_deg - m.reading;
+            if delta > 180.0 {
+                delta -= 360.0;
+            } else if delta <= -180.0 {
+                delta += 360.0;
+            }
+            m.reading = feedback.spindle_angle_deg;
+            delta
+        } else {
+            m.reading = (m.reading + m.delta).rem_euclid(360.0);
+            m.delta
+        };
+        m.delta = delta;
         m.angle += delta;
         if m.index.is_none() {
             // The index is at angle 0: the first crossing of a whole turn.
@@ -211,7 +227,7 @@ impl MotionCore {
         }
         sp.line = m.line;
         sp.path_speed = s.v.abs();
-        if m.finishing && m.otg.is_finished() {
+        if decide && m.finishing && m.otg.is_finished() {
             self.synced = None;
             let _ = self.path.planner.reset_at(sp.axes);
             if std::mem::take(&mut self.hold.after_sync) {

@@ -98,6 +98,21 @@ impl OnlineAxis {
         self.sample()
     }
 
+    /// The time since the current profile started: the clock [`OnlineAxis::step`]
+    /// advances.
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Puts the clock of the current profile back (or on) to `time`, as returned by
+    /// [`OnlineAxis::time`]: a generator that computed set-points ahead goes back to one of
+    /// them. A NaN, infinite or negative `time` leaves the clock as it is.
+    pub fn set_time(&mut self, time: f64) {
+        if time.is_finite() && time >= 0.0 {
+            self.time = time;
+        }
+    }
+
     /// Whether the current profile has reached its target.
     pub fn is_finished(&self) -> bool {
         self.time >= self.profile.duration()
