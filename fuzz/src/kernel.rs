@@ -20,7 +20,7 @@
 //! A broken invariant panics with the operations that led to it.
 
 use std::path::PathBuf;
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 use arbitrary::Unstructured;
 use rtcnc_fieldbus::sim::InjectedFault;
@@ -79,6 +79,8 @@ const MDI_LINES: &[&str] = &[
 
 struct Fixture {
     config: MachineConfig,
+    /// The machine logic, compiled once for every kernel built.
+    plc_program: Arc<rtcnc_plc::Program>,
     programs: Vec<PathBuf>,
 }
 
@@ -98,6 +100,9 @@ fn fixture() -> &'static Fixture {
             );
         let mut config = MachineConfig::parse(&text, "sim-mill.toml").expect("sim-mill parses");
         config.base_dir = configs;
+        let plc = config.plc.as_ref().expect("the mill has machine logic");
+        let plc_program =
+            Arc::new(rtcnc_plc::compile_file(&config.resolve(&plc.program)).expect("mill.st"));
         let dir = std::env::temp_dir().join(format!("rtcnc-fuzz-kernel-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("a temporary folder");
         let programs = PROGRAMS
@@ -109,7 +114,11 @@ fn fixture() -> &'static Fixture {
                 path
             })
             .collect();
-        Fixture { config, programs }
+        Fixture {
+            config,
+            plc_program,
+            programs,
+        }
     })
 }
 
@@ -261,7 +270,10 @@ impl Harness {
             config,
             KernelOptions {
                 program,
-                record_capacity: 1 << 12,
+                plc_program: Some(Arc::clone(&fixture().plc_program)),
+                // Drained after every period; the executive's trace is not read.
+                record_capacity: 16,
+                trace_capacity: Some(16),
                 ..KernelOptions::default()
             },
         )
@@ -401,6 +413,21 @@ impl Harness {
                 self.release_hold();
             }
         }
+    }
+
+    /// Nothing left to check: no program or manual motion runs, the set-points stand (or
+    /// the drives are off), a hold has settled and been seen to hold, a fault has reached
+    /// the safe state.
+    fn at_rest(&self) -> bool {
+        let status = self.sim.handle().status();
+        let standing = !status.ready
+            || self
+                .previous_velocity
+                .is_some_and(|v| v.iter().all(|v| *v == 0.0));
+        !matches!(status.state, MachineState::Running | MachineState::Starting)
+            && standing
+            && (self.hold_since.is_none() || self.held_at.is_some())
+            && (self.fault_since.is_none() || self.safe_at.is_some())
     }
 
     fn release_hold(&mut self) {
@@ -583,7 +610,14 @@ pub fn run(data: &[u8]) {
             Err(_) => break,
         }
     }
-    // Long enough for a pending hold to settle and a pending fault to reach its safe state.
+    // Long enough for a pending hold to settle and a pending fault to reach its safe state;
+    // over sooner once nothing is pending and the machine stands.
     let settle = ((HOLD_SETTLES_S.max(SAFE_STATE_S) + 0.05) / h.period_s) as u64;
-    h.apply(Op::Run(settle));
+    h.ops.push(Op::Run(settle));
+    for _ in 0..settle {
+        if h.at_rest() {
+            break;
+        }
+        h.period();
+    }
 }
