@@ -41,6 +41,9 @@ const HOLD_STANDING_PERIODS: u32 = 3;
 /// From a fault to the safe state: docs/safety.md's worst bound (fieldbus loss, 295 ms)
 /// with room for the periods a fault needs to be noticed at lower speeds.
 const SAFE_STATE_S: f64 = 0.35;
+/// A reset is taken within this time of being sent (behind at most a full command
+/// mailbox: 64 commands, taken four a period).
+const RESET_TAKEN_S: f64 = 0.05;
 /// A load slower than this (mm/s) for `STANDING_PERIODS` periods stands; from then on it
 /// may creep no further than `STAYS_WITHIN` (mm): a coasting load's last micrometre.
 const STANDING_VELOCITY: f64 = 1e-4;
@@ -494,18 +497,25 @@ impl Harness {
             if self.trace > 0 {
                 eprintln!("t {now:.3} s: fault {fault:?}");
             }
-            // A fault raised in the period the reset arrives in may come before the reset
-            // is taken (the fieldbus task runs first) or after: the state the period ends
-            // in says which.
-            let cleared = self.reset_ns.is_some_and(|reset| {
-                fault.time_ns < reset
-                    || (fault.time_ns == reset
-                        && !matches!(status.state, MachineState::EStop | MachineState::Fault))
-            });
+            let cleared = self.reset_ns.is_some_and(|reset| fault.time_ns < reset);
             if fault.code.stops_machine() && !cleared && self.fault_since.is_none() {
                 self.fault_since = Some(now);
                 self.release_hold();
             }
+        }
+        // A reset waits behind the commands sent before it: a fault raised after it was
+        // sent but before it was taken is cleared by it too, and the machine then leaves
+        // e-stop or fault, which nothing but a reset does.
+        let reset_queued = self
+            .reset_ns
+            .is_some_and(|reset| now - reset as f64 * 1e-9 <= RESET_TAKEN_S);
+        if reset_queued
+            && self.fault_since.is_some()
+            && !matches!(status.state, MachineState::EStop | MachineState::Fault)
+        {
+            self.fault_since = None;
+            self.safe_at = None;
+            self.standing_periods = 0;
         }
         for sample in &samples {
             let standing = self
