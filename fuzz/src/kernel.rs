@@ -20,7 +20,7 @@
 //! A broken invariant panics with the operations that led to it.
 
 use std::path::PathBuf;
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 use arbitrary::Unstructured;
 use rtcnc_fieldbus::sim::InjectedFault;
@@ -35,12 +35,15 @@ const MAX_PERIODS: u64 = 3000;
 const STALL_TIMEOUT_S: f64 = 0.4;
 /// The longest standstill of a running program below: its dwells and input waits.
 const LONGEST_WAIT_S: f64 = 0.3;
-/// From a feed hold to a standing path, at most (100 mm/s, 1000 mm/s², 50 000 mm/s³:
-/// 0.12 s), with room for the period the hold arrives in.
-const HOLD_SETTLES_S: f64 = 0.2;
+/// A hold has stopped the path once the set-points have stood this many periods (after
+/// the set-point lead: what was computed before the hold still runs out).
+const HOLD_STANDING_PERIODS: u32 = 3;
 /// From a fault to the safe state: docs/safety.md's worst bound (fieldbus loss, 295 ms)
 /// with room for the periods a fault needs to be noticed at lower speeds.
 const SAFE_STATE_S: f64 = 0.35;
+/// A reset is taken within this time of being sent (behind at most a full command
+/// mailbox: 64 commands, taken four a period).
+const RESET_TAKEN_S: f64 = 0.05;
 /// A load slower than this (mm/s) for `STANDING_PERIODS` periods stands; from then on it
 /// may creep no further than `STAYS_WITHIN` (mm): a coasting load's last micrometre.
 const STANDING_VELOCITY: f64 = 1e-4;
@@ -79,6 +82,8 @@ const MDI_LINES: &[&str] = &[
 
 struct Fixture {
     config: MachineConfig,
+    /// The machine logic, compiled once for every kernel built.
+    plc_program: Arc<rtcnc_plc::Program>,
     programs: Vec<PathBuf>,
 }
 
@@ -98,6 +103,9 @@ fn fixture() -> &'static Fixture {
             );
         let mut config = MachineConfig::parse(&text, "sim-mill.toml").expect("sim-mill parses");
         config.base_dir = configs;
+        let plc = config.plc.as_ref().expect("the mill has machine logic");
+        let plc_program =
+            Arc::new(rtcnc_plc::compile_file(&config.resolve(&plc.program)).expect("mill.st"));
         let dir = std::env::temp_dir().join(format!("rtcnc-fuzz-kernel-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("a temporary folder");
         let programs = PROGRAMS
@@ -109,8 +117,38 @@ fn fixture() -> &'static Fixture {
                 path
             })
             .collect();
-        Fixture { config, programs }
+        Fixture {
+            config,
+            plc_program,
+            programs,
+        }
     })
+}
+
+/// The longest a feed hold may take to stop the path: the set-point lead, then from the
+/// fastest path (every axis at its top speed) still accelerating at the axes' limits, the
+/// planner's hold profile (50 % of the slowest axis' deceleration and jerk, docs/motion.md):
+/// the acceleration brought down, the speed braked, the landing; with 10 % and 20 periods
+/// of room.
+fn hold_bound(config: &MachineConfig) -> f64 {
+    let axes = ["x", "y", "z"].map(|name| config.axes.get(name).expect("the mill's axes"));
+    let norm = |f: fn(&rtcnc_kernel::config::AxisConfig) -> f64| {
+        axes.iter().map(|a| f(a).powi(2)).sum::<f64>().sqrt()
+    };
+    let slowest = |f: fn(&rtcnc_kernel::config::AxisConfig) -> f64| {
+        axes.iter().map(|a| f(a)).fold(f64::INFINITY, f64::min)
+    };
+    let (speed, acceleration) = (norm(|a| a.max_velocity), norm(|a| a.max_acceleration));
+    let hold_a = 0.5 * slowest(|a| a.max_acceleration);
+    let hold_j = 0.5 * slowest(|a| a.max_jerk);
+    let period = config.servo_period().as_secs_f64();
+    let lead = config
+        .tasks
+        .setpoint_lead_periods(config.servo_period())
+        .expect("the mill's set-point lead") as f64
+        * period;
+    let stop = acceleration / hold_j + speed / hold_a + hold_a / hold_j;
+    lead + 1.1 * stop + 20.0 * period
 }
 
 /// One step of the sequence.
@@ -236,11 +274,16 @@ struct Harness {
     /// settled.
     hold_since: Option<f64>,
     held_at: Option<[f64; AXES]>,
+    /// The longest a hold may take to stop the path (s), and the set-point lead (s).
+    hold_bound: f64,
+    setpoint_lead: f64,
+    /// Periods the set-points have stood still.
+    standing_setpoints: u32,
     /// The first fault that stops the machine since the last reset (time, s), and where
     /// the load stood once in the safe state.
     fault_since: Option<f64>,
     safe_at: Option<[f64; AXES]>,
-    /// When the last reset was sent (ns): a fault raised up to then is cleared by it.
+    /// When the last reset was sent (ns): a fault raised before then is cleared by it.
     reset_ns: Option<u64>,
     /// Periods the load has stood in the safe state.
     standing_periods: u32,
@@ -248,6 +291,9 @@ struct Harness {
     progress_at: f64,
     progress: (Status, [f64; AXES]),
     rapid_override: f64,
+    /// A saved input replayed with RTCNC_FUZZ_TRACE=1 prints the operations, with 2 every
+    /// period's set-points too.
+    trace: u8,
 }
 
 fn axes_of(s: &Sample) -> [f64; AXES] {
@@ -261,7 +307,10 @@ impl Harness {
             config,
             KernelOptions {
                 program,
-                record_capacity: 1 << 12,
+                plc_program: Some(Arc::clone(&fixture().plc_program)),
+                // Drained after every period; the executive's trace is not read.
+                record_capacity: 16,
+                trace_capacity: Some(16),
                 ..KernelOptions::default()
             },
         )
@@ -289,6 +338,13 @@ impl Harness {
             quick_stopping: false,
             hold_since: None,
             held_at: None,
+            hold_bound: hold_bound(config),
+            setpoint_lead: config
+                .tasks
+                .setpoint_lead_periods(config.servo_period())
+                .expect("the mill's set-point lead") as f64
+                * config.servo_period().as_secs_f64(),
+            standing_setpoints: 0,
             fault_since: None,
             safe_at: None,
             reset_ns: None,
@@ -296,6 +352,10 @@ impl Harness {
             progress_at: 0.0,
             progress: (status, [0.0; AXES]),
             rapid_override: 1.0,
+            trace: std::env::var("RTCNC_FUZZ_TRACE")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(0),
         }
     }
 
@@ -329,8 +389,7 @@ impl Harness {
     }
 
     fn apply(&mut self, op: Op) {
-        // A saved input replayed with RTCNC_FUZZ_TRACE set prints what it does.
-        if std::env::var_os("RTCNC_FUZZ_TRACE").is_some() {
+        if self.trace > 0 {
             eprintln!("t {:.3} s: {op:?}", self.now());
         }
         self.ops.push(op);
@@ -354,10 +413,13 @@ impl Harness {
                         self.release_hold();
                         self.quick_stopping = true;
                     }
+                    // As the kernel takes it: a value that is not a number is 0 %.
                     Urgent::RapidOverride(v) => {
-                        if v.is_finite() {
-                            self.rapid_override = v.clamp(0.0, 1.0);
-                        }
+                        self.rapid_override = if v.is_finite() {
+                            v.clamp(0.0, 1.0)
+                        } else {
+                            0.0
+                        };
                     }
                     _ => {}
                 }
@@ -403,6 +465,21 @@ impl Harness {
         }
     }
 
+    /// Nothing left to check: no program or manual motion runs, the set-points stand (or
+    /// the drives are off), a hold has settled and been seen to hold, a fault has reached
+    /// the safe state.
+    fn at_rest(&self) -> bool {
+        let status = self.sim.handle().status();
+        let standing = !status.ready
+            || self
+                .previous_velocity
+                .is_some_and(|v| v.iter().all(|v| *v == 0.0));
+        !matches!(status.state, MachineState::Running | MachineState::Starting)
+            && standing
+            && (self.hold_since.is_none() || self.held_at.is_some())
+            && (self.fault_since.is_none() || self.safe_at.is_some())
+    }
+
     fn release_hold(&mut self) {
         self.hold_since = None;
         self.held_at = None;
@@ -417,13 +494,46 @@ impl Harness {
         let now = self.now();
         let status = self.sim.handle().status();
         for fault in self.sim.handle().take_faults() {
-            let cleared = self.reset_ns.is_some_and(|reset| fault.time_ns <= reset);
+            if self.trace > 0 {
+                eprintln!("t {now:.3} s: fault {fault:?}");
+            }
+            let cleared = self.reset_ns.is_some_and(|reset| fault.time_ns < reset);
             if fault.code.stops_machine() && !cleared && self.fault_since.is_none() {
                 self.fault_since = Some(now);
                 self.release_hold();
             }
         }
+        // A reset waits behind the commands sent before it: a fault raised after it was
+        // sent but before it was taken is cleared by it too, and the machine then leaves
+        // e-stop or fault, which nothing but a reset does.
+        let reset_queued = self
+            .reset_ns
+            .is_some_and(|reset| now - reset as f64 * 1e-9 <= RESET_TAKEN_S);
+        if reset_queued
+            && self.fault_since.is_some()
+            && !matches!(status.state, MachineState::EStop | MachineState::Fault)
+        {
+            self.fault_since = None;
+            self.safe_at = None;
+            self.standing_periods = 0;
+        }
         for sample in &samples {
+            let standing = self
+                .previous
+                .is_some_and(|p| axes_of(&p) == axes_of(sample));
+            self.standing_setpoints = if standing {
+                self.standing_setpoints.saturating_add(1)
+            } else {
+                0
+            };
+            if self.trace > 1 {
+                eprintln!(
+                    "  t {now:.3} s: {:?} {:?} {:?}",
+                    axes_of(sample),
+                    status.state,
+                    self.previous_velocity
+                );
+            }
             self.limits(sample, &status);
             self.previous = Some(*sample);
         }
@@ -484,19 +594,25 @@ impl Harness {
         let Some(since) = self.hold_since else {
             return;
         };
-        if self.now() - since < HOLD_SETTLES_S {
-            return;
-        }
         let Some(sample) = self.previous else {
             return;
         };
         let axes = axes_of(&sample);
+        let held_for = self.now() - since;
         match self.held_at {
-            None => self.held_at = Some(axes),
+            None if held_for > self.setpoint_lead
+                && self.standing_setpoints >= HOLD_STANDING_PERIODS =>
+            {
+                self.held_at = Some(axes)
+            }
+            None if held_for > self.hold_bound => self.broken(format!(
+                "a feed hold since t = {since:.3} s, and the axes still move after {:.3} s",
+                self.hold_bound
+            )),
             Some(held) if held != axes => self.broken(format!(
                 "a feed hold since t = {since:.3} s, yet the axes moved from {held:?} to {axes:?}"
             )),
-            Some(_) => {}
+            _ => {}
         }
     }
 
@@ -569,10 +685,10 @@ pub fn run(data: &[u8]) {
         return;
     };
     let program = fixture().programs.get(choice).cloned();
-    if std::env::var_os("RTCNC_FUZZ_TRACE").is_some() {
+    let mut h = Harness::new(program);
+    if h.trace > 0 {
         eprintln!("program {choice}");
     }
-    let mut h = Harness::new(program);
     // Power on as an operator would, then what the input says.
     h.apply(Op::Run(2));
     h.apply(Op::Command(Command::Reset));
@@ -583,7 +699,14 @@ pub fn run(data: &[u8]) {
             Err(_) => break,
         }
     }
-    // Long enough for a pending hold to settle and a pending fault to reach its safe state.
-    let settle = ((HOLD_SETTLES_S.max(SAFE_STATE_S) + 0.05) / h.period_s) as u64;
-    h.apply(Op::Run(settle));
+    // Long enough for a pending hold to settle and a pending fault to reach its safe state;
+    // over sooner once nothing is pending and the machine stands.
+    let settle = ((h.hold_bound.max(SAFE_STATE_S) + 0.05) / h.period_s) as u64;
+    h.ops.push(Op::Run(settle));
+    for _ in 0..settle {
+        if h.at_rest() {
+            break;
+        }
+        h.period();
+    }
 }

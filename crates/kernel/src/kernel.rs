@@ -35,6 +35,10 @@ use crate::error::{KernelError, SelfTestFailure};
 pub struct KernelOptions {
     /// The part program auto mode runs.
     pub program: Option<PathBuf>,
+    /// The machine file's PLC program already compiled (`rtcnc_plc::compile_file` of its
+    /// `[plc] program`), for a host that builds many kernels of one machine; `None`
+    /// compiles the file.
+    pub plc_program: Option<Arc<rtcnc_plc::Program>>,
     /// Record every servo cycle (ring of this many samples; drain it often enough).
     pub record_capacity: usize,
     /// Trace events kept per executive thread.
@@ -334,7 +338,13 @@ impl Kernel {
             options.program.is_some() || options.link.is_some(),
             options.freeze_path_from,
         )?;
-        let (logic, retain, plc) = logic_stage(&config, &shared, logic_outputs, &mut report)?;
+        let (logic, retain, plc) = logic_stage(
+            &config,
+            options.plc_program.as_ref(),
+            &shared,
+            logic_outputs,
+            &mut report,
+        )?;
         let (modal_writer, modal) = rtcnc_rt::seqlock("modal state", Default::default());
         let interpreter = interpreter_stage(&config, &shared, &options, parameters, tools)
             .with_modal(modal_writer);
@@ -461,6 +471,7 @@ type SharedPlc = Arc<PiMutex<rtcnc_plc::Runtime>>;
 /// restored), or the kernel's direct logic.
 fn logic_stage(
     config: &MachineConfig,
+    compiled: Option<&Arc<rtcnc_plc::Program>>,
     shared: &Shared,
     outputs: SeqlockWriter<crate::shared::LogicOutputs>,
     report: &mut SelfTestReport,
@@ -469,7 +480,8 @@ fn logic_stage(
         None => Logic::Direct,
         Some(plc) => {
             let path = config.resolve(&plc.program);
-            let mut runtime = crate::logic::load_plc(&path, &plc.signals, &plc.safe_values)?;
+            let mut runtime =
+                crate::logic::load_plc(&path, compiled, &plc.signals, &plc.safe_values)?;
             report
                 .checks
                 .push(("machine logic", format!("{} compiled", path.display())));

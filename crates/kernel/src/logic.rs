@@ -294,15 +294,20 @@ fn plc_scan(
 /// Compiles and configures the machine's PLC program.
 pub(crate) fn load_plc(
     path: &std::path::Path,
+    compiled: Option<&Arc<rtcnc_plc::Program>>,
     signals: &std::collections::BTreeMap<String, String>,
     safe_values: &std::collections::BTreeMap<String, String>,
 ) -> Result<Runtime, crate::error::KernelError> {
-    let program =
-        rtcnc_plc::compile_file(path).map_err(|source| crate::error::KernelError::PlcProgram {
-            path: path.to_path_buf(),
-            source,
-        })?;
-    let mut runtime = Runtime::new(Arc::new(program));
+    let program = match compiled {
+        Some(program) => Arc::clone(program),
+        None => Arc::new(rtcnc_plc::compile_file(path).map_err(|source| {
+            crate::error::KernelError::PlcProgram {
+                path: path.to_path_buf(),
+                source,
+            }
+        })?),
+    };
+    let mut runtime = Runtime::new(program);
     let config = rtcnc_plc::PlcConfig {
         signals: signals.clone(),
         safe_values: safe_values.clone(),

@@ -56,14 +56,9 @@ impl MotionCore {
             Command::Reset => self.reset(),
             Command::Start { from_line } => {
                 if idle && self.program.loaded {
-                    self.begin(Mode::Auto, from_line);
-                    let _ = shared
-                        .interpreter_requests
-                        .try_put(InterpreterRequest::Run {
-                            epoch: self.program.epoch,
-                        });
-                    shared.interpreter_wake.signal();
-                    true
+                    self.begin_run(shared, Mode::Auto, from_line, |epoch| {
+                        InterpreterRequest::Run { epoch }
+                    })
                 } else if matches!(self.step_of_program(), Some(Step::Paused { .. })) {
                     self.program.start_count = self.program.start_count.wrapping_add(1);
                     true
@@ -72,19 +67,10 @@ impl MotionCore {
                 }
             }
             Command::Mdi(line) => {
-                if idle {
-                    self.begin(Mode::Mdi, 0);
-                    let _ = shared
-                        .interpreter_requests
-                        .try_put(InterpreterRequest::Mdi {
-                            epoch: self.program.epoch,
-                            line,
-                        });
-                    shared.interpreter_wake.signal();
-                    true
-                } else {
-                    false
-                }
+                idle && self.begin_run(shared, Mode::Mdi, 0, |epoch| InterpreterRequest::Mdi {
+                    epoch,
+                    line,
+                })
             }
             Command::JogContinuous { axis, velocity } => {
                 idle && self.jog_continuous(usize::from(axis), velocity)
@@ -118,6 +104,28 @@ impl MotionCore {
                 .try_put(InterpreterRequest::BlockDelete(on))
                 .is_ok(),
         }
+    }
+
+    /// Starts a program run or an MDI line once the interpreter has its request (`request`
+    /// of the run's epoch). A full request mailbox (a burst of aborts the interpreter has
+    /// not read yet) refuses the command: the run would wait for ever for a request that
+    /// was dropped.
+    fn begin_run(
+        &mut self,
+        shared: &Shared,
+        mode: Mode,
+        from_line: u32,
+        request: impl FnOnce(u32) -> InterpreterRequest,
+    ) -> bool {
+        // `begin` opens the run's epoch: the next one.
+        let epoch = self.program.epoch.wrapping_add(1);
+        if shared.interpreter_requests.try_put(request(epoch)).is_err() {
+            return false;
+        }
+        self.begin(mode, from_line);
+        debug_assert_eq!(self.program.epoch, epoch);
+        shared.interpreter_wake.signal();
+        true
     }
 
     /// Stops the program, MDI line, homing or jog: the path decelerates along itself, what
