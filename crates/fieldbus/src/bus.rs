@@ -64,6 +64,8 @@ pub enum FieldbusError {
 
 impl FieldbusError {
     /// A stable machine-readable code.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn code(&self) -> &'static str {
         match self {
             Self::CommunicationLost => "fieldbus.communication_lost",
@@ -87,10 +89,14 @@ impl FieldbusError {
 /// Implementations allocate nothing in `exchange` and never panic on data.
 pub trait Fieldbus {
     /// The shape of the process images this bus exchanges.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     fn layout(&self) -> &ProcessLayout;
 
     /// One cyclic exchange: apply `outputs` for the next `period_s` seconds and read the
     /// inputs back into `inputs`.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     fn exchange(
         &mut self,
         period_s: f64,
@@ -103,6 +109,8 @@ pub trait Fieldbus {
     /// A periodic thread that moves its next wake-up by minus a filtered share of this stays
     /// aligned to the bus clock. `None`: the bus follows the caller's timing (the simulated
     /// machine), or the last exchange measured nothing (its frame was lost).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     fn cycle_phase_error_ns(&self) -> Option<i64> {
         None
     }
@@ -112,6 +120,8 @@ pub trait Fieldbus {
     /// time, so that they run in the caller's time, virtual or real, and follow its phase
     /// corrections; a bus on hardware, and the simulated machine (which integrates
     /// `period_s`), ignore it.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     fn set_time_ns(&mut self, now_ns: u64) {
         let _ = now_ns;
     }
@@ -120,12 +130,16 @@ pub trait Fieldbus {
     /// frame or a wrong working counter below the bus's limit: the inputs are then those of
     /// the last good cycle, and a position loop must not read the set-point's progress
     /// since as following error.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     fn inputs_fresh(&self) -> bool {
         true
     }
 }
 
 /// Checks that both images have the layout's shape.
+///
+/// Real-time: yes (no allocation, no blocking).
 pub fn check_images(
     layout: &ProcessLayout,
     outputs: &ProcessOutputs,

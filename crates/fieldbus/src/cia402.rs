@@ -35,6 +35,8 @@ pub mod error_code {
     /// What an error code means, after the emergency error codes of CiA 301 and the drive
     /// codes of CiA 402 (IEC 61800-7-201 Annex D): the exact code where the standard names
     /// it, else its group. Manufacturer-specific codes (0xFF00-0xFFFF) say so.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn describe(code: u16) -> &'static str {
         match code {
             0x0000 => "no error",
@@ -101,41 +103,59 @@ impl ControlWord {
     pub const FAULT_RESET: u16 = 1 << 7;
 
     /// "Shutdown" (0b0110): transitions 2, 6, 8.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn shutdown() -> Self {
         Self(Self::QUICK_STOP | Self::ENABLE_VOLTAGE)
     }
     /// "Switch on" (0b0111): transition 3. Same bits as "disable operation".
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn switch_on() -> Self {
         Self(Self::QUICK_STOP | Self::ENABLE_VOLTAGE | Self::SWITCH_ON)
     }
     /// "Disable operation" (0b0111): transition 5.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn disable_operation() -> Self {
         Self::switch_on()
     }
     /// "Enable operation" (0b1111): transitions 4 and 16 (and 3 from ready to switch on).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn enable_operation() -> Self {
         Self(Self::ENABLE_OPERATION | Self::QUICK_STOP | Self::ENABLE_VOLTAGE | Self::SWITCH_ON)
     }
     /// "Disable voltage" (0b0000): transitions 7, 9, 10, 12.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn disable_voltage() -> Self {
         Self(0)
     }
     /// "Quick stop" (0b0010): transitions 7, 10, 11.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn quick_stop() -> Self {
         Self(Self::ENABLE_VOLTAGE)
     }
     /// "Fault reset" (bit 7): transition 15 on its rising edge.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn fault_reset() -> Self {
         Self(Self::FAULT_RESET)
     }
 
     /// Whether bit 7 (fault reset) is set.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn fault_reset_requested(self) -> bool {
         self.0 & Self::FAULT_RESET != 0
     }
 
     /// The device-control command that bits 0 to 3 encode (bit 7 is edge-triggered and
     /// read separately).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn command(self) -> DeviceCommand {
         let bits = self.0;
         if bits & Self::ENABLE_VOLTAGE == 0 {
@@ -196,6 +216,8 @@ impl Cia402State {
     ///
     /// "Switch on + enable operation" from ready to switch on is transition 3 here; a
     /// simulated drive makes one transition per cycle, so transition 4 follows next cycle.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn after_command(self, command: DeviceCommand) -> Self {
         use Cia402State as S;
         use DeviceCommand as C;
@@ -218,6 +240,8 @@ impl Cia402State {
 
     /// The state after a fault reset (rising edge of controlword bit 7): transition 15
     /// from fault; other states do not react.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn after_fault_reset(self) -> Self {
         match self {
             Self::Fault => Self::SwitchOnDisabled,
@@ -226,11 +250,15 @@ impl Cia402State {
     }
 
     /// Whether the motor is under control (torque applied) in this state.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn is_torque_on(self) -> bool {
         matches!(self, Self::OperationEnabled | Self::QuickStopActive)
     }
 
     /// Whether the drive is faulted (fault reaction active or fault).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn is_fault(self) -> bool {
         matches!(self, Self::FaultReactionActive | Self::Fault)
     }
@@ -239,6 +267,8 @@ impl Cia402State {
     /// enabled (`enable`) or towards switch on disabled (`!enable`). A faulted drive gets
     /// "disable voltage": resetting a fault is the master's explicit decision
     /// ([`ControlWord::fault_reset`]).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn controlword_towards(self, enable: bool) -> ControlWord {
         if !enable {
             return ControlWord::disable_voltage();
@@ -282,6 +312,8 @@ impl StatusWord {
     pub const INTERNAL_LIMIT: u16 = 1 << 11;
 
     /// The state bits of `state` (bits 0-3, 5, 6) as the standard's table gives them.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn state_bits(state: Cia402State) -> u16 {
         match state {
             Cia402State::NotReadyToSwitchOn => 0x0000,
@@ -297,6 +329,8 @@ impl StatusWord {
 
     /// The state the statusword encodes (masks 0x4F / 0x6F of the standard). Patterns the
     /// standard does not define read as not ready to switch on.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn state(self) -> Cia402State {
         let bits = self.0;
         match bits & 0x4F {
@@ -316,6 +350,8 @@ impl StatusWord {
     }
 
     /// Whether `flag` (one of the bit constants) is set.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn has(self, flag: u16) -> bool {
         self.0 & flag != 0
     }

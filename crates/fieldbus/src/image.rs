@@ -27,6 +27,8 @@ pub enum DriveMode {
 
 impl DriveMode {
     /// Whether the controller sends positions (CSP, ideal) rather than closing the loop.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn takes_position(self) -> bool {
         matches!(self, Self::Csp | Self::Ideal)
     }
@@ -98,6 +100,8 @@ pub struct JointFeedback {
 
 impl JointFeedback {
     /// The drive's CiA 402 state, decoded from the statusword.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn state(&self) -> Cia402State {
         self.statusword.state()
     }
@@ -196,6 +200,8 @@ pub struct ProcessOutputs {
 
 impl ProcessOutputs {
     /// All-zero outputs (drives commanded to "disable voltage") shaped by `layout`.
+    ///
+    /// Real-time: no (set-up: allocates the image).
     pub fn new(layout: &ProcessLayout) -> Self {
         Self {
             joints: vec![JointCommand::default(); layout.joints.len()],
@@ -229,6 +235,8 @@ pub struct ProcessInputs {
 
 impl ProcessInputs {
     /// All-zero inputs shaped by `layout`.
+    ///
+    /// Real-time: no (set-up: allocates the image).
     pub fn new(layout: &ProcessLayout) -> Self {
         Self {
             joints: vec![JointFeedback::default(); layout.joints.len()],

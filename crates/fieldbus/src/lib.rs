@@ -7,7 +7,9 @@
 //! the trait's other methods, [`check_images`], and the simulated machine's exchange and
 //! its inputs' setters and outputs' getters (`set_estop`, `turn_handwheel`,
 //! `set_digital_input`, ...). Set-up only: the constructors (`SimulatedMachine::new`,
-//! [`ProcessOutputs::new`], [`ProcessInputs::new`] allocate the images).
+//! [`ProcessOutputs::new`], [`ProcessInputs::new`] allocate the images). Each public
+//! function's doc says it in a line of its own, `Real-time: yes (...)` or `Real-time: no
+//! (why)`; `crates/kernel/tests/real_time_docs.rs` checks that every one has it.
 //!
 //! The [`sim`] module holds the in-process simulated machine, the embedded default. The
 //! EtherCAT back-end (CiA 402 drives in cyclic synchronous position mode) implements the

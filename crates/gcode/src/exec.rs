@@ -255,15 +255,24 @@ impl Interpreter {
         Ok(-1)
     }
 
-    /// Words present that nothing on the block uses.
+    /// Refuses a block whose codes lack a word they need, or that has a word nothing on it
+    /// uses, with rs274's message; the checks run in rs274's order, so the first refusal is
+    /// the one it reports.
     pub(crate) fn check_words(&self, b: &Block, motion: i32) -> Res<()> {
-        let mode0 = b.g[gg::NON_MODAL];
-        let cycle = matches!(motion, 730 | 740 | 810..=890);
-        let lathe_cycle = matches!(motion, 700 | 710..=712 | 720..=722);
-        let roughing = lathe_cycle && motion != 700;
-        let g10 = mode0 == 100;
-        let user_m = b.m[mg::USER] != -1;
-        let m = |g: usize, v: i32| b.m[g] == v;
+        let on = WordUsers::of(b, motion);
+        self.check_code_combinations(b, &on)?;
+        self.check_letter_words(b, &on)?;
+        self.check_p_word(b, &on)?;
+        self.check_q_word(b, &on)?;
+        self.check_r_word(b, &on)?;
+        self.check_required_words(b, motion)?;
+        self.check_dollar_word(b, motion)
+    }
+
+    /// G4 without P, G5.3 beside another motion, U or W on a lathe cycle, G53 outside G0/G1
+    /// or in G91.
+    fn check_code_combinations(&self, b: &Block, on: &WordUsers) -> Res<()> {
+        let (mode0, motion, lathe_cycle) = (on.mode0, on.motion, on.lathe_cycle);
         if mode0 == 40 && !b.has(b'p') {
             return Err(self.g_err(
                 b,
@@ -316,6 +325,14 @@ impl Interpreter {
                 ));
             }
         }
+        Ok(())
+    }
+
+    /// A, B, C in a canned cycle; D, E, H, I, J, K, L with nothing on the block to use them.
+    fn check_letter_words(&self, b: &Block, on: &WordUsers) -> Res<()> {
+        let (motion, cycle, lathe_cycle, roughing, g10) =
+            (on.motion, on.cycle, on.lathe_cycle, on.roughing, on.g10);
+        let m = |g: usize, v: i32| b.m[g] == v;
         for (l, ok, name) in [
             (b'a', !cycle, "an A word cannot be used in a canned cycle"),
             (b'b', !cycle, "a B word cannot be used in a canned cycle"),
@@ -398,6 +415,13 @@ impl Interpreter {
                 "L word with no G10, cutter compensation, canned cycle (but G74), G5.2, M66 or M98 to use it",
             ));
         }
+        Ok(())
+    }
+
+    /// P with nothing to use it, or a P value M19, G2 or G3 cannot take.
+    fn check_p_word(&self, b: &Block, on: &WordUsers) -> Res<()> {
+        let (mode0, motion, g10, user_m) = (on.mode0, on.motion, on.g10, on.user_m);
+        let m = |g: usize, v: i32| b.m[g] == v;
         if let Some(p) = b.get(b'p') {
             let ok = g10
                 || mode0 == 40
@@ -439,6 +463,13 @@ impl Interpreter {
                 ));
             }
         }
+        Ok(())
+    }
+
+    /// Q with nothing to use it.
+    fn check_q_word(&self, b: &Block, on: &WordUsers) -> Res<()> {
+        let (motion, lathe_cycle, g10, user_m) = (on.motion, on.lathe_cycle, on.g10, on.user_m);
+        let m = |g: usize, v: i32| b.m[g] == v;
         if b.has(b'q') {
             let ok = matches!(motion, 830 | 730 | 50 | 760)
                 || lathe_cycle
@@ -452,6 +483,13 @@ impl Interpreter {
                 return Err(self.err(b, b'q', ErrorKind::UnusedWord, "Q word with no G5, G10, G64, G70, G71, G72, G73, G83, M19, M61, M66, M67, M68 or user M code that uses it"));
             }
         }
+        Ok(())
+    }
+
+    /// R with nothing to use it, or an angle M19 cannot take.
+    fn check_r_word(&self, b: &Block, on: &WordUsers) -> Res<()> {
+        let (motion, cycle, roughing, g10) = (on.motion, on.cycle, on.roughing, on.g10);
+        let m = |g: usize, v: i32| b.m[g] == v;
         if let Some(r) = b.get(b'r') {
             let ok = matches!(motion, 20 | 30 | 760)
                 || cycle
@@ -476,6 +514,11 @@ impl Interpreter {
                 ));
             }
         }
+        Ok(())
+    }
+
+    /// The words G33, G33.1, G76 and G96 cannot go without (and G33's refusal of F).
+    fn check_required_words(&self, b: &Block, motion: i32) -> Res<()> {
         if motion == 330 || motion == 331 {
             if !b.has(b'k') {
                 return Err(self.g_err(
@@ -520,6 +563,12 @@ impl Interpreter {
                 "G96 needs an S word (surface speed)",
             ));
         }
+        Ok(())
+    }
+
+    /// `$` (the spindle) with nothing on the block that drives a spindle.
+    fn check_dollar_word(&self, b: &Block, motion: i32) -> Res<()> {
+        let m = |g: usize, v: i32| b.m[g] == v;
         if b.dollar.is_some()
             && !(b.has(b's')
                 || matches!(b.m[mg::SPINDLE], 3 | 4 | 5 | 19)
@@ -835,6 +884,40 @@ impl Interpreter {
         if let Some(q) = naive {
             self.state.naivecam_tolerance = q;
             self.emit(C::SetNaivecamTolerance(q));
+        }
+    }
+}
+
+/// What on a block can use a word, as [`Interpreter::check_words`] asks it.
+struct WordUsers {
+    /// The non-modal code (G4 as 40, G10 as 100, G53 as 530, ...), -1 without one.
+    mode0: i32,
+    /// The motion in force for the block.
+    motion: i32,
+    /// A canned cycle (G73, G74, G81..G89).
+    cycle: bool,
+    /// A lathe cycle (G70, G71.., G72..).
+    lathe_cycle: bool,
+    /// A roughing lathe cycle (G71.., G72..), which takes I and R.
+    roughing: bool,
+    /// G10.
+    g10: bool,
+    /// A user M code (M100-M199).
+    user_m: bool,
+}
+
+impl WordUsers {
+    fn of(b: &Block, motion: i32) -> WordUsers {
+        let mode0 = b.g[gg::NON_MODAL];
+        let lathe_cycle = matches!(motion, 700 | 710..=712 | 720..=722);
+        WordUsers {
+            mode0,
+            motion,
+            cycle: matches!(motion, 730 | 740 | 810..=890),
+            lathe_cycle,
+            roughing: lathe_cycle && motion != 700,
+            g10: mode0 == 100,
+            user_m: b.m[mg::USER] != -1,
         }
     }
 }

@@ -91,6 +91,8 @@ pub enum KernelError {
 
 impl KernelError {
     /// Stable code.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn code(&self) -> &'static str {
         match self {
             KernelError::Config(e) => e.code(),

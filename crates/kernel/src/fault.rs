@@ -29,6 +29,8 @@ pub enum TaskName {
 
 impl TaskName {
     /// The executive's name of the task.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn as_str(self) -> &'static str {
         match self {
             TaskName::SelfTest => "self test",
@@ -133,11 +135,15 @@ impl FaultCode {
     ];
 
     /// The code of a [`number`](Self::number).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn from_number(number: u32) -> Option<FaultCode> {
         Self::ALL.iter().copied().find(|c| c.number() == number)
     }
 
     /// Stable code.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn as_str(self) -> &'static str {
         match self {
             FaultCode::EStop => "kernel.estop",
@@ -167,11 +173,15 @@ impl FaultCode {
     }
 
     /// Number for the executive's fault log and trace.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn number(self) -> u32 {
         self as u32 + 100
     }
 
     /// Plain message.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn message(self) -> &'static str {
         match self {
             FaultCode::EStop => "emergency stop",
@@ -203,6 +213,8 @@ impl FaultCode {
     /// Whether the fault stops the machine at once (quick stop, then the drives are
     /// disabled until a reset). Program errors stop the program instead: the look-ahead
     /// lets the machine finish the blocks before the bad one.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn stops_machine(self) -> bool {
         matches!(
             self,
@@ -248,16 +260,22 @@ impl ProbeFailure {
     ];
 
     /// The fault's `value` for this failure (1 to 5).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn value(self) -> f64 {
         f64::from(self as u8 + 1)
     }
 
     /// The failure a fault's `value` names.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn from_value(value: f64) -> Option<ProbeFailure> {
         Self::ALL.into_iter().find(|f| f.value() == value)
     }
 
     /// The operator's text (LinuxCNC's, except for the missing input, which it does not have).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn message(self) -> &'static str {
         match self {
             ProbeFailure::NoProbeInput => "no probe input in the machine file",
@@ -292,6 +310,8 @@ pub struct Fault {
 
 impl Fault {
     /// Text for the operator; `joint_name` gives a joint's configured name.
+    ///
+    /// Real-time: no (allocates).
     pub fn describe(&self, joint_name: impl Fn(usize) -> String) -> String {
         let probe_failure = match self.code {
             FaultCode::ProbeFailed => ProbeFailure::from_value(self.value),

@@ -91,33 +91,45 @@ pub struct KernelHandle {
 
 impl KernelHandle {
     /// Sends an urgent command; false when the channel is full.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn urgent(&self, command: Urgent) -> bool {
         self.shared.urgent.try_put(command).is_ok()
     }
 
     /// Sends a normal command; false when the channel is full.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn command(&self, command: Command) -> bool {
         self.shared.normal.try_put(command).is_ok()
     }
 
     /// The latest status snapshot.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn status(&self) -> Status {
         self.shared.status.read()
     }
 
     /// Operator messages (`(MSG,...)`, `(DEBUG,...)`) the machine reached since the last
     /// call, in program order.
+    ///
+    /// Real-time: no (allocates).
     pub fn take_messages(&self) -> Vec<OperatorMessage> {
         std::iter::from_fn(|| self.shared.operator_messages.try_get()).collect()
     }
 
     /// Faults raised since the last call.
+    ///
+    /// Real-time: no (allocates).
     pub fn take_faults(&self) -> Vec<Fault> {
         std::iter::from_fn(|| self.shared.faults.try_get()).collect()
     }
 
     /// The last program error in words: the interpreter's or tool compensation's, else the
     /// planner's (a soft limit, a bad arc).
+    ///
+    /// Real-time: no (allocates).
     pub fn error_text(&self) -> Option<String> {
         self.shared.error_text.lock().clone().or_else(|| {
             self.shared
@@ -130,6 +142,8 @@ impl KernelHandle {
 
     /// The simulated machine the kernel runs on (press the e-stop, turn the handwheel,
     /// inject faults); [`KernelError::NotSimulated`] on any other fieldbus.
+    ///
+    /// Real-time: yes (no allocation, no blocking); its refusal's message allocates when formatted.
     pub fn simulated_machine(&self) -> Result<&SimulatedMachineHandle, KernelError> {
         self.simulated.as_ref().ok_or(KernelError::NotSimulated)
     }
@@ -137,6 +151,8 @@ impl KernelHandle {
     /// The simulated EtherCAT devices the kernel's master runs on (`[fieldbus.simulation]`:
     /// inject frame loss, a device's fall to SAFE-OP, a drive fault, link down);
     /// [`KernelError::NotSimulated`] on any other fieldbus.
+    ///
+    /// Real-time: yes (no allocation, no blocking); its refusal's message allocates when formatted.
     pub fn simulated_ethercat(&self) -> Result<&SimulatedEthercatHandle, KernelError> {
         self.simulated_ethercat
             .as_ref()
@@ -145,6 +161,8 @@ impl KernelHandle {
 
     /// Servo periods in which position control had no fresh set-point (real-time overruns
     /// of interpolation) and extrapolated.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn setpoint_underruns(&self) -> u64 {
         self.drives.setpoint_underruns()
     }
@@ -153,6 +171,8 @@ impl KernelHandle {
     /// between two runs of interpolation since start-up (1 without a stall): a gap up to
     /// the lead is ridden through; beyond it the set-points run dry
     /// (`kernel.setpoints_ran_dry`).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn setpoint_lead(&self) -> (u64, u64) {
         let lead = self
             .config
@@ -167,16 +187,22 @@ impl KernelHandle {
     }
 
     /// The PLC runtime, shared with the machine-logic task (hold it briefly).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn plc(&self) -> Option<&Arc<PiMutex<rtcnc_plc::Runtime>>> {
         self.plc.as_ref()
     }
 
     /// The configuration.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn config(&self) -> &MachineConfig {
         &self.config
     }
 
     /// A joint's configured name.
+    ///
+    /// Real-time: no (allocates).
     pub fn joint_name(&self, joint: usize) -> String {
         self.config
             .joints
@@ -186,6 +212,8 @@ impl KernelHandle {
 
     /// A fault in words, with the joint's name; a PLC fault with the PLC's code, POU and
     /// line.
+    ///
+    /// Real-time: no (allocates).
     pub fn describe(&self, fault: &Fault) -> String {
         let text = fault.describe(|j| self.joint_name(j));
         if matches!(
@@ -223,6 +251,8 @@ impl Kernel {
     /// Builds the kernel for a configuration on the fieldbus its `fieldbus.kind` names
     /// (`"sim"`: the simulated machine the file describes) with the file's kinematics; see
     /// [`Kernel::build_with`].
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn build(config: &MachineConfig, options: KernelOptions) -> Result<Kernel, KernelError> {
         config.validate()?;
         let kinematics = MachineKinematics::from_config(config)?;
@@ -264,6 +294,8 @@ impl Kernel {
     /// Builds the kernel on a fieldbus opened elsewhere (an EtherCAT master, a simulated
     /// machine of one's own), with the machine file's kinematics; see
     /// [`Kernel::build_with`].
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn build_with_bus<B: Fieldbus + Send + 'static>(
         config: &MachineConfig,
         options: KernelOptions,
@@ -278,6 +310,8 @@ impl Kernel {
     /// power-up self-test (configuration, persistent files, drive communication, I/O) and
     /// declares the task graph. When `bus` is a [`SimulatedMachine`], the handle reaches
     /// it ([`KernelHandle::simulated_machine`]).
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn build_with<B: Fieldbus + Send + 'static>(
         config: &MachineConfig,
         options: KernelOptions,

@@ -14,12 +14,16 @@ pub struct MachineKinematics(Box<dyn Kinematics + Send>);
 
 impl MachineKinematics {
     /// Any kinematics.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn new(kinematics: impl Kinematics + Send + 'static) -> MachineKinematics {
         MachineKinematics(Box::new(kinematics))
     }
 
     /// The machine file's kinematics: every joint an axis drives follows that axis one to
     /// one (a gantry axis drives several joints), in the order of `[[joints]]`.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn from_config(config: &MachineConfig) -> Result<MachineKinematics, MotionError> {
         let plan = config.axis_plan();
         let joints = (0..config.joints.len())

@@ -18,6 +18,8 @@ impl FixedText {
     pub const CAPACITY: usize = 256;
 
     /// The text, or `None` when it does not fit.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn new(text: &str) -> Option<FixedText> {
         if text.len() > Self::CAPACITY {
             return None;
@@ -31,6 +33,8 @@ impl FixedText {
     }
 
     /// The text, shortened at a character boundary to fit when it is longer.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn truncated(text: &str) -> FixedText {
         let mut end = text.len().min(Self::CAPACITY);
         while !text.is_char_boundary(end) {
@@ -43,6 +47,8 @@ impl FixedText {
     }
 
     /// The text.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn as_str(&self) -> &str {
         let len = usize::from(self.len).min(Self::CAPACITY);
         std::str::from_utf8(&self.bytes[..len]).unwrap_or("")
@@ -502,6 +508,8 @@ pub enum MachineState {
 
 impl MachineState {
     /// Lower-case name.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn as_str(self) -> &'static str {
         match self {
             MachineState::Starting => "starting",

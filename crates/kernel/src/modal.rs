@@ -35,6 +35,8 @@ pub struct ModalSnapshot {
 
 impl ModalSnapshot {
     /// The snapshot of an interpreter's modal state.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn of(m: &ModalState) -> ModalSnapshot {
         let mut g = [-1i32; 16];
         let origin = match m.origin_index {

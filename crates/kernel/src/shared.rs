@@ -308,6 +308,8 @@ impl Shared {
 
     /// Records a fault: the fault channel, the executive's fault log and trace, and (when it
     /// stops the machine) the interpolation's stop channel. Real-time safe.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn raise(
         &self,
         ctx: &mut Context<'_>,

@@ -36,11 +36,15 @@ impl Axis {
     ];
 
     /// Axis letter.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn letter(self) -> char {
         ['X', 'Y', 'Z', 'A', 'B', 'C', 'U', 'V', 'W'][self as usize]
     }
 
     /// Axis from its letter (upper or lower case).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn from_letter(c: char) -> Option<Axis> {
         Axis::ALL
             .iter()

@@ -105,6 +105,8 @@ pub enum MotionError {
 
 impl MotionError {
     /// Stable machine-readable code (`MOTION-xxx`).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn code(&self) -> &'static str {
         match self {
             MotionError::InvalidLimit { .. } => "MOTION-001",
@@ -123,6 +125,8 @@ impl MotionError {
     }
 
     /// Program line the error refers to, when it refers to a move.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn line(&self) -> Option<u32> {
         match self {
             MotionError::NotFinite { line, .. }

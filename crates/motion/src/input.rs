@@ -110,6 +110,8 @@ pub struct Move {
 
 impl Move {
     /// A feed line at `feed` mm/s.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn line(end: AxisVec, feed: f64, mode: PathMode, line: u32) -> Self {
         Move {
             kind: MoveKind::Line { end, rapid: false },
@@ -120,6 +122,8 @@ impl Move {
     }
 
     /// A rapid line.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn rapid(end: AxisVec, mode: PathMode, line: u32) -> Self {
         Move {
             kind: MoveKind::Line { end, rapid: true },
@@ -130,6 +134,8 @@ impl Move {
     }
 
     /// An arc or helix at `feed` mm/s, an exact circle (see [`Move::with_radius_tolerance`]).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn arc(
         end: AxisVec,
         centre: [f64; 3],
@@ -155,6 +161,8 @@ impl Move {
 
     /// The same move, an arc whose end radius may differ from its start radius by up to
     /// `tolerance` mm (run as a spiral); other moves are returned unchanged.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn with_radius_tolerance(mut self, tolerance: f64) -> Self {
         if let MoveKind::Arc {
             radius_tolerance, ..
@@ -166,6 +174,8 @@ impl Move {
     }
 
     /// A spline (G5, G5.1) at `feed` mm/s.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn spline(end: AxisVec, control: Bezier, feed: f64, mode: PathMode, line: u32) -> Self {
         Move {
             kind: MoveKind::Spline { end, control },
@@ -176,6 +186,8 @@ impl Move {
     }
 
     /// A dwell.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn dwell(seconds: f64, line: u32) -> Self {
         Move {
             kind: MoveKind::Dwell { seconds },

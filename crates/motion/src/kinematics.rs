@@ -24,16 +24,27 @@ pub struct JointLimits {
 /// Axis-space to joint-space map.
 pub trait Kinematics {
     /// Number of joints.
+    ///
+    /// Real-time: yes (implementations allocate nothing and do not block).
     fn joint_count(&self) -> usize;
     /// Joint positions of an axis position (inverse kinematics). `joints.len()` is
-    /// `joint_count()`. Must not allocate: it runs every servo period.
+    /// `joint_count()`.
+    ///
+    /// Real-time: yes (implementations allocate nothing and do not block: it runs every
+    /// servo period).
     fn axes_to_joints(&self, axes: &AxisVec, joints: &mut [f64]);
     /// Axis position of joint positions (forward kinematics).
+    ///
+    /// Real-time: yes (implementations allocate nothing and do not block).
     fn joints_to_axes(&self, joints: &[f64]) -> AxisVec;
     /// For trivial kinematics: the axis that joint `joint` follows one to one. `None` means
     /// the kinematics is not trivial.
+    ///
+    /// Real-time: yes (implementations allocate nothing and do not block).
     fn joint_axis(&self, joint: usize) -> Option<Axis>;
     /// Limits of joint `joint`, if any beyond the axis limits.
+    ///
+    /// Real-time: yes (implementations allocate nothing and do not block).
     fn joint_limits(&self, joint: usize) -> Option<JointLimits>;
 }
 
@@ -45,6 +56,8 @@ pub struct TrivialKinematics {
 
 impl TrivialKinematics {
     /// One joint per listed axis, in order (the usual XYZ mill: `&[X, Y, Z]`).
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn identity(axes: &[Axis]) -> Self {
         TrivialKinematics {
             joints: axes.iter().map(|a| (*a, None)).collect(),
@@ -53,6 +66,8 @@ impl TrivialKinematics {
 
     /// Joints given as (axis they follow, their own limits). A gantry X with four drives
     /// lists X four times.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn new(joints: Vec<(Axis, Option<JointLimits>)>) -> Result<Self, MotionError> {
         if joints.is_empty() {
             return Err(MotionError::Kinematics("no joints".into()));

@@ -23,7 +23,9 @@
 //! the [`otg`] functions and their profiles' evaluation. The rest is set-up and may
 //! allocate: [`Planner::new`] and [`Planner::with_history`] (memory is fixed there),
 //! [`TrivialKinematics`]' constructors, [`MachineLimits::validate`] (its error names the
-//! limit), and formatting an error's message.
+//! limit), and formatting an error's message. Each public function's doc says it in a line
+//! of its own, `Real-time: yes (...)` or `Real-time: no (why)`;
+//! `crates/kernel/tests/real_time_docs.rs` checks that every one has it.
 #![forbid(unsafe_code)]
 // Numeric code over fixed 9-axis arrays reads best with index loops; negated comparisons are
 // how NaN is refused (`!(x > 0.0)` is true for NaN).

@@ -24,6 +24,8 @@ pub struct AxisLimits {
 
 impl AxisLimits {
     /// Limits with a symmetric envelope and quick-stop values equal to the normal ones.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn new(
         max_velocity: f64,
         max_acceleration: f64,
@@ -53,6 +55,8 @@ pub struct MachineLimits {
 
 impl MachineLimits {
     /// A machine with the given axes, all with the same limits.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn uniform(axes: &[Axis], limits: AxisLimits) -> Self {
         let mut m = MachineLimits { axes: [None; AXES] };
         for a in axes {
@@ -62,6 +66,8 @@ impl MachineLimits {
     }
 
     /// Checks every value; the first bad one is returned as an error.
+    ///
+    /// Real-time: no (set-up: a refusal allocates its message).
     pub fn validate(&self) -> Result<(), MotionError> {
         for (i, l) in self.axes.iter().enumerate() {
             let Some(l) = l else { continue };
@@ -127,6 +133,7 @@ pub(crate) struct Lim {
 }
 
 impl Lim {
+    /// Real-time: yes (no allocation, no blocking).
     pub fn from(m: &MachineLimits) -> Lim {
         let mut l = Lim {
             present: [false; AXES],
@@ -158,6 +165,8 @@ impl Lim {
     }
 
     /// Every axis present, without limits (for checks of a path's shape alone).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn unbounded() -> Lim {
         let mut l = Lim::from(&MachineLimits { axes: [None; AXES] });
         for i in 0..AXES {
@@ -176,6 +185,8 @@ impl Lim {
     }
 
     /// Indices of the present axes, in axis order.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     #[inline]
     pub fn present_axes(&self) -> &[usize] {
         &self.axes[..self.n_present]

@@ -406,6 +406,8 @@ pub enum RewindError {
 
 impl RewindError {
     /// Stable code.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn code(&self) -> &'static str {
         match self {
             RewindError::NotKept { .. } => "motion.rewind_not_kept",
@@ -418,6 +420,8 @@ impl<K: Kinematics> Planner<K> {
     /// A planner for a machine with `limits` and `kinematics`, a servo period in seconds, a
     /// look-ahead window of `window` pieces (at least 8; memory is fixed at construction),
     /// starting at rest at axis position `start`.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn new(
         limits: &MachineLimits,
         kinematics: K,
@@ -512,6 +516,8 @@ impl<K: Kinematics> Planner<K> {
     }
 
     /// Moves that can be pushed now without [`MotionError::QueueFull`].
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn free(&self) -> usize {
         (self.q.cap() - self.q.len).saturating_sub(FLUSH_PIECES) / PIECES_PER_MOVE
     }
@@ -519,6 +525,8 @@ impl<K: Kinematics> Planner<K> {
     /// Adds a move to the look-ahead window. Errors (bad input, soft limits) carry the move's
     /// line; the move is then not taken and the planner state is unchanged. `QueueFull`: try
     /// again after some periods.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn push(&mut self, mv: &Move) -> Result<(), MotionError> {
         self.push_all(std::slice::from_ref(mv)).and_then(|n| {
             if n == 1 {
@@ -533,6 +541,8 @@ impl<K: Kinematics> Planner<K> {
     /// braking curve is updated once for all of them (cheaper than one [`Planner::push`]
     /// each). Stops at the first bad move and returns its error (the moves before it are
     /// taken).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn push_all(&mut self, moves: &[Move]) -> Result<usize, MotionError> {
         if matches!(self.hold, Some(h) if h.kind != StopKind::Hold) {
             return Err(MotionError::Busy("stopping"));
@@ -560,6 +570,8 @@ impl<K: Kinematics> Planner<K> {
 
     /// Emits the moves held back for blending; the path then ends with a stop. Call at
     /// program end and before anything that waits for the machine to stop.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn flush(&mut self) {
         self.scratch.clear();
         self.builder.flush(&self.lim, &mut self.scratch);
@@ -567,6 +579,8 @@ impl<K: Kinematics> Planner<K> {
     }
 
     /// Feed override, 0..=2 (clamped). Takes effect at once with a jerk-limited speed change.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn set_feed_override(&mut self, f: f64) {
         let f = if f.is_finite() {
             f.clamp(0.0, 2.0)
@@ -583,6 +597,8 @@ impl<K: Kinematics> Planner<K> {
     }
 
     /// Rapid override, 0..=1 (clamped).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn set_rapid_override(&mut self, f: f64) {
         let f = if f.is_finite() {
             f.clamp(0.0, 1.0)
@@ -599,6 +615,8 @@ impl<K: Kinematics> Planner<K> {
     }
 
     /// Feed hold: decelerate along the path and stay there until [`Planner::resume`].
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn hold(&mut self) {
         if self.hold.is_none() {
             self.start_stop(StopKind::Hold);
@@ -607,6 +625,8 @@ impl<K: Kinematics> Planner<K> {
 
     /// Resume after a feed hold, from where the machine stopped. Requested during the last
     /// steps of the hold's stop, it takes effect when they end (see `regenerate`).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn resume(&mut self) {
         if matches!(self.hold, Some(h) if h.kind == StopKind::Hold) {
             self.settle_for_change();
@@ -618,38 +638,52 @@ impl<K: Kinematics> Planner<K> {
     }
 
     /// Abort: decelerate along the path, then drop every queued move.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn abort(&mut self) {
         self.start_stop(StopKind::Abort);
     }
 
     /// Quick stop (e-stop): decelerate along the path with the quick-stop deceleration and
     /// jerk, then drop every queued move.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn quick_stop(&mut self) {
         self.start_stop(StopKind::Quick);
     }
 
     /// Current set-point in axis space.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn position(&self) -> AxisVec {
         self.cur.hist[0]
     }
 
     /// Counters.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn stats(&self) -> RunStats {
         self.stats
     }
 
     /// Geometry counters (merges, blends, smoothing, stops).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn geometry_stats(&self) -> GeometryStats {
         self.builder.stats
     }
 
     /// Pieces in the look-ahead window (with those kept behind the emitted set-point for
     /// [`unemit`](Self::unemit)).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn window_len(&self) -> usize {
         self.q.len
     }
 
     /// Pieces from the emitted set-point's on: the path still to run.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn pieces_ahead(&self) -> usize {
         let behind = self.cur.id.saturating_sub(self.q.head_id);
         self.q
@@ -661,6 +695,8 @@ impl<K: Kinematics> Planner<K> {
     /// path: the end of the last of the consecutive pieces of that line from the emitted
     /// one on (a line's span and its corner blend, or every piece of a spline). `None` when
     /// the emitted set-point is on no piece. No allocation: for the status of every period.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn move_end(&self) -> Option<AxisVec> {
         let mut i = self.q.index(self.cur.id)?;
         let line = self.q.get(i).line;
@@ -672,12 +708,16 @@ impl<K: Kinematics> Planner<K> {
 
     /// How many servo periods the generator runs ahead of the emitted set-point at most
     /// (the machine's longest stop; the buffer is allocated at construction).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn generation_depth(&self) -> usize {
         self.depth
     }
 
     /// Diagnostics: per piece of the window, (length, braking curve, axis-speed bound,
     /// curvature bound) at its samples. A debugging aid (feature `diagnostics`); allocates.
+    ///
+    /// Real-time: no (allocates; a debugging aid).
     #[cfg(feature = "diagnostics")]
     pub fn debug_window(&self) -> Vec<PieceDump> {
         (0..self.q.len)
@@ -699,6 +739,8 @@ impl<K: Kinematics> Planner<K> {
 
     /// One line per piece of the window, for diagnosis: kind, program line, length,
     /// flags and, at each sample, the braking curve and the speed bounds.
+    ///
+    /// Real-time: no (allocates; a debugging aid).
     #[doc(hidden)]
     pub fn debug_pieces(&self) -> Vec<String> {
         (0..self.q.len)
@@ -736,6 +778,8 @@ impl<K: Kinematics> Planner<K> {
     }
 
     /// The kinematics.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn kinematics(&self) -> &K {
         &self.kin
     }
@@ -744,6 +788,8 @@ impl<K: Kinematics> Planner<K> {
     /// the kinematics' joint count) and returns the status. Allocation-free, bounded time:
     /// one buffered set-point is emitted and the buffer is topped up with at most
     /// `1 + GEN_BUDGET` (13) generator steps, plus one forced step when nothing is buffered.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn next(&mut self, joints: &mut [f64]) -> Status {
         self.stats.periods += 1;
         self.top_up();
@@ -904,6 +950,8 @@ impl<K: Kinematics> Planner<K> {
     /// applied in and must still let an on-line change act at once. The pieces they are on
     /// stay in the window meanwhile and take room in it ([`free`](Self::free)). Allocates:
     /// call at set-up.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn with_history(mut self, periods: usize) -> Self {
         self.emitted = GenBuffer::new(periods + 1, self.cur);
         self.restart_history();
@@ -911,6 +959,8 @@ impl<K: Kinematics> Planner<K> {
     }
 
     /// Set-points [`unemit`](Self::unemit) can go back over now.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn unemittable(&self) -> usize {
         self.emitted.len.saturating_sub(1)
     }
@@ -922,6 +972,8 @@ impl<K: Kinematics> Planner<K> {
     /// cannot be undone this way: go back before making a change, not after. Allocation-free;
     /// refused, with nothing changed, beyond the history ([`with_history`](Self::with_history))
     /// or across the end of a stop or a reset.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn unemit(&mut self, n: usize) -> Result<(), RewindError> {
         if n == 0 {
             return Ok(());
@@ -1535,6 +1587,8 @@ impl<K: Kinematics> Planner<K> {
     /// Places the planner at rest at axis position `position`, dropping every queued move and
     /// any hold: for a kernel whose machine was moved by other means (jog, homing, a stop
     /// outside the path). Allocation-free. Refuses a non-finite position.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn reset_at(&mut self, position: AxisVec) -> Result<(), MotionError> {
         if !position.iter().all(|x| x.is_finite()) {
             return Err(MotionError::InvalidLimit {

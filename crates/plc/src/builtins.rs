@@ -666,82 +666,134 @@ fn elem_or_string(n: &str) -> Option<Option<Elem>> {
     }
 }
 
-/// `X_TO_Y`, `TO_Y`, `X_TRUNC_Y`, `TRUNC_Y`, `X_BCD_TO_Y`, `X_TO_BCD_Y`.
-fn conversion(c: &mut Compiler, f: &str, args: &[Arg], sc: &mut Scope, pos: Pos) -> R<Option<TE>> {
-    enum Kind {
-        To,
-        Trunc,
-        FromBcd,
-        ToBcd,
+/// What a conversion function's name asks for.
+enum ConversionKind {
+    /// `X_TO_Y`, `TO_Y`, `ANY_TO_Y`.
+    To,
+    /// `X_TRUNC_Y`, `TRUNC_Y`: a real to an integer, towards zero.
+    Trunc,
+    /// `X_BCD_TO_Y`: a bit string read as BCD, to an integer.
+    FromBcd,
+    /// `X_TO_BCD_Y`: an integer to a bit string in BCD.
+    ToBcd,
+}
+
+/// A conversion function's name taken apart: the source type (absent in `TO_Y`, which takes
+/// the argument's own), the kind, the target type. `None` (for either type) stands for
+/// STRING.
+struct ConversionName {
+    from: Option<Option<Elem>>,
+    kind: ConversionKind,
+    to: Option<Elem>,
+}
+
+impl ConversionName {
+    /// Takes the name apart; `None` when it is not a conversion of known types.
+    fn parse(f: &str) -> Option<ConversionName> {
+        let (from, kind, to) = if let Some((a, b)) = f.split_once("_BCD_TO_") {
+            (Some(a), ConversionKind::FromBcd, b)
+        } else if let Some((a, b)) = f.split_once("_TO_BCD_") {
+            (Some(a), ConversionKind::ToBcd, b)
+        } else if let Some(b) = f.strip_prefix("TO_").or_else(|| f.strip_prefix("ANY_TO_")) {
+            (None, ConversionKind::To, b)
+        } else if let Some(b) = f.strip_prefix("TRUNC_") {
+            (None, ConversionKind::Trunc, b)
+        } else if let Some((a, b)) = f.split_once("_TRUNC_") {
+            (Some(a), ConversionKind::Trunc, b)
+        } else if let Some((a, b)) = f.split_once("_TO_") {
+            (Some(a), ConversionKind::To, b)
+        } else {
+            return None;
+        };
+        let to = elem_or_string(to)?;
+        let from = match from {
+            Some(n) => Some(elem_or_string(n)?),
+            None => None,
+        };
+        Some(ConversionName { from, kind, to })
     }
-    let parse = || -> Option<(Option<String>, Kind, String)> {
-        if let Some((a, b)) = f.split_once("_BCD_TO_") {
-            return Some((Some(a.to_string()), Kind::FromBcd, b.to_string()));
-        }
-        if let Some((a, b)) = f.split_once("_TO_BCD_") {
-            return Some((Some(a.to_string()), Kind::ToBcd, b.to_string()));
-        }
-        if let Some(b) = f.strip_prefix("TO_").or_else(|| f.strip_prefix("ANY_TO_")) {
-            return Some((None, Kind::To, b.to_string()));
-        }
-        if let Some(b) = f.strip_prefix("TRUNC_") {
-            return Some((None, Kind::Trunc, b.to_string()));
-        }
-        if let Some((a, b)) = f.split_once("_TRUNC_") {
-            return Some((Some(a.to_string()), Kind::Trunc, b.to_string()));
-        }
-        if let Some((a, b)) = f.split_once("_TO_") {
-            return Some((Some(a.to_string()), Kind::To, b.to_string()));
-        }
-        None
-    };
-    let Some((from, kind, to)) = parse() else {
+}
+
+/// `X_TO_Y`, `TO_Y`, `X_TRUNC_Y`, `TRUNC_Y`, `X_BCD_TO_Y`, `X_TO_BCD_Y`; `None` when `f`
+/// names no conversion.
+fn conversion(c: &mut Compiler, f: &str, args: &[Arg], sc: &mut Scope, pos: Pos) -> R<Option<TE>> {
+    let Some(name) = ConversionName::parse(f) else {
         return Ok(None);
-    };
-    let Some(to_t) = elem_or_string(&to) else {
-        return Ok(None);
-    };
-    let from_t = match &from {
-        Some(n) => match elem_or_string(n) {
-            Some(t) => Some(t),
-            None => return Ok(None),
-        },
-        None => None,
     };
     let args = ordered(c, f, args)?;
     let mut a = c.b_args(&args, sc, f)?;
     count(c, f, &a, 1, 1, pos)?;
     let (x, p) = a.remove(0);
-    // The argument's own type (or the declared source type, which it must widen to).
-    let src: Option<Elem>;
-    let xe: vm::Expr;
-    match from_t {
+    let (src, xe) = conversion_argument(c, f, x, p, name.from)?;
+    let result_ty = match name.to {
+        Some(e) => Type::Elem(e),
+        None => Type::String(MAX_STRING_LEN),
+    };
+    let out = match (name.kind, src, name.to) {
+        (ConversionKind::Trunc, Some(s), Some(t)) if s.is_real() && t.is_int() => {
+            c.folded(vm::Expr::Conv(Conv::RealTrunc(ik(t)), Box::new(xe)))
+        }
+        (ConversionKind::Trunc, ..) => {
+            return Err(c.err_at(
+                pos,
+                ErrorKind::WrongArgument,
+                format!("{f} converts a real to an integer"),
+            ));
+        }
+        (ConversionKind::FromBcd, Some(s), Some(t)) if s.is_bit() && t.is_int() => {
+            c.folded(vm::Expr::Conv(
+                Conv::Int(ik(t)),
+                Box::new(vm::Expr::Conv(Conv::FromBcd, Box::new(xe))),
+            ))
+        }
+        (ConversionKind::ToBcd, Some(s), Some(t)) if s.is_int() && t.is_bit() => {
+            c.folded(vm::Expr::Conv(Conv::ToBcd(ik(t)), Box::new(xe)))
+        }
+        (ConversionKind::FromBcd | ConversionKind::ToBcd, ..) => {
+            return Err(c.err_at(
+                pos,
+                ErrorKind::WrongArgument,
+                format!("{f}: BCD conversions go between bit strings and integers"),
+            ));
+        }
+        (ConversionKind::To, Some(s), Some(t)) => c.conversion(xe, s, t),
+        (ConversionKind::To, Some(s), None) => to_string(c, s, xe, pos)?,
+        (ConversionKind::To, None, Some(t)) => from_string(t, xe),
+        (ConversionKind::To, None, None) => xe,
+    };
+    Ok(Some(Compiler::te(Ty::T(result_ty), out)))
+}
+
+/// The conversion's argument and the type it is converted from (`None`: STRING): the
+/// declared source type, which the argument must widen to, or else the argument's own (an
+/// enumeration's value as DINT, a literal as LINT or LREAL).
+fn conversion_argument(
+    c: &mut Compiler,
+    f: &str,
+    x: TE,
+    p: Pos,
+    from: Option<Option<Elem>>,
+) -> R<(Option<Elem>, vm::Expr)> {
+    match from {
         Some(Some(fe)) => {
-            xe = c.coerce_to(x, &Type::Elem(fe), p).map_err(|mut e| {
+            let xe = c.coerce_to(x, &Type::Elem(fe), p).map_err(|mut e| {
                 e.kind = ErrorKind::WrongArgument;
                 e.message = format!("{f}: {}", e.message);
                 e
             })?;
-            src = Some(fe);
+            Ok((Some(fe), xe))
         }
         Some(None) => {
             if !matches!(x.ty, Ty::T(Type::String(_))) {
                 return Err(wrong(c, f, &x.ty, p, "a STRING"));
             }
-            xe = Compiler::te_parts(x).1;
-            src = None;
+            Ok((None, Compiler::te_parts(x).1))
         }
         None => {
             let t = x.ty.clone();
             match &t {
-                Ty::T(Type::String(_)) => {
-                    xe = Compiler::te_parts(x).1;
-                    src = None;
-                }
-                Ty::T(Type::Enum(_)) => {
-                    xe = Compiler::te_parts(x).1;
-                    src = Some(Elem::DInt);
-                }
+                Ty::T(Type::String(_)) => Ok((None, Compiler::te_parts(x).1)),
+                Ty::T(Type::Enum(_)) => Ok((Some(Elem::DInt), Compiler::te_parts(x).1)),
                 _ => {
                     let e = literal_elem(&t).or(match t {
                         Ty::AnyInt(_) => Some(Elem::LInt),
@@ -751,74 +803,45 @@ fn conversion(c: &mut Compiler, f: &str, args: &[Arg], sc: &mut Scope, pos: Pos)
                     let Some(e) = e else {
                         return Err(wrong(c, f, &t, p, "an elementary value"));
                     };
-                    xe = c.coerce_to(x, &Type::Elem(e), p)?;
-                    src = Some(e);
+                    let xe = c.coerce_to(x, &Type::Elem(e), p)?;
+                    Ok((Some(e), xe))
                 }
             }
         }
     }
-    let result_ty = match to_t {
-        Some(e) => Type::Elem(e),
-        None => Type::String(MAX_STRING_LEN),
+}
+
+/// A value of elementary type `s` as text, into a new string temporary.
+fn to_string(c: &mut Compiler, s: Elem, xe: vm::Expr, pos: Pos) -> R<vm::Expr> {
+    let dest = c.new_string_temp(pos)?;
+    let b = if s == Elem::Bool {
+        Builtin::BoolToStr
+    } else if s.is_real() {
+        Builtin::RealToStr(s == Elem::Real)
+    } else if s == Elem::Time {
+        Builtin::TimeToStr
+    } else if let Some(m) = crate::dates::Moment::of(s) {
+        Builtin::MomentToStr(m)
+    } else {
+        Builtin::IntToStr(ik(s).signed())
     };
-    let out = match (kind, src, to_t) {
-        (Kind::Trunc, Some(s), Some(t)) if s.is_real() && t.is_int() => {
-            c.folded(vm::Expr::Conv(Conv::RealTrunc(ik(t)), Box::new(xe)))
-        }
-        (Kind::Trunc, ..) => {
-            return Err(c.err_at(
-                pos,
-                ErrorKind::WrongArgument,
-                format!("{f} converts a real to an integer"),
-            ));
-        }
-        (Kind::FromBcd, Some(s), Some(t)) if s.is_bit() && t.is_int() => c.folded(vm::Expr::Conv(
-            Conv::Int(ik(t)),
-            Box::new(vm::Expr::Conv(Conv::FromBcd, Box::new(xe))),
-        )),
-        (Kind::ToBcd, Some(s), Some(t)) if s.is_int() && t.is_bit() => {
-            c.folded(vm::Expr::Conv(Conv::ToBcd(ik(t)), Box::new(xe)))
-        }
-        (Kind::FromBcd | Kind::ToBcd, ..) => {
-            return Err(c.err_at(
-                pos,
-                ErrorKind::WrongArgument,
-                format!("{f}: BCD conversions go between bit strings and integers"),
-            ));
-        }
-        (Kind::To, Some(s), Some(t)) => c.conversion(xe, s, t),
-        (Kind::To, Some(s), None) => {
-            let dest = c.new_string_temp(pos)?;
-            let b = if s == Elem::Bool {
-                Builtin::BoolToStr
-            } else if s.is_real() {
-                Builtin::RealToStr(s == Elem::Real)
-            } else if s == Elem::Time {
-                Builtin::TimeToStr
-            } else if let Some(m) = crate::dates::Moment::of(s) {
-                Builtin::MomentToStr(m)
-            } else {
-                Builtin::IntToStr(ik(s).signed())
-            };
-            builtin_expr(b, vec![xe], dest)
-        }
-        (Kind::To, None, Some(t)) => {
-            let b = if t == Elem::Bool {
-                Builtin::StrToBool
-            } else if t.is_real() {
-                Builtin::StrToReal(t == Elem::Real)
-            } else if t == Elem::Time {
-                Builtin::StrToTime
-            } else if let Some(m) = crate::dates::Moment::of(t) {
-                Builtin::StrToMoment(m)
-            } else {
-                Builtin::StrToInt(ik(t))
-            };
-            builtin_expr(b, vec![xe], 0)
-        }
-        (Kind::To, None, None) => xe,
+    Ok(builtin_expr(b, vec![xe], dest))
+}
+
+/// Text read as a value of elementary type `t`.
+fn from_string(t: Elem, xe: vm::Expr) -> vm::Expr {
+    let b = if t == Elem::Bool {
+        Builtin::StrToBool
+    } else if t.is_real() {
+        Builtin::StrToReal(t == Elem::Real)
+    } else if t == Elem::Time {
+        Builtin::StrToTime
+    } else if let Some(m) = crate::dates::Moment::of(t) {
+        Builtin::StrToMoment(m)
+    } else {
+        Builtin::StrToInt(ik(t))
     };
-    Ok(Some(Compiler::te(Ty::T(result_ty), out)))
+    builtin_expr(b, vec![xe], 0)
 }
 
 /// True if the expression calls a function or method anywhere.

@@ -35,6 +35,8 @@ pub enum ErrorKind {
 
 impl ErrorKind {
     /// Stable short code of the error kind.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn code(self) -> &'static str {
         match self {
             ErrorKind::Syntax => "syntax",
@@ -73,6 +75,8 @@ impl CompileError {
         }
     }
     /// Stable code of the error kind.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn code(&self) -> &'static str {
         self.kind.code()
     }
@@ -99,6 +103,8 @@ pub struct CompileErrors(pub Vec<CompileError>);
 
 impl CompileErrors {
     /// The first error (there is always one).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn first(&self) -> Option<&CompileError> {
         self.0.first()
     }
@@ -142,6 +148,8 @@ pub enum LoadError {
 
 impl LoadError {
     /// Stable code.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn code(&self) -> &'static str {
         match self {
             LoadError::Io { .. } => "io",
@@ -201,6 +209,8 @@ pub struct Fault {
 
 impl Fault {
     /// Stable code of the fault kind.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn code(&self) -> &'static str {
         match self.kind {
             FaultKind::DivisionByZero => "division-by-zero",
@@ -212,6 +222,8 @@ impl Fault {
         }
     }
     /// Plain message.
+    ///
+    /// Real-time: no (allocates).
     pub fn describe(&self) -> String {
         match self.kind {
             FaultKind::DivisionByZero => "division by zero".into(),

@@ -11,10 +11,12 @@
 //! back as a [`Fault`] value.
 //!
 //! On a real-time path: [`Runtime::scan`], [`Runtime::is_due`] and the reads and writes of
-//! resolved variables of elementary types ([`Runtime::read`], [`Runtime::write`]; a
-//! refused write's error names the type, which allocates). Set-up and tools only (they
-//! allocate): [`compile`], [`compile_file`], [`Runtime::new`], [`Runtime::resolve`],
-//! [`Runtime::read_name`] and every value of a `STRING` type.
+//! resolved variables of elementary types ([`Runtime::read`], [`Runtime::write`]; a refused
+//! write's error names the type, which allocates). Set-up and tools only (they allocate):
+//! [`compile`], [`compile_file`], [`Runtime::new`], [`Runtime::resolve`],
+//! [`Runtime::read_name`] and every value of a `STRING` type. Each public function's doc
+//! says it in a line of its own, `Real-time: yes (...)` or `Real-time: no (why)`;
+//! `crates/kernel/tests/real_time_docs.rs` checks that every one has it.
 //!
 //! ```
 //! use std::{sync::Arc, time::Duration};
@@ -85,6 +87,8 @@ impl Default for CompileOptions {
 }
 
 /// Compiles Structured Text source; `file` names the source in error messages.
+///
+/// Real-time: no (allocates).
 pub fn compile(source: &str, file: &str) -> Result<Program, CompileErrors> {
     compiler::compile(&[(source, file)], &CompileOptions::default())
 }
@@ -92,6 +96,8 @@ pub fn compile(source: &str, file: &str) -> Result<Program, CompileErrors> {
 /// Compiles one program from several sources (`(text, file name)`: global variable
 /// lists, type declarations, POUs), as CODESYS and TwinCAT projects keep them. Errors and
 /// faults name the file and the line in it.
+///
+/// Real-time: no (allocates).
 pub fn compile_sources(
     sources: &[(&str, &str)],
     options: &CompileOptions,
@@ -100,11 +106,15 @@ pub fn compile_sources(
 }
 
 /// Reads and compiles a Structured Text file.
+///
+/// Real-time: no (allocates, reads a file).
 pub fn compile_file(path: &Path) -> Result<Program, LoadError> {
     compile_files(&[path], &CompileOptions::default())
 }
 
 /// Reads and compiles the files of one program, in the order given.
+///
+/// Real-time: no (allocates, reads the files).
 pub fn compile_files(paths: &[&Path], options: &CompileOptions) -> Result<Program, LoadError> {
     let mut texts = Vec::with_capacity(paths.len());
     for path in paths {

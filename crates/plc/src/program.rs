@@ -110,32 +110,46 @@ pub struct Program {
 
 impl Program {
     /// The file name the program was compiled from.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn file(&self) -> &str {
         &self.file
     }
     /// What the compiler accepted with a warning (an assignment to a VAR_INPUT inside
     /// its own POU, ...).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn warnings(&self) -> &[crate::error::Warning] {
         &self.warnings
     }
     /// Tasks declared by the CONFIGURATION (or the implicit `DEFAULT` task).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn tasks(&self) -> &[TaskDesc] {
         &self.tasks
     }
     /// Names of the program instances, in task order.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn program_instances(&self) -> impl Iterator<Item = &str> {
         self.instances.iter().map(|i| i.name.as_str())
     }
     /// Number of POUs (programs, function blocks, functions) in the source.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn pou_count(&self) -> usize {
         self.pou_count
     }
     /// Slots of PLC memory a runtime instance allocates (8 bytes each).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn memory_slots(&self) -> usize {
         self.init.len()
     }
     /// Bytes of the input (`%I`), output (`%Q`) and marker (`%M`) images the located
     /// variables need.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn image_size(&self, area: Area) -> usize {
         self.image_sizes[area_index(area)]
     }
@@ -231,6 +245,8 @@ impl Program {
     /// Every elementary variable a runtime can monitor or force, by path (globals,
     /// `INSTANCE.VAR`, members and array elements), with its type, retain flag and
     /// direct address. For browsing in an HMI; build it once, not per scan.
+    ///
+    /// Real-time: no (allocates).
     pub fn variables(&self) -> Vec<VariableInfo> {
         self.leaves()
             .into_iter()

@@ -45,22 +45,32 @@ macro_rules! signals {
             pub const ALL: &'static [Signal] = &[ $( Signal::$variant, )* ];
 
             /// The name used in configurations.
+            ///
+            /// Real-time: yes (no allocation, no blocking).
             pub fn name(self) -> &'static str {
                 match self { $( Signal::$variant => $name, )* }
             }
             /// Direction.
+            ///
+            /// Real-time: yes (no allocation, no blocking).
             pub fn direction(self) -> Direction {
                 match self { $( Signal::$variant => Direction::$dir, )* }
             }
             /// Value kind.
+            ///
+            /// Real-time: yes (no allocation, no blocking).
             pub fn kind(self) -> SignalKind {
                 match self { $( Signal::$variant => SignalKind::$kind, )* }
             }
             /// Value a FromPlc signal takes when the PLC faults (1.0 = TRUE).
+            ///
+            /// Real-time: yes (no allocation, no blocking).
             pub fn safe_value(self) -> f64 {
                 match self { $( Signal::$variant => $safe as f64, )* }
             }
             /// What it means.
+            ///
+            /// Real-time: yes (no allocation, no blocking).
             pub fn description(self) -> &'static str {
                 match self { $( Signal::$variant => $doc, )* }
             }
@@ -107,6 +117,8 @@ signals! {
 
 impl Signal {
     /// Look up by configuration name (case-insensitive).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn from_name(name: &str) -> Option<Signal> {
         Signal::ALL
             .iter()
@@ -186,6 +198,8 @@ pub enum ConfigError {
 
 impl ConfigError {
     /// Stable code.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn code(&self) -> &'static str {
         match self {
             ConfigError::UnknownSignal(_) => "unknown-signal",

@@ -104,6 +104,8 @@ pub enum ValueError {
 
 impl ValueError {
     /// Stable code.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn code(&self) -> &'static str {
         match self {
             ValueError::Kind { .. } => "value-kind",
@@ -125,6 +127,8 @@ impl Value {
     }
 
     /// Decodes a slot of elementary type `e`.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn from_slot(e: Elem, v: u64) -> Value {
         match e {
             Elem::Bool => Value::Bool(v & 1 != 0),
@@ -137,6 +141,9 @@ impl Value {
 
     /// Encodes into a slot of elementary type `e`, checking the range (`lo..=hi` narrows
     /// it further for subranges).
+    ///
+    /// Real-time: yes for elementary types (no allocation, no blocking); a `STRING` value
+    /// or a refusal's message allocates.
     pub fn to_slot(&self, e: Elem, range: Option<(i64, i64)>) -> Result<u64, ValueError> {
         let ty = || e.name().to_string();
         let int = |v: i128| -> Result<u64, ValueError> {
@@ -178,6 +185,8 @@ impl Value {
 
     /// Parses IEC-style text for a variable of elementary type `e`: `TRUE`, `FALSE`, `1`,
     /// `-5`, `16#FF`, `2.5`, `T#20ms`, or with a type prefix (`INT#5`).
+    ///
+    /// Real-time: no (allocates).
     pub fn parse(text: &str, e: Elem) -> Result<Value, ValueError> {
         let bad = || ValueError::Parse {
             text: text.to_string(),
@@ -238,6 +247,8 @@ impl Value {
 }
 
 /// Parses `T#1s500ms`, `TIME#20ms`, `20ms` or a plain number of milliseconds.
+///
+/// Real-time: no (allocates).
 pub fn parse_time(text: &str) -> Option<i64> {
     let t = text.trim().to_ascii_uppercase();
     let body = t

@@ -617,17 +617,12 @@ impl Vm {
         }
     }
 
+    /// Evaluates a standard function's call: every argument first (IEC has no lazy
+    /// evaluation), then the function.
     fn builtin(&mut self, c: &Code, b: Builtin, args: &[Expr], dest: u32) -> u64 {
         let arg = |vm: &mut Vm, i: usize| match args.get(i) {
             Some(e) => vm.eval(c, e),
             None => 0,
-        };
-        let real1 = |vm: &mut Vm, s: bool, fun: fn(f64) -> f64| -> u64 {
-            let v = match args.first() {
-                Some(e) => vm.eval(c, e),
-                None => 0,
-            };
-            r(fun(f(v)), s)
         };
         match b {
             Builtin::AbsI(k) => {
@@ -638,17 +633,17 @@ impl Vm {
                     v
                 }
             }
-            Builtin::AbsR(s) => real1(self, s, f64::abs),
-            Builtin::Sqrt(s) => real1(self, s, f64::sqrt),
-            Builtin::Ln(s) => real1(self, s, f64::ln),
-            Builtin::Log(s) => real1(self, s, f64::log10),
-            Builtin::Exp(s) => real1(self, s, f64::exp),
-            Builtin::Sin(s) => real1(self, s, f64::sin),
-            Builtin::Cos(s) => real1(self, s, f64::cos),
-            Builtin::Tan(s) => real1(self, s, f64::tan),
-            Builtin::Asin(s) => real1(self, s, f64::asin),
-            Builtin::Acos(s) => real1(self, s, f64::acos),
-            Builtin::Atan(s) => real1(self, s, f64::atan),
+            Builtin::AbsR(s) => r(f(arg(self, 0)).abs(), s),
+            Builtin::Sqrt(s) => r(f(arg(self, 0)).sqrt(), s),
+            Builtin::Ln(s) => r(f(arg(self, 0)).ln(), s),
+            Builtin::Log(s) => r(f(arg(self, 0)).log10(), s),
+            Builtin::Exp(s) => r(f(arg(self, 0)).exp(), s),
+            Builtin::Sin(s) => r(f(arg(self, 0)).sin(), s),
+            Builtin::Cos(s) => r(f(arg(self, 0)).cos(), s),
+            Builtin::Tan(s) => r(f(arg(self, 0)).tan(), s),
+            Builtin::Asin(s) => r(f(arg(self, 0)).asin(), s),
+            Builtin::Acos(s) => r(f(arg(self, 0)).acos(), s),
+            Builtin::Atan(s) => r(f(arg(self, 0)).atan(), s),
             Builtin::Atan2(s) => {
                 let y = arg(self, 0);
                 let x = arg(self, 1);
@@ -666,74 +661,33 @@ impl Vm {
             }
             Builtin::Rol(k) | Builtin::Ror(k) => {
                 let v = arg(self, 0);
-                let bits = k.bits() as u64;
-                let n = arg(self, 1) % bits;
-                let n = if matches!(b, Builtin::Ror(_)) {
-                    (bits - n) % bits
-                } else {
-                    n
-                };
-                if n == 0 {
-                    v
-                } else {
-                    k.wrap((v << n) | (v >> (bits - n)))
-                }
+                let n = arg(self, 1);
+                rotate(k, v, n, matches!(b, Builtin::Ror(_)))
             }
             Builtin::Sel => {
-                // Functions evaluate all their inputs (IEC has no lazy evaluation).
                 let g = arg(self, 0);
                 let in0 = arg(self, 1);
                 let in1 = arg(self, 2);
                 if g & 1 != 0 { in1 } else { in0 }
             }
-            Builtin::Mux => {
-                let k = arg(self, 0) as i64;
-                let n = args.len() as i64 - 1;
-                let mut picked = 0;
-                for i in 0..n {
-                    let v = arg(self, i as usize + 1);
-                    if i == k {
-                        picked = v;
-                    }
-                }
-                if k < 0 || k >= n {
-                    self.raise(FaultKind::IndexOutOfRange {
-                        index: k,
-                        low: 0,
-                        high: n - 1,
-                    });
-                }
-                picked
-            }
-            Builtin::MaxI(s) | Builtin::MinI(s) => {
+            Builtin::Mux => self.mux(c, args),
+            Builtin::MaxI(signed) | Builtin::MinI(signed) => {
+                let max = matches!(b, Builtin::MaxI(_));
                 let mut acc = arg(self, 0);
                 for i in 1..args.len() {
                     let v = arg(self, i);
-                    let greater = if s {
-                        (v as i64) > (acc as i64)
-                    } else {
-                        v > acc
-                    };
-                    let less = if s {
-                        (v as i64) < (acc as i64)
-                    } else {
-                        v < acc
-                    };
-                    if matches!(b, Builtin::MaxI(_)) && greater
-                        || matches!(b, Builtin::MinI(_)) && less
-                    {
+                    if int_beyond(v, acc, signed, max) {
                         acc = v;
                     }
                 }
                 acc
             }
             Builtin::MaxR | Builtin::MinR => {
+                let max = matches!(b, Builtin::MaxR);
                 let mut acc = f(arg(self, 0));
                 for i in 1..args.len() {
                     let v = f(arg(self, i));
-                    if matches!(b, Builtin::MaxR) && v > acc
-                        || matches!(b, Builtin::MinR) && v < acc
-                    {
+                    if max && v > acc || !max && v < acc {
                         acc = v;
                     }
                 }
@@ -762,11 +716,11 @@ impl Vm {
                 }
                 crate::dates::concat(b, &vals)
             }
+            Builtin::Concat => self.concat(c, args, dest),
             Builtin::Len
             | Builtin::Left
             | Builtin::Right
             | Builtin::Mid
-            | Builtin::Concat
             | Builtin::Insert
             | Builtin::Delete
             | Builtin::Replace
@@ -782,27 +736,51 @@ impl Vm {
             | Builtin::MomentToStr(_)
             | Builtin::StrToMoment(_) => {
                 let mut vals = [0u64; 8];
-                // CONCAT is extensible: fold pairwise through the destination.
-                if matches!(b, Builtin::Concat) {
-                    let first = arg(self, 0);
-                    strings::copy(
-                        &mut self.mem,
-                        dest as usize,
-                        first as usize,
-                        crate::types::MAX_STRING_LEN,
-                    );
-                    for i in 1..args.len() {
-                        let v = arg(self, i);
-                        strings::append(&mut self.mem, dest as usize, v as usize);
-                    }
-                    return dest as u64;
-                }
                 for (i, slot) in vals.iter_mut().enumerate().take(args.len()) {
                     *slot = arg(self, i);
                 }
                 strings::builtin(&mut self.mem, b, &vals[..args.len().min(8)], dest as usize)
             }
         }
+    }
+
+    /// MUX: the input the selector (the first argument) picks; a selector out of range
+    /// raises a fault and gives 0. Every input is evaluated.
+    fn mux(&mut self, c: &Code, args: &[Expr]) -> u64 {
+        let k = args.first().map_or(0, |e| self.eval(c, e)) as i64;
+        let n = args.len() as i64 - 1;
+        let mut picked = 0;
+        for (i, e) in args.iter().skip(1).enumerate() {
+            let v = self.eval(c, e);
+            if i as i64 == k {
+                picked = v;
+            }
+        }
+        if k < 0 || k >= n {
+            self.raise(FaultKind::IndexOutOfRange {
+                index: k,
+                low: 0,
+                high: n - 1,
+            });
+        }
+        picked
+    }
+
+    /// CONCAT (extensible): the first string copied into the destination, each further one
+    /// appended to it.
+    fn concat(&mut self, c: &Code, args: &[Expr], dest: u32) -> u64 {
+        let first = args.first().map_or(0, |e| self.eval(c, e));
+        strings::copy(
+            &mut self.mem,
+            dest as usize,
+            first as usize,
+            crate::types::MAX_STRING_LEN,
+        );
+        for e in args.iter().skip(1) {
+            let v = self.eval(c, e);
+            strings::append(&mut self.mem, dest as usize, v as usize);
+        }
+        dest as u64
     }
 
     /// Stores `v` (a scalar, or the address of an aggregate) into slot address `a`.
@@ -1115,6 +1093,28 @@ impl Vm {
             i += step;
         }
     }
+}
+
+/// ROL (or ROR, `right`) of `v` by `n` bits within the width of `k`.
+fn rotate(k: IntKind, v: u64, n: u64, right: bool) -> u64 {
+    let bits = k.bits() as u64;
+    let n = n % bits;
+    let n = if right { (bits - n) % bits } else { n };
+    if n == 0 {
+        v
+    } else {
+        k.wrap((v << n) | (v >> (bits - n)))
+    }
+}
+
+/// True when integer `v` is beyond `acc`: above it for MAX (`max`), below it for MIN.
+fn int_beyond(v: u64, acc: u64, signed: bool, max: bool) -> bool {
+    let (greater, less) = if signed {
+        ((v as i64) > (acc as i64), (v as i64) < (acc as i64))
+    } else {
+        (v > acc, v < acc)
+    };
+    if max { greater } else { less }
 }
 
 /// Applies a conversion to a slot value.

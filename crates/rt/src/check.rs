@@ -14,6 +14,8 @@ pub struct FieldError {
 
 impl FieldError {
     /// A refusal of `field` for `reason`.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn new(field: impl Into<String>, reason: impl Into<String>) -> Self {
         Self {
             field: field.into(),
@@ -23,18 +25,24 @@ impl FieldError {
 
     /// The same error with `prefix.` in front of the field, for a caller that nests the
     /// configuration (e.g. `joints[2].servo`).
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn within(mut self, prefix: &str) -> Self {
         self.field = format!("{prefix}.{}", self.field);
         self
     }
 
     /// Stable code of every refused configuration value.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn code(&self) -> &'static str {
         "config.invalid"
     }
 }
 
 /// A finite number.
+///
+/// Real-time: no (set-up: a refusal allocates its message).
 pub fn finite(field: &str, value: f64) -> Result<(), FieldError> {
     if value.is_finite() {
         Ok(())
@@ -44,6 +52,8 @@ pub fn finite(field: &str, value: f64) -> Result<(), FieldError> {
 }
 
 /// A finite number, zero or more.
+///
+/// Real-time: no (set-up: a refusal allocates its message).
 pub fn non_negative(field: &str, value: f64) -> Result<(), FieldError> {
     finite(field, value)?;
     if value >= 0.0 {
@@ -54,6 +64,8 @@ pub fn non_negative(field: &str, value: f64) -> Result<(), FieldError> {
 }
 
 /// A finite number greater than zero.
+///
+/// Real-time: no (set-up: a refusal allocates its message).
 pub fn positive(field: &str, value: f64) -> Result<(), FieldError> {
     finite(field, value)?;
     if value > 0.0 {
@@ -64,6 +76,8 @@ pub fn positive(field: &str, value: f64) -> Result<(), FieldError> {
 }
 
 /// A finite number within `low..=high`; the reason gives the range and its unit.
+///
+/// Real-time: no (set-up: a refusal allocates its message).
 pub fn within(field: &str, value: f64, low: f64, high: f64, unit: &str) -> Result<(), FieldError> {
     finite(field, value)?;
     if (low..=high).contains(&value) {

@@ -86,6 +86,8 @@ pub enum ConfigError {
 
 impl ConfigError {
     /// Stable error code.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn code(&self) -> &'static str {
         match self {
             ConfigError::ZeroPeriod { .. } => "zero_period",

@@ -61,6 +61,8 @@ impl Default for LogHistogram {
 
 impl LogHistogram {
     /// An empty histogram (about 9 KiB, allocated here once).
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn new() -> Self {
         LogHistogram {
             buckets: (0..BUCKETS).map(|_| AtomicU64::new(0)).collect(),
@@ -72,6 +74,8 @@ impl LogHistogram {
     }
 
     /// Adds one value (single writer; no allocation, no lock).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn record(&self, value: u64) {
         if let Some(b) = self.buckets.get(bucket_of(value)) {
             bump(b, 1);
@@ -87,6 +91,8 @@ impl LogHistogram {
     }
 
     /// The non-empty buckets as (largest value of the bucket, count), in order.
+    ///
+    /// Real-time: no (allocates).
     pub fn buckets(&self) -> Vec<(u64, u64)> {
         self.buckets
             .iter()
@@ -97,6 +103,8 @@ impl LogHistogram {
     }
 
     /// A summary of what was recorded.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn summary(&self) -> Summary {
         let count = self.count.load(Relaxed);
         if count == 0 {
@@ -152,6 +160,8 @@ pub struct LinearHistogram {
 
 impl LinearHistogram {
     /// `bins` bins of `bin_width` nanoseconds each (allocated here once).
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn new(bin_width: u64, bins: usize) -> Self {
         LinearHistogram {
             bin_width: bin_width.max(1),
@@ -165,6 +175,8 @@ impl LinearHistogram {
     }
 
     /// Adds one value (single writer; no allocation, no lock).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn record(&self, value: u64) {
         let index = value / self.bin_width;
         match usize::try_from(index).ok().and_then(|i| self.bins.get(i)) {
@@ -182,21 +194,29 @@ impl LinearHistogram {
     }
 
     /// Width of one bin in nanoseconds.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn bin_width(&self) -> u64 {
         self.bin_width
     }
 
     /// The count of every bin, in order.
+    ///
+    /// Real-time: no (allocates).
     pub fn bins(&self) -> Vec<u64> {
         self.bins.iter().map(|b| b.load(Relaxed)).collect()
     }
 
     /// Values beyond the last bin.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn overflow(&self) -> u64 {
         self.overflow.load(Relaxed)
     }
 
     /// Count, min, mean, p99 (upper edge of the bin holding it, never above max) and max.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn summary(&self) -> Summary {
         let count = self.count.load(Relaxed);
         if count == 0 {

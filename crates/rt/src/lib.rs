@@ -24,12 +24,14 @@
 //!
 //! A periodic task's body may call the IPC objects' non-blocking operations (`try_put`,
 //! `try_get`, `peek`, `try_wait`, `signal`, `set`, `pulse`, `reset`), [`PiMutex::lock`],
-//! the producer and consumer sides of [`ring`], [`seqlock`], [`latest`] and
-//! [`lead_queue`], and [`Context`]'s methods; [`in_periodic_body`] tells whether the caller
-//! is one. The blocking calls (`put`, `get`, `wait` and their `_timeout` forms) refuse to
-//! run inside any task body ([`IpcError::BlockingInTask`]) rather than block it. The
-//! constructors, [`TaskSetBuilder`], the runners and the exports of the monitor and the
-//! trace are set-up or reporting and may allocate.
+//! the producer and consumer sides of [`ring`], [`seqlock`], [`latest`] and [`lead_queue`],
+//! and [`Context`]'s methods; [`in_periodic_body`] tells whether the caller is one. The
+//! blocking calls (`put`, `get`, `wait` and their `_timeout` forms) refuse to run inside
+//! any task body ([`IpcError::BlockingInTask`]) rather than block it. The constructors,
+//! [`TaskSetBuilder`], the runners and the exports of the monitor and the trace are set-up
+//! or reporting and may allocate. Each public function's doc says it in a line of its own,
+//! `Real-time: yes (...)` or `Real-time: no (why)`; `crates/kernel/tests/real_time_docs.rs`
+//! checks that every one has it.
 //!
 //! ```
 //! use std::time::Duration;

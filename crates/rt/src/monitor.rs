@@ -39,6 +39,8 @@ impl TaskState {
     }
 
     /// Lower-case name.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn as_str(self) -> &'static str {
         match self {
             TaskState::Running => "running",
@@ -67,6 +69,8 @@ pub enum FaultCode {
 
 impl FaultCode {
     /// Stable text code.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn as_str(self) -> &'static str {
         match self {
             FaultCode::DeadlineMiss => "deadline_miss",
@@ -191,31 +195,43 @@ impl TaskMonitor {
     }
 
     /// The task's name.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn name(&self) -> &str {
         &self.name
     }
 
     /// Its kind.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn kind(&self) -> &TaskKind {
         &self.kind
     }
 
     /// Its configured priority (0..=127).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn priority(&self) -> i32 {
         self.priority
     }
 
     /// Histogram of body execution times (ns).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn execution_histogram(&self) -> &LogHistogram {
         &self.exec
     }
 
     /// Histogram of periodic start lateness, i.e. jitter (ns).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn lateness_histogram(&self) -> &LogHistogram {
         &self.lateness
     }
 
     /// Its state now.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn state(&self) -> TaskState {
         TaskState::from_u8(self.state.load(Relaxed))
     }
@@ -242,6 +258,8 @@ impl TaskMonitor {
     }
 
     /// A snapshot of the counters.
+    ///
+    /// Real-time: no (allocates).
     pub fn stats(&self) -> TaskStats {
         TaskStats {
             name: self.name.clone(),
@@ -299,11 +317,15 @@ impl Monitor {
     }
 
     /// Every task, in the order they were declared.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn tasks(&self) -> &[TaskMonitor] {
         &self.tasks
     }
 
     /// The task called `name`.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn task(&self, name: &str) -> Option<&TaskMonitor> {
         self.tasks.iter().find(|t| t.name == name)
     }
@@ -323,21 +345,29 @@ impl Monitor {
     }
 
     /// Faults raised so far (including those beyond the log's capacity).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn fault_count(&self) -> u64 {
         self.faults.lock().total
     }
 
     /// The raw faults kept, in the order recorded.
+    ///
+    /// Real-time: no (allocates).
     pub fn raw_faults(&self) -> Vec<Fault> {
         self.faults.lock().slots.clone()
     }
 
     /// The faults kept, with task names and messages.
+    ///
+    /// Real-time: no (allocates).
     pub fn faults(&self) -> Vec<FaultRecord> {
         self.raw_faults().iter().map(|f| self.describe(f)).collect()
     }
 
     /// A fault with its task's name and a message.
+    ///
+    /// Real-time: no (allocates).
     pub fn describe(&self, f: &Fault) -> FaultRecord {
         let task = self
             .tasks
@@ -362,6 +392,8 @@ impl Monitor {
     }
 
     /// A snapshot of every task.
+    ///
+    /// Real-time: no (allocates).
     pub fn stats(&self) -> Vec<TaskStats> {
         self.tasks.iter().map(TaskMonitor::stats).collect()
     }

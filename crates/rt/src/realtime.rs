@@ -110,6 +110,8 @@ pub enum RtStartError {
 
 impl RtStartError {
     /// Stable error code.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn code(&self) -> &'static str {
         match self {
             RtStartError::FifoNotPermitted => "fifo_not_permitted",
@@ -590,6 +592,8 @@ pub struct RealTimeHandle {
 
 impl RealTimeRunner {
     /// Starts every thread of `set`; the first release is `config.start_delay` from now.
+    ///
+    /// Real-time: no (set-up: allocates, starts threads).
     pub fn start(set: TaskSet, config: RealTimeConfig) -> Result<RealTimeHandle, RtStartError> {
         // A CPU outside the affinity mask would leave a thread unpinned without a word.
         let available = crate::sys::allowed_cpus();
@@ -779,11 +783,15 @@ fn supervise(shared: Shared, warn_tasks: Vec<bool>) {
 
 impl RealTimeHandle {
     /// The timing monitor, live.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn monitor(&self) -> &Arc<Monitor> {
         &self.shared.monitor
     }
 
     /// The start/stop control of the task called `name`.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn control(&self, name: &str) -> Option<TaskControl> {
         self.controls
             .iter()
@@ -792,11 +800,15 @@ impl RealTimeHandle {
     }
 
     /// True when every executive thread got SCHED_FIFO.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn is_fifo(&self) -> bool {
         self.fifo
     }
 
     /// Executive time now (zero at the first release; it counts up from before it).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn now(&self) -> Time {
         Time::from_nanos(self.shared.now())
     }
@@ -812,6 +824,8 @@ impl RealTimeHandle {
     }
 
     /// Stops every thread (each at its next wake-up) and returns the monitor and trace.
+    ///
+    /// Real-time: no (joins the threads).
     pub fn stop(mut self) -> Recording {
         self.shut_down();
         match self.recording.take() {

@@ -152,6 +152,8 @@ impl<T> Drop for PiGuard<'_, T> {
 }
 
 /// Lowest and highest SCHED_FIFO priority of this OS (1 and 99 on Linux).
+///
+/// Real-time: yes (no allocation, no blocking).
 pub fn os_fifo_range() -> (i32, i32) {
     // SAFETY: plain queries.
     unsafe {
@@ -164,6 +166,8 @@ pub fn os_fifo_range() -> (i32, i32) {
 
 /// Maps an executive priority (0..=127, the RTX64 range) onto the OS SCHED_FIFO range,
 /// keeping order: 0 -> lowest, 127 -> highest.
+///
+/// Real-time: yes (no allocation, no blocking).
 pub fn os_priority(priority: i32) -> i32 {
     let (lo, hi) = os_fifo_range();
     let p = priority.clamp(0, 127);
@@ -171,6 +175,8 @@ pub fn os_priority(priority: i32) -> i32 {
 }
 
 /// The smallest executive priority that [`os_priority`] maps onto the OS priority `os`.
+///
+/// Real-time: yes (no allocation, no blocking).
 pub fn executive_priority_for_os(os: i32) -> i32 {
     (0..=127).find(|&p| os_priority(p) >= os).unwrap_or(127)
 }
@@ -196,6 +202,8 @@ pub(crate) fn set_current_thread_fifo(os_priority: i32) -> SchedOutcome {
 }
 
 /// The CPUs this process may run on (its affinity mask), in increasing order.
+///
+/// Real-time: no (allocates).
 pub fn allowed_cpus() -> Vec<usize> {
     // SAFETY: cpu_set_t is plain data; sched_getaffinity fills at most its size.
     unsafe {
@@ -300,6 +308,8 @@ pub(crate) fn set_in_task_body(on: bool) {
 /// scheduler: the code that must not allocate, block or take a lock other than a PI mutex.
 /// An allocation-counting test reads it from its global allocator (a plain thread-local
 /// read: it neither allocates nor blocks). May run on a real-time path.
+///
+/// Real-time: yes (no allocation, no blocking).
 pub fn in_periodic_body() -> bool {
     IN_PERIODIC_BODY.with(|f| f.get())
 }

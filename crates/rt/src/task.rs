@@ -86,6 +86,8 @@ pub struct Context<'a> {
 
 impl Context<'_> {
     /// Executive time now.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn now(&self) -> Time {
         match self.clock {
             ClockSource::Virtual => Time::from_nanos(self.start + self.consumed),
@@ -96,29 +98,39 @@ impl Context<'_> {
     }
 
     /// When this body run started.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn start_time(&self) -> Time {
         Time::from_nanos(self.start)
     }
 
     /// The release time of this cycle (periodic), or when the task was woken (event and
     /// background tasks).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn release_time(&self) -> Time {
         Time::from_nanos(self.release)
     }
 
     /// Start time minus release time. For the first task of a periodic thread this is the
     /// thread's wake-up latency.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn lateness(&self) -> Duration {
         Duration::from_nanos(self.start.saturating_sub(self.release))
     }
 
     /// For a periodic task, the period index (release time / period); for other tasks, the
     /// number of earlier wake-ups.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn activation(&self) -> u64 {
         self.activation
     }
 
     /// Which of the runs of this activation this is (0-based; see `runs` of a periodic task).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn run(&self) -> u32 {
         self.run
     }
@@ -127,6 +139,8 @@ impl Context<'_> {
     /// do (a task declared with several `runs` that has drained its work): the executive
     /// goes on with the thread's next task at once, and the runs not made are neither timed
     /// nor traced. Both schedulers; no effect on event and background tasks.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn finish_runs(&mut self) {
         self.runs_finished = true;
     }
@@ -137,16 +151,22 @@ impl Context<'_> {
     /// during one cycle add up; the executive moves a cycle by at most a quarter of the
     /// period, so a nudge never skips a cycle or runs two back to back. Activations go on
     /// counting one per cycle. Both schedulers; no effect on event and background tasks.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn shift_next_release(&mut self, ns: i64) {
         self.release_shift = self.release_shift.saturating_add(ns);
     }
 
     /// Why the body runs.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn wake(&self) -> Wake {
         self.wake
     }
 
     /// The task's name.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn task_name(&self) -> &str {
         self.name
     }
@@ -154,6 +174,8 @@ impl Context<'_> {
     /// Declares that the body uses `d` of processor time here. Under virtual time the
     /// simulated processor is busy for `d` (tasks of higher priority preempt it); under real
     /// time the call spins for `d`. Used to model work in simulation and to load a system.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn consume(&mut self, d: Duration) {
         let ns = duration_ns(d);
         match self.clock {
@@ -168,6 +190,8 @@ impl Context<'_> {
     }
 
     /// Puts a named instant with a value into the trace.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn mark(&mut self, label: &'static str, value: u64) {
         let time = self.now().as_nanos();
         self.lane.push(TraceEvent {
@@ -180,6 +204,8 @@ impl Context<'_> {
     }
 
     /// Records a fault raised by this task (into the fault log and the trace).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn raise_fault(&mut self, code: u32, message: &'static str, value: u64) {
         let time = self.now();
         self.monitor.push_fault(Fault {
@@ -210,6 +236,8 @@ pub struct TaskId(usize);
 impl TaskId {
     /// Position of the task in declaration order: its index in [`Monitor::tasks`] and in
     /// [`crate::Fault::task`].
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn index(self) -> usize {
         self.0
     }
@@ -253,6 +281,8 @@ impl Default for TaskSetBuilder {
 
 impl TaskSetBuilder {
     /// An empty task set; traces keep 16 384 events per thread, the fault log 1 024 faults.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn new() -> Self {
         TaskSetBuilder {
             threads: Vec::new(),
@@ -264,6 +294,8 @@ impl TaskSetBuilder {
 
     /// A periodic thread: released at `0, period, 2·period, ...` with `priority` (0..=127,
     /// higher runs first). Its tasks run in the order they are added.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn periodic_thread(&mut self, name: &str, period: Duration, priority: i32) -> ThreadId {
         self.threads.push(ThreadDecl {
             name: name.to_string(),
@@ -274,6 +306,8 @@ impl TaskSetBuilder {
     }
 
     /// Adds a task function to `thread`, run `runs` times per activation.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn periodic(
         &mut self,
         thread: ThreadId,
@@ -294,6 +328,8 @@ impl TaskSetBuilder {
     }
 
     /// An event-triggered task: runs at `priority` each time `trigger` fires.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn event(
         &mut self,
         name: &str,
@@ -310,6 +346,8 @@ impl TaskSetBuilder {
     }
 
     /// A background task: runs below every other task, in what time is left.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn background(
         &mut self,
         name: &str,
@@ -337,6 +375,8 @@ impl TaskSetBuilder {
     }
 
     /// What a deadline miss of `task` triggers besides being recorded (default: count).
+    ///
+    /// Real-time: no (set-up).
     pub fn on_deadline_miss(&mut self, task: TaskId, reaction: MissReaction) -> &mut Self {
         if let Some(t) = self.tasks.get_mut(task.0) {
             t.reaction = reaction;
@@ -348,6 +388,8 @@ impl TaskSetBuilder {
     /// `deadline` of its cycle's release (without one, the cycle must end by the next
     /// release); for an event task, each run must end within `deadline` of its wake-up.
     /// A late run is a deadline-miss fault. Background tasks have no deadline.
+    ///
+    /// Real-time: no (set-up).
     pub fn deadline(&mut self, task: TaskId, deadline: Duration) -> &mut Self {
         if let Some(t) = self.tasks.get_mut(task.0) {
             t.deadline = Some(deadline);
@@ -356,6 +398,8 @@ impl TaskSetBuilder {
     }
 
     /// `task` begins stopped; it runs once started through its [`TaskControl`].
+    ///
+    /// Real-time: no (set-up).
     pub fn start_stopped(&mut self, task: TaskId) -> &mut Self {
         if let Some(t) = self.tasks.get_mut(task.0) {
             t.start_stopped = true;
@@ -364,12 +408,16 @@ impl TaskSetBuilder {
     }
 
     /// Trace events kept per thread (0: no trace).
+    ///
+    /// Real-time: no (set-up).
     pub fn trace_capacity(&mut self, events_per_thread: usize) -> &mut Self {
         self.trace_capacity = events_per_thread;
         self
     }
 
     /// Faults kept in the fault log (later ones are counted, not kept).
+    ///
+    /// Real-time: no (set-up).
     pub fn fault_capacity(&mut self, faults: usize) -> &mut Self {
         self.fault_capacity = faults;
         self
@@ -377,6 +425,8 @@ impl TaskSetBuilder {
 
     /// Checks the declaration and builds the task set; the first problem found, in
     /// declaration order, is returned.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn build(self) -> Result<TaskSet, ConfigError> {
         let mut names = HashSet::new();
         for t in &self.threads {
@@ -584,11 +634,15 @@ pub struct Recording {
 
 impl Recording {
     /// The timing monitor (live during a run).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn monitor(&self) -> &Arc<Monitor> {
         &self.monitor
     }
 
     /// The trace, for export.
+    ///
+    /// Real-time: no (allocates).
     pub fn trace(&self) -> Trace<'_> {
         Trace {
             lanes: &self.lanes,
@@ -606,22 +660,30 @@ pub struct TaskSet {
 
 impl TaskSet {
     /// A builder.
+    ///
+    /// Real-time: no (set-up).
     pub fn builder() -> TaskSetBuilder {
         TaskSetBuilder::new()
     }
 
     /// The timing monitor (shared; stays readable during and after the run).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn monitor(&self) -> Arc<Monitor> {
         Arc::clone(&self.recording.monitor)
     }
 
     /// The start/stop control of the task called `name`.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn control(&self, name: &str) -> Option<TaskControl> {
         let index = self.tasks.iter().position(|t| t.name == name)?;
         self.control_of(TaskId(index))
     }
 
     /// The start/stop control of `task`.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn control_of(&self, task: TaskId) -> Option<TaskControl> {
         let t = self.tasks.get(task.0)?;
         Some(TaskControl {
@@ -684,21 +746,29 @@ impl TaskControl {
     }
 
     /// Lets the task run from its next cycle (or trigger) on.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn start(&self) {
         self.run.set();
     }
 
     /// Asks the task to stop at the start of its next cycle.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn stop(&self) {
         self.run.reset();
     }
 
     /// True when the task is allowed to run.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn is_started(&self) -> bool {
         self.run.is_set()
     }
 
     /// The task's state now.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn state(&self) -> TaskState {
         self.monitor
             .task_at(self.task)

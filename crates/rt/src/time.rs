@@ -15,31 +15,43 @@ impl Time {
     pub const ZERO: Time = Time(0);
 
     /// A time `ns` nanoseconds after the start of the run.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn from_nanos(ns: u64) -> Time {
         Time(ns)
     }
 
     /// A time `us` microseconds after the start of the run.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn from_micros(us: u64) -> Time {
         Time(us * 1_000)
     }
 
     /// A time `ms` milliseconds after the start of the run.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn from_millis(ms: u64) -> Time {
         Time(ms * 1_000_000)
     }
 
     /// Nanoseconds since the start of the run.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn as_nanos(self) -> u64 {
         self.0
     }
 
     /// The time elapsed since the start of the run.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn since_start(self) -> Duration {
         Duration::from_nanos(self.0)
     }
 
     /// `self - earlier`, or zero when `earlier` is later.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn saturating_since(self, earlier: Time) -> Duration {
         Duration::from_nanos(self.0.saturating_sub(earlier.0))
     }
@@ -82,6 +94,8 @@ pub enum DurationError {
 
 impl DurationError {
     /// Stable error code.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn code(&self) -> &'static str {
         match self {
             DurationError::Syntax(_) => "duration_syntax",
@@ -92,6 +106,8 @@ impl DurationError {
 
 /// Reads a positive duration such as `100us`, `0.5ms`, `1ms`, `10s`, `2min` (units: ns, us,
 /// µs, ms, s, min). Zero and negative values are refused.
+///
+/// Real-time: no (a refusal allocates its message).
 pub fn parse_duration(text: &str) -> Result<Duration, DurationError> {
     let t = text.trim();
     let Some(split) = t.find(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-' || c == '+'))
@@ -131,6 +147,8 @@ pub fn parse_duration(text: &str) -> Result<Duration, DurationError> {
 
 /// Converts a period given in seconds (as configuration files hold it) into a duration,
 /// refusing zero, negative and non-finite values.
+///
+/// Real-time: no (a refusal allocates its message).
 pub fn duration_from_secs(seconds: f64) -> Result<Duration, DurationError> {
     if !seconds.is_finite() {
         return Err(DurationError::Syntax(format!("{seconds} s")));

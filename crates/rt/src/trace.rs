@@ -141,11 +141,15 @@ fn push_us(out: &mut String, ns: u64) {
 
 impl Trace<'_> {
     /// Events kept in all lanes.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn event_count(&self) -> usize {
         self.lanes.iter().map(|l| l.events().0.len()).sum()
     }
 
     /// Events overwritten because a lane was full.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn dropped(&self) -> u64 {
         self.lanes.iter().map(|l| l.events().1).sum()
     }
@@ -153,6 +157,8 @@ impl Trace<'_> {
     /// The trace as Chrome trace-event JSON: one `tid` per lane, a complete event ("X") per
     /// body run, instant events for marks and faults; timestamps in microseconds with
     /// nanosecond digits. Deterministic: the same events give the same bytes.
+    ///
+    /// Real-time: no (allocates).
     pub fn to_chrome_json(&self) -> String {
         let mut out = String::with_capacity(256 + self.event_count() * 96);
         out.push_str("{\"displayTimeUnit\":\"ns\",\"traceEvents\":[\n");
@@ -208,6 +214,8 @@ impl Trace<'_> {
     }
 
     /// Writes [`to_chrome_json`](Self::to_chrome_json) to `path`.
+    ///
+    /// Real-time: no (allocates, writes a file).
     pub fn write_chrome_json(&self, path: &std::path::Path) -> std::io::Result<()> {
         std::fs::write(path, self.to_chrome_json())
     }

@@ -44,6 +44,8 @@ pub enum RunError {
 
 impl RunError {
     /// Stable error code.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn code(&self) -> &'static str {
         match self {
             RunError::Livelock { .. } => "livelock",
@@ -317,6 +319,8 @@ impl HostProfile {
 
 impl VirtualRunner {
     /// Takes the task set; the simulated clock starts at zero.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn new(set: TaskSet) -> Self {
         let TaskSet {
             threads,
@@ -372,39 +376,53 @@ impl VirtualRunner {
     /// Measures the host processor time of every body run (two clock readings each), for
     /// a profile of what each task costs the simulation; see [`host_profile`](Self::host_profile).
     /// It changes nothing in the simulated run.
+    ///
+    /// Real-time: no (set-up).
     pub fn with_host_profile(mut self) -> Self {
         self.host = Some(HostProfile::new(&self.tasks));
         self
     }
 
     /// The host time spent in each task's bodies so far (with [`with_host_profile`](Self::with_host_profile)).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn host_profile(&self) -> Option<&HostProfile> {
         self.host.as_ref()
     }
 
     /// The least simulated processor time one background body run takes (default 10 µs),
     /// so that a background task that always continues lets time pass.
+    ///
+    /// Real-time: no (set-up).
     pub fn with_background_step(mut self, step: Duration) -> Self {
         self.background_step_ns = duration_ns(step).max(1);
         self
     }
 
     /// Simulated time now.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn now(&self) -> Time {
         Time::from_nanos(self.now)
     }
 
     /// The monitor and trace of the run.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn recording(&self) -> &Recording {
         &self.recording
     }
 
     /// Ends the run and keeps its monitor and trace.
+    ///
+    /// Real-time: no (ends the runner).
     pub fn into_recording(self) -> Recording {
         self.recording
     }
 
     /// The start/stop control of the task called `name`.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn control(&self, name: &str) -> Option<TaskControl> {
         let index = self.tasks.iter().position(|t| t.name == name)?;
         let t = &self.tasks[index];
@@ -416,6 +434,8 @@ impl VirtualRunner {
     }
 
     /// Runs for `d` of simulated time.
+    ///
+    /// Real-time: no (the runner itself: it runs the task set).
     pub fn run_for(&mut self, d: Duration) -> Result<(), RunError> {
         let end = self.now.saturating_add(duration_ns(d));
         self.run_until(Time::from_nanos(end))
@@ -423,6 +443,8 @@ impl VirtualRunner {
 
     /// Runs until simulated time `end`: everything due before `end` happens; what is due at
     /// `end` happens in the next call.
+    ///
+    /// Real-time: no (the runner itself: it runs the task set).
     pub fn run_until(&mut self, end: Time) -> Result<(), RunError> {
         let end = end.as_nanos();
         // Code outside the task set may have fed mailboxes or started tasks since the last call.

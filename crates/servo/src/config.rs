@@ -57,6 +57,8 @@ impl Default for PidGains {
 
 impl PidGains {
     /// Checks every gain; the error names the first refused field.
+    ///
+    /// Real-time: no (set-up: a refusal allocates its message).
     pub fn validate(&self) -> Result<(), ConfigError> {
         non_negative("p", self.p)?;
         non_negative("i", self.i)?;
@@ -90,6 +92,8 @@ pub struct FollowingErrorLimits {
 
 impl FollowingErrorLimits {
     /// Checks the limits; the error names the first refused field.
+    ///
+    /// Real-time: no (set-up: a refusal allocates its message).
     pub fn validate(&self) -> Result<(), ConfigError> {
         positive("min_ferror", self.min_ferror)?;
         positive("ferror", self.ferror)?;
@@ -104,6 +108,8 @@ impl FollowingErrorLimits {
     }
 
     /// The limit in force at a commanded velocity (units/s).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn limit_at(&self, commanded_velocity: f64) -> f64 {
         let scaled = self.ferror * commanded_velocity.abs() / self.max_velocity;
         if scaled > self.min_ferror {
@@ -127,6 +133,8 @@ pub struct PidConfig {
 
 impl PidConfig {
     /// Checks the whole configuration; the error names the field (`gains.p`, ...).
+    ///
+    /// Real-time: no (set-up: a refusal allocates its message).
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.gains.validate().map_err(|e| e.within("gains"))?;
         self.following_error
@@ -156,6 +164,8 @@ fn one() -> f64 {
 
 impl CspConfig {
     /// Checks the whole configuration; the error names the field.
+    ///
+    /// Real-time: no (set-up: a refusal allocates its message).
     pub fn validate(&self) -> Result<(), ConfigError> {
         finite("velocity_ff", self.velocity_ff)?;
         if !(0.0..=1.0).contains(&self.velocity_ff) {

@@ -22,6 +22,8 @@ pub struct CspLoop {
 
 impl CspLoop {
     /// A loop for joint `joint`, or the first refused configuration field.
+    ///
+    /// Real-time: no (set-up: a refusal allocates its message).
     pub fn new(joint: usize, config: &CspConfig) -> Result<Self, ConfigError> {
         config.validate()?;
         Ok(Self {
@@ -31,6 +33,8 @@ impl CspLoop {
     }
 
     /// One servo cycle: the drive's command, or the fault that stops the joint.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn update(
         &mut self,
         setpoint: SetPoint,
@@ -67,11 +71,15 @@ impl CspLoop {
     }
 
     /// The joint index this loop names in its faults.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn joint(&self) -> usize {
         self.monitor.joint()
     }
 
     /// The following-error monitor (last error, maximum, limits).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn following_error(&self) -> &FollowingErrorMonitor {
         &self.monitor
     }

@@ -38,6 +38,8 @@ pub enum ServoFault {
 
 impl ServoFault {
     /// A stable machine-readable code for logs, the API and tests.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn code(&self) -> &'static str {
         match self {
             Self::FollowingError { .. } => "servo.following_error",
@@ -48,6 +50,8 @@ impl ServoFault {
     }
 
     /// The joint the fault names.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn joint(&self) -> usize {
         match *self {
             Self::FollowingError { joint, .. }

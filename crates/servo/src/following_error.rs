@@ -12,6 +12,8 @@ pub struct FollowingErrorMonitor {
 
 impl FollowingErrorMonitor {
     /// A monitor for joint `joint` (limits validated by the caller's config).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn new(joint: usize, limits: FollowingErrorLimits) -> Self {
         Self {
             joint,
@@ -23,6 +25,8 @@ impl FollowingErrorMonitor {
 
     /// Checks `error` (units) at `commanded_velocity` (units/s): a fault when its magnitude
     /// is strictly greater than the limit in force.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn check(&mut self, error: f64, commanded_velocity: f64) -> Result<(), ServoFault> {
         self.last_error = error;
         if error.abs() > self.max_abs_error {
@@ -40,26 +44,36 @@ impl FollowingErrorMonitor {
     }
 
     /// The joint index this monitor names in its faults.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn joint(&self) -> usize {
         self.joint
     }
 
     /// The error of the last checked cycle.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn last_error(&self) -> f64 {
         self.last_error
     }
 
     /// The largest error magnitude since construction or [`reset_max`](Self::reset_max).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn max_abs_error(&self) -> f64 {
         self.max_abs_error
     }
 
     /// Starts a new maximum (e.g. at program start).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn reset_max(&mut self) {
         self.max_abs_error = 0.0;
     }
 
     /// The limits in force.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn limits(&self) -> &FollowingErrorLimits {
         &self.limits
     }

@@ -19,6 +19,8 @@ pub enum ServoLoopConfig {
 
 impl ServoLoopConfig {
     /// Checks the configuration; the error names the field.
+    ///
+    /// Real-time: no (set-up: a refusal allocates its message).
     pub fn validate(&self) -> Result<(), ConfigError> {
         match self {
             Self::Pid(config) => config.validate(),
@@ -47,6 +49,8 @@ pub enum ServoLoop {
 
 impl ServoLoop {
     /// The loop for joint `joint`, or the first refused configuration field.
+    ///
+    /// Real-time: no (set-up: a refusal allocates its message).
     pub fn new(joint: usize, config: &ServoLoopConfig) -> Result<Self, ConfigError> {
         Ok(match config {
             ServoLoopConfig::Pid(config) => Self::Pid(PidController::new(joint, config)?),
@@ -55,6 +59,8 @@ impl ServoLoop {
     }
 
     /// One servo cycle: the drive's command, or the fault that stops the joint.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn update(
         &mut self,
         setpoint: SetPoint,
@@ -72,6 +78,8 @@ impl ServoLoop {
     }
 
     /// Clears the loop's history (integrator, derivative); call when the drive is enabled.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn reset(&mut self) {
         if let Self::Pid(pid) = self {
             pid.reset();
@@ -79,6 +87,8 @@ impl ServoLoop {
     }
 
     /// The following-error monitor (last error, maximum, limits).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn following_error(&self) -> &FollowingErrorMonitor {
         match self {
             Self::Pid(pid) => pid.following_error(),

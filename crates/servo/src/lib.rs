@@ -21,9 +21,11 @@
 //! period is a [`ServoFault`], never a NaN output. On a real-time path: the loops' `update`
 //! and `reset`, [`FollowingErrorMonitor::check`], [`SetPointDifferentiator::next`] and the
 //! accessors. Set-up only (they validate, and an error names the field): the constructors,
-//! the configurations' `validate` and [`PidController::set_gains`]. The caller passes the period each cycle.
-//! Configuration structs deserialize with serde (the machine TOML) and validate with errors
-//! that name the field.
+//! the configurations' `validate` and [`PidController::set_gains`]. The caller passes the
+//! period each cycle. Each public function's doc says it in a line of its own,
+//! `Real-time: yes (...)` or `Real-time: no (why)`; `crates/kernel/tests/real_time_docs.rs`
+//! checks that every one has it. Configuration structs deserialize with serde (the machine
+//! TOML) and validate with errors that name the field.
 //!
 //! ```
 //! use rtcnc_servo::{FollowingErrorLimits, PidConfig, PidController, PidGains, SetPoint};

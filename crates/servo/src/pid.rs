@@ -25,6 +25,8 @@ pub struct PidController {
 
 impl PidController {
     /// A controller for joint `joint`, or the first refused configuration field.
+    ///
+    /// Real-time: no (set-up: a refusal allocates its message).
     pub fn new(joint: usize, config: &PidConfig) -> Result<Self, ConfigError> {
         config.validate()?;
         Ok(Self {
@@ -38,6 +40,8 @@ impl PidController {
 
     /// Clears the integrator and the derivative history (call when the drive is enabled or
     /// after a fault). The following-error maximum is kept.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn reset(&mut self) {
         self.integral = 0.0;
         self.previous_error = None;
@@ -47,6 +51,8 @@ impl PidController {
     /// One servo cycle: the velocity command (units/s) for the drive, or the fault that
     /// stops the joint. `feedback` is the measured position, `period_s` the time since the
     /// previous cycle.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn update(
         &mut self,
         setpoint: SetPoint,
@@ -105,31 +111,43 @@ impl PidController {
     }
 
     /// The joint index this controller names in its faults.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn joint(&self) -> usize {
         self.monitor.joint()
     }
 
     /// The error integral (units·s).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn integral(&self) -> f64 {
         self.integral
     }
 
     /// The last output (units/s).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn output(&self) -> f64 {
         self.output
     }
 
     /// The following-error monitor (last error, maximum, limits).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn following_error(&self) -> &FollowingErrorMonitor {
         &self.monitor
     }
 
     /// The gains in force.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn gains(&self) -> &PidGains {
         &self.gains
     }
 
     /// Replaces the gains (validated), keeping the loop's state: for tuning while running.
+    ///
+    /// Real-time: no (set-up: a refusal allocates its message).
     pub fn set_gains(&mut self, gains: PidGains) -> Result<(), ConfigError> {
         gains.validate().map_err(|e| e.within("gains"))?;
         self.gains = gains;

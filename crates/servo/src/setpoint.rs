@@ -13,6 +13,8 @@ pub struct SetPoint {
 
 impl SetPoint {
     /// A set-point at rest at `position`.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn at_rest(position: f64) -> Self {
         Self {
             position,
@@ -39,17 +41,23 @@ pub struct SetPointDifferentiator {
 
 impl SetPointDifferentiator {
     /// A differentiator with no history.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn new() -> Self {
         Self::default()
     }
 
     /// Forgets the history (after a jump in the command, e.g. when the drive is enabled).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn reset(&mut self) {
         *self = Self::default();
     }
 
     /// The set-point for `position`, `period_s` after the previous one. A non-positive or
     /// non-finite period gives zero derivatives (the servo loop reports the bad period).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn next(&mut self, position: f64, period_s: f64) -> SetPoint {
         let period_ok = period_s.is_finite() && period_s > 0.0;
         let velocity = match self.previous_position {

@@ -204,6 +204,8 @@ pub const MAX_JOINTS: usize = 64;
 
 impl SimulatedMachineConfig {
     /// Checks every field; the error names the first refused one.
+    ///
+    /// Real-time: no (set-up: a refusal allocates its message).
     pub fn validate(&self) -> Result<(), ConfigError> {
         positive("substep_s", self.substep_s)?;
         if !(1e-6..=1e-3).contains(&self.substep_s) {
@@ -274,6 +276,8 @@ impl SimulatedMachineConfig {
 
 impl SimulatedJointConfig {
     /// A joint with every default and the given drive mode.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn with_drive(drive: DriveMode) -> Self {
         Self {
             drive,
@@ -292,6 +296,8 @@ impl SimulatedJointConfig {
     }
 
     /// Checks the joint's fields for a machine integrated at `substep_s`.
+    ///
+    /// Real-time: no (set-up: a refusal allocates its message).
     pub fn validate(&self, substep_s: f64) -> Result<(), ConfigError> {
         positive("motor.inertia", self.motor.inertia)?;
         non_negative("motor.viscous_friction", self.motor.viscous_friction)?;
@@ -375,27 +381,35 @@ impl SpindleConfig {
 }
 
 mod defaults {
+    /// Real-time: yes (no allocation, no blocking).
     pub fn substep_s() -> f64 {
         62.5e-6
     }
+    /// Real-time: yes (no allocation, no blocking).
     pub fn communication_watchdog_s() -> f64 {
         0.1
     }
+    /// Real-time: yes (no allocation, no blocking).
     pub fn yes() -> bool {
         true
     }
+    /// Real-time: yes (no allocation, no blocking).
     pub fn units_per_revolution() -> f64 {
         5.0
     }
+    /// Real-time: yes (no allocation, no blocking).
     pub fn encoder_counts() -> u32 {
         1 << 17
     }
+    /// Real-time: yes (no allocation, no blocking).
     pub fn velocity_bandwidth_hz() -> f64 {
         200.0
     }
+    /// Real-time: yes (no allocation, no blocking).
     pub fn position_loop_gain() -> f64 {
         300.0
     }
+    /// Real-time: yes (no allocation, no blocking).
     pub fn quick_stop_deceleration() -> f64 {
         2000.0
     }

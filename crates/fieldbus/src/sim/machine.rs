@@ -66,6 +66,8 @@ pub enum SimulationError {
 
 impl SimulationError {
     /// A stable machine-readable code.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn code(&self) -> &'static str {
         match self {
             Self::NoSuchJoint { .. } => "fieldbus.sim.no_such_joint",
@@ -121,6 +123,8 @@ pub struct SimulatedMachine {
 impl SimulatedMachine {
     /// Builds the machine at power-up (drives in "not ready to switch on"), or names the
     /// first refused configuration field. All memory is allocated here.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn new(config: &SimulatedMachineConfig) -> Result<Self, ConfigError> {
         config.validate()?;
         let layout = ProcessLayout {
@@ -163,11 +167,15 @@ impl SimulatedMachine {
     }
 
     /// Presses (`true`) or releases the e-stop button.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn set_estop(&mut self, pressed: bool) {
         self.estop_active = pressed;
     }
 
     /// Turns the handwheel by `detents` (negative: the other way).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn turn_handwheel(&mut self, detents: i64) {
         self.handwheel_counts = self.handwheel_counts.wrapping_add(detents);
     }
@@ -176,6 +184,8 @@ impl SimulatedMachine {
     /// stays closed until its lock output drops (see
     /// [`DeviceConfig::Door`](crate::sim::DeviceConfig::Door)); it acts from the next
     /// exchange on.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn set_door_open(&mut self, open: bool) -> Result<(), SimulationError> {
         if !self.devices.iter().any(|d| d.door_closed().is_some()) {
             return Err(SimulationError::NoSuchDevice("door"));
@@ -185,23 +195,31 @@ impl SimulatedMachine {
     }
 
     /// Whether the door is closed (`None`: no door).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn door_closed(&self) -> Option<bool> {
         self.devices.iter().find_map(Device::door_closed)
     }
 
     /// The pocket of the carousel at the tool-change station (`None`: no carousel).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn carousel_pocket(&self) -> Option<u32> {
         self.devices.iter().find_map(Device::carousel_pocket)
     }
 
     /// Digital input `index` as the machine last reported it (devices and stuck inputs
     /// included).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn digital_input(&self, index: usize) -> Option<bool> {
         self.digital_image.get(index).copied()
     }
 
     /// Sets digital input `index` (a switch on the machine, a panel button). An input a
     /// device drives takes the device's level instead.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn set_digital_input(&mut self, index: usize, value: bool) -> Result<(), SimulationError> {
         let count = self.digital_inputs.len();
         let slot = self.digital_inputs.get_mut(index);
@@ -215,11 +233,15 @@ impl SimulatedMachine {
     }
 
     /// The spindle's angle from its index, degrees (0 ≤ angle < 360).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn spindle_angle_deg(&self) -> f64 {
         self.spindle.angle_deg()
     }
 
     /// Sets analogue input `index`.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn set_analog_input(&mut self, index: usize, value: f64) -> Result<(), SimulationError> {
         let count = self.analog_inputs.len();
         let slot = self.analog_inputs.get_mut(index);
@@ -233,21 +255,29 @@ impl SimulatedMachine {
     }
 
     /// Digital output `index` as the machine last received it.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn digital_output(&self, index: usize) -> Option<bool> {
         self.digital_outputs.get(index).copied()
     }
 
     /// Analogue output `index` as the machine last received it.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn analog_output(&self, index: usize) -> Option<f64> {
         self.analog_outputs.get(index).copied()
     }
 
     /// Puts a fault into the machine; it acts from the next exchange on.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn inject(&mut self, fault: InjectedFault) -> Result<(), SimulationError> {
         self.set_fault(fault, true)
     }
 
     /// Removes an injected fault (a faulted drive still needs a fault reset).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn clear(&mut self, fault: InjectedFault) -> Result<(), SimulationError> {
         self.set_fault(fault, false)
     }
@@ -285,6 +315,8 @@ impl SimulatedMachine {
 
     /// The load's true position and velocity (units, units/s), before the encoder: for
     /// plots and tests, not for control.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn true_state(&self, joint: usize) -> Option<(f64, f64)> {
         self.joints
             .get(joint)
@@ -292,11 +324,15 @@ impl SimulatedMachine {
     }
 
     /// Simulated time since power-up (s).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn time_s(&self) -> f64 {
         self.time_ns as f64 * 1e-9
     }
 
     /// Number of sub-steps a cycle of `period_s` is split into.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn substeps_for(&self, period_s: f64) -> usize {
         // The small slack keeps a period that is a whole multiple of the sub-step from
         // gaining a step through rounding.

@@ -27,6 +27,8 @@ pub struct MotorModel {
 
 impl MotorModel {
     /// A motor at rest at `position`; `units_per_revolution` maps the shaft to the joint.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn new(config: &MotorConfig, units_per_revolution: f64, position: f64) -> Self {
         let units_per_radian = units_per_revolution / (2.0 * std::f64::consts::PI);
         let acceleration_per_torque = units_per_radian / config.inertia;
@@ -42,16 +44,22 @@ impl MotorModel {
     }
 
     /// Position (units).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn position(&self) -> f64 {
         self.position
     }
 
     /// Velocity (units/s).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn velocity(&self) -> f64 {
         self.velocity
     }
 
     /// Puts the load at `position`, at rest (an ideal drive's move).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn place(&mut self, position: f64, velocity: f64) {
         self.position = position;
         self.velocity = velocity;
@@ -68,6 +76,8 @@ impl MotorModel {
     }
 
     /// Advances by `step_s` seconds with `torque` (N·m) held.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn advance(&mut self, torque: f64, step_s: f64) {
         let drive = torque * self.acceleration_per_torque;
         let mut remaining = step_s;

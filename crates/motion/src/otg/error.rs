@@ -94,6 +94,8 @@ pub enum OtgError {
 
 impl OtgError {
     /// A stable, machine-readable code for this error kind.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn code(&self) -> &'static str {
         match self {
             Self::InvalidLimit { .. } => "otg-invalid-limit",

@@ -22,6 +22,8 @@ pub struct Limits {
 
 impl Limits {
     /// Symmetric limits: `|v| <= velocity`, `|a| <= acceleration`, `|j| <= jerk`.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn symmetric(velocity: f64, acceleration: f64, jerk: f64) -> Self {
         Self {
             max_velocity: velocity,
@@ -33,6 +35,8 @@ impl Limits {
     }
 
     /// Checks that every limit is finite and of the right sign.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn validate(&self) -> Result<(), OtgError> {
         let positive = [
             ("max_velocity", self.max_velocity),
@@ -78,11 +82,15 @@ pub struct State {
 
 impl State {
     /// A state with the given position, velocity and acceleration.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn new(p: f64, v: f64, a: f64) -> Self {
         Self { p, v, a }
     }
 
     /// At rest at position `p`.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub const fn at_rest(p: f64) -> Self {
         Self { p, v: 0.0, a: 0.0 }
     }

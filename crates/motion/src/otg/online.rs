@@ -27,6 +27,8 @@ impl OnlineAxis {
     /// An axis at `state`. A state at rest stands still; a moving one is brought to rest as
     /// fast as the limits allow until a target is set (a set-point generator must not keep
     /// accelerating on its own).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn new(state: State, limits: Limits) -> Result<Self, OtgError> {
         limits.validate()?;
         state.check_finite(Which::Start)?;
@@ -43,6 +45,8 @@ impl OnlineAxis {
     }
 
     /// Current set-point.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn sample(&self) -> Sample {
         self.profile.at(self.time)
     }
@@ -53,6 +57,8 @@ impl OnlineAxis {
     }
 
     /// Replaces the limits used by the next target (the current motion is not replanned).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn set_limits(&mut self, limits: Limits) -> Result<(), OtgError> {
         limits.validate()?;
         self.limits = limits;
@@ -60,11 +66,15 @@ impl OnlineAxis {
     }
 
     /// Limits in use.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn limits(&self) -> &Limits {
         &self.limits
     }
 
     /// Moves to `target` time-optimally from the current set-point.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn set_target(&mut self, target: State) -> Result<(), OtgError> {
         let profile = position_profile(self.current_state(), target, &self.limits)?;
         self.start(profile);
@@ -73,6 +83,8 @@ impl OnlineAxis {
 
     /// Reaches velocity `v` with acceleration `a` time-optimally, position free (jogging,
     /// feed override).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn set_velocity(&mut self, v: f64, a: f64) -> Result<(), OtgError> {
         let profile = velocity_profile(self.current_state(), v, a, &self.limits)?;
         self.start(profile);
@@ -81,6 +93,8 @@ impl OnlineAxis {
 
     /// Stops as fast as the acceleration and jerk limits allow (velocity and acceleration
     /// zero; the position is where it ends up).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn stop(&mut self) -> Result<(), OtgError> {
         self.set_velocity(0.0, 0.0)
     }
@@ -92,6 +106,8 @@ impl OnlineAxis {
 
     /// Advances the clock by `dt` (a servo period) and returns the new set-point. A NaN or
     /// negative `dt` does not move the clock.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     #[inline]
     pub fn step(&mut self, dt: f64) -> Sample {
         self.time = advance_clock(self.time, dt, self.profile.duration());
@@ -114,11 +130,15 @@ impl OnlineAxis {
     }
 
     /// Whether the current profile has reached its target.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn is_finished(&self) -> bool {
         self.time >= self.profile.duration()
     }
 
     /// The profile being followed, and the time since it started.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn profile(&self) -> (&Profile, f64) {
         (&self.profile, self.time)
     }
@@ -137,6 +157,8 @@ impl<const N: usize> OnlineGroup<N> {
     /// Axes at `states`. Axes at rest stand still; moving ones are brought to rest as fast
     /// as their limits allow until targets are set (each on its own: the group's duration is
     /// the longest stop).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn new(states: [State; N], limits: [Limits; N]) -> Result<Self, OtgError> {
         let mut profiles = [Profile::hold(State::default()); N];
         for (i, slot) in profiles.iter_mut().enumerate() {
@@ -152,6 +174,8 @@ impl<const N: usize> OnlineGroup<N> {
 
     /// Rounds the duration of every following move up to a whole number of servo
     /// `period`s, so that moves end exactly on a tick (`None`: no rounding).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn set_period(&mut self, period: Option<f64>) -> Result<(), OtgError> {
         if let Some(p) = period {
             if !(p.is_finite() && p > 0.0) {
@@ -167,11 +191,15 @@ impl<const N: usize> OnlineGroup<N> {
     }
 
     /// Current set-points.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn sample(&self) -> [Sample; N] {
         self.motion.at(self.time)
     }
 
     /// Moves every axis to its target from the current set-points, all arriving together.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn set_targets(&mut self, targets: &[State; N]) -> Result<(), OtgError> {
         let now = self.sample().map(|s| State::new(s.p, s.v, s.a));
         self.motion = match self.period {
@@ -185,6 +213,8 @@ impl<const N: usize> OnlineGroup<N> {
     /// Moves every axis to its target along the straight line between the current and the
     /// target positions (phase synchronisation; no period rounding). The current motion must
     /// be at rest or along that line, else [`OtgError::NotCollinear`] and nothing changes.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn set_targets_straight(&mut self, targets: &[State; N]) -> Result<(), OtgError> {
         let now = self.sample().map(|s| State::new(s.p, s.v, s.a));
         self.motion = synchronize_straight(&now, targets, &self.limits)?;
@@ -193,17 +223,23 @@ impl<const N: usize> OnlineGroup<N> {
     }
 
     /// Advances the clock by `dt` and returns the new set-points.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn step(&mut self, dt: f64) -> [Sample; N] {
         self.time = advance_clock(self.time, dt, self.motion.duration());
         self.sample()
     }
 
     /// Whether every axis has reached its target.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn is_finished(&self) -> bool {
         self.time >= self.motion.duration()
     }
 
     /// Common duration of the current motion.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn duration(&self) -> f64 {
         self.motion.duration()
     }

@@ -107,6 +107,8 @@ pub struct Block {
 
 impl Block {
     /// Whether a profile of duration `t` exists for this axis.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn is_blocked(&self, t: f64) -> bool {
         t < self.t_min || self.blocked.iter().flatten().any(|&(l, r)| l < t && t < r)
     }
@@ -166,6 +168,8 @@ impl Step1 {
 /// The start state may break the limits (a brake pre-trajectory brings it back first); the
 /// target must lie inside them. Cost: all families in both directions, i.e. a handful of
 /// quartic root isolations, a few microseconds; no allocation, bounded loops.
+///
+/// Real-time: yes (no allocation, no blocking).
 pub fn position_profile(start: State, target: State, limits: &Limits) -> Result<Profile, OtgError> {
     Ok(solve_position(start, target, limits)?.profile())
 }
@@ -180,6 +184,8 @@ pub fn position_profile(start: State, target: State, limits: &Limits) -> Result<
 /// about a microsecond (see the `otg` benchmark), no allocation. When `v0` is too high to
 /// arrive at `v1` within `length`, the time-optimal profile overshoots and comes back;
 /// [`Profile::position_extrema`] tells, and a planner should lower `v0` instead.
+///
+/// Real-time: yes (no allocation, no blocking).
 pub fn along_path(
     length: f64,
     v0: f64,
@@ -192,6 +198,8 @@ pub fn along_path(
 
 /// Minimum duration and blocked duration intervals of a move (what multi-axis
 /// synchronisation needs), without building the profile.
+///
+/// Real-time: yes (no allocation, no blocking).
 pub fn position_block(start: State, target: State, limits: &Limits) -> Result<Block, OtgError> {
     Ok(solve_position(start, target, limits)?.block)
 }

@@ -52,6 +52,8 @@ pub struct Profile {
 impl Profile {
     /// A profile of zero duration that stays at `state` (moving on with its velocity and
     /// acceleration after time zero).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn hold(state: State) -> Self {
         Self {
             count: 0,
@@ -111,27 +113,37 @@ impl Profile {
     }
 
     /// Total duration (brake pre-trajectory included).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn duration(&self) -> f64 {
         self.begin[self.count]
     }
 
     /// Duration of the brake pre-trajectory (zero unless the start state broke a limit or
     /// was bound to break one).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn brake_duration(&self) -> f64 {
         self.begin[self.brake_count]
     }
 
     /// State at time zero.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn start(&self) -> State {
         self.start
     }
 
     /// State at the end of the profile (the target).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn end(&self) -> State {
         self.end
     }
 
     /// The phases in order, brake phases first.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn phases(&self) -> impl Iterator<Item = Phase> + '_ {
         (0..self.count).map(|i| Phase {
             duration: self.begin[i + 1] - self.begin[i],
@@ -144,6 +156,8 @@ impl Profile {
     }
 
     /// Number of phases (brake phases included, zero-length phases excluded).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn phase_count(&self) -> usize {
         self.count
     }
@@ -153,6 +167,8 @@ impl Profile {
     ///
     /// Cheap and allocation-free: a scan over at most [`MAX_PHASES`] phase starts and a
     /// cubic polynomial. Suitable for every servo period.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     #[inline]
     pub fn at(&self, t: f64) -> Sample {
         // A NaN clock must not produce a NaN set-point: it reads as time zero.
@@ -192,6 +208,8 @@ impl Profile {
 
     /// Largest |velocity|, |acceleration| and |jerk| over the whole profile, found exactly
     /// (a velocity extremum inside a phase, where the acceleration crosses zero, included).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn peaks(&self) -> (f64, f64, f64) {
         let mut vpk = self.start.v.abs().max(self.end.v.abs());
         let mut apk = self.start.a.abs().max(self.end.a.abs());
@@ -216,6 +234,8 @@ impl Profile {
 impl Profile {
     /// Lowest and highest position over the profile, found exactly (inside a phase the
     /// position has an extremum where the velocity crosses zero).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn position_extrema(&self) -> (f64, f64) {
         let mut lo = self.start.p.min(self.end.p);
         let mut hi = self.start.p.max(self.end.p);

@@ -23,6 +23,8 @@ use super::{Limits, OtgError, State};
 /// The start and target velocities and accelerations must lie along the line (at rest is
 /// always fine); otherwise [`OtgError::NotCollinear`] is returned and
 /// [`synchronize`](super::synchronize) is the alternative. Cost: one single-axis profile.
+///
+/// Real-time: yes (no allocation, no blocking).
 pub fn synchronize_straight<const N: usize>(
     start: &[State; N],
     target: &[State; N],

@@ -32,6 +32,8 @@ const SAME_DURATION: f64 = 1e-12;
 /// A profile for one axis of exactly `duration` (brake pre-trajectory included), from
 /// `start` to `target`; `duration` must be one the axis can take (see
 /// [`position_block`](super::position_block)).
+///
+/// Real-time: yes (no allocation, no blocking).
 pub fn position_profile_with_duration(
     start: State,
     target: State,
@@ -521,6 +523,8 @@ pub struct Synchronized<const N: usize> {
 
 impl<const N: usize> Synchronized<N> {
     /// Common duration of all axes (the longest, should they differ).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn duration(&self) -> f64 {
         self.profiles
             .iter()
@@ -529,6 +533,8 @@ impl<const N: usize> Synchronized<N> {
     }
 
     /// Every axis's sample at time `t`.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn at(&self, t: f64) -> [Sample; N] {
         let mut out = [Sample::default(); N];
         for (slot, profile) in out.iter_mut().zip(&self.profiles) {
@@ -543,6 +549,8 @@ impl<const N: usize> Synchronized<N> {
 ///
 /// Cost: step one for every axis, then for each axis that is not the slowest a
 /// one-dimensional search (some tens of closed-form evaluations); no allocation.
+///
+/// Real-time: yes (no allocation, no blocking).
 pub fn synchronize<const N: usize>(
     start: &[State; N],
     target: &[State; N],
@@ -554,6 +562,8 @@ pub fn synchronize<const N: usize>(
 /// As [`synchronize`], with the common duration rounded up to a whole number of servo
 /// `period`s, so that the motion ends exactly on a servo tick (ruckig's "discrete"
 /// duration). With one axis this is the single-axis move ending on a tick.
+///
+/// Real-time: yes (no allocation, no blocking).
 pub fn synchronize_on_period<const N: usize>(
     start: &[State; N],
     target: &[State; N],

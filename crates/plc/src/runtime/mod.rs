@@ -80,6 +80,8 @@ pub enum MonitorError {
 
 impl MonitorError {
     /// Stable code.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn code(&self) -> &'static str {
         match self {
             MonitorError::Unknown(_) => "unknown-variable",
@@ -104,19 +106,27 @@ pub struct VarRef {
 
 impl VarRef {
     /// The slot index in PLC memory.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn slot(&self) -> u32 {
         self.slot
     }
     /// The variable's type.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn ty(&self) -> &Type {
         &self.ty
     }
     /// True for a variable located in the input image: the next scan overwrites what
     /// [`Runtime::write`] put there, so commissioning forces it instead.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn is_located_input(&self) -> bool {
         self.located_input
     }
     /// The elementary type of a scalar variable (BOOL for a bit access).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn elem(&self) -> Option<Elem> {
         if self.bit.is_some() {
             Some(Elem::Bool)
@@ -165,11 +175,15 @@ impl std::fmt::Debug for Vm {
 
 impl Runtime {
     /// Creates an instance with default options: memory at its initial values.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn new(program: Arc<Program>) -> Runtime {
         Runtime::with_options(program, RuntimeOptions::default())
     }
 
     /// Creates an instance; all memory is allocated here, none during scans.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn with_options(program: Arc<Program>, options: RuntimeOptions) -> Runtime {
         let sizes = program.image_sizes;
         let retain: Arc<[RetainLeaf]> = retain_leaves(&program).into();
@@ -202,17 +216,23 @@ impl Runtime {
     }
 
     /// The program this instance runs.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn program(&self) -> &Arc<Program> {
         &self.program
     }
 
     /// Number of scans run since the start or the last restart.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn scan_count(&self) -> u64 {
         self.scans
     }
 
     /// State and set-point of the auxiliary axis bound to AXIS_REF variable `name` (as in
     /// the configuration's `[axes]`).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn axis(&self, name: &str) -> Option<crate::plcopen::AxisStatus> {
         self.vm
             .axes
@@ -222,16 +242,22 @@ impl Runtime {
     }
 
     /// Every configured auxiliary axis: its AXIS_REF variable and status.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn axes(&self) -> impl Iterator<Item = (&str, crate::plcopen::AxisStatus)> {
         self.vm.axes.iter().map(|a| (a.name.as_str(), a.status()))
     }
 
     /// The fault that stopped the PLC, if any.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn fault(&self) -> Option<&Fault> {
         self.fault.as_ref()
     }
 
     /// Restarts after a fault or on request. Forces and the signal mapping stay.
+    ///
+    /// Real-time: no (allocates).
     pub fn restart(&mut self, kind: Restart) {
         for a in self.vm.axes.iter_mut() {
             a.reset();
@@ -258,14 +284,20 @@ impl Runtime {
     }
 
     /// The input image (`%I`), written by the caller before a scan.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn input_image_mut(&mut self) -> &mut [u8] {
         &mut self.images[0]
     }
     /// The output image (`%Q`), valid after a scan (the safe image after a fault).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn output_image(&self) -> &[u8] {
         &self.images[1]
     }
     /// The marker image (`%M`).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn marker_image(&self) -> &[u8] {
         &self.images[2]
     }
@@ -274,6 +306,8 @@ impl Runtime {
     /// — virtual or real): reads the input image, runs every task that is due (tasks
     /// without INTERVAL run every scan, in priority order), writes the output image.
     /// After a fault the PLC stays stopped (outputs safe) until [`Runtime::restart`].
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn scan(&mut self, now: Duration) -> Result<(), Fault> {
         let now_ns = duration_ns(now);
         self.begin(now_ns)?;
@@ -312,6 +346,8 @@ impl Runtime {
     /// such a scan would only copy the images, so a caller that calls more often than the
     /// PLC's own intervals may skip it and keep the outputs of the last scan. Tasks without
     /// an interval, or started by a trigger variable, make every scan due.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn is_due(&self, now: Duration) -> bool {
         let now_ns = duration_ns(now);
         self.fault.is_some()
@@ -330,6 +366,8 @@ impl Runtime {
     /// Runs one activation of task `task` (index into [`Program::tasks`]) at time `now`,
     /// with its own input and output image transfer: for a kernel that puts each task of
     /// the CONFIGURATION on its own executive slot.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn run_task(&mut self, task: usize, now: Duration) -> Result<(), Fault> {
         self.begin(duration_ns(now))?;
         if task < self.program.tasks.len() {

@@ -5,11 +5,16 @@ use super::*;
 impl Runtime {
     /// Resolves a variable path: `GLOBAL`, `INSTANCE.VAR`, `VAR` (searched in every program
     /// instance when not a global), members `timer.ET`, `axis[2].pos`, bits `word.3`.
+    ///
+    /// Real-time: no (allocates).
     pub fn resolve(&self, path: &str) -> Result<VarRef, MonitorError> {
         resolve(&self.program, path)
     }
 
     /// Reads a scalar variable.
+    ///
+    /// Real-time: yes for a variable of elementary type (no allocation, no blocking); a
+    /// `STRING` value allocates.
     pub fn read(&self, var: &VarRef) -> Value {
         let v = self.vm.mem.get(var.slot as usize).copied().unwrap_or(0);
         if let Some(b) = var.bit {
@@ -19,6 +24,8 @@ impl Runtime {
     }
 
     /// Reads a variable by path.
+    ///
+    /// Real-time: no (allocates).
     pub fn read_name(&self, path: &str) -> Result<Value, MonitorError> {
         let r = self.resolve(path)?;
         if r.elem().is_none() && !matches!(r.ty, Type::String(_)) {
@@ -28,6 +35,8 @@ impl Runtime {
     }
 
     /// Formats a variable for display (enumerations by value name).
+    ///
+    /// Real-time: no (allocates).
     pub fn format(&self, var: &VarRef) -> String {
         if let (Type::Enum(id), None) = (&var.ty, var.bit) {
             let v = self.vm.mem.get(var.slot as usize).copied().unwrap_or(0) as i64;
@@ -42,6 +51,9 @@ impl Runtime {
 
     /// Writes a scalar (or STRING) variable now; the next scan sees the value (except a
     /// located input, which the input image overwrites: force it instead).
+    ///
+    /// Real-time: yes for a variable of elementary type (no allocation, no blocking); a
+    /// `STRING` value or a refusal's message allocates.
     pub fn write(&mut self, var: &VarRef, value: &Value) -> Result<(), ValueError> {
         let v = self.encode(var, value)?;
         self.put(var, v, value);
@@ -115,6 +127,8 @@ impl Runtime {
 
     /// Parses IEC text (`TRUE`, `42`, `2.5`, `T#20ms`, an enumeration value name) for a
     /// variable.
+    ///
+    /// Real-time: no (allocates).
     pub fn parse_value(&self, var: &VarRef, text: &str) -> Result<Value, ValueError> {
         match (&var.ty, var.bit) {
             (_, Some(_)) => Value::parse(text, Elem::Bool),
@@ -148,6 +162,8 @@ impl Runtime {
     /// Forces a scalar variable: it holds `value` at the start and at the end of every
     /// scan (so a forced input is what the program reads, a forced output is what the
     /// output image gets) until unforced.
+    ///
+    /// Real-time: no (allocates).
     pub fn force(&mut self, var: &VarRef, value: &Value) -> Result<(), MonitorError> {
         // Error texts are built only on error: forcing itself does not allocate.
         let name = || format!("slot {}", var.slot);
@@ -175,16 +191,22 @@ impl Runtime {
 
     /// Releases a forced variable; it keeps its value until the program or the input
     /// image changes it.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn unforce(&mut self, var: &VarRef) {
         self.forces.retain(|(s, _)| *s != var.slot);
     }
 
     /// Releases every force.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn unforce_all(&mut self) {
         self.forces.clear();
     }
 
     /// Slots currently forced.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn forced_slots(&self) -> impl Iterator<Item = u32> + '_ {
         self.forces.iter().map(|(s, _)| *s)
     }

@@ -8,6 +8,8 @@ use super::*;
 impl Runtime {
     /// Copies the RETAIN variables into a new snapshot (allocates: take one at start-up,
     /// then refresh it with [`Runtime::update_retain_snapshot`]).
+    ///
+    /// Real-time: no (allocates).
     pub fn retain_snapshot(&self) -> RetainSnapshot {
         let mut snap = RetainSnapshot {
             leaves: Arc::clone(&self.retain),
@@ -19,6 +21,8 @@ impl Runtime {
 
     /// Refreshes a snapshot taken from this runtime, without allocating: cheap enough for
     /// the PLC task, which then hands the snapshot to a thread that may block on the disk.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn update_retain_snapshot(&self, snap: &mut RetainSnapshot) {
         let mut at = 0usize;
         for l in self.retain.iter() {
@@ -36,12 +40,16 @@ impl Runtime {
 
     /// Writes the RETAIN variables to `path` atomically (see [`RetainSnapshot::save`]).
     /// Blocks on the disk: call it outside the real-time task.
+    ///
+    /// Real-time: no (allocates, writes a file).
     pub fn save_retain(&self, path: &Path) -> std::io::Result<()> {
         self.retain_snapshot().save(path)
     }
 
     /// Restores RETAIN variables from `path`. Entries whose name no longer exists or whose
     /// value no longer fits are skipped and counted; a missing file restores nothing.
+    ///
+    /// Real-time: no (allocates, reads a file).
     pub fn load_retain(&mut self, path: &Path) -> std::io::Result<RetainReport> {
         let text = match fs::read_to_string(path) {
             Ok(t) => t,
@@ -117,6 +125,8 @@ impl RetainSnapshot {
     /// Writes `name = value` lines to a temporary file in the same directory, fsyncs it,
     /// renames it over `path` and fsyncs the directory: a crash leaves either the old or
     /// the new file, never a torn one.
+    ///
+    /// Real-time: no (allocates, writes a file).
     pub fn save(&self, path: &Path) -> std::io::Result<()> {
         let mut text = String::from("# rtcnc-plc retained variables v1\n");
         let mut at = 0usize;

@@ -4,6 +4,8 @@ use super::*;
 
 impl Runtime {
     /// Applies a machine configuration: maps signals onto variables and sets safe values.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn configure(&mut self, cfg: &PlcConfig) -> Result<(), ConfigError> {
         let mut signals = vec![None; Signal::ALL.len()];
         let mut safe_slots: Vec<(u32, u64)> = Vec::new();
@@ -98,12 +100,16 @@ impl Runtime {
     }
 
     /// True if the signal is mapped to a variable.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn has_signal(&self, s: Signal) -> bool {
         self.signals.get(s as usize).is_some_and(|x| x.is_some())
     }
 
     /// Sets a signal to the PLC (ignored when unmapped or not `ToPlc`). Numbers are
     /// converted to the variable's type (rounded for integers).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn set_signal(&mut self, s: Signal, value: f64) {
         if s.direction() != Direction::ToPlc {
             return;
@@ -116,11 +122,15 @@ impl Runtime {
     }
 
     /// Sets a BOOL signal to the PLC.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn set_signal_bool(&mut self, s: Signal, value: bool) {
         self.set_signal(s, if value { 1.0 } else { 0.0 });
     }
 
     /// Reads a signal (either direction) as a number (BOOL as 0/1); `None` when unmapped.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn signal(&self, s: Signal) -> Option<f64> {
         let (slot, e) = self.signals.get(s as usize).copied().flatten()?;
         let v = self.vm.mem.get(slot as usize).copied().unwrap_or(0);
@@ -128,6 +138,8 @@ impl Runtime {
     }
 
     /// Reads a BOOL signal; unmapped signals read as their safe value.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn signal_bool(&self, s: Signal) -> bool {
         self.signal(s).unwrap_or(s.safe_value()) != 0.0
     }

@@ -35,6 +35,8 @@ pub struct LatestReader<T> {
 }
 
 /// A latest-value channel called `name`, starting with `initial` on both ends.
+///
+/// Real-time: no (set-up: allocates).
 pub fn latest<T: Clone + Send>(name: &str, initial: T) -> (LatestWriter<T>, LatestReader<T>) {
     let shared = Arc::new(Shared {
         name: name.to_string(),
@@ -57,6 +59,8 @@ pub fn latest<T: Clone + Send>(name: &str, initial: T) -> (LatestWriter<T>, Late
 impl<T: Send> LatestWriter<T> {
     /// Makes `value` the newest (wait-free; the value it replaces is dropped here, so give
     /// `T` no heap parts when publishing from a real-time task).
+    ///
+    /// Real-time: yes (wait-free; the value replaced is dropped here, so give `T` no heap parts).
     pub fn publish(&mut self, value: T) {
         if let Some(slot) = self.shared.slots.get(usize::from(self.back)) {
             // SAFETY: the writer owns the back slot.
@@ -67,6 +71,8 @@ impl<T: Send> LatestWriter<T> {
     }
 
     /// Lets the writer update the value in place, then publishes it (wait-free).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn publish_with(&mut self, update: impl FnOnce(&mut T)) {
         if let Some(slot) = self.shared.slots.get(usize::from(self.back)) {
             // SAFETY: the writer owns the back slot.
@@ -77,6 +83,8 @@ impl<T: Send> LatestWriter<T> {
     }
 
     /// The channel's name.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn name(&self) -> &str {
         &self.shared.name
     }
@@ -84,12 +92,16 @@ impl<T: Send> LatestWriter<T> {
 
 impl<T: Send> LatestReader<T> {
     /// The newest published value (wait-free).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn read(&mut self) -> &T {
         self.refresh();
         self.current()
     }
 
     /// True when a value newer than the last read is waiting.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn has_news(&self) -> bool {
         self.shared.middle.load(Ordering::Acquire) & FRESH != 0
     }
@@ -108,6 +120,8 @@ impl<T: Send> LatestReader<T> {
     }
 
     /// The channel's name.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn name(&self) -> &str {
         &self.shared.name
     }

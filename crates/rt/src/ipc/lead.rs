@@ -95,6 +95,8 @@ pub enum Missing {
 
 /// A lead queue called `name` with room for `capacity` values ahead of the consumer, split
 /// into its two ends. Both start at number `first`.
+///
+/// Real-time: no (set-up: allocates).
 pub fn lead_queue<T: Copy + Send>(
     name: &str,
     capacity: usize,
@@ -133,27 +135,37 @@ impl<T> Shared<T> {
 
 impl<T: Copy + Send> LeadProducer<T> {
     /// The number the next [`push`](Self::push) writes.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn next_number(&self) -> u64 {
         self.next
     }
 
     /// The number the consumer asks for next: every number below it is taken or passed.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn consumer_next(&self) -> u64 {
         self.shared.consumer_next.load(Ordering::Acquire)
     }
 
     /// Values written ahead of the consumer now (0 when it has caught up, or passed numbers
     /// the producer never wrote).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn lead(&self) -> u64 {
         self.next.saturating_sub(self.consumer_next())
     }
 
     /// Capacity of the queue.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn capacity(&self) -> usize {
         self.shared.slots.len()
     }
 
     /// The queue's name.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn name(&self) -> &str {
         &self.shared.name
     }
@@ -161,6 +173,8 @@ impl<T: Copy + Send> LeadProducer<T> {
     /// Writes `value` for the next number; returns that number, or hands `value` back when
     /// its slot still holds a value the consumer has not taken (the queue is full: the
     /// producer is a whole capacity ahead).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn push(&mut self, value: T) -> Result<u64, T> {
         let number = self.next;
         if number > MAX_NUMBER {
@@ -186,6 +200,8 @@ impl<T: Copy + Send> LeadProducer<T> {
 
     /// Moves the producer past the numbers the consumer has already passed without a
     /// value (the producer fell a whole lead behind); returns how many it skipped.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn catch_up(&mut self) -> u64 {
         let consumer = self.consumer_next();
         let skipped = consumer.saturating_sub(self.next);
@@ -198,6 +214,8 @@ impl<T: Copy + Send> LeadProducer<T> {
     /// when the consumer has taken nothing from `from` on, else one past the last value it
     /// took. Values below the returned number are the consumer's; the reclaimed ones will
     /// never be taken. Wait-free: one compare-and-swap per value written ahead.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn rewind(&mut self, from: u64) -> u64 {
         let start = from.min(self.next);
         let mut first_free = start;
@@ -227,6 +245,8 @@ impl<T: Copy + Send> LeadProducer<T> {
 impl<T: Copy + Send> LeadConsumer<T> {
     /// Takes the value for `number` (the consumer's period now). Asking moves the
     /// consumer on: the numbers below `number` are passed, whether they were taken or not.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn take(&mut self, number: u64) -> Result<T, Missing> {
         let next = self.shared.consumer_next.load(Ordering::Relaxed);
         if number >= next {
@@ -259,11 +279,15 @@ impl<T: Copy + Send> LeadConsumer<T> {
     }
 
     /// The number the consumer asks for next.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn next_number(&self) -> u64 {
         self.shared.consumer_next.load(Ordering::Relaxed)
     }
 
     /// The queue's name.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn name(&self) -> &str {
         &self.shared.name
     }

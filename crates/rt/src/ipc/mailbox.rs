@@ -37,6 +37,8 @@ impl<T> Clone for Mailbox<T> {
 
 impl<T: Send + 'static> Mailbox<T> {
     /// A mailbox called `name` holding at most `capacity` messages.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn new(name: &str, capacity: usize) -> Result<Self, ConfigError> {
         if capacity == 0 {
             return Err(ConfigError::ZeroCapacity {
@@ -54,26 +56,36 @@ impl<T: Send + 'static> Mailbox<T> {
     }
 
     /// The mailbox's name.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn name(&self) -> &str {
         &self.shared.name
     }
 
     /// The most messages it holds.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn capacity(&self) -> usize {
         self.shared.capacity
     }
 
     /// Messages waiting now.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn len(&self) -> usize {
         self.shared.len.load(Ordering::Acquire)
     }
 
     /// True when no message waits.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
 
     /// True when there is no room.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn is_full(&self) -> bool {
         self.len() >= self.shared.capacity
     }
@@ -83,6 +95,8 @@ impl<T: Send + 'static> Mailbox<T> {
     }
 
     /// Conditional put: appends `value` or hands it back with [`IpcError::Full`].
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn try_put(&self, value: T) -> Result<(), Rejected<T>> {
         {
             let mut q = self.shared.queue.lock();
@@ -98,6 +112,8 @@ impl<T: Send + 'static> Mailbox<T> {
 
     /// Urgent put: places `value` at the head, ahead of every waiting message; fails with
     /// [`IpcError::Full`] when there is no room (it never displaces a message).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn put_front(&self, value: T) -> Result<(), Rejected<T>> {
         {
             let mut q = self.shared.queue.lock();
@@ -144,11 +160,15 @@ impl<T: Send + 'static> Mailbox<T> {
     }
 
     /// Blocking put (outside threads only): waits for room.
+    ///
+    /// Real-time: no (blocks; refused inside a task body).
     pub fn put(&self, value: T) -> Result<(), Rejected<T>> {
         self.put_until(value, None)
     }
 
     /// Timed put (outside threads only): waits at most `timeout` of OS monotonic time.
+    ///
+    /// Real-time: no (blocks; refused inside a task body).
     pub fn put_timeout(&self, value: T, timeout: Duration) -> Result<(), Rejected<T>> {
         self.put_until(
             value,
@@ -157,6 +177,8 @@ impl<T: Send + 'static> Mailbox<T> {
     }
 
     /// Conditional get: the oldest message, or `None` when empty.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn try_get(&self) -> Option<T> {
         // Most polls find the mailbox empty: answer those without taking the lock. A put
         // racing with this load is seen by the next poll, exactly as if it came after it.
@@ -196,16 +218,22 @@ impl<T: Send + 'static> Mailbox<T> {
     }
 
     /// Blocking get (outside threads only): waits for a message.
+    ///
+    /// Real-time: no (blocks; refused inside a task body).
     pub fn get(&self) -> Result<T, IpcError> {
         self.get_until(None)
     }
 
     /// Timed get (outside threads only): waits at most `timeout` of OS monotonic time.
+    ///
+    /// Real-time: no (blocks; refused inside a task body).
     pub fn get_timeout(&self, timeout: Duration) -> Result<T, IpcError> {
         self.get_until(Some(monotonic_ns().saturating_add(duration_ns(timeout))))
     }
 
     /// A copy of the oldest message without removing it.
+    ///
+    /// Real-time: yes (no allocation when `T`'s clone allocates nothing, no blocking).
     pub fn peek(&self) -> Option<T>
     where
         T: Clone,
@@ -217,11 +245,15 @@ impl<T: Send + 'static> Mailbox<T> {
     }
 
     /// Looks at the oldest message without removing or copying it.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn peek_with<R>(&self, f: impl FnOnce(Option<&T>) -> R) -> R {
         f(self.shared.queue.lock().front())
     }
 
     /// Removes every message; returns how many there were.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn clear(&self) -> usize {
         let n = {
             let mut q = self.shared.queue.lock();
@@ -237,11 +269,15 @@ impl<T: Send + 'static> Mailbox<T> {
     }
 
     /// A trigger that fires while the mailbox holds a message (the task then takes it).
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn data_trigger(&self) -> Trigger {
         Trigger::new(Arc::new(DataTrigger(Arc::clone(&self.shared))))
     }
 
     /// A trigger that fires while the mailbox has room.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn space_trigger(&self) -> Trigger {
         Trigger::new(Arc::new(SpaceTrigger(Arc::clone(&self.shared))))
     }

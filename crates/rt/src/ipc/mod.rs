@@ -55,6 +55,8 @@ pub enum IpcError {
 
 impl IpcError {
     /// Stable error code.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn code(&self) -> &'static str {
         match self {
             IpcError::Full => "full",

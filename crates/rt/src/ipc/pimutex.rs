@@ -74,6 +74,8 @@ fn futex(word: &AtomicU32, op: libc::c_int) -> libc::c_long {
 
 impl<T: Send> PiMutex<T> {
     /// A mutex around `value`.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn new(value: T) -> Self {
         PiMutex {
             word: AtomicU32::new(0),
@@ -86,6 +88,8 @@ impl<T: Send> PiMutex<T> {
     /// Locking a mutex the thread already holds is a programming error; the kernel answers
     /// it with `EDEADLK` and this then goes on without the lock, as `pthread_mutex_lock`'s
     /// ignored error code did before.
+    ///
+    /// Real-time: yes (waits only for the holder, whose priority it raises; no allocation).
     pub fn lock(&self) -> PiMutexGuard<'_, T> {
         let tid = thread_id();
         if self
@@ -108,6 +112,8 @@ impl<T: Send> PiMutex<T> {
     }
 
     /// Locks if free.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn try_lock(&self) -> Option<PiMutexGuard<'_, T>> {
         let tid = thread_id();
         self.word

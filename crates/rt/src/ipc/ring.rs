@@ -23,6 +23,8 @@ pub struct RingConsumer<T> {
 }
 
 /// A ring called `name` with room for `capacity` items, split into its two ends.
+///
+/// Real-time: no (set-up: allocates).
 pub fn ring<T>(
     name: &str,
     capacity: usize,
@@ -45,21 +47,29 @@ pub fn ring<T>(
 
 impl<T> RingProducer<T> {
     /// Appends `value`, or hands it back when the ring is full.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn push(&mut self, value: T) -> Result<(), T> {
         self.inner.push(value).map_err(|rtrb::PushError::Full(v)| v)
     }
 
     /// Free slots now.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn slots(&self) -> usize {
         self.inner.slots()
     }
 
     /// True when there is no room.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn is_full(&self) -> bool {
         self.inner.is_full()
     }
 
     /// The ring's name.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn name(&self) -> &str {
         &self.name
     }
@@ -67,12 +77,16 @@ impl<T> RingProducer<T> {
 
 impl<T> RingConsumer<T> {
     /// The oldest item, or `None` when empty.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn pop(&mut self) -> Option<T> {
         self.inner.pop().ok()
     }
 
     /// Hands every item waiting now to `f`, oldest first, by reference, then removes them
     /// (no copy out of the ring, which counts for large items); returns how many.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn drain_with(&mut self, mut f: impl FnMut(&T)) -> usize {
         let n = self.inner.slots();
         let Ok(chunk) = self.inner.read_chunk(n) else {
@@ -85,21 +99,29 @@ impl<T> RingConsumer<T> {
     }
 
     /// The oldest item without removing it.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn peek(&self) -> Option<&T> {
         self.inner.peek().ok()
     }
 
     /// Items waiting now.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn len(&self) -> usize {
         self.inner.slots()
     }
 
     /// True when nothing waits.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn is_empty(&self) -> bool {
         self.inner.is_empty()
     }
 
     /// The ring's name.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn name(&self) -> &str {
         &self.name
     }
@@ -139,6 +161,8 @@ impl<T: Copy, const N: usize> SpscCell<T, N> {
     ///
     /// # Safety
     /// `cell` is valid for writes and aligned, and nobody else uses the memory meanwhile.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub unsafe fn init_at(cell: *mut Self) {
         // SAFETY: the caller's promise; only the counters are written.
         unsafe {
@@ -151,6 +175,8 @@ impl<T: Copy, const N: usize> SpscCell<T, N> {
     ///
     /// # Safety
     /// Only one thread, in one process, pushes into a ring.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub unsafe fn push(&self, value: T) -> Result<(), T> {
         let head = self.head.load(Ordering::Relaxed);
         let tail = self.tail.load(Ordering::Acquire);
@@ -170,6 +196,8 @@ impl<T: Copy, const N: usize> SpscCell<T, N> {
     ///
     /// # Safety
     /// Only one thread, in one process, pops from a ring.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub unsafe fn pop(&self) -> Option<T> {
         let tail = self.tail.load(Ordering::Relaxed);
         let head = self.head.load(Ordering::Acquire);
@@ -186,6 +214,8 @@ impl<T: Copy, const N: usize> SpscCell<T, N> {
     }
 
     /// Items waiting now (as either side sees it; 0 for counters that make no sense).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn len(&self) -> usize {
         let waiting = self
             .head
@@ -199,11 +229,15 @@ impl<T: Copy, const N: usize> SpscCell<T, N> {
     }
 
     /// True when nothing waits.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
 
     /// Items pushed so far (the producer's position).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn pushed(&self) -> u64 {
         self.head.load(Ordering::Acquire)
     }

@@ -96,6 +96,8 @@ pub struct BinarySemaphore {
 
 impl BinarySemaphore {
     /// A binary semaphore called `name`, initially not signalled.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn new(name: &str) -> Self {
         BinarySemaphore {
             shared: Arc::new(CountShared {
@@ -108,37 +110,51 @@ impl BinarySemaphore {
     }
 
     /// The semaphore's name.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn name(&self) -> &str {
         &self.shared.name
     }
 
     /// Makes the semaphore available and wakes a waiter.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn signal(&self) {
         self.shared.store(1);
         self.shared.count.notify_all();
     }
 
     /// True when signalled and not yet taken.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn is_signalled(&self) -> bool {
         self.shared.mirror.load(Ordering::Acquire) > 0
     }
 
     /// Takes the semaphore if signalled.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn try_wait(&self) -> bool {
         self.shared.try_wait()
     }
 
     /// Blocks until signalled, then takes it (outside threads only).
+    ///
+    /// Real-time: no (blocks; refused inside a task body).
     pub fn wait(&self) -> Result<(), IpcError> {
         self.shared.wait_until(None)
     }
 
     /// Like [`wait`](Self::wait) with a timeout on the OS monotonic clock.
+    ///
+    /// Real-time: no (blocks; refused inside a task body).
     pub fn wait_timeout(&self, timeout: Duration) -> Result<(), IpcError> {
         self.shared.wait_until(Some(deadline_after(timeout)))
     }
 
     /// A trigger that fires while signalled; the wake-up takes the semaphore.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn trigger(&self) -> Trigger {
         Trigger::new(Arc::clone(&self.shared) as Arc<dyn TriggerSource>)
     }
@@ -152,6 +168,8 @@ pub struct CountingSemaphore {
 
 impl CountingSemaphore {
     /// A counting semaphore called `name` with `initial` units and at most `max`.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn new(name: &str, initial: u32, max: u32) -> Result<Self, ConfigError> {
         if max == 0 {
             return Err(ConfigError::ZeroCapacity {
@@ -176,11 +194,15 @@ impl CountingSemaphore {
     }
 
     /// The semaphore's name.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn name(&self) -> &str {
         &self.shared.name
     }
 
     /// Adds one unit; refused with [`IpcError::AtMaximum`] when at the maximum.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn signal(&self) -> Result<(), IpcError> {
         {
             let mut c = self.shared.count.lock();
@@ -195,26 +217,36 @@ impl CountingSemaphore {
     }
 
     /// Units available now.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn count(&self) -> u32 {
         self.shared.mirror.load(Ordering::Acquire)
     }
 
     /// Takes one unit if there is one.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn try_wait(&self) -> bool {
         self.shared.try_wait()
     }
 
     /// Blocks until a unit is available and takes it (outside threads only).
+    ///
+    /// Real-time: no (blocks; refused inside a task body).
     pub fn wait(&self) -> Result<(), IpcError> {
         self.shared.wait_until(None)
     }
 
     /// Like [`wait`](Self::wait) with a timeout on the OS monotonic clock.
+    ///
+    /// Real-time: no (blocks; refused inside a task body).
     pub fn wait_timeout(&self, timeout: Duration) -> Result<(), IpcError> {
         self.shared.wait_until(Some(deadline_after(timeout)))
     }
 
     /// A trigger that fires while the count is above zero; the wake-up takes one unit.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn trigger(&self) -> Trigger {
         Trigger::new(Arc::clone(&self.shared) as Arc<dyn TriggerSource>)
     }
@@ -263,11 +295,15 @@ pub struct EventSemaphore {
 
 impl EventSemaphore {
     /// An event called `name`, initially reset.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn new(name: &str) -> Self {
         Self::with_state(name, false)
     }
 
     /// An event called `name`, initially set when `set` is true.
+    ///
+    /// Real-time: no (set-up: allocates).
     pub fn with_state(name: &str, set: bool) -> Self {
         EventSemaphore {
             shared: Arc::new(EventShared {
@@ -279,11 +315,15 @@ impl EventSemaphore {
     }
 
     /// The event's name.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn name(&self) -> &str {
         &self.shared.name
     }
 
     /// Sets the event, releasing every waiter; it stays set.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn set(&self) {
         {
             let mut s = self.shared.state.lock();
@@ -299,11 +339,15 @@ impl EventSemaphore {
     }
 
     /// Resets the event.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn reset(&self) {
         self.shared.state.lock().set = false;
     }
 
     /// Releases every current waiter and leaves the event reset.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn pulse(&self) {
         {
             let mut s = self.shared.state.lock();
@@ -317,6 +361,8 @@ impl EventSemaphore {
     }
 
     /// True while set.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn is_set(&self) -> bool {
         self.shared.state.lock().set
     }
@@ -332,16 +378,22 @@ impl EventSemaphore {
     }
 
     /// Blocks until the event is set or pulsed (returns at once when set; outside threads only).
+    ///
+    /// Real-time: no (blocks; refused inside a task body).
     pub fn wait(&self) -> Result<(), IpcError> {
         self.wait_until(None)
     }
 
     /// Like [`wait`](Self::wait) with a timeout on the OS monotonic clock.
+    ///
+    /// Real-time: no (blocks; refused inside a task body).
     pub fn wait_timeout(&self, timeout: Duration) -> Result<(), IpcError> {
         self.wait_until(Some(deadline_after(timeout)))
     }
 
     /// A trigger that fires on each set or pulse after the task began waiting.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn trigger(&self) -> Trigger {
         Trigger::new(Arc::clone(&self.shared) as Arc<dyn TriggerSource>)
     }

@@ -55,6 +55,8 @@ unsafe impl<T: Copy + Send> Sync for SeqlockCell<T> {}
 
 impl<T: Copy> SeqlockCell<T> {
     /// A cell holding `initial` as publication 0.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn new(initial: T) -> Self {
         let slot = |version| Slot {
             version: AtomicU64::new(version),
@@ -71,6 +73,8 @@ impl<T: Copy> SeqlockCell<T> {
     ///
     /// # Safety
     /// `cell` is valid for writes and aligned, and nobody else uses the memory meanwhile.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub unsafe fn init_at(cell: *mut Self, initial: T) {
         // SAFETY: the caller's promise; `write` does not read the old bytes.
         unsafe { cell.write(SeqlockCell::new(initial)) };
@@ -80,6 +84,8 @@ impl<T: Copy> SeqlockCell<T> {
     ///
     /// # Safety
     /// Only one thread, in one process, publishes into a cell.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub unsafe fn publish(&self, value: T) {
         let next = self.begin();
         // SAFETY: the slot is marked `WRITING`, no reader keeps what it copies from it.
@@ -91,6 +97,8 @@ impl<T: Copy> SeqlockCell<T> {
     ///
     /// # Safety
     /// Called by the cell's one writer (nobody stores meanwhile).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub unsafe fn writer_value(&self) -> T {
         let n = self.published.load(Ordering::Relaxed);
         // SAFETY: only the writer stores into slots, and not while this reads; the newest
@@ -101,6 +109,8 @@ impl<T: Copy> SeqlockCell<T> {
     /// The newest value, or `None` when the writer, running on another processor, replaced
     /// every slot during each of a few attempts (a real-time reader then keeps its previous
     /// value). Never waits.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn try_read(&self) -> Option<T> {
         for _ in 0..ATTEMPTS {
             let n = self.published.load(Ordering::Acquire);
@@ -121,6 +131,8 @@ impl<T: Copy> SeqlockCell<T> {
     }
 
     /// The newest value, trying until a read succeeds (for threads that may wait).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn read(&self) -> T {
         loop {
             if let Some(v) = self.try_read() {
@@ -131,6 +143,8 @@ impl<T: Copy> SeqlockCell<T> {
     }
 
     /// Publications so far.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn version(&self) -> u64 {
         self.published.load(Ordering::Acquire)
     }
@@ -181,6 +195,8 @@ impl<T> Clone for SeqlockReader<T> {
 }
 
 /// A snapshot channel called `name`, holding `initial` until the first publication.
+///
+/// Real-time: no (set-up: allocates).
 pub fn seqlock<T: Copy + Send>(name: &str, initial: T) -> (SeqlockWriter<T>, SeqlockReader<T>) {
     let shared = Arc::new(Shared {
         name: name.to_string(),
@@ -196,12 +212,16 @@ pub fn seqlock<T: Copy + Send>(name: &str, initial: T) -> (SeqlockWriter<T>, Seq
 
 impl<T: Copy + Send> SeqlockWriter<T> {
     /// Makes `value` the newest (wait-free: a few stores and one copy of `T`).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn publish(&mut self, value: T) {
         // SAFETY: this writer is the cell's only one (not `Clone`, `&mut self`).
         unsafe { self.shared.cell.publish(value) }
     }
 
     /// Publishes the newest value changed by `update` (the closure edits a copy of it).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn publish_with(&mut self, update: impl FnOnce(&mut T)) {
         let mut value = self.value();
         update(&mut value);
@@ -209,22 +229,30 @@ impl<T: Copy + Send> SeqlockWriter<T> {
     }
 
     /// The newest value (the writer's own, read without a retry).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn value(&self) -> T {
         // SAFETY: this is the cell's only writer.
         unsafe { self.shared.cell.writer_value() }
     }
 
     /// Publications so far.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn version(&self) -> u64 {
         self.shared.cell.published.load(Ordering::Relaxed)
     }
 
     /// The channel's name.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn name(&self) -> &str {
         &self.shared.name
     }
 
     /// A reader of this channel.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn reader(&self) -> SeqlockReader<T> {
         SeqlockReader {
             shared: Arc::clone(&self.shared),
@@ -251,12 +279,16 @@ impl<T: Copy + Send> SeqlockReader<T> {
     /// The newest value, or `None` when the writer, running on another processor, replaced
     /// every slot during each of a few attempts (a real-time reader then keeps its previous
     /// value). Never waits.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn try_read(&self) -> Option<T> {
         self.shared.cell.try_read()
     }
 
     /// Reads into `value` and returns true, or leaves it alone and returns false (see
     /// [`try_read`](Self::try_read)).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn read_into(&self, value: &mut T) -> bool {
         match self.try_read() {
             Some(v) => {
@@ -269,16 +301,22 @@ impl<T: Copy + Send> SeqlockReader<T> {
 
     /// The newest value, trying until a read succeeds: for threads outside the task set
     /// (an HMI, a test), which may wait. A real-time task uses [`try_read`](Self::try_read).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn read(&self) -> T {
         self.shared.cell.read()
     }
 
     /// Publications so far (a cheap test for news).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn version(&self) -> u64 {
         self.shared.cell.version()
     }
 
     /// The channel's name.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn name(&self) -> &str {
         &self.shared.name
     }

@@ -85,6 +85,8 @@ impl Trigger {
     }
 
     /// The name of the channel or semaphore behind the trigger.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn name(&self) -> &str {
         self.source.name()
     }
