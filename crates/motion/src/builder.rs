@@ -18,7 +18,7 @@ mod smoothing_tests;
 /// speed that keeps the velocity step inside the jerk limit.
 pub(crate) const KINK: f64 = 1e-4;
 /// Largest direction change at a vertex that may be smoothed through (rad).
-const SMOOTH_MAX_ANGLE: f64 = 0.6;
+const SMOOTH_MAX_ANGLE: f64 = 0.35;
 /// Feed taken for rapids when a corner's blend is weighed against a stop (mm/s).
 const V_RAPID_REF: f64 = 1e3;
 /// Longest run of collinear segments merged into one.
@@ -135,6 +135,10 @@ pub(crate) struct Builder {
     /// The held-back primitive was entered at speed through a tangent junction (no state
     /// carried over, yet not from rest).
     tangent_in: bool,
+    /// Turn (outgoing minus incoming direction) of the vertex decided last, when it joined
+    /// two lines in G64 P: a vertex is approximated only where the polyline bends the same
+    /// way at the vertex before (a sampled curve, not a zigzag) or follows a stop.
+    last_turn: Option<AxisVec>,
     /// Tables of the held-back spline and of a new one (`SplineP::slot`).
     spline_maps: [SplineMaps; 2],
     pub stats: GeometryStats,
@@ -150,6 +154,7 @@ impl Builder {
             prev_state: None,
             smoothed_from: None,
             tangent_in: false,
+            last_turn: None,
             spline_maps: [[(ArcMap::Linear { k: 1.0 }, 0.0); SPLINE_PIECES]; 2],
             stats: GeometryStats::default(),
         }
@@ -162,6 +167,7 @@ impl Builder {
         self.prev_state = None;
         self.smoothed_from = None;
         self.tangent_in = false;
+        self.last_turn = None;
     }
 
     /// Validates `mv` and feeds it through; finished pieces go to `out`.
@@ -407,6 +413,7 @@ impl Builder {
     /// one up to that junction and holds `cur`.
     fn vertex_stage(&mut self, cur: Prim, lim: &Lim, out: &mut Vec<Piece>) {
         let entered_tangent = std::mem::take(&mut self.tangent_in);
+        let turn_before = self.last_turn.take();
         let Some(prev) = self.prev.take() else {
             self.prev = Some(cur);
             self.prev_state = None;
@@ -452,6 +459,8 @@ impl Builder {
                     stop(self, out);
                 } else {
                     let v = lp.b;
+                    let turn = sub(&lc.dir, &lp.dir);
+                    self.last_turn = Some(turn);
                     // Smoothing through the vertex (dense CAM polylines).
                     if let Some(vs) = self.smooth_state(&lp, &lc, theta, tolerance, st.as_ref()) {
                         let start = st.unwrap_or(State {
@@ -516,7 +525,12 @@ impl Builder {
                         // (as COMPCAD's), twice the sagitta the interpolating one keeps.
                         let kappa = norm(&vs.k);
                         let sagitta = 0.125 * kappa * lp.len.max(lc.len).powi(2);
-                        if kappa > 0.0 {
+                        // (The first vertex after a stop has nothing to alternate with.)
+                        let curve = match turn_before {
+                            Some(b) => dot(&b, &turn) > 0.0,
+                            None => st.is_none(),
+                        };
+                        if kappa > 0.0 && curve {
                             let nrm = scale(&vs.k, 1.0 / kappa);
                             for shift in [0.5 * sagitta, 0.6 * tolerance, 0.9 * tolerance] {
                                 let shift = shift.min(0.9 * tolerance);
