@@ -135,6 +135,10 @@ pub(crate) struct Builder {
     /// The held-back primitive was entered at speed through a tangent junction (no state
     /// carried over, yet not from rest).
     tangent_in: bool,
+    /// Turn (outgoing minus incoming direction) of the vertex decided last, when it joined
+    /// two lines in G64 P: a vertex is approximated only where the polyline bends the same
+    /// way at the vertex before (a sampled curve, not a zigzag) or follows a stop.
+    last_turn: Option<AxisVec>,
     /// Tables of the held-back spline and of a new one (`SplineP::slot`).
     spline_maps: [SplineMaps; 2],
     pub stats: GeometryStats,
@@ -150,6 +154,7 @@ impl Builder {
             prev_state: None,
             smoothed_from: None,
             tangent_in: false,
+            last_turn: None,
             spline_maps: [[(ArcMap::Linear { k: 1.0 }, 0.0); SPLINE_PIECES]; 2],
             stats: GeometryStats::default(),
         }
@@ -162,6 +167,7 @@ impl Builder {
         self.prev_state = None;
         self.smoothed_from = None;
         self.tangent_in = false;
+        self.last_turn = None;
     }
 
     /// Validates `mv` and feeds it through; finished pieces go to `out`.
@@ -407,6 +413,7 @@ impl Builder {
     /// one up to that junction and holds `cur`.
     fn vertex_stage(&mut self, cur: Prim, lim: &Lim, out: &mut Vec<Piece>) {
         let entered_tangent = std::mem::take(&mut self.tangent_in);
+        let turn_before = self.last_turn.take();
         let Some(prev) = self.prev.take() else {
             self.prev = Some(cur);
             self.prev_state = None;
@@ -452,6 +459,8 @@ impl Builder {
                     stop(self, out);
                 } else {
                     let v = lp.b;
+                    let turn = sub(&lc.dir, &lp.dir);
+                    self.last_turn = Some(turn);
                     // Smoothing through the vertex (dense CAM polylines).
                     if let Some(vs) = self.smooth_state(&lp, &lc, theta, tolerance, st.as_ref()) {
                         let start = st.unwrap_or(State {
@@ -508,6 +517,39 @@ impl Builder {
                                 self.prev_state = Some(vk);
                                 self.smoothed_from = Some((lp.a, lp.b));
                                 return;
+                            }
+                        }
+                        // Through the vertex the circle bulges beyond the chords by its
+                        // sagitta; moved towards the centre by up to P it bulges less and
+                        // cuts the vertex by as much: the curve approximates the polyline
+                        // (as COMPCAD's), twice the sagitta the interpolating one keeps.
+                        let kappa = norm(&vs.k);
+                        let sagitta = 0.125 * kappa * lp.len.max(lc.len).powi(2);
+                        // (The first vertex after a stop has nothing to alternate with.)
+                        let curve = match turn_before {
+                            Some(b) => dot(&b, &turn) > 0.0,
+                            None => st.is_none(),
+                        };
+                        if kappa > 0.0 && curve {
+                            let nrm = scale(&vs.k, 1.0 / kappa);
+                            for shift in [0.5 * sagitta, 0.6 * tolerance, 0.9 * tolerance] {
+                                let shift = shift.min(0.9 * tolerance);
+                                if shift <= 1e-6 {
+                                    continue;
+                                }
+                                let vk = State {
+                                    p: add_scaled(&vs.p, &nrm, shift),
+                                    t: vs.t,
+                                    k: scale(&nrm, kappa / (1.0 - kappa * shift).max(0.5)),
+                                };
+                                if let Some(pc) = span(&lp, &start, &vk, tolerance, lim) {
+                                    out.push(pc.piece());
+                                    self.stats.smoothed += 1;
+                                    self.prev = Some(cur);
+                                    self.prev_state = Some(vk);
+                                    self.smoothed_from = Some((lp.a, lp.b));
+                                    return;
+                                }
                             }
                         }
                     }
@@ -758,8 +800,15 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Span> 
     if lc <= 1e-12 {
         return None;
     }
-    let straight0 = dot(&s0.t, &l.dir) >= 1.0 - 1e-15 && norm(&s0.k) == 0.0;
-    let straight1 = dot(&s1.t, &l.dir) >= 1.0 - 1e-15 && norm(&s1.k) == 0.0;
+    // A state moved off the segment (an approximating vertex): the distance is measured
+    // to the segment itself, and no span from or to it is a straight line.
+    let off = |p: &AxisVec| {
+        let w = sub(p, &l.a);
+        norm(&add_scaled(&w, &l.dir, -dot(&w, &l.dir))) > 1e-9
+    };
+    let off_line = off(&s0.p) || off(&s1.p);
+    let straight0 = !off_line && dot(&s0.t, &l.dir) >= 1.0 - 1e-15 && norm(&s0.k) == 0.0;
+    let straight1 = !off_line && dot(&s1.t, &l.dir) >= 1.0 - 1e-15 && norm(&s1.k) == 0.0;
     if straight0 && straight1 {
         let dir = scale(&d, 1.0 / lc);
         return Some(Span {
@@ -780,6 +829,13 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Span> 
         lc
     };
     let dir = scale(&d, 1.0 / lc);
+    // What the distance is measured to: the chord (it lies on the segment), or the
+    // segment when an end is off it.
+    let (origin, axis, range) = if off_line {
+        (l.a, l.dir, l.len)
+    } else {
+        (s0.p, dir, lc)
+    };
     // The middle sample first, on its own (where a span that bulges too far peaks, between
     // two vertices of similar curvature): a span already beyond the tolerance there is
     // refused before the quintic is built. The same arithmetic as the check of all samples
@@ -795,6 +851,7 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Span> 
         let mut m = 0;
         for i in 0..AXES {
             let still = s0.p[i] == s1.p[i]
+                && origin[i] == s0.p[i]
                 && s0.t[i] == 0.0
                 && s1.t[i] == 0.0
                 && s0.k[i] == 0.0
@@ -811,15 +868,15 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Span> 
                 s1.k[i] * lp2,
             );
             let p = ci[0] + u * (ci[1] + u * (ci[2] + u * (ci[3] + u * (ci[4] + u * ci[5]))));
-            w[m] = p - s0.p[i];
-            along += w[m] * dir[i];
+            w[m] = p - origin[i];
+            along += w[m] * axis[i];
             idx[m] = i;
             m += 1;
         }
-        let along = along.clamp(0.0, lc);
+        let along = along.clamp(0.0, range);
         let mut dev = 0.0;
         for (wj, &i) in w[..m].iter().zip(&idx[..m]) {
-            let r = wj + dir[i] * -along;
+            let r = wj + axis[i] * -along;
             dev += r * r;
         }
         if dev.sqrt() > tol * (1.0 - 1e-3) {
@@ -845,11 +902,11 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Span> 
     let mut na = 0;
     let mut outside = false;
     for i in 0..AXES {
-        let moves = c[0][i] != s0.p[i] || dir[i] != 0.0 || (1..6).any(|k| c[k][i] != 0.0);
+        let moves = c[0][i] != origin[i] || axis[i] != 0.0 || (1..6).any(|k| c[k][i] != 0.0);
         if moves {
             axes[na] = i;
             na += 1;
-        } else if lim.present[i] && (s0.p[i] < lim.min[i] || s0.p[i] > lim.max[i]) {
+        } else if lim.present[i] && (c[0][i] < lim.min[i] || c[0][i] > lim.max[i]) {
             outside = true;
         }
     }
@@ -873,17 +930,17 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Span> 
             let u = US[k];
             let p = ci[0] + u * (ci[1] + u * (ci[2] + u * (ci[3] + u * (ci[4] + u * ci[5]))));
             outside |= lim.present[i] && (p < lim.min[i] || p > lim.max[i]);
-            wj[k] = p - s0.p[i];
-            along[k] += wj[k] * dir[i];
+            wj[k] = p - origin[i];
+            along[k] += wj[k] * axis[i];
         }
     }
     let mut dev = [0.0f64; 17];
     for a in along.iter_mut() {
-        *a = a.clamp(0.0, lc);
+        *a = a.clamp(0.0, range);
     }
     for (wj, &i) in w.iter().zip(axes) {
         for k in 0..17 {
-            let r = wj[k] + dir[i] * -along[k];
+            let r = wj[k] + axis[i] * -along[k];
             dev[k] += r * r;
         }
     }

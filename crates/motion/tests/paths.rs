@@ -300,3 +300,35 @@ fn curved_runs_merge_only_where_the_smoothing_keeps_p() {
         assert!(max_deviation(&tr, &verts) <= 0.02 + 1e-9);
     }
 }
+
+/// A circle polyline whose chords bulge from the circle by more than P (sagitta 1.6 P) runs
+/// as a curve, not corner by corner: the smoothing moves its vertices towards the centre so
+/// that the curve stays within P of the chords. Closed form: a curve within P of the
+/// chords of a circle of radius R has a radius of at least R − P where it is circular, so
+/// its per-axis acceleration and jerk limits allow v = min(V, √(A·(R − P)), (J·(R − P)²)^⅓)
+/// (uniform circular motion: |a_x| ≤ v²/R, |j_x| ≤ v³/R²). Corner by corner within P each
+/// 0.16 rad vertex passes at most (6·P·√J)^⅔ / θ = 35 mm/s (a jerk-limited turn within P),
+/// half of that bound.
+#[test]
+fn a_circle_polyline_beyond_p_runs_at_the_circles_speed() {
+    let (r, p) = (5.0, 0.01);
+    let verts = circle_polyline(r, 1.6 * p, 1.0);
+    let tr = check_run(&lines(&verts, V, blend(p)), Some(&verts), p, 20_000);
+    let v_circle = V
+        .min((A * (r - p)).sqrt())
+        .min((J * (r - p) * (r - p)).cbrt());
+    // The middle third of the turn, away from the start and the stop.
+    let skip = tr.pts.len() - tr.speed.len();
+    let lowest = tr.pts[skip..]
+        .iter()
+        .zip(&tr.speed)
+        .filter(|(q, _)| {
+            let a = q[1].atan2(q[0]).rem_euclid(std::f64::consts::TAU);
+            (std::f64::consts::TAU / 3.0..2.0 * std::f64::consts::TAU / 3.0).contains(&a)
+        })
+        .fold(f64::INFINITY, |m, (_, v)| m.min(*v));
+    assert!(
+        lowest >= 0.9 * v_circle,
+        "lowest speed on the middle third {lowest} mm/s, the circle's {v_circle}"
+    );
+}
