@@ -116,6 +116,8 @@ impl OnlineAxis {
 
     /// The time since the current profile started: the clock [`OnlineAxis::step`]
     /// advances.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn time(&self) -> f64 {
         self.time
     }
@@ -123,6 +125,8 @@ impl OnlineAxis {
     /// Puts the clock of the current profile back (or on) to `time`, as returned by
     /// [`OnlineAxis::time`]: a generator that computed set-points ahead goes back to one of
     /// them. A NaN, infinite or negative `time` leaves the clock as it is.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
     pub fn set_time(&mut self, time: f64) {
         if time.is_finite() && time >= 0.0 {
             self.time = time;
