@@ -2,6 +2,9 @@
 //! distributed clocks, INIT → PRE-OP → SAFE-OP → OP) and the cyclic exchange behind the
 //! [`Fieldbus`] trait.
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use ethercrab::subdevice_group::{DcConfiguration, HasDc, NoDc, Op, PreOp};
@@ -12,6 +15,7 @@ use ethercrab::{
 use rtcnc_fieldbus::{
     DriveMode, Fieldbus, FieldbusError, ProcessInputs, ProcessLayout, ProcessOutputs, check_images,
 };
+use rtcnc_rt::PiMutex;
 
 use crate::al_status;
 use crate::clock::Clock;
@@ -30,6 +34,14 @@ const FRAME_DATA: usize = PduStorage::element_size(1100);
 const STARTUP_REPLY_TIMEOUT: Duration = Duration::from_millis(100);
 /// Delay from the DC configuration to the first SYNC0 pulse.
 const SYNC0_START_DELAY: Duration = Duration::from_millis(20);
+/// The owner has taken the cycle over when two of its exchanges come at most this many
+/// periods apart.
+const HAND_OVER_PERIODS: u64 = 10;
+/// The keeper sends a cycle only when the owner's last exchange is at least this many
+/// periods old.
+const KEEPER_IDLE_PERIODS: u64 = 2;
+/// Stack of the keeper thread (ethercrab's cyclic futures, as on the owner's thread).
+const KEEPER_STACK: usize = 2 << 20;
 
 type Storage = PduStorage<FRAMES, FRAME_DATA>;
 type Group<S, D> = SubDeviceGroup<MAX_SLAVES, MAX_PDI, DefaultLock, S, D>;
@@ -196,11 +208,48 @@ pub struct MasterStatistics {
 }
 
 /// The EtherCAT master behind the [`Fieldbus`] trait.
+///
+/// From the end of start-up (the devices in OP) until its owner cycles, the master keeps
+/// the bus cycling by itself on a thread of its own (the keeper), holding the drives
+/// disabled where they stand, as start-up does: the devices' sync manager watchdogs
+/// (typically 100 ms) must not expire while the owner is still being assembled (the
+/// kernel builds its tasks and starts its real-time threads between the start and its
+/// first cycle). The owner has taken the cycle over when two of its exchanges come within
+/// [`HAND_OVER_PERIODS`] periods of each other; the keeper then ends, and from then on an
+/// owner that stops cycling is left to the devices' watchdogs, as on any master. Until
+/// then the owner's exchange and the keeper's are serialised by a priority-inheriting
+/// mutex: an owner's exchange waits at most for one keeper cycle (bounded by the reply
+/// time-out); after the hand-over the mutex is never contended.
 pub struct EthercatMaster {
+    cyclic: Arc<PiMutex<Cyclic>>,
+    layout: ProcessLayout,
+    expected_wkc: u16,
+    phase_error_ns: Option<i64>,
+    inputs_fresh: bool,
+    keeper: Option<Keeper>,
+}
+
+/// The keeper thread (see [`EthercatMaster`]).
+struct Keeper {
+    stop: Arc<AtomicBool>,
+    thread: JoinHandle<()>,
+}
+
+impl Drop for EthercatMaster {
+    fn drop(&mut self) {
+        if let Some(keeper) = self.keeper.take() {
+            keeper.stop.store(true, Ordering::Release);
+            // It ends within a period and one cycle.
+            let _ = keeper.thread.join();
+        }
+    }
+}
+
+/// What the cycle needs: the bus, the devices and the counters.
+struct Cyclic {
     maindevice: MainDevice<'static>,
     group: OpGroup,
     driver: Driver,
-    layout: ProcessLayout,
     devices: Vec<Device>,
     names: Vec<&'static str>,
     interface: &'static str,
@@ -213,15 +262,25 @@ pub struct EthercatMaster {
     phase_error_ns: Option<i64>,
     estop_input: Option<usize>,
     statistics: MasterStatistics,
+    /// The clock's time of the owner's last exchange.
+    owner_last_ns: Option<u64>,
+    /// The owner cycles: the keeper has ended (or never ran).
+    handed_over: bool,
+    /// The clock.
+    clock: Clock,
+    /// The keeper's inputs (read for the drives' positions, which it holds).
+    hold_inputs: ProcessInputs,
 }
 
 impl std::fmt::Debug for EthercatMaster {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("EthercatMaster")
-            .field("interface", &self.interface)
-            .field("devices", &self.devices)
-            .field("statistics", &self.statistics)
-            .finish_non_exhaustive()
+        let mut d = f.debug_struct("EthercatMaster");
+        if let Some(cyclic) = self.cyclic.try_lock() {
+            d.field("interface", &cyclic.interface)
+                .field("devices", &cyclic.devices)
+                .field("statistics", &cyclic.statistics);
+        }
+        d.finish_non_exhaustive()
     }
 }
 
@@ -361,11 +420,13 @@ impl EthercatMaster {
         let (group, devices) = master.start()?;
         let layout = process_layout(config);
         let expected_wkc = expected_working_counter(&group, &maindevice);
-        Ok(Self {
+        // A virtual clock moves only with its owner's cycles: no time passes between them
+        // that a keeper would have to fill.
+        let keep = !clock.is_virtual();
+        let cyclic = Arc::new(PiMutex::new(Cyclic {
             maindevice,
             group,
             driver,
-            layout,
             devices,
             names,
             interface,
@@ -378,26 +439,138 @@ impl EthercatMaster {
             phase_error_ns: None,
             estop_input: config.estop_input,
             statistics: MasterStatistics::default(),
+            owner_last_ns: None,
+            handed_over: !keep,
+            clock,
+            hold_inputs: ProcessInputs::new(&layout),
+        }));
+        let keeper = if keep {
+            let stop = Arc::new(AtomicBool::new(false));
+            let thread = std::thread::Builder::new()
+                .name("ethercat keeper".into())
+                .stack_size(KEEPER_STACK)
+                .spawn({
+                    let cyclic = Arc::clone(&cyclic);
+                    let stop = Arc::clone(&stop);
+                    move || keep_cycling(&cyclic, &stop, clock, period_ns)
+                })
+                .map_err(|e| StartError::Bus {
+                    phase: "keeper thread",
+                    reason: e.to_string(),
+                })?;
+            Some(Keeper { stop, thread })
+        } else {
+            None
+        };
+        Ok(Self {
+            cyclic,
+            layout,
+            expected_wkc,
+            phase_error_ns: None,
+            inputs_fresh: true,
+            keeper,
         })
     }
 
-    /// The exchange counters.
+    /// The exchange counters (the owner's exchanges; the keeper's frames count in
+    /// `tx_rx` only).
     pub fn statistics(&self) -> MasterStatistics {
+        let cyclic = self.cyclic.lock();
         MasterStatistics {
-            tx_rx: self.driver.counters(),
-            ..self.statistics
+            tx_rx: cyclic.driver.counters(),
+            ..cyclic.statistics
         }
     }
 
     /// Round trips of the frames so far: a histogram in 1 µs bins and the longest (ns).
     /// Not for the real-time path (it copies the histogram).
     pub fn round_trips(&self) -> Option<(Vec<u32>, u64)> {
-        self.driver.round_trips()
+        self.cyclic.lock().driver.round_trips()
     }
 
     /// The working counter a good cycle returns.
     pub fn expected_working_counter(&self) -> u16 {
         self.expected_wkc
+    }
+}
+
+/// The keeper (see [`EthercatMaster`]): every period, a cycle holding the drives, unless
+/// the owner's last exchange is recent; ends when the owner has taken over or the master
+/// is dropped.
+fn keep_cycling(cyclic: &PiMutex<Cyclic>, stop: &AtomicBool, clock: Clock, period_ns: u64) {
+    let mut next = clock.now_ns();
+    loop {
+        next = next.saturating_add(period_ns).max(clock.now_ns());
+        clock.sleep_until(next);
+        if stop.load(Ordering::Acquire) {
+            return;
+        }
+        let mut cyclic = cyclic.lock();
+        if cyclic.handed_over {
+            return;
+        }
+        let now = clock.now_ns();
+        let owner_idle = cyclic.owner_last_ns.is_none_or(|last| {
+            now.saturating_sub(last) >= KEEPER_IDLE_PERIODS.saturating_mul(period_ns)
+        });
+        if owner_idle {
+            cyclic.hold_cycle();
+        }
+    }
+}
+
+impl Cyclic {
+    /// One cycle of the keeper: the drives held disabled at their actual positions, the
+    /// positions read back. Its errors are the owner's to see on its next exchange.
+    fn hold_cycle(&mut self) {
+        let maindevice = &self.maindevice;
+        for (position, device) in self.devices.iter_mut().enumerate() {
+            let Device::Drive { codec, .. } = device else {
+                continue;
+            };
+            match &self.group {
+                OpGroup::Dc(g) => {
+                    if let Ok(s) = g.subdevice(maindevice, position) {
+                        codec.encode_hold(&mut s.outputs_raw_mut());
+                    }
+                }
+                OpGroup::Free(g) => {
+                    if let Ok(s) = g.subdevice(maindevice, position) {
+                        codec.encode_hold(&mut s.outputs_raw_mut());
+                    }
+                }
+            }
+        }
+        let deadline = Instant::now() + self.reply_timeout;
+        let good = match &self.group {
+            OpGroup::Dc(g) => self
+                .driver
+                .cycle(g.tx_rx_dc(maindevice), deadline)
+                .is_some_and(|r| r.is_ok_and(|r| r.working_counter == self.expected_wkc)),
+            OpGroup::Free(g) => self
+                .driver
+                .cycle(g.tx_rx(maindevice), deadline)
+                .is_some_and(|r| r.is_ok_and(|r| r.working_counter == self.expected_wkc)),
+        };
+        if !good {
+            return;
+        }
+        // The positions, so that the next hold is where the drives stand.
+        let period_s = self.period_ns as f64 * 1e-9;
+        for (position, device) in self.devices.iter_mut().enumerate() {
+            match &self.group {
+                OpGroup::Dc(g) => {
+                    if let Ok(s) = g.subdevice(maindevice, position) {
+                        decode(device, &s.inputs_raw(), period_s, &mut self.hold_inputs);
+                    }
+                }
+                OpGroup::Free(g) => {
+                    if let Ok(s) = g.subdevice(maindevice, position) {
+                        decode(device, &s.inputs_raw(), period_s, &mut self.hold_inputs);
+                    }
+                }
+            }
+        }
     }
 
     fn write_outputs(&mut self, outputs: &ProcessOutputs) {
@@ -1000,6 +1173,38 @@ impl Fieldbus for EthercatMaster {
         if !(period_s.is_finite() && period_s > 0.0 && period_s <= 1.0) {
             return Err(FieldbusError::InvalidPeriod { period_s });
         }
+        // Uncontended once the owner has taken over; before, it waits at most for the
+        // keeper's cycle in progress.
+        let mut cyclic = self.cyclic.lock();
+        let result = cyclic.exchange(period_s, outputs, inputs);
+        self.phase_error_ns = cyclic.phase_error_ns;
+        self.inputs_fresh = cyclic.consecutive_bad == 0;
+        result
+    }
+
+    fn cycle_phase_error_ns(&self) -> Option<i64> {
+        self.phase_error_ns
+    }
+
+    fn inputs_fresh(&self) -> bool {
+        self.inputs_fresh
+    }
+}
+
+impl Cyclic {
+    fn exchange(
+        &mut self,
+        period_s: f64,
+        outputs: &ProcessOutputs,
+        inputs: &mut ProcessInputs,
+    ) -> Result<(), FieldbusError> {
+        if !self.handed_over {
+            let now = self.clock.now_ns();
+            self.handed_over = self.owner_last_ns.is_some_and(|last| {
+                now.saturating_sub(last) <= HAND_OVER_PERIODS.saturating_mul(self.period_ns)
+            });
+            self.owner_last_ns = Some(now);
+        }
         self.statistics.cycles += 1;
         // Measured afresh by each exchange that brings the reference clock's time back:
         // a lost frame measures nothing, and a caller must not correct twice for the last.
@@ -1050,13 +1255,5 @@ impl Fieldbus for EthercatMaster {
         self.consecutive_bad = 0;
         self.read_inputs(period_s, inputs);
         Ok(())
-    }
-
-    fn cycle_phase_error_ns(&self) -> Option<i64> {
-        self.phase_error_ns
-    }
-
-    fn inputs_fresh(&self) -> bool {
-        self.consecutive_bad == 0
     }
 }
