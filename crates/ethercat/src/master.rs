@@ -215,7 +215,7 @@ pub struct MasterStatistics {
 /// (typically 100 ms) must not expire while the owner is still being assembled (the
 /// kernel builds its tasks and starts its real-time threads between the start and its
 /// first cycle). The owner has taken the cycle over when two of its exchanges come within
-/// [`HAND_OVER_PERIODS`] periods of each other; the keeper then ends, and from then on an
+/// ten periods of each other; the keeper then ends, and from then on an
 /// owner that stops cycling is left to the devices' watchdogs, as on any master. Until
 /// then the owner's exchange and the keeper's are serialised by a priority-inheriting
 /// mutex: an owner's exchange waits at most for one keeper cycle (bounded by the reply
