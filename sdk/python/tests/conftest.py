@@ -62,7 +62,8 @@ class Server:
         self.config = config or machine_file(folder, on_loss, loose_following_error)
         self.users = folder / "users.toml"
         add_users(self.users)
-        self.segment = f"rtcnc-pytest-{os.getpid()}-{on_loss}"
+        # Unique per server: two servers on one segment would detach each other.
+        self.segment = f"rtcnc-pytest-{os.getpid()}-{folder.name}"
         self.lines: list[str] = []
         self.url = ""
         self.machine_pid = 0
