@@ -363,6 +363,9 @@ pub struct Planner<K: Kinematics> {
     j_min: f64,
     qa_min: f64,
     qj_min: f64,
+    /// A quick stop has just come to rest: its landing's last steps, still in the
+    /// set-point history, were planned with the quick-stop limits.
+    quick_rest: bool,
     /// Path position of the end of the window.
     cum_end: f64,
     /// State of the last emitted set-point.
@@ -498,6 +501,7 @@ impl<K: Kinematics> Planner<K> {
             j_min,
             qa_min,
             qj_min,
+            quick_rest: false,
             cum_end: 0.0,
             cur,
             ahead: GenBuffer::new(depth + 1, cur),
@@ -789,6 +793,9 @@ impl<K: Kinematics> Planner<K> {
         }
         self.release_behind();
         if st.stopped {
+            // The quick stop's landing was planned with the quick-stop limits down to rest:
+            // the periods at rest that follow are checked with them too.
+            self.quick_rest = matches!(self.hold, Some(h) if h.kind == StopKind::Quick);
             self.q.clear();
             self.builder.clear(st.hist[0]);
             self.hold = None;
@@ -1546,6 +1553,7 @@ impl<K: Kinematics> Planner<K> {
         self.builder.clear(position);
         self.line_profiles = [None; PROFILE_SLOTS];
         self.hold = None;
+        self.quick_rest = false;
         self.strict = None;
         self.strict_passed = None;
         self.ahead.len = 0;
