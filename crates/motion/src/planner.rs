@@ -981,13 +981,26 @@ impl<K: Kinematics> Planner<K> {
     /// brakes at the full limits, which its stop model, with its margins, cannot follow.)
     fn replan_line_profile(&mut self) {
         let c = self.cur;
-        let on_profile = c.prof_t.is_some() && self.profile_of(c.id).is_some();
+        let kept = self.profile_of(c.id).filter(|_| c.prof_t.is_some());
+        let on_profile = kept.is_some();
         // Every other S-curve was planned with the old feed.
         self.line_profiles = [None; PROFILE_SLOTS];
         let Some(idx) = self.q.index(c.id).filter(|_| on_profile) else {
             self.cur.prof_t = None;
             return;
         };
+        // A stop (hold, abort, quick stop) whose S-curve is the stop (it ends at the line's
+        // end, braking at the full limits): the override changes nothing of a stop in
+        // progress, and the speed policy could not follow that braking (at 0 % it ran past
+        // the line's end, whose set-point stood still from a speed of 5 mm/s).
+        let line_end = self.q.get(idx).cum_start + self.q.get(idx).len;
+        if let Some(profile) = kept
+            && self.hold.is_some()
+            && c.hold_at >= line_end
+        {
+            self.keep_profile(c.id, profile);
+            return;
+        }
         let from = OtgState {
             p: c.s,
             v: c.v,
