@@ -5,7 +5,7 @@
 
 mod common;
 use common::*;
-use rtcnc_kernel::{Command, Urgent};
+use rtcnc_kernel::{Command, FixedText, Urgent};
 
 const PERIOD: f64 = 0.001;
 /// configs/sim-mill.toml's X and Y.
@@ -52,6 +52,35 @@ fn a_rapid_override_changed_during_a_holds_stop_keeps_the_limits() {
                 failures.push(format!(
                     "override {rapid} {override_after} periods into the hold: \
                      v {v:.1} a {a:.0} j {j:.0}"
+                ));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// Found by the kernel fuzz target once the case above was fixed: MDI `G0 X10 Y10`, 115
+/// periods, a rapid override of 0 % and a feed hold in the same period (X at 6 985 mm/s²).
+/// An override of 0 % while the rapid's S-curve brakes for its end, with or without a hold.
+#[test]
+fn a_zero_rapid_override_while_a_rapid_brakes_for_its_end_keeps_the_limits() {
+    let cfg = config("sim-mill.toml");
+    let mut failures = Vec::new();
+    for after in (20..=200).step_by(5) {
+        for hold in [false, true] {
+            let mut m = Machine::new(&cfg, None);
+            m.power_on();
+            m.command(Command::Mdi(FixedText::new("G0 X10 Y10").unwrap()));
+            m.cycles(after);
+            assert!(m.sim.handle().urgent(Urgent::RapidOverride(0.0)));
+            if hold {
+                assert!(m.sim.handle().urgent(Urgent::FeedHold));
+            }
+            m.cycles(400);
+            let (v, a, j) = peaks(&m);
+            if v > V_MAX * 1.001 || a > A_MAX * 1.001 || j > J_MAX * 1.001 {
+                failures.push(format!(
+                    "0 % {after} periods after the line, hold {hold}: v {v:.1} a {a:.0} j {j:.0}"
                 ));
             }
         }

@@ -1011,7 +1011,25 @@ impl<K: Kinematics> Planner<K> {
                 self.keep_profile(c.id, profile);
                 self.cur.prof_t = Some(0.0);
             }
-            None => self.cur.prof_t = None,
+            // None under the new feed (0 %): the speed policy stops along the path, unless
+            // the S-curve already brakes for the line's end or the end comes before the
+            // policy could stop (with the weakest axis's limits): the S-curve, which stops
+            // there within the limits, goes on (the policy ran past the end, where the
+            // set-point stood still from speed).
+            None => {
+                let (d, _) = stop(
+                    c.v,
+                    c.a.max(-self.a_min),
+                    STOP_SHARE * self.a_min,
+                    STOP_JERK_SHARE * self.j_min,
+                );
+                match kept {
+                    Some(profile) if c.a < 0.0 || line_end <= c.at + d => {
+                        self.keep_profile(c.id, profile);
+                    }
+                    _ => self.cur.prof_t = None,
+                }
+            }
         }
     }
 
