@@ -401,7 +401,11 @@ impl Harness {
                 }
             }
             Op::Urgent(urgent) => {
-                handle.urgent(urgent);
+                // A full urgent channel refuses the command (the operator's key does
+                // nothing): the model follows what the kernel took.
+                if !handle.urgent(urgent) {
+                    return;
+                }
                 match urgent {
                     Urgent::FeedHold => {
                         if self.hold_since.is_none() {
@@ -425,7 +429,9 @@ impl Harness {
                 }
             }
             Op::Command(command) => {
-                handle.command(command);
+                if !handle.command(command) {
+                    return;
+                }
                 match command {
                     Command::Reset => {
                         self.reset_ns = Some(self.sim.now().as_nanos() as u64);

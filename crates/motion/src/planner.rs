@@ -363,6 +363,9 @@ pub struct Planner<K: Kinematics> {
     j_min: f64,
     qa_min: f64,
     qj_min: f64,
+    /// A quick stop has just come to rest: its landing's last steps, still in the
+    /// set-point history, were planned with the quick-stop limits.
+    quick_rest: bool,
     /// Path position of the end of the window.
     cum_end: f64,
     /// State of the last emitted set-point.
@@ -502,6 +505,7 @@ impl<K: Kinematics> Planner<K> {
             j_min,
             qa_min,
             qj_min,
+            quick_rest: false,
             cum_end: 0.0,
             cur,
             ahead: GenBuffer::new(depth + 1, cur),
@@ -835,6 +839,9 @@ impl<K: Kinematics> Planner<K> {
         }
         self.release_behind();
         if st.stopped {
+            // The quick stop's landing was planned with the quick-stop limits down to rest:
+            // the periods at rest that follow are checked with them too.
+            self.quick_rest = matches!(self.hold, Some(h) if h.kind == StopKind::Quick);
             self.q.clear();
             self.builder.clear(st.hist[0]);
             self.hold = None;
@@ -1026,13 +1033,26 @@ impl<K: Kinematics> Planner<K> {
     /// brakes at the full limits, which its stop model, with its margins, cannot follow.)
     fn replan_line_profile(&mut self) {
         let c = self.cur;
-        let on_profile = c.prof_t.is_some() && self.profile_of(c.id).is_some();
+        let kept = self.profile_of(c.id).filter(|_| c.prof_t.is_some());
+        let on_profile = kept.is_some();
         // Every other S-curve was planned with the old feed.
         self.line_profiles = [None; PROFILE_SLOTS];
         let Some(idx) = self.q.index(c.id).filter(|_| on_profile) else {
             self.cur.prof_t = None;
             return;
         };
+        // A stop (hold, abort, quick stop) whose S-curve is the stop (it ends at the line's
+        // end, braking at the full limits): the override changes nothing of a stop in
+        // progress, and the speed policy could not follow that braking (at 0 % it ran past
+        // the line's end, whose set-point stood still from a speed of 5 mm/s).
+        let line_end = self.q.get(idx).cum_start + self.q.get(idx).len;
+        if let Some(profile) = kept
+            && self.hold.is_some()
+            && c.hold_at >= line_end
+        {
+            self.keep_profile(c.id, profile);
+            return;
+        }
         let from = OtgState {
             p: c.s,
             v: c.v,
@@ -1043,7 +1063,25 @@ impl<K: Kinematics> Planner<K> {
                 self.keep_profile(c.id, profile);
                 self.cur.prof_t = Some(0.0);
             }
-            None => self.cur.prof_t = None,
+            // None under the new feed (0 %): the speed policy stops along the path, unless
+            // the S-curve already brakes for the line's end or the end comes before the
+            // policy could stop (with the weakest axis's limits): the S-curve, which stops
+            // there within the limits, goes on (the policy ran past the end, where the
+            // set-point stood still from speed).
+            None => {
+                let (d, _) = stop(
+                    c.v,
+                    c.a.max(-self.a_min),
+                    STOP_SHARE * self.a_min,
+                    STOP_JERK_SHARE * self.j_min,
+                );
+                match kept {
+                    Some(profile) if c.a < 0.0 || line_end <= c.at + d => {
+                        self.keep_profile(c.id, profile);
+                    }
+                    _ => self.cur.prof_t = None,
+                }
+            }
         }
     }
 
@@ -1608,6 +1646,7 @@ impl<K: Kinematics> Planner<K> {
         self.builder.clear(position);
         self.line_profiles = [None; PROFILE_SLOTS];
         self.hold = None;
+        self.quick_rest = false;
         self.strict = None;
         self.strict_passed = None;
         self.ahead.len = 0;

@@ -131,6 +131,12 @@ impl MotionCore {
     /// Stops the program, MDI line, homing or jog: the path decelerates along itself, what
     /// is queued is dropped, the interpreter stops reading.
     pub(super) fn abort(&mut self, shared: &Shared) {
+        // An e-stop's or fault's quick stop is under way and has stopped the run already:
+        // an abort's gentler stop must not replace it (it took back the quick stop's
+        // set-points and left the path braking beyond the limits).
+        if self.state == State::Stopping {
+            return;
+        }
         self.probe = None;
         // Whatever stops, stops from the next exchange.
         self.take_back();

@@ -353,7 +353,11 @@ impl<K: Kinematics> Planner<K> {
         let st = self.step_unchecked(prev, force)?;
         if st.hist[0] == prev.hist[0] && st.hist[1] == prev.hist[0] {
             // A period at rest is a set-point too: coming to rest must keep the box.
-            let quick = matches!(self.hold, Some(h) if h.kind == StopKind::Quick);
+            let quick =
+                self.quick_rest || matches!(self.hold, Some(h) if h.kind == StopKind::Quick);
+            if prev.hist.iter().all(|h| *h == prev.hist[0]) {
+                self.quick_rest = false;
+            }
             let (lo, hi) = self.fd_box(&prev.hist, quick);
             if !inside(&self.lim, &st.hist[0], &lo, &hi) {
                 if !force {
@@ -755,7 +759,10 @@ impl<K: Kinematics> Planner<K> {
                 STOP_SHARE * h.a * f,
                 STOP_JERK_SHARE * h.j * f,
             );
-            if st.at + d_need > hold_at && hold_at - st.at > 0.0 {
+            // A quick stop's landing in progress is planned with the axes' own quick-stop
+            // jerk, beyond the stop model's: the point it lands on stays.
+            let landing_quick = quick && st.land_n >= 2;
+            if !landing_quick && st.at + d_need > hold_at && hold_at - st.at > 0.0 {
                 hold_at = st.at + d_need;
             }
             let hr = hold_at - st.at;
@@ -859,8 +866,14 @@ impl<K: Kinematics> Planner<K> {
         // smoothest sequence of steps that ends at the stop and stays there).
         let (dst0, tst0) = stop(v, a, a_stop, j_stop);
         let tiny = 0.3 * if quick { self.qj_min } else { self.j_min } * t * t * t;
-        let jl = j_stop.min(-j_lo).min(j_hi).max(0.0);
-        let al = a_stop.min(-a_lo).min(a_hi).max(0.0);
+        let (jl, al) = if quick {
+            ((-j_lo).min(j_hi).max(0.0), (-a_lo).min(a_hi).max(0.0))
+        } else {
+            (
+                j_stop.min(-j_lo).min(j_hi).max(0.0),
+                a_stop.min(-a_lo).min(a_hi).max(0.0),
+            )
+        };
         let (js, as_) = (jl * t * t * t, al * t * t);
         // A landing in progress continues with one step fewer (the tail of the smoothest
         // sequence is the smoothest for what is left).
