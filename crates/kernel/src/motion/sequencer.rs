@@ -111,9 +111,7 @@ impl MotionCore {
         self.mode = mode;
         self.program.epoch = self.program.epoch.wrapping_add(1);
         self.fire(Event::Begin);
-        // A hold the logic asks for already (its rising edge came before the run, with
-        // nothing to hold): the run waits for a resume, as when it rises between moves.
-        self.hold.logic_paused = self.hold.logic_request;
+        self.hold.logic_paused = false;
         self.program.pending = None;
         self.program.ended = false;
         self.program.run_from_line = from_line;
