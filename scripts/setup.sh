@@ -5,7 +5,7 @@ set -euo pipefail
 
 if command -v rustup >/dev/null 2>&1; then
   for component in rustfmt clippy; do
-    rustup component list --installed 2>/dev/null | grep -q "^$component" \
+    rustup component list --installed 2>/dev/null | grep "^$component" >/dev/null \
       || rustup component add "$component"
   done
 fi
@@ -15,7 +15,7 @@ fi
 # iproute2 (veth pairs), util-linux (unshare) and python3-venv (pysoem, below).
 missing=()
 for package in iproute2 util-linux python3-venv "$@"; do
-  dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q "install ok installed" \
+  dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep "install ok installed" >/dev/null \
     || missing+=("$package")
 done
 if [ ${#missing[@]} -gt 0 ]; then

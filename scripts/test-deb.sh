@@ -12,8 +12,11 @@ trap 'rm -rf "$tmp"' EXIT
 
 fail() { echo "test-deb: $*" >&2; exit 1; }
 
-dpkg-deb --field "$deb" Package | grep -qx rtcnc || fail "package name"
-dpkg-deb --field "$deb" Depends | grep -q "libc6 (>= " || fail "Depends: $(dpkg-deb --field "$deb" Depends)"
+# Outputs go to files before grep: with pipefail, `grep -q` quitting at its first match can
+# end the writer with SIGPIPE and fail a check that matched.
+[ "$(dpkg-deb --field "$deb" Package)" = rtcnc ] || fail "package name"
+depends=$(dpkg-deb --field "$deb" Depends)
+[[ "$depends" == *"libc6 (>= "* ]] || fail "Depends: $depends"
 dpkg-deb --contents "$deb" | awk '{print $2 " " $6}' >"$tmp/contents"
 for path in ./usr/bin/rtcnc ./lib/systemd/system/rtcnc.service \
     ./usr/share/rtcnc/configs/sim-mill.toml ./usr/share/rtcnc/configs/mill.st \
@@ -23,7 +26,8 @@ for path in ./usr/bin/rtcnc ./lib/systemd/system/rtcnc.service \
   grep -q " $path\$" "$tmp/contents" || fail "$path missing"
 done
 grep -q "^root/root " "$tmp/contents" || fail "files not owned by root"
-dpkg-deb --ctrl-tarfile "$deb" | tar -t | grep -qx "./postinst" || fail "postinst missing"
+dpkg-deb --ctrl-tarfile "$deb" | tar -t >"$tmp/control-files"
+grep -qx "./postinst" "$tmp/control-files" || fail "postinst missing"
 
 dpkg-deb --extract "$deb" "$tmp/root"
 # Every machine file of the checkout is in the package.
