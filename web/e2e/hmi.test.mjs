@@ -31,7 +31,7 @@ async function until(what, f, timeoutMs = 20_000, everyMs = 50) {
   const faults = await fetch(`${server.url}/api/faults`, { headers: { Authorization: `Bearer ${token}` } })
     .then((r) => r.json())
     .catch(() => []);
-  const machine = s ? `state ${s.state}, mode ${s.mode}, line ${s.line}, at ${JSON.stringify(s.machine_position)}` : 'no status';
+  const machine = s ? `state ${s.state}, mode ${s.mode}, line ${s.line}, at ${JSON.stringify(s.machine_position)}, overrides ${JSON.stringify(s.overrides)}` : 'no status';
   throw new Error(`timed out waiting for ${what}; last ${JSON.stringify(last)}; ${machine}; last faults ${JSON.stringify(faults.slice(-3).map((f) => `${f.code}: ${f.message}`))}`);
 }
 

@@ -35,14 +35,17 @@ function Slider(props: { name: 'feed' | 'rapid' | 'spindle'; label: string; min:
     }, 60);
   };
   useEffect(() => () => void (timer.current && clearTimeout(timer.current)), []);
-  // The slider shows what was asked until the machine reports it (or gives up on it).
+  // The slider shows what was asked until the machine reports it (or gives up on it). The
+  // updaters compare with the newest request, not this render's: a report of an earlier
+  // step arriving while the operator presses on must not put the slider back a step.
   useEffect(() => {
     if (dragging === null) return undefined;
-    if (Math.abs(value - dragging) < 1e-6) {
-      setDragging(null);
+    const asked = dragging;
+    if (Math.abs(value - asked) < 1e-6) {
+      setDragging((d) => (d === asked ? null : d));
       return undefined;
     }
-    const t = setTimeout(() => setDragging(null), 1500);
+    const t = setTimeout(() => setDragging((d) => (d === asked ? null : d)), 1500);
     return () => clearTimeout(t);
   }, [value, dragging]);
   const shown = dragging ?? value;
