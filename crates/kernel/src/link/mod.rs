@@ -43,11 +43,13 @@ pub enum Refusal {
     Unknown,
     /// What the command started was stopped before its end (fault, e-stop, abort).
     Stopped,
+    /// A reset while the fieldbus exchange fails (the bus lost, a device out of OP).
+    FieldbusDown,
 }
 
 impl Refusal {
     /// Every reason, in number order.
-    pub const ALL: [Refusal; 10] = [
+    pub const ALL: [Refusal; 11] = [
         Refusal::NotReady,
         Refusal::Busy,
         Refusal::NoProgram,
@@ -58,6 +60,7 @@ impl Refusal {
         Refusal::ChannelFull,
         Refusal::Unknown,
         Refusal::Stopped,
+        Refusal::FieldbusDown,
     ];
 
     /// Number on the link.
@@ -86,6 +89,7 @@ impl Refusal {
             Refusal::ChannelFull => "command.channel_full",
             Refusal::Unknown => "command.unknown",
             Refusal::Stopped => "command.stopped",
+            Refusal::FieldbusDown => "command.fieldbus_down",
         }
     }
 
@@ -102,6 +106,9 @@ impl Refusal {
             Refusal::ChannelFull => "the kernel's command channel is full; try again",
             Refusal::Unknown => "unknown command",
             Refusal::Stopped => "stopped before its end (fault, e-stop or stop)",
+            Refusal::FieldbusDown => {
+                "the fieldbus exchange fails (the bus lost, a device out of OP): reset once it works"
+            }
         }
     }
 }
