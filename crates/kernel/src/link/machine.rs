@@ -741,6 +741,7 @@ impl Publisher {
         o.state = state;
         o.mode = mode_number(status.mode);
         o.line = status.line;
+        o.hold = super::hold_number(status.hold);
         let mut f = self.state.flags.load(Ordering::Relaxed);
         let mut set = |bit: u32, on: bool| {
             if on {

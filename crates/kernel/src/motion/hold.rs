@@ -123,7 +123,7 @@ impl MotionCore {
             );
             if self.moving() {
                 self.hold();
-            } else if step.is_some() && !spindle_handshake {
+            } else if step.is_some() && !spindle_handshake && self.program.took_a_block {
                 self.hold.logic_paused = true;
             }
         }
