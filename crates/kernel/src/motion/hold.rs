@@ -11,7 +11,7 @@ use super::{MotionCore, Source};
 use crate::messages::Aux;
 
 /// The holds in force.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub(super) struct Hold {
     /// The path is held (the operator's hold, or the logic's while the path moved): no
     /// move starts until a resume.
