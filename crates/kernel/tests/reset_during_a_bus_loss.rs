@@ -80,12 +80,10 @@ fn a_reset_is_refused_while_the_bus_is_lost_and_starts_from_fresh_feedback_once_
     let load = m.handle_machine(|machine| {
         [0, 1].map(|j| machine.true_state(j).expect("the mill's joints").0)
     });
-    for j in 0..2 {
+    for (j, (setpoint, load)) in s.joint_setpoints.iter().zip(load).enumerate() {
         assert!(
-            (s.joint_setpoints[j] - load[j]).abs() < 1e-3,
-            "joint {j}: set-point {} load {}",
-            s.joint_setpoints[j],
-            load[j]
+            (setpoint - load).abs() < 1e-3,
+            "joint {j}: set-point {setpoint} load {load}"
         );
     }
     // Then a move runs within the limits to its end.
