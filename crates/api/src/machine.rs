@@ -13,7 +13,7 @@ use rtcnc_kernel::link::layout::{
     self, ServiceReply, ServiceRequest, TraceSample, WireCommand, WireEvent, WireStatus, WireText,
     WireUrgent, ack, event, flags,
 };
-use rtcnc_kernel::link::{Client, Refusal, mode_name, state_name};
+use rtcnc_kernel::link::{Client, Refusal, hold_cause, mode_name, state_name};
 use tokio::sync::{broadcast, watch};
 
 use crate::models::{self, Ack, AxisMap, Event};
@@ -140,6 +140,8 @@ impl MachineConn {
             optional_stop: false,
             block_delete: false,
             logic_hold: false,
+            hold: None,
+            hold_message: None,
             fault_count: 0,
             last_fault: None,
             deadline_misses: 0,
@@ -883,6 +885,8 @@ pub fn status_document(
         optional_stop: f(flags::OPTIONAL_STOP),
         block_delete: f(flags::BLOCK_DELETE),
         logic_hold: f(flags::LOGIC_HOLD),
+        hold: hold_cause(w.hold).map(|c| c.as_str().to_string()),
+        hold_message: hold_cause(w.hold).map(|c| c.message().to_string()),
         fault_count: w.fault_count,
         last_fault: FaultCode::from_number(w.last_fault).map(|c| c.as_str().to_string()),
         deadline_misses,

@@ -90,6 +90,15 @@ pub struct Status {
     pub block_delete: bool,
     /// The machine logic holds the feed (door open, fault).
     pub logic_hold: bool,
+    /// What holds the machine while `state` is `held`: `machine_logic` (it asks for a feed
+    /// hold: the door open, a fault, the spindle not at speed; a resume is refused until it
+    /// stops asking, and a program it held at its start goes on by itself then),
+    /// `feed_stop_switch` (M53; goes on when released), `resume` (a feed hold waits for
+    /// the operator's resume); none otherwise.
+    pub hold: Option<String>,
+    /// The operator's message of `hold`, e.g. `held: machine logic requests a feed hold
+    /// (door open?)`.
+    pub hold_message: Option<String>,
     /// Faults raised since the machine started.
     pub fault_count: u32,
     /// The last fault's code (`kernel.estop`, …).

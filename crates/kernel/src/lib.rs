@@ -47,7 +47,9 @@ pub use error::{KernelError, SelfTestFailure};
 pub use fault::{Fault, FaultCode, ProbeFailure, TaskName};
 pub use kernel::{Kernel, KernelHandle, KernelOptions, SelfTestReport};
 pub use kinematics::MachineKinematics;
-pub use messages::{Command, FixedText, MachineState, Mode, OperatorMessage, Status, Urgent};
+pub use messages::{
+    Command, FixedText, HoldCause, MachineState, Mode, OperatorMessage, Status, Urgent,
+};
 pub use motion::{LatchRequest, ServoTarget};
 pub use servo::Sample;
 pub use shared::{Feedback, LogicOutputs, LogicRequests};

@@ -524,6 +524,59 @@ impl MachineState {
     }
 }
 
+impl Status {
+    /// The state as the operator is told it: the hold's message while held ("held: machine
+    /// logic requests a feed hold (door open?)"), the state's name otherwise.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
+    pub fn state_text(&self) -> &'static str {
+        match (self.state, self.hold) {
+            (MachineState::Held, Some(cause)) => cause.message(),
+            (state, _) => state.as_str(),
+        }
+    }
+}
+
+/// What holds the machine while its state is [`MachineState::Held`]: the first thing the
+/// operator must clear for it to go on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum HoldCause {
+    /// The machine logic asks for a feed hold (the door open, a fault of the machine, the
+    /// spindle not at speed); a resume is refused while it does. A program started while
+    /// it asked goes on by itself when the request falls; a hold it latched on a moving
+    /// path waits for a resume after.
+    MachineLogic,
+    /// The feed stop switch (M53) is on: the path goes on when it is released.
+    FeedStopSwitch,
+    /// A feed hold (the operator's, or one the machine logic or a deadline miss latched)
+    /// waits for a resume.
+    Resume,
+}
+
+impl HoldCause {
+    /// Stable lower-case name.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            HoldCause::MachineLogic => "machine_logic",
+            HoldCause::FeedStopSwitch => "feed_stop_switch",
+            HoldCause::Resume => "resume",
+        }
+    }
+
+    /// What the operator is told.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
+    pub fn message(self) -> &'static str {
+        match self {
+            HoldCause::MachineLogic => "held: machine logic requests a feed hold (door open?)",
+            HoldCause::FeedStopSwitch => "held: the feed stop switch is on",
+            HoldCause::Resume => "held: feed hold, resume to go on",
+        }
+    }
+}
+
 /// The feedback snapshot, published every servo cycle.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Status {
@@ -533,6 +586,8 @@ pub struct Status {
     pub time_ns: u64,
     /// State.
     pub state: MachineState,
+    /// What holds the machine while `state` is [`MachineState::Held`] (`None` otherwise).
+    pub hold: Option<HoldCause>,
     /// Mode.
     pub mode: Mode,
     /// Program line being executed.

@@ -444,6 +444,7 @@ impl<B: Fieldbus> ServoStage<B> {
         }
         let mut fb = Feedback {
             cycle: self.exchanges,
+            exchange_failed: result.is_err(),
             ..Feedback::default()
         };
         for (j, f) in self.inputs.joints.iter().enumerate().take(self.joint_count) {

@@ -74,6 +74,10 @@ pub struct Feedback {
     pub faulted: u32,
     /// The e-stop input.
     pub estop: bool,
+    /// The exchange failed (the bus lost, a device out of OP, frames lost beyond the
+    /// bus's limit): every input here is the last one received, not what the devices
+    /// report now.
+    pub exchange_failed: bool,
     /// Handwheel counter.
     pub handwheel_counts: i64,
     /// Spindle speed, rpm.

@@ -264,8 +264,9 @@ fn a_drive_fault_is_reset_through_the_cia402_state_machine() {
     );
 }
 
-/// A device that falls out of OP stays out: the fault stands across a reset (the master
-/// does not take devices back to OP), naming the device and its AL status code.
+/// A device that falls out of OP stays out (the master does not take devices back to OP):
+/// the fault names the device and its AL status code, and a reset is refused while the
+/// exchange fails, so the machine stays faulted.
 #[test]
 fn a_device_out_of_op_keeps_the_machine_faulted() {
     let mut m = Machine::new(&config("ethercat-sim-12.toml"), None);
@@ -288,11 +289,10 @@ fn a_device_out_of_op_keeps_the_machine_faulted() {
     m.command(Command::Reset);
     m.cycles(100);
     assert!(!m.status().ready);
-    assert!(
-        m.faults
-            .iter()
-            .skip(1)
-            .any(|f| f.code == FaultCode::DeviceState)
+    assert_eq!(m.status().state, MachineState::Fault);
+    assert_eq!(
+        m.faults.iter().skip(1).map(|f| f.code).collect::<Vec<_>>(),
+        [FaultCode::CommandRefused]
     );
 }
 

@@ -10,10 +10,7 @@ mod common;
 use common::*;
 use std::time::Duration;
 
-use rtcnc_kernel::{
-    Command, Fault, FaultCode, Kernel, KernelHandle, KernelOptions, MachineState, Sample,
-    Simulation, Status, Urgent,
-};
+use rtcnc_kernel::{Command, Fault, FaultCode, KernelHandle, MachineState, Sample, Status, Urgent};
 
 const DT: f64 = 1e-3;
 
@@ -38,19 +35,12 @@ fn run(
     mut script: impl FnMut(u64, &KernelHandle),
     done: impl Fn(u64, &Status) -> bool,
 ) -> Run {
-    let mut cfg = config(config_name);
-    cfg.tasks.setpoint_lead = Some(lead.into());
-    let kernel = Kernel::build(
-        &cfg,
-        KernelOptions {
-            program: program_text.map(|(text, name)| program(text, name)),
-            record_capacity: 1 << 14,
-            interpolation_stall: stall,
-            ..KernelOptions::default()
-        },
-    )
-    .expect("kernel builds");
-    let mut sim = Simulation::new(kernel);
+    let mut sim = simulation_with_lead(
+        config_name,
+        lead,
+        stall,
+        program_text.map(|(text, name)| program(text, name)),
+    );
     let h = sim.handle().clone();
     let mut samples = Vec::new();
     let mut sink = |s: &Sample| samples.push(*s);
@@ -123,10 +113,7 @@ fn jog(lead: &str, stall: Option<(u64, Duration)>, release: u64) -> Run {
         3000,
         |cycle, h| {
             if cycle == 30 {
-                assert!(h.command(Command::JogContinuous {
-                    axis: 0,
-                    velocity: 50.0
-                }));
+                jog_continuously(h, 0, 50.0);
             }
             if cycle == release {
                 assert!(h.command(Command::JogStop { axis: 0 }));
@@ -224,10 +211,7 @@ fn jog_release_hold_abort_and_estop_act_in_the_next_period_with_any_lead() {
             3000,
             |cycle, h| {
                 if cycle == 30 {
-                    assert!(h.command(Command::JogContinuous {
-                        axis: 0,
-                        velocity: 50.0
-                    }));
+                    jog_continuously(h, 0, 50.0);
                 }
                 if cycle == 400 {
                     assert!(h.urgent(command));

@@ -9,9 +9,7 @@ mod common;
 use common::*;
 use std::time::Duration;
 
-use rtcnc_kernel::{
-    Command, FaultCode, Kernel, KernelOptions, MachineState, Simulation, Status, Urgent,
-};
+use rtcnc_kernel::{Command, FaultCode, Kernel, KernelOptions, MachineState, Status, Urgent};
 
 /// Lines, arcs and blended corners on the benchmark machine (100 mm/s, 1000 mm/s²).
 const PROGRAM: &str = "G21 G90 G64 P0.02
@@ -38,19 +36,7 @@ struct Run {
 /// The program on bench-xyz with the lead `lead`, an interpolation stall, and urgent
 /// commands sent before the given cycles.
 fn run(lead: &str, stall: Option<(u64, Duration)>, urgent: &[(u64, Urgent)], name: &str) -> Run {
-    let mut cfg = config("bench-xyz.toml");
-    cfg.tasks.setpoint_lead = Some(lead.into());
-    let kernel = Kernel::build(
-        &cfg,
-        KernelOptions {
-            program: Some(program(PROGRAM, name)),
-            record_capacity: 1 << 14,
-            interpolation_stall: stall,
-            ..KernelOptions::default()
-        },
-    )
-    .expect("kernel builds");
-    let mut sim = Simulation::new(kernel);
+    let mut sim = simulation_with_lead("bench-xyz.toml", lead, stall, Some(program(PROGRAM, name)));
     let h = sim.handle().clone();
     let mut samples = Vec::new();
     let mut sink = |s: &rtcnc_kernel::Sample| {

@@ -354,6 +354,8 @@ class Status(BaseModel):
     estop_input: bool = Field(description="The e-stop input is pressed.")
     fault_count: int = Field(description="Faults raised since the machine started.")
     flood: bool = Field(description="Flood coolant on.")
+    hold: str | None = Field(default=None, description="What holds the machine while `state` is `held`: `machine_logic` (it asks for a feed hold: the door open, a fault, the spindle not at speed; a resume is refused until it stops asking, and a program it held at its start goes on by itself then), `feed_stop_switch` (M53; goes on when released), `resume` (a feed hold waits for the operator's resume); none otherwise.")
+    hold_message: str | None = Field(default=None, description="The operator's message of `hold`, e.g. `held: machine logic requests a feed hold (door open?)`.")
     joints: list[Joint] = Field(description="Per joint.")
     last_fault: str | None = Field(default=None, description="The last fault's code (`kernel.estop`, …).")
     lease_holder: str | None = Field(default=None, description="Who holds the control lease.")

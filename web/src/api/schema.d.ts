@@ -1465,6 +1465,19 @@ export interface components {
             fault_count: number;
             /** @description Flood coolant on. */
             flood: boolean;
+            /**
+             * @description What holds the machine while `state` is `held`: `machine_logic` (it asks for a feed
+             *     hold: the door open, a fault, the spindle not at speed; a resume is refused until it
+             *     stops asking, and a program it held at its start goes on by itself then),
+             *     `feed_stop_switch` (M53; goes on when released), `resume` (a feed hold waits for
+             *     the operator's resume); none otherwise.
+             */
+            hold?: string | null;
+            /**
+             * @description The operator's message of `hold`, e.g. `held: machine logic requests a feed hold
+             *     (door open?)`.
+             */
+            hold_message?: string | null;
             /** @description Per joint. */
             joints: components["schemas"]["Joint"][];
             /** @description The last fault's code (`kernel.estop`, …). */

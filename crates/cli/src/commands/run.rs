@@ -136,7 +136,7 @@ fn status_text(elapsed_s: f64, s: &rtcnc_kernel::Status, warnings: u64) -> Strin
         s.axes[1],
         s.axes[2],
         s.path_speed * 60.0,
-        s.state.as_str()
+        s.state_text()
     )
 }
 
@@ -324,6 +324,7 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
         handle.command(Command::Start { from_line: 0 });
         let kernel_start = handle.status().time_ns;
         let mut seen = 0;
+        let mut hold = None;
         loop {
             std::thread::sleep(Duration::from_millis(100));
             if TERMINATED.load(Ordering::SeqCst) {
@@ -356,6 +357,17 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
             }
             print_messages(&handle, kernel_start, tty);
             let s = handle.status();
+            // What holds the machine, said once as it begins (the status line keeps it).
+            if s.hold != hold {
+                hold = s.hold;
+                if let Some(cause) = hold {
+                    if tty {
+                        clear_status_line();
+                    }
+                    let t = s.time_ns.saturating_sub(kernel_start) as f64 * 1e-9;
+                    say!("{}  t {t:.3} s  line {}", cause.message(), s.line);
+                }
+            }
             if tty {
                 eprint!(
                     "{}",
@@ -529,5 +541,17 @@ mod tests {
         assert!(!line.contains("warnings"), "{line:?}");
         assert!(!line.contains('\n'), "{line:?}");
         assert!(status_text(1.5, &status, 3).ends_with("  warnings 3"));
+        // Held: the line says by what.
+        let held = rtcnc_kernel::Status {
+            state: MachineState::Held,
+            hold: Some(rtcnc_kernel::HoldCause::MachineLogic),
+            ..rtcnc_kernel::Status::default()
+        };
+        assert!(
+            status_text(1.5, &held, 0)
+                .ends_with("held: machine logic requests a feed hold (door open?)"),
+            "{:?}",
+            status_text(1.5, &held, 0)
+        );
     }
 }

@@ -196,7 +196,7 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
                 status.axes[1],
                 status.axes[2],
                 status.path_speed,
-                status.state.as_str()
+                status.state_text()
             ));
             bar.tick();
         }

@@ -350,8 +350,10 @@ pub struct WireStatus {
     pub units_mm: f64,
     /// Active work system, 1..9 = G54..G59.3.
     pub work_system: u32,
-    /// Padding.
-    pub _pad: u32,
+    /// What holds the machine while `state` is held: a `HoldCause` number (see
+    /// `crate::link::hold_cause`), 0 for none. (It was padding: a client of an older
+    /// segment reads 0.)
+    pub hold: u32,
     /// Work offset in force (G54..), program units.
     pub work_offset: [f64; AXES],
     /// G92 offset, program units.

@@ -579,12 +579,13 @@ impl CommandPort {
     /// explains).
     fn why_refused(&mut self, cmd: &Command) -> Refusal {
         let status = *self.status.get();
-        let estop_input = self.feedback.get().estop;
+        let feedback = *self.feedback.get();
         let axis_ok =
             |axis: u8| usize::from(axis) < layout::AXES && self.axes_present & (1 << axis) != 0;
         match *cmd {
             _ if status.state == MachineState::Starting => Refusal::NotReady,
-            Command::Reset if estop_input => Refusal::EstopInput,
+            Command::Reset if feedback.estop => Refusal::EstopInput,
+            Command::Reset if feedback.exchange_failed => Refusal::FieldbusDown,
             Command::Reset => Refusal::Busy,
             Command::JogStop { .. } => Refusal::NotJogging,
             Command::JogContinuous { axis, velocity } if !axis_ok(axis) || velocity == 0.0 => {
@@ -740,6 +741,7 @@ impl Publisher {
         o.state = state;
         o.mode = mode_number(status.mode);
         o.line = status.line;
+        o.hold = super::hold_number(status.hold);
         let mut f = self.state.flags.load(Ordering::Relaxed);
         let mut set = |bit: u32, on: bool| {
             if on {

@@ -20,6 +20,8 @@ pub use machine::{JOG_KEEP_ALIVE, LOSS_TIMEOUT, MachineLink, state_number};
 pub use segment::{LinkError, Mapping, monotonic_ns, segment_dir, segment_path};
 pub use service::ServiceThread;
 
+use crate::messages::HoldCause;
+
 /// Why a command was refused: a stable code and a message for the operator.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Refusal {
@@ -43,11 +45,13 @@ pub enum Refusal {
     Unknown,
     /// What the command started was stopped before its end (fault, e-stop, abort).
     Stopped,
+    /// A reset while the fieldbus exchange fails (the bus lost, a device out of OP).
+    FieldbusDown,
 }
 
 impl Refusal {
     /// Every reason, in number order.
-    pub const ALL: [Refusal; 10] = [
+    pub const ALL: [Refusal; 11] = [
         Refusal::NotReady,
         Refusal::Busy,
         Refusal::NoProgram,
@@ -58,6 +62,7 @@ impl Refusal {
         Refusal::ChannelFull,
         Refusal::Unknown,
         Refusal::Stopped,
+        Refusal::FieldbusDown,
     ];
 
     /// Number on the link.
@@ -86,6 +91,7 @@ impl Refusal {
             Refusal::ChannelFull => "command.channel_full",
             Refusal::Unknown => "command.unknown",
             Refusal::Stopped => "command.stopped",
+            Refusal::FieldbusDown => "command.fieldbus_down",
         }
     }
 
@@ -102,7 +108,30 @@ impl Refusal {
             Refusal::ChannelFull => "the kernel's command channel is full; try again",
             Refusal::Unknown => "unknown command",
             Refusal::Stopped => "stopped before its end (fault, e-stop or stop)",
+            Refusal::FieldbusDown => {
+                "the fieldbus exchange fails (the bus lost, a device out of OP): reset once it works"
+            }
         }
+    }
+}
+
+/// The link's number of what holds the machine (`WireStatus::hold`): 0 for none.
+pub fn hold_number(cause: Option<HoldCause>) -> u32 {
+    match cause {
+        None => 0,
+        Some(HoldCause::MachineLogic) => 1,
+        Some(HoldCause::FeedStopSwitch) => 2,
+        Some(HoldCause::Resume) => 3,
+    }
+}
+
+/// What holds the machine, from the link's number (`WireStatus::hold`).
+pub fn hold_cause(n: u32) -> Option<HoldCause> {
+    match n {
+        1 => Some(HoldCause::MachineLogic),
+        2 => Some(HoldCause::FeedStopSwitch),
+        3 => Some(HoldCause::Resume),
+        _ => None,
     }
 }
 

@@ -11,7 +11,7 @@ use super::{MotionCore, Source};
 use crate::messages::Aux;
 
 /// The holds in force.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub(super) struct Hold {
     /// The path is held (the operator's hold, or the logic's while the path moved): no
     /// move starts until a resume.
@@ -107,7 +107,11 @@ impl MotionCore {
     /// The machine logic's feed hold request as this period reads it: its rising edge
     /// holds a moving path, or, when a program stands between moves (not in its spindle
     /// hand-shake, which waits for the request to fall by itself), makes the next move
-    /// wait for a resume.
+    /// wait for a resume. A run that has not taken its first block yet waits for the
+    /// request to fall, as one started while it already stood: whether the logic's scan
+    /// saw the door open just before or just after the operator's start is chance, and
+    /// the machine logic asks for a hold for a few scans after a reset, when scripts
+    /// start their program.
     pub(super) fn follow_logic_hold(&mut self, request: bool) {
         if request && !self.hold.logic_request {
             let step = self.step_of_program();
@@ -123,7 +127,7 @@ impl MotionCore {
             );
             if self.moving() {
                 self.hold();
-            } else if step.is_some() && !spindle_handshake {
+            } else if step.is_some() && !spindle_handshake && self.program.took_a_block {
                 self.hold.logic_paused = true;
             }
         }

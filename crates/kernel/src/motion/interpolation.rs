@@ -37,7 +37,7 @@ use crate::shared::{Feedback, Shared};
 
 /// One set-point as produced, kept until position control has surely taken it: what a
 /// take-back goes back to, and what the status and the sequencer read as the machine now.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct Produced {
     pub(super) target: ServoTarget,
     /// The planner's state after this set-point; with the on-line generators, `Moving`
@@ -52,6 +52,27 @@ struct Generators {
     axes: [f64; AXES],
     joints: [f64; MAX_JOINTS],
     synced: Option<SyncedMove>,
+}
+
+/// Everything the on-line generators' decisions may change, with the last set-point: kept
+/// while a decision is computed again over set-points already produced, so that when it
+/// changes nothing (homing between its switches, a thread pass on a steady spindle) those
+/// set-points stand instead of being computed again.
+#[derive(Clone, Copy)]
+struct Decisions {
+    state: State,
+    hold: super::hold::Hold,
+    axis_otg: [OnlineAxis; AXES],
+    joint_otg: [OnlineAxis; MAX_JOINTS],
+    joint_manual: u32,
+    handwheel: Option<(usize, f64)>,
+    handwheel_counts: Option<i64>,
+    synced: Option<SyncedMove>,
+    latch: LatchRequest,
+    offsets: [f64; MAX_JOINTS],
+    homed: u32,
+    last: JointSetpoints,
+    cycle: u64,
 }
 
 /// The set-points produced ahead and what goes with them to position control.
@@ -245,6 +266,7 @@ impl MotionCore {
     fn produce(&mut self, ctx: &mut Context<'_>, shared: &Shared, feedback: &Feedback) {
         let mut decide = self.decisions_due(feedback);
         let mut replace_from = None;
+        let mut before_decision = None;
         if decide {
             let from = self.out.consumer_next().max(self.out.floor + 1);
             if self.out.cycle >= from {
@@ -252,6 +274,9 @@ impl MotionCore {
                 // replaces the first is computed, so that position control, taking it on
                 // another processor meanwhile, still finds one.
                 replace_from = Some((from, self.out.cycle));
+                if from < self.out.cycle {
+                    before_decision = Some(self.decisions());
+                }
                 self.restore(from - 1);
             }
         }
@@ -267,14 +292,6 @@ impl MotionCore {
             if decide {
                 self.out.floor = self.out.cycle;
                 decide = false;
-            }
-            let mut taken_meanwhile = false;
-            if let Some((from, latest)) = replace_from.take() {
-                let first_free = self.out.queue.rewind(from);
-                self.out.taken_back += (latest + 1).saturating_sub(first_free);
-                // Position control took the one computed before: the decision acts from
-                // the next exchange (off by what it changed in one period).
-                taken_meanwhile = first_free > from;
             }
             let state = if generators && self.source == Source::Manual {
                 if self.manual_moving() {
@@ -295,6 +312,22 @@ impl MotionCore {
                 },
                 state,
             };
+            let mut taken_meanwhile = false;
+            if let Some((from, latest)) = replace_from.take() {
+                if let Some(latest_decisions) = before_decision.take()
+                    && self.decided_as_before(&latest_decisions, from, &produced)
+                {
+                    // The set-points after it are those already queued: they stand.
+                    self.put_back(&latest_decisions);
+                    steps += 1;
+                    continue;
+                }
+                let first_free = self.out.queue.rewind(from);
+                self.out.taken_back += (latest + 1).saturating_sub(first_free);
+                // Position control took the one computed before: the decision acts from
+                // the next exchange (off by what it changed in one period).
+                taken_meanwhile = first_free > from;
+            }
             let slot = self.out.slot(self.out.cycle);
             self.out.produced[slot] = produced;
             if !self.out.independent.is_empty() {
@@ -319,6 +352,72 @@ impl MotionCore {
             }
             steps += 1;
         }
+    }
+
+    /// What the on-line generators' decisions may change, as it is now.
+    fn decisions(&self) -> Decisions {
+        Decisions {
+            state: self.state,
+            hold: self.hold,
+            axis_otg: self.manual.axis_otg,
+            joint_otg: self.manual.joint_otg,
+            joint_manual: self.manual.joint_manual,
+            handwheel: self.manual.handwheel,
+            handwheel_counts: self.manual.handwheel_counts,
+            synced: self.synced,
+            latch: self.out.latch,
+            offsets: self.out.offsets,
+            homed: self.homed,
+            last: self.out.last,
+            cycle: self.out.cycle,
+        }
+    }
+
+    /// Whether the decision just computed again for set-point `from` (giving `produced`)
+    /// left everything as the set-points after it were computed with (`latest`: as after
+    /// the last of them): then computing them again would give them again. Between `from`
+    /// and the latest no target changed (the floor), so the generators' clocks and a
+    /// synchronised move's state are all that differs, saved with `from`.
+    fn decided_as_before(&self, latest: &Decisions, from: u64, produced: &Produced) -> bool {
+        if *produced != *self.out.at(from) {
+            return false;
+        }
+        let saved = &self.out.generators[self.out.slot(from)];
+        let same_generator = |then: &OnlineAxis, time: f64, now: &OnlineAxis| {
+            let mut then = *then;
+            then.set_time(time);
+            then == *now
+        };
+        let joints = self.machine.joint_count;
+        (0..AXES)
+            .all(|i| same_generator(&latest.axis_otg[i], saved.axes[i], &self.manual.axis_otg[i]))
+            && (0..joints).all(|j| {
+                same_generator(
+                    &latest.joint_otg[j],
+                    saved.joints[j],
+                    &self.manual.joint_otg[j],
+                )
+            })
+            && latest.joint_otg[joints..] == self.manual.joint_otg[joints..]
+            && (latest.synced.is_none() || saved.synced == self.synced)
+            && latest.synced.is_some() == self.synced.is_some()
+            && latest.state == self.state
+            && latest.hold == self.hold
+            && latest.joint_manual == self.manual.joint_manual
+            && latest.handwheel == self.manual.handwheel
+            && latest.handwheel_counts == self.manual.handwheel_counts
+            && latest.latch == self.out.latch
+            && latest.offsets == self.out.offsets
+            && latest.homed == self.homed
+    }
+
+    /// Puts the on-line generators back as after the latest set-point produced.
+    fn put_back(&mut self, latest: &Decisions) {
+        self.manual.axis_otg = latest.axis_otg;
+        self.manual.joint_otg = latest.joint_otg;
+        self.synced = latest.synced;
+        self.out.last = latest.last;
+        self.out.cycle = latest.cycle;
     }
 
     /// Saves the on-line generators as after the last produced set-point.

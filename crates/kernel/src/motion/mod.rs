@@ -42,7 +42,7 @@ use rtcnc_rt::{LeadProducer, SeqlockWriter};
 use crate::config::{MAX_JOINTS, MachineConfig};
 use crate::error::KernelError;
 use crate::kinematics::MachineKinematics;
-use crate::messages::{JointSetpoints, MachineState, Mode, Status};
+use crate::messages::{HoldCause, JointSetpoints, MachineState, Mode, Status};
 use crate::shared::{Feedback, LogicOutputs, LogicRequests, Shared, Snapshot};
 
 use hold::Hold;
@@ -322,8 +322,8 @@ impl MotionCore {
             return MachineState::Fault;
         }
         // A hold outranks what the program waits for: whatever the wait ends in, nothing
-        // moves on until a resume, and that is what the operator must see.
-        if self.hold.latched() || self.hold.feed_stop {
+        // moves on until the hold is released, and that is what the operator must see.
+        if self.hold_cause().is_some() {
             return MachineState::Held;
         }
         match self.state {
@@ -335,12 +335,33 @@ impl MotionCore {
         }
     }
 
+    /// What holds the machine, if anything does: the first thing the operator must clear.
+    /// A program or MDI line that stands before its next block because the machine logic
+    /// asks for a hold (it asked before the run's first block, so nothing latched) is held
+    /// by it, though no resume is needed once the request falls.
+    fn hold_cause(&self) -> Option<HoldCause> {
+        let held_before_next_block = self.state == State::Program(Step::Feeding) && !self.moving();
+        if self.hold.logic_request && (self.hold.latched() || held_before_next_block) {
+            Some(HoldCause::MachineLogic)
+        } else if self.hold.feed_stop {
+            Some(HoldCause::FeedStopSwitch)
+        } else if self.hold.latched() {
+            Some(HoldCause::Resume)
+        } else {
+            None
+        }
+    }
+
     /// Fills the status snapshot (called by the status task).
     pub(crate) fn status(&self, feedback: &Feedback, time_ns: u64, status: &mut Status) {
         let last = &self.out.now().target.setpoints;
         status.cycle = last.cycle;
         status.time_ns = time_ns;
         status.state = self.state();
+        status.hold = match status.state {
+            MachineState::Held => self.hold_cause(),
+            _ => None,
+        };
         status.mode = self.mode;
         status.line = last.line;
         status.axes = last.axes;

@@ -49,11 +49,17 @@ impl MotionCore {
     }
 
     /// The operator's reset: clears the e-stop and faults and enables the drives. Refused
-    /// before the self-test passed, while the e-stop input is pressed and while a quick
-    /// stop runs.
+    /// before the self-test passed, while the e-stop input is pressed, while the fieldbus
+    /// exchange fails and while a quick stop runs: the machine does not leave e-stop or
+    /// fault while the cause stands. A failed exchange's feedback is the last one
+    /// received, not where the load is (it coasts, or its drives stop it); the reset once
+    /// the bus works again takes the set-points from fresh feedback.
     pub(super) fn reset(&mut self) -> bool {
         let feedback = *self.interface.feedback.get();
-        if feedback.estop || transition(&self.state, Event::Reset).is_none() {
+        if feedback.estop
+            || feedback.exchange_failed
+            || transition(&self.state, Event::Reset).is_none()
+        {
             return false;
         }
         if self.state == State::Off && self.out.offsets_known {

@@ -34,6 +34,11 @@ pub(super) struct Program {
     pub(super) skipped_to: Option<[f64; AXES]>,
     /// The program reached its end.
     pub(super) ended: bool,
+    /// The run has taken its first block: before, the machine logic's hold request holds
+    /// it only while it stands (the operator started it as the door opened: it goes on
+    /// when the door is closed, whether the request rose just before or just after the
+    /// start).
+    pub(super) took_a_block: bool,
     /// A program is loaded (auto mode can start).
     pub(super) loaded: bool,
     /// Interpolation cycle in which the last machine function started.
@@ -53,6 +58,7 @@ impl Program {
             run_from_line: 0,
             skipped_to: None,
             ended: false,
+            took_a_block: false,
             loaded: false,
             aux_cycle: 0,
             orient_cycle: 0,
@@ -114,6 +120,7 @@ impl MotionCore {
         self.hold.logic_paused = false;
         self.program.pending = None;
         self.program.ended = false;
+        self.program.took_a_block = false;
         self.program.run_from_line = from_line;
         self.program.skipped_to = None;
         self.requests_mut().program_running = mode == Mode::Auto;
@@ -135,6 +142,7 @@ impl MotionCore {
                 None => return false,
             },
         };
+        self.program.took_a_block = true;
         self.feed(shared, block)
     }
 

@@ -14,7 +14,7 @@ use crate::messages::JointSetpoints;
 use crate::shared::Feedback;
 
 /// G33 / a G76 pass: a line whose progress follows the spindle's angle.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct SyncedMove {
     start: [f64; AXES],
     /// Unit direction.

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use rtcnc_kernel::{
-    Command, Fault, Kernel, KernelOptions, MachineConfig, Sample, Simulation, Status,
+    Command, Fault, Kernel, KernelHandle, KernelOptions, MachineConfig, Sample, Simulation, Status,
 };
 
 pub fn repo() -> PathBuf {
@@ -23,6 +23,36 @@ pub fn program(text: &str, name: &str) -> PathBuf {
     let path = dir.join(name);
     std::fs::write(&path, text).unwrap();
     path
+}
+
+/// A kernel on `name` from `configs/` that computes its set-points `lead` ahead of position
+/// control (`tasks.setpoint_lead`, e.g. "50ms"), with `program` loaded and an optional
+/// stall of interpolation's thread (from a cycle, for a time), recording every servo
+/// period, in virtual time.
+pub fn simulation_with_lead(
+    name: &str,
+    lead: &str,
+    stall: Option<(u64, Duration)>,
+    program: Option<PathBuf>,
+) -> Simulation {
+    let mut cfg = config(name);
+    cfg.tasks.setpoint_lead = Some(lead.into());
+    let kernel = Kernel::build(
+        &cfg,
+        KernelOptions {
+            program,
+            record_capacity: 1 << 14,
+            interpolation_stall: stall,
+            ..KernelOptions::default()
+        },
+    )
+    .expect("kernel builds");
+    Simulation::new(kernel)
+}
+
+/// Starts a continuous jog of `axis` at `velocity` (units/s; its sign is the direction).
+pub fn jog_continuously(h: &KernelHandle, axis: u8, velocity: f64) {
+    assert!(h.command(Command::JogContinuous { axis, velocity }));
 }
 
 pub struct Machine {

@@ -16,7 +16,7 @@ use super::{
 /// computes a new profile: bounded work of a few microseconds, no allocation, so it may run
 /// in a real-time task too. If planning fails the old motion continues and the error is
 /// returned.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OnlineAxis {
     limits: Limits,
     profile: Profile,
