@@ -106,6 +106,11 @@ function TopBar() {
         <span class={`state tone-${stateTone(s?.state)}`} data-testid="state" role="status" aria-live="polite">
           {connected.value ? stateLabel(s?.state) : 'Not connected'}
         </span>
+        {s?.hold_message ? (
+          <span class="hold-cause" data-testid="hold-cause">
+            {s.hold_message}
+          </span>
+        ) : null}
         <span class="mode" data-testid="mode">
           {s?.mode?.toUpperCase()}
         </span>
