@@ -1568,20 +1568,10 @@ fn brake_jerk(v: f64, a: f64, amax: f64, jmax: f64, t: f64) -> f64 {
     hi
 }
 
-/// Speed bound at a junction between two pieces that join without a stop: a step of the
-/// tangent or of the curvature vector shows up in the sampled jerk as v·|ΔT|/T² + v²·|ΔK|/T.
-fn junction(a: &mut Piece, b: &mut Piece, lim: &Lim, period: f64) {
-    let ea = a.ns;
-    let mut dt = [0.0; AXES];
-    let mut dk = [0.0; AXES];
-    for i in 0..AXES {
-        dt[i] = b.smp[0].t[i] - a.smp[ea].t[i];
-        dk[i] = b.smp[0].k[i] - a.smp[ea].k[i];
-    }
-    if b.len > 0.0 && a.len > 0.0 && norm(&dt) > 4.0 * KINK {
-        a.stop_at_end = true;
-        return;
-    }
+/// The highest speed at which a step `dt` of the unit tangent and `dk` of the curvature
+/// vector can be passed between two servo periods: the step shows up in the sampled jerk of
+/// each axis as v·|ΔT|/T² + v²·|ΔK|/T, which may take `JERK_SHARE_JUMP` of its jerk limit.
+pub(crate) fn junction_speed(dt: &AxisVec, dk: &AxisVec, lim: &Lim, period: f64) -> f64 {
     let mut vj = f64::INFINITY;
     for i in 0..AXES {
         if !lim.present[i] {
@@ -1599,6 +1589,24 @@ fn junction(a: &mut Piece, b: &mut Piece, lim: &Lim, period: f64) {
         };
         vj = vj.min(v);
     }
+    vj
+}
+
+/// Speed bound at a junction between two pieces that join without a stop: a step of the
+/// tangent or of the curvature vector shows up in the sampled jerk as v·|ΔT|/T² + v²·|ΔK|/T.
+fn junction(a: &mut Piece, b: &mut Piece, lim: &Lim, period: f64) {
+    let ea = a.ns;
+    let mut dt = [0.0; AXES];
+    let mut dk = [0.0; AXES];
+    for i in 0..AXES {
+        dt[i] = b.smp[0].t[i] - a.smp[ea].t[i];
+        dk[i] = b.smp[0].k[i] - a.smp[ea].k[i];
+    }
+    if b.len > 0.0 && a.len > 0.0 && norm(&dt) > 4.0 * KINK {
+        a.stop_at_end = true;
+        return;
+    }
+    let vj = junction_speed(&dt, &dk, lim, period);
     // Where a line meets an arc (a CAM profile's rounded corners), the line is capped at
     // the junction's point only and the arc over its sub-interval next to it: the braking
     // curve then has a plateau on the arc that the jerk-limited speed settles on. Elsewhere
