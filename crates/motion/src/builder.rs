@@ -127,6 +127,7 @@ pub struct GeometryStats {
     pub curvature_backoffs: u64,
 }
 
+#[derive(Clone)]
 pub(crate) struct Builder {
     pub pos: AxisVec,
     /// The line being merged (G64 Q) and how many inner vertices it has ...

@@ -3,8 +3,10 @@
 //! the emission of one set-point per servo period.
 
 mod generate;
+mod prepared;
 
 use generate::{STOP_JERK_SHARE, STOP_SHARE, StepLimits};
+pub use prepared::{Preparation, PreparedMove};
 
 use crate::axes::{AXES, AxisVec, norm};
 use crate::builder::{Builder, GeometryStats, KINK};
@@ -354,6 +356,9 @@ pub struct Planner<K: Kinematics> {
     period: f64,
     q: Ring,
     builder: Builder,
+    /// Changes with every change of `builder` (push, flush, stop, reset): a
+    /// [`PreparedMove`] copied before one is out of date.
+    geometry_generation: u64,
     scratch: Vec<Piece>,
     fo: f64,
     ro: f64,
@@ -496,6 +501,7 @@ impl<K: Kinematics> Planner<K> {
             period: servo_period,
             q: Ring::new(window),
             builder: Builder::new(start),
+            geometry_generation: 0,
             scratch: Vec::with_capacity(PIECES_PER_MOVE * 2),
             fo: 1.0,
             ro: 1.0,
@@ -559,6 +565,7 @@ impl<K: Kinematics> Planner<K> {
                 break;
             }
             self.scratch.clear();
+            self.geometry_generation = self.geometry_generation.wrapping_add(1);
             if let Err(e) = self.builder.push(mv, &self.lim, &mut self.scratch) {
                 result = Err(e);
                 break;
@@ -578,6 +585,7 @@ impl<K: Kinematics> Planner<K> {
     /// Real-time: yes (no allocation, no blocking).
     pub fn flush(&mut self) {
         self.scratch.clear();
+        self.geometry_generation = self.geometry_generation.wrapping_add(1);
         self.builder.flush(&self.lim, &mut self.scratch);
         self.append_scratch(true);
     }
@@ -844,6 +852,7 @@ impl<K: Kinematics> Planner<K> {
             self.quick_rest = matches!(self.hold, Some(h) if h.kind == StopKind::Quick);
             self.q.clear();
             self.builder.clear(st.hist[0]);
+            self.geometry_generation = self.geometry_generation.wrapping_add(1);
             self.hold = None;
             self.ahead.len = 0;
             self.strict = None;
@@ -1644,6 +1653,7 @@ impl<K: Kinematics> Planner<K> {
         }
         self.q.clear();
         self.builder.clear(position);
+        self.geometry_generation = self.geometry_generation.wrapping_add(1);
         self.line_profiles = [None; PROFILE_SLOTS];
         self.hold = None;
         self.quick_rest = false;
