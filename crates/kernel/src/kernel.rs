@@ -9,6 +9,7 @@ use std::time::Duration;
 use rtcnc_fieldbus::Fieldbus;
 use rtcnc_fieldbus::sim::SimulatedMachine;
 use rtcnc_gcode::{Parameters, Settings, ToolTable};
+use rtcnc_motion::PreparedMove;
 use rtcnc_plc::RetainSnapshot;
 use rtcnc_rt::{
     LeadConsumer, LeadProducer, MissReaction, PiMutex, RingConsumer, RingProducer, SeqlockWriter,
@@ -759,6 +760,10 @@ fn interpolation_task(
     })
 }
 
+/// Moves whose geometry one look-ahead run builds at most (each between two holds of the
+/// core's lock), so that a run is bounded.
+const BUILDS_PER_RUN: usize = 64;
+
 /// Look-ahead: keeps the planner's window full and sequences the program.
 fn look_ahead_task(
     b: &mut TaskSetBuilder,
@@ -769,11 +774,21 @@ fn look_ahead_task(
 ) -> TaskId {
     let (c, sh) = (core.clone(), shared.clone());
     let mut more = false;
+    // A move's geometry, built here between two holds of the core's lock.
+    let mut staging = PreparedMove::new();
     b.periodic(thread, "look-ahead", runs, move |ctx| {
         // The runs after the first only when the one before stopped at its bound of
         // steps, not on something only another task can change.
         if ctx.run() == 0 || more {
-            more = c.lock().look_ahead(ctx, &sh);
+            more = false;
+            for _ in 0..BUILDS_PER_RUN {
+                more = c.lock().look_ahead(ctx, &sh, &mut staging);
+                if !staging.build_due() {
+                    break;
+                }
+                staging.build();
+                more = true;
+            }
         }
         if !more {
             ctx.finish_runs();

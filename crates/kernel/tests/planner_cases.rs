@@ -75,15 +75,29 @@ fn an_arc_with_a_half_micron_radius_difference_runs_as_a_spiral() {
     let worst = worst_ratio(&samples, 1e-3, &limits);
     assert!(worst <= 1.0 + 1e-9, "{worst}");
     // G2 X10 Y10.0005 I10 J0 from the origin: centre (10, 0), clockwise from the angle π
-    // to π/2.
+    // to π/2. Its end meets the line tangentially with a curvature step, which G64 P0.01
+    // blends: up to half a radian from the arc's end (the longest trim of an arc end,
+    // docs/motion.md) the path is within P of the spiral or the line; before, on it.
     let on_arc: Vec<_> = samples.iter().filter(|s| s.line == 3).collect();
-    assert!(on_arc.len() > 100, "{}", on_arc.len());
+    let mut exact = 0;
     for s in on_arc {
         let (x, y) = (s.axes[0] - 10.0, s.axes[1]);
         let swept = std::f64::consts::PI - y.atan2(x);
         let expected = 10.0 + 0.0005 * swept / std::f64::consts::FRAC_PI_2;
-        assert!((x.hypot(y) - expected).abs() <= 1e-9, "{:?}", s.axes);
+        let off_spiral = (x.hypot(y) - expected).abs();
+        if swept <= std::f64::consts::FRAC_PI_2 - 0.5 {
+            assert!(off_spiral <= 1e-9, "{:?}", s.axes);
+            exact += 1;
+        } else {
+            let off_line = if x >= 0.0 {
+                (y - 10.0005).abs()
+            } else {
+                f64::INFINITY
+            };
+            assert!(off_spiral.min(off_line) <= 0.01, "{:?}", s.axes);
+        }
     }
+    assert!(exact > 100, "{exact}");
     let last = samples.last().unwrap().axes;
     assert!((last[0] - 20.0).abs() < 1e-9 && (last[1] - 10.0005).abs() < 1e-9);
 }

@@ -268,7 +268,21 @@ fn splines_run_on_linuxcncs_curves_to_the_exact_end() {
     }
     // Every set-point the machine was given on these lines lies on LinuxCNC's curve of its
     // line (or of the neighbouring one, for a set-point that crossed a junction in the
-    // period its line was reported).
+    // period its line was reported), but near the junctions: they are tangent and the
+    // curvature steps there, which G64 P0.01 blends within P (docs/motion.md), trimming
+    // each side by at most 45 % of the curve (under 5 mm here).
+    let junctions = [
+        [10.0, 0.0],
+        [30.0, 10.0],
+        [50.0, 0.0],
+        [60.0, 5.0],
+        [70.0, 10.0],
+    ];
+    let near_junction = |p: &[f64]| {
+        junctions
+            .iter()
+            .any(|j| (p[0] - j[0]).hypot(p[1] - j[1]) < 5.0)
+    };
     let mut checked = 0;
     for s in &m.samples {
         let Some(k) = curves.iter().position(|(l, _)| *l == s.line) else {
@@ -280,18 +294,22 @@ fn splines_run_on_linuxcncs_curves_to_the_exact_end() {
         let d = if k == 0 {
             // The first spline follows a line along Y = 0 (set-points still on it).
             d.min(s.axes[1].abs() + (s.axes[2] + 1.0).abs())
+        } else if k == curves.len() - 1 && s.axes[0] >= 70.0 {
+            // The last one is followed by a line along Y = 10.
+            d.min((s.axes[1] - 10.0).abs() + (s.axes[2] + 1.0).abs())
         } else {
             d
         };
+        let allowed = if near_junction(&s.axes) { 0.01 } else { 1e-9 };
         assert!(
-            d <= 1e-9,
+            d <= allowed,
             "line {}: set-point {:?} is {d} mm off",
             s.line,
             &s.axes[..3]
         );
-        checked += 1;
+        checked += usize::from(allowed < 0.01);
     }
-    assert!(checked > 100, "{checked} set-points on the splines");
+    assert!(checked > 100, "{checked} set-points exactly on the splines");
 }
 
 #[test]

@@ -8,12 +8,18 @@ use crate::geometry::{ArcMap, CORNER_MIDDLE, Helix, Shape, corner_blend, quintic
 use crate::input::{Feed, Move, MoveKind, PathMode};
 use crate::limits::Lim;
 use crate::piece::Piece;
+use crate::planner::junction_speed;
 use crate::spline::{SPLINE_PIECES, SplineMaps, SplineP};
 
 mod arc_blend;
 #[cfg(test)]
 mod smoothing_tests;
 
+/// The servo period at which a tangent junction's curvature step is judged, blended or passed:
+/// the seeds' fastest servo period, 100 µs. The decision, and with it the path, does
+/// not depend on the machine's period; at a longer period the step could be passed faster
+/// than judged here, at most by the square root of the ratio.
+pub(crate) const STEP_REFERENCE_PERIOD: f64 = 100e-6;
 /// Direction changes up to this angle (rad) count as tangent: passed without a blend, at a
 /// speed that keeps the velocity step inside the jerk limit.
 pub(crate) const KINK: f64 = 1e-4;
@@ -121,6 +127,7 @@ pub struct GeometryStats {
     pub curvature_backoffs: u64,
 }
 
+#[derive(Clone)]
 pub(crate) struct Builder {
     pub pos: AxisVec,
     /// The line being merged (G64 Q) and how many inner vertices it has ...
@@ -432,6 +439,14 @@ impl Builder {
         match mode {
             PathMode::ExactStop => stop(self, out),
             _ if theta <= KINK => {
+                if let Some((next, next_state)) =
+                    self.blend_curvature_step(&prev, st, &cur, lim, out)
+                {
+                    self.tangent_in = true;
+                    self.prev = Some(next);
+                    self.prev_state = next_state;
+                    return;
+                }
                 self.emit_prim_to_end(&prev, st, false, lim, out);
                 self.tangent_in = true;
                 self.prev = Some(cur);
@@ -634,6 +649,34 @@ impl Builder {
         }
         self.prev = Some(cur);
         self.prev_state = None;
+    }
+
+    /// In G64 P, a tangent junction where the curvature steps and the step would be passed
+    /// below the feed is rounded by a blend within P (see `arc_blend::tangent_corner`). The
+    /// step's speed is taken at [`STEP_REFERENCE_PERIOD`], not at the servo period, so that
+    /// the path is the same whatever the period.
+    fn blend_curvature_step(
+        &mut self,
+        prev: &Prim,
+        st: Option<State>,
+        cur: &Prim,
+        lim: &Lim,
+        out: &mut Vec<Piece>,
+    ) -> Option<(Prim, Option<State>)> {
+        let PathMode::Blend { tolerance, .. } = prev.mode() else {
+            return None;
+        };
+        if tolerance <= 0.0 || matches!((prev, cur), (Prim::Line(_), Prim::Line(_))) {
+            return None;
+        }
+        let (k_in, k_out) = arc_blend::junction_curvatures(prev, cur);
+        let dt = sub(&cur.start_tangent(), &prev.end_tangent());
+        let v_pass = junction_speed(&dt, &sub(&k_out, &k_in), lim, STEP_REFERENCE_PERIOD);
+        let feed = arc_blend::feed_of(prev).min(arc_blend::feed_of(cur));
+        if v_pass >= feed {
+            return None;
+        }
+        self.tangent_corner(prev, st, cur, tolerance, v_pass, lim, out)
     }
 
     /// Tangent and curvature at the vertex between two short lines, from the circle through

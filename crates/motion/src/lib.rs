@@ -69,4 +69,4 @@ pub use error::MotionError;
 pub use input::{Bezier, Feed, Move, MoveKind, PathMode};
 pub use kinematics::{JointLimits, Kinematics, TrivialKinematics};
 pub use limits::{AxisLimits, MachineLimits};
-pub use planner::{MotionState, Planner, RewindError, RunStats, Status};
+pub use planner::{MotionState, Planner, Preparation, PreparedMove, RewindError, RunStats, Status};

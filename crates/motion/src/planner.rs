@@ -3,8 +3,10 @@
 //! the emission of one set-point per servo period.
 
 mod generate;
+mod prepared;
 
 use generate::{STOP_JERK_SHARE, STOP_SHARE, StepLimits};
+pub use prepared::{Preparation, PreparedMove};
 
 use crate::axes::{AXES, AxisVec, norm};
 use crate::builder::{Builder, GeometryStats, KINK};
@@ -354,6 +356,9 @@ pub struct Planner<K: Kinematics> {
     period: f64,
     q: Ring,
     builder: Builder,
+    /// Changes with every change of `builder` (push, flush, stop, reset): a
+    /// [`PreparedMove`] copied before one is out of date.
+    geometry_generation: u64,
     scratch: Vec<Piece>,
     fo: f64,
     ro: f64,
@@ -496,6 +501,7 @@ impl<K: Kinematics> Planner<K> {
             period: servo_period,
             q: Ring::new(window),
             builder: Builder::new(start),
+            geometry_generation: 0,
             scratch: Vec::with_capacity(PIECES_PER_MOVE * 2),
             fo: 1.0,
             ro: 1.0,
@@ -559,6 +565,7 @@ impl<K: Kinematics> Planner<K> {
                 break;
             }
             self.scratch.clear();
+            self.geometry_generation = self.geometry_generation.wrapping_add(1);
             if let Err(e) = self.builder.push(mv, &self.lim, &mut self.scratch) {
                 result = Err(e);
                 break;
@@ -578,6 +585,7 @@ impl<K: Kinematics> Planner<K> {
     /// Real-time: yes (no allocation, no blocking).
     pub fn flush(&mut self) {
         self.scratch.clear();
+        self.geometry_generation = self.geometry_generation.wrapping_add(1);
         self.builder.flush(&self.lim, &mut self.scratch);
         self.append_scratch(true);
     }
@@ -844,6 +852,7 @@ impl<K: Kinematics> Planner<K> {
             self.quick_rest = matches!(self.hold, Some(h) if h.kind == StopKind::Quick);
             self.q.clear();
             self.builder.clear(st.hist[0]);
+            self.geometry_generation = self.geometry_generation.wrapping_add(1);
             self.hold = None;
             self.ahead.len = 0;
             self.strict = None;
@@ -1568,20 +1577,10 @@ fn brake_jerk(v: f64, a: f64, amax: f64, jmax: f64, t: f64) -> f64 {
     hi
 }
 
-/// Speed bound at a junction between two pieces that join without a stop: a step of the
-/// tangent or of the curvature vector shows up in the sampled jerk as v·|ΔT|/T² + v²·|ΔK|/T.
-fn junction(a: &mut Piece, b: &mut Piece, lim: &Lim, period: f64) {
-    let ea = a.ns;
-    let mut dt = [0.0; AXES];
-    let mut dk = [0.0; AXES];
-    for i in 0..AXES {
-        dt[i] = b.smp[0].t[i] - a.smp[ea].t[i];
-        dk[i] = b.smp[0].k[i] - a.smp[ea].k[i];
-    }
-    if b.len > 0.0 && a.len > 0.0 && norm(&dt) > 4.0 * KINK {
-        a.stop_at_end = true;
-        return;
-    }
+/// The highest speed at which a step `dt` of the unit tangent and `dk` of the curvature
+/// vector can be passed between two servo periods: the step shows up in the sampled jerk of
+/// each axis as v·|ΔT|/T² + v²·|ΔK|/T, which may take `JERK_SHARE_JUMP` of its jerk limit.
+pub(crate) fn junction_speed(dt: &AxisVec, dk: &AxisVec, lim: &Lim, period: f64) -> f64 {
     let mut vj = f64::INFINITY;
     for i in 0..AXES {
         if !lim.present[i] {
@@ -1599,6 +1598,24 @@ fn junction(a: &mut Piece, b: &mut Piece, lim: &Lim, period: f64) {
         };
         vj = vj.min(v);
     }
+    vj
+}
+
+/// Speed bound at a junction between two pieces that join without a stop: a step of the
+/// tangent or of the curvature vector shows up in the sampled jerk as v·|ΔT|/T² + v²·|ΔK|/T.
+fn junction(a: &mut Piece, b: &mut Piece, lim: &Lim, period: f64) {
+    let ea = a.ns;
+    let mut dt = [0.0; AXES];
+    let mut dk = [0.0; AXES];
+    for i in 0..AXES {
+        dt[i] = b.smp[0].t[i] - a.smp[ea].t[i];
+        dk[i] = b.smp[0].k[i] - a.smp[ea].k[i];
+    }
+    if b.len > 0.0 && a.len > 0.0 && norm(&dt) > 4.0 * KINK {
+        a.stop_at_end = true;
+        return;
+    }
+    let vj = junction_speed(&dt, &dk, lim, period);
     // Where a line meets an arc (a CAM profile's rounded corners), the line is capped at
     // the junction's point only and the arc over its sub-interval next to it: the braking
     // curve then has a plateau on the arc that the jerk-limited speed settles on. Elsewhere
@@ -1636,6 +1653,7 @@ impl<K: Kinematics> Planner<K> {
         }
         self.q.clear();
         self.builder.clear(position);
+        self.geometry_generation = self.geometry_generation.wrapping_add(1);
         self.line_profiles = [None; PROFILE_SLOTS];
         self.hold = None;
         self.quick_rest = false;

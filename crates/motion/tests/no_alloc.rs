@@ -1,4 +1,5 @@
-//! `Planner::push`, `flush` and `next` allocate nothing on real programs: lines with G64 P
+//! `Planner::push` (and a push built apart: `prepare`, `PreparedMove::build`,
+//! `push_prepared`), `flush` and `next` allocate nothing on real programs: lines with G64 P
 //! corner blends, smoothing of dense polylines and G64 Q merges, arcs, helices and spirals
 //! blended into lines, G5/G5.1 splines (tangent chains, corners blended, near cusps cut at
 //! their dips), dwells, rapids and exact stops, with overrides, a feed hold, a resume and
@@ -11,7 +12,7 @@ use std::cell::Cell;
 
 use rtcnc_motion::{
     AXES, Axis, AxisLimits, AxisVec, Bezier, MachineLimits, MotionState, Move, PathMode, Planner,
-    TrivialKinematics,
+    PreparedMove, TrivialKinematics,
 };
 
 #[path = "support/spline_programs.rs"]
@@ -113,7 +114,7 @@ enum Event {
 }
 
 /// Pushes `moves` while there is room (one push per period, as the kernel's look-ahead
-/// feeds it), flushes after the last, steps until the planner is idle with nothing left;
+/// feeds it; every other move built apart, as the kernel builds them all), flushes after the last, steps until the planner is idle with nothing left;
 /// returns the periods run, the allocations made inside push, flush, next and the events,
 /// and the planner's end position. The planner is built before counting (its memory is
 /// fixed there).
@@ -124,6 +125,7 @@ fn run(
     max_periods: u64,
 ) -> (u64, u64, AxisVec, u64) {
     let mut pl = planner(start, 64);
+    let mut staging = PreparedMove::new();
     let mut joints = [0.0; 3];
     let mut allocations = 0;
     let mut k = 0;
@@ -132,7 +134,13 @@ fn run(
     while period < max_periods {
         let (status, n) = counted(|| {
             if k < moves.len() && pl.free() > 0 {
-                pl.push(&moves[k]).unwrap();
+                if k % 2 == 0 {
+                    pl.push(&moves[k]).unwrap();
+                } else {
+                    pl.prepare(&moves[k], k as u64, &mut staging);
+                    staging.build();
+                    pl.push_prepared(&mut staging).unwrap();
+                }
                 k += 1;
             }
             if k == moves.len() && !flushed {

@@ -3,7 +3,7 @@
 //! needs the machine standing (a machine function, a spindle-synchronised or probing move,
 //! the end, an error), waits for the path to stand, and then starts that.
 
-use rtcnc_motion::{AXES, MotionError, Move, MoveKind, PathMode};
+use rtcnc_motion::{AXES, MotionError, Move, MoveKind, PathMode, Preparation, PreparedMove};
 use rtcnc_rt::Context;
 
 use super::MotionCore;
@@ -22,8 +22,11 @@ pub(super) struct Program {
     /// The run (program start, MDI line, abort, fault): blocks of an older run still in
     /// the channels are dropped.
     pub(super) epoch: u32,
-    /// The block the planner had no room for.
+    /// The block the planner had no room for, or whose move is being built apart.
     pub(super) pending: Option<MachineBlock>,
+    /// Blocks taken from the channel so far: the number of the latest, which its move is
+    /// built apart under (`PreparedMove`).
+    pub(super) blocks_taken: u64,
     /// Starts and resumes so far: a pause ends when it changes.
     pub(super) start_count: u32,
     pub(super) single_block: bool,
@@ -52,6 +55,7 @@ impl Program {
         Program {
             epoch: 0,
             pending: None,
+            blocks_taken: 0,
             start_count: 0,
             single_block: false,
             optional_stop: false,
@@ -71,14 +75,28 @@ impl MotionCore {
     /// stops the path before machine functions and errors, and sequences their hand-shakes.
     /// Returns whether another run in the same period may find more to do: only when this
     /// one stopped at its bound of steps. Otherwise it stopped on something only another
-    /// task can change (no block, no room, the machine still moving, the logic's answer).
-    pub(crate) fn look_ahead(&mut self, ctx: &mut Context<'_>, shared: &Shared) -> bool {
-        let more = self.look_ahead_runs(ctx, shared);
+    /// task can change (no block, no room, the machine still moving, the logic's answer),
+    /// or on a move to build: a move's geometry (blends, smoothing) is built in `staging`
+    /// by the caller without the core's lock (`PreparedMove::build`, then
+    /// `staging.build_due()` is false), and appended by the next run; interpolation waits
+    /// on the lock only for the copy and the append.
+    pub(crate) fn look_ahead(
+        &mut self,
+        ctx: &mut Context<'_>,
+        shared: &Shared,
+        staging: &mut PreparedMove,
+    ) -> bool {
+        let more = self.look_ahead_runs(ctx, shared, staging);
         self.publish_requests();
         more
     }
 
-    fn look_ahead_runs(&mut self, ctx: &mut Context<'_>, shared: &Shared) -> bool {
+    fn look_ahead_runs(
+        &mut self,
+        ctx: &mut Context<'_>,
+        shared: &Shared,
+        staging: &mut PreparedMove,
+    ) -> bool {
         for _ in 0..LOOK_AHEAD_STEPS {
             // One handler per step of the program; each returns whether the program moved
             // on (look again) or waits for something only another task can change.
@@ -86,7 +104,7 @@ impl MotionCore {
                 return false;
             };
             let moved_on = match step {
-                Step::Feeding => self.feeding(shared),
+                Step::Feeding => self.feeding(shared, staging),
                 Step::Draining { then, line } => self.draining(ctx, shared, then, line),
                 Step::Logic { aux, released, .. } => self.logic_done(aux, released),
                 Step::Paused { start_count } => self.paused(start_count),
@@ -127,7 +145,7 @@ impl MotionCore {
     }
 
     /// Takes the next block of this run, unless a hold keeps the next move from starting.
-    fn feeding(&mut self, shared: &Shared) -> bool {
+    fn feeding(&mut self, shared: &Shared, staging: &mut PreparedMove) -> bool {
         if self.hold.latched()
             || ((self.hold.logic_request || self.hold.feed_stop) && !self.moving())
         {
@@ -136,20 +154,23 @@ impl MotionCore {
         let block = match self.program.pending.take() {
             Some(b) => b,
             None => match shared.machine_blocks.try_get() {
-                Some(Tagged { epoch, block }) if epoch == self.program.epoch => block,
+                Some(Tagged { epoch, block }) if epoch == self.program.epoch => {
+                    self.program.blocks_taken += 1;
+                    block
+                }
                 // A block of an older run: dropped.
                 Some(_) => return true,
                 None => return false,
             },
         };
         self.program.took_a_block = true;
-        self.feed(shared, block)
+        self.feed(shared, block, staging)
     }
 
     /// Returns false when the block could not be taken now (kept for the next run).
-    fn feed(&mut self, shared: &Shared, block: MachineBlock) -> bool {
+    fn feed(&mut self, shared: &Shared, block: MachineBlock, staging: &mut PreparedMove) -> bool {
         let (then, line) = match block {
-            MachineBlock::Motion(mv) => return self.feed_move(shared, block, mv),
+            MachineBlock::Motion(mv) => return self.feed_move(shared, block, mv, staging),
             MachineBlock::Aux { line, aux } => (Then::Aux(aux), line),
             MachineBlock::Synced { line, end, pitch } => (Then::Synced(end, pitch), line),
             MachineBlock::Probe { mv, kind } => (Then::Probe(mv, kind), mv.line),
@@ -163,8 +184,15 @@ impl MotionCore {
         true
     }
 
-    /// A move into the planner's window (`block` is `mv`, kept when there is no room).
-    fn feed_move(&mut self, shared: &Shared, block: MachineBlock, mv: Move) -> bool {
+    /// A move into the planner's window (`block` is `mv`, kept when there is no room or
+    /// while its geometry is built apart, in `staging`).
+    fn feed_move(
+        &mut self,
+        shared: &Shared,
+        block: MachineBlock,
+        mv: Move,
+        staging: &mut PreparedMove,
+    ) -> bool {
         if self.program.run_from_line > 1 && mv.line < self.program.run_from_line {
             if let MoveKind::Line { end, .. }
             | MoveKind::Arc { end, .. }
@@ -186,7 +214,16 @@ impl MotionCore {
                 }
             }
         }
-        match self.path.planner.push(&mv) {
+        let key = self.program.blocks_taken;
+        let pushed = match self.path.planner.preparation(staging, key) {
+            Preparation::Built => self.path.planner.push_prepared(staging),
+            Preparation::Stale | Preparation::Copied => {
+                self.path.planner.prepare(&mv, key, staging);
+                self.program.pending = Some(block);
+                return false;
+            }
+        };
+        match pushed {
             Ok(()) => {
                 if self.program.single_block {
                     self.path.planner.flush();

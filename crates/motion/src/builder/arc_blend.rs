@@ -24,6 +24,13 @@ use crate::scurve;
 const L_FACTORS: [f64; 3] = [1.0, 1.25, 1.5];
 /// Blends slower than this share of the fastest found are not chosen for a shorter time.
 const SPEED_PREFERENCE: f64 = 0.9;
+/// The parameter length of a tangent junction's blend, relative to the chord: from 0.8 of
+/// the chord up, the quintic from a line into an arc bends the wrong way first and crosses
+/// the line's side (by 2.5 nm at 0.8, 0.5 µm at 0.9, for 1 mm trims at a radius of 5 mm; a
+/// pocket wall or a soft limit may lie there); at 0.75 its curvature stays between the two
+/// neighbours' signs, so the blend stays on the inside, peaking at about 1.6 times the
+/// arc's curvature.
+const TANGENT_L_FACTORS: [f64; 1] = [0.75];
 /// Sample intervals of a blend for its speed estimate and soft limits...
 const NSAMP: usize = 32;
 /// ... and for its deviation.
@@ -43,6 +50,9 @@ const MIN_PARAM_SPEED: f64 = 0.1;
 /// estimate assumes (on 200 random chains around splines, 5 came out slower than G61
 /// without the margin, by up to 0.8 %, 1 with it).
 const BLEND_TIME_MARGIN: f64 = 0.1;
+/// A tangent junction's curvature step is blended only where the blend is this much faster
+/// than passing the step: the planner passes a short slow blend less well than its estimate.
+const TANGENT_BLEND_GAIN: f64 = 1.2;
 /// Iterations of the search for `d` per parameter length.
 const D_ITER: usize = 12;
 
@@ -104,28 +114,7 @@ impl Builder {
         lim: &Lim,
         out: &mut Vec<Piece>,
     ) -> Option<(Prim, Option<State>)> {
-        let feed = feed_of(prev).min(feed_of(cur)).min(V_RAPID_REF);
-        let bl = solve(prev, st.as_ref(), cur, tol, feed, lim)?;
-        for k in 0..=NSAMP {
-            let p = bl.shape.pos(k as f64 / NSAMP as f64);
-            for i in 0..AXES {
-                if lim.present[i] && (p[i] < lim.min[i] || p[i] > lim.max[i]) {
-                    return None;
-                }
-            }
-        }
-        // The planner samples a piece's speed limit at five points, which miss the peak of
-        // the curvature change of a short blend: a dense estimate caps each sample.
-        let mut b = Piece::new(
-            bl.shape,
-            bl.from.st.p,
-            bl.to.st.p,
-            feed_of(prev).min(feed_of(cur)),
-            false,
-            line_of(prev),
-        );
-        b.corner_blend = true;
-        b.v_cap = sample_caps(&b, lim);
+        let (bl, b) = blend_within(prev, st.as_ref(), cur, tol, &L_FACTORS, lim)?;
         // Blend only where that takes no longer than stopping; the time through the blend
         // as the planner limits it (each interval at the lower of its two sample caps).
         let h = b.len / b.ns as f64;
@@ -137,6 +126,51 @@ impl Builder {
         if !choice.blend_pays(lim) {
             return None;
         }
+        Some(self.emit_blend(prev, st, cur, &bl, b, tol, lim, out))
+    }
+
+    /// Rounds a tangent junction where the curvature steps (a line into an arc, arcs of
+    /// different radii) within `tol`, when the blend's lowest speed limit is above
+    /// `v_pass`, the speed at which the step itself can be passed. Passed as it is, the step
+    /// of the centripetal acceleration happens within one servo period, so its speed falls
+    /// with the period (v²·|ΔK| ≤ J·T/2); the blend's curvature changes along its length
+    /// instead, at a speed that does not depend on the period. Same returns as
+    /// [`arc_corner`](Self::arc_corner).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn tangent_corner(
+        &mut self,
+        prev: &Prim,
+        st: Option<State>,
+        cur: &Prim,
+        tol: f64,
+        v_pass: f64,
+        lim: &Lim,
+        out: &mut Vec<Piece>,
+    ) -> Option<(Prim, Option<State>)> {
+        let (bl, b) = blend_within(prev, st.as_ref(), cur, tol, &TANGENT_L_FACTORS, lim)?;
+        let v_blend = b.v_cap[..=b.ns]
+            .iter()
+            .fold(f64::INFINITY, |m, &v| m.min(v));
+        if !(v_blend > TANGENT_BLEND_GAIN * v_pass) {
+            return None;
+        }
+        Some(self.emit_blend(prev, st, cur, &bl, b, tol, lim, out))
+    }
+
+    /// Emits `prev` up to the blend `bl` and the blend's piece `b`; returns `cur` as it
+    /// remains after the blend.
+    #[allow(clippy::too_many_arguments)]
+    fn emit_blend(
+        &mut self,
+        prev: &Prim,
+        st: Option<State>,
+        cur: &Prim,
+        bl: &ArcBlend,
+        b: Piece,
+        tol: f64,
+        lim: &Lim,
+        out: &mut Vec<Piece>,
+    ) -> (Prim, Option<State>) {
         match prev {
             Prim::Line(lp) => {
                 let start = st.unwrap_or(State {
@@ -180,7 +214,7 @@ impl Builder {
         }
         out.push(b);
         self.stats.blends += 1;
-        Some(match *cur {
+        match *cur {
             Prim::Line(lc) => (
                 Prim::Line(lc),
                 Some(State {
@@ -212,8 +246,47 @@ impl Builder {
                 sp.u0 = bl.to.u;
                 (Prim::Spline(sp), None)
             }
-        })
+        }
     }
+}
+
+/// The blend of the corner between `prev` and `cur` within `tol` and inside the soft
+/// limits, and its piece with the dense speed caps: the planner samples a piece's speed
+/// limit at five points, which miss the peak of the curvature change of a short blend.
+fn blend_within(
+    prev: &Prim,
+    st: Option<&State>,
+    cur: &Prim,
+    tol: f64,
+    factors: &[f64],
+    lim: &Lim,
+) -> Option<(ArcBlend, Piece)> {
+    let feed = feed_of(prev).min(feed_of(cur)).min(V_RAPID_REF);
+    let bl = solve(prev, st, cur, tol, feed, factors, lim)?;
+    for k in 0..=NSAMP {
+        let p = bl.shape.pos(k as f64 / NSAMP as f64);
+        for i in 0..AXES {
+            if lim.present[i] && (p[i] < lim.min[i] || p[i] > lim.max[i]) {
+                return None;
+            }
+        }
+    }
+    let mut b = Piece::new(
+        bl.shape,
+        bl.from.st.p,
+        bl.to.st.p,
+        feed_of(prev).min(feed_of(cur)),
+        false,
+        line_of(prev),
+    );
+    b.corner_blend = true;
+    b.v_cap = sample_caps(&b, lim);
+    Some((bl, b))
+}
+
+/// The curvature vectors at the end of `prev` and the start of `cur`.
+pub(super) fn junction_curvatures(prev: &Prim, cur: &Prim) -> (AxisVec, AxisVec) {
+    (trim(prev, 0.0, true).st.k, trim(cur, 0.0, false).st.k)
 }
 
 /// Path limits (speed, acceleration, jerk) along unit tangent `t`: the axis that reaches
@@ -356,7 +429,7 @@ fn stop_speed_for_distance(s: f64, a: f64, j: f64) -> f64 {
     }
 }
 
-fn feed_of(p: &Prim) -> f64 {
+pub(super) fn feed_of(p: &Prim) -> f64 {
     match p {
         Prim::Line(l) => l.feed,
         Prim::Arc { feed, .. } => *feed,
@@ -775,6 +848,7 @@ fn solve(
     cur: &Prim,
     tol: f64,
     feed: f64,
+    factors: &[f64],
     lim: &Lim,
 ) -> Option<ArcBlend> {
     let d_max = max_trim(prev, st, true).min(max_trim(cur, None, false));
@@ -790,7 +864,7 @@ fn solve(
     let mut d_start = (4.0 * tol / (0.5 * turn).sin().max(1e-6)).min(d_max);
     // Per parameter length: the blend, the factor, its lowest speed limit and its length.
     let mut found: [Option<(ArcBlend, f64, f64, f64)>; L_FACTORS.len()] = [None; L_FACTORS.len()];
-    for (slot, f) in found.iter_mut().zip(L_FACTORS) {
+    for (slot, &f) in found.iter_mut().zip(factors) {
         // The deviation grows about linearly with d: secant steps towards the target,
         // bracketed by the largest d found within it and the smallest found beyond it.
         let mut ok: Option<ArcBlend> = None;

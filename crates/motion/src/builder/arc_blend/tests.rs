@@ -102,7 +102,7 @@ fn line_meeting_a_circle_at_a_right_angle() {
         )
         .unwrap()
         .unwrap();
-    let bl = solve(&line, None, &arc, TOL, 30.0, &lim).unwrap();
+    let bl = solve(&line, None, &arc, TOL, 30.0, &L_FACTORS, &lim).unwrap();
     let d = bl.d;
     let phi = d / R;
     // Well inside the longest trim (2.5: half a radian of the circle).
