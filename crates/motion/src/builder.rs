@@ -843,45 +843,8 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Span> 
     // distance); over the axes whose end states differ, a superset of the axes moved,
     // where the others add exact zeros.
     let lp2 = lp * lp;
-    if lp.is_finite() {
-        let u = 0.5;
-        let mut along = 0.0;
-        let mut w = [0.0f64; AXES];
-        let mut idx = [0usize; AXES];
-        let mut m = 0;
-        for i in 0..AXES {
-            let still = s0.p[i] == s1.p[i]
-                && origin[i] == s0.p[i]
-                && s0.t[i] == 0.0
-                && s1.t[i] == 0.0
-                && s0.k[i] == 0.0
-                && s1.k[i] == 0.0;
-            if still {
-                continue;
-            }
-            let ci = quintic_axis(
-                s0.p[i],
-                s0.t[i] * lp,
-                s0.k[i] * lp2,
-                s1.p[i],
-                s1.t[i] * lp,
-                s1.k[i] * lp2,
-            );
-            let p = ci[0] + u * (ci[1] + u * (ci[2] + u * (ci[3] + u * (ci[4] + u * ci[5]))));
-            w[m] = p - origin[i];
-            along += w[m] * axis[i];
-            idx[m] = i;
-            m += 1;
-        }
-        let along = along.clamp(0.0, range);
-        let mut dev = 0.0;
-        for (wj, &i) in w[..m].iter().zip(&idx[..m]) {
-            let r = wj + axis[i] * -along;
-            dev += r * r;
-        }
-        if dev.sqrt() > tol * (1.0 - 1e-3) {
-            return None;
-        }
+    if lp.is_finite() && middle_deviation(s0, s1, &origin, &axis, range, lp) > tol * (1.0 - 1e-3) {
+        return None;
     }
     let shape = quintic(
         &s0.p,
@@ -894,6 +857,78 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Span> 
     let Shape::Poly { c } = &shape else {
         unreachable!("quintic() builds a polynomial")
     };
+    let (max_dev, outside) = sampled_deviation(c, &origin, &axis, range, lim);
+    if max_dev > tol * (1.0 - 1e-3) || (outside && tol.is_finite()) {
+        return None;
+    }
+    Some(Span {
+        shape,
+        a: s0.p,
+        b: s1.p,
+        feed: l.feed,
+        rapid: false,
+        line: l.line,
+    })
+}
+
+/// Distance from the segment (`origin`, `axis`, `range`: see [`span`]) of the middle of
+/// the quintic from `s0` to `s1` with parameter length `lp`, computed without building it.
+fn middle_deviation(
+    s0: &State,
+    s1: &State,
+    origin: &AxisVec,
+    axis: &AxisVec,
+    range: f64,
+    lp: f64,
+) -> f64 {
+    let lp2 = lp * lp;
+    let u = 0.5;
+    let mut along = 0.0;
+    let mut w = [0.0f64; AXES];
+    let mut idx = [0usize; AXES];
+    let mut m = 0;
+    for i in 0..AXES {
+        let still = s0.p[i] == s1.p[i]
+            && origin[i] == s0.p[i]
+            && s0.t[i] == 0.0
+            && s1.t[i] == 0.0
+            && s0.k[i] == 0.0
+            && s1.k[i] == 0.0;
+        if still {
+            continue;
+        }
+        let ci = quintic_axis(
+            s0.p[i],
+            s0.t[i] * lp,
+            s0.k[i] * lp2,
+            s1.p[i],
+            s1.t[i] * lp,
+            s1.k[i] * lp2,
+        );
+        let p = ci[0] + u * (ci[1] + u * (ci[2] + u * (ci[3] + u * (ci[4] + u * ci[5]))));
+        w[m] = p - origin[i];
+        along += w[m] * axis[i];
+        idx[m] = i;
+        m += 1;
+    }
+    let along = along.clamp(0.0, range);
+    let mut dev = 0.0;
+    for (wj, &i) in w[..m].iter().zip(&idx[..m]) {
+        let r = wj + axis[i] * -along;
+        dev += r * r;
+    }
+    dev.sqrt()
+}
+
+/// Largest distance of the quintic `c` from the segment (`origin`, `axis`, `range`: see
+/// [`span`]), and whether it leaves the soft limits, from 17 samples.
+fn sampled_deviation(
+    c: &[AxisVec; 6],
+    origin: &AxisVec,
+    axis: &AxisVec,
+    range: f64,
+    lim: &Lim,
+) -> (f64, bool) {
     // Distance from the programmed segment (the chord lies on it) and the soft limits, at
     // 17 samples, over the axes the span or its chord moves along: on the others the sample
     // is exactly the start point and every term below an exact zero, so skipping them
@@ -958,17 +993,7 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Span> 
             max_dev = max_dev.max(y1 - 0.125 * (y2 - y0) * (y2 - y0) / den);
         }
     }
-    if max_dev > tol * (1.0 - 1e-3) || (outside && tol.is_finite()) {
-        return None;
-    }
-    Some(Span {
-        shape,
-        a: s0.p,
-        b: s1.p,
-        feed: l.feed,
-        rapid: false,
-        line: l.line,
-    })
+    (max_dev, outside)
 }
 
 /// A span `span` accepted: its shape and end points. The piece (a few kB, with its
