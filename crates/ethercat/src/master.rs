@@ -13,7 +13,8 @@ use ethercrab::{
     SubDeviceState, Timeouts,
 };
 use rtcnc_fieldbus::{
-    DriveMode, Fieldbus, FieldbusError, ProcessInputs, ProcessLayout, ProcessOutputs, check_images,
+    DriveMode, Fieldbus, FieldbusError, ProcessInputs, ProcessLayout, ProcessOutputs,
+    check_exchange,
 };
 use rtcnc_rt::PiMutex;
 
@@ -1169,10 +1170,7 @@ impl Fieldbus for EthercatMaster {
         outputs: &ProcessOutputs,
         inputs: &mut ProcessInputs,
     ) -> Result<(), FieldbusError> {
-        check_images(&self.layout, outputs, inputs)?;
-        if !(period_s.is_finite() && period_s > 0.0 && period_s <= 1.0) {
-            return Err(FieldbusError::InvalidPeriod { period_s });
-        }
+        check_exchange(&self.layout, period_s, outputs, inputs)?;
         // Uncontended once the owner has taken over; before, it waits at most for the
         // keeper's cycle in progress.
         let mut cyclic = self.cyclic.lock();

@@ -209,3 +209,36 @@ fn an_sdo_abort_is_named() {
     assert_eq!((*position, *index), (0, 0x5000));
     println!("{reason}");
 }
+
+/// An exchange with a period out of (0, 1] s or images of another shape than the bus's is
+/// refused with the error every bus gives for it (`rtcnc_fieldbus::check_exchange`), and the
+/// bus cycles on afterwards.
+#[test]
+fn bad_periods_and_images_are_refused_and_the_bus_cycles_on() {
+    use rtcnc_fieldbus::{Fieldbus, ProcessInputs};
+    let mut bus = bus(1);
+    bus.cycle().expect("cycle");
+    for period in [0.0, -1.0, f64::NAN, 2.0] {
+        let error = bus
+            .master
+            .exchange(period, &bus.outputs, &mut bus.inputs)
+            .unwrap_err();
+        assert_eq!(error.code(), "fieldbus.invalid_period", "{period}");
+    }
+    let mut short = ProcessInputs::new(bus.master.layout());
+    short.joints.clear();
+    let error = bus
+        .master
+        .exchange(0.001, &bus.outputs, &mut short)
+        .unwrap_err();
+    assert_eq!(
+        error,
+        FieldbusError::ImageMismatch {
+            image: "inputs",
+            what: "joints",
+            expected: 1,
+            found: 0
+        }
+    );
+    bus.cycle().expect("cycle after the refusals");
+}

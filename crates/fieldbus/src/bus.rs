@@ -86,7 +86,9 @@ impl FieldbusError {
 /// sends the outputs and fills the inputs with the machine's state at the end of the cycle
 /// (for the simulated machine: after integrating it over `period_s`).
 ///
-/// Implementations allocate nothing in `exchange` and never panic on data.
+/// Implementations allocate nothing in `exchange`, never panic on data, and check its
+/// arguments with [`check_exchange`] (a bus that hands the exchange to another leaves it to
+/// that one).
 pub trait Fieldbus {
     /// The shape of the process images this bus exchanges.
     ///
@@ -137,10 +139,27 @@ pub trait Fieldbus {
     }
 }
 
-/// Checks that both images have the layout's shape.
+/// Checks the arguments of [`Fieldbus::exchange`] the same way for every bus: both images
+/// have the layout's shape ([`FieldbusError::ImageMismatch`]), then the period is a finite
+/// number of seconds in (0, 1] ([`FieldbusError::InvalidPeriod`]). A bus calls it first
+/// and exchanges nothing when it fails.
 ///
 /// Real-time: yes (no allocation, no blocking).
-pub fn check_images(
+pub fn check_exchange(
+    layout: &ProcessLayout,
+    period_s: f64,
+    outputs: &ProcessOutputs,
+    inputs: &ProcessInputs,
+) -> Result<(), FieldbusError> {
+    check_images(layout, outputs, inputs)?;
+    if !(period_s.is_finite() && period_s > 0.0 && period_s <= 1.0) {
+        return Err(FieldbusError::InvalidPeriod { period_s });
+    }
+    Ok(())
+}
+
+/// Checks that both images have the layout's shape.
+fn check_images(
     layout: &ProcessLayout,
     outputs: &ProcessOutputs,
     inputs: &ProcessInputs,

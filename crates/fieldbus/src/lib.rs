@@ -4,7 +4,7 @@
 //! machine).
 //!
 //! On a real-time path: [`Fieldbus::exchange`] (implementations allocate nothing there),
-//! the trait's other methods, [`check_images`], and the simulated machine's exchange and
+//! the trait's other methods, [`check_exchange`], and the simulated machine's exchange and
 //! its inputs' setters and outputs' getters (`set_estop`, `turn_handwheel`,
 //! `set_digital_input`, ...). Set-up only: the constructors (`SimulatedMachine::new`,
 //! [`ProcessOutputs::new`], [`ProcessInputs::new`] allocate the images). Each public
@@ -45,7 +45,7 @@ pub mod cia402;
 mod image;
 pub mod sim;
 
-pub use bus::{Fieldbus, FieldbusError, check_images};
+pub use bus::{Fieldbus, FieldbusError, check_exchange};
 pub use cia402::{Cia402State, ControlWord, DeviceCommand, StatusWord};
 pub use image::{
     Coolant, DriveMode, JointCommand, JointFeedback, LatchFeedback, LatchSource, ProcessInputs,

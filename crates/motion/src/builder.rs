@@ -473,177 +473,29 @@ impl Builder {
                 if theta > 170f64.to_radians() || tolerance <= 0.0 {
                     stop(self, out);
                 } else {
-                    let v = lp.b;
                     let turn = sub(&lc.dir, &lp.dir);
                     self.last_turn = Some(turn);
-                    // Smoothing through the vertex (dense CAM polylines).
-                    if let Some(vs) = self.smooth_state(&lp, &lc, theta, tolerance, st.as_ref()) {
-                        let start = st.unwrap_or(State {
-                            p: lp.a,
-                            t: lp.dir,
-                            k: [0.0; AXES],
-                        });
-                        // The vertex curvature comes from the circle through three points;
-                        // a slightly smaller one keeps a span that bulges too far within P.
-                        // After a vertex that kept the circle's tangent (the first after a
-                        // stop), the span to the corrected tangent may bulge too far; one
-                        // halfway between recovers within a vertex or two.
-                        let (vs, t_plain) = vs;
-                        let t_half = unit(&add_scaled(&vs.t, &t_plain, 1.0));
-                        let cands = [
-                            (vs.t, 1.0),
-                            (t_half, 1.0),
-                            (vs.t, 0.95),
-                            (vs.t, 0.85),
-                            (t_plain, 1.0),
-                            (t_plain, 0.7),
-                            (t_plain, 0.3),
-                        ];
-                        for (tv, scale_k) in cands {
-                            let nrm = add_scaled(&vs.k, &tv, -dot(&vs.k, &tv));
-                            let vk = State {
-                                p: vs.p,
-                                t: tv,
-                                k: scale(&nrm, scale_k),
-                            };
-                            // After a stop the run may start already curved, like the arc
-                            // the polyline follows (mirror of the vertex state).
-                            // After a tangent junction passed at speed only where the
-                            // curved start turns less than a kink from the line's own
-                            // direction: a larger turn is a step of the tangent that forced
-                            // a stop there (a plain-G64 raster took 2.2 × LinuxCNC's time).
-                            let m = mirror(&vk, &lp.a, &lp.dir);
-                            let turn = dot(&m.t, &lp.dir).clamp(-1.0, 1.0).acos();
-                            let curved_start = if st.is_none() && (!entered_tangent || turn <= KINK)
-                            {
-                                span(&lp, &m, &vk, tolerance, lim)
-                            } else {
-                                None
-                            };
-                            if let Some(pc) =
-                                curved_start.or_else(|| span(&lp, &start, &vk, tolerance, lim))
-                            {
-                                out.push(pc.piece());
-                                self.stats.smoothed += 1;
-                                if scale_k < 1.0 {
-                                    self.stats.curvature_backoffs += 1;
-                                }
-                                self.prev = Some(cur);
-                                self.prev_state = Some(vk);
-                                self.smoothed_from = Some((lp.a, lp.b));
-                                return;
-                            }
-                        }
-                        // Through the vertex the circle bulges beyond the chords by its
-                        // sagitta; moved towards the centre by up to P it bulges less and
-                        // cuts the vertex by as much: the curve approximates the polyline
-                        // (as COMPCAD's), twice the sagitta the interpolating one keeps.
-                        let kappa = norm(&vs.k);
-                        let sagitta = 0.125 * kappa * lp.len.max(lc.len).powi(2);
-                        // (The first vertex after a stop has nothing to alternate with.)
-                        let curve = match turn_before {
-                            Some(b) => dot(&b, &turn) > 0.0,
-                            None => st.is_none(),
-                        };
-                        if kappa > 0.0 && curve {
-                            let nrm = scale(&vs.k, 1.0 / kappa);
-                            for shift in [0.5 * sagitta, 0.6 * tolerance, 0.9 * tolerance] {
-                                let shift = shift.min(0.9 * tolerance);
-                                if shift <= 1e-6 {
-                                    continue;
-                                }
-                                let vk = State {
-                                    p: add_scaled(&vs.p, &nrm, shift),
-                                    t: vs.t,
-                                    k: scale(&nrm, kappa / (1.0 - kappa * shift).max(0.5)),
-                                };
-                                if let Some(pc) = span(&lp, &start, &vk, tolerance, lim) {
-                                    out.push(pc.piece());
-                                    self.stats.smoothed += 1;
-                                    self.prev = Some(cur);
-                                    self.prev_state = Some(vk);
-                                    self.smoothed_from = Some((lp.a, lp.b));
-                                    return;
-                                }
-                            }
-                        }
-                    }
-                    // Corner blend: its middle, at CORNER_MIDDLE·d·sin(θ/2) from the
-                    // corner, is cos(θ/2) of that from both lines.
-                    let d = (tolerance
-                        / (CORNER_MIDDLE * (0.5 * theta).sin() * (0.5 * theta).cos()))
-                    .min(0.5 * lp.len)
-                    .min(0.5 * lc.len);
-                    if d <= 1e-9 {
-                        stop(self, out);
-                    } else {
-                        let p0 = add_scaled(&v, &lp.dir, -d);
-                        let p3 = add_scaled(&v, &lc.dir, d);
-                        let end_state = State {
-                            p: p0,
-                            t: lp.dir,
-                            k: [0.0; AXES],
-                        };
-                        let start = st.unwrap_or(State {
-                            p: lp.a,
-                            t: lp.dir,
-                            k: [0.0; AXES],
-                        });
-                        let first = self.span_or_exceed(&lp, &start, &end_state, tolerance, lim);
-                        let shape = corner_blend(&v, &lp.dir, &lc.dir, d);
-                        let mut b = Piece::new(
-                            shape,
-                            p0,
-                            p3,
-                            lp.feed.min(lc.feed),
-                            lp.rapid && lc.rapid,
-                            lp.line,
-                        );
-                        b.stop_at_end = false;
-                        b.corner_blend = true;
-                        // Blend only where that is estimated to take no longer than a
-                        // stop (a tiny tolerance on a sharp corner makes a crawl).
-                        b.sample(lim);
-                        let v_blend = b.smp[..=b.ns]
-                            .iter()
-                            .fold(f64::INFINITY, |m, x| m.min(x.v_curve));
-                        let h = b.len / b.ns as f64;
-                        let feed = lp.feed.min(lc.feed);
-                        let pass_time = b.smp[..=b.ns]
-                            .windows(2)
-                            .map(|w| h / w[0].v_curve.min(w[1].v_curve).min(feed))
-                            .sum();
-                        let choice = arc_blend::CornerChoice {
-                            feed,
-                            feeds: [lp.feed, lc.feed],
-                            v_blend,
-                            blend_len: b.len,
-                            pass_time,
-                            replaced_len: 2.0 * d,
-                            reach: norm(&sub(&lp.b, &start.p)).min(lc.len),
-                            t_in: lp.dir,
-                            t_out: lc.dir,
-                        };
-                        if !choice.blend_pays(lim) {
-                            self.stats.stops += 1;
-                            self.emit_prim_to_end(&prev, st, true, lim, out);
-                            self.prev = Some(cur);
-                            self.prev_state = None;
-                            return;
-                        }
-                        for pc in first.iter().flatten() {
-                            out.push(pc.piece());
-                        }
-                        out.push(b);
-                        self.stats.blends += 1;
+                    let vx = LineVertex {
+                        lp,
+                        st,
+                        lc,
+                        theta,
+                        tolerance,
+                        turn,
+                        turn_before,
+                        entered_tangent,
+                    };
+                    // Smoothing through the vertex (dense CAM polylines), else a corner
+                    // blend, else a stop.
+                    if let Some(vk) = self.smooth_vertex(&vx, lim, out) {
                         self.prev = Some(cur);
-                        self.prev_state = Some(State {
-                            p: p3,
-                            t: lc.dir,
-                            k: [0.0; AXES],
-                        });
+                        self.prev_state = Some(vk);
+                        self.smoothed_from = Some((lp.a, lp.b));
                         return;
                     }
+                    self.prev_state = self.blend_corner(&vx, &prev, lim, out);
+                    self.prev = Some(cur);
+                    return;
                 }
             }
         }
@@ -677,6 +529,201 @@ impl Builder {
             return None;
         }
         self.tangent_corner(prev, st, cur, tolerance, v_pass, lim, out)
+    }
+
+    /// Smoothing through the vertex between two short lines (dense CAM polylines): the
+    /// span of `lp` up to a state at the vertex from the circle through three points,
+    /// tried with that state and weaker ones, then (where the polyline bends the same way
+    /// as at the vertex before) with the vertex moved towards the circle's centre. The
+    /// vertex's state when a span was emitted; None when the vertex does not qualify or no
+    /// span stays within P.
+    fn smooth_vertex(&mut self, vx: &LineVertex, lim: &Lim, out: &mut Vec<Piece>) -> Option<State> {
+        let LineVertex {
+            lp,
+            st,
+            lc,
+            theta,
+            tolerance,
+            turn,
+            turn_before,
+            entered_tangent,
+        } = *vx;
+        let vs = self.smooth_state(&lp, &lc, theta, tolerance, st.as_ref())?;
+        let start = st.unwrap_or(State {
+            p: lp.a,
+            t: lp.dir,
+            k: [0.0; AXES],
+        });
+        // The vertex curvature comes from the circle through three points;
+        // a slightly smaller one keeps a span that bulges too far within P.
+        // After a vertex that kept the circle's tangent (the first after a
+        // stop), the span to the corrected tangent may bulge too far; one
+        // halfway between recovers within a vertex or two.
+        let (vs, t_plain) = vs;
+        let t_half = unit(&add_scaled(&vs.t, &t_plain, 1.0));
+        let cands = [
+            (vs.t, 1.0),
+            (t_half, 1.0),
+            (vs.t, 0.95),
+            (vs.t, 0.85),
+            (t_plain, 1.0),
+            (t_plain, 0.7),
+            (t_plain, 0.3),
+        ];
+        for (tv, scale_k) in cands {
+            let nrm = add_scaled(&vs.k, &tv, -dot(&vs.k, &tv));
+            let vk = State {
+                p: vs.p,
+                t: tv,
+                k: scale(&nrm, scale_k),
+            };
+            // After a stop the run may start already curved, like the arc
+            // the polyline follows (mirror of the vertex state).
+            // After a tangent junction passed at speed only where the
+            // curved start turns less than a kink from the line's own
+            // direction: a larger turn is a step of the tangent that forced
+            // a stop there (a plain-G64 raster took 2.2 × LinuxCNC's time).
+            let m = mirror(&vk, &lp.a, &lp.dir);
+            let turn = dot(&m.t, &lp.dir).clamp(-1.0, 1.0).acos();
+            let curved_start = if st.is_none() && (!entered_tangent || turn <= KINK) {
+                span(&lp, &m, &vk, tolerance, lim)
+            } else {
+                None
+            };
+            if let Some(pc) = curved_start.or_else(|| span(&lp, &start, &vk, tolerance, lim)) {
+                out.push(pc.piece());
+                self.stats.smoothed += 1;
+                if scale_k < 1.0 {
+                    self.stats.curvature_backoffs += 1;
+                }
+                return Some(vk);
+            }
+        }
+        // Through the vertex the circle bulges beyond the chords by its
+        // sagitta; moved towards the centre by up to P it bulges less and
+        // cuts the vertex by as much: the curve approximates the polyline
+        // (as COMPCAD's), twice the sagitta the interpolating one keeps.
+        let kappa = norm(&vs.k);
+        let sagitta = 0.125 * kappa * lp.len.max(lc.len).powi(2);
+        // (The first vertex after a stop has nothing to alternate with.)
+        let curve = match turn_before {
+            Some(b) => dot(&b, &turn) > 0.0,
+            None => st.is_none(),
+        };
+        if kappa > 0.0 && curve {
+            let nrm = scale(&vs.k, 1.0 / kappa);
+            for shift in [0.5 * sagitta, 0.6 * tolerance, 0.9 * tolerance] {
+                let shift = shift.min(0.9 * tolerance);
+                if shift <= 1e-6 {
+                    continue;
+                }
+                let vk = State {
+                    p: add_scaled(&vs.p, &nrm, shift),
+                    t: vs.t,
+                    k: scale(&nrm, kappa / (1.0 - kappa * shift).max(0.5)),
+                };
+                if let Some(pc) = span(&lp, &start, &vk, tolerance, lim) {
+                    out.push(pc.piece());
+                    self.stats.smoothed += 1;
+                    return Some(vk);
+                }
+            }
+        }
+        None
+    }
+
+    /// Corner blend at the vertex between two lines, where it is estimated to take no
+    /// longer than a stop: the state after the blend. Else the held-back line `prev` ends
+    /// in a stop at the vertex (None).
+    fn blend_corner(
+        &mut self,
+        vx: &LineVertex,
+        prev: &Prim,
+        lim: &Lim,
+        out: &mut Vec<Piece>,
+    ) -> Option<State> {
+        let LineVertex {
+            lp,
+            st,
+            lc,
+            theta,
+            tolerance,
+            ..
+        } = *vx;
+        let v = lp.b;
+        // Corner blend: its middle, at CORNER_MIDDLE·d·sin(θ/2) from the
+        // corner, is cos(θ/2) of that from both lines.
+        let d = (tolerance / (CORNER_MIDDLE * (0.5 * theta).sin() * (0.5 * theta).cos()))
+            .min(0.5 * lp.len)
+            .min(0.5 * lc.len);
+        if d <= 1e-9 {
+            self.stats.stops += 1;
+            self.emit_prim_to_end(prev, st, true, lim, out);
+            None
+        } else {
+            let p0 = add_scaled(&v, &lp.dir, -d);
+            let p3 = add_scaled(&v, &lc.dir, d);
+            let end_state = State {
+                p: p0,
+                t: lp.dir,
+                k: [0.0; AXES],
+            };
+            let start = st.unwrap_or(State {
+                p: lp.a,
+                t: lp.dir,
+                k: [0.0; AXES],
+            });
+            let first = self.span_or_exceed(&lp, &start, &end_state, tolerance, lim);
+            let shape = corner_blend(&v, &lp.dir, &lc.dir, d);
+            let mut b = Piece::new(
+                shape,
+                p0,
+                p3,
+                lp.feed.min(lc.feed),
+                lp.rapid && lc.rapid,
+                lp.line,
+            );
+            b.stop_at_end = false;
+            b.corner_blend = true;
+            // Blend only where that is estimated to take no longer than a
+            // stop (a tiny tolerance on a sharp corner makes a crawl).
+            b.sample(lim);
+            let v_blend = b.smp[..=b.ns]
+                .iter()
+                .fold(f64::INFINITY, |m, x| m.min(x.v_curve));
+            let h = b.len / b.ns as f64;
+            let feed = lp.feed.min(lc.feed);
+            let pass_time = b.smp[..=b.ns]
+                .windows(2)
+                .map(|w| h / w[0].v_curve.min(w[1].v_curve).min(feed))
+                .sum();
+            let choice = arc_blend::CornerChoice {
+                feed,
+                feeds: [lp.feed, lc.feed],
+                v_blend,
+                blend_len: b.len,
+                pass_time,
+                replaced_len: 2.0 * d,
+                reach: norm(&sub(&lp.b, &start.p)).min(lc.len),
+                t_in: lp.dir,
+                t_out: lc.dir,
+            };
+            if !choice.blend_pays(lim) {
+                self.stats.stops += 1;
+                self.emit_prim_to_end(prev, st, true, lim, out);
+                return None;
+            }
+            for pc in first.iter().flatten() {
+                out.push(pc.piece());
+            }
+            out.push(b);
+            self.stats.blends += 1;
+            Some(State {
+                p: p3,
+                t: lc.dir,
+                k: [0.0; AXES],
+            })
+        }
     }
 
     /// Tangent and curvature at the vertex between two short lines, from the circle through
@@ -886,45 +933,8 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Span> 
     // distance); over the axes whose end states differ, a superset of the axes moved,
     // where the others add exact zeros.
     let lp2 = lp * lp;
-    if lp.is_finite() {
-        let u = 0.5;
-        let mut along = 0.0;
-        let mut w = [0.0f64; AXES];
-        let mut idx = [0usize; AXES];
-        let mut m = 0;
-        for i in 0..AXES {
-            let still = s0.p[i] == s1.p[i]
-                && origin[i] == s0.p[i]
-                && s0.t[i] == 0.0
-                && s1.t[i] == 0.0
-                && s0.k[i] == 0.0
-                && s1.k[i] == 0.0;
-            if still {
-                continue;
-            }
-            let ci = quintic_axis(
-                s0.p[i],
-                s0.t[i] * lp,
-                s0.k[i] * lp2,
-                s1.p[i],
-                s1.t[i] * lp,
-                s1.k[i] * lp2,
-            );
-            let p = ci[0] + u * (ci[1] + u * (ci[2] + u * (ci[3] + u * (ci[4] + u * ci[5]))));
-            w[m] = p - origin[i];
-            along += w[m] * axis[i];
-            idx[m] = i;
-            m += 1;
-        }
-        let along = along.clamp(0.0, range);
-        let mut dev = 0.0;
-        for (wj, &i) in w[..m].iter().zip(&idx[..m]) {
-            let r = wj + axis[i] * -along;
-            dev += r * r;
-        }
-        if dev.sqrt() > tol * (1.0 - 1e-3) {
-            return None;
-        }
+    if lp.is_finite() && middle_deviation(s0, s1, &origin, &axis, range, lp) > tol * (1.0 - 1e-3) {
+        return None;
     }
     let shape = quintic(
         &s0.p,
@@ -937,6 +947,78 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Span> 
     let Shape::Poly { c } = &shape else {
         unreachable!("quintic() builds a polynomial")
     };
+    let (max_dev, outside) = sampled_deviation(c, &origin, &axis, range, lim);
+    if max_dev > tol * (1.0 - 1e-3) || (outside && tol.is_finite()) {
+        return None;
+    }
+    Some(Span {
+        shape,
+        a: s0.p,
+        b: s1.p,
+        feed: l.feed,
+        rapid: false,
+        line: l.line,
+    })
+}
+
+/// Distance from the segment (`origin`, `axis`, `range`: see [`span`]) of the middle of
+/// the quintic from `s0` to `s1` with parameter length `lp`, computed without building it.
+fn middle_deviation(
+    s0: &State,
+    s1: &State,
+    origin: &AxisVec,
+    axis: &AxisVec,
+    range: f64,
+    lp: f64,
+) -> f64 {
+    let lp2 = lp * lp;
+    let u = 0.5;
+    let mut along = 0.0;
+    let mut w = [0.0f64; AXES];
+    let mut idx = [0usize; AXES];
+    let mut m = 0;
+    for i in 0..AXES {
+        let still = s0.p[i] == s1.p[i]
+            && origin[i] == s0.p[i]
+            && s0.t[i] == 0.0
+            && s1.t[i] == 0.0
+            && s0.k[i] == 0.0
+            && s1.k[i] == 0.0;
+        if still {
+            continue;
+        }
+        let ci = quintic_axis(
+            s0.p[i],
+            s0.t[i] * lp,
+            s0.k[i] * lp2,
+            s1.p[i],
+            s1.t[i] * lp,
+            s1.k[i] * lp2,
+        );
+        let p = ci[0] + u * (ci[1] + u * (ci[2] + u * (ci[3] + u * (ci[4] + u * ci[5]))));
+        w[m] = p - origin[i];
+        along += w[m] * axis[i];
+        idx[m] = i;
+        m += 1;
+    }
+    let along = along.clamp(0.0, range);
+    let mut dev = 0.0;
+    for (wj, &i) in w[..m].iter().zip(&idx[..m]) {
+        let r = wj + axis[i] * -along;
+        dev += r * r;
+    }
+    dev.sqrt()
+}
+
+/// Largest distance of the quintic `c` from the segment (`origin`, `axis`, `range`: see
+/// [`span`]), and whether it leaves the soft limits, from 17 samples.
+fn sampled_deviation(
+    c: &[AxisVec; 6],
+    origin: &AxisVec,
+    axis: &AxisVec,
+    range: f64,
+    lim: &Lim,
+) -> (f64, bool) {
     // Distance from the programmed segment (the chord lies on it) and the soft limits, at
     // 17 samples, over the axes the span or its chord moves along: on the others the sample
     // is exactly the start point and every term below an exact zero, so skipping them
@@ -1001,17 +1083,26 @@ fn span(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> Option<Span> 
             max_dev = max_dev.max(y1 - 0.125 * (y2 - y0) * (y2 - y0) / den);
         }
     }
-    if max_dev > tol * (1.0 - 1e-3) || (outside && tol.is_finite()) {
-        return None;
-    }
-    Some(Span {
-        shape,
-        a: s0.p,
-        b: s1.p,
-        feed: l.feed,
-        rapid: false,
-        line: l.line,
-    })
+    (max_dev, outside)
+}
+
+/// Two lines meeting at a vertex under G64 P`tolerance`, as [`Builder::vertex_stage`]
+/// decides their junction.
+#[derive(Clone, Copy)]
+struct LineVertex {
+    /// The held-back line, entered in state `st` (None: at its start, along the line).
+    lp: LineP,
+    st: Option<State>,
+    /// The next line.
+    lc: LineP,
+    /// Angle between the two directions.
+    theta: f64,
+    tolerance: f64,
+    /// Change of direction at this vertex, and at the vertex before (None after a stop).
+    turn: AxisVec,
+    turn_before: Option<AxisVec>,
+    /// `lp` was entered through a tangent junction passed at speed.
+    entered_tangent: bool,
 }
 
 /// A span `span` accepted: its shape and end points. The piece (a few kB, with its

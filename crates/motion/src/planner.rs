@@ -1241,7 +1241,8 @@ impl<K: Kinematics> Planner<K> {
         }));
     }
     /// Backward pass of the braking curve from the end of the window; stops early once
-    /// pieces before `first_new` no longer change.
+    /// pieces before `first_new` no longer change. Then the forward pass over the pieces it
+    /// reached, whose first it returns.
     fn backward(&mut self, first_new: usize) -> usize {
         let n = self.q.len;
         let (fo, ro) = (self.fo, self.ro);
@@ -1366,8 +1367,18 @@ impl<K: Kinematics> Planner<K> {
             self.trace,
             "BACKWARD n={n} first_new={first_new} lowest={lowest}"
         );
-        // Forward pass: a rise of the curve is capped by the acceleration available, so that
-        // the curve has no notches finer than the controller can follow.
+        self.forward_cap(lowest);
+        self.refresh_stop_ahead(lowest);
+        lowest
+    }
+
+    /// Forward pass of the braking curve over the pieces from `lowest` (those the backward
+    /// pass changed): a rise of the curve is capped by the acceleration available, so that
+    /// the curve has no notches finer than the controller can follow; then each piece's
+    /// lowest speed (`w_low`).
+    fn forward_cap(&mut self, lowest: usize) {
+        let n = self.q.len;
+        let lim = self.lim;
         let mut wf = if lowest > 0 {
             let p = self.q.get(lowest - 1);
             p.w[p.ns]
@@ -1404,8 +1415,12 @@ impl<K: Kinematics> Planner<K> {
             }
             p.w_low = low;
         }
-        // Pieces before the early break keep their curve, but the next stop may have moved
-        // (the window's old end was one): refresh it back to the previous real stop.
+    }
+
+    /// Pieces before the backward pass's early break keep their curve, but the next stop
+    /// may have moved (the window's old end was one): refreshes it back to the previous
+    /// real stop.
+    fn refresh_stop_ahead(&mut self, lowest: usize) {
         if lowest > 0 {
             let sa = self.q.get(lowest).stop_ahead;
             for i in (0..lowest).rev() {
@@ -1416,7 +1431,6 @@ impl<K: Kinematics> Planner<K> {
                 p.stop_ahead = sa;
             }
         }
-        lowest
     }
 
     fn start_stop(&mut self, kind: StopKind) {

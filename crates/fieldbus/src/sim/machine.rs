@@ -1,4 +1,4 @@
-use crate::bus::{Fieldbus, FieldbusError, check_images};
+use crate::bus::{Fieldbus, FieldbusError, check_exchange};
 use crate::image::{
     Coolant, JointCommand, ProcessInputs, ProcessLayout, ProcessOutputs, SpindleCommand,
     ToolChangeCommand,
@@ -353,10 +353,7 @@ impl Fieldbus for SimulatedMachine {
         outputs: &ProcessOutputs,
         inputs: &mut ProcessInputs,
     ) -> Result<(), FieldbusError> {
-        if !(period_s.is_finite() && period_s > 0.0 && period_s <= 1.0) {
-            return Err(FieldbusError::InvalidPeriod { period_s });
-        }
-        check_images(&self.layout, outputs, inputs)?;
+        check_exchange(&self.layout, period_s, outputs, inputs)?;
         let period_ns = seconds_to_ns(period_s);
         if self.communication_lost {
             self.silent_ns = self.silent_ns.saturating_add(period_ns);

@@ -82,6 +82,77 @@ impl Verdict {
     }
 }
 
+/// What every part of one period of the speed policy shares.
+struct Period {
+    /// The piece the period starts on.
+    idx: usize,
+    /// Path position of the next stop of the path.
+    stop_at: f64,
+    /// A quick stop is in progress (the axes' quick-stop limits apply).
+    quick: bool,
+    /// Strictness of the braking curve and of the stop model ([`Planner::strictness`]).
+    f: f64,
+    f_stop: f64,
+}
+
+/// A stop the period brakes for: the way left to it, and the deceleration and jerk of its
+/// model (before the shares and the strictness).
+#[derive(Clone, Copy)]
+struct StopGoal {
+    rem: f64,
+    a: f64,
+    j: f64,
+}
+
+/// Bounds of the path acceleration and jerk for one period.
+struct PeriodBounds {
+    a_lo: f64,
+    a_hi: f64,
+    j_lo: f64,
+    j_hi: f64,
+    /// The lowest jerk the model may choose: the hardest braking the bounds allow.
+    j_min: f64,
+    /// The axes' acceleration and jerk limits projected on the path here, with the
+    /// policy's share (the bounds never exceed them).
+    a_full: f64,
+    jm: f64,
+}
+
+/// The landing on a stop a few periods away.
+struct Landing {
+    /// This period's step of the landing sequence, when there is one.
+    step: Option<f64>,
+    /// Steps in that sequence, this one included (0: none).
+    n: usize,
+    /// This period ends at the stop (or the machine is already at rest there).
+    lands: bool,
+}
+
+/// The step the policy chose for one period, before the set-point check.
+struct Step {
+    /// Path step aimed at (never beyond the stop).
+    ds: f64,
+    /// The model's own step before it was clamped to the way left; NaN for a landing.
+    model_ds: f64,
+    /// Path jerk of a constant-jerk step (0 for a landing and the stop profile).
+    j: f64,
+    /// Speed and acceleration at the end of the period when the model's step does not
+    /// give them (the stop profile, or the hard brake that replaces it).
+    exact: Option<(f64, f64)>,
+}
+
+impl Step {
+    /// A step of a landing: its state follows from the steps themselves.
+    fn landing(ds: f64) -> Step {
+        Step {
+            ds,
+            model_ds: f64::NAN,
+            j: 0.0,
+            exact: None,
+        }
+    }
+}
+
 impl<K: Kinematics> Planner<K> {
     /// One generator step from the buffer's front; a dead end rolls back instead.
     pub(super) fn generate_one(&mut self, front: &GenState) {
@@ -713,6 +784,7 @@ impl<K: Kinematics> Planner<K> {
 
     /// Lowest braking-curve speed from the current point to the farthest point a probe of
     /// this period can reach (pieces' `w_low`, and the stop's jerk-limited shape there).
+    #[inline(always)]
     fn w_floor(&self, m: &Model, j_hi: f64) -> f64 {
         let t = m.t;
         let a1 = m.a.max(0.0) + j_hi.max(0.0) * t;
@@ -738,17 +810,104 @@ impl<K: Kinematics> Planner<K> {
         floor
     }
 
-    /// One period of the path-speed policy from `st` (moving, on piece `idx`).
+    /// One period of the path-speed policy from `st` (moving, on piece `idx`): the stop it
+    /// brakes for and the path's bounds here, the speed model, the step (a landing on the
+    /// stop, the model's jerk, or the stop profile when no jerk keeps the stop), the
+    /// set-point check, and the state that reaches the set-point. None at a dead end
+    /// (unless `force`).
     fn control(&mut self, st: GenState, idx: usize, force: bool) -> Option<GenState> {
         let t = self.period;
         let head = self.q.get(idx);
-        let head_straight = head.straight;
         let quick = matches!(self.hold, Some(h) if h.kind == StopKind::Quick);
         let (f, f_stop) = self.strictness(st.at);
-        let stop_at = head.stop_ahead.0;
-        let mut rem = self.to_stop(&st, head);
-        let (mut a_stop, mut j_stop) = self.stop_model(head, st.at);
-        let (path_rem, path_a_stop, path_j_stop) = (rem, a_stop, j_stop);
+        let pd = Period {
+            idx,
+            stop_at: head.stop_ahead.0,
+            quick,
+            f,
+            f_stop,
+        };
+        // The stop this period brakes for: the path's next stop, or a hold's point before it.
+        let path_stop = self.path_stop(&st, head);
+        let (mut goal, mut hold_at) = self.hold_stop(&st, path_stop, quick, f);
+        let b = self.period_bounds(&st, &pd);
+        trace!(
+            self.trace,
+            "CTRL at={} v={} a={} a_lo={} a_hi={} j_lo={} j_hi={} rem={} w={}",
+            st.at,
+            st.v,
+            st.a,
+            b.a_lo,
+            b.a_hi,
+            b.j_lo,
+            b.j_hi,
+            goal.rem,
+            self.w_abs(idx, st.at, pd.stop_at).0
+        );
+        // Whether the stop ahead is a hold's (its point is soft and moves on, see
+        // `hold_stop`).
+        let mut soft = hold_at.is_finite() && hold_at - st.at < pd.stop_at - st.at;
+        let mut model = self.speed_model(&st, &pd, &b, goal, soft);
+        // A hold whose gentler stop cannot follow from here waits, and the path's own model
+        // decides this period.
+        let mut hold_deferred = false;
+        if soft && let Some(path_model) = self.deferred_hold_model(&st, &pd, &b, &model, path_stop)
+        {
+            model = path_model;
+            goal = path_stop;
+            soft = false;
+            hold_deferred = true;
+        }
+        // A stop a few periods away is landed on with exact steps; else the model chooses.
+        let landing = self.landing(&st, quick, &b, goal);
+        let step = if landing.lands {
+            Step::landing(goal.rem)
+        } else if let Some(d1) = landing.step {
+            Step::landing(d1)
+        } else {
+            self.policy_step(&st, &b, &model, goal, soft, &mut hold_at)
+        };
+        let (ds, x, k, sl) =
+            self.checked_setpoint(&st, &pd, &step, goal.rem, landing.lands, force)?;
+        if ds != step.ds {
+            self.stats.adjusted += 1;
+        }
+        trace!(
+            self.trace,
+            "  chose ds_t={} ds={ds} model_ds={} j={} land={} landing={:?}",
+            step.ds,
+            step.model_ds,
+            step.j,
+            landing.lands,
+            landing.step
+        );
+        // The state follows the set-point that passed the check, which may not be the one
+        // aimed at.
+        let mut n = self.moved_to(&st, ds, x, k, sl);
+        n.hold_at = hold_at;
+        n.land_n = if ds == step.ds { landing.n } else { 0 };
+        let rem0 = goal.rem.max(0.0);
+        (n.v, n.a, n.j_last) = self.speed_after(&st, ds, rem0, &step, &landing, &b);
+        if let (true, Some(h)) = (hold_deferred, self.hold) {
+            // The hold point moves to where the hold's stop from here ends.
+            let (d_need, _) = stop(n.v, n.a.max(-h.a), STOP_SHARE * h.a, STOP_JERK_SHARE * h.j);
+            n.hold_at = n.hold_at.max(n.at + d_need + n.v * t);
+        }
+        Some(n)
+    }
+
+    /// The path's own next stop from `st` on `head`.
+    fn path_stop(&self, st: &GenState, head: &Piece) -> StopGoal {
+        let rem = self.to_stop(st, head);
+        let (a, j) = self.stop_model(head, st.at);
+        StopGoal { rem, a, j }
+    }
+
+    /// The stop this period brakes for, and the hold point: during a hold, the hold point
+    /// with the hold's deceleration and jerk when it comes before the path's stop, else
+    /// the path's stop.
+    fn hold_stop(&self, st: &GenState, path: StopGoal, quick: bool, f: f64) -> (StopGoal, f64) {
+        let mut goal = path;
         let mut hold_at = st.hold_at;
         if let Some(h) = self.hold {
             // A hold point is soft: when the axes cannot brake as the stop model assumes (on a
@@ -766,21 +925,31 @@ impl<K: Kinematics> Planner<K> {
                 hold_at = st.at + d_need;
             }
             let hr = hold_at - st.at;
-            if hr < rem {
-                rem = hr.max(0.0);
-                a_stop = h.a;
-                j_stop = h.j;
+            if hr < goal.rem {
+                goal = StopGoal {
+                    rem: hr.max(0.0),
+                    a: h.a,
+                    j: h.j,
+                };
             }
         }
+        (goal, hold_at)
+    }
+
+    /// Exact bounds of the path acceleration and jerk at the current point, and of the
+    /// acceleration at the point the period is expected to end at (the centripetal load
+    /// turns and grows along a curve: the state at the end of the period must fit there),
+    /// within the axes' limits projected on the path.
+    fn period_bounds(&self, st: &GenState, pd: &Period) -> PeriodBounds {
+        let t = self.period;
+        let (idx, quick) = (pd.idx, pd.quick);
+        let head = self.q.get(idx);
         let jm = CONTROL_SHARE * head.j_proj[quick as usize];
         let (v, a) = (st.v, st.a);
-        // Exact bounds of the path acceleration and jerk at the current point, and of the
-        // acceleration at the point the period is expected to end at (the centripetal load
-        // turns and grows along a curve: the state at the end of the period must fit there).
         let (a_lo0, a_hi0, j_lo, j_hi) = path_bounds(&self.lim, &head.geo_at(st.s), v, a, quick);
         let ds_pred = (v * t + 0.5 * a * t * t).max(0.0);
         let v_pred = (v + a * t).max(0.0);
-        let (k1, s1) = self.locate(idx, st.s, st.at, ds_pred, stop_at);
+        let (k1, s1) = self.locate(idx, st.s, st.at, ds_pred, pd.stop_at);
         // On the same line the bounds do not depend on the place or the speed.
         let (a_lo1, a_hi1) = if k1 == idx && matches!(head.shape, Shape::Line { .. }) {
             (a_lo0, a_hi0)
@@ -799,79 +968,119 @@ impl<K: Kinematics> Planner<K> {
         let (j_lo, j_hi) = if j_lo < j_hi { (j_lo, j_hi) } else { (-jm, jm) };
         let (a_lo, a_hi) = (a_lo.max(-a_full), a_hi.min(a_full));
         let (j_lo, j_hi) = (j_lo.max(-jm), j_hi.min(jm));
-        trace!(
-            self.trace,
-            "CTRL at={} v={v} a={a} a_lo={a_lo} a_hi={a_hi} j_lo={j_lo} j_hi={j_hi} rem={rem} w={}",
-            st.at,
-            self.w_abs(idx, st.at, stop_at).0
-        );
-        // Whether the stop ahead is a hold's (its point is soft and moves on, see above).
-        let mut soft = hold_at.is_finite() && hold_at - st.at < stop_at - st.at;
-        let model = Model {
-            t,
-            v,
-            a,
-            at: st.at,
-            idx,
-            rem,
-            stop_at,
+        PeriodBounds {
             a_lo,
             a_hi,
+            j_lo,
+            j_hi,
+            j_min: j_lo.max((a_lo - a) / t).min(j_hi),
+            a_full,
+            jm,
+        }
+    }
+
+    /// The speed model of this period for the stop `goal` (a hold's stop is `soft`).
+    // Inlined, with `w_floor`, as they were when `control` was one function: outlined, a
+    // period took about 0.7 % more instructions (bench/motion-period-cost.sh).
+    #[inline(always)]
+    fn speed_model(
+        &self,
+        st: &GenState,
+        pd: &Period,
+        b: &PeriodBounds,
+        goal: StopGoal,
+        soft: bool,
+    ) -> Model {
+        let head = self.q.get(pd.idx);
+        let f = pd.f;
+        let mut model = Model {
+            t: self.period,
+            v: st.v,
+            a: st.a,
+            at: st.at,
+            idx: pd.idx,
+            rem: goal.rem,
+            stop_at: pd.stop_at,
+            a_lo: b.a_lo,
+            a_hi: b.a_hi,
             // A rollback cannot reach before the hold request, so a stricter model does not
             // help a hold's stop; it does for a stop of the path.
-            a_stop: STOP_SHARE * a_stop * if soft { 1.0 } else { f_stop },
-            j_stop: STOP_JERK_SHARE * j_stop * if soft { 1.0 } else { f_stop },
-            jb: head.j_brake.min(0.8 * (-j_lo).max(0.1 * jm)) * f,
-            d_nom: (0.95 * (-a_lo).max(0.1 * a_full)).min(a_full) * f,
+            a_stop: STOP_SHARE * goal.a * if soft { 1.0 } else { pd.f_stop },
+            j_stop: STOP_JERK_SHARE * goal.j * if soft { 1.0 } else { pd.f_stop },
+            jb: head.j_brake.min(0.8 * (-b.j_lo).max(0.1 * b.jm)) * f,
+            d_nom: (0.95 * (-b.a_lo).max(0.1 * b.a_full)).min(b.a_full) * f,
             cap: f,
-            quick,
+            quick: pd.quick,
             w_floor: 0.0,
         };
-        let mut model = model;
-        model.w_floor = self.w_floor(&model, j_hi);
-        // The hold's gentler stop may not follow from here: when the path brakes harder for
-        // a slow stretch ahead than the hold's jerk can release, every jerk overshoots the
-        // hold's model. Then the path's own model decides this period (it keeps the braking
-        // curve) and the hold point moves on; the hold takes over once its stop fits.
-        let j_min = j_lo.max((a_lo - a) / t).min(j_hi);
-        let mut hold_deferred = false;
-        let braking_harder = matches!(self.hold, Some(h) if a < -h.a);
-        if soft && braking_harder && self.choose_jerk(&model, j_min, j_hi, st.j_last).is_err() {
-            let path_model = Model {
-                rem: path_rem,
-                a_stop: STOP_SHARE * path_a_stop * f_stop,
-                j_stop: STOP_JERK_SHARE * path_j_stop * f_stop,
-                ..model
-            };
-            let bj = clampf(brake_jerk(v, a, -a_lo, path_j_stop, t), j_lo, j_hi);
-            let path_can = self
-                .choose_jerk(&path_model, j_min, j_hi, st.j_last)
-                .is_ok()
-                || [j_min, bj]
-                    .into_iter()
-                    .any(|c| !self.judge(&path_model, c).is_stop());
-            trace!(
-                self.trace,
-                "HOLD DEFERRED at={} v={v} a={a} path_can={path_can}", st.at
-            );
-            if path_can {
-                model = path_model;
-                (rem, a_stop, j_stop) = (path_rem, path_a_stop, path_j_stop);
-                soft = false;
-                hold_deferred = true;
-            }
-        }
+        model.w_floor = self.w_floor(&model, b.j_hi);
+        model
+    }
 
-        // Landing: when the stop is a few periods away, plan the last steps exactly (the
-        // smoothest sequence of steps that ends at the stop and stays there).
+    /// The path's own model for this period when a hold's stop cannot follow from here
+    /// (None while it can). The hold's gentler stop may not follow: when the path brakes
+    /// harder for a slow stretch ahead than the hold's jerk can release, every jerk
+    /// overshoots the hold's model. Then the path's own model decides this period (it keeps
+    /// the braking curve) and the hold point moves on; the hold takes over once its stop
+    /// fits.
+    fn deferred_hold_model(
+        &self,
+        st: &GenState,
+        pd: &Period,
+        b: &PeriodBounds,
+        hold_model: &Model,
+        path: StopGoal,
+    ) -> Option<Model> {
+        let (v, a) = (st.v, st.a);
+        let braking_harder = matches!(self.hold, Some(h) if a < -h.a);
+        if !braking_harder
+            || self
+                .choose_jerk(hold_model, b.j_min, b.j_hi, st.j_last)
+                .is_ok()
+        {
+            return None;
+        }
+        let path_model = Model {
+            rem: path.rem,
+            a_stop: STOP_SHARE * path.a * pd.f_stop,
+            j_stop: STOP_JERK_SHARE * path.j * pd.f_stop,
+            ..*hold_model
+        };
+        let bj = clampf(
+            brake_jerk(v, a, -b.a_lo, path.j, self.period),
+            b.j_lo,
+            b.j_hi,
+        );
+        let path_can = self
+            .choose_jerk(&path_model, b.j_min, b.j_hi, st.j_last)
+            .is_ok()
+            || [b.j_min, bj]
+                .into_iter()
+                .any(|c| !self.judge(&path_model, c).is_stop());
+        trace!(
+            self.trace,
+            "HOLD DEFERRED at={} v={v} a={a} path_can={path_can}", st.at
+        );
+        path_can.then_some(path_model)
+    }
+
+    /// Landing: when the stop is a few periods away, the last steps are planned exactly
+    /// (the smoothest sequence of steps that ends at the stop and stays there).
+    fn landing(&self, st: &GenState, quick: bool, b: &PeriodBounds, goal: StopGoal) -> Landing {
+        let t = self.period;
+        let (v, a) = (st.v, st.a);
+        let (rem, a_stop, j_stop) = (goal.rem, goal.a, goal.j);
         let (dst0, tst0) = stop(v, a, a_stop, j_stop);
         let tiny = 0.3 * if quick { self.qj_min } else { self.j_min } * t * t * t;
         let (jl, al) = if quick {
-            ((-j_lo).min(j_hi).max(0.0), (-a_lo).min(a_hi).max(0.0))
+            (
+                (-b.j_lo).min(b.j_hi).max(0.0),
+                (-b.a_lo).min(b.a_hi).max(0.0),
+            )
         } else {
             (
-                j_stop.min(-j_lo).min(j_hi).max(0.0),
-                a_stop.min(-a_lo).min(a_hi).max(0.0),
+                j_stop.min(-b.j_lo).min(b.j_hi).max(0.0),
+                a_stop.min(-b.a_lo).min(b.a_hi).max(0.0),
             )
         };
         let (js, as_) = (jl * t * t * t, al * t * t);
@@ -887,189 +1096,215 @@ impl<K: Kinematics> Planner<K> {
             landing = (n0..=LAND_MAX)
                 .find_map(|n| land_steps(st.ds_hist, rem, n, js, as_).map(|d| (d, n)));
         }
-        let new_land_n = landing.map_or(0, |(_, n)| n);
-        let landing = landing.map(|(d, _)| d);
-        let land = landing.is_some_and(|d1| d1 == rem)
-            || (v.abs() <= 1e-9 && a.abs() <= 1e-6 && rem <= tiny && rem >= 0.0);
-        // State at the end of the period when it is not the constant-jerk one.
-        let mut exact_state: Option<(f64, f64)> = None;
-        let mut j_used = 0.0;
-        // The model's own step (before clamping to the path); NaN for the landing.
-        let mut model_ds = f64::NAN;
-        let ds_target = if land {
-            rem
-        } else if let Some(d1) = landing {
-            d1
-        } else {
-            let choice = self.choose_jerk(&model, j_min, j_hi, st.j_last);
-            let choice = choice.or_else(|v_min| {
-                // Nothing passes the model: brake as hard as the path allows while the
-                // deceleration can still be released before the speed reaches zero.
-                self.stats.emergency_brakes += 1;
-                trace!(self.trace, {
-                    let name = |v: Verdict| match v {
-                        Verdict::Safe => "safe",
-                        Verdict::Stop => "stop",
-                        Verdict::Overshoot => "overshoot",
-                        Verdict::Curve => "curve",
-                        Verdict::AccelBound => "acceleration",
-                    };
-                    eprintln!(
-                        "  EMERGENCY j_min={j_min}:{} 0:{} j_hi={j_hi}:{} a_stop={} j_stop={}",
-                        name(self.judge(&model, j_min)),
-                        name(self.judge(&model, 0.0)),
-                        name(self.judge(&model, j_hi)),
-                        model.a_stop,
-                        model.j_stop
-                    );
-                });
-                let bj = clampf(brake_jerk(v, a, -a_lo, j_stop, t), j_lo, j_hi);
-                if !v_min.is_stop() {
-                    Ok(j_min)
-                } else if !self.judge(&model, bj).is_stop() {
-                    Ok(bj)
-                } else {
-                    Err(())
-                }
-            });
-            match choice {
-                Ok(j) => {
-                    j_used = j;
-                    let (ds, _, _) = advance(0.0, v, a, j, t);
-                    model_ds = ds;
-                    clampf(ds, 0.0, rem.max(0.0))
-                }
-                Err(()) => {
-                    // No constant jerk over the period keeps the stop: follow the stop
-                    // profile exactly (a switch of its jerk falls inside the period).
-                    // The model's profile while it fits, else with the full stop capability
-                    // (the model's shares are the margin); a hold point moves back to where that stop ends, so that the
-                    // machine does not creep up to it after coming to rest.
-                    let (mut ds, mut v1, mut a1) =
-                        stop_advance(v, a, model.a_stop, model.j_stop, t);
-                    let fits = |ds: f64, v1: f64, a1: f64| {
-                        ds + stop(v1, a1, model.a_stop, model.j_stop).0 <= rem
-                    };
-                    let releasable = !(a < 0.0 && a * a > 2.0 * model.j_stop * v.max(0.0));
-                    // A hold's jerk is a soft choice: a deceleration that would outlast the
-                    // speed under it is released with the path's own jerk bound.
-                    let j_full = if soft && a < 0.0 && a * a > 2.0 * j_stop * v.max(0.0) {
-                        j_stop.max(0.99 * j_hi.min(jm))
-                    } else {
-                        j_stop
-                    };
-                    if !(releasable && fits(ds, v1, a1)) {
-                        (ds, v1, a1) = stop_advance(v, a, a_stop, j_full, t);
-                    }
-                    if soft {
-                        let end = st.at + ds + stop(v1, a1, a_stop, j_full).0;
-                        hold_at = hold_at.min(end);
-                    }
-                    if self.hold.is_none()
-                        && head_straight
-                        && ds + stop(v1, a1, a_stop, j_full).0 > rem
-                    {
-                        // Even that stop overshoots: the stop model's deceleration (the
-                        // lowest on the last stretch before the stop) is below what the
-                        // axes have here, and the state came from a model that knew better
-                        // (an override moved the braking curve). Brake as hard as the path
-                        // allows here; the model takes over again once it fits.
-                        trace!(
-                            self.trace,
-                            "  BRAKE HARD at={} v={v} a={a} rem={rem}", st.at
-                        );
-                        let jp = j_hi.min(-j_lo).min(jm);
-                        let bj = clampf(brake_jerk(v, a, -a_lo, jp, t), j_lo, j_hi);
-                        j_used = bj;
-                        (ds, v1, a1) = advance(0.0, v, a, bj, t);
-                        v1 = v1.max(0.0);
-                    }
-                    exact_state = Some((v1, a1));
-                    model_ds = ds;
-                    clampf(ds, 0.0, rem.max(0.0))
+        let step = landing.map(|(d, _)| d);
+        Landing {
+            step,
+            n: landing.map_or(0, |(_, n)| n),
+            lands: step.is_some_and(|d1| d1 == rem)
+                || (v.abs() <= 1e-9 && a.abs() <= 1e-6 && rem <= tiny && rem >= 0.0),
+        }
+    }
+
+    /// The step of the speed model: the constant jerk it chooses (or an emergency brake),
+    /// else the stop profile followed exactly.
+    fn policy_step(
+        &mut self,
+        st: &GenState,
+        b: &PeriodBounds,
+        model: &Model,
+        goal: StopGoal,
+        soft: bool,
+        hold_at: &mut f64,
+    ) -> Step {
+        match self.model_jerk(st, b, model, goal) {
+            Some(j) => {
+                let (ds, _, _) = advance(0.0, st.v, st.a, j, self.period);
+                Step {
+                    ds: clampf(ds, 0.0, goal.rem.max(0.0)),
+                    model_ds: ds,
+                    j,
+                    exact: None,
                 }
             }
+            None => self.stop_profile_step(st, b, model, goal, soft, hold_at),
+        }
+    }
+
+    /// The largest path jerk the model accepts; when nothing passes, the hardest braking
+    /// the path allows while the deceleration can still be released before the speed
+    /// reaches zero (counted in `emergency_brakes`). None when even that misses the stop.
+    fn model_jerk(
+        &mut self,
+        st: &GenState,
+        b: &PeriodBounds,
+        model: &Model,
+        goal: StopGoal,
+    ) -> Option<f64> {
+        let v_min = match self.choose_jerk(model, b.j_min, b.j_hi, st.j_last) {
+            Ok(j) => return Some(j),
+            Err(v_min) => v_min,
         };
-        // The set-point, checked against every axis's finite-difference box.
+        self.stats.emergency_brakes += 1;
+        trace!(self.trace, {
+            let name = |v: Verdict| match v {
+                Verdict::Safe => "safe",
+                Verdict::Stop => "stop",
+                Verdict::Overshoot => "overshoot",
+                Verdict::Curve => "curve",
+                Verdict::AccelBound => "acceleration",
+            };
+            eprintln!(
+                "  EMERGENCY j_min={}:{} 0:{} j_hi={}:{} a_stop={} j_stop={}",
+                b.j_min,
+                name(self.judge(model, b.j_min)),
+                name(self.judge(model, 0.0)),
+                b.j_hi,
+                name(self.judge(model, b.j_hi)),
+                model.a_stop,
+                model.j_stop
+            );
+        });
+        let bj = clampf(
+            brake_jerk(st.v, st.a, -b.a_lo, goal.j, self.period),
+            b.j_lo,
+            b.j_hi,
+        );
+        if !v_min.is_stop() {
+            Some(b.j_min)
+        } else if !self.judge(model, bj).is_stop() {
+            Some(bj)
+        } else {
+            None
+        }
+    }
+
+    /// No constant jerk over the period keeps the stop: the step follows the stop profile
+    /// exactly (a switch of its jerk falls inside the period). The model's profile while
+    /// it fits, else with the full stop capability (the model's shares are the margin); a
+    /// hold point moves back to where that stop ends, so that the machine does not creep
+    /// up to it after coming to rest.
+    fn stop_profile_step(
+        &self,
+        st: &GenState,
+        b: &PeriodBounds,
+        model: &Model,
+        goal: StopGoal,
+        soft: bool,
+        hold_at: &mut f64,
+    ) -> Step {
+        let t = self.period;
+        let (v, a) = (st.v, st.a);
+        let (rem, a_stop, j_stop) = (goal.rem, goal.a, goal.j);
+        let mut j_used = 0.0;
+        let (mut ds, mut v1, mut a1) = stop_advance(v, a, model.a_stop, model.j_stop, t);
+        let fits =
+            |ds: f64, v1: f64, a1: f64| ds + stop(v1, a1, model.a_stop, model.j_stop).0 <= rem;
+        let releasable = !(a < 0.0 && a * a > 2.0 * model.j_stop * v.max(0.0));
+        // A hold's jerk is a soft choice: a deceleration that would outlast the speed under
+        // it is released with the path's own jerk bound.
+        let j_full = if soft && a < 0.0 && a * a > 2.0 * j_stop * v.max(0.0) {
+            j_stop.max(0.99 * b.j_hi.min(b.jm))
+        } else {
+            j_stop
+        };
+        if !(releasable && fits(ds, v1, a1)) {
+            (ds, v1, a1) = stop_advance(v, a, a_stop, j_full, t);
+        }
+        if soft {
+            let end = st.at + ds + stop(v1, a1, a_stop, j_full).0;
+            *hold_at = hold_at.min(end);
+        }
+        if self.hold.is_none()
+            && self.q.get(model.idx).straight
+            && ds + stop(v1, a1, a_stop, j_full).0 > rem
+        {
+            // Even that stop overshoots: the stop model's deceleration (the lowest on the
+            // last stretch before the stop) is below what the axes have here, and the state
+            // came from a model that knew better (an override moved the braking curve).
+            // Brake as hard as the path allows here; the model takes over again once it
+            // fits.
+            trace!(
+                self.trace,
+                "  BRAKE HARD at={} v={v} a={a} rem={rem}", st.at
+            );
+            let jp = b.j_hi.min(-b.j_lo).min(b.jm);
+            let bj = clampf(brake_jerk(v, a, -b.a_lo, jp, t), b.j_lo, b.j_hi);
+            j_used = bj;
+            (ds, v1, a1) = advance(0.0, v, a, bj, t);
+            v1 = v1.max(0.0);
+        }
+        Step {
+            ds: clampf(ds, 0.0, rem.max(0.0)),
+            model_ds: ds,
+            j: j_used,
+            exact: Some((v1, a1)),
+        }
+    }
+
+    /// The set-point of `step`, checked against every axis's finite-difference box
+    /// ([`Planner::verify`]: the nearest admissible point on the path when it is outside).
+    /// None at a dead end (no admissible point), unless `force`: then the nearest point,
+    /// counted in `limit_violations`. `rem` and `lands` only inform the diagnostics.
+    fn checked_setpoint(
+        &mut self,
+        st: &GenState,
+        pd: &Period,
+        step: &Step,
+        rem: f64,
+        lands: bool,
+        force: bool,
+    ) -> Option<(f64, AxisVec, usize, f64)> {
         let rem0 = rem.max(0.0);
-        let (ds, x, k, sl) = match self.verify(&st, idx, ds_target, rem0, stop_at, quick) {
-            Ok(r) => r,
+        match self.verify(st, pd.idx, step.ds, rem0, pd.stop_at, pd.quick) {
+            Ok(r) => Some(r),
             Err(r) if force => {
                 self.stats.limit_violations += 1;
                 trace!(self.trace, "VIOLATION at={} v={} a={}", st.at, st.v, st.a);
-                r
+                Some(r)
             }
             Err(_) => {
                 trace!(
                     self.trace,
-                    "DEAD END at={} v={v} a={a} rem={rem} ds_t={ds_target} land={land}", st.at
+                    "DEAD END at={} v={} a={} rem={rem} ds_t={} land={lands}",
+                    st.at,
+                    st.v,
+                    st.a,
+                    step.ds
                 );
-                trace!(self.trace, {
-                    let (lo, hi) = self.fd_box(&st.hist, quick);
-                    let (k, sl) = self.locate(idx, st.s, st.at, ds_target, stop_at);
-                    let x = self.q.get(k).pos(sl);
-                    eprintln!(
-                        "  hist={:?}\n  x={:?}\n  lo={:?}\n  hi={:?} ds_hist={:?} land_n={}",
-                        &st.hist.map(|h| [h[0], h[1], h[2]]),
-                        &x[..3],
-                        &lo[..3],
-                        &hi[..3],
-                        st.ds_hist,
-                        st.land_n
-                    );
-                    let hp = self.q.get(idx);
-                    eprintln!(
-                        "  idx={idx} qlen={} len={} s={} cum_start={} stop_at={stop_at} stop_end={} k={k} sl={sl}",
-                        self.q.len, hp.len, st.s, hp.cum_start, hp.stop_at_end
-                    );
-                });
-                return None;
+                trace!(self.trace, { self.dump_dead_end(st, pd, step.ds) });
+                None
             }
-        };
-        if ds != ds_target {
-            self.stats.adjusted += 1;
         }
-        trace!(
-            self.trace,
-            "  chose ds_t={ds_target} ds={ds} model_ds={model_ds} j={j_used} land={land} landing={landing:?}"
+    }
+
+    /// Diagnostics of a dead end: the box and the point tried.
+    fn dump_dead_end(&self, st: &GenState, pd: &Period, ds_target: f64) {
+        let (idx, stop_at) = (pd.idx, pd.stop_at);
+        let (lo, hi) = self.fd_box(&st.hist, pd.quick);
+        let (k, sl) = self.locate(idx, st.s, st.at, ds_target, stop_at);
+        let x = self.q.get(k).pos(sl);
+        eprintln!(
+            "  hist={:?}\n  x={:?}\n  lo={:?}\n  hi={:?} ds_hist={:?} land_n={}",
+            &st.hist.map(|h| [h[0], h[1], h[2]]),
+            &x[..3],
+            &lo[..3],
+            &hi[..3],
+            st.ds_hist,
+            st.land_n
         );
-        let mut n = st;
-        n.prof_t = None;
-        n.hold_at = hold_at;
-        n.land_n = if ds == ds_target { new_land_n } else { 0 };
-        if land && ds == rem0 {
-            n.v = 0.0;
-            n.a = 0.0;
-            n.j_last = 0.0;
-        } else if landing.is_some() {
-            // Speed and acceleration of the step sequence (backward differences).
-            n.v = ds / t;
-            n.a = (ds - st.ds_hist[1]) / (t * t);
-            n.j_last = 0.0;
-        } else if let (Some((v1, a1)), true) = (exact_state, ds == model_ds) {
-            n.v = v1;
-            n.a = a1;
-            n.j_last = 0.0;
-        } else if ds == model_ds && exact_state.is_none() {
-            let (_, v1, a1) = advance(0.0, v, a, j_used, t);
-            n.v = v1.max(0.0);
-            n.a = a1;
-            n.j_last = j_used;
-        } else {
-            // The set-point check chose another point: the state is the constant-jerk step
-            // that reaches it (within twice the jerk bound, so that a far move cannot throw
-            // the state off), and the model continues from where the axes are.
-            let j_eff = clampf(
-                6.0 * (ds - v * t - 0.5 * a * t * t) / (t * t * t),
-                -2.0 * jm,
-                2.0 * jm,
-            );
-            let (_, v1, a1) = advance(0.0, v, a, j_eff, t);
-            n.v = v1.max(0.0);
-            n.a = a1;
-            n.j_last = clampf(j_eff, j_lo, j_hi);
-        }
+        let hp = self.q.get(idx);
+        eprintln!(
+            "  idx={idx} qlen={} len={} s={} cum_start={} stop_at={stop_at} stop_end={} k={k} sl={sl}",
+            self.q.len, hp.len, st.s, hp.cum_start, hp.stop_at_end
+        );
+    }
+
+    /// `st` moved on to the set-point `x`, `ds` along the path at local arc length `sl` on
+    /// piece `k` (speed and acceleration still `st`'s).
+    fn moved_to(&self, st: &GenState, ds: f64, x: AxisVec, k: usize, sl: f64) -> GenState {
         let p = self.q.get(k);
+        let mut n = *st;
+        n.prof_t = None;
         n.id = self.q.head_id + k as u64;
         // The line of the move the set-point lies on (the period may have crossed into it).
         n.line = p.line;
@@ -1077,12 +1312,44 @@ impl<K: Kinematics> Planner<K> {
         n.at = p.cum_start + sl;
         n.ds_hist = [st.ds_hist[1], ds];
         n.hist = [x, st.hist[0], st.hist[1]];
-        if let (true, Some(h)) = (hold_deferred, self.hold) {
-            // The hold point moves to where the hold's stop from here ends.
-            let (d_need, _) = stop(n.v, n.a.max(-h.a), STOP_SHARE * h.a, STOP_JERK_SHARE * h.j);
-            n.hold_at = n.hold_at.max(n.at + d_need + n.v * t);
+        n
+    }
+
+    /// Path speed, acceleration and jerk at the end of a period that stepped `ds` from
+    /// `st` (`rem0`: the way that was left to the stop).
+    fn speed_after(
+        &self,
+        st: &GenState,
+        ds: f64,
+        rem0: f64,
+        step: &Step,
+        landing: &Landing,
+        b: &PeriodBounds,
+    ) -> (f64, f64, f64) {
+        let t = self.period;
+        let (v, a) = (st.v, st.a);
+        if landing.lands && ds == rem0 {
+            (0.0, 0.0, 0.0)
+        } else if landing.step.is_some() {
+            // Speed and acceleration of the step sequence (backward differences).
+            (ds / t, (ds - st.ds_hist[1]) / (t * t), 0.0)
+        } else if let (Some((v1, a1)), true) = (step.exact, ds == step.model_ds) {
+            (v1, a1, 0.0)
+        } else if ds == step.model_ds && step.exact.is_none() {
+            let (_, v1, a1) = advance(0.0, v, a, step.j, t);
+            (v1.max(0.0), a1, step.j)
+        } else {
+            // The set-point check chose another point: the state is the constant-jerk step
+            // that reaches it (within twice the jerk bound, so that a far move cannot throw
+            // the state off), and the model continues from where the axes are.
+            let j_eff = clampf(
+                6.0 * (ds - v * t - 0.5 * a * t * t) / (t * t * t),
+                -2.0 * b.jm,
+                2.0 * b.jm,
+            );
+            let (_, v1, a1) = advance(0.0, v, a, j_eff, t);
+            (v1.max(0.0), a1, clampf(j_eff, b.j_lo, b.j_hi))
         }
-        Some(n)
     }
 
     /// The largest path jerk in [`j_min`, `j_hi`] the model accepts. Tried first: the jerk
