@@ -25,6 +25,11 @@ pub(crate) const STEP_REFERENCE_PERIOD: f64 = 100e-6;
 pub(crate) const KINK: f64 = 1e-4;
 /// Largest direction change at a vertex that may be smoothed through (rad).
 const SMOOTH_MAX_ANGLE: f64 = 0.35;
+/// How much longer than its neighbour a line is taken as a straight the neighbour joins.
+const LONG_LINE_RATIO: f64 = 6.0;
+/// Share of the jerk the curvature change of a smoothing span may take at the feed for its
+/// vertex state to be taken without weighing the others (the speed limit takes 80 %).
+const SMOOTH_JERK_SHARE: f64 = 0.8;
 /// Feed taken for rapids when a corner's blend is weighed against a stop (mm/s).
 const V_RAPID_REF: f64 = 1e3;
 /// Longest run of collinear segments merged into one.
@@ -493,6 +498,13 @@ impl Builder {
                         self.smoothed_from = Some((lp.a, lp.b));
                         return;
                     }
+                    if let Some(vs) =
+                        self.onto_long_line(&lp, &lc, theta, tolerance, st.as_ref(), lim, out)
+                    {
+                        self.prev = Some(cur);
+                        self.prev_state = Some(vs);
+                        return;
+                    }
                     self.prev_state = self.blend_corner(&vx, &prev, lim, out);
                     self.prev = Some(cur);
                     return;
@@ -569,8 +581,31 @@ impl Builder {
             (t_plain, 1.0),
             (t_plain, 0.7),
             (t_plain, 0.3),
+            // Weighed only when one of the above keeps P: where none does, the vertex
+            // moves towards the circle's centre (below), which keeps the circle's speed.
+            (vs.t, 0.7),
+            (vs.t, 1.15),
+            (t_half, 0.85),
+            (t_half, 1.15),
+            (vs.t, 0.5),
+            (vs.t, 0.3),
+            (t_half, 0.5),
         ];
-        for (tv, scale_k) in cands {
+        const FIRST_CANDIDATES: usize = 7;
+        // Of the candidates that keep P, the one whose span changes its curvature least
+        // (that bounds the speed, v³·|dK/ds| within the jerk): on a CAM polyline whose
+        // discrete curvature jitters, the circle's state makes the span's curvature swing
+        // between its ends. The first candidate is taken at once when that bound is above
+        // the feed (as on a sampled curve).
+        let j_path = lim
+            .present_axes()
+            .iter()
+            .fold(f64::INFINITY, |m, &i| m.min(lim.j[i]));
+        let mut best: Option<(f64, Span, State, f64)> = None;
+        for (n, (tv, scale_k)) in cands.into_iter().enumerate() {
+            if n == FIRST_CANDIDATES && best.is_none() {
+                break;
+            }
             let nrm = add_scaled(&vs.k, &tv, -dot(&vs.k, &tv));
             let vk = State {
                 p: vs.p,
@@ -590,14 +625,26 @@ impl Builder {
             } else {
                 None
             };
-            if let Some(pc) = curved_start.or_else(|| span(&lp, &start, &vk, tolerance, lim)) {
-                out.push(pc.piece());
-                self.stats.smoothed += 1;
-                if scale_k < 1.0 {
-                    self.stats.curvature_backoffs += 1;
-                }
-                return Some(vk);
+            let Some(pc) = curved_start.or_else(|| span(&lp, &start, &vk, tolerance, lim)) else {
+                continue;
+            };
+            let change = curvature_change(&pc);
+            let at_feed = change * lp.feed.powi(3) <= SMOOTH_JERK_SHARE * j_path;
+            if best.is_none() && at_feed {
+                best = Some((change, pc, vk, scale_k));
+                break;
             }
+            if best.as_ref().is_none_or(|b| change < b.0 * (1.0 - 1e-3)) {
+                best = Some((change, pc, vk, scale_k));
+            }
+        }
+        if let Some((_, pc, vk, scale_k)) = best {
+            out.push(pc.piece());
+            self.stats.smoothed += 1;
+            if scale_k < 1.0 {
+                self.stats.curvature_backoffs += 1;
+            }
+            return Some(vk);
         }
         // Through the vertex the circle bulges beyond the chords by its
         // sagitta; moved towards the centre by up to P it bulges less and
@@ -724,6 +771,61 @@ impl Builder {
                 k: [0.0; AXES],
             })
         }
+    }
+
+    /// A short chord meeting a much longer line at a small turn (where a curved run of a
+    /// CAM polyline joins a straight): the vertex takes the long line's direction with zero
+    /// curvature, so that the short chord bends onto (or off) the line within P and the
+    /// line needs no corner blend. The alternative, a blend on top of a span that must
+    /// straighten within half the short chord, peaks in curvature change there (FreeCAD's
+    /// adaptive clearing slowed to 10-14 mm/s at each such join, LinuxCNC 33).
+    /// Returns the vertex state after pushing the piece before it, or None (nothing pushed).
+    #[allow(clippy::too_many_arguments)]
+    fn onto_long_line(
+        &mut self,
+        lp: &LineP,
+        lc: &LineP,
+        theta: f64,
+        tol: f64,
+        before: Option<&State>,
+        lim: &Lim,
+        out: &mut Vec<Piece>,
+    ) -> Option<State> {
+        if lp.rapid || lc.rapid || theta > SMOOTH_MAX_ANGLE || theta <= KINK {
+            return None;
+        }
+        let start = before.copied().unwrap_or(State {
+            p: lp.a,
+            t: lp.dir,
+            k: [0.0; AXES],
+        });
+        let dir = if lc.len >= LONG_LINE_RATIO * lp.len {
+            lc.dir
+        } else if lp.len >= LONG_LINE_RATIO * lc.len {
+            lp.dir
+        } else {
+            return None;
+        };
+        let vs = State {
+            p: lp.b,
+            t: dir,
+            k: [0.0; AXES],
+        };
+        let into = span(lp, &start, &vs, tol, lim)?;
+        // Off a long line the short chord must be able to straighten again by its end (the
+        // next vertex may not be smoothed), within P.
+        if dir == lp.dir {
+            let end = State {
+                p: lc.b,
+                t: lc.dir,
+                k: [0.0; AXES],
+            };
+            span(lc, &vs, &end, tol, lim)?;
+        }
+        out.push(into.piece());
+        self.stats.smoothed += 1;
+        self.smoothed_from = None;
+        Some(vs)
     }
 
     /// Tangent and curvature at the vertex between two short lines, from the circle through
@@ -1121,6 +1223,44 @@ impl Span {
     fn piece(&self) -> Piece {
         Piece::new(self.shape, self.a, self.b, self.feed, self.rapid, self.line)
     }
+}
+
+/// The largest change of curvature per length along a span (17 samples): the speed bound
+/// v³·|dK/ds| ≤ J of a smoothing span.
+fn curvature_change(sp: &Span) -> f64 {
+    let Shape::Poly { c } = &sp.shape else {
+        return 0.0;
+    };
+    let mut prev: Option<(f64, f64)> = None;
+    let mut worst: f64 = 0.0;
+    let mut s_acc = 0.0;
+    let mut last_p: Option<AxisVec> = None;
+    for k in 0..=16 {
+        let u = k as f64 / 16.0;
+        let mut p = [0.0; AXES];
+        let mut d1 = [0.0; AXES];
+        let mut d2 = [0.0; AXES];
+        for i in 0..AXES {
+            let a = |j: usize| c[j][i];
+            p[i] = a(0) + u * (a(1) + u * (a(2) + u * (a(3) + u * (a(4) + u * a(5)))));
+            d1[i] = a(1) + u * (2.0 * a(2) + u * (3.0 * a(3) + u * (4.0 * a(4) + u * 5.0 * a(5))));
+            d2[i] = 2.0 * a(2) + u * (6.0 * a(3) + u * (12.0 * a(4) + u * 20.0 * a(5)));
+        }
+        let v2 = dot(&d1, &d1);
+        let cr = (v2 * dot(&d2, &d2) - dot(&d1, &d2).powi(2)).max(0.0).sqrt();
+        let kap = cr / (v2 * v2.sqrt()).max(1e-300);
+        if let Some(lp) = last_p {
+            s_acc += norm(&sub(&p, &lp));
+        }
+        if let Some((k0, s0)) = prev {
+            if s_acc > s0 {
+                worst = worst.max((kap - k0).abs() / (s_acc - s0));
+            }
+        }
+        prev = Some((kap, s_acc));
+        last_p = Some(p);
+    }
+    worst
 }
 
 /// Unit tangent and curvature vector at the middle point of the circle through three points,

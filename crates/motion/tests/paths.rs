@@ -332,3 +332,44 @@ fn a_circle_polyline_beyond_p_runs_at_the_circles_speed() {
         "lowest speed on the middle third {lowest} mm/s, the circle's {v_circle}"
     );
 }
+
+/// A CAM polyline of an arc (R 5 mm, 0.5 mm chords) ending tangent into a 20 mm straight,
+/// which leaves into the mirror arc, at G64 P0.02 and F 30 mm/s: the joins turn by half a
+/// chord's angle (0.05 rad) between a chord and a line 40 times longer. A curvature ramp
+/// from 1/R to zero within one chord c bounds the speed at (0.8·J·c·R)^(1/3) = 46 mm/s,
+/// above the feed; a corner blend within half the last chord, after a span that
+/// straightened before it, passed the joins at 10-12 mm/s (0.35 F).
+#[test]
+fn a_curved_run_joins_a_straight_without_a_corner() {
+    let (r, p, f) = (5.0, 0.02, 30.0);
+    let n = ((std::f64::consts::FRAC_PI_3) / (0.5 / r)) as usize;
+    let dphi = std::f64::consts::FRAC_PI_3 / n as f64;
+    let mut verts: Vec<_> = (0..=n)
+        .map(|k| {
+            let a = k as f64 * dphi;
+            p3(r * a.cos(), r * a.sin(), 0.0)
+        })
+        .collect();
+    let a = n as f64 * dphi;
+    let (ex, ey) = (r * a.cos(), r * a.sin());
+    let (sx, sy) = (ex - 20.0 * a.sin(), ey + 20.0 * a.cos());
+    verts.push(p3(sx, sy, 0.0));
+    let (cx, cy) = (sx - r * a.cos(), sy - r * a.sin());
+    for k in 1..=n {
+        let b = a + k as f64 * dphi;
+        verts.push(p3(cx + r * b.cos(), cy + r * b.sin(), 0.0));
+    }
+    let moves = lines(&verts, f, blend(p));
+    let tr = check_run(&moves, Some(&verts), p, 5000);
+    // From the fourth vertex to the fourth from the end (away from the start and the
+    // stop, 1.5 mm of path or more from either).
+    let (from, to) = (verts[4], verts[verts.len() - 5]);
+    let skip = tr.pts.len() - tr.speed.len();
+    let pts = &tr.pts[skip..];
+    let i0 = pts.iter().position(|q| dist(q, &from) < 0.05).unwrap();
+    let i1 = pts.iter().rposition(|q| dist(q, &to) < 0.05).unwrap();
+    let lowest = tr.speed[i0..i1]
+        .iter()
+        .fold(f64::INFINITY, |m, v| m.min(*v));
+    assert!(lowest >= 0.6 * f, "lowest speed {lowest} mm/s at F {f}");
+}
