@@ -206,6 +206,7 @@ fn run_csp_mode() -> Run {
         velocity_ff: 1.0,
         torque_ff: 0.0,
         following_error: LIMITS,
+        feedback_delay_periods: 0,
     };
     let mut csp = CspLoop::new(0, &config).unwrap();
     let mut run = Run {

@@ -49,6 +49,7 @@ fn pid_update(c: &mut Criterion) {
         velocity_ff: 1.0,
         torque_ff: 1e-4,
         following_error: LIMITS,
+        feedback_delay_periods: 0,
     };
     let mut csp = CspLoop::new(0, &config).unwrap();
     c.bench_function("csp_update_one_joint", |b| {

@@ -1,4 +1,7 @@
+use crate::config::MAX_FEEDBACK_DELAY;
 use crate::{ConfigError, CspConfig, FollowingErrorMonitor, ServoFault, SetPoint};
+
+const HISTORY: usize = MAX_FEEDBACK_DELAY as usize + 1;
 
 /// What a drive in cyclic synchronous position mode receives for one cycle (CiA 402
 /// objects 0x607A target position, 0x60B1 velocity offset, 0x60B2 torque offset).
@@ -18,6 +21,11 @@ pub struct CspCommand {
 pub struct CspLoop {
     config: CspConfig,
     monitor: FollowingErrorMonitor,
+    /// The set-points sent in the last periods, newest at `newest` (a ring).
+    sent: [f64; HISTORY],
+    newest: usize,
+    /// How many periods of `sent` are valid since construction or the last reset.
+    sent_count: usize,
 }
 
 impl CspLoop {
@@ -29,7 +37,28 @@ impl CspLoop {
         Ok(Self {
             config: *config,
             monitor: FollowingErrorMonitor::new(joint, config.following_error),
+            sent: [0.0; HISTORY],
+            newest: 0,
+            sent_count: 0,
         })
+    }
+
+    /// Forgets the set-points sent before; call when the drive is enabled.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
+    pub fn reset(&mut self) {
+        self.sent_count = 0;
+    }
+
+    /// Records `position` as sent this period and returns the set-point the feedback of
+    /// this period shows: the one sent `feedback_delay_periods` before, or the oldest kept
+    /// in the first periods after a reset.
+    fn shown_by_feedback(&mut self, position: f64) -> f64 {
+        self.newest = (self.newest + 1) % HISTORY;
+        self.sent[self.newest] = position;
+        self.sent_count = (self.sent_count + 1).min(HISTORY);
+        let delay = usize::from(self.config.feedback_delay_periods).min(self.sent_count - 1);
+        self.sent[(self.newest + HISTORY - delay) % HISTORY]
     }
 
     /// One servo cycle: the drive's command, or the fault that stops the joint.
@@ -57,8 +86,8 @@ impl CspLoop {
         if !(period_s.is_finite() && period_s > 0.0) {
             return Err(ServoFault::InvalidPeriod { joint, period_s });
         }
-        self.monitor
-            .check(setpoint.position - feedback, setpoint.velocity)?;
+        let shown = self.shown_by_feedback(setpoint.position);
+        self.monitor.check(shown - feedback, setpoint.velocity)?;
         let command = CspCommand {
             position: setpoint.position,
             velocity_offset: self.config.velocity_ff * setpoint.velocity,

@@ -77,12 +77,14 @@ impl ServoLoop {
         }
     }
 
-    /// Clears the loop's history (integrator, derivative); call when the drive is enabled.
+    /// Clears the loop's history (integrator, derivative, set-points sent); call when the
+    /// drive is enabled.
     ///
     /// Real-time: yes (no allocation, no blocking).
     pub fn reset(&mut self) {
-        if let Self::Pid(pid) = self {
-            pid.reset();
+        match self {
+            Self::Pid(pid) => pid.reset(),
+            Self::Csp(csp) => csp.reset(),
         }
     }
 

@@ -53,7 +53,9 @@ mod joint_loop;
 mod pid;
 mod setpoint;
 
-pub use config::{ConfigError, CspConfig, FollowingErrorLimits, PidConfig, PidGains};
+pub use config::{
+    ConfigError, CspConfig, FollowingErrorLimits, MAX_FEEDBACK_DELAY, PidConfig, PidGains,
+};
 pub use csp::{CspCommand, CspLoop};
 pub use fault::ServoFault;
 pub use following_error::FollowingErrorMonitor;

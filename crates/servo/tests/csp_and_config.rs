@@ -17,6 +17,7 @@ fn csp_loop_passes_the_set_point_with_feed_forward_offsets() {
         velocity_ff: 0.5,
         torque_ff: 2e-4,
         following_error: LIMITS,
+        feedback_delay_periods: 0,
     };
     let mut csp = CspLoop::new(3, &config).unwrap();
     let sp = SetPoint {
@@ -41,6 +42,7 @@ fn csp_loop_checks_following_error_and_names_its_joint() {
         velocity_ff: 1.0,
         torque_ff: 0.0,
         following_error: LIMITS,
+        feedback_delay_periods: 0,
     };
     let mut csp = CspLoop::new(7, &config).unwrap();
     // At 50 units/s the limit is 0.05.
@@ -122,6 +124,7 @@ fn csp_validation_refuses_feed_forward_outside_zero_to_one() {
         velocity_ff: 1.5,
         torque_ff: 0.0,
         following_error: LIMITS,
+        feedback_delay_periods: 0,
     };
     assert_eq!(CspLoop::new(0, &config).unwrap_err().field, "velocity_ff");
 }
@@ -185,5 +188,86 @@ fn servo_loop_is_chosen_by_the_configuration() {
         bad.unwrap_err()
             .to_string()
             .contains("unknown variant `pd`")
+    );
+}
+
+/// A drive that reports one period later the position it was sent, as the simulated CSP
+/// drives and most EtherCAT drives do, from standstill at 0 to 100 units/s in one step with
+/// 4 ms periods: each period's set-point is 0.4 ahead of the feedback of that period.
+fn one_period_lag_at_4_ms(delay: u8) -> Result<(), ServoFault> {
+    let config = CspConfig {
+        velocity_ff: 1.0,
+        torque_ff: 0.0,
+        following_error: FollowingErrorLimits {
+            min_ferror: 0.05,
+            ferror: 0.2,
+            max_velocity: 100.0,
+        },
+        feedback_delay_periods: delay,
+    };
+    let mut csp = CspLoop::new(0, &config).unwrap();
+    let (period, speed) = (0.004, 100.0);
+    let mut at_the_drive = 0.0;
+    for k in 0..=50 {
+        let sp = SetPoint {
+            position: speed * period * f64::from(k),
+            velocity: speed,
+            acceleration: 0.0,
+        };
+        csp.update(sp, at_the_drive, period)?;
+        at_the_drive = sp.position;
+    }
+    Ok(())
+}
+
+#[test]
+fn csp_following_error_compares_with_the_set_point_the_feedback_shows() {
+    // Compared with the latest set-point, the transport delay alone is 0.4 against a limit
+    // of 0.2 at 100 units/s.
+    let fault = one_period_lag_at_4_ms(0).unwrap_err();
+    assert_eq!(fault.code(), "servo.following_error");
+    assert!(fault.to_string().contains("following error 0.4"), "{fault}");
+    // Compared with the set-point sent one period before, a drive that follows exactly has
+    // no following error.
+    assert!(one_period_lag_at_4_ms(1).is_ok());
+}
+
+#[test]
+fn csp_after_a_reset_compares_with_the_oldest_set_point_it_has() {
+    let config = CspConfig {
+        velocity_ff: 1.0,
+        torque_ff: 0.0,
+        following_error: LIMITS,
+        feedback_delay_periods: 2,
+    };
+    let mut csp = CspLoop::new(0, &config).unwrap();
+    let sp = |position: f64| SetPoint {
+        position,
+        velocity: 0.0,
+        acceleration: 0.0,
+    };
+    csp.update(sp(1.0), 0.0, 0.001).unwrap_err();
+    csp.reset();
+    // First period after the reset: only this set-point is known (error 5 - 5 = 0).
+    csp.update(sp(5.0), 5.0, 0.001).unwrap();
+    csp.update(sp(5.005), 5.0, 0.001).unwrap();
+    // From the third period on, two periods back: 5.0, then 5.005, which a feedback of
+    // 5.025 is 0.02 past (limit 0.01).
+    csp.update(sp(5.01), 5.0, 0.001).unwrap();
+    let fault = csp.update(sp(5.015), 5.025, 0.001).unwrap_err();
+    assert!(fault.to_string().contains("following error -0.02"), "{fault}");
+}
+
+#[test]
+fn csp_validation_refuses_a_feedback_delay_beyond_eight_periods() {
+    let config = CspConfig {
+        velocity_ff: 1.0,
+        torque_ff: 0.0,
+        following_error: LIMITS,
+        feedback_delay_periods: 9,
+    };
+    assert_eq!(
+        CspLoop::new(0, &config).unwrap_err().field,
+        "feedback_delay_periods"
     );
 }
