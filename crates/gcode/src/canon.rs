@@ -645,313 +645,373 @@ impl Canon {
             return false;
         }
         if with_n {
-            match self.source.n {
-                Some(n) => {
-                    out.push(b'N');
-                    let start = out.len();
-                    push_int(out, i64::from(n));
-                    let width = out.len() - start;
-                    for _ in width..6 {
-                        out.push(b' ');
-                    }
-                }
-                None => out.extend_from_slice(b"N..... "),
-            }
+            push_n_column(out, self.source.n);
         }
-        let o = out;
-        match &self.command {
-            C::UseLengthUnits(u) => {
-                o.extend_from_slice(match u {
-                    Units::Mm => b"USE_LENGTH_UNITS(CANON_UNITS_MM)",
-                    Units::Inches => b"USE_LENGTH_UNITS(CANON_UNITS_INCHES)",
-                });
-            }
-            C::SetG5xOffset { index, offset } => {
-                o.extend_from_slice(b"SET_G5X_OFFSET(");
-                push_int(o, i64::from(*index));
-                o.extend_from_slice(b", ");
-                push_pose(o, offset);
-                o.push(b')');
-            }
-            C::SetG92Offset(p) => call_pose(o, b"SET_G92_OFFSET(", p),
-            C::SetXyRotation(r) => call_f4(o, b"SET_XY_ROTATION(", *r),
-            C::SetFeedReference => o.extend_from_slice(b"SET_FEED_REFERENCE(CANON_XYZ)"),
-            C::OnReset => o.extend_from_slice(b"ON_RESET()"),
-            C::Comment(t) => call_text(o, b"COMMENT(\"", t),
-            C::Message(t) => call_text(o, b"MESSAGE(\"", t),
-            C::Print(_) | C::WaitInput { .. } => {}
-            C::LogOpen { path, append } => call_text(
-                o,
-                if *append {
-                    b"LOGAPPEND(\"".as_slice()
-                } else {
-                    b"LOGOPEN(\""
-                },
-                path,
-            ),
-            C::Log(t) => call_text(o, b"LOG(\"", t),
-            C::LogClose => o.extend_from_slice(b"LOGCLOSE()"),
-            C::SelectPlane(p) => {
-                o.extend_from_slice(b"SELECT_PLANE(");
-                o.extend_from_slice(match p {
-                    Plane::XY => b"CANON_PLANE_XY".as_slice(),
-                    Plane::XZ => b"CANON_PLANE_XZ",
-                    Plane::YZ => b"CANON_PLANE_YZ",
-                    // rs274's printer knows only the three XYZ planes.
-                    Plane::UV | Plane::WU | Plane::VW => b"CANON_PLANE_UNKNOWN",
-                });
-                o.push(b')');
-            }
-            C::SetMotionControlMode(m) => match m {
-                PathMode::ExactStop => {
-                    o.extend_from_slice(b"SET_MOTION_CONTROL_MODE(CANON_EXACT_STOP)")
-                }
-                PathMode::ExactPath => {
-                    o.extend_from_slice(b"SET_MOTION_CONTROL_MODE(CANON_EXACT_PATH)")
-                }
-                PathMode::Continuous { tolerance } => {
-                    o.extend_from_slice(b"SET_MOTION_CONTROL_MODE(CANON_CONTINUOUS, ");
-                    push_fixed(o, *tolerance, 6);
-                    o.push(b')');
-                }
-            },
-            C::SetNaivecamTolerance(t) => call_f4(o, b"SET_NAIVECAM_TOLERANCE(", *t),
-            C::SetFeedMode { spindle, mode } => {
-                o.extend_from_slice(b"SET_FEED_MODE(");
-                push_int(o, i64::from(*spindle));
-                o.extend_from_slice(match mode {
-                    FeedMode::UnitsPerRevolution => b", 1)",
-                    FeedMode::UnitsPerMinute | FeedMode::InverseTime => b", 0)",
-                });
-            }
-            C::SetFeedRate(f) => call_f4(o, b"SET_FEED_RATE(", *f),
-            C::SetSpindleSpeed { spindle, speed } => {
-                o.extend_from_slice(b"SET_SPINDLE_SPEED(");
-                push_int(o, i64::from(*spindle));
-                o.extend_from_slice(b", ");
-                push_fixed(o, *speed, 4);
-                o.push(b')');
-            }
-            C::StartSpindle { spindle, direction } => {
-                o.extend_from_slice(match direction {
-                    SpindleDirection::Clockwise => b"START_SPINDLE_CLOCKWISE(".as_slice(),
-                    SpindleDirection::CounterClockwise => b"START_SPINDLE_COUNTERCLOCKWISE(",
-                });
-                push_int(o, i64::from(*spindle));
-                o.push(b')');
-            }
-            C::StopSpindle { spindle } => {
-                o.extend_from_slice(b"STOP_SPINDLE_TURNING(");
-                push_int(o, i64::from(*spindle));
-                o.push(b')');
-            }
-            C::SetSpindleMode {
-                spindle, max_rpm, ..
-            } => {
-                // rs274 prints no comma here.
-                o.extend_from_slice(b"SET_SPINDLE_MODE(");
-                push_int(o, i64::from(*spindle));
-                o.push(b' ');
-                push_fixed(o, *max_rpm, 4);
-                o.push(b')');
-            }
-            C::OrientSpindle {
-                spindle,
-                angle,
-                mode,
-            } => {
-                o.extend_from_slice(b"ORIENT_SPINDLE(");
-                push_int(o, i64::from(*spindle));
-                o.extend_from_slice(b", ");
-                push_fixed(o, *angle, 4);
-                o.extend_from_slice(b", ");
-                push_int(o, i64::from(*mode));
-                o.push(b')');
-            }
-            C::WaitOrientComplete { spindle, timeout } => {
-                o.extend_from_slice(b"SPINDLE.");
-                push_int(o, i64::from(*spindle));
-                call_f4(o, b".WAIT_ORIENT_COMPLETE(", *timeout);
-            }
-            C::SelectTool(t) => call_int(o, b"SELECT_TOOL(", i64::from(*t)),
-            C::StartChange => o.extend_from_slice(b"START_CHANGE()"),
-            C::ChangeTool(p) => call_int(o, b"CHANGE_TOOL(", i64::from(*p)),
-            C::ChangeToolNumber(t) => call_int(o, b"CHANGE_TOOL_NUMBER(", i64::from(*t)),
-            C::UseToolLengthOffset(p) => {
-                o.extend_from_slice(b"USE_TOOL_LENGTH_OFFSET(");
-                let v = p.to_array();
-                for (i, x) in v.iter().enumerate() {
-                    if i > 0 {
-                        o.extend_from_slice(if i % 3 == 0 { b", " } else { b" " });
-                    }
-                    push_fixed(o, *x, 4);
-                }
-                o.push(b')');
-            }
-            C::SetToolTableEntry(e) => {
-                o.extend_from_slice(b"SET_TOOL_TABLE_ENTRY(");
-                push_int(o, i64::from(e.pocket));
-                o.extend_from_slice(b", ");
-                push_int(o, i64::from(e.tool));
-                o.extend_from_slice(b", ");
-                for (i, x) in e.offset.to_array().iter().enumerate() {
-                    if i > 0 {
-                        o.push(b' ');
-                    }
-                    push_fixed(o, *x, 4);
-                }
-                o.extend_from_slice(b", ");
-                push_fixed(o, e.front_angle, 4);
-                o.extend_from_slice(b", ");
-                push_fixed(o, e.back_angle, 4);
-                o.extend_from_slice(b", ");
-                push_int(o, i64::from(e.orientation));
-                o.push(b')');
-            }
-            C::Dwell(t) => call_f4(o, b"DWELL(", *t),
-            C::StraightTraverse(p) => call_pose(o, b"STRAIGHT_TRAVERSE(", p),
-            C::StraightFeed(p) => call_pose(o, b"STRAIGHT_FEED(", p),
-            C::ArcFeed(a) => {
-                o.extend_from_slice(b"ARC_FEED(");
-                for x in [a.first_end, a.second_end, a.first_axis, a.second_axis] {
-                    push_fixed(o, x, 4);
-                    o.extend_from_slice(b", ");
-                }
-                push_int(o, i64::from(a.rotation));
-                for x in [a.axis_end_point, a.a, a.b, a.c] {
-                    o.extend_from_slice(b", ");
-                    push_fixed(o, x, 4);
-                }
-                if a.u != 0.0 || a.v != 0.0 || a.w != 0.0 {
-                    for x in [a.u, a.v, a.w] {
-                        o.extend_from_slice(b", ");
-                        push_fixed(o, x, 4);
-                    }
-                }
-                o.push(b')');
-            }
-            C::SplineFeed(s) => {
-                // rs274 prints only the order of the NURBS it builds.
-                o.extend_from_slice(b"NURBS_FEED(");
-                push_int(o, i64::from(s.order));
-                o.extend_from_slice(b", ...)");
-            }
-            C::NurbsFeed(n) => {
-                // rs274 prints the number of control points.
-                o.extend_from_slice(b"NURBS_FEED(");
-                push_int(o, n.points.len() as i64);
-                o.extend_from_slice(b", ...)");
-            }
-            C::StartSpeedFeedSync {
-                feed_per_revolution,
-                velocity_mode,
-                ..
-            } => {
-                o.extend_from_slice(b"START_SPEED_FEED_SYNC(");
-                push_fixed(o, *feed_per_revolution, 6);
-                o.push(b',');
-                o.push(if *velocity_mode { b'1' } else { b'0' });
-                o.push(b')');
-            }
-            C::StopSpeedFeedSync => o.extend_from_slice(b"STOP_SPEED_FEED_SYNCH()"),
-            C::RigidTap { end, .. } => {
-                o.extend_from_slice(b"RIGID_TAP(");
-                push_fixed(o, end.x, 4);
-                o.extend_from_slice(b", ");
-                push_fixed(o, end.y, 4);
-                o.extend_from_slice(b", ");
-                push_fixed(o, end.z, 4);
-                o.push(b')');
-            }
-            C::TurnProbeOn => o.extend_from_slice(b"TURN_PROBE_ON()"),
-            C::TurnProbeOff => o.extend_from_slice(b"TURN_PROBE_OFF()"),
-            C::StraightProbe { end, .. } => call_pose(o, b"STRAIGHT_PROBE(", end),
-            C::SetDigitalOutput {
-                index,
-                on,
-                synchronized,
-            } => {
-                let name: &[u8] = match (on, synchronized) {
-                    (true, true) => b"SET_MOTION_OUTPUT_BIT(",
-                    (false, true) => b"CLEAR_MOTION_OUTPUT_BIT(",
-                    (true, false) => b"SET_AUX_OUTPUT_BIT(",
-                    (false, false) => b"CLEAR_AUX_OUTPUT_BIT(",
-                };
-                call_int(o, name, i64::from(*index));
-            }
-            C::SetAnalogOutput {
-                index,
-                value,
-                synchronized,
-            } => {
-                o.extend_from_slice(if *synchronized {
-                    b"SET_MOTION_OUTPUT_VALUE(".as_slice()
-                } else {
-                    b"SET_AUX_OUTPUT_VALUE("
-                });
-                push_int(o, i64::from(*index));
-                o.push(b',');
-                push_fixed(o, *value, 6);
-                o.push(b')');
-            }
-            C::MistOn => o.extend_from_slice(b"MIST_ON()"),
-            C::MistOff => o.extend_from_slice(b"MIST_OFF()"),
-            C::FloodOn => o.extend_from_slice(b"FLOOD_ON()"),
-            C::FloodOff => o.extend_from_slice(b"FLOOD_OFF()"),
-            C::FeedOverride(on) => o.extend_from_slice(if *on {
-                b"ENABLE_FEED_OVERRIDE()".as_slice()
-            } else {
-                b"DISABLE_FEED_OVERRIDE()"
-            }),
-            C::SpeedOverride { spindle, enable } => {
-                let name: &[u8] = if *enable {
-                    b"ENABLE_SPEED_OVERRIDE("
-                } else {
-                    b"DISABLE_SPEED_OVERRIDE("
-                };
-                call_int(o, name, i64::from(*spindle));
-            }
-            C::AdaptiveFeed(on) => o.extend_from_slice(if *on {
-                b"ENABLE_ADAPTIVE_FEED()".as_slice()
-            } else {
-                b"DISABLE_ADAPTIVE_FEED()"
-            }),
-            C::FeedHold(on) => o.extend_from_slice(if *on {
-                b"ENABLE_FEED_HOLD()".as_slice()
-            } else {
-                b"DISABLE_FEED_HOLD()"
-            }),
-            // LinuxCNC compensates inside its interpreter and only notes the change.
-            C::StartCutterRadiusCompensation { side, .. } => o.extend_from_slice(match side {
-                CompensationSide::Left => {
-                    b"COMMENT(\"interpreter: cutter radius compensation on left\")".as_slice()
-                }
-                CompensationSide::Right => {
-                    b"COMMENT(\"interpreter: cutter radius compensation on right\")"
-                }
-            }),
-            C::StopCutterRadiusCompensation => o.extend_from_slice(
-                b"COMMENT(\"interpreter: cutter radius compensation off\")".as_slice(),
-            ),
-            C::UserMCode { code, p, q } => {
-                o.extend_from_slice(b"USER_M_CODE(");
-                push_int(o, i64::from(*code));
-                // A missing word prints as -1, LinuxCNC's value for "not given".
-                for w in [p, q] {
-                    o.extend_from_slice(b", ");
-                    push_fixed(o, w.unwrap_or(-1.0), 4);
-                }
-                o.push(b')');
-            }
-            C::ProgramStop => o.extend_from_slice(b"PROGRAM_STOP()"),
-            C::OptionalProgramStop => o.extend_from_slice(b"OPTIONAL_PROGRAM_STOP()"),
-            C::PalletShuttle => o.extend_from_slice(b"PALLET_SHUTTLE()"),
-            C::ProgramEnd => o.extend_from_slice(b"PROGRAM_END()"),
-            C::Finish => o.extend_from_slice(b"FINISH()"),
-        }
-        o.push(b'\n');
+        write_call(out, &self.command);
+        out.push(b'\n');
         true
     }
+}
+
+/// The call itself, as rs274 prints it. One arm per canonical call, grouped by kind; a call
+/// whose printed form takes more than one step has a function of its own.
+fn write_call(o: &mut Vec<u8>, command: &CanonCommand) {
+    use CanonCommand as C;
+    match command {
+        // Units, offsets, planes and modes.
+        C::UseLengthUnits(u) => o.extend_from_slice(length_units_call(*u)),
+        C::SetG5xOffset { index, offset } => write_g5x_offset(o, *index, offset),
+        C::SetG92Offset(p) => call_pose(o, b"SET_G92_OFFSET(", p),
+        C::SetXyRotation(r) => call_f4(o, b"SET_XY_ROTATION(", *r),
+        C::SetFeedReference => o.extend_from_slice(b"SET_FEED_REFERENCE(CANON_XYZ)"),
+        C::OnReset => o.extend_from_slice(b"ON_RESET()"),
+        C::SelectPlane(p) => write_select_plane(o, *p),
+        C::SetMotionControlMode(m) => write_motion_control_mode(o, m),
+        C::SetNaivecamTolerance(t) => call_f4(o, b"SET_NAIVECAM_TOLERANCE(", *t),
+        C::SetFeedMode { spindle, mode } => write_feed_mode(o, *spindle, *mode),
+        C::SetFeedRate(f) => call_f4(o, b"SET_FEED_RATE(", *f),
+
+        // Text: comments, messages, the log file.
+        C::Comment(t) => call_text(o, b"COMMENT(\"", t),
+        C::Message(t) => call_text(o, b"MESSAGE(\"", t),
+        // rs274 prints neither: write_rs274 returns before the call.
+        C::Print(_) | C::WaitInput { .. } => {}
+        C::LogOpen { path, append } => call_text(o, log_open_call(*append), path),
+        C::Log(t) => call_text(o, b"LOG(\"", t),
+        C::LogClose => o.extend_from_slice(b"LOGCLOSE()"),
+
+        // Spindle.
+        C::SetSpindleSpeed { spindle, speed } => write_spindle_speed(o, *spindle, *speed),
+        C::StartSpindle { spindle, direction } => write_start_spindle(o, *spindle, *direction),
+        C::StopSpindle { spindle } => call_int(o, b"STOP_SPINDLE_TURNING(", i64::from(*spindle)),
+        C::SetSpindleMode {
+            spindle, max_rpm, ..
+        } => write_spindle_mode(o, *spindle, *max_rpm),
+        C::OrientSpindle {
+            spindle,
+            angle,
+            mode,
+        } => write_orient_spindle(o, *spindle, *angle, *mode),
+        C::WaitOrientComplete { spindle, timeout } => {
+            write_wait_orient_complete(o, *spindle, *timeout)
+        }
+
+        // Tools.
+        C::SelectTool(t) => call_int(o, b"SELECT_TOOL(", i64::from(*t)),
+        C::StartChange => o.extend_from_slice(b"START_CHANGE()"),
+        C::ChangeTool(p) => call_int(o, b"CHANGE_TOOL(", i64::from(*p)),
+        C::ChangeToolNumber(t) => call_int(o, b"CHANGE_TOOL_NUMBER(", i64::from(*t)),
+        C::UseToolLengthOffset(p) => write_tool_length_offset(o, p),
+        C::SetToolTableEntry(e) => write_tool_table_entry(o, e),
+
+        // Motion and probing.
+        C::Dwell(t) => call_f4(o, b"DWELL(", *t),
+        C::StraightTraverse(p) => call_pose(o, b"STRAIGHT_TRAVERSE(", p),
+        C::StraightFeed(p) => call_pose(o, b"STRAIGHT_FEED(", p),
+        C::ArcFeed(a) => write_arc_feed(o, a),
+        // rs274 prints only the order of the NURBS it builds.
+        C::SplineFeed(s) => write_nurbs_feed(o, i64::from(s.order)),
+        // rs274 prints the number of control points.
+        C::NurbsFeed(n) => write_nurbs_feed(o, n.points.len() as i64),
+        C::StartSpeedFeedSync {
+            feed_per_revolution,
+            velocity_mode,
+            ..
+        } => write_speed_feed_sync(o, *feed_per_revolution, *velocity_mode),
+        C::StopSpeedFeedSync => o.extend_from_slice(b"STOP_SPEED_FEED_SYNCH()"),
+        C::RigidTap { end, .. } => write_rigid_tap(o, end),
+        C::TurnProbeOn => o.extend_from_slice(b"TURN_PROBE_ON()"),
+        C::TurnProbeOff => o.extend_from_slice(b"TURN_PROBE_OFF()"),
+        C::StraightProbe { end, .. } => call_pose(o, b"STRAIGHT_PROBE(", end),
+
+        // Outputs, coolant and overrides.
+        C::SetDigitalOutput {
+            index,
+            on,
+            synchronized,
+        } => call_int(
+            o,
+            digital_output_call(*on, *synchronized),
+            i64::from(*index),
+        ),
+        C::SetAnalogOutput {
+            index,
+            value,
+            synchronized,
+        } => write_analog_output(o, *index, *value, *synchronized),
+        C::MistOn => o.extend_from_slice(b"MIST_ON()"),
+        C::MistOff => o.extend_from_slice(b"MIST_OFF()"),
+        C::FloodOn => o.extend_from_slice(b"FLOOD_ON()"),
+        C::FloodOff => o.extend_from_slice(b"FLOOD_OFF()"),
+        C::FeedOverride(on) => write_switch(o, *on, b"FEED_OVERRIDE()"),
+        C::SpeedOverride { spindle, enable } => {
+            write_switch(o, *enable, b"SPEED_OVERRIDE(");
+            push_int(o, i64::from(*spindle));
+            o.push(b')');
+        }
+        C::AdaptiveFeed(on) => write_switch(o, *on, b"ADAPTIVE_FEED()"),
+        C::FeedHold(on) => write_switch(o, *on, b"FEED_HOLD()"),
+
+        // Compensation, user M-codes and program flow.
+        C::StartCutterRadiusCompensation { side, .. } => {
+            o.extend_from_slice(cutter_compensation_comment(*side))
+        }
+        C::StopCutterRadiusCompensation => o.extend_from_slice(
+            b"COMMENT(\"interpreter: cutter radius compensation off\")".as_slice(),
+        ),
+        C::UserMCode { code, p, q } => write_user_m_code(o, *code, *p, *q),
+        C::ProgramStop => o.extend_from_slice(b"PROGRAM_STOP()"),
+        C::OptionalProgramStop => o.extend_from_slice(b"OPTIONAL_PROGRAM_STOP()"),
+        C::PalletShuttle => o.extend_from_slice(b"PALLET_SHUTTLE()"),
+        C::ProgramEnd => o.extend_from_slice(b"PROGRAM_END()"),
+        C::Finish => o.extend_from_slice(b"FINISH()"),
+    }
+}
+
+fn length_units_call(u: Units) -> &'static [u8] {
+    match u {
+        Units::Mm => b"USE_LENGTH_UNITS(CANON_UNITS_MM)",
+        Units::Inches => b"USE_LENGTH_UNITS(CANON_UNITS_INCHES)",
+    }
+}
+
+fn log_open_call(append: bool) -> &'static [u8] {
+    if append {
+        b"LOGAPPEND(\""
+    } else {
+        b"LOGOPEN(\""
+    }
+}
+
+/// `ENABLE_` or `DISABLE_` then the rest of the call's name.
+fn write_switch(o: &mut Vec<u8>, on: bool, name: &[u8]) {
+    o.extend_from_slice(if on {
+        b"ENABLE_".as_slice()
+    } else {
+        b"DISABLE_"
+    });
+    o.extend_from_slice(name);
+}
+
+/// The `N.....` column of `rs274`: the line number left-aligned in six characters, or
+/// dots for a command no numbered line produced.
+fn push_n_column(out: &mut Vec<u8>, n: Option<u32>) {
+    match n {
+        Some(n) => {
+            out.push(b'N');
+            let start = out.len();
+            push_int(out, i64::from(n));
+            let width = out.len() - start;
+            for _ in width..6 {
+                out.push(b' ');
+            }
+        }
+        None => out.extend_from_slice(b"N..... "),
+    }
+}
+
+fn write_g5x_offset(o: &mut Vec<u8>, index: u8, offset: &Pose) {
+    o.extend_from_slice(b"SET_G5X_OFFSET(");
+    push_int(o, i64::from(index));
+    o.extend_from_slice(b", ");
+    push_pose(o, offset);
+    o.push(b')');
+}
+
+fn write_select_plane(o: &mut Vec<u8>, p: Plane) {
+    o.extend_from_slice(b"SELECT_PLANE(");
+    o.extend_from_slice(match p {
+        Plane::XY => b"CANON_PLANE_XY".as_slice(),
+        Plane::XZ => b"CANON_PLANE_XZ",
+        Plane::YZ => b"CANON_PLANE_YZ",
+        // rs274's printer knows only the three XYZ planes.
+        Plane::UV | Plane::WU | Plane::VW => b"CANON_PLANE_UNKNOWN",
+    });
+    o.push(b')');
+}
+
+fn write_motion_control_mode(o: &mut Vec<u8>, m: &PathMode) {
+    match m {
+        PathMode::ExactStop => o.extend_from_slice(b"SET_MOTION_CONTROL_MODE(CANON_EXACT_STOP)"),
+        PathMode::ExactPath => o.extend_from_slice(b"SET_MOTION_CONTROL_MODE(CANON_EXACT_PATH)"),
+        PathMode::Continuous { tolerance } => {
+            o.extend_from_slice(b"SET_MOTION_CONTROL_MODE(CANON_CONTINUOUS, ");
+            push_fixed(o, *tolerance, 6);
+            o.push(b')');
+        }
+    }
+}
+
+fn write_feed_mode(o: &mut Vec<u8>, spindle: u8, mode: FeedMode) {
+    o.extend_from_slice(b"SET_FEED_MODE(");
+    push_int(o, i64::from(spindle));
+    o.extend_from_slice(match mode {
+        FeedMode::UnitsPerRevolution => b", 1)",
+        FeedMode::UnitsPerMinute | FeedMode::InverseTime => b", 0)",
+    });
+}
+
+fn write_spindle_speed(o: &mut Vec<u8>, spindle: u8, speed: f64) {
+    o.extend_from_slice(b"SET_SPINDLE_SPEED(");
+    push_int(o, i64::from(spindle));
+    o.extend_from_slice(b", ");
+    push_fixed(o, speed, 4);
+    o.push(b')');
+}
+
+fn write_start_spindle(o: &mut Vec<u8>, spindle: u8, direction: SpindleDirection) {
+    o.extend_from_slice(match direction {
+        SpindleDirection::Clockwise => b"START_SPINDLE_CLOCKWISE(".as_slice(),
+        SpindleDirection::CounterClockwise => b"START_SPINDLE_COUNTERCLOCKWISE(",
+    });
+    push_int(o, i64::from(spindle));
+    o.push(b')');
+}
+
+fn write_spindle_mode(o: &mut Vec<u8>, spindle: u8, max_rpm: f64) {
+    // rs274 prints no comma here.
+    o.extend_from_slice(b"SET_SPINDLE_MODE(");
+    push_int(o, i64::from(spindle));
+    o.push(b' ');
+    push_fixed(o, max_rpm, 4);
+    o.push(b')');
+}
+
+fn write_orient_spindle(o: &mut Vec<u8>, spindle: u8, angle: f64, mode: i32) {
+    o.extend_from_slice(b"ORIENT_SPINDLE(");
+    push_int(o, i64::from(spindle));
+    o.extend_from_slice(b", ");
+    push_fixed(o, angle, 4);
+    o.extend_from_slice(b", ");
+    push_int(o, i64::from(mode));
+    o.push(b')');
+}
+
+fn write_wait_orient_complete(o: &mut Vec<u8>, spindle: u8, timeout: f64) {
+    o.extend_from_slice(b"SPINDLE.");
+    push_int(o, i64::from(spindle));
+    call_f4(o, b".WAIT_ORIENT_COMPLETE(", timeout);
+}
+
+/// The nine offsets, grouped by three: `x y z, a b c, u v w`.
+fn write_tool_length_offset(o: &mut Vec<u8>, p: &Pose) {
+    o.extend_from_slice(b"USE_TOOL_LENGTH_OFFSET(");
+    let v = p.to_array();
+    for (i, x) in v.iter().enumerate() {
+        if i > 0 {
+            o.extend_from_slice(if i % 3 == 0 { b", " } else { b" " });
+        }
+        push_fixed(o, *x, 4);
+    }
+    o.push(b')');
+}
+
+fn write_tool_table_entry(o: &mut Vec<u8>, e: &ToolEntry) {
+    o.extend_from_slice(b"SET_TOOL_TABLE_ENTRY(");
+    push_int(o, i64::from(e.pocket));
+    o.extend_from_slice(b", ");
+    push_int(o, i64::from(e.tool));
+    o.extend_from_slice(b", ");
+    for (i, x) in e.offset.to_array().iter().enumerate() {
+        if i > 0 {
+            o.push(b' ');
+        }
+        push_fixed(o, *x, 4);
+    }
+    o.extend_from_slice(b", ");
+    push_fixed(o, e.front_angle, 4);
+    o.extend_from_slice(b", ");
+    push_fixed(o, e.back_angle, 4);
+    o.extend_from_slice(b", ");
+    push_int(o, i64::from(e.orientation));
+    o.push(b')');
+}
+
+/// U, V and W follow only when one of them is non-zero, as in [`push_pose`].
+fn write_arc_feed(o: &mut Vec<u8>, a: &Arc) {
+    o.extend_from_slice(b"ARC_FEED(");
+    for x in [a.first_end, a.second_end, a.first_axis, a.second_axis] {
+        push_fixed(o, x, 4);
+        o.extend_from_slice(b", ");
+    }
+    push_int(o, i64::from(a.rotation));
+    for x in [a.axis_end_point, a.a, a.b, a.c] {
+        o.extend_from_slice(b", ");
+        push_fixed(o, x, 4);
+    }
+    if a.u != 0.0 || a.v != 0.0 || a.w != 0.0 {
+        for x in [a.u, a.v, a.w] {
+            o.extend_from_slice(b", ");
+            push_fixed(o, x, 4);
+        }
+    }
+    o.push(b')');
+}
+
+fn write_nurbs_feed(o: &mut Vec<u8>, n: i64) {
+    o.extend_from_slice(b"NURBS_FEED(");
+    push_int(o, n);
+    o.extend_from_slice(b", ...)");
+}
+
+fn write_speed_feed_sync(o: &mut Vec<u8>, feed_per_revolution: f64, velocity_mode: bool) {
+    o.extend_from_slice(b"START_SPEED_FEED_SYNC(");
+    push_fixed(o, feed_per_revolution, 6);
+    o.push(b',');
+    o.push(if velocity_mode { b'1' } else { b'0' });
+    o.push(b')');
+}
+
+fn write_rigid_tap(o: &mut Vec<u8>, end: &Pose) {
+    o.extend_from_slice(b"RIGID_TAP(");
+    push_fixed(o, end.x, 4);
+    o.extend_from_slice(b", ");
+    push_fixed(o, end.y, 4);
+    o.extend_from_slice(b", ");
+    push_fixed(o, end.z, 4);
+    o.push(b')');
+}
+
+/// LinuxCNC names a synchronized output (M62/M63) a motion output and an immediate one
+/// (M64/M65) an auxiliary output.
+fn digital_output_call(on: bool, synchronized: bool) -> &'static [u8] {
+    match (on, synchronized) {
+        (true, true) => b"SET_MOTION_OUTPUT_BIT(",
+        (false, true) => b"CLEAR_MOTION_OUTPUT_BIT(",
+        (true, false) => b"SET_AUX_OUTPUT_BIT(",
+        (false, false) => b"CLEAR_AUX_OUTPUT_BIT(",
+    }
+}
+
+fn write_analog_output(o: &mut Vec<u8>, index: u32, value: f64, synchronized: bool) {
+    o.extend_from_slice(if synchronized {
+        b"SET_MOTION_OUTPUT_VALUE(".as_slice()
+    } else {
+        b"SET_AUX_OUTPUT_VALUE("
+    });
+    push_int(o, i64::from(index));
+    o.push(b',');
+    push_fixed(o, value, 6);
+    o.push(b')');
+}
+
+/// LinuxCNC compensates inside its interpreter and only notes the change.
+fn cutter_compensation_comment(side: CompensationSide) -> &'static [u8] {
+    match side {
+        CompensationSide::Left => b"COMMENT(\"interpreter: cutter radius compensation on left\")",
+        CompensationSide::Right => b"COMMENT(\"interpreter: cutter radius compensation on right\")",
+    }
+}
+
+fn write_user_m_code(o: &mut Vec<u8>, code: u16, p: Option<f64>, q: Option<f64>) {
+    o.extend_from_slice(b"USER_M_CODE(");
+    push_int(o, i64::from(code));
+    // A missing word prints as -1, LinuxCNC's value for "not given".
+    for w in [p, q] {
+        o.extend_from_slice(b", ");
+        push_fixed(o, w.unwrap_or(-1.0), 4);
+    }
+    o.push(b')');
 }
 
 fn call_pose(o: &mut Vec<u8>, name: &[u8], p: &Pose) {

@@ -198,6 +198,15 @@ fn err(file: &str, pos: Pos, kind: ErrorKind, msg: impl Into<String>) -> Compile
     CompileError::new(file, pos, kind, msg)
 }
 
+/// The names of the unit's POUs of one kind, in source order.
+fn pous_of_kind(u: &ast::Unit, kind: PouKind) -> Vec<Name> {
+    u.pous
+        .iter()
+        .filter(|p| p.kind == kind)
+        .map(|p| p.name.clone())
+        .collect()
+}
+
 fn elem_of(ty: &Ty) -> Option<Elem> {
     match ty {
         Ty::T(t) => t
@@ -422,39 +431,42 @@ impl<'a> Compiler<'a> {
 
     // ---------------------------------------------------------------- unit
 
+    /// Compiles a whole unit in the order its parts depend on each other: names, types,
+    /// globals, POU interfaces, bodies, then the program instances and tasks that run them.
     fn unit(&mut self, u: &'a ast::Unit) -> R<Program> {
+        let programs = self.register_names(u)?;
+        self.declare_types(u);
+        // Globals first: their constants may bound the arrays of blocks and functions.
+        self.declare_globals(u);
+        let (fb_names, fn_names) = self.declare_interfaces(u);
+        // Bodies refer to the interfaces of every POU: stop before compiling any body if
+        // an interface is wrong.
+        if !self.errors.is_empty() {
+            return Err(self.errors.remove(0));
+        }
+        self.compile_bodies(&fb_names, &fn_names)?;
+        let (instances, tasks) = self.instances_and_tasks(u, &programs)?;
+        if !self.errors.is_empty() {
+            return Err(self.errors.remove(0));
+        }
+        self.finish_program(u, instances, tasks)
+    }
+
+    /// Files every type, interface, function, function block and program under its name,
+    /// so that declarations can refer to each other in any order; returns the programs.
+    fn register_names(&mut self, u: &'a ast::Unit) -> R<Vec<&'a ast::Pou>> {
         let mut seen: HashMap<String, Pos> = HashMap::new();
-        let mut check_dup = |c: &Compiler, n: &Name| -> R<()> {
-            if Elem::from_name(&n.text).is_some()
-                || StdFb::from_name(&n.text).is_some()
-                || n.text == "STRING"
-            {
-                return Err(c.e(
-                    n.pos,
-                    ErrorKind::Duplicate,
-                    format!("'{}' is a standard name", n.text),
-                ));
-            }
-            if let Some(p) = seen.insert(n.text.clone(), n.pos) {
-                return Err(c.e(
-                    n.pos,
-                    ErrorKind::Duplicate,
-                    format!("'{}' is already declared at line {}", n.text, p.line),
-                ));
-            }
-            Ok(())
-        };
         for t in &u.types {
-            check_dup(self, &t.name)?;
+            self.check_new_name(&mut seen, &t.name)?;
             self.type_asts.insert(t.name.text.clone(), t);
         }
         for i in &u.interfaces {
-            check_dup(self, &i.name)?;
+            self.check_new_name(&mut seen, &i.name)?;
             self.iface_asts.insert(i.name.text.clone(), i);
         }
         let mut programs: Vec<&'a ast::Pou> = Vec::new();
         for p in &u.pous {
-            check_dup(self, &p.name)?;
+            self.check_new_name(&mut seen, &p.name)?;
             match p.kind {
                 PouKind::Function => {
                     self.fn_asts.insert(p.name.text.clone(), p);
@@ -465,12 +477,42 @@ impl<'a> Compiler<'a> {
                 PouKind::Program => programs.push(p),
             }
         }
+        Ok(programs)
+    }
+
+    /// A top-level name may neither shadow a standard name nor be declared twice.
+    fn check_new_name(&self, seen: &mut HashMap<String, Pos>, n: &Name) -> R<()> {
+        if Elem::from_name(&n.text).is_some()
+            || StdFb::from_name(&n.text).is_some()
+            || n.text == "STRING"
+        {
+            return Err(self.e(
+                n.pos,
+                ErrorKind::Duplicate,
+                format!("'{}' is a standard name", n.text),
+            ));
+        }
+        if let Some(p) = seen.insert(n.text.clone(), n.pos) {
+            return Err(self.e(
+                n.pos,
+                ErrorKind::Duplicate,
+                format!("'{}' is already declared at line {}", n.text, p.line),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Lays out the named types; errors are collected so that one run reports them all.
+    fn declare_types(&mut self, u: &ast::Unit) {
         for t in &u.types {
             if let Err(e) = self.named_type(&t.name) {
                 self.errors.push(e);
             }
         }
-        // Globals first: their constants may bound the arrays of blocks and functions.
+    }
+
+    /// Lays out the global variables of the unit and of its configuration.
+    fn declare_globals(&mut self, u: &ast::Unit) {
         let mut global_blocks: Vec<&ast::VarBlock> = u.globals.iter().collect();
         for cfg in &u.configs {
             global_blocks.extend(cfg.globals.iter());
@@ -491,12 +533,13 @@ impl<'a> Compiler<'a> {
                 }
             }
         }
-        let fb_names: Vec<Name> = u
-            .pous
-            .iter()
-            .filter(|p| p.kind == PouKind::FunctionBlock)
-            .map(|p| p.name.clone())
-            .collect();
+    }
+
+    /// Declares what callers see of each function block (members, methods, implemented
+    /// interfaces), interface and function; returns the names of the function blocks and
+    /// of the functions.
+    fn declare_interfaces(&mut self, u: &ast::Unit) -> (Vec<Name>, Vec<Name>) {
+        let fb_names = pous_of_kind(u, PouKind::FunctionBlock);
         for n in &fb_names {
             if let Err(e) = self.fb_type(n) {
                 self.errors.push(e);
@@ -507,6 +550,7 @@ impl<'a> Compiler<'a> {
                 self.errors.push(e);
             }
         }
+        // Methods and interface checks need every block and interface declared first.
         for n in &fb_names {
             if let Err(e) = self.declare_methods(n) {
                 self.errors.push(e);
@@ -517,22 +561,19 @@ impl<'a> Compiler<'a> {
                 self.errors.push(e);
             }
         }
-        let fn_names: Vec<Name> = u
-            .pous
-            .iter()
-            .filter(|p| p.kind == PouKind::Function)
-            .map(|p| p.name.clone())
-            .collect();
+        let fn_names = pous_of_kind(u, PouKind::Function);
         for n in &fn_names {
             if let Err(e) = self.func(n) {
                 self.errors.push(e);
             }
         }
-        if !self.errors.is_empty() {
-            return Err(self.errors.remove(0));
-        }
-        // Bodies of function blocks and functions.
-        for n in &fb_names {
+        (fb_names, fn_names)
+    }
+
+    /// Compiles the bodies of function blocks, methods and functions, then rejects
+    /// recursion (IEC 61131-3 functions have one static frame each).
+    fn compile_bodies(&mut self, fb_names: &[Name], fn_names: &[Name]) -> R<()> {
+        for n in fb_names {
             if let Err(e) = self.fb_body(n) {
                 self.errors.push(e);
             }
@@ -543,18 +584,21 @@ impl<'a> Compiler<'a> {
                 self.errors.push(e);
             }
         }
-        for n in &fn_names {
+        for n in fn_names {
             if let Err(e) = self.fn_body(n) {
                 self.errors.push(e);
             }
         }
-        self.check_recursion(&fn_names)?;
+        self.check_recursion(fn_names)
+    }
 
-        // Program instances and tasks.
-        let prog_by_name: HashMap<&str, &'a ast::Pou> = programs
-            .iter()
-            .map(|p| (p.name.text.as_str(), *p))
-            .collect();
+    /// The program instances and the tasks that run them, sorted by priority. Without a
+    /// CONFIGURATION every program gets one instance run by the DEFAULT task.
+    fn instances_and_tasks(
+        &mut self,
+        u: &'a ast::Unit,
+        programs: &[&'a ast::Pou],
+    ) -> R<(Vec<ProgramInstance>, Vec<TaskDesc>)> {
         let mut instances = Vec::new();
         let mut tasks: Vec<TaskDesc> = Vec::new();
         let mut default_task: Vec<usize> = Vec::new();
@@ -566,101 +610,9 @@ impl<'a> Compiler<'a> {
             ));
         }
         if let Some(cfg) = u.configs.first() {
-            let mut inst_names: HashSet<String> = HashSet::new();
-            for res in &cfg.resources {
-                let first_task = tasks.len();
-                for t in &res.tasks {
-                    if tasks.iter().any(|x| x.name == t.name.text) {
-                        return Err(self.e(
-                            t.name.pos,
-                            ErrorKind::Duplicate,
-                            format!("task '{}' declared twice", t.name.text),
-                        ));
-                    }
-                    let interval = match &t.interval {
-                        Some(e) => {
-                            let ns = self.const_time(e)?;
-                            if ns <= 0 {
-                                return Err(self.e(
-                                    e.pos(),
-                                    ErrorKind::Invalid,
-                                    "INTERVAL must be positive",
-                                ));
-                            }
-                            Some(Duration::from_nanos(ns as u64))
-                        }
-                        None => None,
-                    };
-                    let (trigger, trigger_slot) = match &t.single {
-                        Some(s) => {
-                            if interval.is_some() {
-                                return Err(self.e(
-                                    s.pos(),
-                                    ErrorKind::Invalid,
-                                    "a task has either INTERVAL (cyclic) or SINGLE (event), not both",
-                                ));
-                            }
-                            let (name, slot) = self.trigger_variable(s)?;
-                            (Some(name), Some(slot))
-                        }
-                        None => (None, None),
-                    };
-                    let priority = match &t.priority {
-                        Some(e) => {
-                            let v = self.const_int(e)?;
-                            u32::try_from(v).map_err(|_| {
-                                self.e(e.pos(), ErrorKind::Invalid, "PRIORITY must be 0 or more")
-                            })?
-                        }
-                        None => 0,
-                    };
-                    tasks.push(TaskDesc {
-                        name: t.name.text.clone(),
-                        interval,
-                        priority,
-                        trigger,
-                        trigger_slot,
-                        programs: Vec::new(),
-                        program_ids: Vec::new(),
-                    });
-                }
-                for pi in &res.programs {
-                    if !inst_names.insert(pi.name.text.clone()) {
-                        return Err(self.e(
-                            pi.name.pos,
-                            ErrorKind::Duplicate,
-                            format!("program instance '{}' declared twice", pi.name.text),
-                        ));
-                    }
-                    let Some(pou) = prog_by_name.get(pi.ty.text.as_str()) else {
-                        return Err(self.e(
-                            pi.ty.pos,
-                            ErrorKind::Undeclared,
-                            format!("no PROGRAM named '{}'", pi.ty.text),
-                        ));
-                    };
-                    let idx = instances.len();
-                    instances.push(self.program_instance(pou, &pi.name.text)?);
-                    match &pi.task {
-                        Some(tn) => {
-                            let Some(t) =
-                                tasks[first_task..].iter_mut().find(|t| t.name == tn.text)
-                            else {
-                                return Err(self.e(
-                                    tn.pos,
-                                    ErrorKind::Undeclared,
-                                    format!("no TASK named '{}' in this resource", tn.text),
-                                ));
-                            };
-                            t.programs.push(pi.name.text.clone());
-                            t.program_ids.push(idx);
-                        }
-                        None => default_task.push(idx),
-                    }
-                }
-            }
+            self.configure(cfg, programs, &mut instances, &mut tasks, &mut default_task)?;
         } else {
-            for p in &programs {
+            for p in programs {
                 let idx = instances.len();
                 instances.push(self.program_instance(p, &p.name.text)?);
                 default_task.push(idx);
@@ -668,7 +620,7 @@ impl<'a> Compiler<'a> {
         }
         // A PROGRAM the configuration does not instantiate is still checked: it gets an
         // instance of its own name that no task runs.
-        for p in &programs {
+        for p in programs {
             let used = instances.iter().any(|i| i.pou_type == p.name.text);
             if !used && !instances.iter().any(|i| i.name == p.name.text) {
                 instances.push(self.program_instance(p, &p.name.text)?);
@@ -689,14 +641,130 @@ impl<'a> Compiler<'a> {
             });
         }
         tasks.sort_by_key(|t| t.priority);
-        if !self.errors.is_empty() {
-            return Err(self.errors.remove(0));
+        Ok((instances, tasks))
+    }
+
+    /// Declares the tasks and program instances of each resource of a CONFIGURATION; an
+    /// instance with no task goes to `default_task`.
+    fn configure(
+        &mut self,
+        cfg: &ast::Config,
+        programs: &[&'a ast::Pou],
+        instances: &mut Vec<ProgramInstance>,
+        tasks: &mut Vec<TaskDesc>,
+        default_task: &mut Vec<usize>,
+    ) -> R<()> {
+        let prog_by_name: HashMap<&str, &'a ast::Pou> = programs
+            .iter()
+            .map(|p| (p.name.text.as_str(), *p))
+            .collect();
+        let mut inst_names: HashSet<String> = HashSet::new();
+        for res in &cfg.resources {
+            let first_task = tasks.len();
+            for t in &res.tasks {
+                if tasks.iter().any(|x| x.name == t.name.text) {
+                    return Err(self.e(
+                        t.name.pos,
+                        ErrorKind::Duplicate,
+                        format!("task '{}' declared twice", t.name.text),
+                    ));
+                }
+                let task = self.task(t)?;
+                tasks.push(task);
+            }
+            for pi in &res.programs {
+                if !inst_names.insert(pi.name.text.clone()) {
+                    return Err(self.e(
+                        pi.name.pos,
+                        ErrorKind::Duplicate,
+                        format!("program instance '{}' declared twice", pi.name.text),
+                    ));
+                }
+                let Some(pou) = prog_by_name.get(pi.ty.text.as_str()) else {
+                    return Err(self.e(
+                        pi.ty.pos,
+                        ErrorKind::Undeclared,
+                        format!("no PROGRAM named '{}'", pi.ty.text),
+                    ));
+                };
+                let idx = instances.len();
+                instances.push(self.program_instance(pou, &pi.name.text)?);
+                match &pi.task {
+                    // A program instance names a task of its own resource only.
+                    Some(tn) => {
+                        let Some(t) = tasks[first_task..].iter_mut().find(|t| t.name == tn.text)
+                        else {
+                            return Err(self.e(
+                                tn.pos,
+                                ErrorKind::Undeclared,
+                                format!("no TASK named '{}' in this resource", tn.text),
+                            ));
+                        };
+                        t.programs.push(pi.name.text.clone());
+                        t.program_ids.push(idx);
+                    }
+                    None => default_task.push(idx),
+                }
+            }
         }
-        let mut sizes = [0usize; 3];
-        for l in &self.located {
-            let a = area_index(l.at.area);
-            sizes[a] = sizes[a].max(l.at.byte_offset() + l.at.byte_len());
-        }
+        Ok(())
+    }
+
+    /// A TASK declaration, with no programs yet: cyclic (INTERVAL), event (SINGLE) or
+    /// neither.
+    fn task(&mut self, t: &ast::TaskDecl) -> R<TaskDesc> {
+        let interval = match &t.interval {
+            Some(e) => {
+                let ns = self.const_time(e)?;
+                if ns <= 0 {
+                    return Err(self.e(e.pos(), ErrorKind::Invalid, "INTERVAL must be positive"));
+                }
+                Some(Duration::from_nanos(ns as u64))
+            }
+            None => None,
+        };
+        let (trigger, trigger_slot) = match &t.single {
+            Some(s) => {
+                if interval.is_some() {
+                    return Err(self.e(
+                        s.pos(),
+                        ErrorKind::Invalid,
+                        "a task has either INTERVAL (cyclic) or SINGLE (event), not both",
+                    ));
+                }
+                let (name, slot) = self.trigger_variable(s)?;
+                (Some(name), Some(slot))
+            }
+            None => (None, None),
+        };
+        let priority = match &t.priority {
+            Some(e) => {
+                let v = self.const_int(e)?;
+                u32::try_from(v).map_err(|_| {
+                    self.e(e.pos(), ErrorKind::Invalid, "PRIORITY must be 0 or more")
+                })?
+            }
+            None => 0,
+        };
+        Ok(TaskDesc {
+            name: t.name.text.clone(),
+            interval,
+            priority,
+            trigger,
+            trigger_slot,
+            programs: Vec::new(),
+            program_ids: Vec::new(),
+        })
+    }
+
+    /// Moves what was compiled into the [`Program`].
+    fn finish_program(
+        &mut self,
+        u: &ast::Unit,
+        instances: Vec<ProgramInstance>,
+        tasks: Vec<TaskDesc>,
+    ) -> R<Program> {
+        let image_sizes = self.located_image_sizes();
         // Every body compiled when no error was reported; a missing one is reported, never
         // run.
         let missing = || {
@@ -727,31 +795,46 @@ impl<'a> Compiler<'a> {
             pou_names: std::mem::take(&mut self.pou_names),
             enums: std::mem::take(&mut self.enums),
             structs: self.structs.drain(..).map(|s| s.0).collect(),
-            fbs: self
-                .fbs
-                .iter()
-                .map(|f| FbLayout {
-                    name: f.name.clone(),
-                    members: f
-                        .members
-                        .iter()
-                        .map(|m| Symbol {
-                            name: m.name.clone(),
-                            ty: m.ty.clone(),
-                            addr: m.offset,
-                            kind: m.kind,
-                            retain: m.retain,
-                            indirect: m.kind == VarKind::InOut,
-                        })
-                        .collect(),
-                })
-                .collect(),
+            fbs: self.fb_layouts(),
             located: std::mem::take(&mut self.located),
             warnings: Vec::new(),
             lines: LineMap::default(),
-            image_sizes: sizes,
+            image_sizes,
             pou_count: u.pous.len(),
         })
+    }
+
+    /// The size in bytes of the input, output and memory images: up to the end of the
+    /// highest located variable of each.
+    fn located_image_sizes(&self) -> [usize; 3] {
+        let mut sizes = [0usize; 3];
+        for l in &self.located {
+            let a = area_index(l.at.area);
+            sizes[a] = sizes[a].max(l.at.byte_offset() + l.at.byte_len());
+        }
+        sizes
+    }
+
+    /// The member layout of each function block, as the runtime and its users see it.
+    fn fb_layouts(&self) -> Vec<FbLayout> {
+        self.fbs
+            .iter()
+            .map(|f| FbLayout {
+                name: f.name.clone(),
+                members: f
+                    .members
+                    .iter()
+                    .map(|m| Symbol {
+                        name: m.name.clone(),
+                        ty: m.ty.clone(),
+                        addr: m.offset,
+                        kind: m.kind,
+                        retain: m.retain,
+                        indirect: m.kind == VarKind::InOut,
+                    })
+                    .collect(),
+            })
+            .collect()
     }
 
     /// The BOOL global (or `%IX`/`%QX`/`%MX` address) named by a task's SINGLE.
