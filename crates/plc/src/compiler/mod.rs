@@ -578,7 +578,10 @@ impl<'a> Compiler<'a> {
                 self.errors.push(e);
             }
         }
-        let methods: Vec<u32> = self.method_asts.keys().copied().collect();
+        // In declaration order: a map's order changes from run to run, and with it the
+        // numbering of temporaries and the order of the errors reported.
+        let mut methods: Vec<u32> = self.method_asts.keys().copied().collect();
+        methods.sort_unstable();
         for id in methods {
             if let Err(e) = self.method_body(id) {
                 self.errors.push(e);
