@@ -255,7 +255,10 @@ fn csp_after_a_reset_compares_with_the_oldest_set_point_it_has() {
     // 5.025 is 0.02 past (limit 0.01).
     csp.update(sp(5.01), 5.0, 0.001).unwrap();
     let fault = csp.update(sp(5.015), 5.025, 0.001).unwrap_err();
-    assert!(fault.to_string().contains("following error -0.02"), "{fault}");
+    assert!(
+        fault.to_string().contains("following error -0.02"),
+        "{fault}"
+    );
 }
 
 #[test]
