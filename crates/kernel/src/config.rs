@@ -853,8 +853,32 @@ impl MachineConfig {
         Ok(config)
     }
 
-    /// Checks every value; the error names the first refused key.
+    /// Checks every value; the error names the first refused key. The checks run in
+    /// the order below, and the first one that fails is the error reported: the axes'
+    /// checks rely on the joints being checked first, and so on down.
     pub fn validate(&self) -> Result<(), ConfigError> {
+        self.validate_joint_count()?;
+        self.validate_fieldbus()?;
+        self.validate_joints()?;
+        self.validate_simulated_drives()?;
+        let driven = self.validate_axes()?;
+        self.validate_independent_joints(&driven)?;
+        self.validate_home_positions(&driven)?;
+        self.tasks_checked()?;
+        self.validate_motion_spindle_and_tool_changer()?;
+        self.validate_io()?;
+        positive_finite("handwheel.units_per_count", self.handwheel.units_per_count)?;
+        if self.machine.diameter_mode && self.machine.kind != MachineKind::Lathe {
+            return Err(ConfigError::invalid(
+                "machine.diameter_mode",
+                "only a lathe has a diameter mode",
+            ));
+        }
+        Ok(())
+    }
+
+    /// A machine has at least one joint and no more than the kernel's arrays hold.
+    fn validate_joint_count(&self) -> Result<(), ConfigError> {
         if self.joints.is_empty() {
             return Err(ConfigError::invalid(
                 "joints",
@@ -867,7 +891,11 @@ impl MachineConfig {
                 format!("at most {MAX_JOINTS} joints are supported"),
             ));
         }
-        self.validate_fieldbus()?;
+        Ok(())
+    }
+
+    /// Each joint: a unique name, servo gains, homing speeds and positions.
+    fn validate_joints(&self) -> Result<(), ConfigError> {
         for (i, j) in self.joints.iter().enumerate() {
             if j.name.is_empty() {
                 return Err(ConfigError::invalid(
@@ -905,6 +933,11 @@ impl MachineConfig {
                 )?;
             }
         }
+        Ok(())
+    }
+
+    /// The simulated drives, when there is no real EtherCAT bus.
+    fn validate_simulated_drives(&self) -> Result<(), ConfigError> {
         let simulated = match &self.fieldbus.ethercat {
             None => true,
             Some(e) => e.simulation.is_some(),
@@ -914,6 +947,12 @@ impl MachineConfig {
                 .validate()
                 .map_err(|e| ConfigError::invalid(sim_key(&e.field), e.reason))?;
         }
+        Ok(())
+    }
+
+    /// Each axis: its limits, and the joints it drives (each joint by one axis at most).
+    /// Returns, for each joint, the letter of the axis that drives it.
+    fn validate_axes(&self) -> Result<Vec<Option<String>>, ConfigError> {
         let mut driven = vec![None::<String>; self.joints.len()];
         if self.axes.is_empty() {
             return Err(ConfigError::invalid("axes", "at least one axis is needed"));
@@ -995,8 +1034,12 @@ impl MachineConfig {
                 driven[index] = Some(letter.clone());
             }
         }
-        // A joint no axis drives is an independent joint: it moves only by homing or an
-        // independent move (the seeds' gantry has three), and needs its own limits.
+        Ok(driven)
+    }
+
+    /// A joint no axis drives is an independent joint: it moves only by homing or an
+    /// independent move (the seeds' gantry has three), and needs its own limits.
+    fn validate_independent_joints(&self, driven: &[Option<String>]) -> Result<(), ConfigError> {
         for (i, axis) in driven.iter().enumerate() {
             let key = format!("joints[{i}].limits");
             match (axis, &self.joints[i].limits) {
@@ -1033,8 +1076,12 @@ impl MachineConfig {
                 (Some(_), None) => {}
             }
         }
-        // A joint goes home to a position inside its limits (the switch, and so the latched
-        // position, may lie beyond them).
+        Ok(())
+    }
+
+    /// A joint goes home to a position inside its limits (the switch, and so the latched
+    /// position, may lie beyond them).
+    fn validate_home_positions(&self, driven: &[Option<String>]) -> Result<(), ConfigError> {
         for (i, joint) in self.joints.iter().enumerate() {
             let Some(h) = &joint.homing else { continue };
             let (min, max) = match (&driven[i], &joint.limits) {
@@ -1055,7 +1102,11 @@ impl MachineConfig {
                 ));
             }
         }
-        self.tasks_checked()?;
+        Ok(())
+    }
+
+    /// The blend tolerance, the spindle's speed and the tool change time.
+    fn validate_motion_spindle_and_tool_changer(&self) -> Result<(), ConfigError> {
         positive_finite(
             "motion.default_blend_tolerance",
             self.motion.default_blend_tolerance,
@@ -1071,6 +1122,12 @@ impl MachineConfig {
                 ));
             }
         }
+        Ok(())
+    }
+
+    /// The program's I/O points and the feed stop and probe inputs lie inside the
+    /// machine's I/O image.
+    fn validate_io(&self) -> Result<(), ConfigError> {
         for (list, size, key) in [
             (
                 &self.io.program_outputs,
@@ -1121,13 +1178,6 @@ impl MachineConfig {
                     ));
                 }
             }
-        }
-        positive_finite("handwheel.units_per_count", self.handwheel.units_per_count)?;
-        if self.machine.diameter_mode && self.machine.kind != MachineKind::Lathe {
-            return Err(ConfigError::invalid(
-                "machine.diameter_mode",
-                "only a lathe has a diameter mode",
-            ));
         }
         Ok(())
     }

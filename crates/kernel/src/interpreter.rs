@@ -492,12 +492,36 @@ impl InterpreterStage {
         Some(canon)
     }
 
+    /// Turns one canonical command the kernel accepted into program blocks. Each step
+    /// below takes one family of commands and hands back any other; a command no step
+    /// takes (a comment, a canon call with no effect on motion) leaves no block.
     fn convert_now(&mut self, canon: Canon) {
-        use CanonCommand as C;
         let line = canon.source.line;
+        let Some(command) = self.convert_modal_setting(canon.command) else {
+            return;
+        };
+        let Some(command) = self.convert_spindle(command, line) else {
+            return;
+        };
+        let Some(command) = self.convert_motion(command, line) else {
+            return;
+        };
+        let Some(command) = self.convert_io_and_operator(command, line) else {
+            return;
+        };
+        if matches!(command, CanonCommand::ProgramEnd | CanonCommand::Finish) {
+            self.outbox.push_back(ProgramBlock::End { line });
+            self.active = false;
+            self.save_parameters();
+        }
+    }
+
+    /// Units, offsets, plane, path mode and feed rate: the modal settings later moves are
+    /// read in. Hands back any other command.
+    fn convert_modal_setting(&mut self, command: CanonCommand) -> Option<CanonCommand> {
+        use CanonCommand as C;
         let out = &mut self.outbox;
-        let aux = |aux| ProgramBlock::Aux { line, aux };
-        match canon.command {
+        match command {
             C::UseLengthUnits(u) => {
                 self.units = u;
                 out.push_back(ProgramBlock::Units(match u {
@@ -549,6 +573,18 @@ impl InterpreterStage {
                     per_revolution,
                 })
             }
+            other => return Some(other),
+        }
+        None
+    }
+
+    /// Spindle speed, direction, constant surface speed and orientation, and the tool
+    /// change. Hands back any other command.
+    fn convert_spindle(&mut self, command: CanonCommand, line: u32) -> Option<CanonCommand> {
+        use CanonCommand as C;
+        let out = &mut self.outbox;
+        let aux = |aux| ProgramBlock::Aux { line, aux };
+        match command {
             C::SetSpindleMode {
                 constant_surface_speed: true,
                 max_rpm,
@@ -601,10 +637,35 @@ impl InterpreterStage {
                 tool: u32::try_from(self.selected_tool).unwrap_or(0),
             })),
             C::ChangeToolNumber(_) => {}
-            C::Dwell(seconds) => out.push_back(ProgramBlock::Dwell { line, seconds }),
+            C::OrientSpindle { angle, mode, .. } => {
+                self.spindle_on = None;
+                out.push_back(aux(Aux::SpindleOrient {
+                    angle,
+                    mode: u8::try_from(mode).unwrap_or(0).min(2),
+                }))
+            }
+            C::WaitOrientComplete { timeout, .. } => {
+                out.push_back(aux(Aux::WaitOrient { timeout }))
+            }
+            C::StartSpeedFeedSync {
+                feed_per_revolution,
+                ..
+            } => out.push_back(ProgramBlock::SpindleSync(Some(feed_per_revolution))),
+            C::StopSpeedFeedSync => out.push_back(ProgramBlock::SpindleSync(None)),
+            other => return Some(other),
+        }
+        None
+    }
+
+    /// Moves, dwell and probe: the blocks the planner runs as a path. Each one moves the
+    /// position the next one starts from. Hands back any other command.
+    fn convert_motion(&mut self, command: CanonCommand, line: u32) -> Option<CanonCommand> {
+        use CanonCommand as C;
+        match command {
+            C::Dwell(seconds) => self.outbox.push_back(ProgramBlock::Dwell { line, seconds }),
             C::StraightTraverse(p) => {
                 self.position = p.to_array();
-                out.push_back(ProgramBlock::Line {
+                self.outbox.push_back(ProgramBlock::Line {
                     line,
                     end: self.position,
                     rapid: true,
@@ -612,67 +673,97 @@ impl InterpreterStage {
             }
             C::StraightFeed(p) => {
                 self.position = p.to_array();
-                out.push_back(ProgramBlock::Line {
+                self.outbox.push_back(ProgramBlock::Line {
                     line,
                     end: self.position,
                     rapid: false,
                 });
             }
-            C::ArcFeed(arc) => {
-                let (end, centre, normal, turns) = arc_geometry(&arc, self.plane, &self.position);
-                // The radius difference the interpreter accepts for this arc: the planner
-                // runs it as a spiral (as LinuxCNC does) and refuses no less. Cutter
-                // compensation keeps the programmed difference while it changes the radii
-                // (the interpreter accepted it for the programmed ones): at least the arc's
-                // own difference.
-                let radius = |p: &[f64; 9]| {
-                    let d = [p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]];
-                    let along = d[0] * normal[0] + d[1] * normal[1] + d[2] * normal[2];
-                    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - along * along)
-                        .max(0.0)
-                        .sqrt()
-                };
-                let (r_start, r_end) = (radius(&self.position), radius(&end));
-                let radius_tolerance = self
-                    .settings
-                    .arc_radius_tolerance(self.units)
-                    .largest_difference(r_start.max(r_end))
-                    .max((r_start - r_end).abs());
-                self.position = end;
-                out.push_back(ProgramBlock::Arc {
+            C::ArcFeed(arc) => self.convert_arc(&arc, line),
+            C::SplineFeed(sp) => self.convert_spline(&sp, line),
+            C::StraightProbe { end, kind } => {
+                self.position = end.to_array();
+                self.outbox.push_back(ProgramBlock::Probe {
                     line,
-                    end,
-                    centre,
-                    normal,
-                    turns,
-                    radius_tolerance,
+                    end: self.position,
+                    kind,
                 });
             }
-            C::SplineFeed(sp) => {
-                let (end, control) = spline_geometry(&sp, &self.position);
-                if control.is_followable(&self.position, &end) {
-                    out.push_back(ProgramBlock::Spline { line, end, control });
-                } else {
-                    // A cusp or near cusp (the curve stops and turns back) has no speed the
-                    // planner can follow along the curve: it runs as chords within
-                    // SPLINE_CHORD_ERROR_MM of it, blended as lines are, stopping where they
-                    // reverse (LinuxCNC runs every spline as arcs).
-                    let tolerance = match self.units {
-                        Units::Mm => SPLINE_CHORD_ERROR_MM,
-                        Units::Inches => SPLINE_CHORD_ERROR_MM / 25.4,
-                    };
-                    let mut points = Vec::new();
-                    control.flatten(&self.position, &end, tolerance, &mut points);
-                    for end in points {
-                        out.push_back(ProgramBlock::Line {
-                            line,
-                            end,
-                            rapid: false,
-                        });
-                    }
-                }
-                self.position = end;
+            other => return Some(other),
+        }
+        None
+    }
+
+    fn convert_arc(&mut self, arc: &rtcnc_gcode::canon::Arc, line: u32) {
+        let (end, centre, normal, turns) = arc_geometry(arc, self.plane, &self.position);
+        // The radius difference the interpreter accepts for this arc: the planner
+        // runs it as a spiral (as LinuxCNC does) and refuses no less. Cutter
+        // compensation keeps the programmed difference while it changes the radii
+        // (the interpreter accepted it for the programmed ones): at least the arc's
+        // own difference.
+        let radius = |p: &[f64; 9]| {
+            let d = [p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]];
+            let along = d[0] * normal[0] + d[1] * normal[1] + d[2] * normal[2];
+            (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - along * along)
+                .max(0.0)
+                .sqrt()
+        };
+        let (r_start, r_end) = (radius(&self.position), radius(&end));
+        let radius_tolerance = self
+            .settings
+            .arc_radius_tolerance(self.units)
+            .largest_difference(r_start.max(r_end))
+            .max((r_start - r_end).abs());
+        self.position = end;
+        self.outbox.push_back(ProgramBlock::Arc {
+            line,
+            end,
+            centre,
+            normal,
+            turns,
+            radius_tolerance,
+        });
+    }
+
+    fn convert_spline(&mut self, sp: &rtcnc_gcode::canon::Spline, line: u32) {
+        let (end, control) = spline_geometry(sp, &self.position);
+        if control.is_followable(&self.position, &end) {
+            self.outbox
+                .push_back(ProgramBlock::Spline { line, end, control });
+        } else {
+            // A cusp or near cusp (the curve stops and turns back) has no speed the
+            // planner can follow along the curve: it runs as chords within
+            // SPLINE_CHORD_ERROR_MM of it, blended as lines are, stopping where they
+            // reverse (LinuxCNC runs every spline as arcs).
+            let tolerance = match self.units {
+                Units::Mm => SPLINE_CHORD_ERROR_MM,
+                Units::Inches => SPLINE_CHORD_ERROR_MM / 25.4,
+            };
+            let mut points = Vec::new();
+            control.flatten(&self.position, &end, tolerance, &mut points);
+            for end in points {
+                self.outbox.push_back(ProgramBlock::Line {
+                    line,
+                    end,
+                    rapid: false,
+                });
             }
+        }
+        self.position = end;
+    }
+
+    /// Program I/O, messages, override switches, coolant, user M-codes and program
+    /// stops: auxiliary blocks the kernel runs between moves. Hands back any other
+    /// command.
+    fn convert_io_and_operator(
+        &mut self,
+        command: CanonCommand,
+        line: u32,
+    ) -> Option<CanonCommand> {
+        use CanonCommand as C;
+        let out = &mut self.outbox;
+        let aux = |aux| ProgramBlock::Aux { line, aux };
+        match command {
             C::SetDigitalOutput { index, on, .. } => {
                 out.push_back(aux(Aux::DigitalOutput { index, on }))
             }
@@ -713,29 +804,6 @@ impl InterpreterStage {
             C::SetAnalogOutput { index, value, .. } => {
                 out.push_back(aux(Aux::AnalogOutput { index, value }))
             }
-            C::OrientSpindle { angle, mode, .. } => {
-                self.spindle_on = None;
-                out.push_back(aux(Aux::SpindleOrient {
-                    angle,
-                    mode: u8::try_from(mode).unwrap_or(0).min(2),
-                }))
-            }
-            C::WaitOrientComplete { timeout, .. } => {
-                out.push_back(aux(Aux::WaitOrient { timeout }))
-            }
-            C::StartSpeedFeedSync {
-                feed_per_revolution,
-                ..
-            } => out.push_back(ProgramBlock::SpindleSync(Some(feed_per_revolution))),
-            C::StopSpeedFeedSync => out.push_back(ProgramBlock::SpindleSync(None)),
-            C::StraightProbe { end, kind } => {
-                self.position = end.to_array();
-                out.push_back(ProgramBlock::Probe {
-                    line,
-                    end: self.position,
-                    kind,
-                });
-            }
             C::FeedOverride(on) => out.push_back(aux(Aux::FeedOverrideEnable(on))),
             C::SpeedOverride { enable, .. } => {
                 out.push_back(aux(Aux::SpindleOverrideEnable(enable)))
@@ -760,13 +828,9 @@ impl InterpreterStage {
             })),
             C::PalletShuttle => {}
             C::OptionalProgramStop => out.push_back(aux(Aux::OptionalStop)),
-            C::ProgramEnd | C::Finish => {
-                out.push_back(ProgramBlock::End { line });
-                self.active = false;
-                self.save_parameters();
-            }
-            _ => {}
+            other => return Some(other),
         }
+        None
     }
 }
 

@@ -212,32 +212,9 @@ fn controlled_stop(handle: &rtcnc_kernel::KernelHandle) {
 
 /// Runs `rtcnc run`.
 pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
-    args.machine = crate::machines::locate(&args.machine)?;
-    let config = MachineConfig::load(&args.machine)
-        // The error names the file.
-        .context("machine configuration")?;
-    if args.program.is_none() && args.idle.is_none() {
-        bail!("give a PROGRAM, or --idle SECONDS");
-    }
-    if let Some(p) = &args.program {
-        if !p.is_file() {
-            bail!("{}: no such program file", p.display());
-        }
-    }
-    let kernel = Kernel::build(
-        &config,
-        KernelOptions {
-            program: args.program.clone(),
-            record_capacity: if args.out.is_some() {
-                RECORD_CAPACITY
-            } else {
-                0
-            },
-            trace_capacity: Some(4096),
-            ..KernelOptions::default()
-        },
-    )?;
-    let mut recording = match (&args.out, kernel.samples) {
+    let config = load_machine(&mut args)?;
+    let mut kernel = build_kernel(&args, &config)?;
+    let mut recording = match (&args.out, kernel.samples.take()) {
         (Some(dir), Some(samples)) => Some(Recording {
             samples,
             csv: SampleCsv::create(dir, &config)?,
@@ -251,170 +228,32 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
     };
     let handle = kernel.handle.clone();
     let tty = std::io::stderr().is_terminal();
-    let runner = RealTimeRunner::start(
-        kernel.tasks,
-        RealTimeConfig {
-            scheduling: if args.require_fifo {
-                SchedulingMode::RequireFifo
-            } else {
-                SchedulingMode::BestEffort
-            },
-            // Printed here, above the status line.
-            print_warnings: false,
-            ..RealTimeConfig::default()
-        },
-    )?;
+    let runner = start_executive(kernel.tasks, args.require_fifo)?;
     install_signal_handlers();
-    let warn_misses = config.safety.deadline_miss == rtcnc_kernel::config::MissReactionConfig::Warn;
-    let mut misses = MissWarnings { seen: 0, count: 0 };
-    let wait = |what: &str, limit: Duration, done: &dyn Fn() -> bool| -> anyhow::Result<()> {
-        let start = Instant::now();
-        // SIGTERM ends the wait; the run loop then makes the controlled stop.
-        while !done() && !TERMINATED.load(Ordering::SeqCst) {
-            if start.elapsed() > limit {
-                bail!("{what} did not happen within {limit:?}");
-            }
-            std::thread::sleep(Duration::from_millis(5));
-        }
-        Ok(())
+    let mut live = Live {
+        runner: &runner,
+        recording: recording.as_mut(),
+        misses: MissWarnings { seen: 0, count: 0 },
+        warn_misses: config.safety.deadline_miss == rtcnc_kernel::config::MissReactionConfig::Warn,
     };
-    std::thread::sleep(Duration::from_millis(50));
-    handle.command(Command::Reset);
-    wait("enabling the drives", Duration::from_secs(2), &|| {
-        handle.status().ready
-    })
-    .map_err(|e| {
-        // Say why: the faults that kept the drives off.
-        let faults: Vec<String> = handle
-            .take_faults()
-            .iter()
-            .map(|f| handle.describe(f))
-            .collect();
-        if faults.is_empty() {
-            e
-        } else {
-            e.context(faults.join("; "))
-        }
-    })?;
-    if args.home {
-        handle.command(Command::HomeAll);
-        std::thread::sleep(Duration::from_millis(20));
-        wait("homing", Duration::from_secs(600), &|| {
-            handle.status().state != MachineState::Running
-        })?;
-    }
+    enable_and_home(&handle, args.home)?;
     let started = Instant::now();
-    let mut ended = false;
-    if let Some(idle) = args.idle {
-        while started.elapsed() < idle && !TERMINATED.load(Ordering::SeqCst) {
-            std::thread::sleep(
-                (idle - started.elapsed().min(idle)).min(Duration::from_millis(100)),
-            );
-            if warn_misses {
-                misses.poll(&runner, false);
-            }
-            if let Some(r) = recording.as_mut() {
-                r.drain();
-            }
+    let ended = match args.idle {
+        Some(idle) => {
+            run_idle(&handle, &mut live, started, idle);
+            false
         }
-        if TERMINATED.load(Ordering::SeqCst) {
-            controlled_stop(&handle);
-        }
-    } else {
-        handle.command(Command::Start { from_line: 0 });
-        let kernel_start = handle.status().time_ns;
-        let mut seen = 0;
-        let mut hold = None;
-        loop {
-            std::thread::sleep(Duration::from_millis(100));
-            if TERMINATED.load(Ordering::SeqCst) {
-                if tty {
-                    clear_status_line();
-                }
-                eprintln!("rtcnc: SIGTERM: feed hold, abort, drives off");
-                controlled_stop(&handle);
-                break;
-            }
-            let interrupts = INTERRUPTS.load(Ordering::SeqCst);
-            if interrupts > seen {
-                seen = interrupts;
-                if tty {
-                    clear_status_line();
-                }
-                if seen == 1 {
-                    handle.urgent(Urgent::FeedHold);
-                    eprintln!("rtcnc: feed hold (Ctrl-C again to abort)");
-                } else {
-                    handle.urgent(Urgent::Abort);
-                    eprintln!("rtcnc: abort");
-                }
-            }
-            if warn_misses {
-                misses.poll(&runner, tty);
-            }
-            if let Some(r) = recording.as_mut() {
-                r.drain();
-            }
-            print_messages(&handle, kernel_start, tty);
-            let s = handle.status();
-            // What holds the machine, said once as it begins (the status line keeps it).
-            if s.hold != hold {
-                hold = s.hold;
-                if let Some(cause) = hold {
-                    if tty {
-                        clear_status_line();
-                    }
-                    let t = s.time_ns.saturating_sub(kernel_start) as f64 * 1e-9;
-                    say!("{}  t {t:.3} s  line {}", cause.message(), s.line);
-                }
-            }
-            if tty {
-                eprint!(
-                    "{}",
-                    status_text(started.elapsed().as_secs_f64(), &s, misses.count)
-                );
-                let _ = std::io::stderr().flush();
-            }
-            if s.program_ended && s.state == MachineState::Idle {
-                ended = true;
-                break;
-            }
-            if matches!(s.state, MachineState::Fault | MachineState::EStop) {
-                break;
-            }
-            if seen >= 2 && s.state == MachineState::Idle {
-                break;
-            }
-            if started.elapsed() > args.limit {
-                break;
-            }
-        }
-        if tty {
-            eprintln!();
-        }
-        print_messages(&handle, kernel_start, false);
-    }
-    if warn_misses {
-        misses.poll(&runner, false);
-    }
+        None => follow_program(&handle, &mut live, started, args.limit, tty),
+    };
+    live.poll_misses(false);
+    let misses = live.misses.count;
     let terminated = TERMINATED.load(Ordering::SeqCst);
     let elapsed = started.elapsed().as_secs_f64();
     let fifo = runner.is_fifo();
     let executive = runner.stop();
     let faults = handle.take_faults();
-    if let Some(mut r) = recording {
-        r.drain();
-        let dir = args.out.as_deref().unwrap_or(std::path::Path::new("."));
-        if let Some(e) = r.error {
-            bail!("{}: {e}", dir.display());
-        }
-        r.csv.finish()?;
-        say!(
-            "recording   {} periods in {}/setpoints.csv, feedback.csv; {} periods missing",
-            r.rows,
-            dir.display(),
-            r.missing
-        );
+    if let Some(r) = recording {
+        finish_recording(r, args.out.as_deref())?;
     }
     if terminated {
         say!("terminated (SIGTERM) after {elapsed:.3} s: feed hold, abort, drives off");
@@ -436,6 +275,278 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
             "normal threads (no SCHED_FIFO permission)"
         }
     );
+    print_task_times(&config, &executive);
+    print_setpoint_timing(&config, &executive, &handle);
+    if misses > 0 {
+        say!("deadline-miss warnings: {misses}");
+    }
+    print_faults(&handle, &faults, terminated);
+    Ok(if terminated {
+        ExitCode::from(EXIT_TERMINATED)
+    } else if ended || args.idle.is_some() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
+/// The machine file, and the arguments checked against it: a program or --idle.
+fn load_machine(args: &mut Args) -> anyhow::Result<MachineConfig> {
+    args.machine = crate::machines::locate(&args.machine)?;
+    let config = MachineConfig::load(&args.machine)
+        // The error names the file.
+        .context("machine configuration")?;
+    if args.program.is_none() && args.idle.is_none() {
+        bail!("give a PROGRAM, or --idle SECONDS");
+    }
+    if let Some(p) = &args.program {
+        if !p.is_file() {
+            bail!("{}: no such program file", p.display());
+        }
+    }
+    Ok(config)
+}
+
+/// The kernel, with a recording ring only for --out.
+fn build_kernel(args: &Args, config: &MachineConfig) -> anyhow::Result<Kernel> {
+    Ok(Kernel::build(
+        config,
+        KernelOptions {
+            program: args.program.clone(),
+            record_capacity: if args.out.is_some() {
+                RECORD_CAPACITY
+            } else {
+                0
+            },
+            trace_capacity: Some(4096),
+            ..KernelOptions::default()
+        },
+    )?)
+}
+
+/// The kernel's tasks on the real-time executive.
+fn start_executive(
+    tasks: rtcnc_rt::TaskSet,
+    require_fifo: bool,
+) -> anyhow::Result<rtcnc_rt::RealTimeHandle> {
+    Ok(RealTimeRunner::start(
+        tasks,
+        RealTimeConfig {
+            scheduling: if require_fifo {
+                SchedulingMode::RequireFifo
+            } else {
+                SchedulingMode::BestEffort
+            },
+            // Printed here, above the status line.
+            print_warnings: false,
+            ..RealTimeConfig::default()
+        },
+    )?)
+}
+
+/// The faults of the run, but refused operator commands and, after SIGTERM, the e-stop
+/// that switched the drives off.
+fn print_faults(
+    handle: &rtcnc_kernel::KernelHandle,
+    faults: &[rtcnc_kernel::Fault],
+    terminated: bool,
+) {
+    for f in faults.iter().filter(|f| {
+        f.code != rtcnc_kernel::FaultCode::CommandRefused
+            // The drives-off step of SIGTERM's stop is no fault of the machine.
+            && !(terminated && f.code == rtcnc_kernel::FaultCode::EStop)
+    }) {
+        say!("fault  {}", handle.describe(f));
+    }
+}
+
+/// What is kept up while the machine runs, every 100 ms: the deadline-miss warnings and
+/// the drain of the recording ring.
+struct Live<'a> {
+    runner: &'a rtcnc_rt::RealTimeHandle,
+    recording: Option<&'a mut Recording>,
+    misses: MissWarnings,
+    warn_misses: bool,
+}
+
+impl Live<'_> {
+    fn poll_misses(&mut self, tty: bool) {
+        if self.warn_misses {
+            self.misses.poll(self.runner, tty);
+        }
+    }
+
+    fn drain_recording(&mut self) {
+        if let Some(r) = self.recording.as_mut() {
+            r.drain();
+        }
+    }
+}
+
+/// Waits until `done`, for at most `limit`; an error names `what` did not happen.
+fn wait_for(what: &str, limit: Duration, done: &dyn Fn() -> bool) -> anyhow::Result<()> {
+    let start = Instant::now();
+    // SIGTERM ends the wait; the run loop then makes the controlled stop.
+    while !done() && !TERMINATED.load(Ordering::SeqCst) {
+        if start.elapsed() > limit {
+            bail!("{what} did not happen within {limit:?}");
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    Ok(())
+}
+
+/// Reset (the drives enable), then home all joints when asked.
+fn enable_and_home(handle: &rtcnc_kernel::KernelHandle, home: bool) -> anyhow::Result<()> {
+    std::thread::sleep(Duration::from_millis(50));
+    handle.command(Command::Reset);
+    wait_for("enabling the drives", Duration::from_secs(2), &|| {
+        handle.status().ready
+    })
+    .map_err(|e| {
+        // Say why: the faults that kept the drives off.
+        let faults: Vec<String> = handle
+            .take_faults()
+            .iter()
+            .map(|f| handle.describe(f))
+            .collect();
+        if faults.is_empty() {
+            e
+        } else {
+            e.context(faults.join("; "))
+        }
+    })?;
+    if home {
+        handle.command(Command::HomeAll);
+        std::thread::sleep(Duration::from_millis(20));
+        wait_for("homing", Duration::from_secs(600), &|| {
+            handle.status().state != MachineState::Running
+        })?;
+    }
+    Ok(())
+}
+
+/// --idle: the task graph runs with the drives enabled and no program, for `idle` or
+/// until SIGTERM.
+fn run_idle(
+    handle: &rtcnc_kernel::KernelHandle,
+    live: &mut Live,
+    started: Instant,
+    idle: Duration,
+) {
+    while started.elapsed() < idle && !TERMINATED.load(Ordering::SeqCst) {
+        std::thread::sleep((idle - started.elapsed().min(idle)).min(Duration::from_millis(100)));
+        live.poll_misses(false);
+        live.drain_recording();
+    }
+    if TERMINATED.load(Ordering::SeqCst) {
+        controlled_stop(handle);
+    }
+}
+
+/// Starts the program and follows it to its end, a fault, an abort, SIGTERM or the time
+/// limit, with the status line and the operator's Ctrl-C (feed hold, then abort).
+/// Returns whether the program reached its end.
+fn follow_program(
+    handle: &rtcnc_kernel::KernelHandle,
+    live: &mut Live,
+    started: Instant,
+    limit: Duration,
+    tty: bool,
+) -> bool {
+    handle.command(Command::Start { from_line: 0 });
+    let kernel_start = handle.status().time_ns;
+    let mut ended = false;
+    let mut seen = 0;
+    let mut hold = None;
+    loop {
+        std::thread::sleep(Duration::from_millis(100));
+        if TERMINATED.load(Ordering::SeqCst) {
+            if tty {
+                clear_status_line();
+            }
+            eprintln!("rtcnc: SIGTERM: feed hold, abort, drives off");
+            controlled_stop(handle);
+            break;
+        }
+        let interrupts = INTERRUPTS.load(Ordering::SeqCst);
+        if interrupts > seen {
+            seen = interrupts;
+            if tty {
+                clear_status_line();
+            }
+            if seen == 1 {
+                handle.urgent(Urgent::FeedHold);
+                eprintln!("rtcnc: feed hold (Ctrl-C again to abort)");
+            } else {
+                handle.urgent(Urgent::Abort);
+                eprintln!("rtcnc: abort");
+            }
+        }
+        live.poll_misses(tty);
+        live.drain_recording();
+        print_messages(handle, kernel_start, tty);
+        let s = handle.status();
+        // What holds the machine, said once as it begins (the status line keeps it).
+        if s.hold != hold {
+            hold = s.hold;
+            if let Some(cause) = hold {
+                if tty {
+                    clear_status_line();
+                }
+                let t = s.time_ns.saturating_sub(kernel_start) as f64 * 1e-9;
+                say!("{}  t {t:.3} s  line {}", cause.message(), s.line);
+            }
+        }
+        if tty {
+            eprint!(
+                "{}",
+                status_text(started.elapsed().as_secs_f64(), &s, live.misses.count)
+            );
+            let _ = std::io::stderr().flush();
+        }
+        if s.program_ended && s.state == MachineState::Idle {
+            ended = true;
+            break;
+        }
+        if matches!(s.state, MachineState::Fault | MachineState::EStop) {
+            break;
+        }
+        if seen >= 2 && s.state == MachineState::Idle {
+            break;
+        }
+        if started.elapsed() > limit {
+            break;
+        }
+    }
+    if tty {
+        eprintln!();
+    }
+    print_messages(handle, kernel_start, false);
+    ended
+}
+
+/// Drains the last samples, closes the CSV files and says how many periods they hold and
+/// how many the ring lost.
+fn finish_recording(mut r: Recording, out: Option<&std::path::Path>) -> anyhow::Result<()> {
+    r.drain();
+    let dir = out.unwrap_or(std::path::Path::new("."));
+    if let Some(e) = r.error {
+        bail!("{}: {e}", dir.display());
+    }
+    r.csv.finish()?;
+    say!(
+        "recording   {} periods in {}/setpoints.csv, feedback.csv; {} periods missing",
+        r.rows,
+        dir.display(),
+        r.missing
+    );
+    Ok(())
+}
+
+/// Each real-time task's execution times and CPU share of its period, from the
+/// executive's timing monitor.
+fn print_task_times(config: &MachineConfig, executive: &rtcnc_rt::Recording) {
     say!(
         "task                 runs     mean µs   p99 µs   max µs   CPU share of its period   misses"
     );
@@ -480,6 +591,15 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
             stats.deadline_misses
         );
     }
+}
+
+/// How far the set-points ran ahead of the servo and how late the two tasks that make
+/// and take them started: the margin the interpolation had.
+fn print_setpoint_timing(
+    config: &MachineConfig,
+    executive: &rtcnc_rt::Recording,
+    handle: &rtcnc_kernel::KernelHandle,
+) {
     let (lead, gap) = handle.setpoint_lead();
     let period_ms = config.servo_period().as_secs_f64() * 1e3;
     let latest = executive
@@ -501,23 +621,6 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
         "set-point underruns (periods without a set-point): {}",
         handle.setpoint_underruns()
     );
-    if misses.count > 0 {
-        say!("deadline-miss warnings: {}", misses.count);
-    }
-    for f in faults.iter().filter(|f| {
-        f.code != rtcnc_kernel::FaultCode::CommandRefused
-            // The drives-off step of SIGTERM's stop is no fault of the machine.
-            && !(terminated && f.code == rtcnc_kernel::FaultCode::EStop)
-    }) {
-        say!("fault  {}", handle.describe(f));
-    }
-    Ok(if terminated {
-        ExitCode::from(EXIT_TERMINATED)
-    } else if ended || args.idle.is_some() {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::from(1)
-    })
 }
 
 #[cfg(test)]

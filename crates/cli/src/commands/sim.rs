@@ -13,8 +13,8 @@ use anyhow::{Context as _, bail};
 use rtcnc_kernel::report::RunStats;
 
 use rtcnc_kernel::{
-    Command, Fault, FaultCode, Kernel, KernelOptions, MachineConfig, MachineState, Sample,
-    Simulation, Urgent,
+    Command, Fault, FaultCode, Kernel, KernelHandle, KernelOptions, MachineConfig, MachineState,
+    Sample, Simulation, Urgent,
 };
 
 use crate::recording::SampleCsv;
@@ -87,8 +87,69 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
     if !args.program.is_file() {
         bail!("{}: no such program file", args.program.display());
     }
+    let mut sim = build_simulation(&args, &config)?;
+    let whole_run = Instant::now();
+    let handle = sim.handle().clone();
+    let mut recorder = Recorder::new(&args, &config)?;
+    let mut sink = |s: &Sample| recorder.add(s);
+
+    power_up_and_start(&mut sim, &handle, &mut sink, args.home)?;
+    let start = sim.now();
+    let wall = Instant::now();
+    let bar = progress_bar(args.quiet);
+    let mut run = ProgramRun::default();
+    follow_program(&mut sim, &handle, &mut sink, &args, start, &bar, &mut run)?;
+    let cycle_time = (sim.now() - start).as_secs_f64();
+    record_until_standing(&mut sim, &handle, &mut sink, config.joints.len())?;
+    run.faults.extend(handle.take_faults());
+    take_messages(&handle, start, &bar, &mut run.messages);
+    if let Some(bar) = bar {
+        bar.finish_and_clear();
+    }
+    let wall_s = wall.elapsed().as_secs_f64();
+    let whole_run_ns = whole_run.elapsed().as_nanos() as u64;
+    if let Some(e) = recorder.io_error.take() {
+        return Err(e).context("writing the CSV files");
+    }
+
+    let report = Report {
+        cycle_time_s: cycle_time,
+        ended: run.ended,
+        pauses: run.pauses,
+        exceeded: limits_exceeded(&config, &recorder.stats),
+        fault_texts: run
+            .faults
+            .iter()
+            .filter(|f| f.code != FaultCode::CommandRefused)
+            .map(|f| handle.describe(f))
+            .collect(),
+        error_text: handle.error_text(),
+    };
+    print_report(&args, &config, &recorder.stats, &report, &sim, wall_s);
+    if let Some(profile) = sim.runner().host_profile() {
+        print_profile(
+            profile,
+            whole_run_ns,
+            recorder.recording_ns,
+            sim.now().as_secs_f64(),
+        );
+    }
+    if let Some(dir) = &args.out {
+        write_out_dir(dir, &args, &config, recorder, &report, run.messages, sim)?;
+    }
+    Ok(
+        if report.ended && report.exceeded.is_empty() && report.fault_texts.is_empty() {
+            ExitCode::SUCCESS
+        } else {
+            ExitCode::from(1)
+        },
+    )
+}
+
+/// The kernel on a virtual-time executive, with buffers sized for this run.
+fn build_simulation(args: &Args, config: &MachineConfig) -> anyhow::Result<Simulation> {
     let kernel = Kernel::build(
-        &config,
+        config,
         KernelOptions {
             program: Some(args.program.clone()),
             // Drained after every servo period (Simulation::run_cycles): a small ring stays in
@@ -100,81 +161,128 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
             ..KernelOptions::default()
         },
     )?;
-    let period = config.servo_period();
-    let period_s = period.as_secs_f64();
     let mut sim = Simulation::new(kernel);
     if args.profile {
         sim = sim.with_host_profile();
     }
-    let recording_ns = std::cell::Cell::new(0u64);
-    let whole_run = Instant::now();
-    let handle = sim.handle().clone();
+    Ok(sim)
+}
 
-    let mut writers = match &args.out {
-        Some(dir) => Some(SampleCsv::create(dir, &config)?),
-        None => None,
-    };
-    let mut stats = RunStats::new();
+/// Where every servo period's sample goes: the limit statistics always, the plot and the
+/// CSV files with --out.
+struct Recorder {
+    stats: RunStats,
     // Only --out draws the plot; its points are decimated to a bounded number.
-    let mut plot = args.out.as_ref().map(|_| PlotData::default());
-    let mut faults: Vec<Fault> = Vec::new();
-    let mut io_error: Option<std::io::Error> = None;
-    let profile = args.profile;
-    let mut sink = |s: &Sample| {
-        let t0 = profile.then(Instant::now);
-        stats.add(s, period_s);
-        if let Some(plot) = plot.as_mut() {
+    plot: Option<PlotData>,
+    writers: Option<SampleCsv>,
+    // The first write error; the run goes on and reports it at its end.
+    io_error: Option<std::io::Error>,
+    period_s: f64,
+    joints: usize,
+    // With --profile: the host time the recording took, which the profile lists apart.
+    profile: bool,
+    recording_ns: u64,
+}
+
+impl Recorder {
+    fn new(args: &Args, config: &MachineConfig) -> anyhow::Result<Recorder> {
+        Ok(Recorder {
+            writers: match &args.out {
+                Some(dir) => Some(SampleCsv::create(dir, config)?),
+                None => None,
+            },
+            stats: RunStats::new(),
+            plot: args.out.as_ref().map(|_| PlotData::default()),
+            io_error: None,
+            period_s: config.servo_period().as_secs_f64(),
+            joints: config.joints.len(),
+            profile: args.profile,
+            recording_ns: 0,
+        })
+    }
+
+    fn add(&mut self, s: &Sample) {
+        let t0 = self.profile.then(Instant::now);
+        self.stats.add(s, self.period_s);
+        if let Some(plot) = self.plot.as_mut() {
             plot.add(s);
         }
-        if let Some(w) = writers.as_mut() {
-            if let Err(e) = w.write(s, config.joints.len()) {
-                io_error.get_or_insert(e);
+        if let Some(w) = self.writers.as_mut() {
+            if let Err(e) = w.write(s, self.joints) {
+                self.io_error.get_or_insert(e);
             }
         }
         if let Some(t0) = t0 {
-            recording_ns.set(recording_ns.get() + t0.elapsed().as_nanos() as u64);
+            self.recording_ns += t0.elapsed().as_nanos() as u64;
         }
-    };
+    }
+}
 
-    // Power up, reset, optionally home, start.
-    sim.run_cycles(2, &mut sink)?;
+/// Power up, reset, optionally home, start.
+fn power_up_and_start(
+    sim: &mut Simulation,
+    handle: &KernelHandle,
+    sink: &mut dyn FnMut(&Sample),
+    home: bool,
+) -> anyhow::Result<()> {
+    sim.run_cycles(2, sink)?;
     handle.command(Command::Reset);
-    if !sim.run_until(Duration::from_secs(1), &mut sink, |s| s.ready)? {
+    if !sim.run_until(Duration::from_secs(1), sink, |s| s.ready)? {
         bail!("the drives did not enable within 1 s");
     }
-    if args.home {
+    if home {
         handle.command(Command::HomeAll);
-        sim.run_cycles(3, &mut sink)?;
-        sim.run_until(Duration::from_secs(600), &mut sink, |s| {
+        sim.run_cycles(3, sink)?;
+        sim.run_until(Duration::from_secs(600), sink, |s| {
             s.state != MachineState::Running
         })?;
     }
     handle.command(Command::Start { from_line: 0 });
-    sim.run_cycles(2, &mut sink)?;
-    let start = sim.now();
-    let wall = Instant::now();
-    let bar = progress_bar(args.quiet);
-    let mut messages: Vec<(f64, u32, String)> = Vec::new();
+    sim.run_cycles(2, sink)?;
+    Ok(())
+}
+
+/// What the machine did while the program ran.
+#[derive(Default)]
+struct ProgramRun {
+    /// Whether the program reached its end.
+    ended: bool,
+    /// Program pauses met: times since the start.
+    pauses: Vec<f64>,
+    messages: Vec<(f64, u32, String)>,
+    faults: Vec<Fault>,
+}
+
+/// Runs the program to its end, a fault, a refused block or the time limit, pressing
+/// Resume at a pause when --resume-after-pause says so, and shows its progress.
+fn follow_program(
+    sim: &mut Simulation,
+    handle: &KernelHandle,
+    sink: &mut dyn FnMut(&Sample),
+    args: &Args,
+    start: Duration,
+    bar: &Option<indicatif::ProgressBar>,
+    run: &mut ProgramRun,
+) -> anyhow::Result<()> {
+    // The simulation's period is the machine file's servo period.
+    let period_s = sim.period().as_secs_f64();
     let limit = args.limit;
-    let mut ended = false;
-    // Program pauses met: times since the start.
-    let mut pauses: Vec<f64> = Vec::new();
     let mut was_paused = false;
     loop {
         let resume_after = args.resume_after_pause;
-        let done = sim.run_until(Duration::from_millis(100), &mut sink, |s| {
+        let done = sim.run_until(Duration::from_millis(100), sink, |s| {
             (s.program_ended && s.state == MachineState::Idle)
                 || matches!(s.state, MachineState::Fault | MachineState::EStop)
                 || (resume_after.is_some() && s.state == MachineState::Paused)
         })?;
         let status = handle.status();
         if let (Some(wait), MachineState::Paused) = (resume_after, status.state) {
-            pauses.push((sim.now() - start).as_secs_f64());
+            run.pauses.push((sim.now() - start).as_secs_f64());
             let periods = (wait.as_secs_f64() / period_s).round() as u64;
-            sim.run_cycles(periods, &mut sink)?;
+            sim.run_cycles(periods, sink)?;
             handle.urgent(Urgent::Resume);
             // The pause ends within a period or two.
-            sim.run_until(Duration::from_millis(100), &mut sink, |s| {
+            sim.run_until(Duration::from_millis(100), sink, |s| {
                 s.state != MachineState::Paused
             })?;
             continue;
@@ -182,12 +290,12 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
         let paused = status.state == MachineState::Paused;
         if paused && !was_paused {
             // Without --resume-after-pause: reported once, it lasts to the time limit.
-            pauses.push((sim.now() - start).as_secs_f64());
+            run.pauses.push((sim.now() - start).as_secs_f64());
         }
         was_paused = paused;
-        faults.extend(handle.take_faults());
-        take_messages(&handle, start, &bar, &mut messages);
-        if let Some(bar) = &bar {
+        run.faults.extend(handle.take_faults());
+        take_messages(handle, start, bar, &mut run.messages);
+        if let Some(bar) = bar {
             bar.set_message(format!(
                 "t {:.1} s  line {}  X{:.3} Y{:.3} Z{:.3}  {:.1} mm/s  {}",
                 (sim.now() - start).as_secs_f64(),
@@ -201,31 +309,38 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
             bar.tick();
         }
         if done {
-            ended = status.program_ended && status.state == MachineState::Idle;
-            break;
+            run.ended = status.program_ended && status.state == MachineState::Idle;
+            return Ok(());
         }
         if sim.now() - start > limit {
-            break;
+            return Ok(());
         }
         // A block the kernel refused (a program error, a machine function it cannot carry
         // out, an impossible synchronised move) stops the program and leaves the machine
         // idle: nothing more will happen.
-        if status.state == MachineState::Idle && faults.iter().any(|f| stops_program(f.code)) {
-            break;
+        if status.state == MachineState::Idle && run.faults.iter().any(|f| stops_program(f.code)) {
+            return Ok(());
         }
     }
-    let cycle_time = (sim.now() - start).as_secs_f64();
-    // Record until the load stands (after a fault it may coast or quick-stop for a few
-    // hundred milliseconds: the recording shows the whole stop), then a moment more.
-    // The simulated load's true velocity says it (the feedback is stale once the fieldbus
-    // is lost); another bus has its feedback.
+}
+
+/// Record until the load stands (after a fault it may coast or quick-stop for a few
+/// hundred milliseconds: the recording shows the whole stop), then a moment more.
+/// The simulated load's true velocity says it (the feedback is stale once the fieldbus
+/// is lost); another bus has its feedback.
+fn record_until_standing(
+    sim: &mut Simulation,
+    handle: &KernelHandle,
+    sink: &mut dyn FnMut(&Sample),
+    joints: usize,
+) -> anyhow::Result<()> {
     let machine = handle.simulated_machine().ok();
     let mut last_feedback = None;
     let mut standing_periods = 0u32;
-    sim.run_until(SETTLE_LIMIT, &mut sink, |s| {
+    sim.run_until(SETTLE_LIMIT, sink, |s| {
         let standing = match &machine {
             Some(m) => m.with(|m| {
-                (0..config.joints.len()).all(|j| {
+                (0..joints).all(|j| {
                     m.true_state(j)
                         .is_none_or(|(_, v)| v.abs() < STANDING_VELOCITY)
                 })
@@ -236,21 +351,27 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
         standing_periods = if standing { standing_periods + 1 } else { 0 };
         standing_periods >= SETTLED_PERIODS
     })?;
-    faults.extend(handle.take_faults());
-    take_messages(&handle, start, &bar, &mut messages);
-    if let Some(bar) = bar {
-        bar.finish_and_clear();
-    }
-    let wall_s = wall.elapsed().as_secs_f64();
-    let whole_run_ns = whole_run.elapsed().as_nanos() as u64;
-    if let Some(e) = io_error {
-        return Err(e).context("writing the CSV files");
-    }
+    Ok(())
+}
 
-    // Report.
-    let plan = config.axis_plan();
+/// The run's result, as the report and `summary.json` give it.
+struct Report {
+    cycle_time_s: f64,
+    ended: bool,
+    pauses: Vec<f64>,
+    /// The axis limits a set-point went beyond, described.
+    exceeded: Vec<String>,
+    /// The faults, but refused operator commands, described.
+    fault_texts: Vec<String>,
+    /// Why the program stopped, when it stopped on an error.
+    error_text: Option<String>,
+}
+
+/// The axis limits (velocity, acceleration, jerk) the set-points went beyond, with a
+/// relative margin for rounding.
+fn limits_exceeded(config: &MachineConfig, stats: &RunStats) -> Vec<String> {
     let mut exceeded = Vec::new();
-    for p in &plan {
+    for p in &config.axis_plan() {
         let i = p.axis as usize;
         let Some(a) = config.axis(p.axis) else {
             continue;
@@ -273,12 +394,19 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
             }
         }
     }
-    let fault_texts: Vec<String> = faults
-        .iter()
-        .filter(|f| f.code != FaultCode::CommandRefused)
-        .map(|f| handle.describe(f))
-        .collect();
-    let error_text = handle.error_text();
+    exceeded
+}
+
+/// Prints the report: cycle time, speed of the simulation, each axis's peaks against its
+/// limits, the following errors, pauses, limits and faults.
+fn print_report(
+    args: &Args,
+    config: &MachineConfig,
+    stats: &RunStats,
+    report: &Report,
+    sim: &Simulation,
+    wall_s: f64,
+) {
     println!("program     {}", args.program.display());
     println!(
         "machine     {} ({})",
@@ -286,8 +414,9 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
         args.machine.display()
     );
     println!(
-        "cycle time  {cycle_time:.3} s{}",
-        if ended {
+        "cycle time  {:.3} s{}",
+        report.cycle_time_s,
+        if report.ended {
             ""
         } else {
             " (did not reach the end)"
@@ -299,7 +428,7 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
         sim.now().as_secs_f64() / wall_s.max(1e-9)
     );
     println!("axis  max |v| (limit)          max |a| (limit)            max |j| (limit)");
-    for p in &plan {
+    for p in &config.axis_plan() {
         let i = p.axis as usize;
         if let Some(a) = config.axis(p.axis) {
             println!(
@@ -318,7 +447,7 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
     for (j, jc) in config.joints.iter().enumerate() {
         println!("{:6} {:.6}", jc.name, stats.max_following_error[j]);
     }
-    for t in &pauses {
+    for t in &report.pauses {
         match args.resume_after_pause {
             Some(wait) => println!(
                 "paused      at {t:.3} s (M0/M1); resumed after {:.3} s",
@@ -329,73 +458,69 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
             }
         }
     }
-    if exceeded.is_empty() {
+    if report.exceeded.is_empty() {
         println!("limits      respected");
     } else {
         println!("limits      EXCEEDED");
-        for e in &exceeded {
+        for e in &report.exceeded {
             println!("  {e}");
         }
     }
-    if fault_texts.is_empty() {
+    if report.fault_texts.is_empty() {
         println!("faults      none");
     } else {
         println!("faults");
-        for f in &fault_texts {
+        for f in &report.fault_texts {
             println!("  {f}");
         }
-        if let Some(t) = &error_text {
+        if let Some(t) = &report.error_text {
             println!("  {t}");
         }
     }
+}
 
-    if let Some(profile) = sim.runner().host_profile() {
-        print_profile(
-            profile,
-            whole_run_ns,
-            recording_ns.get(),
-            sim.now().as_secs_f64(),
-        );
+/// Writes the --out folder: the CSV files' ends, summary.json, the plot and the trace.
+fn write_out_dir(
+    dir: &Path,
+    args: &Args,
+    config: &MachineConfig,
+    recorder: Recorder,
+    report: &Report,
+    messages: Vec<(f64, u32, String)>,
+    sim: Simulation,
+) -> anyhow::Result<()> {
+    if let Some(w) = recorder.writers {
+        w.finish()?;
     }
-
-    if let Some(dir) = &args.out {
-        if let Some(w) = writers.take() {
-            w.finish()?;
-        }
-        write_summary(
-            &dir.join("summary.json"),
-            &config,
-            &stats,
-            &Summary {
-                cycle_time_s: cycle_time,
-                ended,
-                limits_exceeded: !exceeded.is_empty(),
-                faults: fault_texts.clone(),
-                messages,
-            },
-            error_text.as_deref(),
-        )?;
-        let plot = plot.unwrap_or_default();
-        let lathe = config.machine.kind == rtcnc_kernel::config::MachineKind::Lathe;
-        let svg = plot.svg(&line_kinds(&config, &args.program), lathe);
-        std::fs::write(dir.join("plot.svg"), svg)
-            .with_context(|| format!("{}", dir.join("plot.svg").display()))?;
-        let runner = sim.into_runner();
-        runner
-            .recording()
-            .trace()
-            .write_chrome_json(&dir.join("trace.json"))
-            .context("trace.json")?;
-        println!(
-            "wrote       {}/{{setpoints.csv, feedback.csv, plot.svg, trace.json, summary.json}}",
-            dir.display()
-        );
-    }
-    Ok(if ended && exceeded.is_empty() && fault_texts.is_empty() {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::from(1)
-    })
+    write_summary(
+        &dir.join("summary.json"),
+        config,
+        &recorder.stats,
+        &Summary {
+            cycle_time_s: report.cycle_time_s,
+            ended: report.ended,
+            limits_exceeded: !report.exceeded.is_empty(),
+            faults: report.fault_texts.clone(),
+            messages,
+        },
+        report.error_text.as_deref(),
+    )?;
+    let plot = recorder.plot.unwrap_or_default();
+    let lathe = config.machine.kind == rtcnc_kernel::config::MachineKind::Lathe;
+    let svg = plot.svg(&line_kinds(config, &args.program), lathe);
+    std::fs::write(dir.join("plot.svg"), svg)
+        .with_context(|| format!("{}", dir.join("plot.svg").display()))?;
+    let runner = sim.into_runner();
+    runner
+        .recording()
+        .trace()
+        .write_chrome_json(&dir.join("trace.json"))
+        .context("trace.json")?;
+    println!(
+        "wrote       {}/{{setpoints.csv, feedback.csv, plot.svg, trace.json, summary.json}}",
+        dir.display()
+    );
+    Ok(())
 }
 
 /// Where the host processor time of the run went, per simulated millisecond.
