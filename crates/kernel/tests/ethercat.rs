@@ -77,10 +77,12 @@ fn the_gantry_runs_on_ethercat_drives_as_on_the_simulated_machine() {
     for (j, (x, y)) in loads(&reference).iter().zip(loads(&bus)).enumerate() {
         assert!((x - y).abs() <= count, "joint {j}: {x} {y}");
     }
-    // At 100 mm/s the following error is the travel of the bus's latency: on the simulated
-    // machine one period (the CSP drive reaches each target by the end of its period), on
-    // EtherCAT two more (the target is applied at the next SYNC0, the position latched
-    // there comes back one cycle later): 0.1 and 0.3 mm.
+    // At 100 mm/s the following error is the travel of the latency the machine file does
+    // not declare: on EtherCAT three periods (the drive reaches each target by the end of
+    // its period, the target is applied at the next SYNC0, the position latched there
+    // comes back one cycle later), 0.3 mm; the simulated machine declares its drives' one
+    // period (`feedback_delay_periods = 1`), so what is left is tracking, under a
+    // twentieth of a period's travel.
     let largest = |m: &Machine| {
         m.samples
             .iter()
@@ -88,8 +90,8 @@ fn the_gantry_runs_on_ethercat_drives_as_on_the_simulated_machine() {
             .fold(0.0, f64::max)
     };
     let (one, three) = (largest(&reference), largest(&bus));
-    assert!((one - 0.1).abs() < 1e-3, "{one}");
-    assert!((three - one - 0.2).abs() < 1e-3, "{three} {one}");
+    assert!(one < 0.005, "{one}");
+    assert!((three - 0.3).abs() < 1e-3, "{three}");
 }
 
 /// Homing on the home switches squares the gantry (X1 and Y2 start racked) as on the
