@@ -9,7 +9,7 @@
 
 mod common;
 use common::*;
-use rtcnc_kernel::{Command, HoldCause, MachineConfig, MachineState, Urgent};
+use rtcnc_kernel::{Command, HoldCause, MachineState, Urgent};
 
 const PROGRAM: &str = "G21 G90 G61.1\nG1 X10 F1200\nM2\n";
 
@@ -77,31 +77,13 @@ fn an_mdi_line_sent_with_the_door_open_is_held_by_the_logic_until_it_is_closed()
     assert!(m.faults.is_empty(), "{:?}", m.faults);
 }
 
-/// sim-mill with every task period `period_us`.
-fn mill_at_period(period_us: u64) -> MachineConfig {
-    let mut config = config("sim-mill.toml");
-    let period = format!("{period_us}us");
-    let tasks = &mut config.tasks;
-    for task in [
-        &mut tasks.fieldbus,
-        &mut tasks.machine_logic,
-        &mut tasks.interpolation,
-        &mut tasks.look_ahead,
-        &mut tasks.command_parsing,
-        &mut tasks.status_feedback,
-    ] {
-        task.period = period.clone();
-    }
-    config
-}
-
 #[test]
 fn a_program_started_as_soon_as_the_drives_are_ready_runs_at_every_servo_period() {
     // The mill's logic asks for a hold until its e-stop chain closes, a few scans after
     // the reset: a program started once the drives are ready (as `rtcnc run` and scripts
     // do) waits for that and then runs by itself.
     for period_us in [100, 250, 500, 1000, 2000, 4000] {
-        let cfg = mill_at_period(period_us);
+        let cfg = config_at_period("sim-mill.toml", period_us);
         let mut m = Machine::new(&cfg, Some(program(PROGRAM, "after-reset.ngc")));
         m.power_on();
         m.command(Command::Start { from_line: 0 });

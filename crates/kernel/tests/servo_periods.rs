@@ -12,26 +12,6 @@ use std::time::Duration;
 
 const PERIODS_US: [u64; 6] = [100, 250, 500, 1000, 2000, 4000];
 
-/// `name` from configs/ with every task period set to `period_us`.
-fn at_period(name: &str, period_us: u64) -> MachineConfig {
-    let text = std::fs::read_to_string(repo().join("configs").join(name)).unwrap();
-    let mut config = MachineConfig::parse(&text, name).unwrap();
-    config.base_dir = repo().join("configs");
-    let period = format!("{period_us}us");
-    let tasks = &mut config.tasks;
-    for task in [
-        &mut tasks.fieldbus,
-        &mut tasks.machine_logic,
-        &mut tasks.interpolation,
-        &mut tasks.look_ahead,
-        &mut tasks.command_parsing,
-        &mut tasks.status_feedback,
-    ] {
-        task.period = period.clone();
-    }
-    config
-}
-
 /// What a run leaves: the axis path (consecutive equal points once), the program's time
 /// from the start command to its end, the largest v, a, j of any axis over its limit.
 struct Run {
@@ -154,7 +134,12 @@ fn sweep(machine: &str, program: &str, handshakes: u32, limit_s: f64) {
     let path = repo().join(program);
     let runs: Vec<(u64, Run)> = PERIODS_US
         .iter()
-        .map(|&us| (us, run(&at_period(machine, us), path.clone(), limit_s)))
+        .map(|&us| {
+            (
+                us,
+                run(&config_at_period(machine, us), path.clone(), limit_s),
+            )
+        })
         .collect();
     let reference = &runs[0].1;
     for (us, r) in &runs[1..] {

@@ -17,6 +17,25 @@ pub fn config(name: &str) -> MachineConfig {
     MachineConfig::load(&repo().join("configs").join(name)).expect("configuration loads")
 }
 
+/// `name` from `configs/` with every task period set to `period_us`, as a user changes the
+/// `[tasks]` of a machine file to run it at another servo period.
+pub fn config_at_period(name: &str, period_us: u64) -> MachineConfig {
+    let mut config = config(name);
+    let period = format!("{period_us}us");
+    let tasks = &mut config.tasks;
+    for task in [
+        &mut tasks.fieldbus,
+        &mut tasks.machine_logic,
+        &mut tasks.interpolation,
+        &mut tasks.look_ahead,
+        &mut tasks.command_parsing,
+        &mut tasks.status_feedback,
+    ] {
+        task.period = period.clone();
+    }
+    config
+}
+
 pub fn program(text: &str, name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("rtcnc-kernel-tests-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
