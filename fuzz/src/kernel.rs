@@ -14,7 +14,7 @@
 //!   the machine logic, or at a zero override) makes progress within the stall watchdog's
 //!   time plus the programs' longest dwell;
 //! - every fault that stops the machine reaches the safe state: the load stands, the drives
-//!   are off and the machine is in e-stop or fault within the worst bound of
+//!   are off (as the simulated drives know it) and the machine is in e-stop or fault within the worst bound of
 //!   docs/safety.md's matrix, and the load stays there until a reset.
 //!
 //! A broken invariant panics with the operations that led to it.
@@ -23,6 +23,7 @@ use std::path::PathBuf;
 use std::sync::{Arc, OnceLock};
 
 use arbitrary::Unstructured;
+use rtcnc_fieldbus::Cia402State;
 use rtcnc_fieldbus::sim::InjectedFault;
 use rtcnc_kernel::{
     Command, FixedText, Kernel, KernelOptions, MachineConfig, MachineState, Sample, Simulation,
@@ -380,6 +381,18 @@ impl Harness {
             .with(|m| std::array::from_fn(|j| m.true_state(j).expect("the mill's joints")))
     }
 
+    /// Every drive of the mill holds no torque (not in operation enabled or quick stop).
+    fn drives_off(&self) -> bool {
+        self.machine(|m| {
+            (0..AXES).all(|j| {
+                !matches!(
+                    m.drive_state(j),
+                    Some(Cia402State::OperationEnabled | Cia402State::QuickStopActive)
+                )
+            })
+        })
+    }
+
     fn machine<R>(&self, f: impl FnOnce(&mut rtcnc_fieldbus::sim::SimulatedMachine) -> R) -> R {
         self.sim
             .handle()
@@ -657,8 +670,13 @@ impl Harness {
         match self.safe_at {
             None => {
                 let standing = load.iter().all(|(_, v)| v.abs() < STANDING_VELOCITY);
+                // Drives off as the drives know it, not as the kernel last commanded it:
+                // after a communication loss they follow their last command until their
+                // own watchdog faults them, and after an e-stop they hear the disable an
+                // exchange later.
                 let safe = matches!(status.state, MachineState::EStop | MachineState::Fault)
-                    && !status.ready;
+                    && !status.ready
+                    && self.drives_off();
                 self.standing_periods = if standing && safe {
                     self.standing_periods + 1
                 } else {

@@ -3,6 +3,7 @@
 
 mod common;
 use common::*;
+use rtcnc_fieldbus::cia402::Cia402State;
 use rtcnc_kernel::config::PlcSection;
 use rtcnc_kernel::{Command, MachineState};
 
@@ -164,4 +165,44 @@ fn the_e_stop_input_opens_the_chain_and_stops_the_machine() {
     m.command(Command::Start { from_line: 0 });
     assert!(m.until(10.0, |s| s.program_ended && s.state == MachineState::Idle));
     assert_eq!(m.status().axes[0], 100.0);
+}
+
+/// Found while fixing a reset taken as a quick stop stood: the set-points computed ahead
+/// while the quick stop braked carried "drives enabled" for a lead (about 50 periods)
+/// after it stood. Released within that time, the e-stop button gave the drives their
+/// power back and they enabled themselves in e-stop, with no reset. They must stay off
+/// until the operator's reset, and enable after it.
+#[test]
+fn releasing_the_e_stop_button_enables_no_drive_until_a_reset() {
+    let cfg = config("sim-mill.toml");
+    let mut m = Machine::new(
+        &cfg,
+        Some(program("G21 G90 G61.1\nG1 X100 F3000\nM2\n", "l.ngc")),
+    );
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    m.cycles(500);
+    let enabled = |m: &Machine| {
+        m.handle_machine(|machine| {
+            (0..3)
+                .filter(|&j| machine.drive_state(j) == Some(Cia402State::OperationEnabled))
+                .count()
+        })
+    };
+    m.handle_machine(|machine| machine.set_estop(true));
+    assert!(m.until(2.0, |s| s.state == MachineState::EStop
+        && s.path_speed == 0.0));
+    // Released at once (the quick stop has just stood), then for 300 periods no reset.
+    m.handle_machine(|machine| machine.set_estop(false));
+    for period in 0..300 {
+        m.cycles(1);
+        assert_eq!(m.status().state, MachineState::EStop);
+        assert_eq!(enabled(&m), 0, "{period} periods after the release");
+    }
+    m.command(Command::Reset);
+    assert!(
+        m.until(0.02, |s| s.ready),
+        "the drives enable after the reset"
+    );
+    assert_eq!(enabled(&m), 3);
 }

@@ -109,6 +109,11 @@ impl SimulatedJoint {
         joint
     }
 
+    /// The drive's CiA 402 state.
+    pub(crate) fn drive_state(&self) -> Cia402State {
+        self.state
+    }
+
     pub(crate) fn true_position(&self) -> f64 {
         self.motor.position()
     }

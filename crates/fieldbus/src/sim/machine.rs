@@ -1,4 +1,5 @@
 use crate::bus::{Fieldbus, FieldbusError, check_exchange};
+use crate::cia402::Cia402State;
 use crate::image::{
     Coolant, JointCommand, ProcessInputs, ProcessLayout, ProcessOutputs, SpindleCommand,
     ToolChangeCommand,
@@ -321,6 +322,14 @@ impl SimulatedMachine {
         self.joints
             .get(joint)
             .map(|j| (j.true_position(), j.true_velocity()))
+    }
+
+    /// The CiA 402 state the drive of `joint` is in, as the drive knows it (not as the
+    /// controller last heard it): whether it holds the load under control. For tests.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
+    pub fn drive_state(&self, joint: usize) -> Option<Cia402State> {
+        self.joints.get(joint).map(SimulatedJoint::drive_state)
     }
 
     /// Simulated time since power-up (s).

@@ -180,6 +180,22 @@ impl Output {
         &self.produced[self.slot(number.max(oldest))]
     }
 
+    /// Sets the drives' enable of the set-points produced ahead that position control has
+    /// not taken (from the one it takes next while interpolation runs, else the one after
+    /// it): a change of the drives' state acts from the next exchange, not a lead later.
+    pub(super) fn set_enable_ahead(&mut self, enable: bool) {
+        let from = self.consumer_next() + u64::from(!self.interpolating);
+        if self.cycle < from {
+            return;
+        }
+        let first_free = self.queue.rewind(from);
+        for number in first_free..=self.cycle {
+            let slot = self.slot(number);
+            self.produced[slot].target.enable = enable;
+            let _ = self.queue.push(self.produced[slot].target);
+        }
+    }
+
     /// The set-point the machine is at: the one position control applies next.
     pub(super) fn now(&self) -> &Produced {
         self.at(self.consumer_next())

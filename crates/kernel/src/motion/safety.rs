@@ -62,7 +62,7 @@ impl MotionCore {
         {
             return false;
         }
-        if self.state == State::Off && self.out.offsets_known {
+        if self.state == State::Off && self.out.offsets_known && !self.drives_still_on(&feedback) {
             // The drives were off (the load may have coasted): the set-points start again
             // from where the machine stands.
             self.resync_to_feedback(&feedback);
@@ -70,6 +70,9 @@ impl MotionCore {
         self.safety.estop = false;
         self.safety.fault = false;
         self.fire(Event::Reset);
+        // The drives enable from the next exchange, not from the set-points a lead ahead.
+        let enable = self.drives_enabled();
+        self.out.set_enable_ahead(enable);
         self.apply_feed_overrides();
         self.safety.chain_closed = false;
         self.safety.reset_count = self.safety.reset_count.wrapping_add(1);
@@ -126,10 +129,28 @@ impl MotionCore {
         self.overrides.enable_all();
     }
 
-    /// The quick stop stands: the drives go off.
+    /// Every drive still holds its load under control: a reset came as a quick stop stood,
+    /// before the drives heard they were to go off. They follow the last set-points, so
+    /// the set-points go on from there: starting them from the measured positions would
+    /// step each by its following error while the drive follows it.
+    fn drives_still_on(&self, feedback: &Feedback) -> bool {
+        let all = if self.machine.joint_count >= 32 {
+            u32::MAX
+        } else {
+            (1u32 << self.machine.joint_count) - 1
+        };
+        feedback.enabled & all == all
+    }
+
+    /// The quick stop stands: the drives go off, from the next exchange. The set-points
+    /// computed ahead while it stopped (standing) still enabled them: a drive whose power
+    /// came back (the e-stop button released) was enabled by them while the machine was in
+    /// e-stop.
     pub(super) fn finish_quick_stop(&mut self) {
         if self.state == State::Stopping && !self.moving() {
             self.fire(Event::Stood);
+            let enable = self.drives_enabled();
+            self.out.set_enable_ahead(enable);
         }
     }
 
