@@ -7,8 +7,11 @@
 //! to an `AXIS_REF` variable of the program. Its set-point comes from the jerk-limited
 //! on-line trajectory generator of `rtcnc-motion`, within the axis's limits and those the
 //! block asks for. Every scan first advances each axis to the scan's time, then runs the
-//! programs: a command given in a scan starts at that scan's time. The set-point is also
-//! the actual position ([`crate::Runtime::axis`] gives it to whoever drives the axis).
+//! programs: a command given in a scan starts at that scan's time. Without a drive the
+//! set-point is also the actual position ([`crate::Runtime::axis`] gives it to whoever
+//! drives the axis); with one ([`crate::Runtime::set_axis_drive`], the kernel's auxiliary
+//! joints) the drive's feedback is the actual position, MC_Power waits for the drive to be
+//! enabled, and a drive that faults or drops out puts the axis into ErrorStop.
 //! Only buffer mode Aborting is offered: a new motion command takes the axis over and the
 //! block that had it reports CommandAborted.
 
@@ -55,13 +58,31 @@ pub enum AxisState {
     ErrorStop,
 }
 
+/// What the drive of an auxiliary axis reports each period, in the drive's own units
+/// (before the home offset MC_Home sets).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct DriveFeedback {
+    /// Actual position.
+    pub position: f64,
+    /// The drive is in operation enabled (following its set-point).
+    pub enabled: bool,
+    /// The drive is faulted.
+    pub faulted: bool,
+}
+
 /// What [`crate::Runtime::axis`] reports about an axis.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AxisStatus {
     /// PLCopen state.
     pub state: AxisState,
-    /// Set-point position (also the actual position).
+    /// Set-point position (also the actual position when no drive reports).
     pub position: f64,
+    /// The set-point in the drive's units: `position` less the home offset.
+    pub drive_position: f64,
+    /// Actual position: the drive's, plus the home offset; the set-point without a drive.
+    pub actual_position: f64,
+    /// MC_Power asks for the drive to be enabled.
+    pub power_requested: bool,
     /// Set-point velocity.
     pub velocity: f64,
     /// Set-point acceleration.
@@ -93,6 +114,8 @@ pub mod error_id {
     pub const LIMIT_REACHED: u16 = 0x0010;
     /// The trajectory generator refused the motion.
     pub const PROFILE: u16 = 0x0011;
+    /// Axis error: the drive faulted, or left operation enabled while the axis was powered.
+    pub const DRIVE: u16 = 0x0012;
     /// MC_Home needs the axis at Standstill.
     pub const NOT_STANDSTILL: u16 = 0x0008;
 }
@@ -116,6 +139,12 @@ pub(crate) struct Axis {
     target: f64,
     /// Time of the last step, ns.
     last: Option<i64>,
+    /// Position less drive position (set by MC_Home).
+    offset: f64,
+    /// The drive's last report; `None`: no drive, the set-point is the position.
+    drive: Option<DriveFeedback>,
+    /// MC_Power's Enable.
+    power_requested: bool,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -148,6 +177,9 @@ impl Axis {
             goal: Goal::None,
             target: 0.0,
             last: None,
+            offset: 0.0,
+            drive: None,
+            power_requested: false,
         })
     }
 
@@ -156,6 +188,9 @@ impl Axis {
         AxisStatus {
             state: self.state,
             position: s.p,
+            drive_position: s.p - self.offset,
+            actual_position: self.actual(),
+            power_requested: self.power_requested,
             velocity: s.v,
             acceleration: s.a,
             error_id: self.error_id,
@@ -173,6 +208,34 @@ impl Axis {
         self.command += 1;
         self.goal = Goal::None;
         self.last = None;
+        self.power_requested = false;
+    }
+
+    fn actual(&self) -> f64 {
+        match self.drive {
+            Some(d) => d.position + self.offset,
+            None => self.otg.sample().p,
+        }
+    }
+
+    /// The drive's report of this period. A drive that is not enabled does not follow the
+    /// set-point, so the set-point follows it (enabling then does not jump); one that
+    /// faults, or drops out while the axis is powered, is an axis error.
+    pub(crate) fn set_drive(&mut self, fb: DriveFeedback) {
+        let was_enabled = self.drive.is_some_and(|d| d.enabled);
+        self.drive = Some(fb);
+        let powered = !matches!(self.state, AxisState::Disabled | AxisState::ErrorStop);
+        if powered && (fb.faulted || (was_enabled && !fb.enabled)) {
+            self.error_id = error_id::DRIVE;
+            self.state = AxisState::ErrorStop;
+            self.goal = Goal::None;
+        }
+        if !fb.enabled {
+            let actual = self.actual();
+            if actual.is_finite() {
+                self.hold(actual);
+            }
+        }
     }
 
     fn hold(&mut self, p: f64) {
@@ -203,7 +266,8 @@ impl Axis {
         match (self.goal, self.otg.is_finished()) {
             (Goal::Home(p), _) => {
                 // The simulated reference search ends at once: the position becomes the
-                // home position.
+                // home position (the drive stays where it is: its offset changes).
+                self.offset = p - (s.p - self.offset);
                 self.hold(p);
                 self.homed = true;
                 self.state = AxisState::Standstill;
@@ -479,7 +543,10 @@ fn power(s: &mut Slots, axis: Option<&mut Axis>) {
         s.set(7, if enable { error_id::NO_AXIS as u64 } else { 0 });
         return;
     };
-    if enable && ax.state == AxisState::Disabled {
+    ax.power_requested = enable;
+    // With a drive, the axis is powered once the drive is enabled.
+    let drive_ready = ax.drive.is_none_or(|d| d.enabled && !d.faulted);
+    if enable && ax.state == AxisState::Disabled && (drive_ready || ax.error_id != 0) {
         ax.state = if ax.error_id != 0 {
             AxisState::ErrorStop
         } else {
@@ -518,7 +585,7 @@ fn read(fb: StdFb, s: &mut Slots, axis: Option<&mut Axis>) {
     s.set(4, 0);
     s.set(5, 0);
     match fb {
-        StdFb::McReadActualPosition => s.set(6, ax.otg.sample().p.to_bits()),
+        StdFb::McReadActualPosition => s.set(6, ax.actual().to_bits()),
         StdFb::McReadAxisError => s.set(6, ax.error_id as u64),
         _ => {
             let st = ax.state;

@@ -402,3 +402,75 @@ fn the_carousel_example_turns_to_the_requested_pocket() {
     rt.scan(Duration::from_millis(4 * 265)).unwrap();
     assert!(!done(&rt));
 }
+
+/// A drive under the axis, as the kernel's auxiliary joints give it: enabled while the
+/// axis asks for power, at the set-point of the last period (one period of delay).
+#[test]
+fn an_axis_on_a_drive_waits_for_it_reads_it_and_stops_on_its_fault() {
+    use rtcnc_plc::DriveFeedback;
+    let mut c = Cell::new();
+    let axis = c.rt.axis_index("carousel").unwrap();
+    let mut drive = DriveFeedback {
+        position: 3.0,
+        enabled: false,
+        faulted: false,
+    };
+    let scan = |c: &mut Cell, drive: &mut DriveFeedback, k: u64| {
+        while c.k <= k {
+            c.rt.set_axis_drive(axis, *drive);
+            c.rt.scan(Duration::from_millis(4 * c.k)).unwrap();
+            let s = c.rt.axis_at(axis).unwrap();
+            drive.enabled = s.power_requested && !drive.faulted;
+            if drive.enabled {
+                drive.position = s.drive_position;
+            }
+            c.k += 1;
+        }
+    };
+    scan(&mut c, &mut drive, 0);
+    // A disabled drive: the set-point follows it.
+    assert!(close(c.rt.axis_at(axis).unwrap().position, 3.0));
+    c.set("en", true);
+    scan(&mut c, &mut drive, 1);
+    // Enable asked; the drive comes on after this scan, the axis with it on the next.
+    assert!(!c.flag("power.Status"));
+    assert_eq!(c.state(), AxisState::Disabled);
+    scan(&mut c, &mut drive, 2);
+    assert!(c.flag("power.Status"));
+    assert_eq!(c.state(), AxisState::Standstill);
+    // Homing at 5: the drive stays at 3, the axis counts 2 more.
+    c.set("xhome", true);
+    scan(&mut c, &mut drive, 4);
+    assert!(c.flag("home.Done"));
+    let s = c.rt.axis_at(axis).unwrap();
+    assert!(close(s.position, 5.0) && close(s.drive_position, 3.0));
+    assert!(close(s.actual_position, 5.0) && close(c.position(), 5.0));
+    // To 90 (drive 88): the move of 85 takes 0.11 + 0.74 + 0.11 = 0.96 s.
+    c.set("x1", true);
+    scan(&mut c, &mut drive, 300);
+    assert_eq!(c.outputs("move1"), DONE);
+    assert!(close(drive.position, 88.0) && close(c.position(), 90.0));
+    // Back to 20; 0.5 s in, the drive faults.
+    c.set("x2", true);
+    scan(&mut c, &mut drive, 424);
+    assert_eq!(c.outputs("move2"), BUSY);
+    drive.faulted = true;
+    scan(&mut c, &mut drive, 425);
+    assert_eq!(c.state(), AxisState::ErrorStop);
+    assert_eq!(c.outputs("move2"), ERROR);
+    assert_eq!(c.word("move2.ErrorID"), u64::from(motion_error_id::DRIVE));
+    assert_eq!(
+        c.word("axerr.AxisErrorID"),
+        u64::from(motion_error_id::DRIVE)
+    );
+    // The set-point stands where the drive stopped (its last position plus the offset).
+    let stopped = drive.position + 2.0;
+    scan(&mut c, &mut drive, 430);
+    assert!(close(c.rt.axis_at(axis).unwrap().position, stopped));
+    // The fault cleared, MC_Reset: Standstill there (the drive comes back with power).
+    drive.faulted = false;
+    c.set("xreset", true);
+    scan(&mut c, &mut drive, 433);
+    assert_eq!(c.state(), AxisState::Standstill);
+    assert!(close(c.position(), stopped));
+}
