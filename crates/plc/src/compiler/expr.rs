@@ -613,6 +613,13 @@ impl<'a> Compiler<'a> {
                 Ok(te)
             }
             AExpr::Call(name, args, pos) => {
+                let is = |a: &Arg, n: &str| match a {
+                    Arg::Input(x, _) | Arg::Output(x, _, _) => x.text == n,
+                    Arg::Positional(_) => false,
+                };
+                if args.iter().any(|a| is(a, "EN") || is(a, "ENO")) {
+                    return self.enabled_call(name, args, sc, *pos, expect);
+                }
                 let te = self.call_expr(name, args, sc, *pos, expect)?;
                 let called = match &te.e {
                     vm::Expr::Call(call) => Some(call.func),
