@@ -643,6 +643,10 @@ pub struct PlcAxisSection {
     /// The joint: one no axis drives and that has no homing of the kernel's (MC_Home
     /// homes it); its `limits` are the axis's limits for the motion blocks.
     pub joint: String,
+    /// A modulo (rotary) axis of this period (e.g. 360): the PLC counts its position from
+    /// 0 up to it and ignores the joint's min/max position.
+    #[serde(default)]
+    pub modulo: Option<f64>,
 }
 
 impl MachineConfig {
@@ -667,8 +671,9 @@ impl MachineConfig {
                         velocity: l.max_velocity,
                         acceleration: l.max_acceleration,
                         jerk: l.max_jerk,
-                        min_position: Some(l.min_position),
-                        max_position: Some(l.max_position),
+                        min_position: a.modulo.is_none().then_some(l.min_position),
+                        max_position: a.modulo.is_none().then_some(l.max_position),
+                        modulo: a.modulo,
                     },
                 ))
             })
@@ -713,6 +718,9 @@ impl MachineConfig {
                         a.joint
                     ),
                 ));
+            }
+            if let Some(m) = a.modulo {
+                positive_finite(&format!("plc.axes.{var}.modulo"), m)?;
             }
             if taken.contains(&j) {
                 return Err(ConfigError::invalid(

@@ -219,6 +219,10 @@ fn a_plc_axis_needs_a_free_joint_without_a_homing_of_the_kernels() {
         refusal(&twice),
         "plc.axes.other.joint: joint T is taken by another PLC axis"
     );
+    assert_eq!(
+        refusal(&on("T\"\nmodulo = \"0").replace("\"0\"", "0.0")),
+        "plc.axes.carousel.modulo: must be greater than zero"
+    );
 }
 
 #[test]

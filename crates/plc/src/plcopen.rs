@@ -37,6 +37,10 @@ pub struct AxisConfig {
     /// See `min_position`.
     #[serde(default)]
     pub max_position: Option<f64>,
+    /// A modulo (rotary) axis: positions count from 0 up to this period (e.g. 360), and
+    /// MC_MoveAbsolute's Direction picks the way round. No software limits then.
+    #[serde(default)]
+    pub modulo: Option<f64>,
 }
 
 /// The PLCopen state of an axis.
@@ -163,6 +167,16 @@ fn limits_of(c: &AxisConfig) -> Limits {
 
 impl Axis {
     pub(crate) fn new(name: &str, config: AxisConfig) -> Result<Axis, String> {
+        if let Some(m) = config.modulo {
+            if !(m.is_finite() && m > 0.0) {
+                return Err(format!("axis '{name}': modulo must be a positive number"));
+            }
+            if config.min_position.is_some() || config.max_position.is_some() {
+                return Err(format!(
+                    "axis '{name}': a modulo axis has no software limits (remove min_position and max_position)"
+                ));
+            }
+        }
         let otg = OnlineAxis::new(State::at_rest(0.0), limits_of(&config))
             .map_err(|e| format!("axis '{name}': {e}"))?;
         Ok(Axis {
@@ -187,7 +201,7 @@ impl Axis {
         let s = self.otg.sample();
         AxisStatus {
             state: self.state,
-            position: s.p,
+            position: self.wrap(s.p),
             drive_position: s.p - self.offset,
             actual_position: self.actual(),
             power_requested: self.power_requested,
@@ -211,11 +225,44 @@ impl Axis {
         self.power_requested = false;
     }
 
+    /// A position as the program sees it: on a modulo axis, within 0 up to the period.
+    fn wrap(&self, p: f64) -> f64 {
+        match self.config.modulo {
+            Some(m) => p.rem_euclid(m),
+            None => p,
+        }
+    }
+
     fn actual(&self) -> f64 {
-        match self.drive {
+        self.wrap(match self.drive {
             Some(d) => d.position + self.offset,
             None => self.otg.sample().p,
-        }
+        })
+    }
+
+    /// The set-point (not wrapped) a modulo axis goes to for `position` in `direction`
+    /// (1 positive, 2 or 0 the shortest way, 3 or -1 negative, 4 the way it moves now).
+    fn modulo_target(&self, m: f64, position: f64, direction: i64) -> Option<f64> {
+        let s = self.otg.sample();
+        let d = (position.rem_euclid(m) - s.p.rem_euclid(m)).rem_euclid(m);
+        let (up, down) = (d, d - m);
+        let shortest = if up <= -down { up } else { down };
+        let step = match direction {
+            1 => up,
+            3 | -1 => {
+                if d == 0.0 {
+                    0.0
+                } else {
+                    down
+                }
+            }
+            2 | 0 => shortest,
+            4 if s.v > 0.0 => up,
+            4 if s.v < 0.0 && d != 0.0 => down,
+            4 => shortest,
+            _ => return None,
+        };
+        Some(s.p + step)
     }
 
     /// The drive's report of this period. A drive that is not enabled does not follow the
@@ -671,7 +718,8 @@ fn request(fb: StdFb, s: &Slots, ax: &Axis) -> Result<Request, u16> {
     Ok(match fb {
         StdFb::McHome => {
             buffer(3)?;
-            Request::Home(in_limits(f(s.get(2)))?)
+            let p = in_limits(f(s.get(2)))?;
+            Request::Home(c.modulo.map_or(p, |m| p.rem_euclid(m)))
         }
         StdFb::McStop => Request::Stop {
             dec: within(f(s.get(2)), c.acceleration).ok_or(bad)?,
@@ -693,7 +741,10 @@ fn request(fb: StdFb, s: &Slots, ax: &Axis) -> Result<Request, u16> {
             }
             let here = ax.otg.sample().p;
             let target = match fb {
-                StdFb::McMoveAbsolute => x,
+                StdFb::McMoveAbsolute => match c.modulo {
+                    Some(m) => ax.modulo_target(m, x, s.get(8) as i64).ok_or(bad)?,
+                    None => x,
+                },
                 StdFb::McMoveRelative => here + x,
                 // Added to the running move's target, else to where the axis is.
                 _ if ax.state == AxisState::DiscreteMotion => ax.target + x,

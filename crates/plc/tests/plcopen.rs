@@ -474,3 +474,105 @@ fn an_axis_on_a_drive_waits_for_it_reads_it_and_stops_on_its_fault() {
     assert_eq!(c.state(), AxisState::Standstill);
     assert!(close(c.position(), stopped));
 }
+
+/// A modulo axis of 360 (a rotary table) at 100 units/s: MC_MoveAbsolute's Direction
+/// picks the way round, given as the predefined MC_DIRECTION or as an integer.
+#[test]
+fn a_modulo_axis_goes_the_way_direction_says() {
+    let src = "
+VAR_GLOBAL table : AXIS_REF; END_VAR
+PROGRAM Rot
+VAR
+  power : MC_Power;
+  move : MC_MoveAbsolute;
+  pos : MC_ReadActualPosition;
+  x : BOOL;
+  target : LREAL;
+  dir : MC_DIRECTION := mcShortestWay;
+  way : INT;
+  use_int : BOOL;
+END_VAR
+power(Axis := table, Enable := TRUE);
+IF use_int THEN
+  move(Axis := table, Execute := x, Position := target, Velocity := 100.0, Direction := way,
+       BufferMode := mcAborting);
+ELSE
+  move(Axis := table, Execute := x, Position := target, Velocity := 100.0, Direction := dir);
+END_IF
+pos(Axis := table, Enable := TRUE);
+END_PROGRAM";
+    let mut rt = Runtime::new(Arc::new(compile(src, "rot.st").unwrap()));
+    let cfg: PlcConfig = toml::from_str(
+        "[axes.table]\nvelocity = 100.0\nacceleration = 1000.0\njerk = 100000.0\nmodulo = 360.0\n",
+    )
+    .unwrap();
+    rt.configure(&cfg).unwrap();
+    let mut k = 0u64;
+    let mut set = |rt: &mut Runtime, name: &str, v: Value| {
+        let r = rt.resolve(&format!("Rot.{name}")).unwrap();
+        rt.write(&r, &v).unwrap();
+    };
+    // Runs one move to `target` and returns (lowest, highest) unwrapped set-point on the
+    // way and the position read at the end.
+    let mut go = |rt: &mut Runtime, set: &mut dyn FnMut(&mut Runtime, &str, Value)| {
+        set(rt, "x", Value::Bool(true));
+        let (mut lo, mut hi) = (f64::MAX, f64::MIN);
+        for _ in 0..1500 {
+            rt.scan(Duration::from_millis(4 * k)).unwrap();
+            k += 1;
+            let s = rt.axis("table").unwrap();
+            lo = lo.min(s.drive_position);
+            hi = hi.max(s.drive_position);
+        }
+        set(rt, "x", Value::Bool(false));
+        rt.scan(Duration::from_millis(4 * k)).unwrap();
+        k += 1;
+        let Value::Real(p) = rt.read_name("Rot.pos.Position").unwrap() else {
+            panic!()
+        };
+        (lo, hi, p)
+    };
+    // 0 -> 350 the shortest way: 10 back, through 0 (unwrapped down to -10).
+    set(&mut rt, "target", Value::Real(350.0));
+    let (lo, hi, p) = go(&mut rt, &mut set);
+    assert!(
+        close(lo, -10.0) && close(hi, 0.0) && close(p, 350.0),
+        "{lo} {hi} {p}"
+    );
+    // 350 -> 10 in the positive direction (mcPositiveDirection): 20 up, to 10 unwrapped.
+    set(&mut rt, "dir", Value::Int(1));
+    set(&mut rt, "target", Value::Real(10.0));
+    let (lo, hi, p) = go(&mut rt, &mut set);
+    assert!(
+        close(lo, -10.0) && close(hi, 10.0) && close(p, 10.0),
+        "{lo} {hi} {p}"
+    );
+    // 10 -> 20 in the negative direction, given as CODESYS's -1: 350 down, to -340.
+    set(&mut rt, "use_int", Value::Bool(true));
+    set(&mut rt, "way", Value::Int(-1));
+    set(&mut rt, "target", Value::Real(20.0));
+    let (lo, hi, p) = go(&mut rt, &mut set);
+    assert!(
+        close(lo, -340.0) && close(hi, 10.0) && close(p, 20.0),
+        "{lo} {hi} {p}"
+    );
+    // An unknown direction is an invalid parameter.
+    set(&mut rt, "way", Value::Int(7));
+    set(&mut rt, "x", Value::Bool(true));
+    rt.scan(Duration::from_millis(4 * k)).unwrap();
+    let Value::UInt(id) = rt.read_name("Rot.move.ErrorID").unwrap() else {
+        panic!()
+    };
+    assert_eq!(id, u64::from(motion_error_id::INVALID_PARAMETER));
+}
+
+#[test]
+fn a_modulo_axis_has_no_software_limits() {
+    let mut rt = Runtime::new(Arc::new(compile(CELL, "cell.st").unwrap()));
+    let cfg: PlcConfig = toml::from_str(&format!("{AXES}modulo = 360.0\n")).unwrap();
+    let err = rt.configure(&cfg).unwrap_err().to_string();
+    assert!(
+        err.contains("a modulo axis has no software limits"),
+        "{err}"
+    );
+}
