@@ -107,6 +107,26 @@ fn unclosed_blocks_are_named_with_where_they_open() {
             "PROGRAM P\nVAR x : INT; END_VAR\nx := 1\nEND_PROGRAM",
             "m.st:4:1: error[syntax]: ';' expected to end the statement at 3:1, found 'END_PROGRAM'",
         ),
+        (
+            "PROGRAM P\nVAR x : INT\nEND_VAR\nx := 1;\nEND_PROGRAM",
+            "m.st:3:1: error[syntax]: ';' expected to end the declaration at 2:5, found 'END_VAR'",
+        ),
+        (
+            "PROGRAM P\nVAR x INT; END_VAR\nEND_PROGRAM",
+            "m.st:2:7: error[syntax]: ':' and a type expected after the name in the declaration at 2:5, found 'INT'",
+        ),
+        (
+            "PROGRAM P\nVAR x : INT; END_VAR\nx := (1 + 2;\nEND_PROGRAM",
+            "m.st:3:12: error[syntax]: ')' expected to close the '(' at 3:6, found ';'",
+        ),
+        (
+            "PROGRAM P\nVAR x : INT; END_VAR\nx = 1;\nEND_PROGRAM",
+            "m.st:3:3: error[syntax]: an assignment is written ':=', not '=' ('=' compares)",
+        ),
+        (
+            "PROGRAM P\nVAR t : TON; END_VAR\nt(IN := TRUE, PT := 5);\nEND_PROGRAM",
+            "m.st:3:21: error[wrong-argument]: argument 'PT' of TON: type mismatch: an integer literal value where TIME is expected (write a duration as T#5ms)",
+        ),
     ];
     for (src, want) in cases {
         assert_eq!(error_of(src), want, "{src}");
