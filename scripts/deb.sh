@@ -25,8 +25,9 @@ install -D -m 0755 "target/$profile/rtcnc" "$root/usr/bin/rtcnc"
 [ "$profile" = release ] && strip "$root/usr/bin/rtcnc"
 install -d "$root/usr/share/rtcnc/configs" "$root/usr/share/rtcnc/examples"
 cp configs/*.toml configs/*.tbl "$root/usr/share/rtcnc/configs/"
-# The machine files as `rtcnc machines --write` gives them: the PLC program beside the mill.
+# The machine files as `rtcnc machines --write` gives them: the PLC programs beside the mills.
 "target/$profile/rtcnc" machines --write sim-mill "$root/usr/share/rtcnc/configs" >/dev/null
+"target/$profile/rtcnc" machines --write sim-mill-carousel "$root/usr/share/rtcnc/configs" >/dev/null
 cp -r examples/*.ngc examples/gcode examples/plc "$root/usr/share/rtcnc/examples/"
 install -d "$root/usr/share/doc/rtcnc"
 cp README.md CHANGELOG.md LICENSE-MIT LICENSE-APACHE "$root/usr/share/doc/rtcnc/"

@@ -29,8 +29,8 @@ pub struct Shipped {
     files: &'static [(&'static str, &'static str, bool)],
 }
 
-/// The sim mill's PLC program, which its file in `configs/` names from the examples.
-const MILL_PLC_IN_CONFIGS: &str = "program = \"../examples/plc/mill.st\"";
+/// How a machine file in `configs/` names its PLC program in the examples.
+const PLC_IN_CONFIGS: &str = "program = \"../examples/plc/";
 
 /// The shipped machines, the default first.
 pub const SHIPPED: &[Shipped] = &[
@@ -60,6 +60,22 @@ pub const SHIPPED: &[Shipped] = &[
         )],
     },
     Shipped {
+        name: "sim-mill-carousel",
+        machine_file: include_str!("../../../configs/sim-mill-carousel.toml"),
+        files: &[
+            (
+                "mill_carousel.st",
+                include_str!("../../../examples/plc/mill_carousel.st"),
+                false,
+            ),
+            (
+                "sim-mill-carousel.tbl",
+                include_str!("../../../configs/sim-mill-carousel.tbl"),
+                true,
+            ),
+        ],
+    },
+    Shipped {
         name: "sim-gantry-12",
         machine_file: include_str!("../../../configs/sim-gantry-12.toml"),
         files: &[],
@@ -84,8 +100,7 @@ pub const SHIPPED: &[Shipped] = &[
 impl Shipped {
     /// The machine file as written into the machine's folder: the PLC program beside it.
     pub fn machine_text(&self) -> String {
-        self.machine_file
-            .replace(MILL_PLC_IN_CONFIGS, "program = \"mill.st\"")
+        self.machine_file.replace(PLC_IN_CONFIGS, "program = \"")
     }
 
     /// The `name` the machine file gives the machine.

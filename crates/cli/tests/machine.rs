@@ -21,10 +21,14 @@ impl Drop for Machine {
 
 fn start_machine(test: &str) -> (Machine, Client) {
     let repo = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    start_machine_on(test, &repo.join("configs/sim-mill.toml"))
+}
+
+fn start_machine_on(test: &str, machine_file: &std::path::Path) -> (Machine, Client) {
     let segment = format!("rtcnc-clitest-{}-{test}", std::process::id());
     let child = Command::new(env!("CARGO_BIN_EXE_rtcnc"))
         .args(["machine", "--machine"])
-        .arg(repo.join("configs/sim-mill.toml"))
+        .arg(machine_file)
         .args(["--segment", &segment])
         .stdout(Stdio::null())
         .stderr(Stdio::null())
@@ -127,4 +131,103 @@ fn an_urgent_estop_overtakes_a_full_normal_ring_in_the_real_machine_process() {
         assert!(start.elapsed() < Duration::from_secs(10));
         std::thread::sleep(Duration::from_millis(5));
     }
+}
+
+/// Sends a PLC service request and waits for its reply.
+fn plc_service(
+    client: &Client,
+    serial: u64,
+    kind: u32,
+    path: &str,
+    value: &str,
+) -> layout::ServiceReply {
+    client
+        .request(layout::ServiceRequest {
+            serial,
+            kind,
+            text: layout::WireText::new(path),
+            value_text: layout::WireText::new(value),
+            ..Default::default()
+        })
+        .unwrap();
+    let start = Instant::now();
+    loop {
+        client.heartbeat();
+        let mut reply = None;
+        client.drain_replies(|r| {
+            if r.serial == serial {
+                reply = Some(r);
+            }
+        });
+        if let Some(r) = reply {
+            return r;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "no reply to {path}"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+/// mill.st's RETAIN variable, forced to 7 in one machine process, is written to the
+/// machine file's `files.plc_retain` (by rename: no temporary file is left) and is 7 again,
+/// unforced, in the next machine process started on the same file.
+#[test]
+fn a_retained_plc_variable_survives_a_restart_of_the_machine_process() {
+    let repo = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let dir = std::env::temp_dir().join(format!("rtcnc-clitest-retain-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::copy(repo.join("configs/sim-mill.tbl"), dir.join("sim-mill.tbl")).unwrap();
+    let text = std::fs::read_to_string(repo.join("configs/sim-mill.toml"))
+        .unwrap()
+        .replace(
+            "program = \"../examples/plc/mill.st\"",
+            &format!("program = {:?}", repo.join("examples/plc/mill.st")),
+        )
+        .replace(
+            "# plc_retain = \"sim-mill.retain\"",
+            "plc_retain = \"mill.retain\" #",
+        );
+    let machine_file = dir.join("mill.toml");
+    std::fs::write(&machine_file, text).unwrap();
+    let retain = dir.join("mill.retain");
+    {
+        let (_machine, client) = start_machine_on("retain1", &machine_file);
+        let r = plc_service(
+            &client,
+            1,
+            layout::service::PLC_FORCE,
+            "Mill.current_tool",
+            "7",
+        );
+        assert_eq!(r.ok, 1, "{}", r.text.as_str());
+        let start = Instant::now();
+        while !std::fs::read_to_string(&retain)
+            .unwrap_or_default()
+            .lines()
+            .any(|l| l.eq_ignore_ascii_case("MILL.current_tool = 7"))
+        {
+            client.heartbeat();
+            assert!(start.elapsed() < Duration::from_secs(30), "not saved");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+    let mut files: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    files.sort();
+    assert_eq!(files, ["mill.retain", "mill.toml", "sim-mill.tbl"]);
+    let (_machine, client) = start_machine_on("retain2", &machine_file);
+    let r = plc_service(
+        &client,
+        2,
+        layout::service::PLC_READ,
+        "Mill.current_tool",
+        "",
+    );
+    assert_eq!((r.ok, r.text.as_str()), (1, "7"));
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -217,3 +217,60 @@ fn run_takes_a_configuration_with_plcopen_axes() {
     assert!(stdout.contains("\n264\tT#1s52ms\t"), "{stdout}");
     assert!(stdout.ends_with("265\tT#1s56ms\t90.0\tTRUE\n"), "{stdout}");
 }
+
+/// Monitoring as at commissioning: FB instance members and array elements watched, a
+/// variable forced (shown with `(F)`) and released, each scan's execution time.
+#[test]
+fn run_watches_members_and_elements_marks_forces_and_times_scans() {
+    let file = temp_st(
+        "monitor.st",
+        "PROGRAM P\nVAR go : BOOL; c : CTU; log : ARRAY[1..3] OF INT; END_VAR\n\
+         c(CU := go, PV := 10);\nlog[2] := c.CV * 10;\nEND_PROGRAM\n",
+    );
+    let out = rtcnc(&[
+        "plc",
+        "run",
+        &file,
+        "--scans",
+        "6",
+        "--set",
+        "go=TRUE@2",
+        "--unset",
+        "go@3",
+        "--set",
+        "go=TRUE@5",
+        "--watch",
+        "go",
+        "--watch",
+        "c.CV",
+        "--watch",
+        "log[2]",
+        "--timing",
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows: Vec<Vec<&str>> = stdout.lines().map(|l| l.split('\t').collect()).collect();
+    assert_eq!(rows[0], ["scan", "time", "go", "c.CV", "log[2]", "scan_us"]);
+    // go is forced TRUE on scan 2 (a rising edge: CV 1), released on scan 3 (the program
+    // keeps the last value, TRUE, no edge), forced again on 5 (still TRUE, no edge).
+    let values: Vec<[&str; 3]> = rows[1..].iter().map(|r| [r[2], r[3], r[4]]).collect();
+    assert_eq!(
+        values,
+        [
+            ["FALSE", "0", "0"],
+            ["TRUE (F)", "1", "10"],
+            ["TRUE", "1", "10"],
+            ["TRUE", "1", "10"],
+            ["TRUE (F)", "1", "10"],
+            ["TRUE (F)", "1", "10"],
+        ]
+    );
+    for r in &rows[1..] {
+        let us: f64 = r[5].parse().expect("a number of microseconds");
+        assert!(us >= 0.0);
+    }
+}

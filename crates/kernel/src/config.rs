@@ -627,6 +627,111 @@ pub struct PlcSection {
     /// PLC variable → value on a PLC fault.
     #[serde(default)]
     pub safe_values: BTreeMap<String, String>,
+    /// Auxiliary axes of the PLCopen motion blocks: AXIS_REF variable → the joint whose
+    /// drive follows it.
+    #[serde(default)]
+    pub axes: BTreeMap<String, PlcAxisSection>,
+}
+
+/// Most auxiliary axes the PLC may drive (the logic's outputs carry this many set-points).
+pub const MAX_PLC_AXES: usize = 4;
+
+/// `[plc.axes.VAR]`: an auxiliary axis (AXIS_REF variable `VAR`) on a joint of its own.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlcAxisSection {
+    /// The joint: one no axis drives and that has no homing of the kernel's (MC_Home
+    /// homes it); its `limits` are the axis's limits for the motion blocks.
+    pub joint: String,
+    /// A modulo (rotary) axis of this period (e.g. 360): the PLC counts its position from
+    /// 0 up to it and ignores the joint's min/max position.
+    #[serde(default)]
+    pub modulo: Option<f64>,
+}
+
+impl MachineConfig {
+    /// The PLC's auxiliary axes: AXIS_REF variable, joint index and the motion blocks'
+    /// limits (the joint's own). Empty without `[plc.axes]`; a joint that does not fit
+    /// is refused by [`MachineConfig::validate`].
+    ///
+    /// Real-time: no (set-up: allocates).
+    pub fn plc_axes(&self) -> Vec<(String, usize, rtcnc_plc::AxisConfig)> {
+        let Some(plc) = &self.plc else {
+            return Vec::new();
+        };
+        plc.axes
+            .iter()
+            .filter_map(|(var, a)| {
+                let j = self.joints.iter().position(|j| j.name == a.joint)?;
+                let l = self.joints[j].limits?;
+                Some((
+                    var.clone(),
+                    j,
+                    rtcnc_plc::AxisConfig {
+                        velocity: l.max_velocity,
+                        acceleration: l.max_acceleration,
+                        jerk: l.max_jerk,
+                        min_position: a.modulo.is_none().then_some(l.min_position),
+                        max_position: a.modulo.is_none().then_some(l.max_position),
+                        modulo: a.modulo,
+                    },
+                ))
+            })
+            .collect()
+    }
+
+    /// Each PLC axis names a joint that no axis drives, has no homing of the kernel's and
+    /// no other PLC axis takes.
+    fn validate_plc_axes(&self, driven: &[Option<String>]) -> Result<(), ConfigError> {
+        let Some(plc) = &self.plc else {
+            return Ok(());
+        };
+        if plc.axes.len() > MAX_PLC_AXES {
+            return Err(ConfigError::invalid(
+                "plc.axes",
+                format!("at most {MAX_PLC_AXES} auxiliary axes are supported"),
+            ));
+        }
+        let mut taken: Vec<usize> = Vec::new();
+        for (var, a) in &plc.axes {
+            let key = format!("plc.axes.{var}.joint");
+            let Some(j) = self.joints.iter().position(|j| j.name == a.joint) else {
+                return Err(ConfigError::invalid(
+                    key,
+                    format!("no joint named {}", a.joint),
+                ));
+            };
+            if let Some(letter) = &driven[j] {
+                return Err(ConfigError::invalid(
+                    key,
+                    format!(
+                        "joint {} is driven by axis {letter}, not free for the PLC",
+                        a.joint
+                    ),
+                ));
+            }
+            if self.joints[j].homing.is_some() {
+                return Err(ConfigError::invalid(
+                    key,
+                    format!(
+                        "joint {} has a homing sequence; the PLC homes its axes (MC_Home)",
+                        a.joint
+                    ),
+                ));
+            }
+            if let Some(m) = a.modulo {
+                positive_finite(&format!("plc.axes.{var}.modulo"), m)?;
+            }
+            if taken.contains(&j) {
+                return Err(ConfigError::invalid(
+                    key,
+                    format!("joint {} is taken by another PLC axis", a.joint),
+                ));
+            }
+            taken.push(j);
+        }
+        Ok(())
+    }
 }
 
 /// What a deadline miss of a real-time task triggers.
@@ -863,6 +968,7 @@ impl MachineConfig {
         self.validate_simulated_drives()?;
         let driven = self.validate_axes()?;
         self.validate_independent_joints(&driven)?;
+        self.validate_plc_axes(&driven)?;
         self.validate_home_positions(&driven)?;
         self.tasks_checked()?;
         self.validate_motion_spindle_and_tool_changer()?;

@@ -476,7 +476,13 @@ fn drive_stage<B: Fieldbus>(
         config.io.program_outputs.clone(),
     )
     .with_program_analog_outputs(config.io.program_analog_outputs.clone())
-    .with_stop_limits(crate::motion::joint_quick_stop_limits(config)))
+    .with_stop_limits(crate::motion::joint_quick_stop_limits(config))
+    .with_plc_joints(
+        config
+            .plc_axes()
+            .iter()
+            .fold(0, |mask, (_, joint, _)| mask | 1 << joint),
+    ))
 }
 
 /// The motion core at rest, ready to be reset into operation.
@@ -515,8 +521,13 @@ fn logic_stage(
         None => Logic::Direct,
         Some(plc) => {
             let path = config.resolve(&plc.program);
-            let mut runtime =
-                crate::logic::load_plc(&path, compiled, &plc.signals, &plc.safe_values)?;
+            let mut runtime = crate::logic::load_plc(
+                &path,
+                compiled,
+                &plc.signals,
+                &plc.safe_values,
+                &config.plc_axes(),
+            )?;
             report
                 .checks
                 .push(("machine logic", format!("{} compiled", path.display())));
@@ -561,6 +572,16 @@ fn logic_stage(
     );
     if let Some((snapshot, _)) = &retain {
         stage = stage.with_retain(Arc::clone(snapshot));
+    }
+    if let Some(runtime) = &plc {
+        let runtime = runtime.lock();
+        let axes = config
+            .plc_axes()
+            .iter()
+            .filter_map(|(var, joint, _)| Some((runtime.axis_index(var)?, *joint)))
+            .collect();
+        drop(runtime);
+        stage = stage.with_plc_axes(axes);
     }
     Ok((stage, retain, plc))
 }

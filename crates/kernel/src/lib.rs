@@ -52,5 +52,5 @@ pub use messages::{
 };
 pub use motion::{LatchRequest, ServoTarget};
 pub use servo::Sample;
-pub use shared::{Feedback, LogicOutputs, LogicRequests};
+pub use shared::{Feedback, LogicOutputs, LogicRequests, PlcAxisSetpoints};
 pub use sim::{SimulatedEthercatHandle, SimulatedMachineHandle, Simulation};

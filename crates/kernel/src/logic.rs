@@ -6,7 +6,7 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use rtcnc_plc::{RetainSnapshot, Runtime, Signal};
+use rtcnc_plc::{DriveFeedback, RetainSnapshot, Runtime, Signal};
 use rtcnc_rt::{Context, PiMutex, SeqlockWriter};
 
 use crate::fault::{FaultCode, TaskName};
@@ -36,6 +36,8 @@ pub(crate) struct LogicStage {
     reset_until: Duration,
     /// Where the PLC task leaves its RETAIN values for the background task to save.
     retain: Option<Arc<PiMutex<RetainSnapshot>>>,
+    /// The PLC's auxiliary axes: (axis index in the PLC, joint).
+    plc_axes: Vec<(usize, usize)>,
 }
 
 impl LogicStage {
@@ -57,7 +59,15 @@ impl LogicStage {
             has_tool_changer,
             reset_until: Duration::ZERO,
             retain: None,
+            plc_axes: Vec::new(),
         }
+    }
+
+    /// The PLC's auxiliary axes (axis index in the PLC, joint): their drives' feedback goes
+    /// to the PLC before each period's scan, their set-points to position control after it.
+    pub(crate) fn with_plc_axes(mut self, axes: Vec<(usize, usize)>) -> Self {
+        self.plc_axes = axes;
+        self
     }
 
     /// Hands the RETAIN values to `snapshot` after every scan (the disk is not touched here).
@@ -93,6 +103,17 @@ impl LogicStage {
                 // The PLC's tasks run at their own intervals (mill.st: 4 ms); in the calls
                 // between, a scan would only copy the images, so the answers of the last
                 // scan stand and only what the kernel derives from the feedback is renewed.
+                for &(axis, joint) in &self.plc_axes {
+                    let bit = 1u32 << joint;
+                    plc.set_axis_drive(
+                        axis,
+                        DriveFeedback {
+                            position: fb.position.get(joint).copied().unwrap_or(0.0),
+                            enabled: fb.enabled & bit != 0,
+                            faulted: fb.faulted & bit != 0,
+                        },
+                    );
+                }
                 if plc.is_due(now) {
                     let estop_reset = now <= self.reset_until && self.reset_until > Duration::ZERO;
                     self.plc = plc_scan(plc, req, estop_reset, fb, now);
@@ -102,7 +123,12 @@ impl LogicStage {
                         let mut snapshot = snapshot;
                         plc.update_retain_snapshot(&mut snapshot);
                     }
+                } else if !self.plc_axes.is_empty() {
+                    // The drives take a set-point every servo period: the axes go on
+                    // between the program's scans.
+                    plc.advance_axes(now);
                 }
+                plc_axis_setpoints(plc, &self.plc_axes, now, &mut out);
                 if self.plc.failed {
                     // The kernel's fault says "logic"; the PLC's own record (code, POU,
                     // line) goes beside it for the operator.
@@ -137,6 +163,35 @@ impl LogicStage {
             );
         }
         self.fault_latched = faulted;
+    }
+}
+
+/// The set-points of the PLC's auxiliary axes for position control.
+fn plc_axis_setpoints(
+    plc: &Runtime,
+    axes: &[(usize, usize)],
+    now: Duration,
+    out: &mut LogicOutputs,
+) {
+    if axes.is_empty() {
+        return;
+    }
+    // A stopped PLC leaves its axes where they are, unpowered.
+    let stopped = plc.fault().is_some();
+    let sp = &mut out.plc_axes;
+    sp.time_ns = now.as_nanos() as u64;
+    for (i, &(axis, joint)) in axes.iter().enumerate().take(crate::config::MAX_PLC_AXES) {
+        let Some(s) = plc.axis_at(axis) else { continue };
+        sp.count = i as u8 + 1;
+        sp.joint[i] = joint as u8;
+        if s.power_requested && !stopped {
+            sp.power |= 1 << i;
+        }
+        sp.position[i] = s.drive_position;
+        if !stopped {
+            sp.velocity[i] = s.velocity;
+            sp.acceleration[i] = s.acceleration;
+        }
     }
 }
 
@@ -297,6 +352,7 @@ pub(crate) fn load_plc(
     compiled: Option<&Arc<rtcnc_plc::Program>>,
     signals: &std::collections::BTreeMap<String, String>,
     safe_values: &std::collections::BTreeMap<String, String>,
+    axes: &[(String, usize, rtcnc_plc::AxisConfig)],
 ) -> Result<Runtime, crate::error::KernelError> {
     let program = match compiled {
         Some(program) => Arc::clone(program),
@@ -311,7 +367,10 @@ pub(crate) fn load_plc(
     let config = rtcnc_plc::PlcConfig {
         signals: signals.clone(),
         safe_values: safe_values.clone(),
-        ..Default::default()
+        axes: axes
+            .iter()
+            .map(|(var, _, limits)| (var.clone(), *limits))
+            .collect(),
     };
     runtime
         .configure(&config)

@@ -74,6 +74,8 @@ pub(crate) struct ServoStage<B: Fieldbus> {
     /// Interpolation let the set-points run dry: position control brings each joint to
     /// rest by itself along these generators, until the next reset.
     dry_stop: Option<[OnlineAxis; MAX_JOINTS]>,
+    /// Bit n: joint n follows an auxiliary axis of the PLC, not interpolation.
+    plc_joints: u32,
 }
 
 /// Cycles the fault-reset bit stays high, then low, while a faulted drive is to be enabled.
@@ -148,7 +150,14 @@ impl<B: Fieldbus> ServoStage<B> {
             underruns: 0,
             stop_limits: Vec::new(),
             dry_stop: None,
+            plc_joints: 0,
         }
+    }
+
+    /// Joints (bit n: joint n) whose set-points come from the PLC's auxiliary axes.
+    pub(crate) fn with_plc_joints(mut self, mask: u32) -> Self {
+        self.plc_joints = mask;
+        self
     }
 
     /// The quick-stop limits of every joint, for the stop position control makes by itself
@@ -213,6 +222,30 @@ impl<B: Fieldbus> ServoStage<B> {
                 target.setpoints.joints[j] = stop.step(self.period_s).p;
             }
         }
+        // The PLC's auxiliary axes: their joints' set-points (carried on from the logic
+        // task's last values to this period) and whether MC_Power asks for their drives.
+        let mut plc_unpowered = 0u32;
+        if self.plc_joints != 0 {
+            let plc = self.logic.get().plc_axes;
+            // The logic's values are at least a period old (it runs after this thread):
+            // the set-point is the PLC's profile one period ago, exact where the logic
+            // runs every servo period and carried on by extrapolation where it runs less
+            // often.
+            let now = ctx
+                .release_time()
+                .as_nanos()
+                .saturating_sub((self.period_s * 1e9) as u64);
+            plc_unpowered = self.plc_joints;
+            for i in 0..usize::from(plc.count).min(crate::config::MAX_PLC_AXES) {
+                let j = usize::from(plc.joint[i]);
+                if j < self.joint_count {
+                    target.setpoints.joints[j] = plc.at(i, now) + target.offsets[j];
+                    if plc.power & (1 << i) != 0 {
+                        plc_unpowered &= !(1 << j);
+                    }
+                }
+            }
+        }
         let period = self.period_s;
         for j in 0..self.joint_count {
             let (Some(command), Some(feedback), Some(servo), Some(diff)) = (
@@ -246,7 +279,7 @@ impl<B: Fieldbus> ServoStage<B> {
                     state.controlword_towards(false)
                 }
             } else {
-                state.controlword_towards(target.enable)
+                state.controlword_towards(target.enable && plc_unpowered & bit == 0)
             };
             command.latch = if target.latch.index & bit != 0 {
                 Some(LatchSource::IndexPulse)

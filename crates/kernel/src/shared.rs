@@ -178,6 +178,44 @@ pub struct LogicOutputs {
     pub out_tool_number: u32,
     /// Digital outputs, bit n = output n.
     pub out_digital: u64,
+    /// The set-points of the PLC's auxiliary axes for their joints.
+    pub plc_axes: PlcAxisSetpoints,
+}
+
+/// The PLC's auxiliary axes as the machine-logic task left them: for each, its joint's
+/// set-point in the drive's units, with the velocity and acceleration to carry it on
+/// until the next update.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PlcAxisSetpoints {
+    /// Time of the values, ns (the logic task's release).
+    pub time_ns: u64,
+    /// Entries in use.
+    pub count: u8,
+    /// The joint of each entry.
+    pub joint: [u8; crate::config::MAX_PLC_AXES],
+    /// MC_Power asks for the drive (bit n: entry n).
+    pub power: u8,
+    /// Set-point positions.
+    pub position: [f64; crate::config::MAX_PLC_AXES],
+    /// Set-point velocities.
+    pub velocity: [f64; crate::config::MAX_PLC_AXES],
+    /// Set-point accelerations.
+    pub acceleration: [f64; crate::config::MAX_PLC_AXES],
+}
+
+impl PlcAxisSetpoints {
+    /// The set-point of entry `i` at time `now_ns`, carried on from the values at
+    /// `time_ns` (at most 100 ms, and no further than a braking axis comes to rest).
+    ///
+    /// Real-time: yes (arithmetic only).
+    pub fn at(&self, i: usize, now_ns: u64) -> f64 {
+        let (p, v, a) = (self.position[i], self.velocity[i], self.acceleration[i]);
+        let mut dt = (now_ns.saturating_sub(self.time_ns) as f64 * 1e-9).min(0.1);
+        if a * v < 0.0 {
+            dt = dt.min(-v / a);
+        }
+        p + v * dt + 0.5 * a * dt * dt
+    }
 }
 
 /// The newest value of a snapshot channel as one real-time reader last got it: when the

@@ -28,6 +28,7 @@ fn every_shipped_configuration_builds_a_kernel() {
             "experiment-1.toml",
             "sim-gantry-12.toml",
             "sim-lathe.toml",
+            "sim-mill-carousel.toml",
             "sim-mill.toml"
         ]
     );
@@ -182,6 +183,46 @@ fn an_ethercat_machine_file_is_checked_against_the_bus() {
 fn an_axis_naming_a_missing_joint_is_refused() {
     let text = mill_text().replacen("joints = [\"Y\"]", "joints = [\"Q\"]", 1);
     assert_eq!(refusal(&text), "axes.y.joints: no joint named \"Q\"");
+}
+
+#[test]
+fn a_plc_axis_needs_a_free_joint_without_a_homing_of_the_kernels() {
+    let carousel = std::fs::read_to_string(repo().join("configs/sim-mill-carousel.toml")).unwrap();
+    assert!(MachineConfig::parse(&carousel, "test.toml").is_ok());
+    let on = |joint: &str| {
+        carousel.replace(
+            "[plc.axes.carousel]\njoint = \"T\"",
+            &format!("[plc.axes.carousel]\njoint = \"{joint}\""),
+        )
+    };
+    assert_eq!(
+        refusal(&on("Q")),
+        "plc.axes.carousel.joint: no joint named Q"
+    );
+    assert_eq!(
+        refusal(&on("X")),
+        "plc.axes.carousel.joint: joint X is driven by axis x, not free for the PLC"
+    );
+    let homed = carousel.replace(
+        "sim = { drive = \"velocity\" }\nlimits",
+        "sim = { drive = \"velocity\" }\nhoming = { sequence = 2, search_velocity = 10.0, latch_velocity = 1.0, latch_position = 0.0, home_position = 0.0 }\nlimits",
+    );
+    assert_eq!(
+        refusal(&homed),
+        "plc.axes.carousel.joint: joint T has a homing sequence; the PLC homes its axes (MC_Home)"
+    );
+    let twice = carousel.replace(
+        "[plc.axes.carousel]\njoint = \"T\"",
+        "[plc.axes.carousel]\njoint = \"T\"\n[plc.axes.other]\njoint = \"T\"",
+    );
+    assert_eq!(
+        refusal(&twice),
+        "plc.axes.other.joint: joint T is taken by another PLC axis"
+    );
+    assert_eq!(
+        refusal(&on("T\"\nmodulo = \"0").replace("\"0\"", "0.0")),
+        "plc.axes.carousel.modulo: must be greater than zero"
+    );
 }
 
 #[test]

@@ -28,6 +28,7 @@ fn plc_mill() -> rtcnc_kernel::MachineConfig {
             .map(|(s, v)| (s.to_string(), v.to_string()))
             .collect(),
         safe_values: Default::default(),
+        axes: Default::default(),
     });
     cfg
 }

@@ -43,6 +43,7 @@ fn m30_on_a_machine_with_a_pallet_shuttle_has_the_logic_exchange_the_pallets_fir
         .map(|(s, v)| (s.to_string(), v.to_string()))
         .collect(),
         safe_values: Default::default(),
+        axes: Default::default(),
     });
     let mut m = Machine::started(&cfg, M30_CASE, "m30-shuttle.ngc");
     let mut lamp = Vec::new();

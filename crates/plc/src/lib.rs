@@ -61,7 +61,7 @@ pub use error::{
     CompileError, CompileErrors, ErrorKind, Fault, FaultKind, LoadError, Pos, Warning,
 };
 pub use lexer::{AddrSize, Area, DirectAddr};
-pub use plcopen::{AxisConfig, AxisState, AxisStatus, error_id as motion_error_id};
+pub use plcopen::{AxisConfig, AxisState, AxisStatus, DriveFeedback, error_id as motion_error_id};
 pub use program::{Program, TaskDesc, VariableInfo};
 pub use runtime::{
     MonitorError, Restart, RetainReport, RetainSnapshot, Runtime, RuntimeOptions, VarRef,

@@ -566,6 +566,7 @@ impl Parser<'_> {
     }
 
     fn var_decl(&mut self, allow_at: bool) -> PResult<VarDecl> {
+        let start = self.pos();
         let mut names = vec![self.name()?];
         while self.eat(&Tok::Comma) {
             names.push(self.name()?);
@@ -581,14 +582,28 @@ impl Parser<'_> {
                 }
             }
         }
-        self.expect(&Tok::Colon)?;
+        if !self.eat(&Tok::Colon) {
+            return Err(self.err(format!(
+                "':' and a type expected after the name in the declaration at {}:{}, found {}",
+                start.line,
+                start.col,
+                describe(self.peek())
+            )));
+        }
         let ty = self.type_spec()?;
         let init = if self.eat(&Tok::Assign) {
             Some(self.init()?)
         } else {
             None
         };
-        self.expect(&Tok::Semi)?;
+        if !self.eat(&Tok::Semi) {
+            return Err(self.err(format!(
+                "';' expected to end the declaration at {}:{}, found {}",
+                start.line,
+                start.col,
+                describe(self.peek())
+            )));
+        }
         Ok(VarDecl {
             names,
             at,
@@ -1159,6 +1174,11 @@ impl Parser<'_> {
                     let e = self.expr()?;
                     Stmt::RefAssign(target, e, pos)
                 } else {
+                    if self.peek() == &Tok::Eq {
+                        return Err(
+                            self.err("an assignment is written ':=', not '=' ('=' compares)")
+                        );
+                    }
                     return Err(self.unexpected("':=', 'REF=' or '(' after the name"));
                 }
             }
@@ -1480,9 +1500,12 @@ impl Parser<'_> {
                 Ok(Expr::Typed(name, Box::new(inner)))
             }
             Tok::LParen => {
+                let open = self.pos();
                 self.bump();
                 let e = self.expr()?;
-                self.expect(&Tok::RParen)?;
+                if !self.eat(&Tok::RParen) {
+                    return Err(self.unclosed("')'", "'('", open));
+                }
                 Ok(e)
             }
             // Operators in function form: AND(a, b, c), OR(...), XOR(...), MOD(a, b).

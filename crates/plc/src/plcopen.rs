@@ -7,8 +7,11 @@
 //! to an `AXIS_REF` variable of the program. Its set-point comes from the jerk-limited
 //! on-line trajectory generator of `rtcnc-motion`, within the axis's limits and those the
 //! block asks for. Every scan first advances each axis to the scan's time, then runs the
-//! programs: a command given in a scan starts at that scan's time. The set-point is also
-//! the actual position ([`crate::Runtime::axis`] gives it to whoever drives the axis).
+//! programs: a command given in a scan starts at that scan's time. Without a drive the
+//! set-point is also the actual position ([`crate::Runtime::axis`] gives it to whoever
+//! drives the axis); with one ([`crate::Runtime::set_axis_drive`], the kernel's auxiliary
+//! joints) the drive's feedback is the actual position, MC_Power waits for the drive to be
+//! enabled, and a drive that faults or drops out puts the axis into ErrorStop.
 //! Only buffer mode Aborting is offered: a new motion command takes the axis over and the
 //! block that had it reports CommandAborted.
 
@@ -34,6 +37,10 @@ pub struct AxisConfig {
     /// See `min_position`.
     #[serde(default)]
     pub max_position: Option<f64>,
+    /// A modulo (rotary) axis: positions count from 0 up to this period (e.g. 360), and
+    /// MC_MoveAbsolute's Direction picks the way round. No software limits then.
+    #[serde(default)]
+    pub modulo: Option<f64>,
 }
 
 /// The PLCopen state of an axis.
@@ -55,13 +62,31 @@ pub enum AxisState {
     ErrorStop,
 }
 
+/// What the drive of an auxiliary axis reports each period, in the drive's own units
+/// (before the home offset MC_Home sets).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct DriveFeedback {
+    /// Actual position.
+    pub position: f64,
+    /// The drive is in operation enabled (following its set-point).
+    pub enabled: bool,
+    /// The drive is faulted.
+    pub faulted: bool,
+}
+
 /// What [`crate::Runtime::axis`] reports about an axis.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AxisStatus {
     /// PLCopen state.
     pub state: AxisState,
-    /// Set-point position (also the actual position).
+    /// Set-point position (also the actual position when no drive reports).
     pub position: f64,
+    /// The set-point in the drive's units: `position` less the home offset.
+    pub drive_position: f64,
+    /// Actual position: the drive's, plus the home offset; the set-point without a drive.
+    pub actual_position: f64,
+    /// MC_Power asks for the drive to be enabled.
+    pub power_requested: bool,
     /// Set-point velocity.
     pub velocity: f64,
     /// Set-point acceleration.
@@ -93,6 +118,8 @@ pub mod error_id {
     pub const LIMIT_REACHED: u16 = 0x0010;
     /// The trajectory generator refused the motion.
     pub const PROFILE: u16 = 0x0011;
+    /// Axis error: the drive faulted, or left operation enabled while the axis was powered.
+    pub const DRIVE: u16 = 0x0012;
     /// MC_Home needs the axis at Standstill.
     pub const NOT_STANDSTILL: u16 = 0x0008;
 }
@@ -116,6 +143,12 @@ pub(crate) struct Axis {
     target: f64,
     /// Time of the last step, ns.
     last: Option<i64>,
+    /// Position less drive position (set by MC_Home).
+    offset: f64,
+    /// The drive's last report; `None`: no drive, the set-point is the position.
+    drive: Option<DriveFeedback>,
+    /// MC_Power's Enable.
+    power_requested: bool,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -134,6 +167,16 @@ fn limits_of(c: &AxisConfig) -> Limits {
 
 impl Axis {
     pub(crate) fn new(name: &str, config: AxisConfig) -> Result<Axis, String> {
+        if let Some(m) = config.modulo {
+            if !(m.is_finite() && m > 0.0) {
+                return Err(format!("axis '{name}': modulo must be a positive number"));
+            }
+            if config.min_position.is_some() || config.max_position.is_some() {
+                return Err(format!(
+                    "axis '{name}': a modulo axis has no software limits (remove min_position and max_position)"
+                ));
+            }
+        }
         let otg = OnlineAxis::new(State::at_rest(0.0), limits_of(&config))
             .map_err(|e| format!("axis '{name}': {e}"))?;
         Ok(Axis {
@@ -148,6 +191,9 @@ impl Axis {
             goal: Goal::None,
             target: 0.0,
             last: None,
+            offset: 0.0,
+            drive: None,
+            power_requested: false,
         })
     }
 
@@ -155,7 +201,10 @@ impl Axis {
         let s = self.otg.sample();
         AxisStatus {
             state: self.state,
-            position: s.p,
+            position: self.wrap(s.p),
+            drive_position: s.p - self.offset,
+            actual_position: self.actual(),
+            power_requested: self.power_requested,
             velocity: s.v,
             acceleration: s.a,
             error_id: self.error_id,
@@ -173,6 +222,67 @@ impl Axis {
         self.command += 1;
         self.goal = Goal::None;
         self.last = None;
+        self.power_requested = false;
+    }
+
+    /// A position as the program sees it: on a modulo axis, within 0 up to the period.
+    fn wrap(&self, p: f64) -> f64 {
+        match self.config.modulo {
+            Some(m) => p.rem_euclid(m),
+            None => p,
+        }
+    }
+
+    fn actual(&self) -> f64 {
+        self.wrap(match self.drive {
+            Some(d) => d.position + self.offset,
+            None => self.otg.sample().p,
+        })
+    }
+
+    /// The set-point (not wrapped) a modulo axis goes to for `position` in `direction`
+    /// (1 positive, 2 or 0 the shortest way, 3 or -1 negative, 4 the way it moves now).
+    fn modulo_target(&self, m: f64, position: f64, direction: i64) -> Option<f64> {
+        let s = self.otg.sample();
+        let d = (position.rem_euclid(m) - s.p.rem_euclid(m)).rem_euclid(m);
+        let (up, down) = (d, d - m);
+        let shortest = if up <= -down { up } else { down };
+        let step = match direction {
+            1 => up,
+            3 | -1 => {
+                if d == 0.0 {
+                    0.0
+                } else {
+                    down
+                }
+            }
+            2 | 0 => shortest,
+            4 if s.v > 0.0 => up,
+            4 if s.v < 0.0 && d != 0.0 => down,
+            4 => shortest,
+            _ => return None,
+        };
+        Some(s.p + step)
+    }
+
+    /// The drive's report of this period. A drive that is not enabled does not follow the
+    /// set-point, so the set-point follows it (enabling then does not jump); one that
+    /// faults, or drops out while the axis is powered, is an axis error.
+    pub(crate) fn set_drive(&mut self, fb: DriveFeedback) {
+        let was_enabled = self.drive.is_some_and(|d| d.enabled);
+        self.drive = Some(fb);
+        let powered = !matches!(self.state, AxisState::Disabled | AxisState::ErrorStop);
+        if powered && (fb.faulted || (was_enabled && !fb.enabled)) {
+            self.error_id = error_id::DRIVE;
+            self.state = AxisState::ErrorStop;
+            self.goal = Goal::None;
+        }
+        if !fb.enabled {
+            let actual = self.actual();
+            if actual.is_finite() {
+                self.hold(actual);
+            }
+        }
     }
 
     fn hold(&mut self, p: f64) {
@@ -203,7 +313,8 @@ impl Axis {
         match (self.goal, self.otg.is_finished()) {
             (Goal::Home(p), _) => {
                 // The simulated reference search ends at once: the position becomes the
-                // home position.
+                // home position (the drive stays where it is: its offset changes).
+                self.offset = p - (s.p - self.offset);
                 self.hold(p);
                 self.homed = true;
                 self.state = AxisState::Standstill;
@@ -479,7 +590,10 @@ fn power(s: &mut Slots, axis: Option<&mut Axis>) {
         s.set(7, if enable { error_id::NO_AXIS as u64 } else { 0 });
         return;
     };
-    if enable && ax.state == AxisState::Disabled {
+    ax.power_requested = enable;
+    // With a drive, the axis is powered once the drive is enabled.
+    let drive_ready = ax.drive.is_none_or(|d| d.enabled && !d.faulted);
+    if enable && ax.state == AxisState::Disabled && (drive_ready || ax.error_id != 0) {
         ax.state = if ax.error_id != 0 {
             AxisState::ErrorStop
         } else {
@@ -518,7 +632,7 @@ fn read(fb: StdFb, s: &mut Slots, axis: Option<&mut Axis>) {
     s.set(4, 0);
     s.set(5, 0);
     match fb {
-        StdFb::McReadActualPosition => s.set(6, ax.otg.sample().p.to_bits()),
+        StdFb::McReadActualPosition => s.set(6, ax.actual().to_bits()),
         StdFb::McReadAxisError => s.set(6, ax.error_id as u64),
         _ => {
             let st = ax.state;
@@ -604,7 +718,8 @@ fn request(fb: StdFb, s: &Slots, ax: &Axis) -> Result<Request, u16> {
     Ok(match fb {
         StdFb::McHome => {
             buffer(3)?;
-            Request::Home(in_limits(f(s.get(2)))?)
+            let p = in_limits(f(s.get(2)))?;
+            Request::Home(c.modulo.map_or(p, |m| p.rem_euclid(m)))
         }
         StdFb::McStop => Request::Stop {
             dec: within(f(s.get(2)), c.acceleration).ok_or(bad)?,
@@ -626,7 +741,10 @@ fn request(fb: StdFb, s: &Slots, ax: &Axis) -> Result<Request, u16> {
             }
             let here = ax.otg.sample().p;
             let target = match fb {
-                StdFb::McMoveAbsolute => x,
+                StdFb::McMoveAbsolute => match c.modulo {
+                    Some(m) => ax.modulo_target(m, x, s.get(8) as i64).ok_or(bad)?,
+                    None => x,
+                },
                 StdFb::McMoveRelative => here + x,
                 // Added to the running move's target, else to where the axis is.
                 _ if ax.state == AxisState::DiscreteMotion => ax.target + x,

@@ -209,6 +209,18 @@ pub(crate) enum Expr {
     /// A method called through an interface, a reference or THIS: the instance's type
     /// tag picks the implementation.
     CallVirtual(Box<VirtualCall>),
+    /// A call with `EN` and/or `ENO` inside an expression.
+    Enabled(Box<EnabledCall>),
+}
+
+/// `F(EN := c, ..., ENO => v)` in an expression: the call runs only while `en` is TRUE
+/// (its value is then the call's, else 0), and ENO is stored whether it ran.
+#[derive(Debug)]
+pub(crate) struct EnabledCall {
+    pub en: Expr,
+    pub call: Expr,
+    /// ENO's target: place, bit of a word, negated (`NOT ENO =>`).
+    pub eno: Option<(Place, Option<u8>, bool)>,
 }
 
 /// A method call resolved at run time by the type tag in the instance's first slot.
@@ -512,6 +524,25 @@ impl Vm {
             }
             Expr::Builtin(b, args, dest) => self.builtin(c, *b, args, *dest),
             Expr::Call(call) => self.call_fn(c, call),
+            Expr::Enabled(g) => {
+                let run = self.eval(c, &g.en) & 1 != 0;
+                let v = if run { self.eval(c, &g.call) } else { 0 };
+                if let Some((place, bit, negate)) = &g.eno {
+                    let eno = run != *negate;
+                    let a = self.addr(c, place);
+                    if self.budget != 0 {
+                        match bit {
+                            Some(b) => {
+                                let old = self.ld(a);
+                                let m = 1u64 << b;
+                                self.st(a, if eno { old | m } else { old & !m });
+                            }
+                            None => self.st(a, eno as u64),
+                        }
+                    }
+                }
+                v
+            }
             Expr::CallMethod(m) => {
                 let inst = self.addr(c, &m.instance);
                 self.call_fn_in(c, &m.call, Some(inst))

@@ -107,6 +107,26 @@ fn unclosed_blocks_are_named_with_where_they_open() {
             "PROGRAM P\nVAR x : INT; END_VAR\nx := 1\nEND_PROGRAM",
             "m.st:4:1: error[syntax]: ';' expected to end the statement at 3:1, found 'END_PROGRAM'",
         ),
+        (
+            "PROGRAM P\nVAR x : INT\nEND_VAR\nx := 1;\nEND_PROGRAM",
+            "m.st:3:1: error[syntax]: ';' expected to end the declaration at 2:5, found 'END_VAR'",
+        ),
+        (
+            "PROGRAM P\nVAR x INT; END_VAR\nEND_PROGRAM",
+            "m.st:2:7: error[syntax]: ':' and a type expected after the name in the declaration at 2:5, found 'INT'",
+        ),
+        (
+            "PROGRAM P\nVAR x : INT; END_VAR\nx := (1 + 2;\nEND_PROGRAM",
+            "m.st:3:12: error[syntax]: ')' expected to close the '(' at 3:6, found ';'",
+        ),
+        (
+            "PROGRAM P\nVAR x : INT; END_VAR\nx = 1;\nEND_PROGRAM",
+            "m.st:3:3: error[syntax]: an assignment is written ':=', not '=' ('=' compares)",
+        ),
+        (
+            "PROGRAM P\nVAR t : TON; END_VAR\nt(IN := TRUE, PT := 5);\nEND_PROGRAM",
+            "m.st:3:21: error[wrong-argument]: argument 'PT' of TON: type mismatch: an integer literal value where TIME is expected (write a duration as T#5ms)",
+        ),
     ];
     for (src, want) in cases {
         assert_eq!(error_of(src), want, "{src}");
@@ -481,6 +501,65 @@ END_PROGRAM");
         scan(&mut rt, k as u64);
         assert_eq!((int(&rt, "n"), boolean(&rt, "eno")), (n, eno), "scan {k}");
     }
+}
+
+#[test]
+fn en_and_eno_gate_a_call_inside_an_expression() {
+    let mut rt = plc("FUNCTION Twice : INT
+VAR_INPUT x : INT; END_VAR
+VAR_IN_OUT calls : INT; END_VAR
+calls := calls + 1;
+Twice := 2 * x;
+END_FUNCTION
+PROGRAM P
+VAR
+  run : BOOL;
+  a : INT := 7;
+  calls, y, z : INT;
+  ok, not_ok : BOOL;
+  flags : WORD;
+END_VAR
+y := 100 + Twice(EN := run, x := a, calls := calls, ENO => ok);
+z := ADD(EN := run AND a > 5, IN1 := a, IN2 := 3, NOT ENO => not_ok) * 2;
+flags := 0;
+flags.2 := FALSE;
+a := a + 0 * MUL(EN := run, a, 1, ENO => flags.2);
+END_PROGRAM");
+    // Scan 0, run FALSE: Twice does not run (calls stays 0) and gives 0, so y = 100; ENO
+    // FALSE; ADD does not run: z = 0 * 2 = 0, NOT ENO => TRUE; flags.2 FALSE.
+    scan(&mut rt, 0);
+    assert_eq!(
+        (int(&rt, "y"), int(&rt, "calls"), boolean(&rt, "ok")),
+        (100, 0, false)
+    );
+    assert_eq!((int(&rt, "z"), boolean(&rt, "not_ok")), (0, true));
+    assert_eq!(uint(&rt, "flags"), 0);
+    // Scan 1, run TRUE: y = 100 + 2 * 7 = 114, calls 1, ENO TRUE; z = (7 + 3) * 2 = 20,
+    // NOT ENO => FALSE; flags = 2#100 = 4.
+    set(&mut rt, "run", Value::Bool(true));
+    scan(&mut rt, 1);
+    assert_eq!(
+        (int(&rt, "y"), int(&rt, "calls"), boolean(&rt, "ok")),
+        (114, 1, true)
+    );
+    assert_eq!((int(&rt, "z"), boolean(&rt, "not_ok")), (20, false));
+    assert_eq!(uint(&rt, "flags"), 4);
+}
+
+#[test]
+fn en_inside_an_expression_is_refused_where_the_result_is_not_elementary() {
+    let err = compile(
+        "PROGRAM P VAR s : STRING; run : BOOL; END_VAR
+s := CONCAT(EN := run, 'a', 'b');
+END_PROGRAM",
+        "en.st",
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("en.st:2:6: error[wrong-argument]: EN/ENO inside an expression needs a function with an elementary result"),
+        "{err}"
+    );
 }
 
 #[test]

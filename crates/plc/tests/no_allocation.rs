@@ -171,3 +171,38 @@ fn plcopen_motion_scans_allocate_nothing() {
     let p = rt.axis("turret").unwrap().position;
     assert!((p - 30.0).abs() < 1e-9, "{p}");
 }
+
+#[test]
+fn an_axis_on_a_drive_allocates_nothing_between_and_in_scans() {
+    use rtcnc_plc::DriveFeedback;
+    const CAROUSEL: &str = include_str!("../../../examples/plc/carousel.st");
+    const CAROUSEL_TOML: &str = include_str!("../../../examples/plc/carousel.toml");
+    let mut rt = Runtime::new(Arc::new(compile(CAROUSEL, "carousel.st").unwrap()));
+    let cfg: PlcConfig = toml::from_str(CAROUSEL_TOML).unwrap();
+    rt.configure(&cfg).unwrap();
+    let axis = rt.axis_index("turret").unwrap();
+    rt.set_signal_bool(Signal::MachineOnRequest, true);
+    rt.set_signal(Signal::ToolNumber, 7.0);
+    let mut drive = DriveFeedback::default();
+    let n = allocations(|| {
+        // The kernel's pattern: the drive's report and the set-points every 1 ms, a scan
+        // every 4 ms.
+        for k in 0..3000u64 {
+            rt.set_axis_drive(axis, drive);
+            let now = Duration::from_millis(k);
+            rt.set_signal_bool(Signal::ToolChangeRequest, k > 20);
+            if k % 4 == 0 {
+                rt.scan(now).unwrap();
+            } else {
+                rt.advance_axes(now);
+            }
+            let s = rt.axis_at(axis).unwrap();
+            drive.enabled = s.power_requested;
+            drive.position = s.drive_position;
+        }
+    });
+    assert_eq!(n, 0);
+    // Tool 7 is at 180 degrees: 0.11 + 1.69 + 0.11 s from about 28 ms, within the 3 s.
+    let p = rt.axis("turret").unwrap().position;
+    assert!((p - 180.0).abs() < 1e-9, "{p}");
+}

@@ -402,3 +402,177 @@ fn the_carousel_example_turns_to_the_requested_pocket() {
     rt.scan(Duration::from_millis(4 * 265)).unwrap();
     assert!(!done(&rt));
 }
+
+/// A drive under the axis, as the kernel's auxiliary joints give it: enabled while the
+/// axis asks for power, at the set-point of the last period (one period of delay).
+#[test]
+fn an_axis_on_a_drive_waits_for_it_reads_it_and_stops_on_its_fault() {
+    use rtcnc_plc::DriveFeedback;
+    let mut c = Cell::new();
+    let axis = c.rt.axis_index("carousel").unwrap();
+    let mut drive = DriveFeedback {
+        position: 3.0,
+        enabled: false,
+        faulted: false,
+    };
+    let scan = |c: &mut Cell, drive: &mut DriveFeedback, k: u64| {
+        while c.k <= k {
+            c.rt.set_axis_drive(axis, *drive);
+            c.rt.scan(Duration::from_millis(4 * c.k)).unwrap();
+            let s = c.rt.axis_at(axis).unwrap();
+            drive.enabled = s.power_requested && !drive.faulted;
+            if drive.enabled {
+                drive.position = s.drive_position;
+            }
+            c.k += 1;
+        }
+    };
+    scan(&mut c, &mut drive, 0);
+    // A disabled drive: the set-point follows it.
+    assert!(close(c.rt.axis_at(axis).unwrap().position, 3.0));
+    c.set("en", true);
+    scan(&mut c, &mut drive, 1);
+    // Enable asked; the drive comes on after this scan, the axis with it on the next.
+    assert!(!c.flag("power.Status"));
+    assert_eq!(c.state(), AxisState::Disabled);
+    scan(&mut c, &mut drive, 2);
+    assert!(c.flag("power.Status"));
+    assert_eq!(c.state(), AxisState::Standstill);
+    // Homing at 5: the drive stays at 3, the axis counts 2 more.
+    c.set("xhome", true);
+    scan(&mut c, &mut drive, 4);
+    assert!(c.flag("home.Done"));
+    let s = c.rt.axis_at(axis).unwrap();
+    assert!(close(s.position, 5.0) && close(s.drive_position, 3.0));
+    assert!(close(s.actual_position, 5.0) && close(c.position(), 5.0));
+    // To 90 (drive 88): the move of 85 takes 0.11 + 0.74 + 0.11 = 0.96 s.
+    c.set("x1", true);
+    scan(&mut c, &mut drive, 300);
+    assert_eq!(c.outputs("move1"), DONE);
+    assert!(close(drive.position, 88.0) && close(c.position(), 90.0));
+    // Back to 20; 0.5 s in, the drive faults.
+    c.set("x2", true);
+    scan(&mut c, &mut drive, 424);
+    assert_eq!(c.outputs("move2"), BUSY);
+    drive.faulted = true;
+    scan(&mut c, &mut drive, 425);
+    assert_eq!(c.state(), AxisState::ErrorStop);
+    assert_eq!(c.outputs("move2"), ERROR);
+    assert_eq!(c.word("move2.ErrorID"), u64::from(motion_error_id::DRIVE));
+    assert_eq!(
+        c.word("axerr.AxisErrorID"),
+        u64::from(motion_error_id::DRIVE)
+    );
+    // The set-point stands where the drive stopped (its last position plus the offset).
+    let stopped = drive.position + 2.0;
+    scan(&mut c, &mut drive, 430);
+    assert!(close(c.rt.axis_at(axis).unwrap().position, stopped));
+    // The fault cleared, MC_Reset: Standstill there (the drive comes back with power).
+    drive.faulted = false;
+    c.set("xreset", true);
+    scan(&mut c, &mut drive, 433);
+    assert_eq!(c.state(), AxisState::Standstill);
+    assert!(close(c.position(), stopped));
+}
+
+/// A modulo axis of 360 (a rotary table) at 100 units/s: MC_MoveAbsolute's Direction
+/// picks the way round, given as the predefined MC_DIRECTION or as an integer.
+#[test]
+fn a_modulo_axis_goes_the_way_direction_says() {
+    let src = "
+VAR_GLOBAL table : AXIS_REF; END_VAR
+PROGRAM Rot
+VAR
+  power : MC_Power;
+  move : MC_MoveAbsolute;
+  pos : MC_ReadActualPosition;
+  x : BOOL;
+  target : LREAL;
+  dir : MC_DIRECTION := mcShortestWay;
+  way : INT;
+  use_int : BOOL;
+END_VAR
+power(Axis := table, Enable := TRUE);
+IF use_int THEN
+  move(Axis := table, Execute := x, Position := target, Velocity := 100.0, Direction := way,
+       BufferMode := mcAborting);
+ELSE
+  move(Axis := table, Execute := x, Position := target, Velocity := 100.0, Direction := dir);
+END_IF
+pos(Axis := table, Enable := TRUE);
+END_PROGRAM";
+    let mut rt = Runtime::new(Arc::new(compile(src, "rot.st").unwrap()));
+    let cfg: PlcConfig = toml::from_str(
+        "[axes.table]\nvelocity = 100.0\nacceleration = 1000.0\njerk = 100000.0\nmodulo = 360.0\n",
+    )
+    .unwrap();
+    rt.configure(&cfg).unwrap();
+    let mut k = 0u64;
+    let mut set = |rt: &mut Runtime, name: &str, v: Value| {
+        let r = rt.resolve(&format!("Rot.{name}")).unwrap();
+        rt.write(&r, &v).unwrap();
+    };
+    // Runs one move to `target` and returns (lowest, highest) unwrapped set-point on the
+    // way and the position read at the end.
+    let mut go = |rt: &mut Runtime, set: &mut dyn FnMut(&mut Runtime, &str, Value)| {
+        set(rt, "x", Value::Bool(true));
+        let (mut lo, mut hi) = (f64::MAX, f64::MIN);
+        for _ in 0..1500 {
+            rt.scan(Duration::from_millis(4 * k)).unwrap();
+            k += 1;
+            let s = rt.axis("table").unwrap();
+            lo = lo.min(s.drive_position);
+            hi = hi.max(s.drive_position);
+        }
+        set(rt, "x", Value::Bool(false));
+        rt.scan(Duration::from_millis(4 * k)).unwrap();
+        k += 1;
+        let Value::Real(p) = rt.read_name("Rot.pos.Position").unwrap() else {
+            panic!()
+        };
+        (lo, hi, p)
+    };
+    // 0 -> 350 the shortest way: 10 back, through 0 (unwrapped down to -10).
+    set(&mut rt, "target", Value::Real(350.0));
+    let (lo, hi, p) = go(&mut rt, &mut set);
+    assert!(
+        close(lo, -10.0) && close(hi, 0.0) && close(p, 350.0),
+        "{lo} {hi} {p}"
+    );
+    // 350 -> 10 in the positive direction (mcPositiveDirection): 20 up, to 10 unwrapped.
+    set(&mut rt, "dir", Value::Int(1));
+    set(&mut rt, "target", Value::Real(10.0));
+    let (lo, hi, p) = go(&mut rt, &mut set);
+    assert!(
+        close(lo, -10.0) && close(hi, 10.0) && close(p, 10.0),
+        "{lo} {hi} {p}"
+    );
+    // 10 -> 20 in the negative direction, given as CODESYS's -1: 350 down, to -340.
+    set(&mut rt, "use_int", Value::Bool(true));
+    set(&mut rt, "way", Value::Int(-1));
+    set(&mut rt, "target", Value::Real(20.0));
+    let (lo, hi, p) = go(&mut rt, &mut set);
+    assert!(
+        close(lo, -340.0) && close(hi, 10.0) && close(p, 20.0),
+        "{lo} {hi} {p}"
+    );
+    // An unknown direction is an invalid parameter.
+    set(&mut rt, "way", Value::Int(7));
+    set(&mut rt, "x", Value::Bool(true));
+    rt.scan(Duration::from_millis(4 * k)).unwrap();
+    let Value::UInt(id) = rt.read_name("Rot.move.ErrorID").unwrap() else {
+        panic!()
+    };
+    assert_eq!(id, u64::from(motion_error_id::INVALID_PARAMETER));
+}
+
+#[test]
+fn a_modulo_axis_has_no_software_limits() {
+    let mut rt = Runtime::new(Arc::new(compile(CELL, "cell.st").unwrap()));
+    let cfg: PlcConfig = toml::from_str(&format!("{AXES}modulo = 360.0\n")).unwrap();
+    let err = rt.configure(&cfg).unwrap_err().to_string();
+    assert!(
+        err.contains("a modulo axis has no software limits"),
+        "{err}"
+    );
+}

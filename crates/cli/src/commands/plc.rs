@@ -55,9 +55,17 @@ enum PlcCommand {
         /// (repeatable; a later --set of the same name takes over from its scan).
         #[arg(long = "set", value_name = "NAME=VALUE[@SCAN]")]
         set: Vec<String>,
-        /// Variable to print after every scan (repeatable): `x`, `Inst.timer.ET`, `a[2]`.
+        /// Release a forced variable from scan SCAN on (repeatable): NAME@SCAN.
+        #[arg(long = "unset", value_name = "NAME@SCAN")]
+        unset: Vec<String>,
+        /// Variable to print after every scan (repeatable): `x`, `Inst.timer.ET`, `a[2]`,
+        /// `Inst.axis.Position`; a forced one shows `(F)` after its value.
         #[arg(long = "watch", value_name = "NAME")]
         watch: Vec<String>,
+        /// Add a column with each scan's execution time on this computer (µs, wall
+        /// time; the virtual PLC clock does not advance with it).
+        #[arg(long)]
+        timing: bool,
     },
 }
 
@@ -76,15 +84,21 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             scans,
             period,
             set,
+            unset,
             watch,
+            timing,
         } => run_scans(
             &file,
             flat_comments,
             config.as_deref(),
-            scans,
-            &period,
-            &set,
-            &watch,
+            RunOptions {
+                scans,
+                period: &period,
+                sets: &set,
+                unsets: &unset,
+                watch: &watch,
+                timing,
+            },
         ),
     }
 }
@@ -159,19 +173,34 @@ fn check(file: &[PathBuf], flat_comments: bool, vars: bool) -> anyhow::Result<Ex
 struct Force {
     var: VarRef,
     name: String,
-    value: Value,
+    /// `None`: release the force.
+    value: Option<Value>,
     from_scan: u64,
+}
+
+struct RunOptions<'a> {
+    scans: u64,
+    period: &'a str,
+    sets: &'a [String],
+    unsets: &'a [String],
+    watch: &'a [String],
+    timing: bool,
 }
 
 fn run_scans(
     file: &[PathBuf],
     flat_comments: bool,
     config: Option<&Path>,
-    scans: u64,
-    period: &str,
-    sets: &[String],
-    watch: &[String],
+    options: RunOptions<'_>,
 ) -> anyhow::Result<ExitCode> {
+    let RunOptions {
+        scans,
+        period,
+        sets,
+        unsets,
+        watch,
+        timing,
+    } = options;
     let period_ns =
         parse_time(period).with_context(|| format!("--period '{period}' is not a duration"))?;
     if period_ns <= 0 {
@@ -220,7 +249,25 @@ fn run_scans(
         forces.push(Force {
             var,
             name: name.trim().to_string(),
-            value,
+            value: Some(value),
+            from_scan,
+        });
+    }
+    for u in unsets {
+        let (name, k) = u
+            .rsplit_once('@')
+            .with_context(|| format!("--unset '{u}': expected NAME@SCAN"))?;
+        let from_scan = k
+            .trim()
+            .parse::<u64>()
+            .with_context(|| format!("--unset '{u}': bad scan number"))?;
+        let var = plc
+            .resolve(name.trim())
+            .with_context(|| format!("--unset '{u}'"))?;
+        forces.push(Force {
+            var,
+            name: name.trim().to_string(),
+            value: None,
             from_scan,
         });
     }
@@ -234,18 +281,33 @@ fn run_scans(
         header.push('\t');
         header.push_str(w);
     }
+    if timing {
+        header.push_str("\tscan_us");
+    }
     println!("{header}");
     for k in 1..=scans {
         for f in forces.iter().filter(|f| f.from_scan == k) {
-            plc.force(&f.var, &f.value)
-                .with_context(|| format!("--set {}", f.name))?;
+            match &f.value {
+                Some(value) => plc
+                    .force(&f.var, value)
+                    .with_context(|| format!("--set {}", f.name))?,
+                None => plc.unforce(&f.var),
+            }
         }
         let now = Duration::from_nanos((k - 1) * period_ns as u64);
+        let started = std::time::Instant::now();
         let result = plc.scan(now);
+        let took = started.elapsed();
         let mut row = format!("{k}\t{}", FmtTime(now.as_nanos() as i64));
         for v in &watched {
             row.push('\t');
             row.push_str(&plc.format(v));
+            if plc.forced_slots().any(|s| s == v.slot()) {
+                row.push_str(" (F)");
+            }
+        }
+        if timing {
+            row.push_str(&format!("\t{:.3}", took.as_secs_f64() * 1e6));
         }
         println!("{row}");
         if let Err(fault) = result {

@@ -363,6 +363,22 @@ impl<'a> Compiler<'a> {
                 }
             }
         }
+        // The motion blocks' Direction and BufferMode take the predefined enumerations.
+        if pou.starts_with("MC_") && matches!(m.name.as_str(), "DIRECTION" | "BUFFERMODE") {
+            if let Ty::T(Type::Enum(id)) = &te.ty {
+                let name = self.enums[*id as usize].name.as_str();
+                if matches!(name, "MC_DIRECTION" | "MC_BUFFER_MODE") {
+                    let value = self.conversion(te.e, Elem::DInt, Elem::Int);
+                    let temp = self.alloc(1, e.pos())?;
+                    return Ok(ArgIn {
+                        value,
+                        temp,
+                        param: m.offset,
+                        store: Store::Scalar,
+                    });
+                }
+            }
+        }
         let value = self.coerce(te, &m.ty, e.pos()).map_err(|mut er| {
             er.kind = ErrorKind::WrongArgument;
             er.message = format!("argument '{}' of {pou}: {}", m.name, er.message);

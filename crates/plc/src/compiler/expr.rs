@@ -613,6 +613,13 @@ impl<'a> Compiler<'a> {
                 Ok(te)
             }
             AExpr::Call(name, args, pos) => {
+                let is = |a: &Arg, n: &str| match a {
+                    Arg::Input(x, _) | Arg::Output(x, _, _) => x.text == n,
+                    Arg::Positional(_) => false,
+                };
+                if args.iter().any(|a| is(a, "EN") || is(a, "ENO")) {
+                    return self.enabled_call(name, args, sc, *pos, expect);
+                }
                 let te = self.call_expr(name, args, sc, *pos, expect)?;
                 let called = match &te.e {
                     vm::Expr::Call(call) => Some(call.func),
@@ -1143,15 +1150,22 @@ impl<'a> Compiler<'a> {
     /// Converts an expression to type `to` if IEC allows it implicitly.
     pub(super) fn coerce(&self, te: TE, to: &Type, pos: Pos) -> R<vm::Expr> {
         let mismatch = |c: &Compiler, from: &Ty| {
-            c.e(
-                pos,
-                ErrorKind::TypeMismatch,
-                format!(
-                    "type mismatch: a {} value where {} is expected",
-                    c.ty_name(from),
-                    c.type_name(to)
-                ),
-            )
+            c.e(pos, ErrorKind::TypeMismatch, {
+                let from = c.ty_name(from);
+                let article = if from.starts_with(['A', 'E', 'I', 'O', 'a', 'e', 'i', 'o', 'u']) {
+                    "an"
+                } else {
+                    "a"
+                };
+                let to_name = c.type_name(to);
+                // A bare number where a duration goes: say how to write one.
+                let hint = if to_name == "TIME" && from.ends_with("literal") {
+                    " (write a duration as T#5ms)"
+                } else {
+                    ""
+                };
+                format!("type mismatch: {article} {from} value where {to_name} is expected{hint}")
+            })
         };
         match &te.ty {
             Ty::AnyInt(v) => {

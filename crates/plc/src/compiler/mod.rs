@@ -296,11 +296,12 @@ pub(crate) fn compile(
         });
     }
     let file = sources.first().map_or("", |s| s.1);
-    let unit = crate::parser::parse(&toks, file).map_err(|mut e| {
+    let mut unit = crate::parser::parse(&toks, file).map_err(|mut e| {
         e.message = respell(&spelling, &e.message);
         lines.fix(&mut e);
         e
     })?;
+    add_predefined_types(&mut unit, &mut spelling);
     let mut result = compile_unit(&unit, file, spelling, options);
     match &mut result {
         Ok(p) => {
@@ -314,6 +315,42 @@ pub(crate) fn compile(
         Err(es) => es.0.iter_mut().for_each(|e| lines.fix(e)),
     }
     result
+}
+
+/// The PLCopen enumerations for MC_MoveAbsolute's and MC_MoveVelocity's Direction and the
+/// blocks' BufferMode, numbered as TwinCAT numbers them (CODESYS's -1 for negative and 0
+/// for the shortest way are taken as integers too).
+const PREDEFINED_TYPES: &str = "TYPE
+  MC_DIRECTION : (mcPositiveDirection := 1, mcShortestWay := 2, mcNegativeDirection := 3,
+                  mcCurrentDirection := 4) INT;
+  MC_BUFFER_MODE : (mcAborting := 0, mcBuffered := 1, mcBlendingLow := 2,
+                    mcBlendingPrevious := 3, mcBlendingNext := 4, mcBlendingHigh := 5) INT;
+END_TYPE";
+
+/// Adds the predefined types the program does not declare itself (by any name).
+fn add_predefined_types(unit: &mut ast::Unit, spelling: &mut HashMap<String, String>) {
+    let Ok(toks) = crate::lexer::tokenize_with(PREDEFINED_TYPES, "", true) else {
+        return;
+    };
+    let Ok(predefined) = crate::parser::parse(&toks, "") else {
+        return;
+    };
+    for (k, v) in spellings(PREDEFINED_TYPES, &toks) {
+        spelling.entry(k).or_insert(v);
+    }
+    let taken: HashSet<String> = unit
+        .types
+        .iter()
+        .map(|t| &t.name.text)
+        .chain(unit.pous.iter().map(|p| &p.name.text))
+        .chain(unit.interfaces.iter().map(|i| &i.name.text))
+        .cloned()
+        .collect();
+    for t in predefined.types {
+        if !taken.contains(&t.name.text) {
+            unit.types.push(t);
+        }
+    }
 }
 
 fn compile_unit(

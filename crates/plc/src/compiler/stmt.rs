@@ -252,7 +252,7 @@ impl<'a> Compiler<'a> {
             };
             let lv = c.access(t, sc)?;
             c.check_writable(&lv, t.root.pos)?;
-            if !lv.ty.is_bool() {
+            if !lv.ty.is_bool() && lv.bit.is_none() {
                 return Err(c.e(t.root.pos, ErrorKind::WrongArgument, "ENO goes to a BOOL"));
             }
             let v = if *neg { v ^ 1 } else { v };
@@ -423,5 +423,90 @@ impl<'a> Compiler<'a> {
             (Type::String(a), Type::String(b)) => a == b,
             (a, b) => a == b,
         }
+    }
+}
+
+impl Compiler<'_> {
+    /// `F(EN := c, ..., ENO => v)` inside an expression: the function runs only while c is
+    /// TRUE; its value is then the function's, else 0 (IEC 61131-3 leaves it to the
+    /// implementation), and ENO tells whether it ran. Only for elementary results.
+    pub(super) fn enabled_call(
+        &mut self,
+        name: &Name,
+        args: &[Arg],
+        sc: &mut Scope,
+        pos: Pos,
+        expect: Option<&Type>,
+    ) -> R<TE> {
+        let mut en = None;
+        let mut eno = None;
+        let mut rest = Vec::new();
+        for a in args {
+            match a {
+                Arg::Input(n, e) if n.text == "EN" => en = Some(e),
+                Arg::Output(n, t, neg) if n.text == "ENO" => eno = Some((t, *neg)),
+                Arg::Input(n, _) if n.text == "ENO" => {
+                    return Err(self.e(
+                        n.pos,
+                        ErrorKind::WrongArgument,
+                        "ENO is an output: write ENO => variable",
+                    ));
+                }
+                a => rest.push(a.clone()),
+            }
+        }
+        let te = self.call_expr(name, &rest, sc, pos, expect)?;
+        let ty = match te.ty {
+            Ty::T(t) if t.scalar().is_some() && !matches!(t, Type::String(_)) => t,
+            _ => {
+                return Err(self.e(
+                    pos,
+                    ErrorKind::WrongArgument,
+                    format!(
+                        "EN/ENO inside an expression needs a function with an elementary \
+                         result and a variable operand; call {} as a statement with EN/ENO \
+                         instead",
+                        name.text
+                    ),
+                ));
+            }
+        };
+        if let vm::Expr::Call(call) = &te.e {
+            if self
+                .funcs
+                .get(call.func as usize)
+                .is_some_and(|f| f.ret.is_none())
+            {
+                return Err(self.e(
+                    pos,
+                    ErrorKind::TypeMismatch,
+                    format!("function '{}' returns no value", name.text),
+                ));
+            }
+        }
+        let en = match en {
+            Some(e) => self.cond(e, sc)?,
+            None => vm::Expr::Const(1),
+        };
+        let eno = match eno {
+            Some((Some(t), negate)) => {
+                let lv = self.access(t, sc)?;
+                self.check_writable(&lv, t.root.pos)?;
+                if !lv.ty.is_bool() && lv.bit.is_none() {
+                    return Err(self.e(t.root.pos, ErrorKind::WrongArgument, "ENO goes to a BOOL"));
+                }
+                let bit = lv.bit;
+                Some((self.place(lv), bit, negate))
+            }
+            _ => None,
+        };
+        Ok(TE {
+            ty: Ty::T(ty),
+            e: vm::Expr::Enabled(Box::new(vm::EnabledCall {
+                en,
+                call: te.e,
+                eno,
+            })),
+        })
     }
 }

@@ -241,6 +241,46 @@ impl Runtime {
             .map(|a| a.status())
     }
 
+    /// The index of the auxiliary axis bound to AXIS_REF variable `name`, for
+    /// [`axis_at`](Self::axis_at) and [`set_axis_drive`](Self::set_axis_drive).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
+    pub fn axis_index(&self, name: &str) -> Option<usize> {
+        self.vm.axes.iter().position(|a| a.name == name)
+    }
+
+    /// State and set-point of auxiliary axis `index` ([`axis_index`](Self::axis_index)).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
+    pub fn axis_at(&self, index: usize) -> Option<crate::plcopen::AxisStatus> {
+        self.vm.axes.get(index).map(|a| a.status())
+    }
+
+    /// Connects auxiliary axis `index` to a drive: its report of this period (position,
+    /// enabled, faulted), given before the period's [`scan`](Self::scan) or
+    /// [`advance_axes`](Self::advance_axes). From the first report on, MC_Power waits for
+    /// the drive to be enabled, the actual position is the drive's, and a drive fault or
+    /// drop-out is an axis error (ErrorStop, ErrorID 16#12).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
+    pub fn set_axis_drive(&mut self, index: usize, feedback: crate::plcopen::DriveFeedback) {
+        if let Some(a) = self.vm.axes.get_mut(index) {
+            a.set_drive(feedback);
+        }
+    }
+
+    /// Advances every auxiliary axis's set-point to time `now` without running the
+    /// programs: for a caller that scans less often than its drives take set-points (a
+    /// scan at `now` afterwards does not move them again).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
+    pub fn advance_axes(&mut self, now: Duration) {
+        let now = duration_ns(now);
+        for a in self.vm.axes.iter_mut() {
+            a.step(now);
+        }
+    }
+
     /// Every configured auxiliary axis: its AXIS_REF variable and status.
     ///
     /// Real-time: yes (no allocation, no blocking).
