@@ -380,6 +380,8 @@ pub struct FieldbusConfig {
     pub estop_removes_power: Option<bool>,
     /// Simulated machine: communication watchdog of the drives (s).
     pub communication_watchdog_s: Option<f64>,
+    /// Simulated machine: latency of the drives' touch-probe latch (s).
+    pub touch_probe_latency_s: Option<f64>,
     /// Simulated machine: devices on the digital I/O (`[[fieldbus.devices]]`, rtcnc-fieldbus'
     /// `DeviceConfig`: e-stop contact, door, delayed inputs, carousel).
     pub devices: Vec<DeviceConfig>,
@@ -413,6 +415,8 @@ struct SimulatedBusKeys {
     estop_removes_power: Option<bool>,
     #[serde(default)]
     communication_watchdog_s: Option<f64>,
+    #[serde(default)]
+    touch_probe_latency_s: Option<f64>,
     #[serde(default)]
     devices: Vec<DeviceConfig>,
 }
@@ -452,6 +456,7 @@ impl<'de> Deserialize<'de> for FieldbusConfig {
                     command_delay_s: k.command_delay_s,
                     estop_removes_power: k.estop_removes_power,
                     communication_watchdog_s: k.communication_watchdog_s,
+                    touch_probe_latency_s: k.touch_probe_latency_s,
                     devices: k.devices,
                     ethercat: None,
                 })
@@ -472,6 +477,7 @@ impl<'de> Deserialize<'de> for FieldbusConfig {
                     command_delay_s: None,
                     estop_removes_power: None,
                     communication_watchdog_s: None,
+                    touch_probe_latency_s: None,
                     devices: Vec::new(),
                     ethercat: Some(EthercatSection { master, simulation }),
                 })
@@ -1395,6 +1401,7 @@ impl MachineConfig {
                 command_delay_s: None,
                 estop_removes_power: None,
                 communication_watchdog_s: None,
+                touch_probe_latency_s: None,
                 devices: Vec::new(),
                 ethercat: None,
             };
@@ -1433,6 +1440,9 @@ impl MachineConfig {
         }
         if let Some(v) = self.fieldbus.communication_watchdog_s {
             sim.communication_watchdog_s = v;
+        }
+        if let Some(v) = self.fieldbus.touch_probe_latency_s {
+            sim.touch_probe_latency_s = v;
         }
         sim.joints = self.simulated_joints()?;
         sim.devices = self.fieldbus.devices.clone();

@@ -764,9 +764,15 @@ impl InterpreterStage {
         let out = &mut self.outbox;
         let aux = |aux| ProgramBlock::Aux { line, aux };
         match command {
-            C::SetDigitalOutput { index, on, .. } => {
-                out.push_back(aux(Aux::DigitalOutput { index, on }))
-            }
+            C::SetDigitalOutput {
+                index,
+                on,
+                synchronized,
+            } => out.push_back(aux(Aux::DigitalOutput {
+                index,
+                on,
+                synchronized,
+            })),
             C::WaitInput {
                 digital: true,
                 index,
@@ -801,9 +807,15 @@ impl InterpreterStage {
                 index,
                 ..
             } => out.push_back(aux(Aux::ReadAnalogInput { index })),
-            C::SetAnalogOutput { index, value, .. } => {
-                out.push_back(aux(Aux::AnalogOutput { index, value }))
-            }
+            C::SetAnalogOutput {
+                index,
+                value,
+                synchronized,
+            } => out.push_back(aux(Aux::AnalogOutput {
+                index,
+                value,
+                synchronized,
+            })),
             C::FeedOverride(on) => out.push_back(aux(Aux::FeedOverrideEnable(on))),
             C::SpeedOverride { enable, .. } => {
                 out.push_back(aux(Aux::SpindleOverrideEnable(enable)))

@@ -43,6 +43,8 @@ pub(super) struct Produced {
     /// The planner's state after this set-point; with the on-line generators, `Moving`
     /// while one of them still moves after it.
     pub(super) state: MotionState,
+    /// Program output changes applied up to this set-point (its `target.outputs`).
+    pub(super) outputs_applied: u64,
 }
 
 /// The on-line generators as after one set-point, to go back to: with the floor, no
@@ -132,8 +134,10 @@ impl Output {
                 enable: false,
                 reset_count: 0,
                 latch: LatchRequest::default(),
+                outputs: super::ProgramOutputs::default(),
             },
             state: MotionState::Idle,
+            outputs_applied: 0,
         };
         let independent = if independent_joints {
             vec![*joint_otg; len]
@@ -309,8 +313,10 @@ impl MotionCore {
                     enable: self.drives_enabled(),
                     reset_count: self.safety.reset_count,
                     latch: self.out.latch,
+                    outputs: self.outputs.state,
                 },
                 state,
+                outputs_applied: self.outputs.applied,
             };
             let mut taken_meanwhile = false;
             if let Some((from, latest)) = replace_from.take() {
@@ -504,6 +510,7 @@ impl MotionCore {
         let p = *self.out.at(number);
         let latest = std::mem::replace(&mut self.out.cycle, number);
         self.out.last = p.target.setpoints;
+        self.outputs.restore(p.target.outputs, p.outputs_applied);
         self.out.floor = self.out.floor.max(number);
         if self.generators_lead() {
             if number < latest {
@@ -546,6 +553,7 @@ impl MotionCore {
         self.out.cycle += 1;
         let mut sp = self.out.last;
         sp.cycle = self.out.cycle;
+        let mut on_piece = None;
         match self.source {
             Source::Path if self.synced.is_some() => self.synced_step(feedback, &mut sp, decide),
             Source::Path if self.path_frozen() => {
@@ -568,6 +576,7 @@ impl MotionCore {
                     sp.line = 0;
                     sp.move_end = status.axes;
                 }
+                on_piece = self.path.planner.emitted_piece();
             }
             Source::Manual => {
                 if decide {
@@ -594,6 +603,9 @@ impl MotionCore {
         if self.source == Source::Manual && decide {
             self.release_stopped_homing_joints(&mut sp);
         }
+        // The output changes due at this set-point: on the planner's path those armed on
+        // its piece too, elsewhere the immediate ones only.
+        self.outputs.advance(sp.cycle, on_piece);
         self.out.last = sp;
     }
 }
