@@ -368,9 +368,9 @@ mod tests {
     #[test]
     fn a_polynomial_cubic_nurbs_becomes_its_own_bezier_pieces() {
         // Order 4 with equal weights on 5 points: two knot spans, each a cubic polynomial;
-        // the chain is one cubic per span, the curve's own. Hand-worked check: with knots
-        // 0 0 0 0 1 2 2 2 2 the curve at u = 1 is (P1 + 4 P2 + P3) / 6 ... for the
-        // uniform inner knot: N(1) = (0, 1/4, 1/2, 1/4, 0) on P0..P4.
+        // the chain is one cubic per span, the curve's own. By hand (Cox-de Boor on the
+        // knots 0 0 0 0 1 2 2 2 2): the basis at u = 1 is (0, 1/4, 1/2, 1/4, 0) on P0..P4,
+        // so the point there is (P1 + 2 P2 + P3) / 4.
         let pts = [
             xy(0.0, 0.0),
             xy(4.0, 8.0),
