@@ -595,6 +595,10 @@ pub struct IoSection {
     /// The touch probe's digital input (G38.2-G38.5).
     #[serde(default)]
     pub probe_input: Option<usize>,
+    /// The analogue input of adaptive feed (M52 P1): its value, clamped to 0..=1,
+    /// multiplies the feed of feed moves.
+    #[serde(default)]
+    pub adaptive_feed_input: Option<usize>,
 }
 
 fn sixteen() -> usize {
@@ -617,6 +621,7 @@ impl Default for IoSection {
             program_analog_outputs: Vec::new(),
             feed_stop_input: None,
             probe_input: None,
+            adaptive_feed_input: None,
         }
     }
 }
@@ -1183,6 +1188,15 @@ impl MachineConfig {
                         ),
                     ));
                 }
+            }
+        }
+        if let Some(i) = self.io.adaptive_feed_input {
+            let size = self.io.analog_inputs.min(MAX_PROGRAM_IO);
+            if i >= size {
+                return Err(ConfigError::invalid(
+                    "io.adaptive_feed_input",
+                    format!("input {i} is outside the image of {size}"),
+                ));
             }
         }
         Ok(())

@@ -866,6 +866,7 @@ impl InterpreterStage {
                 out.push_back(aux(Aux::SpindleOverrideEnable(enable)))
             }
             C::FeedHold(on) => out.push_back(aux(Aux::FeedStopEnable(on))),
+            C::AdaptiveFeed(on) => out.push_back(aux(Aux::AdaptiveFeed(on))),
             C::MistOn => out.push_back(aux(Aux::Mist(true))),
             C::MistOff => out.push_back(aux(Aux::Mist(false))),
             C::FloodOn => out.push_back(aux(Aux::Flood(true))),
@@ -966,7 +967,6 @@ fn not_carried_out(command: &CanonCommand) -> Option<&'static str> {
             velocity_mode: true,
             ..
         } => Some("velocity-synchronised motion (G33.1)"),
-        C::AdaptiveFeed(true) => Some("adaptive feed (M52 P1)"),
         _ => None,
     }
 }

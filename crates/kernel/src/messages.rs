@@ -192,6 +192,8 @@ pub enum Aux {
         /// Q word (NaN when absent).
         q: f64,
     },
+    /// M52: adaptive feed on (P1) or off (P0).
+    AdaptiveFeed(bool),
     /// M62..M65 digital output.
     DigitalOutput {
         /// Program output number.

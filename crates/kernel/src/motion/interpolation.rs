@@ -224,6 +224,7 @@ impl MotionCore {
         self.follow_feed_stop_switch(feedback.digital_inputs);
         self.watch_estop_chain(ctx, shared, answers.estop_chain_ok);
         self.probe_step(&feedback);
+        self.adaptive_feed_step();
         let line = self.out.now().target.setpoints.line;
         self.produce(ctx, shared, &feedback);
         let now_line = self.out.now().target.setpoints.line;

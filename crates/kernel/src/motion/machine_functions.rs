@@ -28,6 +28,8 @@ pub(super) struct ProgramIo {
     pub(super) probe_bit: u64,
     /// Bit of the feed stop switch in the digital inputs (0: none).
     pub(super) feed_stop_bit: u64,
+    /// The adaptive-feed analogue input (M52).
+    pub(super) adaptive_feed_point: Option<usize>,
 }
 
 impl ProgramIo {
@@ -49,6 +51,7 @@ impl ProgramIo {
             analog_output_count: io.program_analog_outputs.len().min(MAX_PROGRAM_IO),
             probe_bit: io.probe_input.map_or(0, |i| 1u64 << i.min(63)),
             feed_stop_bit: io.feed_stop_input.map_or(0, |i| 1u64 << i.min(63)),
+            adaptive_feed_point: io.adaptive_feed_input.filter(|&i| i < MAX_PROGRAM_IO),
         }
     }
 
@@ -201,6 +204,13 @@ impl MotionCore {
                 self.overrides.feed_stop_enabled = on;
                 Event::Proceed
             }
+            Aux::AdaptiveFeed(on) => {
+                if self.set_adaptive_feed(on) {
+                    Event::Proceed
+                } else {
+                    refused
+                }
+            }
             Aux::ProgramStop => Event::Pause {
                 start_count: self.program.start_count,
             },
@@ -315,6 +325,7 @@ impl MotionCore {
             | Aux::FeedOverrideEnable(_)
             | Aux::SpindleOverrideEnable(_)
             | Aux::FeedStopEnable(_)
+            | Aux::AdaptiveFeed(_)
             | Aux::ReadAnalogInput { .. }
             | Aux::AnalogOutput { .. }
             | Aux::WaitInput { .. } => true,
