@@ -193,3 +193,46 @@ M2
     assert_eq!(&offs[..2], &x_starts[..]);
     assert_eq!(offs.len(), 3);
 }
+
+#[test]
+fn the_example_switches_its_dispenser_with_the_moves_on_the_simulated_mill() {
+    // examples/gcode/synchronized_outputs.ngc on the mill (program output 0 is its
+    // digital output 12): on with the first set-point of line 12 and of line 18, off with
+    // that of line 16 and of line 20, the corners between blended as without the codes.
+    let text =
+        std::fs::read_to_string(repo().join("examples/gcode/synchronized_outputs.ngc")).unwrap();
+    let mut m = Machine::new(
+        &config("sim-mill.toml"),
+        Some(program(&text, "synchronized_outputs.ngc")),
+    );
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    let mut trace = Vec::new();
+    let mut after_end = 0;
+    while after_end < 5 && trace.len() < 60_000 {
+        m.cycles(1);
+        let line = m.samples.last().unwrap().line;
+        let on = m.handle_machine(|mach| mach.digital_output(12).unwrap());
+        trace.push((line, on));
+        if m.status().program_ended && m.status().state == MachineState::Idle {
+            after_end += 1;
+        }
+    }
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    let first = |l: u32| trace.iter().position(|t| t.0 == l).unwrap();
+    let switches: Vec<(usize, bool)> = trace
+        .windows(2)
+        .enumerate()
+        .filter(|(_, w)| w[0].1 != w[1].1)
+        .map(|(i, w)| (i + 1, w[1].1))
+        .collect();
+    assert_eq!(
+        switches,
+        [
+            (first(12), true),
+            (first(16), false),
+            (first(18), true),
+            (first(20), false)
+        ]
+    );
+}
