@@ -151,6 +151,7 @@ impl CspDrive {
             substep_s: 62.5e-6,
             communication_watchdog_s: 0.1,
             command_delay_s: 0.0,
+            touch_probe_latency_s: 0.001,
             estop_removes_power: false,
             joints: vec![joint],
             spindle: Default::default(),

@@ -41,6 +41,14 @@ pub enum LatchSource {
     IndexPulse,
     /// Either edge of the home switch.
     HomeSwitch,
+    /// The drive's touch-probe input (0x60B8 touch probe 1 on its external input), on the
+    /// rising edge (the probe closes) or the falling edge (it opens). The position at the
+    /// edge's instant comes back as the latch (0x60BA/0x60BC), some time after the edge
+    /// (the drive's own latency).
+    TouchProbe {
+        /// Latch on the rising edge, else on the falling one.
+        rising: bool,
+    },
 }
 
 /// One joint's part of the outputs (the drive's RxPDO).

@@ -8,7 +8,7 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
 use rtcnc_fieldbus::sim::{InjectedFault, SimulatedMachine, SimulatedMachineConfig};
-use rtcnc_fieldbus::{Fieldbus, ProcessInputs, ProcessOutputs};
+use rtcnc_fieldbus::{Fieldbus, LatchSource, ProcessInputs, ProcessOutputs};
 
 struct CountingAllocator;
 
@@ -425,4 +425,78 @@ surface = -0.45
     .unwrap();
     let err = SimulatedMachine::new(&bad).err().unwrap().to_string();
     assert!(err.contains("devices[0].joint"), "{err}");
+}
+
+#[test]
+fn the_drives_latch_where_the_probe_trips_and_report_it_after_their_latency() {
+    // Two ideal drives: joint 0 (the probe's) steps 0 → -1 in one 1 ms exchange across a
+    // surface at -0.3, joint 1 steps 10 → 12 in the same exchange. Taken linearly within
+    // the cycle, joint 0 crosses -0.3 at 30 % of it, where joint 1 stands at 10.6. The
+    // drives armed for the rising edge latch those positions and report them 2.5 ms later:
+    // in the third exchange after the edge's (latency rounded up to whole exchanges).
+    let config: SimulatedMachineConfig = toml::from_str(
+        r#"
+touch_probe_latency_s = 0.0025
+[[joints]]
+drive = "ideal"
+[[joints]]
+drive = "ideal"
+initial_position = 10.0
+[[devices]]
+kind = "probe"
+input = 4
+joint = 0
+surface = -0.3
+"#,
+    )
+    .unwrap();
+    let mut machine = SimulatedMachine::new(&config).unwrap();
+    let mut outputs = ProcessOutputs::new(machine.layout());
+    let mut inputs = ProcessInputs::new(machine.layout());
+    outputs.joints[1].target_position = 10.0;
+    for _ in 0..4 {
+        for j in 0..2 {
+            outputs.joints[j].controlword = inputs.joints[j].state().controlword_towards(true);
+        }
+        machine.exchange(0.001, &outputs, &mut inputs).unwrap();
+    }
+    for j in 0..2 {
+        outputs.joints[j].latch = Some(LatchSource::TouchProbe { rising: true });
+    }
+    machine.exchange(0.001, &outputs, &mut inputs).unwrap();
+    assert!(inputs.joints[0].latch.armed && !inputs.joints[0].latch.latched);
+    outputs.joints[0].target_position = -1.0;
+    outputs.joints[1].target_position = 12.0;
+    machine.exchange(0.001, &outputs, &mut inputs).unwrap();
+    assert!(inputs.digital[4], "the probe closed in this exchange");
+    let mut reported = None;
+    for k in 1..=5 {
+        if inputs.joints[0].latch.latched {
+            reported = Some(k - 1);
+            break;
+        }
+        machine.exchange(0.001, &outputs, &mut inputs).unwrap();
+    }
+    assert_eq!(reported, Some(3));
+    assert!((inputs.joints[0].latch.position + 0.3).abs() < 1e-12);
+    assert!(inputs.joints[1].latch.latched);
+    assert!((inputs.joints[1].latch.position - 10.6).abs() < 1e-12);
+    // A drive armed for the other edge latches nothing on this one.
+    let mut other = SimulatedMachine::new(&config).unwrap();
+    let mut inputs = ProcessInputs::new(other.layout());
+    outputs.joints[0].target_position = 0.0;
+    outputs.joints[1].target_position = 10.0;
+    outputs.joints[0].latch = Some(LatchSource::TouchProbe { rising: false });
+    for _ in 0..5 {
+        for j in 0..2 {
+            outputs.joints[j].controlword = inputs.joints[j].state().controlword_towards(true);
+        }
+        other.exchange(0.001, &outputs, &mut inputs).unwrap();
+    }
+    outputs.joints[0].target_position = -1.0;
+    for _ in 0..5 {
+        other.exchange(0.001, &outputs, &mut inputs).unwrap();
+    }
+    assert!(inputs.digital[4]);
+    assert!(!inputs.joints[0].latch.latched);
 }

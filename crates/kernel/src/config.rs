@@ -380,6 +380,8 @@ pub struct FieldbusConfig {
     pub estop_removes_power: Option<bool>,
     /// Simulated machine: communication watchdog of the drives (s).
     pub communication_watchdog_s: Option<f64>,
+    /// Simulated machine: latency of the drives' touch-probe latch (s).
+    pub touch_probe_latency_s: Option<f64>,
     /// Simulated machine: devices on the digital I/O (`[[fieldbus.devices]]`, rtcnc-fieldbus'
     /// `DeviceConfig`: e-stop contact, door, delayed inputs, carousel).
     pub devices: Vec<DeviceConfig>,
@@ -413,6 +415,8 @@ struct SimulatedBusKeys {
     estop_removes_power: Option<bool>,
     #[serde(default)]
     communication_watchdog_s: Option<f64>,
+    #[serde(default)]
+    touch_probe_latency_s: Option<f64>,
     #[serde(default)]
     devices: Vec<DeviceConfig>,
 }
@@ -452,6 +456,7 @@ impl<'de> Deserialize<'de> for FieldbusConfig {
                     command_delay_s: k.command_delay_s,
                     estop_removes_power: k.estop_removes_power,
                     communication_watchdog_s: k.communication_watchdog_s,
+                    touch_probe_latency_s: k.touch_probe_latency_s,
                     devices: k.devices,
                     ethercat: None,
                 })
@@ -472,6 +477,7 @@ impl<'de> Deserialize<'de> for FieldbusConfig {
                     command_delay_s: None,
                     estop_removes_power: None,
                     communication_watchdog_s: None,
+                    touch_probe_latency_s: None,
                     devices: Vec::new(),
                     ethercat: Some(EthercatSection { master, simulation }),
                 })
@@ -589,6 +595,10 @@ pub struct IoSection {
     /// The touch probe's digital input (G38.2-G38.5).
     #[serde(default)]
     pub probe_input: Option<usize>,
+    /// The analogue input of adaptive feed (M52 P1): its value, clamped to 0..=1,
+    /// multiplies the feed of feed moves.
+    #[serde(default)]
+    pub adaptive_feed_input: Option<usize>,
 }
 
 fn sixteen() -> usize {
@@ -611,6 +621,7 @@ impl Default for IoSection {
             program_analog_outputs: Vec::new(),
             feed_stop_input: None,
             probe_input: None,
+            adaptive_feed_input: None,
         }
     }
 }
@@ -1285,6 +1296,15 @@ impl MachineConfig {
                 }
             }
         }
+        if let Some(i) = self.io.adaptive_feed_input {
+            let size = self.io.analog_inputs.min(MAX_PROGRAM_IO);
+            if i >= size {
+                return Err(ConfigError::invalid(
+                    "io.adaptive_feed_input",
+                    format!("input {i} is outside the image of {size}"),
+                ));
+            }
+        }
         Ok(())
     }
 
@@ -1501,6 +1521,7 @@ impl MachineConfig {
                 command_delay_s: None,
                 estop_removes_power: None,
                 communication_watchdog_s: None,
+                touch_probe_latency_s: None,
                 devices: Vec::new(),
                 ethercat: None,
             };
@@ -1539,6 +1560,9 @@ impl MachineConfig {
         }
         if let Some(v) = self.fieldbus.communication_watchdog_s {
             sim.communication_watchdog_s = v;
+        }
+        if let Some(v) = self.fieldbus.touch_probe_latency_s {
+            sim.touch_probe_latency_s = v;
         }
         sim.joints = self.simulated_joints()?;
         sim.devices = self.fieldbus.devices.clone();

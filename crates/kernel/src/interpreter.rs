@@ -11,6 +11,7 @@ use rtcnc_gcode::canon::{
 };
 use rtcnc_gcode::compensation::Compensator;
 use rtcnc_gcode::{Canon, Interpreter, Parameters, Settings, ToolTable};
+use rtcnc_motion::nurbs::NurbsCurve;
 use rtcnc_motion::{Bezier, PathMode};
 use rtcnc_rt::{Context, Next};
 
@@ -389,6 +390,12 @@ impl InterpreterStage {
             self.refuse(&canon, what);
             return;
         }
+        if let CanonCommand::NurbsFeed(nurbs) = &canon.command {
+            if let Err(e) = self.convert_nurbs(nurbs, canon.source.line) {
+                self.refuse_because(&canon, &format!("the NURBS curve (G5.2/G5.3): {e}"));
+            }
+            return;
+        }
         // A spindle-synchronised stretch is held until its end, so that one the kernel
         // cannot carry out (more than one move: chained G33, G76 tapers) stops the program
         // before any of it cuts.
@@ -727,6 +734,44 @@ impl InterpreterStage {
 
     fn convert_spline(&mut self, sp: &rtcnc_gcode::canon::Spline, line: u32) {
         let (end, control) = spline_geometry(sp, &self.position);
+        self.push_curve(end, control, line);
+    }
+
+    /// A G5.2/G5.3 curve as the cubic Bézier curves within `NURBS_ERROR_MM` of it
+    /// (`rtcnc_motion::nurbs`; the curve itself where it is a polynomial of order 4 or
+    /// less), each run as a G5 spline is. The axes outside XY keep their values.
+    fn convert_nurbs(
+        &mut self,
+        nurbs: &rtcnc_gcode::canon::Nurbs,
+        line: u32,
+    ) -> Result<(), String> {
+        let at = |x: f64, y: f64| {
+            let mut p = self.position;
+            p[0] = x;
+            p[1] = y;
+            p
+        };
+        let points: Vec<[f64; 9]> = nurbs.points.iter().map(|q| at(q.x, q.y)).collect();
+        let weights: Vec<f64> = nurbs.points.iter().map(|q| q.weight).collect();
+        let tolerance = match self.units {
+            Units::Mm => NURBS_ERROR_MM,
+            Units::Inches => NURBS_ERROR_MM / 25.4,
+        };
+        let order = usize::try_from(nurbs.order).unwrap_or(usize::MAX);
+        let curve =
+            NurbsCurve::clamped_uniform(order, &points, &weights).map_err(|e| e.to_string())?;
+        let mut cubics = Vec::new();
+        curve
+            .to_cubics(tolerance, &mut cubics)
+            .map_err(|e| e.to_string())?;
+        for [_, c1, c2, end] in cubics {
+            self.push_curve(end, Bezier::Cubic([c1, c2]), line);
+        }
+        Ok(())
+    }
+
+    /// A polynomial curve from the current position: the planner follows it exactly.
+    fn push_curve(&mut self, end: [f64; 9], control: Bezier, line: u32) {
         if control.is_followable(&self.position, &end) {
             self.outbox
                 .push_back(ProgramBlock::Spline { line, end, control });
@@ -764,9 +809,15 @@ impl InterpreterStage {
         let out = &mut self.outbox;
         let aux = |aux| ProgramBlock::Aux { line, aux };
         match command {
-            C::SetDigitalOutput { index, on, .. } => {
-                out.push_back(aux(Aux::DigitalOutput { index, on }))
-            }
+            C::SetDigitalOutput {
+                index,
+                on,
+                synchronized,
+            } => out.push_back(aux(Aux::DigitalOutput {
+                index,
+                on,
+                synchronized,
+            })),
             C::WaitInput {
                 digital: true,
                 index,
@@ -801,14 +852,21 @@ impl InterpreterStage {
                 index,
                 ..
             } => out.push_back(aux(Aux::ReadAnalogInput { index })),
-            C::SetAnalogOutput { index, value, .. } => {
-                out.push_back(aux(Aux::AnalogOutput { index, value }))
-            }
+            C::SetAnalogOutput {
+                index,
+                value,
+                synchronized,
+            } => out.push_back(aux(Aux::AnalogOutput {
+                index,
+                value,
+                synchronized,
+            })),
             C::FeedOverride(on) => out.push_back(aux(Aux::FeedOverrideEnable(on))),
             C::SpeedOverride { enable, .. } => {
                 out.push_back(aux(Aux::SpindleOverrideEnable(enable)))
             }
             C::FeedHold(on) => out.push_back(aux(Aux::FeedStopEnable(on))),
+            C::AdaptiveFeed(on) => out.push_back(aux(Aux::AdaptiveFeed(on))),
             C::MistOn => out.push_back(aux(Aux::Mist(true))),
             C::MistOff => out.push_back(aux(Aux::Mist(false))),
             C::FloodOn => out.push_back(aux(Aux::Flood(true))),
@@ -905,12 +963,10 @@ fn not_carried_out(command: &CanonCommand) -> Option<&'static str> {
     use CanonCommand as C;
     match command {
         C::RigidTap { .. } => Some("rigid tapping (G33.1)"),
-        C::NurbsFeed(_) => Some("a NURBS curve (G5.2/G5.3)"),
         C::StartSpeedFeedSync {
             velocity_mode: true,
             ..
         } => Some("velocity-synchronised motion (G33.1)"),
-        C::AdaptiveFeed(true) => Some("adaptive feed (M52 P1)"),
         _ => None,
     }
 }
@@ -925,6 +981,10 @@ fn signed(rpm: f64, direction: SpindleDirection) -> f64 {
 /// Largest distance of the chords a spline the planner cannot follow is run as from the
 /// curve, mm.
 const SPLINE_CHORD_ERROR_MM: f64 = 0.001;
+
+/// Largest distance of the cubic curves a NURBS is run as from the curve, mm (0.1 µm;
+/// LinuxCNC's biarcs keep within its naive-CAM tolerance).
+const NURBS_ERROR_MM: f64 = 1e-4;
 
 /// The end point and Bézier control points (nine axes) of a canonical spline. The
 /// interpreter gives G5/G5.1 in the XY plane only and refuses other axis words on them, so

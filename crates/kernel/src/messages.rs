@@ -192,12 +192,17 @@ pub enum Aux {
         /// Q word (NaN when absent).
         q: f64,
     },
+    /// M52: adaptive feed on (P1) or off (P0).
+    AdaptiveFeed(bool),
     /// M62..M65 digital output.
     DigitalOutput {
         /// Program output number.
         index: u32,
         /// Value.
         on: bool,
+        /// M62/M63: at the start of the next move, without stopping the path; M64/M65
+        /// (false): once the motion before it is done.
+        synchronized: bool,
     },
     /// M66 on a digital input: wait for a condition, at most `timeout` seconds.
     WaitInput {
@@ -213,12 +218,15 @@ pub enum Aux {
         /// Program input number (E word), mapped by `io.program_analog_inputs`.
         index: u32,
     },
-    /// M67/M68: set an analogue output once the motion before it is done.
+    /// M67/M68: set an analogue output.
     AnalogOutput {
         /// Program output number (E word), mapped by `io.program_analog_outputs`.
         index: u32,
         /// Value (Q word).
         value: f64,
+        /// M67: at the start of the next move, without stopping the path; M68 (false):
+        /// once the motion before it is done.
+        synchronized: bool,
     },
     /// G96 S D as the interpreter gives it: surface speed in the program's units per minute
     /// (m/min in G21, ft/min in G20), `max_rpm` the D word (1e30 without one). Tool

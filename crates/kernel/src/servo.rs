@@ -285,6 +285,10 @@ impl<B: Fieldbus> ServoStage<B> {
                 Some(LatchSource::IndexPulse)
             } else if target.latch.switch & bit != 0 {
                 Some(LatchSource::HomeSwitch)
+            } else if target.latch.probe & bit != 0 {
+                Some(LatchSource::TouchProbe {
+                    rising: target.latch.probe_rising,
+                })
             } else {
                 None
             };
@@ -420,8 +424,11 @@ impl<B: Fieldbus> ServoStage<B> {
         {
             let mi = *self.logic.get();
             let req = self.requests.get();
-            let program_outputs = req.program_outputs;
-            let program_analog_outputs = req.program_analog_outputs;
+            // The program's outputs as the set-point of this exchange carries them (M62,
+            // M63 and M67 change with the move they precede).
+            let outputs = self.target.map(|t| t.outputs).unwrap_or_default();
+            let program_outputs = outputs.digital;
+            let program_analog_outputs = outputs.analog;
             self.outputs.spindle.enable = mi.out_spindle_enable;
             self.outputs.spindle.speed_rpm = mi.out_spindle_rpm;
             self.outputs.spindle.orient = req.spindle_orient;

@@ -134,16 +134,12 @@ pub struct LogicRequests {
     pub reset_count: u32,
     /// The operator asked for the machine to be on (from a reset until an e-stop or fault).
     pub machine_on_request: bool,
-    /// Program digital outputs (M62..M65), bit n = program output n.
-    pub program_outputs: u64,
     /// M19: orient the spindle (to the machine directly; the logic does not see it).
     pub spindle_orient: bool,
     /// Its angle, degrees.
     pub spindle_orient_angle: f64,
     /// Its mode: 0 shorter way, 1 clockwise, 2 counter-clockwise.
     pub spindle_orient_mode: u8,
-    /// Program analogue outputs (M67/M68), by program output number.
-    pub program_analog_outputs: [f64; crate::config::MAX_PROGRAM_IO],
 }
 
 /// The machine logic's half of the machine interface: its answers to the kernel and its

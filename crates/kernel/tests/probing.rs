@@ -57,17 +57,16 @@ M2
         .map(|msg| msg.text.as_str().to_string())
         .collect();
     assert_eq!(messages.len(), 3, "{messages:?} {:?}", m.faults);
-    // Down at 1 mm/s (F60) on ideal drives: the probe closes in the first period that ends
-    // at or below -3, at most 1 µm (one period's travel) past it, where the feedback is
-    // taken; X and Y are where they were.
+    // Down at 1 mm/s (F60) on ideal drives: the drives latch where the probe closes, on
+    // the surface (DEBUG prints 6 decimals); X and Y are where they were.
     let down = number(&messages[0], "down z");
-    assert!((-3.001..=-3.0).contains(&down), "{down}");
+    assert!((down + 3.0).abs() <= 5e-7, "{down}");
     assert_eq!(number(&messages[0], "ok"), 1.0);
     assert_eq!(number(&messages[0], "x"), 1.0);
     assert_eq!(number(&messages[0], "y"), 2.0);
-    // Up at 0.5 mm/s until it opens: the first period that ends above -3.
+    // Up at 0.5 mm/s until it opens: latched where it opens, on the surface again.
     let up = number(&messages[1], "up z");
-    assert!(up > -3.0 && up <= -3.0 + 0.0005, "{up}");
+    assert!((up + 3.0).abs() <= 5e-7, "{up}");
     assert_eq!(number(&messages[1], "ok"), 1.0);
     // G38.3 to Z-1 from Z2 never touches: no error, #5070 = 0, #5063 where it ended.
     assert_eq!(number(&messages[2], "short z"), -1.0);
@@ -168,9 +167,9 @@ fn a_g38_4_that_never_loses_contact_stops_the_program_with_linuxcncs_error() {
 
 #[test]
 fn the_simulated_mill_probes_the_top_of_its_workpiece_at_z_minus_50() {
-    // Velocity drives and PID loops: the load follows the set-point closely; the probe
-    // closes in the first period that ends at or below -50, the feedback of that period is
-    // the result (within one period's travel at F100, 1.7 µm, and the encoder's 0.04 µm).
+    // Velocity drives and PID loops: the drives latch the load's position as the probe
+    // closes, in whole encoder counts (0.04 µm), taken to move linearly within the period
+    // (off by a·T²/8 at most: nearly at constant speed here).
     let text = "G21 G90\nG0 Z-45\nG38.2 Z-60 F100\n(DEBUG,#5063 #5070)\nG0 Z0\nM2\n";
     let mut m = Machine::new(
         &config("sim-mill.toml"),
@@ -186,8 +185,57 @@ fn the_simulated_mill_probes_the_top_of_its_workpiece_at_z_minus_50() {
     let ok: f64 = words.next().unwrap().parse().unwrap();
     assert_eq!(ok, 1.0);
     // (DEBUG prints 6 decimals.)
+    assert!((z + 50.0).abs() <= 1e-6, "{z}");
+}
+
+#[test]
+fn the_position_comes_from_the_drives_touch_probe_latch_not_from_the_period() {
+    // At F600 (10 mm/s) one servo period's travel is 10 µm. The surface lies between two
+    // periods' positions: the feedback of the period in which the probe is seen is up to
+    // 10 µm past it; the drives latch where the load was at the edge's instant (the
+    // surface, as the probe's own joint crosses it; X and Y where they stand), and report
+    // it 3 ms after the edge (their latency here).
+    let surface = -3.0037;
+    let mut cfg = machine();
+    cfg.fieldbus.devices[0] = DeviceConfig::Probe {
+        input: 6,
+        joint: 2,
+        surface,
+        side: ProbeSide::Below,
+    };
+    cfg.fieldbus.touch_probe_latency_s = Some(0.003);
+    let text = "G21 G90
+G0 X1 Y2 Z0
+G38.2 Z-10 F600
+(DEBUG,z #5063 ok #5070 x #5061 y #5062)
+G0 Z[#5063 + 1]
+M2
+";
+    let mut m = Machine::new(&cfg, Some(program(text, "latch.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(30.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    let message = m.sim.handle().take_messages()[0].text;
+    let text = message.as_str();
+    let z = number(text, "z");
+    assert!((z - surface).abs() <= 1e-6, "{z}");
+    assert_eq!(number(text, "ok"), 1.0);
+    assert_eq!(number(text, "x"), 1.0);
+    assert_eq!(number(text, "y"), 2.0);
+    // What the period-based position would have been: the feedback of the first period
+    // that ends at or below the surface (ideal drives: the load is on the set-point).
+    let seen = m
+        .samples
+        .iter()
+        .map(|s| s.feedback[2])
+        .find(|&z| z <= surface)
+        .unwrap();
     assert!(
-        (-50.0 - 100.0 / 60.0 * 0.001 - 1e-6..=-50.0 + 5e-7).contains(&z),
-        "{z}"
+        surface - seen > 1e-3 && surface - seen <= 0.010 + 1e-9,
+        "{seen}"
     );
+    // The program went on from the latched position: up to 1 mm above the surface.
+    let top = m.samples.iter().rev().map(|s| s.axes[2]).next().unwrap();
+    assert!((top - (z + 1.0)).abs() <= 5e-7, "{top}");
 }

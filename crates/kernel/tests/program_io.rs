@@ -80,7 +80,8 @@ M2
 }
 
 #[test]
-fn analogue_and_digital_outputs_change_where_the_motion_before_them_ends() {
+fn immediate_outputs_change_where_the_motion_before_them_ends_synchronised_ones_with_the_next_move()
+{
     let text = "G21 G90
 M68 E0 Q3.5
 G1 X5 F600
@@ -117,12 +118,24 @@ M2
         .filter(|w| w[0].1 != w[1].1 || w[0].2 != w[1].2)
         .map(|w| w[1])
         .collect();
-    // M68 before any motion; M67 and M62 together once X stands at 5, before it leaves
-    // (no motion between them); M65 back at X0 after the return move.
-    assert_eq!(
-        changes,
-        [(0.0, 3.5, false), (5.0, 1.25, true), (0.0, 1.25, false)]
-    );
+    // M68 before any motion, from the exchange the first move starts in; M67 and M62
+    // together with the first set-point of the return move (they change with the next
+    // move, without stopping the path: here it stops anyway, to reverse); M65 back at X0
+    // once the return move has ended.
+    let starts = trace.iter().position(|t| t.0 > 0.0).unwrap();
+    let at_five = trace.iter().position(|t| t.0 == 5.0).unwrap();
+    let returns = at_five + trace[at_five..].iter().position(|t| t.0 < 5.0).unwrap();
+    let change_at: Vec<usize> = trace
+        .windows(2)
+        .enumerate()
+        .filter(|(_, w)| w[0].1 != w[1].1 || w[0].2 != w[1].2)
+        .map(|(i, _)| i + 1)
+        .collect();
+    assert_eq!(change_at[..2], [starts, returns]);
+    assert_eq!((changes[0].1, changes[1].1), (3.5, 1.25));
+    assert!(!changes[0].2 && changes[1].2);
+    assert_eq!(changes[2], (0.0, 1.25, false));
+    assert_eq!(trace[change_at[2] - 1].0, 0.0);
 }
 
 #[test]

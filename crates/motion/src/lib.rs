@@ -57,6 +57,7 @@ mod geometry;
 mod input;
 mod kinematics;
 mod limits;
+pub mod nurbs;
 pub mod otg;
 mod piece;
 mod planner;

@@ -718,6 +718,26 @@ impl<K: Kinematics> Planner<K> {
         Some(self.q.get(i).end)
     }
 
+    /// Id of the piece the emitted set-point lies on, `None` when it lies on none (at rest
+    /// past the window's end). Pieces are numbered along the path from the planner's
+    /// construction, so a caller can tell when the path reaches a piece it noted with
+    /// [`next_piece_id`](Self::next_piece_id).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
+    pub fn emitted_piece(&self) -> Option<u64> {
+        self.q.index(self.cur.id).map(|_| self.cur.id)
+    }
+
+    /// Id the next piece appended to the window will have. Right after a move is pushed
+    /// this is the id of that move's first piece: the builder holds the move back until
+    /// the next one decides the junction, and what the push appended is the path before
+    /// it, up to and with the junction (a corner blend belongs to the move before).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
+    pub fn next_piece_id(&self) -> u64 {
+        self.q.head_id + self.q.len as u64
+    }
+
     /// How many servo periods the generator runs ahead of the emitted set-point at most
     /// (the machine's longest stop; the buffer is allocated at construction).
     ///

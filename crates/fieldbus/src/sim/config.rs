@@ -27,6 +27,12 @@ pub struct SimulatedMachineConfig {
     /// command acts. Default 0; at most 0.01 s.
     #[serde(default)]
     pub command_delay_s: f64,
+    /// Time from a touch-probe edge to the drives reporting the position they latched at
+    /// it (s): the latch comes back in the exchange that many seconds after the one in
+    /// which the edge happened, rounded up to whole exchanges. Default 0.001 s; at most
+    /// 0.1 s.
+    #[serde(default = "defaults::touch_probe_latency_s")]
+    pub touch_probe_latency_s: f64,
     /// The e-stop chain removes drive power (safe torque off), spindle and coolant.
     #[serde(default = "defaults::yes")]
     pub estop_removes_power: bool,
@@ -222,6 +228,13 @@ impl SimulatedMachineConfig {
                 "must be at most 0.01 s",
             ));
         }
+        non_negative("touch_probe_latency_s", self.touch_probe_latency_s)?;
+        if self.touch_probe_latency_s > 0.1 {
+            return Err(ConfigError::new(
+                "touch_probe_latency_s",
+                "must be at most 0.1 s",
+            ));
+        }
         if self.joints.len() > MAX_JOINTS {
             return Err(ConfigError::new(
                 "joints",
@@ -381,6 +394,10 @@ impl SpindleConfig {
 }
 
 mod defaults {
+    /// Real-time: yes (no allocation, no blocking).
+    pub fn touch_probe_latency_s() -> f64 {
+        0.001
+    }
     /// Real-time: yes (no allocation, no blocking).
     pub fn substep_s() -> f64 {
         62.5e-6

@@ -392,6 +392,35 @@ impl Device {
         }
     }
 
+    /// A probe's edge within the cycle: whether it closed (else opened) and the share of
+    /// the cycle at which its joint crossed the surface, the joints moving from `before`
+    /// to `after` (linearly within the cycle).
+    pub(crate) fn probe_edge(
+        &self,
+        before: impl Fn(usize) -> Option<f64>,
+        after: impl Fn(usize) -> Option<f64>,
+    ) -> Option<(bool, f64)> {
+        let Self::Probe {
+            joint,
+            surface,
+            side,
+            ..
+        } = self
+        else {
+            return None;
+        };
+        let (p0, p1) = (before(*joint)?, after(*joint)?);
+        let contact = |p: f64| match side {
+            ProbeSide::Below => p <= *surface,
+            ProbeSide::Above => p >= *surface,
+        };
+        let (c0, c1) = (contact(p0), contact(p1));
+        if c0 == c1 || p0 == p1 {
+            return None;
+        }
+        Some((c1, ((*surface - p0) / (p1 - p0)).clamp(0.0, 1.0)))
+    }
+
     /// Senses the joints' positions at the end of the cycle (the probe).
     pub(crate) fn sense(&self, position: impl Fn(usize) -> Option<f64>, inputs: &mut [bool]) {
         if let Self::Probe {

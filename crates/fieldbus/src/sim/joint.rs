@@ -56,6 +56,9 @@ pub(crate) struct SimulatedJoint {
     torque_limited: bool,
     latch_request: Option<LatchSource>,
     latch: LatchFeedback,
+    /// A touch-probe latch caught and not yet reported: the position, and the exchanges
+    /// until the drive reports it.
+    probe_report: Option<(f64, u32)>,
     previous_command: JointCommand,
     /// A velocity drive's cycle in one step while it is linear (see `composed`).
     composed: Box<ComposedCycle>,
@@ -101,6 +104,7 @@ impl SimulatedJoint {
             torque_limited: false,
             latch_request: None,
             latch: LatchFeedback::default(),
+            probe_report: None,
             previous_command: JointCommand::default(),
             composed: Box::new(ComposedCycle::new()),
         };
@@ -202,6 +206,53 @@ impl SimulatedJoint {
                 ..LatchFeedback::default()
             };
             self.latch_request = request;
+            self.probe_report = None;
+        }
+    }
+
+    /// The touch probe's edge passed at `position` (the load's true position at the
+    /// edge's instant): an armed touch-probe latch of that edge catches it (in whole
+    /// counts) and reports it after `report_after` exchanges (0: in this one's feedback).
+    pub(crate) fn touch_probe_edge(
+        &mut self,
+        rising: bool,
+        position: f64,
+        report_after: u32,
+        feedback: &mut JointFeedback,
+    ) {
+        if self.latch_request != Some(LatchSource::TouchProbe { rising })
+            || !self.latch.armed
+            || self.latch.latched
+            || self.probe_report.is_some()
+            || self.encoder_lost
+        {
+            return;
+        }
+        // An ideal drive reports exact positions (its feedback too), any other whole counts.
+        let caught = if self.mode == DriveMode::Ideal {
+            position
+        } else {
+            self.counts_to_position(self.encoder_counts(position))
+        };
+        if report_after == 0 {
+            self.latch.latched = true;
+            self.latch.position = caught;
+            feedback.latch = self.latch;
+        } else {
+            self.probe_report = Some((caught, report_after));
+        }
+    }
+
+    /// One exchange nearer the touch-probe latch's report; reports it when due.
+    fn report_probe_latch(&mut self) {
+        match self.probe_report {
+            Some((position, n)) if n <= 1 => {
+                self.latch.latched = true;
+                self.latch.position = position;
+                self.probe_report = None;
+            }
+            Some((position, n)) => self.probe_report = Some((position, n - 1)),
+            None => {}
         }
     }
 
@@ -387,6 +438,7 @@ impl SimulatedJoint {
             self.previous_target = command.target_position;
         }
         self.previous_command = *command;
+        self.report_probe_latch();
         if !self.encoder_lost {
             self.counts = self.encoder_counts(self.motor.position());
         }
@@ -450,7 +502,8 @@ impl SimulatedJoint {
         let event = match self.latch_request {
             Some(LatchSource::IndexPulse) => self.index_between(before, after),
             Some(LatchSource::HomeSwitch) => self.home_edge_between(before, after),
-            None => None,
+            // The machine finds the probe's edge (it knows the probe): `touch_probe_edge`.
+            Some(LatchSource::TouchProbe { .. }) | None => None,
         };
         if let Some(position) = event {
             self.latch.latched = true;

@@ -88,6 +88,10 @@ pub struct SimulatedMachine {
     watchdog_ns: u64,
     estop_removes_power: bool,
     command_delay_s: f64,
+    touch_probe_latency_s: f64,
+    /// The joints' true positions at the start of the cycle (a probe's edge is placed
+    /// between them and the end).
+    cycle_start: Vec<f64>,
     joints: Vec<SimulatedJoint>,
     /// The commands the drives last received (they keep acting on them when a cycle is
     /// lost).
@@ -140,6 +144,8 @@ impl SimulatedMachine {
             watchdog_ns: seconds_to_ns(config.communication_watchdog_s),
             estop_removes_power: config.estop_removes_power,
             command_delay_s: config.command_delay_s,
+            touch_probe_latency_s: config.touch_probe_latency_s,
+            cycle_start: vec![0.0; config.joints.len()],
             joints: config.joints.iter().map(SimulatedJoint::new).collect(),
             received: vec![JointCommand::default(); config.joints.len()],
             stepping: vec![false; config.joints.len()],
@@ -351,6 +357,36 @@ impl SimulatedMachine {
     }
 }
 
+impl SimulatedMachine {
+    /// The drives' touch-probe latches: a probe device's edge within this cycle, placed
+    /// where its joint crossed the surface (the joints taken to move linearly within the
+    /// cycle), latches every joint armed for that edge at its position at that instant.
+    fn latch_touch_probes(&mut self, period_s: f64, inputs: &mut ProcessInputs) {
+        let report_after = (self.touch_probe_latency_s / period_s - 1e-9)
+            .ceil()
+            .max(0.0) as u32;
+        for device in &self.devices {
+            let start = &self.cycle_start;
+            let joints = &self.joints;
+            let Some((rising, share)) = device.probe_edge(
+                |j| start.get(j).copied(),
+                |j| joints.get(j).map(|j| j.true_position()),
+            ) else {
+                continue;
+            };
+            for ((joint, &p0), feedback) in self
+                .joints
+                .iter_mut()
+                .zip(&self.cycle_start)
+                .zip(inputs.joints.iter_mut())
+            {
+                let at = p0 + share * (joint.true_position() - p0);
+                joint.touch_probe_edge(rising, at, report_after, feedback);
+            }
+        }
+    }
+}
+
 impl Fieldbus for SimulatedMachine {
     fn layout(&self) -> &ProcessLayout {
         &self.layout
@@ -423,6 +459,9 @@ impl Fieldbus for SimulatedMachine {
             }
             return Err(FieldbusError::CommunicationLost);
         }
+        for (start, joint) in self.cycle_start.iter_mut().zip(&self.joints) {
+            *start = joint.true_position();
+        }
         // The joints' sub-steps interleaved (sub-step outer, joint inner): each joint's
         // arithmetic is the same as one joint at a time, and the processor overlaps the
         // joints' independent dependency chains.
@@ -454,6 +493,7 @@ impl Fieldbus for SimulatedMachine {
         {
             joint.end_cycle(command, &conditions, feedback);
         }
+        self.latch_touch_probes(period_s, inputs);
         // A probe senses where the joints are at the end of the cycle.
         let joints = &self.joints;
         for device in &self.devices {

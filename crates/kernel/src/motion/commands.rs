@@ -138,9 +138,12 @@ impl MotionCore {
             return;
         }
         self.probe = None;
+        self.out.latch.probe = 0;
         // Whatever stops, stops from the next exchange.
         self.take_back();
         self.stop_synced(false);
+        // Output changes of motion that will not run are dropped.
+        self.outputs.drop_pending();
         // A stopped program leaves no override disabled behind (M49, M50 P0, M53 P0).
         self.reset_enables();
         self.program.epoch = self.program.epoch.wrapping_add(1);

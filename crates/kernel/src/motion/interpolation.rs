@@ -43,6 +43,8 @@ pub(super) struct Produced {
     /// The planner's state after this set-point; with the on-line generators, `Moving`
     /// while one of them still moves after it.
     pub(super) state: MotionState,
+    /// Program output changes applied up to this set-point (its `target.outputs`).
+    pub(super) outputs_applied: u64,
 }
 
 /// The on-line generators as after one set-point, to go back to: with the floor, no
@@ -132,8 +134,10 @@ impl Output {
                 enable: false,
                 reset_count: 0,
                 latch: LatchRequest::default(),
+                outputs: super::ProgramOutputs::default(),
             },
             state: MotionState::Idle,
+            outputs_applied: 0,
         };
         let independent = if independent_joints {
             vec![*joint_otg; len]
@@ -236,6 +240,7 @@ impl MotionCore {
         self.follow_feed_stop_switch(feedback.digital_inputs);
         self.watch_estop_chain(ctx, shared, answers.estop_chain_ok);
         self.probe_step(&feedback);
+        self.adaptive_feed_step();
         let line = self.out.now().target.setpoints.line;
         self.produce(ctx, shared, &feedback);
         let now_line = self.out.now().target.setpoints.line;
@@ -325,8 +330,10 @@ impl MotionCore {
                     enable: self.drives_enabled(),
                     reset_count: self.safety.reset_count,
                     latch: self.out.latch,
+                    outputs: self.outputs.state,
                 },
                 state,
+                outputs_applied: self.outputs.applied,
             };
             let mut taken_meanwhile = false;
             if let Some((from, latest)) = replace_from.take() {
@@ -520,6 +527,7 @@ impl MotionCore {
         let p = *self.out.at(number);
         let latest = std::mem::replace(&mut self.out.cycle, number);
         self.out.last = p.target.setpoints;
+        self.outputs.restore(p.target.outputs, p.outputs_applied);
         self.out.floor = self.out.floor.max(number);
         if self.generators_lead() {
             if number < latest {
@@ -562,6 +570,7 @@ impl MotionCore {
         self.out.cycle += 1;
         let mut sp = self.out.last;
         sp.cycle = self.out.cycle;
+        let mut on_piece = None;
         match self.source {
             Source::Path if self.synced.is_some() => self.synced_step(feedback, &mut sp, decide),
             Source::Path if self.path_frozen() => {
@@ -584,6 +593,7 @@ impl MotionCore {
                     sp.line = 0;
                     sp.move_end = status.axes;
                 }
+                on_piece = self.path.planner.emitted_piece();
             }
             Source::Manual => {
                 if decide {
@@ -610,6 +620,9 @@ impl MotionCore {
         if self.source == Source::Manual && decide {
             self.release_stopped_homing_joints(&mut sp);
         }
+        // The output changes due at this set-point: on the planner's path those armed on
+        // its piece too, elsewhere the immediate ones only.
+        self.outputs.advance(sp.cycle, on_piece);
         self.out.last = sp;
     }
 }

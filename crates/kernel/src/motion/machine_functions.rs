@@ -6,6 +6,7 @@
 //! messages.
 
 use super::MotionCore;
+use super::program_outputs::OutputChange;
 use super::state::{Event, State, Step};
 use crate::config::{MAX_PROGRAM_IO, MachineConfig};
 use crate::fault::FaultCode;
@@ -27,6 +28,8 @@ pub(super) struct ProgramIo {
     pub(super) probe_bit: u64,
     /// Bit of the feed stop switch in the digital inputs (0: none).
     pub(super) feed_stop_bit: u64,
+    /// The adaptive-feed analogue input (M52).
+    pub(super) adaptive_feed_point: Option<usize>,
 }
 
 impl ProgramIo {
@@ -48,6 +51,7 @@ impl ProgramIo {
             analog_output_count: io.program_analog_outputs.len().min(MAX_PROGRAM_IO),
             probe_bit: io.probe_input.map_or(0, |i| 1u64 << i.min(63)),
             feed_stop_bit: io.feed_stop_input.map_or(0, |i| 1u64 << i.min(63)),
+            adaptive_feed_point: io.adaptive_feed_input.filter(|&i| i < MAX_PROGRAM_IO),
         }
     }
 
@@ -58,6 +62,13 @@ impl ProgramIo {
             .filter(|&i| i < self.input_count)
             .map(|i| self.inputs[i])
             .filter(|&p| p < 64)
+    }
+
+    /// The slot of program analogue output `index` (M67/M68 E), if the machine maps it.
+    pub(super) fn analog_output(&self, index: u32) -> Option<usize> {
+        usize::try_from(index)
+            .ok()
+            .filter(|&i| i < self.analog_output_count)
     }
 
     /// The analogue input point of program input `index`, if the machine maps it.
@@ -132,16 +143,10 @@ impl MotionCore {
                 mi.m_code_request = true;
                 hand_shake
             }
-            Aux::DigitalOutput { index, on } => {
-                if index < 64 {
-                    let mi = self.requests_mut();
-                    if on {
-                        mi.program_outputs |= 1 << index;
-                    } else {
-                        mi.program_outputs &= !(1 << index);
-                    }
-                }
-                hand_shake
+            // M64/M65, or an M62/M63 the path stopped for (no room to stage it).
+            Aux::DigitalOutput { index, on, .. } => {
+                self.change_output_now(Some(OutputChange::Digital { index, on }));
+                Event::Proceed
             }
             Aux::WaitInput {
                 index,
@@ -175,18 +180,13 @@ impl MotionCore {
                     None => refused,
                 }
             }
-            Aux::AnalogOutput { index, value } => {
-                let mapped = usize::try_from(index)
-                    .ok()
-                    .filter(|&i| i < self.io.analog_output_count);
-                match mapped.and_then(|i| self.requests_mut().program_analog_outputs.get_mut(i)) {
-                    Some(slot) => {
-                        *slot = value;
-                        Event::Proceed
-                    }
-                    None => refused,
+            Aux::AnalogOutput { index, value, .. } => match self.io.analog_output(index) {
+                Some(slot) => {
+                    self.change_output_now(Some(OutputChange::Analog { slot, value }));
+                    Event::Proceed
                 }
-            }
+                None => refused,
+            },
             Aux::FeedOverrideEnable(on) => {
                 self.overrides.feed_enabled = on;
                 self.apply_feed_overrides();
@@ -204,6 +204,13 @@ impl MotionCore {
                 self.overrides.feed_stop_enabled = on;
                 Event::Proceed
             }
+            Aux::AdaptiveFeed(on) => {
+                if self.set_adaptive_feed(on) {
+                    Event::Proceed
+                } else {
+                    refused
+                }
+            }
             Aux::ProgramStop => Event::Pause {
                 start_count: self.program.start_count,
             },
@@ -217,6 +224,54 @@ impl MotionCore {
             }
         };
         self.fire(next);
+    }
+
+    /// The change of a synchronised output (M62/M63/M67) to stage for the next move:
+    /// `None` for every other function, and for an analogue output the machine does not
+    /// map (the path stops there and the function is refused).
+    pub(super) fn synchronized_change(&self, aux: Aux) -> Option<OutputChange> {
+        match aux {
+            Aux::DigitalOutput {
+                index,
+                on,
+                synchronized: true,
+            } => Some(OutputChange::Digital { index, on }),
+            Aux::AnalogOutput {
+                index,
+                value,
+                synchronized: true,
+            } => self
+                .io
+                .analog_output(index)
+                .map(|slot| OutputChange::Analog { slot, value }),
+            _ => None,
+        }
+    }
+
+    /// Changes the program outputs from the next exchange (the path stands): `change`, and
+    /// before it any synchronised change still staged (its next move is not the planner's:
+    /// a probing or threading move, or the end). The set-points computed ahead at rest are
+    /// taken back, so that the change acts at once rather than after the lead.
+    pub(super) fn change_output_now(&mut self, change: Option<OutputChange>) {
+        if change.is_none() && self.outputs.staged() == 0 {
+            return;
+        }
+        self.before_new_motion();
+        let number = self.now() + u64::from(!self.out.interpolating);
+        let oldest = self.outputs_oldest_applied();
+        if !self.outputs.log_from_setpoint(number, change, oldest) {
+            // Not reached with the path standing (every change before was applied), but
+            // the output must not be lost: applied to the set-points from the next one.
+            if let Some(c) = change {
+                c.apply(&mut self.outputs.state);
+            }
+        }
+    }
+
+    /// Output changes applied by the oldest set-point a take-back may still go back to
+    /// (the one position control took last): the log keeps every entry after it.
+    pub(super) fn outputs_oldest_applied(&self) -> u64 {
+        self.out.at(self.now().saturating_sub(1)).outputs_applied
     }
 
     /// Whether the machine logic acknowledged `aux`; drops hand-shake requests once done.
@@ -270,6 +325,7 @@ impl MotionCore {
             | Aux::FeedOverrideEnable(_)
             | Aux::SpindleOverrideEnable(_)
             | Aux::FeedStopEnable(_)
+            | Aux::AdaptiveFeed(_)
             | Aux::ReadAnalogInput { .. }
             | Aux::AnalogOutput { .. }
             | Aux::WaitInput { .. } => true,

@@ -15,6 +15,8 @@
 //!   the machine standing), with `machine_functions` (M/S/T hand-shakes, program I/O);
 //! - `homing`, `synced` (spindle-synchronised moves), `probing`, `manual` (jog,
 //!   handwheel, independent joints): the motions other than the planner's path;
+//! - `program_outputs`: M62-M68's outputs, immediate or at the start of the next move,
+//!   carried to the drives with the set-points;
 //! - `spindle` (speed, constant surface speed), `overrides` (feed, rapid, spindle, M48-M53);
 //! - `interpolation`: one set-point per servo period, out to position control;
 //! - `machine`: the axes and joints of the configuration.
@@ -28,6 +30,7 @@ mod machine_functions;
 mod manual;
 mod overrides;
 mod probing;
+mod program_outputs;
 mod safety;
 mod sequencer;
 mod spindle;
@@ -53,6 +56,8 @@ use machine_functions::ProgramIo;
 use manual::Manual;
 use overrides::Overrides;
 use probing::Probe;
+use program_outputs::OutputLog;
+pub use program_outputs::ProgramOutputs;
 use safety::Safety;
 use sequencer::Program;
 use spindle::Spindle;
@@ -67,6 +72,10 @@ pub struct LatchRequest {
     pub index: u32,
     /// Arm the home-switch latch.
     pub switch: u32,
+    /// Arm the touch-probe latch (0x60B8), on the edge `probe_rising` says.
+    pub probe: u32,
+    /// The touch-probe latch takes the rising edge (the probe closes), else the falling.
+    pub probe_rising: bool,
 }
 
 /// What position control receives every servo period.
@@ -82,6 +91,8 @@ pub struct ServoTarget {
     pub reset_count: u32,
     /// Latches to arm.
     pub latch: LatchRequest,
+    /// The program outputs (M62-M68) from this exchange on.
+    pub outputs: ProgramOutputs,
 }
 
 /// Which generator makes the axes' set-points.
@@ -138,6 +149,8 @@ pub(crate) struct MotionCore {
     spindle: Spindle,
     overrides: Overrides,
     io: ProgramIo,
+    /// The program outputs' changes, immediate and synchronised with the path.
+    outputs: OutputLog,
     /// The probing move in progress.
     probe: Option<Probe>,
     /// The spindle-synchronised move in progress.
@@ -231,6 +244,7 @@ impl MotionCore {
             spindle: Spindle::new(config),
             overrides: Overrides::new(),
             io: ProgramIo::new(config),
+            outputs: OutputLog::new(),
             probe: None,
             synced: None,
             tool: config.tool_changer.map_or(0, |t| t.initial_tool),

@@ -1,6 +1,12 @@
 //! The operator's overrides (feed, rapid, spindle) and the program's say over them
-//! (M48-M53: overrides and the feed stop switch in force or not). Every program start,
-//! end, abort or fault puts them back in force.
+//! (M48-M53: overrides and the feed stop switch in force or not, adaptive feed). Every
+//! program start, end, abort or fault puts them back in force and adaptive feed off.
+//!
+//! Adaptive feed (M52 P1, as LinuxCNC's `motion.adaptive-feed`): the machine's analogue
+//! input, clamped to 0..=1, multiplies the feed of feed moves (not rapids) with the feed
+//! override. It is read every servo period and taken into the planner when it has moved by
+//! `ADAPTIVE_STEP` from the value in force, or reached 0 or 1: each change takes back the
+//! set-points computed ahead, so a noisy input does not cost that every period.
 
 use super::MotionCore;
 
@@ -19,7 +25,12 @@ pub(super) struct Overrides {
     pub(super) spindle_enabled: bool,
     /// M53: the feed stop switch is heeded.
     pub(super) feed_stop_enabled: bool,
+    /// M52 P1: adaptive feed on, with the factor in force.
+    pub(super) adaptive: Option<f64>,
 }
+
+/// Change of the adaptive-feed input taken into the planner (1 % of the feed).
+const ADAPTIVE_STEP: f64 = 0.01;
 
 impl Overrides {
     pub(super) fn new() -> Overrides {
@@ -30,6 +41,7 @@ impl Overrides {
             feed_enabled: true,
             spindle_enabled: true,
             feed_stop_enabled: true,
+            adaptive: None,
         }
     }
 
@@ -38,6 +50,7 @@ impl Overrides {
         self.feed_enabled = true;
         self.spindle_enabled = true;
         self.feed_stop_enabled = true;
+        self.adaptive = None;
     }
 
     /// The operator's spindle override, or 1 while M49/M51 P0 is in force.
@@ -81,11 +94,46 @@ impl MotionCore {
     /// The feed and rapid overrides in force: the operator's, or 100 % while M49/M50 P0
     /// is in force.
     pub(super) fn effective_feed_overrides(&self) -> (f64, f64) {
+        let adaptive = self.overrides.adaptive.unwrap_or(1.0);
         if self.overrides.feed_enabled {
-            (self.overrides.feed, self.overrides.rapid)
+            (self.overrides.feed * adaptive, self.overrides.rapid)
         } else {
-            (1.0, 1.0)
+            (adaptive, 1.0)
         }
+    }
+
+    /// M52: adaptive feed on (from the input's present value) or off. False when the
+    /// machine has no adaptive-feed input (the program cannot turn it on).
+    pub(super) fn set_adaptive_feed(&mut self, on: bool) -> bool {
+        if !on {
+            self.overrides.adaptive = None;
+        } else if let Some(v) = self.adaptive_feed_input() {
+            self.overrides.adaptive = Some(v);
+        } else {
+            return false;
+        }
+        self.apply_feed_overrides();
+        true
+    }
+
+    /// Every servo period (interpolation): a moved adaptive-feed input into the planner.
+    pub(super) fn adaptive_feed_step(&mut self) {
+        let (Some(in_force), Some(v)) = (self.overrides.adaptive, self.adaptive_feed_input())
+        else {
+            return;
+        };
+        let reached_end = (v == 0.0 || v == 1.0) && v != in_force;
+        if (v - in_force).abs() >= ADAPTIVE_STEP || reached_end {
+            self.overrides.adaptive = Some(v);
+            self.apply_feed_overrides();
+        }
+    }
+
+    /// The adaptive-feed input's value, clamped to 0..=1 (0 when not a number).
+    fn adaptive_feed_input(&mut self) -> Option<f64> {
+        let point = self.io.adaptive_feed_point?;
+        let v = *self.interface.feedback.get().analog_inputs.get(point)?;
+        Some(clamped(v, 0.0, 1.0, 0.0))
     }
 
     /// The operator's feed and rapid overrides, or 100 % while M49/M50 P0 is in force.

@@ -1,8 +1,11 @@
 //! Probing (G38.2-G38.5): once the path stands, an exact-stop line at the programmed
-//! feed; in the first period in which the probe input changes as the move looks for, the
-//! axis position is taken from the feedback (as LinuxCNC does) and the move is stopped
-//! along the path. The interpreter gets where the probe changed and where the machine
-//! stopped.
+//! feed, with every axis joint's touch-probe latch armed (CiA 402 0x60B8) for the edge the
+//! move looks for. In the first period in which the probe input changes so, the move is
+//! stopped along the path; the position is the drives' latch (the load's position at the
+//! edge's instant, reported some periods later), or, from a bus whose drives report no
+//! latch within `LATCH_WAIT_S`, the feedback of that period (as LinuxCNC takes it, up to a
+//! period's travel late). The interpreter gets where the probe changed and where the
+//! machine stopped.
 
 use rtcnc_gcode::canon::ProbeKind;
 use rtcnc_motion::{AXES, MotionError, Move};
@@ -13,12 +16,19 @@ use crate::fault::{FaultCode, ProbeFailure};
 use crate::messages::MachineResult;
 use crate::shared::{Feedback, Shared};
 
+/// How long after the probe input changed the drives' latch may come (their latency); a
+/// bus that maps no touch probe is given up on then.
+const LATCH_WAIT_S: f64 = 0.1;
+
 /// The probing move in progress.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct Probe {
     kind: ProbeKind,
-    /// The axis position where the probe changed, once it has.
-    tripped_at: Option<[f64; AXES]>,
+    /// The axis position where the probe changed, once it has, from the feedback of the
+    /// period in which it was seen, and the set-point number then.
+    tripped_at: Option<([f64; AXES], u64)>,
+    /// The joints whose touch-probe latch is armed.
+    latches: u32,
 }
 
 /// Whether the move looks for the probe to close (G38.2/3), else to open (G38.4/5).
@@ -54,11 +64,25 @@ impl MotionCore {
             kind,
             line: mv.line,
         };
+        let mut latches = 0u32;
+        for j in 0..self.machine.joint_count {
+            if self.machine.joints[j].axis.is_some() {
+                latches |= 1 << j;
+            }
+        }
         let started = Probe {
             kind,
             tripped_at: None,
+            latches,
         };
         self.before_new_motion();
+        // Armed from the move's first set-point. The edge looked for cannot be latched
+        // still from an earlier probe: the probe is not in the state this move looks for
+        // (checked above), so since that edge it has changed back, by a probing move of the
+        // other edge (another request: re-armed) or by other motion (set-points without a
+        // request: re-armed).
+        self.out.latch.probe = latches;
+        self.out.latch.probe_rising = toward(kind);
         match self.path.planner.push(&mv) {
             Ok(()) => {
                 self.path.planner.flush();
@@ -87,6 +111,7 @@ impl MotionCore {
         let Some(Probe {
             kind,
             tripped_at: None,
+            latches,
         }) = self.probe
         else {
             return;
@@ -103,7 +128,8 @@ impl MotionCore {
         }
         self.probe = Some(Probe {
             kind,
-            tripped_at: Some(at),
+            tripped_at: Some((at, self.now())),
+            latches,
         });
         self.take_back();
         self.path.planner.abort();
@@ -115,7 +141,21 @@ impl MotionCore {
         if self.moving() {
             return false;
         }
-        let tripped_at = self.probe.take().and_then(|p| p.tripped_at);
+        let Some(probe) = self.probe else {
+            return self.fire(Event::Proceed);
+        };
+        let tripped_at = match probe.tripped_at {
+            Some((seen, cycle)) => match self.latched_position(probe.latches) {
+                Some(at) => Some(at),
+                None if self.now() < cycle.saturating_add(self.periods(LATCH_WAIT_S)) => {
+                    return false;
+                }
+                None => Some(seen),
+            },
+            None => None,
+        };
+        self.probe = None;
+        self.out.latch.probe = 0;
         let must_change = matches!(kind, ProbeKind::TowardError | ProbeKind::AwayError);
         if tripped_at.is_none() && must_change {
             let failure = if toward(kind) {
@@ -138,5 +178,26 @@ impl MotionCore {
             },
         );
         self.fire(Event::Proceed)
+    }
+
+    /// The axis position the armed joints' touch-probe latches caught, once every one has
+    /// reported it.
+    fn latched_position(&mut self, latches: u32) -> Option<[f64; AXES]> {
+        let feedback = self.interface.feedback.get();
+        if latches == 0 || feedback.latched & latches != latches {
+            return None;
+        }
+        let mut at = self.out.now().target.setpoints.axes;
+        for i in 0..AXES {
+            if let Some(j) = self.machine.axis_joint[i] {
+                at[i] = feedback.latch_position[j] + self.out.offsets[j];
+            }
+        }
+        Some(at)
+    }
+
+    /// Servo periods in `seconds`, rounded up.
+    fn periods(&self, seconds: f64) -> u64 {
+        (seconds / self.machine.period_s).ceil() as u64
     }
 }

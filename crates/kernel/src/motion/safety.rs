@@ -102,6 +102,8 @@ impl MotionCore {
         // Whatever stops, stops from the next exchange.
         self.take_back();
         self.stop_synced(true);
+        // Output changes of motion that will not run are dropped.
+        self.outputs.drop_pending();
         self.program.epoch = self.program.epoch.wrapping_add(1);
         let _ = shared
             .interpreter_requests

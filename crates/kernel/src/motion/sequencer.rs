@@ -141,6 +141,7 @@ impl MotionCore {
         self.program.took_a_block = false;
         self.program.run_from_line = from_line;
         self.program.skipped_to = None;
+        self.outputs.drop_pending();
         self.requests_mut().program_running = mode == Mode::Auto;
     }
 
@@ -171,6 +172,14 @@ impl MotionCore {
     fn feed(&mut self, shared: &Shared, block: MachineBlock, staging: &mut PreparedMove) -> bool {
         let (then, line) = match block {
             MachineBlock::Motion(mv) => return self.feed_move(shared, block, mv, staging),
+            // M62/M63/M67: the path goes on; the change waits for the next move.
+            MachineBlock::Aux { aux, .. }
+                if self
+                    .synchronized_change(aux)
+                    .is_some_and(|c| self.outputs.stage(c)) =>
+            {
+                return true;
+            }
             MachineBlock::Aux { line, aux } => (Then::Aux(aux), line),
             MachineBlock::Synced { line, end, pitch } => (Then::Synced(end, pitch), line),
             MachineBlock::Probe { mv, kind } => (Then::Probe(mv, kind), mv.line),
@@ -202,6 +211,27 @@ impl MotionCore {
             }
             return true;
         }
+        let mut mv = mv;
+        let arms_outputs = self.outputs.staged() > 0 && !matches!(mv.kind, MoveKind::Dwell { .. });
+        if arms_outputs {
+            if !self
+                .outputs
+                .has_room(self.outputs.staged(), self.outputs_oldest_applied())
+            {
+                // The log still holds changes set-points ahead may go back over: the
+                // move waits until the machine has passed them.
+                self.program.pending = Some(block);
+                return false;
+            }
+            // The move's start must stay a start: not merged into the line before (G64
+            // Q), as LinuxCNC ends its collinear merging at a synchronised output.
+            if let PathMode::Blend {
+                merge_tolerance, ..
+            } = &mut mv.mode
+            {
+                *merge_tolerance = 0.0;
+            }
+        }
         self.before_new_motion();
         if let Some(end) = self.program.skipped_to.take() {
             // Run from a line: go to where the first executed block starts, at rapid.
@@ -225,6 +255,10 @@ impl MotionCore {
         };
         match pushed {
             Ok(()) => {
+                if arms_outputs {
+                    let first_piece = self.path.planner.next_piece_id();
+                    self.outputs.arm_staged(first_piece);
+                }
                 if self.program.single_block {
                     self.path.planner.flush();
                     self.fire(Event::Drain {
@@ -271,15 +305,19 @@ impl MotionCore {
                 });
             }
             Then::End => {
+                // Synchronised outputs with no move after them change at the end.
+                self.change_output_now(None);
                 self.reset_enables();
                 self.fire(Event::Finish);
                 self.program.ended = true;
                 self.requests_mut().program_running = false;
             }
             Then::MdiDone => {
+                self.change_output_now(None);
                 self.fire(Event::Finish);
             }
             Then::Error(code, value) => {
+                self.outputs.drop_pending();
                 shared.raise(ctx, code, TaskName::LookAhead, None, line, value);
                 self.fire(Event::Finish);
                 self.program.epoch = self.program.epoch.wrapping_add(1);
@@ -289,8 +327,15 @@ impl MotionCore {
                 self.requests_mut().program_running = false;
             }
             Then::Aux(aux) => self.start_aux(shared, aux, line),
-            Then::Probe(mv, kind) => self.start_probe(shared, mv, kind),
-            Then::Synced(end, pitch) => self.start_synced(end, pitch, line),
+            // The next move is not the planner's: synchronised outputs change as it starts.
+            Then::Probe(mv, kind) => {
+                self.change_output_now(None);
+                self.start_probe(shared, mv, kind);
+            }
+            Then::Synced(end, pitch) => {
+                self.change_output_now(None);
+                self.start_synced(end, pitch, line);
+            }
         }
         true
     }
