@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Fingerprints of what `rtcnc sim --out` records (set-points and feedback, sha256 of the CSV
-# files) for the shipped examples on their machines and, when the peers folder is present
+# files) for the shipped examples on their machines, the bracket on the mill with every
+# task period at 100 us, and, when the peers folder is present
 # ($RTCNC_PEERS or ../shared/peers), the four benchmark polylines on configs/bench-xyz.toml.
 # A change that is meant to make the simulation faster, not different, keeps every line:
 #
@@ -18,8 +19,14 @@ if [[ -z $bin ]]; then
 fi
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
+# The mill at 100 us (as bench/sim-speed.sh makes it).
+sed -e 's/period = "1ms"/period = "100us"/' \
+    -e "s#\"\.\./examples/#\"$PWD/examples/#" \
+    -e "s#\"sim-mill.tbl\"#\"$PWD/configs/sim-mill.tbl\"#" \
+    configs/sim-mill.toml >"$tmp/sim-mill-100us.toml"
 runs=(
     "configs/sim-mill.toml examples/bracket.ngc"
+    "$tmp/sim-mill-100us.toml examples/bracket.ngc"
     "configs/sim-lathe.toml examples/lathe-shaft.ngc"
     "configs/sim-gantry-12.toml examples/gantry-12.ngc"
     "configs/experiment-1.toml examples/experiment-1.ngc"
