@@ -112,6 +112,11 @@ impl KernelHandle {
         self.shared.status.read()
     }
 
+    /// The status channel, for a reader that keeps its own copy.
+    pub(crate) fn status_reader(&self) -> rtcnc_rt::SeqlockReader<Status> {
+        self.shared.status.clone()
+    }
+
     /// Operator messages (`(MSG,...)`, `(DEBUG,...)`) the machine reached since the last
     /// call, in program order.
     ///

@@ -25,6 +25,11 @@ pub struct RunStats {
     pub max_following_error: [f64; MAX_JOINTS],
     /// Largest |set-point − feedback| per joint (after the loop's own delay).
     pub max_tracking_error: [f64; MAX_JOINTS],
+    /// Per axis the largest |first, second, third difference| of the set-points: the
+    /// maxima above are these over the period's powers, divided only when one grows
+    /// (division by a positive number keeps the order, so the quotient of the largest is
+    /// the largest quotient, bit for bit).
+    max_differences: [[f64; AXES]; 3],
 }
 
 impl RunStats {
@@ -47,17 +52,25 @@ impl RunStats {
         let n = self.kept;
         for i in 0..AXES {
             if n >= 2 {
-                let v = (h[n - 1][i] - h[n - 2][i]) / period_s;
-                self.max_velocity[i] = self.max_velocity[i].max(v.abs());
+                let d = (h[n - 1][i] - h[n - 2][i]).abs();
+                if d > self.max_differences[0][i] {
+                    self.max_differences[0][i] = d;
+                    self.max_velocity[i] = d / period_s;
+                }
             }
             if n >= 3 {
-                let a = (h[n - 1][i] - 2.0 * h[n - 2][i] + h[n - 3][i]) / (period_s * period_s);
-                self.max_acceleration[i] = self.max_acceleration[i].max(a.abs());
+                let d = (h[n - 1][i] - 2.0 * h[n - 2][i] + h[n - 3][i]).abs();
+                if d > self.max_differences[1][i] {
+                    self.max_differences[1][i] = d;
+                    self.max_acceleration[i] = d / (period_s * period_s);
+                }
             }
             if n >= 4 {
-                let j = (h[n - 1][i] - 3.0 * h[n - 2][i] + 3.0 * h[n - 3][i] - h[n - 4][i])
-                    / (period_s * period_s * period_s);
-                self.max_jerk[i] = self.max_jerk[i].max(j.abs());
+                let d = (h[n - 1][i] - 3.0 * h[n - 2][i] + 3.0 * h[n - 3][i] - h[n - 4][i]).abs();
+                if d > self.max_differences[2][i] {
+                    self.max_differences[2][i] = d;
+                    self.max_jerk[i] = d / (period_s * period_s * period_s);
+                }
             }
         }
         for j in 0..MAX_JOINTS {
@@ -66,5 +79,61 @@ impl RunStats {
             self.max_tracking_error[j] =
                 self.max_tracking_error[j].max((s.setpoint[j] - s.feedback[j]).abs());
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The maxima are those of the finite differences divided at every sample, as their
+    /// definition says, bit for bit.
+    #[test]
+    fn maxima_are_those_of_the_quotients_of_every_sample() {
+        let period = 0.001;
+        let mut stats = RunStats::new();
+        let mut history: Vec<f64> = Vec::new();
+        let (mut v, mut a, mut j) = (0.0f64, 0.0f64, 0.0f64);
+        for k in 0..400 {
+            let t = k as f64 * period;
+            // Uneven steps, both signs: a cubic with a wobble.
+            let x = 3.0 * t * t * t - 2.0 * t + 1e-3 * (37.0 * t).sin();
+            let mut sample = Sample {
+                cycle: k,
+                time_ns: 0,
+                setpoint: [0.0; MAX_JOINTS],
+                feedback: [0.0; MAX_JOINTS],
+                following_error: [0.0; MAX_JOINTS],
+                axes: [0.0; AXES],
+                line: 0,
+                path_speed: 0.0,
+            };
+            sample.axes[1] = x;
+            stats.add(&sample, period);
+            history.push(x);
+            let h = &history[history.len().saturating_sub(4)..];
+            let n = h.len();
+            if n >= 2 {
+                v = v.max(((h[n - 1] - h[n - 2]) / period).abs());
+            }
+            if n >= 3 {
+                a = a.max(((h[n - 1] - 2.0 * h[n - 2] + h[n - 3]) / (period * period)).abs());
+            }
+            if n >= 4 {
+                let d = h[n - 1] - 3.0 * h[n - 2] + 3.0 * h[n - 3] - h[n - 4];
+                j = j.max((d / (period * period * period)).abs());
+            }
+            assert_eq!(
+                (
+                    stats.max_velocity[1],
+                    stats.max_acceleration[1],
+                    stats.max_jerk[1]
+                ),
+                (v, a, j),
+                "after sample {k}"
+            );
+        }
+        assert!(v > 0.0 && a > 0.0 && j > 0.0);
+        assert_eq!(stats.max_velocity[0], 0.0);
     }
 }

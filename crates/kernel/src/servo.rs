@@ -550,11 +550,14 @@ impl<B: Fieldbus> ServoStage<B> {
         fb.spindle_oriented = self.inputs.spindle.oriented;
         fb.tool = self.inputs.tool_changer.current_tool;
         fb.tool_change_done = self.inputs.tool_changer.done;
-        for (i, &d) in self.inputs.digital.iter().enumerate().take(64) {
-            if d {
-                fb.digital_inputs |= 1 << i;
-            }
-        }
+        // Branch-free: the inputs' levels change rarely but are packed every period.
+        fb.digital_inputs = self
+            .inputs
+            .digital
+            .iter()
+            .take(64)
+            .enumerate()
+            .fold(0, |bits, (i, &d)| bits | (u64::from(d) << i));
         for (slot, &a) in fb.analog_inputs.iter_mut().zip(&self.inputs.analog) {
             *slot = a;
         }

@@ -214,36 +214,10 @@ impl PlcAxisSetpoints {
     }
 }
 
-/// The newest value of a snapshot channel as one real-time reader last got it: when the
-/// writer is in the middle of a write on another processor, the reader goes on with the
-/// value it has rather than waiting.
-pub(crate) struct Snapshot<T> {
-    reader: SeqlockReader<T>,
-    value: T,
-    /// The publication `value` is (at least); no copy while there is nothing newer.
-    version: u64,
-}
-
-impl<T: Copy + Send> Snapshot<T> {
-    pub(crate) fn new(reader: SeqlockReader<T>) -> Self {
-        let version = reader.version();
-        let value = reader.read();
-        Snapshot {
-            reader,
-            value,
-            version,
-        }
-    }
-
-    /// The newest value (never waits).
-    pub(crate) fn get(&mut self) -> &T {
-        let version = self.reader.version();
-        if version != self.version && self.reader.read_into(&mut self.value) {
-            self.version = version;
-        }
-        &self.value
-    }
-}
+/// The newest value of a snapshot channel as one real-time reader last got it, copied only
+/// when there is a newer one: when the writer is in the middle of a write on another
+/// processor, the reader goes on with the value it has rather than waiting.
+pub(crate) type Snapshot<T> = rtcnc_rt::SeqlockCopy<T>;
 
 /// The writing ends of the shared state images, each handed to its one writer.
 pub(crate) struct Writers {

@@ -12,7 +12,7 @@ use rtcnc_ecat_slave_sim::drive::CspDrive;
 use rtcnc_ecat_slave_sim::segment::{Fault as SegmentFault, SegmentError};
 use rtcnc_ethercat::SimulatedBus;
 use rtcnc_fieldbus::sim::SimulatedMachine;
-use rtcnc_rt::{PiMutex, RingConsumer, RunError, VirtualRunner};
+use rtcnc_rt::{PiMutex, RingConsumer, RunError, SeqlockCopy, VirtualRunner};
 
 use crate::config::MachineConfig;
 use crate::kernel::{Kernel, KernelHandle};
@@ -150,6 +150,8 @@ impl SimulatedEthercatHandle {
 pub struct Simulation {
     runner: VirtualRunner,
     handle: KernelHandle,
+    /// The status as `run_until` last read it (one copy per period).
+    status: SeqlockCopy<Status>,
     samples: Option<RingConsumer<Sample>>,
     period: Duration,
 }
@@ -160,6 +162,7 @@ impl Simulation {
         let period = kernel.handle.config().servo_period();
         Simulation {
             runner: VirtualRunner::new(kernel.tasks),
+            status: SeqlockCopy::new(kernel.handle.status_reader()),
             handle: kernel.handle,
             samples: kernel.samples,
             period,
@@ -220,7 +223,7 @@ impl Simulation {
         let end = self.now() + limit;
         while self.now() < end {
             self.run_cycles(1, sink)?;
-            if done(&self.handle.status()) {
+            if done(self.status.get()) {
                 return Ok(true);
             }
         }

@@ -71,8 +71,8 @@ pub use error::ConfigError;
 pub use ipc::{
     BinarySemaphore, CountingSemaphore, EventSemaphore, IpcError, LatestReader, LatestWriter,
     LeadConsumer, LeadProducer, Mailbox, Missing, PiMutex, PiMutexGuard, Rejected, RingConsumer,
-    RingProducer, SeqlockCell, SeqlockReader, SeqlockWriter, SpscCell, Trigger, latest, lead_queue,
-    ring, seqlock,
+    RingProducer, SeqlockCell, SeqlockCopy, SeqlockReader, SeqlockWriter, SpscCell, Trigger,
+    latest, lead_queue, ring, seqlock,
 };
 pub use monitor::{
     Fault, FaultCode, FaultRecord, MissReaction, Monitor, TaskKind, TaskMonitor, TaskState,

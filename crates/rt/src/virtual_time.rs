@@ -279,6 +279,9 @@ pub struct VirtualRunner {
     background_step_ns: u64,
     /// Something may have fired a trigger or changed a start event since the last poll.
     dirty: bool,
+    /// The earliest `next_release` of the threads between two cycles (`u64::MAX`: none),
+    /// so that looking for releases due does not visit every thread at every step.
+    earliest_release: u64,
     /// Host processor time spent in each task's bodies, when asked for.
     host: Option<HostProfile>,
 }
@@ -369,6 +372,7 @@ impl VirtualRunner {
             instant: 0,
             background_step_ns: 10_000,
             dirty: true,
+            earliest_release: 0,
             host: None,
         }
     }
@@ -535,6 +539,15 @@ impl VirtualRunner {
 
     /// Releases due threads, wakes tasks whose trigger fired or timeout passed.
     fn refresh(&mut self) {
+        if self.earliest_release <= self.now {
+            self.release_due_threads();
+        }
+        self.poll_reactive();
+    }
+
+    /// Starts the cycle of every thread whose release is due, and finds the next release.
+    fn release_due_threads(&mut self) {
+        let mut earliest = u64::MAX;
         for i in 0..self.threads.len() {
             let th = &self.threads[i];
             if th.cycle.is_none() && th.next_release <= self.now {
@@ -564,9 +577,11 @@ impl VirtualRunner {
                         }
                     }
                 }
+            } else if th.cycle.is_none() {
+                earliest = earliest.min(th.next_release);
             }
         }
-        self.poll_reactive();
+        self.earliest_release = earliest;
     }
 
     /// Wakes event and background tasks whose trigger fired or timeout passed.
@@ -682,16 +697,17 @@ impl VirtualRunner {
     }
 
     fn next_event_time(&self) -> Option<u64> {
-        let releases = self
-            .threads
-            .iter()
-            .filter(|t| t.cycle.is_none())
-            .map(|t| t.next_release);
+        // Called after `refresh`: every release due has been made, so the earliest is ahead.
+        let releases = (self.earliest_release > self.now).then_some(self.earliest_release);
         let timeouts = self.reactive.iter().filter_map(|r| match r.state {
             RState::Suspended { deadline, .. } => deadline,
             _ => None,
         });
-        releases.chain(timeouts).filter(|&t| t > self.now).min()
+        releases
+            .into_iter()
+            .chain(timeouts)
+            .filter(|&t| t > self.now)
+            .min()
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -891,10 +907,23 @@ impl VirtualRunner {
         };
         th.cycle = None;
         let period = th.spec.period_ns;
-        th.offset = th.offset.saturating_add(clamp_release_shift(shift, period));
-        let (next, skipped) = next_shifted_release(base, period, th.offset, now);
+        if shift != 0 {
+            th.offset = th.offset.saturating_add(clamp_release_shift(shift, period));
+        }
+        // A thread on the grid (every thread but one following an outside clock) needs
+        // none of the shifted arithmetic.
+        let (next, skipped) = if th.offset == 0 {
+            next_release(base, period, now)
+        } else {
+            next_shifted_release(base, period, th.offset, now)
+        };
         th.next_base = next;
-        th.next_release = shifted(next, th.offset);
+        th.next_release = if th.offset == 0 {
+            next
+        } else {
+            shifted(next, th.offset)
+        };
+        self.earliest_release = self.earliest_release.min(th.next_release);
         if skipped > 0 {
             if let Some(m) = missed.and_then(|t| self.recording.monitor.task_at(t)) {
                 m.record_skipped(skipped);

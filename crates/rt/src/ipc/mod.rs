@@ -27,7 +27,9 @@ pub use mailbox::Mailbox;
 pub use pimutex::{PiMutex, PiMutexGuard};
 pub use ring::{RingConsumer, RingProducer, SpscCell, ring};
 pub use semaphore::{BinarySemaphore, CountingSemaphore, EventSemaphore};
-pub use seqlock::{SLOTS as SEQLOCK_SLOTS, SeqlockCell, SeqlockReader, SeqlockWriter, seqlock};
+pub use seqlock::{
+    SLOTS as SEQLOCK_SLOTS, SeqlockCell, SeqlockCopy, SeqlockReader, SeqlockWriter, seqlock,
+};
 pub use trigger::Trigger;
 pub(crate) use trigger::WaitResult;
 

@@ -112,22 +112,33 @@ impl<T: Copy> SeqlockCell<T> {
     ///
     /// Real-time: yes (no allocation, no blocking).
     pub fn try_read(&self) -> Option<T> {
+        let mut copy = MaybeUninit::uninit();
+        // SAFETY: `try_read_into` returned true: `copy` holds a whole publication.
+        self.try_read_into(&mut copy)
+            .then(|| unsafe { copy.assume_init() })
+    }
+
+    /// [`try_read`](Self::try_read) straight into `dst`, in one copy: true when `dst` then
+    /// holds the newest value whole; after false it holds bytes of no value.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
+    pub fn try_read_into(&self, dst: &mut MaybeUninit<T>) -> bool {
         for _ in 0..ATTEMPTS {
             let n = self.published.load(Ordering::Acquire);
             let slot = &self.slots[(n % SLOTS as u64) as usize];
             if slot.version.load(Ordering::Acquire) != n {
                 continue;
             }
-            // SAFETY: a possibly torn copy of plain bytes, kept only if the check below
-            // proves that no store overlapped it.
-            let copy = unsafe { std::ptr::read_volatile(slot.value.get()) };
+            // SAFETY: a possibly torn copy of plain bytes into a `MaybeUninit`, which may
+            // hold any bytes; it counts only if the check below proves that no store
+            // overlapped it.
+            *dst = unsafe { std::ptr::read_volatile(slot.value.get()) };
             fence(Ordering::Acquire);
             if slot.version.load(Ordering::Relaxed) == n {
-                // SAFETY: the slot held publication `n`, fully written, for the whole copy.
-                return Some(unsafe { copy.assume_init() });
+                return true;
             }
         }
-        None
+        false
     }
 
     /// The newest value, trying until a read succeeds (for threads that may wait).
@@ -322,9 +333,73 @@ impl<T: Copy + Send> SeqlockReader<T> {
     }
 }
 
+/// A reader that keeps its own copy of the newest value (the feedback image a task reads
+/// every period): [`get`](Self::get) copies from the seqlock only when there is a newer
+/// publication, once, into the spare of two buffers, which becomes the copy when the read
+/// succeeded (when it failed, the copy before stays, as with
+/// [`SeqlockReader::read_into`]).
+pub struct SeqlockCopy<T> {
+    reader: SeqlockReader<T>,
+    buffers: [MaybeUninit<T>; 2],
+    /// The buffer that holds the copy (always a whole value).
+    current: usize,
+    /// The publication the copy is (at least).
+    version: u64,
+}
+
+impl<T: Copy + Send> SeqlockCopy<T> {
+    /// The copy of the newest value now.
+    ///
+    /// Real-time: no (set-up: waits for a first read).
+    pub fn new(reader: SeqlockReader<T>) -> Self {
+        let version = reader.version();
+        let first = reader.read();
+        SeqlockCopy {
+            reader,
+            buffers: [MaybeUninit::new(first), MaybeUninit::uninit()],
+            current: 0,
+            version,
+        }
+    }
+
+    /// The newest value (never waits).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
+    pub fn get(&mut self) -> &T {
+        let version = self.reader.version();
+        if version != self.version {
+            let spare = 1 - self.current;
+            if self
+                .reader
+                .shared
+                .cell
+                .try_read_into(&mut self.buffers[spare])
+            {
+                self.current = spare;
+                self.version = version;
+            }
+        }
+        // SAFETY: `current` always names a buffer that holds a whole value: the first
+        // read, or a read `try_read_into` proved whole.
+        unsafe { self.buffers[self.current].assume_init_ref() }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_copy_follows_the_newest_value() {
+        let (mut w, r) = seqlock("feedback", [1u64; 80]);
+        let mut copy = SeqlockCopy::new(r);
+        assert_eq!(*copy.get(), [1; 80]);
+        for i in 2..=5u64 {
+            w.publish([i; 80]);
+            assert_eq!(*copy.get(), [i; 80]);
+            assert_eq!(*copy.get(), [i; 80], "read again without a publication");
+        }
+    }
 
     #[test]
     fn every_reader_sees_the_newest_value() {
