@@ -67,6 +67,69 @@ fn polyline(
         .collect()
 }
 
+/// Rhodonea r = R cos(kθ), θ in [0, π] for an odd k (the whole rose): as a sum of
+/// rotations, x = R/2 (cos (k+1)θ + cos (k-1)θ), y = R/2 (sin (k+1)θ - sin (k-1)θ).
+fn rose(k: f64, r: f64) -> (impl Fn(f64) -> AxisVec, impl Fn(f64) -> (AxisVec, AxisVec)) {
+    let h = r / 2.0;
+    let (a, b) = (k + 1.0, k - 1.0);
+    let f = move |t: f64| {
+        p3(
+            h * ((a * t).cos() + (b * t).cos()),
+            h * ((a * t).sin() - (b * t).sin()),
+            0.0,
+        )
+    };
+    let d = move |t: f64| {
+        (
+            p3(
+                -h * (a * (a * t).sin() + b * (b * t).sin()),
+                h * (a * (a * t).cos() - b * (b * t).cos()),
+                0.0,
+            ),
+            p3(
+                -h * (a * a * (a * t).cos() + b * b * (b * t).cos()),
+                -h * (a * a * (a * t).sin() - b * b * (b * t).sin()),
+                0.0,
+            ),
+        )
+    };
+    (f, d)
+}
+
+/// A rose's petal tips sampled at exactly P: its chords there bulge as far as the
+/// tolerance, so the path through the vertices cannot keep the circle's curvature within
+/// P. The vertices moved towards the centre (a concentric circle) keep it: the tip is
+/// passed near its curvature's speed. At the middle petal's tip (θ = π/3, r = -R) the
+/// tangent is perpendicular to the radius, the curvature (1 + k²)/R and the centripetal
+/// acceleration on the radius: along X and Y, for per-axis limits A the speed
+/// √(A·R/(1 + k²)/max(|cos 60°|, |sin 60°|)). Chords whose curvature swung between
+/// the vertices' circles passed it at about half of that.
+#[test]
+fn a_rose_sampled_at_p_passes_its_tips_near_the_curvature_speed() {
+    let (k, r, tol) = (3.0, 20.0, 0.001);
+    let (f, d) = rose(k, r);
+    let verts = polyline(&f, d, PI, tol);
+    let lim = limits(100.0, 1000.0, 50_000.0);
+    let mut pl = planner(&lim, verts[0], 1024);
+    let tr = run(&mut pl, &lines(&verts, 100.0, blend(tol)), 20_000);
+    assert_limits(&tr, 100.0, 1000.0, 50_000.0);
+    assert_eq!(pl.stats().limit_violations, 0);
+    assert!(max_deviation(&tr, &verts) <= tol * (1.0 + 1e-6));
+    let tip = f(PI / 3.0);
+    let v_tip = (1000.0 * r / (1.0 + k * k) / (PI / 3.0).sin()).sqrt();
+    let lowest = tr.pts[3..]
+        .iter()
+        .zip(&tr.speed)
+        .filter(|(p, _)| dist(p, &tip) < 0.5)
+        .map(|(_, v)| *v)
+        .fold(f64::INFINITY, f64::min);
+    assert!(lowest.is_finite(), "the path passes the tip");
+    assert!(
+        lowest >= 0.85 * v_tip,
+        "tip passed at {lowest:.1} mm/s, its curvature allows {v_tip:.1}"
+    );
+}
+
 /// An epitrochoid with loops (R 10, r 2, d 3) whose start and end lie inside a tight loop,
 /// the whole curve in the window (1024 pieces): the generator's stop model far from the
 /// stop once took a piece's own deceleration at the braking curve, nearly 0 on a loop at
