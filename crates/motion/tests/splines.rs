@@ -596,10 +596,11 @@ fn cusp_moves(control: Bezier, a: &AxisVec, b: &AxisVec, mode: PathMode) -> Vec<
 /// tenths of a µm before the cusp, chords into it and out of it, the curve on. The machine
 /// comes to rest at the cusp and goes on, every set-point within the chords' tolerance
 /// (1 µm) and P of the curve, the limits kept, the end exact. Hand-worked cusps:
-/// P0 (0,0), P1 (10,10), P2 (0,10), P3 (10,0): B'(t) = 3[(1-t)²(10,10) + 2t(1-t)(-10,0)
-/// + t²(10,-10)] vanishes at t = 1/2, where B = (P0 + 3 P1 + 3 P2 + P3)/8 = (5, 7.5).
-/// The quadratic from (0,0) through (10,0) to (5,0) runs out and back along X:
-/// B'(t) = 2[(1-t)(10) + t(-5)] vanishes at t = 2/3, B = 4/9·10 + 4/9·5 = 20/3.
+/// P0 (0,0), P1 (10,10), P2 (0,10), P3 (10,0):
+/// B'(t) = 3[(1-t)²(10,10) + 2t(1-t)(-10,0) + t²(10,-10)] vanishes at t = 1/2, where
+/// B = (P0 + 3 P1 + 3 P2 + P3)/8 = (5, 7.5). The quadratic from (0,0) through (10,0) to
+/// (5,0) runs out and back along X: B'(t) = 2[(1-t)(10) + t(-5)] vanishes at t = 2/3,
+/// B = 4/9·10 + 4/9·5 = 20/3.
 #[test]
 fn a_spline_with_a_cusp_comes_to_rest_there_and_goes_on() {
     let o = p3(0.0, 0.0, 0.0);
