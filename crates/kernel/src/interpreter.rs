@@ -12,7 +12,7 @@ use rtcnc_gcode::canon::{
 use rtcnc_gcode::compensation::Compensator;
 use rtcnc_gcode::{Canon, Interpreter, Parameters, Settings, ToolTable};
 use rtcnc_motion::nurbs::NurbsCurve;
-use rtcnc_motion::{Bezier, PathMode};
+use rtcnc_motion::{Bezier, CurvePart, PathMode};
 use rtcnc_rt::{Context, Next};
 
 use crate::config::OverSpeed;
@@ -775,15 +775,34 @@ impl InterpreterStage {
         if control.is_followable(&self.position, &end) {
             self.outbox
                 .push_back(ProgramBlock::Spline { line, end, control });
+            self.position = end;
+            return;
+        }
+        let tolerance = match self.units {
+            Units::Mm => SPLINE_CHORD_ERROR_MM,
+            Units::Inches => SPLINE_CHORD_ERROR_MM / 25.4,
+        };
+        // A cusp (the curve stops and turns back) or an end without direction: the curve
+        // up to just before it, chords within the tolerance into and out of it, where
+        // the path comes to rest, and the curve on.
+        let mut parts = Vec::new();
+        if control.split_at_cusps(&self.position, &end, tolerance, &mut parts) {
+            for part in parts {
+                self.outbox.push_back(match part {
+                    CurvePart::Curve { end, control } => {
+                        ProgramBlock::Spline { line, end, control }
+                    }
+                    CurvePart::Line { end } => ProgramBlock::Line {
+                        line,
+                        end,
+                        rapid: false,
+                    },
+                });
+            }
         } else {
-            // A cusp or near cusp (the curve stops and turns back) has no speed the
-            // planner can follow along the curve: it runs as chords within
-            // SPLINE_CHORD_ERROR_MM of it, blended as lines are, stopping where they
-            // reverse (LinuxCNC runs every spline as arcs).
-            let tolerance = match self.units {
-                Units::Mm => SPLINE_CHORD_ERROR_MM,
-                Units::Inches => SPLINE_CHORD_ERROR_MM / 25.4,
-            };
+            // What cannot be cut so runs as chords within the tolerance of the curve,
+            // blended as lines are, stopping where they reverse (LinuxCNC runs every
+            // spline as arcs).
             let mut points = Vec::new();
             control.flatten(&self.position, &end, tolerance, &mut points);
             for end in points {

@@ -270,15 +270,71 @@ fn distance_to_cubic(c: &[[f64; 2]; 4], p: [f64; 2]) -> f64 {
     best.sqrt()
 }
 
+/// A G5 whose curve stops and turns back (a cusp; LinuxCNC's rs274 takes it as
+/// `NURBS_FEED`) runs: the machine comes to rest at the cusp and goes on, within the limits.
+/// Hand-worked: from (0, 0) with I10 J10 (P1 = (10, 10)) and P-10 Q10 from the end (10, 0)
+/// (P2 = (0, 10)), B'(1/2) = 0 and B(1/2) = (P0 + 3 P1 + 3 P2 + P3)/8 = (5, 7.5). In G61
+/// it took 9 s as 1 µm chords, each stopped at.
+#[test]
+fn a_g5_with_a_cusp_comes_to_rest_there_and_goes_on() {
+    for mode in ["G61", "G64 P0.01"] {
+        let text =
+            format!("G21 G90 G17 {mode}\nG0 X0 Y0 Z0\nG5 I10 J10 P-10 Q10 X10 Y0 F1200\nM2\n");
+        let cfg = config("bench-xyz.toml");
+        let mut m = Machine::new(&cfg, Some(program(&text, "cusp.ngc")));
+        m.power_on();
+        m.command(Command::Start { from_line: 0 });
+        let ended = m.until(60.0, |s| s.program_ended && s.state == MachineState::Idle);
+        assert!(m.faults.is_empty(), "{:?}", m.faults);
+        assert!(ended);
+        let worst = worst_ratio(&m.samples, 1e-3, &[(100.0, 1000.0, 50_000.0); 3]);
+        assert!(worst <= 1.0 + 1e-9, "{worst}");
+        // At rest at the cusp: a set-point on it whose steps to and from it are at most
+        // one period of the jerk (J·T³), as a stop's are.
+        let near = |p: &Sample, q: &Sample| {
+            (p.axes[0] - q.axes[0]).hypot(p.axes[1] - q.axes[1]) <= 50_000.0 * 1e-9
+        };
+        let rests = m.samples.windows(3).any(|w| {
+            (w[1].axes[0] - 5.0).hypot(w[1].axes[1] - 7.5) <= 1e-9
+                && near(&w[0], &w[1])
+                && near(&w[2], &w[1])
+        });
+        assert!(rests, "{mode}: does not come to rest at the cusp");
+        let last = m.samples.last().unwrap().axes;
+        assert!(last[0] == 10.0 && last[1] == 0.0, "{last:?}");
+        // The curve's length at the feed, and a second for the stop at the cusp and
+        // the speed changes.
+        let bezier = |t: f64| {
+            let s = 1.0 - t;
+            [
+                3.0 * s * s * t * 10.0 + t * t * t * 10.0,
+                3.0 * s * t * 10.0,
+            ]
+        };
+        let length: f64 = (0..1000)
+            .map(|k| {
+                let (p, q) = (bezier(k as f64 / 1000.0), bezier((k + 1) as f64 / 1000.0));
+                (q[0] - p[0]).hypot(q[1] - p[1])
+            })
+            .sum();
+        let moving = m.samples.iter().filter(|s| s.line == 3).count() as f64 * 1e-3;
+        assert!(
+            moving <= length / 20.0 + 1.0,
+            "{mode}: {moving} s on the curve of {length} mm"
+        );
+    }
+}
+
 /// `stall-splines.ngc` (3000 random lines and G5 curves, G64 P0.05) stood still at line
 /// 574 (the long-path defect), then stopped with MOTION-012 at line 712: a curve that turns
 /// on a radius below 0.1 µm, which the planner cannot follow at any speed; so does the next
-/// one. Such a curve now runs as chords within 1 µm of it (LinuxCNC runs it too, as arcs).
-/// The whole case runs to its end in `rtcnc sim` (3160 s of machine time, too long for a
-/// debug test); here its lines 712-716, from the end point of line 711: every set-point of
-/// the two curves within P + 1 µm of them, the limits kept, the end exact.
+/// one. Such a curve now runs cut at its near cusp, with chords within 1 µm of it into and
+/// out of it (LinuxCNC runs it too, as arcs). The whole case runs to its end in `rtcnc sim`
+/// (too long for a debug test); here its lines 712-716, from the end point of line 711:
+/// every set-point of the two curves within P + 1 µm of them, the limits kept, the end
+/// exact.
 #[test]
-fn near_cusp_splines_run_as_chords_within_the_tolerance() {
+fn near_cusp_splines_run_within_the_tolerance() {
     let case = std::fs::read_to_string(
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/cases/stall-splines.ngc"),
     )

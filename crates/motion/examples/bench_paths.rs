@@ -76,7 +76,10 @@ fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
     let machine = MachineLimits::uniform(&[Axis::X, Axis::Y, Axis::Z], lim);
     let kin = TrivialKinematics::identity(&[Axis::X, Axis::Y, Axis::Z]);
     let trickle = std::env::var_os("BENCH_PATHS_TRICKLE").is_some();
-    let window = if trickle { 256 } else { 1024 };
+    let window = std::env::var("BENCH_PATHS_WINDOW")
+        .ok()
+        .and_then(|w| w.parse().ok())
+        .unwrap_or(if trickle { 256 } else { 1024 });
     let mut pl = Planner::new(&machine, kin, t, window, start).expect("planner");
     let mut joints = [0.0; 3];
     let mut pts: Vec<[f64; AXES]> = vec![start; 3];
@@ -93,7 +96,11 @@ fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
             // BENCH_PATHS_TRICKLE: one move per period into a 256-piece window, as a
             // kernel feeding the planner while it runs.
             let n = if trickle { 1 } else { moves.len() - k };
-            k += pl.push_all(&moves[k..k + n]).expect("push");
+            let pushed = pl.push_all(&moves[k..k + n]).expect("push");
+            if pushed > 0 && std::env::var_os("BENCH_PATHS_PUSHLOG").is_some() {
+                eprintln!("period {calls}: pushed moves {k}..{}", k + pushed);
+            }
+            k += pushed;
         }
         if k == moves.len() && !flushed {
             pl.flush();
@@ -116,6 +123,14 @@ fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
         let text: String = speeds.iter().map(|v| format!("{v}\n")).collect();
         let _ = std::fs::write(path, text);
         eprintln!("{:?}", pl.stats());
+    }
+    if let Some(path) = std::env::var_os("BENCH_PATHS_POINTS") {
+        // Diagnostics: the set-point of every period, x y z (last program run).
+        let text: String = pts
+            .iter()
+            .map(|p| format!("{} {} {}\n", p[0], p[1], p[2]))
+            .collect();
+        let _ = std::fs::write(path, text);
     }
     let mut m = Measured {
         time: 0.0,
@@ -157,7 +172,43 @@ fn run(start: [f64; AXES], moves: &[Move], t: f64) -> Measured {
     m
 }
 
+/// `--programs DIR`: every `*.ngc` of DIR (bench/motion_curves.py's curves), one line each:
+/// name, time, the largest |v|, |a|, |j| of any axis over its limit, counted violations.
+fn run_programs(dir: &std::path::Path) {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .expect("programs folder")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "ngc"))
+        .collect();
+    files.sort();
+    println!("program time_s v_ratio a_ratio j_ratio violations");
+    for file in files {
+        let text = std::fs::read_to_string(&file).expect("program");
+        let (start, moves) = read_bench_program(&text);
+        let m = run(start, &moves, 1e-3);
+        let ratio = |x: &[f64; 3]| x.iter().fold(0.0f64, |a, b| a.max(*b));
+        println!(
+            "{} {:.4} {:.6} {:.6} {:.6} {}",
+            file.file_stem()
+                .map_or(String::new(), |s| s.to_string_lossy().into_owned()),
+            m.time,
+            ratio(&m.vmax) / 100.0,
+            ratio(&m.amax) / 1000.0,
+            ratio(&m.jmax) / 50_000.0,
+            m.violations
+        );
+        if std::env::var("RTCNC_DEBUG_GEO").is_ok() {
+            eprintln!("  {}", m.geo);
+        }
+    }
+}
+
 fn main() {
+    let mut args = std::env::args().skip(1);
+    if let Some("--programs") = args.next().as_deref() {
+        run_programs(&PathBuf::from(args.next().expect("--programs DIR")));
+        return;
+    }
     let dir = std::env::args()
         .nth(1)
         .map(PathBuf::from)

@@ -71,3 +71,4 @@ pub use input::{Bezier, Feed, Move, MoveKind, PathMode};
 pub use kinematics::{JointLimits, Kinematics, TrivialKinematics};
 pub use limits::{AxisLimits, MachineLimits};
 pub use planner::{MotionState, Planner, Preparation, PreparedMove, RewindError, RunStats, Status};
+pub use spline::CurvePart;

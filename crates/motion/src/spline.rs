@@ -721,3 +721,219 @@ fn flatten_cubic(c: &[AxisVec; 4], tolerance: f64, depth: u32, out: &mut Vec<Axi
     flatten_cubic(&[c[0], p01, p012, m], tolerance, depth - 1, out);
     flatten_cubic(&[m, p123, p23, c[3]], tolerance, depth - 1, out);
 }
+
+/// A part of a curve cut at its cusps ([`Bezier::split_at_cusps`]): the exact curve over
+/// part of its range, or a chord into or out of a cusp.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum CurvePart {
+    /// The curve from the previous part's end (a cubic over part of the range).
+    Curve {
+        /// Where this part ends.
+        end: AxisVec,
+        /// Its control points.
+        control: Bezier,
+    },
+    /// A straight chord from the previous part's end.
+    Line {
+        /// Where the chord ends.
+        end: AxisVec,
+    },
+}
+
+/// Parametric speed, relative to the largest, at which a curve is cut before and after a
+/// cusp (tried in turn until the chords keep the tolerance and the parts are followable).
+const CUSP_CUT_SPEEDS: [f64; 3] = [0.02, 0.01, 0.005];
+/// Cusps (or ends without direction) one curve is cut at, at most: a cubic's derivative
+/// vanishes at two parameters at most.
+const CUSP_DEPTH: u32 = 3;
+
+/// The cubic's point at the blossom's arguments (de Casteljau with one parameter per
+/// level): `blossom(c, [s, s, t])` and its kin are the control points of the curve over
+/// [s, t].
+fn blossom(c: &[AxisVec; 4], u: [f64; 3]) -> AxisVec {
+    let mut p = *c;
+    for (level, &t) in u.iter().enumerate() {
+        for k in 0..3 - level {
+            for i in 0..AXES {
+                p[k][i] += t * (p[k + 1][i] - p[k][i]);
+            }
+        }
+    }
+    p[0]
+}
+
+/// Control points of the cubic over [s, t] (the same polynomial).
+fn sub_cubic(c: &[AxisVec; 4], s: f64, t: f64) -> [AxisVec; 4] {
+    let mut out = [
+        blossom(c, [s, s, s]),
+        blossom(c, [s, s, t]),
+        blossom(c, [s, t, t]),
+        blossom(c, [t, t, t]),
+    ];
+    // The ends exactly where the curve's are.
+    if s == 0.0 {
+        out[0] = c[0];
+    }
+    if t == 1.0 {
+        out[3] = c[3];
+    }
+    out
+}
+
+fn cubic_d1(c: &[AxisVec; 4], u: f64) -> AxisVec {
+    let s = 1.0 - u;
+    let mut d = [0.0; AXES];
+    for i in 0..AXES {
+        d[i] = 3.0
+            * (s * s * (c[1][i] - c[0][i])
+                + 2.0 * s * u * (c[2][i] - c[1][i])
+                + u * u * (c[3][i] - c[2][i]));
+    }
+    d
+}
+
+/// Whether the cubic over [u0, u1] stays within `tolerance` of the chord between its ends
+/// (64 samples: the stretch is a few µm long and nearly straight).
+fn chord_keeps(c: &[AxisVec; 4], u0: f64, u1: f64, tolerance: f64) -> bool {
+    let (p, q) = (blossom(c, [u0; 3]), blossom(c, [u1; 3]));
+    (1..64).all(|k| {
+        let u = u0 + (u1 - u0) * k as f64 / 64.0;
+        distance_to_segment(&blossom(c, [u; 3]), &p, &q) <= tolerance
+    })
+}
+
+fn split_cubic(c: &[AxisVec; 4], tolerance: f64, depth: u32, out: &mut Vec<CurvePart>) -> bool {
+    let curve = Bezier::Cubic([c[1], c[2]]);
+    if curve.is_followable(&c[0], &c[3]) {
+        out.push(CurvePart::Curve {
+            end: c[3],
+            control: curve,
+        });
+        return true;
+    }
+    if depth == 0 {
+        return false;
+    }
+    // Where the parametric speed is smallest: the cusp (grid, then golden section).
+    let speed = |u: f64| norm(&cubic_d1(c, u));
+    let (mut k_min, mut s_max) = (0, 0.0f64);
+    for k in 0..=GRID {
+        let s = speed(k as f64 / GRID as f64);
+        if s < speed(k_min as f64 / GRID as f64) {
+            k_min = k;
+        }
+        s_max = s_max.max(s);
+    }
+    if !(s_max > 0.0) {
+        return false;
+    }
+    let h = 1.0 / GRID as f64;
+    let (mut lo, mut hi) = (
+        (k_min as f64 * h - h).max(0.0),
+        (k_min as f64 * h + h).min(1.0),
+    );
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    for _ in 0..60 {
+        let (x1, x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
+        if speed(x1) < speed(x2) {
+            hi = x2;
+        } else {
+            lo = x1;
+        }
+    }
+    let uc = if k_min == 0 && speed(0.0) <= speed(lo) {
+        0.0
+    } else if k_min == GRID && speed(1.0) <= speed(hi) {
+        1.0
+    } else {
+        0.5 * (lo + hi)
+    };
+    for share in CUSP_CUT_SPEEDS {
+        // Outwards from the cusp to where the speed is back to `share` of its largest.
+        let reach = |dir: f64| {
+            let mut d = 0.0;
+            let step = 1.0 / (16.0 * GRID as f64);
+            while d < 1.0 {
+                let u = uc + dir * (d + step);
+                if !(0.0..=1.0).contains(&u) {
+                    return None;
+                }
+                d += step;
+                if speed(u) >= share * s_max {
+                    return Some(uc + dir * d);
+                }
+            }
+            None
+        };
+        // Without such a point on a side, the chord runs to the curve's end there.
+        let ul = reach(-1.0).unwrap_or(0.0);
+        let ur = reach(1.0).unwrap_or(1.0);
+        if !chord_keeps(c, ul, uc, tolerance) || !chord_keeps(c, uc, ur, tolerance) {
+            continue;
+        }
+        let mark = out.len();
+        let ok = (ul == 0.0 || split_cubic(&sub_cubic(c, 0.0, ul), tolerance, depth - 1, out)) && {
+            if uc > ul {
+                out.push(CurvePart::Line {
+                    end: if uc == 1.0 { c[3] } else { blossom(c, [uc; 3]) },
+                });
+            }
+            if ur > uc {
+                out.push(CurvePart::Line {
+                    end: if ur == 1.0 { c[3] } else { blossom(c, [ur; 3]) },
+                });
+            }
+            ur == 1.0 || split_cubic(&sub_cubic(c, ur, 1.0), tolerance, depth - 1, out)
+        };
+        if ok {
+            return true;
+        }
+        out.truncate(mark);
+    }
+    false
+}
+
+impl Bezier {
+    /// Cuts the curve from `a` to `b` where it stops and turns back (a cusp, or a near
+    /// cusp turning on a radius below 0.1 µm), or has no direction at an end (a control
+    /// point on the end point), into parts a planner follows and that come to rest at the
+    /// cusp: the exact curve up to where its parametric speed is back to 2 % of its
+    /// largest (1 %, 0.5 % where that keeps the chords within `tolerance`), a chord to
+    /// the cusp's point, a chord from it, the curve on. Each curve part is
+    /// [followable](Bezier::is_followable), the chords stay within `tolerance` of the
+    /// curve, the last part ends exactly at `b`. False (with `out` as it was) when the
+    /// curve cannot be cut so; the caller may then [flatten](Bezier::flatten) it.
+    pub fn split_at_cusps(
+        &self,
+        a: &AxisVec,
+        b: &AxisVec,
+        tolerance: f64,
+        out: &mut Vec<CurvePart>,
+    ) -> bool {
+        if !is_finite(a) || !is_finite(b) || !(tolerance > 0.0) {
+            return false;
+        }
+        let c = match *self {
+            Bezier::Quadratic(q) => {
+                let mut c1 = [0.0; AXES];
+                let mut c2 = [0.0; AXES];
+                for i in 0..AXES {
+                    c1[i] = a[i] + 2.0 / 3.0 * (q[i] - a[i]);
+                    c2[i] = b[i] + 2.0 / 3.0 * (q[i] - b[i]);
+                }
+                [*a, c1, c2, *b]
+            }
+            Bezier::Cubic([c1, c2]) => [*a, c1, c2, *b],
+        };
+        if !c.iter().all(is_finite) {
+            return false;
+        }
+        let mark = out.len();
+        if split_cubic(&c, tolerance, CUSP_DEPTH, out) {
+            true
+        } else {
+            out.truncate(mark);
+            false
+        }
+    }
+}

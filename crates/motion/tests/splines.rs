@@ -5,7 +5,7 @@
 mod common;
 use common::*;
 use rtcnc_motion::{
-    AXES, Axis, AxisLimits, AxisVec, Bezier, MachineLimits, Move, MoveKind, PathMode,
+    AXES, Axis, AxisLimits, AxisVec, Bezier, CurvePart, MachineLimits, Move, MoveKind, PathMode,
 };
 
 const V: f64 = 100.0;
@@ -576,4 +576,133 @@ fn a_curve_the_planner_refuses_flattens_into_chords_within_the_tolerance() {
             assert!(points.len() < 200 || tolerance < 1e-4, "{}", points.len());
         }
     }
+}
+
+/// The moves of a curve cut at its cusps (`Bezier::split_at_cusps`), from `a`.
+fn cusp_moves(control: Bezier, a: &AxisVec, b: &AxisVec, mode: PathMode) -> Vec<Move> {
+    let mut parts = Vec::new();
+    assert!(control.split_at_cusps(a, b, 1e-3, &mut parts), "not cut");
+    assert!(parts.len() >= 2, "{parts:?}");
+    parts
+        .iter()
+        .map(|part| match *part {
+            CurvePart::Curve { end, control } => Move::spline(end, control, 50.0, mode, 1),
+            CurvePart::Line { end } => Move::line(end, 50.0, mode, 1),
+        })
+        .collect()
+}
+
+/// A curve that stops and turns back (a cusp) is cut there: the exact curve up to a few
+/// tenths of a µm before the cusp, chords into it and out of it, the curve on. The machine
+/// comes to rest at the cusp and goes on, every set-point within the chords' tolerance
+/// (1 µm) and P of the curve, the limits kept, the end exact. Hand-worked cusps:
+/// P0 (0,0), P1 (10,10), P2 (0,10), P3 (10,0):
+/// B'(t) = 3[(1-t)²(10,10) + 2t(1-t)(-10,0) + t²(10,-10)] vanishes at t = 1/2, where
+/// B = (P0 + 3 P1 + 3 P2 + P3)/8 = (5, 7.5). The quadratic from (0,0) through (10,0) to
+/// (5,0) runs out and back along X: B'(t) = 2[(1-t)(10) + t(-5)] vanishes at t = 2/3,
+/// B = 4/9·10 + 4/9·5 = 20/3.
+#[test]
+fn a_spline_with_a_cusp_comes_to_rest_there_and_goes_on() {
+    let o = p3(0.0, 0.0, 0.0);
+    let cubic = [
+        o,
+        p3(10.0, 10.0, 0.0),
+        p3(0.0, 10.0, 0.0),
+        p3(10.0, 0.0, 0.0),
+    ];
+    let quadratic = [o, p3(10.0, 0.0, 0.0), p3(5.0, 0.0, 0.0)];
+    let cases = [
+        (
+            &cubic[..],
+            Bezier::Cubic([cubic[1], cubic[2]]),
+            p3(5.0, 7.5, 0.0),
+        ),
+        (
+            &quadratic[..],
+            Bezier::Quadratic(quadratic[1]),
+            p3(20.0 / 3.0, 0.0, 0.0),
+        ),
+    ];
+    for (pts, control, cusp) in cases {
+        let end = *pts.last().unwrap();
+        assert!(!control.is_followable(&o, &end));
+        for (mode, p) in [(PathMode::ExactPath, 0.0), (blend(0.01), 0.01)] {
+            let moves = cusp_moves(control, &o, &end, mode);
+            // The chords meet at the cusp, the parts join end to start.
+            let corner = moves
+                .iter()
+                .filter_map(|mv| match mv.kind {
+                    MoveKind::Line { end, .. } => Some(end),
+                    _ => None,
+                })
+                .map(|e| dist(&e, &cusp))
+                .fold(f64::INFINITY, f64::min);
+            assert!(corner <= 1e-12, "no chord ends at the cusp: {corner}");
+            let tr = spline_run(&moves, o);
+            // At rest on the cusp (the golden-section search finds t within 1e-9 and the
+            // curve is still there within 1e-12): a set-point on it whose steps to and
+            // from it are at most one period of the jerk (J·T³), as a stop's are.
+            let rests = tr.pts.windows(3).any(|w| {
+                dist(&w[1], &cusp) <= 1e-9
+                    && dist(&w[0], &w[1]) <= J * T * T * T
+                    && dist(&w[2], &w[1]) <= J * T * T * T
+            });
+            assert!(rests, "{mode:?}: does not come to rest at the cusp");
+            assert_eq!(*tr.pts.last().unwrap(), end);
+            let worst = tr
+                .pts
+                .iter()
+                .map(|q| distance_to_curve(pts, q))
+                .fold(0.0, f64::max);
+            assert!(
+                worst <= 1e-3 + p + 1e-9,
+                "a set-point is {worst} mm off the curve"
+            );
+        }
+    }
+}
+
+/// Near cusps (the curve turns on a radius below 0.1 µm without stopping) and a control
+/// point on an end point are cut the same way; a curve the planner follows is one part.
+#[test]
+fn near_cusps_and_ends_without_direction_are_cut_and_followable_curves_are_not() {
+    let o = p3(0.0, 0.0, 0.0);
+    let runs = [
+        // P2 a µm off the textbook cusp: the curve turns on a radius far below 0.1 µm.
+        [
+            o,
+            p3(10.0, 10.0, 0.0),
+            p3(0.000_001, 10.0, 0.0),
+            p3(10.0, 0.0, 0.0),
+        ],
+        // The first control point on the start point: no direction there.
+        [o, o, p3(0.0, 10.0, 0.0), p3(10.0, 10.0, 0.0)],
+    ];
+    for pts in runs {
+        let control = Bezier::Cubic([pts[1], pts[2]]);
+        assert!(!control.is_followable(&o, &pts[3]));
+        let moves = cusp_moves(control, &o, &pts[3], PathMode::ExactPath);
+        let tr = spline_run(&moves, o);
+        assert_eq!(*tr.pts.last().unwrap(), pts[3]);
+        let worst = tr
+            .pts
+            .iter()
+            .map(|q| distance_to_curve(&pts, q))
+            .fold(0.0, f64::max);
+        assert!(
+            worst <= 1e-3 + 1e-9,
+            "a set-point is {worst} mm off the curve"
+        );
+    }
+    let arch = [o, p3(1.0, 1.0, 0.0), p3(2.0, 1.0, 0.0), p3(3.0, 0.0, 0.0)];
+    let control = Bezier::Cubic([arch[1], arch[2]]);
+    let mut parts = Vec::new();
+    assert!(control.split_at_cusps(&o, &arch[3], 1e-3, &mut parts));
+    assert_eq!(
+        parts,
+        [CurvePart::Curve {
+            end: arch[3],
+            control
+        }]
+    );
 }

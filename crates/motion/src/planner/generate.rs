@@ -304,7 +304,15 @@ impl<K: Kinematics> Planner<K> {
         let mut a_stop = if p.a_to_stop.is_finite() && p.a_to_stop > 1e-3 * self.a_min {
             p.a_to_stop
         } else {
-            p.a_sub[0].min(self.a_min * BRAKE_SHARE_STRAIGHT)
+            // Its own deceleration at the braking curve is nearly 0 where a curve holds
+            // the speed at its centripetal limit: a model with it overshoots any stop,
+            // however far, and a whole curve in the window with tight loops at its ends
+            // (an epitrochoid's) braked in vain and emitted set-points up to 9000 × the
+            // jerk limit. Far from the stop the braking curve governs: at least half the
+            // weakest axis's deceleration.
+            p.a_sub[0]
+                .max(0.5 * self.a_min)
+                .min(self.a_min * BRAKE_SHARE_STRAIGHT)
         };
         let mut j_stop = if p.j_to_stop.is_finite() {
             p.j_to_stop
