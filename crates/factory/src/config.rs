@@ -52,7 +52,8 @@ pub struct OpcUaSection {
     /// Largest number of sessions at once.
     #[serde(default = "OpcUaSection::default_max_sessions")]
     pub max_sessions: usize,
-    /// umati identification (OPC 40501): manufacturer.
+    /// umati identification (OPC 40001-1): manufacturer. With `serial_number`, the machine
+    /// appears in the Machines folder.
     #[serde(default)]
     pub manufacturer: Option<String>,
     /// Model.

@@ -16,6 +16,30 @@ pub const CNC_NAMESPACE: &str = "http://opcfoundation.org/UA/CNC";
 /// The NodeSet (OPC Foundation MIT License 1.00, in its header).
 pub const CNC_NODESET: &str = include_str!("../nodesets/Opc.Ua.CNC.NodeSet.xml");
 
+/// OPC 10000-100, Devices (DI), whose vendor nameplate the machine identification uses.
+pub const DI_NAMESPACE: &str = "http://opcfoundation.org/UA/DI/";
+
+/// OPC 40001-1, Machinery: the Machines folder and the machine identification (umati).
+pub const MACHINERY_NAMESPACE: &str = "http://opcfoundation.org/UA/Machinery/";
+
+/// The DI NodeSet (OPC Foundation MIT License 1.00, in its header).
+pub const DI_NODESET: &str = include_str!("../nodesets/Opc.Ua.Di.NodeSet2.xml");
+
+/// The Machinery NodeSet (OPC Foundation MIT License 1.00, in its header).
+pub const MACHINERY_NODESET: &str = include_str!("../nodesets/Opc.Ua.Machinery.NodeSet2.xml");
+
+/// The DI and Machinery NodeSets, in the order they depend on each other.
+pub fn identification_imports() -> anyhow::Result<Vec<Box<dyn NodeSetImport>>> {
+    let load = |name: &str, xml: &str| {
+        NodeSet2Import::new_str("en", xml, Vec::new())
+            .map_err(|e| anyhow::anyhow!("the {name} NodeSet: {e}"))
+    };
+    Ok(vec![
+        Box::new(load("DI", DI_NODESET)?),
+        Box::new(load("Machinery", MACHINERY_NODESET)?),
+    ])
+}
+
 /// The CNC NodeSet without its example instance.
 pub struct CncTypes {
     inner: NodeSet2Import,

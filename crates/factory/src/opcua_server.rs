@@ -17,8 +17,8 @@ use opcua::server::node_manager::memory::{
 use opcua::server::{ServerBuilder, ServerEndpoint, ServerHandle};
 use opcua::types::{
     ByteString, DataTypeId, DataValue, DateTime, EUInformation, ExtensionObject, LocalizedText,
-    MessageSecurityMode, NodeId, ObjectId, QualifiedName, Range, StatusCode, UAString,
-    UserTokenPolicy, UserTokenType, VariableTypeId, Variant,
+    MessageSecurityMode, NodeId, ObjectId, ObjectTypeId, QualifiedName, Range, StatusCode,
+    UAString, UserTokenPolicy, UserTokenType, VariableTypeId, Variant,
 };
 use rtcnc_api::App;
 use rtcnc_api::models::{Event, Status};
@@ -480,6 +480,105 @@ fn build_model(app: &App, space: &mut AddressSpace, ns: u16, cnc: u16) -> Model 
     }
 }
 
+/// The machine in the Machines folder of OPC 40001-1 (Machinery), with its umati
+/// identification (`MachineIdentificationType`: manufacturer, model, serial number,
+/// software revision, year of construction, product instance URI) and the CncInterface
+/// organised below it. Made when the machine file names the manufacturer and the serial
+/// number, which the identification must have.
+fn identification(
+    app: &App,
+    section: &OpcUaSection,
+    space: &mut AddressSpace,
+    model: &Model,
+    di: u16,
+    machinery: u16,
+) {
+    let (Some(manufacturer), Some(serial)) = (&section.manufacturer, &section.serial_number) else {
+        return;
+    };
+    let ns = model.ns;
+    let machine = NodeId::new(ns, "Machine");
+    let name = app.config.machine.name.clone();
+    ObjectBuilder::new(
+        &machine,
+        QualifiedName::new(ns, name.as_str()),
+        name.as_str(),
+    )
+    .has_type_definition(ObjectTypeId::BaseObjectType)
+    .organized_by(NodeId::new(machinery, 1001u32))
+    .insert(space);
+    space.insert_reference(
+        &machine,
+        &model.interface,
+        opcua::types::ReferenceTypeId::Organizes,
+    );
+    let id = NodeId::new(ns, "Machine.Identification");
+    ObjectBuilder::new(
+        &id,
+        QualifiedName::new(di, "Identification"),
+        "Identification",
+    )
+    .has_type_definition(NodeId::new(machinery, 1012u32))
+    .component_of(machine.clone())
+    .insert(space);
+    let mut add = NodeAdder {
+        space,
+        ns,
+        cnc: model.cnc,
+    };
+    let model_name = section.model.clone().unwrap_or_else(|| name.clone());
+    let uri = format!(
+        "urn:{}:{}:{}",
+        slug(manufacturer),
+        slug(&model_name),
+        slug(serial)
+    );
+    add.property(
+        &id,
+        di,
+        "Manufacturer",
+        DataTypeId::LocalizedText,
+        Variant::from(LocalizedText::new("", manufacturer)),
+    );
+    add.property(
+        &id,
+        di,
+        "Model",
+        DataTypeId::LocalizedText,
+        Variant::from(LocalizedText::new("", &model_name)),
+    );
+    add.property(
+        &id,
+        di,
+        "SerialNumber",
+        DataTypeId::String,
+        Variant::from(serial.clone()),
+    );
+    add.property(
+        &id,
+        di,
+        "SoftwareRevision",
+        DataTypeId::String,
+        Variant::from(format!("rtcnc {}", env!("CARGO_PKG_VERSION"))),
+    );
+    add.property(
+        &id,
+        di,
+        "ProductInstanceUri",
+        DataTypeId::String,
+        Variant::from(uri),
+    );
+    if let Some(year) = section.year_of_construction {
+        add.property(
+            &id,
+            machinery,
+            "YearOfConstruction",
+            DataTypeId::UInt16,
+            Variant::from(year),
+        );
+    }
+}
+
 /// The mandatory variables of `CncDriveType` (`ActChannel` is added with the channel).
 fn drive_variables(add: &mut NodeAdder<'_>, id: &NodeId) {
     add.variable(id, "ActLoad", DataTypeId::Double, Some(cnc::PERCENT));
@@ -705,8 +804,12 @@ pub async fn start(app: Arc<App>, section: OpcUaSection) -> anyhow::Result<()> {
             anonymous: section.anonymous,
         }))
         .with_node_manager(simple_node_manager_imports(
-            vec![Box::new(CncTypes::load()?)],
-            "cnc types",
+            {
+                let mut imports = crate::nodeset::identification_imports()?;
+                imports.push(Box::new(CncTypes::load()?));
+                imports
+            },
+            "companion types",
         ))
         .with_node_manager(simple_node_manager(
             opcua::server::diagnostics::NamespaceMetadata {
@@ -768,7 +871,13 @@ pub async fn start(app: Arc<App>, section: OpcUaSection) -> anyhow::Result<()> {
         .ok_or_else(|| anyhow::anyhow!("OPC UA: the CNC namespace is missing"))?;
     let model = {
         let mut space = manager.address_space().write();
-        build_model(&app, &mut space, ns, cnc)
+        let model = build_model(&app, &mut space, ns, cnc);
+        let di = handle.get_namespace_index(crate::nodeset::DI_NAMESPACE);
+        let machinery = handle.get_namespace_index(crate::nodeset::MACHINERY_NAMESPACE);
+        if let (Some(di), Some(machinery)) = (di, machinery) {
+            identification(&app, &section, &mut space, &model, di, machinery);
+        }
+        model
     };
     tokio::spawn(async move {
         if let Err(e) = server.run_with(listener).await {

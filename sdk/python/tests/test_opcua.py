@@ -39,7 +39,8 @@ class Opc:
         self.port = free_port()
         config = machine_file(folder)
         config.write_text(config.read_text() + f'\n[opcua]\nenabled = true\nlisten = "127.0.0.1:{self.port}"\n'
-                          'manufacturer = "rtcnc tests"\nmodel = "sim mill"\nserial_number = "0001"\n')
+                          'manufacturer = "rtcnc tests"\nmodel = "sim mill"\nserial_number = "0001"\n'
+                          "year_of_construction = 2026\n")
         self.server = Server(folder, config=config)
         self.url = f"opc.tcp://127.0.0.1:{self.port}/"
         self.pki = folder / "opcua-pki"
@@ -296,3 +297,36 @@ def test_anonymous_and_wrong_passwords_are_refused(opc, user, password):
         assert "BadIdentityTokenInvalid" in text or "BadIdentityTokenRejected" in text, text
     else:
         assert "BadUserAccessDenied" in text, text
+
+
+def test_the_umati_identification_comes_from_the_machine_file(opc):
+    async def run():
+        c = await connect(opc, opc.client())
+        try:
+            di = await c.get_namespace_index("http://opcfoundation.org/UA/DI/")
+            machinery = await c.get_namespace_index("http://opcfoundation.org/UA/Machinery/")
+            cnc = await c.get_namespace_index(CNC)
+            machines = await c.nodes.objects.get_child([f"{machinery}:Machines"])
+            (machine,) = await machines.get_children()
+            ident = await machine.get_child([f"{di}:Identification"])
+            values = {}
+            for name in ("Manufacturer", "Model", "SerialNumber", "SoftwareRevision", "ProductInstanceUri"):
+                values[name] = await (await ident.get_child([f"{di}:{name}"])).read_value()
+            values["Year"] = await (await ident.get_child([f"{machinery}:YearOfConstruction"])).read_value()
+            values["Type"] = await ident.read_type_definition()
+            interface = await machine.get_child([f"{cnc}:CncInterface"])
+            values["Interface"] = interface.nodeid == (await node(c, "CncInterface")).nodeid
+            values["MachineName"] = (await machine.read_browse_name()).Name
+            return values, machinery
+        finally:
+            await c.disconnect()
+
+    values, machinery = asyncio.run(run())
+    assert values["MachineName"] == "Simulated 3-axis mill"
+    assert values["Manufacturer"].Text == "rtcnc tests" and values["Model"].Text == "sim mill"
+    assert values["SerialNumber"] == "0001" and values["Year"] == 2026
+    assert values["SoftwareRevision"].startswith("rtcnc ")
+    assert values["ProductInstanceUri"] == "urn:rtcnc-tests:sim-mill:0001"
+    # MachineIdentificationType, OPC 40001-1's i=1012 in the Machinery namespace.
+    assert values["Type"] == ua.NodeId(1012, machinery)
+    assert values["Interface"], "the machine organises its CncInterface"
