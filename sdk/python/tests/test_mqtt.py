@@ -33,7 +33,7 @@ class Broker:
     """mosquitto on a free port, users `rtcnc` and `reader`, its sessions persisted across
     a restart (as a production broker keeps them)."""
 
-    def __init__(self, folder: Path):
+    def __init__(self, folder: Path, tls: bool = False):
         self.folder = folder
         self.port = free_port()
         passwords = folder / "passwd"
@@ -45,7 +45,8 @@ class Broker:
         # pytest's folders); as anyone else it ignores the line.
         self.config.write_text(
             f"user {getpass.getuser()}\nlistener {self.port} 127.0.0.1\nallow_anonymous false\npassword_file {passwords}\n"
-            f"persistence true\npersistence_location {folder}/\nautosave_interval 1\n")
+            f"persistence true\npersistence_location {folder}/\nautosave_interval 1\n"
+            + (f"cafile {folder}/ca.pem\ncertfile {folder}/server.pem\nkeyfile {folder}/server.key\n" if tls else ""))
         self.process: subprocess.Popen | None = None
         self.start()
 
@@ -68,10 +69,22 @@ class Broker:
             self.process = None
 
 
+def make_certificates(folder: Path) -> None:
+    """A CA and the broker's certificate for localhost, made with openssl."""
+    def run(*args: str) -> None:
+        subprocess.run(["openssl", *args], cwd=folder, check=True, capture_output=True)
+    run("req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", "ca.key", "-out", "ca.pem", "-days", "2",
+        "-subj", "/CN=rtcnc test CA")
+    run("req", "-newkey", "rsa:2048", "-nodes", "-keyout", "server.key", "-out", "server.csr", "-subj", "/CN=localhost")
+    (folder / "san.ext").write_text("subjectAltName=DNS:localhost,IP:127.0.0.1\n")
+    run("x509", "-req", "-in", "server.csr", "-CA", "ca.pem", "-CAkey", "ca.key", "-CAcreateserial",
+        "-out", "server.pem", "-days", "2", "-extfile", "san.ext")
+
+
 class Subscriber:
     """paho, persistent session, QoS 1, reconnecting by itself."""
 
-    def __init__(self, port: int):
+    def __init__(self, port: int, ca: Path | None = None):
         self.messages: list[tuple[str, dict, bool]] = []
         self.lock = threading.Lock()
         self.client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id="pytest-reader", clean_session=False)
@@ -79,7 +92,9 @@ class Subscriber:
         self.client.reconnect_delay_set(0.2, 1)
         self.client.on_connect = lambda c, u, f, rc, p: c.subscribe(f"{PREFIX}/#", qos=1)
         self.client.on_message = self._on_message
-        self.client.connect("127.0.0.1", port, keepalive=5)
+        if ca is not None:
+            self.client.tls_set(ca_certs=str(ca))
+        self.client.connect("localhost" if ca is not None else "127.0.0.1", port, keepalive=5)
         self.client.loop_start()
 
     def _on_message(self, client, userdata, msg):
@@ -195,3 +210,23 @@ def test_no_alarm_is_lost_while_the_broker_is_away(setup):
     seqs = [a["seq"] for a in subscriber.on("alarm")]
     # At least once (QoS 1): a repeat is allowed, a loss or a change of order is not.
     assert list(dict.fromkeys(q for q in seqs if q in while_away)) == while_away
+
+
+def test_tls_to_the_broker(tmp_path):
+    make_certificates(tmp_path)
+    broker = Broker(tmp_path, tls=True)
+    subscriber = Subscriber(broker.port, ca=tmp_path / "ca.pem")
+    (tmp_path / "mqtt-password").write_text("publisher-password\n")
+    config = machine_file(tmp_path)
+    config.write_text(config.read_text() + (
+        f'\n[mqtt]\nenabled = true\nhost = "localhost"\nport = {broker.port}\ntopic_prefix = "{PREFIX}"\n'
+        'username = "rtcnc"\npassword_file = "mqtt-password"\ntls = true\nca_certificate = "ca.pem"\n'))
+    server = Server(tmp_path, config=config)
+    try:
+        subscriber.wait(lambda: subscriber.on("state") and subscriber.on("online"))
+        assert subscriber.on("online")[-1] is True
+        subscriber.wait(lambda: len(subscriber.on("position")) >= 3)
+    finally:
+        subscriber.close()
+        server.stop()
+        broker.stop()
