@@ -315,6 +315,71 @@ mod tests {
         );
     }
 
+    fn status(state: &str, mode: &str, line: u32, ended: bool) -> Status {
+        let mut s: Status = serde_json::from_value(serde_json::json!({
+            "machine": "m", "connected": true, "cycle": 0, "time_s": 0.0, "state": state,
+            "mode": mode, "line": line, "program": "p.ngc", "program_ended": ended,
+            "ready": true, "estop_input": false, "machine_position": {}, "work_position": {},
+            "distance_to_go": {}, "joints": [], "path_speed": 0.0,
+            "overrides": {"feed": 1.0, "rapid": 1.0, "spindle": 1.0},
+            "spindle": {"on": false, "direction": "off", "rpm": 0.0, "command_rpm": 0.0},
+            "mist": false, "flood": false, "tool": 0, "modal": null, "digital_inputs": 0,
+            "digital_outputs": 0, "analog_inputs": [], "plc_watch": [], "single_block": false,
+            "optional_stop": false, "block_delete": false, "logic_hold": false, "hold": null,
+            "hold_message": null, "fault_count": 0, "last_fault": null, "deadline_misses": 0,
+            "lease_holder": null,
+            "link": {"client_losses": 0, "events_dropped": 0, "trace_dropped": 0}
+        }))
+        .unwrap();
+        s.state = state.into();
+        s
+    }
+
+    /// OPC 40502's meanings: a program stopped by an e-stop before its end is Canceled; one
+    /// that ended, or an e-stop at rest, is Stopped; a feed hold interrupts the channel.
+    #[test]
+    fn program_and_channel_status() {
+        let p = |st, mode, line, ended| program_status(&status(st, mode, line, ended));
+        assert_eq!(p("estop", "auto", 12, false), ProgramStatus::Canceled);
+        assert_eq!(p("estop", "auto", 12, true), ProgramStatus::Stopped);
+        assert_eq!(p("estop", "manual", 0, false), ProgramStatus::Stopped);
+        assert_eq!(p("held", "auto", 3, false), ProgramStatus::Interrupted);
+        assert_eq!(
+            p("waiting_for_logic", "auto", 3, false),
+            ProgramStatus::Waiting
+        );
+        let c = |st| channel_status(&status(st, "auto", 1, false));
+        assert_eq!(c("held"), ChannelStatus::Interrupted);
+        assert_eq!(c("running"), ChannelStatus::Active);
+        assert_eq!(c("idle"), ChannelStatus::Reset);
+    }
+
+    #[test]
+    fn spindle_status_against_its_command() {
+        let mut s = status("running", "auto", 1, false);
+        s.spindle.on = true;
+        s.spindle.command_rpm = 1000.0;
+        for (rpm, want) in [
+            (500.0, SpindleStatus::Accelerating),
+            (985.0, SpindleStatus::InTargetArea),
+            (1015.0, SpindleStatus::InTargetArea),
+            (1100.0, SpindleStatus::Decelerating),
+        ] {
+            s.spindle.rpm = rpm;
+            assert_eq!(spindle_status(&s), want, "{rpm} rpm");
+        }
+        s.spindle.on = false;
+        s.spindle.command_rpm = 0.0;
+        s.spindle.rpm = 300.0;
+        assert_eq!(
+            spindle_status(&s),
+            SpindleStatus::Decelerating,
+            "coasting down"
+        );
+        s.spindle.rpm = 0.0;
+        assert_eq!(spindle_status(&s), SpindleStatus::Stopped);
+    }
+
     #[test]
     fn unece_unit_ids() {
         // OPC 10000-8's own example: "MTR" (metre) is 5067858.

@@ -910,8 +910,20 @@ async fn feed_values(
     let mut rx = app.machine.status_watch();
     let mut last: HashMap<NodeId, Value> = HashMap::new();
     let mut program: Option<(String, Vec<String>)> = None;
+    let mut connected = true;
     loop {
         let status = rx.borrow_and_update().clone();
+        // While the machine process is gone the values are its last ones: every value is set
+        // again with a status that says so, and again when it is back.
+        if status.connected != connected {
+            connected = status.connected;
+            last.clear();
+        }
+        let good_status = if connected {
+            StatusCode::Good
+        } else {
+            StatusCode::UncertainLastUsableValue
+        };
         // The program's text, read again when another program is loaded.
         let name = status.program.clone().unwrap_or_default();
         if program.as_ref().is_none_or(|(n, _)| *n != name) {
@@ -937,7 +949,7 @@ async fn feed_values(
                 let dv = match &v {
                     Value::Good(x) => DataValue {
                         value: Some(x.clone()),
-                        status: Some(StatusCode::Good),
+                        status: Some(good_status),
                         source_timestamp: Some(now),
                         server_timestamp: Some(now),
                         ..Default::default()

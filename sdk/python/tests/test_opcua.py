@@ -330,3 +330,37 @@ def test_the_umati_identification_comes_from_the_machine_file(opc):
     # MachineIdentificationType, OPC 40001-1's i=1012 in the Machinery namespace.
     assert values["Type"] == ua.NodeId(1012, machinery)
     assert values["Interface"], "the machine organises its CncInterface"
+
+
+class Statuses:
+    def __init__(self):
+        self.codes: list[str] = []
+
+    def datachange_notification(self, node, val, data):
+        self.codes.append(data.monitored_item.Value.StatusCode.name)
+
+
+def test_values_are_uncertain_while_the_machine_process_is_gone(opc):
+    async def run():
+        c = await connect(opc, opc.client())
+        try:
+            h = Statuses()
+            sub = await c.create_subscription(10, h)
+            # A DataChangeFilter with the StatusValue trigger, asked for explicitly: without a
+            # filter async-opcua 0.19 reports value changes only (docs/opcua.md).
+            await sub.deadband_monitor(await node(c, *CHANNEL, "ToolId"), 0, deadbandtype=0)
+            await asyncio.sleep(0.3)
+            await asyncio.to_thread(opc.server.kill_machine)
+            end = time.monotonic() + 30
+            while time.monotonic() < end and not ("UncertainLastUsableValue" in h.codes and h.codes[-1] == "Good"):
+                await asyncio.sleep(0.05)
+            return h.codes
+        finally:
+            await c.disconnect()
+
+    codes = asyncio.run(run())
+    assert codes[0] == "Good"
+    gone = codes.index("UncertainLastUsableValue")
+    assert "Good" in codes[gone:], "Good again once the machine process is back"
+    opc.server.wait_ready()
+    opc.operator = None
