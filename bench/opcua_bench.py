@@ -202,17 +202,25 @@ def main() -> None:
     b = Bench(opcua=True)
     try:
         r = rate_and_latency(b)
-        print("OPC UA subscription to X's position while it moves (sampling and publishing 10 ms):")
-        print(f"  {r['rate']:.0f} updates/s (the API's status comes at 100/s)")
-        print(f"feed override set over the API -> the OPC UA client has the new ActOverride "
-              f"({len(r['e2e'])} samples, {r['lost']} not seen within 2 s):")
-        print(f"  end to end        p50 {pct(r['e2e'], 50):.1f} ms  p99 {pct(r['e2e'], 99):.1f} ms  max {max(r['e2e']):.1f} ms")
-        print(f"  from the value's source timestamp (set in the API process) p50 {pct(r['src'], 50):.1f} ms"
-              f"  p99 {pct(r['src'], 99):.1f} ms")
-        quiet = program_phase(b, 0)
-        busy = program_phase(b, CLIENTS)
     finally:
         b.stop()
+    print("OPC UA subscription to X's position while it moves (sampling and publishing 10 ms):")
+    print(f"  {r['rate']:.0f} updates/s (the API's status comes at 100/s)")
+    print(f"feed override set over the API -> the OPC UA client has the new ActOverride "
+          f"({len(r['e2e'])} samples, {r['lost']} not seen within 2 s):")
+    print(f"  end to end        p50 {pct(r['e2e'], 50):.1f} ms  p99 {pct(r['e2e'], 99):.1f} ms  max {max(r['e2e']):.1f} ms")
+    print(f"  from the value's source timestamp (set in the API process) p50 {pct(r['src'], 50):.1f} ms"
+          f"  p99 {pct(r['src'], 99):.1f} ms")
+    # Each run in processes of its own (the OPC UA server on in both), so each run's worst
+    # wake-up is its own.
+    phases = []
+    for clients in (0, CLIENTS):
+        b = Bench(opcua=True)
+        try:
+            phases.append(program_phase(b, clients))
+        finally:
+            b.stop()
+    quiet, busy = phases
     print(f"program at 1 kHz for {DURATION:.0f} s:                         deadline misses   worst wake-up   end state")
     print(f"  without OPC UA clients                             {quiet['misses']:8d}   {quiet['worst_us']:10.0f} us   {quiet['state']}")
     print(f"  {CLIENTS} clients (Basic256Sha256, 3 items, {PUBLISH_MS:.0f} ms)       {busy['misses']:8d}"
