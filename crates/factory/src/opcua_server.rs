@@ -852,9 +852,25 @@ pub async fn start(app: Arc<App>, section: OpcUaSection) -> anyhow::Result<()> {
     if section.allow_unsecured {
         builder = builder.add_endpoint("none", ServerEndpoint::new_none("/", &[]));
     }
+    // The folder holds the server's private key: its owner's only, before the key is made
+    // in it, and the key file too.
+    {
+        use std::os::unix::fs::PermissionsExt as _;
+        std::fs::create_dir_all(&pki).map_err(|e| anyhow::anyhow!("{}: {e}", pki.display()))?;
+        std::fs::set_permissions(&pki, std::fs::Permissions::from_mode(0o700))
+            .map_err(|e| anyhow::anyhow!("{}: {e}", pki.display()))?;
+    }
     let (server, handle) = builder
         .build()
         .map_err(|e| anyhow::anyhow!("OPC UA server: {e}"))?;
+    {
+        use std::os::unix::fs::PermissionsExt as _;
+        let key = pki.join("private").join("private.pem");
+        if key.exists() {
+            std::fs::set_permissions(&key, std::fs::Permissions::from_mode(0o600))
+                .map_err(|e| anyhow::anyhow!("{}: {e}", key.display()))?;
+        }
+    }
     let listener = tokio::net::TcpListener::bind(section.listen)
         .await
         .map_err(|e| anyhow::anyhow!("OPC UA: listening on {}: {e}", section.listen))?;

@@ -79,6 +79,9 @@ def opc(tmp_path_factory):
         with pytest.raises(Exception):
             await connect(o, c)
     asyncio.run(first())
+    # The server's private key, made on the first start, is its owner's only.
+    assert (o.pki.stat().st_mode & 0o077) == 0
+    assert ((o.pki / "private" / "private.pem").stat().st_mode & 0o077) == 0
     rejected = list((o.pki / "rejected").glob("*.der"))
     assert rejected, "the refused client's certificate is kept in pki/rejected"
     (o.pki / "trusted").mkdir(exist_ok=True)
