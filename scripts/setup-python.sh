@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Creates the Python environment of the client's tests (target/python-venv) and installs
-# the client (sdk/python) with pytest into it. Safe to run again.
+# the client (sdk/python) with its test requirements (pytest; asyncua and paho-mqtt, the
+# independent OPC UA and MQTT clients) into it. Safe to run again.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 venv=target/python-venv
@@ -11,6 +12,6 @@ fi
 stamp="$venv/.installed"
 if [ ! -f "$stamp" ] || [ sdk/python/pyproject.toml -nt "$stamp" ]; then
   "$venv/bin/python" -m pip install -q --upgrade pip >/dev/null
-  "$venv/bin/python" -m pip install -q "pytest>=7" -e ./sdk/python
+  "$venv/bin/python" -m pip install -q -e "./sdk/python[test]"
   touch "$stamp"
 fi

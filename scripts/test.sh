@@ -5,8 +5,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # openssl makes the TLS test's certificate; binutils' objdump reads the glibc version the
-# Debian package depends on; Chromium runs the web HMI's end-to-end tests.
-scripts/setup.sh openssl binutils chromium-headless-shell
+# Debian package depends on; Chromium runs the web HMI's end-to-end tests; mosquitto is the
+# MQTT broker of the publisher's tests.
+scripts/setup.sh openssl binutils chromium-headless-shell mosquitto
 
 # Property tests draw from a fixed seed here, so a commit passes or fails the same way every
 # time; the long randomised runs live in scripts/ and bench/ and pick fresh seeds.

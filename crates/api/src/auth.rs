@@ -262,6 +262,22 @@ impl Auth {
         ))
     }
 
+    /// The user whose password this is, for surfaces with log-ins of their own (OPC UA):
+    /// no session is made. An unknown user costs the same time as a wrong password.
+    pub fn verify_password(&self, user: &str, password: &str) -> Option<User> {
+        let found = {
+            let users = self.users.lock().unwrap_or_else(|e| e.into_inner());
+            users.iter().find(|u| u.name == user).cloned()
+        };
+        match found {
+            Some(u) => verify(password, &u.hash).then_some(u),
+            None => {
+                let _ = verify(password, &self.dummy_hash);
+                None
+            }
+        }
+    }
+
     /// Session lifetime.
     pub fn ttl(&self) -> Duration {
         self.ttl

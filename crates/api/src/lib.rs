@@ -454,6 +454,16 @@ pub fn ws_keep_alive(app: &App, caller: &routes::Caller, axis: &str) -> Result<(
 
 /// Runs the API server until SIGINT or SIGTERM.
 pub fn run(options: ApiOptions) -> anyhow::Result<()> {
+    run_with(options, |_| Ok(()))
+}
+
+/// Runs the API server until SIGINT or SIGTERM, with more surfaces of the same process
+/// (OPC UA, MQTT): `surfaces` is called inside the server's Tokio runtime before it listens,
+/// to spawn their tasks over the same machine connection.
+pub fn run_with(
+    options: ApiOptions,
+    surfaces: impl FnOnce(Arc<App>) -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
     let config = MachineConfig::load(&options.config_path).map_err(|e| {
         anyhow::anyhow!(
             "machine configuration {}: {e}",
@@ -500,6 +510,7 @@ pub fn run(options: ApiOptions) -> anyhow::Result<()> {
         .enable_all()
         .build()?;
     let result = runtime.block_on(async move {
+        surfaces(Arc::clone(&app))?;
         let service = router(Arc::clone(&app)).into_make_service_with_connect_info::<ClientAddr>();
         let tcp = tokio::net::TcpListener::bind(options.listen)
             .await

@@ -930,6 +930,14 @@ pub struct MachineConfig {
     /// `[motion]`.
     #[serde(default)]
     pub motion: MotionSection,
+    /// `[opcua]`: the OPC UA server of the API process; read and checked by
+    /// `rtcnc-factory`, which the machine process does not need.
+    #[serde(default)]
+    pub opcua: Option<toml::Table>,
+    /// `[mqtt]`: the MQTT publisher of the API process; read and checked by
+    /// `rtcnc-factory`.
+    #[serde(default)]
+    pub mqtt: Option<toml::Table>,
     /// Folder of the file (paths are relative to it); set by [`MachineConfig::load`].
     #[serde(skip)]
     pub base_dir: PathBuf,

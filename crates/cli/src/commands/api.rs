@@ -134,6 +134,6 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
         session_ttl: Duration::from_secs(args.session_seconds.max(1)),
         max_upload_bytes: args.max_upload,
     };
-    rtcnc_api::run(options)?;
+    rtcnc_api::run_with(options, rtcnc_factory::start)?;
     Ok(ExitCode::SUCCESS)
 }

@@ -78,6 +78,12 @@ impl Supervised {
 pub fn run(mut args: ServeArgs) -> anyhow::Result<ExitCode> {
     // Located once here: both processes get the machine file's path.
     args.api.machine = crate::machines::locate(&args.api.machine)?;
+    // The API process reads [opcua] and [mqtt]; a mistake there is said once here, not at
+    // every restart of that process.
+    let config = rtcnc_kernel::MachineConfig::load(&args.api.machine)
+        .map_err(|e| anyhow::anyhow!("machine configuration: {e}"))?;
+    rtcnc_factory::FactoryConfig::from_machine(&config)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", args.api.machine.display()))?;
     let segment = args
         .api
         .segment
