@@ -172,7 +172,7 @@ impl NurbsCurve {
     }
 
     /// The curve as cubic Bézier curves `[start, control 1, control 2, end]`, each within
-    /// `tolerance` of the curve at every parameter (compared at [`CHECKS`] inner points of
+    /// `tolerance` of the curve at every parameter (compared at 16 inner points of
     /// its interval), appended to `out` in order; the first starts at the first control
     /// point, the last ends at the last one.
     ///
