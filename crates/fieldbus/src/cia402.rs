@@ -308,8 +308,18 @@ impl StatusWord {
     pub const WARNING: u16 = 1 << 7;
     /// Bit 9: remote (the controlword is in charge).
     pub const REMOTE: u16 = 1 << 9;
+    /// Bit 10: target reached; in quick stop active, the drive stands at the end of its
+    /// quick-stop ramp.
+    pub const TARGET_REACHED: u16 = 1 << 10;
     /// Bit 11: internal limit active (here: the torque limit).
     pub const INTERNAL_LIMIT: u16 = 1 << 11;
+
+    /// Bit 10, target reached.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
+    pub const fn target_reached(self) -> bool {
+        self.0 & Self::TARGET_REACHED != 0
+    }
 
     /// The state bits of `state` (bits 0-3, 5, 6) as the standard's table gives them.
     ///

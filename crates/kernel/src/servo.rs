@@ -273,7 +273,14 @@ impl<B: Fieldbus> ServoStage<B> {
                 continue;
             }
             command.controlword = if self.servo_fault {
-                if state == Cia402State::OperationEnabled || state == Cia402State::QuickStopActive {
+                // The drive's own quick stop, then off (stop category 1): from quick stop
+                // active, "disable voltage" once the drive reports it stands.
+                if state == Cia402State::QuickStopActive && feedback.statusword.target_reached()
+                {
+                    ControlWord::disable_voltage()
+                } else if state == Cia402State::OperationEnabled
+                    || state == Cia402State::QuickStopActive
+                {
                     ControlWord::quick_stop()
                 } else {
                     state.controlword_towards(false)

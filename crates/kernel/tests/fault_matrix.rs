@@ -9,6 +9,7 @@ use common::*;
 use std::time::Duration;
 
 use rtcnc_ecat_slave_sim::Fault as SegmentFault;
+use rtcnc_fieldbus::Cia402State;
 use rtcnc_fieldbus::sim::InjectedFault;
 use rtcnc_kernel::{
     FaultCode, Kernel, KernelOptions, MachineConfig, MachineState, Simulation, Urgent,
@@ -26,6 +27,9 @@ struct Stop {
     time_ms: f64,
     faults: Vec<FaultCode>,
     state: MachineState,
+    /// Joints whose drive still holds torque (operation enabled or quick stop active) at
+    /// the end, as the drives know it; `None` where not measured.
+    drives_holding: Option<Vec<usize>>,
 }
 
 /// One way to cause a fault, done when X passes `AT_X` (or, for the faults the machine
@@ -227,11 +231,22 @@ fn measure(cause: Cause) -> Stop {
     let start = m.sim.now().as_millis() as usize - trace.x.len();
     let i0 = t0.saturating_sub(start).min(trace.x.len() - 1);
     let stood = trace.x.len() - 50;
+    let drives_holding = m.handle_machine(|machine| {
+        (0..3)
+            .filter(|&j| {
+                matches!(
+                    machine.drive_state(j),
+                    Some(Cia402State::OperationEnabled | Cia402State::QuickStopActive)
+                )
+            })
+            .collect()
+    });
     Stop {
         travel_mm: trace.x[stood] - trace.x[i0],
         time_ms: (stood - i0) as f64,
         faults: m.faults.iter().map(|f| f.code).collect(),
         state: m.status().state,
+        drives_holding: Some(drives_holding),
     }
 }
 
@@ -307,6 +322,15 @@ fn assert_within_row(row: &Row, stop: &Stop) {
         row.fault,
         stop.state
     );
+    // 50 periods after the load stood, no drive holds torque (a following error left the
+    // drives in their quick stop, powered, for ever: category 2, not 1).
+    if let Some(holding) = &stop.drives_holding {
+        assert!(
+            holding.is_empty(),
+            "{}: drives of joints {holding:?} still hold torque",
+            row.fault
+        );
+    }
 }
 
 #[test]
@@ -398,6 +422,8 @@ fn measure_bus(cause: BusCause) -> (Stop, String) {
         time_ms: (stood - i0) as f64,
         faults: m.faults.iter().map(|f| f.code).collect(),
         state: m.status().state,
+        // The simulated EtherCAT devices' drive states are not read here.
+        drives_holding: None,
     };
     (stop, text)
 }

@@ -9,6 +9,10 @@ use crate::sim::composed::{ComposedCycle, LinearDrive};
 use crate::sim::config::{SimulatedJointConfig, SwitchRange};
 use crate::sim::motor::MotorModel;
 
+/// Below this speed (units/s) the drive reports a quick stop done (CiA 402's velocity
+/// window, 0x606D).
+const STANDSTILL_WINDOW: f64 = 0.01;
+
 /// What the machine tells every drive about one cycle.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct CycleConditions {
@@ -564,6 +568,14 @@ impl SimulatedJoint {
         }
         if self.torque_limited {
             status |= StatusWord::INTERNAL_LIMIT;
+        }
+        // A quick stop is done once its ramp has reached zero and the load stands within
+        // the velocity window (0x606D's role).
+        if self.state == Cia402State::QuickStopActive
+            && self.quick_stop_velocity == 0.0
+            && self.motor.velocity().abs() <= STANDSTILL_WINDOW
+        {
+            status |= StatusWord::TARGET_REACHED;
         }
         let true_position = self.motor.position();
         *feedback = JointFeedback {
