@@ -47,6 +47,7 @@ fn describe(t: &Tok) -> String {
         Tok::Time(_) => "duration literal".into(),
         Tok::Moment(..) => "date or time-of-day literal".into(),
         Tok::Str(_) => "string literal".into(),
+        Tok::WStr(_) => "WSTRING literal".into(),
         Tok::TypedPrefix(s) => format!("'{s}#'"),
         Tok::Direct(d) => format!("'{d}'"),
         Tok::Eof => "end of file".into(),
@@ -429,7 +430,8 @@ impl Parser<'_> {
             };
             return Ok(TypeSpec::Enum { values, base, pos });
         }
-        if self.is_kw("STRING") {
+        if self.is_kw("STRING") || self.is_kw("WSTRING") {
+            let wide = self.is_kw("WSTRING");
             self.bump();
             let len = if self.eat(&Tok::LBracket) {
                 let e = self.expr()?;
@@ -443,7 +445,7 @@ impl Parser<'_> {
             } else {
                 None
             };
-            return Ok(TypeSpec::String { len, pos });
+            return Ok(TypeSpec::String { len, wide, pos });
         }
         let base = self.name()?;
         if self.peek() == &Tok::LParen {
@@ -1229,7 +1231,12 @@ impl Parser<'_> {
             k += 1;
         }
         match self.peek_at(k) {
-            Tok::Int(_) | Tok::Real(_) | Tok::Str(_) | Tok::Time(_) | Tok::Moment(..) => {}
+            Tok::Int(_)
+            | Tok::Real(_)
+            | Tok::Str(_)
+            | Tok::WStr(_)
+            | Tok::Time(_)
+            | Tok::Moment(..) => {}
             Tok::TypedPrefix(_) => {
                 k += 1;
             }
@@ -1478,6 +1485,10 @@ impl Parser<'_> {
             Tok::Str(s) => {
                 self.bump();
                 Ok(Expr::Lit(Literal::Str(s), pos))
+            }
+            Tok::WStr(s) => {
+                self.bump();
+                Ok(Expr::Lit(Literal::WStr(s), pos))
             }
             Tok::Direct(d) => {
                 self.bump();
