@@ -462,7 +462,10 @@ impl Lexer<'_> {
         let mut out = Vec::new();
         loop {
             if self.i >= self.src.len() || self.peek(0) == b'\n' {
-                return Err(self.err(pos, "string literal is not closed"));
+                return Err(self.err(
+                    pos,
+                    "string literal is not closed: ' expected before the end of the line",
+                ));
             }
             let c = self.bump();
             match c {
@@ -510,7 +513,10 @@ impl Lexer<'_> {
         let mut out: Vec<u16> = Vec::new();
         loop {
             if self.i >= self.src.len() || self.peek(0) == b'\n' {
-                return Err(self.err(pos, "WSTRING literal is not closed: '\"' expected"));
+                return Err(self.err(
+                    pos,
+                    "WSTRING literal is not closed: '\"' expected before the end of the line",
+                ));
             }
             let c = self.bump();
             match c {
