@@ -162,3 +162,27 @@ fn a_wstring_can_be_watched_and_forced_like_a_string() {
     assert_eq!(string(&rt, "w"), "ÅÉ€");
     assert_eq!(int(&rt, "n"), 3);
 }
+
+#[test]
+fn a_retained_wstring_survives_a_restart_through_the_file() {
+    let dir = std::env::temp_dir().join(format!("rtcnc-plc-wretain-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("retain.txt");
+    let src = "PROGRAM P VAR RETAIN label : WSTRING(12); END_VAR
+IF LEN(label) = 0 THEN label := \"Grüße $\"€$\" $$\"; END_IF
+END_PROGRAM";
+    let mut a = plc(src);
+    a.scan(ms(0)).unwrap();
+    a.save_retain(&path).unwrap();
+    let mut b = plc(src);
+    let report = b.load_retain(&path).unwrap();
+    assert_eq!((report.restored, report.skipped), (1, 0));
+    assert_eq!(string(&b, "label"), "Grüße \"€\" $");
+    let n = eval(
+        "n : INT; w : WSTRING := \"Grüße $\"€$\" $$\";",
+        "n := LEN(w);",
+    );
+    // G r ü ß e, space, quote, €, quote, space, $: eleven code units.
+    assert_eq!(int(&n, "n"), 11);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
