@@ -589,7 +589,7 @@ fn string_function(c: &mut Compiler, f: &str, a: Vec<(TE, Pos)>, pos: Pos) -> R<
             });
         }
     }
-    let dest = c.new_string_temp(pos)?;
+    let dest = c.new_string_temp(pos, wide)?;
     let ty = if wide {
         Type::WString(MAX_STRING_LEN)
     } else {
@@ -791,7 +791,7 @@ fn conversion(c: &mut Compiler, f: &str, args: &[Arg], sc: &mut Scope, pos: Pos)
 /// A STRING or WSTRING at `xe` copied into a new string temporary as a WSTRING (`wide`)
 /// or a STRING.
 fn recode(c: &mut Compiler, xe: vm::Expr, wide: bool, pos: Pos) -> R<TE> {
-    let dest = c.new_string_temp(pos)?;
+    let dest = c.new_string_temp(pos, wide)?;
     let ty = if wide {
         Type::WString(MAX_STRING_LEN)
     } else {
@@ -912,7 +912,7 @@ fn conversion_argument(
 
 /// A value of elementary type `s` as text, into a new string temporary.
 fn to_string(c: &mut Compiler, s: Elem, xe: vm::Expr, pos: Pos) -> R<vm::Expr> {
-    let dest = c.new_string_temp(pos)?;
+    let dest = c.new_string_temp(pos, false)?;
     let b = if s == Elem::Bool {
         Builtin::BoolToStr
     } else if s.is_real() {

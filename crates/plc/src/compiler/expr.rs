@@ -449,9 +449,13 @@ impl<'a> Compiler<'a> {
         })
     }
 
-    /// A string temporary, large enough for a STRING or a WSTRING of the longest length.
-    pub(super) fn string_temp(&mut self, pos: Pos) -> R<u32> {
-        self.alloc(crate::types::wstring_slots(MAX_STRING_LEN), pos)
+    /// A temporary for a STRING, or a WSTRING if `wide`, of the longest length.
+    pub(super) fn string_temp(&mut self, pos: Pos, wide: bool) -> R<u32> {
+        if wide {
+            self.alloc(crate::types::wstring_slots(MAX_STRING_LEN), pos)
+        } else {
+            self.alloc(string_slots(MAX_STRING_LEN), pos)
+        }
     }
 
     pub(super) fn expr(&mut self, e: &AExpr, sc: &mut Scope, expect: Option<&Type>) -> R<TE> {

@@ -1171,8 +1171,8 @@ impl Compiler<'_> {
     pub(crate) fn folded(&self, e: vm::Expr) -> vm::Expr {
         self.fold(e)
     }
-    pub(crate) fn new_string_temp(&mut self, pos: Pos) -> R<u32> {
-        self.string_temp(pos)
+    pub(crate) fn new_string_temp(&mut self, pos: Pos, wide: bool) -> R<u32> {
+        self.string_temp(pos, wide)
     }
     pub(crate) fn type_label(&self, t: &Ty) -> String {
         self.ty_name(t)
