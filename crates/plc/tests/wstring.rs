@@ -186,3 +186,18 @@ END_PROGRAM";
     assert_eq!(int(&n, "n"), 11);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn arrays_of_wstring_start_empty_and_wide() {
+    // An element never written is an empty WSTRING: CONCAT of it keeps the result wide,
+    // so "ä" (U+00E4, one code unit) stays one character.
+    let rt = eval(
+        "names : ARRAY[1..3] OF WSTRING(4); n, k : INT;",
+        "names[2] := CONCAT(names[1], \"ä\"); n := LEN(names[2]);
+         FOR k := 1 TO 3 DO names[3] := CONCAT(names[3], \"€\"); END_FOR;",
+    );
+    assert_eq!(string(&rt, "names[1]"), "");
+    assert_eq!(string(&rt, "names[2]"), "ä");
+    assert_eq!(int(&rt, "n"), 1);
+    assert_eq!(string(&rt, "names[3]"), "€€€");
+}
