@@ -157,7 +157,10 @@ END_PROGRAM",
 #[test]
 fn a_wstring_can_be_watched_and_forced_like_a_string() {
     let mut rt = plc("PROGRAM P VAR w : WSTRING(8); n : INT; END_VAR n := LEN(w); END_PROGRAM");
-    set(&mut rt, "w", rtcnc_plc::Value::String("ÅÉ€".into()));
+    let w = rt.resolve("w").unwrap();
+    let value = rt.parse_value(&w, "\"ÅÉ€\"").unwrap();
+    assert_eq!(value, rtcnc_plc::Value::String("ÅÉ€".into()));
+    set(&mut rt, "w", value);
     rt.scan(ms(0)).expect("scan");
     assert_eq!(string(&rt, "w"), "ÅÉ€");
     assert_eq!(int(&rt, "n"), 3);

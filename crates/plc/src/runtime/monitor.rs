@@ -138,10 +138,16 @@ impl Runtime {
         match (&var.ty, var.bit) {
             (_, Some(_)) => Value::parse(text, Elem::Bool),
             (Type::String(_) | Type::WString(_), None) => {
+                // 'text' for a STRING, "text" for a WSTRING, or the bare text.
+                let quote = if matches!(var.ty, Type::WString(_)) {
+                    '"'
+                } else {
+                    '\''
+                };
                 let t = text.trim();
                 let t = t
-                    .strip_prefix('\'')
-                    .and_then(|x| x.strip_suffix('\''))
+                    .strip_prefix(quote)
+                    .and_then(|x| x.strip_suffix(quote))
                     .unwrap_or(t);
                 Ok(Value::String(t.to_string()))
             }
