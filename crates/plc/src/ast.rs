@@ -50,6 +50,8 @@ pub(crate) enum TypeSpec {
     Named(Name),
     String {
         len: Option<Expr>,
+        /// WSTRING.
+        wide: bool,
         pos: Pos,
     },
     Array {
@@ -208,6 +210,8 @@ pub(crate) enum Literal {
     Real(f64),
     Time(i128),
     Str(Vec<u8>),
+    /// A WSTRING literal in UTF-16 code units.
+    WStr(Vec<u16>),
     Bool(bool),
     Moment(crate::dates::Moment, i64),
 }

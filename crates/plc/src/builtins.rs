@@ -153,8 +153,8 @@ fn int_or_lit(t: &Ty) -> bool {
 
 fn string_arg(c: &Compiler, fname: &str, a: (TE, Pos)) -> R<vm::Expr> {
     match &a.0.ty {
-        Ty::T(Type::String(_)) => Ok(Compiler::te_parts(a.0).1),
-        t => Err(wrong(c, fname, t, a.1, "a STRING")),
+        Ty::T(t) if t.is_string() => Ok(Compiler::te_parts(a.0).1),
+        t => Err(wrong(c, fname, t, a.1, "a STRING or WSTRING")),
     }
 }
 
@@ -540,6 +540,11 @@ fn length(c: &mut Compiler, f: &str, mut a: Vec<(TE, Pos)>, pos: Pos) -> R<TE> {
 /// `FIND`: where a string occurs in another.
 fn find(c: &mut Compiler, f: &str, mut a: Vec<(TE, Pos)>, pos: Pos) -> R<TE> {
     count(c, f, &a, 2, 2, pos)?;
+    let wide = |x: &(TE, Pos)| matches!(x.0.ty, Ty::T(Type::WString(_)));
+    if wide(&a[0]) != wide(&a[1]) {
+        let want = if wide(&a[0]) { "a WSTRING" } else { "a STRING" };
+        return Err(wrong(c, f, &a[1].0.ty, a[1].1, want));
+    }
     let s1 = string_arg(c, f, a.remove(0))?;
     let s2 = string_arg(c, f, a.remove(0))?;
     Ok(Compiler::te(
@@ -559,6 +564,15 @@ fn string_function(c: &mut Compiler, f: &str, a: Vec<(TE, Pos)>, pos: Pos) -> R<
         "REPLACE" => (Builtin::Replace, &[true, true, false, false]),
         _ => (Builtin::Concat, &[]),
     };
+    // The result is a WSTRING when the first string is one; the others must match it.
+    let wide = matches!(a.first(), Some((x, _)) if matches!(x.ty, Ty::T(Type::WString(_))));
+    for ((x, p), is_str) in a.iter().zip(shape.iter().chain(std::iter::repeat(&true))) {
+        let is_wide = matches!(x.ty, Ty::T(Type::WString(_)));
+        if *is_str && matches!(&x.ty, Ty::T(t) if t.is_string()) && is_wide != wide {
+            let want = if wide { "a WSTRING" } else { "a STRING" };
+            return Err(wrong(c, f, &x.ty, *p, want));
+        }
+    }
     let mut vals = Vec::new();
     if f == "CONCAT" {
         count(c, f, &a, 2, usize::MAX, pos)?;
@@ -575,11 +589,13 @@ fn string_function(c: &mut Compiler, f: &str, a: Vec<(TE, Pos)>, pos: Pos) -> R<
             });
         }
     }
-    let dest = c.new_string_temp(pos)?;
-    Ok(Compiler::te(
-        Ty::T(Type::String(MAX_STRING_LEN)),
-        builtin_expr(b, vals, dest),
-    ))
+    let dest = c.new_string_temp(pos, wide)?;
+    let ty = if wide {
+        Type::WString(MAX_STRING_LEN)
+    } else {
+        Type::String(MAX_STRING_LEN)
+    };
+    Ok(Compiler::te(Ty::T(ty), builtin_expr(b, vals, dest)))
 }
 
 /// `TRUNC`: a real to DINT, towards zero.
@@ -717,6 +733,9 @@ impl ConversionName {
 /// `X_TO_Y`, `TO_Y`, `X_TRUNC_Y`, `TRUNC_Y`, `X_BCD_TO_Y`, `X_TO_BCD_Y`; `None` when `f`
 /// names no conversion.
 fn conversion(c: &mut Compiler, f: &str, args: &[Arg], sc: &mut Scope, pos: Pos) -> R<Option<TE>> {
+    if let Some(te) = wide_conversion(c, f, args, sc, pos)? {
+        return Ok(Some(te));
+    }
     let Some(name) = ConversionName::parse(f) else {
         return Ok(None);
     };
@@ -724,6 +743,11 @@ fn conversion(c: &mut Compiler, f: &str, args: &[Arg], sc: &mut Scope, pos: Pos)
     let mut a = c.b_args(&args, sc, f)?;
     count(c, f, &a, 1, 1, pos)?;
     let (x, p) = a.remove(0);
+    if matches!(x.ty, Ty::T(Type::WString(_))) && name.to.is_none() && name.from.is_none() {
+        // TO_STRING of a WSTRING.
+        let xe = Compiler::te_parts(x).1;
+        return Ok(Some(recode(c, xe, false, pos)?));
+    }
     let (src, xe) = conversion_argument(c, f, x, p, name.from)?;
     let result_ty = match name.to {
         Some(e) => Type::Elem(e),
@@ -764,6 +788,81 @@ fn conversion(c: &mut Compiler, f: &str, args: &[Arg], sc: &mut Scope, pos: Pos)
     Ok(Some(Compiler::te(Ty::T(result_ty), out)))
 }
 
+/// A STRING or WSTRING at `xe` copied into a new string temporary as a WSTRING (`wide`)
+/// or a STRING.
+fn recode(c: &mut Compiler, xe: vm::Expr, wide: bool, pos: Pos) -> R<TE> {
+    let dest = c.new_string_temp(pos, wide)?;
+    let ty = if wide {
+        Type::WString(MAX_STRING_LEN)
+    } else {
+        Type::String(MAX_STRING_LEN)
+    };
+    Ok(Compiler::te(
+        Ty::T(ty),
+        builtin_expr(Builtin::StrToStr(wide), vec![xe], dest),
+    ))
+}
+
+/// Conversions from and to WSTRING (`WSTRING_TO_STRING`, `STRING_TO_WSTRING`,
+/// `TO_WSTRING`, `INT_TO_WSTRING`, `WSTRING_TO_REAL`, ...): text goes through its STRING
+/// form, as in CODESYS. `None` when `f` is no such conversion.
+fn wide_conversion(
+    c: &mut Compiler,
+    f: &str,
+    args: &[Arg],
+    sc: &mut Scope,
+    pos: Pos,
+) -> R<Option<TE>> {
+    let (from, to) = if let Some(b) = f.strip_prefix("TO_").or_else(|| f.strip_prefix("ANY_TO_")) {
+        (None, b)
+    } else if let Some((a, b)) = f.split_once("_TO_") {
+        (Some(a), b)
+    } else {
+        return Ok(None);
+    };
+    if to != "WSTRING" && from != Some("WSTRING") {
+        return Ok(None);
+    }
+    let target = match to {
+        "WSTRING" => None,
+        t => match elem_or_string(t) {
+            Some(e) => Some(e),
+            None => return Ok(None),
+        },
+    };
+    let args = ordered(c, f, args)?;
+    let mut a = c.b_args(&args, sc, f)?;
+    count(c, f, &a, 1, 1, pos)?;
+    let (x, p) = a.remove(0);
+    if from == Some("WSTRING") {
+        if !matches!(x.ty, Ty::T(Type::WString(_))) {
+            return Err(wrong(c, f, &x.ty, p, "a WSTRING"));
+        }
+        let xe = Compiler::te_parts(x).1;
+        return Ok(Some(match target {
+            None => Compiler::te(Ty::T(Type::WString(MAX_STRING_LEN)), xe),
+            Some(None) => recode(c, xe, false, pos)?,
+            Some(Some(t)) => Compiler::te(Ty::T(Type::Elem(t)), from_string(t, xe)),
+        }));
+    }
+    if from.is_none() && matches!(x.ty, Ty::T(Type::WString(_))) {
+        return Ok(Some(Compiler::te(x.ty.clone(), Compiler::te_parts(x).1)));
+    }
+    let from = match from {
+        Some(n) => match elem_or_string(n) {
+            Some(e) => Some(e),
+            None => return Ok(None),
+        },
+        None => None,
+    };
+    let (src, xe) = conversion_argument(c, f, x, p, from)?;
+    let text = match src {
+        Some(s) => to_string(c, s, xe, pos)?,
+        None => xe,
+    };
+    Ok(Some(recode(c, text, true, pos)?))
+}
+
 /// The conversion's argument and the type it is converted from (`None`: STRING): the
 /// declared source type, which the argument must widen to, or else the argument's own (an
 /// enumeration's value as DINT, a literal as LINT or LREAL).
@@ -792,7 +891,7 @@ fn conversion_argument(
         None => {
             let t = x.ty.clone();
             match &t {
-                Ty::T(Type::String(_)) => Ok((None, Compiler::te_parts(x).1)),
+                Ty::T(Type::String(_) | Type::WString(_)) => Ok((None, Compiler::te_parts(x).1)),
                 Ty::T(Type::Enum(_)) => Ok((Some(Elem::DInt), Compiler::te_parts(x).1)),
                 _ => {
                     let e = literal_elem(&t).or(match t {
@@ -813,7 +912,7 @@ fn conversion_argument(
 
 /// A value of elementary type `s` as text, into a new string temporary.
 fn to_string(c: &mut Compiler, s: Elem, xe: vm::Expr, pos: Pos) -> R<vm::Expr> {
-    let dest = c.new_string_temp(pos)?;
+    let dest = c.new_string_temp(pos, false)?;
     let b = if s == Elem::Bool {
         Builtin::BoolToStr
     } else if s.is_real() {

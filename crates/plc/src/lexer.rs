@@ -23,6 +23,8 @@ pub(crate) enum Tok {
     /// DATE, TIME_OF_DAY or DATE_AND_TIME literal in nanoseconds.
     Moment(crate::dates::Moment, i64),
     Str(Vec<u8>),
+    /// A WSTRING literal `"..."` as UTF-16 code units.
+    WStr(Vec<u16>),
     /// `TYPE#` prefix of a typed literal (`INT#5`, `Mode#Idle`).
     TypedPrefix(String),
     /// Directly represented variable: `%IX0.0`, `%QW3`, `%MD10`.
@@ -301,6 +303,8 @@ impl Lexer<'_> {
             self.number(pos)?
         } else if c == b'\'' {
             self.string(pos)?
+        } else if c == b'"' {
+            self.wide_string(pos)?
         } else if c == b'%' {
             self.direct(pos)?
         } else {
@@ -458,7 +462,10 @@ impl Lexer<'_> {
         let mut out = Vec::new();
         loop {
             if self.i >= self.src.len() || self.peek(0) == b'\n' {
-                return Err(self.err(pos, "string literal is not closed"));
+                return Err(self.err(
+                    pos,
+                    "string literal is not closed: ' expected before the end of the line",
+                ));
             }
             let c = self.bump();
             match c {
@@ -496,6 +503,72 @@ impl Lexer<'_> {
             ));
         }
         Ok(Tok::Str(out))
+    }
+
+    /// `"..."`: a WSTRING literal. Escapes as in a STRING with `$"` for the quote and
+    /// four hex digits (`$20AC`) for one code unit; other characters are the source's
+    /// UTF-8 text in UTF-16.
+    fn wide_string(&mut self, pos: Pos) -> Result<Tok, CompileError> {
+        self.bump();
+        let mut out: Vec<u16> = Vec::new();
+        loop {
+            if self.i >= self.src.len() || self.peek(0) == b'\n' {
+                return Err(self.err(
+                    pos,
+                    "WSTRING literal is not closed: '\"' expected before the end of the line",
+                ));
+            }
+            let c = self.bump();
+            match c {
+                b'"' => break,
+                b'$' => {
+                    let e = self.bump();
+                    let unit = match e.to_ascii_uppercase() {
+                        b'$' => b'$' as u16,
+                        b'"' => b'"' as u16,
+                        b'\'' => b'\'' as u16,
+                        b'L' | b'N' => b'\n' as u16,
+                        b'P' => 0x0c,
+                        b'R' => b'\r' as u16,
+                        b'T' => b'\t' as u16,
+                        h if h.is_ascii_hexdigit() => {
+                            let hex = [h, self.bump(), self.bump(), self.bump()];
+                            let s = std::str::from_utf8(&hex).unwrap_or("");
+                            u16::from_str_radix(s, 16).map_err(|_| {
+                                self.err(pos, "bad $hhhh escape in WSTRING: four hex digits")
+                            })?
+                        }
+                        _ => return Err(self.err(pos, "unknown $ escape in WSTRING")),
+                    };
+                    out.push(unit);
+                }
+                c if c < 0x80 => out.push(c as u16),
+                lead => {
+                    let len = match lead {
+                        0xc0..=0xdf => 2,
+                        0xe0..=0xef => 3,
+                        0xf0..=0xf7 => 4,
+                        _ => 1,
+                    };
+                    let start = self.i - 1;
+                    let end = (start + len).min(self.src.len());
+                    let text = std::str::from_utf8(&self.src[start..end])
+                        .map_err(|_| self.err(pos, "WSTRING literal is not valid UTF-8"))?;
+                    out.extend(text.encode_utf16());
+                    self.i = end;
+                }
+            }
+        }
+        if out.len() > crate::types::MAX_STRING_LEN as usize {
+            return Err(self.err(
+                pos,
+                format!(
+                    "WSTRING literal longer than {} characters",
+                    crate::types::MAX_STRING_LEN
+                ),
+            ));
+        }
+        Ok(Tok::WStr(out))
     }
 
     fn direct(&mut self, pos: Pos) -> Result<Tok, CompileError> {

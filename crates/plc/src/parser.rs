@@ -47,6 +47,7 @@ fn describe(t: &Tok) -> String {
         Tok::Time(_) => "duration literal".into(),
         Tok::Moment(..) => "date or time-of-day literal".into(),
         Tok::Str(_) => "string literal".into(),
+        Tok::WStr(_) => "WSTRING literal".into(),
         Tok::TypedPrefix(s) => format!("'{s}#'"),
         Tok::Direct(d) => format!("'{d}'"),
         Tok::Eof => "end of file".into(),
@@ -159,6 +160,19 @@ const RESERVED: &[&str] = &[
 
 /// Words that end a block: meeting one where a statement or declaration should start
 /// means a block above was not closed.
+/// The statement a closing word belongs to: `END_IF`, `ELSIF`, `ELSE` to IF, and so on.
+fn statement_closed_by(word: &str) -> Option<&'static str> {
+    Some(match word {
+        "END_IF" | "ELSIF" => "IF",
+        "ELSE" => "IF or CASE",
+        "END_CASE" => "CASE",
+        "END_FOR" => "FOR",
+        "END_WHILE" => "WHILE",
+        "END_REPEAT" | "UNTIL" => "REPEAT",
+        _ => return None,
+    })
+}
+
 fn closes_a_block(word: &str) -> bool {
     word.starts_with("END_")
         || matches!(
@@ -212,6 +226,36 @@ impl Parser<'_> {
             at.col,
             describe(self.peek())
         ))
+    }
+    /// The error at a word that closes a block while the statements of `opener` (at `at`,
+    /// closed by `end`) are read: `end` is missing, or, in a POU's body, the word closes a
+    /// statement that is not open (an extra END_IF). Apart, so that the recursion through
+    /// statements keeps small frames.
+    #[cold]
+    #[inline(never)]
+    fn block_end_error(&self, end: &str, opener: &str, at: Pos) -> CompileError {
+        let in_statement = matches!(opener, "IF" | "CASE" | "FOR" | "WHILE" | "REPEAT");
+        if let (false, Tok::Ident(word)) = (in_statement, self.peek()) {
+            if let Some(statement) = statement_closed_by(word) {
+                return self.err(format!(
+                    "{word} without an open {statement}: remove it or add the {statement} \
+                     it closes (the {opener} at {}:{} ends with {end})",
+                    at.line, at.col
+                ));
+            }
+        }
+        self.unclosed(end, opener, at)
+    }
+    /// Expects `)` or `]` closing the `(` or `[` at `at`.
+    fn expect_close(&mut self, close: &Tok, at: Pos) -> PResult<()> {
+        if self.eat(close) {
+            return Ok(());
+        }
+        let open = match close {
+            Tok::RBracket => "'['",
+            _ => "'('",
+        };
+        Err(self.unclosed(&describe(close), open, at))
     }
     /// Expects keyword `kw` that continues the construct `what` started at `at`.
     fn expect_kw_in(&mut self, kw: &str, what: &str, at: Pos) -> PResult<()> {
@@ -322,6 +366,13 @@ impl Parser<'_> {
                             .push(self.pou(PouKind::FunctionBlock, "END_FUNCTION_BLOCK")?),
                         "VAR_GLOBAL" => u.globals.push(self.var_block()?),
                         "CONFIGURATION" => u.configs.push(self.config()?),
+                        w if w.starts_with("END_") || statement_closed_by(w).is_some() => {
+                            return Err(self.err(format!(
+                                "{w} closes nothing here: no block is open (a file holds \
+                                 TYPE, PROGRAM, FUNCTION, FUNCTION_BLOCK, INTERFACE, VAR_GLOBAL \
+                                 or CONFIGURATION blocks; is there one END_... too many?)"
+                            )));
+                        }
                         _ => return Err(self.unexpected(
                             "TYPE, PROGRAM, FUNCTION, FUNCTION_BLOCK, INTERFACE, VAR_GLOBAL or CONFIGURATION",
                         )),
@@ -370,6 +421,7 @@ impl Parser<'_> {
             return Ok(TypeSpec::Reference(Box::new(self.type_spec()?), pos));
         }
         if self.eat_kw("ARRAY") {
+            let open = self.pos();
             self.expect(&Tok::LBracket)?;
             let mut dims = Vec::new();
             loop {
@@ -381,7 +433,7 @@ impl Parser<'_> {
                     break;
                 }
             }
-            self.expect(&Tok::RBracket)?;
+            self.expect_close(&Tok::RBracket, open)?;
             self.expect_kw_in("OF", "ARRAY declaration", pos)?;
             let elem = self.type_spec()?;
             return Ok(TypeSpec::Array {
@@ -407,6 +459,7 @@ impl Parser<'_> {
             return Ok(TypeSpec::Struct { fields, pos });
         }
         if self.peek() == &Tok::LParen {
+            let open = self.pos();
             self.bump();
             let mut values = Vec::new();
             loop {
@@ -421,7 +474,7 @@ impl Parser<'_> {
                     break;
                 }
             }
-            self.expect(&Tok::RParen)?;
+            self.expect_close(&Tok::RParen, open)?;
             // CODESYS and TwinCAT write the base type after the values: `(A, B) UINT`.
             let base = match self.peek() {
                 Tok::Ident(s) if !RESERVED.contains(&s.as_str()) => Some(self.name()?),
@@ -429,25 +482,28 @@ impl Parser<'_> {
             };
             return Ok(TypeSpec::Enum { values, base, pos });
         }
-        if self.is_kw("STRING") {
+        if self.is_kw("STRING") || self.is_kw("WSTRING") {
+            let wide = self.is_kw("WSTRING");
             self.bump();
+            let open = self.pos();
             let len = if self.eat(&Tok::LBracket) {
                 let e = self.expr()?;
-                self.expect(&Tok::RBracket)?;
+                self.expect_close(&Tok::RBracket, open)?;
                 Some(e)
             } else if self.peek() == &Tok::LParen {
                 self.bump();
                 let e = self.expr()?;
-                self.expect(&Tok::RParen)?;
+                self.expect_close(&Tok::RParen, open)?;
                 Some(e)
             } else {
                 None
             };
-            return Ok(TypeSpec::String { len, pos });
+            return Ok(TypeSpec::String { len, wide, pos });
         }
         let base = self.name()?;
         if self.peek() == &Tok::LParen {
             // Subrange `INT(0..100)` or typed enum `INT (A := 1, B := 2)`.
+            let open = self.pos();
             let save = self.i;
             self.bump();
             if matches!(self.peek(), Tok::Ident(_))
@@ -465,7 +521,7 @@ impl Parser<'_> {
             let low = self.expr()?;
             self.expect(&Tok::DotDot)?;
             let high = self.expr()?;
-            self.expect(&Tok::RParen)?;
+            self.expect_close(&Tok::RParen, open)?;
             return Ok(TypeSpec::Subrange { base, low, high });
         }
         Ok(TypeSpec::Named(base))
@@ -480,13 +536,14 @@ impl Parser<'_> {
                     // `n(value)` repeats; anything else is a value.
                     if matches!(self.peek(), Tok::Int(_)) && self.peek_at(1) == &Tok::LParen {
                         let count = self.primary()?;
+                        let open = self.pos();
                         self.expect(&Tok::LParen)?;
                         let v = if self.peek() == &Tok::RParen {
                             None
                         } else {
                             Some(self.init()?)
                         };
-                        self.expect(&Tok::RParen)?;
+                        self.expect_close(&Tok::RParen, open)?;
                         items.push((Some(count), v.unwrap_or(Init::Array(Vec::new(), pos))));
                     } else {
                         items.push((None, self.init()?));
@@ -495,7 +552,7 @@ impl Parser<'_> {
                         break;
                     }
                 }
-                self.expect(&Tok::RBracket)?;
+                self.expect_close(&Tok::RBracket, pos)?;
             }
             return Ok(Init::Array(items, pos));
         }
@@ -513,7 +570,7 @@ impl Parser<'_> {
                     break;
                 }
             }
-            self.expect(&Tok::RParen)?;
+            self.expect_close(&Tok::RParen, pos)?;
             return Ok(Init::Struct(items, pos));
         }
         Ok(Init::Expr(self.expr()?))
@@ -552,7 +609,19 @@ impl Parser<'_> {
         }
         let mut decls = Vec::new();
         while !self.eat_kw("END_VAR") {
-            if self.at_block_end() || self.is_var_block_start() || self.is_kw("IF") {
+            // A statement where a declaration should be: the block was left open.
+            let statement = matches!(
+                self.peek(),
+                Tok::Ident(s) if matches!(
+                    s.as_str(),
+                    "IF" | "CASE" | "FOR" | "WHILE" | "REPEAT" | "RETURN" | "EXIT" | "CONTINUE"
+                )
+            ) || (matches!(self.peek(), Tok::Ident(_))
+                && matches!(
+                    self.peek_at(1),
+                    Tok::Assign | Tok::LParen | Tok::Dot | Tok::LBracket | Tok::Caret
+                ));
+            if self.at_block_end() || self.is_var_block_start() || statement {
                 return Err(self.unclosed("END_VAR", &opener, at));
             }
             decls.push(self.var_decl(true)?);
@@ -859,6 +928,7 @@ impl Parser<'_> {
     }
 
     fn config(&mut self) -> PResult<Config> {
+        let at = self.pos();
         self.bump();
         let name = self.name()?;
         let mut globals = Vec::new();
@@ -866,7 +936,9 @@ impl Parser<'_> {
         loop {
             if self.is_kw("VAR_GLOBAL") {
                 globals.push(self.var_block()?);
-            } else if self.eat_kw("RESOURCE") {
+            } else if self.is_kw("RESOURCE") {
+                let res_at = self.pos();
+                self.bump();
                 self.name()?;
                 if self.eat_kw("ON") {
                     self.name()?;
@@ -875,7 +947,7 @@ impl Parser<'_> {
                     tasks: Vec::new(),
                     programs: Vec::new(),
                 };
-                self.resource_body(&mut res, &mut globals, "END_RESOURCE")?;
+                self.resource_body(&mut res, &mut globals, ("END_RESOURCE", "RESOURCE", res_at))?;
                 resources.push(res);
             } else if self.is_kw("TASK") || self.is_kw("PROGRAM") {
                 // A configuration without a RESOURCE: one implicit resource.
@@ -883,7 +955,11 @@ impl Parser<'_> {
                     tasks: Vec::new(),
                     programs: Vec::new(),
                 };
-                self.resource_body(&mut res, &mut globals, "END_CONFIGURATION")?;
+                self.resource_body(
+                    &mut res,
+                    &mut globals,
+                    ("END_CONFIGURATION", "CONFIGURATION", at),
+                )?;
                 resources.push(res);
                 return Ok(Config {
                     name,
@@ -896,6 +972,8 @@ impl Parser<'_> {
                     globals,
                     resources,
                 });
+            } else if self.at_block_end() {
+                return Err(self.unclosed("END_CONFIGURATION", "CONFIGURATION", at));
             } else {
                 return Err(
                     self.unexpected("VAR_GLOBAL, RESOURCE, TASK, PROGRAM or END_CONFIGURATION")
@@ -904,11 +982,12 @@ impl Parser<'_> {
         }
     }
 
+    /// Tasks, program instances and globals up to `end`, which closes `opener` at `at`.
     fn resource_body(
         &mut self,
         res: &mut Resource,
         globals: &mut Vec<VarBlock>,
-        end: &str,
+        (end, opener, at): (&str, &str, Pos),
     ) -> PResult<()> {
         loop {
             if self.eat_kw(end) {
@@ -924,6 +1003,7 @@ impl Parser<'_> {
                     priority: None,
                     single: None,
                 };
+                let open = self.pos();
                 self.expect(&Tok::LParen)?;
                 loop {
                     let key = self.name()?;
@@ -949,13 +1029,28 @@ impl Parser<'_> {
                         break;
                     }
                 }
-                self.expect(&Tok::RParen)?;
+                self.expect_close(&Tok::RParen, open)?;
                 self.expect(&Tok::Semi)?;
                 res.tasks.push(t);
-            } else if self.eat_kw("PROGRAM") {
+            } else if self.is_kw("PROGRAM") {
+                let program_at = self.pos();
+                self.bump();
                 self.eat_kw("RETAIN");
                 self.eat_kw("NON_RETAIN");
                 let name = self.name()?;
+                if !self.is_kw("WITH") && self.peek() != &Tok::Colon {
+                    // A PROGRAM POU after a configuration left open.
+                    return Err(CompileError::new(
+                        self.file,
+                        program_at,
+                        ErrorKind::Syntax,
+                        format!(
+                            "{end} expected to close the {opener} at {}:{}, found 'PROGRAM' \
+                             (inside it, a program instance is `PROGRAM name WITH task : Type;`)",
+                            at.line, at.col
+                        ),
+                    ));
+                }
                 let task = if self.eat_kw("WITH") {
                     Some(self.name()?)
                 } else {
@@ -968,6 +1063,8 @@ impl Parser<'_> {
                 }
                 self.expect(&Tok::Semi)?;
                 res.programs.push(ProgramInst { name, task, ty });
+            } else if self.at_block_end() {
+                return Err(self.unclosed(end, opener, at));
             } else {
                 return Err(self.unexpected(&format!("TASK, PROGRAM, VAR_GLOBAL or {end}")));
             }
@@ -987,8 +1084,10 @@ impl Parser<'_> {
                 let end = ends
                     .iter()
                     .rev()
-                    .find(|e| e.starts_with("END_") || **e == "UNTIL");
-                return Err(self.unclosed(end.copied().unwrap_or(ends[0]), opener, at));
+                    .find(|e| e.starts_with("END_") || **e == "UNTIL")
+                    .copied()
+                    .unwrap_or(ends[0]);
+                return Err(self.block_end_error(end, opener, at));
             }
             let s = self.stmt()?;
             if !matches!(s, Stmt::Empty) {
@@ -1229,7 +1328,12 @@ impl Parser<'_> {
             k += 1;
         }
         match self.peek_at(k) {
-            Tok::Int(_) | Tok::Real(_) | Tok::Str(_) | Tok::Time(_) | Tok::Moment(..) => {}
+            Tok::Int(_)
+            | Tok::Real(_)
+            | Tok::Str(_)
+            | Tok::WStr(_)
+            | Tok::Time(_)
+            | Tok::Moment(..) => {}
             Tok::TypedPrefix(_) => {
                 k += 1;
             }
@@ -1281,7 +1385,7 @@ impl Parser<'_> {
                 while self.eat(&Tok::Comma) {
                     idx.push(self.expr()?);
                 }
-                self.expect(&Tok::RBracket)?;
+                self.expect_close(&Tok::RBracket, pos)?;
                 parts.push(Part::Index(idx, pos));
             } else {
                 return Ok(Access { root, parts });
@@ -1290,6 +1394,7 @@ impl Parser<'_> {
     }
 
     fn args(&mut self) -> PResult<Vec<Arg>> {
+        let open = self.pos();
         self.expect(&Tok::LParen)?;
         let mut args = Vec::new();
         if self.eat(&Tok::RParen) {
@@ -1322,7 +1427,7 @@ impl Parser<'_> {
                 break;
             }
         }
-        self.expect(&Tok::RParen)?;
+        self.expect_close(&Tok::RParen, open)?;
         Ok(args)
     }
 
@@ -1478,6 +1583,10 @@ impl Parser<'_> {
             Tok::Str(s) => {
                 self.bump();
                 Ok(Expr::Lit(Literal::Str(s), pos))
+            }
+            Tok::WStr(s) => {
+                self.bump();
+                Ok(Expr::Lit(Literal::WStr(s), pos))
             }
             Tok::Direct(d) => {
                 self.bump();

@@ -263,6 +263,7 @@ impl Program {
         match ty {
             Type::Elem(e) => e.name().to_string(),
             Type::String(n) => format!("STRING[{n}]"),
+            Type::WString(n) => format!("WSTRING[{n}]"),
             Type::Enum(id) => self
                 .enums
                 .get(*id as usize)

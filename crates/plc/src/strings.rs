@@ -1,6 +1,7 @@
-//! STRING values in slot memory and the standard string functions, without heap
-//! allocation: a string at address `a` has its length in slot `a` and its bytes packed
-//! little-endian in the slots after it. Work buffers live on the stack.
+//! STRING and WSTRING values in slot memory and the standard string functions, without
+//! heap allocation: a string at address `a` has its length in slot `a` (with [`WIDE`] set
+//! for a WSTRING) and its bytes, or UTF-16 code units, packed little-endian in the slots
+//! after it. Work buffers live on the stack.
 
 use std::cmp::Ordering;
 use std::io::Write as _;
@@ -10,61 +11,159 @@ use crate::vm::Builtin;
 
 const BUF: usize = MAX_STRING_LEN as usize + 1;
 
-/// Copies the string at `a` into `buf`, returns its length.
+/// Set in a WSTRING's length slot: its characters are UTF-16 code units, four a slot.
+/// Functions read the width from the string itself, so one implementation serves both.
+pub(crate) const WIDE: u64 = 1 << 32;
+
+/// Characters of a string: bytes of a STRING, code units of a WSTRING.
+type Units = [u16; BUF];
+
+/// Copies the string at `a` into `buf`; returns its length and whether it is a WSTRING.
+pub(crate) fn read_units(mem: &[u64], a: usize, buf: &mut Units) -> (usize, bool) {
+    let head = mem.get(a).copied().unwrap_or(0);
+    let wide = head & WIDE != 0;
+    let len = ((head & 0xffff) as usize).min(MAX_STRING_LEN as usize);
+    let (per_slot, bits, mask) = if wide { (4, 16, 0xffff) } else { (8, 8, 0xff) };
+    for (i, u) in buf.iter_mut().enumerate().take(len) {
+        let slot = mem.get(a + 1 + i / per_slot).copied().unwrap_or(0);
+        *u = ((slot >> ((i % per_slot) * bits)) & mask) as u16;
+    }
+    (len, wide)
+}
+
+/// Copies the string at `a` into `buf` as bytes (a WSTRING's code units above 255 become
+/// `?`, as CODESYS converts them); returns its length.
 pub(crate) fn read(mem: &[u64], a: usize, buf: &mut [u8; BUF]) -> usize {
-    let len = (mem.get(a).copied().unwrap_or(0) as usize).min(MAX_STRING_LEN as usize);
-    for (i, b) in buf.iter_mut().enumerate().take(len) {
-        let slot = mem.get(a + 1 + i / 8).copied().unwrap_or(0);
-        *b = (slot >> ((i % 8) * 8)) as u8;
+    let mut units = [0u16; BUF];
+    let (len, _) = read_units(mem, a, &mut units);
+    for (b, u) in buf.iter_mut().zip(units.iter()).take(len) {
+        *b = u8::try_from(*u).unwrap_or(b'?');
     }
     len
 }
 
-/// Writes `bytes` (cut to `cap`) as the string at `a`.
-pub(crate) fn write(mem: &mut [u64], a: usize, cap: u16, bytes: &[u8]) {
-    let n = bytes.len().min(cap as usize);
-    let slots = n.div_ceil(8);
+/// Writes `units` (cut to `cap`) as the string at `a`, a WSTRING if `wide`.
+pub(crate) fn write_units(mem: &mut [u64], a: usize, cap: u16, wide: bool, units: &[u16]) {
+    let n = units.len().min(cap as usize).min(MAX_STRING_LEN as usize);
+    let (per_slot, bits) = if wide { (4, 16) } else { (8, 8) };
+    let slots = n.div_ceil(per_slot);
     if a + 1 + slots > mem.len() {
         return;
     }
-    mem[a] = n as u64;
+    mem[a] = n as u64 | if wide { WIDE } else { 0 };
     for s in 0..slots {
         let mut v = 0u64;
-        for k in 0..8 {
-            if let Some(b) = bytes.get(s * 8 + k).filter(|_| s * 8 + k < n) {
-                v |= (*b as u64) << (k * 8);
+        for k in 0..per_slot {
+            let i = s * per_slot + k;
+            if i < n {
+                v |= (units[i] as u64) << (k * bits);
             }
         }
         mem[a + 1 + s] = v;
     }
 }
 
-/// Copies the string at `src` to `dst` (capacity `cap`).
+/// Writes `bytes` (cut to `cap`) as the STRING at `a`.
+pub(crate) fn write(mem: &mut [u64], a: usize, cap: u16, bytes: &[u8]) {
+    let mut units = [0u16; BUF];
+    let n = bytes.len().min(BUF);
+    for (u, b) in units.iter_mut().zip(bytes.iter()) {
+        *u = *b as u16;
+    }
+    write_units(mem, a, cap, false, &units[..n]);
+}
+
+/// UTF-16 code units of `text` into `buf` (cut to its length); returns how many.
+pub(crate) fn utf16_units(text: &str, buf: &mut Units) -> usize {
+    let mut n = 0;
+    for (slot, u) in buf.iter_mut().zip(text.encode_utf16()) {
+        *slot = u;
+        n += 1;
+    }
+    n
+}
+
+/// Copies the string at `src` to `dst` (capacity `cap`), keeping its width.
 pub(crate) fn copy(mem: &mut [u64], dst: usize, src: usize, cap: u16) {
     if dst == src {
         return;
     }
-    let mut b = [0u8; BUF];
-    let n = read(mem, src, &mut b);
-    write(mem, dst, cap, &b[..n]);
+    let mut b = [0u16; BUF];
+    let (n, wide) = read_units(mem, src, &mut b);
+    write_units(mem, dst, cap, wide, &b[..n]);
+}
+
+/// Copies the string at `src` to `dst` (capacity `cap`) as a WSTRING if `wide`, else as
+/// a STRING: STRING_TO_WSTRING and WSTRING_TO_STRING. A STRING holds the UTF-8 bytes its
+/// literals are written in, so the conversion is UTF-8 ↔ UTF-16 and a non-ASCII
+/// character survives the round trip; a byte that is no UTF-8 is taken as Latin-1, an
+/// unpaired surrogate becomes `?`, and a character that does not fit is left out whole.
+pub(crate) fn convert(mem: &mut [u64], dst: usize, src: usize, cap: u16, wide: bool) {
+    let mut units = [0u16; BUF];
+    let (n, src_wide) = read_units(mem, src, &mut units);
+    let mut out = [0u16; BUF];
+    let limit = (cap as usize).min(MAX_STRING_LEN as usize);
+    let mut k = 0;
+    if src_wide == wide {
+        out[..n].copy_from_slice(&units[..n]);
+        k = n;
+    } else if wide {
+        let mut bytes = [0u8; BUF];
+        for (b, u) in bytes.iter_mut().zip(units.iter()).take(n) {
+            *b = *u as u8;
+        }
+        'chunks: for chunk in bytes[..n].utf8_chunks() {
+            for ch in chunk.valid().chars() {
+                let mut pair = [0u16; 2];
+                let enc = ch.encode_utf16(&mut pair);
+                if k + enc.len() > limit {
+                    break 'chunks;
+                }
+                out[k..k + enc.len()].copy_from_slice(enc);
+                k += enc.len();
+            }
+            for &b in chunk.invalid() {
+                if k >= limit {
+                    break 'chunks;
+                }
+                out[k] = b as u16;
+                k += 1;
+            }
+        }
+    } else {
+        for ch in char::decode_utf16(units[..n].iter().copied()) {
+            let ch = ch.unwrap_or('?');
+            let mut buf = [0u8; 4];
+            let enc = ch.encode_utf8(&mut buf);
+            if k + enc.len() > limit {
+                break;
+            }
+            for &b in enc.as_bytes() {
+                out[k] = b as u16;
+                k += 1;
+            }
+        }
+    }
+    write_units(mem, dst, cap, wide, &out[..k]);
 }
 
 /// Appends the string at `src` to the (maximum-capacity) string at `dst`.
 pub(crate) fn append(mem: &mut [u64], dst: usize, src: usize) {
-    let mut a = [0u8; BUF];
-    let mut b = [0u8; BUF];
-    let n = read(mem, dst, &mut a);
-    let m = read(mem, src, &mut b);
+    let mut a = [0u16; BUF];
+    let mut b = [0u16; BUF];
+    let (n, wide) = read_units(mem, dst, &mut a);
+    let (m, _) = read_units(mem, src, &mut b);
     let total = (n + m).min(MAX_STRING_LEN as usize);
     a[n..total].copy_from_slice(&b[..total - n]);
-    write(mem, dst, MAX_STRING_LEN, &a[..total]);
+    write_units(mem, dst, MAX_STRING_LEN, wide, &a[..total]);
 }
 
+/// Compares two strings character by character (code units for WSTRING).
 pub(crate) fn compare(mem: &[u64], x: usize, y: usize) -> Ordering {
-    let mut a = [0u8; BUF];
-    let mut b = [0u8; BUF];
-    let n = read(mem, x, &mut a);
-    let m = read(mem, y, &mut b);
+    let mut a = [0u16; BUF];
+    let mut b = [0u16; BUF];
+    let (n, _) = read_units(mem, x, &mut a);
+    let (m, _) = read_units(mem, y, &mut b);
     a[..n].cmp(&b[..m])
 }
 
@@ -76,14 +175,16 @@ fn clamp_pos(v: u64, max: usize) -> usize {
 /// Positions are 1-based as in IEC; out-of-range positions and lengths are clamped.
 pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u64 {
     let arg = |i: usize| v.get(i).copied().unwrap_or(0);
-    let mut s = [0u8; BUF];
-    let mut t = [0u8; BUF];
-    let mut out = [0u8; BUF];
+    let mut s = [0u16; BUF];
+    let mut t = [0u16; BUF];
+    let mut out = [0u16; BUF];
+    let mut bytes = [0u8; BUF];
+    let mut text_in = [0u8; BUF];
     let cap = MAX_STRING_LEN;
     match b {
-        Builtin::Len => read(mem, arg(0) as usize, &mut s) as u64,
+        Builtin::Len => read_units(mem, arg(0) as usize, &mut s).0 as u64,
         Builtin::Left | Builtin::Right => {
-            let n = read(mem, arg(0) as usize, &mut s);
+            let (n, wide) = read_units(mem, arg(0) as usize, &mut s);
             let l = clamp_pos(arg(1), n);
             let part = if matches!(b, Builtin::Left) {
                 &s[..l]
@@ -91,21 +192,21 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
                 &s[n - l..n]
             };
             out[..l].copy_from_slice(part);
-            write(mem, dest, cap, &out[..l]);
+            write_units(mem, dest, cap, wide, &out[..l]);
             dest as u64
         }
         Builtin::Mid => {
-            let n = read(mem, arg(0) as usize, &mut s);
+            let (n, wide) = read_units(mem, arg(0) as usize, &mut s);
             let start = clamp_pos(arg(2), n + 1).max(1) - 1;
             let l = clamp_pos(arg(1), n - start);
             out[..l].copy_from_slice(&s[start..start + l]);
-            write(mem, dest, cap, &out[..l]);
+            write_units(mem, dest, cap, wide, &out[..l]);
             dest as u64
         }
         Builtin::Insert => {
             // INSERT(IN1, IN2, P): IN2 inserted after position P of IN1.
-            let n = read(mem, arg(0) as usize, &mut s);
-            let m = read(mem, arg(1) as usize, &mut t);
+            let (n, wide) = read_units(mem, arg(0) as usize, &mut s);
+            let (m, _) = read_units(mem, arg(1) as usize, &mut t);
             let p = clamp_pos(arg(2), n);
             let mut k = 0;
             for &c in s[..p].iter().chain(t[..m].iter()).chain(s[p..n].iter()) {
@@ -114,12 +215,12 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
                     k += 1;
                 }
             }
-            write(mem, dest, cap, &out[..k.min(cap as usize)]);
+            write_units(mem, dest, cap, wide, &out[..k.min(cap as usize)]);
             dest as u64
         }
         Builtin::Delete => {
             // DELETE(IN, L, P): L characters deleted from position P.
-            let n = read(mem, arg(0) as usize, &mut s);
+            let (n, wide) = read_units(mem, arg(0) as usize, &mut s);
             let p = clamp_pos(arg(2), n + 1).max(1) - 1;
             let l = clamp_pos(arg(1), n - p);
             let mut k = 0;
@@ -127,13 +228,13 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
                 out[k] = c;
                 k += 1;
             }
-            write(mem, dest, cap, &out[..k]);
+            write_units(mem, dest, cap, wide, &out[..k]);
             dest as u64
         }
         Builtin::Replace => {
             // REPLACE(IN1, IN2, L, P): L characters of IN1 from position P replaced by IN2.
-            let n = read(mem, arg(0) as usize, &mut s);
-            let m = read(mem, arg(1) as usize, &mut t);
+            let (n, wide) = read_units(mem, arg(0) as usize, &mut s);
+            let (m, _) = read_units(mem, arg(1) as usize, &mut t);
             let p = clamp_pos(arg(3), n + 1).max(1) - 1;
             let l = clamp_pos(arg(2), n - p);
             let mut k = 0;
@@ -143,13 +244,13 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
                     k += 1;
                 }
             }
-            write(mem, dest, cap, &out[..k.min(cap as usize)]);
+            write_units(mem, dest, cap, wide, &out[..k.min(cap as usize)]);
             dest as u64
         }
         Builtin::Find => {
             // FIND(IN1, IN2): 1-based position of the first IN2 in IN1, 0 if absent.
-            let n = read(mem, arg(0) as usize, &mut s);
-            let m = read(mem, arg(1) as usize, &mut t);
+            let (n, _) = read_units(mem, arg(0) as usize, &mut s);
+            let (m, _) = read_units(mem, arg(1) as usize, &mut t);
             if m == 0 || m > n {
                 return 0;
             }
@@ -157,45 +258,49 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
                 .find(|&i| s[i..i + m] == t[..m])
                 .map_or(0, |i| i as u64 + 1)
         }
+        Builtin::StrToStr(wide) => {
+            convert(mem, dest, arg(0) as usize, cap, wide);
+            dest as u64
+        }
         Builtin::IntToStr(signed) => {
             let x = arg(0);
-            let mut w = std::io::Cursor::new(&mut out[..]);
+            let mut w = std::io::Cursor::new(&mut bytes[..]);
             let _ = if signed {
                 write!(w, "{}", x as i64)
             } else {
                 write!(w, "{x}")
             };
             let k = w.position() as usize;
-            write(mem, dest, cap, &out[..k]);
+            write(mem, dest, cap, &bytes[..k]);
             dest as u64
         }
         Builtin::RealToStr(f32) => {
             let x = f64::from_bits(arg(0));
-            let mut w = std::io::Cursor::new(&mut out[..]);
+            let mut w = std::io::Cursor::new(&mut bytes[..]);
             let _ = if f32 {
                 write!(w, "{}", x as f32)
             } else {
                 write!(w, "{x}")
             };
             let k = w.position() as usize;
-            write(mem, dest, cap, &out[..k]);
+            write(mem, dest, cap, &bytes[..k]);
             dest as u64
         }
         Builtin::TimeToStr => {
-            let mut w = std::io::Cursor::new(&mut out[..]);
+            let mut w = std::io::Cursor::new(&mut bytes[..]);
             let _ = write!(w, "{}", crate::value::FmtTime(arg(0) as i64));
             let k = w.position() as usize;
-            write(mem, dest, cap, &out[..k]);
+            write(mem, dest, cap, &bytes[..k]);
             dest as u64
         }
         Builtin::MomentToStr(kind) => {
-            let k = crate::dates::format(kind, arg(0) as i64, &mut out);
-            write(mem, dest, cap, &out[..k]);
+            let k = crate::dates::format(kind, arg(0) as i64, &mut bytes);
+            write(mem, dest, cap, &bytes[..k]);
             dest as u64
         }
         Builtin::StrToMoment(kind) => {
-            let n = read(mem, arg(0) as usize, &mut s);
-            crate::dates::parse_prefixed(kind, &s[..n]).unwrap_or(0) as u64
+            let n = read(mem, arg(0) as usize, &mut text_in);
+            crate::dates::parse_prefixed(kind, &text_in[..n]).unwrap_or(0) as u64
         }
         Builtin::BoolToStr => {
             let text: &[u8] = if arg(0) & 1 != 0 { b"TRUE" } else { b"FALSE" };
@@ -203,8 +308,8 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
             dest as u64
         }
         Builtin::StrToInt(k) => {
-            let n = read(mem, arg(0) as usize, &mut s);
-            let text = std::str::from_utf8(&s[..n]).unwrap_or("").trim();
+            let n = read(mem, arg(0) as usize, &mut text_in);
+            let text = std::str::from_utf8(&text_in[..n]).unwrap_or("").trim();
             let v = if k.signed() {
                 text.parse::<i64>().map(|x| x as u64).unwrap_or(0)
             } else {
@@ -213,8 +318,8 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
             wrap_checked(k, v)
         }
         Builtin::StrToReal(f32) => {
-            let n = read(mem, arg(0) as usize, &mut s);
-            let text = std::str::from_utf8(&s[..n]).unwrap_or("").trim();
+            let n = read(mem, arg(0) as usize, &mut text_in);
+            let text = std::str::from_utf8(&text_in[..n]).unwrap_or("").trim();
             let x = text.parse::<f64>().unwrap_or(0.0);
             if f32 {
                 ((x as f32) as f64).to_bits()
@@ -223,12 +328,12 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
             }
         }
         Builtin::StrToTime => {
-            let n = read(mem, arg(0) as usize, &mut s);
-            parse_duration(&s[..n]).unwrap_or(0) as u64
+            let n = read(mem, arg(0) as usize, &mut text_in);
+            parse_duration(&text_in[..n]).unwrap_or(0) as u64
         }
         Builtin::StrToBool => {
-            let n = read(mem, arg(0) as usize, &mut s);
-            let text = &s[..n];
+            let n = read(mem, arg(0) as usize, &mut text_in);
+            let text = &text_in[..n];
             (text.eq_ignore_ascii_case(b"TRUE") || text == b"1") as u64
         }
         _ => 0,

@@ -3,7 +3,8 @@
 //! Every elementary value occupies one 64-bit slot: integers sign- or zero-extended to 64
 //! bits, BOOL as 0/1, REAL as the f64 bits of a value rounded to f32, LREAL as f64 bits,
 //! TIME as signed nanoseconds, enumerations as their integer value. A STRING of capacity
-//! `n` takes one length slot and `ceil(n / 8)` slots of bytes.
+//! `n` takes one length slot and `ceil(n / 8)` slots of bytes, a WSTRING one length slot
+//! and `ceil(n / 4)` slots of UTF-16 code units.
 
 use std::sync::Arc;
 
@@ -218,6 +219,8 @@ pub enum Type {
     Elem(Elem),
     /// STRING with its capacity in bytes.
     String(u16),
+    /// WSTRING with its capacity in UTF-16 code units.
+    WString(u16),
     /// Enumeration (index into the enum table).
     Enum(TypeId),
     /// Subrange of an integer type.
@@ -317,6 +320,18 @@ impl Type {
             _ => None,
         }
     }
+    /// STRING or WSTRING.
+    pub fn is_string(&self) -> bool {
+        matches!(self, Type::String(_) | Type::WString(_))
+    }
+    /// Slots of a STRING or WSTRING, `None` for other types.
+    pub fn string_slots(&self) -> Option<u32> {
+        match self {
+            Type::String(n) => Some(string_slots(*n)),
+            Type::WString(n) => Some(wstring_slots(*n)),
+            _ => None,
+        }
+    }
     /// True for BOOL.
     pub fn is_bool(&self) -> bool {
         self.elem() == Some(Elem::Bool)
@@ -326,6 +341,11 @@ impl Type {
 /// Slots of a STRING with capacity `cap`.
 pub fn string_slots(cap: u16) -> u32 {
     1 + (cap as u32).div_ceil(8)
+}
+
+/// Slots of a WSTRING with capacity `cap`: a length slot and four code units a slot.
+pub fn wstring_slots(cap: u16) -> u32 {
+    1 + (cap as u32).div_ceil(4)
 }
 
 /// IEC 61131-3 (3rd edition) implicit conversion: may a value of `from` be used where `to`

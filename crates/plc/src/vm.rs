@@ -175,6 +175,8 @@ pub(crate) enum Builtin {
     StrToReal(bool),
     StrToBool,
     StrToTime,
+    /// STRING to WSTRING (`true`) or WSTRING to STRING (`false`).
+    StrToStr(bool),
     ConcatDate,
     ConcatTod,
     ConcatDt,
@@ -237,6 +239,7 @@ pub(crate) struct VirtualCall {
 pub(crate) enum Store {
     Scalar,
     Range(i64, i64),
+    /// A STRING or WSTRING of this capacity (the source's width is kept).
     String(u16),
     Block(u32),
 }
@@ -764,6 +767,7 @@ impl Vm {
             | Builtin::StrToReal(_)
             | Builtin::StrToBool
             | Builtin::StrToTime
+            | Builtin::StrToStr(_)
             | Builtin::MomentToStr(_)
             | Builtin::StrToMoment(_) => {
                 let mut vals = [0u64; 8];

@@ -134,6 +134,71 @@ fn unclosed_blocks_are_named_with_where_they_open() {
 }
 
 #[test]
+fn unclosed_brackets_literals_and_configurations_say_where_they_open() {
+    let cases = [
+        (
+            "PROGRAM P\nVAR a : ARRAY[1..3 OF INT; END_VAR\nEND_PROGRAM",
+            "m.st:2:20: error[syntax]: ']' expected to close the '[' at 2:14, found 'OF'",
+        ),
+        (
+            "PROGRAM P\nVAR s : STRING(10; END_VAR\nEND_PROGRAM",
+            "m.st:2:18: error[syntax]: ')' expected to close the '(' at 2:15, found ';'",
+        ),
+        (
+            "PROGRAM P\nVAR a : ARRAY[1..3] OF INT := [1, 2, 3; END_VAR\nEND_PROGRAM",
+            "m.st:2:39: error[syntax]: ']' expected to close the '[' at 2:31, found ';'",
+        ),
+        (
+            "TYPE E : (A, B;\nEND_TYPE",
+            "m.st:1:15: error[syntax]: ')' expected to close the '(' at 1:10, found ';'",
+        ),
+        (
+            "PROGRAM P\nVAR a : ARRAY[1..3] OF INT; END_VAR\na[1 := 2;\nEND_PROGRAM",
+            "m.st:3:5: error[syntax]: ']' expected to close the '[' at 3:2, found ':='",
+        ),
+        (
+            "PROGRAM P\nVAR t : TON; END_VAR\nt(IN := TRUE;\nEND_PROGRAM",
+            "m.st:3:13: error[syntax]: ')' expected to close the '(' at 3:2, found ';'",
+        ),
+        (
+            "PROGRAM P\nVAR x : INT;\nx := 1;\nEND_PROGRAM",
+            "m.st:3:1: error[syntax]: END_VAR expected to close the VAR at 2:1, found 'x'",
+        ),
+        (
+            "PROGRAM P\nVAR s : STRING := 'abc; END_VAR\nEND_PROGRAM",
+            "m.st:2:19: error[syntax]: string literal is not closed: ' expected before the end of the line",
+        ),
+        (
+            "CONFIGURATION C\nRESOURCE R ON PLC\nTASK t (INTERVAL := T#1ms);\nPROGRAM p WITH t : P;\nEND_CONFIGURATION\nPROGRAM P\nEND_PROGRAM",
+            "m.st:5:1: error[syntax]: END_RESOURCE expected to close the RESOURCE at 2:1, found 'END_CONFIGURATION'",
+        ),
+        (
+            "CONFIGURATION C\nVAR_GLOBAL x : INT; END_VAR\nPROGRAM P\nEND_PROGRAM",
+            "m.st:3:1: error[syntax]: END_CONFIGURATION expected to close the CONFIGURATION at 1:1, found 'PROGRAM' (inside it, a program instance is `PROGRAM name WITH task : Type;`)",
+        ),
+        (
+            "CONFIGURATION C\nTASK t (INTERVAL := T#1ms;\nPROGRAM p WITH t : P;\nEND_CONFIGURATION",
+            "m.st:2:26: error[syntax]: ')' expected to close the '(' at 2:8, found ';'",
+        ),
+        (
+            "PROGRAM P\nVAR x : INT; END_VAR\nx := 1;\nEND_IF\nEND_PROGRAM",
+            "m.st:4:1: error[syntax]: END_IF without an open IF: remove it or add the IF it closes (the PROGRAM at 1:1 ends with END_PROGRAM)",
+        ),
+        (
+            "FUNCTION_BLOCK F\nMETHOD M\nVAR x : INT; END_VAR\nx := 1; END_WHILE\nEND_METHOD\nEND_FUNCTION_BLOCK",
+            "m.st:4:9: error[syntax]: END_WHILE without an open WHILE: remove it or add the WHILE it closes (the METHOD at 2:1 ends with END_METHOD)",
+        ),
+        (
+            "PROGRAM P\nEND_PROGRAM\nEND_PROGRAM",
+            "m.st:3:1: error[syntax]: END_PROGRAM closes nothing here: no block is open (a file holds TYPE, PROGRAM, FUNCTION, FUNCTION_BLOCK, INTERFACE, VAR_GLOBAL or CONFIGURATION blocks; is there one END_... too many?)",
+        ),
+    ];
+    for (src, want) in cases {
+        assert_eq!(error_of(src), want, "{src}");
+    }
+}
+
+#[test]
 fn semicolons_after_end_keywords_are_optional() {
     let mut rt = plc("PROGRAM P
 VAR i, a, b : INT; END_VAR

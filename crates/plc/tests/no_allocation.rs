@@ -127,6 +127,29 @@ fn string_and_call_heavy_scans_and_faults_allocate_nothing() {
 }
 
 #[test]
+fn wstring_scans_allocate_nothing() {
+    let src = "
+        PROGRAM P VAR k : INT; w : WSTRING(40); s : STRING; n : INT; END_VAR
+          k := k + 1;
+          w := CONCAT(\"Grüße \", INT_TO_WSTRING(k), \" €\");
+          s := WSTRING_TO_STRING(w);
+          w := INSERT(LEFT(STRING_TO_WSTRING(s), 6), MID(w, 2, 3), 2);
+          n := FIND(w, \"ü\") + LEN(REPLACE(w, \"xy\", 1, 1)) + LEN(DELETE(w, 2, 1))
+               + WSTRING_TO_INT(RIGHT(INT_TO_WSTRING(k), 1));
+        END_PROGRAM";
+    let mut rt = Runtime::new(Arc::new(compile(src, "w.st").unwrap()));
+    let n = allocations(|| {
+        for k in 0..100u64 {
+            rt.scan(Duration::from_millis(k)).unwrap();
+        }
+    });
+    assert_eq!(n, 0);
+    // Scan 100: w = "Grüße 100 €"; MID(w, L := 2, P := 3) = "üß" inserted after the
+    // second character of LEFT(.., 6) = "Grüße ": "Grüßüße ".
+    assert_eq!(rt.read_name("w").unwrap(), Value::String("Grüßüße ".into()));
+}
+
+#[test]
 fn method_and_interface_heavy_scans_allocate_nothing() {
     const STATIONS: &str = include_str!("../../../examples/plc/stations.st");
     let mut rt = Runtime::new(Arc::new(compile(STATIONS, "stations.st").unwrap()));

@@ -208,7 +208,11 @@ impl<'a> Compiler<'a> {
                         .map(ik);
                     let ok = wrap.is_some()
                         || lv.ty == m.ty
-                        || matches!((&m.ty, &lv.ty), (Type::String(_), Type::String(_)))
+                        || matches!(
+                            (&m.ty, &lv.ty),
+                            (Type::String(_), Type::String(_))
+                                | (Type::WString(_), Type::WString(_))
+                        )
                         || matches!((m.ty.elem(), lv.ty.elem()), (Some(a), Some(b)) if widens(a, b) && !matches!(lv.ty, Type::Subrange(..)));
                     if !ok || lv.bit.is_some() {
                         return Err(self.e(

@@ -15,6 +15,9 @@ impl<'a> Compiler<'a> {
         if n.text == "STRING" {
             return Ok((Type::String(DEFAULT_STRING_LEN), None));
         }
+        if n.text == "WSTRING" {
+            return Ok((Type::WString(DEFAULT_STRING_LEN), None));
+        }
         // The PLCopen axis reference holds the number of a configured axis.
         if matches!(n.text.as_str(), "AXIS_REF" | "AXIS_REF_SM3") {
             return Ok((Type::Elem(Elem::UDInt), None));
@@ -83,7 +86,7 @@ impl<'a> Compiler<'a> {
                 }
                 Ok((Type::Reference(Arc::new(t)), None))
             }
-            TypeSpec::String { len, pos } => {
+            TypeSpec::String { len, wide, pos } => {
                 let n = match len {
                     Some(e) => self.const_int_in(e, scope)?,
                     None => DEFAULT_STRING_LEN as i128,
@@ -92,10 +95,17 @@ impl<'a> Compiler<'a> {
                     return Err(self.e(
                         *pos,
                         ErrorKind::Invalid,
-                        format!("STRING length must be 1..{MAX_STRING_LEN}"),
+                        format!(
+                            "{} length must be 1..{MAX_STRING_LEN}",
+                            if *wide { "WSTRING" } else { "STRING" }
+                        ),
                     ));
                 }
-                Ok((Type::String(n as u16), None))
+                if *wide {
+                    Ok((Type::WString(n as u16), None))
+                } else {
+                    Ok((Type::String(n as u16), None))
+                }
             }
             TypeSpec::Array { dims, elem, pos } => {
                 let mut bounds = Vec::new();
@@ -246,6 +256,11 @@ impl<'a> Compiler<'a> {
         match t {
             Type::Elem(_) | Type::Pointer(_) | Type::Reference(_) | Type::Interface(_) => vec![0],
             Type::String(n) => vec![0; string_slots(*n) as usize],
+            Type::WString(n) => {
+                let mut slots = vec![0; crate::types::wstring_slots(*n) as usize];
+                slots[0] = crate::strings::WIDE;
+                slots
+            }
             Type::Enum(id) => vec![self.enums[*id as usize].values[0].1 as u64],
             // IEC: a subrange starts at its lower limit unless initialised.
             Type::Subrange(_, l, _) => vec![*l as u64],
@@ -298,6 +313,12 @@ impl<'a> Compiler<'a> {
             (Init::Expr(AExpr::Lit(Literal::Str(s), _)), Type::String(cap)) => {
                 let mut tmp = vec![0u64; string_slots(*cap) as usize];
                 crate::strings::write(&mut tmp, 0, *cap, s);
+                tpl[at..at + tmp.len()].copy_from_slice(&tmp);
+                Ok(())
+            }
+            (Init::Expr(AExpr::Lit(Literal::WStr(s), _)), Type::WString(cap)) => {
+                let mut tmp = vec![0u64; crate::types::wstring_slots(*cap) as usize];
+                crate::strings::write_units(&mut tmp, 0, *cap, true, s);
                 tpl[at..at + tmp.len()].copy_from_slice(&tmp);
                 Ok(())
             }

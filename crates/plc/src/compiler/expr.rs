@@ -439,8 +439,23 @@ impl<'a> Compiler<'a> {
         })
     }
 
-    pub(super) fn string_temp(&mut self, pos: Pos) -> R<u32> {
-        self.alloc(string_slots(MAX_STRING_LEN), pos)
+    pub(super) fn wide_string_literal(&mut self, s: &[u16], pos: Pos) -> R<TE> {
+        let cap = s.len().max(1) as u16;
+        let a = self.alloc(crate::types::wstring_slots(cap), pos)?;
+        crate::strings::write_units(&mut self.image, a as usize, cap, true, s);
+        Ok(TE {
+            ty: Ty::T(Type::WString(cap)),
+            e: vm::Expr::AddrOf(Place::Abs(a)),
+        })
+    }
+
+    /// A temporary for a STRING, or a WSTRING if `wide`, of the longest length.
+    pub(super) fn string_temp(&mut self, pos: Pos, wide: bool) -> R<u32> {
+        if wide {
+            self.alloc(crate::types::wstring_slots(MAX_STRING_LEN), pos)
+        } else {
+            self.alloc(string_slots(MAX_STRING_LEN), pos)
+        }
     }
 
     pub(super) fn expr(&mut self, e: &AExpr, sc: &mut Scope, expect: Option<&Type>) -> R<TE> {
@@ -471,6 +486,7 @@ impl<'a> Compiler<'a> {
                     e: vm::Expr::Const(*ns as u64),
                 },
                 Literal::Str(s) => return self.string_literal(s, *pos),
+                Literal::WStr(s) => return self.wide_string_literal(s, *pos),
             }),
             AExpr::Typed(tn, inner) => {
                 let (t, _) = self.named_type(tn)?;
@@ -873,6 +889,9 @@ impl<'a> Compiler<'a> {
                 if let (Type::String(p), Type::String(q)) = (&x, &y) {
                     return Ok(Type::String((*p).max(*q)));
                 }
+                if let (Type::WString(p), Type::WString(q)) = (&x, &y) {
+                    return Ok(Type::WString((*p).max(*q)));
+                }
                 match (x.elem(), y.elem()) {
                     (Some(p), Some(q)) if widens(p, q) => Ok(y),
                     (Some(p), Some(q)) if widens(q, p) => Ok(x),
@@ -967,7 +986,7 @@ impl<'a> Compiler<'a> {
             op,
             BinOp::Eq | BinOp::Ne | BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge
         );
-        if let Type::String(_) = ct {
+        if ct.is_string() {
             if !is_cmp {
                 return Err(mismatch(self));
             }
@@ -1210,7 +1229,9 @@ impl<'a> Compiler<'a> {
                     return Ok(te.e);
                 }
                 match (from, to) {
-                    (Type::String(_), Type::String(_)) => return Ok(te.e),
+                    (Type::String(_), Type::String(_)) | (Type::WString(_), Type::WString(_)) => {
+                        return Ok(te.e);
+                    }
                     (Type::Subrange(a, _, _), Type::Subrange(b, _, _)) if a == b => return Ok(te.e),
                     (Type::Fb(x), Type::Interface(i)) if self.fb_implements(*x, *i) => {
                         // The interface holds the instance's byte address.

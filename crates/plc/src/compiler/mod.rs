@@ -229,6 +229,7 @@ fn size_of(c: &Compiler, t: &Type) -> u32 {
         Type::Elem(_) | Type::Enum(_) | Type::Subrange(..) => 1,
         Type::Pointer(_) | Type::Reference(_) | Type::Interface(_) => 1,
         Type::String(n) => string_slots(*n),
+        Type::WString(n) => crate::types::wstring_slots(*n),
         Type::Array(a) => (a.len() as u32).saturating_mul(a.elem_size),
         Type::Struct(id) => c.structs.get(*id as usize).map_or(1, |s| s.0.size),
         Type::Fb(id) => c.fbs.get(*id as usize).map_or(1, |f| f.size),
@@ -442,6 +443,7 @@ impl<'a> Compiler<'a> {
         match t {
             Type::Elem(e) => e.name().into(),
             Type::String(n) => format!("STRING[{n}]"),
+            Type::WString(n) => format!("WSTRING[{n}]"),
             Type::Enum(id) => self.enums[*id as usize].name.clone(),
             Type::Subrange(e, l, h) => format!("{}({l}..{h})", e.name()),
             Type::Array(a) => format!("ARRAY OF {}", self.type_name(&a.elem)),
@@ -1169,8 +1171,8 @@ impl Compiler<'_> {
     pub(crate) fn folded(&self, e: vm::Expr) -> vm::Expr {
         self.fold(e)
     }
-    pub(crate) fn new_string_temp(&mut self, pos: Pos) -> R<u32> {
-        self.string_temp(pos)
+    pub(crate) fn new_string_temp(&mut self, pos: Pos, wide: bool) -> R<u32> {
+        self.string_temp(pos, wide)
     }
     pub(crate) fn type_label(&self, t: &Ty) -> String {
         self.ty_name(t)

@@ -288,7 +288,7 @@ impl<'a> Compiler<'a> {
     pub(super) fn store_kind(&self, t: &Type) -> Store {
         match t {
             Type::Subrange(_, l, h) => Store::Range(*l, *h),
-            Type::String(n) => Store::String(*n),
+            Type::String(n) | Type::WString(n) => Store::String(*n),
             t if t.scalar().is_some() => Store::Scalar,
             t => Store::Block(size_of(self, t)),
         }
@@ -420,7 +420,6 @@ impl<'a> Compiler<'a> {
     pub(super) fn same_or_derived(&self, from: &Type, to: &Type) -> bool {
         match (from, to) {
             (Type::Fb(a), Type::Fb(b)) => self.fb_extends(*a, *b),
-            (Type::String(a), Type::String(b)) => a == b,
             (a, b) => a == b,
         }
     }
@@ -457,7 +456,7 @@ impl Compiler<'_> {
         }
         let te = self.call_expr(name, &rest, sc, pos, expect)?;
         let ty = match te.ty {
-            Ty::T(t) if t.scalar().is_some() && !matches!(t, Type::String(_)) => t,
+            Ty::T(t) if t.scalar().is_some() && !t.is_string() => t,
             _ => {
                 return Err(self.e(
                     pos,

@@ -522,6 +522,11 @@ fn value_at(mem: &[u64], slot: usize, ty: &Type) -> Value {
             let n = crate::strings::read(mem, slot, &mut buf);
             Value::String(String::from_utf8_lossy(&buf[..n]).into_owned())
         }
+        Type::WString(_) => {
+            let mut buf = [0u16; crate::types::MAX_STRING_LEN as usize + 1];
+            let (n, _) = crate::strings::read_units(mem, slot, &mut buf);
+            Value::String(String::from_utf16_lossy(&buf[..n]))
+        }
         t => Value::from_slot(
             t.scalar().unwrap_or(Elem::LWord),
             mem.get(slot).copied().unwrap_or(0),
@@ -607,6 +612,7 @@ fn write_image(img: &mut [u8], size: AddrSize, off: usize, bit: u8, e: Elem, v: 
 fn slots_of(t: &Type) -> u32 {
     match t {
         Type::String(n) => string_slots(*n),
+        Type::WString(n) => crate::types::wstring_slots(*n),
         _ => 1,
     }
 }

@@ -28,7 +28,7 @@ impl Runtime {
     /// Real-time: no (allocates).
     pub fn read_name(&self, path: &str) -> Result<Value, MonitorError> {
         let r = self.resolve(path)?;
-        if r.elem().is_none() && !matches!(r.ty, Type::String(_)) {
+        if r.elem().is_none() && !r.ty.is_string() {
             return Err(MonitorError::NotScalar(path.to_string()));
         }
         Ok(self.read(&r))
@@ -63,7 +63,7 @@ impl Runtime {
     pub(super) fn encode(&self, var: &VarRef, value: &Value) -> Result<u64, ValueError> {
         match (&var.ty, var.bit) {
             (_, Some(_)) => Value::to_slot(value, Elem::Bool, None),
-            (Type::String(_), None) => match value {
+            (Type::String(_) | Type::WString(_), None) => match value {
                 Value::String(_) => Ok(0),
                 _ => Err(ValueError::Kind {
                     given: "non-STRING",
@@ -117,6 +117,11 @@ impl Runtime {
             (Type::String(cap), None, Value::String(text)) => {
                 crate::strings::write(&mut self.vm.mem, slot, *cap, text.as_bytes())
             }
+            (Type::WString(cap), None, Value::String(text)) => {
+                let mut units = [0u16; crate::types::MAX_STRING_LEN as usize + 1];
+                let n = crate::strings::utf16_units(text, &mut units);
+                crate::strings::write_units(&mut self.vm.mem, slot, *cap, true, &units[..n])
+            }
             _ => {
                 if let Some(s) = self.vm.mem.get_mut(slot) {
                     *s = v;
@@ -132,11 +137,17 @@ impl Runtime {
     pub fn parse_value(&self, var: &VarRef, text: &str) -> Result<Value, ValueError> {
         match (&var.ty, var.bit) {
             (_, Some(_)) => Value::parse(text, Elem::Bool),
-            (Type::String(_), None) => {
+            (Type::String(_) | Type::WString(_), None) => {
+                // 'text' for a STRING, "text" for a WSTRING, or the bare text.
+                let quote = if matches!(var.ty, Type::WString(_)) {
+                    '"'
+                } else {
+                    '\''
+                };
                 let t = text.trim();
                 let t = t
-                    .strip_prefix('\'')
-                    .and_then(|x| x.strip_suffix('\''))
+                    .strip_prefix(quote)
+                    .and_then(|x| x.strip_suffix(quote))
                     .unwrap_or(t);
                 Ok(Value::String(t.to_string()))
             }

@@ -83,7 +83,7 @@ impl Runtime {
                 located_input: false,
             };
             let value = value.trim();
-            let parsed = if let Type::String(_) = r.ty {
+            let parsed = if r.ty.is_string() {
                 let inner = value
                     .strip_prefix('\'')
                     .and_then(|v| v.strip_suffix('\''))
