@@ -480,19 +480,31 @@ fn build_model(app: &App, space: &mut AddressSpace, ns: u16, cnc: u16) -> Model 
     }
 }
 
+/// Namespace indices of the companion specifications the identification uses.
+struct Namespaces {
+    di: u16,
+    machinery: u16,
+    machine_tool: u16,
+}
+
 /// The machine in the Machines folder of OPC 40001-1 (Machinery), with its umati
-/// identification (`MachineIdentificationType`: manufacturer, model, serial number,
-/// software revision, year of construction, product instance URI) and the CncInterface
-/// organised below it. Made when the machine file names the manufacturer and the serial
-/// number, which the identification must have.
+/// identification (OPC 40501-1's `MachineToolIdentificationType`, a
+/// `MachineIdentificationType`: manufacturer, model, serial number, software revision,
+/// year of construction, product instance URI) and the CncInterface organised below it.
+/// Made when the machine file names the manufacturer and the serial number, which the
+/// identification must have.
 fn identification(
     app: &App,
     section: &OpcUaSection,
     space: &mut AddressSpace,
     model: &Model,
-    di: u16,
-    machinery: u16,
+    namespaces: Namespaces,
 ) {
+    let Namespaces {
+        di,
+        machinery,
+        machine_tool,
+    } = namespaces;
     let (Some(manufacturer), Some(serial)) = (&section.manufacturer, &section.serial_number) else {
         return;
     };
@@ -518,7 +530,10 @@ fn identification(
         QualifiedName::new(di, "Identification"),
         "Identification",
     )
-    .has_type_definition(NodeId::new(machinery, 1012u32))
+    .has_type_definition(NodeId::new(
+        machine_tool,
+        crate::nodeset::MACHINE_TOOL_IDENTIFICATION_TYPE,
+    ))
     .component_of(machine.clone())
     .insert(space);
     let mut add = NodeAdder {
@@ -890,8 +905,19 @@ pub async fn start(app: Arc<App>, section: OpcUaSection) -> anyhow::Result<()> {
         let model = build_model(&app, &mut space, ns, cnc);
         let di = handle.get_namespace_index(crate::nodeset::DI_NAMESPACE);
         let machinery = handle.get_namespace_index(crate::nodeset::MACHINERY_NAMESPACE);
-        if let (Some(di), Some(machinery)) = (di, machinery) {
-            identification(&app, &section, &mut space, &model, di, machinery);
+        let machine_tool = handle.get_namespace_index(crate::nodeset::MACHINE_TOOL_NAMESPACE);
+        if let (Some(di), Some(machinery), Some(machine_tool)) = (di, machinery, machine_tool) {
+            identification(
+                &app,
+                &section,
+                &mut space,
+                &model,
+                Namespaces {
+                    di,
+                    machinery,
+                    machine_tool,
+                },
+            );
         }
         model
     };

@@ -308,6 +308,7 @@ def test_the_umati_identification_comes_from_the_machine_file(opc):
         try:
             di = await c.get_namespace_index("http://opcfoundation.org/UA/DI/")
             machinery = await c.get_namespace_index("http://opcfoundation.org/UA/Machinery/")
+            machine_tool = await c.get_namespace_index("http://opcfoundation.org/UA/MachineTool/")
             cnc = await c.get_namespace_index(CNC)
             machines = await c.nodes.objects.get_child([f"{machinery}:Machines"])
             (machine,) = await machines.get_children()
@@ -317,21 +318,27 @@ def test_the_umati_identification_comes_from_the_machine_file(opc):
                 values[name] = await (await ident.get_child([f"{di}:{name}"])).read_value()
             values["Year"] = await (await ident.get_child([f"{machinery}:YearOfConstruction"])).read_value()
             values["Type"] = await ident.read_type_definition()
+            type_node = c.get_node(values["Type"])
+            values["TypeName"] = await type_node.read_browse_name()
+            (values["SuperType"],) = await type_node.get_referenced_nodes(
+                ua.ObjectIds.HasSubtype, ua.BrowseDirection.Inverse)
             interface = await machine.get_child([f"{cnc}:CncInterface"])
             values["Interface"] = interface.nodeid == (await node(c, "CncInterface")).nodeid
             values["MachineName"] = (await machine.read_browse_name()).Name
-            return values, machinery
+            return values, machinery, machine_tool
         finally:
             await c.disconnect()
 
-    values, machinery = asyncio.run(run())
+    values, machinery, machine_tool = asyncio.run(run())
     assert values["MachineName"] == "Simulated 3-axis mill"
     assert values["Manufacturer"].Text == "rtcnc tests" and values["Model"].Text == "sim mill"
     assert values["SerialNumber"] == "0001" and values["Year"] == 2026
     assert values["SoftwareRevision"].startswith("rtcnc ")
     assert values["ProductInstanceUri"] == "urn:rtcnc-tests:sim-mill:0001"
-    # MachineIdentificationType, OPC 40001-1's i=1012 in the Machinery namespace.
-    assert values["Type"] == ua.NodeId(1012, machinery)
+    # OPC 40501-1's MachineToolIdentificationType, a subtype of OPC 40001-1's
+    # MachineIdentificationType (i=1012 in the Machinery namespace).
+    assert values["TypeName"] == ua.QualifiedName("MachineToolIdentificationType", machine_tool)
+    assert values["SuperType"].nodeid == ua.NodeId(1012, machinery)
     assert values["Interface"], "the machine organises its CncInterface"
 
 
