@@ -197,6 +197,63 @@ def test_a_subscription_sees_the_positions_change(opc):
     wait_state(op, lambda s: s.state == "idle")
 
 
+class Samples:
+    """Values with their source timestamps, as the server stamped them."""
+
+    def __init__(self):
+        self.values: list[tuple[float, float]] = []
+
+    def datachange_notification(self, node, val, data):
+        self.values.append((data.monitored_item.Value.SourceTimestamp.timestamp(), val))
+
+
+def test_sampling_follows_the_interval_asked_down_to_the_servo_period(opc):
+    """A 1 ms monitored item gets the machine's 1 kHz snapshot, well beyond the API's
+    100 status documents a second; a 100 ms one beside it gets one value per 100 ms."""
+    op = operator(opc)
+    op.upload_program("long.ngc", LONG)
+    op.load_program("long.ngc").wait(5)
+
+    async def run():
+        c = await connect(opc, opc.client())
+        try:
+            x = await node(c, *AXIS_X, "PosIndirect", "ActPos")
+            fast, slow = Samples(), Samples()
+            fast_sub = await c.create_subscription(20, fast)
+            await fast_sub.subscribe_data_change(x, sampling_interval=1, queuesize=200)
+            slow_sub = await c.create_subscription(100, slow)
+            await slow_sub.subscribe_data_change(x, sampling_interval=100, queuesize=10)
+            await asyncio.sleep(0.5)
+            op.cycle_start()
+            await asyncio.sleep(3.0)
+            await fast_sub.delete()
+            await slow_sub.delete()
+            return fast.values, slow.values
+        finally:
+            await c.disconnect()
+
+    fast, slow = asyncio.run(run())
+    op.stop()
+    wait_state(op, lambda s: s.state == "idle")
+    moving = [t for t, x in fast if x > 0.01]
+    assert moving, "X moved"
+    # One second of source time, half a second into the move (at 20 mm/s X changes every
+    # millisecond by 0.02 mm, so every sample is a distinct value).
+    start = moving[0] + 0.5
+    window = [x for t, x in sorted(fast) if start <= t < start + 1.0]
+    distinct = len(set(window))
+    print(f"1 ms sampling: {distinct} distinct ActPos values in 1 s")
+    # The API's status documents alone come 100 times a second.
+    assert distinct > 250, distinct
+    bad = [(a, b) for a, b in zip(window, window[1:]) if b < a]
+    assert not bad, ("X only goes up on the way out", bad[:10], len(window))
+    slow_window = [(t, x) for t, x in slow if start <= t < start + 1.0]
+    print(f"100 ms sampling: {len(slow_window)} values in the same second")
+    assert 8 <= len(slow_window) <= 11, slow_window
+    times = [t for t, _ in slow if t > moving[0]]
+    assert all(b - a >= 0.0999 for a, b in zip(times, times[1:])), times
+
+
 def event_filter(fields) -> ua.EventFilter:
     f = ua.EventFilter()
     for type_id, name in fields:
