@@ -45,8 +45,7 @@ pub struct OpcUaSection {
     /// otherwise an unknown client's certificate lands in `pki/rejected` to be moved).
     #[serde(default)]
     pub trust_all_clients: bool,
-    /// Fastest sampling and publishing interval offered, ms (the API's status comes every
-    /// 10 ms, so faster only repeats values).
+    /// Fastest publishing interval offered, ms (sampling goes down to the servo period).
     #[serde(default = "OpcUaSection::default_min_interval_ms")]
     pub min_interval_ms: f64,
     /// Largest number of sessions at once.

@@ -12,6 +12,7 @@ pub mod config;
 pub mod mqtt;
 pub mod nodeset;
 pub mod opcua_server;
+pub mod sampling;
 
 pub use config::FactoryConfig;
 

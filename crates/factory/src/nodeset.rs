@@ -28,7 +28,28 @@ pub const DI_NODESET: &str = include_str!("../nodesets/Opc.Ua.Di.NodeSet2.xml");
 /// The Machinery NodeSet (OPC Foundation MIT License 1.00, in its header).
 pub const MACHINERY_NODESET: &str = include_str!("../nodesets/Opc.Ua.Machinery.NodeSet2.xml");
 
-/// The DI and Machinery NodeSets, in the order they depend on each other.
+/// OPC 40501-1, Machine Tools (umati): the machine tool identification.
+pub const MACHINE_TOOL_NAMESPACE: &str = "http://opcfoundation.org/UA/MachineTool/";
+
+/// `MachineToolIdentificationType` in the MachineTool namespace.
+pub const MACHINE_TOOL_IDENTIFICATION_TYPE: u32 = 11;
+
+/// OPC 10000-200, Industrial Automation (IA), which MachineTool requires.
+pub const IA_NODESET: &str = include_str!("../nodesets/Opc.Ua.IA.NodeSet2.xml");
+
+/// OPC 10031-4, ISA-95 job control 2.0, which Machinery Jobs requires.
+pub const ISA95_JOB_CONTROL_NODESET: &str =
+    include_str!("../nodesets/opc.ua.isa95-jobcontrol.nodeset2.xml");
+
+/// OPC 40001-3, Machinery Job Management, which MachineTool requires.
+pub const MACHINERY_JOBS_NODESET: &str =
+    include_str!("../nodesets/Opc.Ua.Machinery.Jobs.Nodeset2.xml");
+
+/// The MachineTool NodeSet (types only; OPC Foundation MIT License 1.00, in its header).
+pub const MACHINE_TOOL_NODESET: &str = include_str!("../nodesets/Opc.Ua.MachineTool.NodeSet2.xml");
+
+/// The DI, Machinery, IA, ISA-95 job control, Machinery Jobs and MachineTool NodeSets, in
+/// the order they depend on each other.
 pub fn identification_imports() -> anyhow::Result<Vec<Box<dyn NodeSetImport>>> {
     let load = |name: &str, xml: &str| {
         NodeSet2Import::new_str("en", xml, Vec::new())
@@ -37,6 +58,10 @@ pub fn identification_imports() -> anyhow::Result<Vec<Box<dyn NodeSetImport>>> {
     Ok(vec![
         Box::new(load("DI", DI_NODESET)?),
         Box::new(load("Machinery", MACHINERY_NODESET)?),
+        Box::new(load("IA", IA_NODESET)?),
+        Box::new(load("ISA-95 job control", ISA95_JOB_CONTROL_NODESET)?),
+        Box::new(load("Machinery Jobs", MACHINERY_JOBS_NODESET)?),
+        Box::new(load("MachineTool", MACHINE_TOOL_NODESET)?),
     ])
 }
 

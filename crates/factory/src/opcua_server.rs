@@ -5,15 +5,15 @@
 use std::collections::HashMap;
 use std::path::PathBuf;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
 
 use opcua::core_namespace::events::DiscreteAlarmType;
 use opcua::crypto::SecurityPolicy;
 use opcua::nodes::{AccessLevel, BaseEventType, EventNotifier};
 use opcua::server::address_space::{AddressSpace, ObjectBuilder, VariableBuilder};
 use opcua::server::authenticator::{AuthManager, Password, UserToken};
-use opcua::server::node_manager::memory::{
-    SimpleNodeManager, simple_node_manager, simple_node_manager_imports,
-};
+use opcua::server::node_manager::memory::simple_node_manager_imports;
 use opcua::server::{ServerBuilder, ServerEndpoint, ServerHandle};
 use opcua::types::{
     ByteString, DataTypeId, DataValue, DateTime, EUInformation, ExtensionObject, LocalizedText,
@@ -27,6 +27,7 @@ use tokio::sync::broadcast::error::RecvError;
 use crate::cnc::{self, Unit};
 use crate::config::{OpcUaSection, slug};
 use crate::nodeset::{CNC_NAMESPACE, CncTypes};
+use crate::sampling::{MachineNodeManager, machine_node_manager};
 
 /// Node manager of this machine's instance nodes.
 const MACHINE_MANAGER: &str = "rtcnc machine";
@@ -480,19 +481,31 @@ fn build_model(app: &App, space: &mut AddressSpace, ns: u16, cnc: u16) -> Model 
     }
 }
 
+/// Namespace indices of the companion specifications the identification uses.
+struct Namespaces {
+    di: u16,
+    machinery: u16,
+    machine_tool: u16,
+}
+
 /// The machine in the Machines folder of OPC 40001-1 (Machinery), with its umati
-/// identification (`MachineIdentificationType`: manufacturer, model, serial number,
-/// software revision, year of construction, product instance URI) and the CncInterface
-/// organised below it. Made when the machine file names the manufacturer and the serial
-/// number, which the identification must have.
+/// identification (OPC 40501-1's `MachineToolIdentificationType`, a
+/// `MachineIdentificationType`: manufacturer, model, serial number, software revision,
+/// year of construction, product instance URI) and the CncInterface organised below it.
+/// Made when the machine file names the manufacturer and the serial number, which the
+/// identification must have.
 fn identification(
     app: &App,
     section: &OpcUaSection,
     space: &mut AddressSpace,
     model: &Model,
-    di: u16,
-    machinery: u16,
+    namespaces: Namespaces,
 ) {
+    let Namespaces {
+        di,
+        machinery,
+        machine_tool,
+    } = namespaces;
     let (Some(manufacturer), Some(serial)) = (&section.manufacturer, &section.serial_number) else {
         return;
     };
@@ -518,7 +531,10 @@ fn identification(
         QualifiedName::new(di, "Identification"),
         "Identification",
     )
-    .has_type_definition(NodeId::new(machinery, 1012u32))
+    .has_type_definition(NodeId::new(
+        machine_tool,
+        crate::nodeset::MACHINE_TOOL_IDENTIFICATION_TYPE,
+    ))
     .component_of(machine.clone())
     .insert(space);
     let mut add = NodeAdder {
@@ -786,6 +802,7 @@ pub async fn start(app: Arc<App>, section: OpcUaSection) -> anyhow::Result<()> {
         .host_name
         .clone()
         .unwrap_or_else(|| section.listen.ip().to_string());
+    let (fastest_tx, fastest_rx) = tokio::sync::watch::channel(crate::sampling::NOBODY_SAMPLES);
     let mut builder = ServerBuilder::new()
         .application_name(format!("rtcnc {}", app.config.machine.name))
         .application_uri(format!("urn:rtcnc:{name}"))
@@ -811,18 +828,22 @@ pub async fn start(app: Arc<App>, section: OpcUaSection) -> anyhow::Result<()> {
             },
             "companion types",
         ))
-        .with_node_manager(simple_node_manager(
-            opcua::server::diagnostics::NamespaceMetadata {
-                namespace_uri: format!("urn:rtcnc:{name}:machine"),
-                ..Default::default()
-            },
+        .with_node_manager(machine_node_manager(
+            format!("urn:rtcnc:{name}:machine"),
             MACHINE_MANAGER,
+            fastest_tx,
         ))
         .discovery_urls(vec!["/".to_string()]);
     {
         let limits = builder.limits_mut();
         limits.subscriptions.min_publishing_interval_ms = section.min_interval_ms;
-        limits.subscriptions.min_sampling_interval_ms = section.min_interval_ms;
+        // Sampling goes down to the servo period, where the machine's status snapshot is
+        // published; publishing stays at `min_interval_ms`.
+        limits.subscriptions.min_sampling_interval_ms =
+            app.config.servo_period().as_secs_f64() * 1e3;
+        // A monitored item keeps the samples of up to 200 ms at 1 ms between two
+        // publications (async-opcua's default keeps 10).
+        limits.subscriptions.max_monitored_item_queue_size = MAX_QUEUE_SIZE;
     }
     let endpoints = [
         (
@@ -877,7 +898,7 @@ pub async fn start(app: Arc<App>, section: OpcUaSection) -> anyhow::Result<()> {
     let local = listener.local_addr()?;
     let manager = handle
         .node_managers()
-        .get_by_name::<SimpleNodeManager>(MACHINE_MANAGER)
+        .get_by_name::<MachineNodeManager>(MACHINE_MANAGER)
         .ok_or_else(|| anyhow::anyhow!("OPC UA: the machine's node manager is missing"))?;
     let ns = handle
         .get_namespace_index(&format!("urn:rtcnc:{name}:machine"))
@@ -890,8 +911,19 @@ pub async fn start(app: Arc<App>, section: OpcUaSection) -> anyhow::Result<()> {
         let model = build_model(&app, &mut space, ns, cnc);
         let di = handle.get_namespace_index(crate::nodeset::DI_NAMESPACE);
         let machinery = handle.get_namespace_index(crate::nodeset::MACHINERY_NAMESPACE);
-        if let (Some(di), Some(machinery)) = (di, machinery) {
-            identification(&app, &section, &mut space, &model, di, machinery);
+        let machine_tool = handle.get_namespace_index(crate::nodeset::MACHINE_TOOL_NAMESPACE);
+        if let (Some(di), Some(machinery), Some(machine_tool)) = (di, machinery, machine_tool) {
+            identification(
+                &app,
+                &section,
+                &mut space,
+                &model,
+                Namespaces {
+                    di,
+                    machinery,
+                    machine_tool,
+                },
+            );
         }
         model
     };
@@ -910,87 +942,253 @@ pub async fn start(app: Arc<App>, section: OpcUaSection) -> anyhow::Result<()> {
         Arc::clone(&manager),
         handle.clone(),
         Arc::clone(&model),
+        fastest_rx,
     ));
     tokio::spawn(feed_events(app, handle, model));
     Ok(())
 }
 
-/// Sets the model's values from every status document (100 a second), only those that
-/// changed, so subscriptions see changes.
+/// Largest queue of a monitored item.
+const MAX_QUEUE_SIZE: usize = 200;
+
+/// The API's status documents come this often (crates/api/src/machine.rs).
+const API_STATUS_PERIOD_MS: f64 = 10.0;
+
+/// Sets the model's values, only those that changed, so subscriptions see changes: from
+/// the API's status documents (100 a second) while no monitored item samples faster, else
+/// from the machine's shared-memory status snapshot read directly, as often as the
+/// fastest monitored item asks, down to the machine's status period (its servo period).
+/// Reading the snapshot is a seqlock read: the machine never waits on it.
 async fn feed_values(
     app: Arc<App>,
-    manager: Arc<SimpleNodeManager>,
+    manager: Arc<MachineNodeManager>,
     handle: ServerHandle,
     model: Arc<Model>,
+    mut fastest: tokio::sync::watch::Receiver<f64>,
 ) {
     let mut rx = app.machine.status_watch();
-    let mut last: HashMap<NodeId, Value> = HashMap::new();
-    let mut program: Option<(String, Vec<String>)> = None;
-    let mut connected = true;
+    let mut publisher = Publisher {
+        app: Arc::clone(&app),
+        manager,
+        handle,
+        model,
+        last: HashMap::new(),
+        program: None,
+        connected: true,
+        clock: None,
+        last_machine: None,
+        status_period_ticks: (app.config.servo_period().as_nanos() / 100) as i64,
+    };
+    publisher.publish(&rx.borrow_and_update().clone());
     loop {
-        let status = rx.borrow_and_update().clone();
+        let asked = *fastest.borrow_and_update();
+        if asked < API_STATUS_PERIOD_MS {
+            let status_period_ms = app
+                .machine
+                .client()
+                .map(|c| c.header().status_period_ns as f64 * 1e-6)
+                .unwrap_or(1.0);
+            let period = Duration::from_secs_f64(asked.max(status_period_ms).max(0.1) * 1e-3);
+            // A thread of its own: the runtime's timer ticks in whole milliseconds.
+            let stop = Arc::new(AtomicBool::new(false));
+            let sampler = {
+                let (app, stop) = (Arc::clone(&app), Arc::clone(&stop));
+                tokio::task::spawn_blocking(move || {
+                    sample_directly(&app, &mut publisher, &mut rx, period, &stop);
+                    (publisher, rx)
+                })
+            };
+            let changed = fastest.changed().await;
+            stop.store(true, Ordering::Relaxed);
+            let Ok((p, r)) = sampler.await else {
+                return;
+            };
+            (publisher, rx) = (p, r);
+            if changed.is_err() {
+                return;
+            }
+            // The API's document at hand is older than the snapshot just set: the next
+            // one is not.
+            rx.borrow_and_update();
+        } else {
+            tokio::select! {
+                r = rx.changed() => {
+                    if r.is_err() {
+                        return;
+                    }
+                    publisher.publish(&rx.borrow_and_update().clone());
+                }
+                r = fastest.changed() => {
+                    if r.is_err() {
+                        return;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Sets the values from the machine's snapshot every `period` until `stop`; from the API's
+/// documents while the machine is not attached.
+fn sample_directly(
+    app: &App,
+    publisher: &mut Publisher,
+    rx: &mut tokio::sync::watch::Receiver<Arc<Status>>,
+    period: Duration,
+    stop: &AtomicBool,
+) {
+    let mut cycle = None;
+    let mut next = Instant::now();
+    while !stop.load(Ordering::Relaxed) {
+        match direct_status(app, &mut cycle) {
+            Some(Some(status)) => publisher.publish(&status),
+            Some(None) => {}
+            // The machine is gone: the API's document says so.
+            None if rx.has_changed().unwrap_or(false) => {
+                publisher.publish(&rx.borrow_and_update().clone());
+            }
+            None => {}
+        }
+        next += period;
+        let now = Instant::now();
+        if next > now {
+            std::thread::sleep(next - now);
+        } else {
+            // Late (a loaded machine): the next read is a period from now, not a burst.
+            next = now;
+        }
+    }
+}
+
+/// The machine's status snapshot as a status document, when it is newer than `cycle`
+/// (`Some(None)`: no newer one; `None`: the machine is not attached). The program's name
+/// and the deadline misses, which change slowly, are the API's.
+fn direct_status(app: &App, cycle: &mut Option<u64>) -> Option<Option<Status>> {
+    let client = app.machine.client().ok()?;
+    let wire = client.status();
+    if *cycle == Some(wire.cycle) {
+        return Some(None);
+    }
+    *cycle = Some(wire.cycle);
+    let api = app.machine.status();
+    Some(Some(rtcnc_api::machine::status_document(
+        &wire,
+        &app.machine.meta(),
+        api.deadline_misses,
+        &client.watch(),
+        &[],
+        api.program.clone(),
+    )))
+}
+
+/// Sets the values of one status document.
+struct Publisher {
+    app: Arc<App>,
+    manager: Arc<MachineNodeManager>,
+    handle: ServerHandle,
+    model: Arc<Model>,
+    last: HashMap<NodeId, Value>,
+    /// The loaded program's name and lines.
+    program: Option<(String, Vec<String>)>,
+    connected: bool,
+    /// The wall-clock time of the machine's time zero, ticks since the OPC UA epoch.
+    clock: Option<i64>,
+    /// The machine's time of the last status, ticks.
+    last_machine: Option<i64>,
+    /// The machine's status period, ticks.
+    status_period_ticks: i64,
+}
+
+impl Publisher {
+    /// The source timestamp of a status: when the machine took it, on the wall clock, in
+    /// whole ticks (100 ns), so that snapshots a status period apart are exactly that
+    /// apart and a monitored item sampling at the status period takes each one. The
+    /// machine's time zero on the wall clock is the earliest seen (a reading's own delay is
+    /// not part of it), moved back only within the time a skipped snapshot leaves (at most
+    /// 50 µs a reading), so source timestamps never go backwards nor come closer than a
+    /// status period; it is taken afresh when a second off (a step of the wall clock).
+    fn source_time(&mut self, status: &Status, now: DateTime) -> DateTime {
+        let machine = (status.time_s * 1e7).round() as i64;
+        let zero = now.ticks() - machine;
+        let since = self.last_machine.map_or(0, |last| machine - last);
+        self.last_machine = Some(machine);
+        let zero = match self.clock {
+            Some(c) if (zero - c).abs() < 10_000_000 => {
+                let room = (since - self.status_period_ticks).clamp(0, 500);
+                c.min(zero.max(c - room))
+            }
+            _ => zero,
+        };
+        self.clock = Some(zero);
+        DateTime::from(zero + machine)
+    }
+
+    fn publish(&mut self, status: &Status) {
         // While the machine process is gone the values are its last ones: every value is set
         // again with a status that says so, and again when it is back.
-        if status.connected != connected {
-            connected = status.connected;
-            last.clear();
+        if status.connected != self.connected {
+            self.connected = status.connected;
+            self.last.clear();
+            self.clock = None;
+            self.last_machine = None;
         }
-        let good_status = if connected {
+        let good_status = if self.connected {
             StatusCode::Good
         } else {
             StatusCode::UncertainLastUsableValue
         };
         // The program's text, read again when another program is loaded.
         let name = status.program.clone().unwrap_or_default();
-        if program.as_ref().is_none_or(|(n, _)| *n != name) {
-            let lines = app
+        if self.program.as_ref().is_none_or(|(n, _)| *n != name) {
+            let lines = self
+                .app
                 .read_program(&name)
                 .map(|t| t.lines().map(str::to_string).collect())
                 .unwrap_or_default();
-            program = Some((name, lines));
+            self.program = Some((name, lines));
         }
-        let block: Vec<String> = program
+        let block: Vec<String> = self
+            .program
             .as_ref()
             .and_then(|(_, lines)| lines.get((status.line as usize).checked_sub(1)?))
             .map(|l| vec![l.clone()])
             .unwrap_or_default();
         let now = DateTime::now();
-        let fresh: Vec<(NodeId, Value)> = values(&model, &app, &status, &block)
-            .into_iter()
-            .filter(|(id, v)| last.get(id) != Some(v))
-            .collect();
-        let changed: Vec<(NodeId, DataValue)> = fresh
-            .into_iter()
-            .map(|(id, v)| {
-                let dv = match &v {
-                    Value::Good(x) => DataValue {
-                        value: Some(x.clone()),
-                        status: Some(good_status),
-                        source_timestamp: Some(now),
-                        server_timestamp: Some(now),
-                        ..Default::default()
-                    },
-                    // An empty value: the status is only served beside a value.
-                    Value::Absent => DataValue {
-                        value: Some(Variant::Empty),
-                        status: Some(StatusCode::BadNotSupported),
-                        source_timestamp: Some(now),
-                        server_timestamp: Some(now),
-                        ..Default::default()
-                    },
-                };
-                last.insert(id.clone(), v);
-                (id, dv)
-            })
-            .collect();
+        let source = if self.connected {
+            self.source_time(status, now)
+        } else {
+            now
+        };
+        let mut changed: Vec<(NodeId, DataValue)> = Vec::new();
+        for (id, v) in values(&self.model, &self.app, status, &block) {
+            if self.last.get(&id) == Some(&v) {
+                continue;
+            }
+            let dv = match &v {
+                Value::Good(x) => DataValue {
+                    value: Some(x.clone()),
+                    status: Some(good_status),
+                    source_timestamp: Some(source),
+                    server_timestamp: Some(now),
+                    ..Default::default()
+                },
+                // An empty value: the status is only served beside a value.
+                Value::Absent => DataValue {
+                    value: Some(Variant::Empty),
+                    status: Some(StatusCode::BadNotSupported),
+                    source_timestamp: Some(source),
+                    server_timestamp: Some(now),
+                    ..Default::default()
+                },
+            };
+            self.last.insert(id.clone(), v);
+            changed.push((id, dv));
+        }
         if !changed.is_empty() {
-            let _ = manager.set_values(
-                handle.subscriptions(),
+            let _ = self.manager.set_values(
+                self.handle.subscriptions(),
                 changed.iter().map(|(id, dv)| (id, None, dv.clone())),
             );
-        }
-        if rx.changed().await.is_err() {
-            return;
         }
     }
 }

@@ -197,6 +197,63 @@ def test_a_subscription_sees_the_positions_change(opc):
     wait_state(op, lambda s: s.state == "idle")
 
 
+class Samples:
+    """Values with their source timestamps, as the server stamped them."""
+
+    def __init__(self):
+        self.values: list[tuple[float, float]] = []
+
+    def datachange_notification(self, node, val, data):
+        self.values.append((data.monitored_item.Value.SourceTimestamp.timestamp(), val))
+
+
+def test_sampling_follows_the_interval_asked_down_to_the_servo_period(opc):
+    """A 1 ms monitored item gets the machine's 1 kHz snapshot, well beyond the API's
+    100 status documents a second; a 100 ms one beside it gets one value per 100 ms."""
+    op = operator(opc)
+    op.upload_program("long.ngc", LONG)
+    op.load_program("long.ngc").wait(5)
+
+    async def run():
+        c = await connect(opc, opc.client())
+        try:
+            x = await node(c, *AXIS_X, "PosIndirect", "ActPos")
+            fast, slow = Samples(), Samples()
+            fast_sub = await c.create_subscription(20, fast)
+            await fast_sub.subscribe_data_change(x, sampling_interval=1, queuesize=200)
+            slow_sub = await c.create_subscription(100, slow)
+            await slow_sub.subscribe_data_change(x, sampling_interval=100, queuesize=10)
+            await asyncio.sleep(0.5)
+            op.cycle_start()
+            await asyncio.sleep(3.0)
+            await fast_sub.delete()
+            await slow_sub.delete()
+            return fast.values, slow.values
+        finally:
+            await c.disconnect()
+
+    fast, slow = asyncio.run(run())
+    op.stop()
+    wait_state(op, lambda s: s.state == "idle")
+    moving = [t for t, x in fast if x > 0.01]
+    assert moving, "X moved"
+    # One second of source time, half a second into the move (at 20 mm/s X changes every
+    # millisecond by 0.02 mm, so every sample is a distinct value).
+    start = moving[0] + 0.5
+    window = [x for t, x in sorted(fast) if start <= t < start + 1.0]
+    distinct = len(set(window))
+    print(f"1 ms sampling: {distinct} distinct ActPos values in 1 s")
+    # The API's status documents alone come 100 times a second.
+    assert distinct > 250, distinct
+    bad = [(a, b) for a, b in zip(window, window[1:]) if b < a]
+    assert not bad, ("X only goes up on the way out", bad[:10], len(window))
+    slow_window = [(t, x) for t, x in slow if start <= t < start + 1.0]
+    print(f"100 ms sampling: {len(slow_window)} values in the same second")
+    assert 8 <= len(slow_window) <= 11, slow_window
+    times = [t for t, _ in slow if t > moving[0]]
+    assert all(b - a >= 0.0999 for a, b in zip(times, times[1:])), times
+
+
 def event_filter(fields) -> ua.EventFilter:
     f = ua.EventFilter()
     for type_id, name in fields:
@@ -308,6 +365,7 @@ def test_the_umati_identification_comes_from_the_machine_file(opc):
         try:
             di = await c.get_namespace_index("http://opcfoundation.org/UA/DI/")
             machinery = await c.get_namespace_index("http://opcfoundation.org/UA/Machinery/")
+            machine_tool = await c.get_namespace_index("http://opcfoundation.org/UA/MachineTool/")
             cnc = await c.get_namespace_index(CNC)
             machines = await c.nodes.objects.get_child([f"{machinery}:Machines"])
             (machine,) = await machines.get_children()
@@ -317,21 +375,27 @@ def test_the_umati_identification_comes_from_the_machine_file(opc):
                 values[name] = await (await ident.get_child([f"{di}:{name}"])).read_value()
             values["Year"] = await (await ident.get_child([f"{machinery}:YearOfConstruction"])).read_value()
             values["Type"] = await ident.read_type_definition()
+            type_node = c.get_node(values["Type"])
+            values["TypeName"] = await type_node.read_browse_name()
+            (values["SuperType"],) = await type_node.get_referenced_nodes(
+                ua.ObjectIds.HasSubtype, ua.BrowseDirection.Inverse)
             interface = await machine.get_child([f"{cnc}:CncInterface"])
             values["Interface"] = interface.nodeid == (await node(c, "CncInterface")).nodeid
             values["MachineName"] = (await machine.read_browse_name()).Name
-            return values, machinery
+            return values, machinery, machine_tool
         finally:
             await c.disconnect()
 
-    values, machinery = asyncio.run(run())
+    values, machinery, machine_tool = asyncio.run(run())
     assert values["MachineName"] == "Simulated 3-axis mill"
     assert values["Manufacturer"].Text == "rtcnc tests" and values["Model"].Text == "sim mill"
     assert values["SerialNumber"] == "0001" and values["Year"] == 2026
     assert values["SoftwareRevision"].startswith("rtcnc ")
     assert values["ProductInstanceUri"] == "urn:rtcnc-tests:sim-mill:0001"
-    # MachineIdentificationType, OPC 40001-1's i=1012 in the Machinery namespace.
-    assert values["Type"] == ua.NodeId(1012, machinery)
+    # OPC 40501-1's MachineToolIdentificationType, a subtype of OPC 40001-1's
+    # MachineIdentificationType (i=1012 in the Machinery namespace).
+    assert values["TypeName"] == ua.QualifiedName("MachineToolIdentificationType", machine_tool)
+    assert values["SuperType"].nodeid == ua.NodeId(1012, machinery)
     assert values["Interface"], "the machine organises its CncInterface"
 
 
