@@ -275,8 +275,7 @@ impl<B: Fieldbus> ServoStage<B> {
             command.controlword = if self.servo_fault {
                 // The drive's own quick stop, then off (stop category 1): from quick stop
                 // active, "disable voltage" once the drive reports it stands.
-                if state == Cia402State::QuickStopActive && feedback.statusword.target_reached()
-                {
+                if state == Cia402State::QuickStopActive && feedback.statusword.target_reached() {
                     ControlWord::disable_voltage()
                 } else if state == Cia402State::OperationEnabled
                     || state == Cia402State::QuickStopActive
