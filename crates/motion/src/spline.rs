@@ -274,19 +274,7 @@ impl SplineP {
             s_max = s_max.max(s);
         }
         let h = 1.0 / GRID as f64;
-        let (mut lo, mut hi) = (
-            (k_min as f64 * h - h).max(0.0),
-            (k_min as f64 * h + h).min(1.0),
-        );
-        let g = 0.5 * (5f64.sqrt() - 1.0);
-        for _ in 0..60 {
-            let (x1, x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
-            if speed(x1) < speed(x2) {
-                hi = x2;
-            } else {
-                lo = x1;
-            }
-        }
+        let (lo, hi) = slowest_bracket(&speed, k_min);
         let u_min = 0.5 * (lo + hi);
         s_min = s_min.min(speed(u_min));
         if s_min >= MIN_SPEED_RATIO * s_max {
@@ -827,20 +815,7 @@ fn split_cubic(c: &[AxisVec; 4], tolerance: f64, depth: u32, out: &mut Vec<Curve
     if !(s_max > 0.0) {
         return false;
     }
-    let h = 1.0 / GRID as f64;
-    let (mut lo, mut hi) = (
-        (k_min as f64 * h - h).max(0.0),
-        (k_min as f64 * h + h).min(1.0),
-    );
-    let g = 0.5 * (5f64.sqrt() - 1.0);
-    for _ in 0..60 {
-        let (x1, x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
-        if speed(x1) < speed(x2) {
-            hi = x2;
-        } else {
-            lo = x1;
-        }
-    }
+    let (lo, hi) = slowest_bracket(&speed, k_min);
     let uc = if k_min == 0 && speed(0.0) <= speed(lo) {
         0.0
     } else if k_min == GRID && speed(1.0) <= speed(hi) {
@@ -936,4 +911,24 @@ impl Bezier {
             false
         }
     }
+}
+
+/// The bracket of the slowest parametric speed near grid point `k_min` of a `GRID`-point
+/// sampling: its two neighbouring intervals narrowed by 60 golden-section steps.
+fn slowest_bracket(speed: &impl Fn(f64) -> f64, k_min: usize) -> (f64, f64) {
+    let h = 1.0 / GRID as f64;
+    let (mut lo, mut hi) = (
+        (k_min as f64 * h - h).max(0.0),
+        (k_min as f64 * h + h).min(1.0),
+    );
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    for _ in 0..60 {
+        let (x1, x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
+        if speed(x1) < speed(x2) {
+            hi = x2;
+        } else {
+            lo = x1;
+        }
+    }
+    (lo, hi)
 }
