@@ -123,12 +123,7 @@ fn the_mill_logic_stops_the_spindle_before_the_tool_is_unclamped() {
 #[test]
 fn the_e_stop_input_opens_the_chain_and_stops_the_machine() {
     let cfg = config("sim-mill.toml");
-    let mut m = Machine::new(
-        &cfg,
-        Some(program("G21 G90 G61.1\nG1 X100 F3000\nM2\n", "l.ngc")),
-    );
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, "G21 G90 G61.1\nG1 X100 F3000\nM2\n", "l.ngc");
     m.cycles(500);
     m.sim
         .handle()
@@ -176,12 +171,7 @@ fn the_e_stop_input_opens_the_chain_and_stops_the_machine() {
 #[test]
 fn releasing_the_e_stop_button_enables_no_drive_until_a_reset() {
     let cfg = config("sim-mill.toml");
-    let mut m = Machine::new(
-        &cfg,
-        Some(program("G21 G90 G61.1\nG1 X100 F3000\nM2\n", "l.ngc")),
-    );
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
+    let mut m = Machine::started(&cfg, "G21 G90 G61.1\nG1 X100 F3000\nM2\n", "l.ngc");
     m.cycles(500);
     let enabled = |m: &Machine| {
         m.handle_machine(|machine| {
