@@ -9,16 +9,29 @@ mod common;
 mod line_programs;
 use common::*;
 use line_programs::{Change, Lcg, parse_spec, random_changes, random_lines};
-use rtcnc_motion::{MotionState, Move, Planner, TrivialKinematics};
+use rtcnc_motion::{AxisVec, MotionState, Move, PathMode, Planner, TrivialKinematics};
 
 const V: f64 = 100.0;
 const A: f64 = 1000.0;
 const J: f64 = 50_000.0;
 
+/// The end point of a line or an arc.
+fn end_of(m: &Move) -> [f64; rtcnc_motion::AXES] {
+    match m.kind {
+        rtcnc_motion::MoveKind::Line { end, .. } | rtcnc_motion::MoveKind::Arc { end, .. } => end,
+        _ => unreachable!("lines and arcs only"),
+    }
+}
+
 /// Runs `moves` with `changes` applied before the given periods; asserts the limits, no
 /// counted violation and (without a quick stop) the exact end point.
 fn run_changes(moves: &[Move], changes: &[(usize, Change)]) {
-    let mut pl = planner(&limits(V, A, J), p3(0.0, 0.0, 0.0), 256);
+    run_changes_from(p3(0.0, 0.0, 0.0), moves, changes);
+}
+
+/// [`run_changes`] from `start`.
+fn run_changes_from(start: AxisVec, moves: &[Move], changes: &[(usize, Change)]) {
+    let mut pl = planner(&limits(V, A, J), start, 256);
     let apply = |n: usize, pl: &mut Planner<TrivialKinematics>| {
         for (at, c) in changes {
             if *at == n {
@@ -37,10 +50,7 @@ fn run_changes(moves: &[Move], changes: &[(usize, Change)]) {
     assert_eq!(*tr.states.last().unwrap(), MotionState::Idle);
     // (A quick stop drops the program wherever the machine comes to rest.)
     if !changes.iter().any(|(_, c)| matches!(c, Change::QuickStop)) {
-        let end = match moves.last().unwrap().kind {
-            rtcnc_motion::MoveKind::Line { end, .. } => end,
-            _ => unreachable!(),
-        };
+        let end = end_of(moves.last().unwrap());
         assert!(dist(tr.pts.last().unwrap(), &end) <= 1e-9);
     }
 }
@@ -119,4 +129,184 @@ fn random_programs_with_random_on_line_changes_keep_every_limit() {
         let result = std::panic::catch_unwind(|| run_changes(&moves, &changes));
         assert!(result.is_ok(), "case {case}: SPEC=\"{spec}\" {changes:?}");
     }
+}
+
+/// A line from the origin, then one to four arcs in the XY plane (radius 0.5-15 mm, a
+/// quarter to nearly a whole turn, either way, some helical), each blended into the next or
+/// ending in an exact stop, the last in the program's stop; feeds 5-150 mm/s.
+fn random_arcs(rng: &mut Lcg) -> Vec<Move> {
+    let mut pos = [0.0; rtcnc_motion::AXES];
+    pos[0] = 5.0 + rng.f() * 10.0;
+    pos[1] = rng.f() * 10.0;
+    let feed = |rng: &mut Lcg| 5.0 + rng.f() * 145.0;
+    let mut moves = vec![Move::line(pos, feed(rng), blend(0.01), 1)];
+    let mut heading = (pos[1]).atan2(pos[0]);
+    for i in 0..1 + (rng.f() * 4.0) as usize {
+        let r = 0.5 + rng.f() * 14.5;
+        let ccw = rng.f() < 0.5;
+        let side = if ccw { 1.0 } else { -1.0 };
+        // The centre lies to the left of the heading for a counter-clockwise arc: the arc
+        // starts tangent to the path so far.
+        let normal_angle = heading + side * std::f64::consts::FRAC_PI_2;
+        let centre = [
+            pos[0] + r * normal_angle.cos(),
+            pos[1] + r * normal_angle.sin(),
+            0.0,
+        ];
+        let sweep = (0.25 + rng.f() * 0.7) * std::f64::consts::TAU;
+        let start_angle = (pos[1] - centre[1]).atan2(pos[0] - centre[0]);
+        let end_angle = start_angle + side * sweep;
+        let mut end = pos;
+        end[0] = centre[0] + r * end_angle.cos();
+        end[1] = centre[1] + r * end_angle.sin();
+        if rng.f() < 0.3 {
+            end[2] = pos[2] + rng.f() * 4.0 - 2.0;
+        }
+        let mode = if rng.f() < 0.3 {
+            PathMode::ExactStop
+        } else {
+            blend(0.01)
+        };
+        let normal = [0.0, 0.0, side];
+        moves.push(Move::arc(
+            end,
+            centre,
+            normal,
+            0,
+            feed(rng),
+            mode,
+            i as u32 + 2,
+        ));
+        heading = end_angle + side * std::f64::consts::FRAC_PI_2;
+        pos = end;
+    }
+    moves
+}
+
+#[test]
+fn an_override_raised_while_braking_for_an_arc_end_keeps_the_limits() {
+    // Found by the kernel fuzz target (fuzz/defects/kernel/arc-end-reached-at-8-mm-s): 34 ms
+    // before the end of a half circle of 1.35 mm radius that ends in a stop, braking at
+    // 23 mm/s, the override went from 42 % to 51 %. The braking curve under the new feed
+    // lies lower (its deceleration is estimated at higher speeds, where the curve leaves
+    // less of it), so no stop of the model fitted, and the policy braked at the model's
+    // constant deceleration: the arc's end came at 8 mm/s. The axes had more (the
+    // tangential deceleration grows as the speed falls and the tangent turns): they brake
+    // as hard as the arc allows.
+    let arc = Move::arc(
+        [12.0, 5.4, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [10.65, 5.4, 0.0],
+        [0.0, 0.0, -1.0],
+        0,
+        4000.0 / 60.0,
+        PathMode::ExactStop,
+        2,
+    );
+    let lead_in = Move::line(
+        [9.3, 5.4, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        4000.0 / 60.0,
+        PathMode::ExactStop,
+        1,
+    );
+    let moves = [lead_in, arc];
+    // The lead-in's stop, then the arc at 42 %; the override is raised at every period
+    // of the arc's last 60 ms in turn.
+    let plain = {
+        let mut pl = planner(&limits(V, A, J), p3(9.3, 0.0, 0.0), 256);
+        run_with(&mut pl, &moves, 100_000, |n, pl| {
+            if n == 0 {
+                pl.set_feed_override(0.424)
+            }
+        })
+    };
+    let periods = plain.states.len();
+    for raise_at in periods.saturating_sub(60)..periods {
+        let changes = [
+            (0, Change::Override(0.424)),
+            (raise_at, Change::Override(0.51)),
+        ];
+        let result =
+            std::panic::catch_unwind(|| run_changes_from(p3(9.3, 0.0, 0.0), &moves, &changes));
+        assert!(
+            result.is_ok(),
+            "override raised at period {raise_at} of {periods}"
+        );
+    }
+}
+
+/// A program and its on-line changes.
+type ArcCase = (Vec<Move>, Vec<(usize, Change)>);
+
+/// The first `n` programs of the seeded random arc family with their on-line changes: two
+/// overrides at random periods (20-170 %), the second often while the first's change of
+/// speed is under way, and in one program of three a hold and its resume.
+fn random_arc_cases(n: usize) -> Vec<ArcCase> {
+    let mut rng = Lcg(20_261_127);
+    (0..n)
+        .map(|_| {
+            let moves = random_arcs(&mut rng);
+            let first = 30 + (rng.f() * 1500.0) as usize;
+            let mut changes = vec![
+                (first, Change::Override(0.2 + rng.f() * 1.5)),
+                (
+                    first + 1 + (rng.f() * 200.0) as usize,
+                    Change::Override(0.2 + rng.f() * 1.5),
+                ),
+            ];
+            if rng.f() < 0.33 {
+                let hold = 30 + (rng.f() * 1500.0) as usize;
+                changes.push((hold, Change::Hold));
+                changes.push((hold + 300, Change::Resume));
+            }
+            (moves, changes)
+        })
+        .collect()
+}
+
+#[test]
+fn random_arcs_with_random_overrides_keep_every_limit() {
+    let n = if cfg!(debug_assertions) { 24 } else { 400 };
+    for (case, (moves, changes)) in random_arc_cases(n).iter().enumerate() {
+        let result = std::panic::catch_unwind(|| run_changes(moves, changes));
+        assert!(result.is_ok(), "case {case}: {moves:?} {changes:?}");
+    }
+}
+
+#[test]
+fn more_random_arcs_with_random_overrides_keep_speed_and_acceleration() {
+    // Open: about one program in 200 of this family exceeds the jerk limit (up to 10 ×)
+    // while it comes to rest after an override or a hold (README, known defects); none
+    // exceeds the speed or the acceleration (before the planner braked as hard as an arc
+    // allows when the stop model had lost the state, 171 of 6 000 did, up to 62 ×).
+    let n = if cfg!(debug_assertions) { 24 } else { 3000 };
+    let mut jerk_exceeded = Vec::new();
+    for (case, (moves, changes)) in random_arc_cases(n).iter().enumerate() {
+        let mut pl = planner(&limits(V, A, J), p3(0.0, 0.0, 0.0), 256);
+        let apply = |k: usize, pl: &mut Planner<TrivialKinematics>| {
+            for (at, c) in changes {
+                if *at == k {
+                    match *c {
+                        Change::Override(f) => pl.set_feed_override(f),
+                        Change::Hold => pl.hold(),
+                        Change::Resume => pl.resume(),
+                        Change::QuickStop => pl.quick_stop(),
+                    }
+                }
+            }
+        };
+        let tr = run_with(&mut pl, moves, 400_000, apply);
+        let (rv, ra, rj) = ratios(&tr, V, A, J);
+        assert!(
+            rv <= 1.0 + 1e-9 && ra <= 1.0 + 1e-9,
+            "case {case}: speed {rv}, acceleration {ra} of the limits: {moves:?} {changes:?}"
+        );
+        assert!(dist(tr.pts.last().unwrap(), &end_of(moves.last().unwrap())) <= 1e-9);
+        if rj > 1.0 + 1e-9 {
+            jerk_exceeded.push((case, rj));
+        }
+    }
+    eprintln!(
+        "jerk exceeded in {} of {n}: {jerk_exceeded:?}",
+        jerk_exceeded.len()
+    );
 }

@@ -27,6 +27,10 @@ pub(super) const STOP_JERK_SHARE: f64 = 0.9;
 /// Speed-model scale per rollback attempt at the same dead end (deceleration, jerk and the
 /// braking-curve cap all shrink by this factor per attempt).
 const STRICT_FACTOR: f64 = 0.9;
+/// Longest stop, in periods, that the generator follows on the time-optimal profile under
+/// one period's bounds of the path when the stop model has lost the state (the bounds
+/// change along the path; over a few tens of milliseconds little).
+const EXACT_STOP_PERIODS: usize = 64;
 /// Set-points dropped by the first rollback at a dead end (doubling per attempt).
 const ROLLBACK_FIRST: usize = 4;
 /// Buffered entries a rollback looks at, at most, for a state that fits the stricter model.
@@ -1222,24 +1226,38 @@ impl<K: Kinematics> Planner<K> {
             let end = st.at + ds + stop(v1, a1, a_stop, j_full).0;
             *hold_at = hold_at.min(end);
         }
-        if self.hold.is_none()
-            && self.q.get(model.idx).straight
-            && ds + stop(v1, a1, a_stop, j_full).0 > rem
-        {
-            // Even that stop overshoots: the stop model's deceleration (the lowest on the
-            // last stretch before the stop) is below what the axes have here, and the state
-            // came from a model that knew better (an override moved the braking curve).
-            // Brake as hard as the path allows here; the model takes over again once it
-            // fits.
-            trace!(
-                self.trace,
-                "  BRAKE HARD at={} v={v} a={a} rem={rem}", st.at
-            );
+        let full_releasable = !(a < 0.0 && a * a > 2.0 * j_full * v.max(0.0));
+        let full_stop_fits = full_releasable && ds + stop(v1, a1, a_stop, j_full).0 <= rem;
+        if !soft && !full_stop_fits {
+            // Even the full stop model overshoots, or cannot release the deceleration
+            // before the speed is gone (it would come to rest short of the stop): its
+            // deceleration (the lowest on the last stretch before the stop) is below what
+            // the axes have here, and the state came from a model that knew better (an
+            // override moved the braking curve: on a curve, a higher feed lowers the
+            // deceleration the braking curve counts on). The stop follows the time-optimal
+            // profile onto the stop under this period's bounds of the path, recomputed
+            // every period (on an arc into a stop they grow as the speed falls); without
+            // one, the axes brake as hard as the path allows. The model takes over again
+            // once it fits.
             let jp = b.j_hi.min(-b.j_lo).min(b.jm);
-            let bj = clampf(brake_jerk(v, a, -b.a_lo, jp, t), b.j_lo, b.j_hi);
-            j_used = bj;
-            (ds, v1, a1) = advance(0.0, v, a, bj, t);
-            v1 = v1.max(0.0);
+            let overshoots = ds + stop(v1, a1, a_stop, j_full).0 > rem;
+            let exact = self.exact_stop_step(v, a, (-b.a_lo).max(0.0), jp, rem);
+            if let Some((ds1, v2, a2)) = exact {
+                trace!(
+                    self.trace,
+                    "  EXACT STOP at={} v={v} a={a} rem={rem}", st.at
+                );
+                (ds, v1, a1) = (ds1, v2, a2);
+            } else if overshoots {
+                trace!(
+                    self.trace,
+                    "  BRAKE HARD at={} v={v} a={a} rem={rem}", st.at
+                );
+                let bj = clampf(brake_jerk(v, a, -b.a_lo, jp, t), b.j_lo, b.j_hi);
+                j_used = bj;
+                (ds, v1, a1) = advance(0.0, v, a, bj, t);
+                v1 = v1.max(0.0);
+            }
         }
         Step {
             ds: clampf(ds, 0.0, rem.max(0.0)),
@@ -1247,6 +1265,47 @@ impl<K: Kinematics> Planner<K> {
             j: j_used,
             exact: Some((v1, a1)),
         }
+    }
+
+    /// One period of the time-optimal stop at `rem` ahead from speed `v` and acceleration
+    /// `a`, within deceleration `am` and jerk `jm` (and never faster than now): the step,
+    /// speed and acceleration at the end of the period. None when no such stop exists, it
+    /// reverses along the path, or it takes longer than `EXACT_STOP_PERIODS`. A few
+    /// microseconds (`position_profile`); taken only when the stop model has lost the state.
+    fn exact_stop_step(
+        &self,
+        v: f64,
+        a: f64,
+        am: f64,
+        jm: f64,
+        rem: f64,
+    ) -> Option<(f64, f64, f64)> {
+        let t = self.period;
+        if !(v > 0.0 && am > 0.0 && jm > 0.0 && rem > 0.0) {
+            return None;
+        }
+        let limits = OtgLimits::symmetric(v * (1.0 + 1e-9), am, jm);
+        let from = OtgState { p: 0.0, v, a };
+        let to = OtgState {
+            p: rem,
+            v: 0.0,
+            a: 0.0,
+        };
+        let profile = position_profile(from, to, &limits).ok()?;
+        let duration = profile.duration();
+        // The bounds are this period's: further along the path they may be lower.
+        if !(duration <= EXACT_STOP_PERIODS as f64 * t) {
+            return None;
+        }
+        let n = (duration / t).ceil() as usize;
+        if !(0..=n).all(|k| profile.at(k as f64 * t).v >= -1e-9) {
+            return None;
+        }
+        if duration <= t {
+            return Some((rem, 0.0, 0.0));
+        }
+        let end = profile.at(t);
+        Some((clampf(end.p, 0.0, rem), end.v.max(0.0), end.a))
     }
 
     /// The set-point of `step`, checked against every axis's finite-difference box
