@@ -274,10 +274,11 @@ fn random_arcs_with_random_overrides_keep_every_limit() {
 
 #[test]
 fn more_random_arcs_with_random_overrides_keep_speed_and_acceleration() {
-    // Open: about one program in 200 of this family exceeds the jerk limit (up to 10 ×)
-    // while it comes to rest after an override or a hold (README, known defects); none
-    // exceeds the speed or the acceleration (before the planner braked as hard as an arc
-    // allows when the stop model had lost the state, 171 of 6 000 did, up to 62 ×).
+    // Open: 4 programs of these 3 000 exceed the jerk limit (up to 7 ×) while they come to
+    // rest after an override or a hold (README, known defects); none exceeds the speed or
+    // the acceleration (171 of 6 000 did, up to 62 ×, before the planner braked as hard as
+    // an arc allows when the stop model had lost the state, and kept a stop's generated
+    // set-points when an override made it lose that stop).
     let n = if cfg!(debug_assertions) { 24 } else { 3000 };
     let mut jerk_exceeded = Vec::new();
     for (case, (moves, changes)) in random_arc_cases(n).iter().enumerate() {
@@ -305,8 +306,16 @@ fn more_random_arcs_with_random_overrides_keep_speed_and_acceleration() {
             jerk_exceeded.push((case, rj));
         }
     }
-    eprintln!(
-        "jerk exceeded in {} of {n}: {jerk_exceeded:?}",
-        jerk_exceeded.len()
+    // The known open ones, so that any other is a failure (12 before the stop's generated
+    // set-points were kept).
+    let known: &[usize] = if n == 3000 {
+        &[502, 1799, 2829, 2854]
+    } else {
+        &[]
+    };
+    let cases: Vec<usize> = jerk_exceeded.iter().map(|(case, _)| *case).collect();
+    assert_eq!(
+        cases, known,
+        "jerk exceeded (case, ratio): {jerk_exceeded:?}"
     );
 }

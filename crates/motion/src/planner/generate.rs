@@ -381,7 +381,7 @@ impl<K: Kinematics> Planner<K> {
 
     /// The piece `st` moves on (none at rest, in a dwell or on an isolated line's S-curve:
     /// any model fits there).
-    fn moving_piece(&self, st: &GenState) -> Option<(usize, &Piece)> {
+    pub(super) fn moving_piece(&self, st: &GenState) -> Option<(usize, &Piece)> {
         if st.prof_t.is_some() || (st.v <= 0.0 && st.a <= 0.0) {
             return None;
         }
@@ -393,7 +393,7 @@ impl<K: Kinematics> Planner<K> {
     /// Whether `st` can still stop at the next stop (and release its deceleration before
     /// the speed reaches zero) with the stop model scaled by `f`. Always during a hold (its
     /// stop is not scaled, and a rollback cannot reach before the request).
-    fn stop_fits(&self, st: &GenState, f: f64) -> bool {
+    pub(super) fn stop_fits(&self, st: &GenState, f: f64) -> bool {
         let Some((_, p)) = self.moving_piece(st) else {
             return true;
         };
