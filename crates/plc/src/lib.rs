@@ -40,6 +40,7 @@
 
 mod ast;
 mod builtins;
+mod charset;
 mod compiler;
 mod dates;
 mod error;
@@ -57,6 +58,7 @@ mod vm;
 
 use std::path::Path;
 
+pub use charset::SourceEncoding;
 pub use error::{
     CompileError, CompileErrors, ErrorKind, Fault, FaultKind, LoadError, Pos, Warning,
 };
@@ -76,12 +78,16 @@ pub struct CompileOptions {
     /// `(* (* *) *)` nests (IEC 61131-3 3rd edition, CODESYS, TwinCAT; the default).
     /// Sources written for tools where a comment ends at the first `*)` need `false`.
     pub nested_comments: bool,
+    /// How [`compile_files`] reads a file's bytes (the default: UTF-8 when valid, else
+    /// Windows-1252 as CODESYS 2.3 writes).
+    pub encoding: SourceEncoding,
 }
 
 impl Default for CompileOptions {
     fn default() -> Self {
         CompileOptions {
             nested_comments: true,
+            encoding: SourceEncoding::Auto,
         }
     }
 }
@@ -112,16 +118,26 @@ pub fn compile_file(path: &Path) -> Result<Program, LoadError> {
     compile_files(&[path], &CompileOptions::default())
 }
 
-/// Reads and compiles the files of one program, in the order given.
+/// Reads and compiles the files of one program, in the order given, each read as
+/// `options.encoding` says.
 ///
 /// Real-time: no (allocates, reads the files).
 pub fn compile_files(paths: &[&Path], options: &CompileOptions) -> Result<Program, LoadError> {
     let mut texts = Vec::with_capacity(paths.len());
     for path in paths {
-        let text = std::fs::read_to_string(path).map_err(|source| LoadError::Io {
+        let io_error = |source| LoadError::Io {
             path: path.display().to_string(),
             source,
-        })?;
+        };
+        let bytes = std::fs::read(path).map_err(io_error)?;
+        let text = charset::decode_source(&bytes, options.encoding)
+            .ok_or_else(|| {
+                io_error(std::io::Error::new(
+                    std::io::ErrorKind::InvalidData,
+                    "not valid UTF-8 (read it as Windows-1252 with the encoding option)",
+                ))
+            })?
+            .into_owned();
         texts.push((text, path.display().to_string()));
     }
     let sources: Vec<(&str, &str)> = texts
