@@ -1,0 +1,37 @@
+//! The CODESYS 2.3 dialect that libraries written for it (OSCAT BASIC and the like) use.
+//! Every program here is written for the test; expected values are worked out by hand.
+
+mod common;
+use common::*;
+
+#[test]
+fn array_initial_values_without_brackets_and_with_repeat_factors() {
+    let rt = plc_scanned(
+        "TYPE Pt : STRUCT x, y : INT; END_STRUCT END_TYPE
+TYPE Table : STRUCT
+  steps : ARRAY[1..4] OF BYTE := 1, 3, 7, 15;
+END_STRUCT END_TYPE
+PROGRAM P
+VAR CONSTANT
+  K : ARRAY[0..3] OF INT := 1, 3, 7, 15;
+END_VAR
+VAR
+  r : ARRAY[1..7] OF BYTE := 2(7), 3(0), 9;
+  pts : ARRAY[1..2] OF Pt := (x := 1, y := 2), (x := 3, y := 4);
+  t : Table;
+  one : ARRAY[0..2] OF INT := 3(5);
+  sum : INT;
+  i : INT;
+END_VAR
+FOR i := 0 TO 3 DO sum := sum + K[i]; END_FOR
+END_PROGRAM",
+    );
+    // 1 + 3 + 7 + 15
+    assert_eq!(int(&rt, "sum"), 26);
+    // 2(7), 3(0), 9: 7 7 0 0 0 9, and the seventh element keeps its default 0.
+    let r: Vec<i64> = (1..=7).map(|i| int(&rt, &format!("r[{i}]"))).collect();
+    assert_eq!(r, [7, 7, 0, 0, 0, 9, 0]);
+    assert_eq!([int(&rt, "pts[1].y"), int(&rt, "pts[2].x")], [2, 3]);
+    assert_eq!(int(&rt, "t.steps[4]"), 15);
+    assert_eq!(int(&rt, "one[2]"), 5);
+}
