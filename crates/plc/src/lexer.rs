@@ -298,7 +298,12 @@ impl Lexer<'_> {
                 let kind = self.typed_literal(word, pos)?;
                 return Ok(Token { kind, pos });
             }
-            Tok::Ident(word)
+            // CODESYS 2.3 also spells the block `FUNCTIONBLOCK` (its exports keep it).
+            match word.as_str() {
+                "FUNCTIONBLOCK" => Tok::Ident("FUNCTION_BLOCK".into()),
+                "END_FUNCTIONBLOCK" => Tok::Ident("END_FUNCTION_BLOCK".into()),
+                _ => Tok::Ident(word),
+            }
         } else if c.is_ascii_digit() {
             self.number(pos)?
         } else if c == b'\'' {

@@ -138,7 +138,6 @@ const RESERVED: &[&str] = &[
     "END_RESOURCE",
     "TASK",
     "WITH",
-    "ON",
     "AT",
     "CONSTANT",
     "RETAIN",
@@ -366,6 +365,18 @@ impl Parser<'_> {
                             .push(self.pou(PouKind::FunctionBlock, "END_FUNCTION_BLOCK")?),
                         "VAR_GLOBAL" => u.globals.push(self.var_block()?),
                         "CONFIGURATION" => u.configs.push(self.config()?),
+                        "LIBRARY" => {
+                            // A CODESYS 2.3 export ends with the libraries the project
+                            // links (`LIBRARY Standard.lib ... END_LIBRARY`): names, no code.
+                            let at = self.pos();
+                            self.bump();
+                            while !self.eat_kw("END_LIBRARY") {
+                                if self.peek() == &Tok::Eof {
+                                    return Err(self.unclosed("END_LIBRARY", "LIBRARY", at));
+                                }
+                                self.bump();
+                            }
+                        }
                         w if w.starts_with("END_") || statement_closed_by(w).is_some() => {
                             return Err(self.err(format!(
                                 "{w} closes nothing here: no block is open (a file holds \

@@ -35,3 +35,37 @@ END_PROGRAM",
     assert_eq!(int(&rt, "t.steps[4]"), 15);
     assert_eq!(int(&rt, "one[2]"), 5);
 }
+
+#[test]
+fn functionblock_on_as_a_name_and_the_library_list_of_an_export() {
+    let rt = plc_scanned(
+        "FUNCTION Manual : BOOL
+VAR_INPUT IN, ON, OFF : BOOL; END_VAR
+Manual := (IN OR ON) AND NOT OFF;
+END_FUNCTION
+
+FUNCTIONBLOCK Latch
+VAR_INPUT S, R : BOOL; END_VAR
+VAR_OUTPUT Q : BOOL; END_VAR
+Q := NOT R AND (S OR Q);
+END_FUNCTION_BLOCK
+
+PROGRAM P
+VAR l : Latch; a, b : BOOL; END_VAR
+a := Manual(IN := FALSE, ON := TRUE, OFF := FALSE);
+b := Manual(FALSE, TRUE, TRUE);
+l(S := TRUE, R := FALSE);
+END_PROGRAM
+
+LIBRARY
+Standard.lib 4.10.05 11:14:46
+NumOfPOUs: 2
+TON: 0
+TP: 0
+END_LIBRARY
+",
+    );
+    assert!(boolean(&rt, "a"));
+    assert!(!boolean(&rt, "b"));
+    assert!(boolean(&rt, "l.Q"));
+}
