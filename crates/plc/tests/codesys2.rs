@@ -69,3 +69,36 @@ END_LIBRARY
     assert!(!boolean(&rt, "b"));
     assert!(boolean(&rt, "l.Q"));
 }
+
+#[test]
+fn a_constant_declared_below_bounds_an_array_above_it() {
+    let rt = plc_scanned(
+        "FUNCTION_BLOCK Fifo
+VAR_OUTPUT top : DWORD; size : UDINT; END_VAR
+VAR buf : ARRAY[0..n] OF DWORD; END_VAR
+VAR CONSTANT n : INT := 3; END_VAR
+buf[n] := 16#CAFE;
+top := buf[3];
+size := SIZEOF(buf);
+END_FUNCTION_BLOCK
+
+FUNCTION Last : INT
+VAR_INPUT k : INT; END_VAR
+VAR a : ARRAY[1..m] OF INT; i : INT; END_VAR
+VAR CONSTANT m : INT := 4; END_VAR
+FOR i := 1 TO m DO a[i] := i * k; END_FOR
+Last := a[m];
+END_FUNCTION
+
+PROGRAM P
+VAR f : Fifo; x : INT; END_VAR
+f();
+x := Last(5);
+END_PROGRAM",
+    );
+    assert_eq!(uint(&rt, "f.top"), 0xCAFE);
+    // a[4] = 4 * 5
+    assert_eq!(int(&rt, "x"), 20);
+    // Four DWORDs of 8 bytes each (docs/plc.md: every elementary value takes a slot).
+    assert_eq!(uint(&rt, "f.size"), 32);
+}
