@@ -59,6 +59,19 @@ mod vm;
 use std::path::Path;
 
 pub use charset::SourceEncoding;
+
+/// Which implicit conversions the compiler makes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Conversions {
+    /// IEC 61131-3's: along the widening chains only (the default).
+    #[default]
+    Iec,
+    /// CODESYS's, which libraries written for it rely on: bit strings (BYTE, WORD, DWORD,
+    /// LWORD) take arithmetic as the unsigned integers of their width and mix with
+    /// integers, and any integer or bit string is assigned or passed to any other (the
+    /// low bits kept, as `*_TO_*` does) or to a real.
+    Codesys,
+}
 pub use error::{
     CompileError, CompileErrors, ErrorKind, Fault, FaultKind, LoadError, Pos, Warning,
 };
@@ -81,6 +94,8 @@ pub struct CompileOptions {
     /// How [`compile_files`] reads a file's bytes (the default: UTF-8 when valid, else
     /// Windows-1252 as CODESYS 2.3 writes).
     pub encoding: SourceEncoding,
+    /// Implicit conversions: IEC's (the default) or CODESYS's.
+    pub conversions: Conversions,
 }
 
 impl Default for CompileOptions {
@@ -88,6 +103,7 @@ impl Default for CompileOptions {
         CompileOptions {
             nested_comments: true,
             encoding: SourceEncoding::Auto,
+            conversions: Conversions::Iec,
         }
     }
 }

@@ -4,6 +4,10 @@
 mod common;
 use common::*;
 
+use std::sync::Arc;
+
+use rtcnc_plc::{CompileOptions, Conversions, Runtime, compile_sources};
+
 #[test]
 fn array_initial_values_without_brackets_and_with_repeat_factors() {
     let rt = plc_scanned(
@@ -101,4 +105,59 @@ END_PROGRAM",
     assert_eq!(int(&rt, "x"), 20);
     // Four DWORDs of 8 bytes each (docs/plc.md: every elementary value takes a slot).
     assert_eq!(uint(&rt, "f.size"), 32);
+}
+
+fn codesys(src: &str) -> Result<Runtime, rtcnc_plc::CompileErrors> {
+    let options = CompileOptions {
+        conversions: Conversions::Codesys,
+        ..CompileOptions::default()
+    };
+    let program = compile_sources(&[(src, "codesys.st")], &options)?;
+    let mut rt = Runtime::new(Arc::new(program));
+    rt.scan(ms(0)).expect("scan");
+    Ok(rt)
+}
+
+#[test]
+fn codesys_conversions_compute_with_bit_strings_and_narrow_implicitly() {
+    let src = "PROGRAM P
+VAR
+  dw1 : DWORD := 1; dw2 : DWORD := 2; diff : DWORD;
+  b : BYTE := 200; i : INT := 100; sum : INT;
+  big : DINT := 70000; narrow : INT;
+  u : UINT := 40000; w : WORD;
+  r : REAL; m : DWORD; less : BOOL;
+END_VAR
+diff := dw1 - dw2;
+sum := b + i;
+narrow := big;
+w := u;
+r := b / 4;
+m := dw1 + 16#FFFF_FFFF MOD 7;
+less := b < i;
+END_PROGRAM";
+    let rt = codesys(src).unwrap_or_else(|e| panic!("{e}"));
+    // 1 - 2 wraps in 32 bits.
+    assert_eq!(uint(&rt, "diff"), 0xFFFF_FFFF);
+    // BYTE meets INT at INT: 200 + 100.
+    assert_eq!(int(&rt, "sum"), 300);
+    // 70000 keeps its low 16 bits: 70000 - 65536.
+    assert_eq!(int(&rt, "narrow"), 4464);
+    assert_eq!(uint(&rt, "w"), 40000);
+    // BYTE / 4 is an integer division (50), then a REAL.
+    assert_eq!(real(&rt, "r"), 50.0);
+    // 4294967295 MOD 7 = 3 (7 * 613566756 = 4294967292), plus 1.
+    assert_eq!(uint(&rt, "m"), 4);
+    // 200 < 100 compared as INT.
+    assert!(!boolean(&rt, "less"));
+
+    // IEC's rules (the default) refuse the same program.
+    let err = compile_sources(&[(src, "iec.st")], &CompileOptions::default())
+        .err()
+        .map(|e| e.to_string());
+    assert!(
+        err.as_deref()
+            .is_some_and(|e| e.contains("operator SUB does not apply to DWORD and DWORD")),
+        "{err:?}"
+    );
 }

@@ -8,11 +8,11 @@ use std::time::Duration;
 use anyhow::{Context, bail};
 use clap::Subcommand;
 use rtcnc_plc::{
-    CompileOptions, FmtTime, LoadError, Runtime, SourceEncoding, Value, VarRef, compile_files,
-    parse_time,
+    CompileOptions, Conversions, FmtTime, LoadError, Runtime, SourceEncoding, Value, VarRef,
+    compile_files, parse_time,
 };
 
-/// How the source files are read.
+/// How the source files are read and compiled.
 #[derive(Debug, clap::Args)]
 struct SourceArgs {
     /// A comment ends at the first `*)` (sources that rely on comments not nesting).
@@ -22,6 +22,16 @@ struct SourceArgs {
     /// Windows-1252 (what CODESYS 2.3 exports).
     #[arg(long, value_enum, default_value = "auto")]
     encoding: Encoding,
+    /// Implicit conversions: `iec` (along the widening chains) or `codesys` (bit strings
+    /// compute as unsigned integers; any integer or bit string goes to any other).
+    #[arg(long, value_enum, default_value = "iec")]
+    conversions: ConversionsArg,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum ConversionsArg {
+    Iec,
+    Codesys,
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -135,6 +145,10 @@ fn load(
             Encoding::Auto => SourceEncoding::Auto,
             Encoding::Utf8 => SourceEncoding::Utf8,
             Encoding::Windows1252 => SourceEncoding::Windows1252,
+        },
+        conversions: match source.conversions {
+            ConversionsArg::Iec => Conversions::Iec,
+            ConversionsArg::Codesys => Conversions::Codesys,
         },
     };
     match compile_files(&paths, &options) {

@@ -892,15 +892,26 @@ impl<'a> Compiler<'a> {
                 if let (Type::WString(p), Type::WString(q)) = (&x, &y) {
                     return Ok(Type::WString((*p).max(*q)));
                 }
+                // CODESYS: a bit string meets other types as the unsigned integer of its
+                // width (BYTE and INT at INT).
+                let goes_to = |p: Elem, q: Elem| {
+                    widens(p, q)
+                        || (self.codesys_conversions
+                            && (q.is_int() || q.is_real())
+                            && (p.is_int() || p.is_bit())
+                            && widens(as_unsigned(p), as_unsigned(q)))
+                };
                 match (x.elem(), y.elem()) {
-                    (Some(p), Some(q)) if widens(p, q) => Ok(y),
-                    (Some(p), Some(q)) if widens(q, p) => Ok(x),
+                    (Some(p), Some(q)) if goes_to(p, q) => Ok(y),
+                    (Some(p), Some(q)) if goes_to(q, p) => Ok(x),
                     // Neither widens to the other (INT and UINT): the smallest type both
                     // widen to (DINT).
                     (Some(p), Some(q))
-                        if Elem::ALL.iter().any(|t| widens(p, *t) && widens(q, *t)) =>
+                        if Elem::ALL.iter().any(|t| goes_to(p, *t) && goes_to(q, *t)) =>
                     {
-                        let t = Elem::ALL.iter().find(|t| widens(p, **t) && widens(q, **t));
+                        let t = Elem::ALL
+                            .iter()
+                            .find(|t| goes_to(p, **t) && goes_to(q, **t));
                         Ok(Type::Elem(*t.unwrap_or(&Elem::LReal)))
                     }
                     _ => Err(self.e(
@@ -1021,6 +1032,8 @@ impl<'a> Compiler<'a> {
         };
         let k = ik(el);
         let s = real_flag(el);
+        // CODESYS computes with bit strings as with unsigned integers of their width.
+        let integer = el.is_int() || (self.codesys_conversions && el.is_bit());
         let bin = if is_cmp {
             if el.is_real() {
                 match op {
@@ -1051,11 +1064,11 @@ impl<'a> Compiler<'a> {
                         _ => Bin::Xor,
                     }
                 }
-                BinOp::Add if el.is_int() || el == Elem::Time => Bin::AddI(k),
-                BinOp::Sub if el.is_int() || el == Elem::Time => Bin::SubI(k),
-                BinOp::Mul if el.is_int() => Bin::MulI(k),
-                BinOp::Div if el.is_int() => Bin::DivI(k),
-                BinOp::Mod if el.is_int() => Bin::ModI(k),
+                BinOp::Add if integer || el == Elem::Time => Bin::AddI(k),
+                BinOp::Sub if integer || el == Elem::Time => Bin::SubI(k),
+                BinOp::Mul if integer => Bin::MulI(k),
+                BinOp::Div if integer => Bin::DivI(k),
+                BinOp::Mod if integer => Bin::ModI(k),
                 BinOp::Add if el.is_real() => Bin::AddR(s),
                 BinOp::Sub if el.is_real() => Bin::SubR(s),
                 BinOp::Mul if el.is_real() => Bin::MulR(s),
@@ -1261,7 +1274,12 @@ impl<'a> Compiler<'a> {
                 let (Some(f), Some(t)) = (from.elem(), to.elem()) else {
                     return Err(mismatch(self, &te.ty));
                 };
-                if !widens(f, t) {
+                let converts = if self.codesys_conversions {
+                    codesys_converts(f, t)
+                } else {
+                    widens(f, t)
+                };
+                if !converts {
                     return Err(mismatch(self, &te.ty));
                 }
                 Ok(self.fold(self.convert(te.e, f, t)))
