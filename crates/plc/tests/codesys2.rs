@@ -161,3 +161,30 @@ END_PROGRAM";
         "{err:?}"
     );
 }
+
+#[test]
+fn codesys_conversions_shift_integers_in_their_width_by_a_bit_string_count() {
+    let rt = codesys(
+        "PROGRAM P
+VAR
+  i : INT := -2; u : UINT := 40000; n : BYTE := 3;
+  a, b : INT; c : UINT; d : DINT; e : BYTE;
+END_VAR
+a := SHR(i, 1);
+b := SHL(INT#16384, 1);
+c := SHR(u, n);
+d := SHL(DINT#1, 31);
+e := ROL(BYTE#16#81, n);
+END_PROGRAM",
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    // -2 is 16#FFFE in 16 bits; shifted right with a zero: 16#7FFF.
+    assert_eq!(int(&rt, "a"), 32767);
+    // 16#4000 << 1 = 16#8000, the INT -32768.
+    assert_eq!(int(&rt, "b"), -32768);
+    // 40000 / 8
+    assert_eq!(uint(&rt, "c"), 5000);
+    assert_eq!(int(&rt, "d"), i32::MIN as i64);
+    // 2#1000_0001 rotated left by 3: 2#0000_1100.
+    assert_eq!(uint(&rt, "e"), 0x0C);
+}

@@ -1161,6 +1161,10 @@ impl Compiler<'_> {
         Ok(())
     }
 
+    /// CODESYS's implicit conversions are on ([`crate::Conversions::Codesys`]).
+    pub(crate) fn codesys_conversions(&self) -> bool {
+        self.codesys_conversions
+    }
     pub(crate) fn err_at(&self, pos: Pos, kind: ErrorKind, msg: impl Into<String>) -> CompileError {
         self.e(pos, kind, msg)
     }
