@@ -192,7 +192,7 @@ pub(crate) fn call(
         "ABS", "SQRT", "LN", "LOG", "EXP", "SIN", "COS", "TAN", "ASIN", "ACOS", "ATAN", "ATAN2",
         "EXPT", "ADD", "SUB", "MUL", "DIV", "MOD", "AND", "OR", "XOR", "MOVE", "SHL", "SHR", "ROL",
         "ROR", "SEL", "MAX", "MIN", "LIMIT", "MUX", "GT", "GE", "EQ", "LE", "LT", "NE", "LEN",
-        "LEFT", "RIGHT", "MID", "CONCAT", "INSERT", "DELETE", "REPLACE", "FIND", "TRUNC",
+        "LEFT", "RIGHT", "MID", "CONCAT", "INSERT", "DELETE", "REPLACE", "FIND", "TRUNC", "TIME",
     ];
     if !known.contains(&f) {
         return Err(c.err_at(
@@ -222,6 +222,14 @@ pub(crate) fn call(
             string_function(c, f, a, pos)
         }
         "TRUNC" => trunc(c, f, a, pos),
+        "TIME" => {
+            // CODESYS's `TIME()`: the time of the scan (the caller's PLC time).
+            count(c, f, &a, 0, 0, pos)?;
+            Ok(Compiler::te(
+                Ty::T(Type::Elem(Elem::Time)),
+                builtin_expr(Builtin::Now, Vec::new(), 0),
+            ))
+        }
         _ => Err(c.err_at(
             name.pos,
             ErrorKind::Undeclared,

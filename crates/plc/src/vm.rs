@@ -151,6 +151,8 @@ pub(crate) enum Builtin {
     Rol(IntKind),
     Ror(IntKind),
     Sel,
+    /// CODESYS's `TIME()`: the scan's PLC time.
+    Now,
     Mux,
     MaxI(bool),
     MinI(bool),
@@ -698,6 +700,7 @@ impl Vm {
                 let n = arg(self, 1);
                 rotate(k, v, n, matches!(b, Builtin::Ror(_)))
             }
+            Builtin::Now => self.now as u64,
             Builtin::Sel => {
                 let g = arg(self, 0);
                 let in0 = arg(self, 1);

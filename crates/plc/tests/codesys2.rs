@@ -188,3 +188,21 @@ END_PROGRAM",
     // 2#1000_0001 rotated left by 3: 2#0000_1100.
     assert_eq!(uint(&rt, "e"), 0x0C);
 }
+
+#[test]
+fn time_without_arguments_is_the_scans_plc_time() {
+    let mut rt = plc("FUNCTION T_MS : DWORD
+T_MS := TIME_TO_DWORD(TIME());
+END_FUNCTION
+PROGRAM P
+VAR t : TIME; ms : DWORD; END_VAR
+t := TIME();
+ms := T_MS();
+END_PROGRAM");
+    rt.scan(ms(0)).expect("scan");
+    assert_eq!(time_ms(&rt, "t"), 0.0);
+    rt.scan(ms(1500)).expect("scan");
+    assert_eq!(time_ms(&rt, "t"), 1500.0);
+    // TIME_TO_DWORD counts milliseconds.
+    assert_eq!(uint(&rt, "ms"), 1500);
+}
