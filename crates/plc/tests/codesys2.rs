@@ -206,3 +206,39 @@ END_PROGRAM");
     // TIME_TO_DWORD counts milliseconds.
     assert_eq!(uint(&rt, "ms"), 1500);
 }
+
+#[test]
+fn codesys_conversions_index_negate_type_big_literals_and_treat_addresses_as_words() {
+    let rt = codesys(
+        "FUNCTION SUM3 : INT
+VAR_INPUT pt : POINTER TO ARRAY[1..3] OF INT; END_VAR
+SUM3 := pt^[1] + pt^[2] + pt^[3];
+END_FUNCTION
+PROGRAM P
+VAR
+  arr : ARRAY[0..3] OF INT := 10, 20, 30, 40; k : BYTE := 2; at_k : INT;
+  step : BYTE := 5; neg : INT;
+  off : INT := 3; prod : DINT;
+  x0 : INT := 77; a : DWORD; p : POINTER TO INT; y : INT;
+  p1, p2 : POINTER TO INT; lt, ge : BOOL;
+  s : INT;
+END_VAR
+at_k := arr[k];
+neg := -step;
+prod := off * 60000;
+a := ADR(x0); p := a; y := p^;
+p1 := ADR(arr[1]); p2 := ADR(arr[3]); lt := p1 < p2; ge := p1 >= p2;
+s := SUM3(ADR(arr));
+END_PROGRAM",
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(int(&rt, "at_k"), 30);
+    assert_eq!(int(&rt, "neg"), -5);
+    // 3 * 60000 does not fit an INT: computed in DINT as CODESYS types 60000.
+    assert_eq!(int(&rt, "prod"), 180_000);
+    assert_eq!(int(&rt, "y"), 77);
+    assert!(boolean(&rt, "lt"));
+    assert!(!boolean(&rt, "ge"));
+    // pt^[1..3] are arr[0..2]: 10 + 20 + 30.
+    assert_eq!(int(&rt, "s"), 60);
+}

@@ -298,7 +298,9 @@ impl<'a> Compiler<'a> {
                         let te = self.expr(ie, sc, None)?;
                         let ok = match &te.ty {
                             Ty::AnyInt(_) => true,
-                            Ty::T(t) => t.elem().is_some_and(|e| e.is_int()),
+                            Ty::T(t) => t.elem().is_some_and(|e| {
+                                e.is_int() || (self.codesys_conversions && e.is_bit())
+                            }),
                             Ty::AnyReal(_) => false,
                         };
                         if !ok {
@@ -742,6 +744,23 @@ impl<'a> Compiler<'a> {
                         format!("operator does not apply to {}", self.type_name(t)),
                     ));
                 };
+                // CODESYS negates an unsigned integer or bit string in the smallest
+                // signed type that holds it (-BYTE is an INT).
+                if self.codesys_conversions
+                    && op == UnOp::Neg
+                    && (el.is_bit() || (el.is_int() && !ik(el).signed()))
+                {
+                    let signed = match as_unsigned(el) {
+                        Elem::USInt => Elem::Int,
+                        Elem::UInt => Elem::DInt,
+                        _ => Elem::LInt,
+                    };
+                    let e = self.fold(self.convert(te.e, el, signed));
+                    return Ok(TE {
+                        ty: Ty::T(Type::Elem(signed)),
+                        e: self.fold(vm::Expr::Un(Un::NegI(ik(signed)), Box::new(e))),
+                    });
+                }
                 let un = match op {
                     UnOp::Neg if el.is_real() => Un::NegR(real_flag(el)),
                     UnOp::Neg if (el.is_int() && ik(el).signed()) || el == Elem::Time => {
@@ -879,6 +898,21 @@ impl<'a> Compiler<'a> {
             t => t.clone(),
         };
         match (a, b) {
+            // CODESYS types a literal that does not fit the other operand by its value:
+            // INT * 60000 is computed in DINT.
+            (Ty::T(x), Ty::AnyInt(v)) | (Ty::AnyInt(v), Ty::T(x))
+                if self.codesys_conversions
+                    && x.elem().is_some_and(|e| e.is_int() || e.is_bit())
+                    && x.elem()
+                        .and_then(|e| e.int_range())
+                        .is_some_and(|(lo, hi)| *v < lo || *v > hi) =>
+            {
+                let natural = [Elem::DInt, Elem::LInt, Elem::ULInt]
+                    .into_iter()
+                    .find(|e| e.int_range().is_some_and(|(lo, hi)| (lo..=hi).contains(v)))
+                    .unwrap_or(Elem::LInt);
+                self.common(&Ty::T(base(x)), &Ty::T(Type::Elem(natural)), pos)
+            }
             (Ty::T(x), Ty::AnyInt(_) | Ty::AnyReal(_)) => Ok(base(x)),
             (Ty::AnyInt(_) | Ty::AnyReal(_), Ty::T(y)) => Ok(base(y)),
             (Ty::T(x), Ty::T(y)) => {
@@ -1150,8 +1184,15 @@ impl<'a> Compiler<'a> {
             }
         };
         match op {
-            BinOp::Eq | BinOp::Ne => {
-                let bin = if op == BinOp::Eq { Bin::Eq } else { Bin::Ne };
+            BinOp::Eq | BinOp::Ne | BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge => {
+                let bin = match op {
+                    BinOp::Eq => Bin::Eq,
+                    BinOp::Ne => Bin::Ne,
+                    BinOp::Lt => Bin::Lt(false),
+                    BinOp::Le => Bin::Le(false),
+                    BinOp::Gt => Bin::Gt(false),
+                    _ => Bin::Ge(false),
+                };
                 let le = raw(self, l)?;
                 let re = raw(self, r)?;
                 Ok(TE {
@@ -1267,6 +1308,23 @@ impl<'a> Compiler<'a> {
                     // CODESYS and TwinCAT take pointers to and from 64-bit words.
                     (Type::Pointer(_), Type::Elem(Elem::LWord | Elem::ULInt))
                     | (Type::Elem(Elem::LWord | Elem::ULInt), Type::Pointer(_)) => {
+                        return Ok(te.e);
+                    }
+                    // CODESYS 2.3's addresses are 32-bit words (addresses here are small
+                    // enough to fit one).
+                    (Type::Pointer(_), Type::Elem(Elem::DWord | Elem::UDInt))
+                    | (Type::Elem(Elem::DWord | Elem::UDInt), Type::Pointer(_))
+                        if self.codesys_conversions =>
+                    {
+                        return Ok(te.e);
+                    }
+                    // A pointer to an array of other bounds over the same elements: the
+                    // elements lie alike, so `p^[i]` reads the same place as in CODESYS.
+                    (Type::Pointer(a), Type::Pointer(b))
+                        if self.codesys_conversions
+                            && matches!((&**a, &**b), (Type::Array(x), Type::Array(y))
+                                if x.elem == y.elem && x.elem_size == y.elem_size) =>
+                    {
                         return Ok(te.e);
                     }
                     _ => {}
