@@ -466,6 +466,9 @@ impl Vm {
                 // the fault stops the statement.
                 self.raise(FaultKind::NullReference);
                 a = 0;
+            } else if target & 7 != 0 {
+                self.raise(FaultKind::MisalignedPointer { address: target });
+                a = 0;
             } else {
                 a = (target >> 3) as usize;
             }

@@ -242,3 +242,35 @@ END_PROGRAM",
     // pt^[1..3] are arr[0..2]: 10 + 20 + 30.
     assert_eq!(int(&rt, "s"), 60);
 }
+
+/// Memory is 8-byte slots and a STRING a length slot then eight characters a slot, so
+/// CODESYS code that walks bytes with a POINTER TO BYTE would read the wrong places: a
+/// pointer to a string does not go to a BYTE pointer, and a BYTE pointer moved by one
+/// faults where it is used instead of reading inside a slot.
+#[test]
+fn byte_pointers_over_strings_are_refused_and_misaligned_ones_fault() {
+    let (line, _, code, msg) = compile_error(
+        "FUNCTION FIRST : BYTE
+VAR_INPUT s : STRING; END_VAR
+VAR pt : POINTER TO BYTE; END_VAR
+pt := ADR(s);
+FIRST := pt^;
+END_FUNCTION",
+    );
+    assert_eq!((line, code), (4, "type-mismatch"), "{msg}");
+    assert!(msg.contains("POINTER TO BYTE"), "{msg}");
+
+    let mut rt = plc("PROGRAM P
+VAR arr : ARRAY[0..3] OF BYTE := 5, 6, 7, 8; pt : POINTER TO BYTE; a, b : BYTE; END_VAR
+pt := ADR(arr);
+pt := pt + SIZEOF(arr[0]);
+a := pt^;
+pt := pt + 1;
+b := pt^;
+END_PROGRAM");
+    let fault = rt.scan(ms(0)).expect_err("a pointer inside a slot");
+    assert_eq!(fault.code(), "misaligned-pointer");
+    assert_eq!(fault.line, 7);
+    // The statement before it ran: the element after arr[0].
+    assert_eq!(int(&rt, "a"), 6);
+}

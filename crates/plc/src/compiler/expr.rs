@@ -1297,10 +1297,13 @@ impl<'a> Compiler<'a> {
                     (Type::Interface(j), Type::Interface(i)) if self.iface_extends(*j, *i) => {
                         return Ok(te.e);
                     }
+                    // A POINTER TO BYTE takes any pointer but one to a string, whose
+                    // characters are not bytes a BYTE pointer steps through here (a length
+                    // slot, then eight characters a slot).
                     (Type::Pointer(a), Type::Pointer(b))
                         if a == b
                             || matches!(**a, Type::Elem(Elem::Byte))
-                            || matches!(**b, Type::Elem(Elem::Byte))
+                            || (matches!(**b, Type::Elem(Elem::Byte)) && !a.is_string())
                             || matches!((&**a, &**b), (Type::Fb(x), Type::Fb(y)) if self.fb_extends(*x, *y)) =>
                     {
                         return Ok(te.e);
