@@ -312,3 +312,33 @@ fn a_windows_1252_file_runs_and_its_encoding_can_be_forced() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("not valid UTF-8"), "{stderr}");
 }
+
+#[test]
+fn codesys_conversions_are_chosen_on_the_command_line() {
+    let file = temp_st(
+        "dword_sub.st",
+        "PROGRAM P VAR a : DWORD := 1; b : DWORD := 2; d : DWORD; END_VAR d := a - b; END_PROGRAM\n",
+    );
+    let iec = rtcnc(&["plc", "check", &file]);
+    assert!(!iec.status.success());
+    let stderr = String::from_utf8_lossy(&iec.stderr);
+    assert!(
+        stderr.contains("operator SUB does not apply to DWORD and DWORD"),
+        "{stderr}"
+    );
+    let out = rtcnc(&[
+        "plc",
+        "run",
+        &file,
+        "--conversions",
+        "codesys",
+        "--scans",
+        "1",
+        "--watch",
+        "d",
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}");
+    // 1 - 2 wraps in 32 bits.
+    assert_eq!(stdout.lines().nth(1), Some("1\tT#0s\t4294967295"));
+}
