@@ -43,9 +43,9 @@ END_PROGRAM",
 #[test]
 fn functionblock_on_as_a_name_and_the_library_list_of_an_export() {
     let rt = plc_scanned(
-        "FUNCTION Manual : BOOL
-VAR_INPUT IN, ON, OFF : BOOL; END_VAR
-Manual := (IN OR ON) AND NOT OFF;
+        "FUNCTION Gate : BOOL
+VAR_INPUT ON, OFF, HOLD : BOOL; END_VAR
+Gate := ON AND NOT (OFF OR HOLD);
 END_FUNCTION
 
 FUNCTIONBLOCK Latch
@@ -56,8 +56,8 @@ END_FUNCTION_BLOCK
 
 PROGRAM P
 VAR l : Latch; a, b : BOOL; END_VAR
-a := Manual(IN := FALSE, ON := TRUE, OFF := FALSE);
-b := Manual(FALSE, TRUE, TRUE);
+a := Gate(ON := TRUE, OFF := FALSE, HOLD := FALSE);
+b := Gate(TRUE, FALSE, TRUE);
 l(S := TRUE, R := FALSE);
 END_PROGRAM
 
