@@ -274,3 +274,71 @@ fn run_watches_members_and_elements_marks_forces_and_times_scans() {
         assert!(us >= 0.0);
     }
 }
+
+#[test]
+fn a_windows_1252_file_runs_and_its_encoding_can_be_forced() {
+    let dir = std::env::temp_dir().join(format!("rtcnc-cli-plc-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("latin.st");
+    // 'Grüße' written by a Windows-1252 editor: ü is 0xFC, ß 0xDF.
+    std::fs::write(
+        &path,
+        b"PROGRAM P VAR s : STRING := 'Gr\xfc\xdfe'; n : INT; END_VAR n := LEN(s); END_PROGRAM\n",
+    )
+    .unwrap();
+    let file = path.display().to_string();
+    let run = |encoding: &str| {
+        rtcnc(&[
+            "plc",
+            "run",
+            &file,
+            "--encoding",
+            encoding,
+            "--scans",
+            "1",
+            "--watch",
+            "n",
+        ])
+    };
+    for encoding in ["auto", "windows-1252"] {
+        let out = run(encoding);
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "{encoding}: {stdout}");
+        // Five characters, as CODESYS counts them.
+        assert_eq!(stdout.lines().nth(1), Some("1\tT#0s\t5"), "{encoding}");
+    }
+    let out = run("utf-8");
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("not valid UTF-8"), "{stderr}");
+}
+
+#[test]
+fn codesys_conversions_are_chosen_on_the_command_line() {
+    let file = temp_st(
+        "dword_sub.st",
+        "PROGRAM P VAR a : DWORD := 1; b : DWORD := 2; d : DWORD; END_VAR d := a - b; END_PROGRAM\n",
+    );
+    let iec = rtcnc(&["plc", "check", &file]);
+    assert!(!iec.status.success());
+    let stderr = String::from_utf8_lossy(&iec.stderr);
+    assert!(
+        stderr.contains("operator SUB does not apply to DWORD and DWORD"),
+        "{stderr}"
+    );
+    let out = rtcnc(&[
+        "plc",
+        "run",
+        &file,
+        "--conversions",
+        "codesys",
+        "--scans",
+        "1",
+        "--watch",
+        "d",
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}");
+    // 1 - 2 wraps in 32 bits.
+    assert_eq!(stdout.lines().nth(1), Some("1\tT#0s\t4294967295"));
+}

@@ -4,7 +4,7 @@
 use crate::ast::{Arg, BinOp, Name};
 use crate::compiler::{Compiler, R, Scope, TE, Ty, builtin_expr, literal_elem};
 use crate::error::{ErrorKind, Pos};
-use crate::types::{Elem, IntKind, MAX_STRING_LEN, Type, widens};
+use crate::types::{Elem, IntKind, MAX_STRING_LEN, Type, as_unsigned, widens};
 use crate::vm::{self, Builtin, Conv};
 
 fn ik(e: Elem) -> IntKind {
@@ -192,7 +192,7 @@ pub(crate) fn call(
         "ABS", "SQRT", "LN", "LOG", "EXP", "SIN", "COS", "TAN", "ASIN", "ACOS", "ATAN", "ATAN2",
         "EXPT", "ADD", "SUB", "MUL", "DIV", "MOD", "AND", "OR", "XOR", "MOVE", "SHL", "SHR", "ROL",
         "ROR", "SEL", "MAX", "MIN", "LIMIT", "MUX", "GT", "GE", "EQ", "LE", "LT", "NE", "LEN",
-        "LEFT", "RIGHT", "MID", "CONCAT", "INSERT", "DELETE", "REPLACE", "FIND", "TRUNC",
+        "LEFT", "RIGHT", "MID", "CONCAT", "INSERT", "DELETE", "REPLACE", "FIND", "TRUNC", "TIME",
     ];
     if !known.contains(&f) {
         return Err(c.err_at(
@@ -222,6 +222,14 @@ pub(crate) fn call(
             string_function(c, f, a, pos)
         }
         "TRUNC" => trunc(c, f, a, pos),
+        "TIME" => {
+            // CODESYS's `TIME()`: the time of the scan (the caller's PLC time).
+            count(c, f, &a, 0, 0, pos)?;
+            Ok(Compiler::te(
+                Ty::T(Type::Elem(Elem::Time)),
+                builtin_expr(Builtin::Now, Vec::new(), 0),
+            ))
+        }
         _ => Err(c.err_at(
             name.pos,
             ErrorKind::Undeclared,
@@ -380,10 +388,41 @@ fn move_value(c: &mut Compiler, f: &str, mut a: Vec<(TE, Pos)>, pos: Pos) -> R<T
     Ok(a.remove(0).0)
 }
 
-/// `SHL`, `SHR`, `ROL`, `ROR` of a bit string.
+/// `SHL`, `SHR`, `ROL`, `ROR` of a bit string; with CODESYS's conversions also of an
+/// integer, shifted in its width as the unsigned integer of that width (zero fill), and
+/// by a bit string's count.
 fn shift(c: &mut Compiler, f: &str, mut a: Vec<(TE, Pos)>, pos: Pos) -> R<TE> {
     count(c, f, &a, 2, 2, pos)?;
-    let (x, n) = (a.remove(0), a.remove(0));
+    let (x, mut n) = (a.remove(0), a.remove(0));
+    if c.codesys_conversions()
+        && let Ty::T(t) = &n.0.ty
+        && let Some(e) = t.elem().filter(|e| e.is_bit())
+    {
+        let (_, ne) = Compiler::te_parts(n.0);
+        n.0 = Compiler::te(Ty::T(Type::Elem(as_unsigned(e))), ne);
+    }
+    if c.codesys_conversions()
+        && let Ty::T(t) = &x.0.ty
+        && let Some(e) = t.elem().filter(|e| e.is_int())
+    {
+        let unsigned = match e {
+            Elem::SInt | Elem::USInt => Elem::Byte,
+            Elem::Int | Elem::UInt => Elem::Word,
+            Elem::DInt | Elem::UDInt => Elem::DWord,
+            _ => Elem::LWord,
+        };
+        let ty = t.clone();
+        let (_, xe) = Compiler::te_parts(x.0);
+        let bits = c.conversion(xe, e, unsigned);
+        let shifted = shift(
+            c,
+            f,
+            vec![(Compiler::te(Ty::T(Type::Elem(unsigned)), bits), x.1), n],
+            pos,
+        )?;
+        let (_, se) = Compiler::te_parts(shifted);
+        return Ok(Compiler::te(Ty::T(ty), c.conversion(se, unsigned, e)));
+    }
     let ty = match &x.0.ty {
         Ty::T(t) if t.elem().is_some_and(|e| e.is_bit()) => t.clone(),
         Ty::AnyInt(_) => Type::Elem(Elem::DWord),

@@ -298,7 +298,12 @@ impl Lexer<'_> {
                 let kind = self.typed_literal(word, pos)?;
                 return Ok(Token { kind, pos });
             }
-            Tok::Ident(word)
+            // CODESYS 2.3 also spells the block `FUNCTIONBLOCK` (its exports keep it).
+            match word.as_str() {
+                "FUNCTIONBLOCK" => Tok::Ident("FUNCTION_BLOCK".into()),
+                "END_FUNCTIONBLOCK" => Tok::Ident("END_FUNCTION_BLOCK".into()),
+                _ => Tok::Ident(word),
+            }
         } else if c.is_ascii_digit() {
             self.number(pos)?
         } else if c == b'\'' {
@@ -490,7 +495,20 @@ impl Lexer<'_> {
                     };
                     out.push(ch);
                 }
-                _ => out.push(c),
+                c if c < 0x80 => out.push(c),
+                lead => {
+                    let ch = self.char_from(lead);
+                    let byte = crate::charset::encode(ch).ok_or_else(|| {
+                        self.err(
+                            pos,
+                            format!(
+                                "'{ch}' is not a STRING character (STRING holds \
+                                 Windows-1252): use a WSTRING literal \"...\""
+                            ),
+                        )
+                    })?;
+                    out.push(byte);
+                }
             }
         }
         if out.len() > crate::types::MAX_STRING_LEN as usize {
@@ -544,18 +562,8 @@ impl Lexer<'_> {
                 }
                 c if c < 0x80 => out.push(c as u16),
                 lead => {
-                    let len = match lead {
-                        0xc0..=0xdf => 2,
-                        0xe0..=0xef => 3,
-                        0xf0..=0xf7 => 4,
-                        _ => 1,
-                    };
-                    let start = self.i - 1;
-                    let end = (start + len).min(self.src.len());
-                    let text = std::str::from_utf8(&self.src[start..end])
-                        .map_err(|_| self.err(pos, "WSTRING literal is not valid UTF-8"))?;
-                    out.extend(text.encode_utf16());
-                    self.i = end;
+                    let mut pair = [0u16; 2];
+                    out.extend_from_slice(self.char_from(lead).encode_utf16(&mut pair));
                 }
             }
         }
@@ -569,6 +577,24 @@ impl Lexer<'_> {
             ));
         }
         Ok(Tok::WStr(out))
+    }
+
+    /// The character whose UTF-8 starts with `lead`, just taken; moves past the rest.
+    /// The source is a `str`, so its bytes are UTF-8.
+    fn char_from(&mut self, lead: u8) -> char {
+        let len = match lead {
+            0xc0..=0xdf => 2,
+            0xe0..=0xef => 3,
+            0xf0..=0xf7 => 4,
+            _ => 1,
+        };
+        let start = self.i - 1;
+        let end = (start + len).min(self.src.len());
+        self.i = end;
+        std::str::from_utf8(&self.src[start..end])
+            .ok()
+            .and_then(|t| t.chars().next())
+            .unwrap_or(char::REPLACEMENT_CHARACTER)
     }
 
     fn direct(&mut self, pos: Pos) -> Result<Tok, CompileError> {

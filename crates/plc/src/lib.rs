@@ -40,6 +40,7 @@
 
 mod ast;
 mod builtins;
+mod charset;
 mod compiler;
 mod dates;
 mod error;
@@ -57,6 +58,20 @@ mod vm;
 
 use std::path::Path;
 
+pub use charset::SourceEncoding;
+
+/// Which implicit conversions the compiler makes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Conversions {
+    /// IEC 61131-3's: along the widening chains only (the default).
+    #[default]
+    Iec,
+    /// CODESYS's, which libraries written for it rely on: bit strings (BYTE, WORD, DWORD,
+    /// LWORD) take arithmetic as the unsigned integers of their width and mix with
+    /// integers, and any integer or bit string is assigned or passed to any other (the
+    /// low bits kept, as `*_TO_*` does) or to a real.
+    Codesys,
+}
 pub use error::{
     CompileError, CompileErrors, ErrorKind, Fault, FaultKind, LoadError, Pos, Warning,
 };
@@ -76,12 +91,19 @@ pub struct CompileOptions {
     /// `(* (* *) *)` nests (IEC 61131-3 3rd edition, CODESYS, TwinCAT; the default).
     /// Sources written for tools where a comment ends at the first `*)` need `false`.
     pub nested_comments: bool,
+    /// How [`compile_files`] reads a file's bytes (the default: UTF-8 when valid, else
+    /// Windows-1252 as CODESYS 2.3 writes).
+    pub encoding: SourceEncoding,
+    /// Implicit conversions: IEC's (the default) or CODESYS's.
+    pub conversions: Conversions,
 }
 
 impl Default for CompileOptions {
     fn default() -> Self {
         CompileOptions {
             nested_comments: true,
+            encoding: SourceEncoding::Auto,
+            conversions: Conversions::Iec,
         }
     }
 }
@@ -112,16 +134,26 @@ pub fn compile_file(path: &Path) -> Result<Program, LoadError> {
     compile_files(&[path], &CompileOptions::default())
 }
 
-/// Reads and compiles the files of one program, in the order given.
+/// Reads and compiles the files of one program, in the order given, each read as
+/// `options.encoding` says.
 ///
 /// Real-time: no (allocates, reads the files).
 pub fn compile_files(paths: &[&Path], options: &CompileOptions) -> Result<Program, LoadError> {
     let mut texts = Vec::with_capacity(paths.len());
     for path in paths {
-        let text = std::fs::read_to_string(path).map_err(|source| LoadError::Io {
+        let io_error = |source| LoadError::Io {
             path: path.display().to_string(),
             source,
-        })?;
+        };
+        let bytes = std::fs::read(path).map_err(io_error)?;
+        let text = charset::decode_source(&bytes, options.encoding)
+            .ok_or_else(|| {
+                io_error(std::io::Error::new(
+                    std::io::ErrorKind::InvalidData,
+                    "not valid UTF-8 (read it as Windows-1252 with the encoding option)",
+                ))
+            })?
+            .into_owned();
         texts.push((text, path.display().to_string()));
     }
     let sources: Vec<(&str, &str)> = texts

@@ -138,7 +138,6 @@ const RESERVED: &[&str] = &[
     "END_RESOURCE",
     "TASK",
     "WITH",
-    "ON",
     "AT",
     "CONSTANT",
     "RETAIN",
@@ -366,6 +365,18 @@ impl Parser<'_> {
                             .push(self.pou(PouKind::FunctionBlock, "END_FUNCTION_BLOCK")?),
                         "VAR_GLOBAL" => u.globals.push(self.var_block()?),
                         "CONFIGURATION" => u.configs.push(self.config()?),
+                        "LIBRARY" => {
+                            // A CODESYS 2.3 export ends with the libraries the project
+                            // links (`LIBRARY Standard.lib ... END_LIBRARY`): names, no code.
+                            let at = self.pos();
+                            self.bump();
+                            while !self.eat_kw("END_LIBRARY") {
+                                if self.peek() == &Tok::Eof {
+                                    return Err(self.unclosed("END_LIBRARY", "LIBRARY", at));
+                                }
+                                self.bump();
+                            }
+                        }
                         w if w.starts_with("END_") || statement_closed_by(w).is_some() => {
                             return Err(self.err(format!(
                                 "{w} closes nothing here: no block is open (a file holds \
@@ -396,7 +407,7 @@ impl Parser<'_> {
         self.expect(&Tok::Colon)?;
         let spec = self.type_spec()?;
         let init = if self.eat(&Tok::Assign) {
-            Some(self.init()?)
+            Some(self.declared_init()?)
         } else {
             None
         };
@@ -527,27 +538,46 @@ impl Parser<'_> {
         Ok(TypeSpec::Named(base))
     }
 
+    /// A declaration's initial value: as [`Self::init`], or CODESYS 2.3's array values
+    /// without brackets, `1, 3, 7, 15` and `2(0), 5`, up to the `;`.
+    fn declared_init(&mut self) -> PResult<Init> {
+        let pos = self.pos();
+        let first = self.array_item()?;
+        if first.0.is_none() && self.peek() != &Tok::Comma {
+            return Ok(first.1);
+        }
+        let mut items = vec![first];
+        while self.eat(&Tok::Comma) {
+            items.push(self.array_item()?);
+        }
+        Ok(Init::Array(items, pos))
+    }
+
+    /// One element of an array's initial value: a value, or `n(value)` (n times).
+    fn array_item(&mut self) -> PResult<(Option<Expr>, Init)> {
+        let pos = self.pos();
+        if matches!(self.peek(), Tok::Int(_)) && self.peek_at(1) == &Tok::LParen {
+            let count = self.primary()?;
+            let open = self.pos();
+            self.expect(&Tok::LParen)?;
+            let v = if self.peek() == &Tok::RParen {
+                None
+            } else {
+                Some(self.init()?)
+            };
+            self.expect_close(&Tok::RParen, open)?;
+            return Ok((Some(count), v.unwrap_or(Init::Array(Vec::new(), pos))));
+        }
+        Ok((None, self.init()?))
+    }
+
     fn init(&mut self) -> PResult<Init> {
         let pos = self.pos();
         if self.eat(&Tok::LBracket) {
             let mut items = Vec::new();
             if !self.eat(&Tok::RBracket) {
                 loop {
-                    // `n(value)` repeats; anything else is a value.
-                    if matches!(self.peek(), Tok::Int(_)) && self.peek_at(1) == &Tok::LParen {
-                        let count = self.primary()?;
-                        let open = self.pos();
-                        self.expect(&Tok::LParen)?;
-                        let v = if self.peek() == &Tok::RParen {
-                            None
-                        } else {
-                            Some(self.init()?)
-                        };
-                        self.expect_close(&Tok::RParen, open)?;
-                        items.push((Some(count), v.unwrap_or(Init::Array(Vec::new(), pos))));
-                    } else {
-                        items.push((None, self.init()?));
-                    }
+                    items.push(self.array_item()?);
                     if !self.eat(&Tok::Comma) {
                         break;
                     }
@@ -661,7 +691,7 @@ impl Parser<'_> {
         }
         let ty = self.type_spec()?;
         let init = if self.eat(&Tok::Assign) {
-            Some(self.init()?)
+            Some(self.declared_init()?)
         } else {
             None
         };

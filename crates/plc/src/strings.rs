@@ -31,15 +31,22 @@ pub(crate) fn read_units(mem: &[u64], a: usize, buf: &mut Units) -> (usize, bool
     (len, wide)
 }
 
-/// Copies the string at `a` into `buf` as bytes (a WSTRING's code units above 255 become
-/// `?`, as CODESYS converts them); returns its length.
+/// Copies the string at `a` into `buf` as STRING bytes (a WSTRING's code units that
+/// Windows-1252 lacks become `?`, as CODESYS converts them); returns its length.
 pub(crate) fn read(mem: &[u64], a: usize, buf: &mut [u8; BUF]) -> usize {
     let mut units = [0u16; BUF];
-    let (len, _) = read_units(mem, a, &mut units);
+    let (len, wide) = read_units(mem, a, &mut units);
     for (b, u) in buf.iter_mut().zip(units.iter()).take(len) {
-        *b = u8::try_from(*u).unwrap_or(b'?');
+        *b = if wide { narrow(*u) } else { *u as u8 };
     }
     len
+}
+
+/// The STRING byte of a UTF-16 code unit, `?` when Windows-1252 has no such character.
+fn narrow(unit: u16) -> u8 {
+    char::from_u32(unit as u32)
+        .and_then(crate::charset::encode)
+        .unwrap_or(b'?')
 }
 
 /// Writes `units` (cut to `cap`) as the string at `a`, a WSTRING if `wide`.
@@ -83,6 +90,17 @@ pub(crate) fn utf16_units(text: &str, buf: &mut Units) -> usize {
     n
 }
 
+/// STRING bytes of `text` into `buf` (cut to its length; a character Windows-1252 lacks
+/// becomes `?`); returns how many.
+pub(crate) fn windows_1252(text: &str, buf: &mut [u8; BUF]) -> usize {
+    let mut n = 0;
+    for (slot, ch) in buf.iter_mut().zip(text.chars()) {
+        *slot = crate::charset::encode(ch).unwrap_or(b'?');
+        n += 1;
+    }
+    n
+}
+
 /// Copies the string at `src` to `dst` (capacity `cap`), keeping its width.
 pub(crate) fn copy(mem: &mut [u64], dst: usize, src: usize, cap: u16) {
     if dst == src {
@@ -94,57 +112,24 @@ pub(crate) fn copy(mem: &mut [u64], dst: usize, src: usize, cap: u16) {
 }
 
 /// Copies the string at `src` to `dst` (capacity `cap`) as a WSTRING if `wide`, else as
-/// a STRING: STRING_TO_WSTRING and WSTRING_TO_STRING. A STRING holds the UTF-8 bytes its
-/// literals are written in, so the conversion is UTF-8 ↔ UTF-16 and a non-ASCII
-/// character survives the round trip; a byte that is no UTF-8 is taken as Latin-1, an
-/// unpaired surrogate becomes `?`, and a character that does not fit is left out whole.
+/// a STRING: STRING_TO_WSTRING and WSTRING_TO_STRING. A STRING holds Windows-1252, one
+/// byte a character, so each byte becomes one code unit and back; a code unit Windows-1252
+/// lacks (and half of a surrogate pair) becomes `?`, as CODESYS converts.
 pub(crate) fn convert(mem: &mut [u64], dst: usize, src: usize, cap: u16, wide: bool) {
     let mut units = [0u16; BUF];
     let (n, src_wide) = read_units(mem, src, &mut units);
-    let mut out = [0u16; BUF];
-    let limit = (cap as usize).min(MAX_STRING_LEN as usize);
-    let mut k = 0;
-    if src_wide == wide {
-        out[..n].copy_from_slice(&units[..n]);
-        k = n;
-    } else if wide {
-        let mut bytes = [0u8; BUF];
-        for (b, u) in bytes.iter_mut().zip(units.iter()).take(n) {
-            *b = *u as u8;
-        }
-        'chunks: for chunk in bytes[..n].utf8_chunks() {
-            for ch in chunk.valid().chars() {
-                let mut pair = [0u16; 2];
-                let enc = ch.encode_utf16(&mut pair);
-                if k + enc.len() > limit {
-                    break 'chunks;
-                }
-                out[k..k + enc.len()].copy_from_slice(enc);
-                k += enc.len();
-            }
-            for &b in chunk.invalid() {
-                if k >= limit {
-                    break 'chunks;
-                }
-                out[k] = b as u16;
-                k += 1;
-            }
-        }
-    } else {
-        for ch in char::decode_utf16(units[..n].iter().copied()) {
-            let ch = ch.unwrap_or('?');
-            let mut buf = [0u8; 4];
-            let enc = ch.encode_utf8(&mut buf);
-            if k + enc.len() > limit {
-                break;
-            }
-            for &b in enc.as_bytes() {
-                out[k] = b as u16;
-                k += 1;
-            }
+    if src_wide != wide {
+        for u in units.iter_mut().take(n) {
+            *u = if wide {
+                let mut one = [0u16; 2];
+                crate::charset::decode(*u as u8).encode_utf16(&mut one);
+                one[0]
+            } else {
+                narrow(*u) as u16
+            };
         }
     }
-    write_units(mem, dst, cap, wide, &out[..k]);
+    write_units(mem, dst, cap, wide, &units[..n]);
 }
 
 /// Appends the string at `src` to the (maximum-capacity) string at `dst`.

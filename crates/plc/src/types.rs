@@ -348,6 +348,25 @@ pub fn wstring_slots(cap: u16) -> u32 {
     1 + (cap as u32).div_ceil(4)
 }
 
+/// The unsigned integer of a bit string's width (BYTE → USINT ...), for CODESYS's
+/// arithmetic on bit strings; other types stay.
+pub fn as_unsigned(e: Elem) -> Elem {
+    match e {
+        Elem::Byte => Elem::USInt,
+        Elem::Word => Elem::UInt,
+        Elem::DWord => Elem::UDInt,
+        Elem::LWord => Elem::ULInt,
+        e => e,
+    }
+}
+
+/// CODESYS's implicit conversion in assignments and arguments: besides IEC's, any integer
+/// or bit string to any other (narrowing keeps the low bits) or to a real.
+pub fn codesys_converts(from: Elem, to: Elem) -> bool {
+    let integer = |e: Elem| e.is_int() || e.is_bit();
+    widens(from, to) || (integer(from) && (integer(to) || to.is_real()))
+}
+
 /// IEC 61131-3 (3rd edition) implicit conversion: may a value of `from` be used where `to`
 /// is expected without an explicit *_TO_* call?
 pub fn widens(from: Elem, to: Elem) -> bool {

@@ -151,6 +151,8 @@ pub(crate) enum Builtin {
     Rol(IntKind),
     Ror(IntKind),
     Sel,
+    /// CODESYS's `TIME()`: the scan's PLC time.
+    Now,
     Mux,
     MaxI(bool),
     MinI(bool),
@@ -464,6 +466,9 @@ impl Vm {
                 // the fault stops the statement.
                 self.raise(FaultKind::NullReference);
                 a = 0;
+            } else if target & 7 != 0 {
+                self.raise(FaultKind::MisalignedPointer { address: target });
+                a = 0;
             } else {
                 a = (target >> 3) as usize;
             }
@@ -698,6 +703,7 @@ impl Vm {
                 let n = arg(self, 1);
                 rotate(k, v, n, matches!(b, Builtin::Ror(_)))
             }
+            Builtin::Now => self.now as u64,
             Builtin::Sel => {
                 let g = arg(self, 0);
                 let in0 = arg(self, 1);

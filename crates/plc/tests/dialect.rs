@@ -235,6 +235,7 @@ END_PROGRAM");
     );
     let flat = CompileOptions {
         nested_comments: false,
+        ..CompileOptions::default()
     };
     let p = compile_sources(&[(src, "c.st")], &flat).expect("the comment ends at the first *)");
     let mut rt = Runtime::new(Arc::new(p));

@@ -1,7 +1,8 @@
 //! WSTRING: UTF-16 strings as in CODESYS and TwinCAT (`"..."` literals, `$"`, `$hhhh`),
 //! the string functions on them and the conversions to and from STRING and numbers.
 //! Expected values are worked out by hand: "Grüße" is G r ü ß e, five UTF-16 code units
-//! (ü U+00FC, ß U+00DF) and seven UTF-8 bytes.
+//! (ü U+00FC, ß U+00DF) and five Windows-1252 bytes in a STRING (0xFC, 0xDF); `€` is
+//! U+20AC, byte 0x80 in Windows-1252.
 
 mod common;
 use common::*;
@@ -23,8 +24,8 @@ fn literals_escapes_and_length_count_code_units() {
     assert_eq!(int(&rt, "le"), 1);
     assert!(boolean(&rt, "same_euro"));
     assert_eq!(string(&rt, "nl"), "x\ny");
-    // The STRING of the same text holds its seven UTF-8 bytes.
-    assert_eq!(int(&rt, "ls"), 7);
+    // The STRING of the same text holds one Windows-1252 byte a character, as CODESYS.
+    assert_eq!(int(&rt, "ls"), 5);
 }
 
 #[test]
@@ -79,9 +80,9 @@ fn conversions_keep_non_ascii_text_and_numbers() {
          i := WSTRING_TO_INT(\" 123\"); r := WSTRING_TO_REAL(\"1.25\"); t := WSTRING_TO_TIME(\"T#2s\");
          s2 := TO_STRING(\"xyz\");",
     );
-    // UTF-8: G r (1 each) ü ß (2 each) e space (1 each) € (3) = 11 bytes.
+    // Windows-1252: one byte for each of the 7 characters (€ is 0x80).
     assert_eq!(string(&rt, "s"), "Grüße €");
-    assert_eq!(int(&rt, "ls"), 11);
+    assert_eq!(int(&rt, "ls"), 7);
     assert_eq!(string(&rt, "back"), "Grüße €");
     assert_eq!(int(&rt, "lb"), 7);
     assert_eq!(string(&rt, "wi"), "-42");

@@ -8,8 +8,40 @@ use std::time::Duration;
 use anyhow::{Context, bail};
 use clap::Subcommand;
 use rtcnc_plc::{
-    CompileOptions, FmtTime, LoadError, Runtime, Value, VarRef, compile_files, parse_time,
+    CompileOptions, Conversions, FmtTime, LoadError, Runtime, SourceEncoding, Value, VarRef,
+    compile_files, parse_time,
 };
+
+/// How the source files are read and compiled.
+#[derive(Debug, clap::Args)]
+struct SourceArgs {
+    /// A comment ends at the first `*)` (sources that rely on comments not nesting).
+    #[arg(long)]
+    flat_comments: bool,
+    /// The files' encoding: `auto` reads UTF-8 when the file is valid UTF-8, else
+    /// Windows-1252 (what CODESYS 2.3 exports).
+    #[arg(long, value_enum, default_value = "auto")]
+    encoding: Encoding,
+    /// Implicit conversions: `iec` (along the widening chains) or `codesys` (bit strings
+    /// compute as unsigned integers; any integer or bit string goes to any other).
+    #[arg(long, value_enum, default_value = "iec")]
+    conversions: ConversionsArg,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum ConversionsArg {
+    Iec,
+    Codesys,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum Encoding {
+    Auto,
+    #[value(name = "utf-8")]
+    Utf8,
+    #[value(name = "windows-1252", alias = "latin-1")]
+    Windows1252,
+}
 
 /// Soft PLC: check or run a Structured Text program.
 #[derive(Debug, clap::Args)]
@@ -26,9 +58,8 @@ enum PlcCommand {
         /// The Structured Text sources of one program, in order.
         #[arg(required = true, num_args = 1..)]
         file: Vec<PathBuf>,
-        /// A comment ends at the first `*)` (sources that rely on comments not nesting).
-        #[arg(long)]
-        flat_comments: bool,
+        #[command(flatten)]
+        source: SourceArgs,
         /// Also list every variable that `run --watch` / `--set` can name.
         #[arg(long)]
         vars: bool,
@@ -38,9 +69,8 @@ enum PlcCommand {
         /// The Structured Text sources of one program, in order.
         #[arg(required = true, num_args = 1..)]
         file: Vec<PathBuf>,
-        /// A comment ends at the first `*)` (sources that rely on comments not nesting).
-        #[arg(long)]
-        flat_comments: bool,
+        #[command(flatten)]
+        source: SourceArgs,
         /// PLC configuration (TOML, as examples/plc/mill.toml): `[signals]` and
         /// `[safe_values]`, and `[axes]` for the PLCopen motion blocks' axes.
         #[arg(long)]
@@ -72,14 +102,10 @@ enum PlcCommand {
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     match args.command {
-        PlcCommand::Check {
-            file,
-            vars,
-            flat_comments,
-        } => check(&file, flat_comments, vars),
+        PlcCommand::Check { file, vars, source } => check(&file, &source, vars),
         PlcCommand::Run {
             file,
-            flat_comments,
+            source,
             config,
             scans,
             period,
@@ -89,7 +115,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             timing,
         } => run_scans(
             &file,
-            flat_comments,
+            &source,
             config.as_deref(),
             RunOptions {
                 scans,
@@ -110,11 +136,20 @@ fn shown(files: &[PathBuf]) -> String {
 
 fn load(
     files: &[PathBuf],
-    flat_comments: bool,
+    source: &SourceArgs,
 ) -> anyhow::Result<Result<rtcnc_plc::Program, ExitCode>> {
     let paths: Vec<&Path> = files.iter().map(PathBuf::as_path).collect();
     let options = CompileOptions {
-        nested_comments: !flat_comments,
+        nested_comments: !source.flat_comments,
+        encoding: match source.encoding {
+            Encoding::Auto => SourceEncoding::Auto,
+            Encoding::Utf8 => SourceEncoding::Utf8,
+            Encoding::Windows1252 => SourceEncoding::Windows1252,
+        },
+        conversions: match source.conversions {
+            ConversionsArg::Iec => Conversions::Iec,
+            ConversionsArg::Codesys => Conversions::Codesys,
+        },
     };
     match compile_files(&paths, &options) {
         Ok(p) => {
@@ -134,8 +169,8 @@ fn load(
     }
 }
 
-fn check(file: &[PathBuf], flat_comments: bool, vars: bool) -> anyhow::Result<ExitCode> {
-    let program = match load(file, flat_comments)? {
+fn check(file: &[PathBuf], source: &SourceArgs, vars: bool) -> anyhow::Result<ExitCode> {
+    let program = match load(file, source)? {
         Ok(p) => p,
         Err(code) => return Ok(code),
     };
@@ -189,7 +224,7 @@ struct RunOptions<'a> {
 
 fn run_scans(
     file: &[PathBuf],
-    flat_comments: bool,
+    source: &SourceArgs,
     config: Option<&Path>,
     options: RunOptions<'_>,
 ) -> anyhow::Result<ExitCode> {
@@ -213,7 +248,7 @@ fn run_scans(
     {
         bail!("--scans {scans} of {period} go past the PLC clock's range (about 292 years)");
     }
-    let program = match load(file, flat_comments)? {
+    let program = match load(file, source)? {
         Ok(p) => p,
         Err(code) => return Ok(code),
     };

@@ -274,6 +274,42 @@ impl<'a> Compiler<'a> {
     }
 
     /// Writes an initializer into `tpl` at `at`.
+    /// Puts a POU's scalar named constants in `scope` before its declarations are laid
+    /// out, so that, as in CODESYS, an array declared above `VAR CONSTANT n : INT := 16;
+    /// END_VAR` may have `n` as a bound. A constant whose value needs something not known
+    /// yet is left to its declaration, which puts every constant in again with its place.
+    fn constants_ahead(&mut self, blocks: &[ast::VarBlock], scope: &mut Scope) {
+        for b in blocks {
+            if !b.constant || b.kind == VarKind::External {
+                continue;
+            }
+            for d in &b.decls {
+                let Ok((t, tpl)) = self.type_spec(&d.ty, None, scope) else {
+                    continue;
+                };
+                if t.scalar().is_none() {
+                    continue;
+                }
+                let mut value = tpl.unwrap_or_else(|| self.template(&t));
+                if let Some(i) = &d.init
+                    && self.apply_init(&t, i, &mut value, 0, scope).is_err()
+                {
+                    continue;
+                }
+                for n in &d.names {
+                    scope.vars.entry(n.text.clone()).or_insert(VarInfo {
+                        ty: t.clone(),
+                        loc: Loc::Abs(0),
+                        kind: b.kind,
+                        constant: true,
+                        const_val: value.first().copied(),
+                        input_area: false,
+                    });
+                }
+            }
+        }
+    }
+
     pub(super) fn apply_init(
         &mut self,
         t: &Type,
@@ -537,6 +573,7 @@ impl<'a> Compiler<'a> {
             fb: None,
             for_vars: Vec::new(),
         };
+        self.constants_ahead(&pou.vars, &mut scope);
         // VAR_TEMP members go last, so the slots re-initialised per call are contiguous.
         // A METHOD's VAR_INST lives in the instance as `METHOD.NAME`.
         let inst_vars: Vec<(String, &ast::VarBlock)> = pou
@@ -738,6 +775,7 @@ impl<'a> Compiler<'a> {
                 },
             );
         }
+        self.constants_ahead(vars, &mut scope);
         for b in vars {
             if matches!(b.kind, VarKind::Global) {
                 return Err(self.e(

@@ -298,7 +298,9 @@ impl<'a> Compiler<'a> {
                         let te = self.expr(ie, sc, None)?;
                         let ok = match &te.ty {
                             Ty::AnyInt(_) => true,
-                            Ty::T(t) => t.elem().is_some_and(|e| e.is_int()),
+                            Ty::T(t) => t.elem().is_some_and(|e| {
+                                e.is_int() || (self.codesys_conversions && e.is_bit())
+                            }),
                             Ty::AnyReal(_) => false,
                         };
                         if !ok {
@@ -742,6 +744,23 @@ impl<'a> Compiler<'a> {
                         format!("operator does not apply to {}", self.type_name(t)),
                     ));
                 };
+                // CODESYS negates an unsigned integer or bit string in the smallest
+                // signed type that holds it (-BYTE is an INT).
+                if self.codesys_conversions
+                    && op == UnOp::Neg
+                    && (el.is_bit() || (el.is_int() && !ik(el).signed()))
+                {
+                    let signed = match as_unsigned(el) {
+                        Elem::USInt => Elem::Int,
+                        Elem::UInt => Elem::DInt,
+                        _ => Elem::LInt,
+                    };
+                    let e = self.fold(self.convert(te.e, el, signed));
+                    return Ok(TE {
+                        ty: Ty::T(Type::Elem(signed)),
+                        e: self.fold(vm::Expr::Un(Un::NegI(ik(signed)), Box::new(e))),
+                    });
+                }
                 let un = match op {
                     UnOp::Neg if el.is_real() => Un::NegR(real_flag(el)),
                     UnOp::Neg if (el.is_int() && ik(el).signed()) || el == Elem::Time => {
@@ -879,6 +898,21 @@ impl<'a> Compiler<'a> {
             t => t.clone(),
         };
         match (a, b) {
+            // CODESYS types a literal that does not fit the other operand by its value:
+            // INT * 60000 is computed in DINT.
+            (Ty::T(x), Ty::AnyInt(v)) | (Ty::AnyInt(v), Ty::T(x))
+                if self.codesys_conversions
+                    && x.elem().is_some_and(|e| e.is_int() || e.is_bit())
+                    && x.elem()
+                        .and_then(|e| e.int_range())
+                        .is_some_and(|(lo, hi)| *v < lo || *v > hi) =>
+            {
+                let natural = [Elem::DInt, Elem::LInt, Elem::ULInt]
+                    .into_iter()
+                    .find(|e| e.int_range().is_some_and(|(lo, hi)| (lo..=hi).contains(v)))
+                    .unwrap_or(Elem::LInt);
+                self.common(&Ty::T(base(x)), &Ty::T(Type::Elem(natural)), pos)
+            }
             (Ty::T(x), Ty::AnyInt(_) | Ty::AnyReal(_)) => Ok(base(x)),
             (Ty::AnyInt(_) | Ty::AnyReal(_), Ty::T(y)) => Ok(base(y)),
             (Ty::T(x), Ty::T(y)) => {
@@ -892,15 +926,26 @@ impl<'a> Compiler<'a> {
                 if let (Type::WString(p), Type::WString(q)) = (&x, &y) {
                     return Ok(Type::WString((*p).max(*q)));
                 }
+                // CODESYS: a bit string meets other types as the unsigned integer of its
+                // width (BYTE and INT at INT).
+                let goes_to = |p: Elem, q: Elem| {
+                    widens(p, q)
+                        || (self.codesys_conversions
+                            && (q.is_int() || q.is_real())
+                            && (p.is_int() || p.is_bit())
+                            && widens(as_unsigned(p), as_unsigned(q)))
+                };
                 match (x.elem(), y.elem()) {
-                    (Some(p), Some(q)) if widens(p, q) => Ok(y),
-                    (Some(p), Some(q)) if widens(q, p) => Ok(x),
+                    (Some(p), Some(q)) if goes_to(p, q) => Ok(y),
+                    (Some(p), Some(q)) if goes_to(q, p) => Ok(x),
                     // Neither widens to the other (INT and UINT): the smallest type both
                     // widen to (DINT).
                     (Some(p), Some(q))
-                        if Elem::ALL.iter().any(|t| widens(p, *t) && widens(q, *t)) =>
+                        if Elem::ALL.iter().any(|t| goes_to(p, *t) && goes_to(q, *t)) =>
                     {
-                        let t = Elem::ALL.iter().find(|t| widens(p, **t) && widens(q, **t));
+                        let t = Elem::ALL
+                            .iter()
+                            .find(|t| goes_to(p, **t) && goes_to(q, **t));
                         Ok(Type::Elem(*t.unwrap_or(&Elem::LReal)))
                     }
                     _ => Err(self.e(
@@ -1021,6 +1066,8 @@ impl<'a> Compiler<'a> {
         };
         let k = ik(el);
         let s = real_flag(el);
+        // CODESYS computes with bit strings as with unsigned integers of their width.
+        let integer = el.is_int() || (self.codesys_conversions && el.is_bit());
         let bin = if is_cmp {
             if el.is_real() {
                 match op {
@@ -1051,11 +1098,11 @@ impl<'a> Compiler<'a> {
                         _ => Bin::Xor,
                     }
                 }
-                BinOp::Add if el.is_int() || el == Elem::Time => Bin::AddI(k),
-                BinOp::Sub if el.is_int() || el == Elem::Time => Bin::SubI(k),
-                BinOp::Mul if el.is_int() => Bin::MulI(k),
-                BinOp::Div if el.is_int() => Bin::DivI(k),
-                BinOp::Mod if el.is_int() => Bin::ModI(k),
+                BinOp::Add if integer || el == Elem::Time => Bin::AddI(k),
+                BinOp::Sub if integer || el == Elem::Time => Bin::SubI(k),
+                BinOp::Mul if integer => Bin::MulI(k),
+                BinOp::Div if integer => Bin::DivI(k),
+                BinOp::Mod if integer => Bin::ModI(k),
                 BinOp::Add if el.is_real() => Bin::AddR(s),
                 BinOp::Sub if el.is_real() => Bin::SubR(s),
                 BinOp::Mul if el.is_real() => Bin::MulR(s),
@@ -1137,8 +1184,15 @@ impl<'a> Compiler<'a> {
             }
         };
         match op {
-            BinOp::Eq | BinOp::Ne => {
-                let bin = if op == BinOp::Eq { Bin::Eq } else { Bin::Ne };
+            BinOp::Eq | BinOp::Ne | BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge => {
+                let bin = match op {
+                    BinOp::Eq => Bin::Eq,
+                    BinOp::Ne => Bin::Ne,
+                    BinOp::Lt => Bin::Lt(false),
+                    BinOp::Le => Bin::Le(false),
+                    BinOp::Gt => Bin::Gt(false),
+                    _ => Bin::Ge(false),
+                };
                 let le = raw(self, l)?;
                 let re = raw(self, r)?;
                 Ok(TE {
@@ -1243,10 +1297,13 @@ impl<'a> Compiler<'a> {
                     (Type::Interface(j), Type::Interface(i)) if self.iface_extends(*j, *i) => {
                         return Ok(te.e);
                     }
+                    // A POINTER TO BYTE takes any pointer but one to a string, whose
+                    // characters are not bytes a BYTE pointer steps through here (a length
+                    // slot, then eight characters a slot).
                     (Type::Pointer(a), Type::Pointer(b))
                         if a == b
                             || matches!(**a, Type::Elem(Elem::Byte))
-                            || matches!(**b, Type::Elem(Elem::Byte))
+                            || (matches!(**b, Type::Elem(Elem::Byte)) && !a.is_string())
                             || matches!((&**a, &**b), (Type::Fb(x), Type::Fb(y)) if self.fb_extends(*x, *y)) =>
                     {
                         return Ok(te.e);
@@ -1256,12 +1313,34 @@ impl<'a> Compiler<'a> {
                     | (Type::Elem(Elem::LWord | Elem::ULInt), Type::Pointer(_)) => {
                         return Ok(te.e);
                     }
+                    // CODESYS 2.3's addresses are 32-bit words (addresses here are small
+                    // enough to fit one).
+                    (Type::Pointer(_), Type::Elem(Elem::DWord | Elem::UDInt))
+                    | (Type::Elem(Elem::DWord | Elem::UDInt), Type::Pointer(_))
+                        if self.codesys_conversions =>
+                    {
+                        return Ok(te.e);
+                    }
+                    // A pointer to an array of other bounds over the same elements: the
+                    // elements lie alike, so `p^[i]` reads the same place as in CODESYS.
+                    (Type::Pointer(a), Type::Pointer(b))
+                        if self.codesys_conversions
+                            && matches!((&**a, &**b), (Type::Array(x), Type::Array(y))
+                                if x.elem == y.elem && x.elem_size == y.elem_size) =>
+                    {
+                        return Ok(te.e);
+                    }
                     _ => {}
                 }
                 let (Some(f), Some(t)) = (from.elem(), to.elem()) else {
                     return Err(mismatch(self, &te.ty));
                 };
-                if !widens(f, t) {
+                let converts = if self.codesys_conversions {
+                    codesys_converts(f, t)
+                } else {
+                    widens(f, t)
+                };
+                if !converts {
                     return Err(mismatch(self, &te.ty));
                 }
                 Ok(self.fold(self.convert(te.e, f, t)))

@@ -192,6 +192,8 @@ pub(crate) struct Compiler<'a> {
     ifaces: Vec<IfaceInfo>,
     iface_by_name: HashMap<String, Lookup<u32>>,
     methods_declared: HashSet<u32>,
+    /// CODESYS's implicit conversions ([`crate::Conversions::Codesys`]).
+    codesys_conversions: bool,
 }
 
 fn err(file: &str, pos: Pos, kind: ErrorKind, msg: impl Into<String>) -> CompileError {
@@ -392,10 +394,10 @@ fn compile_unit(
         ifaces: Vec::new(),
         iface_by_name: HashMap::new(),
         methods_declared: HashSet::new(),
+        codesys_conversions: options.conversions == crate::Conversions::Codesys,
     };
     // Slot 0 is never a variable: a null pointer or reference points there.
     c.image.push(0);
-    let _ = options;
     let program = c.unit(unit);
     // A program instantiated twice reports its body's errors once.
     let mut seen = HashSet::new();
@@ -1159,6 +1161,10 @@ impl Compiler<'_> {
         Ok(())
     }
 
+    /// CODESYS's implicit conversions are on ([`crate::Conversions::Codesys`]).
+    pub(crate) fn codesys_conversions(&self) -> bool {
+        self.codesys_conversions
+    }
     pub(crate) fn err_at(&self, pos: Pos, kind: ErrorKind, msg: impl Into<String>) -> CompileError {
         self.e(pos, kind, msg)
     }

@@ -520,7 +520,12 @@ fn value_at(mem: &[u64], slot: usize, ty: &Type) -> Value {
         Type::String(_) => {
             let mut buf = [0u8; crate::types::MAX_STRING_LEN as usize + 1];
             let n = crate::strings::read(mem, slot, &mut buf);
-            Value::String(String::from_utf8_lossy(&buf[..n]).into_owned())
+            Value::String(
+                buf[..n]
+                    .iter()
+                    .map(|&b| crate::charset::decode(b))
+                    .collect(),
+            )
         }
         Type::WString(_) => {
             let mut buf = [0u16; crate::types::MAX_STRING_LEN as usize + 1];

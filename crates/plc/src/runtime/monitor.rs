@@ -115,7 +115,9 @@ impl Runtime {
                 }
             }
             (Type::String(cap), None, Value::String(text)) => {
-                crate::strings::write(&mut self.vm.mem, slot, *cap, text.as_bytes())
+                let mut bytes = [0u8; crate::types::MAX_STRING_LEN as usize + 1];
+                let n = crate::strings::windows_1252(text, &mut bytes);
+                crate::strings::write(&mut self.vm.mem, slot, *cap, &bytes[..n])
             }
             (Type::WString(cap), None, Value::String(text)) => {
                 let mut units = [0u16; crate::types::MAX_STRING_LEN as usize + 1];

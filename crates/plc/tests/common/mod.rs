@@ -89,3 +89,12 @@ pub fn compile_error(src: &str) -> (u32, u32, &'static str, String) {
         }
     }
 }
+
+/// Compiles `src` and runs one scan at time 0.
+pub fn plc_scanned(src: &str) -> Runtime {
+    let mut rt = plc(src);
+    if let Err(f) = rt.scan(Duration::ZERO) {
+        panic!("scan faulted: {f}");
+    }
+    rt
+}

@@ -1,0 +1,276 @@
+//! The CODESYS 2.3 dialect that libraries written for it (OSCAT BASIC and the like) use.
+//! Every program here is written for the test; expected values are worked out by hand.
+
+mod common;
+use common::*;
+
+use std::sync::Arc;
+
+use rtcnc_plc::{CompileOptions, Conversions, Runtime, compile_sources};
+
+#[test]
+fn array_initial_values_without_brackets_and_with_repeat_factors() {
+    let rt = plc_scanned(
+        "TYPE Pt : STRUCT x, y : INT; END_STRUCT END_TYPE
+TYPE Table : STRUCT
+  steps : ARRAY[1..4] OF BYTE := 1, 3, 7, 15;
+END_STRUCT END_TYPE
+PROGRAM P
+VAR CONSTANT
+  K : ARRAY[0..3] OF INT := 1, 3, 7, 15;
+END_VAR
+VAR
+  r : ARRAY[1..7] OF BYTE := 2(7), 3(0), 9;
+  pts : ARRAY[1..2] OF Pt := (x := 1, y := 2), (x := 3, y := 4);
+  t : Table;
+  one : ARRAY[0..2] OF INT := 3(5);
+  sum : INT;
+  i : INT;
+END_VAR
+FOR i := 0 TO 3 DO sum := sum + K[i]; END_FOR
+END_PROGRAM",
+    );
+    // 1 + 3 + 7 + 15
+    assert_eq!(int(&rt, "sum"), 26);
+    // 2(7), 3(0), 9: 7 7 0 0 0 9, and the seventh element keeps its default 0.
+    let r: Vec<i64> = (1..=7).map(|i| int(&rt, &format!("r[{i}]"))).collect();
+    assert_eq!(r, [7, 7, 0, 0, 0, 9, 0]);
+    assert_eq!([int(&rt, "pts[1].y"), int(&rt, "pts[2].x")], [2, 3]);
+    assert_eq!(int(&rt, "t.steps[4]"), 15);
+    assert_eq!(int(&rt, "one[2]"), 5);
+}
+
+#[test]
+fn functionblock_on_as_a_name_and_the_library_list_of_an_export() {
+    let rt = plc_scanned(
+        "FUNCTION Gate : BOOL
+VAR_INPUT ON, OFF, HOLD : BOOL; END_VAR
+Gate := ON AND NOT (OFF OR HOLD);
+END_FUNCTION
+
+FUNCTIONBLOCK Latch
+VAR_INPUT S, R : BOOL; END_VAR
+VAR_OUTPUT Q : BOOL; END_VAR
+Q := NOT R AND (S OR Q);
+END_FUNCTION_BLOCK
+
+PROGRAM P
+VAR l : Latch; a, b : BOOL; END_VAR
+a := Gate(ON := TRUE, OFF := FALSE, HOLD := FALSE);
+b := Gate(TRUE, FALSE, TRUE);
+l(S := TRUE, R := FALSE);
+END_PROGRAM
+
+LIBRARY
+Standard.lib 4.10.05 11:14:46
+NumOfPOUs: 2
+TON: 0
+TP: 0
+END_LIBRARY
+",
+    );
+    assert!(boolean(&rt, "a"));
+    assert!(!boolean(&rt, "b"));
+    assert!(boolean(&rt, "l.Q"));
+}
+
+#[test]
+fn a_constant_declared_below_bounds_an_array_above_it() {
+    let rt = plc_scanned(
+        "FUNCTION_BLOCK Fifo
+VAR_OUTPUT top : DWORD; size : UDINT; END_VAR
+VAR buf : ARRAY[0..n] OF DWORD; END_VAR
+VAR CONSTANT n : INT := 3; END_VAR
+buf[n] := 16#CAFE;
+top := buf[3];
+size := SIZEOF(buf);
+END_FUNCTION_BLOCK
+
+FUNCTION Last : INT
+VAR_INPUT k : INT; END_VAR
+VAR a : ARRAY[1..m] OF INT; i : INT; END_VAR
+VAR CONSTANT m : INT := 4; END_VAR
+FOR i := 1 TO m DO a[i] := i * k; END_FOR
+Last := a[m];
+END_FUNCTION
+
+PROGRAM P
+VAR f : Fifo; x : INT; END_VAR
+f();
+x := Last(5);
+END_PROGRAM",
+    );
+    assert_eq!(uint(&rt, "f.top"), 0xCAFE);
+    // a[4] = 4 * 5
+    assert_eq!(int(&rt, "x"), 20);
+    // Four DWORDs of 8 bytes each (docs/plc.md: every elementary value takes a slot).
+    assert_eq!(uint(&rt, "f.size"), 32);
+}
+
+fn codesys(src: &str) -> Result<Runtime, rtcnc_plc::CompileErrors> {
+    let options = CompileOptions {
+        conversions: Conversions::Codesys,
+        ..CompileOptions::default()
+    };
+    let program = compile_sources(&[(src, "codesys.st")], &options)?;
+    let mut rt = Runtime::new(Arc::new(program));
+    rt.scan(ms(0)).expect("scan");
+    Ok(rt)
+}
+
+#[test]
+fn codesys_conversions_compute_with_bit_strings_and_narrow_implicitly() {
+    let src = "PROGRAM P
+VAR
+  dw1 : DWORD := 1; dw2 : DWORD := 2; diff : DWORD;
+  b : BYTE := 200; i : INT := 100; sum : INT;
+  big : DINT := 70000; narrow : INT;
+  u : UINT := 40000; w : WORD;
+  r : REAL; m : DWORD; less : BOOL;
+END_VAR
+diff := dw1 - dw2;
+sum := b + i;
+narrow := big;
+w := u;
+r := b / 4;
+m := dw1 + 16#FFFF_FFFF MOD 7;
+less := b < i;
+END_PROGRAM";
+    let rt = codesys(src).unwrap_or_else(|e| panic!("{e}"));
+    // 1 - 2 wraps in 32 bits.
+    assert_eq!(uint(&rt, "diff"), 0xFFFF_FFFF);
+    // BYTE meets INT at INT: 200 + 100.
+    assert_eq!(int(&rt, "sum"), 300);
+    // 70000 keeps its low 16 bits: 70000 - 65536.
+    assert_eq!(int(&rt, "narrow"), 4464);
+    assert_eq!(uint(&rt, "w"), 40000);
+    // BYTE / 4 is an integer division (50), then a REAL.
+    assert_eq!(real(&rt, "r"), 50.0);
+    // 4294967295 MOD 7 = 3 (7 * 613566756 = 4294967292), plus 1.
+    assert_eq!(uint(&rt, "m"), 4);
+    // 200 < 100 compared as INT.
+    assert!(!boolean(&rt, "less"));
+
+    // IEC's rules (the default) refuse the same program.
+    let err = compile_sources(&[(src, "iec.st")], &CompileOptions::default())
+        .err()
+        .map(|e| e.to_string());
+    assert!(
+        err.as_deref()
+            .is_some_and(|e| e.contains("operator SUB does not apply to DWORD and DWORD")),
+        "{err:?}"
+    );
+}
+
+#[test]
+fn codesys_conversions_shift_integers_in_their_width_by_a_bit_string_count() {
+    let rt = codesys(
+        "PROGRAM P
+VAR
+  i : INT := -2; u : UINT := 40000; n : BYTE := 3;
+  a, b : INT; c : UINT; d : DINT; e : BYTE;
+END_VAR
+a := SHR(i, 1);
+b := SHL(INT#16384, 1);
+c := SHR(u, n);
+d := SHL(DINT#1, 31);
+e := ROL(BYTE#16#81, n);
+END_PROGRAM",
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    // -2 is 16#FFFE in 16 bits; shifted right with a zero: 16#7FFF.
+    assert_eq!(int(&rt, "a"), 32767);
+    // 16#4000 << 1 = 16#8000, the INT -32768.
+    assert_eq!(int(&rt, "b"), -32768);
+    // 40000 / 8
+    assert_eq!(uint(&rt, "c"), 5000);
+    assert_eq!(int(&rt, "d"), i32::MIN as i64);
+    // 2#1000_0001 rotated left by 3: 2#0000_1100.
+    assert_eq!(uint(&rt, "e"), 0x0C);
+}
+
+#[test]
+fn time_without_arguments_is_the_scans_plc_time() {
+    let mut rt = plc("FUNCTION T_MS : DWORD
+T_MS := TIME_TO_DWORD(TIME());
+END_FUNCTION
+PROGRAM P
+VAR t : TIME; ms : DWORD; END_VAR
+t := TIME();
+ms := T_MS();
+END_PROGRAM");
+    rt.scan(ms(0)).expect("scan");
+    assert_eq!(time_ms(&rt, "t"), 0.0);
+    rt.scan(ms(1500)).expect("scan");
+    assert_eq!(time_ms(&rt, "t"), 1500.0);
+    // TIME_TO_DWORD counts milliseconds.
+    assert_eq!(uint(&rt, "ms"), 1500);
+}
+
+#[test]
+fn codesys_conversions_index_negate_type_big_literals_and_treat_addresses_as_words() {
+    let rt = codesys(
+        "FUNCTION SUM3 : INT
+VAR_INPUT pt : POINTER TO ARRAY[1..3] OF INT; END_VAR
+SUM3 := pt^[1] + pt^[2] + pt^[3];
+END_FUNCTION
+PROGRAM P
+VAR
+  arr : ARRAY[0..3] OF INT := 10, 20, 30, 40; k : BYTE := 2; at_k : INT;
+  step : BYTE := 5; neg : INT;
+  off : INT := 3; prod : DINT;
+  x0 : INT := 77; a : DWORD; p : POINTER TO INT; y : INT;
+  p1, p2 : POINTER TO INT; lt, ge : BOOL;
+  s : INT;
+END_VAR
+at_k := arr[k];
+neg := -step;
+prod := off * 60000;
+a := ADR(x0); p := a; y := p^;
+p1 := ADR(arr[1]); p2 := ADR(arr[3]); lt := p1 < p2; ge := p1 >= p2;
+s := SUM3(ADR(arr));
+END_PROGRAM",
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(int(&rt, "at_k"), 30);
+    assert_eq!(int(&rt, "neg"), -5);
+    // 3 * 60000 does not fit an INT: computed in DINT as CODESYS types 60000.
+    assert_eq!(int(&rt, "prod"), 180_000);
+    assert_eq!(int(&rt, "y"), 77);
+    assert!(boolean(&rt, "lt"));
+    assert!(!boolean(&rt, "ge"));
+    // pt^[1..3] are arr[0..2]: 10 + 20 + 30.
+    assert_eq!(int(&rt, "s"), 60);
+}
+
+/// Memory is 8-byte slots and a STRING a length slot then eight characters a slot, so
+/// CODESYS code that walks bytes with a POINTER TO BYTE would read the wrong places: a
+/// pointer to a string does not go to a BYTE pointer, and a BYTE pointer moved by one
+/// faults where it is used instead of reading inside a slot.
+#[test]
+fn byte_pointers_over_strings_are_refused_and_misaligned_ones_fault() {
+    let (line, _, code, msg) = compile_error(
+        "FUNCTION FIRST : BYTE
+VAR_INPUT s : STRING; END_VAR
+VAR pt : POINTER TO BYTE; END_VAR
+pt := ADR(s);
+FIRST := pt^;
+END_FUNCTION",
+    );
+    assert_eq!((line, code), (4, "type-mismatch"), "{msg}");
+    assert!(msg.contains("POINTER TO BYTE"), "{msg}");
+
+    let mut rt = plc("PROGRAM P
+VAR arr : ARRAY[0..3] OF BYTE := 5, 6, 7, 8; pt : POINTER TO BYTE; a, b : BYTE; END_VAR
+pt := ADR(arr);
+pt := pt + SIZEOF(arr[0]);
+a := pt^;
+pt := pt + 1;
+b := pt^;
+END_PROGRAM");
+    let fault = rt.scan(ms(0)).expect_err("a pointer inside a slot");
+    assert_eq!(fault.code(), "misaligned-pointer");
+    assert_eq!(fault.line, 7);
+    // The statement before it ran: the element after arr[0].
+    assert_eq!(int(&rt, "a"), 6);
+}
