@@ -236,11 +236,25 @@ impl MotionCore {
         if let Some(end) = self.program.skipped_to.take() {
             // Run from a line: go to where the first executed block starts, at rapid.
             let approach = Move::rapid(end, PathMode::ExactStop, mv.line);
-            if let Err(e) = self.path.planner.push(&approach) {
-                self.program.skipped_to = Some(end);
-                if matches!(e, MotionError::QueueFull) {
+            match self.path.planner.push(&approach) {
+                // Zero length: the machine already stands there (after an abort on the
+                // way, say). Keeping the approach for the next attempt met the same
+                // refusal at every attempt, and the program stood in `running` for ever.
+                Ok(()) | Err(MotionError::ZeroLength { .. }) => {}
+                Err(MotionError::QueueFull) => {
+                    self.program.skipped_to = Some(end);
                     self.program.pending = Some(block);
                     return false;
+                }
+                Err(e) => {
+                    self.path.planner.flush();
+                    self.fire(Event::Fail {
+                        code: FaultCode::MotionError,
+                        line: e.line().unwrap_or(mv.line),
+                        value: 0.0,
+                    });
+                    *shared.motion_error.lock() = Some(e);
+                    return true;
                 }
             }
         }
