@@ -55,6 +55,10 @@ pub struct KernelOptions {
     /// progress (its set-point stands while it says it moves), as a planner that stalls.
     /// For the stall watchdog's test.
     pub freeze_path_from: Option<u64>,
+    /// Fault injection: the planner takes no move of a program (each is answered as if its
+    /// window were full), as a sequencer that cannot hand its next block on. For the stall
+    /// watchdog's test.
+    pub refuse_moves: bool,
     /// The shared-memory link to an API process (`rtcnc machine`): its tasks run first in
     /// the interpolation thread, in command parsing and after status feedback.
     pub link: Option<crate::link::MachineLink>,
@@ -376,7 +380,10 @@ impl Kernel {
             // With a link, programs are loaded at run time (the link refuses a start
             // without one).
             options.program.is_some() || options.link.is_some(),
-            options.freeze_path_from,
+            PathInjection {
+                freeze_from: options.freeze_path_from,
+                refuse_moves: options.refuse_moves,
+            },
         )?;
         let (logic, retain, plc) = logic_stage(
             &config,
@@ -498,13 +505,21 @@ fn motion_core(
     requests: SeqlockWriter<LogicRequests>,
     setpoints_out: LeadProducer<ServoTarget>,
     has_program: bool,
-    freeze_path_from: Option<u64>,
+    injection: PathInjection,
 ) -> Result<Arc<PiMutex<MotionCore>>, KernelError> {
     let mut core = MotionCore::new(config, kinematics, shared, requests, setpoints_out)?;
-    core.freeze_path_from(freeze_path_from);
+    core.freeze_path_from(injection.freeze_from);
+    core.refuse_moves(injection.refuse_moves);
     core.set_has_program(has_program);
     core.self_test_passed();
     Ok(Arc::new(PiMutex::new(core)))
+}
+
+/// The stall watchdog's fault injections (`KernelOptions::freeze_path_from`,
+/// `KernelOptions::refuse_moves`).
+struct PathInjection {
+    freeze_from: Option<u64>,
+    refuse_moves: bool,
 }
 
 /// Where the PLC's RETAIN values wait for the background task to save them, and the file.

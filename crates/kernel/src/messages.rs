@@ -375,6 +375,22 @@ pub enum MachineBlock {
     MdiDone,
 }
 
+impl MachineBlock {
+    /// The program line the block comes from (0 for the end of an MDI line).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
+    pub fn line(&self) -> u32 {
+        match self {
+            MachineBlock::Motion(mv) | MachineBlock::Probe { mv, .. } => mv.line,
+            MachineBlock::Aux { line, .. }
+            | MachineBlock::Synced { line, .. }
+            | MachineBlock::End { line }
+            | MachineBlock::Error { line, .. } => *line,
+            MachineBlock::MdiDone => 0,
+        }
+    }
+}
+
 /// What the interpreter sends to tool compensation: the program's own coordinates (current
 /// work coordinate system, program units) with the offsets as they change.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -11,6 +11,11 @@ use rtcnc_kernel::{
 const PROGRAM: &str = "G21 G90 G61\nG1 X50 F600\nG1 X0\nM2\n";
 
 fn machine(freeze_from: Option<u64>, name: &str) -> Machine {
+    machine_with(freeze_from, false, name)
+}
+
+/// The bench machine with `PROGRAM` and the watchdog's fault injections.
+fn machine_with(freeze_from: Option<u64>, refuse_moves: bool, name: &str) -> Machine {
     let cfg = config("bench-xyz.toml");
     let kernel = Kernel::build(
         &cfg,
@@ -18,6 +23,7 @@ fn machine(freeze_from: Option<u64>, name: &str) -> Machine {
             program: Some(program(PROGRAM, name)),
             record_capacity: 1 << 14,
             freeze_path_from: freeze_from,
+            refuse_moves,
             ..KernelOptions::default()
         },
     )
@@ -75,4 +81,24 @@ fn standing_still_on_purpose_is_not_a_stall() {
     assert!(m.sim.handle().urgent(Urgent::Resume));
     assert!(m.until(20.0, |s| s.program_ended && s.state == MachineState::Idle));
     assert!(m.faults.is_empty(), "{:?}", m.faults);
+}
+
+#[test]
+fn a_block_that_cannot_be_handed_on_stops_the_program_with_its_line_after_the_timeout() {
+    // The planner takes no move (injected), so the first G1 waits with the planner empty:
+    // as the run from a line whose zero-length approach the planner kept refusing
+    // (fuzz/defects/kernel/start-from-a-line-where-the-machine-stands) stood in `running`.
+    let mut m = machine_with(None, true, "refused.ngc");
+    m.command(Command::Start { from_line: 0 });
+    assert!(m.until(10.0, |s| s.state == MachineState::Idle && s.cycle > 100));
+    let fault = m
+        .faults
+        .iter()
+        .find(|f| f.code == FaultCode::MotionStalled)
+        .copied()
+        .expect("the watchdog's fault");
+    assert_eq!(fault.line, 2, "the waiting block's line");
+    assert_eq!(fault.value, 2.0);
+    assert!(!m.status().program_ended);
+    assert_eq!(m.status().axes[0], 0.0);
 }

@@ -211,6 +211,10 @@ impl MotionCore {
             }
             return true;
         }
+        if self.stall.refuse_moves {
+            self.program.pending = Some(block);
+            return false;
+        }
         let mut mv = mv;
         let arms_outputs = self.outputs.staged() > 0 && !matches!(mv.kind, MoveKind::Dwell { .. });
         if arms_outputs {

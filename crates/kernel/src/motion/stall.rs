@@ -1,8 +1,9 @@
 //! The stall watchdog: a program's path that stands still while it should move (the
 //! planner moving or with moves queued, speed zero, no hold, no dwell, overrides above
-//! zero) for longer than `safety.stall_timeout` stops the program with
-//! `kernel.motion_stalled` at its line, instead of waiting for ever. The machine stands, so
-//! the planner is put at rest where it is.
+//! zero), or a program whose next block cannot be handed on while the planner stands
+//! empty and nothing holds it, for longer than `safety.stall_timeout` stops the program
+//! with `kernel.motion_stalled` at its line, instead of waiting for ever. The machine
+//! stands, so the planner is put at rest where it is.
 
 use rtcnc_motion::MotionState;
 use rtcnc_rt::Context;
@@ -21,6 +22,8 @@ pub(super) struct StallWatch {
     pub(super) still: u64,
     /// Fault injection: the planner makes no progress from this set-point number on.
     pub(super) freeze_from: Option<u64>,
+    /// Fault injection: the planner takes no move of a program.
+    pub(super) refuse_moves: bool,
 }
 
 impl StallWatch {
@@ -29,6 +32,7 @@ impl StallWatch {
             limit,
             still: 0,
             freeze_from: None,
+            refuse_moves: false,
         }
     }
 }
@@ -49,11 +53,29 @@ impl MotionCore {
         running && !held && feed > 0.0 && rapid > 0.0 && planner_wants
     }
 
+    /// The line of a program's block that waits to be handed on while the planner stands
+    /// empty at rest and nothing holds it (the sequencer cannot go on: a run from a line
+    /// whose approach the planner kept refusing stood so for ever).
+    fn block_stuck(&self) -> Option<u32> {
+        let now = self.out.now();
+        let running = self.source == Source::Path
+            && self.synced.is_none()
+            && matches!(self.state, State::Program(_));
+        let held = self.hold.latched() || self.hold.feed_stop || self.hold.logic_request;
+        let planner_empty = now.state == MotionState::Idle && self.path.planner.pieces_ahead() == 0;
+        match &self.program.pending {
+            Some(block) if running && !held && planner_empty => Some(block.line()),
+            _ => None,
+        }
+    }
+
     /// Once a period (interpolation): counts the periods the path stands still while it
-    /// should move, and stops the program when they exceed the limit.
+    /// should move, or a block waits that nothing keeps from going on, and stops the
+    /// program when they exceed the limit.
     pub(super) fn watch_for_stall(&mut self, ctx: &mut Context<'_>, shared: &Shared) {
         let now = *self.out.now();
-        if self.path_should_move() && now.target.setpoints.path_speed == 0.0 {
+        let stuck = self.block_stuck();
+        if (self.path_should_move() || stuck.is_some()) && now.target.setpoints.path_speed == 0.0 {
             self.stall.still += 1;
         } else {
             self.stall.still = 0;
@@ -62,7 +84,7 @@ impl MotionCore {
             return;
         }
         self.stall.still = 0;
-        let line = now.target.setpoints.line;
+        let line = stuck.unwrap_or(now.target.setpoints.line);
         let seconds = self.stall.limit as f64 * self.machine.period_s;
         shared.raise(
             ctx,
@@ -87,6 +109,11 @@ impl MotionCore {
     /// number on.
     pub(crate) fn freeze_path_from(&mut self, number: Option<u64>) {
         self.stall.freeze_from = number;
+    }
+
+    /// Fault injection for the watchdog's test: the planner takes no move of a program.
+    pub(crate) fn refuse_moves(&mut self, refuse: bool) {
+        self.stall.refuse_moves = refuse;
     }
 
     /// The injected freeze is in force for the set-point being produced.
