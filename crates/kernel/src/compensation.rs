@@ -146,6 +146,15 @@ impl CompensationStage {
                     line,
                     end: self.to_machine(&end),
                     pitch: self.sync_pitch.unwrap_or(0.0),
+                    tap: None,
+                });
+            }
+            ProgramBlock::RigidTap { line, end, scale } => {
+                return Some(MachineBlock::Synced {
+                    line,
+                    end: self.to_machine(&end),
+                    pitch: self.sync_pitch.unwrap_or(0.0),
+                    tap: Some(scale),
                 });
             }
             ProgramBlock::Line { line, end, rapid } => {

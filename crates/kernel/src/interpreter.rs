@@ -688,6 +688,12 @@ impl InterpreterStage {
             }
             C::ArcFeed(arc) => self.convert_arc(&arc, line),
             C::SplineFeed(sp) => self.convert_spline(&sp, line),
+            // The tool comes back to where it started: the position stays.
+            C::RigidTap { end, scale } => self.outbox.push_back(ProgramBlock::RigidTap {
+                line,
+                end: end.to_array(),
+                scale,
+            }),
             C::StraightProbe { end, kind } => {
                 self.position = end.to_array();
                 self.outbox.push_back(ProgramBlock::Probe {
@@ -981,11 +987,10 @@ impl InterpreterStage {
 fn not_carried_out(command: &CanonCommand) -> Option<&'static str> {
     use CanonCommand as C;
     match command {
-        C::RigidTap { .. } => Some("rigid tapping (G33.1)"),
         C::StartSpeedFeedSync {
             velocity_mode: true,
             ..
-        } => Some("velocity-synchronised motion (G33.1)"),
+        } => Some("velocity-synchronised motion"),
         _ => None,
     }
 }

@@ -351,6 +351,9 @@ pub enum MachineBlock {
         end: [f64; AXES],
         /// mm per revolution.
         pitch: f64,
+        /// Rigid tapping (G33.1): back to the start with the spindle reversed, its speed
+        /// times this factor on the way out (the I word, at least 1).
+        tap: Option<f64>,
     },
     /// A probing move (G38.x): it stops where the probe changes.
     Probe {
@@ -426,6 +429,16 @@ pub enum ProgramBlock {
     /// G33/G76: the following feed move advances `pitch` (program units) per spindle
     /// revolution, position-synchronised; `None` ends it.
     SpindleSync(Option<f64>),
+    /// G33.1 rigid tapping to `end` and back (program coordinates), at the pitch of the
+    /// `SpindleSync` before it; the spindle's speed times `scale` on the way out.
+    RigidTap {
+        /// Line.
+        line: u32,
+        /// Bottom of the hole.
+        end: [f64; AXES],
+        /// I word.
+        scale: f64,
+    },
     /// G38.x straight probe to `end` (program coordinates).
     Probe {
         /// Line.

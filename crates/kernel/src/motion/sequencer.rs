@@ -181,7 +181,12 @@ impl MotionCore {
                 return true;
             }
             MachineBlock::Aux { line, aux } => (Then::Aux(aux), line),
-            MachineBlock::Synced { line, end, pitch } => (Then::Synced(end, pitch), line),
+            MachineBlock::Synced {
+                line,
+                end,
+                pitch,
+                tap,
+            } => (Then::Synced(end, pitch, tap), line),
             MachineBlock::Probe { mv, kind } => (Then::Probe(mv, kind), mv.line),
             MachineBlock::End { line } => (Then::End, line),
             MachineBlock::Error { line, code } => (Then::Error(code, 0.0), line),
@@ -332,9 +337,9 @@ impl MotionCore {
                 self.change_output_now(None);
                 self.start_probe(shared, mv, kind);
             }
-            Then::Synced(end, pitch) => {
+            Then::Synced(end, pitch, tap) => {
                 self.change_output_now(None);
-                self.start_synced(end, pitch, line);
+                self.start_synced(end, pitch, tap, line);
             }
         }
         true

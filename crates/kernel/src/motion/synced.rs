@@ -3,6 +3,12 @@
 //! the index, read every period from the drive (position synchronisation, as LinuxCNC).
 //! The gap from rest is closed time-optimally within the axes' limits, planned in the
 //! frame that moves with the spindle; near the end the line goes to rest on its end point.
+//!
+//! A rigid tap (G33.1) follows the spindle the same way, both ways, as LinuxCNC's: at the
+//! bottom it commands the spindle reversed and follows it through its deceleration (the
+//! overrun past the bottom) and back up; at the start point it commands the spindle's first
+//! direction again, follows it through that reversal (the overrun above the start), and
+//! goes back to the start point unsynchronised.
 
 use rtcnc_motion::AXES;
 use rtcnc_motion::otg::{self, Limits, OnlineAxis};
@@ -39,15 +45,66 @@ pub(super) struct SyncedMove {
     index: Option<f64>,
     /// Going to the end at rest (or stopping): no longer tracking.
     finishing: bool,
+    /// +1 when the spindle turned towards increasing angles at the index, else -1: the
+    /// progress is pitch × the revolutions in that direction.
+    direction: f64,
+    /// The change of the angle over the period before the last measured one (for the
+    /// acceleration the final placement of a tap starts with).
+    delta_before: f64,
+    /// G33.1.
+    tap: Option<RigidTap>,
     line: u32,
+}
+
+/// Where a rigid tap is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum TapPhase {
+    /// Into the hole.
+    In,
+    /// Past the bottom: the spindle is commanded reversed and still turns in.
+    Reversing,
+    /// Out of the hole with the reversed spindle.
+    Out,
+    /// Past the start: the spindle is commanded in its first direction again and still
+    /// turns out; once it turns in, the tool goes back to the start unsynchronised.
+    Restoring,
+}
+
+/// G33.1: the spindle's command during the tap (the overrides do not change it).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct RigidTap {
+    /// The spindle speed on the way in (rpm, the programmed one, without the override).
+    rpm: f64,
+    /// The speed factor on the way out (the I word, at least 1).
+    scale: f64,
+    /// The spindle's commanded direction on the way in.
+    reverse: bool,
+    phase: TapPhase,
+}
+
+impl RigidTap {
+    /// The spindle's command in this phase: (reversed, rpm).
+    fn spindle(&self) -> (bool, f64) {
+        match self.phase {
+            TapPhase::In | TapPhase::Restoring => (self.reverse, self.rpm),
+            TapPhase::Reversing | TapPhase::Out => (!self.reverse, self.rpm * self.scale),
+        }
+    }
 }
 
 impl MotionCore {
     /// Starts a spindle-synchronised line (G33) from where the machine stands: it waits for
     /// the spindle's index, then its progress follows pitch × revolutions. Refused when the
     /// spindle stands, when the line leaves the soft limits, or when the spindle turns too
-    /// fast for the pitch and the axes (the axes could not keep up).
-    pub(super) fn start_synced(&mut self, end: [f64; AXES], pitch: f64, line: u32) {
+    /// fast for the pitch and the axes (the axes could not keep up). `tap`: a rigid tap
+    /// (G33.1) with its speed factor on the way out.
+    pub(super) fn start_synced(
+        &mut self,
+        end: [f64; AXES],
+        pitch: f64,
+        tap: Option<f64>,
+        line: u32,
+    ) {
         let feedback = *self.interface.feedback.get();
         let fail = |code| Event::Fail {
             code,
@@ -91,10 +148,32 @@ impl MotionCore {
             a = a.min(l.max_acceleration / share);
             j = j.min(l.max_jerk / share);
         }
-        let speed = pitch * feedback.spindle_rpm.abs() / 60.0;
+        // A tap runs at the programmed speed (the override does not apply) and comes out
+        // at `scale` times it.
+        let tap = tap.map(|scale| RigidTap {
+            rpm: self.spindle_command_without_override(),
+            scale: if scale.is_finite() {
+                scale.max(1.0)
+            } else {
+                1.0
+            },
+            reverse: self.interface.requests.spindle_reverse,
+            phase: TapPhase::In,
+        });
+        let fastest_rpm = match tap {
+            Some(t) => feedback.spindle_rpm.abs().max(t.rpm) * t.scale,
+            None => feedback.spindle_rpm.abs(),
+        };
+        let speed = pitch * fastest_rpm / 60.0;
         let progress = OnlineAxis::new(otg::State::at_rest(0.0), Limits::symmetric(v, a, j));
         match progress {
-            Ok(otg) if self.spindle.on && speed > 0.0 && speed <= 0.9 * v && pitch > 0.0 => {
+            Ok(otg)
+                if self.spindle.on
+                    && feedback.spindle_rpm != 0.0
+                    && speed > 0.0
+                    && speed <= 0.9 * v
+                    && pitch > 0.0 =>
+            {
                 self.synced = Some(SyncedMove {
                     start,
                     dir,
@@ -108,8 +187,12 @@ impl MotionCore {
                     delta: 0.0,
                     index: None,
                     finishing: false,
+                    direction: 1.0,
+                    delta_before: 0.0,
+                    tap,
                     line,
                 });
+                self.command_tap_spindle();
                 self.fire(Event::Synced);
             }
             _ => {
@@ -145,6 +228,10 @@ impl MotionCore {
             m.reading = (m.reading + m.delta).rem_euclid(360.0);
             m.delta
         };
+        if decide {
+            // Predicted periods go on with the acceleration last measured.
+            m.delta_before = m.delta;
+        }
         m.delta = delta;
         m.angle += delta;
         if m.index.is_none() {
@@ -155,13 +242,15 @@ impl MotionCore {
             );
             if now != before {
                 m.index = Some(360.0 * now.max(before));
+                m.direction = if delta < 0.0 { -1.0 } else { 1.0 };
             }
         }
         let mut progress = None;
         if let (Some(index), false) = (m.index, m.finishing) {
             let (vmax, a, j) = m.limits;
-            let speed = m.pitch * (delta / 360.0 / dt).abs();
-            let here = m.pitch * ((m.angle - index) / 360.0).abs();
+            // Signed: a tap's spindle reverses.
+            let speed = m.pitch * m.direction * delta / 360.0 / dt;
+            let here = m.pitch * m.direction * (m.angle - index) / 360.0;
             if m.offset.is_none() {
                 // At the index: the offset from the spindle's progress now, to be closed.
                 let relative = Limits {
@@ -187,7 +276,38 @@ impl MotionCore {
                 let p = here + speed * dt + e.p;
                 let v = speed + e.v;
                 let stopping = 0.5 * v * (v / a + a / j) + v * dt;
-                if p + stopping >= m.length {
+                let placing = m.tap.as_mut().is_some_and(|t| {
+                    t.phase = match t.phase {
+                        TapPhase::In if p >= m.length => TapPhase::Reversing,
+                        TapPhase::Reversing if speed < 0.0 => TapPhase::Out,
+                        TapPhase::Out if p <= 0.0 => TapPhase::Restoring,
+                        other => other,
+                    };
+                    t.phase == TapPhase::Restoring && speed > 0.0
+                });
+                if placing {
+                    // The spindle turns in again: back to the start unsynchronised, from
+                    // the motion it followed (its acceleration too, so that it goes on
+                    // smoothly).
+                    // This set-point is still the spindle's; the placement starts from it.
+                    m.finishing = true;
+                    progress = Some((p, v));
+                    // The set-points' own velocity and acceleration (the spindle's speed
+                    // measured is that of the period before).
+                    let turning = m.pitch * m.direction * (delta - m.delta_before) / 360.0;
+                    let acceleration = (turning / (dt * dt) + e.a).clamp(-a, a);
+                    let before = m.otg.sample().p;
+                    let velocity = (p - before) / dt + 0.5 * acceleration * dt;
+                    if let Ok(mut o) = OnlineAxis::new(
+                        otg::State::new(p, velocity, acceleration),
+                        Limits::symmetric(vmax.max(velocity.abs()), a, j),
+                    ) {
+                        let _ = o.set_target(otg::State::at_rest(0.0));
+                        m.otg = o;
+                    } else {
+                        let _ = m.otg.set_target(otg::State::at_rest(0.0));
+                    }
+                } else if m.tap.is_none() && p + stopping >= m.length {
                     // The end: at most this speed, then to rest on the end point.
                     // (From the last set-point, which `otg` holds.)
                     m.finishing = true;
@@ -229,6 +349,13 @@ impl MotionCore {
         sp.path_speed = s.v.abs();
         if decide && m.finishing && m.otg.is_finished() {
             self.synced = None;
+            if m.tap.is_some() {
+                // The spindle's own command again (with the override in force).
+                let rpm = self.spindle_command();
+                if self.interface.requests.spindle_rpm != rpm {
+                    self.requests_mut().spindle_rpm = rpm;
+                }
+            }
             let _ = self.path.planner.reset_at(sp.axes);
             if std::mem::take(&mut self.hold.after_sync) {
                 // Standing between moves now: the next one waits for a resume.
@@ -236,12 +363,41 @@ impl MotionCore {
             }
         } else {
             self.synced = Some(m);
+            if decide {
+                self.command_tap_spindle();
+            }
         }
     }
 
-    /// Stops a synchronised move along its line (abort, fault): it no longer tracks.
+    /// A rigid tap's spindle command, during the tap (`None` otherwise): (reversed, rpm).
+    pub(super) fn tap_spindle(&self) -> Option<(bool, f64)> {
+        self.synced.and_then(|m| m.tap).map(|t| t.spindle())
+    }
+
+    /// Gives the machine logic the rigid tap's spindle command of its phase, if it changed.
+    fn command_tap_spindle(&mut self) {
+        let Some((reverse, rpm)) = self.tap_spindle() else {
+            return;
+        };
+        let r = &self.interface.requests;
+        if r.spindle_reverse != reverse || r.spindle_rpm != rpm {
+            let r = self.requests_mut();
+            r.spindle_reverse = reverse;
+            r.spindle_rpm = rpm;
+        }
+    }
+
+    /// Stops a synchronised move along its line (abort, fault): it no longer tracks. A tap
+    /// in the hole stops with the spindle, as LinuxCNC's abort stops it.
     pub(super) fn stop_synced(&mut self, quick: bool) {
+        if let Some(t) = self.synced.and_then(|m| m.tap) {
+            self.spindle.on = false;
+            let r = self.requests_mut();
+            r.spindle_on = false;
+            r.spindle_reverse = t.reverse;
+        }
         if let Some(m) = self.synced.as_mut() {
+            m.tap = None;
             m.finishing = true;
             if quick {
                 let (v, _, _) = m.limits;
