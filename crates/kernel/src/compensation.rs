@@ -28,6 +28,8 @@ pub(crate) struct CompensationStage {
     default_blend_tolerance: f64,
     /// G33/G76: the pitch (mm per revolution) of the synchronised feed moves.
     sync_pitch: Option<f64>,
+    /// The next synchronised line chains into the one after it.
+    sync_chained: bool,
     pending: Option<Tagged<MachineBlock>>,
 }
 
@@ -46,6 +48,7 @@ impl CompensationStage {
             mode: PathMode::ExactPath,
             default_blend_tolerance,
             sync_pitch: None,
+            sync_chained: false,
             pending: None,
         }
     }
@@ -103,6 +106,8 @@ impl CompensationStage {
     }
 
     fn convert(&mut self, block: ProgramBlock) -> Option<MachineBlock> {
+        // It comes right before the line it is about (and is forgotten otherwise).
+        let chained = std::mem::take(&mut self.sync_chained);
         match block {
             ProgramBlock::Units(mm) => self.mm_per_unit = mm,
             ProgramBlock::WorkOffset(o) => self.work = o,
@@ -137,6 +142,7 @@ impl CompensationStage {
             ProgramBlock::SpindleSync(pitch) => {
                 self.sync_pitch = pitch.map(|p| p * self.mm_per_unit);
             }
+            ProgramBlock::SyncChained => self.sync_chained = true,
             ProgramBlock::Line {
                 line,
                 end,
@@ -147,6 +153,7 @@ impl CompensationStage {
                     end: self.to_machine(&end),
                     pitch: self.sync_pitch.unwrap_or(0.0),
                     tap: None,
+                    chained,
                 });
             }
             ProgramBlock::RigidTap { line, end, scale } => {
@@ -155,6 +162,7 @@ impl CompensationStage {
                     end: self.to_machine(&end),
                     pitch: self.sync_pitch.unwrap_or(0.0),
                     tap: Some(scale),
+                    chained: false,
                 });
             }
             ProgramBlock::Line { line, end, rapid } => {

@@ -206,6 +206,7 @@ fn whole_programs_allocate_nothing_in_the_real_time_tasks() {
         ("sim-lathe.toml", "lathe-thread.ngc"),
         ("sim-lathe.toml", "gcode/lathe_roughing.ngc"),
         ("sim-lathe.toml", "gcode/rigid_tap.ngc"),
+        ("sim-lathe.toml", "gcode/thread.ngc"),
     ] {
         let n = periodic_allocations_of(machine, program);
         assert_eq!(

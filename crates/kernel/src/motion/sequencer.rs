@@ -137,6 +137,7 @@ impl MotionCore {
         self.fire(Event::Begin);
         self.hold.logic_paused = false;
         self.program.pending = None;
+        self.synced_chain.clear();
         self.program.ended = false;
         self.program.took_a_block = false;
         self.program.run_from_line = from_line;
@@ -181,11 +182,25 @@ impl MotionCore {
                 return true;
             }
             MachineBlock::Aux { line, aux } => (Then::Aux(aux), line),
+            // A chained line waits in the chain for the last one, which starts them all.
+            MachineBlock::Synced {
+                line,
+                end,
+                pitch,
+                chained: true,
+                ..
+            } => {
+                if self.chain_synced(end, pitch, line) {
+                    return true;
+                }
+                (Then::Error(FaultCode::SyncFailed, 0.0), line)
+            }
             MachineBlock::Synced {
                 line,
                 end,
                 pitch,
                 tap,
+                chained: false,
             } => (Then::Synced(end, pitch, tap), line),
             MachineBlock::Probe { mv, kind } => (Then::Probe(mv, kind), mv.line),
             MachineBlock::End { line } => (Then::End, line),

@@ -9,6 +9,14 @@
 //! overrun past the bottom) and back up; at the start point it commands the spindle's first
 //! direction again, follows it through that reversal (the overrun above the start), and
 //! goes back to the start point unsynchronised.
+//!
+//! Consecutive synchronised lines (chained G33 blocks, a G76 pass with tapers) run as one
+//! chain on one index: the position is a function of the spindle's revolutions, each line
+//! at its own pitch, the corners blended over a span of revolutions sized so that at the
+//! spindle's speed the axes keep half their acceleration and jerk limits. The tool
+//! locks on with a constant lag (it accelerates to the spindle's speed and stays behind by
+//! what that cost, the same for every pass at that speed, as LinuxCNC's), so that it never
+//! runs faster than the spindle through a corner.
 
 use rtcnc_motion::AXES;
 use rtcnc_motion::otg::{self, Limits, OnlineAxis};
@@ -16,18 +24,27 @@ use rtcnc_motion::otg::{self, Limits, OnlineAxis};
 use super::MotionCore;
 use super::state::Event;
 use crate::fault::FaultCode;
-use crate::messages::JointSetpoints;
+use crate::messages::{JointSetpoints, MAX_SYNCED_CHAIN};
 use crate::shared::Feedback;
 
-/// G33 / a G76 pass: a line whose progress follows the spindle's angle.
+/// The share of the chain's limits each axis can take, of the chains' limits kept in a
+/// corner blend and along a chain (the rest for the lock-on's acceleration meanwhile).
+const CHAIN_LIMIT_SHARE: f64 = 0.5;
+
+/// G33 / a G76 pass: a line whose progress follows the spindle's angle. A chain's progress
+/// is the first line's pitch × revolutions, mapped onto the chain.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct SyncedMove {
     start: [f64; AXES],
     /// Unit direction.
     dir: [f64; AXES],
+    /// Per axis, the most it moves per mm of progress (the largest over a chain's lines).
+    shares: [f64; AXES],
     length: f64,
     /// mm per revolution.
     pitch: f64,
+    /// The geometry is `MotionCore::synced_chain`'s.
+    chain: bool,
     /// While tracking: the progress's offset from pitch × revolutions, jerk-limited from
     /// where it was at the index to 0 (planned in the frame that moves with the spindle,
     /// so it catches up time-optimally and then stays on it).
@@ -92,7 +109,293 @@ impl RigidTap {
     }
 }
 
+/// One line of a chain, placed on the chain's revolutions.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct ChainLine {
+    /// Where it starts (the chain's start for the first line).
+    from: [f64; AXES],
+    /// mm per revolution of every axis.
+    per_rev: [f64; AXES],
+    /// Revolutions from the chain's start at its start and its end.
+    r0: f64,
+    r1: f64,
+    /// Half the revolutions the blend into the next line takes (0: none).
+    blend: f64,
+    /// Program line.
+    line: u32,
+}
+
+impl ChainLine {
+    /// On the line (extended beyond its ends) at `r` revolutions.
+    fn at(&self, r: f64) -> [f64; AXES] {
+        let mut x = self.from;
+        for (x, v) in x.iter_mut().zip(self.per_rev) {
+            *x += v * (r - self.r0);
+        }
+        x
+    }
+}
+
+/// The lines of a chain of synchronised moves: collected from the look-ahead until its last
+/// one comes, then placed on the revolutions of the spindle for the chain in progress.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct SyncedChain {
+    /// (end, pitch, program line) of the chained lines waiting for the last one.
+    pending: [([f64; AXES], f64, u32); MAX_SYNCED_CHAIN],
+    pending_count: usize,
+    lines: [ChainLine; MAX_SYNCED_CHAIN],
+    count: usize,
+}
+
+impl SyncedChain {
+    pub(super) fn new() -> Self {
+        SyncedChain {
+            pending: [([0.0; AXES], 0.0, 0); MAX_SYNCED_CHAIN],
+            pending_count: 0,
+            lines: [ChainLine::default(); MAX_SYNCED_CHAIN],
+            count: 0,
+        }
+    }
+
+    /// Forgets the lines collected (the program stopped before its chain started).
+    pub(super) fn clear(&mut self) {
+        self.pending_count = 0;
+    }
+
+    /// The position `r` revolutions from the chain's start: on its lines, blended
+    /// through the corners (the velocity per revolution changes as a smoothstep over the
+    /// blend, so the acceleration is continuous).
+    fn position(&self, r: f64) -> [f64; AXES] {
+        let lines = &self.lines[..self.count.min(MAX_SYNCED_CHAIN)];
+        let Some(last) = lines.last() else {
+            return [0.0; AXES];
+        };
+        let r = r.clamp(0.0, last.r1);
+        let k = lines
+            .iter()
+            .position(|l| r < l.r1)
+            .unwrap_or(lines.len() - 1);
+        let blended = |a: &ChainLine, b: &ChainLine| {
+            let h = a.blend;
+            let t = ((r - a.r1 + h) / (2.0 * h)).clamp(0.0, 1.0);
+            let integral = t * t * t - 0.5 * t * t * t * t;
+            let mut x = a.at(r);
+            for i in 0..AXES {
+                x[i] += (b.per_rev[i] - a.per_rev[i]) * 2.0 * h * integral;
+            }
+            x
+        };
+        if k > 0 && r < lines[k].r0 + lines[k - 1].blend {
+            return blended(&lines[k - 1], &lines[k]);
+        }
+        if k + 1 < lines.len() && r > lines[k].r1 - lines[k].blend {
+            return blended(&lines[k], &lines[k + 1]);
+        }
+        lines[k].at(r)
+    }
+
+    /// The program line of the chain's line at `r` revolutions (a corner's blend belongs
+    /// to the line before it).
+    fn line(&self, r: f64) -> Option<u32> {
+        let lines = &self.lines[..self.count.min(MAX_SYNCED_CHAIN)];
+        lines
+            .iter()
+            .find(|l| r < l.r1 - l.blend)
+            .or(lines.last())
+            .map(|l| l.line)
+    }
+
+    /// The chain's end.
+    fn end(&self) -> [f64; AXES] {
+        match self.lines[..self.count.min(MAX_SYNCED_CHAIN)].last() {
+            Some(l) => l.at(l.r1),
+            None => [0.0; AXES],
+        }
+    }
+}
+
 impl MotionCore {
+    /// A chained synchronised line (more follow): kept until the last one comes. False
+    /// when the chain is too long.
+    pub(super) fn chain_synced(&mut self, end: [f64; AXES], pitch: f64, line: u32) -> bool {
+        let c = &mut self.synced_chain;
+        // Room for the last line too.
+        if c.pending_count + 1 >= MAX_SYNCED_CHAIN {
+            c.pending_count = 0;
+            return false;
+        }
+        c.pending[c.pending_count] = (end, pitch, line);
+        c.pending_count += 1;
+        true
+    }
+
+    /// Starts a chain of synchronised lines from where the machine stands: the chained
+    /// lines collected and the last one (`end`, `pitch`). Refused as a single line is, and
+    /// when a corner cannot be blended within the limits at the spindle's speed in the
+    /// revolutions its lines leave for it.
+    fn start_synced_chain(&mut self, end: [f64; AXES], pitch: f64, line: u32) {
+        let feedback = *self.interface.feedback.get();
+        let fail = |code| Event::Fail {
+            code,
+            line,
+            value: 0.0,
+        };
+        let start = self.out.last.axes;
+        let pending = self.synced_chain.pending_count.min(MAX_SYNCED_CHAIN - 1);
+        self.synced_chain.pending_count = 0;
+        let mut ends = self.synced_chain.pending;
+        ends[pending] = (end, pitch, line);
+        let mut lines = [ChainLine::default(); MAX_SYNCED_CHAIN];
+        let mut count = 0;
+        let (mut from, mut r) = (start, 0.0);
+        for &(end, pitch, line) in &ends[..=pending] {
+            let mut length2 = 0.0;
+            for i in 0..AXES {
+                length2 += (end[i] - from[i]) * (end[i] - from[i]);
+            }
+            let length = length2.sqrt();
+            if !length.is_finite() || !pitch.is_finite() {
+                self.fire(fail(FaultCode::MotionError));
+                return;
+            }
+            if length == 0.0 {
+                continue;
+            }
+            if pitch <= 0.0 {
+                self.fire(fail(FaultCode::SyncFailed));
+                return;
+            }
+            let mut per_rev = [0.0; AXES];
+            for i in 0..AXES {
+                per_rev[i] = (end[i] - from[i]) / length * pitch;
+                if per_rev[i].abs() > 1e-12
+                    && (!self.machine.axis_present[i]
+                        || end[i] < self.machine.axis_min[i]
+                        || end[i] > self.machine.axis_max[i])
+                {
+                    self.fire(fail(FaultCode::MotionError));
+                    return;
+                }
+            }
+            let r1 = r + length / pitch;
+            lines[count] = ChainLine {
+                from,
+                per_rev,
+                r0: r,
+                r1,
+                blend: 0.0,
+                line,
+            };
+            count += 1;
+            (from, r) = (end, r1);
+        }
+        if count == 0 {
+            self.fire(Event::Proceed);
+            return;
+        }
+        // The corners' blends, at the spindle's speed (commanded, or measured if faster).
+        let rps = self.spindle_command().max(feedback.spindle_rpm.abs()) / 60.0;
+        for c in 0..count - 1 {
+            let (a, b) = (&lines[c], &lines[c + 1]);
+            let mut h: f64 = 0.0;
+            for i in 0..AXES {
+                let change = (b.per_rev[i] - a.per_rev[i]).abs();
+                if change < 1e-12 {
+                    continue;
+                }
+                let l = self.machine.axis_limits[i];
+                let acceleration = CHAIN_LIMIT_SHARE * l.max_acceleration;
+                let jerk = CHAIN_LIMIT_SHARE * l.max_jerk;
+                h = h
+                    .max(0.75 * change * rps * rps / acceleration)
+                    .max((1.5 * change * rps * rps * rps / jerk).sqrt());
+            }
+            // The first line may give all its revolutions to its one corner, the others
+            // half to each.
+            let before = if c == 0 {
+                a.r1 - a.r0
+            } else {
+                0.5 * (a.r1 - a.r0)
+            };
+            let after = 0.5 * (b.r1 - b.r0);
+            if !h.is_finite() || h > before.min(after) {
+                self.fire(fail(FaultCode::SyncFailed));
+                return;
+            }
+            lines[c].blend = h;
+        }
+        // Progress is the first line's pitch × revolutions; each axis's share of it.
+        let pitch = (0..AXES)
+            .map(|i| lines[0].per_rev[i] * lines[0].per_rev[i])
+            .sum::<f64>()
+            .sqrt();
+        let mut shares = [0.0f64; AXES];
+        for l in &lines[..count] {
+            for i in 0..AXES {
+                shares[i] = shares[i].max(l.per_rev[i].abs() / pitch);
+            }
+        }
+        let (mut v, mut a, mut j) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+        for i in 0..AXES {
+            if shares[i] < 1e-12 {
+                continue;
+            }
+            let l = self.machine.axis_limits[i];
+            v = v.min(l.max_velocity / shares[i]);
+            a = a.min(CHAIN_LIMIT_SHARE * l.max_acceleration / shares[i]);
+            j = j.min(CHAIN_LIMIT_SHARE * l.max_jerk / shares[i]);
+        }
+        let mut dir = [0.0; AXES];
+        for i in 0..AXES {
+            dir[i] = lines[0].per_rev[i] / pitch;
+        }
+        self.synced_chain.lines = lines;
+        self.synced_chain.count = count;
+        let length = pitch * r;
+        let speed = pitch * feedback.spindle_rpm.abs() / 60.0;
+        let progress = OnlineAxis::new(otg::State::at_rest(0.0), Limits::symmetric(v, a, j));
+        match progress {
+            Ok(otg) if self.spindle.on && speed > 0.0 && speed <= 0.9 * v => {
+                self.synced = Some(SyncedMove {
+                    start,
+                    dir,
+                    shares,
+                    length,
+                    pitch,
+                    chain: true,
+                    offset: None,
+                    otg,
+                    limits: (v, a, j),
+                    angle: feedback.spindle_angle_deg,
+                    reading: feedback.spindle_angle_deg,
+                    delta: 0.0,
+                    index: None,
+                    finishing: false,
+                    direction: 1.0,
+                    delta_before: 0.0,
+                    tap: None,
+                    line,
+                });
+                self.fire(Event::Synced);
+            }
+            _ => {
+                self.fire(fail(FaultCode::SyncFailed));
+            }
+        }
+    }
+
+    /// Where a synchronised move is at `progress`.
+    fn synced_position(&self, m: &SyncedMove, progress: f64) -> [f64; AXES] {
+        if m.chain {
+            return self.synced_chain.position(progress / m.pitch);
+        }
+        let mut x = m.start;
+        for i in 0..AXES {
+            x[i] += m.dir[i] * progress;
+        }
+        x
+    }
+
     /// Starts a spindle-synchronised line (G33) from where the machine stands: it waits for
     /// the spindle's index, then its progress follows pitch × revolutions. Refused when the
     /// spindle stands, when the line leaves the soft limits, or when the spindle turns too
@@ -113,6 +416,11 @@ impl MotionCore {
         };
         // From where the machine stands, not after the set-points produced ahead there.
         self.discard_ahead();
+        if self.synced_chain.pending_count > 0 && tap.is_none() {
+            self.start_synced_chain(end, pitch, line);
+            return;
+        }
+        self.synced_chain.pending_count = 0;
         let start = self.out.last.axes;
         let mut dir = [0.0; AXES];
         let mut length2 = 0.0;
@@ -174,11 +482,17 @@ impl MotionCore {
                     && speed <= 0.9 * v
                     && pitch > 0.0 =>
             {
+                let mut shares = [0.0; AXES];
+                for i in 0..AXES {
+                    shares[i] = dir[i].abs();
+                }
                 self.synced = Some(SyncedMove {
                     start,
                     dir,
+                    shares,
                     length,
                     pitch,
+                    chain: false,
                     offset: None,
                     otg,
                     limits: (v, a, j),
@@ -261,10 +575,26 @@ impl MotionCore {
                     max_jerk: j,
                 };
                 let at = m.otg.sample();
-                let start = otg::State::new(at.p - here, at.v - speed, at.a);
-                m.offset = OnlineAxis::new(start, relative)
-                    .and_then(|mut o| o.set_target(otg::State::at_rest(0.0)).map(|()| o))
-                    .ok();
+                // A chain locks on with the lag its acceleration costs (it never runs
+                // ahead of the spindle into a corner), planned from the index's instant
+                // (the spindle has turned on since) so that the lag is the same every
+                // pass; a line catches up with the index.
+                m.offset = if m.chain {
+                    let since = if speed > 0.0 { here / speed } else { 0.0 };
+                    let start = otg::State::new(at.p, at.v - speed, at.a);
+                    OnlineAxis::new(start, relative)
+                        .and_then(|mut o| {
+                            o.stop()?;
+                            o.step(since);
+                            Ok(o)
+                        })
+                        .ok()
+                } else {
+                    let start = otg::State::new(at.p - here, at.v - speed, at.a);
+                    OnlineAxis::new(start, relative)
+                        .and_then(|mut o| o.set_target(otg::State::at_rest(0.0)).map(|()| o))
+                        .ok()
+                };
                 if m.offset.is_none() {
                     m.finishing = true;
                     let _ = m.otg.stop();
@@ -336,16 +666,22 @@ impl MotionCore {
             None if m.finishing || m.offset.is_none() => m.otg.step(dt),
             None => m.otg.sample(),
         };
-        for i in 0..AXES {
-            sp.axes[i] = m.start[i] + m.dir[i] * s.p;
-            sp.move_end[i] = m.start[i] + m.dir[i] * m.length;
-        }
+        sp.axes = self.synced_position(&m, s.p);
+        sp.move_end = if m.chain {
+            self.synced_chain.end()
+        } else {
+            self.synced_position(&m, m.length)
+        };
         for jn in 0..self.machine.joint_count {
             if let Some(i) = self.machine.joints[jn].axis {
                 sp.joints[jn] = sp.axes[i];
             }
         }
-        sp.line = m.line;
+        sp.line = if m.chain {
+            self.synced_chain.line(s.p / m.pitch).unwrap_or(m.line)
+        } else {
+            m.line
+        };
         sp.path_speed = s.v.abs();
         if decide && m.finishing && m.otg.is_finished() {
             self.synced = None;
@@ -403,7 +739,7 @@ impl MotionCore {
                 let (v, _, _) = m.limits;
                 let (mut a, mut j) = (f64::INFINITY, f64::INFINITY);
                 for i in 0..AXES {
-                    let share = m.dir[i].abs();
+                    let share = m.shares[i];
                     if share > 1e-12 {
                         a = a.min(self.machine.axis_quick[i].max_acceleration / share);
                         j = j.min(self.machine.axis_quick[i].max_jerk / share);
