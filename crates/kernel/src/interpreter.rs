@@ -428,23 +428,6 @@ impl InterpreterStage {
             }
             return;
         }
-        // The planner takes one spindle speed per move; under G96 it changes along it.
-        if self.css_max.is_some()
-            && matches!(
-                canon.command,
-                CanonCommand::StraightFeed(_) | CanonCommand::ArcFeed(_)
-            )
-            && self
-                .interp
-                .as_ref()
-                .is_some_and(|i| i.modal_state().feed_mode == FeedMode::UnitsPerRevolution)
-        {
-            self.refuse(
-                &canon,
-                "feed per revolution (G95) under constant surface speed (G96)",
-            );
-            return;
-        }
         if matches!(canon.command, CanonCommand::StartSpeedFeedSync { .. }) {
             self.sync_hold = Some(vec![canon]);
             return;
@@ -1037,7 +1020,7 @@ impl InterpreterStage {
 }
 
 /// Canonical commands the kernel cannot carry out yet. Running them as something else (a
-/// spline as a line, a probing move as a plain feed, G96 at a fixed speed) would move the
+/// spline as a line, a probing move as a plain feed) would move the
 /// machine in a way the program did not mean, so the run stops before them instead.
 fn not_carried_out(command: &CanonCommand) -> Option<&'static str> {
     use CanonCommand as C;

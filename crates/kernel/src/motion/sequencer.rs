@@ -3,7 +3,7 @@
 //! needs the machine standing (a machine function, a spindle-synchronised or probing move,
 //! the end, an error), waits for the path to stand, and then starts that.
 
-use rtcnc_motion::{AXES, MotionError, Move, MoveKind, PathMode, Preparation, PreparedMove};
+use rtcnc_motion::{AXES, Feed, MotionError, Move, MoveKind, PathMode, Preparation, PreparedMove};
 use rtcnc_rt::Context;
 
 use super::MotionCore;
@@ -279,6 +279,17 @@ impl MotionCore {
                     let first_piece = self.path.planner.next_piece_id();
                     self.outputs.arm_staged(first_piece);
                 }
+                let follows_spindle = match mv.feed {
+                    Feed::PerRevolution {
+                        spindle_rev_per_s, ..
+                    } if self.spindle.css.is_some()
+                        && !matches!(mv.kind, MoveKind::Dwell { .. }) =>
+                    {
+                        Some(spindle_rev_per_s)
+                    }
+                    _ => None,
+                };
+                self.mark_feed_per_revolution(follows_spindle);
                 if self.program.single_block {
                     self.path.planner.flush();
                     self.fire(Event::Drain {
