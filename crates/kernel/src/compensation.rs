@@ -28,8 +28,16 @@ pub(crate) struct CompensationStage {
     default_blend_tolerance: f64,
     /// G33/G76: the pitch (mm per revolution) of the synchronised feed moves.
     sync_pitch: Option<f64>,
+    /// The next synchronised line chains into the one after it.
+    sync_chained: bool,
+    /// G96 in force: its D cap (rpm).
+    css_max_rpm: Option<f64>,
     pending: Option<Tagged<MachineBlock>>,
 }
+
+/// The nominal spindle speed of a G95 move under G96 without a cap (rpm): above any
+/// spindle's.
+const NO_CAP_RPM: f64 = 1e6;
 
 impl CompensationStage {
     pub(crate) fn new(shared: Shared, default_blend_tolerance: f64) -> Self {
@@ -46,6 +54,8 @@ impl CompensationStage {
             mode: PathMode::ExactPath,
             default_blend_tolerance,
             sync_pitch: None,
+            sync_chained: false,
+            css_max_rpm: None,
             pending: None,
         }
     }
@@ -93,9 +103,17 @@ impl CompensationStage {
     fn feed(&self) -> Feed {
         let mm = self.feed_mm;
         if self.per_revolution {
+            // Under G96 the speed changes along the move: it is planned at the cap (a speed
+            // no spindle passes when there is none), and the kernel scales its feed by
+            // the measured speed over it every period.
+            let rpm = match self.css_max_rpm {
+                Some(cap) if cap > 0.0 && cap <= NO_CAP_RPM => cap,
+                Some(_) => NO_CAP_RPM,
+                None => self.spindle_rpm.abs(),
+            };
             Feed::PerRevolution {
                 mm_per_rev: mm,
-                spindle_rev_per_s: self.spindle_rpm.abs() / 60.0,
+                spindle_rev_per_s: rpm / 60.0,
             }
         } else {
             Feed::UnitsPerSecond(mm / 60.0)
@@ -103,6 +121,8 @@ impl CompensationStage {
     }
 
     fn convert(&mut self, block: ProgramBlock) -> Option<MachineBlock> {
+        // It comes right before the line it is about (and is forgotten otherwise).
+        let chained = std::mem::take(&mut self.sync_chained);
         match block {
             ProgramBlock::Units(mm) => self.mm_per_unit = mm,
             ProgramBlock::WorkOffset(o) => self.work = o,
@@ -137,6 +157,7 @@ impl CompensationStage {
             ProgramBlock::SpindleSync(pitch) => {
                 self.sync_pitch = pitch.map(|p| p * self.mm_per_unit);
             }
+            ProgramBlock::SyncChained => self.sync_chained = true,
             ProgramBlock::Line {
                 line,
                 end,
@@ -146,6 +167,17 @@ impl CompensationStage {
                     line,
                     end: self.to_machine(&end),
                     pitch: self.sync_pitch.unwrap_or(0.0),
+                    tap: None,
+                    chained,
+                });
+            }
+            ProgramBlock::RigidTap { line, end, scale } => {
+                return Some(MachineBlock::Synced {
+                    line,
+                    end: self.to_machine(&end),
+                    pitch: self.sync_pitch.unwrap_or(0.0),
+                    tap: Some(scale),
+                    chained: false,
                 });
             }
             ProgramBlock::Line { line, end, rapid } => {
@@ -239,8 +271,13 @@ impl CompensationStage {
                         self.spindle_rpm = 0.0;
                         aux
                     }
+                    Aux::SurfaceSpeedOff => {
+                        self.css_max_rpm = None;
+                        aux
+                    }
                     // LinuxCNC's canon: rpm = S (in mm/min) / (2π·|X − the X offsets|).
                     Aux::SurfaceSpeed { surface, max_rpm } => {
+                        self.css_max_rpm = Some(max_rpm);
                         let mm_per_minute = if self.mm_per_unit == 1.0 {
                             surface * 1000.0
                         } else {

@@ -59,6 +59,8 @@ pub(crate) struct InterpreterStage {
     css_max: Option<f64>,
     /// A spindle-synchronised stretch being collected (from its start to its end).
     sync_hold: Option<Vec<Canon>>,
+    /// A stretch collected, waiting for the next command: another one chains to it.
+    sync_done: Option<Vec<Canon>>,
     /// Sequence number of the last operator message.
     message_seq: u32,
     /// Message texts not yet handed to the look-ahead (its channel was full).
@@ -110,6 +112,7 @@ impl InterpreterStage {
             refused: false,
             css_max: None,
             sync_hold: None,
+            sync_done: None,
             message_seq: 0,
             texts: std::collections::VecDeque::with_capacity(8),
             tool_table_file: None,
@@ -192,6 +195,7 @@ impl InterpreterStage {
                     self.refused = false;
                     self.css_max = None;
                     self.sync_hold = None;
+                    self.sync_done = None;
                     self.outbox.clear();
                     self.texts.clear();
                     self.comp = Compensator::new();
@@ -217,6 +221,7 @@ impl InterpreterStage {
                 InterpreterRequest::Mdi { epoch, line } => {
                     self.epoch = epoch;
                     self.sync_hold = None;
+                    self.sync_done = None;
                     self.refused = false;
                     self.outbox.clear();
                     self.texts.clear();
@@ -237,6 +242,7 @@ impl InterpreterStage {
                 }
                 InterpreterRequest::Stop => {
                     self.sync_hold = None;
+                    self.sync_done = None;
                     // Also ends a wait for the machine's result.
                     if let Some(interp) = self.interp.as_mut() {
                         interp.abort();
@@ -312,6 +318,7 @@ impl InterpreterStage {
                     while let Some(c) = self.comp.pop() {
                         self.convert(c);
                     }
+                    self.flush_sync();
                     *self.shared.error_text.lock() = Some(e.to_string());
                     self.outbox.push_back(ProgramBlock::Error {
                         line: e.at.line,
@@ -325,6 +332,7 @@ impl InterpreterStage {
                 while let Some(c) = self.comp.pop() {
                     self.convert(c);
                 }
+                self.flush_sync();
                 *self.shared.error_text.lock() = Some(e.to_string());
                 self.outbox.push_back(ProgramBlock::Error {
                     line: e.line,
@@ -370,6 +378,7 @@ impl InterpreterStage {
                 while let Some(c) = self.comp.pop() {
                     self.convert(c);
                 }
+                self.flush_sync();
                 if self.mdi {
                     self.outbox.push_back(ProgramBlock::MdiDone);
                 } else {
@@ -386,6 +395,19 @@ impl InterpreterStage {
         if self.refused {
             return;
         }
+        // A spindle-synchronised stretch held for the command after it: another stretch
+        // right after it (the next G33 block) chains to it.
+        if let Some(mut done) = self.sync_done.take() {
+            if matches!(canon.command, CanonCommand::StartSpeedFeedSync { .. }) {
+                done.push(canon);
+                self.sync_hold = Some(done);
+                return;
+            }
+            self.convert_sync_stretch(done);
+            if self.refused {
+                return;
+            }
+        }
         if let Some(what) = not_carried_out(&canon.command) {
             self.refuse(&canon, what);
             return;
@@ -396,50 +418,14 @@ impl InterpreterStage {
             }
             return;
         }
-        // A spindle-synchronised stretch is held until its end, so that one the kernel
-        // cannot carry out (more than one move: chained G33, G76 tapers) stops the program
-        // before any of it cuts.
+        // A spindle-synchronised stretch is held until its end (then until the next
+        // command, above): the kernel gets the whole chain before any of it cuts.
         if let Some(held) = self.sync_hold.as_mut() {
             let end = matches!(canon.command, CanonCommand::StopSpeedFeedSync);
             held.push(canon);
-            if !end {
-                return;
+            if end {
+                self.sync_done = self.sync_hold.take();
             }
-            let held = self.sync_hold.take().unwrap_or_default();
-            let mut moves = held.iter().filter(|c| {
-                matches!(
-                    c.command,
-                    CanonCommand::StraightFeed(_) | CanonCommand::ArcFeed(_)
-                )
-            });
-            if let (Some(_), Some(second)) = (moves.next(), moves.next()) {
-                let second = second.clone();
-                self.refuse(
-                    &second,
-                    "consecutive spindle-synchronised moves (chained G33, G76 tapers)",
-                );
-                return;
-            }
-            for c in held {
-                self.convert_now(c);
-            }
-            return;
-        }
-        // The planner takes one spindle speed per move; under G96 it changes along it.
-        if self.css_max.is_some()
-            && matches!(
-                canon.command,
-                CanonCommand::StraightFeed(_) | CanonCommand::ArcFeed(_)
-            )
-            && self
-                .interp
-                .as_ref()
-                .is_some_and(|i| i.modal_state().feed_mode == FeedMode::UnitsPerRevolution)
-        {
-            self.refuse(
-                &canon,
-                "feed per revolution (G95) under constant surface speed (G96)",
-            );
             return;
         }
         if matches!(canon.command, CanonCommand::StartSpeedFeedSync { .. }) {
@@ -450,6 +436,58 @@ impl InterpreterStage {
             return;
         };
         self.convert_now(canon);
+    }
+
+    /// A spindle-synchronised stretch (one or more G33 blocks one after the other, a G76
+    /// pass, a G33.1): each feed move that another follows is marked as chained to it.
+    /// A chain longer than the kernel takes stops the program before its first move.
+    fn convert_sync_stretch(&mut self, held: Vec<Canon>) {
+        let is_feed = |c: &Canon| matches!(c.command, CanonCommand::StraightFeed(_));
+        let is_move = |c: &Canon| {
+            matches!(
+                c.command,
+                CanonCommand::StraightFeed(_)
+                    | CanonCommand::ArcFeed(_)
+                    | CanonCommand::RigidTap { .. }
+            )
+        };
+        // Whether each move is a feed another feed follows.
+        let moves: Vec<usize> = (0..held.len()).filter(|&i| is_move(&held[i])).collect();
+        let mut chained = vec![false; held.len()];
+        let mut run = 1;
+        for w in moves.windows(2) {
+            if is_feed(&held[w[0]]) && is_feed(&held[w[1]]) {
+                chained[w[0]] = true;
+                run += 1;
+                if run > MAX_SYNCED_CHAIN {
+                    let first = moves.first().map_or(w[1], |&m| m);
+                    let at = held[first].clone();
+                    self.refuse_because(
+                        &at,
+                        &format!(
+                            "more than {MAX_SYNCED_CHAIN} consecutive spindle-synchronised moves"
+                        ),
+                    );
+                    return;
+                }
+            } else {
+                run = 1;
+            }
+        }
+        for (c, chained) in held.into_iter().zip(chained) {
+            if chained {
+                self.outbox.push_back(ProgramBlock::SyncChained);
+            }
+            self.convert_now(c);
+        }
+    }
+
+    /// Converts a spindle-synchronised stretch still held (the program's or MDI line's
+    /// end, an error after it).
+    fn flush_sync(&mut self) {
+        if let Some(done) = self.sync_done.take() {
+            self.convert_sync_stretch(done);
+        }
     }
 
     /// An S word (in rpm, not a G96 surface speed) above the spindle's highest speed: the
@@ -688,6 +726,12 @@ impl InterpreterStage {
             }
             C::ArcFeed(arc) => self.convert_arc(&arc, line),
             C::SplineFeed(sp) => self.convert_spline(&sp, line),
+            // The tool comes back to where it started: the position stays.
+            C::RigidTap { end, scale } => self.outbox.push_back(ProgramBlock::RigidTap {
+                line,
+                end: end.to_array(),
+                scale,
+            }),
             C::StraightProbe { end, kind } => {
                 self.position = end.to_array();
                 self.outbox.push_back(ProgramBlock::Probe {
@@ -976,16 +1020,15 @@ impl InterpreterStage {
 }
 
 /// Canonical commands the kernel cannot carry out yet. Running them as something else (a
-/// spline as a line, a probing move as a plain feed, G96 at a fixed speed) would move the
+/// spline as a line, a probing move as a plain feed) would move the
 /// machine in a way the program did not mean, so the run stops before them instead.
 fn not_carried_out(command: &CanonCommand) -> Option<&'static str> {
     use CanonCommand as C;
     match command {
-        C::RigidTap { .. } => Some("rigid tapping (G33.1)"),
         C::StartSpeedFeedSync {
             velocity_mode: true,
             ..
-        } => Some("velocity-synchronised motion (G33.1)"),
+        } => Some("velocity-synchronised motion"),
         _ => None,
     }
 }
@@ -996,6 +1039,9 @@ fn signed(rpm: f64, direction: SpindleDirection) -> f64 {
         SpindleDirection::CounterClockwise => -rpm.abs(),
     }
 }
+
+/// Most spindle-synchronised moves the kernel runs as one chain.
+const MAX_SYNCED_CHAIN: usize = crate::messages::MAX_SYNCED_CHAIN;
 
 /// Largest distance of the chords a spline the planner cannot follow is run as from the
 /// curve, mm.

@@ -328,6 +328,10 @@ pub enum WaitCondition {
     Low,
 }
 
+/// Most spindle-synchronised lines one chain may have (chained G33 blocks, a G76 pass
+/// with tapers has four).
+pub const MAX_SYNCED_CHAIN: usize = 16;
+
 /// What the tool-compensation stage sends to look-ahead (machine coordinates, mm, s).
 // Plain data in preallocated channels: a spline move is the largest, no boxing.
 #[allow(clippy::large_enum_variant)]
@@ -351,6 +355,12 @@ pub enum MachineBlock {
         end: [f64; AXES],
         /// mm per revolution.
         pitch: f64,
+        /// Rigid tapping (G33.1): back to the start with the spindle reversed, its speed
+        /// times this factor on the way out (the I word, at least 1).
+        tap: Option<f64>,
+        /// Another synchronised line follows without a stop (chained G33, a G76 pass with
+        /// tapers): they run as one, blended, on one spindle index.
+        chained: bool,
     },
     /// A probing move (G38.x): it stops where the probe changes.
     Probe {
@@ -442,6 +452,19 @@ pub enum ProgramBlock {
     /// G33/G76: the following feed move advances `pitch` (program units) per spindle
     /// revolution, position-synchronised; `None` ends it.
     SpindleSync(Option<f64>),
+    /// The next spindle-synchronised line chains into the one after it (no stop, no new
+    /// index between them).
+    SyncChained,
+    /// G33.1 rigid tapping to `end` and back (program coordinates), at the pitch of the
+    /// `SpindleSync` before it; the spindle's speed times `scale` on the way out.
+    RigidTap {
+        /// Line.
+        line: u32,
+        /// Bottom of the hole.
+        end: [f64; AXES],
+        /// I word.
+        scale: f64,
+    },
     /// G38.x straight probe to `end` (program coordinates).
     Probe {
         /// Line.

@@ -1,9 +1,10 @@
 //! G96 constant surface speed on the simulated lathe: the spindle speed follows the X
-//! set-point every servo period, as LinuxCNC's motion controller computes it.
+//! set-point every servo period, as LinuxCNC's motion controller computes it, and a G95
+//! feed follows the spindle's measured speed.
 
 mod common;
 use common::*;
-use rtcnc_kernel::{FaultCode, MachineState};
+use rtcnc_kernel::MachineState;
 
 /// rpm for S m/min at radius r mm: S·1000 / (2π·r), capped at D.
 fn css_rpm(surface_m_per_min: f64, radius_mm: f64, max: f64) -> f64 {
@@ -69,19 +70,60 @@ M2
 }
 
 #[test]
-fn feed_per_revolution_under_g96_stops_the_program_before_the_move() {
-    let text = "G18 G21 G90 G7 G95\nG0 X40 Z2\nG96 S100 D2000 M3\nG1 Z-10 F0.1\nM2\n";
+fn feed_per_revolution_under_g96_follows_the_spindle_as_it_speeds_up_with_the_diameter() {
+    // Facing from a diameter of 60 to 10 at 0.2 mm per revolution, 100 m/min capped at
+    // 3000 rpm: the spindle speeds up from 531 rpm towards the cap as the radius falls
+    // (behind its command near the centre: it turns up at 2000 rpm/s), and X advances
+    // 0.2 mm per revolution of the spindle as measured: 0.2 · rpm / 60 mm/s.
+    let text = "G18 G21 G90 G7
+G0 X60 Z0
+G96 S100 D3000 M3
+G95 F0.2
+G1 X10
+G0 Z5
+M5
+M2
+";
     let cfg = config("sim-lathe.toml");
     let mut m = Machine::started(&cfg, text, "css-g95.ngc");
-    m.cycles(2);
-    assert!(m.until(10.0, |s| s.state == MachineState::Idle));
-    let f = m
-        .faults
-        .iter()
-        .find(|f| f.code == FaultCode::ProgramError)
-        .unwrap();
-    assert_eq!(f.line, 4);
-    assert!(m.samples.iter().all(|s| s.axes[2] >= 0.0));
-    let words = m.sim.handle().error_text().unwrap();
-    assert!(words.contains("G95") && words.contains("G96"), "{words}");
+    let mut facing = Vec::new();
+    for _ in 0..60_000 {
+        m.cycles(1);
+        let s = m.status();
+        let sample = *m.samples.last().unwrap();
+        if sample.line == 5 {
+            facing.push((sample.axes[0], sample.path_speed, s.spindle_rpm));
+        }
+        if s.program_ended && s.state == MachineState::Idle {
+            break;
+        }
+    }
+    assert!(
+        m.faults.is_empty(),
+        "{:?} {:?}",
+        m.faults,
+        m.sim.handle().error_text()
+    );
+    assert!(m.status().program_ended);
+    // From radius 29 to 6 (after the start, before the stop at radius 5).
+    let cutting: Vec<_> = facing.iter().filter(|f| f.0 < 29.0 && f.0 > 6.0).collect();
+    let slowest = cutting.iter().map(|f| f.2).fold(f64::MAX, f64::min);
+    let fastest = cutting.iter().map(|f| f.2).fold(0.0, f64::max);
+    assert!(slowest < 600.0 && fastest > 2500.0, "{slowest} {fastest}");
+    let mut worst: f64 = 0.0;
+    for &&(x, speed, rpm) in &cutting {
+        let expected = 0.2 * rpm / 60.0;
+        let error = (speed - expected) / expected;
+        worst = worst.max(error.abs());
+        // Within the 1 % step the feed is taken in by, and its jerk-limited change.
+        assert!(
+            error.abs() < 0.02,
+            "radius {x}: {speed} mm/s at {rpm} rpm, {expected} by hand"
+        );
+    }
+    eprintln!(
+        "feed per revolution under G96: largest error {:.3} %",
+        worst * 100.0
+    );
+    assert!(cutting.len() > 1000, "{}", cutting.len());
 }

@@ -205,6 +205,8 @@ fn whole_programs_allocate_nothing_in_the_real_time_tasks() {
         ("sim-mill.toml", "gcode/pocket.ngc"),
         ("sim-lathe.toml", "lathe-thread.ngc"),
         ("sim-lathe.toml", "gcode/lathe_roughing.ngc"),
+        ("sim-lathe.toml", "gcode/rigid_tap.ngc"),
+        ("sim-lathe.toml", "gcode/thread.ngc"),
     ] {
         let n = periodic_allocations_of(machine, program);
         assert_eq!(

@@ -152,6 +152,7 @@ impl MotionCore {
             .try_put(InterpreterRequest::Stop);
         shared.interpreter_wake.signal();
         self.program.pending = None;
+        self.synced_chain.clear();
         self.fire(Event::Abort);
         self.hold.held = false;
         self.hold.logic_paused = false;

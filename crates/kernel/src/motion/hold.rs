@@ -125,9 +125,14 @@ impl MotionCore {
                     ..
                 })
             );
-            if self.moving() {
+            // A rigid tap's own spindle reversals take the spindle out of the logic's
+            // at-speed window: as in a spindle hand-shake nothing latches; the tap goes
+            // on (it cannot stop in the hole) and the next block waits for the request to
+            // fall.
+            let in_tap = self.tap_spindle().is_some();
+            if self.moving() && !in_tap {
                 self.hold();
-            } else if step.is_some() && !spindle_handshake && self.program.took_a_block {
+            } else if !in_tap && step.is_some() && !spindle_handshake && self.program.took_a_block {
                 self.hold.logic_paused = true;
             }
         }

@@ -241,6 +241,7 @@ impl MotionCore {
         self.watch_estop_chain(ctx, shared, answers.estop_chain_ok);
         self.probe_step(&feedback);
         self.adaptive_feed_step();
+        self.spindle_feed_step(false);
         let line = self.out.now().target.setpoints.line;
         self.produce(ctx, shared, &feedback);
         let now_line = self.out.now().target.setpoints.line;

@@ -63,7 +63,7 @@ use sequencer::Program;
 use spindle::Spindle;
 use stall::StallWatch;
 use state::{Event, State, Step, transition};
-use synced::SyncedMove;
+use synced::{SyncedChain, SyncedMove};
 
 /// Latch requests carried with a set-point (bit n for joint n).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -155,6 +155,9 @@ pub(crate) struct MotionCore {
     probe: Option<Probe>,
     /// The spindle-synchronised move in progress.
     synced: Option<SyncedMove>,
+    /// The lines of a chain of synchronised moves: collected until its last line comes,
+    /// then the geometry of the chain in progress.
+    synced_chain: SyncedChain,
     /// The tool in the spindle.
     tool: u32,
     interface: MachineInterface,
@@ -247,6 +250,7 @@ impl MotionCore {
             outputs: OutputLog::new(),
             probe: None,
             synced: None,
+            synced_chain: SyncedChain::new(),
             tool: config.tool_changer.map_or(0, |t| t.initial_tool),
             stall: StallWatch::new(stall_limit),
             interface: MachineInterface {

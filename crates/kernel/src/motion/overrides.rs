@@ -7,6 +7,12 @@
 //! override. It is read every servo period and taken into the planner when it has moved by
 //! `ADAPTIVE_STEP` from the value in force, or reached 0 or 1: each change takes back the
 //! set-points computed ahead, so a noisy input does not cost that every period.
+//!
+//! Feed per revolution under constant surface speed (G95 under G96): such a move is
+//! planned at its feed per revolution times a nominal spindle speed above any the spindle
+//! reaches (the G96 D cap), and while it runs the feed is scaled by the spindle's measured
+//! speed over that nominal one, the same way, so the tool advances its feed per actual
+//! revolution as the speed follows the diameter (LinuxCNC's velocity-synchronised feed).
 
 use super::MotionCore;
 
@@ -27,7 +33,16 @@ pub(super) struct Overrides {
     pub(super) feed_stop_enabled: bool,
     /// M52 P1: adaptive feed on, with the factor in force.
     pub(super) adaptive: Option<f64>,
+    /// G95 under G96: the measured spindle speed over the move's nominal one, in force.
+    pub(super) spindle_feed: f64,
+    /// Where the moves' nominal spindle speed changes: (first piece, rev/s; 0 for a move
+    /// whose feed does not follow the spindle), oldest first.
+    per_revolution: [(u64, f64); PER_REVOLUTION_MARKS],
+    per_revolution_count: usize,
 }
+
+/// Changes of the nominal spindle speed kept for the moves in the planner's window.
+const PER_REVOLUTION_MARKS: usize = 32;
 
 /// Change of the adaptive-feed input taken into the planner (1 % of the feed).
 const ADAPTIVE_STEP: f64 = 0.01;
@@ -42,6 +57,9 @@ impl Overrides {
             spindle_enabled: true,
             feed_stop_enabled: true,
             adaptive: None,
+            spindle_feed: 1.0,
+            per_revolution: [(0, 0.0); PER_REVOLUTION_MARKS],
+            per_revolution_count: 0,
         }
     }
 
@@ -51,6 +69,8 @@ impl Overrides {
         self.spindle_enabled = true;
         self.feed_stop_enabled = true;
         self.adaptive = None;
+        self.spindle_feed = 1.0;
+        self.per_revolution_count = 0;
     }
 
     /// The operator's spindle override, or 1 while M49/M51 P0 is in force.
@@ -94,7 +114,7 @@ impl MotionCore {
     /// The feed and rapid overrides in force: the operator's, or 100 % while M49/M50 P0
     /// is in force.
     pub(super) fn effective_feed_overrides(&self) -> (f64, f64) {
-        let adaptive = self.overrides.adaptive.unwrap_or(1.0);
+        let adaptive = self.overrides.adaptive.unwrap_or(1.0) * self.overrides.spindle_feed;
         if self.overrides.feed_enabled {
             (self.overrides.feed * adaptive, self.overrides.rapid)
         } else {
@@ -125,6 +145,65 @@ impl MotionCore {
         let reached_end = (v == 0.0 || v == 1.0) && v != in_force;
         if (v - in_force).abs() >= ADAPTIVE_STEP || reached_end {
             self.overrides.adaptive = Some(v);
+            self.apply_feed_overrides();
+        }
+    }
+
+    /// A move went into the planner: whether its feed follows the spindle's measured speed
+    /// (G95 under G96, planned at `nominal_rps`), from its first piece on. A move that
+    /// starts the path from rest takes the measured speed at once.
+    pub(super) fn mark_feed_per_revolution(&mut self, nominal_rps: Option<f64>) {
+        let value = nominal_rps
+            .filter(|n| *n > 0.0 && n.is_finite())
+            .unwrap_or(0.0);
+        let o = &mut self.overrides;
+        let last = o.per_revolution[..o.per_revolution_count]
+            .last()
+            .map_or(0.0, |m| m.1);
+        if last == value {
+            return;
+        }
+        if o.per_revolution_count == PER_REVOLUTION_MARKS {
+            o.per_revolution.copy_within(1.., 0);
+            o.per_revolution_count -= 1;
+        }
+        let first_piece = self.path.planner.next_piece_id();
+        o.per_revolution[o.per_revolution_count] = (first_piece, value);
+        o.per_revolution_count += 1;
+        if !self.moving() {
+            self.spindle_feed_step(true);
+        }
+    }
+
+    /// Every servo period (interpolation): the feed of a G95 move under G96 follows the
+    /// spindle's measured speed (taken into the planner when it has moved by
+    /// `ADAPTIVE_STEP` of itself, as adaptive feed is). `now`: take it whatever the step.
+    pub(super) fn spindle_feed_step(&mut self, now: bool) {
+        let o = &mut self.overrides;
+        if o.per_revolution_count == 0 {
+            return;
+        }
+        // The mark in force: the last one at or before the piece being run (the first
+        // one while none of them has started).
+        let piece = self.path.planner.emitted_piece();
+        let marks = &o.per_revolution[..o.per_revolution_count];
+        let k = piece.map_or(0, |p| marks.iter().rposition(|m| m.0 <= p).unwrap_or(0));
+        if k > 0 {
+            o.per_revolution.copy_within(k..o.per_revolution_count, 0);
+            o.per_revolution_count -= k;
+        }
+        let nominal = o.per_revolution[0].1;
+        let factor = if nominal > 0.0 {
+            let rps = self.interface.feedback.get().spindle_rpm.abs() / 60.0;
+            clamped(rps / nominal, 0.0, 1.0, 0.0)
+        } else {
+            1.0
+        };
+        let in_force = o.spindle_feed;
+        let reached_end = (factor == 0.0 || factor == 1.0) && factor != in_force;
+        let moved = (factor - in_force).abs() >= ADAPTIVE_STEP * in_force;
+        if factor != in_force && (now || reached_end || moved) {
+            o.spindle_feed = factor;
             self.apply_feed_overrides();
         }
     }

@@ -3,7 +3,7 @@
 //! needs the machine standing (a machine function, a spindle-synchronised or probing move,
 //! the end, an error), waits for the path to stand, and then starts that.
 
-use rtcnc_motion::{AXES, MotionError, Move, MoveKind, PathMode, Preparation, PreparedMove};
+use rtcnc_motion::{AXES, Feed, MotionError, Move, MoveKind, PathMode, Preparation, PreparedMove};
 use rtcnc_rt::Context;
 
 use super::MotionCore;
@@ -137,6 +137,7 @@ impl MotionCore {
         self.fire(Event::Begin);
         self.hold.logic_paused = false;
         self.program.pending = None;
+        self.synced_chain.clear();
         self.program.ended = false;
         self.program.took_a_block = false;
         self.program.run_from_line = from_line;
@@ -181,7 +182,26 @@ impl MotionCore {
                 return true;
             }
             MachineBlock::Aux { line, aux } => (Then::Aux(aux), line),
-            MachineBlock::Synced { line, end, pitch } => (Then::Synced(end, pitch), line),
+            // A chained line waits in the chain for the last one, which starts them all.
+            MachineBlock::Synced {
+                line,
+                end,
+                pitch,
+                chained: true,
+                ..
+            } => {
+                if self.chain_synced(end, pitch, line) {
+                    return true;
+                }
+                (Then::Error(FaultCode::SyncFailed, 0.0), line)
+            }
+            MachineBlock::Synced {
+                line,
+                end,
+                pitch,
+                tap,
+                chained: false,
+            } => (Then::Synced(end, pitch, tap), line),
             MachineBlock::Probe { mv, kind } => (Then::Probe(mv, kind), mv.line),
             MachineBlock::End { line } => (Then::End, line),
             MachineBlock::Error { line, code } => (Then::Error(code, 0.0), line),
@@ -277,6 +297,17 @@ impl MotionCore {
                     let first_piece = self.path.planner.next_piece_id();
                     self.outputs.arm_staged(first_piece);
                 }
+                let follows_spindle = match mv.feed {
+                    Feed::PerRevolution {
+                        spindle_rev_per_s, ..
+                    } if self.spindle.css.is_some()
+                        && !matches!(mv.kind, MoveKind::Dwell { .. }) =>
+                    {
+                        Some(spindle_rev_per_s)
+                    }
+                    _ => None,
+                };
+                self.mark_feed_per_revolution(follows_spindle);
                 if self.program.single_block {
                     self.path.planner.flush();
                     self.fire(Event::Drain {
@@ -350,9 +381,9 @@ impl MotionCore {
                 self.change_output_now(None);
                 self.start_probe(shared, mv, kind);
             }
-            Then::Synced(end, pitch) => {
+            Then::Synced(end, pitch, tap) => {
                 self.change_output_now(None);
-                self.start_synced(end, pitch, line);
+                self.start_synced(end, pitch, tap, line);
             }
         }
         true

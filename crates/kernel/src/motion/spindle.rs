@@ -51,7 +51,19 @@ impl MotionCore {
     /// override; under G96 the surface speed over 2π·|X − centre| at the X set-point, times
     /// the override, capped at D (as LinuxCNC's motion controller does it every period).
     pub(super) fn spindle_command(&self) -> f64 {
-        let factor = self.overrides.spindle_factor();
+        // A rigid tap commands the spindle itself; the override does not apply.
+        if let Some((_, rpm)) = self.tap_spindle() {
+            return rpm;
+        }
+        self.spindle_command_with(self.overrides.spindle_factor())
+    }
+
+    /// The spindle speed the program commands, without the override.
+    pub(super) fn spindle_command_without_override(&self) -> f64 {
+        self.spindle_command_with(1.0)
+    }
+
+    fn spindle_command_with(&self, factor: f64) -> f64 {
         match self.spindle.css {
             Some(c) => {
                 let radius = (self.out.now().target.setpoints.axes[0] - c.x_centre).abs();

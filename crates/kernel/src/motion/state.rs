@@ -69,8 +69,9 @@ pub(super) enum Step {
 // Plain data held in place: boxing the larger variant would allocate on the real-time path.
 #[allow(clippy::large_enum_variant)]
 pub(super) enum Then {
-    /// A spindle-synchronised line to the end point, pitch mm per revolution.
-    Synced([f64; AXES], f64),
+    /// A spindle-synchronised line to the end point, pitch mm per revolution; a rigid tap
+    /// (with its speed factor out) comes back.
+    Synced([f64; AXES], f64, Option<f64>),
     Probe(Move, ProbeKind),
     Aux(Aux),
     /// Stop the program with this fault and value (the fault's `value`: what failed, for
