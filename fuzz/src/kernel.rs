@@ -521,6 +521,14 @@ impl Harness {
                 self.fault_since = Some(now);
                 self.release_hold();
             }
+            // A fault that stops the machine stops it with the quick-stop limits, even
+            // when a reset queued before it is taken to have cleared it (the e-stop chain
+            // opened by a stuck input as a reset was sent: the status still showed the
+            // state before the e-stop, the model let the reset clear the fault and held the
+            // quick stop to the normal limits).
+            if fault.code.stops_machine() {
+                self.quick_stopping = true;
+            }
         }
         // A reset waits behind the commands sent before it: a fault raised after it was
         // sent but before it was taken is cleared by it too, and the machine then leaves
