@@ -265,57 +265,14 @@ fn random_arc_cases(n: usize) -> Vec<ArcCase> {
 
 #[test]
 fn random_arcs_with_random_overrides_keep_every_limit() {
-    let n = if cfg!(debug_assertions) { 24 } else { 400 };
+    // 171 of 6 000 exceeded the speed or the acceleration (up to 62 ×) before the planner
+    // braked as hard as an arc allows when the stop model had lost the state; then 12 of
+    // these 3 000 the jerk (up to 9.6 ×) before a stop's generated set-points were kept
+    // through an override that made the state lose it, and 4 (up to 7 ×) before a
+    // deceleration the model could not release was released at the path's own jerk.
+    let n = if cfg!(debug_assertions) { 24 } else { 3000 };
     for (case, (moves, changes)) in random_arc_cases(n).iter().enumerate() {
         let result = std::panic::catch_unwind(|| run_changes(moves, changes));
         assert!(result.is_ok(), "case {case}: {moves:?} {changes:?}");
     }
-}
-
-#[test]
-fn more_random_arcs_with_random_overrides_keep_speed_and_acceleration() {
-    // Open: 4 programs of these 3 000 exceed the jerk limit (up to 7 ×) while they come to
-    // rest after an override or a hold (README, known defects); none exceeds the speed or
-    // the acceleration (171 of 6 000 did, up to 62 ×, before the planner braked as hard as
-    // an arc allows when the stop model had lost the state, and kept a stop's generated
-    // set-points when an override made it lose that stop).
-    let n = if cfg!(debug_assertions) { 24 } else { 3000 };
-    let mut jerk_exceeded = Vec::new();
-    for (case, (moves, changes)) in random_arc_cases(n).iter().enumerate() {
-        let mut pl = planner(&limits(V, A, J), p3(0.0, 0.0, 0.0), 256);
-        let apply = |k: usize, pl: &mut Planner<TrivialKinematics>| {
-            for (at, c) in changes {
-                if *at == k {
-                    match *c {
-                        Change::Override(f) => pl.set_feed_override(f),
-                        Change::Hold => pl.hold(),
-                        Change::Resume => pl.resume(),
-                        Change::QuickStop => pl.quick_stop(),
-                    }
-                }
-            }
-        };
-        let tr = run_with(&mut pl, moves, 400_000, apply);
-        let (rv, ra, rj) = ratios(&tr, V, A, J);
-        assert!(
-            rv <= 1.0 + 1e-9 && ra <= 1.0 + 1e-9,
-            "case {case}: speed {rv}, acceleration {ra} of the limits: {moves:?} {changes:?}"
-        );
-        assert!(dist(tr.pts.last().unwrap(), &end_of(moves.last().unwrap())) <= 1e-9);
-        if rj > 1.0 + 1e-9 {
-            jerk_exceeded.push((case, rj));
-        }
-    }
-    // The known open ones, so that any other is a failure (12 before the stop's generated
-    // set-points were kept).
-    let known: &[usize] = if n == 3000 {
-        &[502, 1799, 2829, 2854]
-    } else {
-        &[]
-    };
-    let cases: Vec<usize> = jerk_exceeded.iter().map(|(case, _)| *case).collect();
-    assert_eq!(
-        cases, known,
-        "jerk exceeded (case, ratio): {jerk_exceeded:?}"
-    );
 }

@@ -1257,6 +1257,20 @@ impl<K: Kinematics> Planner<K> {
                 j_used = bj;
                 (ds, v1, a1) = advance(0.0, v, a, bj, t);
                 v1 = v1.max(0.0);
+            } else if !full_releasable {
+                // The stop is far, but the deceleration cannot be released at the model's
+                // jerk before the speed is gone: the model's profile would come to rest
+                // on the way (an override left a state braking at -900 mm/s² 94 mm before
+                // the stop; it stood at a dead end and left with 7 × the jerk). Release
+                // it at the path's own jerk bound instead.
+                let jr = b.j_hi.min(b.jm).min(-a / t).max(0.0);
+                trace!(
+                    self.trace,
+                    "  RELEASE at={} v={v} a={a} rem={rem} j={jr}", st.at
+                );
+                j_used = jr;
+                (ds, v1, a1) = advance(0.0, v, a, jr, t);
+                v1 = v1.max(0.0);
             }
         }
         Step {
