@@ -347,33 +347,120 @@ fn quick_stop_ramps_the_joint_to_rest_and_stays_in_quick_stop_active() {
     assert_eq!(bench.inputs.joints[0].state(), Cia402State::QuickStopActive);
 }
 
+/// The speed of an S-curve ramp from rest to `s` (rpm) with acceleration `a` (rpm/s) and
+/// jerk `j` (rpm/s²), `t` seconds in, when `s` ≥ a²/j (the acceleration reaches `a` and is
+/// held): jerk for a/j, hold, jerk back for a/j, the whole ramp s/a + a/j long.
+fn s_curve_rpm(s: f64, a: f64, j: f64, t: f64) -> f64 {
+    let rise = a / j;
+    let end = s / a + rise;
+    if t <= rise {
+        j * t * t / 2.0
+    } else if t <= end - rise {
+        a * a / (2.0 * j) + a * (t - rise)
+    } else if t < end {
+        s - j * (end - t) * (end - t) / 2.0
+    } else {
+        s
+    }
+}
+
 #[test]
 fn spindle_reaches_at_speed_at_the_analytic_cycle() {
     let mut config: SimulatedMachineConfig = toml::from_str(
-        "joints = []\n[spindle]\nmax_speed_rpm = 12000.0\nacceleration_rpm_per_s = 3000.0\nat_speed_tolerance = 0.02\n",
+        "joints = []\n[spindle]\nmax_speed_rpm = 12000.0\nacceleration_rpm_per_s = 3000.0\njerk_rpm_per_s2 = 600000.0\nat_speed_tolerance = 0.02\n",
     )
     .unwrap();
     config.joints.clear();
     let mut bench = Bench::new(config);
     bench.outputs.spindle.enable = true;
     bench.outputs.spindle.speed_rpm = 10000.0;
-    // Within 2 % once 3000·t ≥ 9800: t = 3.2667 s, the 3267th cycle.
-    let first = (9800.0f64 / 3.0).ceil() as usize;
+    let (a, j) = (3000.0, 600_000.0);
+    // 10 000 ≥ a²/j = 15 rpm: the ramp lasts 10000/3000 + 3000/600000 = 3.338333 s, so the
+    // speed is 10 000 from the 3339th cycle on. Within 2 % once 7.5 + 3000·(t − 0.005) ≥
+    // 9800: t = 3.269167 s, the 3270th cycle.
+    let done = 3339;
+    let first = 3270;
     for k in 1..=4000 {
         bench.cycle().unwrap();
         let spindle = bench.inputs.spindle;
         assert_eq!(spindle.at_speed, k >= first, "cycle {k}: {spindle:?}");
-        assert!(close(
-            spindle.speed_rpm,
-            (3.0 * k as f64).min(10000.0),
-            1e-6
-        ));
+        let want = s_curve_rpm(10000.0, a, j, k as f64 * T);
+        assert!(
+            close(spindle.speed_rpm, want, 1e-6),
+            "cycle {k}: {} vs {want}",
+            spindle.speed_rpm
+        );
+        assert_eq!(spindle.speed_rpm == 10000.0, k >= done, "cycle {k}");
     }
-    // The e-stop takes power away: the spindle runs down.
+    // The e-stop takes power away: the spindle runs down, its deceleration rising at the
+    // jerk: 600 000 · 0.001² / 2 = 0.3 rpm in the first period.
     bench.machine.set_estop(true);
     bench.cycle().unwrap();
-    assert!(close(bench.inputs.spindle.speed_rpm, 9997.0, 1e-6));
+    assert!(close(bench.inputs.spindle.speed_rpm, 9999.7, 1e-6));
     assert!(!bench.inputs.spindle.at_speed);
+}
+
+#[test]
+fn a_spindle_reversal_is_one_s_curve_within_the_acceleration_and_jerk() {
+    // +800 to −800 rpm from speed: 1600/3000 + 3000/600000 = 0.538333 s, so −800 from the
+    // 539th period on; the speed's differences per period never exceed a·T, and their
+    // changes never exceed j·T² (+ rounding).
+    let mut config: SimulatedMachineConfig = toml::from_str(
+        "joints = []\n[spindle]\nacceleration_rpm_per_s = 3000.0\njerk_rpm_per_s2 = 600000.0\n",
+    )
+    .unwrap();
+    config.joints.clear();
+    let mut bench = Bench::new(config);
+    bench.outputs.spindle.enable = true;
+    bench.outputs.spindle.speed_rpm = 800.0;
+    for _ in 0..1000 {
+        bench.cycle().unwrap();
+    }
+    assert_eq!(bench.inputs.spindle.speed_rpm, 800.0);
+    bench.outputs.spindle.speed_rpm = -800.0;
+    let mut speeds = vec![800.0, 800.0];
+    for k in 1..=700 {
+        bench.cycle().unwrap();
+        let speed = bench.inputs.spindle.speed_rpm;
+        assert_eq!(speed == -800.0, k >= 539, "cycle {k}: {speed}");
+        speeds.push(speed);
+    }
+    for w in speeds.windows(3) {
+        let (dv, dv_before) = (w[2] - w[1], w[1] - w[0]);
+        assert!(dv.abs() <= 3000.0 * T + 1e-9, "{w:?}");
+        assert!((dv - dv_before).abs() <= 600_000.0 * T * T + 1e-9, "{w:?}");
+    }
+}
+
+#[test]
+fn a_short_spindle_ramp_never_reaches_the_acceleration_limit() {
+    // 10 rpm < a²/j = 15 rpm: jerk up for √(s/j), down for as long, the whole ramp
+    // 2·√(10/600000) = 8.165 ms (at speed from the 9th cycle), the peak acceleration
+    // √(s·j) = 2449 rpm/s; the speed is j·t²/2 up to the middle, s − j·(T − t)²/2 after.
+    let mut config: SimulatedMachineConfig = toml::from_str(
+        "joints = []\n[spindle]\nacceleration_rpm_per_s = 3000.0\njerk_rpm_per_s2 = 600000.0\n",
+    )
+    .unwrap();
+    config.joints.clear();
+    let mut bench = Bench::new(config);
+    bench.outputs.spindle.enable = true;
+    bench.outputs.spindle.speed_rpm = 10.0;
+    let j = 600_000.0;
+    let end = 2.0 * (10.0f64 / j).sqrt();
+    for k in 1..=12 {
+        bench.cycle().unwrap();
+        let t = k as f64 * T;
+        let want = if t <= end / 2.0 {
+            j * t * t / 2.0
+        } else if t < end {
+            10.0 - j * (end - t) * (end - t) / 2.0
+        } else {
+            10.0
+        };
+        let speed = bench.inputs.spindle.speed_rpm;
+        assert!(close(speed, want, 1e-9), "cycle {k}: {speed} vs {want}");
+        assert_eq!(speed == 10.0, k >= 9, "cycle {k}: {speed}");
+    }
 }
 
 #[test]
@@ -678,6 +765,10 @@ fn configuration_reads_from_toml_and_refusals_name_the_field() {
     assert_eq!(
         refused(&|c| c.substep_s = 0.01),
         "substep_s: must be between 1e-6 and 1e-3 s"
+    );
+    assert_eq!(
+        refused(&|c| c.spindle.jerk_rpm_per_s2 = 0.0),
+        "spindle.jerk_rpm_per_s2: must be greater than zero"
     );
     assert_eq!(
         refused(&|c| c.spindle.at_speed_tolerance = f64::NAN),

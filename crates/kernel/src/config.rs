@@ -505,6 +505,9 @@ pub struct SpindleSection {
     /// Simulated spindle: ramp (rpm/s).
     #[serde(default = "spindle_ramp")]
     pub acceleration_rpm_per_s: f64,
+    /// Simulated spindle: jerk of the ramp (rpm/s²).
+    #[serde(default = "spindle_jerk")]
+    pub jerk_rpm_per_s2: f64,
     /// At-speed window, fraction of the command.
     #[serde(default = "spindle_tolerance")]
     pub at_speed_tolerance: f64,
@@ -540,6 +543,9 @@ fn orient_tolerance() -> f64 {
 
 fn spindle_ramp() -> f64 {
     SpindleConfig::default().acceleration_rpm_per_s
+}
+fn spindle_jerk() -> f64 {
+    SpindleConfig::default().jerk_rpm_per_s2
 }
 fn spindle_tolerance() -> f64 {
     SpindleConfig::default().at_speed_tolerance
@@ -1578,6 +1584,7 @@ impl MachineConfig {
             sim.spindle = SpindleConfig {
                 max_speed_rpm: s.max_speed_rpm,
                 acceleration_rpm_per_s: s.acceleration_rpm_per_s,
+                jerk_rpm_per_s2: s.jerk_rpm_per_s2,
                 at_speed_tolerance: s.at_speed_tolerance,
                 orient_speed_rpm: s.orient_speed_rpm,
                 orient_tolerance_deg: s.orient_tolerance_deg,

@@ -261,6 +261,22 @@ fn a_simulated_drive_value_is_named_in_full() {
 }
 
 #[test]
+fn a_spindle_jerk_out_of_range_is_named() {
+    for bad in ["0.0", "-480000.0", "nan", "inf"] {
+        let text = mill_text().replacen(
+            "jerk_rpm_per_s2 = 480000.0",
+            &format!("jerk_rpm_per_s2 = {bad}"),
+            1,
+        );
+        let refused = refusal(&text);
+        assert!(
+            refused.starts_with("spindle.jerk_rpm_per_s2: must be"),
+            "{bad}: {refused}"
+        );
+    }
+}
+
+#[test]
 fn a_100_microsecond_servo_period_is_accepted() {
     let text = mill_text()
         .replace(

@@ -81,20 +81,29 @@ fn m3_waits_for_the_logic_to_report_the_spindle_at_speed_before_motion_continues
     m.power_on();
     m.command(Command::Start { from_line: 0 });
     // The scan of period a enables the spindle; the drive gets it in period a + 1 and
-    // ramps 12 rpm per period (12 000 rpm/s).
+    // ramps along an S-curve (12 000 rpm/s, 480 000 rpm/s²): 480000 · 0.001² / 2 rpm in
+    // the first period.
     let a = until(&mut m, 1000, |m| output(m, SPINDLE_FWD)) - 1;
     assert_eq!(a % 4, 0);
-    assert_eq!(m.status().spindle_rpm, 12.0);
-    // 4908 rpm after 409 periods is the first speed within mill.st's 2 % of 5000 (100 rpm;
-    // 4896 is not); the next scan, a + 412, starts SPINDLE_SETTLE_TIME (200 ms): at speed
-    // in the scan of a + 612, which also drops the feed hold. Look-ahead releases the move
-    // in that period; interpolation moves in a + 613.
-    while m.sim.now().as_millis() as u64 <= a + 409 {
+    assert!((m.status().spindle_rpm - 0.24).abs() < 1e-9);
+    // The ramp lasts 5000/12000 + 12000/480000 = 0.441667 s and its last 25 ms are
+    // 5000 − 240000·(0.441667 − t)² (from 4850 on): after 422 periods 4907.17 rpm is the
+    // first speed within mill.st's 2 % of 5000 (100 rpm; 4897.5 after 421 is not); the
+    // next scan, a + 424, starts SPINDLE_SETTLE_TIME (200 ms): at speed in the scan of
+    // a + 624, which also drops the feed hold. Look-ahead releases the move in that
+    // period; interpolation moves in a + 625.
+    let end = 5000.0 / 12000.0 + 12000.0 / 480000.0;
+    let at = |k: f64| 5000.0 - 240000.0 * (end - k / 1000.0) * (end - k / 1000.0);
+    while m.sim.now().as_millis() as u64 <= a + 421 {
         step(&mut m);
     }
-    assert_eq!(m.status().spindle_rpm, 4908.0);
+    assert!((m.status().spindle_rpm - at(421.0)).abs() < 1e-6);
+    assert!(m.status().spindle_rpm < 4900.0);
+    step(&mut m);
+    assert!((m.status().spindle_rpm - at(422.0)).abs() < 1e-6);
+    assert!(m.status().spindle_rpm >= 4900.0);
     let moved = until(&mut m, 1000, |m| m.status().axes[0] > 0.0);
-    assert_eq!(moved, a + 613);
+    assert_eq!(moved, a + 625);
     assert!(m.until(5.0, |s| s.program_ended && s.state == MachineState::Idle));
     assert_eq!(m.status().axes[0], 1.0);
     assert!(m.faults.is_empty(), "{:?}", m.faults);

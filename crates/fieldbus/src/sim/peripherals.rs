@@ -3,12 +3,14 @@
 use crate::image::{SpindleCommand, SpindleFeedback, ToolChangeCommand, ToolChangerFeedback};
 use crate::sim::config::{SpindleConfig, ToolChangerConfig};
 
-/// A spindle drive that ramps its speed at a fixed acceleration, with an encoder angle and
-/// an orientation mode (M19).
+/// A spindle drive that ramps its speed jerk-limited (an S-curve: acceleration and its rate
+/// of change both bounded), with an encoder angle and an orientation mode (M19).
 #[derive(Debug, Clone)]
 pub(crate) struct Spindle {
     config: SpindleConfig,
     speed_rpm: f64,
+    /// rev/min per second.
+    acceleration_rpm_per_s: f64,
     /// Angle turned since power-up, degrees (clockwise positive, not wrapped).
     position_deg: f64,
     /// The orientation being done: its target (unwrapped) and the command it answers.
@@ -20,6 +22,7 @@ impl Spindle {
         Self {
             config,
             speed_rpm: 0.0,
+            acceleration_rpm_per_s: 0.0,
             position_deg: 0.0,
             orient: None,
         }
@@ -83,18 +86,45 @@ impl Spindle {
         (target - self.position_deg).abs() <= self.config.orient_tolerance_deg
     }
 
-    /// Ramps the speed towards `target` over one period and turns the angle with it.
+    /// Ramps the speed towards `target` over one period and turns the angle with it. The
+    /// time-optimal jerk-limited ramp from the present speed and acceleration is planned
+    /// afresh every period (a plan's remainder is the plan from any state on it, so a
+    /// steady target gives one S-curve, and a new target bends it without an acceleration
+    /// step), and followed for one period.
     fn ramp(&mut self, target: f64, period_s: f64) {
-        let before = self.speed_rpm;
-        let change = self.config.acceleration_rpm_per_s * period_s;
-        let difference = target - self.speed_rpm;
-        self.speed_rpm = if difference.abs() <= change {
-            target
-        } else {
-            self.speed_rpm + change.copysign(difference)
-        };
-        // The mean speed over the period (the ramp is linear), in degrees.
-        self.position_deg += (before + self.speed_rpm) * 3.0 * period_s;
+        let pieces = s_curve(
+            self.speed_rpm,
+            self.acceleration_rpm_per_s,
+            target,
+            self.config.acceleration_rpm_per_s,
+            self.config.jerk_rpm_per_s2,
+        );
+        let mut speed = self.speed_rpm;
+        let mut acceleration = self.acceleration_rpm_per_s;
+        let mut turned_rpm_s = 0.0;
+        let mut left = period_s;
+        for (duration, jerk) in pieces {
+            let t = duration.min(left);
+            if t <= 0.0 {
+                continue;
+            }
+            turned_rpm_s += speed * t + acceleration * t * t / 2.0 + jerk * t * t * t / 6.0;
+            speed += acceleration * t + jerk * t * t / 2.0;
+            acceleration += jerk * t;
+            left -= t;
+        }
+        if left > 0.0 || !(speed.is_finite() && acceleration.is_finite()) {
+            // The ramp ends within this period: exactly at the target, at rest.
+            turned_rpm_s += target * left.max(0.0);
+            speed = target;
+            acceleration = 0.0;
+        }
+        self.speed_rpm = speed;
+        self.acceleration_rpm_per_s = acceleration;
+        // rev/min × s = 1/60 rev = 6°.
+        if turned_rpm_s.is_finite() {
+            self.position_deg += turned_rpm_s * 6.0;
+        }
     }
 
     fn target(&self, command: &SpindleCommand, power: bool) -> f64 {
@@ -135,6 +165,41 @@ impl Spindle {
             oriented: false,
         }
     }
+}
+
+/// The time-optimal ramp of a speed from `speed` at `acceleration` to `target` at zero
+/// acceleration with |acceleration| ≤ `max_acceleration` and |jerk| ≤ `max_jerk`, as three
+/// (duration, jerk) pieces: jerk towards the target up to the peak acceleration, the peak
+/// held, jerk back to zero. The direction is the side of the target on which the speed
+/// would settle if the acceleration were brought to zero at once.
+fn s_curve(
+    speed: f64,
+    acceleration: f64,
+    target: f64,
+    max_acceleration: f64,
+    max_jerk: f64,
+) -> [(f64, f64); 3] {
+    let settles_at = speed + acceleration * acceleration.abs() / (2.0 * max_jerk);
+    let direction = if target >= settles_at { 1.0 } else { -1.0 };
+    // The speed change towards the target, and the acceleration along it.
+    let change = direction * (target - speed);
+    let along = direction * acceleration;
+    // With no hold: the peak p from p² = J·change + a0²/2 (up from a0, down from p).
+    let mut peak = (max_jerk * change + acceleration * acceleration / 2.0)
+        .max(0.0)
+        .sqrt();
+    let mut hold = 0.0;
+    if peak > max_acceleration {
+        peak = max_acceleration;
+        let ramps = (2.0 * peak * peak - acceleration * acceleration) / (2.0 * max_jerk);
+        hold = ((change - ramps) / peak).max(0.0);
+    }
+    let peak = peak.max(along);
+    [
+        ((peak - along) / max_jerk, direction * max_jerk),
+        (hold, 0.0),
+        (peak / max_jerk, -direction * max_jerk),
+    ]
 }
 
 /// A tool changer that completes a change a fixed time after the request.
