@@ -420,6 +420,14 @@ impl Harness {
                     return;
                 }
                 match urgent {
+                    // In e-stop or fault the kernel latches no hold (it would outlive the
+                    // reset that must follow; docs/kernel.md), also when resets sent before
+                    // it wait in the command mailbox: the urgent hold overtakes them.
+                    Urgent::FeedHold
+                        if matches!(
+                            handle.status().state,
+                            MachineState::EStop | MachineState::Fault
+                        ) => {}
                     Urgent::FeedHold => {
                         if self.hold_since.is_none() {
                             self.hold_since = Some(self.now());
