@@ -225,3 +225,23 @@ fn every_cam_corpus_program_runs_to_its_end_within_the_limits() {
         failed.join("\n")
     );
 }
+
+/// A machine builder who has no jerk figure gives a huge one (LinuxCNC has none): 10^7 and
+/// 10^8 mm/s³ against 1 000 mm/s², a jerk phase of 0.1 and 0.01 ms at a 1 ms servo period.
+/// Before the planner planned no jerk phase shorter than two periods, the engraving
+/// exceeded Y's acceleration 9.6 × at 10^7 and stood still at line 116 at 10^8, and the
+/// adaptive clearing stood still; both run to their end within the limits now.
+#[test]
+fn programs_run_within_the_limits_with_a_jerk_limit_far_above_the_period() {
+    for jerk in [1e7, 1e8] {
+        let mut cfg = machine();
+        for axis in cfg.axes.values_mut() {
+            axis.max_jerk = jerk;
+            axis.quick_stop_jerk = axis.quick_stop_jerk.map(|q| q.max(jerk));
+        }
+        for name in ["engrave-text", "adaptive-pocket-3mm"] {
+            let outcome = run(&cfg, &corpus_dir().join(format!("{name}.ngc")));
+            assert!(outcome.passed(), "jerk {jerk}: {}", outcome.line());
+        }
+    }
+}

@@ -17,7 +17,11 @@ fn main() {
     let (from, to): (usize, usize) = (a[2].parse().unwrap(), a[3].parse().unwrap());
     let p: f64 = a[4].parse().unwrap();
     let q: f64 = a.get(5).map_or(p, |x| x.parse().unwrap());
-    let lim = AxisLimits::new(100.0, 1000.0, 50_000.0, -1000.0, 1000.0);
+    let jerk: f64 = std::env::var("JERK")
+        .ok()
+        .and_then(|j| j.parse().ok())
+        .unwrap_or(50_000.0);
+    let lim = AxisLimits::new(100.0, 1000.0, jerk, -1000.0, 1000.0);
     let machine = MachineLimits::uniform(&[Axis::X, Axis::Y, Axis::Z], lim);
     let kin = TrivialKinematics::identity(&[Axis::X, Axis::Y, Axis::Z]);
     let inch = text.contains("G20");

@@ -69,6 +69,6 @@ pub use builder::GeometryStats;
 pub use error::MotionError;
 pub use input::{Bezier, Feed, Move, MoveKind, PathMode};
 pub use kinematics::{JointLimits, Kinematics, TrivialKinematics};
-pub use limits::{AxisLimits, MachineLimits};
+pub use limits::{AxisLimits, MIN_JERK_PHASE_PERIODS, MachineLimits};
 pub use planner::{MotionState, Planner, Preparation, PreparedMove, RewindError, RunStats, Status};
 pub use spline::CurvePart;

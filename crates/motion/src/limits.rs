@@ -115,6 +115,10 @@ impl MachineLimits {
     }
 }
 
+/// The shortest jerk phase the planner plans, in servo periods (see
+/// [`Lim::resolve_jerk_at`]).
+pub const MIN_JERK_PHASE_PERIODS: f64 = 2.0;
+
 /// The per-axis numbers the planner works with (absent axes have zero limits).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Lim {
@@ -162,6 +166,22 @@ impl Lim {
             }
         }
         l
+    }
+
+    /// Jerk limits no higher than set-points one `servo_period` apart can follow: an axis's
+    /// jerk phase (its acceleration over its jerk) lasts at least [`MIN_JERK_PHASE_PERIODS`]
+    /// periods, normal and quick-stop limits alike. A higher jerk limit (10^7 mm/s³ against
+    /// 1 000 mm/s² at 1 ms, a phase of 0.1 ms) let the planner's stop model brake later than
+    /// whole periods allow, and a path then exceeded the acceleration 7 × or stood still.
+    /// Lowering the jerk keeps every limit and costs at most a period per speed change.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
+    pub fn resolve_jerk_at(&mut self, servo_period: f64) {
+        let shortest_phase = MIN_JERK_PHASE_PERIODS * servo_period;
+        for &i in &self.axes[..self.n_present] {
+            self.j[i] = self.j[i].min(self.a[i] / shortest_phase);
+            self.qj[i] = self.qj[i].min(self.qa[i] / shortest_phase);
+        }
     }
 
     /// Every axis present, without limits (for checks of a path's shape alone).

@@ -476,6 +476,7 @@ impl<K: Kinematics> Planner<K> {
                 }
             }
         }
+        lim.resolve_jerk_at(servo_period);
         let pick = |x: &[f64; AXES]| {
             (0..AXES)
                 .filter(|i| lim.present[*i])
