@@ -139,6 +139,7 @@ impl MotionCore {
         }
         self.probe = None;
         self.out.latch.probe = 0;
+        self.disarm_homing_latches();
         // Whatever stops, stops from the next exchange.
         self.take_back();
         self.stop_synced(false);

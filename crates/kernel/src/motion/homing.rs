@@ -49,6 +49,7 @@ impl MotionCore {
     /// homed where they stand.
     pub(super) fn home_all(&mut self) -> bool {
         self.enter_manual();
+        self.disarm_homing_latches();
         self.homed = 0;
         let group = self.next_homing_group(None);
         if group.is_none() {
@@ -100,6 +101,7 @@ impl MotionCore {
             return false;
         }
         self.enter_manual();
+        self.disarm_homing_latches();
         let group = searching.then_some(Homing {
             sequence: None,
             step,
@@ -108,6 +110,16 @@ impl MotionCore {
             self.requests_mut().homed = self.all_homed();
         }
         self.fire(Event::Home(group))
+    }
+
+    /// Takes back every homing latch request (index pulse, home switch). A homing stopped
+    /// with its latch armed left the request standing: the drive stayed armed, latched
+    /// whatever edge the next jog passed, and the next homing, whose request was the same,
+    /// took that old latch as its own (the machine frame one index pulse off). A request
+    /// taken back and made again re-arms the drive.
+    pub(super) fn disarm_homing_latches(&mut self) {
+        self.out.latch.index = 0;
+        self.out.latch.switch = 0;
     }
 
     /// Every joint is homed.
