@@ -150,7 +150,7 @@ impl<T: Copy> SeqlockCell<T> {
             // SAFETY: a possibly torn copy of plain bytes into a `MaybeUninit`, which may
             // hold any bytes; it counts only if the check below proves that no store
             // overlapped it.
-            *dst = unsafe { std::ptr::read_volatile(slot.value.get()) };
+            unsafe { super::volatile_copy(slot.value.get(), dst) };
             fence(Ordering::Acquire);
             if slot.version.load(Ordering::Relaxed) == n {
                 return true;
