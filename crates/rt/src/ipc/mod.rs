@@ -37,7 +37,7 @@ use std::mem::MaybeUninit;
 
 use thiserror::Error;
 
-/// The optimistic copy of a slot another thread may be writing (seqlock, lead queue):
+/// The optimistic copy of a slot another thread may be writing (a seqlock's reader):
 /// volatile reads, kept only when the caller's check proves no store overlapped them. A
 /// value made of whole 8-byte words is read word by word straight into `dst`; one
 /// volatile read of the whole value would go through a temporary and copy it twice.
