@@ -891,7 +891,7 @@ fn status_task(
         c.lock()
             .status(feedback.get(), ctx.now().as_nanos(), &mut status);
         status.fault_count = sh.fault_count.load(std::sync::atomic::Ordering::Relaxed);
-        status_out.publish(status);
+        status_out.publish_ref(&status);
     })
 }
 

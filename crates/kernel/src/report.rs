@@ -10,8 +10,10 @@ use crate::servo::Sample;
 /// Running maxima over a stream of samples.
 #[derive(Debug, Clone, Default)]
 pub struct RunStats {
-    /// The last four axis set-points, oldest first (`kept` of them valid).
+    /// The last four axis set-points, a ring: the newest at `next - 1` (modulo 4), `kept`
+    /// of them valid.
     history: [[f64; AXES]; 4],
+    next: usize,
     kept: usize,
     /// Samples seen.
     pub samples: u64,
@@ -42,31 +44,30 @@ impl RunStats {
     /// before the first motion (no effect on maxima, which start at zero).
     pub fn add(&mut self, s: &Sample, period_s: f64) {
         self.samples += 1;
-        if self.kept == 4 {
-            self.history.copy_within(1.., 0);
-            self.kept = 3;
-        }
-        self.history[self.kept] = s.axes;
-        self.kept += 1;
-        let h = &self.history;
+        self.history[self.next] = s.axes;
+        self.next = (self.next + 1) % 4;
+        self.kept = (self.kept + 1).min(4);
+        // The set-points from the newest (h0) back; those not yet seen are never read.
+        let at = |back: usize| &self.history[(self.next + 3 - back) % 4];
+        let (h0, h1, h2, h3) = (at(0), at(1), at(2), at(3));
         let n = self.kept;
         for i in 0..AXES {
             if n >= 2 {
-                let d = (h[n - 1][i] - h[n - 2][i]).abs();
+                let d = (h0[i] - h1[i]).abs();
                 if d > self.max_differences[0][i] {
                     self.max_differences[0][i] = d;
                     self.max_velocity[i] = d / period_s;
                 }
             }
             if n >= 3 {
-                let d = (h[n - 1][i] - 2.0 * h[n - 2][i] + h[n - 3][i]).abs();
+                let d = (h0[i] - 2.0 * h1[i] + h2[i]).abs();
                 if d > self.max_differences[1][i] {
                     self.max_differences[1][i] = d;
                     self.max_acceleration[i] = d / (period_s * period_s);
                 }
             }
             if n >= 4 {
-                let d = (h[n - 1][i] - 3.0 * h[n - 2][i] + 3.0 * h[n - 3][i] - h[n - 4][i]).abs();
+                let d = (h0[i] - 3.0 * h1[i] + 3.0 * h2[i] - h3[i]).abs();
                 if d > self.max_differences[2][i] {
                     self.max_differences[2][i] = d;
                     self.max_jerk[i] = d / (period_s * period_s * period_s);

@@ -379,7 +379,7 @@ impl<B: Fieldbus> ServoStage<B> {
     /// before for extrapolation.
     fn take_setpoint(&mut self) {
         if let Ok(t) = self.targets.take(self.exchanges) {
-            if let Some(previous) = self.target {
+            if let Some(previous) = &self.target {
                 self.previous_joints = previous.setpoints.joints;
             }
             self.target = Some(t);

@@ -207,6 +207,22 @@ impl IntKind {
             (0, (1i128 << b) - 1)
         }
     }
+    /// [`range`](Self::range) as the nearest `f64`s, without 128-bit conversions (which
+    /// cost a library call on every signal written to the PLC).
+    #[inline]
+    pub fn range_f64(self) -> (f64, f64) {
+        match self {
+            IntKind::U1 => (0.0, 1.0),
+            IntKind::I8 => (f64::from(i8::MIN), f64::from(i8::MAX)),
+            IntKind::I16 => (f64::from(i16::MIN), f64::from(i16::MAX)),
+            IntKind::I32 => (f64::from(i32::MIN), f64::from(i32::MAX)),
+            IntKind::I64 => (i64::MIN as f64, i64::MAX as f64),
+            IntKind::U8 => (0.0, f64::from(u8::MAX)),
+            IntKind::U16 => (0.0, f64::from(u16::MAX)),
+            IntKind::U32 => (0.0, f64::from(u32::MAX)),
+            IntKind::U64 => (0.0, u64::MAX as f64),
+        }
+    }
 }
 
 /// Identifier of a composite type in the program's type tables.
@@ -386,5 +402,34 @@ pub fn widens(from: Elem, to: Elem) -> bool {
         Word => matches!(to, DWord | LWord),
         DWord => matches!(to, LWord),
         _ => false,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_f64_range_is_the_integer_range_rounded() {
+        let kinds = [
+            IntKind::U1,
+            IntKind::I8,
+            IntKind::I16,
+            IntKind::I32,
+            IntKind::I64,
+            IntKind::U8,
+            IntKind::U16,
+            IntKind::U32,
+            IntKind::U64,
+        ];
+        for k in kinds {
+            let (lo, hi) = k.range();
+            let (flo, fhi) = k.range_f64();
+            assert_eq!(
+                (flo.to_bits(), fhi.to_bits()),
+                ((lo as f64).to_bits(), (hi as f64).to_bits()),
+                "{k:?}"
+            );
+        }
     }
 }

@@ -282,6 +282,9 @@ pub struct VirtualRunner {
     /// The earliest `next_release` of the threads between two cycles (`u64::MAX`: none),
     /// so that looking for releases due does not visit every thread at every step.
     earliest_release: u64,
+    /// No event or background task's timeout falls before this (`u64::MAX`: none
+    /// suspended with one), so that a poll with no IPC change visits no task until then.
+    earliest_timeout: u64,
     /// Host processor time spent in each task's bodies, when asked for.
     host: Option<HostProfile>,
 }
@@ -373,6 +376,7 @@ impl VirtualRunner {
             background_step_ns: 10_000,
             dirty: true,
             earliest_release: 0,
+            earliest_timeout: u64::MAX,
             host: None,
         }
     }
@@ -590,6 +594,9 @@ impl VirtualRunner {
         // (or a miss hook, or code outside the task set between two run calls), or when a
         // task's own waiting state changed; without that, only timeouts can wake a task.
         let poll = std::mem::take(&mut self.dirty) | take_ipc_touched();
+        if !poll && self.earliest_timeout > self.now {
+            return;
+        }
         for i in 0..self.reactive.len() {
             if !poll {
                 let due = matches!(
@@ -663,6 +670,15 @@ impl VirtualRunner {
                 self.set_state(task, TaskState::Ready);
             }
         }
+        self.earliest_timeout = self
+            .reactive
+            .iter()
+            .filter_map(|r| match r.state {
+                RState::Suspended { deadline, .. } => deadline,
+                _ => None,
+            })
+            .min()
+            .unwrap_or(u64::MAX);
     }
 
     /// Whether an event or background task of a priority above `priority` is ready.
@@ -1061,7 +1077,14 @@ impl VirtualRunner {
                 TaskState::Suspended,
             ),
         };
+        let timeout = match &state {
+            RState::Suspended { deadline, .. } => *deadline,
+            _ => None,
+        };
         r.state = state;
+        if let Some(d) = timeout {
+            self.earliest_timeout = self.earliest_timeout.min(d);
+        }
         if let Some(m) = self.recording.monitor.task_at(step.task) {
             m.set_state(shown);
         }

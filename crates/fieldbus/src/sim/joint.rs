@@ -393,7 +393,14 @@ impl SimulatedJoint {
             {
                 return false;
             }
+            let before = integral;
             integral += self.velocity_integral_gain * error * conditions.step_s;
+            // Past the delayed sub-steps every sub-step is the same function of the
+            // integral alone: once it stays the same (a zero command, or an increment too
+            // small to change it), so do the torque and the integral of every sub-step left.
+            if k >= delayed && integral.to_bits() == before.to_bits() {
+                break;
+            }
         }
         self.velocity_integral = integral;
         self.torque = torque;

@@ -473,7 +473,14 @@ impl Fieldbus for SimulatedMachine {
         {
             *stepping = joint.begin_cycle(command, &conditions);
         }
-        for substep in 1..=conditions.substeps.max(1) {
+        // Joints at rest under stiction, ideal drives and velocity drives stepped in one
+        // composed step have no sub-steps: when none has, the loop would only visit them.
+        let substeps = if self.stepping.contains(&true) {
+            conditions.substeps.max(1)
+        } else {
+            0
+        };
+        for substep in 1..=substeps {
             for ((joint, command), stepping) in self
                 .joints
                 .iter_mut()

@@ -92,6 +92,17 @@ impl Spindle {
     /// steady target gives one S-curve, and a new target bends it without an acceleration
     /// step), and followed for one period.
     fn ramp(&mut self, target: f64, period_s: f64) {
+        if self.speed_rpm == target && self.acceleration_rpm_per_s == 0.0 && period_s > 0.0 {
+            // At the target and not accelerating (the spindle at speed, or standing): the
+            // S-curve's pieces are all empty and the ramp below ends at once, at the target.
+            self.speed_rpm = target;
+            self.acceleration_rpm_per_s = 0.0;
+            let turned_rpm_s = 0.0 + target * period_s;
+            if turned_rpm_s.is_finite() {
+                self.position_deg += turned_rpm_s * 6.0;
+            }
+            return;
+        }
         let pieces = s_curve(
             self.speed_rpm,
             self.acceleration_rpm_per_s,

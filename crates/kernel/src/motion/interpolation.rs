@@ -235,10 +235,13 @@ impl MotionCore {
                 self.out.offsets[j] = self.out.last.joints[j] - feedback.position[j];
             }
         }
-        let answers = *self.interface.logic.get();
-        self.follow_logic_hold(answers.feed_hold_request);
+        let (feed_hold_request, estop_chain_ok) = {
+            let answers = self.interface.logic.get();
+            (answers.feed_hold_request, answers.estop_chain_ok)
+        };
+        self.follow_logic_hold(feed_hold_request);
         self.follow_feed_stop_switch(feedback.digital_inputs);
-        self.watch_estop_chain(ctx, shared, answers.estop_chain_ok);
+        self.watch_estop_chain(ctx, shared, estop_chain_ok);
         self.probe_step(&feedback);
         self.adaptive_feed_step();
         self.spindle_feed_step(false);

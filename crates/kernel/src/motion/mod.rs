@@ -272,7 +272,9 @@ impl MotionCore {
     /// Publishes the requests to the machine logic if a task body changed them.
     fn publish_requests(&mut self) {
         if std::mem::take(&mut self.interface.changed) {
-            self.interface.requests_out.publish(self.interface.requests);
+            self.interface
+                .requests_out
+                .publish_ref(&self.interface.requests);
         }
     }
 

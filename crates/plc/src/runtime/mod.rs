@@ -551,8 +551,8 @@ fn encode_f64(e: Elem, v: f64) -> u64 {
         Elem::Time => (v * 1e6).round() as i64 as u64,
         e => {
             let k = e.int_kind().unwrap_or(crate::types::IntKind::I64);
-            let (lo, hi) = k.range();
-            let x = v.round().clamp(lo as f64, hi as f64);
+            let (lo, hi) = k.range_f64();
+            let x = v.round().clamp(lo, hi);
             k.wrap(if k.signed() {
                 x as i64 as u64
             } else {

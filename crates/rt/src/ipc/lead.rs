@@ -191,8 +191,10 @@ impl<T: Copy + Send> LeadProducer<T> {
         slot.stamp.store(stamp(number, WRITING), Ordering::Relaxed);
         // The mark is visible before any byte of the new value.
         fence(Ordering::Release);
-        // SAFETY: the slot is `WRITING`; the consumer keeps no copy it makes from it.
-        unsafe { std::ptr::write_volatile(slot.value.get(), MaybeUninit::new(value)) };
+        // SAFETY: the slot is `WRITING`; the consumer keeps no copy it makes from it. One
+        // copy into the slot (a volatile store of a large value goes through a temporary);
+        // the release store below orders it before the `READY` mark.
+        unsafe { std::ptr::copy_nonoverlapping(&value, slot.value.get().cast::<T>(), 1) };
         slot.stamp.store(stamp(number, READY), Ordering::Release);
         self.next = number + 1;
         Ok(number)
