@@ -8,7 +8,8 @@
 //!
 //! Environment: PIECES=1 the window's pieces after the first push (kind, line, start,
 //! length, braking curve and speed bounds at the samples, curvature); LINES=1 the time and
-//! lowest speed per program line; TRACE=A-B every period on lines A..B; WINDOW=n pieces.
+//! lowest speed per program line; TRACE=A-B every period on lines A..B; WINDOW=n pieces;
+//! JERK=j the axes' jerk limit (mm/s³, default 50 000).
 #![allow(clippy::needless_range_loop)]
 use rtcnc_motion::*;
 fn main() {
