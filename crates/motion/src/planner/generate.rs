@@ -31,8 +31,6 @@ const STRICT_FACTOR: f64 = 0.9;
 /// one period's bounds of the path when the stop model has lost the state (the bounds
 /// change along the path; over a few tens of milliseconds little).
 const EXACT_STOP_PERIODS: usize = 64;
-/// Pieces [`Planner::release_jerk`] looks at, at most.
-const RELEASE_PIECES: usize = 16;
 /// Set-points dropped by the first rollback at a dead end (doubling per attempt).
 const ROLLBACK_FIRST: usize = 4;
 /// Buffered entries a rollback looks at, at most, for a state that fits the stricter model.
@@ -335,27 +333,6 @@ impl<K: Kinematics> Planner<K> {
         (a_stop, j_stop)
     }
 
-    /// The jerk a deceleration `a` at speed `v` is released with from path position `at`
-    /// (on piece `idx` or later): `jr`, at most the braking jerk of every piece the release
-    /// can reach (it ends within v·|a|/jr). Bounded: at most `RELEASE_PIECES` pieces.
-    fn release_jerk(&self, idx: usize, at: f64, v: f64, a: f64, jr: f64) -> f64 {
-        if !(jr > 0.0) {
-            return jr;
-        }
-        let end = at + v.max(0.0) * (-a).max(0.0) / jr;
-        let mut j = jr;
-        let mut i = idx;
-        while i < self.q.len && i < idx + RELEASE_PIECES {
-            let p = self.q.get(i);
-            j = j.min(p.j_brake);
-            if p.cum_start + p.len >= end || p.stop_at_end {
-                break;
-            }
-            i += 1;
-        }
-        j
-    }
-
     /// How many buffered entries to keep so that generation restarts from a state that
     /// fits (`restart_fits`): at most `keep`, fewer while the newest kept entry does not
     /// (bounded: at most `RESTART_CHECKS` entries are looked at, evenly spaced); 0 when
@@ -414,11 +391,10 @@ impl<K: Kinematics> Planner<K> {
     }
 
     /// Whether `st` can still stop at the next stop (and release its deceleration before
-    /// the speed reaches zero, at the path's braking jerk where the model's is too low)
-    /// with the stop model scaled by `f`. Always during a hold (its
+    /// the speed reaches zero) with the stop model scaled by `f`. Always during a hold (its
     /// stop is not scaled, and a rollback cannot reach before the request).
     pub(super) fn stop_fits(&self, st: &GenState, f: f64) -> bool {
-        let Some((idx, p)) = self.moving_piece(st) else {
+        let Some((_, p)) = self.moving_piece(st) else {
             return true;
         };
         if self.hold.is_some() {
@@ -427,19 +403,10 @@ impl<K: Kinematics> Planner<K> {
         let (a_stop, j_stop) = self.stop_model(p, st.at);
         let (am, jm) = (STOP_SHARE * a_stop * f, STOP_JERK_SHARE * j_stop * f);
         let v = st.v.max(0.0);
-        // The model's own tolerances (`judge`), and its release of a deceleration the
-        // stop's jerk cannot release (at most the probe's jerk there).
+        // The model's own tolerances (`judge`).
         let rem = self.to_stop(st, p);
-        let d = if st.a < 0.0 && st.a * st.a > 2.0 * jm * v * (1.0 + 1e-9) + 1e-12 {
-            let jr = self.release_jerk(idx, st.at, v, st.a, 0.8 * p.j_brake * f);
-            match released_stop(v, st.a, jr, am, jm) {
-                Some(d) => d,
-                None => return false,
-            }
-        } else {
-            stop(v, st.a, am, jm).0
-        };
-        d <= rem * (1.0 + 1e-12) + 1e-12
+        !(st.a < 0.0 && st.a * st.a > 2.0 * jm * v * (1.0 + 1e-9) + 1e-12)
+            && stop(v, st.a, am, jm).0 <= rem * (1.0 + 1e-12) + 1e-12
     }
 
     /// The strictest factor of the stop model, down to `f_min`, with which `st` can still
@@ -622,7 +589,6 @@ impl<K: Kinematics> Planner<K> {
             return None;
         }
         let mut n = *st;
-        n.adjusted = false;
         n.prof_t = if done { None } else { Some(elapsed) };
         n.v = v;
         n.a = a;
@@ -770,18 +736,11 @@ impl<K: Kinematics> Planner<K> {
         }
         let v1 = v1.max(0.0);
         // A state that decelerates so hard that the speed would reach zero before the
-        // deceleration can be released at the stop's jerk releases it here, at the path's
-        // braking jerk, and stops from there; when that cannot release it either, it
-        // cannot stop smoothly.
-        let dst = if a1 < 0.0 && a1 * a1 > 2.0 * m.j_stop * v1 * (1.0 + 1e-9) + 1e-12 {
-            let jr = self.release_jerk(m.idx, m.at + ds, v1, a1, m.jb);
-            match released_stop(v1, a1, jr, m.a_stop, m.j_stop) {
-                Some(d) => d,
-                None => return Verdict::Stop,
-            }
-        } else {
-            stop(v1, a1, m.a_stop, m.j_stop).0
-        };
+        // deceleration can be released cannot stop smoothly.
+        if a1 < 0.0 && a1 * a1 > 2.0 * m.j_stop * v1 * (1.0 + 1e-9) + 1e-12 {
+            return Verdict::Stop;
+        }
+        let (dst, _) = stop(v1, a1, m.a_stop, m.j_stop);
         if ds + dst > m.rem * (1.0 + 1e-12) + 1e-12 {
             return Verdict::Overshoot;
         }
@@ -937,7 +896,6 @@ impl<K: Kinematics> Planner<K> {
         // The state follows the set-point that passed the check, which may not be the one
         // aimed at.
         let mut n = self.moved_to(&st, ds, x, k, sl);
-        n.adjusted = ds != step.ds;
         n.hold_at = hold_at;
         n.land_n = if ds == step.ds { landing.n } else { 0 };
         let rem0 = goal.rem.max(0.0);
@@ -1463,28 +1421,15 @@ impl<K: Kinematics> Planner<K> {
             (v1.max(0.0), a1, step.j)
         } else {
             // The set-point check chose another point: the state is the constant-jerk step
-            // that reaches it, and the model continues from where the axes are. Except
-            // when that step needs more than the path's jerk bound right after another
-            // moved point: then the state is the cubic through the last four set-points
-            // along the path (their backward differences). A constant-jerk step from a
-            // state that itself reached a moved point carries that state's error on, more
-            // than doubled: where the check binds period after period (braking at an
-            // axis's acceleration limit after an override), the state's acceleration swung
-            // ±2 jerk steps around the axes' (the step was clamped to twice the jerk
-            // bound), and the policy, braking for a state that was not the axes', brought
-            // the machine to rest 169 mm before its stop. (The cubic everywhere after a
-            // moved point made curves of the benchmark families up to 1.5 % slower.)
-            let j_step = 6.0 * (ds - v * t - 0.5 * a * t * t) / (t * t * t);
-            if !st.adjusted || j_step.abs() <= b.jm {
-                let j_eff = clampf(j_step, -2.0 * b.jm, 2.0 * b.jm);
-                let (_, v1, a1) = advance(0.0, v, a, j_eff, t);
-                return (v1.max(0.0), a1, clampf(j_eff, b.j_lo, b.j_hi));
-            }
-            let (d0, d1) = (st.ds_hist[0], st.ds_hist[1]);
-            let j_fd = (ds - 2.0 * d1 + d0) / (t * t * t);
-            let a1 = (2.0 * ds - 3.0 * d1 + d0) / (t * t);
-            let v1 = (11.0 * ds - 7.0 * d1 + 2.0 * d0) / (6.0 * t);
-            (v1.max(0.0), a1, clampf(j_fd, b.j_lo, b.j_hi))
+            // that reaches it (within twice the jerk bound, so that a far move cannot throw
+            // the state off), and the model continues from where the axes are.
+            let j_eff = clampf(
+                6.0 * (ds - v * t - 0.5 * a * t * t) / (t * t * t),
+                -2.0 * b.jm,
+                2.0 * b.jm,
+            );
+            let (_, v1, a1) = advance(0.0, v, a, j_eff, t);
+            (v1.max(0.0), a1, clampf(j_eff, b.j_lo, b.j_hi))
         }
     }
 
@@ -1655,23 +1600,6 @@ impl<K: Kinematics> Planner<K> {
     }
 }
 
-/// Stop distance from speed `v` and deceleration `a` (a² > 2·`jm`·v: the stop model's jerk
-/// cannot release it before the speed is gone) that first releases the deceleration at the
-/// path's braking jerk `jr`, then stops with the model (`am`, `jm`). None when `jr` cannot
-/// release it before the speed is gone either. The stop model's jerk is the lowest of the
-/// stop's own low-speed stretch (a tight arc's there leaves a sixth of the axes'); far
-/// before it, braking for a slow stretch after an override, a deceleration that jerk could
-/// not release was refused, the path braked too gently and met the arc too fast (1.2 ×
-/// the jerk limit).
-fn released_stop(v: f64, a: f64, jr: f64, am: f64, jm: f64) -> Option<f64> {
-    if !(jr > jm) || a * a > 2.0 * jr * v * (1.0 + 1e-9) + 1e-12 {
-        return None;
-    }
-    let tr = -a / jr;
-    let (dr, vr, _) = advance(0.0, v, a, jr, tr);
-    Some(dr.max(0.0) + stop(vr.max(0.0), 0.0, am, jm).0)
-}
-
 /// Largest set-point steps per axis (first, second and third differences at the servo
 /// period, from the velocity, acceleration and jerk limits, normal and quick-stop, shrunk
 /// by 1e-10 relative), computed once for [`Planner::fd_box`].
@@ -1782,7 +1710,6 @@ fn inside(lim: &Lim, x: &AxisVec, lo: &AxisVec, hi: &AxisVec) -> bool {
 
 /// A period at rest: the set-point repeats.
 fn still(mut st: GenState) -> GenState {
-    st.adjusted = false;
     st.hist = [st.hist[0], st.hist[0], st.hist[1]];
     st.ds_hist = [st.ds_hist[1], 0.0];
     st
