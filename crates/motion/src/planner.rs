@@ -78,6 +78,15 @@ enum StopKind {
     Quick,
 }
 
+/// Feed and rapid overrides that take effect once the machine is at rest or has passed
+/// the piece `until` (the one ending in the stop it was braking for).
+#[derive(Debug, Clone, Copy)]
+struct PendingOverride {
+    fo: f64,
+    ro: f64,
+    until: u64,
+}
+
 #[derive(Debug, Clone, Copy)]
 struct Hold {
     /// Deceleration and jerk of the stop.
@@ -362,6 +371,10 @@ pub struct Planner<K: Kinematics> {
     scratch: Vec<Piece>,
     fo: f64,
     ro: f64,
+    /// Overrides requested while the machine brakes into a stop that the new settings'
+    /// model cannot stop at from the emitted state: they take effect there
+    /// ([`Planner::change_overrides`]).
+    override_pending: Option<PendingOverride>,
     hold: Option<Hold>,
     stats: RunStats,
     a_min: f64,
@@ -506,6 +519,7 @@ impl<K: Kinematics> Planner<K> {
             scratch: Vec::with_capacity(PIECES_PER_MOVE * 2),
             fo: 1.0,
             ro: 1.0,
+            override_pending: None,
             hold: None,
             stats: RunStats::default(),
             a_min,
@@ -600,14 +614,8 @@ impl<K: Kinematics> Planner<K> {
         } else {
             0.0
         };
-        if f != self.fo {
-            self.settle_for_change();
-            let generated = self.ahead.len;
-            self.fo = f;
-            self.update_curve(0);
-            self.replan_line_profile();
-            self.regenerate_after_override(generated);
-        }
+        let (_, ro) = self.overrides_requested();
+        self.change_overrides(f, ro);
     }
 
     /// Rapid override, 0..=1 (clamped).
@@ -619,14 +627,8 @@ impl<K: Kinematics> Planner<K> {
         } else {
             0.0
         };
-        if f != self.ro {
-            self.settle_for_change();
-            let generated = self.ahead.len;
-            self.ro = f;
-            self.update_curve(0);
-            self.replan_line_profile();
-            self.regenerate_after_override(generated);
-        }
+        let (fo, _) = self.overrides_requested();
+        self.change_overrides(fo, f);
     }
 
     /// Feed hold: decelerate along the path and stay there until [`Planner::resume`].
@@ -838,6 +840,7 @@ impl<K: Kinematics> Planner<K> {
             }
         };
         self.emit(st);
+        self.apply_pending_override();
         let x = self.cur.hist[0];
         self.kin.axes_to_joints(&x, joints);
         let state = match (self.cur.state, self.hold) {
@@ -1153,41 +1156,69 @@ impl<K: Kinematics> Planner<K> {
         }
     }
 
-    /// After an override change: [`regenerate`](Self::regenerate), unless the emitted state
-    /// can no longer stop at its next stop under the new settings while the first
-    /// `generated` set-points, generated before the change, come to rest there: those are
-    /// kept, and the change takes
-    /// effect from that stop on. (A higher feed can lower the braking curve on a curve,
-    /// whose deceleration is estimated at the speeds the feed allows; a state braking into
-    /// a stop then lost the stop model, and one landing on it at 0.2 mm/s, 0.2 µm short,
-    /// met a dead end and a jerk 1.35 × the limit.) Nothing is lost: the path stops there
-    /// anyway.
-    fn regenerate_after_override(&mut self, generated: usize) {
+    /// The overrides in force, or those waiting for the stop the machine brakes into.
+    fn overrides_requested(&self) -> (f64, f64) {
+        self.override_pending
+            .map_or((self.fo, self.ro), |p| (p.fo, p.ro))
+    }
+
+    /// Sets the overrides and regenerates from the emitted set-point, unless the emitted
+    /// state, braking into a stop, can no longer stop there under the new settings: then
+    /// they take effect once the machine is at rest (or has passed that stop's piece, when
+    /// pushed moves removed the stop), and the set-points go on as generated. A higher
+    /// feed can lower the braking curve and the stop model on a curve, whose deceleration
+    /// is estimated at the speeds the feed allows: a state braking into a stop then lost
+    /// the model. Braking as hard as the path allows recovered from some of those, not
+    /// from all: with two overrides 4 ms apart 0.76 mm before the end of an arc, the first
+    /// (lower feed, a stronger model) released the braking and the second (higher) left a
+    /// state that even the axes' full limits could not stop within the way left, and it
+    /// passed the stop at 0.6 mm/s, 15 × over the jerk limit. The path stops there anyway.
+    fn change_overrides(&mut self, fo: f64, ro: f64) {
+        if fo == self.fo && ro == self.ro {
+            self.override_pending = None;
+            return;
+        }
+        self.settle_for_change();
+        let (generated, strict, strict_passed) = (self.ahead.len, self.strict, self.strict_passed);
+        let old = (self.fo, self.ro);
+        (self.fo, self.ro) = (fo, ro);
+        self.update_curve(0);
         let c = self.cur;
         if self.hold.is_none()
-            && let Some((_, p)) = self.moving_piece(&c)
+            && let Some((idx, p)) = self.moving_piece(&c)
             && !self.stop_fits(&c, 1.0)
+            && self.braking_for_stop(&c)
         {
+            // The stop's piece, before the curve goes back (the stop stays where it is).
             let stop_at = p.stop_ahead.0;
-            // The set-points the braking curve's update dropped are still in the buffer.
-            let truncated = self.ahead.len;
-            self.ahead.len = generated;
-            let rest = (0..generated).find(|&i| {
-                self.ahead
-                    .get(i)
-                    .is_some_and(|st| st.v == 0.0 && st.a == 0.0)
-            });
-            if let Some(k) = rest
-                && self.ahead.get(k).is_some_and(|st| st.at >= stop_at - 1e-9)
-            {
-                self.ahead.len = k + 1;
-                self.strict = None;
-                self.strict_passed = None;
-                return;
-            }
-            self.ahead.len = truncated;
+            let rem = self.to_stop(&c, p);
+            let (k, _) = self.find(idx, stop_at, stop_at);
+            let until = self.q.head_id + k as u64;
+            (self.fo, self.ro) = old;
+            self.update_curve(0);
+            // What the update dropped was generated under these settings: it stands.
+            (self.ahead.len, self.strict, self.strict_passed) = (generated, strict, strict_passed);
+            self.override_pending = Some(PendingOverride { fo, ro, until });
+            trace!(
+                self.trace,
+                "OVERRIDE DEFERRED at={} v={} a={} rem={rem} until={until}", c.at, c.v, c.a
+            );
+            return;
         }
+        self.override_pending = None;
+        self.replan_line_profile();
         self.regenerate();
+    }
+
+    /// Applies the overrides that waited for a stop, once the emitted state is at rest or
+    /// past the stop's piece.
+    fn apply_pending_override(&mut self) {
+        if let Some(p) = self.override_pending
+            && ((self.cur.v == 0.0 && self.cur.a == 0.0) || self.cur.id > p.until)
+        {
+            self.override_pending = None;
+            self.change_overrides(p.fo, p.ro);
+        }
     }
 
     /// Drops the generated set-points: generation restarts from the emitted state (after

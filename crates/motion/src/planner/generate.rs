@@ -287,7 +287,7 @@ impl<K: Kinematics> Planner<K> {
 
     /// Whether `st` brakes for the next stop: its stop (with the model's shares) takes
     /// half of the way there or more.
-    fn braking_for_stop(&self, st: &GenState) -> bool {
+    pub(super) fn braking_for_stop(&self, st: &GenState) -> bool {
         let Some((_, p)) = self.moving_piece(st) else {
             return false;
         };
@@ -369,7 +369,7 @@ impl<K: Kinematics> Planner<K> {
     /// wherever the piece is on the path (the difference of two path positions is only as
     /// fine as their size: a step that fell short of the end by that much and found
     /// nothing left to go left the machine at rest for ever).
-    fn to_stop(&self, st: &GenState, p: &Piece) -> f64 {
+    pub(super) fn to_stop(&self, st: &GenState, p: &Piece) -> f64 {
         let rest = p.len - st.s;
         let ends_in_stop = p.stop_at_end || self.q.index(st.id).is_none_or(|i| i + 1 >= self.q.len);
         if ends_in_stop {
@@ -683,7 +683,7 @@ impl<K: Kinematics> Planner<K> {
 
     /// The piece containing path position `target` (binary search over the window from
     /// `from`), never beyond the stop at `stop_at`.
-    fn find(&self, from: usize, target: f64, stop_at: f64) -> (usize, f64) {
+    pub(super) fn find(&self, from: usize, target: f64, stop_at: f64) -> (usize, f64) {
         let clamped = target >= stop_at;
         let target = target.min(stop_at);
         // Most targets lie within a few pieces: gallop from `from` (strides 1, 2, 4, ...)
