@@ -115,8 +115,9 @@ impl MachineLimits {
     }
 }
 
-/// The shortest jerk phase the planner plans, in servo periods (see
-/// [`Lim::resolve_jerk_at`]).
+/// The shortest jerk phase the planner plans, in servo periods: an axis's jerk (and
+/// quick-stop jerk) is planned no higher than its acceleration over this many periods,
+/// since set-points one period apart cannot shape a shorter phase.
 pub const MIN_JERK_PHASE_PERIODS: f64 = 2.0;
 
 /// The per-axis numbers the planner works with (absent axes have zero limits).
