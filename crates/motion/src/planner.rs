@@ -1110,8 +1110,10 @@ impl<K: Kinematics> Planner<K> {
                     STOP_SHARE * self.a_min,
                     STOP_JERK_SHARE * self.j_min,
                 );
+                let brakes_for_its_end =
+                    |p: &Profile| c.a < 0.0 && c.prof_t.is_some_and(|t| p.only_slows_after(t));
                 match kept {
-                    Some(profile) if c.a < 0.0 || line_end <= c.at + d => {
+                    Some(profile) if brakes_for_its_end(&profile) || line_end <= c.at + d => {
                         self.keep_profile(c.id, profile);
                     }
                     _ => self.cur.prof_t = None,
@@ -1547,14 +1549,18 @@ impl<K: Kinematics> Planner<K> {
         self.hold = Some(Hold { a, j, kind });
         self.cur.hold_at = c.at + d;
         // On an isolated line's S-curve whose end comes before this stop would, or which
-        // already brakes for it: the S-curve (which stops there at the full limits) is the
-        // stop. Else (accelerating or cruising, with room) the speed policy takes over from
-        // the S-curve's state.
-        let on_profile = c.prof_t.is_some() && self.profile_of(c.id).is_some();
+        // already brakes for it (slowing down to rest at the line's end, not to a lower
+        // speed after an override): the S-curve (which stops there at the full limits) is
+        // the stop. Else (accelerating, cruising, or slowing to cruise, with room) the
+        // speed policy takes over from the S-curve's state. An S-curve slowing to a lower
+        // override's speed was taken as the stop once: an e-stop then ran on to the line's
+        // end at that speed.
+        let profile = c.prof_t.and_then(|t| self.profile_of(c.id).map(|p| (p, t)));
+        let brakes_for_its_end = profile.is_some_and(|(p, t)| c.a < 0.0 && p.only_slows_after(t));
         let line_end = self.q.index(c.id).map_or(f64::INFINITY, |i| {
             self.q.get(i).cum_start + self.q.get(i).len
         });
-        if on_profile && (line_end <= c.at + d || c.a < 0.0) {
+        if profile.is_some() && (line_end <= c.at + d || brakes_for_its_end) {
             self.cur.hold_at = line_end;
         } else {
             self.line_profiles = [None; PROFILE_SLOTS];

@@ -141,6 +141,21 @@ impl Profile {
         self.end
     }
 
+    /// From time `t` to its end the profile only slows down: its acceleration is negative
+    /// at every phase boundary after `t` (a braking S-curve reaches zero acceleration only
+    /// at rest, at its end). A profile replanned to a lower speed brakes too, then cruises
+    /// (zero acceleration at a boundary) or speeds up again: not this.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
+    pub fn only_slows_after(&self, t: f64) -> bool {
+        let end = self.duration();
+        let scale = self.at(t).a.abs().max(f64::MIN_POSITIVE);
+        (1..self.count)
+            .map(|k| self.begin[k])
+            .filter(|&b| b > t && b < end)
+            .all(|b| self.at(b).a < -1e-9 * scale)
+    }
+
     /// The phases in order, brake phases first.
     ///
     /// Real-time: yes (no allocation, no blocking).
