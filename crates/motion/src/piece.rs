@@ -557,7 +557,9 @@ impl Piece {
         // released: an acceleration-limited curve into it has the jerk-limited path arrive
         // braking, and it undershoots the valley by far (down to a near stop between two
         // corners of a dense polyline).
-        if let Some((dist, v0, a, j)) = self.valley_ahead(s) {
+        if let Some((dist, v0, a, j)) = self.valley_ahead(s)
+            && !jerk_valley_speed_is_above(dist, v0, a, j, w)
+        {
             let (wv, av) = jerk_valley_speed(dist, v0, a, j);
             if wv < w {
                 w = wv;
@@ -615,6 +617,48 @@ pub(crate) fn jerk_valley_speed(d: f64, v0: f64, a: f64, j: f64) -> (f64, f64) {
     }
     let (u, _, decel) = profile(lo);
     (v0 + u, decel)
+}
+
+/// Whether `jerk_valley_speed(d, v0, a, j)` certainly returns a speed above `w` (so it
+/// cannot lower a curve at `w`), decided in closed form: its bisection is most of the
+/// braking curve's cost, and far from a valley the valley's curve is never the lower one.
+/// "Certainly" leaves room for the bisection's resolution and rounding, so skipping it
+/// never changes a result.
+#[inline]
+pub(crate) fn jerk_valley_speed_is_above(d: f64, v0: f64, a: f64, j: f64, w: f64) -> bool {
+    if !(w.is_finite() && d.is_finite()) {
+        return false;
+    }
+    if w <= v0 {
+        // The valley's curve never falls below its own speed.
+        return true;
+    }
+    let t1 = a / j;
+    // The time before the valley at which the curve reaches w (raised by a margin far
+    // above rounding), then the distance the curve covers in that time.
+    let rise = (w - v0) + 1e-9 * w;
+    let tau_w = if rise <= 0.5 * a * t1 {
+        (2.0 * rise / j).sqrt()
+    } else {
+        rise / a + 0.5 * t1
+    };
+    let hi_stop = if d <= a * a * a / (6.0 * j * j) {
+        (6.0 * d / j).cbrt()
+    } else {
+        t1 + (2.0 * d / a).sqrt()
+    };
+    let hi = (d / v0).min(hi_stop);
+    // Beyond the bisection's resolution (hi / 2^40) with room to spare.
+    let tau = tau_w * (1.0 + 1e-9) + hi * 2f64.powi(-38);
+    if !(tau < hi * (1.0 - 2f64.powi(-38))) {
+        return false;
+    }
+    let covered = if tau <= t1 {
+        j * tau * tau * tau / 6.0
+    } else {
+        a * a * a / (6.0 * j * j) + 0.5 * a * (tau * tau - t1 * t1) - 0.5 * a * t1 * (tau - t1)
+    };
+    v0 * tau + covered < d
 }
 
 /// Speed of the time-optimal jerk-limited stop (deceleration `a`, jerk `j`) at distance `d`
@@ -914,6 +958,37 @@ mod tests {
         assert!(
             centripetal > 20 && curvature_change > 20,
             "{centripetal} {curvature_change}"
+        );
+    }
+
+    /// The closed-form test that skips the valley's bisection says "above" only where the
+    /// bisection's speed is not below the curve's: skipping never changes `w_at`. Speeds
+    /// are drawn close to the valley's own (the boundary) as well as far from it.
+    #[test]
+    fn the_valley_is_skipped_only_where_it_cannot_lower_the_curve() {
+        let mut state = 7u64;
+        let (mut skipped, mut kept) = (0, 0);
+        for case in 0..300_000 {
+            let d = 10f64.powf(3.0 * lcg(&mut state) - 1.0);
+            let v0 = 10f64.powf(2.0 * lcg(&mut state));
+            let a = 10f64.powf(1.0 + 2.0 * lcg(&mut state));
+            let j = 10f64.powf(3.0 + 3.0 * lcg(&mut state));
+            let (wv, _) = jerk_valley_speed(d, v0, a, j);
+            let w = match case % 3 {
+                0 => wv * (1.0 + 1e-7 * lcg(&mut state)),
+                1 => wv * (1.0 + lcg(&mut state)),
+                _ => wv + (wv - v0) * 1e-8 * lcg(&mut state),
+            };
+            if jerk_valley_speed_is_above(d, v0, a, j, w) {
+                assert!(wv >= w, "d {d} v0 {v0} a {a} j {j} w {w}: valley {wv}");
+                skipped += 1;
+            } else {
+                kept += 1;
+            }
+        }
+        assert!(
+            skipped > 50_000 && kept > 50_000,
+            "{skipped} skipped, {kept} kept"
         );
     }
 }
