@@ -141,6 +141,55 @@ pub struct CycleMotion {
 /// Cycles of motion a drive keeps (to place an edge reported a few cycles late).
 const MOTION_HISTORY: usize = 16;
 
+/// The load's last cycles of motion, a ring: `count` of them filled, the newest before
+/// `next`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct MotionHistory {
+    cycles: [CycleMotion; MOTION_HISTORY],
+    next: usize,
+    count: usize,
+}
+
+impl MotionHistory {
+    fn new() -> Self {
+        Self {
+            cycles: [CycleMotion::default(); MOTION_HISTORY],
+            next: 0,
+            count: 0,
+        }
+    }
+
+    fn record(&mut self, motion: CycleMotion) {
+        self.cycles[self.next] = motion;
+        self.next = (self.next + 1) % MOTION_HISTORY;
+        self.count = (self.count + 1).min(MOTION_HISTORY);
+    }
+
+    /// Oldest first.
+    fn iter(&self) -> impl Iterator<Item = CycleMotion> + '_ {
+        (0..self.count).map(move |age| {
+            self.cycles[(self.next + MOTION_HISTORY - self.count + age) % MOTION_HISTORY]
+        })
+    }
+
+    /// The load's position at system time `at_ns`, if a recorded cycle holds that instant
+    /// (taken to move linearly within a cycle).
+    fn position_at(&self, at_ns: u64) -> Option<f64> {
+        let m = self
+            .iter()
+            .find(|m| m.start_ns <= at_ns && at_ns <= m.end_ns && m.end_ns > m.start_ns)?;
+        let share = (at_ns - m.start_ns) as f64 / (m.end_ns - m.start_ns) as f64;
+        Some(m.from + share * (m.to - m.from))
+    }
+}
+
+/// The encoder increments of a load at `position` with the joint's quantisation.
+fn encoder_counts(joint: &SimulatedJointConfig, position: f64) -> i32 {
+    // `as` saturates and maps NaN to 0: no panic on any state.
+    (position / joint.units_per_revolution * f64::from(joint.encoder_counts_per_revolution)).floor()
+        as i32
+}
+
 /// A CiA 402 drive whose motor is a simulated joint.
 pub struct CspDrive {
     config: DriveConfig,
@@ -157,11 +206,7 @@ pub struct CspDrive {
     touch_probe: TouchProbe,
     /// The system time at which the coming cycle starts.
     cycle_start_ns: u64,
-    /// The last cycles' motion, a ring; `motion_count` of them filled, the newest before
-    /// `motion_next`.
-    motion: [CycleMotion; MOTION_HISTORY],
-    motion_next: usize,
-    motion_count: usize,
+    motion: MotionHistory,
     /// The index latch was caught last cycle: the joint's latch is re-armed (a cycle without
     /// the request) before a continuous probe takes the next pulse.
     index_rearm: bool,
@@ -228,9 +273,7 @@ impl CspDrive {
             fault_reset_was_high: false,
             touch_probe: TouchProbe::new((config.touch_probe_latency_s * 1e9).round() as u64),
             cycle_start_ns: 0,
-            motion: [CycleMotion::default(); MOTION_HISTORY],
-            motion_next: 0,
-            motion_count: 0,
+            motion: MotionHistory::new(),
             index_rearm: false,
         };
         drive.build_dictionary();
@@ -279,43 +322,14 @@ impl CspDrive {
     /// The cycles of motion that started at or after `since_ns`, oldest first (at most the
     /// last 16).
     pub fn motion_since(&self, since_ns: u64) -> impl Iterator<Item = CycleMotion> + '_ {
-        (0..self.motion_count)
-            .map(move |age| {
-                let n =
-                    (self.motion_next + MOTION_HISTORY - self.motion_count + age) % MOTION_HISTORY;
-                self.motion[n]
-            })
-            .filter(move |m| m.start_ns >= since_ns)
+        self.motion.iter().filter(move |m| m.start_ns >= since_ns)
     }
 
-    /// The encoder increments of the load at `position` (the joint's own quantisation).
-    fn encoder_counts(&self, position: f64) -> i32 {
-        // `as` saturates and maps NaN to 0: no panic on any state.
-        (position / self.config.joint.units_per_revolution
-            * f64::from(self.config.joint.encoder_counts_per_revolution))
-        .floor() as i32
-    }
-
-    /// The encoder at system time `at_ns`, if a recorded cycle holds that instant (the load
-    /// taken to move linearly within a cycle).
-    fn counts_at(&self, at_ns: u64) -> Option<i32> {
-        let m = self
-            .motion_since(0)
-            .find(|m| m.start_ns <= at_ns && at_ns <= m.end_ns && m.end_ns > m.start_ns)?;
-        let share = (at_ns - m.start_ns) as f64 / (m.end_ns - m.start_ns) as f64;
-        Some(self.encoder_counts(m.from + share * (m.to - m.from)))
-    }
-
+    /// Latches the probe input's edges whose instant a recorded cycle holds.
     fn resolve_touch_probe_edges(&mut self) {
-        let mut probe = std::mem::replace(&mut self.touch_probe, TouchProbe::new(0));
-        probe.resolve(|at| self.counts_at(at));
-        self.touch_probe = probe;
-    }
-
-    fn record_motion(&mut self, motion: CycleMotion) {
-        self.motion[self.motion_next] = motion;
-        self.motion_next = (self.motion_next + 1) % MOTION_HISTORY;
-        self.motion_count = (self.motion_count + 1).min(MOTION_HISTORY);
+        let (motion, joint) = (&self.motion, &self.config.joint);
+        self.touch_probe
+            .resolve(|at| motion.position_at(at).map(|p| encoder_counts(joint, p)));
     }
 
     fn build_dictionary(&mut self) {
@@ -538,7 +552,7 @@ impl CspDrive {
             return;
         }
         let end_ns = start_ns.saturating_add((period_s * 1e9).round() as u64);
-        self.record_motion(CycleMotion {
+        self.motion.record(CycleMotion {
             start_ns,
             end_ns,
             from,

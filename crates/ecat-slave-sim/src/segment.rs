@@ -241,7 +241,10 @@ impl Segment {
                 }
                 let share = ((wire.surface - m.from) / (m.to - m.from)).clamp(0.0, 1.0);
                 let span = m.end_ns.saturating_sub(m.start_ns) as f64;
-                edges[count] = (m.start_ns + (share * span).round() as u64, after);
+                edges[count] = (
+                    m.start_ns.saturating_add((share * span).round() as u64),
+                    after,
+                );
                 count += 1;
             }
             let level = wire.contact(sensed.true_position());
