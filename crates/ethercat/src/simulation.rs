@@ -318,6 +318,12 @@ pub fn simulated_segment(
     }
     let mut probes = Vec::new();
     if let Some(probe) = &simulation.probe {
+        if !probe.surface.is_finite() {
+            return Err(refuse(
+                "simulation.probe.surface".into(),
+                "must be a number".into(),
+            ));
+        }
         let device_of = |joint: usize| {
             drive_joints
                 .iter()

@@ -174,3 +174,51 @@ fn without_the_objects_a_touch_probe_latch_stays_unarmed_and_is_named_missing() 
         Some("0x60BB touch probe 1 negative edge (tx_pdo \"touch_probe_1_negative_edge\")")
     );
 }
+
+#[test]
+fn a_simulated_probe_is_wired_to_a_drive_and_a_terminal_input_or_refused_by_key() {
+    use rtcnc_ethercat::{EthercatConfig, SimulatedProbe, SimulationConfig, simulated_segment};
+    let config: EthercatConfig = toml::from_str(
+        r#"
+interface = "sim0"
+[[slaves]]
+kind = "cia402"
+name = "Z"
+vendor_id = 0x00000E5C
+product_code = 0x00000402
+revision = 0x00010000
+joint = 0
+counts_per_unit = 26214.4
+rx_pdo = ["controlword", "target_position", "touch_probe_function"]
+tx_pdo = ["statusword", "position_actual", "touch_probe_status", "touch_probe_1_positive_edge"]
+[[slaves]]
+kind = "dio"
+name = "IO"
+vendor_id = 0x00000E5C
+product_code = 0x00000808
+revision = 0x00010000
+inputs = 8
+"#,
+    )
+    .unwrap();
+    let joints = [toml::from_str("drive = \"csp\"").unwrap()];
+    let simulation = |input: usize, joint: usize, surface: f64| SimulationConfig {
+        probe: Some(SimulatedProbe {
+            input,
+            joint,
+            surface,
+            side: Default::default(),
+            drives: None,
+        }),
+        ..SimulationConfig::default()
+    };
+    assert!(simulated_segment(&config, &joints, &simulation(12, 0, -3.0)).is_ok());
+    for (bad, key) in [
+        (simulation(7, 0, -3.0), "simulation.probe.input"),
+        (simulation(12, 1, -3.0), "simulation.probe.joint"),
+        (simulation(12, 0, f64::NAN), "simulation.probe.surface"),
+    ] {
+        let error = simulated_segment(&config, &joints, &bad).unwrap_err();
+        assert_eq!(error.key, key, "{error}");
+    }
+}
