@@ -43,6 +43,12 @@ pub trait Application: Send {
     /// The master asks for `to`; an error is the AL status code refusing it.
     fn check_transition(&mut self, to: AlState, context: &TransitionContext) -> Result<(), u16>;
 
+    /// The system time (ns, the distributed clock's) at which the coming [`cycle`](Self::cycle)
+    /// starts: devices that time events within a cycle (a drive's touch probe) need it.
+    fn begin_cycle(&mut self, system_ns: u64) {
+        let _ = system_ns;
+    }
+
     /// One process-data cycle of `period_s` seconds (a SYNC0 event, or an outputs write in
     /// free run): `outputs` are the master's (`None` outside OP, where outputs are not
     /// applied); the device writes `inputs`.

@@ -13,6 +13,11 @@
 //! units_per_revolution = 5.0
 //! [[slaves]]
 //! kind = "dio"
+//! [[probes]]                    # a touch probe over a surface across drive 2's travel
+//! sensed = 2
+//! surface = -3.0
+//! drives = [0, 1, 2]            # wired into these drives' touch probe 1 inputs
+//! input = { device = 12, bit = 5 }  # and into the terminal's input 5
 //! ```
 
 use serde::Deserialize;
@@ -20,7 +25,7 @@ use serde::Deserialize;
 use crate::dio::{DioConfig, DioTerminal};
 use crate::drive::{CspDrive, DriveConfig};
 use crate::esc::{LocalClock, Slave};
-use crate::segment::{Fault, Segment};
+use crate::segment::{Fault, ProbeWire, Segment};
 
 /// Largest number of devices in a simulated segment.
 pub const MAX_SLAVES: usize = 256;
@@ -37,6 +42,9 @@ pub struct SegmentConfig {
     pub frame_loss_rate: f64,
     /// The devices, first to last.
     pub slaves: Vec<SlaveConfig>,
+    /// Touch probes wired into the drives (positions count every device, `count` expanded).
+    #[serde(default)]
+    pub probes: Vec<ProbeWire>,
 }
 
 fn default_seed() -> u64 {
@@ -147,6 +155,11 @@ impl SegmentConfig {
             }
         }
         let mut segment = Segment::new(slaves, self.seed);
+        for (n, wire) in self.probes.iter().enumerate() {
+            segment
+                .wire_probe(wire.clone())
+                .map_err(|e| refuse(format!("probes[{n}]"), e.to_string()))?;
+        }
         if self.frame_loss_rate > 0.0 {
             segment
                 .inject(Fault::FrameLoss {

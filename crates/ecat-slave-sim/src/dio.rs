@@ -76,6 +76,11 @@ impl DioTerminal {
         self.outputs
     }
 
+    /// The input levels (bit n: input n).
+    pub fn inputs(&self) -> u8 {
+        self.inputs
+    }
+
     /// Sets the input levels (bit n: input n).
     pub fn set_inputs(&mut self, levels: u8) {
         self.inputs = levels;

@@ -12,8 +12,8 @@ use rtcnc_fieldbus::sim::{
     InjectedFault, SimulatedJointConfig, SimulatedMachine, SimulatedMachineConfig,
 };
 use rtcnc_fieldbus::{
-    Cia402State, ControlWord, DeviceCommand, DriveMode, Fieldbus, JointCommand, ProcessInputs,
-    ProcessOutputs,
+    Cia402State, ControlWord, DeviceCommand, DriveMode, Fieldbus, JointCommand, LatchSource,
+    ProcessInputs, ProcessOutputs,
 };
 use serde::Deserialize;
 
@@ -24,6 +24,7 @@ use crate::sii::{
     FmmuUse, Identity, MailboxLayout, PROTOCOL_COE, Pdo, PdoEntry, SiiContents, SyncManagerDefault,
     SyncManagerUse,
 };
+use crate::touch_probe::{TouchProbe, Trigger};
 
 /// Mode of operation "cyclic synchronous position" (0x6060).
 pub const MODE_CSP: i8 = 8;
@@ -63,9 +64,14 @@ pub struct DriveConfig {
     #[serde(default = "default_rated_torque")]
     pub rated_torque_mnm: u32,
     /// The motor, load, encoder and switches (`rtcnc-fieldbus`'s simulated joint; the
-    /// drive mode is CSP whatever `drive` says).
+    /// drive mode is CSP whatever `drive` says). Its `index_offset` places the encoder's
+    /// zero impulse for the touch probe.
     #[serde(default = "default_joint")]
     pub joint: SimulatedJointConfig,
+    /// Time from a touch probe's edge to the drive reporting the value it latched (s),
+    /// as a drive's latch-to-PDO delay; default 0.001.
+    #[serde(default = "default_touch_probe_latency")]
+    pub touch_probe_latency_s: f64,
 }
 
 impl Default for DriveConfig {
@@ -75,6 +81,7 @@ impl Default for DriveConfig {
             name: default_drive_name(),
             rated_torque_mnm: default_rated_torque(),
             joint: default_joint(),
+            touch_probe_latency_s: default_touch_probe_latency(),
         }
     }
 }
@@ -101,6 +108,10 @@ fn default_rated_torque() -> u32 {
     1270
 }
 
+fn default_touch_probe_latency() -> f64 {
+    0.001
+}
+
 fn default_joint() -> SimulatedJointConfig {
     SimulatedJointConfig::with_drive(DriveMode::Csp)
 }
@@ -112,6 +123,71 @@ struct Mapped {
     sub_index: u8,
     offset: usize,
     len: usize,
+}
+
+/// The load's true position over one cycle, from its start to its end (system time, ns).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct CycleMotion {
+    /// System time at the cycle's start.
+    pub start_ns: u64,
+    /// System time at its end.
+    pub end_ns: u64,
+    /// True position at the start (joint units).
+    pub from: f64,
+    /// True position at the end.
+    pub to: f64,
+}
+
+/// Cycles of motion a drive keeps (to place an edge reported a few cycles late).
+const MOTION_HISTORY: usize = 16;
+
+/// The load's last cycles of motion, a ring: `count` of them filled, the newest before
+/// `next`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct MotionHistory {
+    cycles: [CycleMotion; MOTION_HISTORY],
+    next: usize,
+    count: usize,
+}
+
+impl MotionHistory {
+    fn new() -> Self {
+        Self {
+            cycles: [CycleMotion::default(); MOTION_HISTORY],
+            next: 0,
+            count: 0,
+        }
+    }
+
+    fn record(&mut self, motion: CycleMotion) {
+        self.cycles[self.next] = motion;
+        self.next = (self.next + 1) % MOTION_HISTORY;
+        self.count = (self.count + 1).min(MOTION_HISTORY);
+    }
+
+    /// Oldest first.
+    fn iter(&self) -> impl Iterator<Item = CycleMotion> + '_ {
+        (0..self.count).map(move |age| {
+            self.cycles[(self.next + MOTION_HISTORY - self.count + age) % MOTION_HISTORY]
+        })
+    }
+
+    /// The load's position at system time `at_ns`, if a recorded cycle holds that instant
+    /// (taken to move linearly within a cycle).
+    fn position_at(&self, at_ns: u64) -> Option<f64> {
+        let m = self
+            .iter()
+            .find(|m| m.start_ns <= at_ns && at_ns <= m.end_ns && m.end_ns > m.start_ns)?;
+        let share = (at_ns - m.start_ns) as f64 / (m.end_ns - m.start_ns) as f64;
+        Some(m.from + share * (m.to - m.from))
+    }
+}
+
+/// The encoder increments of a load at `position` with the joint's quantisation.
+fn encoder_counts(joint: &SimulatedJointConfig, position: f64) -> i32 {
+    // `as` saturates and maps NaN to 0: no panic on any state.
+    (position / joint.units_per_revolution * f64::from(joint.encoder_counts_per_revolution)).floor()
+        as i32
 }
 
 /// A CiA 402 drive whose motor is a simulated joint.
@@ -127,6 +203,13 @@ pub struct CspDrive {
     injected_fault: Option<u16>,
     following_fault: bool,
     fault_reset_was_high: bool,
+    touch_probe: TouchProbe,
+    /// The system time at which the coming cycle starts.
+    cycle_start_ns: u64,
+    motion: MotionHistory,
+    /// The index latch was caught last cycle: the joint's latch is re-armed (a cycle without
+    /// the request) before a continuous probe takes the next pulse.
+    index_rearm: bool,
 }
 
 impl std::fmt::Debug for CspDrive {
@@ -169,6 +252,13 @@ impl CspDrive {
         let feedback = ProcessInputs::new(machine.layout());
         let counts_per_unit = f64::from(config.joint.encoder_counts_per_revolution)
             / config.joint.units_per_revolution;
+        if !(config.touch_probe_latency_s.is_finite()
+            && (0.0..=0.1).contains(&config.touch_probe_latency_s))
+        {
+            return Err(DriveConfigError(
+                "touch_probe_latency_s: must be from 0 to 0.1 s".into(),
+            ));
+        }
         let mut drive = Self {
             config: config.clone(),
             machine,
@@ -181,6 +271,10 @@ impl CspDrive {
             injected_fault: None,
             following_fault: false,
             fault_reset_was_high: false,
+            touch_probe: TouchProbe::new((config.touch_probe_latency_s * 1e9).round() as u64),
+            cycle_start_ns: 0,
+            motion: MotionHistory::new(),
+            index_rearm: false,
         };
         drive.build_dictionary();
         drive.rebuild_layouts();
@@ -214,6 +308,28 @@ impl CspDrive {
     /// Encoder increments per joint unit.
     pub fn counts_per_unit(&self) -> f64 {
         self.counts_per_unit
+    }
+
+    /// An edge on the drive's touch probe 1 input at system time `at_ns` (`rising`: the
+    /// input closes). A probe armed for it latches the encoder at that instant (from the
+    /// load's motion in the cycle that holds it, once that cycle has run) and reports it
+    /// `touch_probe_latency_s` later.
+    pub fn touch_probe_input(&mut self, at_ns: u64, rising: bool) {
+        self.touch_probe.input_edge(at_ns, rising);
+        self.resolve_touch_probe_edges();
+    }
+
+    /// The cycles of motion that started at or after `since_ns`, oldest first (at most the
+    /// last 16).
+    pub fn motion_since(&self, since_ns: u64) -> impl Iterator<Item = CycleMotion> + '_ {
+        self.motion.iter().filter(move |m| m.start_ns >= since_ns)
+    }
+
+    /// Latches the probe input's edges whose instant a recorded cycle holds.
+    fn resolve_touch_probe_edges(&mut self) {
+        let (motion, joint) = (&self.motion, &self.config.joint);
+        self.touch_probe
+            .resolve(|at| motion.position_at(at).map(|p| encoder_counts(joint, p)));
     }
 
     fn build_dictionary(&mut self) {
@@ -303,6 +419,10 @@ impl CspDrive {
         d.insert(0x608F, 2, &1u32.to_le_bytes(), Ro, No);
         d.insert(0x60B1, 0, &0i32.to_le_bytes(), Rw, Rx);
         d.insert(0x60B2, 0, &0i16.to_le_bytes(), Rw, Rx);
+        d.insert(0x60B8, 0, &0u16.to_le_bytes(), Rw, Rx);
+        d.insert(0x60B9, 0, &0u16.to_le_bytes(), Ro, Tx);
+        d.insert(0x60BA, 0, &0i32.to_le_bytes(), Ro, Tx);
+        d.insert(0x60BB, 0, &0i32.to_le_bytes(), Ro, Tx);
         d.insert(0x60C2, 0, &[2], Ro, No);
         d.insert(0x60C2, 1, &[0], Pre, No);
         d.insert(0x60C2, 2, &(-3i8).to_le_bytes(), Pre, No);
@@ -392,7 +512,21 @@ impl CspDrive {
                 }
             }
         }
-        let command = self.joint_command(outputs.is_some());
+        let mut command = self.joint_command(outputs.is_some());
+        let start_ns = self.cycle_start_ns;
+        // Outside OP the outputs are not applied: the probe is off.
+        let function = if outputs.is_some() {
+            self.dictionary.unsigned(0x60B8, 0) as u16
+        } else {
+            0
+        };
+        self.touch_probe.command(function, start_ns);
+        let index_wanted = self.touch_probe.trigger() == Some(Trigger::IndexPulse)
+            && self.touch_probe.takes(true, start_ns)
+            && !self.index_rearm;
+        command.latch = index_wanted.then_some(LatchSource::IndexPulse);
+        self.index_rearm = false;
+        let from = self.true_position();
         let reset_high = command.controlword.fault_reset_requested();
         if reset_high && !self.fault_reset_was_high {
             self.following_fault = false;
@@ -417,6 +551,24 @@ impl CspDrive {
         {
             return;
         }
+        let end_ns = start_ns.saturating_add((period_s * 1e9).round() as u64);
+        self.motion.record(CycleMotion {
+            start_ns,
+            end_ns,
+            from,
+            to: self.true_position(),
+        });
+        let latch = self.feedback.joints[0].latch;
+        if index_wanted && latch.latched {
+            // The joint latched the index in whole increments; its instant within the
+            // cycle is not kept, so the latency counts from the cycle's start.
+            let counts = (latch.position * self.counts_per_unit).round();
+            let counts = counts.clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32;
+            self.touch_probe.latch(true, start_ns, counts);
+            self.index_rearm = true;
+        }
+        self.resolve_touch_probe_edges();
+        self.touch_probe.report(end_ns);
         let window = self.dictionary.unsigned(0x6065, 0);
         if window != u64::from(u32::MAX) && self.state() == Cia402State::OperationEnabled {
             let error = self.following_error_counts();
@@ -453,6 +605,9 @@ impl CspDrive {
         d.set(0x60F4, 0, &ferror.to_le_bytes());
         d.set(0x60FD, 0, &inputs.to_le_bytes());
         d.set(0x6061, 0, &[mode]);
+        d.set(0x60B9, 0, &self.touch_probe.status().to_le_bytes());
+        d.set(0x60BA, 0, &self.touch_probe.positive_value().to_le_bytes());
+        d.set(0x60BB, 0, &self.touch_probe.negative_value().to_le_bytes());
     }
 
     fn check_mapping_entry(&self, pdo: u16, value: u32) -> Result<(), u32> {
@@ -607,6 +762,10 @@ impl Application for CspDrive {
 
     fn dictionary(&self) -> Option<&Dictionary> {
         Some(&self.dictionary)
+    }
+
+    fn begin_cycle(&mut self, system_ns: u64) {
+        self.cycle_start_ns = system_ns;
     }
 
     fn download(

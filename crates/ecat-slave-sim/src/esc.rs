@@ -355,7 +355,7 @@ impl Slave {
                 next = next.saturating_add(missed.saturating_mul(cycle));
                 break;
             }
-            self.run_cycle(cycle as f64 * 1e-9);
+            self.run_cycle(cycle as f64 * 1e-9, next);
             next = next.saturating_add(cycle);
             events += 1;
         }
@@ -376,11 +376,13 @@ impl Slave {
         (divider + 2) * 40 * time
     }
 
-    /// One application cycle over the process data sync managers.
-    fn run_cycle(&mut self, period_s: f64) {
+    /// One application cycle over the process data sync managers, starting at system time
+    /// `system_ns` (the SYNC0 event's, or the outputs write's in free run).
+    fn run_cycle(&mut self, period_s: f64, system_ns: u64) {
         if self.state < AlState::SafeOp {
             return;
         }
+        self.application.begin_cycle(system_ns);
         self.sync_events += 1;
         let (out_len, in_len) = self.application.process_data_len();
         let outputs_valid = self.state == AlState::Op;
@@ -419,7 +421,7 @@ impl Slave {
             None => 1e-3,
         };
         self.last_free_run = Some(system);
-        self.run_cycle(period);
+        self.run_cycle(period, system);
     }
 
     fn dc_sync_active(&self) -> bool {
@@ -875,7 +877,8 @@ impl Slave {
         }
         if state == AlState::SafeOp && self.state == AlState::Op {
             // Outputs stop being applied: one cycle with outputs invalid.
-            self.run_cycle(1e-3);
+            let at = self.next_sync0.or(self.last_free_run).unwrap_or(0);
+            self.run_cycle(1e-3, at);
         }
         self.state = state;
         self.refresh_al_status();

@@ -12,7 +12,8 @@
 //!   expedited, normal and segmented, abort codes) over an object dictionary.
 //! - Devices ([`application`]): a CiA 402 drive in cyclic synchronous position mode whose
 //!   motor is `rtcnc-fieldbus`'s simulated joint ([`drive`]), and an 8-in/8-out digital
-//!   I/O terminal ([`dio`]).
+//!   I/O terminal ([`dio`]); the drive's CiA 402 touch probe 1 ([`touch_probe`]), on its
+//!   encoder's index or on a probe input the segment wires to a simulated surface.
 //! - [`segment`]: the line of devices a frame walks, with faults (frame loss, a device
 //!   falling to SAFE-OP, a drive fault, link down); [`config`]: a segment from TOML.
 //!
@@ -31,6 +32,7 @@ pub mod frame;
 pub mod raw_socket;
 pub mod segment;
 pub mod sii;
+pub mod touch_probe;
 
 pub use config::{SegmentConfig, SegmentConfigError, SlaveConfig};
 pub use segment::{Fault, Outcome, Segment, SegmentError};

@@ -2,6 +2,11 @@
 //! each device in turn, every device processing every datagram on the fly, back from the
 //! last one through the forwarding path to the master. Faults are injected here.
 
+use rtcnc_fieldbus::sim::ProbeSide;
+use serde::Deserialize;
+
+use crate::dio::DioTerminal;
+use crate::drive::CspDrive;
 use crate::esc::{Addressing, AlState, HOP_DELAY_NS, Slave};
 use crate::frame::{
     Command, DatagramSpan, FrameError, WKC_LEN, datagrams, read_u16, read_u32, write_u16,
@@ -43,6 +48,48 @@ pub enum Fault {
     },
 }
 
+/// A touch probe over a flat surface across one drive's travel, wired into drives' touch
+/// probe 1 inputs and, optionally, into an I/O terminal's input (so the controller sees
+/// its level). The probe is in contact while that drive's load stands at or beyond
+/// `surface` (below it with `side = "below"`, the default; above it with `"above"`), in the
+/// drive's own position units; each crossing is an edge at its instant (the load taken to
+/// move linearly within a cycle), rising into contact, falling out of it.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProbeWire {
+    /// Position in the segment of the drive whose load meets the surface.
+    pub sensed: usize,
+    /// Where the surface is (the sensed drive's joint units).
+    pub surface: f64,
+    /// Which side of the surface is in contact.
+    #[serde(default)]
+    pub side: ProbeSide,
+    /// Positions of the drives whose touch probe 1 input the probe is wired to.
+    pub drives: Vec<usize>,
+    /// The I/O terminal input it is wired to: the terminal's position and the input bit.
+    #[serde(default)]
+    pub input: Option<ProbeInput>,
+}
+
+/// An I/O terminal's input.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProbeInput {
+    /// Position of the terminal in the segment.
+    pub device: usize,
+    /// Input bit (0 to 7).
+    pub bit: u8,
+}
+
+impl ProbeWire {
+    fn contact(&self, position: f64) -> bool {
+        match self.side {
+            ProbeSide::Below => position <= self.surface,
+            ProbeSide::Above => position >= self.surface,
+        }
+    }
+}
+
 /// A request naming something the segment does not have.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 pub enum SegmentError {
@@ -63,6 +110,14 @@ pub enum SegmentError {
     /// A rate outside 0..=1.
     #[error("frame loss rate {0} is not between 0 and 1")]
     Rate(f64),
+    /// A probe wired to a device that is not what the wire needs.
+    #[error("probe: device {device} {reason}")]
+    Probe {
+        /// Position of the device.
+        device: usize,
+        /// What it is not.
+        reason: &'static str,
+    },
 }
 
 /// What happened to one frame.
@@ -84,6 +139,9 @@ pub struct Segment {
     spans: [DatagramSpan; MAX_DATAGRAMS],
     /// Per device: its process data are not served (`Fault::ProcessDataLoss`).
     no_process_data: Vec<bool>,
+    /// Touch probes, and for each the system time from which the sensed drive's motion is
+    /// still to be looked at.
+    probes: Vec<(ProbeWire, u64)>,
     /// Frames offered to the segment.
     pub frames: u64,
     /// Frames lost by injection or a down link.
@@ -102,6 +160,7 @@ impl Segment {
             link_up: true,
             loss_rate: 0.0,
             no_process_data: vec![false; count],
+            probes: Vec::new(),
             random: seed.max(1),
             spans: [DatagramSpan {
                 header: 0,
@@ -120,6 +179,98 @@ impl Segment {
     /// One device.
     pub fn slave_mut(&mut self, position: usize) -> Option<&mut Slave> {
         self.slaves.get_mut(position)
+    }
+
+    /// Wires a touch probe in (refused when `sensed` or a `drives` entry is not a CSP drive,
+    /// or `input` not an I/O terminal's input).
+    pub fn wire_probe(&mut self, wire: ProbeWire) -> Result<(), SegmentError> {
+        let is_drive = |slaves: &mut [Slave], n: usize| {
+            slaves
+                .get_mut(n)
+                .is_some_and(|s| s.application_mut().as_any_mut().is::<CspDrive>())
+        };
+        if !wire.surface.is_finite() {
+            return Err(SegmentError::Probe {
+                device: wire.sensed,
+                reason: "has a surface that is not a number",
+            });
+        }
+        for n in std::iter::once(wire.sensed).chain(wire.drives.iter().copied()) {
+            if !is_drive(&mut self.slaves, n) {
+                return Err(SegmentError::Probe {
+                    device: n,
+                    reason: "is not a CSP drive",
+                });
+            }
+        }
+        if let Some(input) = wire.input {
+            let terminal = self
+                .slaves
+                .get_mut(input.device)
+                .is_some_and(|s| s.application_mut().as_any_mut().is::<DioTerminal>());
+            if !terminal || input.bit >= 8 {
+                return Err(SegmentError::Probe {
+                    device: input.device,
+                    reason: "is not an I/O terminal with that input (0 to 7)",
+                });
+            }
+        }
+        self.probes.push((wire, 0));
+        self.run_probes();
+        Ok(())
+    }
+
+    /// The probes' edges since they were last looked at, into the drives they are wired
+    /// to, and their levels into the terminals' inputs.
+    fn run_probes(&mut self) {
+        for (wire, seen_ns) in &mut self.probes {
+            let Some(sensed) = self
+                .slaves
+                .get_mut(wire.sensed)
+                .and_then(|s| s.application_mut().as_any_mut().downcast_mut::<CspDrive>())
+            else {
+                continue;
+            };
+            let mut edges = [(0u64, false); 16];
+            let mut count = 0;
+            for m in sensed.motion_since(*seen_ns) {
+                *seen_ns = m.end_ns;
+                let (before, after) = (wire.contact(m.from), wire.contact(m.to));
+                if before == after || m.from == m.to || count == edges.len() {
+                    continue;
+                }
+                let share = ((wire.surface - m.from) / (m.to - m.from)).clamp(0.0, 1.0);
+                let span = m.end_ns.saturating_sub(m.start_ns) as f64;
+                edges[count] = (
+                    m.start_ns.saturating_add((share * span).round() as u64),
+                    after,
+                );
+                count += 1;
+            }
+            let level = wire.contact(sensed.true_position());
+            for &n in &wire.drives {
+                if let Some(drive) = self
+                    .slaves
+                    .get_mut(n)
+                    .and_then(|s| s.application_mut().as_any_mut().downcast_mut::<CspDrive>())
+                {
+                    for &(at, rising) in &edges[..count] {
+                        drive.touch_probe_input(at, rising);
+                    }
+                }
+            }
+            if let Some(input) = wire.input
+                && let Some(terminal) = self.slaves.get_mut(input.device).and_then(|s| {
+                    s.application_mut()
+                        .as_any_mut()
+                        .downcast_mut::<DioTerminal>()
+                })
+            {
+                let mask = 1u8 << input.bit;
+                let levels = terminal.inputs() & !mask;
+                terminal.set_inputs(if level { levels | mask } else { levels });
+            }
+        }
     }
 
     /// Whether the link to the first device is up.
@@ -202,6 +353,7 @@ impl Segment {
             for (position, slave) in self.slaves.iter_mut().enumerate() {
                 slave.run_until(now_ns + position as u64 * HOP_DELAY_NS);
             }
+            self.run_probes();
             return Ok(Outcome::Lost);
         }
         let count = datagrams(frame, &mut self.spans)?;
@@ -226,6 +378,7 @@ impl Segment {
         if let Some(byte) = frame.get_mut(6) {
             *byte |= 0x02;
         }
+        self.run_probes();
         Ok(Outcome::Returned)
     }
 }

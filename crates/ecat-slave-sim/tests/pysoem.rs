@@ -1,7 +1,8 @@
 //! An independent master: SOEM through pysoem (PyPI) scans the simulator process over a
 //! veth pair, reads identity and EEPROM, reads and writes SDOs and takes it to OP with
-//! process data (tests/pysoem_check.py). It catches errors that rtcnc's master and its
-//! simulator could share.
+//! process data, and latches a drive's index through its touch probe (0x60B8-0x60BA)
+//! (tests/pysoem_check.py). It catches errors that rtcnc's master and its simulator could
+//! share.
 
 mod support;
 
@@ -45,7 +46,9 @@ fn pysoem_inside_the_namespace() {
     support::veth();
     let drives = 3;
     let _simulator = support::Simulator::start(&format!(
-        "[[slaves]]\nkind = \"csp_drive\"\ncount = {drives}\n[[slaves]]\nkind = \"dio\"\n"
+        "[[slaves]]\nkind = \"csp_drive\"\ncount = {drives}\n\
+         [slaves.drive.joint]\ndrive = \"csp\"\nindex_offset = 0.3\n\
+         [[slaves]]\nkind = \"dio\"\n"
     ));
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/pysoem_check.py");
     let status = Command::new(python())

@@ -7,7 +7,11 @@ Usage: pysoem_check.py INTERFACE DRIVES VENDOR DRIVE_PRODUCT DIO_PRODUCT
 Everything checked here is what SOEM reads and writes by itself: the identity and the
 EEPROM, SDO uploads and downloads (expedited, normal, segmented) and an abort, the PDO
 mapping it reads over CoE and from the EEPROM, the state machine to OP, and cyclic process
-data with the working counter and a CiA 402 drive walked to operation enabled.
+data with the working counter and a CiA 402 drive walked to operation enabled; drive 0's
+PDOs carry its touch probe (0x60B8 out, 0x60B9 and 0x60BA in), armed on its encoder's
+index (0x0015, CiA 402: enable, zero impulse, positive edge) while it moves over the index
+at 0.3 mm: 0x60B9 reads 0x0043 (enabled, positive value stored, toggle) and 0x60BA
+floor(0.3 x 131072 / 5) = 7864 increments.
 """
 
 import struct
@@ -66,9 +70,19 @@ for slave in master.slaves[:drives]:
     slave.sdo_write(0x6060, 0, struct.pack("<b", 8))
 check(struct.unpack("<b", drive.sdo_read(0x6060, 0))[0] == 8, "mode of operation 8 (CSP) written and read back")
 
+# Drive 0: the touch probe into its PDOs (SOEM reads the mapping back over CoE).
+drive.sdo_write(0x1600, 0, bytes([0]))
+drive.sdo_write(0x1600, 5, struct.pack("<I", 0x60B80010))
+drive.sdo_write(0x1600, 0, bytes([5]))
+drive.sdo_write(0x1A00, 0, bytes([0]))
+drive.sdo_write(0x1A00, 6, struct.pack("<I", 0x60B90010))
+drive.sdo_write(0x1A00, 7, struct.pack("<I", 0x60BA0020))
+drive.sdo_write(0x1A00, 0, bytes([7]))
+
 size = master.config_map()
-check(size == drives * (12 + 16) + 2, f"IO map of {size} bytes")
-for slave in master.slaves[:drives]:
+check(size == drives * (12 + 16) + 2 + 2 + 6, f"IO map of {size} bytes")
+check((len(drive.output), len(drive.input)) == (14, 22), "drive 0 PDOs 14 bytes out, 22 in")
+for slave in master.slaves[1:drives]:
     check((len(slave.output), len(slave.input)) == (12, 16), "drive PDOs 12 bytes out, 16 in")
 dio = master.slaves[drives]
 check((len(dio.output), len(dio.input)) == (1, 1), "DIO PDOs 1 byte each way")
@@ -98,7 +112,7 @@ for cycle in range(300):
         control = 0x07  # switch on
     else:
         control = 0x0F  # enable operation
-    drive.output = struct.pack("<HiiH", control, position, 0, 0)
+    drive.output = struct.pack("<HiiHH", control, position, 0, 0, 0)
     dio.output = bytes([0xA5])
     master.send_processdata()
     wkc = master.receive_processdata(2000)
@@ -108,6 +122,21 @@ for cycle in range(300):
     time.sleep(0.001)
 status = struct.unpack_from("<H", drive.input, 0)[0]
 check(status & 0x6F == 0x27, f"statusword {status:#06x}: operation enabled")
+
+# Over the index at 0.3 mm (the drive stands at 0): 1 mm in steps of 262 increments (about
+# 10 mm/s at 1 ms), touch probe 1 armed on the zero impulse.
+target = struct.unpack_from("<i", drive.input, 2)[0]
+probe = (0, 0)
+for cycle in range(400):
+    target = min(target + 262, 26214)
+    drive.output = struct.pack("<HiiHH", 0x0F, target, 0, 0, 0x0015)
+    master.send_processdata()
+    master.receive_processdata(2000)
+    probe = struct.unpack_from("<Hi", drive.input, 16)
+    if probe[0] & 0x02 and cycle > 10:
+        break
+    time.sleep(0.001)
+check(probe == (0x0043, 7864), f"touch probe status {probe[0]:#06x}, index latched at {probe[1]}")
 master.state = pysoem.INIT_STATE
 master.write_state()
 master.close()

@@ -28,7 +28,7 @@ pub use clock::Clock;
 pub use config::{ConfigError, EthercatConfig, ExpectedIdentity, SdoWrite, SlaveConfig};
 pub use link::{Link, NetworkLink, SimulatedLink};
 pub use master::{EthercatMaster, MAX_PDI, MasterStatistics, StartError};
-pub use simulation::{SimulatedBus, SimulationConfig, simulated_segment};
+pub use simulation::{SimulatedBus, SimulatedProbe, SimulationConfig, simulated_segment};
 
 /// Mode of operation "cyclic synchronous position" (0x6060).
 pub const MODE_CSP: i8 = 8;

@@ -1,6 +1,14 @@
 //! The process data of a CiA 402 drive: the objects the master can map (receive PDO:
 //! outputs; transmit PDO: inputs), their place in the PDO, and the conversion between the
 //! process image's joint units and the drive's increments.
+//!
+//! A position latch the controller asks for ([`JointCommand::latch`]) goes to the drive's
+//! touch probe 1 when the PDOs carry it (0x60B8 out; 0x60B9, 0x60BA, 0x60BB in), with the
+//! bits of CiA 402 (IEC 61800-7-201), as drives document them (Beckhoff EP7211 "Touch
+//! Probe", AX8000 objects 0x60B8/0x60B9; Panasonic's in RSI's RapidCode "TouchProbe.cs"):
+//! 0x60B8 bit 0 enable, bit 1 continuous, bits 2-3 trigger (00 probe input, 01 encoder
+//! zero impulse), bit 4 sample the positive edge, bit 5 the negative; 0x60B9 bit 0
+//! enabled, bit 1 positive-edge value stored (in 0x60BA), bit 2 negative (0x60BB).
 
 use rtcnc_fieldbus::{
     ControlWord, JointCommand, JointFeedback, LatchFeedback, LatchSource, StatusWord,
@@ -25,6 +33,8 @@ pub enum RxObject {
     TorqueOffset,
     /// 0x6060 modes of operation, 8 bits (always 8, CSP).
     ModesOfOperation,
+    /// 0x60B8 touch probe function, 16 bits: arms touch probe 1 for a latch.
+    TouchProbeFunction,
 }
 
 /// An object the master reads (transmit PDO of the drive).
@@ -47,6 +57,14 @@ pub enum TxObject {
     ErrorCode,
     /// 0x6061 modes of operation display, 8 bits.
     ModesOfOperationDisplay,
+    /// 0x60B9 touch probe status, 16 bits.
+    TouchProbeStatus,
+    /// 0x60BA touch probe 1 positive edge (increments), 32 bits.
+    #[serde(rename = "touch_probe_1_positive_edge")]
+    TouchProbe1PositiveEdge,
+    /// 0x60BB touch probe 1 negative edge (increments), 32 bits.
+    #[serde(rename = "touch_probe_1_negative_edge")]
+    TouchProbe1NegativeEdge,
 }
 
 impl RxObject {
@@ -68,13 +86,17 @@ impl RxObject {
             Self::VelocityOffset => 0x60B1,
             Self::TorqueOffset => 0x60B2,
             Self::ModesOfOperation => 0x6060,
+            Self::TouchProbeFunction => 0x60B8,
         }
     }
 
     /// Length in bits.
     pub const fn bits(self) -> u8 {
         match self {
-            Self::Controlword | Self::TargetTorque | Self::TorqueOffset => 16,
+            Self::Controlword
+            | Self::TargetTorque
+            | Self::TorqueOffset
+            | Self::TouchProbeFunction => 16,
             Self::ModesOfOperation => 8,
             _ => 32,
         }
@@ -103,13 +125,16 @@ impl TxObject {
             Self::DigitalInputs => 0x60FD,
             Self::ErrorCode => 0x603F,
             Self::ModesOfOperationDisplay => 0x6061,
+            Self::TouchProbeStatus => 0x60B9,
+            Self::TouchProbe1PositiveEdge => 0x60BA,
+            Self::TouchProbe1NegativeEdge => 0x60BB,
         }
     }
 
     /// Length in bits.
     pub const fn bits(self) -> u8 {
         match self {
-            Self::Statusword | Self::TorqueActual | Self::ErrorCode => 16,
+            Self::Statusword | Self::TorqueActual | Self::ErrorCode | Self::TouchProbeStatus => 16,
             Self::ModesOfOperationDisplay => 8,
             _ => 32,
         }
@@ -170,6 +195,80 @@ pub fn check_tx(objects: &[TxObject]) -> Result<(), String> {
     )
 }
 
+/// Bits of 0x60B8 touch probe function.
+pub mod touch_probe_function {
+    /// Touch probe 1 enabled.
+    pub const ENABLE: u16 = 1 << 0;
+    /// Trigger on the position encoder's zero impulse (bits 2-3 = 01; 00 is the probe input).
+    pub const TRIGGER_INDEX: u16 = 0b01 << 2;
+    /// Sample the positive edge (into 0x60BA).
+    pub const POSITIVE_EDGE: u16 = 1 << 4;
+    /// Sample the negative edge (into 0x60BB).
+    pub const NEGATIVE_EDGE: u16 = 1 << 5;
+}
+
+/// Bits of 0x60B9 touch probe status.
+pub mod touch_probe_status {
+    /// Touch probe 1 enabled.
+    pub const ENABLED: u16 = 1 << 0;
+    /// A positive-edge value is stored in 0x60BA.
+    pub const POSITIVE_STORED: u16 = 1 << 1;
+    /// A negative-edge value is stored in 0x60BB.
+    pub const NEGATIVE_STORED: u16 = 1 << 2;
+}
+
+/// What a latch from the controller needs of the drive's touch probe.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LatchUse {
+    /// On the encoder's index: 0x60B8, 0x60B9, 0x60BA.
+    IndexPulse,
+    /// On the probe input, either edge (G38.2-G38.5): 0x60B8, 0x60B9, 0x60BA, 0x60BB.
+    ProbeInput,
+}
+
+/// The first touch probe object a latch of `what` needs that these PDOs lack, as
+/// "0x60B8 (rx_pdo \"touch_probe_function\")"; `None` when every one is mapped.
+pub fn missing_touch_probe_object(
+    rx: &[RxObject],
+    tx: &[TxObject],
+    what: LatchUse,
+) -> Option<&'static str> {
+    if !rx.contains(&RxObject::TouchProbeFunction) {
+        return Some("0x60B8 touch probe function (rx_pdo \"touch_probe_function\")");
+    }
+    let mut needed = vec![
+        (
+            TxObject::TouchProbeStatus,
+            "0x60B9 touch probe status (tx_pdo \"touch_probe_status\")",
+        ),
+        (
+            TxObject::TouchProbe1PositiveEdge,
+            "0x60BA touch probe 1 positive edge (tx_pdo \"touch_probe_1_positive_edge\")",
+        ),
+    ];
+    if what == LatchUse::ProbeInput {
+        needed.push((
+            TxObject::TouchProbe1NegativeEdge,
+            "0x60BB touch probe 1 negative edge (tx_pdo \"touch_probe_1_negative_edge\")",
+        ));
+    }
+    needed
+        .into_iter()
+        .find(|(object, _)| !tx.contains(object))
+        .map(|(_, name)| name)
+}
+
+/// Where a touch-probe latch stands: the master first sees the probe off (0x60B9 bit 0
+/// clear, so no stored bit is from an earlier arming), then writes the function and takes
+/// the first stored bit that comes with the probe enabled.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum ProbeArming {
+    /// 0x60B8 = 0 until the status shows the probe off.
+    Disarming,
+    /// The function is written.
+    Armed,
+}
+
 /// One drive's process data: where each object lies, the unit conversions, and what the
 /// drive was last told (to hold it when a command is not a number).
 #[derive(Debug, Clone, PartialEq)]
@@ -187,6 +286,9 @@ pub struct DriveCodec {
     latch_request: Option<LatchSource>,
     latch_reference: Option<bool>,
     latch: LatchFeedback,
+    /// The PDOs carry the touch probe (0x60B8 out; 0x60B9 and 0x60BA in).
+    touch_probe: bool,
+    probe_arming: ProbeArming,
 }
 
 fn layout<T: Copy>(objects: &[T], bits: impl Fn(T) -> u8) -> (Vec<(T, usize)>, usize) {
@@ -243,6 +345,8 @@ impl DriveCodec {
         counts_per_unit: f64,
         rated_torque_nm: f64,
     ) -> Self {
+        let touch_probe =
+            rx.contains(&RxObject::TouchProbeFunction) && tx.contains(&TxObject::TouchProbeStatus);
         let (rx, rx_len) = layout(rx, RxObject::bits);
         let (tx, tx_len) = layout(tx, TxObject::bits);
         Self {
@@ -257,6 +361,22 @@ impl DriveCodec {
             latch_request: None,
             latch_reference: None,
             latch: LatchFeedback::default(),
+            touch_probe,
+            probe_arming: ProbeArming::Disarming,
+        }
+    }
+
+    /// The touch probe function (0x60B8) for the latch asked for, once armed.
+    fn touch_probe_function(&self) -> u16 {
+        use touch_probe_function::*;
+        if self.probe_arming != ProbeArming::Armed {
+            return 0;
+        }
+        match self.latch_request {
+            Some(LatchSource::TouchProbe { rising: true }) => ENABLE | POSITIVE_EDGE,
+            Some(LatchSource::TouchProbe { rising: false }) => ENABLE | NEGATIVE_EDGE,
+            Some(LatchSource::IndexPulse) => ENABLE | TRIGGER_INDEX | POSITIVE_EDGE,
+            Some(LatchSource::HomeSwitch) | None => 0,
         }
     }
 
@@ -278,6 +398,7 @@ impl DriveCodec {
             self.latch_request = command.latch;
             self.latch_reference = None;
             self.latch = LatchFeedback::default();
+            self.probe_arming = ProbeArming::Disarming;
         }
         if let Some(target) = self.counts(command.target_position) {
             self.last_target = target;
@@ -313,6 +434,9 @@ impl DriveCodec {
                     &to_i16(command.torque_offset / self.torque_unit).to_le_bytes(),
                 ),
                 RxObject::ModesOfOperation => put(outputs, at, &[crate::MODE_CSP as u8]),
+                RxObject::TouchProbeFunction => {
+                    put(outputs, at, &self.touch_probe_function().to_le_bytes());
+                }
             }
         }
     }
@@ -337,6 +461,8 @@ impl DriveCodec {
         let mut velocity = None;
         let mut digital = 0u32;
         let mut position = self.last_position.unwrap_or(0);
+        let mut probe_status = 0u16;
+        let mut probe_values = [0i32; 2];
         feedback.torque = 0.0;
         feedback.error_code = 0;
         for &(object, at) in &self.tx {
@@ -356,6 +482,13 @@ impl DriveCodec {
                 }
                 TxObject::DigitalInputs => digital = u32::from_le_bytes(get(inputs, at)),
                 TxObject::ErrorCode => feedback.error_code = u16::from_le_bytes(get(inputs, at)),
+                TxObject::TouchProbeStatus => probe_status = u16::from_le_bytes(get(inputs, at)),
+                TxObject::TouchProbe1PositiveEdge => {
+                    probe_values[0] = i32::from_le_bytes(get(inputs, at));
+                }
+                TxObject::TouchProbe1NegativeEdge => {
+                    probe_values[1] = i32::from_le_bytes(get(inputs, at));
+                }
                 TxObject::FollowingErrorActual | TxObject::ModesOfOperationDisplay => {}
             }
         }
@@ -370,14 +503,56 @@ impl DriveCodec {
         feedback.negative_limit = digital & 0x1 != 0;
         feedback.positive_limit = digital & 0x2 != 0;
         feedback.home_switch = digital & 0x4 != 0;
-        self.latch_home_switch(feedback);
+        match self.latch_request {
+            Some(LatchSource::HomeSwitch) | None => self.latch_home_switch(feedback),
+            Some(_) => self.latch_touch_probe(probe_status, probe_values),
+        }
         feedback.latch = self.latch;
     }
 
-    /// The position latch, as far as the process data allow: the home switch's edge is
-    /// latched by the master at the cycle it shows in the inputs (the position sampled with
-    /// it, so within one period's travel of the edge). The drive's touch probe (0x60B8..
-    /// 0x60BA) is not mapped: an index-pulse latch stays unarmed.
+    /// An index or probe latch through the drive's touch probe 1 (unarmed when the PDOs do
+    /// not carry it: the kernel then takes the position of the period, or refuses the
+    /// machine file beforehand).
+    fn latch_touch_probe(&mut self, status: u16, values: [i32; 2]) {
+        use touch_probe_status::*;
+        if !self.touch_probe {
+            self.latch = LatchFeedback::default();
+            return;
+        }
+        match self.probe_arming {
+            ProbeArming::Disarming => {
+                if status & ENABLED == 0 {
+                    self.probe_arming = ProbeArming::Armed;
+                }
+                self.latch = LatchFeedback::default();
+            }
+            ProbeArming::Armed if self.latch.latched || status & ENABLED == 0 => {}
+            ProbeArming::Armed => {
+                let (stored, value) = match self.latch_request {
+                    Some(LatchSource::TouchProbe { rising: false }) => {
+                        (status & NEGATIVE_STORED, values[1])
+                    }
+                    _ => (status & POSITIVE_STORED, values[0]),
+                };
+                self.latch = if stored != 0 {
+                    LatchFeedback {
+                        armed: false,
+                        latched: true,
+                        position: f64::from(value) / self.counts_per_unit,
+                    }
+                } else {
+                    LatchFeedback {
+                        armed: true,
+                        latched: false,
+                        position: 0.0,
+                    }
+                };
+            }
+        }
+    }
+
+    /// The home switch's edge, latched by the master at the cycle it shows in the inputs
+    /// (the position sampled with it, so within one period's travel of the edge).
     fn latch_home_switch(&mut self, feedback: &JointFeedback) {
         if self.latch_request != Some(LatchSource::HomeSwitch) {
             self.latch = LatchFeedback::default();

@@ -13,8 +13,9 @@ use std::time::Duration;
 use rtcnc_ecat_slave_sim::config::SlaveConfig as SimulatedSlave;
 use rtcnc_ecat_slave_sim::dio::DioConfig;
 use rtcnc_ecat_slave_sim::drive::DriveConfig;
+use rtcnc_ecat_slave_sim::segment::{ProbeInput, ProbeWire};
 use rtcnc_ecat_slave_sim::{Segment, SegmentConfig};
-use rtcnc_fieldbus::sim::SimulatedJointConfig;
+use rtcnc_fieldbus::sim::{ProbeSide, SimulatedJointConfig};
 use rtcnc_fieldbus::{
     DriveMode, Fieldbus, FieldbusError, ProcessInputs, ProcessLayout, ProcessOutputs,
 };
@@ -25,6 +26,7 @@ use crate::clock::Clock;
 use crate::config::{ConfigError, EthercatConfig, SlaveConfig};
 use crate::link::SimulatedLink;
 use crate::master::{EthercatMaster, StartError};
+use crate::pdo::RxObject;
 
 /// Where the simulated bus's clock starts (ns): far enough from 0 that no time before it
 /// is ever needed.
@@ -128,7 +130,7 @@ impl Fieldbus for SimulatedBus {
 pub const SIMULATED_DIO_BITS: usize = 8;
 
 /// How the simulated devices behave (the machine file's `[fieldbus.simulation]`).
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SimulationConfig {
     /// Rate error of every device's clock against the master's (ppm): the distributed
@@ -141,6 +143,40 @@ pub struct SimulationConfig {
     /// Seed of the frame-loss draw. Default 1.
     #[serde(default = "one")]
     pub seed: u64,
+    /// A touch probe over a surface (`[fieldbus.simulation.probe]`). Absent: none.
+    #[serde(default)]
+    pub probe: Option<SimulatedProbe>,
+    /// Time from a touch probe's edge to the drives reporting its position (s); default
+    /// 0.001.
+    #[serde(default = "touch_probe_latency")]
+    pub touch_probe_latency_s: f64,
+}
+
+fn touch_probe_latency() -> f64 {
+    0.001
+}
+
+/// A touch probe over a flat surface across one joint's travel, wired into digital input
+/// `input` (on an I/O terminal) and into the touch probe 1 input of the drives of `drives`
+/// (each latches its own position at the probe's edge). In contact while the joint's load
+/// stands at or beyond `surface` (below it with `side = "below"`, the default), in the
+/// joint's own position (before homing offsets).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimulatedProbe {
+    /// Digital input of the process image (an I/O terminal's) the probe is wired to.
+    pub input: usize,
+    /// Joint whose load meets the surface.
+    pub joint: usize,
+    /// Where the surface is, joint units.
+    pub surface: f64,
+    /// Which side of the surface is in contact.
+    #[serde(default)]
+    pub side: ProbeSide,
+    /// Joints whose drives' touch probe 1 input the probe is wired to; absent: every drive
+    /// whose `rx_pdo` maps `touch_probe_function` (0x60B8).
+    #[serde(default)]
+    pub drives: Option<Vec<usize>>,
 }
 
 fn one() -> u64 {
@@ -153,6 +189,8 @@ impl Default for SimulationConfig {
             drift_ppm: 0.0,
             frame_loss_rate: 0.0,
             seed: 1,
+            probe: None,
+            touch_probe_latency_s: touch_probe_latency(),
         }
     }
 }
@@ -178,8 +216,32 @@ pub fn simulated_segment(
             "must be within ±1000 ppm".into(),
         ));
     }
+    if !(simulation.touch_probe_latency_s.is_finite()
+        && (0.0..=0.1).contains(&simulation.touch_probe_latency_s))
+    {
+        return Err(refuse(
+            "simulation.touch_probe_latency_s".into(),
+            "must be from 0 to 0.1 s".into(),
+        ));
+    }
     let mut slaves = Vec::with_capacity(config.slaves.len());
+    // Per device: the joint a drive moves; the first input of a terminal.
+    let mut drive_joints = Vec::with_capacity(config.slaves.len());
+    let mut terminal_inputs = Vec::with_capacity(config.slaves.len());
     for (n, slave) in config.slaves.iter().enumerate() {
+        match slave {
+            SlaveConfig::Cia402 { joint, rx_pdo, .. } => {
+                drive_joints.push(Some((
+                    *joint,
+                    rx_pdo.contains(&RxObject::TouchProbeFunction),
+                )));
+                terminal_inputs.push(None);
+            }
+            SlaveConfig::Dio { inputs, .. } => {
+                drive_joints.push(None);
+                terminal_inputs.push(Some(*inputs));
+            }
+        }
         let key = |k: &str| format!("slaves[{n}].{k}");
         let device = match slave {
             SlaveConfig::Cia402 {
@@ -216,6 +278,7 @@ pub fn simulated_segment(
                     drive: DriveConfig {
                         rated_torque_mnm: (rated_torque_nm * 1000.0).round().clamp(1.0, 1e9) as u32,
                         joint: motor,
+                        touch_probe_latency_s: simulation.touch_probe_latency_s,
                         ..DriveConfig::default()
                     },
                 }
@@ -253,10 +316,71 @@ pub fn simulated_segment(
         };
         slaves.push(device);
     }
+    let mut probes = Vec::new();
+    if let Some(probe) = &simulation.probe {
+        if !probe.surface.is_finite() {
+            return Err(refuse(
+                "simulation.probe.surface".into(),
+                "must be a number".into(),
+            ));
+        }
+        let device_of = |joint: usize| {
+            drive_joints
+                .iter()
+                .position(|d| d.is_some_and(|(j, _)| j == joint))
+        };
+        let sensed = device_of(probe.joint).ok_or_else(|| {
+            refuse(
+                "simulation.probe.joint".into(),
+                format!("no drive moves joint {}", probe.joint),
+            )
+        })?;
+        let drives = match &probe.drives {
+            Some(joints) => joints
+                .iter()
+                .map(|&j| {
+                    device_of(j).ok_or_else(|| {
+                        refuse(
+                            "simulation.probe.drives".into(),
+                            format!("no drive moves joint {j}"),
+                        )
+                    })
+                })
+                .collect::<Result<Vec<_>, _>>()?,
+            None => (0..drive_joints.len())
+                .filter(|&n| drive_joints[n].is_some_and(|(_, mapped)| mapped))
+                .collect(),
+        };
+        let input = terminal_inputs
+            .iter()
+            .enumerate()
+            .find_map(|(device, first)| {
+                first
+                    .filter(|&f| (f..f + SIMULATED_DIO_BITS).contains(&probe.input))
+                    .map(|f| ProbeInput {
+                        device,
+                        bit: (probe.input - f) as u8,
+                    })
+            })
+            .ok_or_else(|| {
+                refuse(
+                    "simulation.probe.input".into(),
+                    format!("no I/O terminal gives digital input {}", probe.input),
+                )
+            })?;
+        probes.push(ProbeWire {
+            sensed,
+            surface: probe.surface,
+            side: probe.side,
+            drives,
+            input: Some(input),
+        });
+    }
     let segment = SegmentConfig {
         seed: simulation.seed,
         frame_loss_rate: simulation.frame_loss_rate,
         slaves,
+        probes,
     };
     segment
         .build()

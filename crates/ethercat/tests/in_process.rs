@@ -169,8 +169,8 @@ fn the_master_moves_to_the_cycle_thread() {
 }
 
 /// The home switch's edge is latched by the master at the cycle it shows in the inputs, with
-/// the position sampled with it; an index-pulse latch stays unarmed (the touch probe is not
-/// mapped).
+/// the position sampled with it; an index-pulse latch stays unarmed (the default PDOs carry
+/// no touch probe: tests/touch_probe.rs for the one that does).
 #[test]
 fn the_home_switch_edge_is_latched_and_the_index_is_not() {
     let segment = "[[slaves]]\nkind = \"csp_drive\"\n[slaves.drive.joint]\ndrive = \"csp\"\n\

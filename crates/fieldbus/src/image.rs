@@ -43,8 +43,8 @@ pub enum LatchSource {
     HomeSwitch,
     /// The drive's touch-probe input (0x60B8 touch probe 1 on its external input), on the
     /// rising edge (the probe closes) or the falling edge (it opens). The position at the
-    /// edge's instant comes back as the latch (0x60BA/0x60BC), some time after the edge
-    /// (the drive's own latency).
+    /// edge's instant comes back as the latch (0x60BA rising, 0x60BB falling), some time
+    /// after the edge (the drive's own latency).
     TouchProbe {
         /// Latch on the rising edge, else on the falling one.
         rising: bool,

@@ -1477,11 +1477,49 @@ impl MachineConfig {
                     "EtherCAT drives run in cyclic synchronous position: \"csp\"",
                 ));
             }
-            if j.homing.is_some_and(|h| h.use_index) {
-                return Err(ConfigError::invalid(
-                    format!("joints[{i}].homing.use_index"),
-                    "the EtherCAT drives' touch probe is not mapped, so no index latch: home on the switch's edge (use_index = false)",
+        }
+        // A latch through the drive's touch probe needs its objects in the PDOs: probing
+        // (every axis joint's drive latches the probe's edge) and index homing.
+        let axis_joint = |j: usize| {
+            self.axes
+                .values()
+                .any(|a| a.joints.iter().any(|name| self.joints[j].name == *name))
+        };
+        for (n, slave) in master.slaves.iter().enumerate() {
+            let rtcnc_ethercat::SlaveConfig::Cia402 {
+                name,
+                joint,
+                rx_pdo,
+                tx_pdo,
+                ..
+            } = slave
+            else {
+                continue;
+            };
+            let mut needs = Vec::new();
+            if self.joints[*joint].homing.is_some_and(|h| h.use_index) {
+                needs.push((
+                    rtcnc_ethercat::pdo::LatchUse::IndexPulse,
+                    format!("joints[{joint}].homing.use_index"),
                 ));
+            }
+            if self.io.probe_input.is_some() && axis_joint(*joint) {
+                needs.push((
+                    rtcnc_ethercat::pdo::LatchUse::ProbeInput,
+                    "io.probe_input (probing latches every axis joint)".to_string(),
+                ));
+            }
+            for (what, why) in needs {
+                if let Some(object) =
+                    rtcnc_ethercat::pdo::missing_touch_probe_object(rx_pdo, tx_pdo, what)
+                {
+                    return Err(ConfigError::invalid(
+                        format!("fieldbus.slaves[{n}]"),
+                        format!(
+                            "drive {name} (joint {joint}) does not map {object}, which {why} needs: add it to the drive's PDOs"
+                        ),
+                    ));
+                }
             }
         }
         for (key, configured, bus) in [

@@ -146,11 +146,11 @@ fn an_ethercat_machine_file_is_checked_against_the_bus() {
         refusal(&format!("{}{}", &text[..p2], &text[next..])),
         "fieldbus.slaves: no drive moves joint 11 (P2)"
     );
-    // No index latch over EtherCAT yet (the touch probe is not mapped).
+    // An index latch over EtherCAT needs the drive's touch probe objects in its PDOs.
     let text = ethercat_text().replacen("use_index = false, ", "", 1);
     assert!(
         refusal(&text).starts_with(
-            "joints[0].homing.use_index: the EtherCAT drives' touch probe is not mapped"
+            "fieldbus.slaves[0]: drive X0 (joint 0) does not map 0x60B8 touch probe function (rx_pdo \"touch_probe_function\"), which joints[0].homing.use_index needs"
         ),
         "{}",
         refusal(&text)

@@ -2,9 +2,11 @@
 //! (`unshare -Urn`), a veth pair; on one end the EtherCAT slave simulator in a process of
 //! its own (this test binary run again as `serve_segment`), its devices built from the
 //! machine file; on the other the kernel's master on a raw socket, from
-//! configs/ethercat-sim-12.toml without `[fieldbus.simulation]`. The gantry program runs on
-//! the real-time runner to its end, then a drive fault and a pulled cable, sent to the
-//! simulator process as commands, reach the kernel as its faults. Timing is whatever the
+//! configs/ethercat-sim-12.toml without `[fieldbus.simulation]`, every drive's PDOs carrying
+//! its touch probe (0x60B8-0x60BB) and a probe over Z = -30.00001 wired into them and into
+//! input 6. The gantry program runs on the real-time runner to its end, a G38.2 takes the
+//! Z drive's latch from the simulator process, then a drive fault and a pulled cable, sent
+//! to the simulator process as commands, reach the kernel as its faults. Timing is whatever the
 //! shared machine gives: nothing here asserts a time, faults are awaited within seconds.
 
 mod common;
@@ -22,6 +24,8 @@ const INSIDE: &str = "RTCNC_KERNEL_INSIDE_NETNS";
 /// Tells a re-run of this binary to serve the segment on the simulator's end.
 const SERVE: &str = "RTCNC_KERNEL_SERVE_SEGMENT";
 const MASTER_END: &str = "m0";
+/// The probe's surface, below anything the gantry program does with Z.
+const SURFACE: f64 = -30.00001;
 const SIMULATOR_END: &str = "s0";
 
 /// The machine file on the veth pair: the devices on `m0`, given time to answer on a
@@ -36,6 +40,14 @@ fn machine_file() -> String {
         "following_error = { min_ferror = 0.1, ferror = 0.4,",
         "following_error = { min_ferror = 0.5, ferror = 1.0,",
     );
+    let text = text
+        .replace(
+            "rated_torque_nm = 1.27\n",
+            "rated_torque_nm = 1.27\n\
+             rx_pdo = [\"controlword\", \"target_position\", \"velocity_offset\", \"torque_offset\", \"touch_probe_function\"]\n\
+             tx_pdo = [\"statusword\", \"position_actual\", \"following_error_actual\", \"digital_inputs\", \"error_code\", \"touch_probe_status\", \"touch_probe_1_positive_edge\", \"touch_probe_1_negative_edge\"]\n",
+        )
+        .replace("analog_outputs = 0\n", "analog_outputs = 0\nprobe_input = 6\n");
     text.replacen(
         "interface = \"ecat0\"",
         &format!("interface = \"{MASTER_END}\"\nreply_timeout_us = 900\nsm_watchdog_ms = 2000"),
@@ -265,6 +277,68 @@ fn inside_the_namespace() {
     // X0's load, as its drive's encoder tells, within a following error of the end.
     assert!(status.state != MachineState::Fault);
 
+    // G38.2 at F600 onto the surface: #5063 is the Z drive's touch probe latch, read by
+    // the master from 0x60B9/0x60BA in the simulator process's frames, on the surface to
+    // the encoder's increment and the offset taken at power-up (tens of nm; 1 µm allowed),
+    // where the period's position is up to 10 µm late.
+    let mut probed = None;
+    for attempt in 0..5 {
+        let mdi = |line: &str| {
+            handle.command(rtcnc_kernel::Command::Mdi(
+                rtcnc_kernel::FixedText::new(line).unwrap(),
+            ));
+        };
+        // One MDI line at a time: each once the machine stands again.
+        let mut faults = Vec::new();
+        let run = |line: &str, faults: &mut Vec<rtcnc_kernel::Fault>| {
+            mdi(line);
+            wait_for(Duration::from_secs(2), || {
+                handle.status().state != MachineState::Idle
+            });
+            wait_for(Duration::from_secs(30), || {
+                faults.extend(handle.take_faults());
+                handle.status().state == MachineState::Idle || !faults.is_empty()
+            });
+        };
+        if attempt > 0 {
+            run("G0 Z0", &mut faults);
+        }
+        handle.take_messages();
+        run("G38.2 Z-40 F600", &mut faults);
+        if faults.is_empty() {
+            run("(DEBUG,z #5063 ok #5070)", &mut faults);
+        }
+        let messages: Vec<String> = handle
+            .take_messages()
+            .iter()
+            .map(|m| m.text.as_str().to_string())
+            .collect();
+        if faults.is_empty() && !messages.is_empty() {
+            probed = Some(messages[0].clone());
+            break;
+        }
+        assert!(host_was_late(&faults), "{faults:?} {messages:?}");
+        let described: Vec<String> = faults.iter().map(|f| handle.describe(f)).collect();
+        eprintln!("the probe again after {described:?}");
+        power_on(&handle);
+    }
+    let probed = probed.expect("G38.2 ended in five tries");
+    let number = |key: &str| -> f64 {
+        let start = probed.find(key).unwrap() + key.len();
+        probed[start..]
+            .split_whitespace()
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    assert_eq!(number("ok"), 1.0, "{probed}");
+    let z = number("z");
+    assert!((z - SURFACE).abs() <= 1e-3, "{probed}");
+    wait_for(Duration::from_secs(5), || {
+        handle.status().state == MachineState::Idle
+    });
+
     // A drive fault, by command to the simulator process.
     assert_eq!(simulator.command("drive-fault 4 0x2310"), "ok");
     let mut seen = Vec::new();
@@ -322,7 +396,16 @@ fn serve_segment() {
     let mut segment = rtcnc_ethercat::simulated_segment(
         master,
         &config.simulated_joints().unwrap(),
-        &rtcnc_ethercat::SimulationConfig::default(),
+        &rtcnc_ethercat::SimulationConfig {
+            probe: Some(rtcnc_ethercat::SimulatedProbe {
+                input: 6,
+                joint: 8,
+                surface: SURFACE,
+                side: Default::default(),
+                drives: None,
+            }),
+            ..rtcnc_ethercat::SimulationConfig::default()
+        },
     )
     .unwrap();
     let socket = RawSocket::open(SIMULATOR_END).expect("raw socket");

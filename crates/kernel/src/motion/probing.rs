@@ -17,7 +17,7 @@ use crate::messages::MachineResult;
 use crate::shared::{Feedback, Shared};
 
 /// How long after the probe input changed the drives' latch may come (their latency); a
-/// bus that maps no touch probe is given up on then.
+/// drive that reports none by then (its probe input not wired) is given up on.
 const LATCH_WAIT_S: f64 = 0.1;
 
 /// The probing move in progress.
