@@ -68,6 +68,10 @@ const MOTION: [(StdFb, &str); 12] = [
     (StdFb::McReadAxisError, "MC_READAXISERROR"),
 ];
 
+/// Most cells of any standard block's instance (the interpreter copies them to the stack
+/// to run the block).
+pub(crate) const MAX_CELLS: usize = 32;
+
 /// Direction of a member of a standard FB.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Dir {
@@ -167,7 +171,7 @@ impl StdFb {
             _ => return None,
         })
     }
-    /// Public members in slot order (offset = index).
+    /// Public members in cell order (byte offset = 8 × index).
     pub(crate) fn members(self) -> &'static [Member] {
         match self {
             StdFb::Ton | StdFb::Tof | StdFb::Tp => TIMER,
@@ -194,7 +198,8 @@ impl StdFb {
     pub fn is_motion(self) -> bool {
         MOTION.iter().any(|(f, _)| *f == self)
     }
-    /// Slots of an instance: the public members, then the hidden state.
+    /// Cells (8 bytes each) of an instance: the public members, then the hidden state.
+    /// Each member sits at the start of its cell, little-endian at its own width.
     pub(crate) fn size(self) -> u32 {
         self.members().len() as u32
             + match self {
@@ -207,9 +212,9 @@ impl StdFb {
     }
     /// Initial values of the hidden state (F_TRIG's memory starts TRUE, as the standard
     /// declares it, so a FALSE input on the first call gives no edge).
-    pub(crate) fn init_hidden(self, inst: &mut [u64]) {
+    pub(crate) fn init_hidden(self, inst: &mut [u8]) {
         if self == StdFb::FTrig {
-            if let Some(m) = inst.get_mut(2) {
+            if let Some(m) = inst.get_mut(2 * 8) {
                 *m = 1;
             }
         }
@@ -356,5 +361,23 @@ fn tp(s: &mut [u64], now: i64) {
     s[3] = et as u64;
     if et >= (s[1] as i64).max(0) {
         s[2] = 0;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_standard_block_fits_the_cells_the_interpreter_copies() {
+        let basic = [
+            "TON", "TOF", "TP", "CTU", "CTD", "CTUD", "R_TRIG", "F_TRIG", "SR", "RS",
+        ];
+        let names = basic.iter().copied().chain(MOTION.iter().map(|(_, n)| *n));
+        for n in names {
+            let fb = StdFb::from_name(n).expect(n);
+            assert!(fb.size() as usize <= MAX_CELLS, "{n}: {}", fb.size());
+            assert!(fb.members().len() <= fb.size() as usize, "{n}");
+        }
     }
 }
