@@ -415,9 +415,16 @@ impl Repr {
             _ => Repr::U64,
         }
     }
-    /// The register value of the bytes at `a` in `mem`; 0 outside it.
+    /// The register value of the bytes at `a` in `mem`; 0 outside it. Exactly the value's
+    /// bytes are read: a wider read would overlap a neighbour just stored (adjacent BOOLs)
+    /// and wait for that store to retire.
     #[inline(always)]
     pub(crate) fn load(self, mem: &[u8], a: usize) -> u64 {
+        // BOOL first, on a branch of its own: the commonest load of a PLC program, taken
+        // without the jump on the width.
+        if self == Repr::Bool {
+            return mem.get(a).map_or(0, |b| (*b != 0) as u64);
+        }
         match self {
             Repr::Bool => mem.get(a).map_or(0, |b| (*b != 0) as u64),
             Repr::I8 => mem.get(a).map_or(0, |b| *b as i8 as i64 as u64),
@@ -430,9 +437,13 @@ impl Repr {
             Repr::U64 => bytes::<8>(mem, a).map_or(0, u64::from_le_bytes),
         }
     }
-    /// Stores register value `v` at `a` in `mem`; nothing outside it.
+    /// Stores register value `v` at `a` in `mem`: exactly the value's bytes, nothing
+    /// outside `mem`.
     #[inline(always)]
     pub(crate) fn store(self, mem: &mut [u8], a: usize, v: u64) {
+        if self == Repr::Bool {
+            return put(mem, a, [(v & 1) as u8]);
+        }
         match self {
             Repr::Bool => put(mem, a, [(v & 1) as u8]),
             Repr::I8 | Repr::U8 => put(mem, a, [v as u8]),
@@ -501,6 +512,69 @@ pub fn widens(from: Elem, to: Elem) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn loads_and_stores_read_and_write_only_the_values_own_bytes() {
+        let all = [
+            Repr::Bool,
+            Repr::I8,
+            Repr::U8,
+            Repr::I16,
+            Repr::U16,
+            Repr::I32,
+            Repr::U32,
+            Repr::F32,
+            Repr::U64,
+        ];
+        let pattern = 0x8899_AABB_CCDD_EEFF_u64.to_le_bytes();
+        for r in all {
+            // With 8 bytes after it or only its own: the same value.
+            let mut mem = [0u8; 24];
+            mem[4..12].copy_from_slice(&pattern);
+            let fast = r.load(&mem, 4);
+            let width = match r {
+                Repr::Bool | Repr::I8 | Repr::U8 => 1,
+                Repr::I16 | Repr::U16 => 2,
+                Repr::I32 | Repr::U32 | Repr::F32 => 4,
+                Repr::U64 => 8,
+            };
+            let near = r.load(&mem[..4 + width], 4);
+            assert_eq!(fast, near, "{r:?}");
+            let want = match r {
+                Repr::Bool => 1,
+                Repr::I8 => 0xFF_u8 as i8 as i64 as u64,
+                Repr::U8 => 0xFF,
+                Repr::I16 => 0xEEFF_u16 as i16 as i64 as u64,
+                Repr::U16 => 0xEEFF,
+                Repr::I32 => 0xCCDD_EEFF_u32 as i32 as i64 as u64,
+                Repr::U32 => 0xCCDD_EEFF,
+                Repr::F32 => (f32::from_bits(0xCCDD_EEFF) as f64).to_bits(),
+                Repr::U64 => 0x8899_AABB_CCDD_EEFF,
+            };
+            assert_eq!(fast, want, "{r:?}");
+            // A store changes the value's bytes and no other.
+            let v = match r {
+                Repr::F32 => 1.0f64.to_bits(),
+                _ => 0x0102_0304_0506_0708,
+            };
+            let mut a = mem;
+            r.store(&mut a, 4, v);
+            let mut b = mem;
+            r.store(&mut b[..4 + width], 4, v);
+            assert_eq!(a, b, "{r:?}");
+            assert_eq!(a[..4], mem[..4], "{r:?}");
+            assert_eq!(a[4 + width..], mem[4 + width..], "{r:?}");
+            let back = match r {
+                Repr::Bool => 0,
+                Repr::I8 | Repr::U8 => 0x08,
+                Repr::I16 | Repr::U16 => 0x0708,
+                Repr::I32 | Repr::U32 => 0x0506_0708,
+                Repr::F32 => 1.0f64.to_bits(),
+                Repr::U64 => v,
+            };
+            assert_eq!(r.load(&a, 4), back, "{r:?}");
+        }
+    }
 
     #[test]
     fn the_f64_range_is_the_integer_range_rounded() {

@@ -973,23 +973,28 @@ impl Vm {
         }
         match call.kind {
             FbKind::Std(fb) => {
-                // The block computes on register values: its cells (8 bytes each) are
-                // read by their members' types, so a member written at its own width by
-                // the program (an INT PV) is seen sign-extended, and written back whole.
-                let mut cells = [0u64; crate::stdfb::MAX_CELLS];
-                let n = (fb.size() as usize).min(cells.len());
-                let members = fb.members();
-                for (i, cell) in cells.iter_mut().enumerate().take(n) {
-                    let r = members.get(i).map_or(Repr::U64, |m| Repr::of(m.1));
-                    *cell = self.ld(inst + 8 * i, r);
+                // The block computes on register values in its cells (8 bytes each). The
+                // program writes a member at its own width, which leaves a signed or
+                // REAL input in another encoding: those are widened first.
+                if fb.has_narrow_inputs() {
+                    for (i, m) in fb.members().iter().enumerate() {
+                        let r = Repr::of(m.1);
+                        if m.2 == crate::stdfb::Dir::In
+                            && matches!(r, Repr::I8 | Repr::I16 | Repr::I32 | Repr::F32)
+                        {
+                            let v = self.ld(inst + 8 * i, r);
+                            self.st(inst + 8 * i, Repr::U64, v);
+                        }
+                    }
                 }
-                if fb.is_motion() {
-                    crate::plcopen::run(fb, &mut cells[..n], &mut self.axes);
-                } else {
-                    fb.run(&mut cells[..n], self.now);
-                }
-                for (i, cell) in cells.iter().enumerate().take(n) {
-                    self.st(inst + 8 * i, Repr::U64, *cell);
+                let end = inst.saturating_add(8 * fb.size() as usize);
+                if let Some(s) = self.mem.get_mut(inst..end) {
+                    let mut cells = crate::stdfb::Cells(s);
+                    if fb.is_motion() {
+                        crate::plcopen::run(fb, &mut cells, &mut self.axes);
+                    } else {
+                        fb.run(&mut cells, self.now);
+                    }
                 }
             }
             FbKind::User(id) => {
@@ -1052,7 +1057,10 @@ impl Vm {
                     // A fault in the value or the index: the assignment does not happen.
                     return Flow::Fault;
                 }
-                self.store_at(a, v, *st);
+                match st {
+                    Store::Scalar(r) => self.st(a, *r, v),
+                    _ => self.store_at(a, v, *st),
+                }
             }
             StmtKind::StoreBit(p, r, bit, e) => {
                 let v = self.eval(c, e);

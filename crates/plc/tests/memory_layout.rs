@@ -390,3 +390,20 @@ fn codesys_unscanned(src: &str) -> Runtime {
         compile_sources(&[(src, "layout.st")], &options).unwrap_or_else(|e| panic!("{e}"));
     Runtime::new(Arc::new(program))
 }
+
+/// A standard block's INT input written at its own width (2 bytes) is read as the INT it
+/// is: a negative preset stays negative.
+#[test]
+fn standard_blocks_read_narrow_inputs_at_their_width() {
+    let rt = plc_scanned(
+        "PROGRAM P
+VAR down : CTD; up : CTU; q_down, q_up : BOOL; cv_down : INT; END_VAR
+down(CD := FALSE, LD := TRUE, PV := -2, Q => q_down, CV => cv_down);
+up(CU := FALSE, R := FALSE, PV := -1, Q => q_up);
+END_PROGRAM",
+    );
+    // CTD loads CV with PV: -2, and Q is CV <= 0; CTU's Q is CV (0) >= PV (-1).
+    assert_eq!(int(&rt, "cv_down"), -2);
+    assert!(boolean(&rt, "q_down"));
+    assert!(boolean(&rt, "q_up"));
+}
