@@ -537,7 +537,7 @@ layout!(
     ]
 );
 
-/// Hidden slots after the members: previous Execute, the command number, and whether
+/// Hidden cells after the members: previous Execute, the command number, and whether
 /// the outputs were shown with Execute already FALSE.
 pub(crate) const HIDDEN: u32 = 3;
 
@@ -562,7 +562,7 @@ impl Slots<'_, '_> {
     }
 }
 
-/// Runs a motion block on its instance slots; `axes` are the configured axes (an
+/// Runs a motion block on its instance cells; `axes` are the configured axes (an
 /// AXIS_REF holds the axis number, 1-based).
 pub(crate) fn run(fb: StdFb, s: &mut Cells, axes: &mut [Axis]) {
     let n = fb.members().len();

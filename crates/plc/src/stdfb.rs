@@ -1,5 +1,5 @@
 //! The standard function blocks of IEC 61131-3 (timers, counters, edge detectors and
-//! bistables), run natively on the instance's slots. The PLC's time is the scan time
+//! bistables), run natively on the instance's cells. The PLC's time is the scan time
 //! handed in by the caller, so they behave the same in virtual and real time.
 
 use crate::types::Elem;
@@ -256,7 +256,7 @@ impl StdFb {
         }
     }
 
-    /// Runs the block on its instance slots at scan time `now` (nanoseconds).
+    /// Runs the block on its instance cells at scan time `now` (nanoseconds).
     #[inline]
     pub(crate) fn run(self, s: &mut Cells, now: i64) {
         // The compiler sizes every instance with `size()`; a shorter slice is a bug and

@@ -161,7 +161,7 @@ impl Elem {
     }
 }
 
-/// Width and signedness of an integer slot value, for wrap-around after arithmetic.
+/// Width and signedness of an integer register value, for wrap-around after arithmetic.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 #[allow(missing_docs)]
 pub enum IntKind {
@@ -425,6 +425,12 @@ impl Repr {
         if self == Repr::Bool {
             return mem.get(a).map_or(0, |b| (*b != 0) as u64);
         }
+        self.load_wide(mem, a)
+    }
+    /// [`load`](Self::load) of the types other than BOOL: one copy of the jump on the
+    /// width, out of the interpreter's loop, which stays small.
+    #[inline(never)]
+    fn load_wide(self, mem: &[u8], a: usize) -> u64 {
         match self {
             Repr::Bool => mem.get(a).map_or(0, |b| (*b != 0) as u64),
             Repr::I8 => mem.get(a).map_or(0, |b| *b as i8 as i64 as u64),
@@ -444,6 +450,10 @@ impl Repr {
         if self == Repr::Bool {
             return put(mem, a, [(v & 1) as u8]);
         }
+        self.store_wide(mem, a, v)
+    }
+    #[inline(never)]
+    fn store_wide(self, mem: &mut [u8], a: usize, v: u64) {
         match self {
             Repr::Bool => put(mem, a, [(v & 1) as u8]),
             Repr::I8 | Repr::U8 => put(mem, a, [v as u8]),

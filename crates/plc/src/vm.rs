@@ -102,7 +102,7 @@ pub(crate) enum Bin {
     DivTimeR,
 }
 
-/// Conversions between slot encodings.
+/// Conversions between register encodings.
 #[derive(Debug, Clone, Copy)]
 pub(crate) enum Conv {
     /// Integer to integer: wrap to the target width.
@@ -208,7 +208,7 @@ pub(crate) enum Expr {
     /// Both operands in one allocation, next to each other in memory.
     Bin(Bin, Box<(Expr, Expr)>),
     /// Specialised shapes of the commonest PLC expressions (contacts and comparisons):
-    /// `NOT a`, `a op b` on two absolute slots, `e op constant`.
+    /// `NOT a`, `a op b` on two absolute addresses, `e op constant`.
     NotAbs(u32),
     BinAbs(Bin, u32, u32, Repr, Repr),
     BinK(Bin, Box<Expr>, u64),
@@ -235,7 +235,7 @@ pub(crate) struct EnabledCall {
     pub eno: Option<(Place, Repr, Option<u8>, bool)>,
 }
 
-/// A method call resolved at run time by the type tag in the instance's first slot.
+/// A method call resolved at run time by the type tag in the instance's first 8 bytes.
 #[derive(Debug)]
 pub(crate) struct VirtualCall {
     pub instance: Place,
@@ -256,7 +256,7 @@ pub(crate) enum Store {
 }
 
 /// One input (or VAR_IN_OUT address) of a call: evaluated into `temp` unless the call is
-/// direct, then copied to the parameter slot.
+/// direct, then copied to the parameter.
 #[derive(Debug)]
 pub(crate) struct ArgIn {
     pub value: Expr,
@@ -473,17 +473,14 @@ impl Vm {
         };
         if d.indirect {
             let target = self.ld(a, Repr::U64);
-            let end = target
-                .checked_add(d.offset as u64)
-                .and_then(|x| x.checked_add(d.span as u64));
             if target == 0 {
                 self.raise(FaultKind::NullReference);
                 return 0;
             }
-            if target < FIRST_ADDRESS as u64 || end.is_none_or(|e| e > self.mem.len() as u64) {
-                self.raise(FaultKind::PointerOutOfRange {
-                    address: target.wrapping_add(d.offset as u64),
-                });
+            // Inside memory here; the whole access is checked once the offset and the
+            // indices are added (below).
+            if target < FIRST_ADDRESS as u64 || target > self.mem.len() as u64 {
+                self.raise(FaultKind::PointerOutOfRange { address: target });
                 return 0;
             }
             a = target as usize;
@@ -503,8 +500,8 @@ impl Vm {
             a += k as usize * s.stride as usize;
         }
         if d.indirect && a.saturating_add(d.span as usize) > self.mem.len() {
-            // An index inside the bounds of an array whose address came from a pointer
-            // may still run past the memory's end.
+            // The bytes accessed through the address (at its offset, at an index inside
+            // the bounds of an array it points to) run past the memory's end.
             self.raise(FaultKind::PointerOutOfRange { address: a as u64 });
             return 0;
         }
@@ -1203,7 +1200,7 @@ fn int_beyond(v: u64, acc: u64, signed: bool, max: bool) -> bool {
     if max { greater } else { less }
 }
 
-/// Applies a conversion to a slot value.
+/// Applies a conversion to a register value.
 pub(crate) fn conv(cv: Conv, v: u64) -> u64 {
     match cv {
         Conv::Int(k) => k.wrap(v),

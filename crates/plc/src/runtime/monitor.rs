@@ -213,7 +213,7 @@ impl Runtime {
         self.forces.clear();
     }
 
-    /// Slots currently forced.
+    /// Byte addresses of the variables currently forced ([`VarRef::slot`]).
     ///
     /// Real-time: yes (no allocation, no blocking).
     pub fn forced_slots(&self) -> impl Iterator<Item = u32> + '_ {
