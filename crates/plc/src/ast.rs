@@ -59,8 +59,10 @@ pub(crate) enum TypeSpec {
         elem: Box<TypeSpec>,
         pos: Pos,
     },
+    /// A STRUCT, or a UNION (`union`: every field at offset 0, sharing its bytes).
     Struct {
         fields: Vec<VarDecl>,
+        union: bool,
         pos: Pos,
     },
     Enum {

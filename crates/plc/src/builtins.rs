@@ -2,7 +2,7 @@
 //! bit-string, selection, comparison and string functions.
 
 use crate::ast::{Arg, BinOp, Name};
-use crate::compiler::{Compiler, R, Scope, TE, Ty, builtin_expr, literal_elem};
+use crate::compiler::{Compiler, R, Scope, TE, Ty, builtin_expr, builtin_expr_wide, literal_elem};
 use crate::error::{ErrorKind, Pos};
 use crate::types::{Elem, IntKind, MAX_STRING_LEN, Type, as_unsigned, widens};
 use crate::vm::{self, Builtin, Conv};
@@ -571,8 +571,9 @@ fn comparison(
 /// `LEN` of a string.
 fn length(c: &mut Compiler, f: &str, mut a: Vec<(TE, Pos)>, pos: Pos) -> R<TE> {
     count(c, f, &a, 1, 1, pos)?;
+    let wide = matches!(a[0].0.ty, Ty::T(Type::WString(_)));
     let s = string_arg(c, f, a.remove(0))?;
-    let e = builtin_expr(Builtin::Len, vec![s], 0);
+    let e = builtin_expr_wide(Builtin::Len, vec![s], 0, wide);
     Ok(Compiler::te(Ty::T(Type::Elem(Elem::Int)), e))
 }
 
@@ -584,11 +585,12 @@ fn find(c: &mut Compiler, f: &str, mut a: Vec<(TE, Pos)>, pos: Pos) -> R<TE> {
         let want = if wide(&a[0]) { "a WSTRING" } else { "a STRING" };
         return Err(wrong(c, f, &a[1].0.ty, a[1].1, want));
     }
+    let w = wide(&a[0]);
     let s1 = string_arg(c, f, a.remove(0))?;
     let s2 = string_arg(c, f, a.remove(0))?;
     Ok(Compiler::te(
         Ty::T(Type::Elem(Elem::Int)),
-        builtin_expr(Builtin::Find, vec![s1, s2], 0),
+        builtin_expr_wide(Builtin::Find, vec![s1, s2], 0, w),
     ))
 }
 
@@ -634,7 +636,10 @@ fn string_function(c: &mut Compiler, f: &str, a: Vec<(TE, Pos)>, pos: Pos) -> R<
     } else {
         Type::String(MAX_STRING_LEN)
     };
-    Ok(Compiler::te(Ty::T(ty), builtin_expr(b, vals, dest)))
+    Ok(Compiler::te(
+        Ty::T(ty),
+        builtin_expr_wide(b, vals, dest, wide),
+    ))
 }
 
 /// `TRUNC`: a real to DINT, towards zero.
@@ -821,7 +826,7 @@ fn conversion(c: &mut Compiler, f: &str, args: &[Arg], sc: &mut Scope, pos: Pos)
         }
         (ConversionKind::To, Some(s), Some(t)) => c.conversion(xe, s, t),
         (ConversionKind::To, Some(s), None) => to_string(c, s, xe, pos)?,
-        (ConversionKind::To, None, Some(t)) => from_string(t, xe),
+        (ConversionKind::To, None, Some(t)) => from_string(t, xe, false),
         (ConversionKind::To, None, None) => xe,
     };
     Ok(Some(Compiler::te(Ty::T(result_ty), out)))
@@ -881,7 +886,7 @@ fn wide_conversion(
         return Ok(Some(match target {
             None => Compiler::te(Ty::T(Type::WString(MAX_STRING_LEN)), xe),
             Some(None) => recode(c, xe, false, pos)?,
-            Some(Some(t)) => Compiler::te(Ty::T(Type::Elem(t)), from_string(t, xe)),
+            Some(Some(t)) => Compiler::te(Ty::T(Type::Elem(t)), from_string(t, xe, true)),
         }));
     }
     if from.is_none() && matches!(x.ty, Ty::T(Type::WString(_))) {
@@ -967,7 +972,7 @@ fn to_string(c: &mut Compiler, s: Elem, xe: vm::Expr, pos: Pos) -> R<vm::Expr> {
 }
 
 /// Text read as a value of elementary type `t`.
-fn from_string(t: Elem, xe: vm::Expr) -> vm::Expr {
+fn from_string(t: Elem, xe: vm::Expr, wide: bool) -> vm::Expr {
     let b = if t == Elem::Bool {
         Builtin::StrToBool
     } else if t.is_real() {
@@ -979,7 +984,7 @@ fn from_string(t: Elem, xe: vm::Expr) -> vm::Expr {
     } else {
         Builtin::StrToInt(ik(t))
     };
-    builtin_expr(b, vec![xe], 0)
+    builtin_expr_wide(b, vec![xe], 0, wide)
 }
 
 /// True if the expression calls a function or method anywhere.

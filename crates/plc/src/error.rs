@@ -191,10 +191,10 @@ pub enum FaultKind {
     /// A pointer, reference or interface that points nowhere was used, or an interface
     /// holds an instance of no type that implements the method called.
     NullReference,
-    /// A pointer that does not point at the start of a value was used: memory is 8-byte
-    /// slots, so `p + 1` on a POINTER TO BYTE (a C size) lands inside a slot.
-    MisalignedPointer {
-        /// The pointer's value.
+    /// A pointer was used whose target (with the bytes read or written there) is not
+    /// inside the program's memory.
+    PointerOutOfRange {
+        /// The address accessed.
         address: u64,
     },
 }
@@ -225,7 +225,7 @@ impl Fault {
             FaultKind::WatchdogExceeded { .. } => "watchdog",
             FaultKind::ZeroForStep => "zero-for-step",
             FaultKind::NullReference => "null-reference",
-            FaultKind::MisalignedPointer { .. } => "misaligned-pointer",
+            FaultKind::PointerOutOfRange { .. } => "pointer-out-of-range",
         }
     }
     /// Plain message.
@@ -249,10 +249,9 @@ impl Fault {
             FaultKind::NullReference => {
                 "a pointer, reference or interface that points to nothing was used".into()
             }
-            FaultKind::MisalignedPointer { address } => format!(
-                "pointer {address} does not point at the start of a value (every value \
-                 takes 8 bytes: move pointers by SIZEOF)"
-            ),
+            FaultKind::PointerOutOfRange { address } => {
+                format!("pointer access at address {address} outside the PLC's memory")
+            }
         }
     }
 }

@@ -453,21 +453,20 @@ impl Parser<'_> {
                 pos,
             });
         }
-        if self.is_kw("UNION") {
-            return Err(self.err(
-                "UNION is not supported: memory is 8-byte slots, so members cannot share bytes; \
-                 use a STRUCT, bit access (w.3) or SHL/SHR",
-            ));
-        }
-        if self.eat_kw("STRUCT") {
-            let mut fields = Vec::new();
-            while !self.eat_kw("END_STRUCT") {
-                if self.at_block_end() {
-                    return Err(self.unclosed("END_STRUCT", "STRUCT", pos));
+        for (open, close, union) in [
+            ("STRUCT", "END_STRUCT", false),
+            ("UNION", "END_UNION", true),
+        ] {
+            if self.eat_kw(open) {
+                let mut fields = Vec::new();
+                while !self.eat_kw(close) {
+                    if self.at_block_end() {
+                        return Err(self.unclosed(close, open, pos));
+                    }
+                    fields.push(self.var_decl(false)?);
                 }
-                fields.push(self.var_decl(false)?);
+                return Ok(TypeSpec::Struct { fields, union, pos });
             }
-            return Ok(TypeSpec::Struct { fields, pos });
         }
         if self.peek() == &Tok::LParen {
             let open = self.pos();

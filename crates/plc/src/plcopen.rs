@@ -18,7 +18,7 @@
 use rtcnc_motion::otg::{Limits, OnlineAxis, State};
 use serde::Deserialize;
 
-use crate::stdfb::StdFb;
+use crate::stdfb::{Cells, StdFb};
 
 /// Limits of an auxiliary axis, in its units (mm or degrees) and seconds.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
@@ -537,7 +537,7 @@ layout!(
     ]
 );
 
-/// Hidden slots after the members: previous Execute, the command number, and whether
+/// Hidden cells after the members: previous Execute, the command number, and whether
 /// the outputs were shown with Execute already FALSE.
 pub(crate) const HIDDEN: u32 = 3;
 
@@ -547,26 +547,24 @@ fn f(v: u64) -> f64 {
     f64::from_bits(v)
 }
 
-/// The slots of one block instance, by member index.
-struct Slots<'a>(&'a mut [u64]);
+/// The cells of one block instance, by member index.
+struct Slots<'a, 'b>(&'a mut Cells<'b>);
 
-impl Slots<'_> {
+impl Slots<'_, '_> {
     fn get(&self, i: usize) -> u64 {
-        self.0.get(i).copied().unwrap_or(0)
+        self.0.get(i)
     }
     fn set(&mut self, i: usize, v: u64) {
-        if let Some(s) = self.0.get_mut(i) {
-            *s = v;
-        }
+        self.0.set(i, v)
     }
     fn flag(&self, i: usize) -> bool {
         self.get(i) & 1 != 0
     }
 }
 
-/// Runs a motion block on its instance slots; `axes` are the configured axes (an
+/// Runs a motion block on its instance cells; `axes` are the configured axes (an
 /// AXIS_REF holds the axis number, 1-based).
-pub(crate) fn run(fb: StdFb, s: &mut [u64], axes: &mut [Axis]) {
+pub(crate) fn run(fb: StdFb, s: &mut Cells, axes: &mut [Axis]) {
     let n = fb.members().len();
     let mut s = Slots(s);
     let axis = (s.get(0) as usize)

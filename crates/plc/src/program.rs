@@ -93,7 +93,7 @@ pub struct TaskDesc {
 pub struct Program {
     pub(crate) file: String,
     pub(crate) code: Code,
-    pub(crate) init: Vec<u64>,
+    pub(crate) init: Vec<u8>,
     pub(crate) globals: Vec<Symbol>,
     pub(crate) instances: Vec<ProgramInstance>,
     pub(crate) tasks: Vec<TaskDesc>,
@@ -140,10 +140,10 @@ impl Program {
     pub fn pou_count(&self) -> usize {
         self.pou_count
     }
-    /// Slots of PLC memory a runtime instance allocates (8 bytes each).
+    /// Bytes of PLC memory a runtime instance allocates.
     ///
     /// Real-time: yes (no allocation, no blocking).
-    pub fn memory_slots(&self) -> usize {
+    pub fn memory_bytes(&self) -> usize {
         self.init.len()
     }
     /// Bytes of the input (`%I`), output (`%Q`) and marker (`%M`) images the located

@@ -1,5 +1,5 @@
 //! The standard function blocks of IEC 61131-3 (timers, counters, edge detectors and
-//! bistables), run natively on the instance's slots. The PLC's time is the scan time
+//! bistables), run natively on the instance's cells. The PLC's time is the scan time
 //! handed in by the caller, so they behave the same in virtual and real time.
 
 use crate::types::Elem;
@@ -67,6 +67,34 @@ const MOTION: [(StdFb, &str); 12] = [
     (StdFb::McReadStatus, "MC_READSTATUS"),
     (StdFb::McReadAxisError, "MC_READAXISERROR"),
 ];
+
+/// The cells of one standard block's instance, 8 bytes each in PLC memory, holding
+/// register values (BOOL 0 or 1, integers sign- or zero-extended, LREAL bits): a member
+/// read at its own width from the start of its cell reads the same value.
+pub(crate) struct Cells<'a>(pub(crate) &'a mut [u8]);
+
+impl Cells<'_> {
+    /// Number of cells.
+    #[inline(always)]
+    pub(crate) fn len(&self) -> usize {
+        self.0.len() / 8
+    }
+    /// Cell `i`; 0 past the end.
+    #[inline(always)]
+    pub(crate) fn get(&self, i: usize) -> u64 {
+        self.0
+            .get(8 * i..8 * i + 8)
+            .and_then(|b| b.try_into().ok())
+            .map_or(0, u64::from_le_bytes)
+    }
+    /// Sets cell `i`; nothing past the end.
+    #[inline(always)]
+    pub(crate) fn set(&mut self, i: usize, v: u64) {
+        if let Some(b) = self.0.get_mut(8 * i..8 * i + 8) {
+            b.copy_from_slice(&v.to_le_bytes());
+        }
+    }
+}
 
 /// Direction of a member of a standard FB.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -167,7 +195,7 @@ impl StdFb {
             _ => return None,
         })
     }
-    /// Public members in slot order (offset = index).
+    /// Public members in cell order (byte offset = 8 × index).
     pub(crate) fn members(self) -> &'static [Member] {
         match self {
             StdFb::Ton | StdFb::Tof | StdFb::Tp => TIMER,
@@ -190,11 +218,24 @@ impl StdFb {
             StdFb::McReadAxisError => crate::plcopen::READ_ERROR,
         }
     }
+    /// Has an input of a signed integer narrower than 8 bytes or a REAL, which the
+    /// program writes at its own width and the block reads widened.
+    #[inline]
+    pub(crate) fn has_narrow_inputs(self) -> bool {
+        use StdFb::*;
+        if matches!(self, Ton | Tof | Tp | RTrig | FTrig | Sr | Rs) {
+            return false;
+        }
+        self.members().iter().any(|(_, e, d)| {
+            *d == Dir::In && matches!(e, Elem::SInt | Elem::Int | Elem::DInt | Elem::Real)
+        })
+    }
     /// A PLCopen motion block (run by the runtime, which owns the axes).
     pub fn is_motion(self) -> bool {
         MOTION.iter().any(|(f, _)| *f == self)
     }
-    /// Slots of an instance: the public members, then the hidden state.
+    /// Cells (8 bytes each) of an instance: the public members, then the hidden state.
+    /// Each member sits at the start of its cell, little-endian at its own width.
     pub(crate) fn size(self) -> u32 {
         self.members().len() as u32
             + match self {
@@ -207,17 +248,17 @@ impl StdFb {
     }
     /// Initial values of the hidden state (F_TRIG's memory starts TRUE, as the standard
     /// declares it, so a FALSE input on the first call gives no edge).
-    pub(crate) fn init_hidden(self, inst: &mut [u64]) {
+    pub(crate) fn init_hidden(self, inst: &mut [u8]) {
         if self == StdFb::FTrig {
-            if let Some(m) = inst.get_mut(2) {
+            if let Some(m) = inst.get_mut(2 * 8) {
                 *m = 1;
             }
         }
     }
 
-    /// Runs the block on its instance slots at scan time `now` (nanoseconds).
+    /// Runs the block on its instance cells at scan time `now` (nanoseconds).
     #[inline]
-    pub(crate) fn run(self, s: &mut [u64], now: i64) {
+    pub(crate) fn run(self, s: &mut Cells, now: i64) {
         // The compiler sizes every instance with `size()`; a shorter slice is a bug and
         // the block then does nothing rather than panic.
         if s.len() < self.size() as usize {
@@ -228,55 +269,55 @@ impl StdFb {
             StdFb::Tof => tof(s, now),
             StdFb::Tp => tp(s, now),
             StdFb::RTrig => {
-                let clk = s[0] & 1;
-                s[1] = clk & !s[2] & 1;
-                s[2] = clk;
+                let clk = s.get(0) & 1;
+                s.set(1, clk & !s.get(2) & 1);
+                s.set(2, clk);
             }
             StdFb::FTrig => {
-                let nclk = !s[0] & 1;
-                s[1] = nclk & !s[2] & 1;
-                s[2] = nclk;
+                let nclk = !s.get(0) & 1;
+                s.set(1, nclk & !s.get(2) & 1);
+                s.set(2, nclk);
             }
-            StdFb::Sr => s[2] = (s[0] | (!s[1] & s[2])) & 1,
-            StdFb::Rs => s[2] = (!s[1] & (s[0] | s[2])) & 1,
+            StdFb::Sr => s.set(2, (s.get(0) | (!s.get(1) & s.get(2))) & 1),
+            StdFb::Rs => s.set(2, (!s.get(1) & (s.get(0) | s.get(2))) & 1),
             // Motion blocks need the axes: the VM runs them (`plcopen::run`).
             _ if self.is_motion() => {}
             StdFb::Ctu => {
-                let edge = s[0] & !s[5] & 1 != 0;
-                s[5] = s[0] & 1;
-                let mut cv = s[4] as i64;
-                let pv = s[2] as i64;
-                if s[1] & 1 != 0 {
+                let edge = s.get(0) & !s.get(5) & 1 != 0;
+                s.set(5, s.get(0) & 1);
+                let mut cv = s.get(4) as i64;
+                let pv = s.get(2) as i64;
+                if s.get(1) & 1 != 0 {
                     cv = 0;
                 } else if edge && cv < i16::MAX as i64 {
                     cv += 1;
                 }
-                s[4] = cv as u64;
-                s[3] = (cv >= pv) as u64;
+                s.set(4, cv as u64);
+                s.set(3, (cv >= pv) as u64);
             }
             StdFb::Ctd => {
-                let edge = s[0] & !s[5] & 1 != 0;
-                s[5] = s[0] & 1;
-                let mut cv = s[4] as i64;
-                let pv = s[2] as i64;
-                if s[1] & 1 != 0 {
+                let edge = s.get(0) & !s.get(5) & 1 != 0;
+                s.set(5, s.get(0) & 1);
+                let mut cv = s.get(4) as i64;
+                let pv = s.get(2) as i64;
+                if s.get(1) & 1 != 0 {
                     cv = pv;
                 } else if edge && cv > i16::MIN as i64 {
                     cv -= 1;
                 }
-                s[4] = cv as u64;
-                s[3] = (cv <= 0) as u64;
+                s.set(4, cv as u64);
+                s.set(3, (cv <= 0) as u64);
             }
             StdFb::Ctud => {
-                let up = s[0] & !s[8] & 1 != 0;
-                let down = s[1] & !s[9] & 1 != 0;
-                s[8] = s[0] & 1;
-                s[9] = s[1] & 1;
-                let mut cv = s[7] as i64;
-                let pv = s[4] as i64;
-                if s[2] & 1 != 0 {
+                let up = s.get(0) & !s.get(8) & 1 != 0;
+                let down = s.get(1) & !s.get(9) & 1 != 0;
+                s.set(8, s.get(0) & 1);
+                s.set(9, s.get(1) & 1);
+                let mut cv = s.get(7) as i64;
+                let pv = s.get(4) as i64;
+                if s.get(2) & 1 != 0 {
                     cv = 0;
-                } else if s[3] & 1 != 0 {
+                } else if s.get(3) & 1 != 0 {
                     cv = pv;
                 } else if !(up && down) {
                     if up && cv < i16::MAX as i64 {
@@ -285,76 +326,100 @@ impl StdFb {
                         cv -= 1;
                     }
                 }
-                s[7] = cv as u64;
-                s[5] = (cv >= pv) as u64;
-                s[6] = (cv <= 0) as u64;
+                s.set(7, cv as u64);
+                s.set(5, (cv >= pv) as u64);
+                s.set(6, (cv <= 0) as u64);
             }
             _ => {}
         }
     }
 }
 
-// Timer slots: 0 IN, 1 PT, 2 Q, 3 ET, 4 start time, 5 running, 6 previous IN.
+// Timer cells: 0 IN, 1 PT, 2 Q, 3 ET, 4 start time, 5 running, 6 previous IN.
 
-fn elapsed(s: &[u64], now: i64) -> i64 {
-    let pt = (s[1] as i64).max(0);
-    now.saturating_sub(s[4] as i64).clamp(0, pt)
+fn elapsed(s: &Cells, now: i64) -> i64 {
+    let pt = (s.get(1) as i64).max(0);
+    now.saturating_sub(s.get(4) as i64).clamp(0, pt)
 }
 
-fn ton(s: &mut [u64], now: i64) {
-    if s[0] & 1 == 0 {
-        s[2] = 0;
-        s[3] = 0;
-        s[5] = 0;
+fn ton(s: &mut Cells, now: i64) {
+    if s.get(0) & 1 == 0 {
+        s.set(2, 0);
+        s.set(3, 0);
+        s.set(5, 0);
         return;
     }
-    if s[5] == 0 {
-        s[4] = now as u64;
-        s[5] = 1;
+    if s.get(5) == 0 {
+        s.set(4, now as u64);
+        s.set(5, 1);
     }
     let et = elapsed(s, now);
-    s[3] = et as u64;
-    s[2] = (et >= (s[1] as i64).max(0)) as u64;
+    s.set(3, et as u64);
+    s.set(2, (et >= (s.get(1) as i64).max(0)) as u64);
 }
 
-fn tof(s: &mut [u64], now: i64) {
-    if s[0] & 1 != 0 {
-        s[2] = 1;
-        s[3] = 0;
-        s[5] = 0;
+fn tof(s: &mut Cells, now: i64) {
+    if s.get(0) & 1 != 0 {
+        s.set(2, 1);
+        s.set(3, 0);
+        s.set(5, 0);
         return;
     }
-    if s[2] & 1 != 0 {
-        if s[5] == 0 {
-            s[4] = now as u64;
-            s[5] = 1;
+    if s.get(2) & 1 != 0 {
+        if s.get(5) == 0 {
+            s.set(4, now as u64);
+            s.set(5, 1);
         }
         let et = elapsed(s, now);
-        s[3] = et as u64;
-        if et >= (s[1] as i64).max(0) {
-            s[2] = 0;
+        s.set(3, et as u64);
+        if et >= (s.get(1) as i64).max(0) {
+            s.set(2, 0);
         }
     }
 }
 
-fn tp(s: &mut [u64], now: i64) {
-    let input = s[0] & 1 != 0;
-    let rising = input && s[6] & 1 == 0;
-    s[6] = input as u64;
-    if s[2] & 1 == 0 {
+fn tp(s: &mut Cells, now: i64) {
+    let input = s.get(0) & 1 != 0;
+    let rising = input && s.get(6) & 1 == 0;
+    s.set(6, input as u64);
+    if s.get(2) & 1 == 0 {
         if rising {
-            s[2] = 1;
-            s[4] = now as u64;
+            s.set(2, 1);
+            s.set(4, now as u64);
         } else if !input {
-            s[3] = 0;
+            s.set(3, 0);
             return;
         } else {
             return;
         }
     }
     let et = elapsed(s, now);
-    s[3] = et as u64;
-    if et >= (s[1] as i64).max(0) {
-        s[2] = 0;
+    s.set(3, et as u64);
+    if et >= (s.get(1) as i64).max(0) {
+        s.set(2, 0);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn narrow_inputs_are_the_signed_and_real_ones() {
+        let basic = [
+            "TON", "TOF", "TP", "CTU", "CTD", "CTUD", "R_TRIG", "F_TRIG", "SR", "RS",
+        ];
+        let names = basic.iter().copied().chain(MOTION.iter().map(|(_, n)| *n));
+        for n in names {
+            let fb = StdFb::from_name(n).expect(n);
+            assert!(fb.members().len() <= fb.size() as usize, "{n}");
+            let narrow = fb.members().iter().any(|(_, e, d)| {
+                *d == Dir::In && matches!(e, Elem::SInt | Elem::Int | Elem::DInt | Elem::Real)
+            });
+            assert_eq!(fb.has_narrow_inputs(), narrow, "{n}");
+        }
+        // The counters' PV is an INT.
+        assert!(StdFb::Ctu.has_narrow_inputs());
+        assert!(!StdFb::Ton.has_narrow_inputs());
     }
 }

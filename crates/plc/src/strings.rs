@@ -1,7 +1,8 @@
-//! STRING and WSTRING values in slot memory and the standard string functions, without
-//! heap allocation: a string at address `a` has its length in slot `a` (with [`WIDE`] set
-//! for a WSTRING) and its bytes, or UTF-16 code units, packed little-endian in the slots
-//! after it. Work buffers live on the stack.
+//! STRING and WSTRING values in the PLC's byte memory and the standard string functions,
+//! without heap allocation. A STRING at address `a` is its Windows-1252 bytes ending in a
+//! zero byte, a WSTRING its UTF-16 code units (little-endian) ending in a zero unit, as
+//! CODESYS and TwinCAT keep them; the compiler tells each function which of the two it
+//! reads. Work buffers live on the stack.
 
 use std::cmp::Ordering;
 use std::io::Write as _;
@@ -11,31 +12,42 @@ use crate::vm::Builtin;
 
 const BUF: usize = MAX_STRING_LEN as usize + 1;
 
-/// Set in a WSTRING's length slot: its characters are UTF-16 code units, four a slot.
-/// Functions read the width from the string itself, so one implementation serves both.
-pub(crate) const WIDE: u64 = 1 << 32;
-
 /// Characters of a string: bytes of a STRING, code units of a WSTRING.
 type Units = [u16; BUF];
 
-/// Copies the string at `a` into `buf`; returns its length and whether it is a WSTRING.
-pub(crate) fn read_units(mem: &[u64], a: usize, buf: &mut Units) -> (usize, bool) {
-    let head = mem.get(a).copied().unwrap_or(0);
-    let wide = head & WIDE != 0;
-    let len = ((head & 0xffff) as usize).min(MAX_STRING_LEN as usize);
-    let (per_slot, bits, mask) = if wide { (4, 16, 0xffff) } else { (8, 8, 0xff) };
-    for (i, u) in buf.iter_mut().enumerate().take(len) {
-        let slot = mem.get(a + 1 + i / per_slot).copied().unwrap_or(0);
-        *u = ((slot >> ((i % per_slot) * bits)) & mask) as u16;
+/// Copies the string at `a` (a WSTRING if `wide`) into `buf`: the characters up to its
+/// terminating zero, at most [`MAX_STRING_LEN`] and none past the memory's end; returns
+/// how many.
+pub(crate) fn read_units(mem: &[u8], a: usize, wide: bool, buf: &mut Units) -> usize {
+    let mut n = 0;
+    for u in buf.iter_mut().take(MAX_STRING_LEN as usize) {
+        let c = if wide {
+            match a
+                .checked_add(2 * n)
+                .and_then(|i| mem.get(i..i.checked_add(2)?))
+            {
+                Some(b) => u16::from_le_bytes([b[0], b[1]]),
+                None => 0,
+            }
+        } else {
+            a.checked_add(n)
+                .and_then(|i| mem.get(i))
+                .map_or(0, |b| *b as u16)
+        };
+        if c == 0 {
+            break;
+        }
+        *u = c;
+        n += 1;
     }
-    (len, wide)
+    n
 }
 
 /// Copies the string at `a` into `buf` as STRING bytes (a WSTRING's code units that
 /// Windows-1252 lacks become `?`, as CODESYS converts them); returns its length.
-pub(crate) fn read(mem: &[u64], a: usize, buf: &mut [u8; BUF]) -> usize {
+pub(crate) fn read(mem: &[u8], a: usize, wide: bool, buf: &mut [u8; BUF]) -> usize {
     let mut units = [0u16; BUF];
-    let (len, wide) = read_units(mem, a, &mut units);
+    let len = read_units(mem, a, wide, &mut units);
     for (b, u) in buf.iter_mut().zip(units.iter()).take(len) {
         *b = if wide { narrow(*u) } else { *u as u8 };
     }
@@ -49,29 +61,31 @@ fn narrow(unit: u16) -> u8 {
         .unwrap_or(b'?')
 }
 
-/// Writes `units` (cut to `cap`) as the string at `a`, a WSTRING if `wide`.
-pub(crate) fn write_units(mem: &mut [u64], a: usize, cap: u16, wide: bool, units: &[u16]) {
+/// Writes `units` (cut to `cap`, and at a zero unit) and the terminating zero as the
+/// string at `a`, a WSTRING if `wide`; nothing when that does not fit in memory.
+pub(crate) fn write_units(mem: &mut [u8], a: usize, cap: u16, wide: bool, units: &[u16]) {
     let n = units.len().min(cap as usize).min(MAX_STRING_LEN as usize);
-    let (per_slot, bits) = if wide { (4, 16) } else { (8, 8) };
-    let slots = n.div_ceil(per_slot);
-    if a + 1 + slots > mem.len() {
+    let n = units[..n].iter().position(|u| *u == 0).unwrap_or(n);
+    let w = if wide { 2 } else { 1 };
+    let Some(dst) = a
+        .checked_add((n + 1) * w)
+        .and_then(|end| mem.get_mut(a..end))
+    else {
         return;
-    }
-    mem[a] = n as u64 | if wide { WIDE } else { 0 };
-    for s in 0..slots {
-        let mut v = 0u64;
-        for k in 0..per_slot {
-            let i = s * per_slot + k;
-            if i < n {
-                v |= (units[i] as u64) << (k * bits);
-            }
+    };
+    if wide {
+        for (d, u) in dst.chunks_exact_mut(2).zip(units[..n].iter().chain([&0])) {
+            d.copy_from_slice(&u.to_le_bytes());
         }
-        mem[a + 1 + s] = v;
+    } else {
+        for (d, u) in dst.iter_mut().zip(units[..n].iter().chain([&0])) {
+            *d = *u as u8;
+        }
     }
 }
 
 /// Writes `bytes` (cut to `cap`) as the STRING at `a`.
-pub(crate) fn write(mem: &mut [u64], a: usize, cap: u16, bytes: &[u8]) {
+pub(crate) fn write(mem: &mut [u8], a: usize, cap: u16, bytes: &[u8]) {
     let mut units = [0u16; BUF];
     let n = bytes.len().min(BUF);
     for (u, b) in units.iter_mut().zip(bytes.iter()) {
@@ -101,13 +115,13 @@ pub(crate) fn windows_1252(text: &str, buf: &mut [u8; BUF]) -> usize {
     n
 }
 
-/// Copies the string at `src` to `dst` (capacity `cap`), keeping its width.
-pub(crate) fn copy(mem: &mut [u64], dst: usize, src: usize, cap: u16) {
+/// Copies the string at `src` to `dst` (capacity `cap`), both WSTRINGs if `wide`.
+pub(crate) fn copy(mem: &mut [u8], dst: usize, src: usize, cap: u16, wide: bool) {
     if dst == src {
         return;
     }
     let mut b = [0u16; BUF];
-    let (n, wide) = read_units(mem, src, &mut b);
+    let n = read_units(mem, src, wide, &mut b);
     write_units(mem, dst, cap, wide, &b[..n]);
 }
 
@@ -115,40 +129,38 @@ pub(crate) fn copy(mem: &mut [u64], dst: usize, src: usize, cap: u16) {
 /// a STRING: STRING_TO_WSTRING and WSTRING_TO_STRING. A STRING holds Windows-1252, one
 /// byte a character, so each byte becomes one code unit and back; a code unit Windows-1252
 /// lacks (and half of a surrogate pair) becomes `?`, as CODESYS converts.
-pub(crate) fn convert(mem: &mut [u64], dst: usize, src: usize, cap: u16, wide: bool) {
+pub(crate) fn convert(mem: &mut [u8], dst: usize, src: usize, cap: u16, wide: bool) {
     let mut units = [0u16; BUF];
-    let (n, src_wide) = read_units(mem, src, &mut units);
-    if src_wide != wide {
-        for u in units.iter_mut().take(n) {
-            *u = if wide {
-                let mut one = [0u16; 2];
-                crate::charset::decode(*u as u8).encode_utf16(&mut one);
-                one[0]
-            } else {
-                narrow(*u) as u16
-            };
-        }
+    let n = read_units(mem, src, !wide, &mut units);
+    for u in units.iter_mut().take(n) {
+        *u = if wide {
+            let mut one = [0u16; 2];
+            crate::charset::decode(*u as u8).encode_utf16(&mut one);
+            one[0]
+        } else {
+            narrow(*u) as u16
+        };
     }
     write_units(mem, dst, cap, wide, &units[..n]);
 }
 
 /// Appends the string at `src` to the (maximum-capacity) string at `dst`.
-pub(crate) fn append(mem: &mut [u64], dst: usize, src: usize) {
+pub(crate) fn append(mem: &mut [u8], dst: usize, src: usize, wide: bool) {
     let mut a = [0u16; BUF];
     let mut b = [0u16; BUF];
-    let (n, wide) = read_units(mem, dst, &mut a);
-    let (m, _) = read_units(mem, src, &mut b);
+    let n = read_units(mem, dst, wide, &mut a);
+    let m = read_units(mem, src, wide, &mut b);
     let total = (n + m).min(MAX_STRING_LEN as usize);
     a[n..total].copy_from_slice(&b[..total - n]);
     write_units(mem, dst, MAX_STRING_LEN, wide, &a[..total]);
 }
 
 /// Compares two strings character by character (code units for WSTRING).
-pub(crate) fn compare(mem: &[u64], x: usize, y: usize) -> Ordering {
+pub(crate) fn compare(mem: &[u8], x: usize, y: usize, wide: bool) -> Ordering {
     let mut a = [0u16; BUF];
     let mut b = [0u16; BUF];
-    let (n, _) = read_units(mem, x, &mut a);
-    let (m, _) = read_units(mem, y, &mut b);
+    let n = read_units(mem, x, wide, &mut a);
+    let m = read_units(mem, y, wide, &mut b);
     a[..n].cmp(&b[..m])
 }
 
@@ -157,8 +169,9 @@ fn clamp_pos(v: u64, max: usize) -> usize {
 }
 
 /// Runs a string built-in; string results go to `dest`, whose address is returned.
-/// Positions are 1-based as in IEC; out-of-range positions and lengths are clamped.
-pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u64 {
+/// Positions are 1-based as in IEC; out-of-range positions and lengths are clamped. `wide`:
+/// the strings read and written are WSTRINGs (a conversion's source is the other kind).
+pub(crate) fn builtin(mem: &mut [u8], b: Builtin, v: &[u64], dest: usize, wide: bool) -> u64 {
     let arg = |i: usize| v.get(i).copied().unwrap_or(0);
     let mut s = [0u16; BUF];
     let mut t = [0u16; BUF];
@@ -167,9 +180,9 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
     let mut text_in = [0u8; BUF];
     let cap = MAX_STRING_LEN;
     match b {
-        Builtin::Len => read_units(mem, arg(0) as usize, &mut s).0 as u64,
+        Builtin::Len => read_units(mem, arg(0) as usize, wide, &mut s) as u64,
         Builtin::Left | Builtin::Right => {
-            let (n, wide) = read_units(mem, arg(0) as usize, &mut s);
+            let n = read_units(mem, arg(0) as usize, wide, &mut s);
             let l = clamp_pos(arg(1), n);
             let part = if matches!(b, Builtin::Left) {
                 &s[..l]
@@ -181,7 +194,7 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
             dest as u64
         }
         Builtin::Mid => {
-            let (n, wide) = read_units(mem, arg(0) as usize, &mut s);
+            let n = read_units(mem, arg(0) as usize, wide, &mut s);
             let start = clamp_pos(arg(2), n + 1).max(1) - 1;
             let l = clamp_pos(arg(1), n - start);
             out[..l].copy_from_slice(&s[start..start + l]);
@@ -190,8 +203,8 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
         }
         Builtin::Insert => {
             // INSERT(IN1, IN2, P): IN2 inserted after position P of IN1.
-            let (n, wide) = read_units(mem, arg(0) as usize, &mut s);
-            let (m, _) = read_units(mem, arg(1) as usize, &mut t);
+            let n = read_units(mem, arg(0) as usize, wide, &mut s);
+            let m = read_units(mem, arg(1) as usize, wide, &mut t);
             let p = clamp_pos(arg(2), n);
             let mut k = 0;
             for &c in s[..p].iter().chain(t[..m].iter()).chain(s[p..n].iter()) {
@@ -205,7 +218,7 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
         }
         Builtin::Delete => {
             // DELETE(IN, L, P): L characters deleted from position P.
-            let (n, wide) = read_units(mem, arg(0) as usize, &mut s);
+            let n = read_units(mem, arg(0) as usize, wide, &mut s);
             let p = clamp_pos(arg(2), n + 1).max(1) - 1;
             let l = clamp_pos(arg(1), n - p);
             let mut k = 0;
@@ -218,8 +231,8 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
         }
         Builtin::Replace => {
             // REPLACE(IN1, IN2, L, P): L characters of IN1 from position P replaced by IN2.
-            let (n, wide) = read_units(mem, arg(0) as usize, &mut s);
-            let (m, _) = read_units(mem, arg(1) as usize, &mut t);
+            let n = read_units(mem, arg(0) as usize, wide, &mut s);
+            let m = read_units(mem, arg(1) as usize, wide, &mut t);
             let p = clamp_pos(arg(3), n + 1).max(1) - 1;
             let l = clamp_pos(arg(2), n - p);
             let mut k = 0;
@@ -234,8 +247,8 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
         }
         Builtin::Find => {
             // FIND(IN1, IN2): 1-based position of the first IN2 in IN1, 0 if absent.
-            let (n, _) = read_units(mem, arg(0) as usize, &mut s);
-            let (m, _) = read_units(mem, arg(1) as usize, &mut t);
+            let n = read_units(mem, arg(0) as usize, wide, &mut s);
+            let m = read_units(mem, arg(1) as usize, wide, &mut t);
             if m == 0 || m > n {
                 return 0;
             }
@@ -243,8 +256,8 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
                 .find(|&i| s[i..i + m] == t[..m])
                 .map_or(0, |i| i as u64 + 1)
         }
-        Builtin::StrToStr(wide) => {
-            convert(mem, dest, arg(0) as usize, cap, wide);
+        Builtin::StrToStr(to_wide) => {
+            convert(mem, dest, arg(0) as usize, cap, to_wide);
             dest as u64
         }
         Builtin::IntToStr(signed) => {
@@ -284,7 +297,7 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
             dest as u64
         }
         Builtin::StrToMoment(kind) => {
-            let n = read(mem, arg(0) as usize, &mut text_in);
+            let n = read(mem, arg(0) as usize, wide, &mut text_in);
             crate::dates::parse_prefixed(kind, &text_in[..n]).unwrap_or(0) as u64
         }
         Builtin::BoolToStr => {
@@ -293,7 +306,7 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
             dest as u64
         }
         Builtin::StrToInt(k) => {
-            let n = read(mem, arg(0) as usize, &mut text_in);
+            let n = read(mem, arg(0) as usize, wide, &mut text_in);
             let text = std::str::from_utf8(&text_in[..n]).unwrap_or("").trim();
             let v = if k.signed() {
                 text.parse::<i64>().map(|x| x as u64).unwrap_or(0)
@@ -303,7 +316,7 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
             wrap_checked(k, v)
         }
         Builtin::StrToReal(f32) => {
-            let n = read(mem, arg(0) as usize, &mut text_in);
+            let n = read(mem, arg(0) as usize, wide, &mut text_in);
             let text = std::str::from_utf8(&text_in[..n]).unwrap_or("").trim();
             let x = text.parse::<f64>().unwrap_or(0.0);
             if f32 {
@@ -313,11 +326,11 @@ pub(crate) fn builtin(mem: &mut [u64], b: Builtin, v: &[u64], dest: usize) -> u6
             }
         }
         Builtin::StrToTime => {
-            let n = read(mem, arg(0) as usize, &mut text_in);
+            let n = read(mem, arg(0) as usize, wide, &mut text_in);
             parse_duration(&text_in[..n]).unwrap_or(0) as u64
         }
         Builtin::StrToBool => {
-            let n = read(mem, arg(0) as usize, &mut text_in);
+            let n = read(mem, arg(0) as usize, wide, &mut text_in);
             let text = &text_in[..n];
             (text.eq_ignore_ascii_case(b"TRUE") || text == b"1") as u64
         }

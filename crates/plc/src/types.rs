@@ -1,10 +1,12 @@
-//! Data types, their slot layout and the IEC implicit conversion (widening) rules.
+//! Data types, their byte layout and the IEC implicit conversion (widening) rules.
 //!
-//! Every elementary value occupies one 64-bit slot: integers sign- or zero-extended to 64
-//! bits, BOOL as 0/1, REAL as the f64 bits of a value rounded to f32, LREAL as f64 bits,
-//! TIME as signed nanoseconds, enumerations as their integer value. A STRING of capacity
-//! `n` takes one length slot and `ceil(n / 8)` slots of bytes, a WSTRING one length slot
-//! and `ceil(n / 4)` slots of UTF-16 code units.
+//! Memory is laid out as CODESYS 3 and TwinCAT 3 lay it out on x86-64: every elementary
+//! value little-endian at its own size and aligned to it (BOOL, BYTE, SINT, USINT 1 byte;
+//! WORD, INT, UINT 2; DWORD, DINT, UDINT, REAL 4; LWORD, LINT, ULINT, LREAL 8; pointers,
+//! references and interfaces 8), structures padded to their largest member's alignment,
+//! arrays contiguous, a STRING(n) n + 1 bytes ending in a zero byte, a WSTRING(n) n + 1
+//! UTF-16 code units ending in a zero unit. TIME, DATE, TIME_OF_DAY and DATE_AND_TIME
+//! count nanoseconds in 8 bytes (as LTIME, LDATE ... do), enumerations take a DINT.
 
 use std::sync::Arc;
 
@@ -138,6 +140,15 @@ impl Elem {
     pub fn int_range(self) -> Option<(i128, i128)> {
         self.int_kind().map(|k| k.range())
     }
+    /// Bytes the value takes in memory (and its alignment).
+    pub fn size(self) -> u32 {
+        match self {
+            Elem::Bool | Elem::SInt | Elem::USInt | Elem::Byte => 1,
+            Elem::Int | Elem::UInt | Elem::Word => 2,
+            Elem::DInt | Elem::UDInt | Elem::DWord | Elem::Real => 4,
+            _ => 8,
+        }
+    }
     /// Size in bits.
     pub fn bits(self) -> u32 {
         match self {
@@ -150,7 +161,7 @@ impl Elem {
     }
 }
 
-/// Width and signedness of an integer slot value, for wrap-around after arithmetic.
+/// Width and signedness of an integer register value, for wrap-around after arithmetic.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 #[allow(missing_docs)]
 pub enum IntKind {
@@ -247,12 +258,12 @@ pub enum Type {
     Struct(TypeId),
     /// Function block instance (index into the FB type table).
     Fb(TypeId),
-    /// `POINTER TO T`: one slot holding a byte address (slot × 8), 0 for none.
+    /// `POINTER TO T`: 8 bytes holding a byte address, 0 for none.
     Pointer(Arc<Type>),
     /// `REFERENCE TO T`: as a pointer, but every use reads or writes the target.
     Reference(Arc<Type>),
-    /// An interface: one slot holding the byte address of a function block instance
-    /// that implements it, 0 for none.
+    /// An interface: 8 bytes holding the byte address of a function block instance that
+    /// implements it, 0 for none.
     Interface(TypeId),
 }
 
@@ -263,7 +274,7 @@ pub struct ArrayType {
     pub dims: Vec<(i64, i64)>,
     /// Element type.
     pub elem: Type,
-    /// Slots per element.
+    /// Bytes per element (a structure's size includes its padding).
     pub elem_size: u32,
 }
 
@@ -292,10 +303,12 @@ pub struct EnumType {
 pub struct StructType {
     /// Name.
     pub name: String,
-    /// Fields with their slot offset.
+    /// Fields with their byte offset.
     pub fields: Vec<Field>,
-    /// Slots.
+    /// Bytes, padded to a multiple of `align`.
     pub size: u32,
+    /// Alignment: the largest of its members'.
+    pub align: u32,
 }
 
 /// A field of a structure or a member of a function block instance.
@@ -305,13 +318,17 @@ pub struct Field {
     pub name: String,
     /// Type.
     pub ty: Type,
-    /// Offset in slots from the start of the structure or instance.
+    /// Offset in bytes from the start of the structure or instance.
     pub offset: u32,
 }
 
 impl Type {
     /// BOOL.
     pub const BOOL: Type = Type::Elem(Elem::Bool);
+    /// The representation of a scalar type in memory.
+    pub(crate) fn repr(&self) -> Option<Repr> {
+        self.scalar().map(Repr::of)
+    }
     /// The elementary type this type is stored as, if scalar.
     pub fn scalar(&self) -> Option<Elem> {
         match self {
@@ -322,7 +339,7 @@ impl Type {
             _ => None,
         }
     }
-    /// Pointers, references and interfaces: a slot holding an address.
+    /// Pointers, references and interfaces: 8 bytes holding an address.
     pub fn is_address(&self) -> bool {
         matches!(
             self,
@@ -340,11 +357,11 @@ impl Type {
     pub fn is_string(&self) -> bool {
         matches!(self, Type::String(_) | Type::WString(_))
     }
-    /// Slots of a STRING or WSTRING, `None` for other types.
-    pub fn string_slots(&self) -> Option<u32> {
+    /// Bytes of a STRING or WSTRING, `None` for other types.
+    pub fn string_bytes(&self) -> Option<u32> {
         match self {
-            Type::String(n) => Some(string_slots(*n)),
-            Type::WString(n) => Some(wstring_slots(*n)),
+            Type::String(n) => Some(string_bytes(*n)),
+            Type::WString(n) => Some(wstring_bytes(*n)),
             _ => None,
         }
     }
@@ -354,14 +371,111 @@ impl Type {
     }
 }
 
-/// Slots of a STRING with capacity `cap`.
-pub fn string_slots(cap: u16) -> u32 {
-    1 + (cap as u32).div_ceil(8)
+/// Bytes of a STRING with capacity `cap`: its characters and the terminating zero.
+pub fn string_bytes(cap: u16) -> u32 {
+    cap as u32 + 1
 }
 
-/// Slots of a WSTRING with capacity `cap`: a length slot and four code units a slot.
-pub fn wstring_slots(cap: u16) -> u32 {
-    1 + (cap as u32).div_ceil(4)
+/// Bytes of a WSTRING with capacity `cap`: its code units and the terminating zero unit.
+pub fn wstring_bytes(cap: u16) -> u32 {
+    2 * (cap as u32 + 1)
+}
+
+/// How an elementary value is stored in memory: its width, and how it widens to the
+/// 64-bit register value the interpreter computes with (integers sign- or zero-extended,
+/// REAL as the f64 of its single, BOOL as 0 or 1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Repr {
+    /// One byte, any non-zero value TRUE.
+    Bool,
+    I8,
+    U8,
+    I16,
+    U16,
+    I32,
+    U32,
+    /// IEEE-754 single precision.
+    F32,
+    /// Eight bytes as they are (LINT, ULINT, LREAL bits, TIME, addresses).
+    U64,
+}
+
+impl Repr {
+    /// The representation of an elementary type.
+    pub(crate) fn of(e: Elem) -> Repr {
+        match e {
+            Elem::Bool => Repr::Bool,
+            Elem::SInt => Repr::I8,
+            Elem::USInt | Elem::Byte => Repr::U8,
+            Elem::Int => Repr::I16,
+            Elem::UInt | Elem::Word => Repr::U16,
+            Elem::DInt => Repr::I32,
+            Elem::UDInt | Elem::DWord => Repr::U32,
+            Elem::Real => Repr::F32,
+            _ => Repr::U64,
+        }
+    }
+    /// The register value of the bytes at `a` in `mem`; 0 outside it. Exactly the value's
+    /// bytes are read: a wider read would overlap a neighbour just stored (adjacent BOOLs)
+    /// and wait for that store to retire.
+    #[inline(always)]
+    pub(crate) fn load(self, mem: &[u8], a: usize) -> u64 {
+        // BOOL first, on a branch of its own: the commonest load of a PLC program, taken
+        // without the jump on the width.
+        if self == Repr::Bool {
+            return mem.get(a).map_or(0, |b| (*b != 0) as u64);
+        }
+        self.load_wide(mem, a)
+    }
+    /// [`load`](Self::load) of the types other than BOOL: one copy of the jump on the
+    /// width, out of the interpreter's loop, which stays small.
+    #[inline(never)]
+    fn load_wide(self, mem: &[u8], a: usize) -> u64 {
+        match self {
+            Repr::Bool => mem.get(a).map_or(0, |b| (*b != 0) as u64),
+            Repr::I8 => mem.get(a).map_or(0, |b| *b as i8 as i64 as u64),
+            Repr::U8 => mem.get(a).map_or(0, |b| *b as u64),
+            Repr::I16 => bytes::<2>(mem, a).map_or(0, |b| i16::from_le_bytes(b) as i64 as u64),
+            Repr::U16 => bytes::<2>(mem, a).map_or(0, |b| u16::from_le_bytes(b) as u64),
+            Repr::I32 => bytes::<4>(mem, a).map_or(0, |b| i32::from_le_bytes(b) as i64 as u64),
+            Repr::U32 => bytes::<4>(mem, a).map_or(0, |b| u32::from_le_bytes(b) as u64),
+            Repr::F32 => bytes::<4>(mem, a).map_or(0, |b| (f32::from_le_bytes(b) as f64).to_bits()),
+            Repr::U64 => bytes::<8>(mem, a).map_or(0, u64::from_le_bytes),
+        }
+    }
+    /// Stores register value `v` at `a` in `mem`: exactly the value's bytes, nothing
+    /// outside `mem`.
+    #[inline(always)]
+    pub(crate) fn store(self, mem: &mut [u8], a: usize, v: u64) {
+        if self == Repr::Bool {
+            return put(mem, a, [(v & 1) as u8]);
+        }
+        self.store_wide(mem, a, v)
+    }
+    #[inline(never)]
+    fn store_wide(self, mem: &mut [u8], a: usize, v: u64) {
+        match self {
+            Repr::Bool => put(mem, a, [(v & 1) as u8]),
+            Repr::I8 | Repr::U8 => put(mem, a, [v as u8]),
+            Repr::I16 | Repr::U16 => put(mem, a, (v as u16).to_le_bytes()),
+            Repr::I32 | Repr::U32 => put(mem, a, (v as u32).to_le_bytes()),
+            Repr::F32 => put(mem, a, (f64::from_bits(v) as f32).to_le_bytes()),
+            Repr::U64 => put(mem, a, v.to_le_bytes()),
+        }
+    }
+}
+
+#[inline(always)]
+fn bytes<const N: usize>(mem: &[u8], a: usize) -> Option<[u8; N]> {
+    mem.get(a..a.checked_add(N)?)
+        .and_then(|s| s.try_into().ok())
+}
+
+#[inline(always)]
+fn put<const N: usize>(mem: &mut [u8], a: usize, b: [u8; N]) {
+    if let Some(d) = a.checked_add(N).and_then(|e| mem.get_mut(a..e)) {
+        d.copy_from_slice(&b);
+    }
 }
 
 /// The unsigned integer of a bit string's width (BYTE → USINT ...), for CODESYS's
@@ -408,6 +522,69 @@ pub fn widens(from: Elem, to: Elem) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn loads_and_stores_read_and_write_only_the_values_own_bytes() {
+        let all = [
+            Repr::Bool,
+            Repr::I8,
+            Repr::U8,
+            Repr::I16,
+            Repr::U16,
+            Repr::I32,
+            Repr::U32,
+            Repr::F32,
+            Repr::U64,
+        ];
+        let pattern = 0x8899_AABB_CCDD_EEFF_u64.to_le_bytes();
+        for r in all {
+            // With 8 bytes after it or only its own: the same value.
+            let mut mem = [0u8; 24];
+            mem[4..12].copy_from_slice(&pattern);
+            let fast = r.load(&mem, 4);
+            let width = match r {
+                Repr::Bool | Repr::I8 | Repr::U8 => 1,
+                Repr::I16 | Repr::U16 => 2,
+                Repr::I32 | Repr::U32 | Repr::F32 => 4,
+                Repr::U64 => 8,
+            };
+            let near = r.load(&mem[..4 + width], 4);
+            assert_eq!(fast, near, "{r:?}");
+            let want = match r {
+                Repr::Bool => 1,
+                Repr::I8 => 0xFF_u8 as i8 as i64 as u64,
+                Repr::U8 => 0xFF,
+                Repr::I16 => 0xEEFF_u16 as i16 as i64 as u64,
+                Repr::U16 => 0xEEFF,
+                Repr::I32 => 0xCCDD_EEFF_u32 as i32 as i64 as u64,
+                Repr::U32 => 0xCCDD_EEFF,
+                Repr::F32 => (f32::from_bits(0xCCDD_EEFF) as f64).to_bits(),
+                Repr::U64 => 0x8899_AABB_CCDD_EEFF,
+            };
+            assert_eq!(fast, want, "{r:?}");
+            // A store changes the value's bytes and no other.
+            let v = match r {
+                Repr::F32 => 1.0f64.to_bits(),
+                _ => 0x0102_0304_0506_0708,
+            };
+            let mut a = mem;
+            r.store(&mut a, 4, v);
+            let mut b = mem;
+            r.store(&mut b[..4 + width], 4, v);
+            assert_eq!(a, b, "{r:?}");
+            assert_eq!(a[..4], mem[..4], "{r:?}");
+            assert_eq!(a[4 + width..], mem[4 + width..], "{r:?}");
+            let back = match r {
+                Repr::Bool => 0,
+                Repr::I8 | Repr::U8 => 0x08,
+                Repr::I16 | Repr::U16 => 0x0708,
+                Repr::I32 | Repr::U32 => 0x0506_0708,
+                Repr::F32 => 1.0f64.to_bits(),
+                Repr::U64 => v,
+            };
+            assert_eq!(r.load(&a, 4), back, "{r:?}");
+        }
+    }
 
     #[test]
     fn the_f64_range_is_the_integer_range_rounded() {

@@ -1,17 +1,22 @@
 //! The executable form of a compiled program and its interpreter.
 //!
-//! The compiler resolves every name to a slot address and every operator to a typed
-//! operation, so a scan walks a tree of `Stmt` and `Expr` nodes over one slot array without
-//! look-ups and without heap allocation. Faults set `Vm::fault` and drop the statement
+//! The compiler resolves every name to a byte address and every operator to a typed
+//! operation, so a scan walks a tree of `Stmt` and `Expr` nodes over one byte image
+//! (laid out as CODESYS lays it out, [`crate::types`]) without look-ups and without heap
+//! allocation. Values are loaded into 64-bit registers ([`Repr`]) and computed there. Faults set `Vm::fault` and drop the statement
 //! budget to zero; every statement boundary checks the budget, so a fault or an exhausted
 //! watchdog budget stops the scan at the statement that caused it.
 
 use crate::error::FaultKind;
 use crate::stdfb::StdFb;
 use crate::strings;
-use crate::types::IntKind;
+use crate::types::{IntKind, Repr};
 
-/// Base of a slot address: absolute, or relative to the running FB instance.
+/// Lowest address a pointer may reach: the first 8 bytes are never a variable, so a null
+/// pointer's access lands there harmlessly while its fault stops the statement.
+pub(crate) const FIRST_ADDRESS: usize = 8;
+
+/// Base of a byte address: absolute, or relative to the running FB instance.
 #[derive(Debug, Clone, Copy)]
 pub(crate) enum Base {
     Abs(u32),
@@ -30,13 +35,15 @@ pub(crate) enum Place {
 #[derive(Debug)]
 pub(crate) struct DynPlace {
     pub base: Base,
-    /// The base slot holds the address (VAR_IN_OUT parameter).
+    /// The base holds the address (VAR_IN_OUT parameter, pointer, reference).
     pub indirect: bool,
     pub offset: u32,
     pub steps: Box<[IndexStep]>,
-    /// The base slot is itself at a computed place (a pointer or reference reached
-    /// through an index or another pointer); `indirect` is then set.
+    /// The base is itself at a computed place (a pointer or reference reached through an
+    /// index or another pointer); `indirect` is then set.
     pub inner: Option<Box<DynPlace>>,
+    /// Bytes of what is accessed, for the bounds check of an access through an address.
+    pub span: u32,
 }
 
 #[derive(Debug)]
@@ -86,8 +93,8 @@ pub(crate) enum Bin {
     LeR,
     GtR,
     GeR,
-    /// String comparisons on string addresses.
-    CmpS(std::cmp::Ordering, bool),
+    /// String comparisons on string addresses (ordering, equal too, WSTRING).
+    CmpS(std::cmp::Ordering, bool, bool),
     /// TIME * integer (the flag says the integer is signed), TIME / integer.
     MulTimeI,
     DivTimeI,
@@ -95,7 +102,7 @@ pub(crate) enum Bin {
     DivTimeR,
 }
 
-/// Conversions between slot encodings.
+/// Conversions between register encodings.
 #[derive(Debug, Clone, Copy)]
 pub(crate) enum Conv {
     /// Integer to integer: wrap to the target width.
@@ -190,24 +197,25 @@ pub(crate) enum Builtin {
 #[derive(Debug)]
 pub(crate) enum Expr {
     Const(u64),
-    LoadAbs(u32),
-    LoadRel(u32),
-    Load(Box<DynPlace>),
+    LoadAbs(u32, Repr),
+    LoadRel(u32, Repr),
+    Load(Box<DynPlace>, Repr),
     /// Address of an aggregate (STRING, array, structure) or the target of a VAR_IN_OUT.
     AddrOf(Place),
-    /// Byte address (slot × 8) of a place: the value of a pointer, reference or interface.
+    /// Byte address of a place: the value of a pointer, reference or interface.
     RefOf(Place),
     Un(Un, Box<Expr>),
     /// Both operands in one allocation, next to each other in memory.
     Bin(Bin, Box<(Expr, Expr)>),
     /// Specialised shapes of the commonest PLC expressions (contacts and comparisons):
-    /// `NOT a`, `a op b` on two absolute slots, `e op constant`.
+    /// `NOT a`, `a op b` on two absolute addresses, `e op constant`.
     NotAbs(u32),
-    BinAbs(Bin, u32, u32),
+    BinAbs(Bin, u32, u32, Repr, Repr),
     BinK(Bin, Box<Expr>, u64),
     Conv(Conv, Box<Expr>),
-    /// A built-in; string results go to the static temporary at `dest`.
-    Builtin(Builtin, Box<[Expr]>, u32),
+    /// A built-in; string results go to the static temporary at `dest`; the flag says
+    /// its strings are WSTRINGs.
+    Builtin(Builtin, Box<[Expr]>, u32, bool),
     Call(Box<FnCall>),
     CallMethod(Box<MethodCall>),
     /// A method called through an interface, a reference or THIS: the instance's type
@@ -223,11 +231,11 @@ pub(crate) enum Expr {
 pub(crate) struct EnabledCall {
     pub en: Expr,
     pub call: Expr,
-    /// ENO's target: place, bit of a word, negated (`NOT ENO =>`).
-    pub eno: Option<(Place, Option<u8>, bool)>,
+    /// ENO's target: place, its representation, bit of a word, negated (`NOT ENO =>`).
+    pub eno: Option<(Place, Repr, Option<u8>, bool)>,
 }
 
-/// A method call resolved at run time by the type tag in the instance's first slot.
+/// A method call resolved at run time by the type tag in the instance's first 8 bytes.
 #[derive(Debug)]
 pub(crate) struct VirtualCall {
     pub instance: Place,
@@ -239,15 +247,16 @@ pub(crate) struct VirtualCall {
 /// How a value is stored into a location.
 #[derive(Debug, Clone, Copy)]
 pub(crate) enum Store {
-    Scalar,
-    Range(i64, i64),
-    /// A STRING or WSTRING of this capacity (the source's width is kept).
-    String(u16),
+    Scalar(Repr),
+    Range(i64, i64, Repr),
+    /// A STRING (or a WSTRING, flag set) of this capacity.
+    String(u16, bool),
+    /// Bytes copied from the address the value holds.
     Block(u32),
 }
 
 /// One input (or VAR_IN_OUT address) of a call: evaluated into `temp` unless the call is
-/// direct, then copied to the parameter slot.
+/// direct, then copied to the parameter.
 #[derive(Debug)]
 pub(crate) struct ArgIn {
     pub value: Expr,
@@ -260,6 +269,8 @@ pub(crate) struct ArgIn {
 #[derive(Debug)]
 pub(crate) struct ArgOut {
     pub param: u32,
+    /// How the parameter is stored (for scalars).
+    pub src: Repr,
     pub target: Place,
     pub store: Store,
     pub negate: bool,
@@ -315,6 +326,7 @@ pub(crate) struct CaseArm {
 #[derive(Debug)]
 pub(crate) struct ForLoop {
     pub var: Place,
+    pub repr: Repr,
     pub kind: IntKind,
     pub from: Expr,
     pub to: Expr,
@@ -325,7 +337,7 @@ pub(crate) struct ForLoop {
 #[derive(Debug)]
 pub(crate) enum StmtKind {
     Store(Place, Expr, Store),
-    StoreBit(Place, u8, Expr),
+    StoreBit(Place, Repr, u8, Expr),
     Eval(Expr),
     If(Box<[(Expr, Block)]>, Block),
     Case {
@@ -347,17 +359,19 @@ pub(crate) enum StmtKind {
 #[derive(Debug)]
 pub(crate) struct Body {
     pub pou: u32,
-    /// Slots re-initialised on every call (function frame, VAR_TEMP): the first slot
+    /// Bytes re-initialised on every call (function frame, VAR_TEMP): the first byte
     /// (relative to the instance for FBs) and the initial values.
-    pub reinit: Option<(u32, Box<[u64]>)>,
+    pub reinit: Option<(u32, Box<[u8]>)>,
     pub stmts: Block,
 }
 
 #[derive(Debug)]
 pub(crate) struct Function {
     pub body: Body,
-    /// Slot of the result (scalar) or of the result area (aggregate).
+    /// Address of the result (scalar) or of the result area (aggregate).
     pub result: u32,
+    /// How a scalar result is stored.
+    pub repr: Repr,
     pub aggregate: bool,
 }
 
@@ -380,7 +394,7 @@ pub(crate) enum Flow {
 
 /// The mutable state a scan works on.
 pub(crate) struct Vm {
-    pub mem: Vec<u64>,
+    pub mem: Vec<u8>,
     /// Base of the running FB instance.
     pub frame: u32,
     pub now: i64,
@@ -408,14 +422,12 @@ fn r(v: f64, f32: bool) -> u64 {
 
 impl Vm {
     #[inline(always)]
-    pub fn ld(&self, a: usize) -> u64 {
-        self.mem.get(a).copied().unwrap_or(0)
+    pub fn ld(&self, a: usize, r: Repr) -> u64 {
+        r.load(&self.mem, a)
     }
     #[inline(always)]
-    pub fn st(&mut self, a: usize, v: u64) {
-        if let Some(c) = self.mem.get_mut(a) {
-            *c = v;
-        }
+    pub fn st(&mut self, a: usize, r: Repr, v: u64) {
+        r.store(&mut self.mem, a, v)
     }
     #[cold]
     pub fn raise(&mut self, kind: FaultKind) {
@@ -460,18 +472,18 @@ impl Vm {
             None => self.base(d.base),
         };
         if d.indirect {
-            let target = self.ld(a);
-            if target < 8 {
-                // Slot 0 is never a variable: a null pointer lands there harmlessly while
-                // the fault stops the statement.
+            let target = self.ld(a, Repr::U64);
+            if target == 0 {
                 self.raise(FaultKind::NullReference);
-                a = 0;
-            } else if target & 7 != 0 {
-                self.raise(FaultKind::MisalignedPointer { address: target });
-                a = 0;
-            } else {
-                a = (target >> 3) as usize;
+                return 0;
             }
+            // Inside memory here; the whole access is checked once the offset and the
+            // indices are added (below).
+            if target < FIRST_ADDRESS as u64 || target > self.mem.len() as u64 {
+                self.raise(FaultKind::PointerOutOfRange { address: target });
+                return 0;
+            }
+            a = target as usize;
         }
         a += d.offset as usize;
         for s in d.steps.iter() {
@@ -487,20 +499,25 @@ impl Vm {
             }
             a += k as usize * s.stride as usize;
         }
+        if d.indirect && a.saturating_add(d.span as usize) > self.mem.len() {
+            // The bytes accessed through the address (at its offset, at an index inside
+            // the bounds of an array it points to) run past the memory's end.
+            self.raise(FaultKind::PointerOutOfRange { address: a as u64 });
+            return 0;
+        }
         a
     }
 
     pub fn eval(&mut self, c: &Code, e: &Expr) -> u64 {
         match e {
             Expr::Const(v) => *v,
-            Expr::LoadAbs(a) => self.ld(*a as usize),
-            Expr::LoadRel(o) => self.ld(self.frame as usize + *o as usize),
-            Expr::Load(d) => {
+            Expr::LoadAbs(a, r) => self.ld(*a as usize, *r),
+            Expr::LoadRel(o, r) => self.ld(self.frame as usize + *o as usize, *r),
+            Expr::Load(d, r) => {
                 let a = self.dyn_addr(c, d);
-                self.ld(a)
+                self.ld(a, *r)
             }
-            Expr::AddrOf(p) => self.addr(c, p) as u64,
-            Expr::RefOf(p) => (self.addr(c, p) as u64) << 3,
+            Expr::AddrOf(p) | Expr::RefOf(p) => self.addr(c, p) as u64,
             Expr::Un(op, a) => {
                 let v = self.eval(c, a);
                 match *op {
@@ -516,10 +533,10 @@ impl Vm {
                 let y = self.eval(c, &ab.1);
                 self.bin(*op, x, y)
             }
-            Expr::NotAbs(a) => self.ld(*a as usize) ^ 1,
-            Expr::BinAbs(op, a, b) => {
-                let x = self.ld(*a as usize);
-                let y = self.ld(*b as usize);
+            Expr::NotAbs(a) => self.ld(*a as usize, Repr::Bool) ^ 1,
+            Expr::BinAbs(op, a, b, ra, rb) => {
+                let x = self.ld(*a as usize, *ra);
+                let y = self.ld(*b as usize, *rb);
                 self.bin(*op, x, y)
             }
             Expr::BinK(op, a, k) => {
@@ -530,22 +547,22 @@ impl Vm {
                 let v = self.eval(c, a);
                 conv(*cv, v)
             }
-            Expr::Builtin(b, args, dest) => self.builtin(c, *b, args, *dest),
+            Expr::Builtin(b, args, dest, wide) => self.builtin(c, *b, args, *dest, *wide),
             Expr::Call(call) => self.call_fn(c, call),
             Expr::Enabled(g) => {
                 let run = self.eval(c, &g.en) & 1 != 0;
                 let v = if run { self.eval(c, &g.call) } else { 0 };
-                if let Some((place, bit, negate)) = &g.eno {
+                if let Some((place, repr, bit, negate)) = &g.eno {
                     let eno = run != *negate;
                     let a = self.addr(c, place);
                     if self.budget != 0 {
                         match bit {
                             Some(b) => {
-                                let old = self.ld(a);
+                                let old = self.ld(a, *repr);
                                 let m = 1u64 << b;
-                                self.st(a, if eno { old | m } else { old & !m });
+                                self.st(a, *repr, if eno { old | m } else { old & !m });
                             }
-                            None => self.st(a, eno as u64),
+                            None => self.st(a, *repr, eno as u64),
                         }
                     }
                 }
@@ -560,7 +577,7 @@ impl Vm {
                 if self.budget == 0 {
                     return 0;
                 }
-                let tag = self.ld(inst);
+                let tag = self.ld(inst, Repr::U64);
                 let call = v
                     .cases
                     .iter()
@@ -631,8 +648,8 @@ impl Vm {
             Bin::LeR => (f(x) <= f(y)) as u64,
             Bin::GtR => (f(x) > f(y)) as u64,
             Bin::GeR => (f(x) >= f(y)) as u64,
-            Bin::CmpS(ord, equal_ok) => {
-                let o = strings::compare(&self.mem, x as usize, y as usize);
+            Bin::CmpS(ord, equal_ok, wide) => {
+                let o = strings::compare(&self.mem, x as usize, y as usize, wide);
                 (o == ord || (equal_ok && o == Ordering::Equal)) as u64
             }
             Bin::MulTimeI => (x as i64).wrapping_mul(y as i64) as u64,
@@ -658,7 +675,7 @@ impl Vm {
 
     /// Evaluates a standard function's call: every argument first (IEC has no lazy
     /// evaluation), then the function.
-    fn builtin(&mut self, c: &Code, b: Builtin, args: &[Expr], dest: u32) -> u64 {
+    fn builtin(&mut self, c: &Code, b: Builtin, args: &[Expr], dest: u32, wide: bool) -> u64 {
         let arg = |vm: &mut Vm, i: usize| match args.get(i) {
             Some(e) => vm.eval(c, e),
             None => 0,
@@ -756,7 +773,7 @@ impl Vm {
                 }
                 crate::dates::concat(b, &vals)
             }
-            Builtin::Concat => self.concat(c, args, dest),
+            Builtin::Concat => self.concat(c, args, dest, wide),
             Builtin::Len
             | Builtin::Left
             | Builtin::Right
@@ -780,7 +797,13 @@ impl Vm {
                 for (i, slot) in vals.iter_mut().enumerate().take(args.len()) {
                     *slot = arg(self, i);
                 }
-                strings::builtin(&mut self.mem, b, &vals[..args.len().min(8)], dest as usize)
+                strings::builtin(
+                    &mut self.mem,
+                    b,
+                    &vals[..args.len().min(8)],
+                    dest as usize,
+                    wide,
+                )
             }
         }
     }
@@ -809,27 +832,28 @@ impl Vm {
 
     /// CONCAT (extensible): the first string copied into the destination, each further one
     /// appended to it.
-    fn concat(&mut self, c: &Code, args: &[Expr], dest: u32) -> u64 {
+    fn concat(&mut self, c: &Code, args: &[Expr], dest: u32, wide: bool) -> u64 {
         let first = args.first().map_or(0, |e| self.eval(c, e));
         strings::copy(
             &mut self.mem,
             dest as usize,
             first as usize,
             crate::types::MAX_STRING_LEN,
+            wide,
         );
         for e in args.iter().skip(1) {
             let v = self.eval(c, e);
-            strings::append(&mut self.mem, dest as usize, v as usize);
+            strings::append(&mut self.mem, dest as usize, v as usize, wide);
         }
         dest as u64
     }
 
-    /// Stores `v` (a scalar, or the address of an aggregate) into slot address `a`.
+    /// Stores `v` (a scalar, or the address of an aggregate) at byte address `a`.
     #[inline]
     fn store_at(&mut self, a: usize, v: u64, s: Store) {
         match s {
-            Store::Scalar => self.st(a, v),
-            Store::Range(lo, hi) => {
+            Store::Scalar(r) => self.st(a, r, v),
+            Store::Range(lo, hi, r) => {
                 let x = v as i64;
                 if x < lo || x > hi {
                     self.raise(FaultKind::SubrangeViolation {
@@ -838,10 +862,10 @@ impl Vm {
                         high: hi,
                     });
                 } else {
-                    self.st(a, v);
+                    self.st(a, r, v);
                 }
             }
-            Store::String(cap) => strings::copy(&mut self.mem, a, v as usize, cap),
+            Store::String(cap, wide) => strings::copy(&mut self.mem, a, v as usize, cap, wide),
             Store::Block(n) => {
                 let src = v as usize;
                 let n = n as usize;
@@ -868,8 +892,8 @@ impl Vm {
             }
             for a in args {
                 let v = match a.store {
-                    Store::Scalar | Store::Range(..) => self.ld(a.temp as usize),
-                    Store::String(_) | Store::Block(_) => a.temp as u64,
+                    Store::Scalar(r) | Store::Range(_, _, r) => self.ld(a.temp as usize, r),
+                    Store::String(..) | Store::Block(_) => a.temp as u64,
                 };
                 self.store_at(base + a.param as usize, v, a.store);
             }
@@ -880,22 +904,22 @@ impl Vm {
         for o in outs {
             let src = base + o.param as usize;
             let v = match o.store {
-                Store::Scalar | Store::Range(..) => {
-                    let v = self.ld(src);
+                Store::Scalar(_) | Store::Range(..) => {
+                    let v = self.ld(src, o.src);
                     let v = if o.negate { v ^ 1 } else { v };
                     match o.wrap {
                         Some(k) => k.wrap(v),
                         None => v,
                     }
                 }
-                Store::String(_) | Store::Block(_) => src as u64,
+                Store::String(..) | Store::Block(_) => src as u64,
             };
             let a = self.addr(c, &o.target);
             self.store_at(a, v, o.store);
         }
     }
 
-    fn reinit(&mut self, range: &Option<(u32, Box<[u64]>)>, base: usize) {
+    fn reinit(&mut self, range: &Option<(u32, Box<[u8]>)>, base: usize) {
         if let Some((start, values)) = range {
             let dst = base + *start as usize;
             if let Some(d) = self.mem.get_mut(dst..dst + values.len()) {
@@ -934,7 +958,7 @@ impl Vm {
         if func.aggregate {
             func.result as u64
         } else {
-            self.ld(func.result as usize)
+            self.ld(func.result as usize, func.repr)
         }
     }
 
@@ -946,12 +970,27 @@ impl Vm {
         }
         match call.kind {
             FbKind::Std(fb) => {
-                let end = (inst + fb.size() as usize).min(self.mem.len());
+                // The block computes on register values in its cells (8 bytes each). The
+                // program writes a member at its own width, which leaves a signed or
+                // REAL input in another encoding: those are widened first.
+                if fb.has_narrow_inputs() {
+                    for (i, m) in fb.members().iter().enumerate() {
+                        let r = Repr::of(m.1);
+                        if m.2 == crate::stdfb::Dir::In
+                            && matches!(r, Repr::I8 | Repr::I16 | Repr::I32 | Repr::F32)
+                        {
+                            let v = self.ld(inst + 8 * i, r);
+                            self.st(inst + 8 * i, Repr::U64, v);
+                        }
+                    }
+                }
+                let end = inst.saturating_add(8 * fb.size() as usize);
                 if let Some(s) = self.mem.get_mut(inst..end) {
+                    let mut cells = crate::stdfb::Cells(s);
                     if fb.is_motion() {
-                        crate::plcopen::run(fb, s, &mut self.axes);
+                        crate::plcopen::run(fb, &mut cells, &mut self.axes);
                     } else {
-                        fb.run(s, self.now);
+                        fb.run(&mut cells, self.now);
                     }
                 }
             }
@@ -1015,17 +1054,20 @@ impl Vm {
                     // A fault in the value or the index: the assignment does not happen.
                     return Flow::Fault;
                 }
-                self.store_at(a, v, *st);
+                match st {
+                    Store::Scalar(r) => self.st(a, *r, v),
+                    _ => self.store_at(a, v, *st),
+                }
             }
-            StmtKind::StoreBit(p, bit, e) => {
+            StmtKind::StoreBit(p, r, bit, e) => {
                 let v = self.eval(c, e);
                 let a = self.addr(c, p);
                 if self.budget == 0 {
                     return Flow::Fault;
                 }
-                let old = self.ld(a);
+                let old = self.ld(a, *r);
                 let m = 1u64 << bit;
-                self.st(a, if v & 1 != 0 { old | m } else { old & !m });
+                self.st(a, *r, if v & 1 != 0 { old | m } else { old & !m });
             }
             StmtKind::Eval(e) => {
                 self.eval(c, e);
@@ -1119,7 +1161,7 @@ impl Vm {
             // the loop; the test runs on the unwrapped counter, so a loop up to the type's
             // maximum still ends.
             let a = self.addr(c, &l.var);
-            self.st(a, l.kind.wrap(i as u64));
+            self.st(a, l.repr, l.kind.wrap(i as u64));
             if (step > 0 && i > end) || (step < 0 && i < end) {
                 return Flow::Next;
             }
@@ -1158,7 +1200,7 @@ fn int_beyond(v: u64, acc: u64, signed: bool, max: bool) -> bool {
     if max { greater } else { less }
 }
 
-/// Applies a conversion to a slot value.
+/// Applies a conversion to a register value.
 pub(crate) fn conv(cv: Conv, v: u64) -> u64 {
     match cv {
         Conv::Int(k) => k.wrap(v),

@@ -103,8 +103,8 @@ END_PROGRAM",
     assert_eq!(uint(&rt, "f.top"), 0xCAFE);
     // a[4] = 4 * 5
     assert_eq!(int(&rt, "x"), 20);
-    // Four DWORDs of 8 bytes each (docs/plc.md: every elementary value takes a slot).
-    assert_eq!(uint(&rt, "f.size"), 32);
+    // Four DWORDs of 4 bytes each, as CODESYS counts them.
+    assert_eq!(uint(&rt, "f.size"), 16);
 }
 
 fn codesys(src: &str) -> Result<Runtime, rtcnc_plc::CompileErrors> {
@@ -243,34 +243,28 @@ END_PROGRAM",
     assert_eq!(int(&rt, "s"), 60);
 }
 
-/// Memory is 8-byte slots and a STRING a length slot then eight characters a slot, so
-/// CODESYS code that walks bytes with a POINTER TO BYTE would read the wrong places: a
-/// pointer to a string does not go to a BYTE pointer, and a BYTE pointer moved by one
-/// faults where it is used instead of reading inside a slot.
+/// As in CODESYS, a POINTER TO BYTE takes the address of anything and steps through its
+/// bytes one at a time: a STRING's characters, an array's elements.
 #[test]
-fn byte_pointers_over_strings_are_refused_and_misaligned_ones_fault() {
-    let (line, _, code, msg) = compile_error(
-        "FUNCTION FIRST : BYTE
+fn byte_pointers_step_through_strings_and_arrays_a_byte_at_a_time() {
+    let mut rt = plc("FUNCTION SECOND : BYTE
 VAR_INPUT s : STRING; END_VAR
 VAR pt : POINTER TO BYTE; END_VAR
 pt := ADR(s);
-FIRST := pt^;
-END_FUNCTION",
-    );
-    assert_eq!((line, code), (4, "type-mismatch"), "{msg}");
-    assert!(msg.contains("POINTER TO BYTE"), "{msg}");
-
-    let mut rt = plc("PROGRAM P
-VAR arr : ARRAY[0..3] OF BYTE := 5, 6, 7, 8; pt : POINTER TO BYTE; a, b : BYTE; END_VAR
+pt := pt + 1;
+SECOND := pt^;
+END_FUNCTION
+PROGRAM P
+VAR arr : ARRAY[0..3] OF BYTE := 5, 6, 7, 8; pt : POINTER TO BYTE; a, b, c : BYTE; END_VAR
 pt := ADR(arr);
 pt := pt + SIZEOF(arr[0]);
 a := pt^;
 pt := pt + 1;
 b := pt^;
+c := SECOND('AZ');
 END_PROGRAM");
-    let fault = rt.scan(ms(0)).expect_err("a pointer inside a slot");
-    assert_eq!(fault.code(), "misaligned-pointer");
-    assert_eq!(fault.line, 7);
-    // The statement before it ran: the element after arr[0].
-    assert_eq!(int(&rt, "a"), 6);
+    rt.scan(ms(0)).expect("scan");
+    assert_eq!((uint(&rt, "a"), uint(&rt, "b")), (6, 7));
+    // 'Z' is byte 16#5A.
+    assert_eq!(uint(&rt, "c"), 0x5A);
 }

@@ -122,8 +122,8 @@ END_PROGRAM");
     assert_eq!(string(&rt, "g"), "Grüß Jörg");
     assert_eq!(string(&rt, "o"), "[ÄÖÜ]");
     assert_eq!(string(&rt, "l.text"), "[ÄÖÜ]");
-    // A WSTRING(20): one length slot and 20 / 4 = 5 slots of code units, 8 bytes each.
-    assert_eq!(uint(&rt, "size"), 48);
+    // A WSTRING(20) in CODESYS: 20 code units and the terminating zero, 2 bytes each.
+    assert_eq!(uint(&rt, "size"), 42);
 }
 
 #[test]

@@ -175,10 +175,10 @@ fn check(file: &[PathBuf], source: &SourceArgs, vars: bool) -> anyhow::Result<Ex
         Err(code) => return Ok(code),
     };
     println!(
-        "{}: ok: {} POUs, {} slots of memory, images %I {} B, %Q {} B, %M {} B",
+        "{}: ok: {} POUs, {} bytes of memory, images %I {} B, %Q {} B, %M {} B",
         shown(file),
         program.pou_count(),
-        program.memory_slots(),
+        program.memory_bytes(),
         program.image_size(rtcnc_plc::Area::Input),
         program.image_size(rtcnc_plc::Area::Output),
         program.image_size(rtcnc_plc::Area::Memory),

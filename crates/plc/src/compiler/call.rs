@@ -252,6 +252,7 @@ impl<'a> Compiler<'a> {
                     let store = self.store_kind(&lv.ty);
                     outs.push(ArgOut {
                         param: m.offset,
+                        src: repr_of(&m.ty),
                         target: self.place(lv),
                         store,
                         negate: *negate,
@@ -305,13 +306,13 @@ impl<'a> Compiler<'a> {
                     ),
                 ));
             }
-            let temp = self.alloc(1, e.pos())?;
+            let temp = self.alloc(8, e.pos())?;
             let p = self.place(lv);
             return Ok(ArgIn {
                 value: vm::Expr::RefOf(p),
                 temp,
                 param: m.offset,
-                store: Store::Scalar,
+                store: Store::Scalar(Repr::U64),
             });
         }
         if let Type::Reference(t) = &m.ty {
@@ -342,12 +343,12 @@ impl<'a> Compiler<'a> {
                     ));
                 }
             };
-            let temp = self.alloc(1, e.pos())?;
+            let temp = self.alloc(8, e.pos())?;
             return Ok(ArgIn {
                 value,
                 temp,
                 param: m.offset,
-                store: Store::Scalar,
+                store: Store::Scalar(Repr::U64),
             });
         }
         let te = self.expr(e, sc, Some(&m.ty))?;
@@ -357,12 +358,12 @@ impl<'a> Compiler<'a> {
                 let from = *from;
                 if (from.is_int() || from.is_bit()) && from != Elem::Int {
                     let value = self.conversion(te.e, from, Elem::Int);
-                    let temp = self.alloc(1, e.pos())?;
+                    let temp = self.alloc(8, e.pos())?;
                     return Ok(ArgIn {
                         value,
                         temp,
                         param: m.offset,
-                        store: Store::Scalar,
+                        store: Store::Scalar(repr_of(&m.ty)),
                     });
                 }
             }
@@ -373,12 +374,12 @@ impl<'a> Compiler<'a> {
                 let name = self.enums[*id as usize].name.as_str();
                 if matches!(name, "MC_DIRECTION" | "MC_BUFFER_MODE") {
                     let value = self.conversion(te.e, Elem::DInt, Elem::Int);
-                    let temp = self.alloc(1, e.pos())?;
+                    let temp = self.alloc(8, e.pos())?;
                     return Ok(ArgIn {
                         value,
                         temp,
                         param: m.offset,
-                        store: Store::Scalar,
+                        store: Store::Scalar(repr_of(&m.ty)),
                     });
                 }
             }
@@ -781,14 +782,14 @@ impl<'a> Compiler<'a> {
                 }))
             }
             "SIZEOF" => {
-                // A variable or a type name; memory is counted in 8-byte slots.
+                // A variable or a type name, in bytes as CODESYS lays it out.
                 let ty = if a.parts.is_empty() && self.lookup(&a.root, sc).is_none() {
                     self.named_type(&a.root)?.0
                 } else {
                     self.access(a, sc)?.ty
                 };
                 Ok(Some(TE {
-                    ty: Ty::AnyInt(size_of(self, &ty) as i128 * 8),
+                    ty: Ty::AnyInt(size_of(self, &ty) as i128),
                     e: vm::Expr::Const(0),
                 }))
             }
@@ -803,9 +804,9 @@ impl<'a> Compiler<'a> {
                 }
                 let p = self.place(lv);
                 let load = match p {
-                    Place::Abs(x) => vm::Expr::LoadAbs(x),
-                    Place::Rel(o) => vm::Expr::LoadRel(o),
-                    Place::Dyn(d) => vm::Expr::Load(d),
+                    Place::Abs(x) => vm::Expr::LoadAbs(x, Repr::U64),
+                    Place::Rel(o) => vm::Expr::LoadRel(o, Repr::U64),
+                    Place::Dyn(d) => vm::Expr::Load(d, Repr::U64),
                 };
                 Ok(Some(TE {
                     ty: Ty::T(Type::BOOL),

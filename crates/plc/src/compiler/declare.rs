@@ -5,7 +5,7 @@ use super::*;
 impl<'a> Compiler<'a> {
     // ---------------------------------------------------------------- types
 
-    pub(super) fn named_type(&mut self, n: &Name) -> R<(Type, Option<Vec<u64>>)> {
+    pub(super) fn named_type(&mut self, n: &Name) -> R<(Type, Option<Vec<u8>>)> {
         if let Some(t) = self.named.get(&n.text) {
             return Ok(t.clone());
         }
@@ -68,7 +68,7 @@ impl<'a> Compiler<'a> {
         spec: &TypeSpec,
         name: Option<&str>,
         scope: &Scope,
-    ) -> R<(Type, Option<Vec<u64>>)> {
+    ) -> R<(Type, Option<Vec<u8>>)> {
         match spec {
             TypeSpec::Named(n) => self.named_type(n),
             TypeSpec::Pointer(t) => {
@@ -113,7 +113,7 @@ impl<'a> Compiler<'a> {
                     let l = self.const_int_in(lo, scope)?;
                     let h = self.const_int_in(hi, scope)?;
                     if h < l
-                        || h - l >= MAX_SLOTS as i128
+                        || h - l >= MAX_BYTES as i128
                         || l < i64::MIN as i128 / 2
                         || h > i64::MAX as i128 / 2
                     {
@@ -128,7 +128,7 @@ impl<'a> Compiler<'a> {
                 let (et, etpl) = self.type_spec(elem, None, scope)?;
                 let elem_size = size_of(self, &et);
                 let count: u64 = bounds.iter().map(|(l, h)| (h - l + 1) as u64).product();
-                if count.saturating_mul(elem_size as u64) > MAX_SLOTS {
+                if count.saturating_mul(elem_size as u64) > MAX_BYTES {
                     return Err(self.e(*pos, ErrorKind::Invalid, "array is too large"));
                 }
                 let at = Type::Array(Arc::new(ArrayType {
@@ -139,9 +139,10 @@ impl<'a> Compiler<'a> {
                 let tpl = etpl.map(|t| t.repeat(count as usize));
                 Ok((at, tpl))
             }
-            TypeSpec::Struct { fields, pos } => {
+            TypeSpec::Struct { fields, union, pos } => {
                 let mut fs: Vec<Field> = Vec::new();
                 let mut off = 0u32;
+                let mut align = 1u32;
                 let mut inits: Vec<FieldInit> = Vec::new();
                 for d in fields {
                     let (t, tpl) = self.type_spec(&d.ty, None, scope)?;
@@ -153,22 +154,32 @@ impl<'a> Compiler<'a> {
                                 format!("field '{}' declared twice", n.text),
                             ));
                         }
+                        let a = align_of(self, &t);
+                        align = align.max(a);
+                        // A union's members all start at 0 and share its bytes.
+                        let at = if *union { 0 } else { align_up(off, a) };
                         fs.push(Field {
                             name: n.text.clone(),
                             ty: t.clone(),
-                            offset: off,
+                            offset: at,
                         });
-                        inits.push((off, t.clone(), tpl.clone(), d.init.as_ref()));
-                        off = off.saturating_add(size_of(self, &t));
+                        inits.push((at, t.clone(), tpl.clone(), d.init.as_ref()));
+                        off = off.max(at.saturating_add(size_of(self, &t)));
                     }
                 }
-                if off as u64 > MAX_SLOTS {
+                // Padded to its alignment, so the elements of an array of it stay aligned.
+                let off = align_up(off, align);
+                if off as u64 > MAX_BYTES {
                     return Err(self.e(*pos, ErrorKind::Invalid, "structure is too large"));
                 }
-                let mut tpl = vec![0u64; off as usize];
-                for (o, t, ttpl, init) in inits {
-                    let sub = ttpl.unwrap_or_else(|| self.template(&t));
-                    tpl[o as usize..o as usize + sub.len()].copy_from_slice(&sub);
+                let mut tpl = vec![0u8; off as usize];
+                for (k, (o, t, ttpl, init)) in inits.into_iter().enumerate() {
+                    // A union starts as its first member's initial value, then takes
+                    // every member's explicit one in order.
+                    if !*union || k == 0 {
+                        let sub = ttpl.unwrap_or_else(|| self.template(&t));
+                        tpl[o as usize..o as usize + sub.len()].copy_from_slice(&sub);
+                    }
                     if let Some(i) = init {
                         self.apply_init(&t, i, &mut tpl, o as usize, scope)?;
                     }
@@ -180,6 +191,7 @@ impl<'a> Compiler<'a> {
                         name: sname,
                         fields: fs,
                         size: off,
+                        align,
                     },
                     tpl,
                 ));
@@ -251,19 +263,21 @@ impl<'a> Compiler<'a> {
         }
     }
 
-    /// Default initial slots of a type.
-    pub(super) fn template(&self, t: &Type) -> Vec<u64> {
+    /// Default initial bytes of a type.
+    pub(super) fn template(&self, t: &Type) -> Vec<u8> {
+        let scalar = |v: u64| {
+            let mut b = vec![0u8; size_of(self, t) as usize];
+            repr_of(t).store(&mut b, 0, v);
+            b
+        };
         match t {
-            Type::Elem(_) | Type::Pointer(_) | Type::Reference(_) | Type::Interface(_) => vec![0],
-            Type::String(n) => vec![0; string_slots(*n) as usize],
-            Type::WString(n) => {
-                let mut slots = vec![0; crate::types::wstring_slots(*n) as usize];
-                slots[0] = crate::strings::WIDE;
-                slots
+            Type::Elem(_) | Type::Pointer(_) | Type::Reference(_) | Type::Interface(_) => {
+                vec![0; size_of(self, t) as usize]
             }
-            Type::Enum(id) => vec![self.enums[*id as usize].values[0].1 as u64],
+            Type::String(_) | Type::WString(_) => vec![0; size_of(self, t) as usize],
+            Type::Enum(id) => scalar(self.enums[*id as usize].values[0].1 as u64),
             // IEC: a subrange starts at its lower limit unless initialised.
-            Type::Subrange(_, l, _) => vec![*l as u64],
+            Type::Subrange(_, l, _) => scalar(*l as u64),
             Type::Array(a) => {
                 let e = self.template(&a.elem);
                 e.repeat(a.len() as usize)
@@ -302,7 +316,7 @@ impl<'a> Compiler<'a> {
                         loc: Loc::Abs(0),
                         kind: b.kind,
                         constant: true,
-                        const_val: value.first().copied(),
+                        const_val: Some(repr_of(&t).load(&value, 0)),
                         input_area: false,
                     });
                 }
@@ -314,7 +328,7 @@ impl<'a> Compiler<'a> {
         &mut self,
         t: &Type,
         init: &Init,
-        tpl: &mut [u64],
+        tpl: &mut [u8],
         at: usize,
         scope: &Scope,
     ) -> R<()> {
@@ -334,9 +348,7 @@ impl<'a> Compiler<'a> {
                                 ));
                             }
                         }
-                        if let Some(s) = tpl.get_mut(at) {
-                            *s = v;
-                        }
+                        repr_of(t).store(tpl, at, v);
                         Ok(())
                     }
                     _ => Err(self.e(
@@ -347,13 +359,13 @@ impl<'a> Compiler<'a> {
                 }
             }
             (Init::Expr(AExpr::Lit(Literal::Str(s), _)), Type::String(cap)) => {
-                let mut tmp = vec![0u64; string_slots(*cap) as usize];
+                let mut tmp = vec![0u8; string_bytes(*cap) as usize];
                 crate::strings::write(&mut tmp, 0, *cap, s);
                 tpl[at..at + tmp.len()].copy_from_slice(&tmp);
                 Ok(())
             }
             (Init::Expr(AExpr::Lit(Literal::WStr(s), _)), Type::WString(cap)) => {
-                let mut tmp = vec![0u64; crate::types::wstring_slots(*cap) as usize];
+                let mut tmp = vec![0u8; crate::types::wstring_bytes(*cap) as usize];
                 crate::strings::write_units(&mut tmp, 0, *cap, true, s);
                 tpl[at..at + tmp.len()].copy_from_slice(&tmp);
                 Ok(())
@@ -457,7 +469,7 @@ impl<'a> Compiler<'a> {
                 .map(|(i, (name, e, d))| Member {
                     name: name.to_string(),
                     ty: Type::Elem(*e),
-                    offset: i as u32,
+                    offset: 8 * i as u32,
                     kind: if *d == Dir::In {
                         VarKind::Input
                     } else {
@@ -467,13 +479,13 @@ impl<'a> Compiler<'a> {
                     retain: false,
                 })
                 .collect();
-            let mut template = vec![0u64; s.size() as usize];
+            let mut template = vec![0u8; 8 * s.size() as usize];
             s.init_hidden(&mut template);
             let id = self.fbs.len() as u32;
             self.fbs.push(FbInfo {
                 name: s.name().into(),
                 members,
-                size: s.size(),
+                size: 8 * s.size(),
                 template,
                 std: Some(s),
                 body: 0,
@@ -502,9 +514,7 @@ impl<'a> Compiler<'a> {
         match r {
             Ok(mut info) => {
                 let id = self.fbs.len() as u32;
-                if let Some(t) = info.template.get_mut(TAG_SLOT as usize) {
-                    *t = id as u64 + 1;
-                }
+                Repr::U64.store(&mut info.template, TAG_OFFSET as usize, id as u64 + 1);
                 self.fbs.push(info);
                 self.fb_by_name.insert(n.text.clone(), Lookup::Found(id));
                 Ok(id)
@@ -518,8 +528,10 @@ impl<'a> Compiler<'a> {
 
     pub(super) fn fb_layout(&mut self, pou: &'a ast::Pou) -> R<FbInfo> {
         let mut members: Vec<Member> = Vec::new();
-        let mut off = 1u32; // TAG_SLOT
-        let mut template: Vec<u64> = vec![0];
+        // The type tag: 8 bytes at the start, where CODESYS keeps the block's table of
+        // methods.
+        let mut off = 8u32;
+        let mut template: Vec<u8> = vec![0; 8];
         let mut base = None;
         let mut methods = Vec::new();
         let mut properties = Vec::new();
@@ -632,13 +644,15 @@ impl<'a> Compiler<'a> {
                             },
                         ));
                     }
-                    let size = if b.kind == VarKind::InOut {
-                        1
+                    let (size, align) = if b.kind == VarKind::InOut {
+                        (8, 8)
                     } else {
-                        size_of(self, &t)
+                        (size_of(self, &t), align_of(self, &t))
                     };
+                    off = align_up(off, align);
+                    template.resize(off as usize, 0);
                     let mut sub = if b.kind == VarKind::InOut {
-                        vec![0]
+                        vec![0; 8]
                     } else {
                         tpl.clone().unwrap_or_else(|| self.template(&t))
                     };
@@ -655,7 +669,7 @@ impl<'a> Compiler<'a> {
                                 loc: Loc::Rel(off),
                                 kind: b.kind,
                                 constant: true,
-                                const_val: sub.first().copied(),
+                                const_val: Some(repr_of(&t).load(&sub, 0)),
                                 input_area: false,
                             },
                         );
@@ -676,7 +690,9 @@ impl<'a> Compiler<'a> {
                 }
             }
         }
-        if off as u64 > MAX_SLOTS {
+        let off = align_up(off, 8);
+        template.resize(off as usize, 0);
+        if off as u64 > MAX_BYTES {
             return Err(self.e(
                 pou.name.pos,
                 ErrorKind::Invalid,
@@ -755,7 +771,7 @@ impl<'a> Compiler<'a> {
             ));
         }
         let start = self.image.len() as u32;
-        let result = self.alloc(ret.as_ref().map_or(1, |t| size_of(self, t)), name.pos)?;
+        let result = self.alloc(ret.as_ref().map_or(8, |t| size_of(self, t)), name.pos)?;
         if let Some(t) = &ret {
             let tpl = self.template(t);
             self.image[result as usize..result as usize + tpl.len()].copy_from_slice(&tpl);
@@ -812,7 +828,7 @@ impl<'a> Compiler<'a> {
                         ));
                     }
                     let inout = b.kind == VarKind::InOut;
-                    let size = if inout { 1 } else { size_of(self, &t) };
+                    let size = if inout { 8 } else { size_of(self, &t) };
                     let a = self.alloc(size, n.pos)?;
                     if !inout {
                         let mut sub = tpl.clone().unwrap_or_else(|| self.template(&t));
@@ -822,7 +838,7 @@ impl<'a> Compiler<'a> {
                         self.image[a as usize..a as usize + sub.len()].copy_from_slice(&sub);
                     }
                     let const_val = if b.constant && t.scalar().is_some() {
-                        Some(self.image[a as usize])
+                        Some(repr_of(&t).load(&self.image, a as usize))
                     } else {
                         None
                     };
@@ -995,7 +1011,7 @@ impl<'a> Compiler<'a> {
             });
         }
         let const_val = if b.constant && t.scalar().is_some() {
-            Some(self.image[a as usize])
+            Some(repr_of(&t).load(&self.image, a as usize))
         } else {
             None
         };
@@ -1091,10 +1107,7 @@ impl<'a> Compiler<'a> {
                 Loc::Rel(m.offset)
             };
             let const_val = if m.constant && m.ty.scalar().is_some() {
-                self.fbs[id as usize]
-                    .template
-                    .get(m.offset as usize)
-                    .copied()
+                Some(repr_of(&m.ty).load(&self.fbs[id as usize].template, m.offset as usize))
             } else {
                 None
             };
@@ -1380,7 +1393,7 @@ impl<'a> Compiler<'a> {
         let (fb, m) = self.method_asts[&fid];
         let fb_name = self.fbs[fb as usize].name.clone();
         let pou = self.fb_asts[&fb_name];
-        let (locals, pou_id, frame, result, aggregate) = {
+        let (locals, pou_id, frame, result, aggregate, repr) = {
             let f = &self.funcs[fid as usize];
             (
                 f.locals.clone(),
@@ -1388,6 +1401,7 @@ impl<'a> Compiler<'a> {
                 f.frame,
                 f.result,
                 f.ret.as_ref().is_some_and(|t| t.scalar().is_none()),
+                f.ret.as_ref().map_or(Repr::U64, repr_of),
             )
         };
         let mut scope = self.fb_scope(fb, pou, pou_id)?;
@@ -1412,6 +1426,7 @@ impl<'a> Compiler<'a> {
                 stmts,
             },
             result,
+            repr,
             aggregate,
         });
         Ok(())
@@ -1456,7 +1471,7 @@ impl<'a> Compiler<'a> {
     pub(super) fn fn_body(&mut self, n: &Name) -> R<()> {
         let id = self.func(n)?;
         let pou = self.fn_asts[&n.text];
-        let (vars, pou_id, frame, result, aggregate) = {
+        let (vars, pou_id, frame, result, aggregate, repr) = {
             let f = &self.funcs[id as usize];
             (
                 f.locals.clone(),
@@ -1464,6 +1479,7 @@ impl<'a> Compiler<'a> {
                 f.frame,
                 f.result,
                 f.ret.as_ref().is_some_and(|t| t.scalar().is_none()),
+                f.ret.as_ref().map_or(Repr::U64, repr_of),
             )
         };
         let mut scope = Scope {
@@ -1487,6 +1503,7 @@ impl<'a> Compiler<'a> {
                 stmts,
             },
             result,
+            repr,
             aggregate,
         });
         Ok(())

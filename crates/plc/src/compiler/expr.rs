@@ -37,6 +37,7 @@ impl<'a> Compiler<'a> {
                 offset: lv.offset,
                 steps: lv.steps.into_boxed_slice(),
                 inner: lv.inner,
+                span: 8,
             };
             (Base::Abs(0), Some(Box::new(inner)))
         };
@@ -383,12 +384,14 @@ impl<'a> Compiler<'a> {
                 Base::Rel(o) => Place::Rel(o + lv.offset),
             }
         } else {
+            let span = size_of(self, &lv.ty);
             Place::Dyn(Box::new(DynPlace {
                 base: lv.base,
                 indirect: lv.indirect,
                 offset: lv.offset,
                 steps: lv.steps.into_boxed_slice(),
                 inner: lv.inner,
+                span,
             }))
         }
     }
@@ -402,16 +405,15 @@ impl<'a> Compiler<'a> {
         }
         let ty = lv.ty.clone();
         let bit = lv.bit;
-        let scalar = ty.scalar().is_some();
+        let repr = ty.repr();
         let p = self.place(lv);
-        let e = if !scalar {
-            vm::Expr::AddrOf(p)
-        } else {
-            match p {
-                Place::Abs(a) => vm::Expr::LoadAbs(a),
-                Place::Rel(o) => vm::Expr::LoadRel(o),
-                Place::Dyn(d) => vm::Expr::Load(d),
-            }
+        let e = match repr {
+            None => vm::Expr::AddrOf(p),
+            Some(r) => match p {
+                Place::Abs(a) => vm::Expr::LoadAbs(a, r),
+                Place::Rel(o) => vm::Expr::LoadRel(o, r),
+                Place::Dyn(d) => vm::Expr::Load(d, r),
+            },
         };
         match bit {
             Some(b) => TE {
@@ -429,7 +431,7 @@ impl<'a> Compiler<'a> {
         let a = match self.string_lits.get(s) {
             Some(a) => *a,
             None => {
-                let a = self.alloc(string_slots(cap), pos)?;
+                let a = self.alloc(string_bytes(cap), pos)?;
                 crate::strings::write(&mut self.image, a as usize, cap, s);
                 self.string_lits.insert(s.to_vec(), a);
                 a
@@ -443,7 +445,7 @@ impl<'a> Compiler<'a> {
 
     pub(super) fn wide_string_literal(&mut self, s: &[u16], pos: Pos) -> R<TE> {
         let cap = s.len().max(1) as u16;
-        let a = self.alloc(crate::types::wstring_slots(cap), pos)?;
+        let a = self.alloc(crate::types::wstring_bytes(cap), pos)?;
         crate::strings::write_units(&mut self.image, a as usize, cap, true, s);
         Ok(TE {
             ty: Ty::T(Type::WString(cap)),
@@ -454,9 +456,9 @@ impl<'a> Compiler<'a> {
     /// A temporary for a STRING, or a WSTRING if `wide`, of the longest length.
     pub(super) fn string_temp(&mut self, pos: Pos, wide: bool) -> R<u32> {
         if wide {
-            self.alloc(crate::types::wstring_slots(MAX_STRING_LEN), pos)
+            self.alloc(crate::types::wstring_bytes(MAX_STRING_LEN), pos)
         } else {
-            self.alloc(string_slots(MAX_STRING_LEN), pos)
+            self.alloc(string_bytes(MAX_STRING_LEN), pos)
         }
     }
 
@@ -667,11 +669,13 @@ impl<'a> Compiler<'a> {
         let e = self.fold_constants(e);
         match e {
             vm::Expr::Un(Un::NotBool, a) => match *a {
-                vm::Expr::LoadAbs(s) => vm::Expr::NotAbs(s),
+                vm::Expr::LoadAbs(s, Repr::Bool) => vm::Expr::NotAbs(s),
                 other => vm::Expr::Un(Un::NotBool, Box::new(other)),
             },
             vm::Expr::Bin(op, ab) => match *ab {
-                (vm::Expr::LoadAbs(x), vm::Expr::LoadAbs(y)) => vm::Expr::BinAbs(op, x, y),
+                (vm::Expr::LoadAbs(x, rx), vm::Expr::LoadAbs(y, ry)) => {
+                    vm::Expr::BinAbs(op, x, y, rx, ry)
+                }
                 (a, vm::Expr::Const(k)) if !matches!(a, vm::Expr::Const(_)) => {
                     vm::Expr::BinK(op, Box::new(a), k)
                 }
@@ -1036,13 +1040,14 @@ impl<'a> Compiler<'a> {
                 return Err(mismatch(self));
             }
             use std::cmp::Ordering::*;
+            let w = matches!(ct, Type::WString(_));
             let (bin, swap_not) = match op {
-                BinOp::Eq => (Bin::CmpS(Equal, false), false),
-                BinOp::Ne => (Bin::CmpS(Equal, false), true),
-                BinOp::Lt => (Bin::CmpS(Less, false), false),
-                BinOp::Le => (Bin::CmpS(Less, true), false),
-                BinOp::Gt => (Bin::CmpS(Greater, false), false),
-                _ => (Bin::CmpS(Greater, true), false),
+                BinOp::Eq => (Bin::CmpS(Equal, false, w), false),
+                BinOp::Ne => (Bin::CmpS(Equal, false, w), true),
+                BinOp::Lt => (Bin::CmpS(Less, false, w), false),
+                BinOp::Le => (Bin::CmpS(Less, true, w), false),
+                BinOp::Gt => (Bin::CmpS(Greater, false, w), false),
+                _ => (Bin::CmpS(Greater, true, w), false),
             };
             let e = vm::Expr::Bin(bin, Box::new((le, re)));
             let e = if swap_not {
@@ -1297,13 +1302,12 @@ impl<'a> Compiler<'a> {
                     (Type::Interface(j), Type::Interface(i)) if self.iface_extends(*j, *i) => {
                         return Ok(te.e);
                     }
-                    // A POINTER TO BYTE takes any pointer but one to a string, whose
-                    // characters are not bytes a BYTE pointer steps through here (a length
-                    // slot, then eight characters a slot).
+                    // A POINTER TO BYTE takes any pointer and goes to any: it walks the
+                    // bytes of what it points to, laid out as in CODESYS.
                     (Type::Pointer(a), Type::Pointer(b))
                         if a == b
                             || matches!(**a, Type::Elem(Elem::Byte))
-                            || (matches!(**b, Type::Elem(Elem::Byte)) && !a.is_string())
+                            || matches!(**b, Type::Elem(Elem::Byte))
                             || matches!((&**a, &**b), (Type::Fb(x), Type::Fb(y)) if self.fb_extends(*x, *y)) =>
                     {
                         return Ok(te.e);
@@ -1321,13 +1325,10 @@ impl<'a> Compiler<'a> {
                     {
                         return Ok(te.e);
                     }
-                    // A pointer to an array of other bounds over the same elements: the
-                    // elements lie alike, so `p^[i]` reads the same place as in CODESYS.
-                    (Type::Pointer(a), Type::Pointer(b))
-                        if self.codesys_conversions
-                            && matches!((&**a, &**b), (Type::Array(x), Type::Array(y))
-                                if x.elem == y.elem && x.elem_size == y.elem_size) =>
-                    {
+                    // CODESYS's ADR gives an untyped address, which any pointer takes: a
+                    // POINTER TO DWORD reads a REAL's bits, a POINTER TO ARRAY[1..255] OF
+                    // BYTE a STRING's characters.
+                    (Type::Pointer(_), Type::Pointer(_)) if self.codesys_conversions => {
                         return Ok(te.e);
                     }
                     _ => {}

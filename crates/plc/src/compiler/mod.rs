@@ -24,6 +24,7 @@ use crate::error::{CompileError, CompileErrors, ErrorKind, Pos, Warning};
 use crate::lexer::{AddrSize, Area, DirectAddr};
 use crate::program::{FbLayout, Located, Program, ProgramInstance, Symbol, TaskDesc, area_index};
 use crate::stdfb::{Dir, StdFb};
+use crate::types::Repr;
 use crate::types::*;
 use crate::vm::{
     self, ArgIn, ArgOut, Base, Bin, Block, Builtin, CaseArm, Code, Conv, DynPlace, FbCall, FbKind,
@@ -77,7 +78,7 @@ struct FbInfo {
     name: String,
     members: Vec<Member>,
     size: u32,
-    template: Vec<u64>,
+    template: Vec<u8>,
     std: Option<StdFb>,
     body: u32,
     /// METHODs, inherited ones included: name, function id, private.
@@ -127,7 +128,7 @@ pub(crate) struct Receiver {
 
 /// The first slot of every user function block instance holds its type tag (the FB
 /// type id + 1), for calls through interfaces, references and THIS.
-const TAG_SLOT: u32 = 0;
+const TAG_OFFSET: u32 = 0;
 
 struct FuncInfo {
     name: String,
@@ -163,13 +164,13 @@ pub(crate) struct Compiler<'a> {
     /// Upper-case name -> its first spelling in the source, for messages.
     spelling: HashMap<String, String>,
     errors: Vec<CompileError>,
-    image: Vec<u64>,
+    image: Vec<u8>,
     type_asts: HashMap<String, &'a ast::TypeDecl>,
-    named: HashMap<String, (Type, Option<Vec<u64>>)>,
+    named: HashMap<String, (Type, Option<Vec<u8>>)>,
     resolving: HashSet<String>,
     enums: Vec<EnumType>,
     enum_values: HashMap<String, Vec<(u32, i64)>>,
-    structs: Vec<(StructType, Vec<u64>)>,
+    structs: Vec<(StructType, Vec<u8>)>,
     fb_asts: HashMap<String, &'a ast::Pou>,
     fbs: Vec<FbInfo>,
     fb_by_name: HashMap<String, Lookup<u32>>,
@@ -226,21 +227,45 @@ fn ik(e: Elem) -> IntKind {
     e.int_kind().unwrap_or(IntKind::I64)
 }
 
+/// Bytes a value of type `t` takes (CODESYS's SIZEOF).
 fn size_of(c: &Compiler, t: &Type) -> u32 {
     match t {
-        Type::Elem(_) | Type::Enum(_) | Type::Subrange(..) => 1,
-        Type::Pointer(_) | Type::Reference(_) | Type::Interface(_) => 1,
-        Type::String(n) => string_slots(*n),
-        Type::WString(n) => crate::types::wstring_slots(*n),
+        Type::String(n) => string_bytes(*n),
+        Type::WString(n) => crate::types::wstring_bytes(*n),
         Type::Array(a) => (a.len() as u32).saturating_mul(a.elem_size),
         Type::Struct(id) => c.structs.get(*id as usize).map_or(1, |s| s.0.size),
-        Type::Fb(id) => c.fbs.get(*id as usize).map_or(1, |f| f.size),
+        Type::Fb(id) => c.fbs.get(*id as usize).map_or(8, |f| f.size),
+        t => t.scalar().map_or(8, Elem::size),
     }
 }
 
-/// Limit on the slots of one program, so a huge ARRAY declaration is a compile error, not
+/// Alignment of type `t`: its own size for an elementary value, its largest member's for
+/// an aggregate (CODESYS's default `pack_mode`, natural alignment).
+fn align_of(c: &Compiler, t: &Type) -> u32 {
+    match t {
+        Type::String(_) => 1,
+        Type::WString(_) => 2,
+        Type::Array(a) => align_of(c, &a.elem),
+        Type::Struct(id) => c.structs.get(*id as usize).map_or(1, |s| s.0.align),
+        Type::Fb(_) => 8,
+        t => t.scalar().map_or(8, Elem::size),
+    }
+}
+
+/// `off` rounded up to a multiple of `align` (a power of two).
+fn align_up(off: u32, align: u32) -> u32 {
+    off.saturating_add(align - 1) & !(align - 1)
+}
+
+/// The representation of a scalar type (8 raw bytes for anything else, which is never
+/// loaded as a scalar).
+fn repr_of(t: &Type) -> Repr {
+    t.repr().unwrap_or(Repr::U64)
+}
+
+/// Limit on the bytes of one program, so a huge ARRAY declaration is a compile error, not
 /// an allocation failure.
-const MAX_SLOTS: u64 = 16 << 20;
+const MAX_BYTES: u64 = 128 << 20;
 
 /// Where the lines of each source file start in the joined token stream.
 #[derive(Debug, Clone, Default)]
@@ -397,7 +422,7 @@ fn compile_unit(
         codesys_conversions: options.conversions == crate::Conversions::Codesys,
     };
     // Slot 0 is never a variable: a null pointer or reference points there.
-    c.image.push(0);
+    c.image.resize(vm::FIRST_ADDRESS, 0);
     let program = c.unit(unit);
     // A program instantiated twice reports its body's errors once.
     let mut seen = HashSet::new();
@@ -428,13 +453,14 @@ impl<'a> Compiler<'a> {
         respell(&self.spelling, msg)
     }
 
+    /// `n` bytes of static memory, 8-aligned (enough for any type).
     fn alloc(&mut self, n: u32, pos: Pos) -> R<u32> {
-        let start = self.image.len() as u64;
-        if start + n as u64 > MAX_SLOTS {
+        let start = (self.image.len() as u64).next_multiple_of(8);
+        if start + n as u64 > MAX_BYTES {
             return Err(self.e(
                 pos,
                 ErrorKind::Invalid,
-                "program needs more than 16 Mi slots of memory",
+                "program needs more than 128 MiB of memory",
             ));
         }
         self.image.resize((start + n as u64) as usize, 0);
@@ -1103,7 +1129,7 @@ fn contains_user_call(e: &AExpr, c: &Compiler) -> bool {
 }
 
 /// A structure field's offset, type, type template and initializer.
-type FieldInit<'i> = (u32, Type, Option<Vec<u64>>, Option<&'i Init>);
+type FieldInit<'i> = (u32, Type, Option<Vec<u8>>, Option<&'i Init>);
 
 /// An lvalue under construction.
 struct Lv {
@@ -1135,7 +1161,7 @@ impl Compiler<'_> {
             AddrSize::Double => Elem::DWord,
             AddrSize::Long => Elem::LWord,
         };
-        let a = self.alloc(1, pos)?;
+        let a = self.alloc(e.size(), pos)?;
         self.located.push(Located {
             at: *d,
             slot: a,
@@ -1198,7 +1224,17 @@ impl Compiler<'_> {
 }
 
 pub(crate) fn builtin_expr(b: Builtin, args: Vec<vm::Expr>, dest: u32) -> vm::Expr {
-    vm::Expr::Builtin(b, args.into_boxed_slice(), dest)
+    builtin_expr_wide(b, args, dest, false)
+}
+
+/// A built-in on WSTRINGs (`wide`) or STRINGs.
+pub(crate) fn builtin_expr_wide(
+    b: Builtin,
+    args: Vec<vm::Expr>,
+    dest: u32,
+    wide: bool,
+) -> vm::Expr {
+    vm::Expr::Builtin(b, args.into_boxed_slice(), dest, wide)
 }
 
 pub(crate) fn literal_elem(t: &Ty) -> Option<Elem> {

@@ -174,6 +174,7 @@ impl<'a> Compiler<'a> {
                     pos.line,
                     StmtKind::For(Box::new(ForLoop {
                         var: var_place,
+                        repr: Repr::of(e),
                         kind: ik(e),
                         from: from_e,
                         to: to_e,
@@ -256,9 +257,10 @@ impl<'a> Compiler<'a> {
                 return Err(c.e(t.root.pos, ErrorKind::WrongArgument, "ENO goes to a BOOL"));
             }
             let v = if *neg { v ^ 1 } else { v };
+            let r = repr_of(&lv.ty);
             let kind = match lv.bit {
-                Some(b) => StmtKind::StoreBit(c.place(lv), b, vm::Expr::Const(v)),
-                None => StmtKind::Store(c.place(lv), vm::Expr::Const(v), Store::Scalar),
+                Some(b) => StmtKind::StoreBit(c.place(lv), r, b, vm::Expr::Const(v)),
+                None => StmtKind::Store(c.place(lv), vm::Expr::Const(v), Store::Scalar(r)),
             };
             Ok(Some(Stmt {
                 line: pos.line,
@@ -287,9 +289,10 @@ impl<'a> Compiler<'a> {
 
     pub(super) fn store_kind(&self, t: &Type) -> Store {
         match t {
-            Type::Subrange(_, l, h) => Store::Range(*l, *h),
-            Type::String(n) | Type::WString(n) => Store::String(*n),
-            t if t.scalar().is_some() => Store::Scalar,
+            Type::Subrange(e, l, h) => Store::Range(*l, *h, Repr::of(*e)),
+            Type::String(n) => Store::String(*n, false),
+            Type::WString(n) => Store::String(*n, true),
+            t if t.scalar().is_some() => Store::Scalar(repr_of(t)),
             t => Store::Block(size_of(self, t)),
         }
     }
@@ -328,8 +331,9 @@ impl<'a> Compiler<'a> {
         let te = self.expr(value, sc, Some(&lv.ty))?;
         if let Some(bit) = lv.bit {
             let v = self.coerce(te, &Type::BOOL, value.pos())?;
+            let r = repr_of(&lv.ty);
             let p = self.place(lv);
-            return Ok(StmtKind::StoreBit(p, bit, v));
+            return Ok(StmtKind::StoreBit(p, r, bit, v));
         }
         let ty = lv.ty.clone();
         let v = self.coerce(te, &ty, value.pos())?;
@@ -412,7 +416,7 @@ impl<'a> Compiler<'a> {
                 ));
             }
         };
-        Ok(StmtKind::Store(self.place(lv), v, Store::Scalar))
+        Ok(StmtKind::Store(self.place(lv), v, Store::Scalar(Repr::U64)))
     }
 
     /// May a variable of type `from` be referred to where `to` is expected: the same
@@ -495,7 +499,8 @@ impl Compiler<'_> {
                     return Err(self.e(t.root.pos, ErrorKind::WrongArgument, "ENO goes to a BOOL"));
                 }
                 let bit = lv.bit;
-                Some((self.place(lv), bit, negate))
+                let r = repr_of(&lv.ty);
+                Some((self.place(lv), r, bit, negate))
             }
             _ => None,
         };

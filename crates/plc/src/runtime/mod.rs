@@ -17,7 +17,7 @@ use crate::error::{Fault, FaultKind};
 use crate::lexer::{AddrSize, Area, Tok};
 use crate::program::{Program, Symbol};
 use crate::signals::{ConfigError, Direction, PlcConfig, Signal, SignalKind};
-use crate::types::{Elem, Type, string_slots};
+use crate::types::{Elem, Repr, Type};
 use crate::value::{Value, ValueError};
 use crate::vm::{Flow, Vm};
 
@@ -105,7 +105,8 @@ pub struct VarRef {
 }
 
 impl VarRef {
-    /// The slot index in PLC memory.
+    /// The variable's byte address in PLC memory (identifies it, as in
+    /// [`Runtime::forced_slots`]).
     ///
     /// Real-time: yes (no allocation, no blocking).
     pub fn slot(&self) -> u32 {
@@ -151,7 +152,7 @@ pub struct Runtime {
     vm: Vm,
     images: [Vec<u8>; 3],
     safe_outputs: Vec<u8>,
-    forces: Vec<(u32, u64)>,
+    forces: Vec<(u32, Repr, u64)>,
     options: RuntimeOptions,
     fault: Option<Fault>,
     scans: u64,
@@ -161,14 +162,14 @@ pub struct Runtime {
     /// Trigger values seen on the previous scan (event tasks).
     trigger_prev: Vec<bool>,
     signals: Vec<Option<(u32, Elem)>>,
-    safe_slots: Vec<(u32, u64)>,
+    safe_slots: Vec<(u32, Repr, u64)>,
     retain: Arc<[RetainLeaf]>,
 }
 
 impl std::fmt::Debug for Vm {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Vm")
-            .field("slots", &self.mem.len())
+            .field("bytes", &self.mem.len())
             .finish()
     }
 }
@@ -302,12 +303,14 @@ impl Runtime {
         for a in self.vm.axes.iter_mut() {
             a.reset();
         }
-        let mut kept: Vec<(u32, Vec<u64>)> = Vec::new();
+        let mut kept: Vec<(u32, Vec<u8>)> = Vec::new();
         if kind == Restart::Warm {
             for l in self.retain.iter() {
-                let n = slots_of(&l.ty) as usize;
+                let n = bytes_of(&l.ty);
                 let s = l.slot as usize;
-                kept.push((l.slot, self.vm.mem[s..s + n].to_vec()));
+                if let Some(b) = self.vm.mem.get(s..s + n) {
+                    kept.push((l.slot, b.to_vec()));
+                }
             }
         }
         self.vm.mem.copy_from_slice(&self.program.init);
@@ -355,7 +358,7 @@ impl Runtime {
             let task = &self.program.tasks[t];
             let due = match (task.trigger_slot, task.interval, self.next_due[t]) {
                 (Some(slot), _, _) => {
-                    let now_set = self.vm.mem.get(slot as usize).is_some_and(|v| v & 1 != 0);
+                    let now_set = self.vm.ld(slot as usize, Repr::Bool) != 0;
                     let rising = now_set && !self.trigger_prev[t];
                     self.trigger_prev[t] = now_set;
                     rising
@@ -428,9 +431,7 @@ impl Runtime {
             a.step(now);
         }
         for &(slot, number) in &self.axis_bindings {
-            if let Some(s) = self.vm.mem.get_mut(slot as usize) {
-                *s = number;
-            }
+            self.vm.st(slot as usize, Repr::U32, number);
         }
         self.vm.budget = self.options.watchdog_budget.max(2);
         let program = &self.program;
@@ -440,9 +441,7 @@ impl Runtime {
             }
             let img = &self.images[crate::program::area_index(l.at.area)];
             let v = read_image(img, l.at.size, l.at.byte_offset(), l.at.bit, l.elem);
-            if let Some(s) = self.vm.mem.get_mut(l.slot as usize) {
-                *s = v;
-            }
+            self.vm.st(l.slot as usize, Repr::of(l.elem), v);
         }
         self.apply_forces();
         Ok(())
@@ -467,17 +466,15 @@ impl Runtime {
             if l.at.area == Area::Input {
                 continue;
             }
-            let v = self.vm.mem.get(l.slot as usize).copied().unwrap_or(0);
+            let v = self.vm.ld(l.slot as usize, Repr::of(l.elem));
             let img = &mut self.images[crate::program::area_index(l.at.area)];
             write_image(img, l.at.size, l.at.byte_offset(), l.at.bit, l.elem, v);
         }
     }
 
     fn apply_forces(&mut self) {
-        for &(slot, v) in &self.forces {
-            if let Some(s) = self.vm.mem.get_mut(slot as usize) {
-                *s = v;
-            }
+        for &(slot, r, v) in &self.forces {
+            self.vm.st(slot as usize, r, v);
         }
     }
 
@@ -504,22 +501,20 @@ impl Runtime {
             scan: self.scans,
         };
         self.images[1].copy_from_slice(&self.safe_outputs);
-        for &(slot, v) in &self.safe_slots {
-            if let Some(s) = self.vm.mem.get_mut(slot as usize) {
-                *s = v;
-            }
+        for &(slot, r, v) in &self.safe_slots {
+            self.vm.st(slot as usize, r, v);
         }
         self.fault = Some(fault.clone());
         fault
     }
 }
 
-/// Decodes the value of type `ty` stored at `slot`.
-fn value_at(mem: &[u64], slot: usize, ty: &Type) -> Value {
+/// Decodes the value of type `ty` stored at byte address `slot`.
+fn value_at(mem: &[u8], slot: usize, ty: &Type) -> Value {
     match ty {
         Type::String(_) => {
             let mut buf = [0u8; crate::types::MAX_STRING_LEN as usize + 1];
-            let n = crate::strings::read(mem, slot, &mut buf);
+            let n = crate::strings::read(mem, slot, false, &mut buf);
             Value::String(
                 buf[..n]
                     .iter()
@@ -529,13 +524,13 @@ fn value_at(mem: &[u64], slot: usize, ty: &Type) -> Value {
         }
         Type::WString(_) => {
             let mut buf = [0u16; crate::types::MAX_STRING_LEN as usize + 1];
-            let (n, _) = crate::strings::read_units(mem, slot, &mut buf);
+            let n = crate::strings::read_units(mem, slot, true, &mut buf);
             Value::String(String::from_utf16_lossy(&buf[..n]))
         }
-        t => Value::from_slot(
-            t.scalar().unwrap_or(Elem::LWord),
-            mem.get(slot).copied().unwrap_or(0),
-        ),
+        t => {
+            let e = t.scalar().unwrap_or(Elem::LWord);
+            Value::from_slot(e, Repr::of(e).load(mem, slot))
+        }
     }
 }
 
@@ -614,10 +609,16 @@ fn write_image(img: &mut [u8], size: AddrSize, off: usize, bit: u8, e: Elem, v: 
     }
 }
 
-fn slots_of(t: &Type) -> u32 {
+/// The representation of a scalar type in memory.
+fn repr_of(t: &Type) -> Repr {
+    t.repr().unwrap_or(Repr::U64)
+}
+
+/// Bytes of a retained leaf (an elementary value or a string).
+fn bytes_of(t: &Type) -> usize {
     match t {
-        Type::String(n) => string_slots(*n),
-        Type::WString(n) => crate::types::wstring_slots(*n),
-        _ => 1,
+        Type::String(n) => crate::types::string_bytes(*n) as usize,
+        Type::WString(n) => crate::types::wstring_bytes(*n) as usize,
+        t => t.scalar().map_or(8, Elem::size) as usize,
     }
 }

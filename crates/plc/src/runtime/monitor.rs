@@ -16,8 +16,8 @@ impl Runtime {
     /// Real-time: yes for a variable of elementary type (no allocation, no blocking); a
     /// `STRING` value allocates.
     pub fn read(&self, var: &VarRef) -> Value {
-        let v = self.vm.mem.get(var.slot as usize).copied().unwrap_or(0);
         if let Some(b) = var.bit {
+            let v = self.vm.ld(var.slot as usize, repr_of(&var.ty));
             return Value::Bool((v >> b) & 1 != 0);
         }
         value_at(&self.vm.mem, var.slot as usize, &var.ty)
@@ -39,7 +39,7 @@ impl Runtime {
     /// Real-time: no (allocates).
     pub fn format(&self, var: &VarRef) -> String {
         if let (Type::Enum(id), None) = (&var.ty, var.bit) {
-            let v = self.vm.mem.get(var.slot as usize).copied().unwrap_or(0) as i64;
+            let v = self.vm.ld(var.slot as usize, repr_of(&var.ty)) as i64;
             if let Some(e) = self.program.enums.get(*id as usize) {
                 if let Some((n, _)) = e.values.iter().find(|(_, x)| *x == v) {
                     return n.clone();
@@ -110,9 +110,9 @@ impl Runtime {
         let slot = var.slot as usize;
         match (&var.ty, var.bit, value) {
             (_, Some(b), _) => {
-                if let Some(s) = self.vm.mem.get_mut(slot) {
-                    *s = (*s & !(1 << b)) | ((v & 1) << b);
-                }
+                let r = repr_of(&var.ty);
+                let old = self.vm.ld(slot, r);
+                self.vm.st(slot, r, (old & !(1 << b)) | ((v & 1) << b));
             }
             (Type::String(cap), None, Value::String(text)) => {
                 let mut bytes = [0u8; crate::types::MAX_STRING_LEN as usize + 1];
@@ -124,11 +124,7 @@ impl Runtime {
                 let n = crate::strings::utf16_units(text, &mut units);
                 crate::strings::write_units(&mut self.vm.mem, slot, *cap, true, &units[..n])
             }
-            _ => {
-                if let Some(s) = self.vm.mem.get_mut(slot) {
-                    *s = v;
-                }
-            }
+            _ => self.vm.st(slot, repr_of(&var.ty), v),
         }
     }
 
@@ -179,7 +175,7 @@ impl Runtime {
     /// Real-time: no (allocates).
     pub fn force(&mut self, var: &VarRef, value: &Value) -> Result<(), MonitorError> {
         // Error texts are built only on error: forcing itself does not allocate.
-        let name = || format!("slot {}", var.slot);
+        let name = || format!("address {}", var.slot);
         if var.bit.is_some() || var.elem().is_none() {
             return Err(MonitorError::NotScalar(name()));
         }
@@ -189,13 +185,13 @@ impl Runtime {
                 name: name(),
                 error,
             })?;
-        match self.forces.iter_mut().find(|(s, _)| *s == var.slot) {
-            Some(f) => f.1 = v,
+        match self.forces.iter_mut().find(|(s, ..)| *s == var.slot) {
+            Some(f) => f.2 = v,
             None => {
                 if self.forces.len() >= self.options.max_forces {
                     return Err(MonitorError::ForceTableFull(self.options.max_forces));
                 }
-                self.forces.push((var.slot, v));
+                self.forces.push((var.slot, repr_of(&var.ty), v));
             }
         }
         self.put(var, v, value);
@@ -207,7 +203,7 @@ impl Runtime {
     ///
     /// Real-time: yes (no allocation, no blocking).
     pub fn unforce(&mut self, var: &VarRef) {
-        self.forces.retain(|(s, _)| *s != var.slot);
+        self.forces.retain(|(s, ..)| *s != var.slot);
     }
 
     /// Releases every force.
@@ -217,11 +213,11 @@ impl Runtime {
         self.forces.clear();
     }
 
-    /// Slots currently forced.
+    /// Byte addresses of the variables currently forced ([`VarRef::slot`]).
     ///
     /// Real-time: yes (no allocation, no blocking).
     pub fn forced_slots(&self) -> impl Iterator<Item = u32> + '_ {
-        self.forces.iter().map(|(s, _)| *s)
+        self.forces.iter().map(|(s, ..)| *s)
     }
 }
 

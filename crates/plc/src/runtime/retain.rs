@@ -13,7 +13,7 @@ impl Runtime {
     pub fn retain_snapshot(&self) -> RetainSnapshot {
         let mut snap = RetainSnapshot {
             leaves: Arc::clone(&self.retain),
-            values: vec![0; self.retain.iter().map(|l| slots_of(&l.ty) as usize).sum()],
+            values: vec![0; self.retain.iter().map(|l| bytes_of(&l.ty)).sum()],
         };
         self.update_retain_snapshot(&mut snap);
         snap
@@ -26,7 +26,7 @@ impl Runtime {
     pub fn update_retain_snapshot(&self, snap: &mut RetainSnapshot) {
         let mut at = 0usize;
         for l in self.retain.iter() {
-            let n = slots_of(&l.ty) as usize;
+            let n = bytes_of(&l.ty);
             let src = l.slot as usize;
             if let (Some(dst), Some(s)) = (
                 snap.values.get_mut(at..at + n),
@@ -110,7 +110,7 @@ impl Runtime {
 #[derive(Debug, Clone)]
 pub struct RetainSnapshot {
     leaves: Arc<[RetainLeaf]>,
-    values: Vec<u64>,
+    values: Vec<u8>,
 }
 
 /// Two snapshots of the same program are equal when every retained value is: a saver uses
@@ -142,7 +142,7 @@ impl RetainSnapshot {
                 v => v.to_string(),
             };
             text.push_str(&format!("{} = {}\n", l.path, shown));
-            at += slots_of(&l.ty) as usize;
+            at += bytes_of(&l.ty);
         }
         let dir = path
             .parent()

@@ -8,7 +8,7 @@ impl Runtime {
     /// Real-time: no (set-up: allocates).
     pub fn configure(&mut self, cfg: &PlcConfig) -> Result<(), ConfigError> {
         let mut signals = vec![None; Signal::ALL.len()];
-        let mut safe_slots: Vec<(u32, u64)> = Vec::new();
+        let mut safe_slots: Vec<(u32, Repr, u64)> = Vec::new();
         for (sname, var) in &cfg.signals {
             let sig = Signal::from_name(sname)
                 .ok_or_else(|| ConfigError::UnknownSignal(sname.clone()))?;
@@ -39,7 +39,7 @@ impl Runtime {
             };
             signals[sig as usize] = Some((r.slot, e));
             if sig.direction() == Direction::FromPlc {
-                safe_slots.push((r.slot, encode_f64(e, sig.safe_value())));
+                safe_slots.push((r.slot, Repr::of(e), encode_f64(e, sig.safe_value())));
             }
         }
         let mut safe_outputs = vec![0u8; self.images[1].len()];
@@ -65,8 +65,8 @@ impl Runtime {
                     l.elem,
                     v,
                 );
-            } else if let Some(s) = safe_slots.iter_mut().find(|(s, _)| *s == r.slot) {
-                s.1 = v;
+            } else if let Some(s) = safe_slots.iter_mut().find(|(s, ..)| *s == r.slot) {
+                s.2 = v;
             } else {
                 return Err(bad(
                     "is neither a %Q variable nor mapped to a signal from the PLC".into(),
@@ -115,9 +115,7 @@ impl Runtime {
             return;
         }
         if let Some(Some((slot, e))) = self.signals.get(s as usize).copied() {
-            if let Some(m) = self.vm.mem.get_mut(slot as usize) {
-                *m = encode_f64(e, value);
-            }
+            self.vm.st(slot as usize, Repr::of(e), encode_f64(e, value));
         }
     }
 
@@ -133,7 +131,7 @@ impl Runtime {
     /// Real-time: yes (no allocation, no blocking).
     pub fn signal(&self, s: Signal) -> Option<f64> {
         let (slot, e) = self.signals.get(s as usize).copied().flatten()?;
-        let v = self.vm.mem.get(slot as usize).copied().unwrap_or(0);
+        let v = self.vm.ld(slot as usize, Repr::of(e));
         Some(decode_f64(e, v))
     }
 
