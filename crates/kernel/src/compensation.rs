@@ -32,6 +32,8 @@ pub(crate) struct CompensationStage {
     sync_chained: bool,
     /// G96 in force: its D cap (rpm).
     css_max_rpm: Option<f64>,
+    /// M428 in force: lines are tool-tip moves.
+    tool_centre_point: bool,
     pending: Option<Tagged<MachineBlock>>,
 }
 
@@ -56,6 +58,7 @@ impl CompensationStage {
             sync_pitch: None,
             sync_chained: false,
             css_max_rpm: None,
+            tool_centre_point: false,
             pending: None,
         }
     }
@@ -158,6 +161,18 @@ impl CompensationStage {
                 self.sync_pitch = pitch.map(|p| p * self.mm_per_unit);
             }
             ProgramBlock::SyncChained => self.sync_chained = true,
+            ProgramBlock::ToolCentrePoint(on) => self.tool_centre_point = on,
+            // The interpreter task lets only lines through under TCP.
+            ProgramBlock::Line { line, end, rapid } if self.tool_centre_point => {
+                return Some(MachineBlock::TcpLine {
+                    line,
+                    end: self.to_machine(&end),
+                    rapid,
+                    feed: self.feed(),
+                    mode: self.mode,
+                    tool_offset: self.tool[2] * self.mm_per_unit,
+                });
+            }
             ProgramBlock::Line {
                 line,
                 end,
