@@ -231,3 +231,50 @@ fn what_tcp_does_not_run_stops_at_its_line() {
     assert_eq!((fault.code, fault.line), (FaultCode::ProgramError, 3));
     let _ = Command::Reset;
 }
+
+/// LinuxCNC 2.9's joint positions for the same program: `xyzac-trt-kins` (type 0, TCP) with
+/// `y-offset` 20, `z-offset` 10, the rot point at the origin and `tool-offset` from
+/// `motion.tooloffset.z` (T1, 50 mm), run headless in its simulator (`linuxcnc` with a
+/// perfect servo loop, `joint.N.pos-cmd` sampled every period): where the joints stood
+/// during each dwell. (LinuxCNC's TCP needs no M428 there: its kinematics is always the
+/// xyzac one without `sparm=identityfirst`; the rtcnc program switches it on where A and C
+/// are 0, where both kinematics agree.)
+const LINUXCNC_PROGRAM: &str = "G21 G90 G94 G61\nT1 M6\nG43 H1\nG0 X0 Y0 Z80 A0 C0\nG4 P0.3\n\
+     G1 X20 Y0 Z5 F1200\nG4 P0.3\nG1 A-30 C45 F1800\nG4 P0.3\nG1 Y20 C135 F600\nG4 P0.3\n\
+     G1 X-20 C225\nG4 P0.3\nG1 Y-20 C315\nG4 P0.3\nG0 Z40\nG4 P0.3\nM2\n";
+const LINUXCNC_JOINTS: [[f64; 5]; 7] = [
+    [0.0, 0.0, 130.0, 0.0, 0.0],
+    [20.0, 0.0, 55.0, 0.0, 0.0],
+    [14.142135624, 12.426940638, 58.598805169, -30.0, 45.0],
+    [-28.284271247, 0.179491924, 65.669872981, -30.0, 135.0],
+    [28.284271247, 0.179491924, 65.669872981, -30.0, 225.0],
+    [-28.284271247, 0.179491924, 65.669872981, -30.0, 315.0],
+    [-28.284271247, 17.679491924, 95.980762114, -30.0, 315.0],
+];
+
+/// The same program on rtcnc (M428 after the first move): the joints at every dwell equal
+/// LinuxCNC's within 1e-6 mm and 1e-6 degree (its figures have nine decimals).
+#[test]
+fn joint_positions_equal_linuxcnc_xyzac_trt_kins() {
+    let text = LINUXCNC_PROGRAM.replacen("G4 P0.3\n", "G4 P0.3\nM428\n", 1);
+    let m = run(&text, "tcp_linuxcnc.ngc");
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    // The dwells' lines in the rtcnc program: 5, then every other line from 8.
+    let dwells = [5, 8, 10, 12, 14, 16, 18];
+    for (line, want) in dwells.into_iter().zip(LINUXCNC_JOINTS) {
+        let at = m
+            .samples
+            .iter()
+            .filter(|s| s.line == line)
+            .last()
+            .unwrap_or_else(|| panic!("no set-point at line {line}"));
+        for j in 0..5 {
+            assert!(
+                (at.setpoint[j] - want[j]).abs() <= 1e-6,
+                "line {line} joint {j}: {} against LinuxCNC's {}",
+                at.setpoint[j],
+                want[j]
+            );
+        }
+    }
+}

@@ -196,3 +196,79 @@ fn chords_keep_the_tip_on_the_programmed_line() {
     assert!((seconds - 12.0).abs() < 1e-9);
     assert!(chords > 10, "{chords} chords");
 }
+
+/// Poses (tool tip with the 50 mm tool length in Z) of a program run in LinuxCNC 2.9's
+/// simulator, and the joint positions its `xyzac-trt-kins` and `xyzbc-trt-kins` commanded
+/// there (`joint.N.pos-cmd` while the program dwelt at each pose, nine decimals; the
+/// program and the run are described in `crates/kernel/tests/tool_centre_point.rs`).
+/// xyzac: `y-offset` 20, `z-offset` 10, rot point at the origin.
+const LINUXCNC_AC: [([f64; 5], [f64; 5]); 7] = [
+    ([0.0, 0.0, 130.0, 0.0, 0.0], [0.0, 0.0, 130.0, 0.0, 0.0]),
+    ([20.0, 0.0, 55.0, 0.0, 0.0], [20.0, 0.0, 55.0, 0.0, 0.0]),
+    (
+        [20.0, 0.0, 55.0, -30.0, 45.0],
+        [14.142135624, 12.426940638, 58.598805169, -30.0, 45.0],
+    ),
+    (
+        [20.0, 20.0, 55.0, -30.0, 135.0],
+        [-28.284271247, 0.179491924, 65.669872981, -30.0, 135.0],
+    ),
+    (
+        [-20.0, 20.0, 55.0, -30.0, 225.0],
+        [28.284271247, 0.179491924, 65.669872981, -30.0, 225.0],
+    ),
+    (
+        [-20.0, -20.0, 55.0, -30.0, 315.0],
+        [-28.284271247, 0.179491924, 65.669872981, -30.0, 315.0],
+    ),
+    (
+        [-20.0, -20.0, 90.0, -30.0, 315.0],
+        [-28.284271247, 17.679491924, 95.980762114, -30.0, 315.0],
+    ),
+];
+
+/// xyzbc: `x-offset` −15, `z-offset` 10, rot point (5, −3, −40); the same program with B
+/// 28 and C −211, −121, −31, 59.
+const LINUXCNC_BC: [([f64; 5], [f64; 5]); 7] = [
+    ([0.0, 0.0, 130.0, 0.0, 0.0], [0.0, 0.0, 130.0, 0.0, 0.0]),
+    ([20.0, 0.0, 55.0, 0.0, 0.0], [20.0, 0.0, 55.0, 0.0, 0.0]),
+    (
+        [20.0, 0.0, 55.0, 28.0, -211.0],
+        [6.958956632, 2.154069222, 50.622714581, 28.0, -211.0],
+    ),
+    (
+        [20.0, 20.0, 55.0, 28.0, -121.0],
+        [30.261621674, -27.703385233, 38.232467796, 28.0, -121.0],
+    ),
+    (
+        [-20.0, 20.0, 55.0, 28.0, -31.0],
+        [11.214160924, 29.590799789, 48.360182326, 28.0, -31.0],
+    ),
+    (
+        [-20.0, -20.0, 55.0, 28.0, 59.0],
+        [21.173102561, -33.184829791, 43.064919128, 28.0, 59.0],
+    ),
+    (
+        [-20.0, -20.0, 90.0, 28.0, 59.0],
+        [37.604607258, -33.184829791, 73.968084878, 28.0, 59.0],
+    ),
+];
+
+/// Inverse and forward against LinuxCNC's own transforms, within 1e-6 mm and 1e-6 degree.
+#[test]
+fn inverse_and_forward_equal_linuxcnc_trt_kins() {
+    let ac = TableKinematics::xyzac_trt([0.0; 3], 20.0, 10.0);
+    let bc = TableKinematics::xyzbc_trt([5.0, -3.0, -40.0], -15.0, 10.0);
+    for (k, tilt, data) in [(ac, 3, LINUXCNC_AC), (bc, 4, LINUXCNC_BC)] {
+        for (p, j) in data {
+            let as_vec = |v: [f64; 5]| {
+                let mut a = pose(v[0], v[1], v[2], 0.0, 0.0, v[4]);
+                a[tilt] = v[3];
+                a
+            };
+            let (p, j) = (as_vec(p), as_vec(j));
+            assert_close(&k.joints(&p, 50.0), &j, 1e-6);
+            assert_close(&k.pose(&j, 50.0), &p, 1e-6);
+        }
+    }
+}
