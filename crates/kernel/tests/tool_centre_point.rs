@@ -188,12 +188,8 @@ fn tcp_off_moves_the_joints_as_programmed() {
     let end = [30.0, -10.0, 5.0, -20.0, 60.0];
     for s in m.samples.iter().filter(|s| s.line == 4) {
         let u = s.setpoint[0] / 30.0;
-        for j in 0..5 {
-            assert!(
-                (s.setpoint[j] - u * end[j]).abs() < 1e-9,
-                "{:?}",
-                s.setpoint
-            );
+        for (got, e) in s.setpoint.iter().zip(end) {
+            assert!((got - u * e).abs() < 1e-9, "{:?}", s.setpoint);
         }
     }
     assert_close(&m.samples.last().unwrap().setpoint[..5], &end);
@@ -265,15 +261,12 @@ fn joint_positions_equal_linuxcnc_xyzac_trt_kins() {
         let at = m
             .samples
             .iter()
-            .filter(|s| s.line == line)
-            .last()
+            .rfind(|s| s.line == line)
             .unwrap_or_else(|| panic!("no set-point at line {line}"));
-        for j in 0..5 {
+        for (j, (got, want)) in at.setpoint.iter().zip(want).enumerate() {
             assert!(
-                (at.setpoint[j] - want[j]).abs() <= 1e-6,
-                "line {line} joint {j}: {} against LinuxCNC's {}",
-                at.setpoint[j],
-                want[j]
+                (got - want).abs() <= 1e-6,
+                "line {line} joint {j}: {got} against LinuxCNC's {want}"
             );
         }
     }

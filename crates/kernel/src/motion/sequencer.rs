@@ -452,7 +452,7 @@ impl MotionCore {
             }
         }
         let (len_xyz, len) = (f64::sqrt(len_xyz), f64::sqrt(len));
-        if !(len > 1e-12) {
+        if len <= 1e-12 {
             // A move to where the tip already is: nothing to do.
             return Ok(());
         }
