@@ -1017,7 +1017,7 @@ impl InterpreterStage {
         self.refused = true;
     }
 
-    /// What the kernel does not run under TCP: only straight moves are cut into
+    /// What the kernel does not run under TCP: only lines and arcs are cut into
     /// joint-space chords, and the kinematics' tool length stays the one it started with.
     fn not_under_tool_centre_point(&self, command: &CanonCommand) -> Option<&'static str> {
         use CanonCommand as C;
@@ -1026,7 +1026,6 @@ impl InterpreterStage {
             .as_ref()
             .is_some_and(|i| i.modal_state().feed_mode == FeedMode::UnitsPerRevolution);
         match command {
-            C::ArcFeed(_) => Some("an arc (G2/G3)"),
             C::SplineFeed(_) | C::NurbsFeed(_) => Some("a spline (G5..G5.3)"),
             C::StraightProbe { .. } => Some("a probing move (G38)"),
             C::RigidTap { .. } | C::StartSpeedFeedSync { .. } => {

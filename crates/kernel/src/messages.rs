@@ -362,11 +362,13 @@ pub enum MachineBlock {
         /// tapers): they run as one, blended, on one spindle index.
         chained: bool,
     },
-    /// A straight tool-tip move under tool-centre-point control (M428): the look-ahead
-    /// cuts it into joint-space chords through the machine's table kinematics.
-    TcpLine {
+    /// A tool-tip move (a line or an arc) under tool-centre-point control (M428): the
+    /// look-ahead cuts it into joint-space chords through the machine's table kinematics.
+    TcpMove {
         /// Program line.
         line: u32,
+        /// The tip's path (an arc's centre and normal in machine coordinates).
+        path: rtcnc_motion::TipPath,
         /// End pose: the tool tip in the work's frame with the tool length in Z, machine
         /// coordinates (mm, degrees).
         end: [f64; AXES],
@@ -411,7 +413,7 @@ impl MachineBlock {
         match self {
             MachineBlock::Motion(mv) | MachineBlock::Probe { mv, .. } => mv.line,
             MachineBlock::Aux { line, .. }
-            | MachineBlock::TcpLine { line, .. }
+            | MachineBlock::TcpMove { line, .. }
             | MachineBlock::Synced { line, .. }
             | MachineBlock::End { line }
             | MachineBlock::Error { line, .. } => *line,

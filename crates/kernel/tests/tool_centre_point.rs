@@ -211,12 +211,41 @@ fn a_pose_beyond_a_joint_range_stops_at_its_line() {
     assert!(m.samples.iter().all(|s| s.line != 5));
 }
 
-/// What TCP does not run stops the program at its line: an arc under M428, and M428 on a
-/// machine without a five-axis kinematics.
+/// A circle of the tip on the table tilted by 30° while C turns a full turn: every
+/// set-point's tip within the tolerance of the circle, the tip at F over the middle of it,
+/// every joint within its limits.
+#[test]
+fn a_tip_circle_on_the_tilted_table() {
+    let text = "G21 G90 G94 G61\nT1 M6\nG43 H1\nG0 X0 Y0 Z80 A0 C0\nM428\n\
+                G1 X10 Y0 Z5 F1200\nG1 A-30 F1800\nG3 X10 Y0 I-10 J0 C360 F600\n\
+                G0 Z40\nM429\nM2\n";
+    let m = run(text, "tcp_circle.ngc");
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    check_limits(&m.samples);
+    let tips: Vec<[f64; 3]> = m
+        .samples
+        .iter()
+        .filter(|s| s.line == 8)
+        .map(|s| forward(&s.setpoint[..5]))
+        .collect();
+    assert!(tips.len() > 6000, "{} set-points", tips.len());
+    for t in &tips {
+        let off = (t[0].hypot(t[1]) - 10.0).hypot(t[2] - (5.0 + TOOL));
+        assert!(off <= TOLERANCE + 1e-9, "tip {off} mm off the circle");
+    }
+    let n = tips.len();
+    for w in tips[n / 3..2 * n / 3].windows(2) {
+        let v = ((w[1][0] - w[0][0]).powi(2) + (w[1][1] - w[0][1]).powi(2)).sqrt() / DT;
+        assert!((v - 10.0).abs() < 0.1, "tip at {v} mm/s");
+    }
+}
+
+/// What TCP does not run stops the program at its line: a spline under M428, and M428 on
+/// a machine without a five-axis kinematics.
 #[test]
 fn what_tcp_does_not_run_stops_at_its_line() {
-    let text = "G21 G90\nG0 X0 Y0 Z0 A0 C0\nM428\nG1 X10 F600\nG2 X0 Y0 I-5 J0\nM2\n";
-    let m = run(text, "tcp_arc.ngc");
+    let text = "G21 G90\nG0 X0 Y0 Z0 A0 C0\nM428\nG1 X10 F600\nG5.1 X20 Y0 I5 J5\nM2\n";
+    let m = run(text, "tcp_spline.ngc");
     let fault = m.faults.first().expect("a fault");
     assert_eq!((fault.code, fault.line), (FaultCode::ProgramError, 5));
 

@@ -73,4 +73,4 @@ pub use kinematics::{JointLimits, Kinematics, TrivialKinematics};
 pub use limits::{AxisLimits, MIN_JERK_PHASE_PERIODS, MachineLimits};
 pub use planner::{MotionState, Planner, Preparation, PreparedMove, RewindError, RunStats, Status};
 pub use spline::CurvePart;
-pub use table_kinematics::{Chord, MAX_CHORDS, TableKinematics, TcpLine, TiltAxis};
+pub use table_kinematics::{Chord, MAX_CHORDS, TableKinematics, TcpMove, TiltAxis, TipPath};

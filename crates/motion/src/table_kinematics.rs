@@ -22,8 +22,8 @@
 //! gauge line, as every other axis position does) and `tool-offset` takes it out again
 //! before the rotation, so the tilt turns the tool tip, not the gauge line.
 //!
-//! [`TcpLine`] turns one programmed tip move (X Y Z a straight line, the rotary axes
-//! linear in the same parameter, as LinuxCNC's TCP interpolates them) into joint-space
+//! [`TcpMove`] turns one programmed tip move (X Y Z a straight line or an arc, the rotary
+//! axes linear in the same parameter, as LinuxCNC's TCP interpolates them) into joint-space
 //! chords: each chord's tip, computed by the forward kinematics at its points, stays
 //! within a tolerance of the programmed point at the same fraction of the move, and each
 //! chord gets its share of the move's duration, so that the planner (which plans in joint
@@ -182,7 +182,109 @@ impl TableKinematics {
     }
 }
 
-/// One chord of a [`TcpLine`].
+/// The tip's path of a [`TcpMove`] in X Y Z.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TipPath {
+    /// A straight line.
+    Line,
+    /// An arc or helix about `centre`, counter-clockwise seen from the tip of `normal`
+    /// (need not be unit length), `turns` extra full turns, as [`crate::MoveKind::Arc`]:
+    /// the distance from the axis changes linearly with the angle from the start's to the
+    /// end's, the rise along the normal linearly too.
+    Arc {
+        /// Centre (X Y Z).
+        centre: [f64; 3],
+        /// Plane normal.
+        normal: [f64; 3],
+        /// Extra full turns.
+        turns: u32,
+    },
+}
+
+/// An arc's frame: centre, unit normal, the in-plane unit vectors towards the start and a
+/// quarter turn on, the start's and the end's radius and height, the swept angle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct ArcFrame {
+    centre: [f64; 3],
+    n: [f64; 3],
+    x: [f64; 3],
+    y: [f64; 3],
+    r0: f64,
+    r1: f64,
+    h0: f64,
+    h1: f64,
+    sweep: f64,
+}
+
+fn dot3(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+impl ArcFrame {
+    fn new(
+        start: &AxisVec,
+        end: &AxisVec,
+        centre: [f64; 3],
+        normal: [f64; 3],
+        turns: u32,
+        line: u32,
+    ) -> Result<ArcFrame, MotionError> {
+        let invalid = MotionError::ToolCentrePoint {
+            line,
+            why: "an arc whose start or normal defines no plane",
+        };
+        let nn = dot3(&normal, &normal).sqrt();
+        if !(nn > 0.0 && nn.is_finite() && centre.iter().all(|v| v.is_finite())) {
+            return Err(invalid);
+        }
+        let n = [normal[0] / nn, normal[1] / nn, normal[2] / nn];
+        let rel = |p: &AxisVec| [p[X] - centre[0], p[Y] - centre[1], p[Z] - centre[2]];
+        let (s, e) = (rel(start), rel(end));
+        let (h0, h1) = (dot3(&s, &n), dot3(&e, &n));
+        let a0 = [s[0] - h0 * n[0], s[1] - h0 * n[1], s[2] - h0 * n[2]];
+        let a1 = [e[0] - h1 * n[0], e[1] - h1 * n[1], e[2] - h1 * n[2]];
+        let (r0, r1) = (dot3(&a0, &a0).sqrt(), dot3(&a1, &a1).sqrt());
+        if !(r0 > 1e-9) {
+            return Err(invalid);
+        }
+        let x = [a0[0] / r0, a0[1] / r0, a0[2] / r0];
+        let y = [
+            n[1] * x[2] - n[2] * x[1],
+            n[2] * x[0] - n[0] * x[2],
+            n[0] * x[1] - n[1] * x[0],
+        ];
+        // The end's angle from the start, counter-clockwise in (0, 2π]: an end on the
+        // start's angle is a full turn, as G2/G3 take it.
+        let mut phi = dot3(&a1, &y).atan2(dot3(&a1, &x));
+        if phi <= 1e-12 {
+            phi += std::f64::consts::TAU;
+        }
+        Ok(ArcFrame {
+            centre,
+            n,
+            x,
+            y,
+            r0,
+            r1,
+            h0,
+            h1,
+            sweep: phi + std::f64::consts::TAU * f64::from(turns),
+        })
+    }
+
+    fn at(&self, u: f64) -> [f64; 3] {
+        let (s, c) = (u * self.sweep).sin_cos();
+        let r = self.r0 + u * (self.r1 - self.r0);
+        let h = self.h0 + u * (self.h1 - self.h0);
+        let mut p = [0.0; 3];
+        for i in 0..3 {
+            p[i] = self.centre[i] + h * self.n[i] + r * (c * self.x[i] + s * self.y[i]);
+        }
+        p
+    }
+}
+
+/// One chord of a [`TcpMove`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Chord {
     /// Joint positions at its end.
@@ -200,13 +302,14 @@ const CHORD_SAMPLES: usize = 16;
 pub const MAX_CHORDS: u32 = 1_000_000;
 
 /// A programmed tool-tip move cut into joint-space chords, one at a time
-/// ([`TcpLine::next_chord`]); no allocation.
+/// ([`TcpMove::next_chord`]); no allocation.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct TcpLine {
+pub struct TcpMove {
     kin: TableKinematics,
     tool_offset: f64,
     start: AxisVec,
     end: AxisVec,
+    arc: Option<ArcFrame>,
     tolerance: f64,
     duration: f64,
     /// Fraction of the move done, the joints there, and the last step taken.
@@ -217,21 +320,24 @@ pub struct TcpLine {
     line: u32,
 }
 
-impl TcpLine {
-    /// The tip move from where `start_joints` put it to the pose `end`, with the tool
-    /// length `tool_offset`, its chords within `tolerance` (mm) of the programmed points,
-    /// taking `duration` seconds in all (0 for a rapid: the planner's axis limits set it).
+impl TcpMove {
+    /// The tip move along `path` from where `start_joints` put it to the pose `end`, with
+    /// the tool length `tool_offset`, its chords within `tolerance` (mm) of the programmed
+    /// points, taking `duration` seconds in all (0 for a rapid: the planner's axis limits
+    /// set it).
     ///
     /// Real-time: yes (no allocation, no blocking).
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         kin: TableKinematics,
         tool_offset: f64,
         start_joints: &AxisVec,
         end: &AxisVec,
+        path: TipPath,
         tolerance: f64,
         duration: f64,
         line: u32,
-    ) -> Result<TcpLine, MotionError> {
+    ) -> Result<TcpMove, MotionError> {
         if !(tolerance.is_finite() && tolerance > 0.0) {
             return Err(MotionError::InvalidTolerance {
                 line,
@@ -249,11 +355,21 @@ impl TcpLine {
                 what: "tool-centre-point move",
             });
         }
-        Ok(TcpLine {
+        let start = kin.pose(start_joints, tool_offset);
+        let arc = match path {
+            TipPath::Line => None,
+            TipPath::Arc {
+                centre,
+                normal,
+                turns,
+            } => Some(ArcFrame::new(&start, end, centre, normal, turns, line)?),
+        };
+        Ok(TcpMove {
             kin,
             tool_offset,
-            start: kin.pose(start_joints, tool_offset),
+            start,
             end: *end,
+            arc,
             tolerance,
             duration,
             u: 0.0,
@@ -279,15 +395,87 @@ impl TcpLine {
         for i in 0..AXES {
             p[i] = self.start[i] + u * (self.end[i] - self.start[i]);
         }
+        if let Some(arc) = &self.arc {
+            p[..3].copy_from_slice(&arc.at(u));
+        }
         p
+    }
+
+    /// The tip's length (X Y Z) and the length in all axes (mm and degrees together, as
+    /// the planner measures a move whose tip stands): exact for a line and a helix; a
+    /// spiral's by Simpson's rule over 64 intervals of its speed
+    /// √(rise² + (r₁ − r₀)² + (r·sweep)²) (smooth: far below 1e-9 of its length).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
+    pub fn lengths(&self) -> (f64, f64) {
+        let mut others = 0.0;
+        for i in 3..AXES {
+            others += (self.end[i] - self.start[i]).powi(2);
+        }
+        let Some(arc) = &self.arc else {
+            let mut xyz = 0.0;
+            for i in 0..3 {
+                xyz += (self.end[i] - self.start[i]).powi(2);
+            }
+            return (xyz.sqrt(), (xyz + others).sqrt());
+        };
+        let fixed = (arc.h1 - arc.h0).powi(2) + (arc.r1 - arc.r0).powi(2);
+        let speed = |u: f64, extra: f64| {
+            let r = arc.r0 + u * (arc.r1 - arc.r0);
+            (fixed + (r * arc.sweep).powi(2) + extra).sqrt()
+        };
+        const N: u32 = 64;
+        let (mut tip, mut all) = (0.0, 0.0);
+        for k in 0..=N {
+            let u = f64::from(k) / f64::from(N);
+            let w = if k == 0 || k == N {
+                1.0
+            } else if k % 2 == 1 {
+                4.0
+            } else {
+                2.0
+            };
+            tip += w * speed(u, 0.0);
+            all += w * speed(u, others);
+        }
+        let h = 1.0 / (3.0 * f64::from(N));
+        (tip * h, all * h)
+    }
+
+    /// The same move taking `duration` seconds.
+    ///
+    /// Real-time: yes (no allocation, no blocking).
+    pub fn with_duration(mut self, duration: f64) -> TcpMove {
+        self.duration = duration;
+        self
     }
 
     /// See [`TableKinematics::joint_to_tip_gain`], for this move.
     ///
     /// Real-time: yes (no allocation, no blocking).
     pub fn joint_to_tip_gain(&self) -> f64 {
-        self.kin
-            .joint_to_tip_gain(&self.start, &self.end, self.tool_offset)
+        let Some(arc) = &self.arc else {
+            return self
+                .kin
+                .joint_to_tip_gain(&self.start, &self.end, self.tool_offset);
+        };
+        // An arc's points lie within its radius and rise of its centre: the bound is
+        // taken at a point that far from the centre, towards the rot point's far side.
+        let c = arc.centre;
+        let r = self.kin.rot_point;
+        let reach = arc.r0.max(arc.r1) + arc.h0.abs().max(arc.h1.abs());
+        let q = [c[0] - r[0], c[1] - r[1], c[2] - r[2]];
+        let qn = dot3(&q, &q).sqrt();
+        let mut far = self.start;
+        let dir = if qn > 0.0 {
+            [q[0] / qn, q[1] / qn, q[2] / qn]
+        } else {
+            [1.0, 0.0, 0.0]
+        };
+        for i in 0..3 {
+            far[i] = c[i] + reach * dir[i];
+        }
+        self.kin.joint_to_tip_gain(&far, &far, self.tool_offset)
     }
 
     /// Largest distance of the tip on the chord from `j0` (at `u0`) to `j1` (at `u1`)

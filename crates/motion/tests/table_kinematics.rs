@@ -2,7 +2,7 @@
 //! and LinuxCNC's formulas, and the chords of a tool-centre-point line against the
 //! programmed line.
 
-use rtcnc_motion::{AXES, AxisVec, TableKinematics, TcpLine};
+use rtcnc_motion::{AXES, AxisVec, TableKinematics, TcpMove, TipPath};
 
 fn pose(x: f64, y: f64, z: f64, a: f64, b: f64, c: f64) -> AxisVec {
     let mut p = [0.0; AXES];
@@ -157,7 +157,7 @@ fn chords_keep_the_tip_on_the_programmed_line() {
     let start = k.joints(&start_pose, tool);
     let end = pose(-10.0, 25.0, 52.0, -45.0, 0.0, 120.0);
     let tol = 0.001;
-    let mut line = TcpLine::new(k, tool, &start, &end, tol, 12.0, 7).unwrap();
+    let mut line = TcpMove::new(k, tool, &start, &end, TipPath::Line, tol, 12.0, 7).unwrap();
     assert_close(&line.start_pose(), &start_pose, 1e-9);
     let mut u0 = 0.0;
     let mut j0 = start;
@@ -271,4 +271,56 @@ fn inverse_and_forward_equal_linuxcnc_trt_kins() {
             assert_close(&k.pose(&j, 50.0), &p, 1e-6);
         }
     }
+}
+
+/// An arc: the programmed points lie on the circle, counter-clockwise about the normal
+/// (a quarter of a full turn about +Z from (10, 0) is (0, 10); about −Z, a G2, (0, −10)),
+/// the rotary axes linear along it; the chords keep the tip within the tolerance of them.
+#[test]
+fn an_arc_is_followed_along_its_circle() {
+    let k = TableKinematics::xyzac_trt([0.0; 3], 20.0, 10.0);
+    let tool = 50.0;
+    let start_pose = pose(10.0, 0.0, 55.0, -30.0, 0.0, 0.0);
+    let start = k.joints(&start_pose, tool);
+    let end = pose(10.0, 0.0, 55.0, -30.0, 0.0, 360.0);
+    let arc = |normal: [f64; 3]| TipPath::Arc {
+        centre: [0.0, 0.0, 55.0],
+        normal,
+        turns: 0,
+    };
+    let ccw = TcpMove::new(k, tool, &start, &end, arc([0.0, 0.0, 1.0]), 0.001, 6.0, 1).unwrap();
+    assert_close(
+        &ccw.pose_at(0.25),
+        &pose(0.0, 10.0, 55.0, -30.0, 0.0, 90.0),
+        1e-9,
+    );
+    let cw = TcpMove::new(k, tool, &start, &end, arc([0.0, 0.0, -1.0]), 0.001, 6.0, 1).unwrap();
+    assert_close(
+        &cw.pose_at(0.25),
+        &pose(0.0, -10.0, 55.0, -30.0, 0.0, 90.0),
+        1e-9,
+    );
+    // 2π·10 mm; with C's 360° besides, √((2π·10)² + 360²).
+    let (tip, all) = ccw.lengths();
+    let circle = 20.0 * std::f64::consts::PI;
+    assert!((tip - circle).abs() < 1e-9, "{tip}");
+    assert!((all - circle.hypot(360.0)).abs() < 1e-9, "{all}");
+    let mut m = ccw;
+    let mut j0 = start;
+    let mut chords = 0;
+    while let Some(ch) = m.next_chord().unwrap() {
+        chords += 1;
+        for s in 0..=50 {
+            let s = f64::from(s) / 50.0;
+            let mut j = [0.0; AXES];
+            for i in 0..AXES {
+                j[i] = j0[i] + s * (ch.end[i] - j0[i]);
+            }
+            let tip = k.pose(&j, tool);
+            let off_circle = (tip[0].hypot(tip[1]) - 10.0).hypot(tip[2] - 55.0);
+            assert!(off_circle <= 0.001, "chord {chords}: {off_circle} mm");
+        }
+        j0 = ch.end;
+    }
+    assert_close(&j0, &k.joints(&end, tool), 1e-9);
 }

@@ -5,7 +5,7 @@
 
 use rtcnc_motion::{
     AXES, Feed, MotionError, Move, MoveKind, PathMode, Preparation, PreparedMove, TableKinematics,
-    TcpLine,
+    TcpMove, TipPath,
 };
 use rtcnc_rt::Context;
 
@@ -57,10 +57,13 @@ pub(super) struct Program {
     pub(super) tcp: Option<TcpRun>,
 }
 
+/// The share of the TCP tolerance the chords take; their blending takes the rest.
+const CHORD_SHARE: f64 = 0.25;
+
 /// A tool-centre-point line on its way into the planner, chord by chord.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct TcpRun {
-    chords: TcpLine,
+    chords: TcpMove,
     rapid: bool,
     /// Between chords: blended within half the TCP tolerance (in joint space).
     inner: PathMode,
@@ -223,14 +226,15 @@ impl MotionCore {
     fn feed(&mut self, shared: &Shared, block: MachineBlock, staging: &mut PreparedMove) -> bool {
         let (then, line) = match block {
             MachineBlock::Motion(mv) => return self.feed_move(shared, block, mv, staging),
-            MachineBlock::TcpLine {
+            MachineBlock::TcpMove {
                 line,
+                path,
                 end,
                 rapid,
                 feed,
                 mode,
                 tool_offset,
-            } => match self.start_tcp_line(line, &end, rapid, feed, mode, tool_offset) {
+            } => match self.start_tcp_move(line, path, &end, rapid, feed, mode, tool_offset) {
                 Ok(()) => return true,
                 Err(e) => {
                     self.before_new_motion();
@@ -403,13 +407,15 @@ impl MotionCore {
         }
     }
 
-    /// A tool-centre-point line: from the pose the path's end joints stand for to `end`,
-    /// cut into chords by [`Self::next_chord`] as the window takes them. Its duration is
-    /// the tip's length (the rotary axes' where the tip stands) at the feed, as the planner
-    /// takes a feed; a rapid's is the axes'.
-    fn start_tcp_line(
+    /// A tool-centre-point move: from the pose the path's end joints stand for to `end`,
+    /// along `path`, cut into chords by [`Self::next_chord`] as the window takes them. Its
+    /// duration is the tip's length (the rotary axes' where the tip stands) at the feed, as
+    /// the planner takes a feed; a rapid's is the axes'.
+    #[allow(clippy::too_many_arguments)]
+    fn start_tcp_move(
         &mut self,
         line: u32,
+        path: TipPath,
         end: &[f64; AXES],
         rapid: bool,
         feed: Feed,
@@ -440,18 +446,17 @@ impl MotionCore {
             }
         }
         let start = self.path.planner.path_end();
-        let probe = TcpLine::new(table, tool_offset, &start, end, tolerance / 2.0, 0.0, line)?;
-        let from = probe.start_pose();
-        let mut len_xyz = 0.0;
-        let mut len = 0.0;
-        for i in 0..AXES {
-            let d = end[i] - from[i];
-            len += d * d;
-            if i < 3 {
-                len_xyz += d * d;
-            }
-        }
-        let (len_xyz, len) = (f64::sqrt(len_xyz), f64::sqrt(len));
+        let chords = TcpMove::new(
+            table,
+            tool_offset,
+            &start,
+            end,
+            path,
+            tolerance * CHORD_SHARE,
+            0.0,
+            line,
+        )?;
+        let (len_xyz, len) = chords.lengths();
         if len <= 1e-12 {
             // A move to where the tip already is: nothing to do.
             return Ok(());
@@ -473,19 +478,11 @@ impl MotionCore {
             }
             seconds
         };
-        let chords = TcpLine::new(
-            table,
-            tool_offset,
-            &start,
-            end,
-            tolerance / 2.0,
-            seconds,
-            line,
-        )?;
+        let chords = chords.with_duration(seconds);
         // A distance in joint space moves the tip by up to `gain` times as much.
         let gain = chords.joint_to_tip_gain();
         let inner = PathMode::Blend {
-            tolerance: tolerance / 2.0 / gain,
+            tolerance: tolerance * (1.0 - CHORD_SHARE) / gain,
             merge_tolerance: 0.0,
         };
         let last = match mode {
