@@ -261,7 +261,8 @@ fn what_tcp_does_not_run_stops_at_its_line() {
 /// `y-offset` 20, `z-offset` 10, the rot point at the origin and `tool-offset` from
 /// `motion.tooloffset.z` (T1, 50 mm), run headless in its simulator (`linuxcnc` with a
 /// perfect servo loop, `joint.N.pos-cmd` sampled every period): where the joints stood
-/// during each dwell. (LinuxCNC's TCP needs no M428 there: its kinematics is always the
+/// during each dwell (`scripts/linuxcnc-trt-reference.sh ac` makes them again where LinuxCNC
+/// is installed). (LinuxCNC's TCP needs no M428 there: its kinematics is always the
 /// xyzac one without `sparm=identityfirst`; the rtcnc program switches it on where A and C
 /// are 0, where both kinematics agree.)
 const LINUXCNC_PROGRAM: &str = "G21 G90 G94 G61\nT1 M6\nG43 H1\nG0 X0 Y0 Z80 A0 C0\nG4 P0.3\n\

@@ -199,8 +199,9 @@ fn chords_keep_the_tip_on_the_programmed_line() {
 
 /// Poses (tool tip with the 50 mm tool length in Z) of a program run in LinuxCNC 2.9's
 /// simulator, and the joint positions its `xyzac-trt-kins` and `xyzbc-trt-kins` commanded
-/// there (`joint.N.pos-cmd` while the program dwelt at each pose, nine decimals; the
-/// program and the run are described in `crates/kernel/tests/tool_centre_point.rs`).
+/// there (`joint.N.pos-cmd` while the program dwelt at each pose, nine decimals; made by
+/// `scripts/linuxcnc-trt-reference.sh ac` and `bc`, which holds the program and the
+/// configuration).
 /// xyzac: `y-offset` 20, `z-offset` 10, rot point at the origin.
 const LINUXCNC_AC: [([f64; 5], [f64; 5]); 7] = [
     ([0.0, 0.0, 130.0, 0.0, 0.0], [0.0, 0.0, 130.0, 0.0, 0.0]),
