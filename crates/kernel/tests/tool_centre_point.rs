@@ -301,3 +301,26 @@ fn joint_positions_equal_linuxcnc_xyzac_trt_kins() {
         }
     }
 }
+
+/// Run from a line under TCP: the machine goes at rapid to where the skipped moves ended,
+/// and the tip then follows the line it starts from.
+#[test]
+fn running_from_a_tcp_line_follows_it() {
+    let text = "G21 G90 G94 G61\nT1 M6\nG43 H1\nG0 X0 Y0 Z80 A0 C0\nM428\n\
+                G1 X20 Y0 Z5 F1200\nG1 A-30 C45 F1800\nG1 Y20 C135 F600\n\
+                G1 X-20 C225\nM429\nM2\n";
+    let cfg = config("sim-5axis-trt.toml");
+    let mut m = Machine::new(&cfg, Some(common::program(text, "tcp_from.ngc")));
+    m.power_on();
+    m.command(Command::Start { from_line: 9 });
+    assert!(m.until(60.0, |s| s.program_ended && s.state == MachineState::Idle));
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    let on: Vec<&Sample> = m.samples.iter().filter(|s| s.line == 9).collect();
+    // The side takes 4 s at F 600; the approach comes before it under the same line.
+    assert!(on.len() > 4000, "{}", on.len());
+    let (a, b) = ([20.0, 20.0, 5.0 + TOOL], [-20.0, 20.0, 5.0 + TOOL]);
+    for s in &on[on.len() - 3900..] {
+        let off = distance_to_segment(forward(&s.setpoint[..5]), a, b);
+        assert!(off <= TOLERANCE + 1e-9, "tip {off} mm off");
+    }
+}

@@ -445,7 +445,12 @@ impl MotionCore {
                 });
             }
         }
-        let start = self.path.planner.path_end();
+        // Run from a line: the move starts where the skipped motion ended (the approach
+        // goes there first).
+        let start = self
+            .program
+            .skipped_to
+            .unwrap_or_else(|| self.path.planner.path_end());
         let chords = TcpMove::new(
             table,
             tool_offset,
