@@ -76,6 +76,15 @@ pub const SHIPPED: &[Shipped] = &[
         ],
     },
     Shipped {
+        name: "sim-5axis-trt",
+        machine_file: include_str!("../../../configs/sim-5axis-trt.toml"),
+        files: &[(
+            "sim-5axis-trt.tbl",
+            include_str!("../../../configs/sim-5axis-trt.tbl"),
+            true,
+        )],
+    },
+    Shipped {
         name: "sim-gantry-12",
         machine_file: include_str!("../../../configs/sim-gantry-12.toml"),
         files: &[],

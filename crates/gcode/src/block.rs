@@ -103,7 +103,7 @@ pub(crate) fn m_group(code: i32) -> Option<usize> {
         3 | 4 | 5 | 19 | 70..=73 => SPINDLE,
         7..=9 => COOLANT,
         48..=53 => OVERRIDE,
-        100..=199 => USER,
+        100..=199 | 428 | 429 => USER,
         98 => TOOL_CALL,
         _ => return None,
     })

@@ -495,6 +495,11 @@ pub enum CanonCommand {
     },
     /// G40.
     StopCutterRadiusCompensation,
+    /// M428 (true) / M429: tool-centre-point control on or off. The interpreter goes on
+    /// from the same program position; a machine with five-axis kinematics gives it the
+    /// position the joints stand for under the new kinematics
+    /// ([`crate::Interpreter::kinematics_switched`]).
+    SetToolCentrePoint(bool),
     /// M100 - M199: passed on to the machine logic.
     UserMCode {
         /// 100..=199.
@@ -760,6 +765,11 @@ fn write_call(o: &mut Vec<u8>, command: &CanonCommand) {
             b"COMMENT(\"interpreter: cutter radius compensation off\")".as_slice(),
         ),
         C::UserMCode { code, p, q } => write_user_m_code(o, *code, *p, *q),
+        C::SetToolCentrePoint(on) => o.extend_from_slice(if *on {
+            b"SET_TOOL_CENTRE_POINT(ON)".as_slice()
+        } else {
+            b"SET_TOOL_CENTRE_POINT(OFF)".as_slice()
+        }),
         C::ProgramStop => o.extend_from_slice(b"PROGRAM_STOP()"),
         C::OptionalProgramStop => o.extend_from_slice(b"OPTIONAL_PROGRAM_STOP()"),
         C::PalletShuttle => o.extend_from_slice(b"PALLET_SHUTTLE()"),

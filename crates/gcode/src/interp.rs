@@ -140,6 +140,10 @@ pub struct ModalState {
     pub g92: Pose,
     /// Current position in the active coordinate system, current units.
     pub position: Pose,
+    /// M428 (true) / M429: tool-centre-point control. Positions are those of the tool tip
+    /// in the work's frame while it is on (the machine's kinematics turns them into
+    /// joints).
+    pub tool_centre_point: bool,
     /// G92 offsets applied (#5210).
     pub g92_applied: bool,
     /// G7 (true) / G8.
@@ -192,6 +196,7 @@ impl ModalState {
             rotation: 0.0,
             g92: Pose::ZERO,
             position: Pose::ZERO,
+            tool_centre_point: false,
             g92_applied: false,
             lathe_diameter: false,
             mist: false,
@@ -495,6 +500,20 @@ impl Interpreter {
             .set(sys::PROBE_OK, if tripped { 1.0 } else { 0.0 });
         self.state.position = self.program_from_machine(&stopped_at);
         self.waiting = false;
+    }
+
+    /// The machine's kinematics changed (M428, M429): the same joints now stand for the
+    /// machine position `machine` (machine coordinates, current length units); the program
+    /// position follows, so that later moves, incremental words and omitted axes start
+    /// from there.
+    pub fn kinematics_switched(&mut self, machine: Pose) {
+        self.state.position = self.program_from_machine(&machine);
+    }
+
+    /// The controlled point in machine coordinates (current length units): the program
+    /// position with the offsets in force.
+    pub fn machine_position_now(&self) -> Pose {
+        self.machine_position()
     }
 
     /// The result of the last M66 wait (the input's value, -1 on time-out): stored in

@@ -22,8 +22,7 @@ impl Interpreter {
         self.m_spindle_and_state(b)?;
         self.m_coolant(b);
         self.m_overrides(b, comp_on)?;
-        self.m_user(b);
-        Ok(())
+        self.m_user(b)
     }
 
     /// Group 5: digital outputs (M62-M65), waits on inputs (M66) and analog outputs
@@ -300,16 +299,41 @@ impl Interpreter {
         Ok(())
     }
 
-    /// Group 10: user M codes (M100-M199), handed on to the machine logic.
-    fn m_user(&mut self, b: &Block) {
+    /// Group 10: user M codes (M100-M199), handed on to the machine logic, and
+    /// tool-centre-point control on (M428) and off (M429), LinuxCNC's codes of its
+    /// switchable 5-axis kinematics.
+    fn m_user(&mut self, b: &Block) -> Res<()> {
         let user = b.m[mg::USER];
-        if user != -1 {
-            self.emit(C::UserMCode {
+        match user {
+            -1 => {}
+            428 | 429 => {
+                if b.has_axis() || b.has_polar() {
+                    return Err(self.m_err(
+                        b,
+                        mg::USER,
+                        ErrorKind::Conflict,
+                        format!("M{user} takes no axis words: put the move on a line of its own"),
+                    ));
+                }
+                if self.state.cutter.is_some() {
+                    return Err(self.m_err(
+                        b,
+                        mg::USER,
+                        ErrorKind::State,
+                        format!("M{user} with cutter radius compensation on: G40 first"),
+                    ));
+                }
+                let on = user == 428;
+                self.state.tool_centre_point = on;
+                self.emit(C::SetToolCentrePoint(on));
+            }
+            _ => self.emit(C::UserMCode {
                 code: user as u16,
                 p: b.get(b'p'),
                 q: b.get(b'q'),
-            });
+            }),
         }
+        Ok(())
     }
 
     pub(crate) fn m66(&mut self, b: &Block) -> Res<()> {

@@ -34,7 +34,8 @@ impl Interpreter {
     }
 
     /// The resets of M2 / M30: G54 back in force, XY plane, absolute, units per minute,
-    /// feed override on, compensation off, spindle off, G1, coolant off.
+    /// feed override on, compensation off, spindle off, G1, coolant off, tool-centre-point
+    /// control off.
     pub(crate) fn program_end_reset(&mut self, b: &Block) {
         let machine = self.machine_position();
         self.state.origin_index = 1;
@@ -42,6 +43,8 @@ impl Interpreter {
         self.state.g5x = self.coord_system_from_params(1);
         self.state.rotation = self.params.get(sys::G54 + 9);
         self.state.position = self.program_from_machine(&machine);
+        // TCP off (the machine's kinematics switches back at the end, as it sees it).
+        self.state.tool_centre_point = false;
         self.emit(C::SetG5xOffset {
             index: 1,
             offset: self.state.g5x,

@@ -461,3 +461,65 @@ fn a_spline_may_not_move_other_axes() {
     assert_eq!(e.kind, ErrorKind::UnusedWord);
     assert!(e.message.contains("U, V or W"), "{}", e.message);
 }
+
+#[test]
+fn m428_and_m429_switch_tool_centre_point_control() {
+    let (out, err) = run("G0 X1\nM428\nG1 X2 F100\nM429\nM2\n");
+    assert!(err.is_none(), "{err:?}");
+    let switches: Vec<&CanonCommand> = out
+        .iter()
+        .filter(|c| matches!(c, CanonCommand::SetToolCentrePoint(_)))
+        .collect();
+    assert_eq!(
+        switches,
+        [
+            &CanonCommand::SetToolCentrePoint(true),
+            &CanonCommand::SetToolCentrePoint(false)
+        ]
+    );
+    assert_eq!(text(switches[0]), "SET_TOOL_CENTRE_POINT(ON)\n");
+    assert_eq!(text(switches[1]), "SET_TOOL_CENTRE_POINT(OFF)\n");
+
+    // The modal state follows; M2 switches it off.
+    let mut it = interp();
+    it.execute_mdi("M428").unwrap();
+    while let Some(Ok(_)) = it.next_canon() {}
+    assert!(it.modal_state().tool_centre_point);
+    it.execute_mdi("M2").unwrap();
+    while let Some(Ok(_)) = it.next_canon() {}
+    assert!(!it.modal_state().tool_centre_point);
+}
+
+#[test]
+fn m428_takes_no_axis_words_nor_cutter_compensation() {
+    // G0 in force: X1 would be a move on the same line.
+    let (_, err) = run("G0 X0\nM428 X1\nM2\n");
+    let err = err.expect("refused");
+    assert_eq!(
+        (err.kind, err.line, err.column),
+        (ErrorKind::Conflict, 2, 1)
+    );
+    assert!(err.message.contains("M428 takes no axis words"), "{err}");
+    let (_, err) = run("G0 X0 Y0\nG41.1 D2\nG1 X10 F100\nM429\nM2\n");
+    let err = err.expect("refused");
+    assert_eq!((err.kind, err.line), (ErrorKind::State, 4));
+}
+
+/// The kernel tells the interpreter where the machine stands after the switch: the
+/// program position is that machine position less the offsets.
+#[test]
+fn kinematics_switched_moves_the_program_position() {
+    let mut it = interp();
+    it.execute_mdi("G10 L2 P1 X5").unwrap();
+    while let Some(Ok(_)) = it.next_canon() {}
+    it.execute_mdi("G54").unwrap();
+    while let Some(Ok(_)) = it.next_canon() {}
+    it.kinematics_switched(Pose {
+        x: 12.0,
+        y: 3.0,
+        z: 1.0,
+        ..Pose::ZERO
+    });
+    assert_eq!(it.modal_state().position.x, 7.0);
+    assert_eq!(it.machine_position_now().x, 12.0);
+}

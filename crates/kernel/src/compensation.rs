@@ -4,7 +4,7 @@
 //! runs inside the interpreter task, on the canonical stream it works on.) Event task,
 //! woken by blocks from the interpreter; allocation-free.
 
-use rtcnc_motion::{AXES, Bezier, Feed, Move, MoveKind, PathMode};
+use rtcnc_motion::{AXES, Bezier, Feed, Move, MoveKind, PathMode, TipPath};
 use rtcnc_rt::{Context, Next};
 
 use crate::messages::{Aux, MachineBlock, ProgramBlock};
@@ -32,6 +32,8 @@ pub(crate) struct CompensationStage {
     sync_chained: bool,
     /// G96 in force: its D cap (rpm).
     css_max_rpm: Option<f64>,
+    /// M428 in force: lines are tool-tip moves.
+    tool_centre_point: bool,
     pending: Option<Tagged<MachineBlock>>,
 }
 
@@ -56,6 +58,7 @@ impl CompensationStage {
             sync_pitch: None,
             sync_chained: false,
             css_max_rpm: None,
+            tool_centre_point: false,
             pending: None,
         }
     }
@@ -158,6 +161,19 @@ impl CompensationStage {
                 self.sync_pitch = pitch.map(|p| p * self.mm_per_unit);
             }
             ProgramBlock::SyncChained => self.sync_chained = true,
+            ProgramBlock::ToolCentrePoint(on) => self.tool_centre_point = on,
+            // The interpreter task lets only lines and arcs through under TCP.
+            ProgramBlock::Line { line, end, rapid } if self.tool_centre_point => {
+                return Some(MachineBlock::TcpMove {
+                    line,
+                    path: TipPath::Line,
+                    end: self.to_machine(&end),
+                    rapid,
+                    feed: self.feed(),
+                    mode: self.mode,
+                    tool_offset: self.tool[2] * self.mm_per_unit,
+                });
+            }
             ProgramBlock::Line {
                 line,
                 end,
@@ -213,6 +229,21 @@ impl CompensationStage {
                         s * normal[0] + co * normal[1],
                         normal[2],
                     ];
+                }
+                if self.tool_centre_point {
+                    return Some(MachineBlock::TcpMove {
+                        line,
+                        path: TipPath::Arc {
+                            centre: [c[0], c[1], c[2]],
+                            normal: n,
+                            turns,
+                        },
+                        end: end_m,
+                        rapid: false,
+                        feed: self.feed(),
+                        mode: self.mode,
+                        tool_offset: self.tool[2] * self.mm_per_unit,
+                    });
                 }
                 return Some(MachineBlock::Motion(Move {
                     kind: MoveKind::Arc {

@@ -877,6 +877,94 @@ impl Default for MotionSection {
     }
 }
 
+/// `[kinematics]`: how the joints place the tool relative to the work.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct KinematicsSection {
+    /// `"trivial"` (every joint follows one axis), `"xyzac-trt"` or `"xyzbc-trt"` (a
+    /// tilting table with a rotary table on it, LinuxCNC's modules of those names; the
+    /// program switches tool-centre-point control on with M428 and off with M429).
+    #[serde(default)]
+    pub kind: KinematicsKind,
+    /// Where the C axis meets the pivot plane, machine coordinates (mm): LinuxCNC's
+    /// `x-rot-point`, `y-rot-point`, `z-rot-point`.
+    #[serde(default)]
+    pub x_rot_point: f64,
+    /// See `x_rot_point`.
+    #[serde(default)]
+    pub y_rot_point: f64,
+    /// See `x_rot_point`.
+    #[serde(default)]
+    pub z_rot_point: f64,
+    /// xyzbc-trt: the B axis's offset along X from the C axis (mm).
+    #[serde(default)]
+    pub x_offset: f64,
+    /// xyzac-trt: the A axis's offset along Y from the C axis (mm).
+    #[serde(default)]
+    pub y_offset: f64,
+    /// The tilting axis's offset along Z from the rot point (mm).
+    #[serde(default)]
+    pub z_offset: f64,
+    /// Largest distance (mm) of the tool tip from the programmed path that the joint-space
+    /// chords of a tool-centre-point move take; blending between them takes as much again.
+    #[serde(default = "KinematicsSection::default_tolerance")]
+    pub tolerance: f64,
+}
+
+/// `kinematics.kind`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+pub enum KinematicsKind {
+    /// Every joint follows one axis.
+    #[default]
+    #[serde(rename = "trivial")]
+    Trivial,
+    /// LinuxCNC's `xyzac-trt-kins`.
+    #[serde(rename = "xyzac-trt")]
+    XyzacTrt,
+    /// LinuxCNC's `xyzbc-trt-kins`.
+    #[serde(rename = "xyzbc-trt")]
+    XyzbcTrt,
+}
+
+impl KinematicsSection {
+    fn default_tolerance() -> f64 {
+        0.001
+    }
+
+    /// The table kinematics of a `xyzac-trt` or `xyzbc-trt` machine.
+    pub fn table(&self) -> Option<rtcnc_motion::TableKinematics> {
+        let r = [self.x_rot_point, self.y_rot_point, self.z_rot_point];
+        match self.kind {
+            KinematicsKind::Trivial => None,
+            KinematicsKind::XyzacTrt => Some(rtcnc_motion::TableKinematics::xyzac_trt(
+                r,
+                self.y_offset,
+                self.z_offset,
+            )),
+            KinematicsKind::XyzbcTrt => Some(rtcnc_motion::TableKinematics::xyzbc_trt(
+                r,
+                self.x_offset,
+                self.z_offset,
+            )),
+        }
+    }
+}
+
+impl Default for KinematicsSection {
+    fn default() -> Self {
+        KinematicsSection {
+            kind: KinematicsKind::Trivial,
+            x_rot_point: 0.0,
+            y_rot_point: 0.0,
+            z_rot_point: 0.0,
+            x_offset: 0.0,
+            y_offset: 0.0,
+            z_offset: 0.0,
+            tolerance: KinematicsSection::default_tolerance(),
+        }
+    }
+}
+
 /// `[handwheel]`.
 #[derive(Debug, Clone, Copy, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -936,6 +1024,9 @@ pub struct MachineConfig {
     /// `[motion]`.
     #[serde(default)]
     pub motion: MotionSection,
+    /// `[kinematics]`.
+    #[serde(default)]
+    pub kinematics: KinematicsSection,
     /// `[opcua]`: the OPC UA server of the API process; read and checked by
     /// `rtcnc-factory`, which the machine process does not need.
     #[serde(default)]
@@ -997,6 +1088,7 @@ impl MachineConfig {
         self.validate_home_positions(&driven)?;
         self.tasks_checked()?;
         self.validate_motion_spindle_and_tool_changer()?;
+        self.validate_kinematics()?;
         self.validate_io()?;
         positive_finite("handwheel.units_per_count", self.handwheel.units_per_count)?;
         if self.machine.diameter_mode && self.machine.kind != MachineKind::Lathe {
@@ -1231,6 +1323,57 @@ impl MachineConfig {
                         h.home_position
                     ),
                 ));
+            }
+        }
+        Ok(())
+    }
+
+    /// A table kinematics: its parameters are finite, its axes (X Y Z, the tilting axis
+    /// and C) each drive one joint, and only its own offsets are set.
+    fn validate_kinematics(&self) -> Result<(), ConfigError> {
+        let k = &self.kinematics;
+        let (tilt, unused) = match k.kind {
+            KinematicsKind::Trivial => return Ok(()),
+            KinematicsKind::XyzacTrt => ("a", ("x_offset", k.x_offset)),
+            KinematicsKind::XyzbcTrt => ("b", ("y_offset", k.y_offset)),
+        };
+        for (key, v) in [
+            ("x_rot_point", k.x_rot_point),
+            ("y_rot_point", k.y_rot_point),
+            ("z_rot_point", k.z_rot_point),
+            ("x_offset", k.x_offset),
+            ("y_offset", k.y_offset),
+            ("z_offset", k.z_offset),
+        ] {
+            if !v.is_finite() {
+                return Err(ConfigError::invalid(
+                    format!("kinematics.{key}"),
+                    "must be a finite number",
+                ));
+            }
+        }
+        if unused.1 != 0.0 {
+            return Err(ConfigError::invalid(
+                format!("kinematics.{}", unused.0),
+                "this kinematics has no such offset",
+            ));
+        }
+        positive_finite("kinematics.tolerance", k.tolerance)?;
+        for axis in ["x", "y", "z", tilt, "c"] {
+            match self.axes.get(axis) {
+                Some(a) if a.joints.len() == 1 => {}
+                Some(_) => {
+                    return Err(ConfigError::invalid(
+                        format!("axes.{axis}.joints"),
+                        "a five-axis kinematics drives one joint per axis",
+                    ));
+                }
+                None => {
+                    return Err(ConfigError::invalid(
+                        "kinematics.kind",
+                        format!("needs an axis {}", axis.to_uppercase()),
+                    ));
+                }
             }
         }
         Ok(())

@@ -12,7 +12,7 @@ use rtcnc_gcode::canon::{
 use rtcnc_gcode::compensation::Compensator;
 use rtcnc_gcode::{Canon, Interpreter, Parameters, Settings, ToolTable};
 use rtcnc_motion::nurbs::NurbsCurve;
-use rtcnc_motion::{Bezier, CurvePart, PathMode};
+use rtcnc_motion::{Bezier, CurvePart, PathMode, TableKinematics};
 use rtcnc_rt::{Context, Next};
 
 use crate::config::OverSpeed;
@@ -73,6 +73,10 @@ pub(crate) struct InterpreterStage {
     tools_fresh: bool,
     /// The spindle's highest speed (rpm) and what an S word above it does.
     spindle_limit: Option<(f64, OverSpeed)>,
+    /// The machine's five-axis table kinematics (M428 needs one).
+    table: Option<TableKinematics>,
+    /// M428 in force.
+    tool_centre_point: bool,
 }
 
 /// The user M-code number with which a pallet shuttle is asked of the machine logic.
@@ -119,7 +123,15 @@ impl InterpreterStage {
             modal: None,
             tools_fresh: false,
             spindle_limit: None,
+            table: None,
+            tool_centre_point: false,
         }
+    }
+
+    /// The machine's five-axis table kinematics (`[kinematics]`), for M428 and M429.
+    pub(crate) fn with_table_kinematics(mut self, table: Option<TableKinematics>) -> Self {
+        self.table = table;
+        self
     }
 
     /// The machine has a pallet shuttle (`machine.pallet_shuttle`).
@@ -166,6 +178,11 @@ impl InterpreterStage {
             _ => self.tools.clone(),
         };
         self.tools_fresh = false;
+        // A new interpreter starts with TCP off, and so does tool compensation.
+        if self.tool_centre_point {
+            self.tool_centre_point = false;
+            self.outbox.push_back(ProgramBlock::ToolCentrePoint(false));
+        }
         let mut interp = Interpreter::new(self.settings.clone(), tools, parameters);
         if self.diameter_mode {
             // A lathe in diameter mode: G18 and G7 before the program, as LinuxCNC's
@@ -412,6 +429,19 @@ impl InterpreterStage {
             self.refuse(&canon, what);
             return;
         }
+        if self.tool_centre_point {
+            if let Some(what) = self.not_under_tool_centre_point(&canon.command) {
+                self.refuse_because(
+                    &canon,
+                    &format!("{what} under tool-centre-point control (M428): M429 first"),
+                );
+                return;
+            }
+        }
+        if let CanonCommand::SetToolCentrePoint(on) = canon.command {
+            self.switch_tool_centre_point(&canon, on);
+            return;
+        }
         if let CanonCommand::NurbsFeed(nurbs) = &canon.command {
             if let Err(e) = self.convert_nurbs(nurbs, canon.source.line) {
                 self.refuse_because(&canon, &format!("the NURBS curve (G5.2/G5.3): {e}"));
@@ -555,6 +585,10 @@ impl InterpreterStage {
             return;
         };
         if matches!(command, CanonCommand::ProgramEnd | CanonCommand::Finish) {
+            // The program's end switches TCP off (the position is the joints again).
+            if let (true, Some(table)) = (self.tool_centre_point, self.table) {
+                self.apply_tool_centre_point(table, false);
+            }
             self.outbox.push_back(ProgramBlock::End { line });
             self.active = false;
             self.save_parameters();
@@ -981,6 +1015,76 @@ impl InterpreterStage {
         });
         self.active = false;
         self.refused = true;
+    }
+
+    /// What the kernel does not run under TCP: only lines and arcs are cut into
+    /// joint-space chords, and the kinematics' tool length stays the one it started with.
+    fn not_under_tool_centre_point(&self, command: &CanonCommand) -> Option<&'static str> {
+        use CanonCommand as C;
+        let per_revolution = self
+            .interp
+            .as_ref()
+            .is_some_and(|i| i.modal_state().feed_mode == FeedMode::UnitsPerRevolution);
+        match command {
+            C::SplineFeed(_) | C::NurbsFeed(_) => Some("a spline (G5..G5.3)"),
+            C::StraightProbe { .. } => Some("a probing move (G38)"),
+            C::RigidTap { .. } | C::StartSpeedFeedSync { .. } => {
+                Some("spindle-synchronised motion (G33, G76)")
+            }
+            C::UseToolLengthOffset(_) => Some("a tool length offset change (G43, G49)"),
+            C::StartCutterRadiusCompensation { .. } => Some("cutter radius compensation"),
+            C::StraightFeed(_) if per_revolution => Some("feed per revolution (G95)"),
+            _ => None,
+        }
+    }
+
+    /// M428/M429: the same joints stand for another position; the interpreter reads on
+    /// from it, and tool compensation turns the lines from here on into tool-tip moves
+    /// (or back).
+    fn switch_tool_centre_point(&mut self, canon: &Canon, on: bool) {
+        let Some(table) = self.table else {
+            self.refuse_because(
+                canon,
+                "M428/M429 need a five-axis kinematics (the machine file's [kinematics] kind)",
+            );
+            return;
+        };
+        if on != self.tool_centre_point {
+            self.apply_tool_centre_point(table, on);
+        }
+    }
+
+    fn apply_tool_centre_point(&mut self, table: TableKinematics, on: bool) {
+        let Some(interp) = self.interp.as_mut() else {
+            return;
+        };
+        let per_unit = match interp.modal_state().units {
+            Units::Mm => 1.0,
+            Units::Inches => 25.4,
+        };
+        let linear = |i: usize| !(3..6).contains(&i);
+        let mut m = interp.machine_position_now().to_array();
+        for (i, v) in m.iter_mut().enumerate() {
+            if linear(i) {
+                *v *= per_unit;
+            }
+        }
+        let tool = interp.modal_state().tool_offset.z * per_unit;
+        // Off, the position is the joints; on, the pose they put the tool tip at.
+        let mut now = if on {
+            table.pose(&m, tool)
+        } else {
+            table.joints(&m, tool)
+        };
+        for (i, v) in now.iter_mut().enumerate() {
+            if linear(i) {
+                *v /= per_unit;
+            }
+        }
+        interp.kinematics_switched(rtcnc_gcode::canon::Pose::from_array(now));
+        self.position = interp.modal_state().position.to_array();
+        self.tool_centre_point = on;
+        self.outbox.push_back(ProgramBlock::ToolCentrePoint(on));
     }
 
     /// The machine's result for the current run, if it has come (older runs' are dropped).

@@ -2,7 +2,7 @@
 //! sizes, no pointers, no heap), so that a later step can move the channels into shared
 //! memory between processes.
 
-use rtcnc_motion::{AXES, Move};
+use rtcnc_motion::{AXES, Feed, Move};
 
 use crate::config::MAX_JOINTS;
 
@@ -362,6 +362,26 @@ pub enum MachineBlock {
         /// tapers): they run as one, blended, on one spindle index.
         chained: bool,
     },
+    /// A tool-tip move (a line or an arc) under tool-centre-point control (M428): the
+    /// look-ahead cuts it into joint-space chords through the machine's table kinematics.
+    TcpMove {
+        /// Program line.
+        line: u32,
+        /// The tip's path (an arc's centre and normal in machine coordinates).
+        path: rtcnc_motion::TipPath,
+        /// End pose: the tool tip in the work's frame with the tool length in Z, machine
+        /// coordinates (mm, degrees).
+        end: [f64; AXES],
+        /// G0.
+        rapid: bool,
+        /// The programmed feed: the tip's speed (or the rotary axes' where the tip
+        /// stands).
+        feed: Feed,
+        /// Path mode at its end.
+        mode: rtcnc_motion::PathMode,
+        /// Tool length offset in Z (mm).
+        tool_offset: f64,
+    },
     /// A probing move (G38.x): it stops where the probe changes.
     Probe {
         /// The move (machine coordinates).
@@ -393,6 +413,7 @@ impl MachineBlock {
         match self {
             MachineBlock::Motion(mv) | MachineBlock::Probe { mv, .. } => mv.line,
             MachineBlock::Aux { line, .. }
+            | MachineBlock::TcpMove { line, .. }
             | MachineBlock::Synced { line, .. }
             | MachineBlock::End { line }
             | MachineBlock::Error { line, .. } => *line,
@@ -424,6 +445,9 @@ pub enum ProgramBlock {
     },
     /// Path mode of the following moves.
     PathMode(rtcnc_motion::PathMode),
+    /// M428 (true) / M429: the following lines are tool-tip moves of the machine's
+    /// five-axis kinematics.
+    ToolCentrePoint(bool),
     /// Straight move to `end` (program coordinates).
     Line {
         /// Line.

@@ -26,12 +26,41 @@ fn every_shipped_configuration_builds_a_kernel() {
             "bench-xyz.toml",
             "ethercat-sim-12.toml",
             "experiment-1.toml",
+            "sim-5axis-trt.toml",
             "sim-gantry-12.toml",
             "sim-lathe.toml",
             "sim-mill-carousel.toml",
             "sim-mill.toml"
         ]
     );
+}
+
+/// `[kinematics]`: a table kinematics needs its five axes with one joint each, and takes
+/// only its own offsets and a positive tolerance.
+#[test]
+fn a_five_axis_kinematics_is_checked() {
+    let trt = std::fs::read_to_string(repo().join("configs/sim-5axis-trt.toml")).unwrap();
+    let without_c = trt.replace("[axes.c]", "[axes.b]");
+    assert_eq!(refusal(&without_c), "kinematics.kind: needs an axis C");
+    let x_offset = trt.replace("y_offset = 20.0", "y_offset = 20.0\nx_offset = 1.0");
+    assert_eq!(
+        refusal(&x_offset),
+        "kinematics.x_offset: this kinematics has no such offset"
+    );
+    let tolerance = trt.replace("tolerance = 0.001", "tolerance = 0.0");
+    assert_eq!(
+        refusal(&tolerance),
+        "kinematics.tolerance: must be greater than zero"
+    );
+    let unknown = trt.replace("kind = \"xyzac-trt\"", "kind = \"hexapod\"");
+    assert!(refusal(&unknown).contains("unknown variant `hexapod`"));
+    let bc = trt
+        .replace("kind = \"xyzac-trt\"", "kind = \"xyzbc-trt\"")
+        .replace("y_offset = 20.0", "x_offset = 20.0")
+        .replace("[axes.a]", "[axes.b]")
+        .replace("joints = [\"A\"]", "joints = [\"B\"]")
+        .replace("name = \"A\"", "name = \"B\"");
+    MachineConfig::parse(&bc, "test.toml").expect("an xyzbc-trt machine");
 }
 
 fn mill_text() -> String {

@@ -92,6 +92,15 @@ pub enum MotionError {
         /// Upper limit.
         max: f64,
     },
+    /// A tool-centre-point move cannot be cut into joint-space chords within its
+    /// tolerance.
+    #[error("line {line}: tool-centre-point move: {why}")]
+    ToolCentrePoint {
+        /// Program line.
+        line: u32,
+        /// Reason.
+        why: &'static str,
+    },
     /// Kinematics configuration error.
     #[error("kinematics: {0}")]
     Kinematics(String),
@@ -121,6 +130,7 @@ impl MotionError {
             MotionError::QueueFull => "MOTION-010",
             MotionError::Busy(_) => "MOTION-011",
             MotionError::InvalidSpline { .. } => "MOTION-012",
+            MotionError::ToolCentrePoint { .. } => "MOTION-013",
         }
     }
 
@@ -135,6 +145,7 @@ impl MotionError {
             | MotionError::ArcRadiusMismatch { line, .. }
             | MotionError::InvalidArc { line, .. }
             | MotionError::InvalidSpline { line, .. }
+            | MotionError::ToolCentrePoint { line, .. }
             | MotionError::InvalidTolerance { line, .. }
             | MotionError::SoftLimit { line, .. } => Some(*line),
             _ => None,

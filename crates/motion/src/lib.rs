@@ -63,6 +63,7 @@ mod piece;
 mod planner;
 mod scurve;
 mod spline;
+mod table_kinematics;
 
 pub use axes::{AXES, Axis, AxisVec};
 pub use builder::GeometryStats;
@@ -72,3 +73,4 @@ pub use kinematics::{JointLimits, Kinematics, TrivialKinematics};
 pub use limits::{AxisLimits, MIN_JERK_PHASE_PERIODS, MachineLimits};
 pub use planner::{MotionState, Planner, Preparation, PreparedMove, RewindError, RunStats, Status};
 pub use spline::CurvePart;
+pub use table_kinematics::{Chord, MAX_CHORDS, TableKinematics, TcpMove, TiltAxis, TipPath};

@@ -676,6 +676,14 @@ impl<K: Kinematics> Planner<K> {
         self.cur.hist[0]
     }
 
+    /// Where the path ends: the end of the last move pushed, or where the planner was
+    /// reset or stopped (the start of the next move).
+    ///
+    /// Real-time: yes (no allocation, no blocking).
+    pub fn path_end(&self) -> AxisVec {
+        self.builder.pos
+    }
+
     /// Counters.
     ///
     /// Real-time: yes (no allocation, no blocking).

@@ -153,6 +153,7 @@ impl MotionCore {
             .try_put(InterpreterRequest::Stop);
         shared.interpreter_wake.signal();
         self.program.pending = None;
+        self.program.tcp = None;
         self.synced_chain.clear();
         self.fire(Event::Abort);
         self.hold.held = false;

@@ -109,6 +109,7 @@ impl MotionCore {
             .interpreter_requests
             .try_put(InterpreterRequest::Stop);
         self.program.pending = None;
+        self.program.tcp = None;
         self.synced_chain.clear();
         self.hold.held = false;
         self.hold.logic_paused = false;

@@ -3,7 +3,10 @@
 //! needs the machine standing (a machine function, a spindle-synchronised or probing move,
 //! the end, an error), waits for the path to stand, and then starts that.
 
-use rtcnc_motion::{AXES, Feed, MotionError, Move, MoveKind, PathMode, Preparation, PreparedMove};
+use rtcnc_motion::{
+    AXES, Feed, MotionError, Move, MoveKind, PathMode, Preparation, PreparedMove, TableKinematics,
+    TcpMove, TipPath,
+};
 use rtcnc_rt::Context;
 
 use super::MotionCore;
@@ -48,6 +51,25 @@ pub(super) struct Program {
     pub(super) aux_cycle: u64,
     /// Interpolation cycle of the last orientation command.
     pub(super) orient_cycle: u64,
+    /// The machine's five-axis table kinematics and its TCP tolerance (mm).
+    pub(super) table: Option<(TableKinematics, f64)>,
+    /// The tool-centre-point line being cut into chords.
+    pub(super) tcp: Option<TcpRun>,
+}
+
+/// The share of the TCP tolerance the chords take; their blending takes the rest.
+const CHORD_SHARE: f64 = 0.25;
+
+/// A tool-centre-point line on its way into the planner, chord by chord.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct TcpRun {
+    chords: TcpMove,
+    rapid: bool,
+    /// Between chords: blended within half the TCP tolerance (in joint space).
+    inner: PathMode,
+    /// At the line's end: the program's mode, its tolerance in joint space.
+    last: PathMode,
+    line: u32,
 }
 
 impl Program {
@@ -66,7 +88,18 @@ impl Program {
             loaded: false,
             aux_cycle: 0,
             orient_cycle: 0,
+            table: None,
+            tcp: None,
         }
+    }
+
+    pub(super) fn with_table_kinematics(
+        mut self,
+        table: Option<TableKinematics>,
+        tolerance: f64,
+    ) -> Program {
+        self.table = table.map(|t| (t, tolerance));
+        self
     }
 }
 
@@ -137,6 +170,7 @@ impl MotionCore {
         self.fire(Event::Begin);
         self.hold.logic_paused = false;
         self.program.pending = None;
+        self.program.tcp = None;
         self.synced_chain.clear();
         self.program.ended = false;
         self.program.took_a_block = false;
@@ -155,6 +189,25 @@ impl MotionCore {
         }
         let block = match self.program.pending.take() {
             Some(b) => b,
+            None if self.program.tcp.is_some() => match self.next_chord() {
+                Ok(Some(chord)) => {
+                    // Each chord is a move of its own for the staging's key.
+                    self.program.blocks_taken += 1;
+                    MachineBlock::Motion(chord)
+                }
+                Ok(None) => return true,
+                Err(e) => {
+                    self.program.tcp = None;
+                    self.path.planner.flush();
+                    self.fire(Event::Fail {
+                        code: FaultCode::MotionError,
+                        line: e.line().unwrap_or(0),
+                        value: 0.0,
+                    });
+                    *shared.motion_error.lock() = Some(e);
+                    return true;
+                }
+            },
             None => match shared.machine_blocks.try_get() {
                 Some(Tagged { epoch, block }) if epoch == self.program.epoch => {
                     self.program.blocks_taken += 1;
@@ -173,6 +226,23 @@ impl MotionCore {
     fn feed(&mut self, shared: &Shared, block: MachineBlock, staging: &mut PreparedMove) -> bool {
         let (then, line) = match block {
             MachineBlock::Motion(mv) => return self.feed_move(shared, block, mv, staging),
+            MachineBlock::TcpMove {
+                line,
+                path,
+                end,
+                rapid,
+                feed,
+                mode,
+                tool_offset,
+            } => match self.start_tcp_move(line, path, &end, rapid, feed, mode, tool_offset) {
+                Ok(()) => return true,
+                Err(e) => {
+                    self.before_new_motion();
+                    self.path.planner.flush();
+                    *shared.motion_error.lock() = Some(e);
+                    (Then::Error(FaultCode::MotionError, 0.0), line)
+                }
+            },
             // M62/M63/M67: the path goes on; the change waits for the next move.
             MachineBlock::Aux { aux, .. }
                 if self
@@ -335,6 +405,136 @@ impl MotionCore {
                 true
             }
         }
+    }
+
+    /// A tool-centre-point move: from the pose the path's end joints stand for to `end`,
+    /// along `path`, cut into chords by [`Self::next_chord`] as the window takes them. Its
+    /// duration is the tip's length (the rotary axes' where the tip stands) at the feed, as
+    /// the planner takes a feed; a rapid's is the axes'.
+    #[allow(clippy::too_many_arguments)]
+    fn start_tcp_move(
+        &mut self,
+        line: u32,
+        path: TipPath,
+        end: &[f64; AXES],
+        rapid: bool,
+        feed: Feed,
+        mode: PathMode,
+        tool_offset: f64,
+    ) -> Result<(), MotionError> {
+        let Some((table, tolerance)) = self.program.table else {
+            return Err(MotionError::ToolCentrePoint {
+                line,
+                why: "the machine has no five-axis kinematics",
+            });
+        };
+        // The end's joints within their range, before any chord runs (a chord that
+        // leaves it on the way is refused by the planner at the same line).
+        let end_joints = table.joints(end, tool_offset);
+        for i in 0..AXES {
+            let v = end_joints[i];
+            if self.machine.axis_present[i]
+                && (v < self.machine.axis_min[i] || v > self.machine.axis_max[i])
+            {
+                return Err(MotionError::SoftLimit {
+                    line,
+                    axis: rtcnc_motion::Axis::ALL[i].letter(),
+                    position: v,
+                    min: self.machine.axis_min[i],
+                    max: self.machine.axis_max[i],
+                });
+            }
+        }
+        // Run from a line: the move starts where the skipped motion ended (the approach
+        // goes there first).
+        let start = self
+            .program
+            .skipped_to
+            .unwrap_or_else(|| self.path.planner.path_end());
+        let chords = TcpMove::new(
+            table,
+            tool_offset,
+            &start,
+            end,
+            path,
+            tolerance * CHORD_SHARE,
+            0.0,
+            line,
+        )?;
+        let (len_xyz, len) = chords.lengths();
+        if len <= 1e-12 {
+            // A move to where the tip already is: nothing to do.
+            return Ok(());
+        }
+        let seconds = if rapid {
+            0.0
+        } else {
+            let feed_len = if len_xyz > 1e-12 { len_xyz } else { len };
+            let seconds = match feed {
+                Feed::UnitsPerSecond(f) => feed_len / f,
+                Feed::InverseTime { seconds } => seconds,
+                Feed::PerRevolution { .. } => f64::NAN,
+            };
+            if !(seconds.is_finite() && seconds > 0.0) {
+                return Err(MotionError::InvalidFeed {
+                    line,
+                    feed: feed_len / seconds,
+                });
+            }
+            seconds
+        };
+        let chords = chords.with_duration(seconds);
+        // A distance in joint space moves the tip by up to `gain` times as much.
+        let gain = chords.joint_to_tip_gain();
+        let inner = PathMode::Blend {
+            tolerance: tolerance * (1.0 - CHORD_SHARE) / gain,
+            merge_tolerance: 0.0,
+        };
+        let last = match mode {
+            PathMode::Blend { tolerance, .. } => PathMode::Blend {
+                tolerance: tolerance / gain,
+                merge_tolerance: 0.0,
+            },
+            other => other,
+        };
+        self.program.tcp = Some(TcpRun {
+            chords,
+            rapid,
+            inner,
+            last,
+            line,
+        });
+        Ok(())
+    }
+
+    /// The next chord of the tool-centre-point line as a move; `None` once it is done.
+    fn next_chord(&mut self) -> Result<Option<Move>, MotionError> {
+        let Some(run) = self.program.tcp.as_mut() else {
+            return Ok(None);
+        };
+        let Some(chord) = run.chords.next_chord()? else {
+            self.program.tcp = None;
+            return Ok(None);
+        };
+        let mv = Move {
+            kind: MoveKind::Line {
+                end: chord.end,
+                rapid: run.rapid,
+            },
+            feed: if run.rapid {
+                Feed::UnitsPerSecond(f64::INFINITY)
+            } else {
+                Feed::InverseTime {
+                    seconds: chord.seconds,
+                }
+            },
+            mode: if chord.last { run.last } else { run.inner },
+            line: run.line,
+        };
+        if chord.last {
+            self.program.tcp = None;
+        }
+        Ok(Some(mv))
     }
 
     /// Once the path stands, does what stopped it. Held: the next block (a machine
