@@ -401,6 +401,21 @@ fn shift(c: &mut Compiler, f: &str, mut a: Vec<(TE, Pos)>, pos: Pos) -> R<TE> {
         let (_, ne) = Compiler::te_parts(n.0);
         n.0 = Compiler::te(Ty::T(Type::Elem(as_unsigned(e))), ne);
     }
+    // CODESYS 2.3 shifts a signed integer right arithmetically (the sign bit comes in);
+    // SHL, ROL and ROR work on its bits as on the bit string of its width.
+    if c.codesys_conversions()
+        && f == "SHR"
+        && let Ty::T(t) = &x.0.ty
+        && let Some(e) = t.elem().filter(|e| e.is_int() && ik(*e).signed())
+    {
+        let ty = t.clone();
+        let (_, xe) = Compiler::te_parts(x.0);
+        let ne = int_arg(c, f, n)?;
+        return Ok(Compiler::te(
+            Ty::T(ty),
+            builtin_expr(Builtin::Shr(ik(e)), vec![xe, ne], 0),
+        ));
+    }
     if c.codesys_conversions()
         && let Ty::T(t) = &x.0.ty
         && let Some(e) = t.elem().filter(|e| e.is_int())

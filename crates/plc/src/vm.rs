@@ -713,7 +713,14 @@ impl Vm {
             Builtin::Shr(k) => {
                 let v = arg(self, 0);
                 let n = arg(self, 1);
-                if n >= 64 { 0 } else { k.wrap(v >> n) }
+                if k.signed() {
+                    // Signed values are held sign-extended: an i64 shift fills with the sign.
+                    k.wrap(((v as i64) >> n.min(63)) as u64)
+                } else if n >= 64 {
+                    0
+                } else {
+                    k.wrap(v >> n)
+                }
             }
             Builtin::Rol(k) | Builtin::Ror(k) => {
                 let v = arg(self, 0);

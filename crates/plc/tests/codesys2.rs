@@ -178,8 +178,8 @@ e := ROL(BYTE#16#81, n);
 END_PROGRAM",
     )
     .unwrap_or_else(|e| panic!("{e}"));
-    // -2 is 16#FFFE in 16 bits; shifted right with a zero: 16#7FFF.
-    assert_eq!(int(&rt, "a"), 32767);
+    // A signed integer shifts right arithmetically (CODESYS 2.3's manual): -2 / 2.
+    assert_eq!(int(&rt, "a"), -1);
     // 16#4000 << 1 = 16#8000, the INT -32768.
     assert_eq!(int(&rt, "b"), -32768);
     // 40000 / 8
@@ -187,6 +187,40 @@ END_PROGRAM",
     assert_eq!(int(&rt, "d"), i32::MIN as i64);
     // 2#1000_0001 rotated left by 3: 2#0000_1100.
     assert_eq!(uint(&rt, "e"), 0x0C);
+}
+
+#[test]
+fn codesys_conversions_shift_signed_integers_right_with_their_sign() {
+    let rt = codesys(
+        "PROGRAM P
+VAR
+  month : INT := 3; days : INT;
+  i : INT := -32768; s : SINT := -128; d : DINT := -256; l : LINT := -1;
+  a : INT; b : SINT; c, c2 : DINT; e : LINT; w : WORD;
+END_VAR
+days := (month - 1) * 30 + SHR(month - 4, 1);
+a := SHR(i, 15);
+b := SHR(s, 3);
+c := SHR(d, 4);
+c2 := SHR(DINT#1000, 3);
+e := SHR(l, 70);
+w := SHR(WORD#16#8000, 15);
+END_PROGRAM",
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    // Days of the year before March 1st: 2 * 30 + SHR(-1, 1) = 60 - 1 = 59 (31 + 28).
+    assert_eq!(int(&rt, "days"), 59);
+    // 16#8000 with the sign bit filled fifteen times: 16#FFFF.
+    assert_eq!(int(&rt, "a"), -1);
+    // -128 / 8 and -256 / 16, exact, so the floor of an arithmetic shift is the quotient.
+    assert_eq!(int(&rt, "b"), -16);
+    assert_eq!(int(&rt, "c"), -16);
+    // A positive value: 1000 / 8.
+    assert_eq!(int(&rt, "c2"), 125);
+    // A count past the width leaves only the sign.
+    assert_eq!(int(&rt, "e"), -1);
+    // A bit string still takes zeros: 16#8000 >> 15 = 1.
+    assert_eq!(uint(&rt, "w"), 1);
 }
 
 #[test]
