@@ -40,7 +40,14 @@ pub fn program(text: &str, name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("rtcnc-kernel-tests-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join(name);
-    std::fs::write(&path, text).unwrap();
+    // Written aside and renamed into place: tests of one binary run in parallel and may
+    // write the same program under the same name while another's kernel reads it (a
+    // reader of a file being rewritten saw it empty).
+    static WRITES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = WRITES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let aside = dir.join(format!(".{name}.{n}"));
+    std::fs::write(&aside, text).unwrap();
+    std::fs::rename(&aside, &path).unwrap();
     path
 }
 
