@@ -230,6 +230,8 @@ struct GenState {
     line: u32,
     /// An abort or quick stop came to rest here: emitting this entry drops the window.
     stopped: bool,
+    /// The set-point check moved this entry's point off the step the policy chose.
+    adjusted: bool,
 }
 
 impl GenState {
@@ -250,6 +252,7 @@ impl GenState {
             state: MotionState::Idle,
             line: 0,
             stopped: false,
+            adjusted: false,
         }
     }
 }
