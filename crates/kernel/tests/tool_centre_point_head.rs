@@ -2,7 +2,8 @@
 //! `configs/sim-5axis-head.toml` (LinuxCNC's `5axiskins`): the tool tip, computed from
 //! the joint set-points by LinuxCNC's 5axiskins forward formula (written out below, not
 //! the crate's), stays on the programmed lines within the machine file's tolerance with
-//! either tool's length, and every joint keeps its limits.
+//! either tool's length, every joint keeps its limits, and the joints equal those
+//! LinuxCNC 2.9's simulator commanded with 5axiskins on the same program.
 
 mod common;
 use common::*;
@@ -168,4 +169,48 @@ fn a_tool_length_change_enters_the_head_kinematics() {
     // With B 30 the 30 mm difference swings the tip by 30·sin 30 = 15 mm sideways.
     let wrong = worst_per_line(&m, T1);
     assert!(wrong.iter().all(|(_, w)| *w > 10.0), "{wrong:?}");
+}
+
+/// LinuxCNC 2.9's joint positions for the same program: `5axiskins` (type 0, TCP) with
+/// `pivot-length` 100 plus `motion.tooloffset.z` (T1, 50 mm) through a `sum2`, W a sixth
+/// joint standing at 0, run headless in its simulator (`linuxcnc` with a perfect servo
+/// loop, `joint.N.pos-cmd` sampled every period): where the joints stood during each
+/// dwell (`scripts/linuxcnc-trt-reference.sh head` makes them again where LinuxCNC is
+/// installed). The rtcnc program switches TCP on where B and C are 0, where both
+/// kinematics agree.
+const LINUXCNC_PROGRAM: &str = "G21 G90 G94 G61\nT1 M6\nG43 H1\nG0 X0 Y0 Z80 B0 C0\nG4 P0.3\n\
+     G1 X20 Y0 Z5 F1200\nG4 P0.3\nG1 B30 C45 F1800\nG4 P0.3\nG1 Y20 C135 F600\nG4 P0.3\n\
+     G1 X-20 C225\nG4 P0.3\nG1 Y-20 C315\nG4 P0.3\nG0 Z40\nG4 P0.3\nM2\n";
+const LINUXCNC_JOINTS: [[f64; 5]; 7] = [
+    [0.0, 0.0, 130.0, 0.0, 0.0],
+    [20.0, 0.0, 55.0, 0.0, 0.0],
+    [-33.033008589, -53.033008589, 34.903810568, 30.0, 45.0],
+    [73.033008589, -33.033008589, 34.903810568, 30.0, 135.0],
+    [33.033008589, 73.033008589, 34.903810568, 30.0, 225.0],
+    [-73.033008589, 33.033008589, 34.903810568, 30.0, 315.0],
+    [-73.033008589, 33.033008589, 69.903810568, 30.0, 315.0],
+];
+
+/// The same program on rtcnc (M428 after the first move): the joints at every dwell equal
+/// LinuxCNC's within 1e-6 mm and 1e-6 degree (its figures have nine decimals).
+#[test]
+fn joint_positions_equal_linuxcnc_5axiskins() {
+    let text = LINUXCNC_PROGRAM.replacen("G4 P0.3\n", "G4 P0.3\nM428\n", 1);
+    let m = run(&text, "head_linuxcnc.ngc");
+    assert!(m.faults.is_empty(), "{:?}", m.faults);
+    // The dwells' lines in the rtcnc program: 5, then every other line from 8.
+    let dwells = [5, 8, 10, 12, 14, 16, 18];
+    for (line, want) in dwells.into_iter().zip(LINUXCNC_JOINTS) {
+        let at = m
+            .samples
+            .iter()
+            .rfind(|s| s.line == line)
+            .unwrap_or_else(|| panic!("no set-point at line {line}"));
+        for (j, (got, want)) in at.setpoint.iter().zip(want).enumerate() {
+            assert!(
+                (got - want).abs() <= 1e-6,
+                "line {line} joint {j}: {got} against LinuxCNC's {want}"
+            );
+        }
+    }
 }
