@@ -23,13 +23,12 @@
 //! before the rotation, so the tilt turns the tool tip, not the gauge line.
 //!
 //! [`TcpMove`] (on these or on a head, [`crate::HeadKinematics`]) turns one programmed tip
-//! move (X Y Z a straight line or an arc, the rotary
-//! axes linear in the same parameter, as LinuxCNC's TCP interpolates them) into joint-space
-//! chords: each chord's tip, computed by the forward kinematics at its points, stays
-//! within a tolerance of the programmed point at the same fraction of the move, and each
-//! chord gets its share of the move's duration, so that the planner (which plans in joint
-//! space and keeps every joint's velocity, acceleration and jerk) runs the tip at the
-//! programmed feed.
+//! move (X Y Z a straight line or an arc, the rotary axes linear in the same parameter, as
+//! LinuxCNC's TCP interpolates them) into joint-space chords: each chord's tip, computed by
+//! the forward kinematics at its points, stays within a tolerance of the programmed point at
+//! the same fraction of the move, and each chord gets its share of the move's duration, so
+//! that the planner (which plans in joint space and keeps every joint's velocity,
+//! acceleration and jerk) runs the tip at the programmed feed.
 
 use crate::axes::{AXES, AxisVec};
 use crate::error::MotionError;
