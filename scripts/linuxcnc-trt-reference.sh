@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
-# scripts/linuxcnc-trt-reference.sh [ac|bc] - the reference joint positions of the TCP
-# tests (crates/kernel/tests/tool_centre_point.rs, crates/motion/tests/table_kinematics.rs)
+# scripts/linuxcnc-trt-reference.sh [ac|bc|head] - the reference joint positions of the TCP
+# tests (crates/kernel/tests/tool_centre_point.rs, crates/motion/tests/table_kinematics.rs,
+# crates/kernel/tests/tool_centre_point_head.rs)
 # from LinuxCNC 2.9 itself: runs the tests' program (TCP moves, a dwell after each) in
 # LinuxCNC's simulator, headless, with xyzac-trt-kins (y-offset 20, z-offset 10, rot point
 # at the origin) or xyzbc-trt-kins (x-offset -15, z-offset 10, rot point (5, -3, -40)),
-# tool-offset from motion.tooloffset.z (T1, 50 mm), a perfect servo loop, and prints the
+# tool-offset from motion.tooloffset.z (T1, 50 mm), or 5axiskins (head: pivot-length 100
+# plus motion.tooloffset.z, W a joint that stays 0), a perfect servo loop, and prints the
 # joint positions (joint.N.pos-cmd, nine decimals) wherever the joints stood for 100
 # periods: at the start, then at each dwell.
 # Needs LinuxCNC 2.9 (Debian linuxcnc-uspace) and the peer folder's headless display
@@ -39,9 +41,18 @@ setp $KINS.z-offset 10
 setp $KINS.x-rot-point 5
 setp $KINS.y-rot-point -3
 setp $KINS.z-rot-point -40" ;;
-  *) echo "usage: $0 [ac|bc]" >&2; exit 2 ;;
+  head) KINS=5axiskins; COORDS=XYZBCW; TILT=B; TURNS=(45 135 225 315)
+      PINS="loadrt sum2 names=pivot
+setp pivot.in1 100
+net tooloff motion.tooloffset.z => pivot.in0
+net pivotlen pivot.out => $KINS.pivot-length
+addf pivot servo-thread" ;;
+  *) echo "usage: $0 [ac|bc|head]" >&2; exit 2 ;;
 esac
-ANGLE=-30; [ "$KIND" = bc ] && ANGLE=28
+TOOLNET="net tooloff motion.tooloffset.z => $KINS.tool-offset"
+JOINTS=5
+[ "$KIND" = head ] && TOOLNET="" && JOINTS=6
+ANGLE=-30; [ "$KIND" = bc ] && ANGLE=28; [ "$KIND" = head ] && ANGLE=30
 W=$(mktemp -d /tmp/rtcnc-trt.XXXXXX)
 trap 'rm -rf "$W"' EXIT
 chmod 755 "$W"; mkdir -m 1777 "$W/fifo" "$W/out"
@@ -73,7 +84,7 @@ loadrt [EMCMOT]EMCMOT servo_period_nsec=[EMCMOT]SERVO_PERIOD num_joints=[KINS]JO
 addf motion-command-handler servo-thread
 addf motion-controller servo-thread
 $PINS
-net tooloff motion.tooloffset.z => $KINS.tool-offset
+$TOOLNET
 net estop-loop iocontrol.0.user-enable-out iocontrol.0.emc-enable-in
 net tool-prep-loop iocontrol.0.tool-prepare iocontrol.0.tool-prepared
 net tool-change-loop iocontrol.0.tool-change iocontrol.0.tool-changed
@@ -84,6 +95,7 @@ loadrt conv_s32_float names=conv_line
 net tpline motion.program-line => conv_line.in
 net tplinef conv_line.out => sampler.0.pin.5
 EOF
+[ "$JOINTS" = 6 ] && echo "net fb5 joint.5.motor-pos-cmd => joint.5.motor-pos-fb" >> "$W/sim.hal"
 for j in 0 1 2 3 4; do
   cat >> "$W/sim.hal" <<EOF
 net fb$j joint.$j.motor-pos-cmd => joint.$j.motor-pos-fb
@@ -131,13 +143,14 @@ DEFAULT_LINEAR_ACCELERATION = 500
 MAX_LINEAR_ACCELERATION = 1000
 [KINS]
 KINEMATICS = $KINS
-JOINTS = 5
+JOINTS = $JOINTS
 EOF
-for ax in X Y Z $TILT C; do
+AXES="X Y Z $TILT C"; [ "$JOINTS" = 6 ] && AXES="$AXES W"
+for ax in $AXES; do
   printf '[AXIS_%s]\nMAX_VELOCITY = 100\nMAX_ACCELERATION = 1000\nMIN_LIMIT = -100000\nMAX_LIMIT = 100000\n' "$ax" >> "$W/sim.ini"
 done
-for j in 0 1 2 3 4; do
-  T=LINEAR; [ $j -ge 3 ] && T=ANGULAR
+for j in $(seq 0 $((JOINTS - 1))); do
+  T=LINEAR; [ $j -ge 3 ] && [ $j -le 4 ] && T=ANGULAR
   printf '[JOINT_%s]\nTYPE = %s\nHOME = 0.0\nMAX_VELOCITY = 100\nMAX_ACCELERATION = 1000\nMIN_LIMIT = -100000\nMAX_LIMIT = 100000\nFERROR = 1000\nMIN_FERROR = 1000\nHOME_SEARCH_VEL = 0\nHOME_LATCH_VEL = 0\nHOME_SEQUENCE = 0\n' "$j" "$T" >> "$W/sim.ini"
 done
 # rtapi_app refuses to run with real uid 0 unless given a fallback uid and a FIFO path

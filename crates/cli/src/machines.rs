@@ -85,6 +85,15 @@ pub const SHIPPED: &[Shipped] = &[
         )],
     },
     Shipped {
+        name: "sim-5axis-head",
+        machine_file: include_str!("../../../configs/sim-5axis-head.toml"),
+        files: &[(
+            "sim-5axis-head.tbl",
+            include_str!("../../../configs/sim-5axis-head.tbl"),
+            true,
+        )],
+    },
+    Shipped {
         name: "sim-gantry-12",
         machine_file: include_str!("../../../configs/sim-gantry-12.toml"),
         files: &[],

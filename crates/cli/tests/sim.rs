@@ -254,6 +254,30 @@ fn sim_runs_the_tool_centre_point_example_on_the_5_axis_table() {
     assert!(stdout.contains("faults      none"), "{stdout}");
 }
 
+/// The shipped 5-axis head machine (by its name) runs its TCP example to its end within
+/// every joint's limits.
+#[test]
+fn sim_runs_the_tool_centre_point_example_on_the_5_axis_head() {
+    let out = rtcnc()
+        .args([
+            "sim",
+            "examples/5axis-head-tcp.ngc",
+            "--machine",
+            "sim-5axis-head",
+            "-q",
+        ])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("limits      respected"), "{stdout}");
+    assert!(stdout.contains("faults      none"), "{stdout}");
+}
+
 /// A hard limit at 40 mm hit at 50 mm/s: the quick stop (1000 mm/s², jerk 10 000 mm/s³:
 /// a triangular deceleration of 2·√(50/10 000) = 0.141 s over 50 · 0.0707 = 3.5 mm) ends
 /// near X43.5. The recording goes on until the load stands, so the CSV shows the whole

@@ -882,8 +882,9 @@ impl Default for MotionSection {
 #[serde(deny_unknown_fields)]
 pub struct KinematicsSection {
     /// `"trivial"` (every joint follows one axis), `"xyzac-trt"` or `"xyzbc-trt"` (a
-    /// tilting table with a rotary table on it, LinuxCNC's modules of those names; the
-    /// program switches tool-centre-point control on with M428 and off with M429).
+    /// tilting table with a rotary table on it, LinuxCNC's modules of those names) or
+    /// `"xyzbc-head"` (a tilting/rotating spindle head, LinuxCNC's `5axiskins`); the
+    /// program switches tool-centre-point control on with M428 and off with M429.
     #[serde(default)]
     pub kind: KinematicsKind,
     /// Where the C axis meets the pivot plane, machine coordinates (mm): LinuxCNC's
@@ -905,6 +906,10 @@ pub struct KinematicsSection {
     /// The tilting axis's offset along Z from the rot point (mm).
     #[serde(default)]
     pub z_offset: f64,
+    /// xyzbc-head: from the head's pivot to the spindle's gauge line (mm), LinuxCNC's
+    /// `pivot-length` without the tool length (the tool length in force is added).
+    #[serde(default)]
+    pub pivot_length: f64,
     /// Largest distance (mm) of the tool tip from the programmed path that the joint-space
     /// chords of a tool-centre-point move take; blending between them takes as much again.
     #[serde(default = "KinematicsSection::default_tolerance")]
@@ -924,6 +929,9 @@ pub enum KinematicsKind {
     /// LinuxCNC's `xyzbc-trt-kins`.
     #[serde(rename = "xyzbc-trt")]
     XyzbcTrt,
+    /// LinuxCNC's `5axiskins` (W = 0).
+    #[serde(rename = "xyzbc-head")]
+    XyzbcHead,
 }
 
 impl KinematicsSection {
@@ -931,21 +939,19 @@ impl KinematicsSection {
         0.001
     }
 
-    /// The table kinematics of a `xyzac-trt` or `xyzbc-trt` machine.
-    pub fn table(&self) -> Option<rtcnc_motion::TableKinematics> {
+    /// The five-axis kinematics of a table or head machine.
+    pub fn five_axis(&self) -> Option<rtcnc_motion::FiveAxisKinematics> {
+        use rtcnc_motion::{HeadKinematics, TableKinematics};
         let r = [self.x_rot_point, self.y_rot_point, self.z_rot_point];
         match self.kind {
             KinematicsKind::Trivial => None,
-            KinematicsKind::XyzacTrt => Some(rtcnc_motion::TableKinematics::xyzac_trt(
-                r,
-                self.y_offset,
-                self.z_offset,
-            )),
-            KinematicsKind::XyzbcTrt => Some(rtcnc_motion::TableKinematics::xyzbc_trt(
-                r,
-                self.x_offset,
-                self.z_offset,
-            )),
+            KinematicsKind::XyzacTrt => {
+                Some(TableKinematics::xyzac_trt(r, self.y_offset, self.z_offset).into())
+            }
+            KinematicsKind::XyzbcTrt => {
+                Some(TableKinematics::xyzbc_trt(r, self.x_offset, self.z_offset).into())
+            }
+            KinematicsKind::XyzbcHead => Some(HeadKinematics::xyzbc_head(self.pivot_length).into()),
         }
     }
 }
@@ -960,6 +966,7 @@ impl Default for KinematicsSection {
             x_offset: 0.0,
             y_offset: 0.0,
             z_offset: 0.0,
+            pivot_length: 0.0,
             tolerance: KinematicsSection::default_tolerance(),
         }
     }
@@ -1328,14 +1335,25 @@ impl MachineConfig {
         Ok(())
     }
 
-    /// A table kinematics: its parameters are finite, its axes (X Y Z, the tilting axis
-    /// and C) each drive one joint, and only its own offsets are set.
+    /// A five-axis kinematics: its parameters are finite, its axes (X Y Z, the tilting
+    /// axis and C) each drive one joint, and only its own parameters are set.
     fn validate_kinematics(&self) -> Result<(), ConfigError> {
         let k = &self.kinematics;
-        let (tilt, unused) = match k.kind {
+        let (tilt, unused): (&str, &[&str]) = match k.kind {
             KinematicsKind::Trivial => return Ok(()),
-            KinematicsKind::XyzacTrt => ("a", ("x_offset", k.x_offset)),
-            KinematicsKind::XyzbcTrt => ("b", ("y_offset", k.y_offset)),
+            KinematicsKind::XyzacTrt => ("a", &["x_offset", "pivot_length"]),
+            KinematicsKind::XyzbcTrt => ("b", &["y_offset", "pivot_length"]),
+            KinematicsKind::XyzbcHead => (
+                "b",
+                &[
+                    "x_rot_point",
+                    "y_rot_point",
+                    "z_rot_point",
+                    "x_offset",
+                    "y_offset",
+                    "z_offset",
+                ],
+            ),
         };
         for (key, v) in [
             ("x_rot_point", k.x_rot_point),
@@ -1344,6 +1362,7 @@ impl MachineConfig {
             ("x_offset", k.x_offset),
             ("y_offset", k.y_offset),
             ("z_offset", k.z_offset),
+            ("pivot_length", k.pivot_length),
         ] {
             if !v.is_finite() {
                 return Err(ConfigError::invalid(
@@ -1351,12 +1370,12 @@ impl MachineConfig {
                     "must be a finite number",
                 ));
             }
-        }
-        if unused.1 != 0.0 {
-            return Err(ConfigError::invalid(
-                format!("kinematics.{}", unused.0),
-                "this kinematics has no such offset",
-            ));
+            if v != 0.0 && unused.contains(&key) {
+                return Err(ConfigError::invalid(
+                    format!("kinematics.{key}"),
+                    "this kinematics has no such parameter",
+                ));
+            }
         }
         positive_finite("kinematics.tolerance", k.tolerance)?;
         for axis in ["x", "y", "z", tilt, "c"] {

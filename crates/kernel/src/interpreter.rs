@@ -12,7 +12,7 @@ use rtcnc_gcode::canon::{
 use rtcnc_gcode::compensation::Compensator;
 use rtcnc_gcode::{Canon, Interpreter, Parameters, Settings, ToolTable};
 use rtcnc_motion::nurbs::NurbsCurve;
-use rtcnc_motion::{Bezier, CurvePart, PathMode, TableKinematics};
+use rtcnc_motion::{Bezier, CurvePart, FiveAxisKinematics, PathMode};
 use rtcnc_rt::{Context, Next};
 
 use crate::config::OverSpeed;
@@ -73,8 +73,8 @@ pub(crate) struct InterpreterStage {
     tools_fresh: bool,
     /// The spindle's highest speed (rpm) and what an S word above it does.
     spindle_limit: Option<(f64, OverSpeed)>,
-    /// The machine's five-axis table kinematics (M428 needs one).
-    table: Option<TableKinematics>,
+    /// The machine's five-axis kinematics (a table or a head) (M428 needs one).
+    five_axis: Option<FiveAxisKinematics>,
     /// M428 in force.
     tool_centre_point: bool,
 }
@@ -123,14 +123,17 @@ impl InterpreterStage {
             modal: None,
             tools_fresh: false,
             spindle_limit: None,
-            table: None,
+            five_axis: None,
             tool_centre_point: false,
         }
     }
 
-    /// The machine's five-axis table kinematics (`[kinematics]`), for M428 and M429.
-    pub(crate) fn with_table_kinematics(mut self, table: Option<TableKinematics>) -> Self {
-        self.table = table;
+    /// The machine's five-axis kinematics (`[kinematics]`), for M428 and M429.
+    pub(crate) fn with_five_axis_kinematics(
+        mut self,
+        five_axis: Option<FiveAxisKinematics>,
+    ) -> Self {
+        self.five_axis = five_axis;
         self
     }
 
@@ -586,8 +589,8 @@ impl InterpreterStage {
         };
         if matches!(command, CanonCommand::ProgramEnd | CanonCommand::Finish) {
             // The program's end switches TCP off (the position is the joints again).
-            if let (true, Some(table)) = (self.tool_centre_point, self.table) {
-                self.apply_tool_centre_point(table, false);
+            if let (true, Some(kinematics)) = (self.tool_centre_point, self.five_axis) {
+                self.apply_tool_centre_point(kinematics, false);
             }
             self.outbox.push_back(ProgramBlock::End { line });
             self.active = false;
@@ -1042,7 +1045,7 @@ impl InterpreterStage {
     /// from it, and tool compensation turns the lines from here on into tool-tip moves
     /// (or back).
     fn switch_tool_centre_point(&mut self, canon: &Canon, on: bool) {
-        let Some(table) = self.table else {
+        let Some(kinematics) = self.five_axis else {
             self.refuse_because(
                 canon,
                 "M428/M429 need a five-axis kinematics (the machine file's [kinematics] kind)",
@@ -1050,11 +1053,11 @@ impl InterpreterStage {
             return;
         };
         if on != self.tool_centre_point {
-            self.apply_tool_centre_point(table, on);
+            self.apply_tool_centre_point(kinematics, on);
         }
     }
 
-    fn apply_tool_centre_point(&mut self, table: TableKinematics, on: bool) {
+    fn apply_tool_centre_point(&mut self, kinematics: FiveAxisKinematics, on: bool) {
         let Some(interp) = self.interp.as_mut() else {
             return;
         };
@@ -1072,9 +1075,9 @@ impl InterpreterStage {
         let tool = interp.modal_state().tool_offset.z * per_unit;
         // Off, the position is the joints; on, the pose they put the tool tip at.
         let mut now = if on {
-            table.pose(&m, tool)
+            kinematics.pose(&m, tool)
         } else {
-            table.joints(&m, tool)
+            kinematics.joints(&m, tool)
         };
         for (i, v) in now.iter_mut().enumerate() {
             if linear(i) {

@@ -635,7 +635,7 @@ fn interpreter_stage(
     .with_tool_table_file(config.files.tool_table.as_ref().map(|p| config.resolve(p)))
     .with_pallet_shuttle(config.machine.pallet_shuttle)
     .with_spindle_limit(config.spindle.map(|s| (s.max_speed_rpm, s.over_speed)))
-    .with_table_kinematics(config.kinematics.table())
+    .with_five_axis_kinematics(config.kinematics.five_axis())
 }
 
 /// The stages the tasks run, built and ready to be moved into the task bodies.

@@ -26,6 +26,7 @@ fn every_shipped_configuration_builds_a_kernel() {
             "bench-xyz.toml",
             "ethercat-sim-12.toml",
             "experiment-1.toml",
+            "sim-5axis-head.toml",
             "sim-5axis-trt.toml",
             "sim-gantry-12.toml",
             "sim-lathe.toml",
@@ -35,8 +36,8 @@ fn every_shipped_configuration_builds_a_kernel() {
     );
 }
 
-/// `[kinematics]`: a table kinematics needs its five axes with one joint each, and takes
-/// only its own offsets and a positive tolerance.
+/// `[kinematics]`: a table or head kinematics needs its five axes with one joint each,
+/// and takes only its own parameters and a positive tolerance.
 #[test]
 fn a_five_axis_kinematics_is_checked() {
     let trt = std::fs::read_to_string(repo().join("configs/sim-5axis-trt.toml")).unwrap();
@@ -45,7 +46,7 @@ fn a_five_axis_kinematics_is_checked() {
     let x_offset = trt.replace("y_offset = 20.0", "y_offset = 20.0\nx_offset = 1.0");
     assert_eq!(
         refusal(&x_offset),
-        "kinematics.x_offset: this kinematics has no such offset"
+        "kinematics.x_offset: this kinematics has no such parameter"
     );
     let tolerance = trt.replace("tolerance = 0.001", "tolerance = 0.0");
     assert_eq!(
@@ -61,6 +62,28 @@ fn a_five_axis_kinematics_is_checked() {
         .replace("joints = [\"A\"]", "joints = [\"B\"]")
         .replace("name = \"A\"", "name = \"B\"");
     MachineConfig::parse(&bc, "test.toml").expect("an xyzbc-trt machine");
+    let pivot = trt.replace("z_offset = 10.0", "z_offset = 10.0\npivot_length = 100.0");
+    assert_eq!(
+        refusal(&pivot),
+        "kinematics.pivot_length: this kinematics has no such parameter"
+    );
+    let head = std::fs::read_to_string(repo().join("configs/sim-5axis-head.toml")).unwrap();
+    MachineConfig::parse(&head, "test.toml").expect("an xyzbc-head machine");
+    let rot_point = head.replace(
+        "pivot_length = 100.0",
+        "pivot_length = 100.0\nz_rot_point = 5.0",
+    );
+    assert_eq!(
+        refusal(&rot_point),
+        "kinematics.z_rot_point: this kinematics has no such parameter"
+    );
+    let infinite = head.replace("pivot_length = 100.0", "pivot_length = inf");
+    assert_eq!(
+        refusal(&infinite),
+        "kinematics.pivot_length: must be a finite number"
+    );
+    let without_b = head.replace("[axes.b]", "[axes.a]");
+    assert_eq!(refusal(&without_b), "kinematics.kind: needs an axis B");
 }
 
 fn mill_text() -> String {

@@ -53,7 +53,9 @@ macro_rules! trace {
 mod axes;
 mod builder;
 mod error;
+mod five_axis;
 mod geometry;
+mod head_kinematics;
 mod input;
 mod kinematics;
 mod limits;
@@ -68,6 +70,8 @@ mod table_kinematics;
 pub use axes::{AXES, Axis, AxisVec};
 pub use builder::GeometryStats;
 pub use error::MotionError;
+pub use five_axis::FiveAxisKinematics;
+pub use head_kinematics::HeadKinematics;
 pub use input::{Bezier, Feed, Move, MoveKind, PathMode};
 pub use kinematics::{JointLimits, Kinematics, TrivialKinematics};
 pub use limits::{AxisLimits, MIN_JERK_PHASE_PERIODS, MachineLimits};

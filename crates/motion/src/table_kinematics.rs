@@ -22,16 +22,17 @@
 //! gauge line, as every other axis position does) and `tool-offset` takes it out again
 //! before the rotation, so the tilt turns the tool tip, not the gauge line.
 //!
-//! [`TcpMove`] turns one programmed tip move (X Y Z a straight line or an arc, the rotary
-//! axes linear in the same parameter, as LinuxCNC's TCP interpolates them) into joint-space
-//! chords: each chord's tip, computed by the forward kinematics at its points, stays
-//! within a tolerance of the programmed point at the same fraction of the move, and each
-//! chord gets its share of the move's duration, so that the planner (which plans in joint
-//! space and keeps every joint's velocity, acceleration and jerk) runs the tip at the
-//! programmed feed.
+//! [`TcpMove`] (on these or on a head, [`crate::HeadKinematics`]) turns one programmed tip
+//! move (X Y Z a straight line or an arc, the rotary axes linear in the same parameter, as
+//! LinuxCNC's TCP interpolates them) into joint-space chords: each chord's tip, computed by
+//! the forward kinematics at its points, stays within a tolerance of the programmed point at
+//! the same fraction of the move, and each chord gets its share of the move's duration, so
+//! that the planner (which plans in joint space and keeps every joint's velocity,
+//! acceleration and jerk) runs the tip at the programmed feed.
 
 use crate::axes::{AXES, AxisVec};
 use crate::error::MotionError;
+use crate::five_axis::FiveAxisKinematics;
 
 /// The table's tilting axis.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -305,7 +306,7 @@ pub const MAX_CHORDS: u32 = 1_000_000;
 /// ([`TcpMove::next_chord`]); no allocation.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TcpMove {
-    kin: TableKinematics,
+    kin: FiveAxisKinematics,
     tool_offset: f64,
     start: AxisVec,
     end: AxisVec,
@@ -324,12 +325,12 @@ impl TcpMove {
     /// The tip move along `path` from where `start_joints` put it to the pose `end`, with
     /// the tool length `tool_offset`, its chords within `tolerance` (mm) of the programmed
     /// points, taking `duration` seconds in all (0 for a rapid: the planner's axis limits
-    /// set it).
+    /// set it). `kin` is a table's or a head's kinematics.
     ///
     /// Real-time: yes (no allocation, no blocking).
     #[allow(clippy::too_many_arguments)]
     pub fn new(
-        kin: TableKinematics,
+        kin: impl Into<FiveAxisKinematics>,
         tool_offset: f64,
         start_joints: &AxisVec,
         end: &AxisVec,
@@ -355,6 +356,7 @@ impl TcpMove {
                 what: "tool-centre-point move",
             });
         }
+        let kin = kin.into();
         let start = kin.pose(start_joints, tool_offset);
         let arc = match path {
             TipPath::Line => None,
@@ -450,19 +452,22 @@ impl TcpMove {
         self
     }
 
-    /// See [`TableKinematics::joint_to_tip_gain`], for this move.
+    /// See [`TableKinematics::joint_to_tip_gain`] and
+    /// [`crate::HeadKinematics::joint_to_tip_gain`], for this move.
     ///
     /// Real-time: yes (no allocation, no blocking).
     pub fn joint_to_tip_gain(&self) -> f64 {
+        let table = match &self.kin {
+            FiveAxisKinematics::Table(t) => t,
+            FiveAxisKinematics::Head(h) => return h.joint_to_tip_gain(self.tool_offset),
+        };
         let Some(arc) = &self.arc else {
-            return self
-                .kin
-                .joint_to_tip_gain(&self.start, &self.end, self.tool_offset);
+            return table.joint_to_tip_gain(&self.start, &self.end, self.tool_offset);
         };
         // An arc's points lie within its radius and rise of its centre: the bound is
         // taken at a point that far from the centre, towards the rot point's far side.
         let c = arc.centre;
-        let r = self.kin.rot_point;
+        let r = table.rot_point;
         let reach = arc.r0.max(arc.r1) + arc.h0.abs().max(arc.h1.abs());
         let q = [c[0] - r[0], c[1] - r[1], c[2] - r[2]];
         let qn = dot3(&q, &q).sqrt();
@@ -475,7 +480,7 @@ impl TcpMove {
         for i in 0..3 {
             far[i] = c[i] + reach * dir[i];
         }
-        self.kin.joint_to_tip_gain(&far, &far, self.tool_offset)
+        table.joint_to_tip_gain(&far, &far, self.tool_offset)
     }
 
     /// Largest distance of the tip on the chord from `j0` (at `u0`) to `j1` (at `u1`)

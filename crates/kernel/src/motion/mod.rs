@@ -240,8 +240,10 @@ impl MotionCore {
             source: Source::Path,
             out: Output::new(last, setpoints_out, lead, independent_joints, &joint_otg),
             mode: Mode::Manual,
-            program: Program::new()
-                .with_table_kinematics(config.kinematics.table(), config.kinematics.tolerance),
+            program: Program::new().with_five_axis_kinematics(
+                config.kinematics.five_axis(),
+                config.kinematics.tolerance,
+            ),
             safety: Safety::new(),
             hold: Hold::default(),
             homed: 0,

@@ -4,8 +4,8 @@
 //! the end, an error), waits for the path to stand, and then starts that.
 
 use rtcnc_motion::{
-    AXES, Feed, MotionError, Move, MoveKind, PathMode, Preparation, PreparedMove, TableKinematics,
-    TcpMove, TipPath,
+    AXES, Feed, FiveAxisKinematics, MotionError, Move, MoveKind, PathMode, Preparation,
+    PreparedMove, TcpMove, TipPath,
 };
 use rtcnc_rt::Context;
 
@@ -51,8 +51,8 @@ pub(super) struct Program {
     pub(super) aux_cycle: u64,
     /// Interpolation cycle of the last orientation command.
     pub(super) orient_cycle: u64,
-    /// The machine's five-axis table kinematics and its TCP tolerance (mm).
-    pub(super) table: Option<(TableKinematics, f64)>,
+    /// The machine's five-axis kinematics (a table or a head) and its TCP tolerance (mm).
+    pub(super) five_axis: Option<(FiveAxisKinematics, f64)>,
     /// The tool-centre-point line being cut into chords.
     pub(super) tcp: Option<TcpRun>,
 }
@@ -88,17 +88,17 @@ impl Program {
             loaded: false,
             aux_cycle: 0,
             orient_cycle: 0,
-            table: None,
+            five_axis: None,
             tcp: None,
         }
     }
 
-    pub(super) fn with_table_kinematics(
+    pub(super) fn with_five_axis_kinematics(
         mut self,
-        table: Option<TableKinematics>,
+        five_axis: Option<FiveAxisKinematics>,
         tolerance: f64,
     ) -> Program {
-        self.table = table.map(|t| (t, tolerance));
+        self.five_axis = five_axis.map(|t| (t, tolerance));
         self
     }
 }
@@ -422,7 +422,7 @@ impl MotionCore {
         mode: PathMode,
         tool_offset: f64,
     ) -> Result<(), MotionError> {
-        let Some((table, tolerance)) = self.program.table else {
+        let Some((kinematics, tolerance)) = self.program.five_axis else {
             return Err(MotionError::ToolCentrePoint {
                 line,
                 why: "the machine has no five-axis kinematics",
@@ -430,7 +430,7 @@ impl MotionCore {
         };
         // The end's joints within their range, before any chord runs (a chord that
         // leaves it on the way is refused by the planner at the same line).
-        let end_joints = table.joints(end, tool_offset);
+        let end_joints = kinematics.joints(end, tool_offset);
         for i in 0..AXES {
             let v = end_joints[i];
             if self.machine.axis_present[i]
@@ -452,7 +452,7 @@ impl MotionCore {
             .skipped_to
             .unwrap_or_else(|| self.path.planner.path_end());
         let chords = TcpMove::new(
-            table,
+            kinematics,
             tool_offset,
             &start,
             end,
