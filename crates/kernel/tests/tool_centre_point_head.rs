@@ -7,7 +7,7 @@
 
 mod common;
 use common::*;
-use rtcnc_kernel::{MachineState, Sample};
+use rtcnc_kernel::Sample;
 
 const DT: f64 = 0.001;
 /// The machine file's `kinematics.tolerance` and `pivot_length`.
@@ -30,54 +30,22 @@ fn forward(j: &[f64], tool: f64) -> [f64; 3] {
 }
 
 fn run(text: &str, name: &str) -> Machine {
-    let cfg = config("sim-5axis-head.toml");
-    let mut m = Machine::started(&cfg, text, name);
-    m.until(120.0, |s| {
-        (s.program_ended && s.state == MachineState::Idle) || s.last_fault.is_some()
-    });
-    m
+    run_to_the_end(&config("sim-5axis-head.toml"), text, name)
 }
 
-/// Velocity, acceleration and jerk of every joint by finite differences of its set-points
-/// (each the mean of the true one over one to three periods, so bounded by its limit).
+/// Every joint within its velocity, acceleration and jerk (X Y Z B C of the machine file).
 fn check_limits(samples: &[Sample]) {
-    // X Y Z B C of the machine file.
-    let limits = [
-        (100.0, 1000.0, 50000.0),
-        (100.0, 1000.0, 50000.0),
-        (50.0, 800.0, 40000.0),
-        (90.0, 900.0, 45000.0),
-        (180.0, 1800.0, 90000.0),
-    ];
-    for (j, (v, a, jerk)) in limits.into_iter().enumerate() {
-        let p: Vec<f64> = samples.iter().map(|s| s.setpoint[j]).collect();
-        for i in 3..p.len() {
-            let v0 = (p[i] - p[i - 1]) / DT;
-            let v1 = (p[i - 1] - p[i - 2]) / DT;
-            let v2 = (p[i - 2] - p[i - 3]) / DT;
-            let a0 = (v0 - v1) / DT;
-            let j0 = (a0 - (v1 - v2) / DT) / DT;
-            let c = samples[i].cycle;
-            assert!(v0.abs() <= v * (1.0 + 1e-9), "joint {j} cycle {c}: v {v0}");
-            assert!(a0.abs() <= a * (1.0 + 1e-6), "joint {j} cycle {c}: a {a0}");
-            assert!(
-                j0.abs() <= jerk * (1.0 + 1e-5),
-                "joint {j} cycle {c}: jerk {j0}"
-            );
-        }
-    }
-}
-
-fn distance_to_segment(p: [f64; 3], a: [f64; 3], b: [f64; 3]) -> f64 {
-    let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-    let q = [p[0] - a[0], p[1] - a[1], p[2] - a[2]];
-    let len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-    let u = if len2 > 0.0 {
-        ((q[0] * d[0] + q[1] * d[1] + q[2] * d[2]) / len2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    ((q[0] - u * d[0]).powi(2) + (q[1] - u * d[1]).powi(2) + (q[2] - u * d[2]).powi(2)).sqrt()
+    assert_joint_limits(
+        samples,
+        &[
+            (100.0, 1000.0, 50000.0),
+            (100.0, 1000.0, 50000.0),
+            (50.0, 800.0, 40000.0),
+            (90.0, 900.0, 45000.0),
+            (180.0, 1800.0, 90000.0),
+        ],
+        DT,
+    );
 }
 
 /// The program of a tool: the head tilts and turns about the standing tip (line 7), then

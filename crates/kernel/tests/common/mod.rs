@@ -159,3 +159,48 @@ impl Machine {
         assert!(self.until(0.1, |s| s.ready), "drives enable");
     }
 }
+
+/// `text` run on `config` until it ends with the machine idle, or faults (at most 120 s).
+pub fn run_to_the_end(config: &MachineConfig, text: &str, name: &str) -> Machine {
+    let mut m = Machine::started(config, text, name);
+    m.until(120.0, |s| {
+        (s.program_ended && s.state == rtcnc_kernel::MachineState::Idle) || s.last_fault.is_some()
+    });
+    m
+}
+
+/// Velocity, acceleration and jerk of every joint by finite differences of its set-points
+/// (each the mean of the true one over one to three periods, so bounded by its limit):
+/// `limits[j]` = (velocity, acceleration, jerk) of joint j, `dt` the servo period.
+pub fn assert_joint_limits(samples: &[Sample], limits: &[(f64, f64, f64)], dt: f64) {
+    for (j, &(v, a, jerk)) in limits.iter().enumerate() {
+        let p: Vec<f64> = samples.iter().map(|s| s.setpoint[j]).collect();
+        for i in 3..p.len() {
+            let v0 = (p[i] - p[i - 1]) / dt;
+            let v1 = (p[i - 1] - p[i - 2]) / dt;
+            let v2 = (p[i - 2] - p[i - 3]) / dt;
+            let a0 = (v0 - v1) / dt;
+            let j0 = (a0 - (v1 - v2) / dt) / dt;
+            let c = samples[i].cycle;
+            assert!(v0.abs() <= v * (1.0 + 1e-9), "joint {j} cycle {c}: v {v0}");
+            assert!(a0.abs() <= a * (1.0 + 1e-6), "joint {j} cycle {c}: a {a0}");
+            assert!(
+                j0.abs() <= jerk * (1.0 + 1e-5),
+                "joint {j} cycle {c}: jerk {j0}"
+            );
+        }
+    }
+}
+
+/// Distance from `p` to the segment from `a` to `b`.
+pub fn distance_to_segment(p: [f64; 3], a: [f64; 3], b: [f64; 3]) -> f64 {
+    let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let q = [p[0] - a[0], p[1] - a[1], p[2] - a[2]];
+    let len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    let u = if len2 > 0.0 {
+        ((q[0] * d[0] + q[1] * d[1] + q[2] * d[2]) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    ((q[0] - u * d[0]).powi(2) + (q[1] - u * d[1]).powi(2) + (q[2] - u * d[2]).powi(2)).sqrt()
+}
