@@ -214,10 +214,12 @@ fn run_shows_operator_messages() {
     );
 }
 
-#[test]
-fn sim_runs_the_spline_example_on_the_mill() {
+/// Runs `rtcnc sim PROGRAM -q` with `extra` arguments and asserts that it ends within every
+/// limit with no fault.
+fn assert_sim_ends_cleanly(program: &str, extra: &[&str]) {
     let out = rtcnc()
-        .args(["sim", "examples/gcode/splines.ngc", "-q"])
+        .args(["sim", program, "-q"])
+        .args(extra)
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
@@ -228,54 +230,31 @@ fn sim_runs_the_spline_example_on_the_mill() {
     );
     assert!(stdout.contains("limits      respected"), "{stdout}");
     assert!(stdout.contains("faults      none"), "{stdout}");
+}
+
+#[test]
+fn sim_runs_the_spline_example_on_the_mill() {
+    assert_sim_ends_cleanly("examples/gcode/splines.ngc", &[]);
 }
 
 /// The shipped 5-axis machine (by its name) runs the TCP example to its end within every
 /// joint's limits.
 #[test]
 fn sim_runs_the_tool_centre_point_example_on_the_5_axis_table() {
-    let out = rtcnc()
-        .args([
-            "sim",
-            "examples/5axis-trt-tcp.ngc",
-            "--machine",
-            "sim-5axis-trt",
-            "-q",
-        ])
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{stdout}\n{}",
-        String::from_utf8_lossy(&out.stderr)
+    assert_sim_ends_cleanly(
+        "examples/5axis-trt-tcp.ngc",
+        &["--machine", "sim-5axis-trt"],
     );
-    assert!(stdout.contains("limits      respected"), "{stdout}");
-    assert!(stdout.contains("faults      none"), "{stdout}");
 }
 
 /// The shipped 5-axis head machine (by its name) runs its TCP example to its end within
 /// every joint's limits.
 #[test]
 fn sim_runs_the_tool_centre_point_example_on_the_5_axis_head() {
-    let out = rtcnc()
-        .args([
-            "sim",
-            "examples/5axis-head-tcp.ngc",
-            "--machine",
-            "sim-5axis-head",
-            "-q",
-        ])
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{stdout}\n{}",
-        String::from_utf8_lossy(&out.stderr)
+    assert_sim_ends_cleanly(
+        "examples/5axis-head-tcp.ngc",
+        &["--machine", "sim-5axis-head"],
     );
-    assert!(stdout.contains("limits      respected"), "{stdout}");
-    assert!(stdout.contains("faults      none"), "{stdout}");
 }
 
 /// A hard limit at 40 mm hit at 50 mm/s: the quick stop (1000 mm/s², jerk 10 000 mm/s³:

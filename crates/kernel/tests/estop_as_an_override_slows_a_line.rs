@@ -13,16 +13,22 @@ use rtcnc_kernel::{MachineState, Urgent};
 
 const X: usize = 0;
 
+/// The mill cruising along a 200 mm line at 50 mm/s when its feed override drops to 50 %,
+/// `periods_after_override` periods later; returns the machine and X there.
+fn slowing_line(cfg: &rtcnc_kernel::MachineConfig, periods_after_override: u64) -> (Machine, f64) {
+    let mut m = Machine::started(cfg, "G21 G90\nG1 X200 F3000\nM2\n", "line.ngc");
+    assert!(m.until(5.0, |s| s.axes[X] > 20.0));
+    assert!(m.sim.handle().urgent(Urgent::FeedOverride(0.5)));
+    m.cycles(periods_after_override);
+    let x = m.status().axes[X];
+    (m, x)
+}
+
 #[test]
 fn an_estop_as_the_override_slows_a_line_stops_at_once() {
     let cfg = config("sim-mill.toml");
     for periods_after_override in [1u64, 5, 20, 60] {
-        let mut m = Machine::started(&cfg, "G21 G90\nG1 X200 F3000\nM2\n", "line.ngc");
-        // Cruising at 50 mm/s.
-        assert!(m.until(5.0, |s| s.axes[X] > 20.0));
-        assert!(m.sim.handle().urgent(Urgent::FeedOverride(0.5)));
-        m.cycles(periods_after_override);
-        let at_estop = m.status().axes[X];
+        let (mut m, at_estop) = slowing_line(&cfg, periods_after_override);
         assert!(m.sim.handle().urgent(Urgent::EStop));
         m.cycles(300);
         let s = m.status();
@@ -45,11 +51,7 @@ fn an_estop_as_the_override_slows_a_line_stops_at_once() {
 fn a_zero_override_as_the_override_slows_a_line_stops_the_line() {
     let cfg = config("sim-mill.toml");
     for periods_after_override in [1u64, 5, 20, 60] {
-        let mut m = Machine::started(&cfg, "G21 G90\nG1 X200 F3000\nM2\n", "line.ngc");
-        assert!(m.until(5.0, |s| s.axes[X] > 20.0));
-        assert!(m.sim.handle().urgent(Urgent::FeedOverride(0.5)));
-        m.cycles(periods_after_override);
-        let at_zero = m.status().axes[X];
+        let (mut m, at_zero) = slowing_line(&cfg, periods_after_override);
         assert!(m.sim.handle().urgent(Urgent::FeedOverride(0.0)));
         m.cycles(1000);
         let s = m.status();

@@ -9,7 +9,7 @@
 mod common;
 use common::*;
 
-use rtcnc_kernel::{Command, FaultCode, MachineConfig, MachineState, ProbeFailure};
+use rtcnc_kernel::{Command, MachineConfig, MachineState, ProbeFailure};
 
 /// The gantry's Z meets a surface at -3.00001 (in the joint's own position, unhomed: the
 /// program's too), a probe on digital input 6 wired into every drive's touch probe input.
@@ -40,32 +40,6 @@ fn touch_probe_gantry(extra: impl Fn(String) -> String) -> MachineConfig {
     cfg
 }
 
-fn number(text: &str, key: &str) -> f64 {
-    let start = text.find(key).unwrap() + key.len();
-    text[start..]
-        .split_whitespace()
-        .next()
-        .unwrap()
-        .parse()
-        .unwrap()
-}
-
-fn run(cfg: &MachineConfig, text: &str, name: &str) -> (Machine, Vec<String>) {
-    let mut m = Machine::new(cfg, Some(program(text, name)));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
-    m.cycles(2);
-    assert!(m.until(60.0, |s| s.state == MachineState::Idle));
-    let messages = m
-        .sim
-        .handle()
-        .take_messages()
-        .iter()
-        .map(|msg| msg.text.as_str().to_string())
-        .collect();
-    (m, messages)
-}
-
 #[test]
 fn g38_takes_the_position_the_drives_latched_at_the_probes_edge() {
     let text = "G21 G90
@@ -76,7 +50,12 @@ G38.4 Z0 F600
 (DEBUG,up z #5063 ok #5070)
 M2
 ";
-    let (mut m, messages) = run(&touch_probe_gantry(|t| t), text, "ecat-probe-latch.ngc");
+    let (mut m, messages) = run_to_idle_with_messages(
+        &touch_probe_gantry(|t| t),
+        text,
+        "ecat-probe-latch.ngc",
+        60.0,
+    );
     assert_eq!(messages.len(), 2, "{messages:?} {:?}", m.faults);
     // Half a second for the loads to settle after the last stop.
     m.cycles(500);
@@ -93,58 +72,48 @@ M2
     // surface, to two encoder increments (the latch's and the offset's, 38 nm each) and
     // the 6 decimals DEBUG prints (0.5 nm): within 0.1 µm.
     let within = 2.0 * 5.0 / 131_072.0 + 5e-7;
-    let down = number(&messages[0], "down z");
+    let down = message_number(&messages[0], "down z");
     assert!(
         (down - surface).abs() <= within,
         "{down} {surface} {messages:?}"
     );
-    assert_eq!(number(&messages[0], "ok"), 1.0);
+    assert_eq!(message_number(&messages[0], "ok"), 1.0);
     // X and Y (their first joints, 0 and 4), latched by their own drives at the same
     // instant, where they stood.
-    let x = number(&messages[0], "x");
+    let x = message_number(&messages[0], "x");
     assert!(
         (x - status.joint_feedback[0]).abs() <= within,
         "{x} {:?}",
         status.joint_feedback
     );
-    let y = number(&messages[0], "y");
+    let y = message_number(&messages[0], "y");
     assert!(
         (y - status.joint_feedback[4]).abs() <= within,
         "{y} {:?}",
         status.joint_feedback
     );
     // Back up until the contact opens: the negative edge (0x60BB), on the surface again.
-    let up = number(&messages[1], "up z");
+    let up = message_number(&messages[1], "up z");
     assert!((up - surface).abs() <= within, "{up} {surface}");
-    assert_eq!(number(&messages[1], "ok"), 1.0);
+    assert_eq!(message_number(&messages[1], "ok"), 1.0);
     assert!(m.faults.is_empty(), "{:?}", m.faults);
 }
 
 #[test]
 fn a_g38_2_without_contact_stops_the_program_as_on_the_simulated_machine() {
     let text = "G21 G90\nG0 Z0\nG38.2 Z-2.5 F600\nM2\n";
-    let (m, _) = run(
+    let (m, _) = run_to_idle_with_messages(
         &touch_probe_gantry(|t| t),
         text,
         "ecat-probe-no-contact.ngc",
+        60.0,
     );
-    let f = m
-        .faults
-        .iter()
-        .find(|f| f.code == FaultCode::ProbeFailed)
-        .unwrap_or_else(|| panic!("{:?}", m.faults));
-    assert_eq!(f.line, 3);
-    assert_eq!(
-        ProbeFailure::from_value(f.value),
-        Some(ProbeFailure::NoContact)
+    assert_probe_failed(
+        &m,
+        3,
+        ProbeFailure::NoContact,
+        "G38.2 move finished without making contact. [kernel.probe_failed]",
     );
-    assert!(
-        f.describe(|_| String::new())
-            .starts_with("G38.2 move finished without making contact. [kernel.probe_failed]"),
-        "{}",
-        f.describe(|_| String::new())
-    );
-    assert!(!m.status().program_ended);
     assert_eq!(m.status().axes[2], -2.5);
 }
 

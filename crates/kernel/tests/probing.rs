@@ -19,16 +19,6 @@ fn machine() -> MachineConfig {
     cfg
 }
 
-fn number(text: &str, key: &str) -> f64 {
-    let start = text.find(key).unwrap() + key.len();
-    text[start..]
-        .split_whitespace()
-        .next()
-        .unwrap()
-        .parse()
-        .unwrap()
-}
-
 #[test]
 fn probing_finds_the_surface_and_the_program_uses_the_result() {
     let text = "G21 G90
@@ -44,33 +34,22 @@ G38.3 Z-1 F600
 G38.2 Z-2.5
 M2
 ";
-    let mut m = Machine::new(&machine(), Some(program(text, "probe.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
-    m.cycles(2);
-    assert!(m.until(30.0, |s| s.state == MachineState::Idle));
-    let messages: Vec<String> = m
-        .sim
-        .handle()
-        .take_messages()
-        .iter()
-        .map(|msg| msg.text.as_str().to_string())
-        .collect();
+    let (m, messages) = run_to_idle_with_messages(&machine(), text, "probe.ngc", 30.0);
     assert_eq!(messages.len(), 3, "{messages:?} {:?}", m.faults);
     // Down at 1 mm/s (F60) on ideal drives: the drives latch where the probe closes, on
     // the surface (DEBUG prints 6 decimals); X and Y are where they were.
-    let down = number(&messages[0], "down z");
+    let down = message_number(&messages[0], "down z");
     assert!((down + 3.0).abs() <= 5e-7, "{down}");
-    assert_eq!(number(&messages[0], "ok"), 1.0);
-    assert_eq!(number(&messages[0], "x"), 1.0);
-    assert_eq!(number(&messages[0], "y"), 2.0);
+    assert_eq!(message_number(&messages[0], "ok"), 1.0);
+    assert_eq!(message_number(&messages[0], "x"), 1.0);
+    assert_eq!(message_number(&messages[0], "y"), 2.0);
     // Up at 0.5 mm/s until it opens: latched where it opens, on the surface again.
-    let up = number(&messages[1], "up z");
+    let up = message_number(&messages[1], "up z");
     assert!((up + 3.0).abs() <= 5e-7, "{up}");
-    assert_eq!(number(&messages[1], "ok"), 1.0);
+    assert_eq!(message_number(&messages[1], "ok"), 1.0);
     // G38.3 to Z-1 from Z2 never touches: no error, #5070 = 0, #5063 where it ended.
-    assert_eq!(number(&messages[2], "short z"), -1.0);
-    assert_eq!(number(&messages[2], "ok"), 0.0);
+    assert_eq!(message_number(&messages[2], "short z"), -1.0);
+    assert_eq!(message_number(&messages[2], "ok"), 0.0);
     // The G0 went to the first contact + 5: the interpreter read #5063 after the probe
     // (DEBUG prints 6 decimals).
     let top = m.samples.iter().map(|s| s.axes[2]).fold(f64::MIN, f64::max);
@@ -100,26 +79,12 @@ M2
 #[test]
 fn a_probe_already_in_contact_refuses_g38_2() {
     let text = "G21 G90\nG0 Z-4\nG38.2 Z-10 F60\nM2\n";
-    let mut m = Machine::new(&machine(), Some(program(text, "probe-tripped.ngc")));
-    m.power_on();
-    m.command(Command::Start { from_line: 0 });
-    m.cycles(2);
-    assert!(m.until(10.0, |s| s.state == MachineState::Idle));
-    let f = m
-        .faults
-        .iter()
-        .find(|f| f.code == FaultCode::ProbeFailed)
-        .unwrap();
-    assert_eq!(f.line, 3);
-    assert_eq!(
-        ProbeFailure::from_value(f.value),
-        Some(ProbeFailure::AlreadyTripped)
-    );
-    assert!(
-        f.describe(|_| String::new())
-            .starts_with("Probe is already tripped when starting G38.2 or G38.3 move"),
-        "{}",
-        f.describe(|_| String::new())
+    let (m, _) = run_to_idle_with_messages(&machine(), text, "probe-tripped.ngc", 10.0);
+    assert_probe_failed(
+        &m,
+        3,
+        ProbeFailure::AlreadyTripped,
+        "Probe is already tripped when starting G38.2 or G38.3 move",
     );
     assert_eq!(m.status().axes[2], -4.0);
 }
@@ -143,24 +108,8 @@ fn a_g38_4_that_never_loses_contact_stops_the_program_with_linuxcncs_error() {
             -2.0,
         ),
     ] {
-        let mut m = Machine::new(&machine(), Some(program(text, "probe-away.ngc")));
-        m.power_on();
-        m.command(Command::Start { from_line: 0 });
-        m.cycles(2);
-        assert!(m.until(10.0, |s| s.state == MachineState::Idle));
-        let f = m
-            .faults
-            .iter()
-            .find(|f| f.code == FaultCode::ProbeFailed)
-            .unwrap();
-        assert_eq!(f.line, line);
-        assert_eq!(ProbeFailure::from_value(f.value), Some(failure));
-        assert!(
-            f.describe(|_| String::new()).starts_with(failure.message()),
-            "{}",
-            f.describe(|_| String::new())
-        );
-        assert!(!m.status().program_ended);
+        let (m, _) = run_to_idle_with_messages(&machine(), text, "probe-away.ngc", 10.0);
+        assert_probe_failed(&m, line, failure, failure.message());
         assert_eq!(m.status().axes[2], z);
     }
 }
@@ -218,11 +167,11 @@ M2
     assert!(m.faults.is_empty(), "{:?}", m.faults);
     let message = m.sim.handle().take_messages()[0].text;
     let text = message.as_str();
-    let z = number(text, "z");
+    let z = message_number(text, "z");
     assert!((z - surface).abs() <= 1e-6, "{z}");
-    assert_eq!(number(text, "ok"), 1.0);
-    assert_eq!(number(text, "x"), 1.0);
-    assert_eq!(number(text, "y"), 2.0);
+    assert_eq!(message_number(text, "ok"), 1.0);
+    assert_eq!(message_number(text, "x"), 1.0);
+    assert_eq!(message_number(text, "y"), 2.0);
     // What the period-based position would have been: the feedback of the first period
     // that ends at or below the surface (ideal drives: the load is on the set-point).
     let seen = m

@@ -80,40 +80,16 @@ fn the_tip_follows_the_programmed_lines_and_every_joint_keeps_its_limits() {
         (10, pose(-20.0, 20.0, 5.0), pose(-20.0, -20.0, 5.0)),
         (11, pose(-20.0, -20.0, 5.0), pose(-20.0, -20.0, 40.0)),
     ];
-    for (line, a, b) in lines {
-        let on: Vec<&Sample> = m.samples.iter().filter(|s| s.line == line).collect();
-        assert!(on.len() > 100, "line {line}: {} set-points", on.len());
-        let worst = on
-            .iter()
-            .map(|s| distance_to_segment(forward(&s.setpoint[..5]), a, b))
-            .fold(0.0, f64::max);
+    for (line, worst) in worst_tip_distance_per_line(&m.samples, &lines, forward) {
         assert!(worst <= TOLERANCE + 1e-9, "line {line}: tip {worst} mm off");
     }
     // The tip's speed along the 40 mm sides (lines 9, 10): never above F 600 = 10 mm/s
     // by more than the chords' rounding, and at F over their middle.
     for line in [9, 10] {
-        let tips: Vec<[f64; 3]> = m
-            .samples
-            .iter()
-            .filter(|s| s.line == line)
-            .map(|s| forward(&s.setpoint[..5]))
-            .collect();
-        let speeds: Vec<f64> = tips
-            .windows(2)
-            .map(|w| {
-                ((w[1][0] - w[0][0]).powi(2)
-                    + (w[1][1] - w[0][1]).powi(2)
-                    + (w[1][2] - w[0][2]).powi(2))
-                .sqrt()
-                    / DT
-            })
-            .collect();
+        let speeds = tip_speeds_on_line(&m.samples, line, DT, forward);
         let top = speeds.iter().copied().fold(0.0, f64::max);
         assert!(top <= 10.0 * 1.01, "line {line}: tip at {top} mm/s");
-        let middle = &speeds[speeds.len() / 3..2 * speeds.len() / 3];
-        for v in middle {
-            assert!((v - 10.0).abs() < 0.1, "line {line}: tip at {v} mm/s");
-        }
+        assert_middle_speed(&speeds, 10.0, &format!("line {line}"));
     }
     // The table turned about the standing tip on line 7 (F in degrees/min: 30 deg/s
     // along the 45.6° of A and C together, 1.52 s and more).
@@ -201,11 +177,11 @@ fn a_tip_circle_on_the_tilted_table() {
         let off = (t[0].hypot(t[1]) - 10.0).hypot(t[2] - (5.0 + TOOL));
         assert!(off <= TOLERANCE + 1e-9, "tip {off} mm off the circle");
     }
-    let n = tips.len();
-    for w in tips[n / 3..2 * n / 3].windows(2) {
-        let v = ((w[1][0] - w[0][0]).powi(2) + (w[1][1] - w[0][1]).powi(2)).sqrt() / DT;
-        assert!((v - 10.0).abs() < 0.1, "tip at {v} mm/s");
-    }
+    assert_middle_speed(
+        &tip_speeds_on_line(&m.samples, 8, DT, forward),
+        10.0,
+        "circle",
+    );
 }
 
 /// What TCP does not run stops the program at its line: a spline under M428, and M428 on

@@ -71,18 +71,7 @@ fn worst_per_line(m: &Machine, tool: f64) -> Vec<(u32, f64)> {
         (9, pose(20.0, 20.0, 5.0), pose(-20.0, 20.0, 5.0)),
         (10, pose(-20.0, 20.0, 5.0), pose(-20.0, 20.0, 40.0)),
     ];
-    lines
-        .into_iter()
-        .map(|(line, a, b)| {
-            let on: Vec<&Sample> = m.samples.iter().filter(|s| s.line == line).collect();
-            assert!(on.len() > 100, "line {line}: {} set-points", on.len());
-            let worst = on
-                .iter()
-                .map(|s| distance_to_segment(forward(&s.setpoint[..5], tool), a, b))
-                .fold(0.0, f64::max);
-            (line, worst)
-        })
-        .collect()
+    worst_tip_distance_per_line(&m.samples, &lines, |j| forward(j, tool))
 }
 
 /// With T1 (50 mm): every set-point's tip within the tolerance of its line, every joint
@@ -110,17 +99,8 @@ fn the_tip_follows_the_programmed_lines_on_a_head() {
     for (got, want) in end7.iter().zip(want) {
         assert!((got - want).abs() < 1e-6, "{end7:?} against {want}");
     }
-    let tips: Vec<[f64; 3]> = m
-        .samples
-        .iter()
-        .filter(|s| s.line == 9)
-        .map(|s| forward(&s.setpoint[..5], T1))
-        .collect();
-    let n = tips.len();
-    for w in tips[n / 3..2 * n / 3].windows(2) {
-        let v = ((w[1][0] - w[0][0]).powi(2) + (w[1][1] - w[0][1]).powi(2)).sqrt() / DT;
-        assert!((v - 10.0).abs() < 0.1, "tip at {v} mm/s");
-    }
+    let speeds = tip_speeds_on_line(&m.samples, 9, DT, |j| forward(j, T1));
+    assert_middle_speed(&speeds, 10.0, "line 9");
 }
 
 /// G43 H2 (80 mm) lengthens the lever: the tip computed with 80 mm stays on the lines;

@@ -169,6 +169,62 @@ pub fn run_to_the_end(config: &MachineConfig, text: &str, name: &str) -> Machine
     m
 }
 
+/// `text` started on `config` and run until the machine is idle (at most `limit_s`), with
+/// the operator messages it showed (its DEBUG lines).
+pub fn run_to_idle_with_messages(
+    config: &MachineConfig,
+    text: &str,
+    name: &str,
+    limit_s: f64,
+) -> (Machine, Vec<String>) {
+    let mut m = Machine::started(config, text, name);
+    m.cycles(2);
+    assert!(m.until(limit_s, |s| s.state == rtcnc_kernel::MachineState::Idle));
+    let messages = m
+        .sim
+        .handle()
+        .take_messages()
+        .iter()
+        .map(|msg| msg.text.as_str().to_string())
+        .collect();
+    (m, messages)
+}
+
+/// The number after `key` in an operator message (`(DEBUG,z #5063 ok #5070)` shows
+/// `z -3.000000 ok 1.000000`).
+pub fn message_number(text: &str, key: &str) -> f64 {
+    let start = text.find(key).unwrap() + key.len();
+    text[start..]
+        .split_whitespace()
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap()
+}
+
+/// Asserts that `m` stopped its program with a probing failure `failure` at `line`, its
+/// message starting with `message`.
+pub fn assert_probe_failed(
+    m: &Machine,
+    line: u32,
+    failure: rtcnc_kernel::ProbeFailure,
+    message: &str,
+) {
+    let f = m
+        .faults
+        .iter()
+        .find(|f| f.code == rtcnc_kernel::FaultCode::ProbeFailed)
+        .unwrap_or_else(|| panic!("{:?}", m.faults));
+    assert_eq!(f.line, line);
+    assert_eq!(
+        rtcnc_kernel::ProbeFailure::from_value(f.value),
+        Some(failure)
+    );
+    let described = f.describe(|_| String::new());
+    assert!(described.starts_with(message), "{described}");
+    assert!(!m.status().program_ended);
+}
+
 /// Velocity, acceleration and jerk of every joint by finite differences of its set-points
 /// (each the mean of the true one over one to three periods, so bounded by its limit):
 /// `limits[j]` = (velocity, acceleration, jerk) of joint j, `dt` the servo period.
@@ -203,4 +259,61 @@ pub fn distance_to_segment(p: [f64; 3], a: [f64; 3], b: [f64; 3]) -> f64 {
         0.0
     };
     ((q[0] - u * d[0]).powi(2) + (q[1] - u * d[1]).powi(2) + (q[2] - u * d[2]).powi(2)).sqrt()
+}
+
+/// Per programmed line `(line, from, to)`, the tool tip's worst distance from that segment
+/// over the line's set-points, the tip computed from the joint set-points by `tip`; each
+/// line must have more than 100 set-points.
+pub fn worst_tip_distance_per_line(
+    samples: &[Sample],
+    lines: &[(u32, [f64; 3], [f64; 3])],
+    tip: impl Fn(&[f64]) -> [f64; 3],
+) -> Vec<(u32, f64)> {
+    lines
+        .iter()
+        .map(|&(line, a, b)| {
+            let on: Vec<&Sample> = samples.iter().filter(|s| s.line == line).collect();
+            assert!(on.len() > 100, "line {line}: {} set-points", on.len());
+            let worst = on
+                .iter()
+                .map(|s| distance_to_segment(tip(&s.setpoint), a, b))
+                .fold(0.0, f64::max);
+            (line, worst)
+        })
+        .collect()
+}
+
+/// The tool tip's speed between consecutive set-points of `line` (the tip from the joint
+/// set-points by `tip`), in units per second at the period `dt`.
+pub fn tip_speeds_on_line(
+    samples: &[Sample],
+    line: u32,
+    dt: f64,
+    tip: impl Fn(&[f64]) -> [f64; 3],
+) -> Vec<f64> {
+    let tips: Vec<[f64; 3]> = samples
+        .iter()
+        .filter(|s| s.line == line)
+        .map(|s| tip(&s.setpoint))
+        .collect();
+    tips.windows(2)
+        .map(|w| {
+            ((w[1][0] - w[0][0]).powi(2)
+                + (w[1][1] - w[0][1]).powi(2)
+                + (w[1][2] - w[0][2]).powi(2))
+            .sqrt()
+                / dt
+        })
+        .collect()
+}
+
+/// Asserts that the middle third of `speeds` is `want` within 1 %.
+pub fn assert_middle_speed(speeds: &[f64], want: f64, what: &str) {
+    let n = speeds.len();
+    for v in &speeds[n / 3..2 * n / 3] {
+        assert!(
+            (v - want).abs() < want * 0.01,
+            "{what}: tip at {v}, not {want}"
+        );
+    }
 }
