@@ -53,7 +53,10 @@ const STAYS_WITHIN: f64 = 1e-3;
 /// Axes checked (X, Y, Z of the mill).
 const AXES: usize = 3;
 
-/// Programs the kernel may be given: every waiting state, blending, arcs, canned cycles.
+/// Programs the kernel may be given: every waiting state, blending, arcs, canned cycles,
+/// splines, probing. The input's first byte chooses one, modulo 7 (6: none); adding a
+/// program changes that modulus, so the kept defect inputs' first bytes are rewritten to
+/// keep their choice.
 const PROGRAMS: &[&str] = &[
     "G21 G90 G64 P0.02\nG1 X5 Y2 F3000\nT2 M6\nS8000 M3\nG4 P0.3\nG1 X20 Y10\n\
      M66 P0 L3 Q0.3\nG2 X30 Y20 I5 J5\nM100 P0.1\nM1\nG0 Z-2\nM0\nG1 X5\nM5\nM30\n",
@@ -62,6 +65,13 @@ const PROGRAMS: &[&str] = &[
     "G21 G90 G17\nG0 X10 Y10 Z2\nS3000 M3\nG81 R1 Z-3 F900\nX14\nY14\nG83 R1 Z-6 Q1.5\n\
      X10\nG80\nG0 Z5\nM5\nM2\n",
     "G20 G91\nG1 X0.2 Y0.1 F200\nG2 X0.2 Y0 I0.1 J0 P2\nG90 G0 X0 Y0\nM2\n",
+    // Cubic and quadratic splines blended in G64 P, one that closes on itself.
+    "G21 G90 G64 P0.01\nG0 X5 Y5 Z0\nG1 F2000\nG5 I5 J0 P-5 Q0 X20 Y10\nG5 P-5 Q-5 X35 Y5\n\
+     G5.1 I5 J5 X45 Y10\nG5 I0 J10 P0 Q-10 X45 Y10\nG0 Z5\nM2\n",
+    // Probing the workpiece top (Z-50): down to contact, up until it breaks, a move that
+    // stops short of it.
+    "G21 G90\nG0 X10 Y10 Z-45\nG38.2 Z-60 F300\nG38.4 Z-45 F100\nG0 Z-40\n\
+     G38.3 Z-48 F300\nG0 Z0\nM2\n",
 ];
 
 /// MDI lines the operator may type.
