@@ -2159,4 +2159,76 @@ mod valley_tests {
             );
         }
     }
+
+    /// FreeCAD's adaptive clearing (`examples/cam-corpus/adaptive-profile-8mm.ngc` lines
+    /// 905-915, G64 P0.02, F2000): a rapid link, then a corner blend whose braking curve
+    /// levels off at a shallow valley (13.7 mm/s) just before it falls again to a deeper
+    /// one on the next smoothing span. The controller follows the curve down without
+    /// falling far below it: on line 910 not under 60 % of the curve's lowest speed there.
+    /// (A probe that ramped only to the curve's slope on the way into the shallow valley
+    /// did not reach the bend after it; the state met the bend too fast, braked as hard as
+    /// the path allows and fell to 3.9 mm/s.)
+    #[test]
+    fn a_shallow_valley_just_before_a_deep_one_is_left_in_time() {
+        let lim = MachineLimits::uniform(
+            &[Axis::X, Axis::Y],
+            AxisLimits::new(100.0, 1000.0, 50_000.0, -1000.0, 1000.0),
+        );
+        let kin = TrivialKinematics::identity(&[Axis::X, Axis::Y]);
+        let at = |x: f64, y: f64| {
+            let mut p = [0.0; AXES];
+            p[0] = x;
+            p[1] = y;
+            p
+        };
+        let mut pl = Planner::new(&lim, kin, 1e-3, 256, at(115.750, 50.344)).unwrap();
+        let mode = PathMode::Blend {
+            tolerance: 0.02,
+            merge_tolerance: 0.02,
+        };
+        // (x, y, rapid) of lines 905..=915.
+        let program = [
+            (115.694, 50.450, false),
+            (115.625, 50.538, false),
+            (115.537, 50.619, true),
+            (115.338, 50.731, true),
+            (110.888, 52.294, true),
+            (110.750, 52.337, false),
+            (110.481, 52.431, false),
+            (110.350, 52.456, false),
+            (110.225, 52.469, false),
+            (110.100, 52.456, false),
+            (109.981, 52.419, false),
+        ];
+        let moves: Vec<Move> = program
+            .iter()
+            .zip(905..)
+            .map(|(&(x, y, rapid), line)| {
+                if rapid {
+                    Move::rapid(at(x, y), mode, line)
+                } else {
+                    Move::line(at(x, y), 2000.0 / 60.0, mode, line)
+                }
+            })
+            .collect();
+        assert_eq!(pl.push_all(&moves).unwrap(), moves.len());
+        pl.flush();
+        let low = (0..pl.q.len)
+            .map(|i| pl.q.get(i))
+            .filter(|p| p.line == 910)
+            .fold(f64::INFINITY, |m, p| m.min(p.w_low));
+        let mut joints = [0.0; 2];
+        let mut slowest = f64::INFINITY;
+        for _ in 0..100_000 {
+            let st = pl.next(&mut joints);
+            if st.state == MotionState::Idle {
+                break;
+            }
+            if st.line == 910 {
+                slowest = slowest.min(st.path_speed);
+            }
+        }
+        assert_eq!(pl.stats().limit_violations, 0);
+        assert!(low > 5.0 && slowest >= 0.6 * low, "{slowest} {low}");
+    }
 }

@@ -793,14 +793,18 @@ impl<K: Kinematics> Planner<K> {
         if v_peak <= m.cap * m.w_floor && quiet {
             return Verdict::Safe;
         }
-        let (w1, d1) = self.w_abs(m.idx, at1, m.stop_at);
+        let (w1, _) = self.w_abs(m.idx, at1, m.stop_at);
         if v1 > m.cap * w1 * (1.0 + 1e-12) + 1e-12 {
             return Verdict::Curve;
         }
-        // Probe: ramp the acceleration down to the curve's deceleration (or the nominal
-        // one where the curve is flat) with the braking jerk; the speed must stay under the
-        // curve where the acceleration crosses zero, half-way and at the end of the ramp.
-        let dd = if d1 > 0.0 { d1.min(m.d_nom) } else { m.d_nom };
+        // Probe: ramp the acceleration down to the nominal deceleration with the braking
+        // jerk; the speed must stay under the curve where the acceleration crosses zero and
+        // along the ramp. The nominal deceleration also where the curve descends more
+        // gently: a ramp that ends on the curve's slope falls short of where the curve
+        // leaves that slope for a steeper one (a shallow valley just before a deep one), and
+        // the state met that bend too fast, braked as hard as the path allows and fell far
+        // below the deep valley.
+        let dd = m.d_nom;
         let tau0 = a1.max(0.0) / m.jb;
         let tau = (a1 + dd) / m.jb;
         if tau <= 0.0 {
