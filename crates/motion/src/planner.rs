@@ -1415,8 +1415,11 @@ impl<K: Kinematics> Planner<K> {
                     let wfull = (w1 * w1 + 2.0 * h * acc).sqrt();
                     p.w[k] = vl.min(wfull).min(p.smp[k].v_point);
                     // A braking section that ends at sample k+1 on a limit (not at a stop).
+                    // It may begin inside this sub-interval (a line's only one, long enough
+                    // to rise to its limit and brake again): the curve is below the limit at
+                    // k+1 and level after it.
                     let braking_here = wfull < vl;
-                    if braking_here && !next_braking && w1 > 0.0 {
+                    if w1 < vl && !next_braking && w1 > 0.0 {
                         let sv = h * (k + 1) as f64;
                         p.valley_in = Some((sv, w1, acc, p.j_brake));
                         valley = Some((p.cum_start + sv, w1, acc, p.j_brake));
@@ -2076,5 +2079,156 @@ mod landing_tests {
         }
         // Both outcomes are reached often.
         assert!(landed > 10_000 && landed < 190_000, "{landed} landings");
+    }
+}
+
+#[cfg(test)]
+mod valley_tests {
+    use super::*;
+    use crate::axes::Axis;
+    use crate::input::PathMode;
+    use crate::kinematics::TrivialKinematics;
+    use crate::limits::AxisLimits;
+
+    /// A line long enough to rise to its feed between two slow corners brakes into the
+    /// second within its single sub-interval. Its braking curve there is the jerk-limited
+    /// deceleration that arrives at the corner's speed v0 with none left: τ before the
+    /// corner (τ within the jerk phase, τ ≤ a/J) the speed is v0 + J·τ²/2 at the distance
+    /// v0·τ + J·τ³/6. (Read as a braking section that does not end on a limit, the
+    /// acceleration-limited curve arrived still braking, and the controller fell to a
+    /// near stop at such corners of a CAM program's polylines.)
+    #[test]
+    fn a_line_that_brakes_inside_its_sub_interval_arrives_at_the_corner_with_no_deceleration() {
+        let lim = MachineLimits::uniform(
+            &[Axis::X, Axis::Y],
+            AxisLimits::new(100.0, 1000.0, 50_000.0, -1000.0, 1000.0),
+        );
+        let kin = TrivialKinematics::identity(&[Axis::X, Axis::Y]);
+        let mut pl = Planner::new(&lim, kin, 1e-3, 64, [0.0; AXES]).unwrap();
+        let mode = PathMode::Blend {
+            tolerance: 0.01,
+            merge_tolerance: 0.0,
+        };
+        let at = |x: f64, y: f64| {
+            let mut p = [0.0; AXES];
+            p[0] = x;
+            p[1] = y;
+            p
+        };
+        let (s1, c1) = 15f64.to_radians().sin_cos();
+        let (s2, c2) = 30f64.to_radians().sin_cos();
+        let moves = [
+            Move::line(at(5.0, 0.0), 50.0, mode, 1),
+            // Two turns of 15°.
+            Move::line(at(5.0 + 6.0 * c1, 6.0 * s1), 50.0, mode, 2),
+            Move::line(
+                at(5.0 + 6.0 * c1 + 5.0 * c2, 6.0 * s1 + 5.0 * s2),
+                50.0,
+                mode,
+                3,
+            ),
+        ];
+        assert_eq!(pl.push_all(&moves).unwrap(), moves.len());
+        pl.flush();
+        // The middle line (the corners' blends trimmed from it) and the blend after it.
+        let i = (0..pl.q.len)
+            .find(|&i| {
+                let p = pl.q.get(i);
+                p.straight && p.line == 2 && p.len > 2.0
+            })
+            .unwrap();
+        let (line, corner) = (pl.q.get(i), pl.q.get(i + 1));
+        assert!(corner.corner_blend);
+        let v0 = corner.w[0];
+        let (a, j) = (line.a_sub[0], line.j_brake);
+        // The curve rises to the feed inside the line and brakes again before its end.
+        assert!(
+            v0 < 20.0 && line.w[1] == v0 && line.vl_sub[0] == 50.0,
+            "{v0}"
+        );
+        for frac in [0.1, 0.5, 0.9] {
+            let tau = frac * a / j;
+            let d = v0 * tau + j * tau * tau * tau / 6.0;
+            let (w, decel) = line.w_at(line.len - d);
+            let expect = v0 + 0.5 * j * tau * tau;
+            assert!((w - expect).abs() <= 1e-9 * expect, "{frac}: {w} {expect}");
+            assert!(
+                (decel - j * tau).abs() <= 1e-6 * a,
+                "{frac}: {decel} {}",
+                j * tau
+            );
+        }
+    }
+
+    /// FreeCAD's adaptive clearing (`examples/cam-corpus/adaptive-profile-8mm.ngc` lines
+    /// 905-915, G64 P0.02, F2000): a rapid link, then a corner blend whose braking curve
+    /// levels off at a shallow valley (13.7 mm/s) just before it falls again to a deeper
+    /// one on the next smoothing span. The controller follows the curve down without
+    /// falling far below it: on line 910 not under 60 % of the curve's lowest speed there.
+    /// (A probe that ramped only to the curve's slope on the way into the shallow valley
+    /// did not reach the bend after it; the state met the bend too fast, braked as hard as
+    /// the path allows and fell to 3.9 mm/s.)
+    #[test]
+    fn a_shallow_valley_just_before_a_deep_one_is_left_in_time() {
+        let lim = MachineLimits::uniform(
+            &[Axis::X, Axis::Y],
+            AxisLimits::new(100.0, 1000.0, 50_000.0, -1000.0, 1000.0),
+        );
+        let kin = TrivialKinematics::identity(&[Axis::X, Axis::Y]);
+        let at = |x: f64, y: f64| {
+            let mut p = [0.0; AXES];
+            p[0] = x;
+            p[1] = y;
+            p
+        };
+        let mut pl = Planner::new(&lim, kin, 1e-3, 256, at(115.750, 50.344)).unwrap();
+        let mode = PathMode::Blend {
+            tolerance: 0.02,
+            merge_tolerance: 0.02,
+        };
+        // (x, y, rapid) of lines 905..=915.
+        let program = [
+            (115.694, 50.450, false),
+            (115.625, 50.538, false),
+            (115.537, 50.619, true),
+            (115.338, 50.731, true),
+            (110.888, 52.294, true),
+            (110.750, 52.337, false),
+            (110.481, 52.431, false),
+            (110.350, 52.456, false),
+            (110.225, 52.469, false),
+            (110.100, 52.456, false),
+            (109.981, 52.419, false),
+        ];
+        let moves: Vec<Move> = program
+            .iter()
+            .zip(905..)
+            .map(|(&(x, y, rapid), line)| {
+                if rapid {
+                    Move::rapid(at(x, y), mode, line)
+                } else {
+                    Move::line(at(x, y), 2000.0 / 60.0, mode, line)
+                }
+            })
+            .collect();
+        assert_eq!(pl.push_all(&moves).unwrap(), moves.len());
+        pl.flush();
+        let low = (0..pl.q.len)
+            .map(|i| pl.q.get(i))
+            .filter(|p| p.line == 910)
+            .fold(f64::INFINITY, |m, p| m.min(p.w_low));
+        let mut joints = [0.0; 2];
+        let mut slowest = f64::INFINITY;
+        for _ in 0..100_000 {
+            let st = pl.next(&mut joints);
+            if st.state == MotionState::Idle {
+                break;
+            }
+            if st.line == 910 {
+                slowest = slowest.min(st.path_speed);
+            }
+        }
+        assert_eq!(pl.stats().limit_violations, 0);
+        assert!(low > 5.0 && slowest >= 0.6 * low, "{slowest} {low}");
     }
 }
