@@ -1021,6 +1021,23 @@ impl<'a> Compiler<'a> {
         }
     }
 
+    /// TIME * number and TIME / number, the number of type `rt`.
+    fn scaled_time(&mut self, op: BinOp, l: TE, r: TE, rt: &Type, pos: Pos) -> R<TE> {
+        let time = Type::Elem(Elem::Time);
+        let re = rt.elem().unwrap_or(Elem::LInt);
+        let rv = self.coerce(r, rt, pos)?;
+        let bin = match (op, re.is_real()) {
+            (BinOp::Mul, false) => Bin::MulTimeI,
+            (BinOp::Div, false) => Bin::DivTimeI,
+            (BinOp::Mul, true) => Bin::MulTimeR,
+            _ => Bin::DivTimeR,
+        };
+        Ok(TE {
+            ty: Ty::T(time),
+            e: self.fold(vm::Expr::Bin(bin, Box::new((l.e, rv)))),
+        })
+    }
+
     pub(super) fn binary(&mut self, op: BinOp, l: TE, r: TE, pos: Pos) -> R<TE> {
         if let Some(te) = self.literal_fold(op, &l.ty, &r.ty, pos)? {
             return Ok(te);
@@ -1028,30 +1045,12 @@ impl<'a> Compiler<'a> {
         if address(&l.ty) || address(&r.ty) {
             return self.address_binary(op, l, r, pos);
         }
-        let time = Type::Elem(Elem::Time);
         // TIME * number and TIME / number.
         if matches!(op, BinOp::Mul | BinOp::Div)
             && matches!(&l.ty, Ty::T(t) if t.elem() == Some(Elem::Time))
         {
-            let rt = match &r.ty {
-                Ty::AnyInt(_) => Some(Type::Elem(Elem::LInt)),
-                Ty::AnyReal(_) => Some(Type::Elem(Elem::LReal)),
-                Ty::T(t) if t.elem().is_some_and(|e| e.is_num()) => Some(t.clone()),
-                _ => None,
-            };
-            if let Some(rt) = rt {
-                let re = rt.elem().unwrap_or(Elem::LInt);
-                let rv = self.coerce(r, &rt, pos)?;
-                let bin = match (op, re.is_real()) {
-                    (BinOp::Mul, false) => Bin::MulTimeI,
-                    (BinOp::Div, false) => Bin::DivTimeI,
-                    (BinOp::Mul, true) => Bin::MulTimeR,
-                    _ => Bin::DivTimeR,
-                };
-                return Ok(TE {
-                    ty: Ty::T(time),
-                    e: self.fold(vm::Expr::Bin(bin, Box::new((l.e, rv)))),
-                });
+            if let Some(rt) = time_factor_type(&r.ty) {
+                return self.scaled_time(op, l, r, &rt, pos);
             }
         }
         if let Some(te) = self.moment_binary(op, &l, &r, pos)? {
@@ -1088,26 +1087,7 @@ impl<'a> Compiler<'a> {
             if !is_cmp {
                 return Err(mismatch(self));
             }
-            use std::cmp::Ordering::*;
-            let w = matches!(ct, Type::WString(_));
-            let (bin, swap_not) = match op {
-                BinOp::Eq => (Bin::CmpS(Equal, false, w), false),
-                BinOp::Ne => (Bin::CmpS(Equal, false, w), true),
-                BinOp::Lt => (Bin::CmpS(Less, false, w), false),
-                BinOp::Le => (Bin::CmpS(Less, true, w), false),
-                BinOp::Gt => (Bin::CmpS(Greater, false, w), false),
-                _ => (Bin::CmpS(Greater, true, w), false),
-            };
-            let e = vm::Expr::Bin(bin, Box::new((le, re)));
-            let e = if swap_not {
-                vm::Expr::Un(Un::NotBool, Box::new(e))
-            } else {
-                e
-            };
-            return Ok(TE {
-                ty: Ty::T(Type::BOOL),
-                e,
-            });
+            return Ok(string_comparison(op, &ct, le, re));
         }
         let el = match &ct {
             Type::Enum(_) => {
@@ -1123,26 +1103,7 @@ impl<'a> Compiler<'a> {
         // CODESYS computes with bit strings as with unsigned integers of their width.
         let integer = el.is_int() || (self.codesys_conversions && el.is_bit());
         let bin = if is_cmp {
-            if el.is_real() {
-                match op {
-                    BinOp::Eq => Bin::EqR,
-                    BinOp::Ne => Bin::NeR,
-                    BinOp::Lt => Bin::LtR,
-                    BinOp::Le => Bin::LeR,
-                    BinOp::Gt => Bin::GtR,
-                    _ => Bin::GeR,
-                }
-            } else {
-                let sg = k.signed();
-                match op {
-                    BinOp::Eq => Bin::Eq,
-                    BinOp::Ne => Bin::Ne,
-                    BinOp::Lt => Bin::Lt(sg),
-                    BinOp::Le => Bin::Le(sg),
-                    BinOp::Gt => Bin::Gt(sg),
-                    _ => Bin::Ge(sg),
-                }
-            }
+            comparison(op, el)
         } else {
             match op {
                 BinOp::And | BinOp::Or | BinOp::Xor if el == Elem::Bool || el.is_bit() => {
@@ -1439,6 +1400,64 @@ impl<'a> Compiler<'a> {
                     c(Conv::Int(ik(t)), e)
                 }
             }
+        }
+    }
+}
+
+/// The type a TIME is multiplied or divided by: a number's.
+fn time_factor_type(ty: &Ty) -> Option<Type> {
+    match ty {
+        Ty::AnyInt(_) => Some(Type::Elem(Elem::LInt)),
+        Ty::AnyReal(_) => Some(Type::Elem(Elem::LReal)),
+        Ty::T(t) if t.elem().is_some_and(|e| e.is_num()) => Some(t.clone()),
+        _ => None,
+    }
+}
+
+/// A comparison `op` of two strings (`ct`: STRING or WSTRING).
+fn string_comparison(op: BinOp, ct: &Type, le: vm::Expr, re: vm::Expr) -> TE {
+    use std::cmp::Ordering::*;
+    let w = matches!(ct, Type::WString(_));
+    let (bin, swap_not) = match op {
+        BinOp::Eq => (Bin::CmpS(Equal, false, w), false),
+        BinOp::Ne => (Bin::CmpS(Equal, false, w), true),
+        BinOp::Lt => (Bin::CmpS(Less, false, w), false),
+        BinOp::Le => (Bin::CmpS(Less, true, w), false),
+        BinOp::Gt => (Bin::CmpS(Greater, false, w), false),
+        _ => (Bin::CmpS(Greater, true, w), false),
+    };
+    let e = vm::Expr::Bin(bin, Box::new((le, re)));
+    let e = if swap_not {
+        vm::Expr::Un(Un::NotBool, Box::new(e))
+    } else {
+        e
+    };
+    TE {
+        ty: Ty::T(Type::BOOL),
+        e,
+    }
+}
+
+/// The comparison `op` of two numbers, times or bit strings of type `el`.
+fn comparison(op: BinOp, el: Elem) -> Bin {
+    if el.is_real() {
+        match op {
+            BinOp::Eq => Bin::EqR,
+            BinOp::Ne => Bin::NeR,
+            BinOp::Lt => Bin::LtR,
+            BinOp::Le => Bin::LeR,
+            BinOp::Gt => Bin::GtR,
+            _ => Bin::GeR,
+        }
+    } else {
+        let sg = ik(el).signed();
+        match op {
+            BinOp::Eq => Bin::Eq,
+            BinOp::Ne => Bin::Ne,
+            BinOp::Lt => Bin::Lt(sg),
+            BinOp::Le => Bin::Le(sg),
+            BinOp::Gt => Bin::Gt(sg),
+            _ => Bin::Ge(sg),
         }
     }
 }
