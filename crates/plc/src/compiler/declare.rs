@@ -775,6 +775,52 @@ impl<'a> Compiler<'a> {
         Ok(id)
     }
 
+    /// A function's or method's result type: none for VOID or without one; never a
+    /// function block.
+    fn return_type(
+        &mut self,
+        name: &Name,
+        ret_spec: &Option<TypeSpec>,
+        scope: &Scope,
+    ) -> R<Option<Type>> {
+        let ret = match ret_spec {
+            Some(TypeSpec::Named(t)) if t.text == "VOID" => None,
+            Some(spec) => Some(self.type_spec(spec, None, scope)?.0),
+            None => None,
+        };
+        if let Some(Type::Fb(_)) = ret {
+            return Err(self.e(
+                name.pos,
+                ErrorKind::Invalid,
+                "a function cannot return a function block",
+            ));
+        }
+        Ok(ret)
+    }
+
+    /// A variable's slot in a static frame, its initial value written there unless it is a
+    /// VAR_IN_OUT (`inout`: the slot holds an address).
+    fn frame_slot(
+        &mut self,
+        t: &Type,
+        tpl: &Option<Vec<u8>>,
+        init: Option<&Init>,
+        inout: bool,
+        pos: Pos,
+        scope: &Scope,
+    ) -> R<u32> {
+        let size = if inout { 8 } else { size_of(self, t) };
+        let a = self.alloc(size, pos)?;
+        if !inout {
+            let mut sub = tpl.clone().unwrap_or_else(|| self.template(t));
+            if let Some(i) = init {
+                self.apply_init(t, i, &mut sub, 0, scope)?;
+            }
+            self.image[a as usize..a as usize + sub.len()].copy_from_slice(&sub);
+        }
+        Ok(a)
+    }
+
     /// Lays out a function or method: a static frame with the result, parameters and
     /// locals (functions and methods cannot recurse, so one frame each is enough).
     pub(super) fn callable(
@@ -793,18 +839,7 @@ impl<'a> Compiler<'a> {
             fb: None,
             for_vars: Vec::new(),
         };
-        let ret = match ret_spec {
-            Some(TypeSpec::Named(t)) if t.text == "VOID" => None,
-            Some(spec) => Some(self.type_spec(spec, None, &scope)?.0),
-            None => None,
-        };
-        if let Some(Type::Fb(_)) = ret {
-            return Err(self.e(
-                name.pos,
-                ErrorKind::Invalid,
-                "a function cannot return a function block",
-            ));
-        }
+        let ret = self.return_type(name, ret_spec, &scope)?;
         let start = self.image.len() as u32;
         let result = self.alloc(ret.as_ref().map_or(8, |t| size_of(self, t)), name.pos)?;
         if let Some(t) = &ret {
@@ -863,15 +898,7 @@ impl<'a> Compiler<'a> {
                         ));
                     }
                     let inout = b.kind == VarKind::InOut;
-                    let size = if inout { 8 } else { size_of(self, &t) };
-                    let a = self.alloc(size, n.pos)?;
-                    if !inout {
-                        let mut sub = tpl.clone().unwrap_or_else(|| self.template(&t));
-                        if let Some(i) = &d.init {
-                            self.apply_init(&t, i, &mut sub, 0, &scope)?;
-                        }
-                        self.image[a as usize..a as usize + sub.len()].copy_from_slice(&sub);
-                    }
+                    let a = self.frame_slot(&t, &tpl, d.init.as_ref(), inout, n.pos, &scope)?;
                     let const_val = if b.constant && t.scalar().is_some() {
                         Some(repr_of(&t).load(&self.image, a as usize))
                     } else {
