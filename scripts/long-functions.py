@@ -20,8 +20,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def code_tokens(text):
-    """Yields (offset, token) for each `{`, `}`, `;`, `#[cfg(test)]` and word outside literals
-    and comments."""
+    """Yields (offset, token) for each brace, bracket, parenthesis, `;`, `#[cfg(test)]` and
+    word outside literals and comments."""
     i, n = 0, len(text)
     word = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
     raw_string = re.compile(r"b?r(#*)\"")
@@ -57,7 +57,7 @@ def code_tokens(text):
         elif text.startswith("#[cfg(test)]", i):
             yield i, "#[cfg(test)]"
             i += len("#[cfg(test)]")
-        elif c in "{};":
+        elif c in "{}[]();":
             yield i, c
             i += 1
         elif m := word.match(text, i):
@@ -96,8 +96,11 @@ def functions(text):
         name = tokens[k + 1][1]
         if not re.match(r"[A-Za-z_]", name):
             continue
-        j = k + 1
-        while j < len(tokens) and tokens[j][1] not in ("{", ";"):
+        # The body is the first `{` after the signature; a `;` first (outside the
+        # parameters' and types' brackets, as in `[u8; 4]`) ends a declaration.
+        j, depth = k + 1, 0
+        while j < len(tokens) and not (depth == 0 and tokens[j][1] in ("{", ";")):
+            depth += {"(": 1, "[": 1, ")": -1, "]": -1}.get(tokens[j][1], 0)
             j += 1
         if j >= len(tokens) or tokens[j][1] == ";" or j not in close:
             continue
