@@ -203,7 +203,75 @@ pub fn simulated_segment(
     joints: &[SimulatedJointConfig],
     simulation: &SimulationConfig,
 ) -> Result<Segment, ConfigError> {
-    let refuse = |key: String, reason: String| ConfigError { key, reason };
+    check_simulation(simulation)?;
+    let mut slaves = Vec::with_capacity(config.slaves.len());
+    // Per device: the joint a drive moves; the first input of a terminal.
+    let mut drive_joints = Vec::with_capacity(config.slaves.len());
+    let mut terminal_inputs = Vec::with_capacity(config.slaves.len());
+    for (n, slave) in config.slaves.iter().enumerate() {
+        match slave {
+            SlaveConfig::Cia402 { joint, rx_pdo, .. } => {
+                drive_joints.push(Some((
+                    *joint,
+                    rx_pdo.contains(&RxObject::TouchProbeFunction),
+                )));
+                terminal_inputs.push(None);
+            }
+            SlaveConfig::Dio { inputs, .. } => {
+                drive_joints.push(None);
+                terminal_inputs.push(Some(*inputs));
+            }
+        }
+        let device = match slave {
+            SlaveConfig::Cia402 {
+                joint,
+                counts_per_unit,
+                rated_torque_nm,
+                ..
+            } => simulated_drive(
+                n,
+                *joint,
+                *counts_per_unit,
+                *rated_torque_nm,
+                joints,
+                simulation,
+            )?,
+            SlaveConfig::Dio {
+                input_bits,
+                output_bits,
+                inputs,
+                ..
+            } => simulated_terminal(
+                n,
+                [*input_bits, *output_bits],
+                *inputs,
+                config.estop_input,
+                simulation,
+            )?,
+        };
+        slaves.push(device);
+    }
+    let mut probes = Vec::new();
+    if let Some(probe) = &simulation.probe {
+        probes.push(probe_wire(probe, &drive_joints, &terminal_inputs)?);
+    }
+    let segment = SegmentConfig {
+        seed: simulation.seed,
+        frame_loss_rate: simulation.frame_loss_rate,
+        slaves,
+        probes,
+    };
+    segment
+        .build()
+        .map_err(|e| refuse(format!("simulation.{}", e.field), e.reason))
+}
+
+fn refuse(key: String, reason: String) -> ConfigError {
+    ConfigError { key, reason }
+}
+
+/// The frame loss rate, the clock drift and the touch probe's latency in their ranges.
+fn check_simulation(simulation: &SimulationConfig) -> Result<(), ConfigError> {
     if !(0.0..=1.0).contains(&simulation.frame_loss_rate) {
         return Err(refuse(
             "simulation.frame_loss_rate".into(),
@@ -224,165 +292,148 @@ pub fn simulated_segment(
             "must be from 0 to 0.1 s".into(),
         ));
     }
-    let mut slaves = Vec::with_capacity(config.slaves.len());
-    // Per device: the joint a drive moves; the first input of a terminal.
-    let mut drive_joints = Vec::with_capacity(config.slaves.len());
-    let mut terminal_inputs = Vec::with_capacity(config.slaves.len());
-    for (n, slave) in config.slaves.iter().enumerate() {
-        match slave {
-            SlaveConfig::Cia402 { joint, rx_pdo, .. } => {
-                drive_joints.push(Some((
-                    *joint,
-                    rx_pdo.contains(&RxObject::TouchProbeFunction),
-                )));
-                terminal_inputs.push(None);
-            }
-            SlaveConfig::Dio { inputs, .. } => {
-                drive_joints.push(None);
-                terminal_inputs.push(Some(*inputs));
-            }
-        }
-        let key = |k: &str| format!("slaves[{n}].{k}");
-        let device = match slave {
-            SlaveConfig::Cia402 {
-                joint,
-                counts_per_unit,
-                rated_torque_nm,
-                ..
-            } => {
-                let Some(motor) = joints.get(*joint) else {
-                    return Err(refuse(
-                        key("joint"),
-                        format!(
-                            "joint {joint} has no simulated drive ({} are simulated)",
-                            joints.len()
-                        ),
-                    ));
-                };
-                let mut motor = motor.clone();
-                motor.drive = DriveMode::Csp;
-                let simulated =
-                    f64::from(motor.encoder_counts_per_revolution) / motor.units_per_revolution;
-                if (simulated - counts_per_unit).abs() > 1e-9 * simulated.abs() {
-                    return Err(refuse(
-                        key("counts_per_unit"),
-                        format!(
-                            "{counts_per_unit} is not the simulated drive's {simulated} \
-                             (encoder_counts_per_revolution / units_per_revolution of joint {joint})"
-                        ),
-                    ));
-                }
-                SimulatedSlave::CspDrive {
-                    count: 1,
-                    drift_ppm: simulation.drift_ppm,
-                    drive: DriveConfig {
-                        rated_torque_mnm: (rated_torque_nm * 1000.0).round().clamp(1.0, 1e9) as u32,
-                        joint: motor,
-                        touch_probe_latency_s: simulation.touch_probe_latency_s,
-                        ..DriveConfig::default()
-                    },
-                }
-            }
-            SlaveConfig::Dio {
-                input_bits,
-                output_bits,
-                inputs,
-                ..
-            } => {
-                for (what, bits) in [("input_bits", input_bits), ("output_bits", output_bits)] {
-                    if *bits != SIMULATED_DIO_BITS {
-                        return Err(refuse(
-                            key(what),
-                            format!("the simulated terminal has {SIMULATED_DIO_BITS}"),
-                        ));
-                    }
-                }
-                // A simulated machine powers up with its e-stop chain closed.
-                let initial_inputs = match config.estop_input {
-                    Some(e) if (*inputs..inputs + SIMULATED_DIO_BITS).contains(&e) => {
-                        1u8 << (e - inputs)
-                    }
-                    _ => 0,
-                };
-                SimulatedSlave::Dio {
-                    count: 1,
-                    drift_ppm: simulation.drift_ppm,
-                    terminal: DioConfig {
-                        initial_inputs,
-                        ..DioConfig::default()
-                    },
-                }
-            }
-        };
-        slaves.push(device);
+    Ok(())
+}
+
+/// Device `n`, a CiA 402 drive of `joint`: the joint's simulated motor in CSP, whose
+/// encoder must give the configured counts per unit.
+fn simulated_drive(
+    n: usize,
+    joint: usize,
+    counts_per_unit: f64,
+    rated_torque_nm: f64,
+    joints: &[SimulatedJointConfig],
+    simulation: &SimulationConfig,
+) -> Result<SimulatedSlave, ConfigError> {
+    let key = |k: &str| format!("slaves[{n}].{k}");
+    let Some(motor) = joints.get(joint) else {
+        return Err(refuse(
+            key("joint"),
+            format!(
+                "joint {joint} has no simulated drive ({} are simulated)",
+                joints.len()
+            ),
+        ));
+    };
+    let mut motor = motor.clone();
+    motor.drive = DriveMode::Csp;
+    let simulated = f64::from(motor.encoder_counts_per_revolution) / motor.units_per_revolution;
+    if (simulated - counts_per_unit).abs() > 1e-9 * simulated.abs() {
+        return Err(refuse(
+            key("counts_per_unit"),
+            format!(
+                "{counts_per_unit} is not the simulated drive's {simulated} \
+                 (encoder_counts_per_revolution / units_per_revolution of joint {joint})"
+            ),
+        ));
     }
-    let mut probes = Vec::new();
-    if let Some(probe) = &simulation.probe {
-        if !probe.surface.is_finite() {
+    Ok(SimulatedSlave::CspDrive {
+        count: 1,
+        drift_ppm: simulation.drift_ppm,
+        drive: DriveConfig {
+            rated_torque_mnm: (rated_torque_nm * 1000.0).round().clamp(1.0, 1e9) as u32,
+            joint: motor,
+            touch_probe_latency_s: simulation.touch_probe_latency_s,
+            ..DriveConfig::default()
+        },
+    })
+}
+
+/// Device `n`, a digital I/O terminal of `[input_bits, output_bits]` whose first input is
+/// `inputs`.
+fn simulated_terminal(
+    n: usize,
+    [input_bits, output_bits]: [usize; 2],
+    inputs: usize,
+    estop_input: Option<usize>,
+    simulation: &SimulationConfig,
+) -> Result<SimulatedSlave, ConfigError> {
+    let key = |k: &str| format!("slaves[{n}].{k}");
+    for (what, bits) in [("input_bits", input_bits), ("output_bits", output_bits)] {
+        if bits != SIMULATED_DIO_BITS {
             return Err(refuse(
-                "simulation.probe.surface".into(),
-                "must be a number".into(),
+                key(what),
+                format!("the simulated terminal has {SIMULATED_DIO_BITS}"),
             ));
         }
-        let device_of = |joint: usize| {
-            drive_joints
-                .iter()
-                .position(|d| d.is_some_and(|(j, _)| j == joint))
-        };
-        let sensed = device_of(probe.joint).ok_or_else(|| {
+    }
+    // A simulated machine powers up with its e-stop chain closed.
+    let initial_inputs = match estop_input {
+        Some(e) if (inputs..inputs + SIMULATED_DIO_BITS).contains(&e) => 1u8 << (e - inputs),
+        _ => 0,
+    };
+    Ok(SimulatedSlave::Dio {
+        count: 1,
+        drift_ppm: simulation.drift_ppm,
+        terminal: DioConfig {
+            initial_inputs,
+            ..DioConfig::default()
+        },
+    })
+}
+
+/// The touch probe's wiring: the drive of the joint it senses, the drives that move it
+/// (those mapped for a touch probe unless listed) and the terminal input it closes.
+fn probe_wire(
+    probe: &SimulatedProbe,
+    drive_joints: &[Option<(usize, bool)>],
+    terminal_inputs: &[Option<usize>],
+) -> Result<ProbeWire, ConfigError> {
+    if !probe.surface.is_finite() {
+        return Err(refuse(
+            "simulation.probe.surface".into(),
+            "must be a number".into(),
+        ));
+    }
+    let device_of = |joint: usize| {
+        drive_joints
+            .iter()
+            .position(|d| d.is_some_and(|(j, _)| j == joint))
+    };
+    let sensed = device_of(probe.joint).ok_or_else(|| {
+        refuse(
+            "simulation.probe.joint".into(),
+            format!("no drive moves joint {}", probe.joint),
+        )
+    })?;
+    let drives = match &probe.drives {
+        Some(joints) => joints
+            .iter()
+            .map(|&j| {
+                device_of(j).ok_or_else(|| {
+                    refuse(
+                        "simulation.probe.drives".into(),
+                        format!("no drive moves joint {j}"),
+                    )
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()?,
+        None => (0..drive_joints.len())
+            .filter(|&n| drive_joints[n].is_some_and(|(_, mapped)| mapped))
+            .collect(),
+    };
+    let input = terminal_inputs
+        .iter()
+        .enumerate()
+        .find_map(|(device, first)| {
+            first
+                .filter(|&f| (f..f + SIMULATED_DIO_BITS).contains(&probe.input))
+                .map(|f| ProbeInput {
+                    device,
+                    bit: (probe.input - f) as u8,
+                })
+        })
+        .ok_or_else(|| {
             refuse(
-                "simulation.probe.joint".into(),
-                format!("no drive moves joint {}", probe.joint),
+                "simulation.probe.input".into(),
+                format!("no I/O terminal gives digital input {}", probe.input),
             )
         })?;
-        let drives = match &probe.drives {
-            Some(joints) => joints
-                .iter()
-                .map(|&j| {
-                    device_of(j).ok_or_else(|| {
-                        refuse(
-                            "simulation.probe.drives".into(),
-                            format!("no drive moves joint {j}"),
-                        )
-                    })
-                })
-                .collect::<Result<Vec<_>, _>>()?,
-            None => (0..drive_joints.len())
-                .filter(|&n| drive_joints[n].is_some_and(|(_, mapped)| mapped))
-                .collect(),
-        };
-        let input = terminal_inputs
-            .iter()
-            .enumerate()
-            .find_map(|(device, first)| {
-                first
-                    .filter(|&f| (f..f + SIMULATED_DIO_BITS).contains(&probe.input))
-                    .map(|f| ProbeInput {
-                        device,
-                        bit: (probe.input - f) as u8,
-                    })
-            })
-            .ok_or_else(|| {
-                refuse(
-                    "simulation.probe.input".into(),
-                    format!("no I/O terminal gives digital input {}", probe.input),
-                )
-            })?;
-        probes.push(ProbeWire {
-            sensed,
-            surface: probe.surface,
-            side: probe.side,
-            drives,
-            input: Some(input),
-        });
-    }
-    let segment = SegmentConfig {
-        seed: simulation.seed,
-        frame_loss_rate: simulation.frame_loss_rate,
-        slaves,
-        probes,
-    };
-    segment
-        .build()
-        .map_err(|e| refuse(format!("simulation.{}", e.field), e.reason))
+    Ok(ProbeWire {
+        sensed,
+        surface: probe.surface,
+        side: probe.side,
+        drives,
+        input: Some(input),
+    })
 }

@@ -476,182 +476,210 @@ impl<'a, P: ParamSource + ?Sized> Reader<'a, P> {
             self.i += 1;
         }
         if self.peek() == Some(b'%') {
-            let col = self.i;
-            self.i += 1;
-            if self.peek().is_some_and(|c| c != b'(' && c != b';') {
-                return err(
-                    ErrorKind::Syntax,
-                    col,
-                    "a % line may hold nothing but a comment",
-                );
-            }
-            b.percent = true;
-            return Ok(());
+            return self.percent_line(b);
         }
         if self.peek_lower() == Some(b'n') {
-            self.i += 1;
-            let col = self.i;
-            let v = self.unsigned_integer()?;
-            b.n = Some(u32::try_from(v).map_err(|_| ReadError {
-                kind: ErrorKind::BadValue,
-                column: col,
-                message: "line number too large".into(),
-            })?);
+            self.line_number(b)?;
         }
         if self.peek_lower() == Some(b'o') {
             return self.oword(b);
         }
         while let Some(c) = self.peek() {
-            let col = self.i;
-            match c.to_ascii_lowercase() {
-                b'(' => self.comment(b)?,
-                b';' => {
-                    // The rest of the line is a comment that does nothing.
-                    self.i = self.s.len();
+            self.word(b, c)?;
+        }
+        Ok(())
+    }
+
+    fn percent_line(&mut self, b: &mut Block) -> Res<()> {
+        let col = self.i;
+        self.i += 1;
+        if self.peek().is_some_and(|c| c != b'(' && c != b';') {
+            return err(
+                ErrorKind::Syntax,
+                col,
+                "a % line may hold nothing but a comment",
+            );
+        }
+        b.percent = true;
+        Ok(())
+    }
+
+    fn line_number(&mut self, b: &mut Block) -> Res<()> {
+        self.i += 1;
+        let col = self.i;
+        let v = self.unsigned_integer()?;
+        b.n = Some(u32::try_from(v).map_err(|_| ReadError {
+            kind: ErrorKind::BadValue,
+            column: col,
+            message: "line number too large".into(),
+        })?);
+        Ok(())
+    }
+
+    /// One word (or comment, or parameter assignment) starting with `c`.
+    fn word(&mut self, b: &mut Block, c: u8) -> Res<()> {
+        let col = self.i;
+        match c.to_ascii_lowercase() {
+            b'(' => self.comment(b)?,
+            b';' => {
+                // The rest of the line is a comment that does nothing.
+                self.i = self.s.len();
+            }
+            b'#' => {
+                self.i += 1;
+                self.assignment(b, col)?;
+                b.other_words = true;
+            }
+            b'g' => self.g_word(b, col)?,
+            b'm' => self.m_word(b, col)?,
+            b'@' | b'^' => self.polar_word(b, c, col)?,
+            b'$' => {
+                self.i += 1;
+                if b.dollar.is_some() {
+                    return err(ErrorKind::Conflict, col, "two $ words on one line");
                 }
-                b'#' => {
-                    self.i += 1;
-                    self.assignment(b, col)?;
-                    b.other_words = true;
-                }
-                b'g' => {
-                    self.i += 1;
-                    let code = self.code(col, b'g')?;
-                    let Some(group) = g_group(code) else {
-                        return err(
-                            ErrorKind::UnknownWord,
-                            col,
-                            format!("unknown G code G{}", fmt_code(code)),
-                        );
-                    };
-                    // As in LinuxCNC, G80 gives way to another motion code on the line.
-                    if group == gg::MOTION && (code == 800 || b.g[group] == 800) && b.g[group] != -1
-                    {
-                        if code != 800 {
-                            b.g[group] = code;
-                            b.g_col[group] = col as u16;
-                        }
-                        b.other_words = true;
-                        continue;
-                    }
-                    if b.g[group] != -1 {
-                        let message = if b.g[group] == code {
-                            format!("G{} appears twice on the line", fmt_code(code))
-                        } else {
-                            format!(
-                                "G{} and G{} are in the same modal group",
-                                fmt_code(b.g[group]),
-                                fmt_code(code)
-                            )
-                        };
-                        return err(ErrorKind::Conflict, col, message);
-                    }
-                    b.g[group] = code;
-                    b.g_col[group] = col as u16;
-                    b.other_words = true;
-                }
-                b'm' => {
-                    self.i += 1;
-                    let code = self.code(col, b'm')?;
-                    if code % 10 != 0 {
-                        return err(
-                            ErrorKind::UnknownWord,
-                            col,
-                            format!("unknown M code M{}", fmt_code(code)),
-                        );
-                    }
-                    let code = code / 10;
-                    if code == 98 {
-                        if b.m98 {
-                            return err(ErrorKind::Conflict, col, "two M98 on one line");
-                        }
-                        b.m98 = true;
-                        b.m_col[mg::USER] = col as u16;
-                        b.other_words = true;
-                        continue;
-                    }
-                    let Some(group) = m_group(code) else {
-                        return err(
-                            ErrorKind::UnknownWord,
-                            col,
-                            format!("unknown M code M{code}"),
-                        );
-                    };
-                    if b.m[group] != -1 {
-                        let message = if b.m[group] == code {
-                            format!("M{code} appears twice on the line")
-                        } else {
-                            format!("M{} and M{code} are in the same modal group", b.m[group])
-                        };
-                        return err(ErrorKind::Conflict, col, message);
-                    }
-                    b.m[group] = code;
-                    b.m_col[group] = col as u16;
-                    b.other_words = true;
-                }
-                b'@' | b'^' => {
-                    self.i += 1;
-                    let slot = if c == b'@' {
-                        &mut b.polar_radius
-                    } else {
-                        &mut b.polar_angle
-                    };
-                    if slot.is_some() {
-                        return err(
-                            ErrorKind::Conflict,
-                            col,
-                            format!("two {} words on one line", c as char),
-                        );
-                    }
-                    let v = self.real_value()?;
-                    let slot = if c == b'@' {
-                        &mut b.polar_radius
-                    } else {
-                        &mut b.polar_angle
-                    };
-                    *slot = Some(v);
-                    b.polar_col = col as u16;
-                    b.other_words = true;
-                }
-                b'$' => {
-                    self.i += 1;
-                    if b.dollar.is_some() {
-                        return err(ErrorKind::Conflict, col, "two $ words on one line");
-                    }
-                    b.dollar = Some(self.real_value()?);
-                    b.other_words = true;
-                }
-                l @ (b'a'..=b'f' | b'h'..=b'l' | b'p'..=b'z') => {
-                    self.i += 1;
-                    let idx = (l - b'a') as usize;
-                    if b.has & (1 << idx) != 0 {
-                        return err(
-                            ErrorKind::Conflict,
-                            col,
-                            format!("two {} words on one line", l.to_ascii_uppercase() as char),
-                        );
-                    }
-                    let v = self.real_value()?;
-                    b.words[idx] = v;
-                    b.has |= 1 << idx;
-                    b.col[idx] = col as u16;
-                    b.other_words = true;
-                }
-                b'n' => {
-                    return err(ErrorKind::Syntax, col, "an N word may only begin a line");
-                }
-                b'o' => {
-                    return err(ErrorKind::Syntax, col, "an O word must begin the line");
-                }
-                _ => {
-                    return err(
-                        ErrorKind::Syntax,
-                        col,
-                        format!("bad character '{}'", printable(c)),
-                    );
-                }
+                b.dollar = Some(self.real_value()?);
+                b.other_words = true;
+            }
+            l @ (b'a'..=b'f' | b'h'..=b'l' | b'p'..=b'z') => self.letter_word(b, l, col)?,
+            b'n' => {
+                return err(ErrorKind::Syntax, col, "an N word may only begin a line");
+            }
+            b'o' => {
+                return err(ErrorKind::Syntax, col, "an O word must begin the line");
+            }
+            _ => {
+                return err(
+                    ErrorKind::Syntax,
+                    col,
+                    format!("bad character '{}'", printable(c)),
+                );
             }
         }
+        Ok(())
+    }
+
+    fn g_word(&mut self, b: &mut Block, col: usize) -> Res<()> {
+        self.i += 1;
+        let code = self.code(col, b'g')?;
+        let Some(group) = g_group(code) else {
+            return err(
+                ErrorKind::UnknownWord,
+                col,
+                format!("unknown G code G{}", fmt_code(code)),
+            );
+        };
+        // As in LinuxCNC, G80 gives way to another motion code on the line.
+        if group == gg::MOTION && (code == 800 || b.g[group] == 800) && b.g[group] != -1 {
+            if code != 800 {
+                b.g[group] = code;
+                b.g_col[group] = col as u16;
+            }
+            b.other_words = true;
+            return Ok(());
+        }
+        if b.g[group] != -1 {
+            let message = if b.g[group] == code {
+                format!("G{} appears twice on the line", fmt_code(code))
+            } else {
+                format!(
+                    "G{} and G{} are in the same modal group",
+                    fmt_code(b.g[group]),
+                    fmt_code(code)
+                )
+            };
+            return err(ErrorKind::Conflict, col, message);
+        }
+        b.g[group] = code;
+        b.g_col[group] = col as u16;
+        b.other_words = true;
+        Ok(())
+    }
+
+    fn m_word(&mut self, b: &mut Block, col: usize) -> Res<()> {
+        self.i += 1;
+        let code = self.code(col, b'm')?;
+        if code % 10 != 0 {
+            return err(
+                ErrorKind::UnknownWord,
+                col,
+                format!("unknown M code M{}", fmt_code(code)),
+            );
+        }
+        let code = code / 10;
+        if code == 98 {
+            if b.m98 {
+                return err(ErrorKind::Conflict, col, "two M98 on one line");
+            }
+            b.m98 = true;
+            b.m_col[mg::USER] = col as u16;
+            b.other_words = true;
+            return Ok(());
+        }
+        let Some(group) = m_group(code) else {
+            return err(
+                ErrorKind::UnknownWord,
+                col,
+                format!("unknown M code M{code}"),
+            );
+        };
+        if b.m[group] != -1 {
+            let message = if b.m[group] == code {
+                format!("M{code} appears twice on the line")
+            } else {
+                format!("M{} and M{code} are in the same modal group", b.m[group])
+            };
+            return err(ErrorKind::Conflict, col, message);
+        }
+        b.m[group] = code;
+        b.m_col[group] = col as u16;
+        b.other_words = true;
+        Ok(())
+    }
+
+    /// `@` (polar radius) or `^` (polar angle).
+    fn polar_word(&mut self, b: &mut Block, c: u8, col: usize) -> Res<()> {
+        self.i += 1;
+        let slot = if c == b'@' {
+            &mut b.polar_radius
+        } else {
+            &mut b.polar_angle
+        };
+        if slot.is_some() {
+            return err(
+                ErrorKind::Conflict,
+                col,
+                format!("two {} words on one line", c as char),
+            );
+        }
+        let v = self.real_value()?;
+        let slot = if c == b'@' {
+            &mut b.polar_radius
+        } else {
+            &mut b.polar_angle
+        };
+        *slot = Some(v);
+        b.polar_col = col as u16;
+        b.other_words = true;
+        Ok(())
+    }
+
+    /// A word of a letter and a number: an axis, F, S, T, P and the like.
+    fn letter_word(&mut self, b: &mut Block, l: u8, col: usize) -> Res<()> {
+        self.i += 1;
+        let idx = (l - b'a') as usize;
+        if b.has & (1 << idx) != 0 {
+            return err(
+                ErrorKind::Conflict,
+                col,
+                format!("two {} words on one line", l.to_ascii_uppercase() as char),
+            );
+        }
+        let v = self.real_value()?;
+        b.words[idx] = v;
+        b.has |= 1 << idx;
+        b.col[idx] = col as u16;
+        b.other_words = true;
         Ok(())
     }
 

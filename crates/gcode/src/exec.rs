@@ -702,8 +702,33 @@ impl Interpreter {
         }
     }
 
+    /// The block's G codes other than its motion, in the order RS274/NGC carries them out,
+    /// then its motion.
     pub(crate) fn g_codes(&mut self, b: &mut Block, motion: i32) -> Res<()> {
+        // Compensation as it was before this block's G40-G42: the checks below look at it.
         let comp_on = self.state.cutter.is_some();
+        self.dwell(b)?;
+        self.plane_selection(b, comp_on)?;
+        self.units_and_lathe_mode(b);
+        if b.g[gg::CUTTER] != -1 {
+            self.cutter_comp(b)?;
+        }
+        if b.g[gg::LENGTH] != -1 {
+            self.tool_length(b)?;
+        }
+        self.coordinate_system_selection(b, comp_on)?;
+        self.path_control_mode(b, comp_on)?;
+        self.distance_modes(b);
+        self.retract_mode(b, comp_on)?;
+        self.non_modal_codes(b, comp_on)?;
+        if motion != -1 {
+            self.motion(b, motion)?;
+        }
+        Ok(())
+    }
+
+    /// G4.
+    fn dwell(&mut self, b: &Block) -> Res<()> {
         if b.g[gg::NON_MODAL] == 40 {
             let p = b.get(b'p').unwrap_or(0.0);
             if p < 0.0 {
@@ -711,6 +736,11 @@ impl Interpreter {
             }
             self.emit(C::Dwell(p));
         }
+        Ok(())
+    }
+
+    /// G17-G19.1.
+    fn plane_selection(&mut self, b: &Block, comp_on: bool) -> Res<()> {
         if b.g[gg::PLANE] != -1 {
             let plane = match b.g[gg::PLANE] {
                 170 => Plane::XY,
@@ -731,6 +761,11 @@ impl Interpreter {
             self.emit(C::SelectPlane(plane));
             self.state.plane = plane;
         }
+        Ok(())
+    }
+
+    /// G20/G21 and G7/G8; in diameter mode the block's X is halved here.
+    fn units_and_lathe_mode(&mut self, b: &mut Block) {
         if b.g[gg::UNITS] != -1 {
             let units = if b.g[gg::UNITS] == 200 {
                 Units::Inches
@@ -756,12 +791,10 @@ impl Interpreter {
         if self.state.lathe_diameter && b.has(b'x') {
             b.words[(b'x' - b'a') as usize] /= 2.0;
         }
-        if b.g[gg::CUTTER] != -1 {
-            self.cutter_comp(b)?;
-        }
-        if b.g[gg::LENGTH] != -1 {
-            self.tool_length(b)?;
-        }
+    }
+
+    /// G54-G59.3.
+    fn coordinate_system_selection(&mut self, b: &Block, comp_on: bool) -> Res<()> {
         if b.g[gg::COORD] != -1 {
             if comp_on {
                 return Err(self.g_err(
@@ -777,6 +810,11 @@ impl Interpreter {
             };
             self.select_coord_system(index);
         }
+        Ok(())
+    }
+
+    /// G61, G61.1 and G64.
+    fn path_control_mode(&mut self, b: &Block, comp_on: bool) -> Res<()> {
         if b.g[gg::CONTROL] != -1 {
             if comp_on {
                 return Err(self.g_err(
@@ -800,6 +838,11 @@ impl Interpreter {
                 }
             }
         }
+        Ok(())
+    }
+
+    /// G90/G91 and G90.1/G91.1.
+    fn distance_modes(&mut self, b: &Block) {
         if b.g[gg::DISTANCE] != -1 {
             let abs = b.g[gg::DISTANCE] == 900;
             if abs != self.state.absolute {
@@ -828,6 +871,10 @@ impl Interpreter {
                 self.state.ijk_absolute = abs;
             }
         }
+    }
+
+    /// G98/G99.
+    fn retract_mode(&mut self, b: &Block, comp_on: bool) -> Res<()> {
         if b.g[gg::RETRACT] != -1 {
             if comp_on {
                 return Err(self.g_err(
@@ -848,6 +895,11 @@ impl Interpreter {
             ));
             self.state.retract_old_z = old_z;
         }
+        Ok(())
+    }
+
+    /// G10, G28/G30 and their .1, G52/G92 and its kin, G5.3 (G4 is `dwell`).
+    fn non_modal_codes(&mut self, b: &Block, comp_on: bool) -> Res<()> {
         match b.g[gg::NON_MODAL] {
             100 => self.g10(b)?,
             280 | 300 => self.go_home(b)?,
@@ -871,9 +923,6 @@ impl Interpreter {
             520 | 920..=923 => self.g92(b)?,
             53 => self.nurbs_end(b)?,
             _ => {}
-        }
-        if motion != -1 {
-            self.motion(b, motion)?;
         }
         Ok(())
     }

@@ -12,6 +12,16 @@ const RADIUS_TOLERANCE_INCH: f64 = 0.00005;
 
 type Res<T> = Result<T, GcodeError>;
 
+/// The axes of an arc's plane: the first, second and normal one (indices into the pose),
+/// the first two's letters and the letters of their centre offsets.
+struct ArcAxes {
+    first: usize,
+    second: usize,
+    normal: usize,
+    letters: [u8; 2],
+    offsets: [u8; 2],
+}
+
 impl Interpreter {
     /// End point of a move from the axis words (absolute, incremental, or G53 machine).
     pub(crate) fn find_ends(&self, b: &Block) -> Pose {
@@ -156,9 +166,54 @@ impl Interpreter {
     }
 
     pub(crate) fn arc(&mut self, b: &Block, motion: i32) -> Res<()> {
-        let s = &self.state;
-        // Plane axes: first, second, normal (indices into the pose), and the IJK letters.
-        let (a1, a2, a3, l1, l2, n1, n2) = match s.plane {
+        let axes = self.arc_axes(b)?;
+        let r_word = b.get(b'r');
+        self.check_arc_words(b, &axes, r_word.is_some())?;
+        self.check_arc_feed(b)?;
+        if self.state.motion != motion {
+            self.cycle.initial_level = None;
+        }
+        self.state.motion = motion;
+        let end = self.find_ends(b);
+        let cur = self.state.position.to_array();
+        let e = end.to_array();
+        let (a1, a2, a3) = (axes.first, axes.second, axes.normal);
+        let (c1, c2) = (cur[a1], cur[a2]);
+        let (e1, e2) = (e[a1], e[a2]);
+        let turns = b.get(b'p').map_or(1, |p| p.round() as i32);
+        let rotation = if motion == 20 { -turns } else { turns };
+        let (center1, center2) = if let Some(r) = r_word {
+            self.radius_format_centre(b, motion, r, (c1, c2), (e1, e2))?
+        } else {
+            self.centre_format_centre(b, &axes, (c1, c2), (e1, e2))?
+        };
+        if self.state.feed_mode == FeedMode::InverseTime {
+            let length = arc_length(c1, c2, cur[a3], center1, center2, rotation, e1, e2, e[a3]);
+            let rate = (length * b.get(b'f').unwrap_or(0.0)).max(0.1);
+            self.state.feed_rate = rate;
+            self.emit(C::SetFeedRate(rate));
+        }
+        self.emit(C::ArcFeed(Arc {
+            first_end: e1,
+            second_end: e2,
+            first_axis: center1,
+            second_axis: center2,
+            rotation,
+            axis_end_point: e[a3],
+            a: end.a,
+            b: end.b,
+            c: end.c,
+            u: end.u,
+            v: end.v,
+            w: end.w,
+        }));
+        self.state.position = end;
+        Ok(())
+    }
+
+    /// The axes of the selected plane, which must be one of XY, XZ and YZ.
+    fn arc_axes(&self, b: &Block) -> Res<ArcAxes> {
+        let (first, second, normal, l1, l2, n1, n2) = match self.state.plane {
             Plane::XY => (0, 1, 2, b'x', b'y', b'i', b'j'),
             Plane::XZ => (2, 0, 1, b'z', b'x', b'k', b'i'),
             Plane::YZ => (1, 2, 0, b'y', b'z', b'j', b'k'),
@@ -171,13 +226,27 @@ impl Interpreter {
                 ));
             }
         };
+        Ok(ArcAxes {
+            first,
+            second,
+            normal,
+            letters: [l1, l2],
+            offsets: [n1, n2],
+        })
+    }
+
+    /// The words an arc needs and the ones it may not have, in radius (`radius_format`) or
+    /// centre format.
+    fn check_arc_words(&self, b: &Block, axes: &ArcAxes, radius_format: bool) -> Res<()> {
+        let s = &self.state;
+        let [l1, l2] = axes.letters;
+        let [n1, n2] = axes.offsets;
         let wrong_offset = match s.plane {
             Plane::XY => b'k',
             Plane::XZ => b'j',
             _ => b'i',
         };
-        let r_word = b.get(b'r');
-        if r_word.is_some() {
+        if radius_format {
             // A radius-format arc cannot be a full circle: it needs an end point.
             if !b.has(l1) && !b.has(l2) && !b.has_polar() {
                 return Err(self.g_err(
@@ -235,6 +304,12 @@ impl Interpreter {
                 }
             }
         }
+        Ok(())
+    }
+
+    /// An F word with inverse time, a feed rate otherwise.
+    fn check_arc_feed(&self, b: &Block) -> Res<()> {
+        let s = &self.state;
         match s.feed_mode {
             FeedMode::InverseTime if !b.has(b'f') => {
                 return Err(self.g_err(
@@ -255,105 +330,101 @@ impl Interpreter {
             }
             _ => {}
         }
-        if s.motion != motion {
-            self.cycle.initial_level = None;
-        }
-        self.state.motion = motion;
-        let end = self.find_ends(b);
-        let cur = self.state.position.to_array();
-        let e = end.to_array();
-        let (c1, c2) = (cur[a1], cur[a2]);
-        let (e1, e2) = (e[a1], e[a2]);
-        let turns = b.get(b'p').map_or(1, |p| p.round() as i32);
-        let rotation = if motion == 20 { -turns } else { turns };
-        let inch = self.state.units == Units::Inches;
-        let (center1, center2) = if let Some(r) = r_word {
-            let tol = if inch {
-                RADIUS_TOLERANCE_INCH
-            } else {
-                RADIUS_TOLERANCE_INCH * 25.4
-            };
-            if e1 == c1 && e2 == c2 {
-                return Err(self.err(b, b'r', ErrorKind::Arc, "current point same as end point of arc: an R-format arc needs distinct end points"));
-            }
-            let abs_r = r.abs();
-            let (m1, m2) = ((e1 + c1) / 2.0, (e2 + c2) / 2.0);
-            let mut half = (m1 - e1).hypot(m2 - e2);
-            if half - abs_r > tol {
-                return Err(self.err(b, b'r', ErrorKind::Arc, format!("arc radius {abs_r} too small to reach the end point (half the chord is {half:.4})")));
-            }
-            if half / abs_r > 1.0 - 1e-12 {
-                half = abs_r;
-            }
-            let theta = (e2 - c2).atan2(e1 - c1)
-                + if (motion == 20 && r > 0.0) || (motion == 30 && r < 0.0) {
-                    -std::f64::consts::FRAC_PI_2
-                } else {
-                    std::f64::consts::FRAC_PI_2
-                };
-            let turn2 = (half / abs_r).asin();
-            let offset = abs_r * turn2.cos();
-            (m1 + offset * theta.cos(), m2 + offset * theta.sin())
-        } else {
-            let o1 = b.get(n1).unwrap_or(0.0);
-            let o2 = b.get(n2).unwrap_or(0.0);
-            let (cc1, cc2) = if self.state.ijk_absolute {
-                (o1, o2)
-            } else {
-                (c1 + o1, c2 + o2)
-            };
-            let r1 = (cc1 - c1).hypot(cc2 - c2);
-            let r2 = (cc1 - e1).hypot(cc2 - e2);
-            let min_r = if inch {
-                RADIUS_TOLERANCE_INCH
-            } else {
-                RADIUS_TOLERANCE_INCH * 25.4
-            };
-            let (n1c, n2c) = (
-                l1.to_ascii_uppercase() as char,
-                l2.to_ascii_uppercase() as char,
-            );
-            if r1 < min_r || r2 < min_r {
-                return Err(self.g_err(b, gg::MOTION, ErrorKind::Arc, format!(
-                    "zero-radius arc: start=({n1c}{c1:.4},{n2c}{c2:.4}) center=({n1c}{cc1:.4},{n2c}{cc2:.4}) end=({n1c}{e1:.4},{n2c}{e2:.4}) r1={r1:.4} r2={r2:.4}"
-                )));
-            }
-            let abs_err = (r1 - r2).abs();
-            let rel_err = abs_err / r1.max(r2);
-            if !self
-                .settings
-                .arc_radius_tolerance(self.state.units)
-                .accepts(r1, r2)
-            {
-                return Err(self.g_err(b, gg::MOTION, ErrorKind::Arc, format!(
-                    "radius to end of arc differs from radius to start: start=({n1c}{c1:.4},{n2c}{c2:.4}) center=({n1c}{cc1:.4},{n2c}{cc2:.4}) end=({n1c}{e1:.4},{n2c}{e2:.4}) r1={r1:.4} r2={r2:.4} abs_err={abs_err:.4} rel_err={:.4}%",
-                    rel_err * 100.0
-                )));
-            }
-            (cc1, cc2)
-        };
-        if self.state.feed_mode == FeedMode::InverseTime {
-            let length = arc_length(c1, c2, cur[a3], center1, center2, rotation, e1, e2, e[a3]);
-            let rate = (length * b.get(b'f').unwrap_or(0.0)).max(0.1);
-            self.state.feed_rate = rate;
-            self.emit(C::SetFeedRate(rate));
-        }
-        self.emit(C::ArcFeed(Arc {
-            first_end: e1,
-            second_end: e2,
-            first_axis: center1,
-            second_axis: center2,
-            rotation,
-            axis_end_point: e[a3],
-            a: end.a,
-            b: end.b,
-            c: end.c,
-            u: end.u,
-            v: end.v,
-            w: end.w,
-        }));
-        self.state.position = end;
         Ok(())
+    }
+
+    /// The centre of an R-format arc of radius `r` from `(c1, c2)` to `(e1, e2)` in the
+    /// plane's first and second axes.
+    fn radius_format_centre(
+        &self,
+        b: &Block,
+        motion: i32,
+        r: f64,
+        (c1, c2): (f64, f64),
+        (e1, e2): (f64, f64),
+    ) -> Res<(f64, f64)> {
+        let inch = self.state.units == Units::Inches;
+        let tol = if inch {
+            RADIUS_TOLERANCE_INCH
+        } else {
+            RADIUS_TOLERANCE_INCH * 25.4
+        };
+        if e1 == c1 && e2 == c2 {
+            return Err(self.err(
+                b,
+                b'r',
+                ErrorKind::Arc,
+                "current point same as end point of arc: an R-format arc needs distinct end points",
+            ));
+        }
+        let abs_r = r.abs();
+        let (m1, m2) = ((e1 + c1) / 2.0, (e2 + c2) / 2.0);
+        let mut half = (m1 - e1).hypot(m2 - e2);
+        if half - abs_r > tol {
+            return Err(self.err(b, b'r', ErrorKind::Arc, format!("arc radius {abs_r} too small to reach the end point (half the chord is {half:.4})")));
+        }
+        if half / abs_r > 1.0 - 1e-12 {
+            half = abs_r;
+        }
+        let theta = (e2 - c2).atan2(e1 - c1)
+            + if (motion == 20 && r > 0.0) || (motion == 30 && r < 0.0) {
+                -std::f64::consts::FRAC_PI_2
+            } else {
+                std::f64::consts::FRAC_PI_2
+            };
+        let turn2 = (half / abs_r).asin();
+        let offset = abs_r * turn2.cos();
+        Ok((m1 + offset * theta.cos(), m2 + offset * theta.sin()))
+    }
+
+    /// The centre of an arc given by its offsets (I, J, K) from `(c1, c2)` to `(e1, e2)` in
+    /// the plane's first and second axes, which must be as far from both ends.
+    fn centre_format_centre(
+        &self,
+        b: &Block,
+        axes: &ArcAxes,
+        (c1, c2): (f64, f64),
+        (e1, e2): (f64, f64),
+    ) -> Res<(f64, f64)> {
+        let [l1, l2] = axes.letters;
+        let [n1, n2] = axes.offsets;
+        let inch = self.state.units == Units::Inches;
+        let o1 = b.get(n1).unwrap_or(0.0);
+        let o2 = b.get(n2).unwrap_or(0.0);
+        let (cc1, cc2) = if self.state.ijk_absolute {
+            (o1, o2)
+        } else {
+            (c1 + o1, c2 + o2)
+        };
+        let r1 = (cc1 - c1).hypot(cc2 - c2);
+        let r2 = (cc1 - e1).hypot(cc2 - e2);
+        let min_r = if inch {
+            RADIUS_TOLERANCE_INCH
+        } else {
+            RADIUS_TOLERANCE_INCH * 25.4
+        };
+        let (n1c, n2c) = (
+            l1.to_ascii_uppercase() as char,
+            l2.to_ascii_uppercase() as char,
+        );
+        if r1 < min_r || r2 < min_r {
+            return Err(self.g_err(b, gg::MOTION, ErrorKind::Arc, format!(
+                "zero-radius arc: start=({n1c}{c1:.4},{n2c}{c2:.4}) center=({n1c}{cc1:.4},{n2c}{cc2:.4}) end=({n1c}{e1:.4},{n2c}{e2:.4}) r1={r1:.4} r2={r2:.4}"
+            )));
+        }
+        let abs_err = (r1 - r2).abs();
+        let rel_err = abs_err / r1.max(r2);
+        if !self
+            .settings
+            .arc_radius_tolerance(self.state.units)
+            .accepts(r1, r2)
+        {
+            return Err(self.g_err(b, gg::MOTION, ErrorKind::Arc, format!(
+                "radius to end of arc differs from radius to start: start=({n1c}{c1:.4},{n2c}{c2:.4}) center=({n1c}{cc1:.4},{n2c}{cc2:.4}) end=({n1c}{e1:.4},{n2c}{e2:.4}) r1={r1:.4} r2={r2:.4} abs_err={abs_err:.4} rel_err={:.4}%",
+                rel_err * 100.0
+            )));
+        }
+        Ok((cc1, cc2))
     }
 
     pub(crate) fn spline(&mut self, b: &Block, motion: i32) -> Res<()> {

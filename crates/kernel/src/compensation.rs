@@ -139,53 +139,14 @@ impl CompensationStage {
                 self.feed_mm = rate * self.mm_per_unit;
                 self.per_revolution = per_revolution;
             }
-            // G64 P and Q are lengths in the program's units when they were given. Plain G64
-            // (P0), LinuxCNC's "best speed" without a bound, is the machine file's tolerance.
-            ProgramBlock::PathMode(m) => {
-                self.mode = match m {
-                    PathMode::Blend {
-                        tolerance,
-                        merge_tolerance,
-                    } => PathMode::Blend {
-                        tolerance: if tolerance > 0.0 {
-                            tolerance * self.mm_per_unit
-                        } else {
-                            self.default_blend_tolerance
-                        },
-                        merge_tolerance: merge_tolerance * self.mm_per_unit,
-                    },
-                    other => other,
-                }
-            }
+            ProgramBlock::PathMode(m) => self.mode = self.path_mode(m),
             ProgramBlock::SpindleSync(pitch) => {
                 self.sync_pitch = pitch.map(|p| p * self.mm_per_unit);
             }
             ProgramBlock::SyncChained => self.sync_chained = true,
             ProgramBlock::ToolCentrePoint(on) => self.tool_centre_point = on,
-            // The interpreter task lets only lines and arcs through under TCP.
-            ProgramBlock::Line { line, end, rapid } if self.tool_centre_point => {
-                return Some(MachineBlock::TcpMove {
-                    line,
-                    path: TipPath::Line,
-                    end: self.to_machine(&end),
-                    rapid,
-                    feed: self.feed(),
-                    mode: self.mode,
-                    tool_offset: self.tool[2] * self.mm_per_unit,
-                });
-            }
-            ProgramBlock::Line {
-                line,
-                end,
-                rapid: false,
-            } if self.sync_pitch.is_some() => {
-                return Some(MachineBlock::Synced {
-                    line,
-                    end: self.to_machine(&end),
-                    pitch: self.sync_pitch.unwrap_or(0.0),
-                    tap: None,
-                    chained,
-                });
+            ProgramBlock::Line { line, end, rapid } => {
+                return Some(self.line(line, &end, rapid, chained));
             }
             ProgramBlock::RigidTap { line, end, scale } => {
                 return Some(MachineBlock::Synced {
@@ -196,19 +157,6 @@ impl CompensationStage {
                     chained: false,
                 });
             }
-            ProgramBlock::Line { line, end, rapid } => {
-                let end = self.to_machine(&end);
-                return Some(MachineBlock::Motion(Move {
-                    kind: MoveKind::Line { end, rapid },
-                    feed: if rapid {
-                        Feed::UnitsPerSecond(f64::INFINITY)
-                    } else {
-                        self.feed()
-                    },
-                    mode: self.mode,
-                    line,
-                }));
-            }
             ProgramBlock::Arc {
                 line,
                 end,
@@ -216,48 +164,7 @@ impl CompensationStage {
                 normal,
                 turns,
                 radius_tolerance,
-            } => {
-                let end_m = self.to_machine(&end);
-                let mut c = [0.0; AXES];
-                c[..3].copy_from_slice(&centre);
-                let c = self.to_machine(&c);
-                let mut n = normal;
-                if self.rotation_deg != 0.0 {
-                    let (s, co) = self.rotation_deg.to_radians().sin_cos();
-                    n = [
-                        co * normal[0] - s * normal[1],
-                        s * normal[0] + co * normal[1],
-                        normal[2],
-                    ];
-                }
-                if self.tool_centre_point {
-                    return Some(MachineBlock::TcpMove {
-                        line,
-                        path: TipPath::Arc {
-                            centre: [c[0], c[1], c[2]],
-                            normal: n,
-                            turns,
-                        },
-                        end: end_m,
-                        rapid: false,
-                        feed: self.feed(),
-                        mode: self.mode,
-                        tool_offset: self.tool[2] * self.mm_per_unit,
-                    });
-                }
-                return Some(MachineBlock::Motion(Move {
-                    kind: MoveKind::Arc {
-                        end: end_m,
-                        centre: [c[0], c[1], c[2]],
-                        normal: n,
-                        turns,
-                        radius_tolerance: radius_tolerance * self.mm_per_unit,
-                    },
-                    feed: self.feed(),
-                    mode: self.mode,
-                    line,
-                }));
-            }
+            } => return Some(self.arc(line, &end, centre, normal, turns, radius_tolerance)),
             ProgramBlock::Probe { line, end, kind } => {
                 let end = self.to_machine(&end);
                 return Some(MachineBlock::Probe {
@@ -271,58 +178,13 @@ impl CompensationStage {
                 });
             }
             ProgramBlock::Spline { line, end, control } => {
-                // A Bézier curve is affine invariant: offsets, rotation and units apply to
-                // its control points.
-                let control = match control {
-                    Bezier::Quadratic(c) => Bezier::Quadratic(self.to_machine(&c)),
-                    Bezier::Cubic([c1, c2]) => {
-                        Bezier::Cubic([self.to_machine(&c1), self.to_machine(&c2)])
-                    }
-                };
-                return Some(MachineBlock::Motion(Move {
-                    kind: MoveKind::Spline {
-                        end: self.to_machine(&end),
-                        control,
-                    },
-                    feed: self.feed(),
-                    mode: self.mode,
-                    line,
-                }));
+                return Some(self.spline(line, &end, control));
             }
             ProgramBlock::Dwell { line, seconds } => {
                 return Some(MachineBlock::Motion(Move::dwell(seconds, line)));
             }
             ProgramBlock::Aux { line, aux } => {
-                let aux = match aux {
-                    Aux::SpindleOn { rpm } | Aux::SpindleSpeed { rpm } => {
-                        self.spindle_rpm = rpm;
-                        aux
-                    }
-                    Aux::SpindleOff => {
-                        self.spindle_rpm = 0.0;
-                        aux
-                    }
-                    Aux::SurfaceSpeedOff => {
-                        self.css_max_rpm = None;
-                        aux
-                    }
-                    // LinuxCNC's canon: rpm = S (in mm/min) / (2π·|X − the X offsets|).
-                    Aux::SurfaceSpeed { surface, max_rpm } => {
-                        self.css_max_rpm = Some(max_rpm);
-                        let mm_per_minute = if self.mm_per_unit == 1.0 {
-                            surface * 1000.0
-                        } else {
-                            surface * 12.0 * self.mm_per_unit
-                        };
-                        Aux::ConstantSurfaceSpeed {
-                            factor: mm_per_minute / std::f64::consts::TAU,
-                            x_centre: (self.work[0] + self.g92[0] + self.tool[0])
-                                * self.mm_per_unit,
-                            max_rpm,
-                        }
-                    }
-                    _ => aux,
-                };
+                let aux = self.aux(aux);
                 return Some(MachineBlock::Aux { line, aux });
             }
             ProgramBlock::End { line } => return Some(MachineBlock::End { line }),
@@ -330,5 +192,165 @@ impl CompensationStage {
             ProgramBlock::MdiDone => return Some(MachineBlock::MdiDone),
         }
         None
+    }
+
+    /// G64 P and Q are lengths in the program's units when they were given. Plain G64 (P0),
+    /// LinuxCNC's "best speed" without a bound, is the machine file's tolerance.
+    fn path_mode(&self, m: PathMode) -> PathMode {
+        match m {
+            PathMode::Blend {
+                tolerance,
+                merge_tolerance,
+            } => PathMode::Blend {
+                tolerance: if tolerance > 0.0 {
+                    tolerance * self.mm_per_unit
+                } else {
+                    self.default_blend_tolerance
+                },
+                merge_tolerance: merge_tolerance * self.mm_per_unit,
+            },
+            other => other,
+        }
+    }
+
+    /// A line: of the tool's tip under TCP, synchronised with the spindle under G33 (a
+    /// feed move; `chained` to the one before), or a plain move.
+    fn line(&self, line: u32, end: &[f64; AXES], rapid: bool, chained: bool) -> MachineBlock {
+        // The interpreter task lets only lines and arcs through under TCP.
+        if self.tool_centre_point {
+            return MachineBlock::TcpMove {
+                line,
+                path: TipPath::Line,
+                end: self.to_machine(end),
+                rapid,
+                feed: self.feed(),
+                mode: self.mode,
+                tool_offset: self.tool[2] * self.mm_per_unit,
+            };
+        }
+        if !rapid && self.sync_pitch.is_some() {
+            return MachineBlock::Synced {
+                line,
+                end: self.to_machine(end),
+                pitch: self.sync_pitch.unwrap_or(0.0),
+                tap: None,
+                chained,
+            };
+        }
+        let end = self.to_machine(end);
+        MachineBlock::Motion(Move {
+            kind: MoveKind::Line { end, rapid },
+            feed: if rapid {
+                Feed::UnitsPerSecond(f64::INFINITY)
+            } else {
+                self.feed()
+            },
+            mode: self.mode,
+            line,
+        })
+    }
+
+    /// An arc (its centre and normal in program coordinates), of the tool's tip under TCP.
+    fn arc(
+        &self,
+        line: u32,
+        end: &[f64; AXES],
+        centre: [f64; 3],
+        normal: [f64; 3],
+        turns: u32,
+        radius_tolerance: f64,
+    ) -> MachineBlock {
+        let end_m = self.to_machine(end);
+        let mut c = [0.0; AXES];
+        c[..3].copy_from_slice(&centre);
+        let c = self.to_machine(&c);
+        let mut n = normal;
+        if self.rotation_deg != 0.0 {
+            let (s, co) = self.rotation_deg.to_radians().sin_cos();
+            n = [
+                co * normal[0] - s * normal[1],
+                s * normal[0] + co * normal[1],
+                normal[2],
+            ];
+        }
+        if self.tool_centre_point {
+            return MachineBlock::TcpMove {
+                line,
+                path: TipPath::Arc {
+                    centre: [c[0], c[1], c[2]],
+                    normal: n,
+                    turns,
+                },
+                end: end_m,
+                rapid: false,
+                feed: self.feed(),
+                mode: self.mode,
+                tool_offset: self.tool[2] * self.mm_per_unit,
+            };
+        }
+        MachineBlock::Motion(Move {
+            kind: MoveKind::Arc {
+                end: end_m,
+                centre: [c[0], c[1], c[2]],
+                normal: n,
+                turns,
+                radius_tolerance: radius_tolerance * self.mm_per_unit,
+            },
+            feed: self.feed(),
+            mode: self.mode,
+            line,
+        })
+    }
+
+    fn spline(&self, line: u32, end: &[f64; AXES], control: Bezier) -> MachineBlock {
+        // A Bézier curve is affine invariant: offsets, rotation and units apply to its
+        // control points.
+        let control = match control {
+            Bezier::Quadratic(c) => Bezier::Quadratic(self.to_machine(&c)),
+            Bezier::Cubic([c1, c2]) => Bezier::Cubic([self.to_machine(&c1), self.to_machine(&c2)]),
+        };
+        MachineBlock::Motion(Move {
+            kind: MoveKind::Spline {
+                end: self.to_machine(end),
+                control,
+            },
+            feed: self.feed(),
+            mode: self.mode,
+            line,
+        })
+    }
+
+    /// An auxiliary function: the spindle's speed is kept for feeds per revolution, and a
+    /// constant surface speed is made machine units.
+    fn aux(&mut self, aux: Aux) -> Aux {
+        match aux {
+            Aux::SpindleOn { rpm } | Aux::SpindleSpeed { rpm } => {
+                self.spindle_rpm = rpm;
+                aux
+            }
+            Aux::SpindleOff => {
+                self.spindle_rpm = 0.0;
+                aux
+            }
+            Aux::SurfaceSpeedOff => {
+                self.css_max_rpm = None;
+                aux
+            }
+            // LinuxCNC's canon: rpm = S (in mm/min) / (2π·|X − the X offsets|).
+            Aux::SurfaceSpeed { surface, max_rpm } => {
+                self.css_max_rpm = Some(max_rpm);
+                let mm_per_minute = if self.mm_per_unit == 1.0 {
+                    surface * 1000.0
+                } else {
+                    surface * 12.0 * self.mm_per_unit
+                };
+                Aux::ConstantSurfaceSpeed {
+                    factor: mm_per_minute / std::f64::consts::TAU,
+                    x_centre: (self.work[0] + self.g92[0] + self.tool[0]) * self.mm_per_unit,
+                    max_rpm,
+                }
+            }
+            _ => aux,
+        }
     }
 }

@@ -13,7 +13,7 @@ use rtcnc_servo::{ServoCommand, ServoLoop, SetPointDifferentiator};
 
 use crate::config::MAX_JOINTS;
 use crate::fault::{FaultCode, TaskName};
-use crate::motion::ServoTarget;
+use crate::motion::{LatchRequest, ServoTarget};
 use crate::shared::{Feedback, LogicOutputs, LogicRequests, Shared, Snapshot};
 
 /// One recorded servo cycle (for the CSV files, plots and summaries of `rtcnc sim`).
@@ -184,24 +184,40 @@ impl<B: Fieldbus> ServoStage<B> {
             return;
         };
         if target.reset_count != self.reset_count {
-            self.reset_count = target.reset_count;
-            self.servo_fault = false;
-            // A switch still pressed stays latched, so the joint can be moved off it.
-            self.limit_latched = 0;
-            for (j, f) in self.inputs.joints.iter().enumerate().take(self.joint_count) {
-                if f.negative_limit || f.positive_limit {
-                    self.limit_latched |= 1 << j;
-                }
-            }
-            self.drive_fault_latched = 0;
-            self.comm_fault = false;
-            self.estop_latched = false;
-            self.dry_stop = None;
+            self.clear_latched_faults(target.reset_count);
         }
-        // Interpolation computes the set-points ahead (`tasks.setpoint_lead`); one is
-        // missing only when it stalled for longer than that. Then go on along the last two
-        // set-points for a few periods; beyond them it is a fault, and every joint is
-        // brought to rest here with its quick-stop limits, since interpolation cannot.
+        self.bridge_missing_setpoints(ctx, &mut target);
+        let plc_unpowered = self.plc_axis_setpoints(ctx, &mut target);
+        for j in 0..self.joint_count {
+            self.control_joint(ctx, j, &target, plc_unpowered);
+        }
+        self.record(ctx, &target);
+    }
+
+    /// A reset (`reset_count` is the new count): the latched faults are cleared.
+    #[inline]
+    fn clear_latched_faults(&mut self, reset_count: u32) {
+        self.reset_count = reset_count;
+        self.servo_fault = false;
+        // A switch still pressed stays latched, so the joint can be moved off it.
+        self.limit_latched = 0;
+        for (j, f) in self.inputs.joints.iter().enumerate().take(self.joint_count) {
+            if f.negative_limit || f.positive_limit {
+                self.limit_latched |= 1 << j;
+            }
+        }
+        self.drive_fault_latched = 0;
+        self.comm_fault = false;
+        self.estop_latched = false;
+        self.dry_stop = None;
+    }
+
+    /// Interpolation computes the set-points ahead (`tasks.setpoint_lead`); one is missing
+    /// only when it stalled for longer than that. Then go on along the last two set-points
+    /// for a few periods; beyond them it is a fault, and every joint is brought to rest
+    /// here with its quick-stop limits, since interpolation cannot.
+    #[inline]
+    fn bridge_missing_setpoints(&mut self, ctx: &mut Context<'_>, target: &mut ServoTarget) {
         let missing = self.exchanges.saturating_sub(target.setpoints.cycle);
         if missing > 0 && target.enable {
             self.underruns += 1;
@@ -214,7 +230,7 @@ impl<B: Fieldbus> ServoStage<B> {
                 target.setpoints.joints[j] += step[j] * k;
             }
             if missing > BRIDGED_PERIODS {
-                self.start_dry_stop(ctx, &target, &step);
+                self.start_dry_stop(ctx, target, &step);
             }
         }
         if let Some(stops) = self.dry_stop.as_mut() {
@@ -222,8 +238,13 @@ impl<B: Fieldbus> ServoStage<B> {
                 target.setpoints.joints[j] = stop.step(self.period_s).p;
             }
         }
-        // The PLC's auxiliary axes: their joints' set-points (carried on from the logic
-        // task's last values to this period) and whether MC_Power asks for their drives.
+    }
+
+    /// The PLC's auxiliary axes: their joints' set-points (carried on from the logic task's
+    /// last values to this period). Returns the joints (bits) whose drives MC_Power does
+    /// not ask for.
+    #[inline]
+    fn plc_axis_setpoints(&mut self, ctx: &mut Context<'_>, target: &mut ServoTarget) -> u32 {
         let mut plc_unpowered = 0u32;
         if self.plc_joints != 0 {
             let plc = self.logic.get().plc_axes;
@@ -246,114 +267,102 @@ impl<B: Fieldbus> ServoStage<B> {
                 }
             }
         }
+        plc_unpowered
+    }
+
+    /// Joint `j`'s drive command: its control word, its latch and, under control, its
+    /// servo loop's output.
+    #[inline]
+    fn control_joint(
+        &mut self,
+        ctx: &mut Context<'_>,
+        j: usize,
+        target: &ServoTarget,
+        plc_unpowered: u32,
+    ) {
         let period = self.period_s;
-        for j in 0..self.joint_count {
-            let (Some(command), Some(feedback), Some(servo), Some(diff)) = (
-                self.outputs.joints.get_mut(j),
-                self.inputs.joints.get(j),
-                self.loops.get_mut(j),
-                self.differentiators.get_mut(j),
-            ) else {
-                continue;
-            };
-            let bit = 1u32 << j;
-            let state = feedback.state();
-            if state.is_fault() && target.enable {
-                // A drive fault is reset by the master's explicit decision: a reset command.
-                // CiA 402 resets on the rising edge of the fault-reset bit: pulsed, so a
-                // drive whose cause was still there at the first edge resets at a later
-                // one once it is gone.
-                let pulse_high = (self.exchanges / FAULT_RESET_PULSE) % 2 == 1;
-                command.controlword = if self.was_enabled & bit == 0 && pulse_high {
-                    ControlWord::fault_reset()
-                } else {
-                    ControlWord::disable_voltage()
-                };
-                self.was_enabled &= !bit;
-                continue;
-            }
-            command.controlword = if self.servo_fault {
-                // The drive's own quick stop, then off (stop category 1): from quick stop
-                // active, "disable voltage" once the drive reports it stands.
-                if state == Cia402State::QuickStopActive && feedback.statusword.target_reached() {
-                    ControlWord::disable_voltage()
-                } else if state == Cia402State::OperationEnabled
-                    || state == Cia402State::QuickStopActive
-                {
-                    ControlWord::quick_stop()
-                } else {
-                    state.controlword_towards(false)
-                }
-            } else {
-                state.controlword_towards(target.enable && plc_unpowered & bit == 0)
-            };
-            command.latch = if target.latch.index & bit != 0 {
-                Some(LatchSource::IndexPulse)
-            } else if target.latch.switch & bit != 0 {
-                Some(LatchSource::HomeSwitch)
-            } else if target.latch.probe & bit != 0 {
-                Some(LatchSource::TouchProbe {
-                    rising: target.latch.probe_rising,
-                })
-            } else {
-                None
-            };
-            let raw_target = target.setpoints.joints[j] - target.offsets[j];
-            if state != Cia402State::OperationEnabled || self.servo_fault {
-                // Not under control: hold the command at the actual position so that
-                // enabling does not jump.
-                self.was_enabled &= !bit;
-                command.target_velocity = 0.0;
-                command.target_position = feedback.position;
-                command.velocity_offset = 0.0;
-                command.torque_offset = 0.0;
-                continue;
-            }
-            if self.was_enabled & bit == 0 {
-                self.was_enabled |= bit;
-                servo.reset();
-                diff.reset();
-            }
-            let setpoint = diff.next(raw_target, period);
-            // Inputs left over from the last good cycle are compared as they were then: as
-            // if the load had followed the set-points since.
-            let measured = if self.stale_inputs {
-                feedback.position + (setpoint.position - self.fresh_setpoint[j])
-            } else {
-                self.fresh_setpoint[j] = setpoint.position;
-                feedback.position
-            };
-            match servo.update(setpoint, measured, period) {
-                Ok(ServoCommand::Velocity(v)) => command.target_velocity = v,
-                Ok(ServoCommand::Position(c)) => {
-                    command.target_position = c.position;
-                    command.velocity_offset = c.velocity_offset;
-                    command.torque_offset = c.torque_offset;
-                }
-                // With the e-stop input pressed the drives lose power (or are about to): a
-                // following error then is its consequence, not a new fault.
-                Err(_) if self.estop_latched => command.target_velocity = 0.0,
-                Err(fault) => {
-                    if !self.servo_fault {
-                        self.servo_fault = true;
-                        let value = match fault {
-                            rtcnc_servo::ServoFault::FollowingError { error, .. } => error,
-                            _ => f64::NAN,
-                        };
-                        self.shared.raise(
-                            ctx,
-                            FaultCode::FollowingError,
-                            TaskName::PositionControl,
-                            Some(fault.joint() as u8),
-                            target.setpoints.line,
-                            value,
-                        );
-                    }
-                    command.target_velocity = 0.0;
-                }
-            }
-            self.following_error[j] = servo.following_error().last_error();
+        let (Some(command), Some(feedback), Some(servo), Some(diff)) = (
+            self.outputs.joints.get_mut(j),
+            self.inputs.joints.get(j),
+            self.loops.get_mut(j),
+            self.differentiators.get_mut(j),
+        ) else {
+            return;
+        };
+        let bit = 1u32 << j;
+        let state = feedback.state();
+        if state.is_fault() && target.enable {
+            command.controlword =
+                fault_reset_controlword(self.exchanges, self.was_enabled & bit != 0);
+            self.was_enabled &= !bit;
+            return;
         }
+        command.controlword = if self.servo_fault {
+            stop_category_1(state, feedback.statusword.target_reached())
+        } else {
+            state.controlword_towards(target.enable && plc_unpowered & bit == 0)
+        };
+        command.latch = latch_source(&target.latch, bit);
+        let raw_target = target.setpoints.joints[j] - target.offsets[j];
+        if state != Cia402State::OperationEnabled || self.servo_fault {
+            // Not under control: hold the command at the actual position so that
+            // enabling does not jump.
+            self.was_enabled &= !bit;
+            command.target_velocity = 0.0;
+            command.target_position = feedback.position;
+            command.velocity_offset = 0.0;
+            command.torque_offset = 0.0;
+            return;
+        }
+        if self.was_enabled & bit == 0 {
+            self.was_enabled |= bit;
+            servo.reset();
+            diff.reset();
+        }
+        let setpoint = diff.next(raw_target, period);
+        // Inputs left over from the last good cycle are compared as they were then: as
+        // if the load had followed the set-points since.
+        let measured = if self.stale_inputs {
+            feedback.position + (setpoint.position - self.fresh_setpoint[j])
+        } else {
+            self.fresh_setpoint[j] = setpoint.position;
+            feedback.position
+        };
+        match servo.update(setpoint, measured, period) {
+            Ok(ServoCommand::Velocity(v)) => command.target_velocity = v,
+            Ok(ServoCommand::Position(c)) => {
+                command.target_position = c.position;
+                command.velocity_offset = c.velocity_offset;
+                command.torque_offset = c.torque_offset;
+            }
+            // With the e-stop input pressed the drives lose power (or are about to): a
+            // following error then is its consequence, not a new fault.
+            Err(_) if self.estop_latched => command.target_velocity = 0.0,
+            Err(fault) => {
+                if !self.servo_fault {
+                    self.servo_fault = true;
+                    let value = match fault {
+                        rtcnc_servo::ServoFault::FollowingError { error, .. } => error,
+                        _ => f64::NAN,
+                    };
+                    self.shared.raise(
+                        ctx,
+                        FaultCode::FollowingError,
+                        TaskName::PositionControl,
+                        Some(fault.joint() as u8),
+                        target.setpoints.line,
+                        value,
+                    );
+                }
+                command.target_velocity = 0.0;
+            }
+        }
+        self.following_error[j] = servo.following_error().last_error();
+    }
+
+    /// The period's sample for `rtcnc sim`'s recording, if there is one.
+    #[inline]
+    fn record(&mut self, ctx: &mut Context<'_>, target: &ServoTarget) {
         if let Some(recorder) = self.recorder.as_mut() {
             let mut feedback = [0.0; MAX_JOINTS];
             for j in 0..self.joint_count {
@@ -573,5 +582,49 @@ impl<B: Fieldbus> ServoStage<B> {
     /// Periods in which position control had to go on without a fresh set-point.
     pub(crate) fn underruns(&self) -> u64 {
         self.underruns
+    }
+}
+
+/// The control word for a faulty drive while the machine is enabled. A drive fault is reset
+/// by the master's explicit decision: a reset command. CiA 402 resets on the rising edge of
+/// the fault-reset bit: pulsed, so a drive whose cause was still there at the first edge
+/// resets at a later one once it is gone.
+#[inline]
+fn fault_reset_controlword(exchanges: u64, was_enabled: bool) -> ControlWord {
+    let pulse_high = (exchanges / FAULT_RESET_PULSE) % 2 == 1;
+    if !was_enabled && pulse_high {
+        ControlWord::fault_reset()
+    } else {
+        ControlWord::disable_voltage()
+    }
+}
+
+/// After a servo fault: the drive's own quick stop, then off (stop category 1): from quick
+/// stop active, "disable voltage" once the drive reports it stands (`standing`).
+#[inline]
+fn stop_category_1(state: Cia402State, standing: bool) -> ControlWord {
+    if state == Cia402State::QuickStopActive && standing {
+        ControlWord::disable_voltage()
+    } else if state == Cia402State::OperationEnabled || state == Cia402State::QuickStopActive {
+        ControlWord::quick_stop()
+    } else {
+        state.controlword_towards(false)
+    }
+}
+
+/// The latch armed for the joint of `bit`: the index pulse before the home switch before the
+/// touch probe.
+#[inline]
+fn latch_source(latch: &LatchRequest, bit: u32) -> Option<LatchSource> {
+    if latch.index & bit != 0 {
+        Some(LatchSource::IndexPulse)
+    } else if latch.switch & bit != 0 {
+        Some(LatchSource::HomeSwitch)
+    } else if latch.probe & bit != 0 {
+        Some(LatchSource::TouchProbe {
+            rising: latch.probe_rising,
+        })
+    } else {
+        None
     }
 }

@@ -1143,136 +1143,17 @@ impl Parser<'_> {
         let kw = match self.peek() {
             Tok::Ident(s) => s.clone(),
             Tok::Direct(d) => {
-                // `%QX0.4 := ...`: a directly represented variable as the target.
-                let root = Name {
-                    text: d.to_string(),
-                    pos,
-                };
-                self.bump();
-                self.expect(&Tok::Assign)?;
-                let e = self.expr()?;
-                self.expect(&Tok::Semi)?;
-                return Ok(Stmt::Assign(
-                    Access {
-                        root,
-                        parts: Vec::new(),
-                    },
-                    e,
-                    pos,
-                ));
+                let text = d.to_string();
+                return self.direct_assignment(text, pos);
             }
             _ => return Err(self.unexpected("a statement")),
         };
         let s = match kw.as_str() {
-            "IF" => {
-                self.bump();
-                let mut branches = Vec::new();
-                let c = self.expr()?;
-                self.expect_kw_in("THEN", "IF", pos)?;
-                let b = self.stmts(&["ELSIF", "ELSE", "END_IF"], "IF", pos)?;
-                branches.push((c, b));
-                let mut els = Vec::new();
-                loop {
-                    if self.eat_kw("ELSIF") {
-                        let c = self.expr()?;
-                        self.expect_kw_in("THEN", "IF", pos)?;
-                        let b = self.stmts(&["ELSIF", "ELSE", "END_IF"], "IF", pos)?;
-                        branches.push((c, b));
-                    } else if self.eat_kw("ELSE") {
-                        els = self.stmts(&["END_IF"], "IF", pos)?;
-                        self.eat_kw("END_IF");
-                        break;
-                    } else {
-                        self.eat_kw("END_IF");
-                        break;
-                    }
-                }
-                Stmt::If(branches, els, pos)
-            }
-            "CASE" => {
-                self.bump();
-                let sel = self.expr()?;
-                self.expect_kw_in("OF", "CASE", pos)?;
-                let mut arms = Vec::new();
-                let mut els = Vec::new();
-                loop {
-                    if self.eat_kw("ELSE") {
-                        els = self.stmts(&["END_CASE"], "CASE", pos)?;
-                        self.eat_kw("END_CASE");
-                        break;
-                    }
-                    if self.at_block_end() && !self.is_kw("END_CASE") {
-                        return Err(self.unclosed("END_CASE", "CASE", pos));
-                    }
-                    if self.eat_kw("END_CASE") {
-                        break;
-                    }
-                    let mut labels = Vec::new();
-                    loop {
-                        let lo = self.expr()?;
-                        let hi = if self.eat(&Tok::DotDot) {
-                            Some(self.expr()?)
-                        } else {
-                            None
-                        };
-                        labels.push((lo, hi));
-                        if !self.eat(&Tok::Comma) {
-                            break;
-                        }
-                    }
-                    if !self.eat(&Tok::Colon) {
-                        return Err(self.err(format!(
-                            "':' expected after the CASE label (CASE at {}:{}), found {}",
-                            pos.line,
-                            pos.col,
-                            describe(self.peek())
-                        )));
-                    }
-                    let body = self.case_body(pos)?;
-                    arms.push(CaseArm { labels, body });
-                }
-                Stmt::Case(sel, arms, els, pos)
-            }
-            "FOR" => {
-                self.bump();
-                let var = self.name()?;
-                self.expect(&Tok::Assign)?;
-                let from = self.expr()?;
-                self.expect_kw_in("TO", "FOR", pos)?;
-                let to = self.expr()?;
-                let by = if self.eat_kw("BY") {
-                    Some(self.expr()?)
-                } else {
-                    None
-                };
-                self.expect_kw_in("DO", "FOR", pos)?;
-                let body = self.stmts(&["END_FOR"], "FOR", pos)?;
-                self.eat_kw("END_FOR");
-                Stmt::For {
-                    var,
-                    from,
-                    to,
-                    by,
-                    body,
-                    pos,
-                }
-            }
-            "WHILE" => {
-                self.bump();
-                let c = self.expr()?;
-                self.expect_kw_in("DO", "WHILE", pos)?;
-                let body = self.stmts(&["END_WHILE"], "WHILE", pos)?;
-                self.eat_kw("END_WHILE");
-                Stmt::While(c, body, pos)
-            }
-            "REPEAT" => {
-                self.bump();
-                let body = self.stmts(&["UNTIL"], "REPEAT", pos)?;
-                self.eat_kw("UNTIL");
-                let c = self.expr()?;
-                self.expect_kw_in("END_REPEAT", "REPEAT", pos)?;
-                Stmt::Repeat(body, c, pos)
-            }
+            "IF" => self.if_stmt(pos)?,
+            "CASE" => self.case_stmt(pos)?,
+            "FOR" => self.for_stmt(pos)?,
+            "WHILE" => self.while_stmt(pos)?,
+            "REPEAT" => self.repeat_stmt(pos)?,
             "EXIT" => {
                 self.bump();
                 Stmt::Exit(pos)
@@ -1285,38 +1166,182 @@ impl Parser<'_> {
                 self.bump();
                 Stmt::Return(pos)
             }
-            _ => {
-                if RESERVED.contains(&kw.as_str()) {
-                    return Err(self.unexpected("a statement"));
-                }
-                let target = self.access()?;
-                if self.peek() == &Tok::LParen {
-                    let args = self.args()?;
-                    Stmt::Call(target, args, pos)
-                } else if self.eat(&Tok::Assign) {
-                    let e = self.expr()?;
-                    Stmt::Assign(target, e, pos)
-                } else if self.is_kw("REF") && self.peek_at(1) == &Tok::Eq {
-                    self.bump();
-                    self.bump();
-                    let e = self.expr()?;
-                    Stmt::RefAssign(target, e, pos)
-                } else {
-                    if self.peek() == &Tok::Eq {
-                        return Err(
-                            self.err("an assignment is written ':=', not '=' ('=' compares)")
-                        );
-                    }
-                    return Err(self.unexpected("':=', 'REF=' or '(' after the name"));
-                }
-            }
+            _ => self.assignment_or_call(&kw, pos)?,
         };
+        self.end_of_statement(&s, pos)?;
+        Ok(s)
+    }
+
+    /// `%QX0.4 := ...`: a directly represented variable as the target.
+    fn direct_assignment(&mut self, text: String, pos: Pos) -> PResult<Stmt> {
+        let root = Name { text, pos };
+        self.bump();
+        self.expect(&Tok::Assign)?;
+        let e = self.expr()?;
+        self.expect(&Tok::Semi)?;
+        Ok(Stmt::Assign(
+            Access {
+                root,
+                parts: Vec::new(),
+            },
+            e,
+            pos,
+        ))
+    }
+
+    fn if_stmt(&mut self, pos: Pos) -> PResult<Stmt> {
+        self.bump();
+        let mut branches = Vec::new();
+        let c = self.expr()?;
+        self.expect_kw_in("THEN", "IF", pos)?;
+        let b = self.stmts(&["ELSIF", "ELSE", "END_IF"], "IF", pos)?;
+        branches.push((c, b));
+        let mut els = Vec::new();
+        loop {
+            if self.eat_kw("ELSIF") {
+                let c = self.expr()?;
+                self.expect_kw_in("THEN", "IF", pos)?;
+                let b = self.stmts(&["ELSIF", "ELSE", "END_IF"], "IF", pos)?;
+                branches.push((c, b));
+            } else if self.eat_kw("ELSE") {
+                els = self.stmts(&["END_IF"], "IF", pos)?;
+                self.eat_kw("END_IF");
+                break;
+            } else {
+                self.eat_kw("END_IF");
+                break;
+            }
+        }
+        Ok(Stmt::If(branches, els, pos))
+    }
+
+    fn case_stmt(&mut self, pos: Pos) -> PResult<Stmt> {
+        self.bump();
+        let sel = self.expr()?;
+        self.expect_kw_in("OF", "CASE", pos)?;
+        let mut arms = Vec::new();
+        let mut els = Vec::new();
+        loop {
+            if self.eat_kw("ELSE") {
+                els = self.stmts(&["END_CASE"], "CASE", pos)?;
+                self.eat_kw("END_CASE");
+                break;
+            }
+            if self.at_block_end() && !self.is_kw("END_CASE") {
+                return Err(self.unclosed("END_CASE", "CASE", pos));
+            }
+            if self.eat_kw("END_CASE") {
+                break;
+            }
+            let labels = self.case_labels()?;
+            if !self.eat(&Tok::Colon) {
+                return Err(self.err(format!(
+                    "':' expected after the CASE label (CASE at {}:{}), found {}",
+                    pos.line,
+                    pos.col,
+                    describe(self.peek())
+                )));
+            }
+            let body = self.case_body(pos)?;
+            arms.push(CaseArm { labels, body });
+        }
+        Ok(Stmt::Case(sel, arms, els, pos))
+    }
+
+    /// A CASE arm's labels: values and ranges, separated by commas.
+    fn case_labels(&mut self) -> PResult<Vec<(Expr, Option<Expr>)>> {
+        let mut labels = Vec::new();
+        loop {
+            let lo = self.expr()?;
+            let hi = if self.eat(&Tok::DotDot) {
+                Some(self.expr()?)
+            } else {
+                None
+            };
+            labels.push((lo, hi));
+            if !self.eat(&Tok::Comma) {
+                break;
+            }
+        }
+        Ok(labels)
+    }
+
+    fn for_stmt(&mut self, pos: Pos) -> PResult<Stmt> {
+        self.bump();
+        let var = self.name()?;
+        self.expect(&Tok::Assign)?;
+        let from = self.expr()?;
+        self.expect_kw_in("TO", "FOR", pos)?;
+        let to = self.expr()?;
+        let by = if self.eat_kw("BY") {
+            Some(self.expr()?)
+        } else {
+            None
+        };
+        self.expect_kw_in("DO", "FOR", pos)?;
+        let body = self.stmts(&["END_FOR"], "FOR", pos)?;
+        self.eat_kw("END_FOR");
+        Ok(Stmt::For {
+            var,
+            from,
+            to,
+            by,
+            body,
+            pos,
+        })
+    }
+
+    fn while_stmt(&mut self, pos: Pos) -> PResult<Stmt> {
+        self.bump();
+        let c = self.expr()?;
+        self.expect_kw_in("DO", "WHILE", pos)?;
+        let body = self.stmts(&["END_WHILE"], "WHILE", pos)?;
+        self.eat_kw("END_WHILE");
+        Ok(Stmt::While(c, body, pos))
+    }
+
+    fn repeat_stmt(&mut self, pos: Pos) -> PResult<Stmt> {
+        self.bump();
+        let body = self.stmts(&["UNTIL"], "REPEAT", pos)?;
+        self.eat_kw("UNTIL");
+        let c = self.expr()?;
+        self.expect_kw_in("END_REPEAT", "REPEAT", pos)?;
+        Ok(Stmt::Repeat(body, c, pos))
+    }
+
+    /// A statement that begins with a name `kw` (not a keyword): an assignment or a call.
+    fn assignment_or_call(&mut self, kw: &str, pos: Pos) -> PResult<Stmt> {
+        if RESERVED.contains(&kw) {
+            return Err(self.unexpected("a statement"));
+        }
+        let target = self.access()?;
+        if self.peek() == &Tok::LParen {
+            let args = self.args()?;
+            Ok(Stmt::Call(target, args, pos))
+        } else if self.eat(&Tok::Assign) {
+            let e = self.expr()?;
+            Ok(Stmt::Assign(target, e, pos))
+        } else if self.is_kw("REF") && self.peek_at(1) == &Tok::Eq {
+            self.bump();
+            self.bump();
+            let e = self.expr()?;
+            Ok(Stmt::RefAssign(target, e, pos))
+        } else {
+            if self.peek() == &Tok::Eq {
+                return Err(self.err("an assignment is written ':=', not '=' ('=' compares)"));
+            }
+            Err(self.unexpected("':=', 'REF=' or '(' after the name"))
+        }
+    }
+
+    /// The `;` after a statement: optional after a compound one (CODESYS and TwinCAT take
+    /// END_IF with or without it).
+    fn end_of_statement(&mut self, s: &Stmt, pos: Pos) -> PResult<()> {
         let compound = matches!(
             s,
             Stmt::If(..) | Stmt::Case(..) | Stmt::For { .. } | Stmt::While(..) | Stmt::Repeat(..)
         );
         if compound {
-            // CODESYS and TwinCAT take END_IF with or without the `;`.
             self.eat(&Tok::Semi);
         } else if !matches!(s, Stmt::Empty) && !self.eat(&Tok::Semi) {
             return Err(self.err(format!(
@@ -1326,7 +1351,7 @@ impl Parser<'_> {
                 describe(self.peek())
             )));
         }
-        Ok(s)
+        Ok(())
     }
 
     /// Statements of one CASE arm: up to the next label (`expr :` / `expr ..`), ELSE or END_CASE.

@@ -172,12 +172,36 @@ fn clamp_pos(v: u64, max: usize) -> usize {
 /// Positions are 1-based as in IEC; out-of-range positions and lengths are clamped. `wide`:
 /// the strings read and written are WSTRINGs (a conversion's source is the other kind).
 pub(crate) fn builtin(mem: &mut [u8], b: Builtin, v: &[u64], dest: usize, wide: bool) -> u64 {
+    match b {
+        Builtin::Len
+        | Builtin::Left
+        | Builtin::Right
+        | Builtin::Mid
+        | Builtin::Insert
+        | Builtin::Delete
+        | Builtin::Replace
+        | Builtin::Find => edit(mem, b, v, dest, wide),
+        Builtin::StrToStr(_)
+        | Builtin::IntToStr(_)
+        | Builtin::RealToStr(_)
+        | Builtin::TimeToStr
+        | Builtin::MomentToStr(_)
+        | Builtin::BoolToStr => to_text(mem, b, v, dest),
+        Builtin::StrToMoment(_)
+        | Builtin::StrToInt(_)
+        | Builtin::StrToReal(_)
+        | Builtin::StrToTime
+        | Builtin::StrToBool => from_text(mem, b, v, wide),
+        _ => 0,
+    }
+}
+
+/// LEN, LEFT, RIGHT, MID, INSERT, DELETE, REPLACE and FIND.
+fn edit(mem: &mut [u8], b: Builtin, v: &[u64], dest: usize, wide: bool) -> u64 {
     let arg = |i: usize| v.get(i).copied().unwrap_or(0);
     let mut s = [0u16; BUF];
     let mut t = [0u16; BUF];
     let mut out = [0u16; BUF];
-    let mut bytes = [0u8; BUF];
-    let mut text_in = [0u8; BUF];
     let cap = MAX_STRING_LEN;
     match b {
         Builtin::Len => read_units(mem, arg(0) as usize, wide, &mut s) as u64,
@@ -256,6 +280,16 @@ pub(crate) fn builtin(mem: &mut [u8], b: Builtin, v: &[u64], dest: usize, wide: 
                 .find(|&i| s[i..i + m] == t[..m])
                 .map_or(0, |i| i as u64 + 1)
         }
+        _ => 0,
+    }
+}
+
+/// A value written as text: STRING_TO_WSTRING and back, *_TO_STRING.
+fn to_text(mem: &mut [u8], b: Builtin, v: &[u64], dest: usize) -> u64 {
+    let arg = |i: usize| v.get(i).copied().unwrap_or(0);
+    let mut bytes = [0u8; BUF];
+    let cap = MAX_STRING_LEN;
+    match b {
         Builtin::StrToStr(to_wide) => {
             convert(mem, dest, arg(0) as usize, cap, to_wide);
             dest as u64
@@ -296,14 +330,23 @@ pub(crate) fn builtin(mem: &mut [u8], b: Builtin, v: &[u64], dest: usize, wide: 
             write(mem, dest, cap, &bytes[..k]);
             dest as u64
         }
-        Builtin::StrToMoment(kind) => {
-            let n = read(mem, arg(0) as usize, wide, &mut text_in);
-            crate::dates::parse_prefixed(kind, &text_in[..n]).unwrap_or(0) as u64
-        }
         Builtin::BoolToStr => {
             let text: &[u8] = if arg(0) & 1 != 0 { b"TRUE" } else { b"FALSE" };
             write(mem, dest, cap, text);
             dest as u64
+        }
+        _ => 0,
+    }
+}
+
+/// A value read from text: STRING_TO_*.
+fn from_text(mem: &mut [u8], b: Builtin, v: &[u64], wide: bool) -> u64 {
+    let arg = |i: usize| v.get(i).copied().unwrap_or(0);
+    let mut text_in = [0u8; BUF];
+    match b {
+        Builtin::StrToMoment(kind) => {
+            let n = read(mem, arg(0) as usize, wide, &mut text_in);
+            crate::dates::parse_prefixed(kind, &text_in[..n]).unwrap_or(0) as u64
         }
         Builtin::StrToInt(k) => {
             let n = read(mem, arg(0) as usize, wide, &mut text_in);

@@ -28,6 +28,47 @@ fn sweep_growth_tolerance(units: Units) -> f64 {
     }
 }
 
+/// What compensation refuses while it is on.
+fn refused_with_compensation(command: &CanonCommand) -> Option<K> {
+    use CanonCommand as C;
+    match command {
+        C::SetG92Offset(_) | C::SetXyRotation(_) => Some(K::AxisOffsetChange),
+        C::SetMotionControlMode(_) | C::SetNaivecamTolerance(_) => Some(K::ControlModeChange),
+        C::SetDigitalOutput { .. } | C::SetAnalogOutput { .. } => Some(K::OutputChange),
+        C::WaitInput { .. } => Some(K::WaitInput),
+        C::FeedOverride(_) | C::SpeedOverride { .. } | C::AdaptiveFeed(_) | C::FeedHold(_) => {
+            Some(K::OverrideChange)
+        }
+        C::TurnProbeOn | C::TurnProbeOff | C::StraightProbe { .. } => Some(K::Probe),
+        C::SplineFeed(_) | C::NurbsFeed(_) => Some(K::Spline),
+        _ => None,
+    }
+}
+
+/// The commands that keep their place behind a held move (as in LinuxCNC); the others take
+/// effect at once, ahead of it.
+fn follows_held_moves(command: &CanonCommand) -> bool {
+    use CanonCommand as C;
+    matches!(
+        command,
+        C::Comment(_)
+            | C::Dwell(_)
+            | C::SetFeedMode { .. }
+            | C::SetFeedRate(_)
+            | C::StartSpindle { .. }
+            | C::StopSpindle { .. }
+            | C::OrientSpindle { .. }
+            | C::WaitOrientComplete { .. }
+            | C::MistOn
+            | C::MistOff
+            | C::FloodOn
+            | C::FloodOff
+            | C::UserMCode { .. }
+            | C::SetSpindleSpeed { .. }
+            | C::SetSpindleMode { .. }
+    )
+}
+
 /// A compensated move waiting for the next move, which may still shorten it.
 #[derive(Clone, Debug)]
 enum Pending {
@@ -189,6 +230,14 @@ impl Compensator {
         use CanonCommand as C;
         let src = canon.source;
         let active = self.side.is_some();
+        if active {
+            if let Some(kind) = refused_with_compensation(&canon.command) {
+                return Err(CompError::new(kind, src));
+            }
+        }
+        if follows_held_moves(&canon.command) {
+            return self.enqueue(canon);
+        }
         match &canon.command {
             C::StraightTraverse(p) | C::StraightFeed(p) => {
                 let traverse = matches!(canon.command, C::StraightTraverse(_));
@@ -222,38 +271,10 @@ impl Compensator {
                 if active {
                     return Err(CompError::new(K::AlreadyOn, src));
                 }
-                if !matches!(self.plane, Plane::XY | Plane::XZ)
-                    || (self.plane != Plane::XZ && *orientation != 0 && *orientation != 9)
-                {
-                    return Err(CompError::new(K::WrongPlane, src));
-                }
-                if !radius.is_finite() {
-                    return Err(CompError::new(K::BadRadius, src));
-                }
-                let mut side = *side;
-                if *radius < 0.0 {
-                    side = match side {
-                        CompensationSide::Left => CompensationSide::Right,
-                        CompensationSide::Right => CompensationSide::Left,
-                    };
-                }
-                self.side = Some(side);
-                self.radius = radius.abs();
-                self.orientation = *orientation;
-                self.first_move = true;
-                return self.enqueue(canon);
+                let (side, radius, orientation) = (*side, *radius, *orientation);
+                return self.start_compensation(canon, side, radius, orientation);
             }
-            C::StopCutterRadiusCompensation => {
-                self.enqueue(canon)?;
-                if self.compensating() && !self.first_move {
-                    self.move_endpoint_and_flush(src, [self.current[0], self.current[1]])?;
-                    self.dequeue();
-                    self.arc_not_allowed = true;
-                }
-                self.side = None;
-                self.first_move = true;
-                return Ok(());
-            }
+            C::StopCutterRadiusCompensation => return self.stop_compensation(canon),
             C::SelectPlane(plane) => {
                 if active && *plane != self.plane {
                     return Err(CompError::new(K::PlaneChange, src));
@@ -273,16 +294,10 @@ impl Compensator {
                 self.change_offsets(|o| o.g5x = offset);
             }
             C::SetG92Offset(offset) => {
-                if active {
-                    return Err(CompError::new(K::AxisOffsetChange, src));
-                }
                 let offset = *offset;
                 self.change_offsets(|o| o.g92 = offset);
             }
             C::SetXyRotation(r) => {
-                if active {
-                    return Err(CompError::new(K::AxisOffsetChange, src));
-                }
                 let r = *r;
                 self.change_offsets(|o| o.rotation = r);
             }
@@ -290,25 +305,7 @@ impl Compensator {
                 let offset = *offset;
                 self.change_offsets(|o| o.tool = offset);
             }
-            C::SetMotionControlMode(_) | C::SetNaivecamTolerance(_) if active => {
-                return Err(CompError::new(K::ControlModeChange, src));
-            }
-            C::SetDigitalOutput { .. } | C::SetAnalogOutput { .. } if active => {
-                return Err(CompError::new(K::OutputChange, src));
-            }
-            C::WaitInput { .. } if active => return Err(CompError::new(K::WaitInput, src)),
-            C::FeedOverride(_) | C::SpeedOverride { .. } | C::AdaptiveFeed(_) | C::FeedHold(_)
-                if active =>
-            {
-                return Err(CompError::new(K::OverrideChange, src));
-            }
-            C::TurnProbeOn | C::TurnProbeOff | C::StraightProbe { .. } if active => {
-                return Err(CompError::new(K::Probe, src));
-            }
             C::StraightProbe { end, .. } => self.programmed = *end,
-            C::SplineFeed(_) | C::NurbsFeed(_) if active => {
-                return Err(CompError::new(K::Spline, src));
-            }
             C::NurbsFeed(n) => {
                 if let Some(last) = n.points.last() {
                     self.programmed.x = last.x;
@@ -326,25 +323,55 @@ impl Compensator {
                 self.end_compensation(src)?;
                 self.arc_not_allowed = false;
             }
-            C::Comment(_)
-            | C::Dwell(_)
-            | C::SetFeedMode { .. }
-            | C::SetFeedRate(_)
-            | C::StartSpindle { .. }
-            | C::StopSpindle { .. }
-            | C::OrientSpindle { .. }
-            | C::WaitOrientComplete { .. }
-            | C::MistOn
-            | C::MistOff
-            | C::FloodOn
-            | C::FloodOff
-            | C::UserMCode { .. }
-            | C::SetSpindleSpeed { .. }
-            | C::SetSpindleMode { .. } => return self.enqueue(canon),
             _ => {}
         }
         // Everything else takes effect at once, ahead of a held move (as in LinuxCNC).
         self.ready.push_back(canon);
+        Ok(())
+    }
+
+    /// G41/G42 (G41.1/G42.1: `orientation`), compensation being off.
+    fn start_compensation(
+        &mut self,
+        canon: Canon,
+        side: CompensationSide,
+        radius: f64,
+        orientation: i32,
+    ) -> Result<(), CompError> {
+        let src = canon.source;
+        if !matches!(self.plane, Plane::XY | Plane::XZ)
+            || (self.plane != Plane::XZ && orientation != 0 && orientation != 9)
+        {
+            return Err(CompError::new(K::WrongPlane, src));
+        }
+        if !radius.is_finite() {
+            return Err(CompError::new(K::BadRadius, src));
+        }
+        let mut side = side;
+        if radius < 0.0 {
+            side = match side {
+                CompensationSide::Left => CompensationSide::Right,
+                CompensationSide::Right => CompensationSide::Left,
+            };
+        }
+        self.side = Some(side);
+        self.radius = radius.abs();
+        self.orientation = orientation;
+        self.first_move = true;
+        self.enqueue(canon)
+    }
+
+    /// G40.
+    fn stop_compensation(&mut self, canon: Canon) -> Result<(), CompError> {
+        let src = canon.source;
+        self.enqueue(canon)?;
+        if self.compensating() && !self.first_move {
+            self.move_endpoint_and_flush(src, [self.current[0], self.current[1]])?;
+            self.dequeue();
+            self.arc_not_allowed = true;
+        }
+        self.side = None;
+        self.first_move = true;
         Ok(())
     }
 
@@ -535,27 +562,7 @@ impl Compensator {
         let radius = self.radius;
         let [px, py, pz] = to_plane(self.plane, &p);
         if self.first_move {
-            // Entry: a line from the current point to the point one radius to the side of
-            // the programmed end, perpendicular to the programmed move.
-            let c = to_plane(self.plane, &self.programmed);
-            let c2 = [c[0], c[1]];
-            if distance(c2, [px, py]) <= radius {
-                return Err(CompError::new(K::EntryMoveTooShort, src));
-            }
-            let alpha = direction(c2, [px, py]) + side_angle(side);
-            let end = line_offset_end(c2, [px, py], radius, side);
-            self.set_endpoint(c2);
-            self.hold(Pending::Line {
-                source: src,
-                traverse,
-                dir: [alpha.cos(), alpha.sin()],
-                end: [end[0], end[1], pz],
-                pose: p,
-                fixed: false,
-            })?;
-            self.first_move = false;
-            self.current = [end[0], end[1], pz];
-            return Ok(());
+            return self.straight_entry(src, traverse, p);
         }
 
         let c = self.current;
@@ -642,34 +649,7 @@ impl Compensator {
                     }
                     polar(c2, concave_retreat(radius, beta), theta + gamma)
                 }
-                Some((centre, prev_end, prev_turn)) => {
-                    // Arc to line: where the offset line meets the compensated arc.
-                    let oldrad = distance(centre, prev_end);
-                    let base_dir = direction(op2, [px, py]);
-                    let theta = if prev_turn > 0 {
-                        base_dir + FRAC_PI_2
-                    } else {
-                        base_dir - FRAC_PI_2
-                    };
-                    let phi = direction(op2, centre);
-                    let inside = tool_inside_arc(side, prev_turn);
-                    let oldrad_uncomp = if inside {
-                        oldrad + radius
-                    } else {
-                        oldrad - radius
-                    };
-                    let d = oldrad_uncomp * (theta - phi).cos();
-                    let l = (if inside { d - radius } else { d + radius }) / oldrad;
-                    if !(-1.0..=1.0).contains(&l) {
-                        return Err(CompError::new(K::ArcToStraightGouge, src));
-                    }
-                    let angle = if inside == (prev_turn > 0) {
-                        -l.acos() + theta + PI
-                    } else {
-                        l.acos() + theta + PI
-                    };
-                    polar(centre, oldrad, angle)
-                }
+                Some(held) => self.arc_to_line_meeting(src, held, op2, [px, py])?,
             };
             self.move_endpoint_and_flush(src, to)?;
         } else {
@@ -689,6 +669,71 @@ impl Compensator {
         Ok(())
     }
 
+    /// The first move with compensation on, a line: from the current point to the point
+    /// one radius to the side of the programmed end, perpendicular to the programmed move.
+    fn straight_entry(&mut self, src: Source, traverse: bool, p: Pose) -> Result<(), CompError> {
+        let side = self.side.unwrap_or(CompensationSide::Left);
+        let radius = self.radius;
+        let [px, py, pz] = to_plane(self.plane, &p);
+        let c = to_plane(self.plane, &self.programmed);
+        let c2 = [c[0], c[1]];
+        if distance(c2, [px, py]) <= radius {
+            return Err(CompError::new(K::EntryMoveTooShort, src));
+        }
+        let alpha = direction(c2, [px, py]) + side_angle(side);
+        let end = line_offset_end(c2, [px, py], radius, side);
+        self.set_endpoint(c2);
+        self.hold(Pending::Line {
+            source: src,
+            traverse,
+            dir: [alpha.cos(), alpha.sin()],
+            end: [end[0], end[1], pz],
+            pose: p,
+            fixed: false,
+        })?;
+        self.first_move = false;
+        self.current = [end[0], end[1], pz];
+        Ok(())
+    }
+
+    /// A concave corner from the held arc (centre, end, turn) into a line from `op2` to
+    /// `to`: where the offset line meets the compensated arc.
+    fn arc_to_line_meeting(
+        &self,
+        src: Source,
+        (centre, prev_end, prev_turn): (P2, P2, i32),
+        op2: P2,
+        [px, py]: P2,
+    ) -> Result<P2, CompError> {
+        let side = self.side.unwrap_or(CompensationSide::Left);
+        let radius = self.radius;
+        let oldrad = distance(centre, prev_end);
+        let base_dir = direction(op2, [px, py]);
+        let theta = if prev_turn > 0 {
+            base_dir + FRAC_PI_2
+        } else {
+            base_dir - FRAC_PI_2
+        };
+        let phi = direction(op2, centre);
+        let inside = tool_inside_arc(side, prev_turn);
+        let oldrad_uncomp = if inside {
+            oldrad + radius
+        } else {
+            oldrad - radius
+        };
+        let d = oldrad_uncomp * (theta - phi).cos();
+        let l = (if inside { d - radius } else { d + radius }) / oldrad;
+        if !(-1.0..=1.0).contains(&l) {
+            return Err(CompError::new(K::ArcToStraightGouge, src));
+        }
+        let angle = if inside == (prev_turn > 0) {
+            -l.acos() + theta + PI
+        } else {
+            l.acos() + theta + PI
+        };
+        Ok(polar(centre, oldrad, angle))
+    }
+
     fn arc(&mut self, src: Source, arc: &Arc) -> Result<(), CompError> {
         let side = self.side.unwrap_or(CompensationSide::Left);
         let radius = self.radius;
@@ -702,63 +747,7 @@ impl Compensator {
         let inside = tool_inside_arc(side, turn);
 
         if self.first_move {
-            // Entry on an arc: an arc from the current point to the compensated end point,
-            // tangent to the cutter at that end.
-            let c = to_plane(self.plane, &self.programmed);
-            let c2 = [c[0], c[1]];
-            if distance(end, c2) <= radius {
-                return Err(CompError::new(K::EntryArcTooShort, src));
-            }
-            if inside && distance(centre, c2) <= radius {
-                return Err(CompError::new(K::ToolRadiusNotLessThanArcRadius, src));
-            }
-            let gamma = if inside {
-                direction(end, centre)
-            } else {
-                direction(centre, end)
-            };
-            self.first_move = false;
-            let new_end = polar(end, radius, gamma);
-            let b_len = distance(c2, new_end) / 2.0;
-            let ab_ang = direction(new_end, centre);
-            let a_ang = direction(new_end, c2) - ab_ang;
-            if a_ang.cos().abs() < EQUAL_TOLERANCE {
-                return Err(CompError::new(K::ToolRadiusNotLessThanArcRadius, src));
-            }
-            let new_centre = polar(new_end, b_len / a_ang.cos(), ab_ang);
-            // A consistency check of the construction, with LinuxCNC's absolute tolerance of
-            // the arc's radius difference in the program's units.
-            let spiral = ArcRadiusTolerance::default_for(self.units).absolute;
-            if (distance(new_centre, new_end) - distance(new_centre, c2)).abs() > spiral {
-                return Err(CompError::new(K::Internal, src));
-            }
-            let rest = *arc;
-            if self.orientation != 0 && self.orientation != 9 {
-                // A lathe tool's origin is not the centre of its nose: move the origin to
-                // the compensated start first, or the arc is not an arc.
-                let mut pose = self.programmed;
-                set_rest_of_pose(&mut pose, &rest);
-                self.hold(Pending::Line {
-                    source: src,
-                    traverse: false,
-                    dir: [0.0, 0.0],
-                    end: c,
-                    pose,
-                    fixed: true,
-                })?;
-                self.set_endpoint(c2);
-            }
-            self.hold(Pending::Arc {
-                source: src,
-                original_turns: sweep(c2, new_centre, turn, new_end),
-                end: new_end,
-                centre: new_centre,
-                turn,
-                w: end_w,
-                rest,
-            })?;
-            self.current = [new_end[0], new_end[1], end_w];
-            return Ok(());
+            return self.arc_entry(src, arc);
         }
 
         let op = to_plane(self.plane, &self.programmed);
@@ -810,53 +799,8 @@ impl Compensator {
                 return Err(CompError::new(K::ConcaveAfterStop, src));
             }
             let to = match self.held_arc() {
-                None => {
-                    // Line to arc.
-                    let cy = arc_radius * (beta - FRAC_PI_2).sin();
-                    let (dist, l) = if inside {
-                        let dist = arc_radius - radius;
-                        (dist, (cy + radius) / dist)
-                    } else {
-                        let dist = arc_radius + radius;
-                        (dist, (cy - radius) / dist)
-                    };
-                    if !(-1.0..=1.0).contains(&l) {
-                        return Err(CompError::new(K::ArcGouge, src));
-                    }
-                    let angle = match (inside, turn > 0) {
-                        (true, true) => theta + l.asin(),
-                        (true, false) => theta - l.asin(),
-                        (false, true) => theta + PI - l.asin(),
-                        (false, false) => theta + PI + l.asin(),
-                    };
-                    polar(centre, dist, angle)
-                }
-                Some((prev_centre, prev_end, prev_turn)) => {
-                    // Arc to arc: where the two compensated circles meet.
-                    let oldrad = distance(prev_centre, prev_end);
-                    let newrad = if inside {
-                        arc_radius - radius
-                    } else {
-                        arc_radius + radius
-                    };
-                    let arc_cc = distance(prev_centre, centre);
-                    if oldrad == 0.0 || arc_cc == 0.0 {
-                        return Err(CompError::new(K::ArcsSameCentre, src));
-                    }
-                    let a = (oldrad * oldrad + arc_cc * arc_cc - newrad * newrad)
-                        / (2.0 * oldrad * arc_cc);
-                    if !(-1.0..=1.0).contains(&a) {
-                        return Err(CompError::new(K::ArcToArcGouge, src));
-                    }
-                    let pullback = a.acos();
-                    let cc_dir = direction(prev_centre, centre);
-                    let dir = if tool_inside_arc(side, prev_turn) == (turn > 0) {
-                        cc_dir + pullback
-                    } else {
-                        cc_dir - pullback
-                    };
-                    polar(prev_centre, oldrad, dir)
-                }
+                None => self.line_to_arc_meeting(src, arc, beta, theta)?,
+                Some(held) => self.arc_to_arc_meeting(src, held, arc)?,
             };
             self.move_endpoint_and_flush(src, to)?;
             self.hold(main)?;
@@ -884,6 +828,149 @@ impl Compensator {
         }
         self.current = [new_end[0], new_end[1], end_w];
         Ok(())
+    }
+
+    /// The first move with compensation on, an arc: an arc from the current point to the
+    /// compensated end point, tangent to the cutter at that end.
+    fn arc_entry(&mut self, src: Source, arc: &Arc) -> Result<(), CompError> {
+        let side = self.side.unwrap_or(CompensationSide::Left);
+        let radius = self.radius;
+        let turn = arc.rotation;
+        let end = [arc.first_end, arc.second_end];
+        let centre = [arc.first_axis, arc.second_axis];
+        let end_w = arc.axis_end_point;
+        let inside = tool_inside_arc(side, turn);
+        let c = to_plane(self.plane, &self.programmed);
+        let c2 = [c[0], c[1]];
+        if distance(end, c2) <= radius {
+            return Err(CompError::new(K::EntryArcTooShort, src));
+        }
+        if inside && distance(centre, c2) <= radius {
+            return Err(CompError::new(K::ToolRadiusNotLessThanArcRadius, src));
+        }
+        let gamma = if inside {
+            direction(end, centre)
+        } else {
+            direction(centre, end)
+        };
+        self.first_move = false;
+        let new_end = polar(end, radius, gamma);
+        let b_len = distance(c2, new_end) / 2.0;
+        let ab_ang = direction(new_end, centre);
+        let a_ang = direction(new_end, c2) - ab_ang;
+        if a_ang.cos().abs() < EQUAL_TOLERANCE {
+            return Err(CompError::new(K::ToolRadiusNotLessThanArcRadius, src));
+        }
+        let new_centre = polar(new_end, b_len / a_ang.cos(), ab_ang);
+        // A consistency check of the construction, with LinuxCNC's absolute tolerance of
+        // the arc's radius difference in the program's units.
+        let spiral = ArcRadiusTolerance::default_for(self.units).absolute;
+        if (distance(new_centre, new_end) - distance(new_centre, c2)).abs() > spiral {
+            return Err(CompError::new(K::Internal, src));
+        }
+        let rest = *arc;
+        if self.orientation != 0 && self.orientation != 9 {
+            // A lathe tool's origin is not the centre of its nose: move the origin to
+            // the compensated start first, or the arc is not an arc.
+            let mut pose = self.programmed;
+            set_rest_of_pose(&mut pose, &rest);
+            self.hold(Pending::Line {
+                source: src,
+                traverse: false,
+                dir: [0.0, 0.0],
+                end: c,
+                pose,
+                fixed: true,
+            })?;
+            self.set_endpoint(c2);
+        }
+        self.hold(Pending::Arc {
+            source: src,
+            original_turns: sweep(c2, new_centre, turn, new_end),
+            end: new_end,
+            centre: new_centre,
+            turn,
+            w: end_w,
+            rest,
+        })?;
+        self.current = [new_end[0], new_end[1], end_w];
+        Ok(())
+    }
+
+    /// A concave corner from the held line into `arc`, the corner's angle `beta` and the
+    /// held line's offset direction `theta`: where the offset line meets the compensated
+    /// arc.
+    fn line_to_arc_meeting(
+        &self,
+        src: Source,
+        arc: &Arc,
+        beta: f64,
+        theta: f64,
+    ) -> Result<P2, CompError> {
+        let side = self.side.unwrap_or(CompensationSide::Left);
+        let radius = self.radius;
+        let turn = arc.rotation;
+        let end = [arc.first_end, arc.second_end];
+        let centre = [arc.first_axis, arc.second_axis];
+        let inside = tool_inside_arc(side, turn);
+        let arc_radius = distance(centre, end);
+        let cy = arc_radius * (beta - FRAC_PI_2).sin();
+        let (dist, l) = if inside {
+            let dist = arc_radius - radius;
+            (dist, (cy + radius) / dist)
+        } else {
+            let dist = arc_radius + radius;
+            (dist, (cy - radius) / dist)
+        };
+        if !(-1.0..=1.0).contains(&l) {
+            return Err(CompError::new(K::ArcGouge, src));
+        }
+        let angle = match (inside, turn > 0) {
+            (true, true) => theta + l.asin(),
+            (true, false) => theta - l.asin(),
+            (false, true) => theta + PI - l.asin(),
+            (false, false) => theta + PI + l.asin(),
+        };
+        Ok(polar(centre, dist, angle))
+    }
+
+    /// A concave corner from the held arc (centre, end, turn) into `arc`: where the two
+    /// compensated circles meet.
+    fn arc_to_arc_meeting(
+        &self,
+        src: Source,
+        (prev_centre, prev_end, prev_turn): (P2, P2, i32),
+        arc: &Arc,
+    ) -> Result<P2, CompError> {
+        let side = self.side.unwrap_or(CompensationSide::Left);
+        let radius = self.radius;
+        let turn = arc.rotation;
+        let end = [arc.first_end, arc.second_end];
+        let centre = [arc.first_axis, arc.second_axis];
+        let inside = tool_inside_arc(side, turn);
+        let arc_radius = distance(centre, end);
+        let oldrad = distance(prev_centre, prev_end);
+        let newrad = if inside {
+            arc_radius - radius
+        } else {
+            arc_radius + radius
+        };
+        let arc_cc = distance(prev_centre, centre);
+        if oldrad == 0.0 || arc_cc == 0.0 {
+            return Err(CompError::new(K::ArcsSameCentre, src));
+        }
+        let a = (oldrad * oldrad + arc_cc * arc_cc - newrad * newrad) / (2.0 * oldrad * arc_cc);
+        if !(-1.0..=1.0).contains(&a) {
+            return Err(CompError::new(K::ArcToArcGouge, src));
+        }
+        let pullback = a.acos();
+        let cc_dir = direction(prev_centre, centre);
+        let dir = if tool_inside_arc(side, prev_turn) == (turn > 0) {
+            cc_dir + pullback
+        } else {
+            cc_dir - pullback
+        };
+        Ok(polar(prev_centre, oldrad, dir))
     }
 
     /// The end pose of an arc in the current plane (axes not in the arc keep their value).

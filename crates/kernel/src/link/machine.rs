@@ -18,9 +18,11 @@ use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use rtcnc_rt::{Context, RingConsumer, RingProducer, SeqlockReader};
 
 use super::Refusal;
+use super::layout::Segment;
 use super::layout::{self, WireEvent, WireStatus, WireText, ack, command, event, flags, urgent};
 use super::segment::{LinkError, Mapping, monotonic_ns};
 use crate::config::{MAX_JOINTS, MachineConfig, OnLoss};
+use crate::fault::Fault;
 use crate::messages::{Command, FixedText, MachineState, Mode, Status, Urgent};
 use crate::modal::ModalSnapshot;
 use crate::servo::Sample;
@@ -704,9 +706,22 @@ impl Publisher {
     /// One status period.
     pub(crate) fn run(&mut self, _ctx: &mut Context<'_>) {
         let status = *self.status.get();
-        let joints = self.joints.min(MAX_JOINTS);
         let map = self.map.clone();
         let seg = map.segment();
+        self.publish_trace(seg);
+        // The status first: a client that sees an event then reads a status at least as new
+        // as what the event reports.
+        let state = state_number(status.state);
+        self.build_status(&status, state, seg);
+        // SAFETY: the publisher is the status cell's only writer.
+        unsafe { seg.status.publish(self.out) };
+        self.publish_events(&status, state);
+        self.ended = status.program_ended;
+    }
+
+    /// The servo samples to the trace ring; the following errors kept for the status.
+    fn publish_trace(&mut self, seg: &Segment) {
+        let joints = self.joints.min(MAX_JOINTS);
         if let Some(samples) = self.samples.as_mut() {
             let fe = &mut self.following_error;
             samples.drain_with(|s| {
@@ -728,9 +743,10 @@ impl Publisher {
                 }
             });
         }
-        // The status first: a client that sees an event then reads a status at least as new
-        // as what the event reports.
-        let state = state_number(status.state);
+    }
+
+    /// The status snapshot in `self.out`.
+    fn build_status(&mut self, status: &Status, state: u32, seg: &Segment) {
         let fb = *self.feedback.get();
         let req = *self.requests.get();
         let outputs = *self.outputs.get();
@@ -794,45 +810,20 @@ impl Publisher {
         o.client_losses = seg.client_losses.load(Ordering::Relaxed);
         o.events_dropped = seg.events_dropped.load(Ordering::Relaxed);
         o.trace_dropped = seg.trace_dropped.load(Ordering::Relaxed);
-        // SAFETY: the publisher is the status cell's only writer.
-        unsafe { seg.status.publish(self.out) };
-        // Events: acknowledgements first (they are the oldest), then faults and messages.
+    }
+
+    /// Events: acknowledgements first (they are the oldest), then faults and messages, then
+    /// a change of state and the end of the program.
+    fn publish_events(&mut self, status: &Status, state: u32) {
         while let Some(e) = self.from_urgent.pop() {
-            self.emit(e, &status);
+            self.emit(e, status);
         }
         while let Some(e) = self.from_commands.pop() {
-            self.emit(e, &status);
+            self.emit(e, status);
         }
         while let Some(f) = self.shared.faults.try_get() {
-            let mut e = WireEvent {
-                kind: event::FAULT,
-                code: f.code.number(),
-                time_ns: f.time_ns,
-                line: f.line,
-                joint: f.joint.map_or(-1, i32::from),
-                value: f.value,
-                ..WireEvent::default()
-            };
-            use crate::fault::FaultCode as F;
-            if matches!(
-                f.code,
-                F::ProgramError | F::CompensationError | F::MotionError
-            ) {
-                if let Some(text) = self.shared.error_text.try_lock() {
-                    if let Some(t) = text.as_deref() {
-                        e.text.push(t);
-                    }
-                }
-                if e.text.len == 0 {
-                    if let Some(m) = self.shared.motion_error.try_lock() {
-                        if let Some(err) = m.as_ref() {
-                            use std::fmt::Write as _;
-                            let _ = write!(e.text, "planner: {err}");
-                        }
-                    }
-                }
-            }
-            self.emit(e, &status);
+            let e = self.fault_event(&f);
+            self.emit(e, status);
         }
         while let Some(m) = self.shared.operator_messages.try_get() {
             let e = WireEvent {
@@ -844,7 +835,7 @@ impl Publisher {
                 text: WireText::new(m.text.as_str()),
                 ..WireEvent::default()
             };
-            self.emit(e, &status);
+            self.emit(e, status);
         }
         if state != self.last_state {
             let e = WireEvent {
@@ -857,7 +848,7 @@ impl Publisher {
                 ..WireEvent::default()
             };
             self.last_state = state;
-            self.emit(e, &status);
+            self.emit(e, status);
         }
         if status.program_ended && !self.ended {
             let e = WireEvent {
@@ -866,8 +857,40 @@ impl Publisher {
                 joint: -1,
                 ..WireEvent::default()
             };
-            self.emit(e, &status);
+            self.emit(e, status);
         }
-        self.ended = status.program_ended;
+    }
+
+    /// A fault's event; the error text of a program, compensation or motion error with it.
+    fn fault_event(&self, f: &Fault) -> WireEvent {
+        let mut e = WireEvent {
+            kind: event::FAULT,
+            code: f.code.number(),
+            time_ns: f.time_ns,
+            line: f.line,
+            joint: f.joint.map_or(-1, i32::from),
+            value: f.value,
+            ..WireEvent::default()
+        };
+        use crate::fault::FaultCode as F;
+        if matches!(
+            f.code,
+            F::ProgramError | F::CompensationError | F::MotionError
+        ) {
+            if let Some(text) = self.shared.error_text.try_lock() {
+                if let Some(t) = text.as_deref() {
+                    e.text.push(t);
+                }
+            }
+            if e.text.len == 0 {
+                if let Some(m) = self.shared.motion_error.try_lock() {
+                    if let Some(err) = m.as_ref() {
+                        use std::fmt::Write as _;
+                        let _ = write!(e.text, "planner: {err}");
+                    }
+                }
+            }
+        }
+        e
     }
 }

@@ -73,6 +73,167 @@ pub(super) struct SyncedMove {
     line: u32,
 }
 
+impl SyncedMove {
+    /// The spindle's turn over this period (degrees), measured from `reading` when
+    /// `decide`, else as if it turned on as in the period before; the angle moves on by it.
+    #[inline]
+    fn turn(&mut self, reading: f64, decide: bool) -> f64 {
+        let delta = if decide {
+            let mut delta = reading - self.reading;
+            if delta > 180.0 {
+                delta -= 360.0;
+            } else if delta <= -180.0 {
+                delta += 360.0;
+            }
+            self.reading = reading;
+            delta
+        } else {
+            self.reading = (self.reading + self.delta).rem_euclid(360.0);
+            self.delta
+        };
+        if decide {
+            // Predicted periods go on with the acceleration last measured.
+            self.delta_before = self.delta;
+        }
+        self.delta = delta;
+        self.angle += delta;
+        delta
+    }
+
+    /// Waiting for the index (at angle 0): the first crossing of a whole turn, over this
+    /// period's turn `delta`.
+    #[inline]
+    fn find_index(&mut self, delta: f64) {
+        if self.index.is_none() {
+            let (now, before) = (
+                (self.angle / 360.0).floor(),
+                ((self.angle - delta) / 360.0).floor(),
+            );
+            if now != before {
+                self.index = Some(360.0 * now.max(before));
+                self.direction = if delta < 0.0 { -1.0 } else { 1.0 };
+            }
+        }
+    }
+
+    /// Past the index and not finishing: the progress and its speed on the spindle this
+    /// period (`None` once it finishes: the progress is then `otg`'s).
+    #[inline]
+    fn follow_spindle(&mut self, delta: f64, dt: f64) -> Option<(f64, f64)> {
+        let (Some(index), false) = (self.index, self.finishing) else {
+            return None;
+        };
+        let (vmax, a, j) = self.limits;
+        // Signed: a tap's spindle reverses.
+        let speed = self.pitch * self.direction * delta / 360.0 / dt;
+        let here = self.pitch * self.direction * (self.angle - index) / 360.0;
+        if self.offset.is_none() {
+            self.lock_on(speed, here);
+        }
+        let offset = self.offset.as_mut()?;
+        // The set-point is applied in the next period: where the spindle will be.
+        let e = offset.step(dt);
+        let p = here + speed * dt + e.p;
+        let v = speed + e.v;
+        let stopping = 0.5 * v * (v / a + a / j) + v * dt;
+        let length = self.length;
+        let placing = self.tap.as_mut().is_some_and(|t| {
+            t.phase = match t.phase {
+                TapPhase::In if p >= length => TapPhase::Reversing,
+                TapPhase::Reversing if speed < 0.0 => TapPhase::Out,
+                TapPhase::Out if p <= 0.0 => TapPhase::Restoring,
+                other => other,
+            };
+            t.phase == TapPhase::Restoring && speed > 0.0
+        });
+        if placing {
+            // This set-point is still the spindle's; the placement starts from it.
+            self.place_back(p, delta, e.a, dt);
+            Some((p, v))
+        } else if self.tap.is_none() && p + stopping >= self.length {
+            // The end: at most this speed, then to rest on the end point.
+            // (From the last set-point, which `otg` holds.)
+            self.finishing = true;
+            let limits = Limits::symmetric(v.abs().max(speed).max(1e-6), a, j);
+            let _ = self.otg.set_limits(limits);
+            let _ = self.otg.set_target(otg::State::at_rest(self.length));
+            None
+        } else {
+            // Where a stop would start from (abort, fault).
+            if let Ok(o) = OnlineAxis::new(
+                otg::State::new(p, v, e.a),
+                Limits::symmetric(vmax.max(v.abs()), a, j),
+            ) {
+                self.otg = o;
+            }
+            Some((p, v))
+        }
+    }
+
+    /// At the index: the offset from the spindle's progress `here` (its speed `speed`), to
+    /// be closed; without one the move finishes.
+    #[inline]
+    fn lock_on(&mut self, speed: f64, here: f64) {
+        let (vmax, a, j) = self.limits;
+        let relative = Limits {
+            max_velocity: vmax - speed,
+            min_velocity: -vmax - speed,
+            max_acceleration: a,
+            min_acceleration: -a,
+            max_jerk: j,
+        };
+        let at = self.otg.sample();
+        // A chain locks on with the lag its acceleration costs (it never runs ahead of the
+        // spindle into a corner), planned from the index's instant (the spindle has turned
+        // on since) so that the lag is the same every pass; a line catches up with the
+        // index.
+        self.offset = if self.chain {
+            let since = if speed > 0.0 { here / speed } else { 0.0 };
+            let start = otg::State::new(at.p, at.v - speed, at.a);
+            OnlineAxis::new(start, relative)
+                .and_then(|mut o| {
+                    o.stop()?;
+                    o.step(since);
+                    Ok(o)
+                })
+                .ok()
+        } else {
+            let start = otg::State::new(at.p - here, at.v - speed, at.a);
+            OnlineAxis::new(start, relative)
+                .and_then(|mut o| o.set_target(otg::State::at_rest(0.0)).map(|()| o))
+                .ok()
+        };
+        if self.offset.is_none() {
+            self.finishing = true;
+            let _ = self.otg.stop();
+        }
+    }
+
+    /// A tap's spindle turns in again: back to the start unsynchronised, from the motion
+    /// it followed to `p` (its acceleration too, `offset_acceleration` being the offset's,
+    /// so that it goes on smoothly).
+    #[inline]
+    fn place_back(&mut self, p: f64, delta: f64, offset_acceleration: f64, dt: f64) {
+        let (vmax, a, j) = self.limits;
+        self.finishing = true;
+        // The set-points' own velocity and acceleration (the spindle's speed measured is
+        // that of the period before).
+        let turning = self.pitch * self.direction * (delta - self.delta_before) / 360.0;
+        let acceleration = (turning / (dt * dt) + offset_acceleration).clamp(-a, a);
+        let before = self.otg.sample().p;
+        let velocity = (p - before) / dt + 0.5 * acceleration * dt;
+        if let Ok(mut o) = OnlineAxis::new(
+            otg::State::new(p, velocity, acceleration),
+            Limits::symmetric(vmax.max(velocity.abs()), a, j),
+        ) {
+            let _ = o.set_target(otg::State::at_rest(0.0));
+            self.otg = o;
+        } else {
+            let _ = self.otg.set_target(otg::State::at_rest(0.0));
+        }
+    }
+}
+
 /// Where a rigid tap is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum TapPhase {
@@ -529,133 +690,9 @@ impl MotionCore {
             return;
         };
         let dt = self.machine.period_s;
-        let delta = if decide {
-            let mut delta = feedback.spindle_angle_deg - m.reading;
-            if delta > 180.0 {
-                delta -= 360.0;
-            } else if delta <= -180.0 {
-                delta += 360.0;
-            }
-            m.reading = feedback.spindle_angle_deg;
-            delta
-        } else {
-            m.reading = (m.reading + m.delta).rem_euclid(360.0);
-            m.delta
-        };
-        if decide {
-            // Predicted periods go on with the acceleration last measured.
-            m.delta_before = m.delta;
-        }
-        m.delta = delta;
-        m.angle += delta;
-        if m.index.is_none() {
-            // The index is at angle 0: the first crossing of a whole turn.
-            let (now, before) = (
-                (m.angle / 360.0).floor(),
-                ((m.angle - delta) / 360.0).floor(),
-            );
-            if now != before {
-                m.index = Some(360.0 * now.max(before));
-                m.direction = if delta < 0.0 { -1.0 } else { 1.0 };
-            }
-        }
-        let mut progress = None;
-        if let (Some(index), false) = (m.index, m.finishing) {
-            let (vmax, a, j) = m.limits;
-            // Signed: a tap's spindle reverses.
-            let speed = m.pitch * m.direction * delta / 360.0 / dt;
-            let here = m.pitch * m.direction * (m.angle - index) / 360.0;
-            if m.offset.is_none() {
-                // At the index: the offset from the spindle's progress now, to be closed.
-                let relative = Limits {
-                    max_velocity: vmax - speed,
-                    min_velocity: -vmax - speed,
-                    max_acceleration: a,
-                    min_acceleration: -a,
-                    max_jerk: j,
-                };
-                let at = m.otg.sample();
-                // A chain locks on with the lag its acceleration costs (it never runs
-                // ahead of the spindle into a corner), planned from the index's instant
-                // (the spindle has turned on since) so that the lag is the same every
-                // pass; a line catches up with the index.
-                m.offset = if m.chain {
-                    let since = if speed > 0.0 { here / speed } else { 0.0 };
-                    let start = otg::State::new(at.p, at.v - speed, at.a);
-                    OnlineAxis::new(start, relative)
-                        .and_then(|mut o| {
-                            o.stop()?;
-                            o.step(since);
-                            Ok(o)
-                        })
-                        .ok()
-                } else {
-                    let start = otg::State::new(at.p - here, at.v - speed, at.a);
-                    OnlineAxis::new(start, relative)
-                        .and_then(|mut o| o.set_target(otg::State::at_rest(0.0)).map(|()| o))
-                        .ok()
-                };
-                if m.offset.is_none() {
-                    m.finishing = true;
-                    let _ = m.otg.stop();
-                }
-            }
-            if let Some(offset) = m.offset.as_mut() {
-                // The set-point is applied in the next period: where the spindle will be.
-                let e = offset.step(dt);
-                let p = here + speed * dt + e.p;
-                let v = speed + e.v;
-                let stopping = 0.5 * v * (v / a + a / j) + v * dt;
-                let placing = m.tap.as_mut().is_some_and(|t| {
-                    t.phase = match t.phase {
-                        TapPhase::In if p >= m.length => TapPhase::Reversing,
-                        TapPhase::Reversing if speed < 0.0 => TapPhase::Out,
-                        TapPhase::Out if p <= 0.0 => TapPhase::Restoring,
-                        other => other,
-                    };
-                    t.phase == TapPhase::Restoring && speed > 0.0
-                });
-                if placing {
-                    // The spindle turns in again: back to the start unsynchronised, from
-                    // the motion it followed (its acceleration too, so that it goes on
-                    // smoothly).
-                    // This set-point is still the spindle's; the placement starts from it.
-                    m.finishing = true;
-                    progress = Some((p, v));
-                    // The set-points' own velocity and acceleration (the spindle's speed
-                    // measured is that of the period before).
-                    let turning = m.pitch * m.direction * (delta - m.delta_before) / 360.0;
-                    let acceleration = (turning / (dt * dt) + e.a).clamp(-a, a);
-                    let before = m.otg.sample().p;
-                    let velocity = (p - before) / dt + 0.5 * acceleration * dt;
-                    if let Ok(mut o) = OnlineAxis::new(
-                        otg::State::new(p, velocity, acceleration),
-                        Limits::symmetric(vmax.max(velocity.abs()), a, j),
-                    ) {
-                        let _ = o.set_target(otg::State::at_rest(0.0));
-                        m.otg = o;
-                    } else {
-                        let _ = m.otg.set_target(otg::State::at_rest(0.0));
-                    }
-                } else if m.tap.is_none() && p + stopping >= m.length {
-                    // The end: at most this speed, then to rest on the end point.
-                    // (From the last set-point, which `otg` holds.)
-                    m.finishing = true;
-                    let limits = Limits::symmetric(v.abs().max(speed).max(1e-6), a, j);
-                    let _ = m.otg.set_limits(limits);
-                    let _ = m.otg.set_target(otg::State::at_rest(m.length));
-                } else {
-                    progress = Some((p, v));
-                    // Where a stop would start from (abort, fault).
-                    if let Ok(o) = OnlineAxis::new(
-                        otg::State::new(p, v, e.a),
-                        Limits::symmetric(vmax.max(v.abs()), a, j),
-                    ) {
-                        m.otg = o;
-                    }
-                }
-            }
-        }
+        let delta = m.turn(feedback.spindle_angle_deg, decide);
+        m.find_index(delta);
+        let progress = m.follow_spindle(delta, dt);
         let s = match progress {
             Some((p, v)) => otg::Sample {
                 p,

@@ -174,90 +174,9 @@ impl<'a> Compiler<'a> {
                     ins.push(arg);
                 }
                 Arg::Output(n, target, negate) => {
-                    let Some(m) = params.iter().find(|m| m.name == n.text).cloned() else {
-                        return Err(self.e(
-                            n.pos,
-                            ErrorKind::WrongArgument,
-                            format!("{pou} has no parameter '{}'", n.text),
-                        ));
-                    };
-                    if m.kind != VarKind::Output {
-                        return Err(self.e(
-                            n.pos,
-                            ErrorKind::WrongArgument,
-                            format!("'{}' of {pou} is not an output", n.text),
-                        ));
+                    if let Some(out) = self.bind_output(pou, params, n, target, *negate, sc)? {
+                        outs.push(out);
                     }
-                    let Some(t) = target else { continue };
-                    let lv = self.access(t, sc)?;
-                    self.check_writable(&lv, t.root.pos)?;
-                    if *negate && !m.ty.is_bool() {
-                        return Err(self.e(
-                            n.pos,
-                            ErrorKind::WrongArgument,
-                            "only BOOL outputs can be negated",
-                        ));
-                    }
-                    // CODESYS and TwinCAT declare the counters' CV as WORD: any integer
-                    // or bit-string target takes it, wrapped to its width.
-                    let counter_cv = is_counter(pou) && m.name == "CV";
-                    let wrap = lv
-                        .ty
-                        .elem()
-                        .filter(|e| counter_cv && (e.is_int() || e.is_bit()) && *e != Elem::Int)
-                        .map(ik);
-                    let ok = wrap.is_some()
-                        || lv.ty == m.ty
-                        || matches!(
-                            (&m.ty, &lv.ty),
-                            (Type::String(_), Type::String(_))
-                                | (Type::WString(_), Type::WString(_))
-                        )
-                        || matches!((m.ty.elem(), lv.ty.elem()), (Some(a), Some(b)) if widens(a, b) && !matches!(lv.ty, Type::Subrange(..)));
-                    if !ok || lv.bit.is_some() {
-                        return Err(self.e(
-                            t.root.pos,
-                            ErrorKind::WrongArgument,
-                            format!(
-                                "output '{}' is {}, the target is {}",
-                                n.text,
-                                self.type_name(&m.ty),
-                                self.type_name(&lv.ty)
-                            ),
-                        ));
-                    }
-                    if wrap.is_none()
-                        && m.ty.elem() != lv.ty.elem()
-                        && m.ty.scalar().is_some()
-                        && m.ty.elem() != Some(Elem::Bool)
-                    {
-                        // Widening outputs: read through a conversion is not expressible as a
-                        // copy, so only same-encoding widenings are accepted.
-                        let (f, t) = (
-                            m.ty.elem().unwrap_or(Elem::Bool),
-                            lv.ty.elem().unwrap_or(Elem::Bool),
-                        );
-                        if f.is_real() != t.is_real() {
-                            return Err(self.e(
-                                t_root(target),
-                                ErrorKind::WrongArgument,
-                                format!(
-                                    "output '{}' is {}; convert it explicitly",
-                                    n.text,
-                                    f.name()
-                                ),
-                            ));
-                        }
-                    }
-                    let store = self.store_kind(&lv.ty);
-                    outs.push(ArgOut {
-                        param: m.offset,
-                        src: repr_of(&m.ty),
-                        target: self.place(lv),
-                        store,
-                        negate: *negate,
-                        wrap,
-                    });
                 }
             }
         }
@@ -271,6 +190,100 @@ impl<'a> Compiler<'a> {
             }
         }
         Ok((!calls_user, ins.into_boxed_slice(), outs.into_boxed_slice()))
+    }
+
+    /// `n => target` (`negate`: `NOT n => target`): the output's copy to its target after
+    /// the call, none without a target.
+    fn bind_output(
+        &mut self,
+        pou: &str,
+        params: &[Member],
+        n: &Name,
+        target: &Option<Access>,
+        negate: bool,
+        sc: &mut Scope,
+    ) -> R<Option<ArgOut>> {
+        let Some(m) = params.iter().find(|m| m.name == n.text).cloned() else {
+            return Err(self.e(
+                n.pos,
+                ErrorKind::WrongArgument,
+                format!("{pou} has no parameter '{}'", n.text),
+            ));
+        };
+        if m.kind != VarKind::Output {
+            return Err(self.e(
+                n.pos,
+                ErrorKind::WrongArgument,
+                format!("'{}' of {pou} is not an output", n.text),
+            ));
+        }
+        let Some(t) = target else {
+            return Ok(None);
+        };
+        let lv = self.access(t, sc)?;
+        self.check_writable(&lv, t.root.pos)?;
+        if negate && !m.ty.is_bool() {
+            return Err(self.e(
+                n.pos,
+                ErrorKind::WrongArgument,
+                "only BOOL outputs can be negated",
+            ));
+        }
+        // CODESYS and TwinCAT declare the counters' CV as WORD: any integer
+        // or bit-string target takes it, wrapped to its width.
+        let counter_cv = is_counter(pou) && m.name == "CV";
+        let wrap = lv
+            .ty
+            .elem()
+            .filter(|e| counter_cv && (e.is_int() || e.is_bit()) && *e != Elem::Int)
+            .map(ik);
+        let ok = wrap.is_some()
+            || lv.ty == m.ty
+            || matches!(
+                (&m.ty, &lv.ty),
+                (Type::String(_), Type::String(_)) | (Type::WString(_), Type::WString(_))
+            )
+            || matches!((m.ty.elem(), lv.ty.elem()), (Some(a), Some(b)) if widens(a, b) && !matches!(lv.ty, Type::Subrange(..)));
+        if !ok || lv.bit.is_some() {
+            return Err(self.e(
+                t.root.pos,
+                ErrorKind::WrongArgument,
+                format!(
+                    "output '{}' is {}, the target is {}",
+                    n.text,
+                    self.type_name(&m.ty),
+                    self.type_name(&lv.ty)
+                ),
+            ));
+        }
+        if wrap.is_none()
+            && m.ty.elem() != lv.ty.elem()
+            && m.ty.scalar().is_some()
+            && m.ty.elem() != Some(Elem::Bool)
+        {
+            // Widening outputs: read through a conversion is not expressible as a
+            // copy, so only same-encoding widenings are accepted.
+            let (f, t) = (
+                m.ty.elem().unwrap_or(Elem::Bool),
+                lv.ty.elem().unwrap_or(Elem::Bool),
+            );
+            if f.is_real() != t.is_real() {
+                return Err(self.e(
+                    t_root(target),
+                    ErrorKind::WrongArgument,
+                    format!("output '{}' is {}; convert it explicitly", n.text, f.name()),
+                ));
+            }
+        }
+        let store = self.store_kind(&lv.ty);
+        Ok(Some(ArgOut {
+            param: m.offset,
+            src: repr_of(&m.ty),
+            target: self.place(lv),
+            store,
+            negate,
+            wrap,
+        }))
     }
 
     pub(super) fn arg_in(

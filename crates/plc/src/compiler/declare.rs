@@ -87,180 +87,232 @@ impl<'a> Compiler<'a> {
                 Ok((Type::Reference(Arc::new(t)), None))
             }
             TypeSpec::String { len, wide, pos } => {
-                let n = match len {
-                    Some(e) => self.const_int_in(e, scope)?,
-                    None => DEFAULT_STRING_LEN as i128,
-                };
-                if n < 1 || n > MAX_STRING_LEN as i128 {
-                    return Err(self.e(
-                        *pos,
-                        ErrorKind::Invalid,
-                        format!(
-                            "{} length must be 1..{MAX_STRING_LEN}",
-                            if *wide { "WSTRING" } else { "STRING" }
-                        ),
-                    ));
-                }
-                if *wide {
-                    Ok((Type::WString(n as u16), None))
-                } else {
-                    Ok((Type::String(n as u16), None))
-                }
+                self.string_type(len.as_ref(), *wide, *pos, scope)
             }
-            TypeSpec::Array { dims, elem, pos } => {
-                let mut bounds = Vec::new();
-                for (lo, hi) in dims {
-                    let l = self.const_int_in(lo, scope)?;
-                    let h = self.const_int_in(hi, scope)?;
-                    if h < l
-                        || h - l >= MAX_BYTES as i128
-                        || l < i64::MIN as i128 / 2
-                        || h > i64::MAX as i128 / 2
-                    {
-                        return Err(self.e(
-                            lo.pos(),
-                            ErrorKind::Invalid,
-                            format!("array bounds {l}..{h} are empty or too large"),
-                        ));
-                    }
-                    bounds.push((l as i64, h as i64));
-                }
-                let (et, etpl) = self.type_spec(elem, None, scope)?;
-                let elem_size = size_of(self, &et);
-                let count: u64 = bounds.iter().map(|(l, h)| (h - l + 1) as u64).product();
-                if count.saturating_mul(elem_size as u64) > MAX_BYTES {
-                    return Err(self.e(*pos, ErrorKind::Invalid, "array is too large"));
-                }
-                let at = Type::Array(Arc::new(ArrayType {
-                    dims: bounds,
-                    elem: et,
-                    elem_size,
-                }));
-                let tpl = etpl.map(|t| t.repeat(count as usize));
-                Ok((at, tpl))
-            }
+            TypeSpec::Array { dims, elem, pos } => self.array_type(dims, elem, *pos, scope),
             TypeSpec::Struct { fields, union, pos } => {
-                let mut fs: Vec<Field> = Vec::new();
-                let mut off = 0u32;
-                let mut align = 1u32;
-                let mut inits: Vec<FieldInit> = Vec::new();
-                for d in fields {
-                    let (t, tpl) = self.type_spec(&d.ty, None, scope)?;
-                    for n in &d.names {
-                        if fs.iter().any(|f| f.name == n.text) {
-                            return Err(self.e(
-                                n.pos,
-                                ErrorKind::Duplicate,
-                                format!("field '{}' declared twice", n.text),
-                            ));
-                        }
-                        let a = align_of(self, &t);
-                        align = align.max(a);
-                        // A union's members all start at 0 and share its bytes.
-                        let at = if *union { 0 } else { align_up(off, a) };
-                        fs.push(Field {
-                            name: n.text.clone(),
-                            ty: t.clone(),
-                            offset: at,
-                        });
-                        inits.push((at, t.clone(), tpl.clone(), d.init.as_ref()));
-                        off = off.max(at.saturating_add(size_of(self, &t)));
-                    }
-                }
-                // Padded to its alignment, so the elements of an array of it stay aligned.
-                let off = align_up(off, align);
-                if off as u64 > MAX_BYTES {
-                    return Err(self.e(*pos, ErrorKind::Invalid, "structure is too large"));
-                }
-                let mut tpl = vec![0u8; off as usize];
-                for (k, (o, t, ttpl, init)) in inits.into_iter().enumerate() {
-                    // A union starts as its first member's initial value, then takes
-                    // every member's explicit one in order.
-                    if !*union || k == 0 {
-                        let sub = ttpl.unwrap_or_else(|| self.template(&t));
-                        tpl[o as usize..o as usize + sub.len()].copy_from_slice(&sub);
-                    }
-                    if let Some(i) = init {
-                        self.apply_init(&t, i, &mut tpl, o as usize, scope)?;
-                    }
-                }
-                let id = self.structs.len() as u32;
-                let sname = name.map_or_else(|| format!("STRUCT#{id}"), str::to_string);
-                self.structs.push((
-                    StructType {
-                        name: sname,
-                        fields: fs,
-                        size: off,
-                        align,
-                    },
-                    tpl,
-                ));
-                Ok((Type::Struct(id), None))
+                self.struct_type(fields, *union, *pos, name, scope)
             }
             TypeSpec::Enum { values, base, pos } => {
-                if let Some(b) = base {
-                    let ok = Elem::from_name(&b.text).is_some_and(|e| e.is_int() || e.is_bit());
-                    if !ok {
-                        return Err(self.e(
-                            b.pos,
-                            ErrorKind::TypeMismatch,
-                            "an enumeration's base type must be an integer type",
-                        ));
-                    }
-                }
-                let id = self.enums.len() as u32;
-                let mut vals: Vec<(String, i64)> = Vec::new();
-                let mut next = 0i64;
-                for (n, v) in values {
-                    let val = match v {
-                        Some(e) => self.const_int_in(e, scope)? as i64,
-                        None => next,
-                    };
-                    if vals.iter().any(|(x, _)| x == &n.text) {
-                        return Err(self.e(
-                            n.pos,
-                            ErrorKind::Duplicate,
-                            format!("enumeration value '{}' declared twice", n.text),
-                        ));
-                    }
-                    vals.push((n.text.clone(), val));
-                    next = val.wrapping_add(1);
-                    self.enum_values
-                        .entry(n.text.clone())
-                        .or_default()
-                        .push((id, val));
-                }
-                if vals.is_empty() {
-                    return Err(self.e(*pos, ErrorKind::Invalid, "empty enumeration"));
-                }
-                let ename = name.map_or_else(|| format!("ENUM#{id}"), str::to_string);
-                self.enums.push(EnumType {
-                    name: ename,
-                    values: vals,
-                });
-                Ok((Type::Enum(id), None))
+                self.enum_type(values, base.as_ref(), *pos, name, scope)
             }
-            TypeSpec::Subrange { base, low, high } => {
-                let Some(e) = Elem::from_name(&base.text).filter(|e| e.is_int()) else {
+            TypeSpec::Subrange { base, low, high } => self.subrange_type(base, low, high, scope),
+        }
+    }
+
+    /// STRING and WSTRING, of `len` characters or the default length.
+    fn string_type(
+        &mut self,
+        len: Option<&AExpr>,
+        wide: bool,
+        pos: Pos,
+        scope: &Scope,
+    ) -> R<(Type, Option<Vec<u8>>)> {
+        let n = match len {
+            Some(e) => self.const_int_in(e, scope)?,
+            None => DEFAULT_STRING_LEN as i128,
+        };
+        if n < 1 || n > MAX_STRING_LEN as i128 {
+            return Err(self.e(
+                pos,
+                ErrorKind::Invalid,
+                format!(
+                    "{} length must be 1..{MAX_STRING_LEN}",
+                    if wide { "WSTRING" } else { "STRING" }
+                ),
+            ));
+        }
+        if wide {
+            Ok((Type::WString(n as u16), None))
+        } else {
+            Ok((Type::String(n as u16), None))
+        }
+    }
+
+    /// An ARRAY: its bounds, its element type and the template repeated.
+    fn array_type(
+        &mut self,
+        dims: &[(AExpr, AExpr)],
+        elem: &TypeSpec,
+        pos: Pos,
+        scope: &Scope,
+    ) -> R<(Type, Option<Vec<u8>>)> {
+        let mut bounds = Vec::new();
+        for (lo, hi) in dims {
+            let l = self.const_int_in(lo, scope)?;
+            let h = self.const_int_in(hi, scope)?;
+            if h < l
+                || h - l >= MAX_BYTES as i128
+                || l < i64::MIN as i128 / 2
+                || h > i64::MAX as i128 / 2
+            {
+                return Err(self.e(
+                    lo.pos(),
+                    ErrorKind::Invalid,
+                    format!("array bounds {l}..{h} are empty or too large"),
+                ));
+            }
+            bounds.push((l as i64, h as i64));
+        }
+        let (et, etpl) = self.type_spec(elem, None, scope)?;
+        let elem_size = size_of(self, &et);
+        let count: u64 = bounds.iter().map(|(l, h)| (h - l + 1) as u64).product();
+        if count.saturating_mul(elem_size as u64) > MAX_BYTES {
+            return Err(self.e(pos, ErrorKind::Invalid, "array is too large"));
+        }
+        let at = Type::Array(Arc::new(ArrayType {
+            dims: bounds,
+            elem: et,
+            elem_size,
+        }));
+        let tpl = etpl.map(|t| t.repeat(count as usize));
+        Ok((at, tpl))
+    }
+
+    /// A STRUCT or a UNION (`union`), registered as `name`; its template is kept with it.
+    fn struct_type(
+        &mut self,
+        fields: &[ast::VarDecl],
+        union: bool,
+        pos: Pos,
+        name: Option<&str>,
+        scope: &Scope,
+    ) -> R<(Type, Option<Vec<u8>>)> {
+        let mut fs: Vec<Field> = Vec::new();
+        let mut off = 0u32;
+        let mut align = 1u32;
+        let mut inits: Vec<FieldInit> = Vec::new();
+        for d in fields {
+            let (t, tpl) = self.type_spec(&d.ty, None, scope)?;
+            for n in &d.names {
+                if fs.iter().any(|f| f.name == n.text) {
                     return Err(self.e(
-                        base.pos,
-                        ErrorKind::TypeMismatch,
-                        "a subrange needs an integer base type",
-                    ));
-                };
-                let l = self.const_int_in(low, scope)?;
-                let h = self.const_int_in(high, scope)?;
-                let (tl, th) = e.int_range().unwrap_or((0, 0));
-                if l > h || l < tl || h > th {
-                    return Err(self.e(
-                        low.pos(),
-                        ErrorKind::Invalid,
-                        format!("subrange {l}..{h} does not fit {}", e.name()),
+                        n.pos,
+                        ErrorKind::Duplicate,
+                        format!("field '{}' declared twice", n.text),
                     ));
                 }
-                Ok((Type::Subrange(e, l as i64, h as i64), None))
+                let a = align_of(self, &t);
+                align = align.max(a);
+                // A union's members all start at 0 and share its bytes.
+                let at = if union { 0 } else { align_up(off, a) };
+                fs.push(Field {
+                    name: n.text.clone(),
+                    ty: t.clone(),
+                    offset: at,
+                });
+                inits.push((at, t.clone(), tpl.clone(), d.init.as_ref()));
+                off = off.max(at.saturating_add(size_of(self, &t)));
             }
         }
+        // Padded to its alignment, so the elements of an array of it stay aligned.
+        let off = align_up(off, align);
+        if off as u64 > MAX_BYTES {
+            return Err(self.e(pos, ErrorKind::Invalid, "structure is too large"));
+        }
+        let mut tpl = vec![0u8; off as usize];
+        for (k, (o, t, ttpl, init)) in inits.into_iter().enumerate() {
+            // A union starts as its first member's initial value, then takes
+            // every member's explicit one in order.
+            if !union || k == 0 {
+                let sub = ttpl.unwrap_or_else(|| self.template(&t));
+                tpl[o as usize..o as usize + sub.len()].copy_from_slice(&sub);
+            }
+            if let Some(i) = init {
+                self.apply_init(&t, i, &mut tpl, o as usize, scope)?;
+            }
+        }
+        let id = self.structs.len() as u32;
+        let sname = name.map_or_else(|| format!("STRUCT#{id}"), str::to_string);
+        self.structs.push((
+            StructType {
+                name: sname,
+                fields: fs,
+                size: off,
+                align,
+            },
+            tpl,
+        ));
+        Ok((Type::Struct(id), None))
+    }
+
+    /// An enumeration, registered as `name`; each value's name is looked up by later uses.
+    fn enum_type(
+        &mut self,
+        values: &[(Name, Option<AExpr>)],
+        base: Option<&Name>,
+        pos: Pos,
+        name: Option<&str>,
+        scope: &Scope,
+    ) -> R<(Type, Option<Vec<u8>>)> {
+        if let Some(b) = base {
+            let ok = Elem::from_name(&b.text).is_some_and(|e| e.is_int() || e.is_bit());
+            if !ok {
+                return Err(self.e(
+                    b.pos,
+                    ErrorKind::TypeMismatch,
+                    "an enumeration's base type must be an integer type",
+                ));
+            }
+        }
+        let id = self.enums.len() as u32;
+        let mut vals: Vec<(String, i64)> = Vec::new();
+        let mut next = 0i64;
+        for (n, v) in values {
+            let val = match v {
+                Some(e) => self.const_int_in(e, scope)? as i64,
+                None => next,
+            };
+            if vals.iter().any(|(x, _)| x == &n.text) {
+                return Err(self.e(
+                    n.pos,
+                    ErrorKind::Duplicate,
+                    format!("enumeration value '{}' declared twice", n.text),
+                ));
+            }
+            vals.push((n.text.clone(), val));
+            next = val.wrapping_add(1);
+            self.enum_values
+                .entry(n.text.clone())
+                .or_default()
+                .push((id, val));
+        }
+        if vals.is_empty() {
+            return Err(self.e(pos, ErrorKind::Invalid, "empty enumeration"));
+        }
+        let ename = name.map_or_else(|| format!("ENUM#{id}"), str::to_string);
+        self.enums.push(EnumType {
+            name: ename,
+            values: vals,
+        });
+        Ok((Type::Enum(id), None))
+    }
+
+    fn subrange_type(
+        &mut self,
+        base: &Name,
+        low: &AExpr,
+        high: &AExpr,
+        scope: &Scope,
+    ) -> R<(Type, Option<Vec<u8>>)> {
+        let Some(e) = Elem::from_name(&base.text).filter(|e| e.is_int()) else {
+            return Err(self.e(
+                base.pos,
+                ErrorKind::TypeMismatch,
+                "a subrange needs an integer base type",
+            ));
+        };
+        let l = self.const_int_in(low, scope)?;
+        let h = self.const_int_in(high, scope)?;
+        let (tl, th) = e.int_range().unwrap_or((0, 0));
+        if l > h || l < tl || h > th {
+            return Err(self.e(
+                low.pos(),
+                ErrorKind::Invalid,
+                format!("subrange {l}..{h} does not fit {}", e.name()),
+            ));
+        }
+        Ok((Type::Subrange(e, l as i64, h as i64), None))
     }
 
     /// Default initial bytes of a type.
@@ -526,45 +578,28 @@ impl<'a> Compiler<'a> {
         }
     }
 
-    pub(super) fn fb_layout(&mut self, pou: &'a ast::Pou) -> R<FbInfo> {
-        let mut members: Vec<Member> = Vec::new();
-        // The type tag: 8 bytes at the start, where CODESYS keeps the block's table of
-        // methods.
-        let mut off = 8u32;
-        let mut template: Vec<u8> = vec![0; 8];
-        let mut base = None;
-        let mut methods = Vec::new();
-        let mut properties = Vec::new();
-        if let Some(bn) = &pou.extends {
-            let id = match self.fb_id(bn)? {
-                Some(id) if self.fbs[id as usize].std.is_none() => id,
-                Some(_) => {
-                    return Err(self.e(
-                        bn.pos,
-                        ErrorKind::Invalid,
-                        format!(
-                            "'{}' is a standard function block; EXTENDS needs a FUNCTION_BLOCK of this program",
-                            bn.text
-                        ),
-                    ));
-                }
-                None => {
-                    return Err(self.e(
-                        bn.pos,
-                        ErrorKind::Undeclared,
-                        format!("no FUNCTION_BLOCK named '{}' to extend", bn.text),
-                    ));
-                }
-            };
-            let b = &self.fbs[id as usize];
-            members = b.members.clone();
-            template = b.template.clone();
-            off = b.size;
-            methods = b.methods.clone();
-            properties = b.properties.clone();
-            base = Some(id);
+    /// The block a FUNCTION_BLOCK EXTENDS: one of the program's.
+    fn extended_fb(&mut self, bn: &Name) -> R<u32> {
+        match self.fb_id(bn)? {
+            Some(id) if self.fbs[id as usize].std.is_none() => Ok(id),
+            Some(_) => Err(self.e(
+                bn.pos,
+                ErrorKind::Invalid,
+                format!(
+                    "'{}' is a standard function block; EXTENDS needs a FUNCTION_BLOCK of this program",
+                    bn.text
+                ),
+            )),
+            None => Err(self.e(
+                bn.pos,
+                ErrorKind::Undeclared,
+                format!("no FUNCTION_BLOCK named '{}' to extend", bn.text),
+            )),
         }
-        let own_start = off;
+    }
+
+    /// The interfaces a FUNCTION_BLOCK IMPLEMENTS.
+    fn implemented_interfaces(&mut self, pou: &'a ast::Pou) -> R<Vec<u32>> {
         let mut interfaces = Vec::new();
         for i in &pou.implements {
             if !self.iface_asts.contains_key(&i.text) {
@@ -576,6 +611,30 @@ impl<'a> Compiler<'a> {
             }
             interfaces.push(self.iface(i)?);
         }
+        Ok(interfaces)
+    }
+
+    pub(super) fn fb_layout(&mut self, pou: &'a ast::Pou) -> R<FbInfo> {
+        let mut members: Vec<Member> = Vec::new();
+        // The type tag: 8 bytes at the start, where CODESYS keeps the block's table of
+        // methods.
+        let mut off = 8u32;
+        let mut template: Vec<u8> = vec![0; 8];
+        let mut base = None;
+        let mut methods = Vec::new();
+        let mut properties = Vec::new();
+        if let Some(bn) = &pou.extends {
+            let id = self.extended_fb(bn)?;
+            let b = &self.fbs[id as usize];
+            members = b.members.clone();
+            template = b.template.clone();
+            off = b.size;
+            methods = b.methods.clone();
+            properties = b.properties.clone();
+            base = Some(id);
+        }
+        let own_start = off;
+        let interfaces = self.implemented_interfaces(pou)?;
         let mut scope = Scope {
             vars: HashMap::new(),
             kind: PouKind::FunctionBlock,
@@ -586,31 +645,7 @@ impl<'a> Compiler<'a> {
             for_vars: Vec::new(),
         };
         self.constants_ahead(&pou.vars, &mut scope);
-        // VAR_TEMP members go last, so the slots re-initialised per call are contiguous.
-        // A METHOD's VAR_INST lives in the instance as `METHOD.NAME`.
-        let inst_vars: Vec<(String, &ast::VarBlock)> = pou
-            .methods
-            .iter()
-            .flat_map(|m| {
-                m.vars
-                    .iter()
-                    .filter(|b| b.kind == VarKind::Inst)
-                    .map(move |b| (format!("{}.", m.name.text), b))
-            })
-            .collect();
-        let ordered = pou
-            .vars
-            .iter()
-            .filter(|b| b.kind != VarKind::Temp)
-            .map(|b| (String::new(), b))
-            .chain(inst_vars)
-            .chain(
-                pou.vars
-                    .iter()
-                    .filter(|b| b.kind == VarKind::Temp)
-                    .map(|b| (String::new(), b)),
-            );
-        for (prefix, b) in ordered {
+        for (prefix, b) in fb_member_blocks(pou) {
             if matches!(b.kind, VarKind::Global) {
                 return Err(self.e(
                     pou.name.pos,
@@ -740,6 +775,52 @@ impl<'a> Compiler<'a> {
         Ok(id)
     }
 
+    /// A function's or method's result type: none for VOID or without one; never a
+    /// function block.
+    fn return_type(
+        &mut self,
+        name: &Name,
+        ret_spec: &Option<TypeSpec>,
+        scope: &Scope,
+    ) -> R<Option<Type>> {
+        let ret = match ret_spec {
+            Some(TypeSpec::Named(t)) if t.text == "VOID" => None,
+            Some(spec) => Some(self.type_spec(spec, None, scope)?.0),
+            None => None,
+        };
+        if let Some(Type::Fb(_)) = ret {
+            return Err(self.e(
+                name.pos,
+                ErrorKind::Invalid,
+                "a function cannot return a function block",
+            ));
+        }
+        Ok(ret)
+    }
+
+    /// A variable's slot in a static frame, its initial value written there unless it is a
+    /// VAR_IN_OUT (`inout`: the slot holds an address).
+    fn frame_slot(
+        &mut self,
+        t: &Type,
+        tpl: &Option<Vec<u8>>,
+        init: Option<&Init>,
+        inout: bool,
+        pos: Pos,
+        scope: &Scope,
+    ) -> R<u32> {
+        let size = if inout { 8 } else { size_of(self, t) };
+        let a = self.alloc(size, pos)?;
+        if !inout {
+            let mut sub = tpl.clone().unwrap_or_else(|| self.template(t));
+            if let Some(i) = init {
+                self.apply_init(t, i, &mut sub, 0, scope)?;
+            }
+            self.image[a as usize..a as usize + sub.len()].copy_from_slice(&sub);
+        }
+        Ok(a)
+    }
+
     /// Lays out a function or method: a static frame with the result, parameters and
     /// locals (functions and methods cannot recurse, so one frame each is enough).
     pub(super) fn callable(
@@ -758,18 +839,7 @@ impl<'a> Compiler<'a> {
             fb: None,
             for_vars: Vec::new(),
         };
-        let ret = match ret_spec {
-            Some(TypeSpec::Named(t)) if t.text == "VOID" => None,
-            Some(spec) => Some(self.type_spec(spec, None, &scope)?.0),
-            None => None,
-        };
-        if let Some(Type::Fb(_)) = ret {
-            return Err(self.e(
-                name.pos,
-                ErrorKind::Invalid,
-                "a function cannot return a function block",
-            ));
-        }
+        let ret = self.return_type(name, ret_spec, &scope)?;
         let start = self.image.len() as u32;
         let result = self.alloc(ret.as_ref().map_or(8, |t| size_of(self, t)), name.pos)?;
         if let Some(t) = &ret {
@@ -828,15 +898,7 @@ impl<'a> Compiler<'a> {
                         ));
                     }
                     let inout = b.kind == VarKind::InOut;
-                    let size = if inout { 8 } else { size_of(self, &t) };
-                    let a = self.alloc(size, n.pos)?;
-                    if !inout {
-                        let mut sub = tpl.clone().unwrap_or_else(|| self.template(&t));
-                        if let Some(i) = &d.init {
-                            self.apply_init(&t, i, &mut sub, 0, &scope)?;
-                        }
-                        self.image[a as usize..a as usize + sub.len()].copy_from_slice(&sub);
-                    }
+                    let a = self.frame_slot(&t, &tpl, d.init.as_ref(), inout, n.pos, &scope)?;
                     let const_val = if b.constant && t.scalar().is_some() {
                         Some(repr_of(&t).load(&self.image, a as usize))
                     } else {
@@ -1508,4 +1570,31 @@ impl<'a> Compiler<'a> {
         });
         Ok(())
     }
+}
+
+/// A function block's variable blocks in the order of its instance's layout, each with the
+/// prefix of its members' names: VAR_TEMP members go last, so the slots re-initialised per
+/// call are contiguous; a METHOD's VAR_INST lives in the instance as `METHOD.NAME`.
+fn fb_member_blocks(pou: &ast::Pou) -> impl Iterator<Item = (String, &ast::VarBlock)> {
+    let inst_vars: Vec<(String, &ast::VarBlock)> = pou
+        .methods
+        .iter()
+        .flat_map(|m| {
+            m.vars
+                .iter()
+                .filter(|b| b.kind == VarKind::Inst)
+                .map(move |b| (format!("{}.", m.name.text), b))
+        })
+        .collect();
+    pou.vars
+        .iter()
+        .filter(|b| b.kind != VarKind::Temp)
+        .map(|b| (String::new(), b))
+        .chain(inst_vars)
+        .chain(
+            pou.vars
+                .iter()
+                .filter(|b| b.kind == VarKind::Temp)
+                .map(|b| (String::new(), b)),
+        )
 }

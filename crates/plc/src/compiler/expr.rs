@@ -208,163 +208,9 @@ impl<'a> Compiler<'a> {
                     };
                     lv = self.deref_lv(lv, (*t).clone());
                 }
-                Part::Field(f) => match lv.ty.clone() {
-                    Type::Struct(id) => {
-                        let st = &self.structs[id as usize].0;
-                        let Some(field) = st.fields.iter().find(|x| x.name == f.text) else {
-                            return Err(self.e(
-                                f.pos,
-                                ErrorKind::Undeclared,
-                                format!("{} has no field '{}'", st.name, f.text),
-                            ));
-                        };
-                        lv.offset += field.offset;
-                        lv.ty = field.ty.clone();
-                    }
-                    Type::Fb(id) => {
-                        let fb = &self.fbs[id as usize];
-                        let Some(m) = fb.members.iter().find(|x| x.name == f.text).cloned() else {
-                            return Err(self.e(
-                                f.pos,
-                                ErrorKind::Undeclared,
-                                format!("{} has no member '{}'", fb.name, f.text),
-                            ));
-                        };
-                        // Inside the block (THIS^.x) or a block derived from it, every member.
-                        let inside = sc.fb.is_some_and(|s| self.fb_extends(s, id));
-                        if !inside
-                            && !matches!(m.kind, VarKind::Input | VarKind::Output | VarKind::InOut)
-                        {
-                            return Err(self.e(
-                                f.pos,
-                                ErrorKind::Invalid,
-                                format!("'{}' is internal to {}", f.text, fb.name),
-                            ));
-                        }
-                        if m.kind == VarKind::InOut {
-                            return Err(self.e(
-                                f.pos,
-                                ErrorKind::Invalid,
-                                "VAR_IN_OUT members cannot be accessed from outside",
-                            ));
-                        }
-                        if m.kind == VarKind::Output && !inside && lv.readonly.is_none() {
-                            lv.readonly = Some((
-                                ErrorKind::Invalid,
-                                format!(
-                                    "output '{}' of {} can only be written by the block",
-                                    f.text, fb.name
-                                ),
-                            ));
-                        }
-                        lv.offset += m.offset;
-                        lv.ty = m.ty.clone();
-                    }
-                    _ => {
-                        return Err(self.e(
-                            f.pos,
-                            ErrorKind::TypeMismatch,
-                            format!("'{}' is not a structure or function block", a.root.text),
-                        ));
-                    }
-                },
-                Part::Index(idx, pos) => {
-                    let Type::Array(at) = lv.ty.clone() else {
-                        return Err(self.e(
-                            *pos,
-                            ErrorKind::TypeMismatch,
-                            format!("'{}' is not an array", a.root.text),
-                        ));
-                    };
-                    if idx.len() != at.dims.len() {
-                        return Err(self.e(
-                            *pos,
-                            ErrorKind::WrongArgument,
-                            format!(
-                                "array has {} dimensions, {} indices given",
-                                at.dims.len(),
-                                idx.len()
-                            ),
-                        ));
-                    }
-                    // Row-major strides.
-                    let mut stride = at.elem_size as u64;
-                    let mut strides = vec![0u64; at.dims.len()];
-                    for (k, (l, h)) in at.dims.iter().enumerate().rev() {
-                        strides[k] = stride;
-                        stride *= (h - l + 1) as u64;
-                    }
-                    for (k, ie) in idx.iter().enumerate() {
-                        let (lo, hi) = at.dims[k];
-                        let te = self.expr(ie, sc, None)?;
-                        let ok = match &te.ty {
-                            Ty::AnyInt(_) => true,
-                            Ty::T(t) => t.elem().is_some_and(|e| {
-                                e.is_int() || (self.codesys_conversions && e.is_bit())
-                            }),
-                            Ty::AnyReal(_) => false,
-                        };
-                        if !ok {
-                            return Err(self.e(
-                                ie.pos(),
-                                ErrorKind::TypeMismatch,
-                                format!(
-                                    "array index must be an integer, not {}",
-                                    self.ty_name(&te.ty)
-                                ),
-                            ));
-                        }
-                        let ity = match &te.ty {
-                            Ty::T(t) => t.clone(),
-                            _ => Type::Elem(Elem::LInt),
-                        };
-                        let e = self.coerce(te, &ity, ie.pos())?;
-                        if let vm::Expr::Const(c) = e {
-                            let i = if ity.elem().is_some_and(|e| ik(e).signed()) {
-                                c as i64
-                            } else {
-                                c.min(i64::MAX as u64) as i64
-                            };
-                            if i < lo || i > hi {
-                                return Err(self.e(
-                                    ie.pos(),
-                                    ErrorKind::Invalid,
-                                    format!("index {i} is outside {lo}..{hi}"),
-                                ));
-                            }
-                            lv.offset += ((i - lo) as u64 * strides[k]) as u32;
-                        } else {
-                            lv.steps.push(IndexStep {
-                                index: e,
-                                low: lo,
-                                len: (hi - lo + 1) as u64,
-                                stride: strides[k] as u32,
-                            });
-                        }
-                    }
-                    lv.ty = at.elem.clone();
-                }
-                Part::Bit(b, pos) => {
-                    let Some(e) = lv
-                        .ty
-                        .elem()
-                        .filter(|e| e.int_kind().is_some() && *e != Elem::Bool && *e != Elem::Time)
-                    else {
-                        return Err(self.e(
-                            *pos,
-                            ErrorKind::TypeMismatch,
-                            "bit access needs an integer or bit-string variable",
-                        ));
-                    };
-                    if *b as u32 >= e.bits() {
-                        return Err(self.e(
-                            *pos,
-                            ErrorKind::Invalid,
-                            format!("{} has no bit {b}", e.name()),
-                        ));
-                    }
-                    lv.bit = Some(*b);
-                }
+                Part::Field(f) => self.field_part(&mut lv, a, f, sc)?,
+                Part::Index(idx, pos) => self.index_part(&mut lv, a, idx, *pos, sc)?,
+                Part::Bit(b, pos) => self.bit_part(&mut lv, *b, *pos)?,
             }
             if let Type::Reference(t) = lv.ty.clone() {
                 if !(keep_ref && last) {
@@ -375,6 +221,180 @@ impl<'a> Compiler<'a> {
             }
         }
         Ok(lv)
+    }
+
+    /// `.f`: a structure's field or a function block's member.
+    fn field_part(&self, lv: &mut Lv, a: &Access, f: &Name, sc: &Scope) -> R<()> {
+        match lv.ty.clone() {
+            Type::Struct(id) => {
+                let st = &self.structs[id as usize].0;
+                let Some(field) = st.fields.iter().find(|x| x.name == f.text) else {
+                    return Err(self.e(
+                        f.pos,
+                        ErrorKind::Undeclared,
+                        format!("{} has no field '{}'", st.name, f.text),
+                    ));
+                };
+                lv.offset += field.offset;
+                lv.ty = field.ty.clone();
+            }
+            Type::Fb(id) => {
+                let fb = &self.fbs[id as usize];
+                let Some(m) = fb.members.iter().find(|x| x.name == f.text).cloned() else {
+                    return Err(self.e(
+                        f.pos,
+                        ErrorKind::Undeclared,
+                        format!("{} has no member '{}'", fb.name, f.text),
+                    ));
+                };
+                // Inside the block (THIS^.x) or a block derived from it, every member.
+                let inside = sc.fb.is_some_and(|s| self.fb_extends(s, id));
+                if !inside && !matches!(m.kind, VarKind::Input | VarKind::Output | VarKind::InOut) {
+                    return Err(self.e(
+                        f.pos,
+                        ErrorKind::Invalid,
+                        format!("'{}' is internal to {}", f.text, fb.name),
+                    ));
+                }
+                if m.kind == VarKind::InOut {
+                    return Err(self.e(
+                        f.pos,
+                        ErrorKind::Invalid,
+                        "VAR_IN_OUT members cannot be accessed from outside",
+                    ));
+                }
+                if m.kind == VarKind::Output && !inside && lv.readonly.is_none() {
+                    lv.readonly = Some((
+                        ErrorKind::Invalid,
+                        format!(
+                            "output '{}' of {} can only be written by the block",
+                            f.text, fb.name
+                        ),
+                    ));
+                }
+                lv.offset += m.offset;
+                lv.ty = m.ty.clone();
+            }
+            _ => {
+                return Err(self.e(
+                    f.pos,
+                    ErrorKind::TypeMismatch,
+                    format!("'{}' is not a structure or function block", a.root.text),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// `[i, j]`: an array's element, its offset added where the indices are constant and an
+    /// index step otherwise.
+    fn index_part(
+        &mut self,
+        lv: &mut Lv,
+        a: &Access,
+        idx: &[AExpr],
+        pos: Pos,
+        sc: &mut Scope,
+    ) -> R<()> {
+        let Type::Array(at) = lv.ty.clone() else {
+            return Err(self.e(
+                pos,
+                ErrorKind::TypeMismatch,
+                format!("'{}' is not an array", a.root.text),
+            ));
+        };
+        if idx.len() != at.dims.len() {
+            return Err(self.e(
+                pos,
+                ErrorKind::WrongArgument,
+                format!(
+                    "array has {} dimensions, {} indices given",
+                    at.dims.len(),
+                    idx.len()
+                ),
+            ));
+        }
+        // Row-major strides.
+        let mut stride = at.elem_size as u64;
+        let mut strides = vec![0u64; at.dims.len()];
+        for (k, (l, h)) in at.dims.iter().enumerate().rev() {
+            strides[k] = stride;
+            stride *= (h - l + 1) as u64;
+        }
+        for (k, ie) in idx.iter().enumerate() {
+            let (lo, hi) = at.dims[k];
+            let te = self.expr(ie, sc, None)?;
+            let ok = match &te.ty {
+                Ty::AnyInt(_) => true,
+                Ty::T(t) => t
+                    .elem()
+                    .is_some_and(|e| e.is_int() || (self.codesys_conversions && e.is_bit())),
+                Ty::AnyReal(_) => false,
+            };
+            if !ok {
+                return Err(self.e(
+                    ie.pos(),
+                    ErrorKind::TypeMismatch,
+                    format!(
+                        "array index must be an integer, not {}",
+                        self.ty_name(&te.ty)
+                    ),
+                ));
+            }
+            let ity = match &te.ty {
+                Ty::T(t) => t.clone(),
+                _ => Type::Elem(Elem::LInt),
+            };
+            let e = self.coerce(te, &ity, ie.pos())?;
+            if let vm::Expr::Const(c) = e {
+                let i = if ity.elem().is_some_and(|e| ik(e).signed()) {
+                    c as i64
+                } else {
+                    c.min(i64::MAX as u64) as i64
+                };
+                if i < lo || i > hi {
+                    return Err(self.e(
+                        ie.pos(),
+                        ErrorKind::Invalid,
+                        format!("index {i} is outside {lo}..{hi}"),
+                    ));
+                }
+                lv.offset += ((i - lo) as u64 * strides[k]) as u32;
+            } else {
+                lv.steps.push(IndexStep {
+                    index: e,
+                    low: lo,
+                    len: (hi - lo + 1) as u64,
+                    stride: strides[k] as u32,
+                });
+            }
+        }
+        lv.ty = at.elem.clone();
+        Ok(())
+    }
+
+    /// `.n`: a bit of an integer or bit string.
+    fn bit_part(&self, lv: &mut Lv, b: u8, pos: Pos) -> R<()> {
+        let Some(e) = lv
+            .ty
+            .elem()
+            .filter(|e| e.int_kind().is_some() && *e != Elem::Bool && *e != Elem::Time)
+        else {
+            return Err(self.e(
+                pos,
+                ErrorKind::TypeMismatch,
+                "bit access needs an integer or bit-string variable",
+            ));
+        };
+        if b as u32 >= e.bits() {
+            return Err(self.e(
+                pos,
+                ErrorKind::Invalid,
+                format!("{} has no bit {b}", e.name()),
+            ));
+        }
+        lv.bit = Some(b);
+        Ok(())
     }
 
     pub(super) fn place(&self, lv: Lv) -> Place {
@@ -464,117 +484,15 @@ impl<'a> Compiler<'a> {
 
     pub(super) fn expr(&mut self, e: &AExpr, sc: &mut Scope, expect: Option<&Type>) -> R<TE> {
         match e {
-            AExpr::Lit(l, pos) => Ok(match l {
-                Literal::Int(v) => TE {
-                    ty: Ty::AnyInt(*v as i128),
-                    e: vm::Expr::Const(0),
-                },
-                Literal::Real(v) => TE {
-                    ty: Ty::AnyReal(*v),
-                    e: vm::Expr::Const(0),
-                },
-                Literal::Time(ns) => {
-                    let ns = i64::try_from(*ns)
-                        .map_err(|_| self.e(*pos, ErrorKind::Invalid, "duration is too large"))?;
-                    TE {
-                        ty: Ty::T(Type::Elem(Elem::Time)),
-                        e: vm::Expr::Const(ns as u64),
-                    }
-                }
-                Literal::Bool(b) => TE {
-                    ty: Ty::T(Type::BOOL),
-                    e: vm::Expr::Const(*b as u64),
-                },
-                Literal::Moment(k, ns) => TE {
-                    ty: Ty::T(Type::Elem(k.elem())),
-                    e: vm::Expr::Const(*ns as u64),
-                },
-                Literal::Str(s) => return self.string_literal(s, *pos),
-                Literal::WStr(s) => return self.wide_string_literal(s, *pos),
-            }),
+            AExpr::Lit(l, pos) => self.literal(l, *pos),
             AExpr::Typed(tn, inner) => {
                 let (t, _) = self.named_type(tn)?;
                 let te = self.expr(inner, sc, Some(&t))?;
                 let v = self.coerce(te, &t, inner.pos())?;
                 Ok(TE { ty: Ty::T(t), e: v })
             }
-            AExpr::EnumValue(tn, v) => {
-                let (t, _) = self.named_type(tn)?;
-                let Type::Enum(id) = t else {
-                    return Err(self.e(
-                        tn.pos,
-                        ErrorKind::TypeMismatch,
-                        format!("'{}' is not an enumeration", tn.text),
-                    ));
-                };
-                let Some((_, val)) = self.enums[id as usize]
-                    .values
-                    .iter()
-                    .find(|(n, _)| n == &v.text)
-                else {
-                    return Err(self.e(
-                        v.pos,
-                        ErrorKind::Undeclared,
-                        format!("{} has no value '{}'", tn.text, v.text),
-                    ));
-                };
-                Ok(TE {
-                    ty: Ty::T(Type::Enum(id)),
-                    e: vm::Expr::Const(*val as u64),
-                })
-            }
-            AExpr::Var(a) => {
-                // `E_Mode.Idle`: a qualified enumeration value (CODESYS, TwinCAT).
-                if let [Part::Field(v)] = a.parts.as_slice() {
-                    if self.lookup(&a.root, sc).is_none()
-                        && self.type_asts.contains_key(&a.root.text)
-                    {
-                        return self.expr(&AExpr::EnumValue(a.root.clone(), v.clone()), sc, expect);
-                    }
-                }
-                if let Some((r, p)) = self.property_of(a, sc)? {
-                    return self.invoke(r, &p, Invoke::Get, &[], sc, p.pos);
-                }
-                if a.parts.is_empty() && self.lookup(&a.root, sc).is_none() {
-                    if let Some(cands) = self.enum_values.get(&a.root.text) {
-                        let pick = match expect {
-                            Some(Type::Enum(id)) => cands.iter().find(|(e, _)| e == id).copied(),
-                            _ => None,
-                        }
-                        .or(if cands.len() == 1 {
-                            Some(cands[0])
-                        } else {
-                            None
-                        });
-                        return match pick {
-                            Some((id, v)) => Ok(TE {
-                                ty: Ty::T(Type::Enum(id)),
-                                e: vm::Expr::Const(v as u64),
-                            }),
-                            None => Err(self.e(
-                                a.root.pos,
-                                ErrorKind::Invalid,
-                                format!(
-                                    "'{}' names values of several enumerations; write Type#{}",
-                                    a.root.text, a.root.text
-                                ),
-                            )),
-                        };
-                    }
-                }
-                let lv = self.access(a, sc)?;
-                // An instance given where an interface (or VAR_IN_OUT of its type) is
-                // expected stands for itself.
-                let to_interface = matches!(expect, Some(Type::Interface(_)));
-                if let (Type::Fb(_), false) = (&lv.ty, to_interface) {
-                    return Err(self.e(
-                        a.root.pos,
-                        ErrorKind::TypeMismatch,
-                        "a function block instance is not a value; read one of its outputs",
-                    ));
-                }
-                Ok(self.load(lv))
-            }
+            AExpr::EnumValue(tn, v) => self.enum_value(tn, v),
+            AExpr::Var(a) => self.variable(a, sc, expect),
             AExpr::Direct(d, pos) => {
                 let name = d.to_string();
                 let root = Name {
@@ -594,74 +512,205 @@ impl<'a> Compiler<'a> {
                 let te = self.expr(inner, sc, expect)?;
                 self.unary(*op, te, *pos)
             }
-            AExpr::Binary(..) => {
-                // `a + b - c + ...` is a left-deep tree: its left spine is walked here in a
-                // loop, not by recursion, so a long chain costs no stack per operator.
-                let mut spine = Vec::new();
-                let mut leftmost = e;
-                while let AExpr::Binary(op, l, r, pos) = leftmost {
-                    spine.push((*op, &**r, *pos));
-                    leftmost = l;
+            AExpr::Binary(..) => self.binary_chain(e, sc, expect),
+            AExpr::MethodCall(target, args, pos) => self.method_call_value(target, args, sc, *pos),
+            AExpr::Call(name, args, pos) => self.call_value(name, args, sc, *pos, expect),
+        }
+    }
+
+    fn literal(&mut self, l: &Literal, pos: Pos) -> R<TE> {
+        Ok(match l {
+            Literal::Int(v) => TE {
+                ty: Ty::AnyInt(*v as i128),
+                e: vm::Expr::Const(0),
+            },
+            Literal::Real(v) => TE {
+                ty: Ty::AnyReal(*v),
+                e: vm::Expr::Const(0),
+            },
+            Literal::Time(ns) => {
+                let ns = i64::try_from(*ns)
+                    .map_err(|_| self.e(pos, ErrorKind::Invalid, "duration is too large"))?;
+                TE {
+                    ty: Ty::T(Type::Elem(Elem::Time)),
+                    e: vm::Expr::Const(ns as u64),
                 }
-                let mut lt = self.expr(leftmost, sc, expect)?;
-                for (op, r, pos) in spine.into_iter().rev() {
-                    let hint = match &lt.ty {
-                        Ty::T(t) => Some(t.clone()),
-                        _ => expect.cloned(),
-                    };
-                    let rt = self.expr(r, sc, hint.as_ref())?;
-                    lt = self.binary(op, lt, rt, pos)?;
-                }
-                Ok(lt)
             }
-            AExpr::MethodCall(target, args, pos) => {
-                let (prefix, m) = &**target;
-                let te = self.method_call(prefix, m, args, sc, *pos)?;
-                if let vm::Expr::CallMethod(mc) = &te.e {
-                    if self
-                        .funcs
-                        .get(mc.call.func as usize)
-                        .is_some_and(|f| f.ret.is_none())
-                    {
-                        return Err(self.e(
-                            *pos,
-                            ErrorKind::TypeMismatch,
-                            format!("method '{}' returns no value", m.text),
-                        ));
-                    }
-                }
-                Ok(te)
-            }
-            AExpr::Call(name, args, pos) => {
-                let is = |a: &Arg, n: &str| match a {
-                    Arg::Input(x, _) | Arg::Output(x, _, _) => x.text == n,
-                    Arg::Positional(_) => false,
-                };
-                if args.iter().any(|a| is(a, "EN") || is(a, "ENO")) {
-                    return self.enabled_call(name, args, sc, *pos, expect);
-                }
-                let te = self.call_expr(name, args, sc, *pos, expect)?;
-                let called = match &te.e {
-                    vm::Expr::Call(call) => Some(call.func),
-                    vm::Expr::CallMethod(mc) => Some(mc.call.func),
-                    _ => None,
-                };
-                if let (Ty::T(Type::Elem(Elem::Bool)), Some(func)) = (&te.ty, called) {
-                    if self
-                        .funcs
-                        .get(func as usize)
-                        .is_some_and(|f| f.ret.is_none())
-                    {
-                        return Err(self.e(
-                            *pos,
-                            ErrorKind::TypeMismatch,
-                            format!("function '{}' returns no value", name.text),
-                        ));
-                    }
-                }
-                Ok(te)
+            Literal::Bool(b) => TE {
+                ty: Ty::T(Type::BOOL),
+                e: vm::Expr::Const(*b as u64),
+            },
+            Literal::Moment(k, ns) => TE {
+                ty: Ty::T(Type::Elem(k.elem())),
+                e: vm::Expr::Const(*ns as u64),
+            },
+            Literal::Str(s) => return self.string_literal(s, pos),
+            Literal::WStr(s) => return self.wide_string_literal(s, pos),
+        })
+    }
+
+    /// `Type#value`.
+    fn enum_value(&mut self, tn: &Name, v: &Name) -> R<TE> {
+        let (t, _) = self.named_type(tn)?;
+        let Type::Enum(id) = t else {
+            return Err(self.e(
+                tn.pos,
+                ErrorKind::TypeMismatch,
+                format!("'{}' is not an enumeration", tn.text),
+            ));
+        };
+        let Some((_, val)) = self.enums[id as usize]
+            .values
+            .iter()
+            .find(|(n, _)| n == &v.text)
+        else {
+            return Err(self.e(
+                v.pos,
+                ErrorKind::Undeclared,
+                format!("{} has no value '{}'", tn.text, v.text),
+            ));
+        };
+        Ok(TE {
+            ty: Ty::T(Type::Enum(id)),
+            e: vm::Expr::Const(*val as u64),
+        })
+    }
+
+    /// A variable, an enumeration's value or a property.
+    fn variable(&mut self, a: &Access, sc: &mut Scope, expect: Option<&Type>) -> R<TE> {
+        // `E_Mode.Idle`: a qualified enumeration value (CODESYS, TwinCAT).
+        if let [Part::Field(v)] = a.parts.as_slice() {
+            if self.lookup(&a.root, sc).is_none() && self.type_asts.contains_key(&a.root.text) {
+                return self.expr(&AExpr::EnumValue(a.root.clone(), v.clone()), sc, expect);
             }
         }
+        if let Some((r, p)) = self.property_of(a, sc)? {
+            return self.invoke(r, &p, Invoke::Get, &[], sc, p.pos);
+        }
+        if a.parts.is_empty() && self.lookup(&a.root, sc).is_none() {
+            if let Some(cands) = self.enum_values.get(&a.root.text) {
+                let pick = match expect {
+                    Some(Type::Enum(id)) => cands.iter().find(|(e, _)| e == id).copied(),
+                    _ => None,
+                }
+                .or(if cands.len() == 1 {
+                    Some(cands[0])
+                } else {
+                    None
+                });
+                return match pick {
+                    Some((id, v)) => Ok(TE {
+                        ty: Ty::T(Type::Enum(id)),
+                        e: vm::Expr::Const(v as u64),
+                    }),
+                    None => Err(self.e(
+                        a.root.pos,
+                        ErrorKind::Invalid,
+                        format!(
+                            "'{}' names values of several enumerations; write Type#{}",
+                            a.root.text, a.root.text
+                        ),
+                    )),
+                };
+            }
+        }
+        let lv = self.access(a, sc)?;
+        // An instance given where an interface (or VAR_IN_OUT of its type) is
+        // expected stands for itself.
+        let to_interface = matches!(expect, Some(Type::Interface(_)));
+        if let (Type::Fb(_), false) = (&lv.ty, to_interface) {
+            return Err(self.e(
+                a.root.pos,
+                ErrorKind::TypeMismatch,
+                "a function block instance is not a value; read one of its outputs",
+            ));
+        }
+        Ok(self.load(lv))
+    }
+
+    fn binary_chain(&mut self, e: &AExpr, sc: &mut Scope, expect: Option<&Type>) -> R<TE> {
+        // `a + b - c + ...` is a left-deep tree: its left spine is walked here in a
+        // loop, not by recursion, so a long chain costs no stack per operator.
+        let mut spine = Vec::new();
+        let mut leftmost = e;
+        while let AExpr::Binary(op, l, r, pos) = leftmost {
+            spine.push((*op, &**r, *pos));
+            leftmost = l;
+        }
+        let mut lt = self.expr(leftmost, sc, expect)?;
+        for (op, r, pos) in spine.into_iter().rev() {
+            let hint = match &lt.ty {
+                Ty::T(t) => Some(t.clone()),
+                _ => expect.cloned(),
+            };
+            let rt = self.expr(r, sc, hint.as_ref())?;
+            lt = self.binary(op, lt, rt, pos)?;
+        }
+        Ok(lt)
+    }
+
+    /// `instance.method(args)` as a value.
+    fn method_call_value(
+        &mut self,
+        target: &(Access, Name),
+        args: &[Arg],
+        sc: &mut Scope,
+        pos: Pos,
+    ) -> R<TE> {
+        let (prefix, m) = target;
+        let te = self.method_call(prefix, m, args, sc, pos)?;
+        if let vm::Expr::CallMethod(mc) = &te.e {
+            if self
+                .funcs
+                .get(mc.call.func as usize)
+                .is_some_and(|f| f.ret.is_none())
+            {
+                return Err(self.e(
+                    pos,
+                    ErrorKind::TypeMismatch,
+                    format!("method '{}' returns no value", m.text),
+                ));
+            }
+        }
+        Ok(te)
+    }
+
+    /// A function call as a value.
+    fn call_value(
+        &mut self,
+        name: &Name,
+        args: &[Arg],
+        sc: &mut Scope,
+        pos: Pos,
+        expect: Option<&Type>,
+    ) -> R<TE> {
+        let is = |a: &Arg, n: &str| match a {
+            Arg::Input(x, _) | Arg::Output(x, _, _) => x.text == n,
+            Arg::Positional(_) => false,
+        };
+        if args.iter().any(|a| is(a, "EN") || is(a, "ENO")) {
+            return self.enabled_call(name, args, sc, pos, expect);
+        }
+        let te = self.call_expr(name, args, sc, pos, expect)?;
+        let called = match &te.e {
+            vm::Expr::Call(call) => Some(call.func),
+            vm::Expr::CallMethod(mc) => Some(mc.call.func),
+            _ => None,
+        };
+        if let (Ty::T(Type::Elem(Elem::Bool)), Some(func)) = (&te.ty, called) {
+            if self
+                .funcs
+                .get(func as usize)
+                .is_some_and(|f| f.ret.is_none())
+            {
+                return Err(self.e(
+                    pos,
+                    ErrorKind::TypeMismatch,
+                    format!("function '{}' returns no value", name.text),
+                ));
+            }
+        }
+        Ok(te)
     }
 
     /// Folds an expression whose operands are all constants.
@@ -972,6 +1021,23 @@ impl<'a> Compiler<'a> {
         }
     }
 
+    /// TIME * number and TIME / number, the number of type `rt`.
+    fn scaled_time(&mut self, op: BinOp, l: TE, r: TE, rt: &Type, pos: Pos) -> R<TE> {
+        let time = Type::Elem(Elem::Time);
+        let re = rt.elem().unwrap_or(Elem::LInt);
+        let rv = self.coerce(r, rt, pos)?;
+        let bin = match (op, re.is_real()) {
+            (BinOp::Mul, false) => Bin::MulTimeI,
+            (BinOp::Div, false) => Bin::DivTimeI,
+            (BinOp::Mul, true) => Bin::MulTimeR,
+            _ => Bin::DivTimeR,
+        };
+        Ok(TE {
+            ty: Ty::T(time),
+            e: self.fold(vm::Expr::Bin(bin, Box::new((l.e, rv)))),
+        })
+    }
+
     pub(super) fn binary(&mut self, op: BinOp, l: TE, r: TE, pos: Pos) -> R<TE> {
         if let Some(te) = self.literal_fold(op, &l.ty, &r.ty, pos)? {
             return Ok(te);
@@ -979,30 +1045,12 @@ impl<'a> Compiler<'a> {
         if address(&l.ty) || address(&r.ty) {
             return self.address_binary(op, l, r, pos);
         }
-        let time = Type::Elem(Elem::Time);
         // TIME * number and TIME / number.
         if matches!(op, BinOp::Mul | BinOp::Div)
             && matches!(&l.ty, Ty::T(t) if t.elem() == Some(Elem::Time))
         {
-            let rt = match &r.ty {
-                Ty::AnyInt(_) => Some(Type::Elem(Elem::LInt)),
-                Ty::AnyReal(_) => Some(Type::Elem(Elem::LReal)),
-                Ty::T(t) if t.elem().is_some_and(|e| e.is_num()) => Some(t.clone()),
-                _ => None,
-            };
-            if let Some(rt) = rt {
-                let re = rt.elem().unwrap_or(Elem::LInt);
-                let rv = self.coerce(r, &rt, pos)?;
-                let bin = match (op, re.is_real()) {
-                    (BinOp::Mul, false) => Bin::MulTimeI,
-                    (BinOp::Div, false) => Bin::DivTimeI,
-                    (BinOp::Mul, true) => Bin::MulTimeR,
-                    _ => Bin::DivTimeR,
-                };
-                return Ok(TE {
-                    ty: Ty::T(time),
-                    e: self.fold(vm::Expr::Bin(bin, Box::new((l.e, rv)))),
-                });
+            if let Some(rt) = time_factor_type(&r.ty) {
+                return self.scaled_time(op, l, r, &rt, pos);
             }
         }
         if let Some(te) = self.moment_binary(op, &l, &r, pos)? {
@@ -1039,26 +1087,7 @@ impl<'a> Compiler<'a> {
             if !is_cmp {
                 return Err(mismatch(self));
             }
-            use std::cmp::Ordering::*;
-            let w = matches!(ct, Type::WString(_));
-            let (bin, swap_not) = match op {
-                BinOp::Eq => (Bin::CmpS(Equal, false, w), false),
-                BinOp::Ne => (Bin::CmpS(Equal, false, w), true),
-                BinOp::Lt => (Bin::CmpS(Less, false, w), false),
-                BinOp::Le => (Bin::CmpS(Less, true, w), false),
-                BinOp::Gt => (Bin::CmpS(Greater, false, w), false),
-                _ => (Bin::CmpS(Greater, true, w), false),
-            };
-            let e = vm::Expr::Bin(bin, Box::new((le, re)));
-            let e = if swap_not {
-                vm::Expr::Un(Un::NotBool, Box::new(e))
-            } else {
-                e
-            };
-            return Ok(TE {
-                ty: Ty::T(Type::BOOL),
-                e,
-            });
+            return Ok(string_comparison(op, &ct, le, re));
         }
         let el = match &ct {
             Type::Enum(_) => {
@@ -1074,26 +1103,7 @@ impl<'a> Compiler<'a> {
         // CODESYS computes with bit strings as with unsigned integers of their width.
         let integer = el.is_int() || (self.codesys_conversions && el.is_bit());
         let bin = if is_cmp {
-            if el.is_real() {
-                match op {
-                    BinOp::Eq => Bin::EqR,
-                    BinOp::Ne => Bin::NeR,
-                    BinOp::Lt => Bin::LtR,
-                    BinOp::Le => Bin::LeR,
-                    BinOp::Gt => Bin::GtR,
-                    _ => Bin::GeR,
-                }
-            } else {
-                let sg = k.signed();
-                match op {
-                    BinOp::Eq => Bin::Eq,
-                    BinOp::Ne => Bin::Ne,
-                    BinOp::Lt => Bin::Lt(sg),
-                    BinOp::Le => Bin::Le(sg),
-                    BinOp::Gt => Bin::Gt(sg),
-                    _ => Bin::Ge(sg),
-                }
-            }
+            comparison(op, el)
         } else {
             match op {
                 BinOp::And | BinOp::Or | BinOp::Xor if el == Elem::Bool || el.is_bit() => {
@@ -1390,6 +1400,64 @@ impl<'a> Compiler<'a> {
                     c(Conv::Int(ik(t)), e)
                 }
             }
+        }
+    }
+}
+
+/// The type a TIME is multiplied or divided by: a number's.
+fn time_factor_type(ty: &Ty) -> Option<Type> {
+    match ty {
+        Ty::AnyInt(_) => Some(Type::Elem(Elem::LInt)),
+        Ty::AnyReal(_) => Some(Type::Elem(Elem::LReal)),
+        Ty::T(t) if t.elem().is_some_and(|e| e.is_num()) => Some(t.clone()),
+        _ => None,
+    }
+}
+
+/// A comparison `op` of two strings (`ct`: STRING or WSTRING).
+fn string_comparison(op: BinOp, ct: &Type, le: vm::Expr, re: vm::Expr) -> TE {
+    use std::cmp::Ordering::*;
+    let w = matches!(ct, Type::WString(_));
+    let (bin, swap_not) = match op {
+        BinOp::Eq => (Bin::CmpS(Equal, false, w), false),
+        BinOp::Ne => (Bin::CmpS(Equal, false, w), true),
+        BinOp::Lt => (Bin::CmpS(Less, false, w), false),
+        BinOp::Le => (Bin::CmpS(Less, true, w), false),
+        BinOp::Gt => (Bin::CmpS(Greater, false, w), false),
+        _ => (Bin::CmpS(Greater, true, w), false),
+    };
+    let e = vm::Expr::Bin(bin, Box::new((le, re)));
+    let e = if swap_not {
+        vm::Expr::Un(Un::NotBool, Box::new(e))
+    } else {
+        e
+    };
+    TE {
+        ty: Ty::T(Type::BOOL),
+        e,
+    }
+}
+
+/// The comparison `op` of two numbers, times or bit strings of type `el`.
+fn comparison(op: BinOp, el: Elem) -> Bin {
+    if el.is_real() {
+        match op {
+            BinOp::Eq => Bin::EqR,
+            BinOp::Ne => Bin::NeR,
+            BinOp::Lt => Bin::LtR,
+            BinOp::Le => Bin::LeR,
+            BinOp::Gt => Bin::GtR,
+            _ => Bin::GeR,
+        }
+    } else {
+        let sg = ik(el).signed();
+        match op {
+            BinOp::Eq => Bin::Eq,
+            BinOp::Ne => Bin::Ne,
+            BinOp::Lt => Bin::Lt(sg),
+            BinOp::Le => Bin::Le(sg),
+            BinOp::Gt => Bin::Gt(sg),
+            _ => Bin::Ge(sg),
         }
     }
 }

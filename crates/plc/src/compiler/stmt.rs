@@ -41,86 +41,8 @@ impl<'a> Compiler<'a> {
                 }
                 (pos.line, self.call_stmt(target, args, sc, *pos)?)
             }
-            ast::Stmt::If(branches, els, pos) => {
-                let mut bs = Vec::new();
-                for (c, b) in branches {
-                    let c = self.cond(c, sc)?;
-                    bs.push((c, self.block(b, sc)?));
-                }
-                (
-                    pos.line,
-                    StmtKind::If(bs.into_boxed_slice(), self.block(els, sc)?),
-                )
-            }
-            ast::Stmt::Case(sel, arms, els, pos) => {
-                let te = self.expr(sel, sc, None)?;
-                let sel_ty = match &te.ty {
-                    Ty::T(t)
-                        if t.scalar().is_some_and(|e| {
-                            e.int_kind().is_some() && e != Elem::Time && e != Elem::Bool
-                        }) =>
-                    {
-                        t.clone()
-                    }
-                    Ty::AnyInt(_) => Type::Elem(Elem::DInt),
-                    _ => {
-                        return Err(self.e(
-                            sel.pos(),
-                            ErrorKind::TypeMismatch,
-                            "CASE needs an integer or enumeration selector",
-                        ));
-                    }
-                };
-                let signed = matches!(sel_ty, Type::Enum(_))
-                    || sel_ty.scalar().is_some_and(|e| ik(e).signed());
-                let selector = self.coerce(te, &sel_ty, sel.pos())?;
-                let mut out = Vec::new();
-                let mut seen: Vec<(i64, i64)> = Vec::new();
-                for arm in arms {
-                    let mut ranges = Vec::new();
-                    for (lo, hi) in &arm.labels {
-                        let l = self.case_label(lo, &sel_ty, sc)?;
-                        let h = match hi {
-                            Some(h) => self.case_label(h, &sel_ty, sc)?,
-                            None => l,
-                        };
-                        if h < l {
-                            return Err(self.e(lo.pos(), ErrorKind::Invalid, "empty CASE range"));
-                        }
-                        let clash = seen
-                            .iter()
-                            .chain(ranges.iter())
-                            .find(|(a, b)| l <= *b && *a <= h);
-                        if let Some((a, b)) = clash {
-                            let shown = if a == b {
-                                a.to_string()
-                            } else {
-                                format!("{a}..{b}")
-                            };
-                            return Err(self.e(
-                                lo.pos(),
-                                ErrorKind::Invalid,
-                                format!("CASE label overlaps the earlier label {shown}"),
-                            ));
-                        }
-                        ranges.push((l, h));
-                    }
-                    seen.extend(ranges.iter().copied());
-                    out.push(CaseArm {
-                        ranges: ranges.into_boxed_slice(),
-                        body: self.block(&arm.body, sc)?,
-                    });
-                }
-                (
-                    pos.line,
-                    StmtKind::Case {
-                        selector,
-                        signed,
-                        arms: out.into_boxed_slice(),
-                        default: self.block(els, sc)?,
-                    },
-                )
-            }
+            ast::Stmt::If(branches, els, pos) => (pos.line, self.if_stmt(branches, els, sc)?),
+            ast::Stmt::Case(sel, arms, els, pos) => (pos.line, self.case_stmt(sel, arms, els, sc)?),
             ast::Stmt::For {
                 var,
                 from,
@@ -128,61 +50,10 @@ impl<'a> Compiler<'a> {
                 by,
                 body,
                 pos,
-            } => {
-                let a = Access {
-                    root: var.clone(),
-                    parts: Vec::new(),
-                };
-                if sc.for_vars.contains(&var.text) {
-                    return Err(self.e(
-                        var.pos,
-                        ErrorKind::Invalid,
-                        format!(
-                            "'{}' is already the control variable of an enclosing FOR loop",
-                            var.text
-                        ),
-                    ));
-                }
-                let lv = self.access(&a, sc)?;
-                self.check_writable(&lv, var.pos)?;
-                let Some(e) = lv.ty.elem().filter(|e| e.is_int()) else {
-                    return Err(self.e(
-                        var.pos,
-                        ErrorKind::TypeMismatch,
-                        "FOR needs an integer control variable",
-                    ));
-                };
-                let t = Type::Elem(e);
-                let f = self.expr(from, sc, Some(&t))?;
-                let from_e = self.coerce(f, &t, from.pos())?;
-                let tt = self.expr(to, sc, Some(&t))?;
-                let to_e = self.coerce(tt, &t, to.pos())?;
-                let by_e = match by {
-                    Some(b) => {
-                        let te = self.expr(b, sc, Some(&t))?;
-                        self.coerce(te, &t, b.pos())?
-                    }
-                    None => vm::Expr::Const(1),
-                };
-                sc.loops += 1;
-                sc.for_vars.push(var.text.clone());
-                let body = self.block(body, sc);
-                sc.for_vars.pop();
-                sc.loops -= 1;
-                let var_place = self.place(lv);
-                (
-                    pos.line,
-                    StmtKind::For(Box::new(ForLoop {
-                        var: var_place,
-                        repr: Repr::of(e),
-                        kind: ik(e),
-                        from: from_e,
-                        to: to_e,
-                        by: by_e,
-                        body: body?,
-                    })),
-                )
-            }
+            } => (
+                pos.line,
+                self.for_stmt(var, from, to, by.as_ref(), body, sc)?,
+            ),
             ast::Stmt::While(c, body, pos) => {
                 let c = self.cond(c, sc)?;
                 sc.loops += 1;
@@ -217,6 +88,167 @@ impl<'a> Compiler<'a> {
             ast::Stmt::Return(pos) => (pos.line, StmtKind::Return),
         };
         Ok(Some(Stmt { line, kind }))
+    }
+
+    fn if_stmt(
+        &mut self,
+        branches: &[(AExpr, Vec<ast::Stmt>)],
+        els: &[ast::Stmt],
+        sc: &mut Scope,
+    ) -> R<StmtKind> {
+        let mut bs = Vec::new();
+        for (c, b) in branches {
+            let c = self.cond(c, sc)?;
+            bs.push((c, self.block(b, sc)?));
+        }
+        Ok(StmtKind::If(bs.into_boxed_slice(), self.block(els, sc)?))
+    }
+
+    fn case_stmt(
+        &mut self,
+        sel: &AExpr,
+        arms: &[ast::CaseArm],
+        els: &[ast::Stmt],
+        sc: &mut Scope,
+    ) -> R<StmtKind> {
+        let te = self.expr(sel, sc, None)?;
+        let sel_ty = match &te.ty {
+            Ty::T(t)
+                if t.scalar().is_some_and(|e| {
+                    e.int_kind().is_some() && e != Elem::Time && e != Elem::Bool
+                }) =>
+            {
+                t.clone()
+            }
+            Ty::AnyInt(_) => Type::Elem(Elem::DInt),
+            _ => {
+                return Err(self.e(
+                    sel.pos(),
+                    ErrorKind::TypeMismatch,
+                    "CASE needs an integer or enumeration selector",
+                ));
+            }
+        };
+        let signed =
+            matches!(sel_ty, Type::Enum(_)) || sel_ty.scalar().is_some_and(|e| ik(e).signed());
+        let selector = self.coerce(te, &sel_ty, sel.pos())?;
+        let mut out = Vec::new();
+        let mut seen: Vec<(i64, i64)> = Vec::new();
+        for arm in arms {
+            let ranges = self.case_ranges(arm, &sel_ty, &seen, sc)?;
+            seen.extend(ranges.iter().copied());
+            out.push(CaseArm {
+                ranges: ranges.into_boxed_slice(),
+                body: self.block(&arm.body, sc)?,
+            });
+        }
+        Ok(StmtKind::Case {
+            selector,
+            signed,
+            arms: out.into_boxed_slice(),
+            default: self.block(els, sc)?,
+        })
+    }
+
+    /// The value ranges of a CASE arm's labels, none of which may overlap another label of
+    /// the arm or one of the earlier arms' (`seen`).
+    fn case_ranges(
+        &mut self,
+        arm: &ast::CaseArm,
+        sel_ty: &Type,
+        seen: &[(i64, i64)],
+        sc: &mut Scope,
+    ) -> R<Vec<(i64, i64)>> {
+        let mut ranges = Vec::new();
+        for (lo, hi) in &arm.labels {
+            let l = self.case_label(lo, sel_ty, sc)?;
+            let h = match hi {
+                Some(h) => self.case_label(h, sel_ty, sc)?,
+                None => l,
+            };
+            if h < l {
+                return Err(self.e(lo.pos(), ErrorKind::Invalid, "empty CASE range"));
+            }
+            let clash = seen
+                .iter()
+                .chain(ranges.iter())
+                .find(|(a, b)| l <= *b && *a <= h);
+            if let Some((a, b)) = clash {
+                let shown = if a == b {
+                    a.to_string()
+                } else {
+                    format!("{a}..{b}")
+                };
+                return Err(self.e(
+                    lo.pos(),
+                    ErrorKind::Invalid,
+                    format!("CASE label overlaps the earlier label {shown}"),
+                ));
+            }
+            ranges.push((l, h));
+        }
+        Ok(ranges)
+    }
+
+    fn for_stmt(
+        &mut self,
+        var: &Name,
+        from: &AExpr,
+        to: &AExpr,
+        by: Option<&AExpr>,
+        body: &[ast::Stmt],
+        sc: &mut Scope,
+    ) -> R<StmtKind> {
+        let a = Access {
+            root: var.clone(),
+            parts: Vec::new(),
+        };
+        if sc.for_vars.contains(&var.text) {
+            return Err(self.e(
+                var.pos,
+                ErrorKind::Invalid,
+                format!(
+                    "'{}' is already the control variable of an enclosing FOR loop",
+                    var.text
+                ),
+            ));
+        }
+        let lv = self.access(&a, sc)?;
+        self.check_writable(&lv, var.pos)?;
+        let Some(e) = lv.ty.elem().filter(|e| e.is_int()) else {
+            return Err(self.e(
+                var.pos,
+                ErrorKind::TypeMismatch,
+                "FOR needs an integer control variable",
+            ));
+        };
+        let t = Type::Elem(e);
+        let f = self.expr(from, sc, Some(&t))?;
+        let from_e = self.coerce(f, &t, from.pos())?;
+        let tt = self.expr(to, sc, Some(&t))?;
+        let to_e = self.coerce(tt, &t, to.pos())?;
+        let by_e = match by {
+            Some(b) => {
+                let te = self.expr(b, sc, Some(&t))?;
+                self.coerce(te, &t, b.pos())?
+            }
+            None => vm::Expr::Const(1),
+        };
+        sc.loops += 1;
+        sc.for_vars.push(var.text.clone());
+        let body = self.block(body, sc);
+        sc.for_vars.pop();
+        sc.loops -= 1;
+        let var_place = self.place(lv);
+        Ok(StmtKind::For(Box::new(ForLoop {
+            var: var_place,
+            repr: Repr::of(e),
+            kind: ik(e),
+            from: from_e,
+            to: to_e,
+            by: by_e,
+            body: body?,
+        })))
     }
 
     /// A call with `EN := c` and/or `ENO => v`: the call runs only while EN is TRUE, and
