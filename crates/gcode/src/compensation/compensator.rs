@@ -897,6 +897,26 @@ impl Compensator {
         Ok(())
     }
 
+    /// The circle the tool's centre follows along `arc`: the arc's radius less the tool's
+    /// where the tool is inside the arc, plus it where outside.
+    fn offset_circle(&self, arc: &Arc) -> OffsetCircle {
+        let side = self.side.unwrap_or(CompensationSide::Left);
+        let centre = [arc.first_axis, arc.second_axis];
+        let arc_radius = distance(centre, [arc.first_end, arc.second_end]);
+        let inside = tool_inside_arc(side, arc.rotation);
+        let radius = if inside {
+            arc_radius - self.radius
+        } else {
+            arc_radius + self.radius
+        };
+        OffsetCircle {
+            centre,
+            arc_radius,
+            radius,
+            inside,
+        }
+    }
+
     /// A concave corner from the held line into `arc`, the corner's angle `beta` and the
     /// held line's offset direction `theta`: where the offset line meets the compensated
     /// arc.
@@ -907,20 +927,19 @@ impl Compensator {
         beta: f64,
         theta: f64,
     ) -> Result<P2, CompError> {
-        let side = self.side.unwrap_or(CompensationSide::Left);
         let radius = self.radius;
         let turn = arc.rotation;
-        let end = [arc.first_end, arc.second_end];
-        let centre = [arc.first_axis, arc.second_axis];
-        let inside = tool_inside_arc(side, turn);
-        let arc_radius = distance(centre, end);
+        let OffsetCircle {
+            centre,
+            arc_radius,
+            radius: dist,
+            inside,
+        } = self.offset_circle(arc);
         let cy = arc_radius * (beta - FRAC_PI_2).sin();
-        let (dist, l) = if inside {
-            let dist = arc_radius - radius;
-            (dist, (cy + radius) / dist)
+        let l = if inside {
+            (cy + radius) / dist
         } else {
-            let dist = arc_radius + radius;
-            (dist, (cy - radius) / dist)
+            (cy - radius) / dist
         };
         if !(-1.0..=1.0).contains(&l) {
             return Err(CompError::new(K::ArcGouge, src));
@@ -943,18 +962,13 @@ impl Compensator {
         arc: &Arc,
     ) -> Result<P2, CompError> {
         let side = self.side.unwrap_or(CompensationSide::Left);
-        let radius = self.radius;
         let turn = arc.rotation;
-        let end = [arc.first_end, arc.second_end];
-        let centre = [arc.first_axis, arc.second_axis];
-        let inside = tool_inside_arc(side, turn);
-        let arc_radius = distance(centre, end);
+        let OffsetCircle {
+            centre,
+            radius: newrad,
+            ..
+        } = self.offset_circle(arc);
         let oldrad = distance(prev_centre, prev_end);
-        let newrad = if inside {
-            arc_radius - radius
-        } else {
-            arc_radius + radius
-        };
         let arc_cc = distance(prev_centre, centre);
         if oldrad == 0.0 || arc_cc == 0.0 {
             return Err(CompError::new(K::ArcsSameCentre, src));
@@ -1129,4 +1143,15 @@ fn from_machine(o: &Offsets, m: &Pose) -> Pose {
         *x -= g92[i];
     }
     Pose::from_array(v)
+}
+
+/// The circle a compensated tool's centre follows along an arc.
+struct OffsetCircle {
+    centre: P2,
+    /// The programmed arc's radius.
+    arc_radius: f64,
+    /// The tool centre's.
+    radius: f64,
+    /// The tool is on the arc's inside.
+    inside: bool,
 }
