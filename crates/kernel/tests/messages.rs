@@ -80,12 +80,6 @@ fn an_aborted_run_leaves_no_stale_message_for_the_next() {
     ));
     m.cycles(2);
     assert!(m.until(1.0, |s| s.state == MachineState::Idle));
-    let texts: Vec<String> = m
-        .sim
-        .handle()
-        .take_messages()
-        .iter()
-        .map(|msg| msg.text.as_str().to_string())
-        .collect();
+    let texts = m.take_message_texts();
     assert_eq!(texts, ["from MDI"]);
 }

@@ -152,6 +152,16 @@ impl Machine {
         m
     }
 
+    /// The texts of the operator messages shown since the last call.
+    pub fn take_message_texts(&self) -> Vec<String> {
+        self.sim
+            .handle()
+            .take_messages()
+            .iter()
+            .map(|msg| msg.text.as_str().to_string())
+            .collect()
+    }
+
     /// Reset and wait until the drives are enabled.
     pub fn power_on(&mut self) {
         self.cycles(2);
@@ -180,13 +190,7 @@ pub fn run_to_idle_with_messages(
     let mut m = Machine::started(config, text, name);
     m.cycles(2);
     assert!(m.until(limit_s, |s| s.state == rtcnc_kernel::MachineState::Idle));
-    let messages = m
-        .sim
-        .handle()
-        .take_messages()
-        .iter()
-        .map(|msg| msg.text.as_str().to_string())
-        .collect();
+    let messages = m.take_message_texts();
     (m, messages)
 }
 
