@@ -961,9 +961,6 @@ mod tests {
         );
     }
 
-    /// The closed-form test that skips the valley's speed says "above" only where that
-    /// speed is not below the curve's: skipping never changes `w_at`. Speeds
-    /// are drawn close to the valley's own (the boundary) as well as far from it.
     /// The valley's speed at the distance the jerk-limited deceleration covers in the time
     /// τ before the valley (d = v0·τ + j·τ³/6 within the jerk phase, then
     /// a³/(6j²) + a(τ² − t1²)/2 − a·t1(τ − t1)/2 more than v0·τ, t1 = a/j) is that
@@ -1001,6 +998,9 @@ mod tests {
         }
     }
 
+    /// The closed-form test that skips the valley's speed says "above" only where that
+    /// speed is not below the curve's: skipping never changes `w_at`. Speeds
+    /// are drawn close to the valley's own (the boundary) as well as far from it.
     #[test]
     fn the_valley_is_skipped_only_where_it_cannot_lower_the_curve() {
         let mut state = 7u64;
