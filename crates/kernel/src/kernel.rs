@@ -863,8 +863,10 @@ fn command_parsing_task(
         match next {
             Some((serial, command)) => {
                 let ok = c.lock().command(ctx, &sh, command);
-                if let (Some(serial), Some(port)) = (serial, link.as_mut()) {
-                    port.result(ctx, serial, command, ok);
+                match (serial, link.as_mut()) {
+                    (Some(serial), Some(port)) => port.result(ctx, serial, command, ok),
+                    (None, Some(port)) => port.watch_keep_alive(ctx, false, command, ok),
+                    _ => {}
                 }
             }
             None => ctx.finish_runs(),

@@ -237,6 +237,30 @@ fn a_continuous_jog_stops_without_its_keep_alive() {
     assert!(stopped - x < 2.0 + 0.5, "went on {} mm", stopped - x);
 }
 
+/// A continuous jog stopped by the client's urgent jog stop, then an incremental jog: the
+/// keep-alive of the stopped jog must not lapse into the incremental one (it did: the
+/// increment stopped short, 200 ms after the last keep-alive).
+#[test]
+fn an_incremental_jog_after_a_stopped_continuous_one_runs_its_whole_distance() {
+    let mut r = rig("keepalive-increment", &mill());
+    r.run_ms(20);
+    r.reset();
+    r.send(layout::command::JOG_CONTINUOUS, |c| c.value = 10.0);
+    r.run_ms(100);
+    r.urgent(layout::urgent::JOG_STOP, 0.0);
+    r.run_ms(100);
+    assert_eq!(r.state(), "idle");
+    let from = r.client.status().axes[0];
+    let step = r.send(layout::command::JOG_INCREMENT, |c| c.value = 5.0);
+    // At the mill's X jog speed (10 mm/s) 5 mm take over 500 ms: the increment is still
+    // moving when the stopped jog's keep-alive would have lapsed.
+    r.run_ms(3000);
+    assert_eq!(r.acks(step), [layout::ack::ACCEPTED, layout::ack::DONE]);
+    assert_eq!(r.state(), "idle");
+    let moved = r.client.status().axes[0] - from;
+    assert!((moved - 5.0).abs() < 1e-9, "moved {moved} mm of 5");
+}
+
 #[test]
 fn the_loss_of_the_client_stops_a_jog_and_holds_a_program_when_configured() {
     let mut config = mill();

@@ -462,20 +462,40 @@ impl CommandPort {
         }
     }
 
+    /// Whose keep-alive is watched: a client's continuous jog starts the watch of its axis;
+    /// whatever else takes the axis ends it (a jog stop from either channel, an incremental
+    /// jog, a jog of the kernel's own channel, the handwheel, homing), so that a lapse
+    /// never stops a motion that needs no keep-alive. `from_client`: the command came
+    /// through the link; the others are the kernel's own channel (urgent jog stops go
+    /// there).
+    pub(crate) fn watch_keep_alive(
+        &mut self,
+        ctx: &mut Context<'_>,
+        from_client: bool,
+        cmd: Command,
+        ok: bool,
+    ) {
+        let (axis, watch) = match cmd {
+            Command::JogContinuous { axis, .. } if ok => (axis, from_client),
+            Command::JogStop { axis } => (axis, false),
+            Command::JogIncrement { axis, .. } | Command::HomeAxis { axis } if ok => (axis, false),
+            Command::Handwheel {
+                axis: Some(axis), ..
+            } if ok => (axis, false),
+            Command::HomeAll if ok => {
+                self.jog_until = [None; layout::AXES];
+                return;
+            }
+            _ => return,
+        };
+        if let Some(until) = self.jog_until.get_mut(usize::from(axis)) {
+            *until = watch.then(|| ctx.now().as_nanos() + self.keep_alive_ns);
+        }
+    }
+
     /// What the kernel made of a command [`next`](Self::next) gave.
     pub(crate) fn result(&mut self, ctx: &mut Context<'_>, serial: u64, cmd: Command, ok: bool) {
-        if let Command::JogContinuous { axis, .. } = cmd {
-            if ok {
-                if let Some(u) = self.jog_until.get_mut(usize::from(axis)) {
-                    *u = Some(ctx.now().as_nanos() + self.keep_alive_ns);
-                }
-            }
-        }
-        if let Command::JogStop { axis } = cmd {
-            if let Some(u) = self.jog_until.get_mut(usize::from(axis)) {
-                *u = None;
-            }
-        }
+        self.watch_keep_alive(ctx, true, cmd, ok);
         if serial == 0 {
             return;
         }
