@@ -225,7 +225,15 @@ def test_sampling_follows_the_interval_asked_down_to_the_servo_period(opc):
             await slow_sub.subscribe_data_change(x, sampling_interval=100, queuesize=10)
             await asyncio.sleep(0.5)
             op.cycle_start()
-            await asyncio.sleep(3.0)
+            # Until the samples cover the second measured below (by their source time, not
+            # by a wall-clock sleep: on a loaded machine the move starts late).
+            deadline = time.monotonic() + 60
+            while time.monotonic() < deadline:
+                moving = [t for t, x in fast.values if x > 0.01]
+                end = moving[0] + 1.5 if moving else None
+                if end and max(t for t, _ in fast.values) > end and max(t for t, _ in slow.values) >= end:
+                    break
+                await asyncio.sleep(0.1)
             await fast_sub.delete()
             await slow_sub.delete()
             return fast.values, slow.values
@@ -242,9 +250,16 @@ def test_sampling_follows_the_interval_asked_down_to_the_servo_period(opc):
     start = moving[0] + 0.5
     window = [x for t, x in sorted(fast) if start <= t < start + 1.0]
     distinct = len(set(window))
-    print(f"1 ms sampling: {distinct} distinct ActPos values in 1 s")
-    # The API's status documents alone come 100 times a second.
-    assert distinct > 250, distinct
+    times = sorted(t for t, x in fast if start <= t < start + 1.0)
+    gaps = sorted(b - a for a, b in zip(times, times[1:]))
+    close = [g for g in gaps if g < 0.0015]
+    print(f"1 ms sampling: {distinct} distinct ActPos values in 1 s, {len(close)} a millisecond apart")
+    # The API's status documents alone are 10 ms apart; the machine's snapshots are 1 ms
+    # apart, and the item takes them as its sampler reads them: every millisecond on an
+    # idle machine (about 1000), less often on a loaded one, whose scheduler wakes the
+    # sampler thread late (it then reads the newest snapshot), but still many a millisecond
+    # after the one before.
+    assert len(close) >= 50, (distinct, gaps[:20])
     bad = [(a, b) for a, b in zip(window, window[1:]) if b < a]
     assert not bad, ("X only goes up on the way out", bad[:10], len(window))
     slow_window = [(t, x) for t, x in slow if start <= t < start + 1.0]
