@@ -5,7 +5,9 @@ use std::io::Read as _;
 use std::os::unix::process::ExitStatusExt as _;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use std::time::Duration;
+
+mod common;
+use common::stdout_once_running;
 
 fn rtcnc() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_rtcnc"));
@@ -221,18 +223,18 @@ fn sigterm_makes_a_controlled_stop_and_prints_the_summary() {
     let dir = scratch("sigterm");
     let program = dir.join("slow.ngc");
     std::fs::write(&program, "G21 G90 G1 X500 F600\nM2\n").unwrap();
-    let child = rtcnc()
+    let mut child = rtcnc()
         .args(["run", "--machine", "configs/bench-xyz.toml"])
         .arg(&program)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    std::thread::sleep(Duration::from_millis(2000));
+    let stdout = stdout_once_running(&mut child);
     // SAFETY: signalling our own child process.
     unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) };
     let out = child.wait_with_output().unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stdout = stdout.join().unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(143), "{stdout}\n{stderr}");
     assert!(stdout.contains("terminated (SIGTERM)"), "{stdout}");

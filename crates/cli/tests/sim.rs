@@ -3,6 +3,9 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+mod common;
+use common::stdout_once_running;
+
 fn rtcnc() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_rtcnc"));
     c.current_dir(repo());
@@ -116,15 +119,15 @@ fn ctrl_c_holds_the_feed_and_a_second_one_aborts() {
     std::fs::create_dir_all(&dir).unwrap();
     let program = dir.join("slow.ngc");
     std::fs::write(&program, "G21 G90 G1 X500 F600\nM2\n").unwrap();
-    let child = rtcnc()
+    let mut child = rtcnc()
         .args(["run", "--machine", "configs/bench-xyz.toml"])
         .arg(&program)
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
+    let stdout = stdout_once_running(&mut child);
     let pid = child.id() as libc::pid_t;
-    std::thread::sleep(std::time::Duration::from_millis(2500));
     // SAFETY: signalling our own child process.
     unsafe { libc::kill(pid, libc::SIGINT) };
     std::thread::sleep(std::time::Duration::from_millis(800));
@@ -132,9 +135,14 @@ fn ctrl_c_holds_the_feed_and_a_second_one_aborts() {
     unsafe { libc::kill(pid, libc::SIGINT) };
     let out = child.wait_with_output().unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(stderr.contains("feed hold"), "{stderr}");
-    assert!(stderr.contains("abort"), "{stderr}");
+    let stdout = stdout.join().unwrap();
+    let hold = stderr
+        .find("feed hold")
+        .unwrap_or_else(|| panic!("{stderr}"));
+    let abort = stderr
+        .find("rtcnc: abort")
+        .unwrap_or_else(|| panic!("{stderr}"));
+    assert!(hold < abort, "{stderr}");
     assert!(stdout.contains("program stopped"), "{stdout}");
     assert_eq!(out.status.code(), Some(1));
 }

@@ -212,6 +212,9 @@ fn controlled_stop(handle: &rtcnc_kernel::KernelHandle) {
 
 /// Runs `rtcnc run`.
 pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
+    // First: a Ctrl-C or SIGTERM while the machine starts up is kept for when it runs
+    // (a hold before the first move, or the controlled stop), not the end of the process.
+    install_signal_handlers();
     let config = load_machine(&mut args)?;
     let mut kernel = build_kernel(&args, &config)?;
     let mut recording = match (&args.out, kernel.samples.take()) {
@@ -229,7 +232,6 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
     let handle = kernel.handle.clone();
     let tty = std::io::stderr().is_terminal();
     let runner = start_executive(kernel.tasks, args.require_fifo)?;
-    install_signal_handlers();
     let mut live = Live {
         runner: &runner,
         recording: recording.as_mut(),
@@ -243,7 +245,16 @@ pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
             run_idle(&handle, &mut live, started, idle);
             false
         }
-        None => follow_program(&handle, &mut live, started, args.limit, tty),
+        None => {
+            if let Some(program) = &args.program {
+                say!(
+                    "running {} on {} (Ctrl-C: feed hold; again: abort)",
+                    program.display(),
+                    config.machine.name
+                );
+            }
+            follow_program(&handle, &mut live, started, args.limit, tty)
+        }
     };
     live.poll_misses(false);
     let misses = live.misses.count;
@@ -427,19 +438,20 @@ fn enable_and_home(handle: &rtcnc_kernel::KernelHandle, home: bool) -> anyhow::R
 }
 
 /// --idle: the task graph runs with the drives enabled and no program, for `idle` or
-/// until SIGTERM.
+/// until Ctrl-C or SIGTERM.
 fn run_idle(
     handle: &rtcnc_kernel::KernelHandle,
     live: &mut Live,
     started: Instant,
     idle: Duration,
 ) {
-    while started.elapsed() < idle && !TERMINATED.load(Ordering::SeqCst) {
+    let stopped = || TERMINATED.load(Ordering::SeqCst) || INTERRUPTS.load(Ordering::SeqCst) > 0;
+    while started.elapsed() < idle && !stopped() {
         std::thread::sleep((idle - started.elapsed().min(idle)).min(Duration::from_millis(100)));
         live.poll_misses(false);
         live.drain_recording();
     }
-    if TERMINATED.load(Ordering::SeqCst) {
+    if stopped() {
         controlled_stop(handle);
     }
 }
@@ -469,9 +481,10 @@ fn follow_program(
             controlled_stop(handle);
             break;
         }
-        let interrupts = INTERRUPTS.load(Ordering::SeqCst);
-        if interrupts > seen {
-            seen = interrupts;
+        // One at a time: two that came together (while the machine started up) are still
+        // a hold, then an abort.
+        if INTERRUPTS.load(Ordering::SeqCst) > seen {
+            seen += 1;
             if tty {
                 clear_status_line();
             }
