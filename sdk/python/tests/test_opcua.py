@@ -207,10 +207,18 @@ class Samples:
         self.values.append((data.monitored_item.Value.SourceTimestamp.timestamp(), val))
 
 
+def move_start(samples) -> float | None:
+    """The source time of the first sample with X off where it stood."""
+    ordered = sorted(samples)
+    return next((t for t, x in ordered if abs(x - ordered[0][1]) > 0.01), None)
+
+
 def test_sampling_follows_the_interval_asked_down_to_the_servo_period(opc):
     """A 1 ms monitored item gets the machine's 1 kHz snapshot, well beyond the API's
     100 status documents a second; a 100 ms one beside it gets one value per 100 ms."""
     op = operator(opc)
+    # From X0 (a test before may have stopped X anywhere): 1.5 s of the move up are measured.
+    op.mdi("G90 G53 G0 X0").wait(30)
     op.upload_program("long.ngc", LONG)
     op.load_program("long.ngc").wait(5)
 
@@ -227,12 +235,15 @@ def test_sampling_follows_the_interval_asked_down_to_the_servo_period(opc):
             op.cycle_start()
             # Until the samples cover the second measured below (by their source time, not
             # by a wall-clock sleep: on a loaded machine the move starts late).
-            deadline = time.monotonic() + 60
-            while time.monotonic() < deadline:
-                moving = [t for t, x in fast.values if x > 0.01]
-                end = moving[0] + 1.5 if moving else None
-                if end and max(t for t, _ in fast.values) > end and max(t for t, _ in slow.values) >= end:
+            waited = time.monotonic()
+            while True:
+                moving = move_start(fast.values)
+                end = moving + 1.5 if moving else None
+                if end and slow.values and max(fast.values)[0] > end and max(slow.values)[0] >= end:
                     break
+                if time.monotonic() - waited > 60:
+                    pytest.fail(f"no samples a second and a half into the move after 60 s: {len(fast.values)} "
+                                f"at 1 ms, {len(slow.values)} at 100 ms, moving from {moving}")
                 await asyncio.sleep(0.1)
             await fast_sub.delete()
             await slow_sub.delete()
@@ -243,29 +254,25 @@ def test_sampling_follows_the_interval_asked_down_to_the_servo_period(opc):
     fast, slow = asyncio.run(run())
     op.stop()
     wait_state(op, lambda s: s.state == "idle")
-    moving = [t for t, x in fast if x > 0.01]
+    moving = move_start(fast)
     assert moving, "X moved"
     # One second of source time, half a second into the move (at 20 mm/s X changes every
     # millisecond by 0.02 mm, so every sample is a distinct value).
-    start = moving[0] + 0.5
+    start = moving + 0.5
     window = [x for t, x in sorted(fast) if start <= t < start + 1.0]
     distinct = len(set(window))
-    times = sorted(t for t, x in fast if start <= t < start + 1.0)
-    gaps = sorted(b - a for a, b in zip(times, times[1:]))
-    close = [g for g in gaps if g < 0.0015]
-    print(f"1 ms sampling: {distinct} distinct ActPos values in 1 s, {len(close)} a millisecond apart")
-    # The API's status documents alone are 10 ms apart; the machine's snapshots are 1 ms
-    # apart, and the item takes them as its sampler reads them: every millisecond on an
-    # idle machine (about 1000), less often on a loaded one, whose scheduler wakes the
-    # sampler thread late (it then reads the newest snapshot), but still many a millisecond
-    # after the one before.
-    assert len(close) >= 50, (distinct, gaps[:20])
+    print(f"1 ms sampling: {distinct} distinct ActPos values in 1 s")
+    # The API's status documents come every 10 ms: the 1 ms item reads the machine's own
+    # snapshot, 1 ms apart. On an idle machine it gets 700-900 of them in a second; its
+    # sampler is a normal thread, which a loaded machine wakes late (135-250 with
+    # `stress-ng --cpu 2` and two builds beside).
+    assert distinct > 100, distinct
     bad = [(a, b) for a, b in zip(window, window[1:]) if b < a]
     assert not bad, ("X only goes up on the way out", bad[:10], len(window))
     slow_window = [(t, x) for t, x in slow if start <= t < start + 1.0]
     print(f"100 ms sampling: {len(slow_window)} values in the same second")
-    assert 8 <= len(slow_window) <= 11, slow_window
-    times = [t for t, _ in slow if t > moving[0]]
+    assert 8 <= len(slow_window) <= 11, (start, slow_window, sorted(slow))
+    times = [t for t, _ in slow if t > moving]
     assert all(b - a >= 0.0999 for a, b in zip(times, times[1:])), times
 
 
