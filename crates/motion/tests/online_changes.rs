@@ -33,9 +33,13 @@ fn run_changes(moves: &[Move], changes: &[(usize, Change)]) {
 /// [`run_changes`] from `start`.
 fn run_changes_from(start: AxisVec, moves: &[Move], changes: &[(usize, Change)]) {
     let mut pl = planner(&limits(V, A, J), start, 256);
+    let trace = std::env::var_os("RTCNC_MOTION_TRACE").is_some();
     let apply = |n: usize, pl: &mut Planner<TrivialKinematics>| {
         for (at, c) in changes {
             if *at == n {
+                if trace {
+                    eprintln!("CHANGE before period {n}: {c:?}");
+                }
                 match *c {
                     Change::Override(f) => pl.set_feed_override(f),
                     Change::Hold => pl.hold(),
@@ -518,4 +522,130 @@ fn braking_for_a_tight_arc_far_before_the_stop_releases_at_the_braking_jerk() {
             (141, Change::Override(1.4444721064663946)),
         ],
     );
+}
+
+/// One program of the random arc family, for diagnosis:
+/// `ARC_SEED=7 ARC_INDEX=18200 cargo test --release -p rtcnc-motion --test online_changes
+/// -- --ignored one_random_arc_program --nocapture` (with `--features diagnostics` and
+/// `RTCNC_MOTION_TRACE=1` for the generator's trace on stderr). `ARC_INDEX` may be a range
+/// `FIRST..END`: every program in it is run and those exceeding a limit are listed.
+#[test]
+#[ignore = "a diagnosis tool: set ARC_SEED and ARC_INDEX"]
+fn one_random_arc_program() {
+    let seed: u64 = std::env::var("ARC_SEED").map_or(7, |s| s.parse().unwrap());
+    let index = std::env::var("ARC_INDEX").unwrap_or_else(|_| "0".into());
+    let (first, end) = match index.split_once("..") {
+        Some((a, b)) => (a.parse::<usize>().unwrap(), b.parse::<usize>().unwrap()),
+        None => {
+            let i = index.parse::<usize>().unwrap();
+            (i, i + 1)
+        }
+    };
+    let cases = random_arc_cases(seed, end);
+    let mut failed = Vec::new();
+    for (case, (moves, changes)) in cases.iter().enumerate().skip(first) {
+        if end - first == 1 {
+            eprintln!("{moves:#?}\n{changes:?}");
+        }
+        let result = std::panic::catch_unwind(|| run_changes(moves, changes));
+        if let Err(e) = result {
+            let msg = e
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| e.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_default();
+            eprintln!("seed {seed} program {case}: {msg}");
+            failed.push(case);
+        }
+    }
+    eprintln!(
+        "seed {seed}, programs {first}..{end}: {} exceed a limit: {failed:?}",
+        failed.len()
+    );
+    assert!(failed.is_empty());
+}
+
+/// The value of the feed override in force before period `n` under `changes`.
+fn override_before(changes: &[(usize, Change)], n: usize) -> f64 {
+    let mut f = 1.0;
+    let mut sorted: Vec<_> = changes.iter().filter(|(at, _)| *at < n).collect();
+    sorted.sort_by_key(|(at, _)| *at);
+    for (_, c) in sorted {
+        if let Change::Override(x) = c {
+            f = *x;
+        }
+    }
+    f
+}
+
+/// A search, for diagnosis: for each program of `ARC_SEED` in `ARC_INDEX` (`FIRST..END`)
+/// whose run with its changes meets a dead end (a rollback), the run again with one more
+/// override (`SWEEP_FACTOR` × the one in force, default 0.97) at each period from the one
+/// the dead end was met in to `SWEEP_AFTER` (default 250) periods later: an override while
+/// the set-points generated past a rollback's dead end are still ahead of the emitted one.
+/// Lists the runs that exceed a limit. `SWEEP_MIN_ROLLBACKS=3` (periods that roll back in
+/// the run) keeps to the programs whose dead ends took several rollbacks.
+#[test]
+#[ignore = "a diagnosis tool: set ARC_SEED and ARC_INDEX"]
+fn sweep_an_override_over_dead_ends() {
+    let seed: u64 = std::env::var("ARC_SEED").map_or(7, |s| s.parse().unwrap());
+    let index = std::env::var("ARC_INDEX").unwrap_or_else(|_| "0..100".into());
+    let after: usize = std::env::var("SWEEP_AFTER").map_or(250, |s| s.parse().unwrap());
+    let (first, end) = index
+        .split_once("..")
+        .map(|(a, b)| (a.parse::<usize>().unwrap(), b.parse::<usize>().unwrap()))
+        .unwrap();
+    let cases = random_arc_cases(seed, end);
+    let (mut runs, mut failed) = (0, 0);
+    for (case, (moves, changes)) in cases.iter().enumerate().skip(first) {
+        // The periods in which a rollback happened.
+        let result = std::panic::catch_unwind(|| {
+            let mut pl = planner(&limits(V, A, J), p3(0.0, 0.0, 0.0), 256);
+            let mut last = 0;
+            let mut ev = Vec::new();
+            run_with(&mut pl, moves, 400_000, |n, pl| {
+                for (at, c) in changes {
+                    if *at == n {
+                        match *c {
+                            Change::Override(f) => pl.set_feed_override(f),
+                            Change::Hold => pl.hold(),
+                            Change::Resume => pl.resume(),
+                            Change::QuickStop => pl.quick_stop(),
+                        }
+                    }
+                }
+                let r = pl.stats().rollbacks;
+                if r != last && ev.last() != Some(&n) {
+                    ev.push(n);
+                }
+                last = r;
+            });
+            ev
+        });
+        let events = result.unwrap_or_default();
+        // Only runs with `SWEEP_MIN_ROLLBACKS` periods that roll back or more (default 1).
+        let min: usize = std::env::var("SWEEP_MIN_ROLLBACKS").map_or(1, |s| s.parse().unwrap());
+        if events.len() < min {
+            continue;
+        }
+        let factor: f64 = std::env::var("SWEEP_FACTOR").map_or(0.97, |s| s.parse().unwrap());
+        let mut tried = std::collections::BTreeSet::new();
+        for e in events {
+            for p in e.saturating_sub(1)..e + after {
+                if !tried.insert(p) || changes.iter().any(|(at, _)| *at == p) {
+                    continue;
+                }
+                let mut ch = changes.clone();
+                ch.push((p, Change::Override(factor * override_before(changes, p))));
+                runs += 1;
+                if let Err(e) = std::panic::catch_unwind(|| run_changes(moves, &ch)) {
+                    failed += 1;
+                    let msg = e.downcast_ref::<String>().cloned().unwrap_or_default();
+                    let msg = msg.split("; first").next().unwrap_or_default();
+                    eprintln!("FAIL seed {seed} program {case}: {ch:?}: {msg}");
+                }
+            }
+        }
+    }
+    eprintln!("seed {seed}, programs {first}..{end}: {failed} of {runs} runs exceed a limit");
 }
