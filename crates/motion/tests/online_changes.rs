@@ -524,6 +524,120 @@ fn braking_for_a_tight_arc_far_before_the_stop_releases_at_the_braking_jerk() {
     );
 }
 
+#[test]
+fn an_override_while_a_rollbacks_dead_end_is_ahead_keeps_the_limits() {
+    // Seed 7, program 1854, with one more override (97 %) at each period from 430 to 450:
+    // found by `sweep_an_override_over_dead_ends` (it adds the override in the periods
+    // after each rollback). At periods 438-444 the override dropped the set-points a
+    // rollback had generated past its dead end, still ahead of the emitted one, with the
+    // rollback's stricter model; without that model the regenerated set-points exceeded
+    // the jerk limit up to 1.08 × on the 2.2 mm arc of line 2. The override now keeps it
+    // up to the dead end.
+    let b = blend(0.01);
+    let moves = [
+        Move::line(
+            p3(7.262814795162408, 9.593064182479997, 0.0),
+            83.7258096588795,
+            b,
+            1,
+        ),
+        Move::arc(
+            p3(10.880106416890786, 7.182467073011314, 0.0),
+            [8.998815135286232, 8.278755353223442, 0.0],
+            [0.0, 0.0, -1.0],
+            0,
+            108.40951492043163,
+            b,
+            2,
+        ),
+        Move::arc(
+            p3(3.082190358669646, 11.479012981953383, 0.0),
+            [7.032771221378075, 9.424431688554986, 0.0],
+            [0.0, 0.0, -1.0],
+            0,
+            10.457833697476538,
+            b,
+            3,
+        ),
+    ];
+    for at in 430..=450 {
+        let changes = [
+            (at, Change::Override(0.97)),
+            (1177, Change::Override(1.5999795566976023)),
+            (1311, Change::Override(0.9110059025465491)),
+        ];
+        let result = std::panic::catch_unwind(|| run_changes(&moves, &changes));
+        assert!(result.is_ok(), "override of 97 % at period {at}");
+    }
+}
+
+#[test]
+fn an_override_after_a_rollback_past_a_tight_arc_keeps_the_limits() {
+    // Seed 7, program 18200. With the braking curve of 8057963 the path met a dead end
+    // 0.29 mm before the end of line 2's 0.64 mm arc (17.6 mm/s, braking at -193 mm/s²);
+    // five rollbacks passed it (the curve capped at 0.59). The override to 96 % at period
+    // 516, before the emitted set-point got there, dropped those set-points and the
+    // rollback's stricter model: regenerated, they met the same dead end 57 periods ahead
+    // of the emitted one, the escalation began again at its first attempt, no buffered
+    // state fitted by the fifth, and from the emitted state the path could not avoid it:
+    // 1.4 × the jerk limit. An override now keeps the stricter model of a dead end still
+    // ahead (`planner.rs` `an_override_keeps_the_stricter_model_of_a_dead_end_ahead`).
+    // The braking curve since (valleys inside sub-intervals) meets no dead end there:
+    // this program passes with or without that change on the present curve.
+    let b = blend(0.01);
+    let moves = [
+        Move::line(
+            p3(14.850401447407094, 1.2894282673584467, 0.0),
+            44.74027781214412,
+            b,
+            1,
+        ),
+        Move::arc(
+            p3(14.419277856656718, 1.0672152637617625, 0.0),
+            [14.90567251222521, 0.6528690094664281, 0.0],
+            [0.0, 0.0, -1.0],
+            0,
+            45.172948236086384,
+            b,
+            2,
+        ),
+        Move::arc(
+            p3(26.256957192780728, -3.81438766210094, 0.0),
+            [19.544272383959473, -3.2986268797750276, 0.0],
+            [0.0, 0.0, -1.0],
+            0,
+            61.396859317386394,
+            b,
+            3,
+        ),
+        Move::arc(
+            p3(43.84791036004072, 2.8468955855247717, 0.0),
+            [36.61503995863475, -4.610238059201817, 0.0],
+            [0.0, 0.0, 1.0],
+            0,
+            98.68995133300945,
+            PathMode::ExactStop,
+            4,
+        ),
+        Move::arc(
+            p3(37.478924648090235, -14.560656335053018, 0.0),
+            [36.78295496043851, -4.437116664801921, 0.0],
+            [0.0, 0.0, 1.0],
+            0,
+            10.443050015562832,
+            b,
+            5,
+        ),
+    ];
+    run_changes(
+        &moves,
+        &[
+            (516, Change::Override(0.9590121361828143)),
+            (690, Change::Override(1.5994443366590627)),
+        ],
+    );
+}
+
 /// One program of the random arc family, for diagnosis:
 /// `ARC_SEED=7 ARC_INDEX=18200 cargo test --release -p rtcnc-motion --test online_changes
 /// -- --ignored one_random_arc_program --nocapture` (with `--features diagnostics` and
