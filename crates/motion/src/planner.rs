@@ -1248,7 +1248,8 @@ impl<K: Kinematics> Planner<K> {
     /// of the emitted set-point, with the escalation back at its first attempt; the
     /// rollbacks could no longer reach a state that avoids it (seed 7, program 18200 of
     /// `online_changes.rs`'s arc family on an earlier braking curve: an override of 96 %
-    /// 64 ms before the end of a 0.64 mm arc, 1.4 × the jerk limit). A stricter model
+    /// 64 ms before the path reached a dead end near the end of a 0.64 mm arc, 1.4 × the
+    /// jerk limit). A stricter model
     /// than the new settings need only costs speed up to the dead end. A hold or stop
     /// drops it: its own stop decides, and a rollback cannot reach before its request.
     fn regenerate(&mut self, keep_strict: bool) {
