@@ -273,7 +273,11 @@ mod tests {
         let want_k = 1.0 / (r * (0.5 * phi).cos().powi(2));
         assert!((st.p[0] - 0.0).abs() < 1e-12 && (st.p[1] - r).abs() < 1e-12);
         assert!((st.t[0] + 1.0).abs() < 1e-12 && st.t[1].abs() < 1e-12);
-        assert!(st.k[0].abs() < 1e-9 && (st.k[1] + want_k).abs() < 1e-9, "{:?}", st.k);
+        assert!(
+            st.k[0].abs() < 1e-9 && (st.k[1] + want_k).abs() < 1e-9,
+            "{:?}",
+            st.k
+        );
     }
 
     /// Collinear points (unequal spacing): the vertex itself, the line's direction, no
