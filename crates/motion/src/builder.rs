@@ -12,6 +12,7 @@ use crate::planner::junction_speed;
 use crate::spline::{SPLINE_PIECES, SplineMaps, SplineP};
 
 mod arc_blend;
+mod compressor;
 #[cfg(test)]
 mod smoothing_tests;
 
@@ -20,6 +21,8 @@ mod smoothing_tests;
 /// not depend on the machine's period; at a longer period the step could be passed faster
 /// than judged here, at most by the square root of the ratio.
 pub(crate) const STEP_REFERENCE_PERIOD: f64 = 100e-6;
+/// Lines the compressor holds back at most (see `builder/compressor.rs`).
+pub(crate) const COMPRESSOR_LOOK: usize = compressor::LOOK;
 /// Direction changes up to this angle (rad) count as tangent: passed without a blend, at a
 /// speed that keeps the velocity step inside the jerk limit.
 pub(crate) const KINK: f64 = 1e-4;
@@ -133,6 +136,8 @@ pub struct GeometryStats {
     pub tolerance_exceeded: u64,
     /// Smoothed vertices whose curvature was reduced to keep the span within P.
     pub curvature_backoffs: u64,
+    /// Smoothed vertices that took the compressor's fitted state.
+    pub compressed: u64,
 }
 
 #[derive(Clone)]
@@ -156,6 +161,10 @@ pub(crate) struct Builder {
     last_turn: Option<AxisVec>,
     /// Tables of the held-back spline and of a new one (`SplineP::slot`).
     spline_maps: [SplineMaps; 2],
+    /// Lines held back by the compressor, and the state it fitted at the vertex that
+    /// `vertex_stage` decides next.
+    comp: compressor::Compressor,
+    hint: Option<State>,
     pub stats: GeometryStats,
 }
 
@@ -171,6 +180,8 @@ impl Builder {
             tangent_in: false,
             last_turn: None,
             spline_maps: [[(ArcMap::Linear { k: 1.0 }, 0.0); SPLINE_PIECES]; 2],
+            comp: compressor::Compressor::new(),
+            hint: None,
             stats: GeometryStats::default(),
         }
     }
@@ -183,6 +194,8 @@ impl Builder {
         self.smoothed_from = None;
         self.tangent_in = false;
         self.last_turn = None;
+        self.comp.clear();
+        self.hint = None;
     }
 
     /// Validates `mv` and feeds it through; finished pieces go to `out`.
@@ -210,8 +223,9 @@ impl Builder {
     /// Emits everything held back; the path stops at its end.
     pub fn flush(&mut self, lim: &Lim, out: &mut Vec<Piece>) {
         if let Some((l, _)) = self.run.take() {
-            self.vertex_stage(Prim::Line(l), lim, out);
+            self.compress_stage(Prim::Line(l), lim, out);
         }
+        self.release_run(lim, out);
         if let Some(prev) = self.prev.take() {
             let st = self.prev_state.take();
             self.emit_prim_to_end(&prev, st, true, lim, out);
@@ -360,16 +374,16 @@ impl Builder {
         };
         let Prim::Line(l) = p else {
             if let Some((r, _)) = self.run.take() {
-                self.vertex_stage(Prim::Line(r), lim, out);
+                self.compress_stage(Prim::Line(r), lim, out);
             }
-            self.vertex_stage(p, lim, out);
+            self.compress_stage(p, lim, out);
             return;
         };
         if q <= 0.0 || l.rapid {
             if let Some((r, _)) = self.run.take() {
-                self.vertex_stage(Prim::Line(r), lim, out);
+                self.compress_stage(Prim::Line(r), lim, out);
             }
-            self.vertex_stage(p, lim, out);
+            self.compress_stage(p, lim, out);
             return;
         }
         if let Some((mut r, mut n)) = self.run.take() {
@@ -419,14 +433,47 @@ impl Builder {
                     }
                 }
             }
-            self.vertex_stage(Prim::Line(r), lim, out);
+            self.compress_stage(Prim::Line(r), lim, out);
         }
         self.run = Some((l, 0));
+    }
+
+    /// The compressor (`builder/compressor.rs`): holds a run of short feed lines back
+    /// so that each inner vertex gets the state of a curve fitted over its neighbours;
+    /// anything else ends the run and goes on at once.
+    fn compress_stage(&mut self, p: Prim, lim: &Lim, out: &mut Vec<Piece>) {
+        if let Prim::Line(l) = p
+            && compressor::Compressor::eligible(&l)
+        {
+            if !self.comp.continues(&l) {
+                self.release_run(lim, out);
+            }
+            self.comp.hold(l);
+            if self.comp.full()
+                && let Some((line, hint)) = self.comp.pop()
+            {
+                self.hint = hint;
+                self.vertex_stage(Prim::Line(line), lim, out);
+            }
+            return;
+        }
+        self.release_run(lim, out);
+        self.vertex_stage(p, lim, out);
+    }
+
+    /// Passes on every line the compressor holds; the run ends.
+    fn release_run(&mut self, lim: &Lim, out: &mut Vec<Piece>) {
+        while let Some((line, hint)) = self.comp.pop() {
+            self.hint = hint;
+            self.vertex_stage(Prim::Line(line), lim, out);
+        }
+        self.comp.end_run();
     }
 
     /// Decides the junction between the held-back primitive and `cur`, emits the held-back
     /// one up to that junction and holds `cur`.
     fn vertex_stage(&mut self, cur: Prim, lim: &Lim, out: &mut Vec<Piece>) {
+        let hint = self.hint.take();
         let entered_tangent = std::mem::take(&mut self.tangent_in);
         let turn_before = self.last_turn.take();
         let Some(prev) = self.prev.take() else {
@@ -493,12 +540,18 @@ impl Builder {
                         turn_before,
                         entered_tangent,
                     };
-                    // Smoothing through the vertex (dense CAM polylines), else a corner
-                    // blend, else a stop.
+                    // The compressor's fitted state, else smoothing through the vertex
+                    // (dense CAM polylines), else a corner blend, else a stop.
                     if let Some(vk) = self.smooth_vertex(&vx, lim, out) {
                         self.prev = Some(cur);
                         self.prev_state = Some(vk);
                         self.smoothed_from = Some((lp.a, lp.b));
+                        return;
+                    }
+                    if let Some(vk) = hint.and_then(|h| self.fitted_vertex(&vx, h, lim, out)) {
+                        self.prev = Some(cur);
+                        self.prev_state = Some(vk);
+                        self.smoothed_from = None;
                         return;
                     }
                     if let Some(vs) =
@@ -703,6 +756,50 @@ impl Builder {
             }
         }
         None
+    }
+
+    /// The span of `lp` into the state the compressor fitted at its end vertex, where it
+    /// keeps P and `lc` can straighten out of it within P (into its end, or its middle,
+    /// where a corner blend at its end starts at the latest), so that whatever the next
+    /// vertex becomes the path keeps P: that state (None: nothing pushed).
+    fn fitted_vertex(
+        &mut self,
+        vx: &LineVertex,
+        fitted: State,
+        lim: &Lim,
+        out: &mut Vec<Piece>,
+    ) -> Option<State> {
+        let LineVertex {
+            lp,
+            st,
+            lc,
+            tolerance,
+            ..
+        } = *vx;
+        if norm(&sub(&fitted.p, &lp.b)) > tolerance {
+            return None;
+        }
+        let straight_at = |p: AxisVec| State {
+            p,
+            t: lc.dir,
+            k: [0.0; AXES],
+        };
+        let middle = add_scaled(&lc.a, &lc.dir, 0.5 * lc.len);
+        for end in [lc.b, middle] {
+            if !straightens(&lc, &fitted, &straight_at(end), tolerance, lim) {
+                return None;
+            }
+        }
+        let start = st.unwrap_or(State {
+            p: lp.a,
+            t: lp.dir,
+            k: [0.0; AXES],
+        });
+        let pc = span(&lp, &start, &fitted, tolerance, lim)?;
+        out.push(pc.piece());
+        self.stats.smoothed += 1;
+        self.stats.compressed += 1;
+        Some(fitted)
     }
 
     /// Corner blend at the vertex between two lines, where it is estimated to take no
@@ -1007,6 +1104,22 @@ impl Builder {
             Prim::Spline(sp) => sp.emit(&self.spline_maps[sp.slot], stop, out),
         }
     }
+}
+
+/// Whether [`Builder::span_or_exceed`] finds a span of `l` from `s0` into the straight
+/// state `s1` within `tol` (without counting an excess).
+fn straightens(l: &LineP, s0: &State, s1: &State, tol: f64, lim: &Lim) -> bool {
+    if span(l, s0, s1, tol, lim).is_some() {
+        return true;
+    }
+    [0.5, 0.25, 0.125].iter().any(|&frac| {
+        let q = State {
+            p: add_scaled(&s0.p, &sub(&s1.p, &s0.p), frac),
+            t: l.dir,
+            k: [0.0; AXES],
+        };
+        span(l, s0, &q, tol, lim).is_some() && span(l, &q, s1, tol, lim).is_some()
+    })
 }
 
 /// The piece of line `l` from state `s0` to state `s1`: a line when both states lie on the

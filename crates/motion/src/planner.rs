@@ -182,7 +182,13 @@ const PROFILE_SLOTS: usize = 4;
 const PIECES_PER_MOVE: usize = 4;
 /// Pieces a flush can produce at most (the held move: a line's two spans, a spline's
 /// pieces): [`Planner::free`] keeps room for them, so that a flush never overruns the window.
-const FLUSH_PIECES: usize = crate::spline::SPLINE_PIECES;
+/// A push that ends a compressor run passes on the lines it held as well (each a line's
+/// pieces), and a flush passes them on before the held move.
+const FLUSH_PIECES: usize =
+    PIECES_PER_MOVE * (crate::builder::COMPRESSOR_LOOK + 1) + crate::spline::SPLINE_PIECES;
+
+/// Smallest look-ahead window (pieces): a flush's pieces and one move's.
+const MIN_WINDOW: usize = FLUSH_PIECES + PIECES_PER_MOVE + 1;
 
 /// Generator steps `next` may spend in one period beyond the one it emits (refilling the
 /// buffer after an on-line change, regenerating after a rollback).
@@ -442,7 +448,7 @@ impl RewindError {
 
 impl<K: Kinematics> Planner<K> {
     /// A planner for a machine with `limits` and `kinematics`, a servo period in seconds, a
-    /// look-ahead window of `window` pieces (at least 8; memory is fixed at construction),
+    /// look-ahead window of `window` pieces (at least 16; memory is fixed at construction),
     /// starting at rest at axis position `start`.
     ///
     /// Real-time: no (set-up: allocates).
@@ -500,7 +506,8 @@ impl<K: Kinematics> Planner<K> {
         };
         let (a_min, j_min, qa_min, qj_min) =
             (pick(&lim.a), pick(&lim.j), pick(&lim.qa), pick(&lim.qj));
-        let window = window.max(8);
+        // Room for the pieces a flush adds and one move's.
+        let window = window.max(MIN_WINDOW);
         // The generator runs one longest stop ahead (fastest path speed, weakest axis), so
         // that a dead end can be undone by regenerating set-points not yet emitted.
         let v_path = (0..AXES)
@@ -519,7 +526,7 @@ impl<K: Kinematics> Planner<K> {
             q: Ring::new(window),
             builder: Builder::new(start),
             geometry_generation: 0,
-            scratch: Vec::with_capacity(PIECES_PER_MOVE * 2),
+            scratch: Vec::with_capacity(PIECES_PER_MOVE + FLUSH_PIECES),
             fo: 1.0,
             ro: 1.0,
             override_pending: None,

@@ -56,7 +56,7 @@ impl PreparedMove {
             key: 0,
             mv: None,
             result: None,
-            pieces: Vec::with_capacity(PIECES_PER_MOVE * 2),
+            pieces: Vec::with_capacity(PIECES_PER_MOVE + FLUSH_PIECES),
         }
     }
 
