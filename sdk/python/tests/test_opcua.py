@@ -316,11 +316,16 @@ def test_an_estop_is_a_cnc_alarm_and_a_message_a_cnc_message(opc):
             op.mdi("(MSG, tool check before roughing)").wait(10)
             op.estop()
             wait_state(op, lambda s: s.state == "estop")
-            end = time.monotonic() + 5
-            while time.monotonic() < end and not (alarms.events and messages.events):
+            # Both subscriptions see every event of the interface, the message too: wait
+            # for the events of each type, not for any event.
+            def of_type(collected, type_id):
+                return [e for e in collected.events if e.EventType == type_id]
+
+            end = time.monotonic() + 10
+            while time.monotonic() < end and not (of_type(alarms, alarm_type.nodeid)
+                                                  and of_type(messages, message_type.nodeid)):
                 await asyncio.sleep(0.05)
-            return ([a for a in alarms.events if a.EventType == alarm_type.nodeid],
-                    [m for m in messages.events if m.EventType == message_type.nodeid])
+            return of_type(alarms, alarm_type.nodeid), of_type(messages, message_type.nodeid)
         finally:
             await c.disconnect()
 
