@@ -13,8 +13,8 @@ const V: f64 = 100.0;
 const A: f64 = 1000.0;
 const J: f64 = 50_000.0;
 
-/// Runs `moves` from `start`, checks every limit, the end point and (with `verts`) the
-/// distance from the polyline, and returns the trace with the geometry counters.
+/// [`check_polyline_run`] under this file's limits, the deviation searched over every segment
+/// (the test polylines cross themselves).
 fn check_run(
     moves: &[Move],
     start: AxisVec,
@@ -22,40 +22,8 @@ fn check_run(
     p: f64,
     max: usize,
 ) -> (Trace, rtcnc_motion::GeometryStats) {
-    let lim = limits(V, A, J);
-    let mut pl = planner(&lim, start, 2048);
-    let tr = run(&mut pl, moves, max);
-    assert_limits(&tr, V, A, J);
-    assert_eq!(pl.stats().limit_violations, 0);
-    let end = match moves.last().unwrap().kind {
-        rtcnc_motion::MoveKind::Line { end, .. } | rtcnc_motion::MoveKind::Arc { end, .. } => end,
-        _ => *tr.pts.last().unwrap(),
-    };
-    let last = *tr.pts.last().unwrap();
-    assert!(
-        dist(&last, &end) <= 1e-9,
-        "end point off by {}",
-        dist(&last, &end)
-    );
-    if let Some(v) = verts {
-        let dev = deviation(&tr, v);
-        assert!(dev <= p * (1.0 + 1e-9) + 1e-12, "deviation {dev} > P {p}");
-    }
-    (tr, pl.geometry_stats())
-}
-
-/// Largest distance of a set-point from the polyline `verts` (every segment searched: the
-/// test polylines cross themselves).
-fn deviation(tr: &Trace, verts: &[AxisVec]) -> f64 {
-    tr.pts
-        .iter()
-        .map(|q| {
-            verts
-                .windows(2)
-                .map(|w| seg_dist(q, &w[0], &w[1]))
-                .fold(f64::INFINITY, f64::min)
-        })
-        .fold(0.0, f64::max)
+    let within = verts.map(|v| (v, p, Nearest::AnySegment));
+    check_polyline_run((V, A, J), moves, start, within, max)
 }
 
 /// `n` chords of length `c`, each turning by `phi` from the one before (a circle of radius

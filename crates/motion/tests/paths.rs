@@ -10,26 +10,9 @@ const A: f64 = 1000.0;
 const J: f64 = 50_000.0;
 
 fn check_run(moves: &[Move], verts: Option<&[rtcnc_motion::AxisVec]>, p: f64, max: usize) -> Trace {
-    let lim = limits(V, A, J);
-    let mut pl = planner(&lim, verts.map_or(p3(0.0, 0.0, 0.0), |v| v[0]), 2048);
-    let tr = run(&mut pl, moves, max);
-    assert_limits(&tr, V, A, J);
-    assert_eq!(pl.stats().limit_violations, 0);
-    let end = match moves.last().unwrap().kind {
-        rtcnc_motion::MoveKind::Line { end, .. } | rtcnc_motion::MoveKind::Arc { end, .. } => end,
-        _ => unreachable!(),
-    };
-    let last = *tr.pts.last().unwrap();
-    assert!(
-        dist(&last, &end) <= 1e-9,
-        "end point off by {}",
-        dist(&last, &end)
-    );
-    if let Some(v) = verts {
-        let dev = max_deviation(&tr, v);
-        assert!(dev <= p * (1.0 + 1e-9) + 1e-12, "deviation {dev} > P {p}");
-    }
-    tr
+    let start = verts.map_or(p3(0.0, 0.0, 0.0), |v| v[0]);
+    let within = verts.map(|v| (v, p, Nearest::AlongTheRun));
+    check_polyline_run((V, A, J), moves, start, within, max).0
 }
 
 /// Whether the trace comes to rest exactly at `c` (see [`rests_at`]).

@@ -182,7 +182,67 @@ pub fn seg_dist(p: &AxisVec, a: &AxisVec, b: &AxisVec) -> f64 {
         .sqrt()
 }
 
-/// Largest distance of the set-points from the programmed polyline `verts`.
+/// How the segment nearest to a set-point is searched for.
+#[derive(Clone, Copy)]
+pub enum Nearest {
+    /// Around the last nearest segment, moving with the run: for polylines that may come
+    /// back near themselves, where the nearest of all segments could be a later pass.
+    AlongTheRun,
+    /// Every segment: for polylines that cross themselves, where following the run could
+    /// jump to the crossing segment and miss the way back.
+    AnySegment,
+}
+
+/// Largest distance of the set-points from the polyline `verts`, searched as `nearest` says.
+pub fn deviation(tr: &Trace, verts: &[AxisVec], nearest: Nearest) -> f64 {
+    match nearest {
+        Nearest::AlongTheRun => max_deviation(tr, verts),
+        Nearest::AnySegment => tr
+            .pts
+            .iter()
+            .map(|q| {
+                verts
+                    .windows(2)
+                    .map(|w| seg_dist(q, &w[0], &w[1]))
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .fold(0.0, f64::max),
+    }
+}
+
+/// Runs `moves` from `start` under the limits `(v, a, j)` on every axis and checks what every
+/// polyline run must keep: each limit on every set-point, no violation counted by the planner,
+/// the end point of the last move (within 1 nm), and with `within = Some((verts, p))` every
+/// set-point within `p` of the polyline `verts`.
+pub fn check_polyline_run(
+    (v, a, j): (f64, f64, f64),
+    moves: &[Move],
+    start: AxisVec,
+    within: Option<(&[AxisVec], f64, Nearest)>,
+    max_periods: usize,
+) -> (Trace, rtcnc_motion::GeometryStats) {
+    let mut pl = planner(&limits(v, a, j), start, 2048);
+    let tr = run(&mut pl, moves, max_periods);
+    assert_limits(&tr, v, a, j);
+    assert_eq!(pl.stats().limit_violations, 0);
+    let last = *tr.pts.last().unwrap();
+    let end = match moves.last().unwrap().kind {
+        rtcnc_motion::MoveKind::Line { end, .. } | rtcnc_motion::MoveKind::Arc { end, .. } => end,
+        _ => last,
+    };
+    assert!(
+        dist(&last, &end) <= 1e-9,
+        "end point off by {}",
+        dist(&last, &end)
+    );
+    if let Some((verts, p, nearest)) = within {
+        let dev = deviation(&tr, verts, nearest);
+        assert!(dev <= p * (1.0 + 1e-9) + 1e-12, "deviation {dev} > P {p}");
+    }
+    (tr, pl.geometry_stats())
+}
+
+/// Largest distance of the set-points from the programmed polyline `verts`, following the run.
 pub fn max_deviation(tr: &Trace, verts: &[AxisVec]) -> f64 {
     let mut worst = 0.0f64;
     let mut seg: usize = 0;
