@@ -4,6 +4,9 @@
 # exactly this.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# Each phase prints when it starts (seconds since the start), so a slow run shows where
+# its time went.
+phase() { echo "== $* [${SECONDS} s]"; }
 # openssl makes the TLS test's certificate; binutils' objdump reads the glibc version the
 # Debian package depends on; Chromium runs the web HMI's end-to-end tests; mosquitto is the
 # MQTT broker of the publisher's tests.
@@ -13,32 +16,35 @@ scripts/setup.sh openssl binutils chromium-headless-shell mosquitto
 # time; the long randomised runs live in scripts/ and bench/ and pick fresh seeds.
 export PROPTEST_RNG_SEED="${PROPTEST_RNG_SEED:-20261122}"
 
-echo "== cargo fmt --check"
+phase "cargo fmt --check"
 cargo fmt --all -- --check
 (cd fuzz && cargo fmt -- --check)
-echo "== cargo clippy -D warnings"
+phase "cargo clippy -D warnings"
 cargo clippy --workspace --all-targets --locked -- -D warnings
 # The motion crate's debugging tools build only with its diagnostics feature.
 cargo clippy -p rtcnc-motion --all-targets --features diagnostics --locked -- -D warnings
-echo "== cargo doc, warnings denied"
+phase "cargo doc, warnings denied"
 RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked
-echo "== cargo test"
+phase "cargo test: build"
+cargo test --workspace --locked --no-run
+phase "cargo test: run"
 cargo test --workspace --locked
-echo "== EtherCAT over veth, 3 s (bench/ethercat.sh 0.05 --debug)"
+phase "EtherCAT over veth, 3 s (bench/ethercat.sh 0.05 --debug)"
 bench/ethercat.sh 0.05 --debug
 
-echo "== Python client (sdk/python) against a real rtcnc serve"
+phase "Python client (sdk/python) against a real rtcnc serve"
 scripts/setup-python.sh
 cargo build -p rtcnc --locked
 (cd sdk/python && ../../target/python-venv/bin/python -m pytest -q -p no:cacheprovider tests)
 
-echo "== Debian package (scripts/test-deb.sh: built from the debug build, checked unpacked)"
+phase "Debian package (scripts/test-deb.sh: built from the debug build, checked unpacked)"
 scripts/test-deb.sh
 
-echo "== fuzz targets, a short run (scripts/fuzz.sh; the dedicated run is in docs/fuzzing.md)"
+phase "fuzz targets, a short run (scripts/fuzz.sh; the dedicated run is in docs/fuzzing.md)"
 scripts/fuzz.sh --seconds "${FUZZ_SECONDS:-5}"
 
-echo "== web HMI: types, unit tests, the committed bundle (scripts/hmi.sh check)"
+phase "web HMI: types, unit tests, the committed bundle (scripts/hmi.sh check)"
 scripts/hmi.sh check
-echo "== web HMI in headless Chromium against a real rtcnc serve (scripts/hmi.sh e2e)"
+phase "web HMI in headless Chromium against a real rtcnc serve (scripts/hmi.sh e2e)"
 scripts/hmi.sh e2e
+echo "== all passed [${SECONDS} s]"
