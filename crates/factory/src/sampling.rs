@@ -199,7 +199,7 @@ impl InMemoryNodeManagerImpl for MachineNodes {
 /// interval (the subscription's) counts as 10 ms, as for the status documents.
 pub fn step_of(interval_ms: f64, period_ms: f64) -> u64 {
     let interval = if interval_ms > 0.0 { interval_ms } else { 10.0 };
-    if !(period_ms > 0.0) || !interval.is_finite() {
+    if period_ms.is_nan() || period_ms <= 0.0 || !interval.is_finite() {
         return 1;
     }
     // A hair under a whole number of periods is that number (1.0 / 0.1 is 10.000000000000002).
