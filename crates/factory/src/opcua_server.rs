@@ -1106,7 +1106,7 @@ async fn feed_values(
                     r = sampling.changed() => break r,
                     b = next_batch(&mut feed) => {
                         if let Some(f) = feed.as_mut() {
-                            f.feed(&b, &manager, handle.subscriptions());
+                            f.feed(&b, &manager, handle.subscriptions(), app.machine.status().link.trace_dropped);
                         }
                     }
                 }
@@ -1137,7 +1137,7 @@ async fn feed_values(
                 }
                 b = next_batch(&mut feed) => {
                     if let Some(f) = feed.as_mut() {
-                        f.feed(&b, &manager, handle.subscriptions());
+                        f.feed(&b, &manager, handle.subscriptions(), app.machine.status().link.trace_dropped);
                     }
                 }
             }

@@ -62,15 +62,18 @@ pub struct TraceFeed {
     nodes: TraceNodes,
     rx: broadcast::Receiver<Arc<Vec<TraceSample>>>,
     clock: Clock,
-    /// The cycle of the last sample received.
-    last_cycle: Option<u64>,
+    /// The machine's time of the last sample received, ns.
+    last_time: Option<u64>,
     /// Samples up to this cycle are older than the values already set.
     after: Option<u64>,
     /// Every monitored item's step (servo periods between its samples).
     items: HashMap<MonitoredItemHandle, Decimator>,
-    /// Samples missed since the last report, and in all.
-    missed: u64,
-    missed_total: u64,
+    /// Batches of samples this reader lost (it fell behind the API's broadcast), and
+    /// samples the machine dropped from its full trace ring, since the last report.
+    lagged: u64,
+    dropped: u64,
+    /// The machine's count of dropped samples when last seen.
+    dropped_seen: Option<u64>,
     reported: Instant,
 }
 
@@ -88,11 +91,12 @@ impl TraceFeed {
             nodes,
             rx,
             clock: Clock::seeded(period, zero),
-            last_cycle: None,
+            last_time: None,
             after,
             items: HashMap::new(),
-            missed: 0,
-            missed_total: 0,
+            lagged: 0,
+            dropped: 0,
+            dropped_seen: None,
             reported: Instant::now(),
         }
     }
@@ -113,8 +117,7 @@ impl TraceFeed {
         loop {
             match self.rx.recv().await {
                 Ok(batch) => return Some(batch),
-                // The samples of the batches lost show as a gap in the cycles.
-                Err(RecvError::Lagged(_)) => continue,
+                Err(RecvError::Lagged(n)) => self.lagged += n,
                 Err(RecvError::Closed) => return None,
             }
         }
@@ -122,32 +125,32 @@ impl TraceFeed {
 
     /// Hands a batch's samples to the monitored items, each item those of its step, with
     /// their source timestamps; the newest sample's values become the nodes' values.
+    /// `ring_dropped` is the machine's count of samples its full trace ring dropped.
+    ///
+    /// A sample's cycle is that of its set-point: the same in the periods a stalled
+    /// interpolation leaves the servo without a new one, and then ahead by as many. An
+    /// item takes one sample per cycle on its grid, so such periods give it none.
     pub fn feed(
         &mut self,
         batch: &[TraceSample],
         manager: &MachineNodeManager,
         subscriptions: &SubscriptionCache,
+        ring_dropped: u64,
     ) {
         let now = DateTime::now();
         let mut newest: Option<(Vec<f64>, DateTime)> = None;
         {
             let mut notifier = subscriptions.data_notifier();
             for s in batch {
-                match self.last_cycle {
-                    // A restarted machine counts from zero again.
-                    Some(last) if s.cycle <= last => {
-                        self.clock.reset();
-                        self.after = None;
-                        for d in self.items.values_mut() {
-                            *d = Decimator::new(d.step());
-                        }
+                // A restarted machine's time starts from zero again.
+                if self.last_time.is_some_and(|t| s.time_ns < t) {
+                    self.clock.reset();
+                    self.after = None;
+                    for d in self.items.values_mut() {
+                        *d = Decimator::new(d.step());
                     }
-                    Some(last) => {
-                        self.missed += s.cycle - last - 1;
-                    }
-                    None => {}
                 }
-                self.last_cycle = Some(s.cycle);
+                self.last_time = Some(s.time_ns);
                 if self.after.is_some_and(|a| s.cycle <= a) {
                     continue;
                 }
@@ -179,31 +182,30 @@ impl TraceFeed {
                 }
             }
         }
-        self.report();
+        self.report(ring_dropped);
     }
 
-    /// Says how many samples were missed (the machine's trace ring overflowed, or this
-    /// reader fell more than the API's broadcast holds behind), at most once a second.
-    fn report(&mut self) {
-        if self.missed == 0 || self.reported.elapsed() < REPORT_EVERY {
+    /// Says when samples were lost on the way (the machine's trace ring overflowed, or this
+    /// reader fell further behind than the API's broadcast holds), at most once a second.
+    fn report(&mut self, ring_dropped: u64) {
+        if let Some(seen) = self.dropped_seen {
+            self.dropped += ring_dropped.saturating_sub(seen);
+        }
+        self.dropped_seen = Some(ring_dropped);
+        if (self.dropped == 0 && self.lagged == 0) || self.reported.elapsed() < REPORT_EVERY {
             return;
         }
-        self.missed_total += self.missed;
         eprintln!(
-            "rtcnc api: OPC UA: {} servo samples of the machine's trace missed in the last {:.1} s \
-             ({} in all): the trace ring overflowed or the OPC UA server fell behind; the \
-             monitored items sampling faster than 10 ms lack them",
-            self.missed,
+            "rtcnc api: OPC UA: in the last {:.1} s the machine's full trace ring dropped {} \
+             samples and the OPC UA server fell behind by {} batches of them: the monitored \
+             items sampling faster than 10 ms lack those",
             self.reported.elapsed().as_secs_f64(),
-            self.missed_total
+            self.dropped,
+            self.lagged,
         );
-        self.missed = 0;
+        self.dropped = 0;
+        self.lagged = 0;
         self.reported = Instant::now();
-    }
-
-    /// Samples missed so far.
-    pub fn missed(&self) -> u64 {
-        self.missed_total + self.missed
     }
 }
 
