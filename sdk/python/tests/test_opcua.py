@@ -279,8 +279,10 @@ def test_sampling_follows_the_interval_asked_down_to_the_servo_period(opc):
     # The API's status documents come every 10 ms: the 1 ms item takes the machine's trace,
     # every servo period's sample with its own machine time, in the batches the API reads.
     # The trace ring holds 4 s of samples, so a loaded machine, which wakes the API late,
-    # delays them but loses none: 1000 in the second. The bound leaves 5 % to a sample lost
-    # on the way (a trace ring overflow, which the server logs), not to the scheduling.
+    # delays them but loses none: 1000 in the second. The bound leaves 5 % (50 ms) to the
+    # machine's own late cycles and set-point underruns, which leave fewer samples in a
+    # second of source time (974-1000 in 18 runs, 14 of them beside `stress-ng --cpu 2`),
+    # and to a sample lost on the way (which the server logs), not to the scheduling.
     assert distinct >= 950, (distinct, steps, "queue overflows", overflows)
     bad = [(a, b) for a, b in zip(window, window[1:]) if b < a]
     assert not bad, ("X only goes up on the way out", bad[:10], len(window))
