@@ -212,7 +212,7 @@ def main() -> None:
     finally:
         b.stop()
     print("OPC UA subscription to X's position while it moves (publishing 10 ms), distinct values/s:")
-    print(f"  sampling  1 ms: {r['rates'][1]:.0f}/s (the machine's snapshot comes at 1000/s)")
+    print(f"  sampling  1 ms: {r['rates'][1]:.0f}/s (the machine's trace has a sample every servo period)")
     print(f"  sampling 10 ms: {r['rates'][10]:.0f}/s (the API's status comes at 100/s)")
     print(f"  ratio 1 ms / 10 ms: {r['rates'][1] / max(r['rates'][10], 1e-9):.1f}")
     print(f"feed override set over the API -> the OPC UA client has the new ActOverride (sampling 1 ms, publishing 10 ms) "

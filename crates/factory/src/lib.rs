@@ -13,6 +13,7 @@ pub mod mqtt;
 pub mod nodeset;
 pub mod opcua_server;
 pub mod sampling;
+pub mod trace;
 
 pub use config::FactoryConfig;
 

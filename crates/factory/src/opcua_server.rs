@@ -2,7 +2,7 @@
 //! the API's status documents, faults as `CncAlarmType` and operator messages as
 //! `CncMessageType` events, log-in with the API's users.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -27,7 +27,8 @@ use tokio::sync::broadcast::error::RecvError;
 use crate::cnc::{self, Unit};
 use crate::config::{OpcUaSection, slug};
 use crate::nodeset::{CNC_NAMESPACE, CncTypes};
-use crate::sampling::{MachineNodeManager, machine_node_manager};
+use crate::sampling::{Clock, MachineNodeManager, Sampling, machine_node_manager};
+use crate::trace::{Source, TraceFeed, TraceNodes};
 
 /// Node manager of this machine's instance nodes.
 const MACHINE_MANAGER: &str = "rtcnc machine";
@@ -802,7 +803,7 @@ pub async fn start(app: Arc<App>, section: OpcUaSection) -> anyhow::Result<()> {
         .host_name
         .clone()
         .unwrap_or_else(|| section.listen.ip().to_string());
-    let (fastest_tx, fastest_rx) = tokio::sync::watch::channel(crate::sampling::NOBODY_SAMPLES);
+    let (sampling_tx, sampling_rx) = tokio::sync::watch::channel(Sampling::default());
     let mut builder = ServerBuilder::new()
         .application_name(format!("rtcnc {}", app.config.machine.name))
         .application_uri(format!("urn:rtcnc:{name}"))
@@ -831,7 +832,7 @@ pub async fn start(app: Arc<App>, section: OpcUaSection) -> anyhow::Result<()> {
         .with_node_manager(machine_node_manager(
             format!("urn:rtcnc:{name}:machine"),
             MACHINE_MANAGER,
-            fastest_tx,
+            sampling_tx,
         ))
         .discovery_urls(vec!["/".to_string()]);
     {
@@ -841,7 +842,7 @@ pub async fn start(app: Arc<App>, section: OpcUaSection) -> anyhow::Result<()> {
         // published; publishing stays at `min_interval_ms`.
         limits.subscriptions.min_sampling_interval_ms =
             app.config.servo_period().as_secs_f64() * 1e3;
-        // A monitored item keeps the samples of up to 200 ms at 1 ms between two
+        // A monitored item keeps the samples of up to 2 s at 1 ms between two
         // publications (async-opcua's default keeps 10).
         limits.subscriptions.max_monitored_item_queue_size = MAX_QUEUE_SIZE;
     }
@@ -942,53 +943,155 @@ pub async fn start(app: Arc<App>, section: OpcUaSection) -> anyhow::Result<()> {
         Arc::clone(&manager),
         handle.clone(),
         Arc::clone(&model),
-        fastest_rx,
+        sampling_rx,
     ));
     tokio::spawn(feed_events(app, handle, model));
     Ok(())
 }
 
-/// Largest queue of a monitored item.
-const MAX_QUEUE_SIZE: usize = 200;
+/// Largest queue of a monitored item: 2 s of samples at 1 kHz, so a 1 ms item keeps every
+/// one of a batch of the trace that a loaded machine delivers late (and of a client that
+/// sends its publish requests late).
+const MAX_QUEUE_SIZE: usize = 2000;
 
 /// The API's status documents come this often (crates/api/src/machine.rs).
 const API_STATUS_PERIOD_MS: f64 = 10.0;
 
+/// The nodes whose values the machine's trace carries, each servo period's: the axes'
+/// set-points and feedback (`PosIndirect`, and the channel's `PosTcpBcs` of X to C) and the
+/// path speed (`ActFeedrate`). The rest (distances to go, work coordinates, states) only
+/// the status snapshot has.
+fn trace_nodes(model: &Model) -> TraceNodes {
+    let c = path_of(&model.channel);
+    let mut out = vec![(model.id(&format!("{c}.ActFeedrate")), Source::Feedrate)];
+    for (letter, id, joints, _) in &model.axes {
+        let Some(axis) = AXIS_LETTERS.iter().position(|l| l == letter) else {
+            continue;
+        };
+        let a = path_of(id);
+        let actual = Source::Actual(axis, joints.clone());
+        out.push((
+            model.id(&format!("{a}.PosIndirect.CmdPos")),
+            Source::Command(axis),
+        ));
+        out.push((model.id(&format!("{a}.PosIndirect.ActPos")), actual.clone()));
+        // Without joints the status document has no actual position there (Bad_NotSupported).
+        if axis < 6 && !joints.is_empty() {
+            let p = format!("{c}.PosTcpBcs{letter}");
+            out.push((model.id(&format!("{p}.CmdPos")), Source::Command(axis)));
+            out.push((model.id(&format!("{p}.ActPos")), actual));
+        }
+    }
+    Arc::new(out)
+}
+
+/// Where the values come from, for the monitored items that sample.
+#[derive(Debug, Clone, PartialEq)]
+struct Plan {
+    /// The trace feeds the nodes it carries: an item on one of them samples faster than
+    /// the status documents come.
+    trace: bool,
+    /// The step (servo periods) of every item on those nodes, while the trace feeds them.
+    steps: HashMap<opcua::server::MonitoredItemHandle, u64>,
+    /// The fastest interval (ms) asked of the other nodes (of all, without the trace).
+    snapshot: f64,
+}
+
+fn plan(items: &Sampling, trace: &HashSet<NodeId>, period_ms: f64) -> Plan {
+    let on = items
+        .values()
+        .any(|(n, i)| trace.contains(n) && *i > 0.0 && *i < API_STATUS_PERIOD_MS);
+    let steps = items
+        .iter()
+        .filter(|(_, (n, _))| on && trace.contains(n))
+        .map(|(h, (_, i))| (*h, crate::sampling::step_of(*i, period_ms)))
+        .collect();
+    let snapshot = crate::sampling::fastest_interval(
+        items
+            .values()
+            .filter(|(n, _)| !on || !trace.contains(n))
+            .map(|(_, i)| *i),
+    );
+    Plan {
+        trace: on,
+        steps,
+        snapshot,
+    }
+}
+
+/// The next batch of the trace's samples, while it feeds.
+async fn next_batch(
+    feed: &mut Option<TraceFeed>,
+) -> Arc<Vec<rtcnc_kernel::link::layout::TraceSample>> {
+    if let Some(f) = feed.as_mut() {
+        if let Some(b) = f.recv().await {
+            return b;
+        }
+    }
+    std::future::pending().await
+}
+
 /// Sets the model's values, only those that changed, so subscriptions see changes: from
-/// the API's status documents (100 a second) while no monitored item samples faster, else
-/// from the machine's shared-memory status snapshot read directly, as often as the
-/// fastest monitored item asks, down to the machine's status period (its servo period).
-/// Reading the snapshot is a seqlock read: the machine never waits on it.
+/// the API's status documents (100 a second) while no monitored item samples faster. When
+/// one does on a value the machine's trace carries (positions, path speed), those values
+/// come from the trace, every servo period's sample in batches, each item taking one per
+/// its own sampling interval (`TraceFeed`); when one does on another value, the others come
+/// from the machine's shared-memory status snapshot read directly, as often as the fastest
+/// such item asks, down to the machine's status period (its servo period). Reading the
+/// trace and the snapshot never makes the machine wait.
 async fn feed_values(
     app: Arc<App>,
     manager: Arc<MachineNodeManager>,
     handle: ServerHandle,
     model: Arc<Model>,
-    mut fastest: tokio::sync::watch::Receiver<f64>,
+    mut sampling: tokio::sync::watch::Receiver<Sampling>,
 ) {
     let mut rx = app.machine.status_watch();
+    let nodes = trace_nodes(&model);
+    let trace_ids: Arc<HashSet<NodeId>> =
+        Arc::new(nodes.iter().map(|(id, _)| id.clone()).collect());
+    let period_ms = app.config.servo_period().as_secs_f64() * 1e3;
+    let period_ticks = (app.config.servo_period().as_nanos() / 100) as i64;
     let mut publisher = Publisher {
         app: Arc::clone(&app),
-        manager,
-        handle,
+        manager: Arc::clone(&manager),
+        handle: handle.clone(),
         model,
         last: HashMap::new(),
         program: None,
         connected: true,
-        clock: None,
-        last_machine: None,
-        status_period_ticks: (app.config.servo_period().as_nanos() / 100) as i64,
+        clock: Clock::new(period_ticks),
+        last_cycle: None,
+        trace_ids: Arc::clone(&trace_ids),
+        skip_trace: false,
     };
     publisher.publish(&rx.borrow_and_update().clone());
+    let mut feed: Option<TraceFeed> = None;
     loop {
-        let asked = *fastest.borrow_and_update();
-        if asked < API_STATUS_PERIOD_MS {
+        let plan = plan(&sampling.borrow_and_update(), &trace_ids, period_ms);
+        if plan.trace {
+            feed.get_or_insert_with(|| {
+                TraceFeed::new(
+                    app.machine.subscribe_trace(),
+                    Arc::clone(&nodes),
+                    period_ticks,
+                    publisher.clock.zero(),
+                    publisher.last_cycle,
+                )
+            })
+            .set_steps(&plan.steps);
+        } else {
+            feed = None;
+        }
+        publisher.set_skip_trace(plan.trace);
+        if plan.snapshot < API_STATUS_PERIOD_MS {
             let status_period_ms = app
                 .machine
                 .client()
                 .map(|c| c.header().status_period_ns as f64 * 1e-6)
                 .unwrap_or(1.0);
-            let period = Duration::from_secs_f64(asked.max(status_period_ms).max(0.1) * 1e-3);
+            let period =
+                Duration::from_secs_f64(plan.snapshot.max(status_period_ms).max(0.1) * 1e-3);
             // A thread of its own: the runtime's timer ticks in whole milliseconds.
             let stop = Arc::new(AtomicBool::new(false));
             let sampler = {
@@ -998,7 +1101,16 @@ async fn feed_values(
                     (publisher, rx)
                 })
             };
-            let changed = fastest.changed().await;
+            let changed = loop {
+                tokio::select! {
+                    r = sampling.changed() => break r,
+                    b = next_batch(&mut feed) => {
+                        if let Some(f) = feed.as_mut() {
+                            f.feed(&b, &manager, handle.subscriptions(), app.machine.status().link.trace_dropped);
+                        }
+                    }
+                }
+            };
             stop.store(true, Ordering::Relaxed);
             let Ok((p, r)) = sampler.await else {
                 return;
@@ -1018,9 +1130,14 @@ async fn feed_values(
                     }
                     publisher.publish(&rx.borrow_and_update().clone());
                 }
-                r = fastest.changed() => {
+                r = sampling.changed() => {
                     if r.is_err() {
                         return;
+                    }
+                }
+                b = next_batch(&mut feed) => {
+                    if let Some(f) = feed.as_mut() {
+                        f.feed(&b, &manager, handle.subscriptions(), app.machine.status().link.trace_dropped);
                     }
                 }
             }
@@ -1091,36 +1208,25 @@ struct Publisher {
     /// The loaded program's name and lines.
     program: Option<(String, Vec<String>)>,
     connected: bool,
-    /// The wall-clock time of the machine's time zero, ticks since the OPC UA epoch.
-    clock: Option<i64>,
-    /// The machine's time of the last status, ticks.
-    last_machine: Option<i64>,
-    /// The machine's status period, ticks.
-    status_period_ticks: i64,
+    /// The source timestamps: the machine's time of a status on the wall clock.
+    clock: Clock,
+    /// The machine's cycle of the last status set.
+    last_cycle: Option<u64>,
+    /// The nodes whose values the machine's trace carries.
+    trace_ids: Arc<HashSet<NodeId>>,
+    /// The trace sets those (while the machine is attached).
+    skip_trace: bool,
 }
 
 impl Publisher {
-    /// The source timestamp of a status: when the machine took it, on the wall clock, in
-    /// whole ticks (100 ns), so that snapshots a status period apart are exactly that
-    /// apart and a monitored item sampling at the status period takes each one. The
-    /// machine's time zero on the wall clock is the earliest seen (a reading's own delay is
-    /// not part of it), moved back only within the time a skipped snapshot leaves (at most
-    /// 50 µs a reading), so source timestamps never go backwards nor come closer than a
-    /// status period; it is taken afresh when a second off (a step of the wall clock).
-    fn source_time(&mut self, status: &Status, now: DateTime) -> DateTime {
-        let machine = (status.time_s * 1e7).round() as i64;
-        let zero = now.ticks() - machine;
-        let since = self.last_machine.map_or(0, |last| machine - last);
-        self.last_machine = Some(machine);
-        let zero = match self.clock {
-            Some(c) if (zero - c).abs() < 10_000_000 => {
-                let room = (since - self.status_period_ticks).clamp(0, 500);
-                c.min(zero.max(c - room))
-            }
-            _ => zero,
-        };
-        self.clock = Some(zero);
-        DateTime::from(zero + machine)
+    /// Leaves the trace's nodes to the trace, or takes them back (and sets them with the
+    /// next status, changed or not).
+    fn set_skip_trace(&mut self, on: bool) {
+        if on != self.skip_trace {
+            self.skip_trace = on;
+            let ids = &self.trace_ids;
+            self.last.retain(|id, _| !ids.contains(id));
+        }
     }
 
     fn publish(&mut self, status: &Status) {
@@ -1129,8 +1235,8 @@ impl Publisher {
         if status.connected != self.connected {
             self.connected = status.connected;
             self.last.clear();
-            self.clock = None;
-            self.last_machine = None;
+            self.clock.reset();
+            self.last_cycle = None;
         }
         let good_status = if self.connected {
             StatusCode::Good
@@ -1155,13 +1261,18 @@ impl Publisher {
             .unwrap_or_default();
         let now = DateTime::now();
         let source = if self.connected {
-            self.source_time(status, now)
+            self.last_cycle = Some(status.cycle);
+            DateTime::from(
+                self.clock
+                    .stamp((status.time_s * 1e7).round() as i64, now.ticks()),
+            )
         } else {
             now
         };
+        let skip_trace = self.skip_trace && self.connected;
         let mut changed: Vec<(NodeId, DataValue)> = Vec::new();
         for (id, v) in values(&self.model, &self.app, status, &block) {
-            if self.last.get(&id) == Some(&v) {
+            if self.last.get(&id) == Some(&v) || (skip_trace && self.trace_ids.contains(&id)) {
                 continue;
             }
             let dv = match &v {
@@ -1278,5 +1389,60 @@ fn notify(handle: &ServerHandle, model: &Model, e: &Event) {
             );
         }
         _ => {}
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use opcua::server::MonitoredItemHandle;
+
+    fn h(i: u32) -> MonitoredItemHandle {
+        MonitoredItemHandle {
+            subscription_id: 1,
+            monitored_item_id: i,
+        }
+    }
+
+    /// An item faster than the status documents on a node of the trace puts the trace on
+    /// all its nodes' items, each with its own step; the other nodes keep the snapshot.
+    #[test]
+    fn the_trace_feeds_its_nodes_when_one_samples_fast() {
+        let (a, b, c) = (
+            NodeId::new(1, "a"),
+            NodeId::new(1, "b"),
+            NodeId::new(1, "c"),
+        );
+        let trace: HashSet<NodeId> = [a.clone(), b.clone()].into_iter().collect();
+        let items: Sampling = Arc::new(
+            [
+                (h(1), (a.clone(), 1.0)),
+                (h(2), (a.clone(), 100.0)),
+                (h(3), (b.clone(), -1.0)),
+                (h(4), (c.clone(), 50.0)),
+            ]
+            .into_iter()
+            .collect(),
+        );
+        let p = plan(&items, &trace, 1.0);
+        assert!(p.trace);
+        assert_eq!(
+            p.steps,
+            [(h(1), 1), (h(2), 100), (h(3), 10)].into_iter().collect()
+        );
+        assert_eq!(p.snapshot, 50.0);
+        // At 10 ms the status documents do: no trace, every node's interval counts.
+        let items: Sampling = Arc::new(
+            [(h(1), (a.clone(), 10.0)), (h(4), (c.clone(), 2.0))]
+                .into_iter()
+                .collect(),
+        );
+        let p = plan(&items, &trace, 1.0);
+        assert!(!p.trace);
+        assert!(p.steps.is_empty());
+        assert_eq!(p.snapshot, 2.0);
+        let p = plan(&Sampling::default(), &trace, 1.0);
+        assert!(!p.trace);
+        assert_eq!(p.snapshot, crate::sampling::NOBODY_SAMPLES);
     }
 }

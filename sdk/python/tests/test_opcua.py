@@ -198,13 +198,19 @@ def test_a_subscription_sees_the_positions_change(opc):
 
 
 class Samples:
-    """Values with their source timestamps, as the server stamped them."""
+    """Values with their source timestamps, as the server stamped them, and how many came
+    flagged as after an overflow of the item's queue (values lost before them)."""
 
     def __init__(self):
         self.values: list[tuple[float, float]] = []
+        self.overflows = 0
 
     def datachange_notification(self, node, val, data):
-        self.values.append((data.monitored_item.Value.SourceTimestamp.timestamp(), val))
+        value = data.monitored_item.Value
+        self.values.append((value.SourceTimestamp.timestamp(), val))
+        # InfoType DataValue (0x400) with the Overflow bit (0x80).
+        if value.StatusCode is not None and value.StatusCode.value & 0x480 == 0x480:
+            self.overflows += 1
 
 
 def move_start(samples) -> float | None:
@@ -214,8 +220,9 @@ def move_start(samples) -> float | None:
 
 
 def test_sampling_follows_the_interval_asked_down_to_the_servo_period(opc):
-    """A 1 ms monitored item gets the machine's 1 kHz snapshot, well beyond the API's
-    100 status documents a second; a 100 ms one beside it gets one value per 100 ms."""
+    """A 1 ms monitored item gets every servo period's sample of the machine's trace (1 kHz),
+    well beyond the API's 100 status documents a second, however loaded the machine; a
+    100 ms one beside it gets one value per 100 ms."""
     op = operator(opc)
     # From X0 (a test before may have stopped X anywhere): 1.5 s of the move up are measured.
     op.mdi("G90 G53 G0 X0").wait(30)
@@ -228,9 +235,11 @@ def test_sampling_follows_the_interval_asked_down_to_the_servo_period(opc):
             x = await node(c, *AXIS_X, "PosIndirect", "ActPos")
             fast, slow = Samples(), Samples()
             fast_sub = await c.create_subscription(20, fast)
-            await fast_sub.subscribe_data_change(x, sampling_interval=1, queuesize=200)
+            # Queues of a second and more: a loaded machine hands samples over in large
+            # batches, and this client may send its publish requests late.
+            await fast_sub.subscribe_data_change(x, sampling_interval=1, queuesize=1000)
             slow_sub = await c.create_subscription(100, slow)
-            await slow_sub.subscribe_data_change(x, sampling_interval=100, queuesize=10)
+            await slow_sub.subscribe_data_change(x, sampling_interval=100, queuesize=30)
             await asyncio.sleep(0.5)
             op.cycle_start()
             # Until the samples cover the second measured below (by their source time, not
@@ -247,11 +256,14 @@ def test_sampling_follows_the_interval_asked_down_to_the_servo_period(opc):
                 await asyncio.sleep(0.1)
             await fast_sub.delete()
             await slow_sub.delete()
-            return fast.values, slow.values
+            return fast, slow
         finally:
             await c.disconnect()
 
-    fast, slow = asyncio.run(run())
+    fast_samples, slow_samples = asyncio.run(run())
+    fast, slow = fast_samples.values, slow_samples.values
+    overflows = (fast_samples.overflows, slow_samples.overflows)
+    print(f"queue overflows (1 ms, 100 ms item): {overflows}")
     op.stop()
     wait_state(op, lambda s: s.state == "idle")
     moving = move_start(fast)
@@ -261,17 +273,22 @@ def test_sampling_follows_the_interval_asked_down_to_the_servo_period(opc):
     start = moving + 0.5
     window = [x for t, x in sorted(fast) if start <= t < start + 1.0]
     distinct = len(set(window))
-    print(f"1 ms sampling: {distinct} distinct ActPos values in 1 s")
-    # The API's status documents come every 10 ms: the 1 ms item reads the machine's own
-    # snapshot, 1 ms apart. On an idle machine it gets 700-900 of them in a second; its
-    # sampler is a normal thread, which a loaded machine wakes late (135-250 with
-    # `stress-ng --cpu 2` and two builds beside).
-    assert distinct > 100, distinct
+    steps = sorted({round((b - a) * 1e3, 3) for (a, _), (b, _) in zip(sorted(fast), sorted(fast)[1:])
+                    if start <= a < start + 1.0})
+    print(f"1 ms sampling: {distinct} distinct ActPos values in 1 s (steps between source times, ms: {steps[:10]})")
+    # The API's status documents come every 10 ms: the 1 ms item takes the machine's trace,
+    # every servo period's sample with its own machine time, in the batches the API reads.
+    # The trace ring holds 4 s of samples, so a loaded machine, which wakes the API late,
+    # delays them but loses none: 1000 in the second. The bound leaves 5 % (50 ms) to the
+    # machine's own late cycles and set-point underruns, which leave fewer samples in a
+    # second of source time (974-1000 in 18 runs, 14 of them beside `stress-ng --cpu 2`),
+    # and to a sample lost on the way (which the server logs), not to the scheduling.
+    assert distinct >= 950, (distinct, steps, "queue overflows", overflows)
     bad = [(a, b) for a, b in zip(window, window[1:]) if b < a]
     assert not bad, ("X only goes up on the way out", bad[:10], len(window))
     slow_window = [(t, x) for t, x in slow if start <= t < start + 1.0]
     print(f"100 ms sampling: {len(slow_window)} values in the same second")
-    assert 8 <= len(slow_window) <= 11, (start, slow_window, sorted(slow))
+    assert 8 <= len(slow_window) <= 11, (start, slow_window, sorted(slow), "queue overflows", overflows)
     times = [t for t, _ in slow if t > moving]
     assert all(b - a >= 0.0999 for a, b in zip(times, times[1:])), times
 
