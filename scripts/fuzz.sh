@@ -1,12 +1,18 @@
 #!/usr/bin/env bash
 # Coverage-guided fuzzing of rtcnc (cargo fuzz, libFuzzer) on every target of fuzz/:
-#   scripts/fuzz.sh [--runs N | --seconds S] [--workers W] [--no-trace-compares] [TARGET...]
+#   scripts/fuzz.sh [--runs N | --seconds S] [--workers W] [--no-trace-compares] [--dev] [--scratch] [TARGET...]
 # --runs N      N inputs per target (default 10000000: the dedicated run of docs/fuzzing.md)
 # --seconds S   S seconds per target instead (the short run of scripts/test.sh)
 # --workers W   W processes per target on the same corpus (N/W inputs each; default 1)
 # --no-trace-compares  build without libFuzzer's comparison tracing, in fuzz/target-ntc
 #               (the kernel target's operation decoder gains little from it; it is about
 #               half of that target's time)
+# --dev         build without optimisations (cargo fuzz build --dev): a few times faster to
+#               build from nothing (the optimised build is one codegen unit per crate of the
+#               whole dependency tree), several times slower per input; for short runs
+# --scratch     grow a scratch corpus from the seeds, removed afterwards, instead of
+#               fuzz/corpus/TARGET (a short run then takes the same time wherever it runs:
+#               libFuzzer reads a whole corpus before it looks at the clock)
 # Targets default to all (`cargo fuzz list`). The build is the stable toolchain's with
 # libFuzzer's coverage instrumentation, overflow checks and debug assertions on (no
 # sanitizer: safe Rust needs none; FUZZ_SANITIZER=address uses nightly's ASan when present).
@@ -21,6 +27,9 @@ runs=10000000
 seconds=""
 workers=1
 trace_compares=()
+build_mode=-O
+profile_dir=release
+scratch=""
 targets=()
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -28,7 +37,9 @@ while [ $# -gt 0 ]; do
     --seconds) seconds="$2"; shift 2 ;;
     --workers) workers="$2"; shift 2 ;;
     --no-trace-compares) trace_compares=(--no-trace-compares --target-dir target-ntc); shift ;;
-    -h|--help) sed -n '2,16p' "$0"; exit 0 ;;
+    --dev) build_mode=--dev; profile_dir=debug; shift ;;
+    --scratch) scratch=$(mktemp -d); trap 'rm -rf "$scratch"' EXIT; shift ;;
+    -h|--help) sed -n '2,22p' "$0"; exit 0 ;;
     *) targets+=("$1"); shift ;;
   esac
 done
@@ -40,7 +51,7 @@ toolchain=()
 
 cd fuzz
 [ ${#targets[@]} -gt 0 ] || mapfile -t targets < <(cargo "${toolchain[@]}" fuzz list)
-cargo "${toolchain[@]}" fuzz build -s "$sanitizer" -O "${trace_compares[@]}" >/dev/null 2>build.log \
+cargo "${toolchain[@]}" fuzz build -s "$sanitizer" "$build_mode" "${trace_compares[@]}" >/dev/null 2>build.log \
   || { cat build.log; exit 1; }
 triple=$(rustc -vV | sed -n 's/^host: //p')
 target_dir=target
@@ -50,6 +61,8 @@ failed=0
 printf '%-14s %12s %8s %10s %6s %s\n' target inputs seconds inputs/s cov crashes
 for t in "${targets[@]}"; do
   mkdir -p "corpus/$t" "artifacts/$t"
+  grow="corpus/$t"
+  [ -n "$scratch" ] && { grow="$scratch/$t"; mkdir -p "$grow"; }
   before=$(find "artifacts/$t" -type f | wc -l)
   limit=(-runs="$runs")
   [ -n "$seconds" ] && limit=(-max_total_time="$seconds")
@@ -65,7 +78,7 @@ for t in "${targets[@]}"; do
   # Every input kept in fuzz/defects/TARGET once showed a defect (now fixed): each runs
   # once, and any that fails again fails the script.
   if compgen -G "defects/$t/*" >/dev/null; then
-    if ! "$target_dir/$triple/release/$t" defects/"$t"/* >"corpus/$t.defects.log" 2>&1; then
+    if ! "$target_dir/$triple/$profile_dir/$t" defects/"$t"/* >"corpus/$t.defects.log" 2>&1; then
       failed=1
       echo "$t: a kept defect input fails again (fuzz/corpus/$t.defects.log)"
       grep -hE 'panicked|Running:' "corpus/$t.defects.log" | tail -3 || true
@@ -82,9 +95,9 @@ for t in "${targets[@]}"; do
     [ "$k" -gt 0 ] && log="corpus/$t.$k.log"
     logs+=("$log")
     [ -z "$seconds" ] && limit=(-runs=$(( (runs + workers - 1) / workers )))
-    "$target_dir/$triple/release/$t" -artifact_prefix="artifacts/$t/" \
+    "$target_dir/$triple/$profile_dir/$t" -artifact_prefix="artifacts/$t/" \
       "${limit[@]}" "${dict[@]}" -timeout=10 -rss_limit_mb=2048 "${length[@]}" \
-      -print_final_stats=1 "corpus/$t" "${seeds[@]}" >"$log" 2>&1 &
+      -print_final_stats=1 "$grow" "${seeds[@]}" >"$log" 2>&1 &
     pids+=($!)
   done
   status=0

@@ -41,7 +41,7 @@ phase "Debian package (scripts/test-deb.sh: built from the debug build, checked 
 scripts/test-deb.sh
 
 phase "fuzz targets, a short run (scripts/fuzz.sh; the dedicated run is in docs/fuzzing.md)"
-scripts/fuzz.sh --seconds "${FUZZ_SECONDS:-5}"
+scripts/fuzz.sh --dev --scratch --seconds "${FUZZ_SECONDS:-5}"
 
 phase "web HMI: types, unit tests, the committed bundle (scripts/hmi.sh check)"
 scripts/hmi.sh check
