@@ -351,6 +351,11 @@ impl GenBuffer {
 /// uses a stricter policy (attempt 0, 1, ...; see `generate`).
 #[derive(Debug, Clone, Copy)]
 struct Strict {
+    /// Start of the region: the end of the last stop of the path before the dead end
+    /// (where the machine is at rest whatever came before; -∞ when none is in the window).
+    /// Set-points before it keep the settings' own model: a stricter one there cannot help
+    /// the dead end after it.
+    from: f64,
     until: f64,
     attempt: u32,
     /// Scale of the braking curve, the braking jerk and deceleration of the probe.
@@ -659,7 +664,7 @@ impl<K: Kinematics> Planner<K> {
             self.settle_for_change();
             self.hold = None;
             self.cur.hold_at = f64::INFINITY;
-            self.regenerate();
+            self.regenerate(true);
             self.ahead.for_each(|st| st.hold_at = f64::INFINITY);
         }
     }
@@ -984,6 +989,7 @@ impl<K: Kinematics> Planner<K> {
             .zip(new_stops)
         {
             if let Some(s) = s {
+                s.from -= base;
                 s.until -= base;
                 s.stop_at = new_stop.unwrap_or(s.stop_at - base);
             }
@@ -1227,7 +1233,7 @@ impl<K: Kinematics> Planner<K> {
         }
         self.override_pending = None;
         self.replan_line_profile();
-        self.regenerate();
+        self.regenerate(true);
     }
 
     /// Applies the overrides that waited for a stop, once the emitted state is at rest or
@@ -1246,7 +1252,23 @@ impl<K: Kinematics> Planner<K> {
     /// the last periods of a stop are an exact discrete landing that the speed policy
     /// cannot continue from (releasing the deceleration at its jerk would reverse the path
     /// within the period), so the landing ends and generation restarts from rest.
-    fn regenerate(&mut self) {
+    ///
+    /// With `keep_strict` (an override change, a resume: the path goes on under its own
+    /// model), a rollback's stricter model whose dead end still lies ahead of where
+    /// generation restarts stays in force, as it does through pushes (`truncate_from`):
+    /// the set-points it had generated past its dead end are dropped, and without it the
+    /// regenerated ones met the same dead end again, now only a few tens of periods ahead
+    /// of the emitted set-point, with the escalation back at its first attempt; the
+    /// emitted set-point went on along the attempts known to fail and the rollbacks could
+    /// no longer reach a state that avoids it (seed 7, program 1854 of `online_changes.rs`'s
+    /// arc family with an override of 97 % some 50 periods before its dead end: 1.08 × the
+    /// jerk limit; program 18200 on an earlier braking curve: 1.4 ×). A stricter model
+    /// than the new settings need only costs speed up to the dead end, and only after the
+    /// last stop of the path before it (`Strict::from`): capping the braking curve on the
+    /// way into a stop the dead end lies beyond left a state on that curve no room to land
+    /// (program 63: 1.56 ×). A hold or stop drops it: its own stop decides, and a rollback
+    /// cannot reach before its request.
+    fn regenerate(&mut self, keep_strict: bool) {
         let c = &self.cur;
         // At rest there is no landing to finish: generation restarts from here.
         self.ahead.len = if c.v == 0.0 && c.a == 0.0 {
@@ -1254,8 +1276,15 @@ impl<K: Kinematics> Planner<K> {
         } else {
             self.ahead.rest_within(FINISH_STOP).map_or(0, |k| k + 1)
         };
-        self.strict = None;
-        self.strict_passed = None;
+        let region = self.strict.or(self.strict_passed).filter(|_| keep_strict);
+        let from = self.ahead.back().map_or(self.cur.at, |b| b.at);
+        (self.strict, self.strict_passed) = match region {
+            // Generated again before its dead end: in force from the restart on.
+            Some(s) if from <= s.until => (Some(s), None),
+            // Just past it: a dead end met there continues its escalation (`rollback`).
+            Some(s) => (None, Some(s)),
+            None => (None, None),
+        };
     }
 
     /// Before an on-line change: the set-points up to a rest within `FINISH_STOP` periods
@@ -1589,7 +1618,7 @@ impl<K: Kinematics> Planner<K> {
             self.line_profiles = [None; PROFILE_SLOTS];
             self.cur.prof_t = None;
         }
-        self.regenerate();
+        self.regenerate(false);
     }
 }
 
@@ -2237,5 +2266,118 @@ mod valley_tests {
         }
         assert_eq!(pl.stats().limit_violations, 0);
         assert!(low > 5.0 && slowest >= 0.6 * low, "{slowest} {low}");
+    }
+}
+
+#[cfg(test)]
+mod override_tests {
+    use super::*;
+    use crate::axes::Axis;
+    use crate::input::PathMode;
+    use crate::kinematics::TrivialKinematics;
+    use crate::limits::AxisLimits;
+
+    fn at(x: f64, y: f64) -> AxisVec {
+        let mut p = [0.0; AXES];
+        p[0] = x;
+        p[1] = y;
+        p
+    }
+
+    /// An override keeps a rollback's stricter model whose dead end lies ahead of the
+    /// emitted set-point: dropping it with the set-points generated past the dead end
+    /// (seed 7, program 18200 of `tests/online_changes.rs`'s arc family, on an earlier
+    /// braking curve) had the regenerated set-points meet that dead end again, too close to
+    /// the emitted one for any rollback to avoid it (1.4 × the jerk limit). The program and
+    /// its overrides are that one's; a third override (3 % lower) comes in the period
+    /// after the first rollback (on this braking curve, after the raise to 160 %).
+    #[test]
+    fn an_override_keeps_the_stricter_model_of_a_dead_end_ahead() {
+        let lim = MachineLimits::uniform(
+            &[Axis::X, Axis::Y, Axis::Z],
+            AxisLimits::new(100.0, 1000.0, 50_000.0, -1000.0, 1000.0),
+        );
+        let kin = TrivialKinematics::identity(&[Axis::X, Axis::Y, Axis::Z]);
+        let mut pl = Planner::new(&lim, kin, 1e-3, 256, [0.0; AXES]).unwrap();
+        let b = PathMode::Blend {
+            tolerance: 0.01,
+            merge_tolerance: 0.0,
+        };
+        let cw = [0.0, 0.0, -1.0];
+        let ccw = [0.0, 0.0, 1.0];
+        let moves = [
+            Move::line(
+                at(14.850401447407094, 1.2894282673584467),
+                44.74027781214412,
+                b,
+                1,
+            ),
+            Move::arc(
+                at(14.419277856656718, 1.0672152637617625),
+                [14.90567251222521, 0.6528690094664281, 0.0],
+                cw,
+                0,
+                45.172948236086384,
+                b,
+                2,
+            ),
+            Move::arc(
+                at(26.256957192780728, -3.81438766210094),
+                [19.544272383959473, -3.2986268797750276, 0.0],
+                cw,
+                0,
+                61.396859317386394,
+                b,
+                3,
+            ),
+            Move::arc(
+                at(43.84791036004072, 2.8468955855247717),
+                [36.61503995863475, -4.610238059201817, 0.0],
+                ccw,
+                0,
+                98.68995133300945,
+                PathMode::ExactStop,
+                4,
+            ),
+            Move::arc(
+                at(37.478924648090235, -14.560656335053018),
+                [36.78295496043851, -4.437116664801921, 0.0],
+                ccw,
+                0,
+                10.443050015562832,
+                b,
+                5,
+            ),
+        ];
+        assert_eq!(pl.push_all(&moves).unwrap(), moves.len());
+        pl.flush();
+        let mut joints = [0.0; 3];
+        let mut kept = None;
+        for n in 0..100_000 {
+            match n {
+                516 => pl.set_feed_override(0.9590121361828143),
+                690 => pl.set_feed_override(1.5994443366590627),
+                _ => {}
+            }
+            if kept.is_none() && pl.stats().rollbacks > 0 {
+                let region = pl.strict.or(pl.strict_passed).expect("a rollback's region");
+                assert!(pl.cur.at < region.until);
+                pl.set_feed_override(0.97 * 1.5994443366590627);
+                let after = pl
+                    .strict
+                    .or(pl.strict_passed)
+                    .expect("kept by the override");
+                assert_eq!((after.until, after.attempt), (region.until, region.attempt));
+                kept = Some(after);
+            }
+            if pl.next(&mut joints).state == MotionState::Idle && n > 1000 {
+                break;
+            }
+        }
+        assert!(
+            kept.is_some(),
+            "no rollback: the test no longer covers the case"
+        );
+        assert_eq!(pl.stats().limit_violations, 0);
     }
 }

@@ -268,7 +268,10 @@ impl<K: Kinematics> Planner<K> {
         let stop = stop_at.is_finite();
         let mut f_stop = if stop { f } else { 1.0 };
         // The region's rules apply to the restart search already.
+        let from = self.last_stop_before(front);
+        let from = prev.map_or(from, |s| s.from.min(from));
         self.strict = Some(Strict {
+            from,
             until,
             attempt,
             f,
@@ -295,6 +298,20 @@ impl<K: Kinematics> Planner<K> {
         if let Some(s) = &mut self.strict {
             s.f_stop = f_stop;
         }
+    }
+
+    /// Path position of the end of the last stop of the path before `st` (the end of the
+    /// nearest piece behind its own that ends in a stop), looking back no further than the
+    /// emitted set-point's piece: -∞ when there is none.
+    fn last_stop_before(&self, st: &GenState) -> f64 {
+        let (Some(i), Some(first)) = (self.q.index(st.id), self.q.index(self.cur.id)) else {
+            return f64::NEG_INFINITY;
+        };
+        (first..i)
+            .rev()
+            .map(|k| self.q.get(k))
+            .find(|p| p.stop_at_end)
+            .map_or(f64::NEG_INFINITY, |p| p.cum_start + p.len)
     }
 
     /// Whether `st` brakes for the next stop: its stop (with the model's shares) takes
@@ -569,7 +586,7 @@ impl<K: Kinematics> Planner<K> {
     /// a rollback's region).
     fn strictness(&self, at: f64) -> (f64, f64) {
         match self.strict {
-            Some(s) if at <= s.until => (s.f, s.f_stop),
+            Some(s) if at <= s.until && at >= s.from => (s.f, s.f_stop),
             _ => (1.0, 1.0),
         }
     }
