@@ -36,14 +36,15 @@ impl Source {
         match self {
             Source::Command(axis) => s.axes.get(*axis).copied().unwrap_or(0.0),
             Source::Actual(axis, joints) => {
-                let fb: Vec<f64> = joints
+                // Summed in joint order, as the status document's mean is: the same value.
+                let (sum, n) = joints
                     .iter()
-                    .filter_map(|&j| s.feedback.get(j).copied())
-                    .collect();
-                if fb.is_empty() {
+                    .filter_map(|&j| s.feedback.get(j))
+                    .fold((0.0, 0usize), |(sum, n), v| (sum + v, n + 1));
+                if n == 0 {
                     Source::Command(*axis).value(s)
                 } else {
-                    fb.iter().sum::<f64>() / fb.len() as f64
+                    sum / n as f64
                 }
             }
             Source::Feedrate => s.path_speed * 60.0,
