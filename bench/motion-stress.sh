@@ -22,8 +22,8 @@ for s in $seeds; do
   STRESS_ONLINE=1 target/release/examples/stress "$n" "$s"
 done
 echo "== tests/random.rs with 512 cases"
-PROPTEST_CASES=512 cargo test -q --release -p rtcnc-motion --test random
+PROPTEST_CASES=512 cargo test -q --release -p rtcnc-motion --test suite -- random::
 echo "== tests/online_changes.rs and tests/splines_random.rs (release sizes)"
-cargo test -q --release -p rtcnc-motion --test online_changes --test splines_random
+cargo test -q --release -p rtcnc-motion --test suite -- online_changes:: splines_random::
 echo "== 10^6 mm of path at the benchmark machine's limits"
 cargo run -q --release -p rtcnc-motion --example long_paths -- 1e6

@@ -6,4 +6,5 @@
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 PROPTEST_CASES=${1:-100000} cargo test --release -q --manifest-path "$ROOT/Cargo.toml" \
-  -p rtcnc-gcode --test compensation_stage -- stage_never_panics stage_is_transparent
+  -p rtcnc-gcode --test suite -- compensation_stage::stage_never_panics \
+  compensation_stage::stage_is_transparent

@@ -6,8 +6,7 @@ use std::os::unix::process::ExitStatusExt as _;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
-mod common;
-use common::stdout_once_running;
+use crate::common::stdout_once_running;
 
 fn rtcnc() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_rtcnc"));

@@ -1,8 +1,7 @@
 //! Distributed clocks on the simulated segment: the devices' clocks drift, the cyclic
 //! FRMW keeps them on the reference clock, and the master reports its phase against SYNC0.
 
-mod support;
-
+use crate::support;
 use std::time::Duration;
 
 use rtcnc_ecat_slave_sim::esc::{HOP_DELAY_NS, reg};

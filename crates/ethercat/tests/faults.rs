@@ -1,7 +1,6 @@
 //! Faults injected in the simulated segment reach the master as named errors.
 
-mod support;
-
+use crate::support;
 use std::time::Duration;
 
 use rtcnc_ecat_slave_sim::Fault;

@@ -7,8 +7,7 @@
 //! the first exchange is a real sleep, as the kernel's assembly is. The assertions are on
 //! the devices' AL states and the master's errors, never on durations.
 
-mod support;
-
+use crate::support;
 use std::sync::Arc;
 use std::time::Duration;
 

@@ -3,8 +3,7 @@
 //! same lines, same words, numbers equal within 1e-4; and an error exactly where rs274
 //! reported one (`NAME.err` not empty).
 
-mod common;
-
+use crate::common;
 #[test]
 fn corpus_matches_rs274() {
     common::all_match(&common::corpus_dir(), false, &[], 60);

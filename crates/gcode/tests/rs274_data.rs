@@ -5,8 +5,7 @@
 //! purpose-built programs, the reference is rs274's own output for an equivalent program,
 //! said so at each test.
 
-mod common;
-
+use crate::common;
 use std::path::{Path, PathBuf};
 
 fn data(folder: &str) -> PathBuf {

@@ -2,8 +2,7 @@
 //! adaptive-feed analogue input, clamped to 0..=1, multiplies the programmed feed; M52 P0
 //! runs at the programmed feed again; a machine without the input refuses M52 P1.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{Command, FaultCode, MachineState};
 
 #[test]

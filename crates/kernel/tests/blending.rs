@@ -1,8 +1,8 @@
 //! G64 P Q through the whole kernel: the interpreter's Q reaches the planner as its
 //! collinear-merge tolerance (in millimetres, whatever the program's units).
 
-mod common;
-use common::*;
+use crate::common;
+use crate::common::*;
 use rtcnc_kernel::{Command, MachineState, Sample};
 
 /// A CAM-style polyline along X: 40 segments of 0.5 mm whose odd vertices stand `rise`

@@ -3,14 +3,13 @@
 //! machine from the file or the caller hands it over (behind a bus of its own, or with a
 //! kinematics of its own), and the simulated machine's accessors answer only on it.
 
-mod common;
-
+use crate::common;
 use std::error::Error as _;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
-use common::{config, program};
+use crate::common::{config, program};
 use rtcnc_fieldbus::sim::SimulatedMachine;
 use rtcnc_fieldbus::{Fieldbus, FieldbusError, ProcessInputs, ProcessLayout, ProcessOutputs};
 use rtcnc_kernel::{

@@ -9,8 +9,7 @@
 //! (nothing resumes it), idle without having ended (a program error), or standing still
 //! while running for longer than any dwell of the corpus.
 
-mod common;
-use common::*;
+use crate::common::*;
 
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;

@@ -8,8 +8,8 @@
 //! origin failed the set-point check (docs/motion.md, "Isolated lines anywhere on the
 //! machine").
 
-mod common;
-use common::*;
+use crate::common;
+use crate::common::*;
 use rtcnc_kernel::{Command, MachineState, Sample, Urgent};
 
 /// Linear congruential generator: the programs are the same on every run.

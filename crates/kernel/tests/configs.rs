@@ -1,8 +1,7 @@
 //! Every shipped machine file loads, validates and passes the power-up self-test; bad files
 //! are refused naming the key and the reason.
 
-mod common;
-use common::repo;
+use crate::common::repo;
 use rtcnc_kernel::{Kernel, KernelOptions, MachineConfig};
 
 #[test]

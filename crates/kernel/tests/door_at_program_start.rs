@@ -7,8 +7,7 @@
 //! hold for a few scans after a reset, when scripts start their program: that start must
 //! run through at any servo period.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{Command, HoldCause, MachineState, Urgent};
 
 const PROGRAM: &str = "G21 G90 G61.1\nG1 X10 F1200\nM2\n";

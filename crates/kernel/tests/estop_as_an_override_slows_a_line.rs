@@ -6,8 +6,7 @@
 //! the other drives stayed enabled. The reference is docs/safety.md's e-stop bound: from
 //! 100 mm/s the mill stands within 4.3 mm and 90 ms; here from 50 mm/s or less.
 
-mod common;
-use common::*;
+use crate::common::*;
 
 use rtcnc_kernel::{MachineState, Urgent};
 

@@ -4,8 +4,7 @@
 //! 80 ms: the machine must stand within the quick-stop bound computed from the limits, with
 //! the drives off, in e-stop, and no set-point beyond the quick-stop limits.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{Command, FixedText, MachineState, Urgent};
 
 const PERIOD: f64 = 0.001;

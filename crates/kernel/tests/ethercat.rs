@@ -6,8 +6,7 @@
 //! drives' CiA 402 state machine walked by enable, fault and reset, and each bus fault
 //! named.
 
-mod common;
-use common::*;
+use crate::common::*;
 
 use rtcnc_ecat_slave_sim::Fault as SegmentFault;
 use rtcnc_fieldbus::{Fieldbus, FieldbusError, ProcessInputs, ProcessLayout, ProcessOutputs};

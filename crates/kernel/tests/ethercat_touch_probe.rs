@@ -6,8 +6,7 @@
 //! `use_index` lands on the encoder's index, and a drive that does not map the objects is
 //! refused with its name and the object.
 
-mod common;
-use common::*;
+use crate::common::*;
 
 use rtcnc_kernel::{Command, MachineConfig, MachineState, ProbeFailure};
 

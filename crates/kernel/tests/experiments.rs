@@ -1,7 +1,6 @@
 //! The seeds' experiments on whole machines in virtual time.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{Command, MachineState, Sample};
 
 /// Ruckig's plan of the seeds' experiment 1 (6000 pulses of 1 µm, 50 pulse/ms, 1 pulse/ms²,

@@ -4,8 +4,7 @@
 //! the document states. The table is read from docs/safety.md itself, so the document
 //! and the test cannot drift apart.
 
-mod common;
-use common::*;
+use crate::common::*;
 use std::time::Duration;
 
 use rtcnc_ecat_slave_sim::Fault as SegmentFault;

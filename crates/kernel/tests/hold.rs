@@ -3,8 +3,7 @@
 //! the next motion from starting: on the simulated mill with its machine logic, in virtual
 //! time. The program's next move goes from X5 to X100; a held machine must stay at X5.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{Command, FaultCode, FixedText, MachineState, Status, Urgent};
 
 /// mill.st's program input 0 (M66 P0) is digital input 8 (`io.program_inputs`).

@@ -7,8 +7,7 @@
 //! (`modes.rs`): the index pulses lie at multiples of 5 mm of the raw position, Z's latched
 //! one is declared 10, so once homed the raw frame agrees with the machine one.
 
-mod common;
-use common::*;
+use crate::common::*;
 
 use rtcnc_kernel::{Command, MachineState, Urgent};
 

@@ -2,8 +2,7 @@
 //! set-point every servo period, as LinuxCNC's motion controller computes it, and a G95
 //! feed follows the spindle's measured speed.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::MachineState;
 
 /// rpm for S m/min at radius r mm: S·1000 / (2π·r), capped at D.

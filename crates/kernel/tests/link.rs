@@ -4,8 +4,7 @@
 //! overtaking a full normal ring, the continuous jog's keep-alive, the loss of the client,
 //! the event ring's overflow count, the version check.
 
-mod common;
-
+use crate::common;
 use std::sync::atomic::Ordering;
 
 use rtcnc_kernel::link::layout::{self, WireCommand, WireEvent, WireText, WireUrgent};

@@ -1,8 +1,7 @@
 //! The machine logic as a Structured Text program: M-code and spindle hand-shakes go through
 //! the PLC's signals, its outputs reach the machine's I/O image.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_fieldbus::cia402::Cia402State;
 use rtcnc_kernel::config::PlcSection;
 use rtcnc_kernel::{Command, MachineState};

@@ -6,8 +6,7 @@
 //! set-point computed in the period before its exchange), and limits and stop times
 //! derived by hand from the machine file.
 
-mod common;
-use common::*;
+use crate::common::*;
 use std::time::Duration;
 
 use rtcnc_kernel::{Command, Fault, FaultCode, KernelHandle, MachineState, Sample, Status, Urgent};

@@ -1,8 +1,7 @@
 //! Operator messages: `(MSG,...)` and `(DEBUG,...)` reach the operator when the machine
 //! reaches their block, in order with the motion, not when the interpreter reads them.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{Command, MachineState};
 
 /// Three 10 mm feed moves at F600 on the benchmark machine (a = 1000 mm/s², j = 50 000

@@ -9,8 +9,7 @@
 //! n reaches the machine in the exchange of period n + 1. A device delay d seen from an
 //! output first exchanged in period k ends in the exchange of period k − 1 + d / 1 ms.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_fieldbus::sim::InjectedFault;
 use rtcnc_kernel::{Command, FaultCode, MachineState, TaskName, Urgent};
 

@@ -1,7 +1,6 @@
 //! Modes and operator commands on the whole machine, in virtual time.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{Command, FixedText, MachineState, Urgent};
 
 #[test]

@@ -4,8 +4,7 @@
 //! quarter circle lies on its circle) and the NURBS evaluated here by the Cox-de Boor
 //! recursion of its basis functions, written apart from the library's de Boor triangle.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{Command, MachineState, Sample};
 
 fn run(text: &str, name: &str) -> Vec<Sample> {

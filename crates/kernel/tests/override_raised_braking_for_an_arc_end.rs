@@ -6,8 +6,7 @@
 //! the mill's 1 000. The override is raised here at each of the 30 periods around that
 //! moment.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{Command, Urgent};
 
 /// The fuzz target's second program (fuzz/src/kernel.rs), as the operator ran it.

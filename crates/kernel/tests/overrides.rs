@@ -1,8 +1,7 @@
 //! M48-M53 through the whole kernel: the program switches the operator's overrides and the
 //! feed stop switch off and on; each takes effect where the motion before it ends.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{Command, MachineState, Urgent};
 
 fn top_speed(m: &Machine, from: f64, to: f64) -> f64 {

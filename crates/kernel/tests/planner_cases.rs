@@ -2,8 +2,7 @@
 //! project's defect list, copied into `data/cases/`): each runs to its end within every
 //! axis's limits.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{Command, MachineState, Sample};
 
 /// Largest |v|, |a|, |j| of the axis set-points over their limits (finite differences at

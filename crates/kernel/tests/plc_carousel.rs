@@ -8,8 +8,7 @@
 //! (a symmetric profile); T5 from pocket 1 is 120°: 27 + 66 + 27, so 0.15 + 66/360 + 0.15
 //! = 0.4833 s; T3 then is 60° back: 0.15 + 6/360 + 0.15 = 0.3167 s.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_fieldbus::sim::InjectedFault;
 use rtcnc_kernel::{FaultCode, MachineState};
 

@@ -1,8 +1,7 @@
 //! A PLC run-time fault reaches the operator with the PLC's own code, POU and line (before:
 //! only "machine logic fault ... (-1)").
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{FaultCode, MachineState};
 
 #[test]

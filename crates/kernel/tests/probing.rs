@@ -2,8 +2,7 @@
 //! Z = -3 (a probe device on the Z joint): the move stops where the probe changes, the
 //! interpreter waits for the result, and #5061-#5070 hold it for the lines after.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_fieldbus::sim::{DeviceConfig, ProbeSide};
 use rtcnc_kernel::{Command, FaultCode, MachineConfig, MachineState, ProbeFailure};
 

@@ -1,8 +1,7 @@
 //! The shipped example programs run to their end on their machines, within every axis
 //! limit, without faults.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::report::RunStats;
 use rtcnc_kernel::{Command, MachineState};
 

@@ -2,8 +2,7 @@
 //! shuttle that its task leaves undone); a machine with a pallet shuttle has its logic
 //! exchange the pallets before the end.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::config::PlcSection;
 use rtcnc_kernel::{Command, MachineState};
 

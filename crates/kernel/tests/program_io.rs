@@ -2,8 +2,7 @@
 //! the interpreter reads #5399 only once the machine has answered (as LinuxCNC's
 //! interpreter synchronises), M67/M68 analogue outputs, M62..M65 digital outputs.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{Command, MachineConfig, MachineState};
 
 /// The benchmark machine with program input 0 on digital input 3, analogue input 0 on

@@ -2,8 +2,7 @@
 //! target (fuzz/src/kernel.rs), where the planner's preparation of the stop never ended
 //! and the machine hung in the period the drive fault was seen.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_fieldbus::sim::InjectedFault;
 use rtcnc_kernel::{Command, MachineState, Urgent};
 

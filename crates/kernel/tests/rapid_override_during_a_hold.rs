@@ -3,8 +3,7 @@
 //! during the hold's stop decelerated X at 5 246 mm/s² against its 1 000. Every set-point
 //! must keep the axes' limits whatever the overrides do (a hold is no quick stop).
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{Command, FixedText, Urgent};
 
 const PERIOD: f64 = 0.001;

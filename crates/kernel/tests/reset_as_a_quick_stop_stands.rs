@@ -7,8 +7,7 @@
 //! first one taken is the earliest the kernel takes; later ones too, after the drives
 //! are off, where starting again from the measured positions is right.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_fieldbus::cia402::Cia402State;
 use rtcnc_kernel::{Command, MachineState, Urgent};
 

@@ -8,8 +8,7 @@
 //! is refused until the bus is back, and then the set-points start from fresh feedback,
 //! where the load stands.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_fieldbus::sim::InjectedFault;
 use rtcnc_kernel::{Command, FaultCode, MachineState, Urgent};
 

@@ -5,8 +5,7 @@
 //! again at the start point and followed through that reversal, then back to the start
 //! point unsynchronised.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{MachineState, Urgent};
 
 /// The start point, bottom and pitch of the taps below (an M6×1 tap, 12 mm deep from Z2).

@@ -1,8 +1,7 @@
 //! Safety on the whole machine, in virtual time: e-stop, hard limit, following error, an
 //! error in a block ahead, machine functions waiting for the logic.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_fieldbus::sim::InjectedFault;
 use rtcnc_kernel::{Command, FaultCode, MachineState, TaskName, Urgent};
 

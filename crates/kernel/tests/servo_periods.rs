@@ -5,8 +5,7 @@
 //! changes, spindle and coolant hand-shakes), on the 12-drive gantry and on the programs of
 //! the defect list.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{Command, Kernel, KernelOptions, MachineConfig, Simulation};
 use std::time::Duration;
 

@@ -5,8 +5,7 @@
 //! next servo period. The reference is the same machine with a lead of one period (each
 //! set-point computed in the period before its exchange), bit for bit.
 
-mod common;
-use common::*;
+use crate::common::*;
 use std::time::Duration;
 
 use rtcnc_kernel::{Command, FaultCode, Kernel, KernelOptions, MachineState, Status, Urgent};

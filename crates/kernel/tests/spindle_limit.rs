@@ -2,8 +2,7 @@
 //! its block (refuse) or runs the spindle at its highest speed with a message (clamp).
 //! Before, the mill waited for a speed its spindle cannot reach: no motion, no message.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::config::OverSpeed;
 use rtcnc_kernel::{FaultCode, MachineState};
 

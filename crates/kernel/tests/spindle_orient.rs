@@ -2,8 +2,7 @@
 //! 1 ms period, oriented within 0.5°): the program goes on once the spindle reports
 //! oriented, and stops with a fault when M19 Q's time-out passes first.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{FaultCode, MachineState};
 
 #[test]

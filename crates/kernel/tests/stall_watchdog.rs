@@ -2,8 +2,7 @@
 //! stands still while it should move stops the program with `kernel.motion_stalled` at its
 //! line; standing still on purpose (a hold, a dwell, a feed override of 0 %) does not.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{
     Command, FaultCode, FixedText, Kernel, KernelOptions, MachineState, Simulation, Urgent,
 };

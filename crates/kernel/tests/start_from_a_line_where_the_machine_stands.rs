@@ -4,8 +4,7 @@
 //! kernel kept it for the next attempt and met the same refusal at every one: the program
 //! stood in `running` at line 0 for ever, nothing moving, no fault.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{Command, FixedText, MachineState, Urgent};
 
 const PROGRAM: &str = "G21 G90

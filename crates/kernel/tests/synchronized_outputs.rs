@@ -3,8 +3,7 @@
 //! segment); M64/M65/M68 wait for the motion before them and act at once (LinuxCNC's task
 //! waits for motion before issuing them).
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{Command, MachineConfig, MachineState};
 
 /// The benchmark machine (ideal drives: the set-point of an exchange is where the load is)

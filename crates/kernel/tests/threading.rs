@@ -2,8 +2,7 @@
 //! the spindle's index, then its progress follows pitch × spindle revolutions, so every
 //! pass cuts the same helix.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{Command, FaultCode, MachineState};
 
 /// Runs `text` on the lathe and records, per exchange, (Z set-point applied, spindle angle,

@@ -4,8 +4,8 @@
 //! the programmed lines within the machine file's tolerance, every joint keeps its limits,
 //! TCP off moves the joints as programmed, and what cannot run stops at its line.
 
-mod common;
-use common::*;
+use crate::common;
+use crate::common::*;
 use rtcnc_kernel::{Command, FaultCode, MachineState, Sample};
 
 const DT: f64 = 0.001;

@@ -5,8 +5,7 @@
 //! either tool's length, every joint keeps its limits, and the joints equal those
 //! LinuxCNC 2.9's simulator commanded with 5axiskins on the same program.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::Sample;
 
 const DT: f64 = 0.001;

@@ -4,8 +4,7 @@
 //! in `running` for ever without a fault. A command whose request cannot be delivered is
 //! refused (`kernel.command_refused`), as any command refused in its state.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_kernel::{Command, FixedText, MachineState, Urgent};
 
 #[test]

@@ -2,8 +2,7 @@
 //! programmed path (segments and helices), no stop at the corner in G64 (a stop in G61),
 //! exact end points. Reference geometry is built here from the circle's own equations.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_motion::{AxisVec, Move, PathMode};
 use std::f64::consts::PI;
 
@@ -468,7 +467,7 @@ fn random_chains_keep_limits_and_tolerance() {
 /// 300 in release builds, 32 in debug builds) from seed `SEED`: the distance from the path,
 /// the end points and every axis limit hold in all of them (10 of 300 exceeded a limit with
 /// the speed controller before set-points were verified and rolled back). The full run:
-/// `cargo test --release -p rtcnc-motion --test arc_blends harsh`.
+/// `cargo test --release -p rtcnc-motion --test suite arc_blends::harsh`.
 #[test]
 fn harsh_random_chains_keep_limits() {
     let n: usize = std::env::var("N")

@@ -1,8 +1,7 @@
 //! G64 P never makes a corner slower than a stop: a corner is blended only where the blend
 //! is estimated to take no longer than stopping and restarting there.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_motion::{AXES, AxisVec, Move, PathMode};
 
 const V: f64 = 100.0;

@@ -4,8 +4,7 @@
 //! limit is kept, the program ends at its end point, and no curve is fitted across a run's
 //! boundary (a sharper turn, a feed change, a rapid, an arc, a dwell, another tolerance).
 
-mod common;
-use common::*;
+use crate::common::*;
 use proptest::prelude::*;
 use rtcnc_motion::{AxisVec, Move, PathMode};
 

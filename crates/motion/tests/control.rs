@@ -1,7 +1,6 @@
 //! Analytic cases, on-line changes (override, hold, abort, quick stop), dwell, kinematics.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_motion::{
     AXES, Axis, AxisLimits, JointLimits, MachineLimits, MotionState, Move, PathMode, Planner,
     TrivialKinematics,

@@ -2,9 +2,7 @@
 //! the speed where the curvature is tight, and the limits when the whole curve is in the
 //! window.
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use rtcnc_motion::AxisVec;
 use std::f64::consts::PI;
 

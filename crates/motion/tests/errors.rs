@@ -1,7 +1,6 @@
 //! Bad input gives an error value with a code and the program line, never a panic.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_motion::{
     AXES, Axis, AxisLimits, Feed, MachineLimits, MotionError, Move, MoveKind, PathMode, Planner,
     TrivialKinematics,

@@ -4,8 +4,7 @@
 //! Before, a 10^7 mm/s³ limit at 1 000 mm/s² and 1 ms let the stop model brake later than
 //! whole periods allow: an engraving exceeded the acceleration 7 × and a 10^8 limit stalled.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_motion::{MIN_JERK_PHASE_PERIODS, Move, PathMode};
 
 const V: f64 = 100.0;

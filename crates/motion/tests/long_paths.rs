@@ -10,11 +10,8 @@
 //! passes 1e-12 mm beyond 8 192 mm of path (the machine came to rest at a stop and never
 //! moved again). `examples/long_paths.rs` runs the same at the benchmark machine's limits.
 
-mod common;
-#[path = "support/long_path_program.rs"]
-mod long_path_program;
-use common::*;
-use long_path_program::long_path_program;
+use crate::common::*;
+use crate::long_path_program::long_path_program;
 use rtcnc_motion::{
     Axis, AxisLimits, AxisVec, MachineLimits, Move, PathMode, Planner, TrivialKinematics,
 };

@@ -1,7 +1,6 @@
 //! `Planner::move_end`: where the executing program line ends (the status' distance to go).
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_motion::{MotionState, Move, PathMode};
 
 #[test]

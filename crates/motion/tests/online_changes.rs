@@ -2,14 +2,11 @@
 //! axis within its limits: the programs the random search of the `stress` example found
 //! (each once exceeded a limit), and seeded random programs with changes at random periods.
 //! 24 random programs in debug builds, 400 in release
-//! (`cargo test --release -p rtcnc-motion --test online_changes`); of the random arc
+//! (`cargo test --release -p rtcnc-motion --test suite online_changes::`); of the random arc
 //! family, 24 and 3 000 of one seed, 8 and 8 000 of a second.
 
-mod common;
-#[path = "support/line_programs.rs"]
-mod line_programs;
-use common::*;
-use line_programs::{Change, Lcg, parse_spec, random_changes, random_lines};
+use crate::common::*;
+use crate::line_programs::{Change, Lcg, parse_spec, random_changes, random_lines};
 use rtcnc_motion::{AxisVec, MotionState, Move, PathMode, Planner, TrivialKinematics};
 
 const V: f64 = 100.0;
@@ -716,8 +713,8 @@ fn an_override_after_a_rollback_past_a_tight_arc_keeps_the_limits() {
 }
 
 /// One program of the random arc family, for diagnosis:
-/// `ARC_SEED=7 ARC_INDEX=18200 cargo test --release -p rtcnc-motion --test online_changes
-/// -- --ignored one_random_arc_program --nocapture` (with `--features diagnostics` and
+/// `ARC_SEED=7 ARC_INDEX=18200 cargo test --release -p rtcnc-motion --test suite
+/// -- --ignored online_changes::one_random_arc_program --nocapture` (with `--features diagnostics` and
 /// `RTCNC_MOTION_TRACE=1` for the generator's trace on stderr). `ARC_INDEX` may be a range
 /// `FIRST..END`: every program in it is run and those exceeding a limit are listed.
 #[test]

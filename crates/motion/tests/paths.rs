@@ -1,8 +1,7 @@
 //! Limits, tolerance and end points on a corpus of paths: squares, circles (polylines and
 //! arcs), CAM-like polylines, exact-stop modes.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_motion::{Move, PathMode};
 
 const V: f64 = 100.0;

@@ -5,8 +5,7 @@
 //! and the path went on for up to 0.4 s. Swept over every period of the rapid, after going
 //! back over a set-point lead as the kernel does.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_motion::{Axis, AxisLimits, MachineLimits, Move, PathMode};
 
 const LEAD: usize = 50;

@@ -1,8 +1,7 @@
 //! Random move lists (proptest): every sampled set-point within every axis's limits, the
 //! end point exact, no NaN. `PROPTEST_CASES` raises the case count (scripts/ runs more).
 
-mod common;
-use common::*;
+use crate::common::*;
 use proptest::prelude::*;
 use rtcnc_motion::{AxisVec, Move, MoveKind, PathMode};
 

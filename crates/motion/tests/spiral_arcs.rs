@@ -4,8 +4,7 @@
 //! radius (LinuxCNC's `pmCirclePoint`: radius + spiral · θ / angle), the helix rise linear in
 //! the angle too. The reference here is that closed form.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_motion::{AxisVec, MotionError, Move, PathMode};
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 

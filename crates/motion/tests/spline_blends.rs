@@ -3,8 +3,7 @@
 //! circles and segments in closed form), exact end points, no stop at the corner in G64 (a
 //! stop in G61).
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_motion::{AxisVec, Bezier, Move, PathMode};
 
 const V: f64 = 100.0;

@@ -2,8 +2,7 @@
 //! exact end points, limits kept, tangent junctions passed without a stop, soft limits on
 //! the curve's bulge, bad input refused.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_motion::{
     AXES, Axis, AxisLimits, AxisVec, Bezier, CurvePart, MachineLimits, Move, MoveKind, PathMode,
 };

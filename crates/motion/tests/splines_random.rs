@@ -3,13 +3,10 @@
 //! refused as a (near) cusp or ends exactly at its end point within the period budget, and
 //! the limits hold in every one. 40 programs of each kind in debug builds, 150 and 300 in
 //! release
-//! (`cargo test --release -p rtcnc-motion --test splines_random -- --nocapture`).
+//! (`cargo test --release -p rtcnc-motion --test suite -- splines_random:: --nocapture`).
 
-mod common;
-#[path = "support/spline_programs.rs"]
-mod spline_programs;
-use common::*;
-use spline_programs::{Rng, program};
+use crate::common::*;
+use crate::spline_programs::{Rng, program};
 
 /// Runs `count` programs from `seed`: none may exceed a limit or count a violation.
 fn check(count: usize, seed: u64, lines: bool) {

@@ -4,8 +4,7 @@
 //! before set-points were generated ahead with verification and rollback (the spline case:
 //! with the rollback before it restarted from states that fit the stricter model).
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_motion::{Bezier, Move, PathMode};
 
 const V: f64 = 100.0;

@@ -4,12 +4,9 @@
 //! one just in time and got the change in the same period. The reference here is that
 //! just-in-time planner, bit for bit.
 
-mod common;
-use common::*;
+use crate::common::*;
 
-#[path = "support/line_programs.rs"]
-mod line_programs;
-use line_programs::{Lcg, random_lines};
+use crate::line_programs::{Lcg, random_lines};
 
 use rtcnc_motion::{
     AXES, AxisVec, Bezier, Move, PathMode, Planner, RewindError, TrivialKinematics,

@@ -1,8 +1,7 @@
 //! The CODESYS 2.3 dialect that libraries written for it (OSCAT BASIC and the like) use.
 //! Every program here is written for the test; expected values are worked out by hand.
 
-mod common;
-use common::*;
+use crate::common::*;
 
 use std::sync::Arc;
 

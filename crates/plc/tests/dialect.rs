@@ -3,8 +3,7 @@
 //! references, EN/ENO, several files, pragmas, and errors that say what to add. Expected
 //! values are worked out by hand in the comments.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_plc::{CompileOptions, FaultKind, Runtime, Value, compile, compile_sources};
 use std::sync::Arc;
 

@@ -2,8 +2,7 @@
 //! character. Expected values by hand: "Grüße" is five characters; in Windows-1252 ü is
 //! 0xFC and ß 0xDF, in UTF-8 each takes two bytes.
 
-mod common;
-use common::*;
+use crate::common::*;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

@@ -1,8 +1,7 @@
 //! Compile errors name file, line and column; runtime faults stop the PLC with safe
 //! outputs and come back as values.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_plc::{FaultKind, PlcConfig, Restart, Runtime, RuntimeOptions, Value, compile};
 use std::sync::Arc;
 

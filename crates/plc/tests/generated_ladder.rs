@@ -1,8 +1,6 @@
 //! The generated ladder program of the benchmark compiles and behaves like a ladder.
 
-#[path = "../benches/generated.rs"]
-mod generated;
-
+use crate::generated;
 use std::sync::Arc;
 use std::time::Duration;
 

@@ -1,8 +1,7 @@
 //! Semantics of statements, operators, conversions and standard functions. Expected values
 //! are worked out by hand from IEC 61131-3 (3rd edition) rules.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_plc::Value;
 
 #[test]

@@ -5,8 +5,7 @@
 //! size, aligned to it; structures padded to their largest member's alignment; STRING(n)
 //! n + 1 bytes ending in 0) or IEEE-754.
 
-mod common;
-use common::*;
+use crate::common::*;
 
 use std::sync::Arc;
 

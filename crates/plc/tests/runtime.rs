@@ -1,8 +1,7 @@
 //! Runtime services: tasks from the CONFIGURATION, I/O images, on-line monitoring and
 //! forcing, signal mapping, retained variables.
 
-mod common;
-use common::*;
+use crate::common::*;
 use std::sync::Arc;
 use std::time::Duration;
 

@@ -1,8 +1,7 @@
 //! Standard function blocks at exact scans. Scan k (1-based) runs at t = (k - 1) * 4 ms;
 //! the expected tables follow the timing diagrams of IEC 61131-3 (3rd edition, 6.6.3.5).
 
-mod common;
-use common::*;
+use crate::common::*;
 use rtcnc_plc::Value;
 
 /// Runs `fb(IN := input[k], PT := T#20ms)` for every k and returns (Q, ET ms) per scan.

@@ -4,8 +4,7 @@
 //! (ü U+00FC, ß U+00DF) and five Windows-1252 bytes in a STRING (0xFC, 0xDF); `€` is
 //! U+20AC, byte 0x80 in Windows-1252.
 
-mod common;
-use common::*;
+use crate::common::*;
 
 #[test]
 fn literals_escapes_and_length_count_code_units() {

@@ -1,0 +1,55 @@
+//! Every integration test of this crate but those that need a process of their own (see
+//! Cargo.toml), as one test binary: one link instead of one per file.
+
+mod common;
+
+mod adaptive_feed;
+mod blending;
+mod buses;
+mod cam_corpus;
+mod canned_cycles;
+mod configs;
+mod door_at_program_start;
+mod estop_as_an_override_slows_a_line;
+mod estop_in_a_rapid;
+mod ethercat;
+mod ethercat_touch_probe;
+mod experiments;
+mod fault_matrix;
+mod hold;
+mod homing_after_an_interrupted_homing;
+mod lathe_css;
+mod link;
+mod logic;
+mod manual_lead;
+mod messages;
+mod mill_logic;
+mod modes;
+mod nurbs;
+mod override_raised_braking_for_an_arc_end;
+mod overrides;
+mod planner_cases;
+mod plc_carousel;
+mod plc_fault;
+mod probing;
+mod program;
+mod program_end;
+mod program_io;
+mod quick_stop_at_zero_override;
+mod rapid_override_during_a_hold;
+mod real_time_docs;
+mod reset_as_a_quick_stop_stands;
+mod reset_during_a_bus_loss;
+mod rigid_tapping;
+mod safety;
+mod servo_periods;
+mod setpoint_lead;
+mod spindle_limit;
+mod spindle_orient;
+mod stall_watchdog;
+mod start_from_a_line_where_the_machine_stands;
+mod synchronized_outputs;
+mod threading;
+mod tool_centre_point;
+mod tool_centre_point_head;
+mod urgent_burst;
