@@ -5,6 +5,9 @@
 // The doc comments of the argument types are clap's help texts, written as plain text
 // (`[hmi] users`, `rtcnc-<machine file name>`), not as rustdoc's Markdown.
 #![allow(rustdoc::broken_intra_doc_links, rustdoc::invalid_html_tags)]
+// Without the servers the three commands keep their arguments and lose their bodies; what
+// only those bodies used is then unused.
+#![cfg_attr(not(feature = "services"), allow(unused_imports, dead_code))]
 
 use std::process::ExitCode;
 
@@ -72,10 +75,17 @@ pub fn main() -> ExitCode {
         Command::Plc(args) => commands::plc::run(args),
         Command::Sim(args) => commands::sim::run(args),
         Command::Run(args) => commands::run::run(args),
+        #[cfg(feature = "services")]
         Command::Serve(args) => commands::serve::run(args),
         Command::Machine(args) => commands::machine::run(args),
+        #[cfg(feature = "services")]
         Command::Api(args) => commands::api::run(args),
+        #[cfg(feature = "services")]
         Command::User(args) => commands::user::run(args),
+        #[cfg(not(feature = "services"))]
+        Command::Serve(_) | Command::Api(_) | Command::User(_) => Err(anyhow::anyhow!(
+            "this rtcnc was built without its servers (the cargo feature `services`)"
+        )),
         Command::Machines(args) => commands::machines::run(args),
     };
     match result {

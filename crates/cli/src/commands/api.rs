@@ -81,6 +81,7 @@ impl Args {
 }
 
 /// Runs `rtcnc api`.
+#[cfg(feature = "services")]
 pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
     if args.print_openapi {
         print!("{}", rtcnc_api::openapi_json());

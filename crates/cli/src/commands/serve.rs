@@ -75,6 +75,7 @@ impl Supervised {
 }
 
 /// Runs `rtcnc serve`.
+#[cfg(feature = "services")]
 pub fn run(mut args: ServeArgs) -> anyhow::Result<ExitCode> {
     // Located once here: both processes get the machine file's path.
     args.api.machine = crate::machines::locate(&args.api.machine)?;

@@ -619,7 +619,9 @@ fn stops_program(code: FaultCode) -> bool {
 }
 
 /// Which program lines move at rapid and which feed, from the interpreter's canonical
-/// output (the HMI's preview); a line with both (a canned cycle) counts as a feed.
+/// output (the HMI's preview); a line with both (a canned cycle) counts as a feed. Without
+/// the preview (a build without the feature `services`) every line is drawn as a feed.
+#[cfg(feature = "services")]
 fn line_kinds(config: &MachineConfig, program: &Path) -> HashMap<u32, LineKind> {
     let mut kinds = HashMap::new();
     let Ok(text) = std::fs::read_to_string(program) else {
@@ -642,6 +644,11 @@ fn line_kinds(config: &MachineConfig, program: &Path) -> HashMap<u32, LineKind> 
         }
     }
     kinds
+}
+
+#[cfg(not(feature = "services"))]
+fn line_kinds(_: &MachineConfig, _: &Path) -> HashMap<u32, LineKind> {
+    HashMap::new()
 }
 
 fn write_summary(

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context as _;
+#[cfg(feature = "services")]
 use rtcnc_api::auth::{Role, add_user};
 use rtcnc_kernel::MachineConfig;
 
@@ -38,6 +39,7 @@ enum UserCommand {
 }
 
 /// Runs `rtcnc user`.
+#[cfg(feature = "services")]
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     match args.command {
         UserCommand::Add {
