@@ -23,9 +23,10 @@ if [ "$profile" = release ]; then
   cargo build --release -q -p rtcnc-ethercat --example ethercat_bench
   cargo build --release -q -p rtcnc --bin rtcnc
 else
-  cargo build -q -p rtcnc-ecat-slave-sim --bin ecat-slave-sim
-  cargo build -q -p rtcnc-ethercat --example ethercat_bench
-  cargo build -q -p rtcnc --bin rtcnc
+  # The test build has all three. Built one package at a time, each would build its
+  # dependencies again with that package's own features (serde, ethercrab, the kernel,
+  # rtcnc: minutes from nothing).
+  cargo test -q --workspace --locked --no-run
 fi
 rtcnc="target/${profile}/rtcnc"
 sim="target/${profile}/ecat-slave-sim"

@@ -13,7 +13,9 @@ profile=release
 if [ "$profile" = release ]; then
   cargo build -p rtcnc --locked --release
 else
-  cargo build -p rtcnc --locked
+  # The test build's binary: `cargo build -p rtcnc` would build rtcnc's dependencies again
+  # with its own features.
+  cargo test -q --workspace --locked --no-run
 fi
 
 version=$(sed -n 's/^version = "\(.*\)"/\1/p' Cargo.toml | head -1)

@@ -19,6 +19,8 @@ export PROPTEST_RNG_SEED="${PROPTEST_RNG_SEED:-20261122}"
 phase "cargo fmt --check"
 cargo fmt --all -- --check
 (cd fuzz && cargo fmt -- --check)
+phase "every integration test file is built (scripts/check-test-files.py)"
+scripts/check-test-files.py
 phase "cargo clippy -D warnings"
 cargo clippy --workspace --all-targets --locked -- -D warnings
 # The motion crate's debugging tools build only with its diagnostics feature.
@@ -34,7 +36,6 @@ bench/ethercat.sh 0.05 --debug
 
 phase "Python client (sdk/python) against a real rtcnc serve"
 scripts/setup-python.sh
-cargo build -p rtcnc --locked
 (cd sdk/python && ../../target/python-venv/bin/python -m pytest -q -p no:cacheprovider tests)
 
 phase "Debian package (scripts/test-deb.sh: built from the debug build, checked unpacked)"
