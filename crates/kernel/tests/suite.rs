@@ -16,6 +16,7 @@ mod ethercat;
 mod ethercat_touch_probe;
 mod experiments;
 mod fault_matrix;
+mod feed_override_during_a_hold;
 mod hold;
 mod homing_after_an_interrupted_homing;
 mod lathe_css;

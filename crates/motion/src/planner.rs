@@ -666,6 +666,9 @@ impl<K: Kinematics> Planner<K> {
             self.cur.hold_at = f64::INFINITY;
             self.regenerate(true);
             self.ahead.for_each(|st| st.hold_at = f64::INFINITY);
+            if let Some(p) = self.override_pending {
+                self.change_overrides(p.fo, p.ro);
+            }
         }
     }
 
@@ -1202,6 +1205,18 @@ impl<K: Kinematics> Planner<K> {
     fn change_overrides(&mut self, fo: f64, ro: f64) {
         if fo == self.fo && ro == self.ro {
             self.override_pending = None;
+            return;
+        }
+        // A hold, abort or quick stop brakes as its own stop says; an override given
+        // meanwhile waits for the resume. Regenerated at a feed of 5.2 %, a hold's stop on
+        // an arc went on at that feed, held, for more than half a second (the kernel fuzz
+        // target, fuzz/defects/kernel/hold-at-5-percent-override-on-a-tight-arc).
+        if self.hold.is_some() {
+            self.override_pending = Some(PendingOverride {
+                fo,
+                ro,
+                until: u64::MAX,
+            });
             return;
         }
         self.settle_for_change();
