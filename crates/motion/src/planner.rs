@@ -620,7 +620,8 @@ impl<K: Kinematics> Planner<K> {
         self.append_scratch(true);
     }
 
-    /// Feed override, 0..=2 (clamped). Takes effect at once with a jerk-limited speed change.
+    /// Feed override, 0..=2 (clamped). Takes effect at once with a jerk-limited speed change;
+    /// during a hold, an abort or a quick stop, from the resume or the stop's end.
     ///
     /// Real-time: yes (no allocation, no blocking).
     pub fn set_feed_override(&mut self, f: f64) {
