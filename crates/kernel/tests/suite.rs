@@ -41,6 +41,7 @@ mod rapid_override_during_a_hold;
 mod real_time_docs;
 mod reset_as_a_quick_stop_stands;
 mod reset_during_a_bus_loss;
+mod resume_near_an_arc_end;
 mod rigid_tapping;
 mod safety;
 mod servo_periods;

@@ -390,6 +390,10 @@ pub struct Planner<K: Kinematics> {
     /// ([`Planner::change_overrides`]).
     override_pending: Option<PendingOverride>,
     hold: Option<Hold>,
+    /// A resume requested while the hold's stop brakes harder than the path's own stop
+    /// model could continue: the hold's stop goes on until that model fits
+    /// ([`Planner::resume`]).
+    resume_waits: bool,
     stats: RunStats,
     a_min: f64,
     j_min: f64,
@@ -536,6 +540,7 @@ impl<K: Kinematics> Planner<K> {
             ro: 1.0,
             override_pending: None,
             hold: None,
+            resume_waits: false,
             stats: RunStats::default(),
             a_min,
             j_min,
@@ -651,6 +656,7 @@ impl<K: Kinematics> Planner<K> {
     ///
     /// Real-time: yes (no allocation, no blocking).
     pub fn hold(&mut self) {
+        self.resume_waits = false;
         if self.hold.is_none() {
             self.start_stop(StopKind::Hold);
         }
@@ -658,19 +664,49 @@ impl<K: Kinematics> Planner<K> {
 
     /// Resume after a feed hold, from where the machine stopped. Requested during the last
     /// steps of the hold's stop, it takes effect when they end (see `regenerate`).
+    /// Requested while the hold's stop brakes into the path's own next stop harder than
+    /// the path's stop model could go on from (the hold's model is the weakest axis's
+    /// deceleration, the path's on a tight arc can be lower), it takes effect once that
+    /// model fits again, at the latest at rest: continued by the path's model, the state
+    /// had no way left to land and reached the stop at 1.2 mm/s, 1.05 × over the
+    /// acceleration limit (the kernel fuzz target,
+    /// fuzz/defects/kernel/acceleration-after-a-resume-on-a-tight-arc).
     ///
     /// Real-time: yes (no allocation, no blocking).
     pub fn resume(&mut self) {
         if matches!(self.hold, Some(h) if h.kind == StopKind::Hold) {
+            if !self.path_stop_fits() {
+                self.resume_waits = true;
+                return;
+            }
+            self.resume_waits = false;
             self.settle_for_change();
             self.hold = None;
             self.cur.hold_at = f64::INFINITY;
             self.regenerate(true);
+            trace!(
+                self.trace,
+                "RESUME at={} v={} a={} kept={}",
+                self.cur.at,
+                self.cur.v,
+                self.cur.a,
+                self.ahead.len
+            );
             self.ahead.for_each(|st| st.hold_at = f64::INFINITY);
             if let Some(p) = self.override_pending {
                 self.change_overrides(p.fo, p.ro);
             }
         }
+    }
+
+    /// Whether the path's own stop model (as if no hold were in force) can stop the emitted
+    /// state at the path's next stop.
+    fn path_stop_fits(&mut self) -> bool {
+        let hold = self.hold.take();
+        let c = self.cur;
+        let fits = self.stop_fits(&c, 1.0);
+        self.hold = hold;
+        fits
     }
 
     /// Abort: decelerate along the path, then drop every queued move.
@@ -867,6 +903,9 @@ impl<K: Kinematics> Planner<K> {
             }
         };
         self.emit(st);
+        if self.resume_waits {
+            self.resume();
+        }
         self.apply_pending_override();
         let x = self.cur.hist[0];
         self.kin.axes_to_joints(&x, joints);
@@ -907,6 +946,7 @@ impl<K: Kinematics> Planner<K> {
             self.builder.clear(st.hist[0]);
             self.geometry_generation = self.geometry_generation.wrapping_add(1);
             self.hold = None;
+            self.resume_waits = false;
             self.ahead.len = 0;
             self.strict = None;
             self.strict_passed = None;
@@ -1595,6 +1635,7 @@ impl<K: Kinematics> Planner<K> {
     }
 
     fn start_stop(&mut self, kind: StopKind) {
+        self.resume_waits = false;
         self.settle_for_change();
         let (a, j) = match kind {
             StopKind::Quick => (self.qa_min, self.qj_min),
@@ -1634,6 +1675,10 @@ impl<K: Kinematics> Planner<K> {
             self.line_profiles = [None; PROFILE_SLOTS];
             self.cur.prof_t = None;
         }
+        trace!(
+            self.trace,
+            "STOP {kind:?} at={} v={} a={} hold_at={}", c.at, c.v, c.a, self.cur.hold_at
+        );
         self.regenerate(false);
     }
 }
@@ -1931,6 +1976,7 @@ impl<K: Kinematics> Planner<K> {
         self.geometry_generation = self.geometry_generation.wrapping_add(1);
         self.line_profiles = [None; PROFILE_SLOTS];
         self.hold = None;
+        self.resume_waits = false;
         self.quick_rest = false;
         self.strict = None;
         self.strict_passed = None;
