@@ -999,3 +999,106 @@ fn random_arcs_with_quick_resumes_keep_every_limit() {
         assert!(result.is_ok(), "run {run}: {moves:?} {changes:?}");
     }
 }
+
+/// A search, for diagnosis: the random line programs of `ARC_SEED` (default 11), `ARC_N`
+/// of them (default 500), each run 20 times with a hold in the last 150 periods before one
+/// of its stops and a resume 1-20 periods later (`AFTER_REST=1`: 400 periods later), on a
+/// machine whose Z is weaker (`UNIFORM=1`: the same limits on every axis).
+#[test]
+#[ignore = "a diagnosis tool: set ARC_SEED and ARC_N"]
+fn quick_resumes_of_random_line_programs() {
+    let n: usize = std::env::var("ARC_N").map_or(500, |s| s.parse().unwrap());
+    let weak = std::env::var_os("UNIFORM").is_none();
+    let lim = if weak { weak_z() } else { limits(V, A, J) };
+    let mut rng = Lcg(std::env::var("ARC_SEED").map_or(11, |s| s.parse().unwrap()));
+    let (mut runs, mut failed) = (0, 0);
+    for case in 0..n {
+        let (spec, moves) = random_lines(&mut rng);
+        let stops = stop_periods(&moves);
+        for _ in 0..20 {
+            let stop = stops[((rng.f() * stops.len() as f64) as usize).min(stops.len() - 1)];
+            let hold = stop.saturating_sub(1 + (rng.f() * 150.0) as usize);
+            let mut resume = hold + 1 + (rng.f() * 20.0) as usize;
+            if std::env::var_os("AFTER_REST").is_some() {
+                resume = hold + 400;
+            }
+            let changes = [(hold, Change::Hold), (resume, Change::Resume)];
+            runs += 1;
+            if std::panic::catch_unwind(|| {
+                run_changes_on(&lim, p3(0.0, 0.0, 0.0), &moves, &changes)
+            })
+            .is_err()
+            {
+                failed += 1;
+                eprintln!("FAIL case {case} SPEC=\"{spec}\" {changes:?}");
+            }
+        }
+    }
+    eprintln!("lines, weak Z {weak}: {failed} of {runs} exceed a limit");
+    assert_eq!(failed, 0);
+}
+
+/// Seed 11's random line program 290 ([`quick_resumes_of_random_line_programs`]): a
+/// 4.08 mm line at 141.7 mm/s after a blend at 76 mm/s, ending the program.
+fn line_program_290() -> Vec<Move> {
+    parse_spec(
+        "6.750932878029321 6.8128517202837955 -13.45608887130863 119.3800055703978 S; \
+         -0.9320629179615771 0.3443021124420227 -11.561758106969023 52.064192649969385 B 0.01; \
+         -13.330160221738044 13.741882743805157 -11.561758106969023 76.05314259099404 B 0.1; \
+         -16.50685063406287 16.297241013142703 -11.561758106969023 141.70990181600695 E",
+    )
+}
+
+#[test]
+fn a_hold_before_a_programs_end_keeps_the_limits() {
+    // The generator, braking for the program's end, meets a dead end
+    // (its landing cannot release the deceleration in time) and rolls back under a
+    // stricter model. A hold requested 3.5-4.8 mm before the end (its own stop reaches
+    // past the end, so the path's stop is the hold's) dropped that model: the same dead
+    // end came back with nothing generated before it to roll back to, and the end was
+    // reached at up to 4.3 x the acceleration and 86 x the jerk limit (6.4 x and 128 x
+    // with a resume 1-4 periods after the hold). 59 of these 105 runs exceeded a limit,
+    // 17 of the 21 holds resumed only at rest. The hold now keeps the model while its
+    // dead end lies ahead.
+    let moves = line_program_290();
+    let mut failed = Vec::new();
+    for hold in 780..=800 {
+        for resume_after in [1, 2, 3, 4, 400] {
+            let changes = [(hold, Change::Hold), (hold + resume_after, Change::Resume)];
+            if std::panic::catch_unwind(|| run_changes(&moves, &changes)).is_err() {
+                failed.push((hold, resume_after));
+            }
+        }
+    }
+    assert!(
+        failed.is_empty(),
+        "holds and resumes over a limit: {failed:?}"
+    );
+}
+
+#[test]
+fn an_abort_or_a_quick_stop_before_a_programs_end_keeps_the_limits() {
+    // As the hold above: their stops reach past the program's end, whose dead end came
+    // back when they dropped the rollback's model. Before they kept it, 25 of these 31
+    // aborts and 3 of the 31 quick stops exceeded a limit.
+    let moves = line_program_290();
+    let mut failed = Vec::new();
+    for at in 770..=800 {
+        for quick in [false, true] {
+            let run = || {
+                let mut pl = planner(&limits(V, A, J), p3(0.0, 0.0, 0.0), 256);
+                let tr = run_with(&mut pl, &moves, 400_000, |n, pl| {
+                    if n == at {
+                        if quick { pl.quick_stop() } else { pl.abort() }
+                    }
+                });
+                assert_limits(&tr, V, A, J);
+                assert_eq!(pl.stats().limit_violations, 0, "{:?}", pl.stats());
+            };
+            if std::panic::catch_unwind(run).is_err() {
+                failed.push((at, if quick { "quick stop" } else { "abort" }));
+            }
+        }
+    }
+    assert!(failed.is_empty(), "stops over a limit: {failed:?}");
+}
