@@ -675,7 +675,8 @@ impl<K: Kinematics> Planner<K> {
     /// Real-time: yes (no allocation, no blocking).
     pub fn resume(&mut self) {
         if matches!(self.hold, Some(h) if h.kind == StopKind::Hold) {
-            if !self.path_stop_fits() {
+            let c = self.cur;
+            if !self.path_stop_fits(&c, 1.0) {
                 self.resume_waits = true;
                 return;
             }
@@ -697,16 +698,6 @@ impl<K: Kinematics> Planner<K> {
                 self.change_overrides(p.fo, p.ro);
             }
         }
-    }
-
-    /// Whether the path's own stop model (as if no hold were in force) can stop the emitted
-    /// state at the path's next stop.
-    fn path_stop_fits(&mut self) -> bool {
-        let hold = self.hold.take();
-        let c = self.cur;
-        let fits = self.stop_fits(&c, 1.0);
-        self.hold = hold;
-        fits
     }
 
     /// Abort: decelerate along the path, then drop every queued move.

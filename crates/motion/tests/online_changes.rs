@@ -756,11 +756,7 @@ fn one_random_arc_program() {
         }
         let result = std::panic::catch_unwind(|| run_changes(moves, changes));
         if let Err(e) = result {
-            let msg = e
-                .downcast_ref::<String>()
-                .cloned()
-                .or_else(|| e.downcast_ref::<&str>().map(|s| s.to_string()))
-                .unwrap_or_default();
+            let msg = panic_message(&*e);
             eprintln!("seed {seed} program {case}: {msg}");
             failed.push(case);
         }
@@ -770,6 +766,14 @@ fn one_random_arc_program() {
         failed.len()
     );
     assert!(failed.is_empty());
+}
+
+/// The text a failed assertion panicked with (empty when it carries none).
+fn panic_message(e: &(dyn std::any::Any + Send)) -> String {
+    e.downcast_ref::<String>()
+        .cloned()
+        .or_else(|| e.downcast_ref::<&str>().map(|s| s.to_string()))
+        .unwrap_or_default()
 }
 
 /// The value of the feed override in force before period `n` under `changes`.
@@ -897,7 +901,7 @@ fn random_arc_quick_resumes(seed: u64, n: usize, runs: usize) -> Vec<ArcCase> {
 }
 
 #[test]
-#[ignore = "a diagnosis tool: set ARC_SEED and ARC_INDEX"]
+#[ignore = "a diagnosis tool: set ARC_SEED and ARC_N"]
 fn quick_resumes_of_random_arc_programs() {
     let seed: u64 = std::env::var("ARC_SEED").map_or(7, |s| s.parse().unwrap());
     let n: usize = std::env::var("ARC_N").map_or(1000, |s| s.parse().unwrap());
@@ -909,11 +913,7 @@ fn quick_resumes_of_random_arc_programs() {
             run_changes_on(&weak_z(), p3(0.0, 0.0, 0.0), moves, changes)
         });
         if let Err(e) = result {
-            let msg = e
-                .downcast_ref::<String>()
-                .cloned()
-                .or_else(|| e.downcast_ref::<&str>().map(|s| s.to_string()))
-                .unwrap_or_default();
+            let msg = panic_message(&*e);
             eprintln!(
                 "program {case} {changes:?}: {}",
                 msg.lines().next().unwrap_or("")

@@ -445,12 +445,15 @@ impl<K: Kinematics> Planner<K> {
     /// with the stop model scaled by `f`. Always during a hold (its
     /// stop is not scaled, and a rollback cannot reach before the request).
     pub(super) fn stop_fits(&self, st: &GenState, f: f64) -> bool {
+        self.hold.is_some() || self.path_stop_fits(st, f)
+    }
+
+    /// [`stop_fits`](Self::stop_fits) with the path's own stop model, whether or not a
+    /// hold is in force.
+    pub(super) fn path_stop_fits(&self, st: &GenState, f: f64) -> bool {
         let Some((idx, p)) = self.moving_piece(st) else {
             return true;
         };
-        if self.hold.is_some() {
-            return true;
-        }
         let (a_stop, j_stop) = self.stop_model(p, st.at);
         let (am, jm) = (STOP_SHARE * a_stop * f, STOP_JERK_SHARE * j_stop * f);
         let v = st.v.max(0.0);
