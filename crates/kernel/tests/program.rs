@@ -19,9 +19,17 @@ fn run_example(machine: &str, program: &str) -> (Machine, RunStats) {
     );
     assert!(m.faults.is_empty(), "{:?}", m.faults);
     let mut stats = RunStats::new();
+    let mut machine_stats = RunStats::for_machine(&cfg);
     for s in &m.samples {
         stats.add(s, cfg.servo_period().as_secs_f64());
+        machine_stats.add(s, cfg.servo_period().as_secs_f64());
     }
+    // Over the machine's own axes and joints the maxima are those over all, bit for bit.
+    assert_eq!(machine_stats.max_velocity, stats.max_velocity);
+    assert_eq!(machine_stats.max_acceleration, stats.max_acceleration);
+    assert_eq!(machine_stats.max_jerk, stats.max_jerk);
+    assert_eq!(machine_stats.max_following_error, stats.max_following_error);
+    assert_eq!(machine_stats.max_tracking_error, stats.max_tracking_error);
     for p in cfg.axis_plan() {
         let a = cfg.axis(p.axis).unwrap();
         let i = p.axis as usize;

@@ -191,7 +191,7 @@ impl Recorder {
                 Some(dir) => Some(SampleCsv::create(dir, config)?),
                 None => None,
             },
-            stats: RunStats::new(),
+            stats: RunStats::for_machine(config),
             plot: args.out.as_ref().map(|_| PlotData::default()),
             io_error: None,
             period_s: config.servo_period().as_secs_f64(),
