@@ -54,7 +54,11 @@ pub(crate) struct IndexStep {
     pub stride: u32,
 }
 
+// `repr(u8)` on the operator enums: a tag byte of its own, so the interpreter's dispatch
+// is one jump on it, where the niche-packed default layout needs a dozen instructions to
+// find the variant.
 #[derive(Debug, Clone, Copy)]
+#[repr(u8)]
 pub(crate) enum Un {
     NegI(IntKind),
     NegR(bool),
@@ -65,6 +69,7 @@ pub(crate) enum Un {
 }
 
 #[derive(Debug, Clone, Copy)]
+#[repr(u8)]
 pub(crate) enum Bin {
     AddI(IntKind),
     SubI(IntKind),
@@ -104,6 +109,7 @@ pub(crate) enum Bin {
 
 /// Conversions between register encodings.
 #[derive(Debug, Clone, Copy)]
+#[repr(u8)]
 pub(crate) enum Conv {
     /// Integer to integer: wrap to the target width.
     Int(IntKind),
@@ -246,6 +252,7 @@ pub(crate) struct VirtualCall {
 
 /// How a value is stored into a location.
 #[derive(Debug, Clone, Copy)]
+#[repr(u8)]
 pub(crate) enum Store {
     Scalar(Repr),
     Range(i64, i64, Repr),
@@ -508,16 +515,25 @@ impl Vm {
         a
     }
 
+    /// The value of an expression. The leaves most operands are (constants, variables at
+    /// absolute addresses, negated contacts) are taken here, inlined where an operand is
+    /// evaluated, so they cost no call; other nodes go to `eval_node`.
+    #[inline(always)]
     pub fn eval(&mut self, c: &Code, e: &Expr) -> u64 {
         match e {
             Expr::Const(v) => *v,
             Expr::LoadAbs(a, r) => self.ld(*a as usize, *r),
+            Expr::NotAbs(a) => self.ld(*a as usize, Repr::Bool) ^ 1,
+            _ => self.eval_node(c, e),
+        }
+    }
+
+    /// Operators, conversions and relative loads; calls and computed places go on to
+    /// `eval_call`, out of line, so this frame (entered once per operator) stays small.
+    #[inline(never)]
+    fn eval_node(&mut self, c: &Code, e: &Expr) -> u64 {
+        match e {
             Expr::LoadRel(o, r) => self.ld(self.frame as usize + *o as usize, *r),
-            Expr::Load(d, r) => {
-                let a = self.dyn_addr(c, d);
-                self.ld(a, *r)
-            }
-            Expr::AddrOf(p) | Expr::RefOf(p) => self.addr(c, p) as u64,
             Expr::Un(op, a) => {
                 let v = self.eval(c, a);
                 match *op {
@@ -533,7 +549,6 @@ impl Vm {
                 let y = self.eval(c, &ab.1);
                 self.bin(*op, x, y)
             }
-            Expr::NotAbs(a) => self.ld(*a as usize, Repr::Bool) ^ 1,
             Expr::BinAbs(op, a, b, ra, rb) => {
                 let x = self.ld(*a as usize, *ra);
                 let y = self.ld(*b as usize, *rb);
@@ -547,54 +562,70 @@ impl Vm {
                 let v = self.eval(c, a);
                 conv(*cv, v)
             }
+            Expr::Load(d, r) => {
+                let a = self.dyn_addr(c, d);
+                self.ld(a, *r)
+            }
+            Expr::AddrOf(p) | Expr::RefOf(p) => self.addr(c, p) as u64,
+            Expr::Const(_) | Expr::LoadAbs(..) | Expr::NotAbs(_) => self.eval(c, e),
             Expr::Builtin(b, args, dest, wide) => self.builtin(c, *b, args, *dest, *wide),
             Expr::Call(call) => self.call_fn(c, call),
-            Expr::Enabled(g) => {
-                let run = self.eval(c, &g.en) & 1 != 0;
-                let v = if run { self.eval(c, &g.call) } else { 0 };
-                if let Some((place, repr, bit, negate)) = &g.eno {
-                    let eno = run != *negate;
-                    let a = self.addr(c, place);
-                    if self.budget != 0 {
-                        match bit {
-                            Some(b) => {
-                                let old = self.ld(a, *repr);
-                                let m = 1u64 << b;
-                                self.st(a, *repr, if eno { old | m } else { old & !m });
-                            }
-                            None => self.st(a, *repr, eno as u64),
-                        }
-                    }
-                }
-                v
-            }
+            Expr::Enabled(g) => self.enabled_call(c, g),
             Expr::CallMethod(m) => {
                 let inst = self.addr(c, &m.instance);
                 self.call_fn_in(c, &m.call, Some(inst))
             }
-            Expr::CallVirtual(v) => {
-                let inst = self.addr(c, &v.instance);
-                if self.budget == 0 {
-                    return 0;
-                }
-                let tag = self.ld(inst, Repr::U64);
-                let call = v
-                    .cases
-                    .iter()
-                    .find(|(t, _)| *t == tag)
-                    .and_then(|(_, k)| v.calls.get(*k as usize));
-                match call {
-                    Some(call) => self.call_fn_in(c, call, Some(inst)),
-                    None => {
-                        self.raise(FaultKind::NullReference);
-                        0
+            Expr::CallVirtual(v) => self.call_virtual(c, v),
+        }
+    }
+
+    /// `F(EN := ..., ENO => ...)` inside an expression ([`EnabledCall`]).
+    #[inline(never)]
+    fn enabled_call(&mut self, c: &Code, g: &EnabledCall) -> u64 {
+        let run = self.eval(c, &g.en) & 1 != 0;
+        let v = if run { self.eval(c, &g.call) } else { 0 };
+        if let Some((place, repr, bit, negate)) = &g.eno {
+            let eno = run != *negate;
+            let a = self.addr(c, place);
+            if self.budget != 0 {
+                match bit {
+                    Some(b) => {
+                        let old = self.ld(a, *repr);
+                        let m = 1u64 << b;
+                        self.st(a, *repr, if eno { old | m } else { old & !m });
                     }
+                    None => self.st(a, *repr, eno as u64),
                 }
+            }
+        }
+        v
+    }
+
+    /// A method call through an interface, a reference or THIS ([`VirtualCall`]).
+    #[inline(never)]
+    fn call_virtual(&mut self, c: &Code, v: &VirtualCall) -> u64 {
+        let inst = self.addr(c, &v.instance);
+        if self.budget == 0 {
+            return 0;
+        }
+        let tag = self.ld(inst, Repr::U64);
+        let call = v
+            .cases
+            .iter()
+            .find(|(t, _)| *t == tag)
+            .and_then(|(_, k)| v.calls.get(*k as usize));
+        match call {
+            Some(call) => self.call_fn_in(c, call, Some(inst)),
+            None => {
+                self.raise(FaultKind::NullReference);
+                0
             }
         }
     }
 
-    #[inline]
+    /// A binary operator on register values, inlined into the evaluator: most operators
+    /// are an instruction or two, less than a call.
+    #[inline(always)]
     fn bin(&mut self, op: Bin, x: u64, y: u64) -> u64 {
         use std::cmp::Ordering;
         match op {
@@ -675,6 +706,7 @@ impl Vm {
 
     /// Evaluates a standard function's call: every argument first (IEC has no lazy
     /// evaluation), then the function.
+    #[inline(never)]
     fn builtin(&mut self, c: &Code, b: Builtin, args: &[Expr], dest: u32, wide: bool) -> u64 {
         let arg = |vm: &mut Vm, i: usize| match args.get(i) {
             Some(e) => vm.eval(c, e),
@@ -890,7 +922,12 @@ impl Vm {
         if direct {
             for a in args {
                 let v = self.eval(c, &a.value);
-                self.store_at(base + a.param as usize, v, a.store);
+                let at = base + a.param as usize;
+                // Scalars (a block's BOOL and TIME inputs) stored inline, without a call.
+                match a.store {
+                    Store::Scalar(r) => self.st(at, r, v),
+                    other => self.store_at(at, v, other),
+                }
             }
         } else {
             for a in args {
@@ -907,7 +944,16 @@ impl Vm {
         }
     }
 
+    /// Copies a call's `=>` outputs; most calls have none, and that costs no call.
+    #[inline(always)]
     fn take_outputs(&mut self, c: &Code, outs: &[ArgOut], base: usize) {
+        if !outs.is_empty() {
+            self.copy_outputs(c, outs, base);
+        }
+    }
+
+    #[inline(never)]
+    fn copy_outputs(&mut self, c: &Code, outs: &[ArgOut], base: usize) {
         for o in outs {
             let src = base + o.param as usize;
             let v = match o.store {
@@ -941,6 +987,7 @@ impl Vm {
 
     /// Calls a function, or a method on the instance at `instance`: arguments and outputs
     /// are evaluated in the caller's frame, the body runs in the instance's.
+    #[inline(never)]
     fn call_fn_in(&mut self, c: &Code, call: &FnCall, instance: Option<usize>) -> u64 {
         let Some(func) = c.functions.get(call.func as usize) else {
             return 0;
