@@ -145,12 +145,50 @@ struct RetainLeaf {
     ty: Type,
 }
 
+/// A located variable's copy between its image and memory, with the image, byte offset
+/// and representation worked out once rather than on every scan.
+#[derive(Debug, Clone, Copy)]
+struct ImageCopy {
+    image: usize,
+    offset: usize,
+    size: AddrSize,
+    bit: u8,
+    elem: Elem,
+    slot: usize,
+    repr: Repr,
+}
+
+impl ImageCopy {
+    /// The located variables of the areas `area` is not: copied in at scan start (all but
+    /// the outputs) or out at scan end (all but the inputs), in declaration order.
+    fn plan(program: &Program, skipped: Area) -> Box<[ImageCopy]> {
+        program
+            .located
+            .iter()
+            .filter(|l| l.at.area != skipped)
+            .map(|l| ImageCopy {
+                image: crate::program::area_index(l.at.area),
+                offset: l.at.byte_offset(),
+                size: l.at.size,
+                bit: l.at.bit,
+                elem: l.elem,
+                slot: l.slot as usize,
+                repr: Repr::of(l.elem),
+            })
+            .collect()
+    }
+}
+
 /// One instance of a program: what the kernel's PLC task owns and calls every period.
 #[derive(Debug)]
 pub struct Runtime {
     program: Arc<Program>,
     vm: Vm,
     images: [Vec<u8>; 3],
+    /// Located variables copied from their images at scan start.
+    copied_in: Box<[ImageCopy]>,
+    /// Located variables copied to their images at scan end.
+    copied_out: Box<[ImageCopy]>,
     safe_outputs: Vec<u8>,
     forces: Vec<(u32, Repr, u64)>,
     options: RuntimeOptions,
@@ -201,6 +239,8 @@ impl Runtime {
                 pou: 0,
             },
             images: [vec![0; sizes[0]], vec![0; sizes[1]], vec![0; sizes[2]]],
+            copied_in: ImageCopy::plan(&program, Area::Output),
+            copied_out: ImageCopy::plan(&program, Area::Input),
             safe_outputs: vec![0; sizes[1]],
             forces: Vec::with_capacity(options.max_forces),
             options,
@@ -434,14 +474,12 @@ impl Runtime {
             self.vm.st(slot as usize, Repr::U32, number);
         }
         self.vm.budget = self.options.watchdog_budget.max(2);
-        let program = &self.program;
-        for l in program.located.iter() {
-            if l.at.area == Area::Output {
-                continue;
-            }
-            let img = &self.images[crate::program::area_index(l.at.area)];
-            let v = read_image(img, l.at.size, l.at.byte_offset(), l.at.bit, l.elem);
-            self.vm.st(l.slot as usize, Repr::of(l.elem), v);
+        for l in self.copied_in.iter() {
+            let v = self
+                .images
+                .get(l.image)
+                .map_or(0, |img| read_image(img, l.size, l.offset, l.bit, l.elem));
+            self.vm.st(l.slot, l.repr, v);
         }
         self.apply_forces();
         Ok(())
@@ -461,14 +499,11 @@ impl Runtime {
 
     fn end(&mut self) {
         self.apply_forces();
-        let program = &self.program;
-        for l in program.located.iter() {
-            if l.at.area == Area::Input {
-                continue;
+        for l in self.copied_out.iter() {
+            let v = self.vm.ld(l.slot, l.repr);
+            if let Some(img) = self.images.get_mut(l.image) {
+                write_image(img, l.size, l.offset, l.bit, l.elem, v);
             }
-            let v = self.vm.ld(l.slot as usize, Repr::of(l.elem));
-            let img = &mut self.images[crate::program::area_index(l.at.area)];
-            write_image(img, l.at.size, l.at.byte_offset(), l.at.bit, l.elem, v);
         }
     }
 
