@@ -54,9 +54,9 @@ pub(crate) struct IndexStep {
     pub stride: u32,
 }
 
-// `repr(u8)` on the operator enums: a tag byte of its own, so the interpreter's dispatch
-// is one jump on it, where the niche-packed default layout needs a dozen instructions to
-// find the variant.
+// `repr(u8)` on the enums the interpreter dispatches on (operators, expressions,
+// statements): a tag byte of its own, so the dispatch is one jump on it, where the
+// niche-packed default layout needs up to a dozen instructions to find the variant.
 #[derive(Debug, Clone, Copy)]
 #[repr(u8)]
 pub(crate) enum Un {
@@ -201,6 +201,7 @@ pub(crate) enum Builtin {
 }
 
 #[derive(Debug)]
+#[repr(u8)]
 pub(crate) enum Expr {
     Const(u64),
     LoadAbs(u32, Repr),
@@ -218,6 +219,9 @@ pub(crate) enum Expr {
     NotAbs(u32),
     BinAbs(Bin, u32, u32, Repr, Repr),
     BinK(Bin, Box<Expr>, u64),
+    /// `a op b op c ...` for AND, OR or XOR of three operands or more, evaluated left to
+    /// right in one node: the conditions of PLC logic are long chains of these.
+    Chain(Bin, Vec<Expr>),
     Conv(Conv, Box<Expr>),
     /// A built-in; string results go to the static temporary at `dest`; the flag says
     /// its strings are WSTRINGs.
@@ -342,6 +346,7 @@ pub(crate) struct ForLoop {
 }
 
 #[derive(Debug)]
+#[repr(u8)]
 pub(crate) enum StmtKind {
     Store(Place, Expr, Store),
     StoreBit(Place, Repr, u8, Expr),
@@ -558,6 +563,17 @@ impl Vm {
                 let x = self.eval(c, a);
                 self.bin(*op, x, *k)
             }
+            Expr::Chain(op, operands) => {
+                let Some((first, rest)) = operands.split_first() else {
+                    return 0;
+                };
+                let mut acc = self.eval(c, first);
+                for e in rest {
+                    let v = self.eval(c, e);
+                    acc = self.bin(*op, acc, v);
+                }
+                acc
+            }
             Expr::Conv(cv, a) => {
                 let v = self.eval(c, a);
                 conv(*cv, v)
@@ -708,43 +724,39 @@ impl Vm {
     /// evaluation), then the function.
     #[inline(never)]
     fn builtin(&mut self, c: &Code, b: Builtin, args: &[Expr], dest: u32, wide: bool) -> u64 {
-        let arg = |vm: &mut Vm, i: usize| match args.get(i) {
-            Some(e) => vm.eval(c, e),
-            None => 0,
-        };
         match b {
             Builtin::AbsI(k) => {
-                let v = arg(self, 0);
+                let v = self.arg(c, args, 0);
                 if k.signed() {
                     k.wrap((v as i64).wrapping_abs() as u64)
                 } else {
                     v
                 }
             }
-            Builtin::AbsR(s) => r(f(arg(self, 0)).abs(), s),
-            Builtin::Sqrt(s) => r(f(arg(self, 0)).sqrt(), s),
-            Builtin::Ln(s) => r(f(arg(self, 0)).ln(), s),
-            Builtin::Log(s) => r(f(arg(self, 0)).log10(), s),
-            Builtin::Exp(s) => r(f(arg(self, 0)).exp(), s),
-            Builtin::Sin(s) => r(f(arg(self, 0)).sin(), s),
-            Builtin::Cos(s) => r(f(arg(self, 0)).cos(), s),
-            Builtin::Tan(s) => r(f(arg(self, 0)).tan(), s),
-            Builtin::Asin(s) => r(f(arg(self, 0)).asin(), s),
-            Builtin::Acos(s) => r(f(arg(self, 0)).acos(), s),
-            Builtin::Atan(s) => r(f(arg(self, 0)).atan(), s),
+            Builtin::AbsR(s) => r(f(self.arg(c, args, 0)).abs(), s),
+            Builtin::Sqrt(s) => r(f(self.arg(c, args, 0)).sqrt(), s),
+            Builtin::Ln(s) => r(f(self.arg(c, args, 0)).ln(), s),
+            Builtin::Log(s) => r(f(self.arg(c, args, 0)).log10(), s),
+            Builtin::Exp(s) => r(f(self.arg(c, args, 0)).exp(), s),
+            Builtin::Sin(s) => r(f(self.arg(c, args, 0)).sin(), s),
+            Builtin::Cos(s) => r(f(self.arg(c, args, 0)).cos(), s),
+            Builtin::Tan(s) => r(f(self.arg(c, args, 0)).tan(), s),
+            Builtin::Asin(s) => r(f(self.arg(c, args, 0)).asin(), s),
+            Builtin::Acos(s) => r(f(self.arg(c, args, 0)).acos(), s),
+            Builtin::Atan(s) => r(f(self.arg(c, args, 0)).atan(), s),
             Builtin::Atan2(s) => {
-                let y = arg(self, 0);
-                let x = arg(self, 1);
+                let y = self.arg(c, args, 0);
+                let x = self.arg(c, args, 1);
                 r(f(y).atan2(f(x)), s)
             }
             Builtin::Shl(k) => {
-                let v = arg(self, 0);
-                let n = arg(self, 1);
+                let v = self.arg(c, args, 0);
+                let n = self.arg(c, args, 1);
                 if n >= 64 { 0 } else { k.wrap(v << n) }
             }
             Builtin::Shr(k) => {
-                let v = arg(self, 0);
-                let n = arg(self, 1);
+                let v = self.arg(c, args, 0);
+                let n = self.arg(c, args, 1);
                 if k.signed() {
                     // Signed values are held sign-extended: an i64 shift fills with the sign.
                     k.wrap(((v as i64) >> n.min(63)) as u64)
@@ -755,23 +767,23 @@ impl Vm {
                 }
             }
             Builtin::Rol(k) | Builtin::Ror(k) => {
-                let v = arg(self, 0);
-                let n = arg(self, 1);
+                let v = self.arg(c, args, 0);
+                let n = self.arg(c, args, 1);
                 rotate(k, v, n, matches!(b, Builtin::Ror(_)))
             }
             Builtin::Now => self.now as u64,
             Builtin::Sel => {
-                let g = arg(self, 0);
-                let in0 = arg(self, 1);
-                let in1 = arg(self, 2);
+                let g = self.arg(c, args, 0);
+                let in0 = self.arg(c, args, 1);
+                let in1 = self.arg(c, args, 2);
                 if g & 1 != 0 { in1 } else { in0 }
             }
             Builtin::Mux => self.mux(c, args),
             Builtin::MaxI(signed) | Builtin::MinI(signed) => {
                 let max = matches!(b, Builtin::MaxI(_));
-                let mut acc = arg(self, 0);
+                let mut acc = self.arg(c, args, 0);
                 for i in 1..args.len() {
-                    let v = arg(self, i);
+                    let v = self.arg(c, args, i);
                     if int_beyond(v, acc, signed, max) {
                         acc = v;
                     }
@@ -780,9 +792,9 @@ impl Vm {
             }
             Builtin::MaxR | Builtin::MinR => {
                 let max = matches!(b, Builtin::MaxR);
-                let mut acc = f(arg(self, 0));
+                let mut acc = f(self.arg(c, args, 0));
                 for i in 1..args.len() {
-                    let v = f(arg(self, i));
+                    let v = f(self.arg(c, args, i));
                     if max && v > acc || !max && v < acc {
                         acc = v;
                     }
@@ -790,9 +802,9 @@ impl Vm {
                 acc.to_bits()
             }
             Builtin::LimitI(s) => {
-                let lo = arg(self, 0);
-                let v = arg(self, 1);
-                let hi = arg(self, 2);
+                let lo = self.arg(c, args, 0);
+                let v = self.arg(c, args, 1);
+                let hi = self.arg(c, args, 2);
                 if s {
                     (v as i64).max(lo as i64).min(hi as i64) as u64
                 } else {
@@ -800,15 +812,15 @@ impl Vm {
                 }
             }
             Builtin::LimitR => {
-                let lo = f(arg(self, 0));
-                let v = f(arg(self, 1));
-                let hi = f(arg(self, 2));
+                let lo = f(self.arg(c, args, 0));
+                let v = f(self.arg(c, args, 1));
+                let hi = f(self.arg(c, args, 2));
                 v.max(lo).min(hi).to_bits()
             }
             Builtin::ConcatDate | Builtin::ConcatTod | Builtin::ConcatDt | Builtin::DayOfWeek => {
                 let mut vals = [0u64; 7];
                 for (i, slot) in vals.iter_mut().enumerate().take(args.len()) {
-                    *slot = arg(self, i);
+                    *slot = self.arg(c, args, i);
                 }
                 crate::dates::concat(b, &vals)
             }
@@ -834,7 +846,7 @@ impl Vm {
             | Builtin::StrToMoment(_) => {
                 let mut vals = [0u64; 8];
                 for (i, slot) in vals.iter_mut().enumerate().take(args.len()) {
-                    *slot = arg(self, i);
+                    *slot = self.arg(c, args, i);
                 }
                 strings::builtin(
                     &mut self.mem,
@@ -844,6 +856,15 @@ impl Vm {
                     wide,
                 )
             }
+        }
+    }
+
+    /// Argument `i` of a built-in (0 past the end), evaluated inline.
+    #[inline(always)]
+    fn arg(&mut self, c: &Code, args: &[Expr], i: usize) -> u64 {
+        match args.get(i) {
+            Some(e) => self.eval(c, e),
+            None => 0,
         }
     }
 
@@ -918,6 +939,7 @@ impl Vm {
     }
 
     /// Evaluates call inputs into parameters at `base + param`.
+    #[inline(always)]
     fn pass_args(&mut self, c: &Code, args: &[ArgIn], base: usize, direct: bool) {
         if direct {
             for a in args {

@@ -725,6 +725,11 @@ impl<'a> Compiler<'a> {
                 (vm::Expr::LoadAbs(x, rx), vm::Expr::LoadAbs(y, ry)) => {
                     vm::Expr::BinAbs(op, x, y, rx, ry)
                 }
+                (a, b) if same_bitwise_op(op, &a) => {
+                    let mut operands = chain_operands(a);
+                    operands.push(b);
+                    vm::Expr::Chain(op, operands)
+                }
                 (a, vm::Expr::Const(k)) if !matches!(a, vm::Expr::Const(_)) => {
                     vm::Expr::BinK(op, Box::new(a), k)
                 }
@@ -1435,6 +1440,39 @@ fn string_comparison(op: BinOp, ct: &Type, le: vm::Expr, re: vm::Expr) -> TE {
     TE {
         ty: Ty::T(Type::BOOL),
         e,
+    }
+}
+
+/// True when `op` is AND, OR or XOR and `e` is a node of that same operator, which `e op
+/// x` then extends into one [`vm::Expr::Chain`] (the operators are associative, and the
+/// chain keeps the operands' order of evaluation).
+fn same_bitwise_op(op: Bin, e: &vm::Expr) -> bool {
+    let inner = match e {
+        vm::Expr::Bin(inner, _)
+        | vm::Expr::BinAbs(inner, ..)
+        | vm::Expr::BinK(inner, ..)
+        | vm::Expr::Chain(inner, _) => *inner,
+        _ => return false,
+    };
+    matches!(
+        (op, inner),
+        (Bin::And, Bin::And) | (Bin::Or, Bin::Or) | (Bin::Xor, Bin::Xor)
+    )
+}
+
+/// The operands of a binary node or chain, in order of evaluation.
+fn chain_operands(e: vm::Expr) -> Vec<vm::Expr> {
+    match e {
+        vm::Expr::Chain(_, operands) => operands,
+        vm::Expr::Bin(_, ab) => {
+            let (a, b) = *ab;
+            vec![a, b]
+        }
+        vm::Expr::BinAbs(_, x, y, rx, ry) => {
+            vec![vm::Expr::LoadAbs(x, rx), vm::Expr::LoadAbs(y, ry)]
+        }
+        vm::Expr::BinK(_, a, k) => vec![*a, vm::Expr::Const(k)],
+        other => vec![other],
     }
 }
 
