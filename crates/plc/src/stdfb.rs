@@ -231,8 +231,26 @@ impl StdFb {
         })
     }
     /// A PLCopen motion block (run by the runtime, which owns the axes).
+    #[inline]
     pub fn is_motion(self) -> bool {
-        MOTION.iter().any(|(f, _)| *f == self)
+        use StdFb::*;
+        // Every variant of MOTION: a test on the variant, not a search of the table, as
+        // every call of a standard block asks.
+        matches!(
+            self,
+            McPower
+                | McHome
+                | McReset
+                | McStop
+                | McHalt
+                | McMoveAbsolute
+                | McMoveRelative
+                | McMoveAdditive
+                | McMoveVelocity
+                | McReadActualPosition
+                | McReadStatus
+                | McReadAxisError
+        )
     }
     /// Cells (8 bytes each) of an instance: the public members, then the hidden state.
     /// Each member sits at the start of its cell, little-endian at its own width.
@@ -421,5 +439,18 @@ mod tests {
         // The counters' PV is an INT.
         assert!(StdFb::Ctu.has_narrow_inputs());
         assert!(!StdFb::Ton.has_narrow_inputs());
+    }
+
+    #[test]
+    fn the_motion_blocks_are_those_of_the_motion_table() {
+        let basic = [
+            "TON", "TOF", "TP", "CTU", "CTD", "CTUD", "R_TRIG", "F_TRIG", "SR", "RS",
+        ];
+        for n in basic {
+            assert!(!StdFb::from_name(n).expect(n).is_motion(), "{n}");
+        }
+        for (fb, n) in MOTION {
+            assert!(fb.is_motion(), "{n}");
+        }
     }
 }
