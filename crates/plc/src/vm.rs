@@ -533,8 +533,8 @@ impl Vm {
         }
     }
 
-    /// Operators, conversions and relative loads; calls and computed places go on to
-    /// `eval_call`, out of line, so this frame (entered once per operator) stays small.
+    /// Every node but the leaves [`eval`](Self::eval) takes. Calls and built-ins are
+    /// functions of their own, so that this frame, entered once per operator, stays small.
     #[inline(never)]
     fn eval_node(&mut self, c: &Code, e: &Expr) -> u64 {
         match e {
@@ -583,6 +583,7 @@ impl Vm {
                 self.ld(a, *r)
             }
             Expr::AddrOf(p) | Expr::RefOf(p) => self.addr(c, p) as u64,
+            // `eval` takes the leaves before it comes here.
             Expr::Const(_) | Expr::LoadAbs(..) | Expr::NotAbs(_) => self.eval(c, e),
             Expr::Builtin(b, args, dest, wide) => self.builtin(c, *b, args, *dest, *wide),
             Expr::Call(call) => self.call_fn(c, call),
