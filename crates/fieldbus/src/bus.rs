@@ -164,48 +164,56 @@ fn check_images(
     outputs: &ProcessOutputs,
     inputs: &ProcessInputs,
 ) -> Result<(), FieldbusError> {
-    let checks = [
-        (
-            "outputs",
-            "joints",
-            layout.joints.len(),
-            outputs.joints.len(),
-        ),
-        (
-            "outputs",
-            "digital",
-            layout.digital_outputs,
-            outputs.digital.len(),
-        ),
-        (
-            "outputs",
-            "analog",
-            layout.analog_outputs,
-            outputs.analog.len(),
-        ),
-        ("inputs", "joints", layout.joints.len(), inputs.joints.len()),
-        (
-            "inputs",
-            "digital",
-            layout.digital_inputs,
-            inputs.digital.len(),
-        ),
-        (
-            "inputs",
-            "analog",
-            layout.analog_inputs,
-            inputs.analog.len(),
-        ),
-    ];
-    for (image, what, expected, found) in checks {
-        if expected != found {
-            return Err(FieldbusError::ImageMismatch {
-                image,
-                what,
-                expected,
-                found,
-            });
-        }
+    check_length(
+        "outputs",
+        "joints",
+        layout.joints.len(),
+        outputs.joints.len(),
+    )?;
+    check_length(
+        "outputs",
+        "digital",
+        layout.digital_outputs,
+        outputs.digital.len(),
+    )?;
+    check_length(
+        "outputs",
+        "analog",
+        layout.analog_outputs,
+        outputs.analog.len(),
+    )?;
+    check_length("inputs", "joints", layout.joints.len(), inputs.joints.len())?;
+    check_length(
+        "inputs",
+        "digital",
+        layout.digital_inputs,
+        inputs.digital.len(),
+    )?;
+    check_length(
+        "inputs",
+        "analog",
+        layout.analog_inputs,
+        inputs.analog.len(),
+    )
+}
+
+/// One part of an image against the layout. Inlined, a matching image costs a comparison
+/// per part (a table of the six parts cost a hundred instructions every exchange).
+#[inline]
+fn check_length(
+    image: &'static str,
+    what: &'static str,
+    expected: usize,
+    found: usize,
+) -> Result<(), FieldbusError> {
+    if expected == found {
+        Ok(())
+    } else {
+        Err(FieldbusError::ImageMismatch {
+            image,
+            what,
+            expected,
+            found,
+        })
     }
-    Ok(())
 }
