@@ -139,8 +139,7 @@ impl SimulatedJoint {
     }
 
     fn encoder_counts(&self, position: f64) -> i64 {
-        // `as` saturates at the i64 range and maps NaN to 0: no panic on any state.
-        (position / self.units_per_revolution * self.counts_per_revolution).floor() as i64
+        floor_to_i64(position / self.units_per_revolution * self.counts_per_revolution)
     }
 
     fn counts_to_position(&self, counts: i64) -> f64 {
@@ -603,5 +602,62 @@ impl SimulatedJoint {
                 .is_some_and(|range| range.from <= true_position && true_position <= range.to),
             latch: self.latch,
         };
+    }
+}
+
+/// `x.floor() as i64`: saturating at the i64 range, NaN to 0 (no panic on any state), with
+/// no call to `floor`, which a target without SSE4.1 makes for every encoder reading. The
+/// conversion truncates towards zero, one too high for a negative number with a fraction,
+/// and converting back shows it exactly (every double from 2^52 on is whole).
+fn floor_to_i64(x: f64) -> i64 {
+    let truncated = x as i64;
+    if truncated as f64 > x {
+        truncated.saturating_sub(1)
+    } else {
+        truncated
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::floor_to_i64;
+
+    #[test]
+    fn floor_to_i64_is_floor_as_i64() {
+        let mut values = vec![
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            -1e-300,
+            1e-300,
+            4503599627370495.5,
+            -4503599627370495.5,
+            9007199254740993.0,
+            -9007199254740993.0,
+            i64::MAX as f64,
+            i64::MIN as f64,
+            -9.223372036854777e18,
+            1e19,
+            -1e19,
+            f64::MAX,
+            f64::MIN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+        ];
+        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+        for _ in 0..100_000 {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            let unit = (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+            values.extend([unit, unit * 1e3, unit * 2.6e7, f64::from_bits(seed)]);
+        }
+        for x in values {
+            assert_eq!(floor_to_i64(x), x.floor() as i64, "{x:e}");
+        }
     }
 }
