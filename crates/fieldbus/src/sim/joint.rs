@@ -377,28 +377,38 @@ impl SimulatedJoint {
             return false;
         }
         let (acceleration_per_torque, _, _) = self.motor.linear_parts();
-        // v = 0: the error is the command over the units per radian.
-        let errors = [
-            (previous - 0.0) / self.units_per_radian,
-            (current - 0.0) / self.units_per_radian,
-        ];
+        let stays_stuck = |torque: f64| {
+            torque.abs() < self.torque_limit && (torque * acceleration_per_torque).abs() <= coulomb
+        };
+        let substeps = conditions.substeps.max(1);
+        let delayed = delayed.min(substeps);
         let mut integral = self.velocity_integral;
         let mut torque = self.torque;
-        for k in 0..conditions.substeps.max(1) {
-            let error = errors[usize::from(k >= delayed)];
-            torque = self.velocity_gain * error + integral + 0.0;
-            if !(torque.abs() < self.torque_limit
-                && (torque * acceleration_per_torque).abs() <= coulomb)
-            {
-                return false;
+        // v = 0: the error is the command over the units per radian. Within the sub-steps
+        // under one command the error is fixed, so the integral takes the same increment
+        // every time and moves one way (rounding keeps a sum on the side it moves to), and
+        // so does the torque: its extremes are those of the first and the last sub-step, and
+        // checking those two checks every one.
+        for (command, steps) in [(previous, delayed), (current, substeps - delayed)] {
+            if steps == 0 {
+                continue;
             }
-            let before = integral;
-            integral += self.velocity_integral_gain * error * conditions.step_s;
-            // Past the delayed sub-steps every sub-step is the same function of the
-            // integral alone: once it stays the same (a zero command, or an increment too
-            // small to change it), so do the torque and the integral of every sub-step left.
-            if k >= delayed && integral.to_bits() == before.to_bits() {
-                break;
+            let error = (command - 0.0) / self.units_per_radian;
+            let proportional = self.velocity_gain * error;
+            let increment = self.velocity_integral_gain * error * conditions.step_s;
+            let first = proportional + integral + 0.0;
+            for _ in 1..steps {
+                let next = integral + increment;
+                // Once an increment changes nothing, none of the rest does either.
+                if next.to_bits() == integral.to_bits() {
+                    break;
+                }
+                integral = next;
+            }
+            torque = proportional + integral + 0.0;
+            integral += increment;
+            if !(stays_stuck(first) && stays_stuck(torque)) {
+                return false;
             }
         }
         self.velocity_integral = integral;
