@@ -211,7 +211,8 @@ impl ComposedCycle {
     /// Makes the composition fit `substeps` sub-steps of `step_s`, the first `delayed` of
     /// them under the previous command. Returns false when the cycle is too long to
     /// compose. Rebuilding costs one pass over the sub-steps; it happens only when the
-    /// shape changes.
+    /// shape changes, so the check that it has not is inlined into every cycle.
+    #[inline]
     pub(crate) fn prepare(
         &mut self,
         drive: &LinearDrive,
@@ -222,9 +223,16 @@ impl ComposedCycle {
         if substeps == 0 || substeps > MAX_COMPOSED_SUBSTEPS || !step_s.is_finite() {
             return false;
         }
-        if step_s == self.step_s && substeps == self.substeps && delayed == self.delayed {
-            return true;
+        if step_s != self.step_s || substeps != self.substeps || delayed != self.delayed {
+            self.rebuild(drive, step_s, substeps, delayed);
         }
+        true
+    }
+
+    /// Builds the composition of `substeps` (1 to [`MAX_COMPOSED_SUBSTEPS`]) sub-steps of
+    /// `step_s`, the first `delayed` of them under the previous command.
+    #[inline(never)]
+    fn rebuild(&mut self, drive: &LinearDrive, step_s: f64, substeps: usize, delayed: usize) {
         let unit =
             |i: usize| -> Coefficients { std::array::from_fn(|j| f64::from(u8::from(i == j))) };
         let mut v = unit(0);
@@ -263,7 +271,6 @@ impl ComposedCycle {
         self.step_s = step_s;
         self.substeps = substeps;
         self.delayed = delayed;
-        true
     }
 
     /// The cycle from velocity `v0` (not zero) and integral `integral0` under the commands,
