@@ -439,10 +439,16 @@ impl Device {
     }
 
     /// Advances the device by one cycle with the outputs of this exchange, and writes its
-    /// inputs as they are at the end of the cycle.
-    pub(crate) fn cycle(&mut self, cycle: &DeviceCycle<'_>, inputs: &mut [bool]) {
+    /// inputs as they are at the end of the cycle. Returns whether it stands still: another
+    /// cycle with the same outputs, e-stop and door request would change none of its inputs
+    /// nor anything it reports (the time a delayed input has held the level it shows does
+    /// not count: it matters only once the output changes, and that starts it afresh).
+    pub(crate) fn cycle(&mut self, cycle: &DeviceCycle<'_>, inputs: &mut [bool]) -> bool {
         match self {
-            Self::EstopContact { input } => set(inputs, *input, !cycle.estop_pressed),
+            Self::EstopContact { input } => {
+                set(inputs, *input, !cycle.estop_pressed);
+                true
+            }
             Self::Door {
                 closed_input,
                 lock_output,
@@ -451,6 +457,8 @@ impl Device {
                 let locked = lock_output.is_some_and(|o| output(cycle.outputs, o));
                 *closed = !cycle.door_open_requested || (*closed && locked);
                 set(inputs, *closed_input, *closed);
+                // closed = !request || (closed && locked) is its own fixed point.
+                true
             }
             Self::DelayedInput {
                 output: source,
@@ -473,9 +481,10 @@ impl Device {
                     *level = *target;
                 }
                 set(inputs, *input, *level);
+                *level == *target
             }
             // Sensed after the joints have moved (`sense`).
-            Self::Probe { .. } => {}
+            Self::Probe { .. } => true,
             Self::Carousel {
                 motor_output,
                 in_position_input,
@@ -486,7 +495,8 @@ impl Device {
                 pocket,
                 phase_ns,
             } => {
-                if output(cycle.outputs, *motor_output) {
+                let turning = output(cycle.outputs, *motor_output);
+                if turning {
                     let phase = phase_ns.saturating_add(cycle.period_ns);
                     let advanced = (phase / *index_ns) % *pockets;
                     *phase_ns = phase % *index_ns;
@@ -496,6 +506,7 @@ impl Device {
                 for (bit, &input) in pocket_inputs.iter().enumerate() {
                     set(inputs, input, (*pocket >> bit) & 1 != 0);
                 }
+                !turning
             }
         }
     }

@@ -108,6 +108,11 @@ pub struct SimulatedMachine {
     /// devices', then stuck inputs.
     digital_image: Vec<bool>,
     devices: Vec<Device>,
+    /// The digital image, up to the probes' sensing, is what the next exchange would make
+    /// of it again if the outputs stay the same: every device stood still in the last one,
+    /// and nothing else they or the image read has changed since. The devices' pass is then
+    /// skipped.
+    devices_steady: bool,
     stuck_inputs: Vec<Option<bool>>,
     /// Some input is stuck (else the per-cycle passes over `stuck_inputs` are skipped).
     any_stuck: bool,
@@ -157,6 +162,7 @@ impl SimulatedMachine {
             digital_inputs: vec![false; config.io.digital_inputs],
             digital_image: vec![false; config.io.digital_inputs],
             devices: config.devices.iter().map(Device::new).collect(),
+            devices_steady: false,
             stuck_inputs: vec![None; config.io.digital_inputs],
             any_stuck: false,
             cycle_shape: (f64::NAN, 1, f64::NAN, 0),
@@ -178,6 +184,7 @@ impl SimulatedMachine {
     /// Real-time: yes (no allocation, no blocking).
     pub fn set_estop(&mut self, pressed: bool) {
         self.estop_active = pressed;
+        self.devices_steady = false;
     }
 
     /// Turns the handwheel by `detents` (negative: the other way).
@@ -198,6 +205,7 @@ impl SimulatedMachine {
             return Err(SimulationError::NoSuchDevice("door"));
         }
         self.door_open_requested = open;
+        self.devices_steady = false;
         Ok(())
     }
 
@@ -236,6 +244,7 @@ impl SimulatedMachine {
             count,
         })?;
         *slot = value;
+        self.devices_steady = false;
         Ok(())
     }
 
@@ -308,6 +317,7 @@ impl SimulatedMachine {
                         })?;
                 *slot = active.then_some(value);
                 self.any_stuck = self.stuck_inputs.iter().any(Option::is_some);
+                self.devices_steady = false;
             }
         }
         Ok(())
@@ -400,6 +410,12 @@ impl Fieldbus for SimulatedMachine {
     ) -> Result<(), FieldbusError> {
         check_exchange(&self.layout, period_s, outputs, inputs)?;
         let period_ns = seconds_to_ns(period_s);
+        // A lost exchange builds the image afresh: it ends before the probes' sensing, so
+        // its image shows a probe's input at the harness's level, not the sensed level the
+        // last exchange left.
+        let image_steady = self.devices_steady
+            && !self.communication_lost
+            && self.digital_outputs == outputs.digital;
         if self.communication_lost {
             self.silent_ns = self.silent_ns.saturating_add(period_ns);
         } else {
@@ -434,20 +450,24 @@ impl Fieldbus for SimulatedMachine {
         self.time_ns = self.time_ns.saturating_add(period_ns);
         let spindle = self.spindle.cycle(&self.spindle_command, power, period_s);
         let tool_changer = self.tool_changer.cycle(&self.tool_command, period_ns);
-        self.digital_image.copy_from_slice(&self.digital_inputs);
-        let device_cycle = DeviceCycle {
-            outputs: &self.digital_outputs,
-            estop_pressed: self.estop_active,
-            door_open_requested: self.door_open_requested,
-            period_ns,
-        };
-        for device in &mut self.devices {
-            device.cycle(&device_cycle, &mut self.digital_image);
-        }
-        if self.any_stuck {
-            for (level, stuck) in self.digital_image.iter_mut().zip(&self.stuck_inputs) {
-                if let Some(value) = stuck {
-                    *level = *value;
+        if !image_steady {
+            self.digital_image.copy_from_slice(&self.digital_inputs);
+            let device_cycle = DeviceCycle {
+                outputs: &self.digital_outputs,
+                estop_pressed: self.estop_active,
+                door_open_requested: self.door_open_requested,
+                period_ns,
+            };
+            let mut steady = true;
+            for device in &mut self.devices {
+                steady &= device.cycle(&device_cycle, &mut self.digital_image);
+            }
+            self.devices_steady = steady;
+            if self.any_stuck {
+                for (level, stuck) in self.digital_image.iter_mut().zip(&self.stuck_inputs) {
+                    if let Some(value) = stuck {
+                        *level = *value;
+                    }
                 }
             }
         }
