@@ -5,7 +5,7 @@ use crate::image::{
     ToolChangeCommand,
 };
 use crate::sim::config::{ConfigError, SimulatedMachineConfig};
-use crate::sim::devices::{Device, DeviceCycle};
+use crate::sim::devices::{Device, DeviceConfig, DeviceCycle};
 use crate::sim::joint::{CycleConditions, SimulatedJoint};
 use crate::sim::peripherals::{Spindle, ToolChanger, seconds_to_ns};
 
@@ -108,6 +108,9 @@ pub struct SimulatedMachine {
     /// devices', then stuck inputs.
     digital_image: Vec<bool>,
     devices: Vec<Device>,
+    /// Indices of the probes among the devices: the passes after the joints have moved
+    /// visit only them.
+    probes: Vec<usize>,
     /// The digital image, up to the probes' sensing, is what the next exchange would make
     /// of it again if the outputs stay the same: every device stood still in the last one,
     /// and nothing else they or the image read has changed since. The devices' pass is then
@@ -162,6 +165,13 @@ impl SimulatedMachine {
             digital_inputs: vec![false; config.io.digital_inputs],
             digital_image: vec![false; config.io.digital_inputs],
             devices: config.devices.iter().map(Device::new).collect(),
+            probes: config
+                .devices
+                .iter()
+                .enumerate()
+                .filter(|(_, device)| matches!(device, DeviceConfig::Probe { .. }))
+                .map(|(index, _)| index)
+                .collect(),
             devices_steady: false,
             stuck_inputs: vec![None; config.io.digital_inputs],
             any_stuck: false,
@@ -372,10 +382,7 @@ impl SimulatedMachine {
     /// where its joint crossed the surface (the joints taken to move linearly within the
     /// cycle), latches every joint armed for that edge at its position at that instant.
     fn latch_touch_probes(&mut self, period_s: f64, inputs: &mut ProcessInputs) {
-        let report_after = (self.touch_probe_latency_s / period_s - 1e-9)
-            .ceil()
-            .max(0.0) as u32;
-        for device in &self.devices {
+        for device in self.probes.iter().filter_map(|&i| self.devices.get(i)) {
             let start = &self.cycle_start;
             let joints = &self.joints;
             let Some((rising, share)) = device.probe_edge(
@@ -384,6 +391,9 @@ impl SimulatedMachine {
             ) else {
                 continue;
             };
+            let report_after = (self.touch_probe_latency_s / period_s - 1e-9)
+                .ceil()
+                .max(0.0) as u32;
             for ((joint, &p0), feedback) in self
                 .joints
                 .iter_mut()
@@ -479,23 +489,24 @@ impl Fieldbus for SimulatedMachine {
             }
             return Err(FieldbusError::CommunicationLost);
         }
-        for (start, joint) in self.cycle_start.iter_mut().zip(&self.joints) {
-            *start = joint.true_position();
-        }
         // The joints' sub-steps interleaved (sub-step outer, joint inner): each joint's
         // arithmetic is the same as one joint at a time, and the processor overlaps the
         // joints' independent dependency chains.
-        for ((joint, command), stepping) in self
+        let mut any_stepping = false;
+        for (((joint, command), stepping), start) in self
             .joints
             .iter_mut()
             .zip(&self.received)
             .zip(self.stepping.iter_mut())
+            .zip(self.cycle_start.iter_mut())
         {
+            *start = joint.true_position();
             *stepping = joint.begin_cycle(command, &conditions);
+            any_stepping |= *stepping;
         }
         // Joints at rest under stiction, ideal drives and velocity drives stepped in one
         // composed step have no sub-steps: when none has, the loop would only visit them.
-        let substeps = if self.stepping.contains(&true) {
+        let substeps = if any_stepping {
             conditions.substeps.max(1)
         } else {
             0
@@ -523,7 +534,7 @@ impl Fieldbus for SimulatedMachine {
         self.latch_touch_probes(period_s, inputs);
         // A probe senses where the joints are at the end of the cycle.
         let joints = &self.joints;
-        for device in &self.devices {
+        for device in self.probes.iter().filter_map(|&i| self.devices.get(i)) {
             device.sense(
                 |j| joints.get(j).map(|j| j.true_position()),
                 &mut self.digital_image,
