@@ -291,7 +291,10 @@ impl<B: Fieldbus> ServoStage<B> {
         };
         let bit = 1u32 << j;
         let state = feedback.state();
-        if state.is_fault() && target.enable {
+        // During a quick stop only a drive still enabled stays so: one that lost its power
+        // or faulted meanwhile is not brought up again before the operator's reset.
+        let enable = target.enable && (target.bring_up || state == Cia402State::OperationEnabled);
+        if state.is_fault() && enable {
             command.controlword =
                 fault_reset_controlword(self.exchanges, self.was_enabled & bit != 0);
             self.was_enabled &= !bit;
@@ -300,7 +303,7 @@ impl<B: Fieldbus> ServoStage<B> {
         command.controlword = if self.servo_fault {
             stop_category_1(state, feedback.statusword.target_reached())
         } else {
-            state.controlword_towards(target.enable && plc_unpowered & bit == 0)
+            state.controlword_towards(enable && plc_unpowered & bit == 0)
         };
         command.latch = latch_source(&target.latch, bit);
         let raw_target = target.setpoints.joints[j] - target.offsets[j];

@@ -144,3 +144,48 @@ fn an_abort_during_an_estops_quick_stop_leaves_it_alone() {
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// Found by the kernel fuzz target (fuzz/defects/kernel/estop-released-during-its-quick-stop):
+/// the e-stop button cuts the drives' power. Released while the kernel's quick stop still
+/// ran, the quick stop brought the drives up again, and they pulled the load onto the
+/// stop's set-points with the machine in e-stop and no reset. Released at any time of the
+/// stop, no drive may be enabled again before a reset.
+#[test]
+fn an_estop_button_released_during_the_quick_stop_leaves_the_drives_off() {
+    let cfg = config("sim-mill.toml");
+    let mut failures = Vec::new();
+    for release_after in [1, 2, 4, 8, 16, 32, 48, 64, 80] {
+        let mut m = Machine::new(&cfg, None);
+        m.power_on();
+        m.command(Command::Mdi(FixedText::new("G1 X40 Y30 F3000").unwrap()));
+        assert!(m.until(2.0, |s| s.path_speed > 40.0), "the feed move runs");
+        m.handle_machine(|mach| mach.set_estop(true));
+        m.cycles(release_after);
+        m.handle_machine(|mach| mach.set_estop(false));
+        let mut enabled_periods = 0;
+        for _ in 0..500 {
+            m.cycles(1);
+            let any_on = m.handle_machine(|mach| {
+                (0..3).any(|j| {
+                    matches!(
+                        mach.drive_state(j),
+                        Some(
+                            rtcnc_fieldbus::Cia402State::OperationEnabled
+                                | rtcnc_fieldbus::Cia402State::QuickStopActive
+                        )
+                    )
+                })
+            });
+            enabled_periods += u32::from(any_on);
+        }
+        let s = m.status();
+        if enabled_periods > 0 || s.state != MachineState::EStop || s.ready {
+            failures.push(format!(
+                "released after {release_after} ms: a drive enabled in {enabled_periods} \
+                 periods, {:?}, ready {}",
+                s.state, s.ready
+            ));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}

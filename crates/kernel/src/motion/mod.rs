@@ -87,6 +87,11 @@ pub struct ServoTarget {
     pub offsets: [f64; MAX_JOINTS],
     /// Drives enabled.
     pub enable: bool,
+    /// A drive that is not enabled may be brought up (and a faulted one reset). False
+    /// during a quick stop: the stop keeps the drives that are enabled under control, and
+    /// one whose power came back meanwhile (the e-stop button released) stays off until
+    /// the operator's reset.
+    pub bring_up: bool,
     /// Incremented by every reset: position control clears its latched faults.
     pub reset_count: u32,
     /// Latches to arm.

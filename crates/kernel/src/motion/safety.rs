@@ -48,6 +48,15 @@ impl MotionCore {
         )
     }
 
+    /// Drives that are off may be brought up: not during a quick stop, which only keeps
+    /// enabled drives enabled.
+    pub(super) fn drives_may_come_up(&self) -> bool {
+        matches!(
+            self.state,
+            State::Idle | State::Homing(_) | State::Program(_)
+        )
+    }
+
     /// The operator's reset: clears the e-stop and faults and enables the drives. Refused
     /// before the self-test passed, while the e-stop input is pressed, while the fieldbus
     /// exchange fails and while a quick stop runs: the machine does not leave e-stop or
@@ -72,7 +81,7 @@ impl MotionCore {
         self.fire(Event::Reset);
         // The drives enable from the next exchange, not from the set-points a lead ahead.
         let enable = self.drives_enabled();
-        self.out.set_enable_ahead(enable);
+        self.out.set_enable_ahead(enable, self.drives_may_come_up());
         self.apply_feed_overrides();
         self.safety.chain_closed = false;
         self.safety.reset_count = self.safety.reset_count.wrapping_add(1);
@@ -154,7 +163,7 @@ impl MotionCore {
         if self.state == State::Stopping && !self.moving() {
             self.fire(Event::Stood);
             let enable = self.drives_enabled();
-            self.out.set_enable_ahead(enable);
+            self.out.set_enable_ahead(enable, self.drives_may_come_up());
         }
     }
 
