@@ -50,7 +50,7 @@ pub use kinematics::MachineKinematics;
 pub use messages::{
     Command, FixedText, HoldCause, MachineState, Mode, OperatorMessage, Status, Urgent,
 };
-pub use motion::{LatchRequest, ProgramOutputs, ServoTarget};
+pub use motion::{DriveEnable, LatchRequest, ProgramOutputs, ServoTarget};
 pub use servo::Sample;
 pub use shared::{Feedback, LogicOutputs, LogicRequests, PlcAxisSetpoints};
 pub use sim::{SimulatedEthercatHandle, SimulatedMachineHandle, Simulation};

@@ -13,7 +13,7 @@ use rtcnc_servo::{ServoCommand, ServoLoop, SetPointDifferentiator};
 
 use crate::config::MAX_JOINTS;
 use crate::fault::{FaultCode, TaskName};
-use crate::motion::{LatchRequest, ServoTarget};
+use crate::motion::{DriveEnable, LatchRequest, ServoTarget};
 use crate::shared::{Feedback, LogicOutputs, LogicRequests, Shared, Snapshot};
 
 /// One recorded servo cycle (for the CSV files, plots and summaries of `rtcnc sim`).
@@ -219,10 +219,10 @@ impl<B: Fieldbus> ServoStage<B> {
     #[inline]
     fn bridge_missing_setpoints(&mut self, ctx: &mut Context<'_>, target: &mut ServoTarget) {
         let missing = self.exchanges.saturating_sub(target.setpoints.cycle);
-        if missing > 0 && target.enable {
+        if missing > 0 && target.enable != DriveEnable::Off {
             self.underruns += 1;
         }
-        if missing > 0 && target.enable && self.dry_stop.is_none() {
+        if missing > 0 && target.enable != DriveEnable::Off && self.dry_stop.is_none() {
             let k = missing.min(BRIDGED_PERIODS) as f64;
             let mut step = [0.0; MAX_JOINTS];
             for j in 0..self.joint_count {
@@ -293,7 +293,11 @@ impl<B: Fieldbus> ServoStage<B> {
         let state = feedback.state();
         // During a quick stop only a drive still enabled stays so: one that lost its power
         // or faulted meanwhile is not brought up again before the operator's reset.
-        let enable = target.enable && (target.bring_up || state == Cia402State::OperationEnabled);
+        let enable = match target.enable {
+            DriveEnable::Off => false,
+            DriveEnable::Keep => state == Cia402State::OperationEnabled,
+            DriveEnable::On => true,
+        };
         if state.is_fault() && enable {
             command.controlword =
                 fault_reset_controlword(self.exchanges, self.was_enabled & bit != 0);

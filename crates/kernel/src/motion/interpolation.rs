@@ -30,7 +30,7 @@ use rtcnc_rt::{Context, LeadProducer};
 
 use super::state::State;
 use super::synced::SyncedMove;
-use super::{LatchRequest, MotionCore, ServoTarget, Source};
+use super::{DriveEnable, LatchRequest, MotionCore, ServoTarget, Source};
 use crate::config::MAX_JOINTS;
 use crate::messages::JointSetpoints;
 use crate::shared::{Feedback, Shared};
@@ -131,8 +131,7 @@ impl Output {
             target: ServoTarget {
                 setpoints: last,
                 offsets: [0.0; MAX_JOINTS],
-                enable: false,
-                bring_up: false,
+                enable: DriveEnable::Off,
                 reset_count: 0,
                 latch: LatchRequest::default(),
                 outputs: super::ProgramOutputs::default(),
@@ -188,7 +187,7 @@ impl Output {
     /// Sets the drives' enable of the set-points produced ahead that position control has
     /// not taken (from the one it takes next while interpolation runs, else the one after
     /// it): a change of the drives' state acts from the next exchange, not a lead later.
-    pub(super) fn set_enable_ahead(&mut self, enable: bool, bring_up: bool) {
+    pub(super) fn set_enable_ahead(&mut self, enable: DriveEnable) {
         let from = self.consumer_next() + u64::from(!self.interpolating);
         if self.cycle < from {
             return;
@@ -197,7 +196,6 @@ impl Output {
         for number in first_free..=self.cycle {
             let slot = self.slot(number);
             self.produced[slot].target.enable = enable;
-            self.produced[slot].target.bring_up = bring_up;
             let _ = self.queue.push(self.produced[slot].target);
         }
     }
@@ -333,8 +331,7 @@ impl MotionCore {
                 target: ServoTarget {
                     setpoints: self.out.last,
                     offsets: self.out.offsets,
-                    enable: self.drives_enabled(),
-                    bring_up: self.drives_may_come_up(),
+                    enable: self.drive_enable(),
                     reset_count: self.safety.reset_count,
                     latch: self.out.latch,
                     outputs: self.outputs.state,

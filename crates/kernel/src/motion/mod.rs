@@ -85,19 +85,27 @@ pub struct ServoTarget {
     pub setpoints: JointSetpoints,
     /// Homing offsets: raw joint position = machine position − offset.
     pub offsets: [f64; MAX_JOINTS],
-    /// Drives enabled.
-    pub enable: bool,
-    /// A drive that is not enabled may be brought up (and a faulted one reset). False
-    /// during a quick stop: the stop keeps the drives that are enabled under control, and
-    /// one whose power came back meanwhile (the e-stop button released) stays off until
-    /// the operator's reset.
-    pub bring_up: bool,
+    /// What the drives are to be.
+    pub enable: DriveEnable,
     /// Incremented by every reset: position control clears its latched faults.
     pub reset_count: u32,
     /// Latches to arm.
     pub latch: LatchRequest,
     /// The program outputs (M62-M68) from this exchange on.
     pub outputs: ProgramOutputs,
+}
+
+/// What position control makes of the drives' power stage.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DriveEnable {
+    /// Disabled.
+    Off,
+    /// An enabled drive stays enabled; one that is off stays off (a quick stop: it keeps
+    /// braking drives under control, and one whose power came back meanwhile, the e-stop
+    /// button released, or that faulted, waits for the operator's reset).
+    Keep,
+    /// Enabled: a drive that is off is brought up, a faulted one reset.
+    On,
 }
 
 /// Which generator makes the axes' set-points.

@@ -8,7 +8,7 @@ use rtcnc_motion::otg::{self, OnlineAxis};
 use rtcnc_rt::Context;
 
 use super::state::{Event, State, transition};
-use super::{LatchRequest, MotionCore, Source};
+use super::{DriveEnable, LatchRequest, MotionCore, Source};
 use crate::fault::{Fault, FaultCode, TaskName};
 use crate::shared::{Feedback, InterpreterRequest, Shared};
 
@@ -48,13 +48,14 @@ impl MotionCore {
         )
     }
 
-    /// Drives that are off may be brought up: not during a quick stop, which only keeps
-    /// enabled drives enabled.
-    pub(super) fn drives_may_come_up(&self) -> bool {
-        matches!(
-            self.state,
-            State::Idle | State::Homing(_) | State::Program(_)
-        )
+    /// What the drives are to be: during a quick stop enabled ones stay enabled and none
+    /// is brought up.
+    pub(super) fn drive_enable(&self) -> DriveEnable {
+        match self.state {
+            State::Stopping => DriveEnable::Keep,
+            State::Idle | State::Homing(_) | State::Program(_) => DriveEnable::On,
+            _ => DriveEnable::Off,
+        }
     }
 
     /// The operator's reset: clears the e-stop and faults and enables the drives. Refused
@@ -80,8 +81,7 @@ impl MotionCore {
         self.safety.fault = false;
         self.fire(Event::Reset);
         // The drives enable from the next exchange, not from the set-points a lead ahead.
-        let enable = self.drives_enabled();
-        self.out.set_enable_ahead(enable, self.drives_may_come_up());
+        self.out.set_enable_ahead(self.drive_enable());
         self.apply_feed_overrides();
         self.safety.chain_closed = false;
         self.safety.reset_count = self.safety.reset_count.wrapping_add(1);
@@ -162,8 +162,7 @@ impl MotionCore {
     pub(super) fn finish_quick_stop(&mut self) {
         if self.state == State::Stopping && !self.moving() {
             self.fire(Event::Stood);
-            let enable = self.drives_enabled();
-            self.out.set_enable_ahead(enable, self.drives_may_come_up());
+            self.out.set_enable_ahead(self.drive_enable());
         }
     }
 
