@@ -18,6 +18,7 @@ mod experiments;
 mod fault_matrix;
 mod feed_override_during_a_hold;
 mod hold;
+mod hold_in_a_canned_cycle;
 mod homing_after_an_interrupted_homing;
 mod lathe_css;
 mod link;

@@ -93,6 +93,9 @@ struct Hold {
     a: f64,
     j: f64,
     kind: StopKind,
+    /// Travel added beyond the stop model's distance when the stop began (one period at
+    /// its speed, for the discrete landing; none for a quick stop).
+    slack: f64,
 }
 
 /// Diagnostic dump of one piece: length, braking curve, axis-speed and curvature bounds.
@@ -1644,13 +1647,13 @@ impl<K: Kinematics> Planner<K> {
         // hold point moves on when the path does not let the axes brake that hard).
         let c = self.cur;
         let (d, _) = stop(c.v, c.a.max(-a), STOP_SHARE * a, STOP_JERK_SHARE * j);
-        let d = if kind == StopKind::Quick {
-            d
+        let slack = if kind == StopKind::Quick {
+            0.0
         } else {
-            d + c.v * self.period
+            c.v * self.period
         };
-        self.hold = Some(Hold { a, j, kind });
-        self.cur.hold_at = c.at + d;
+        self.hold = Some(Hold { a, j, kind, slack });
+        self.cur.hold_at = c.at + d + slack;
         // On an isolated line's S-curve whose end comes before this stop would, or which
         // already brakes for it (slowing down to rest at the line's end, not to a lower
         // speed after an override): the S-curve (which stops there at the full limits) is

@@ -1011,6 +1011,19 @@ impl<K: Kinematics> Planner<K> {
             let landing_quick = quick && st.land_n >= 2;
             if !landing_quick && st.at + d_need > hold_at && hold_at - st.at > 0.0 {
                 hold_at = st.at + d_need;
+            } else if st.land_n == 0
+                && st.a >= -h.a
+                && hold_at - st.at - d_need - h.slack > 2.0 * st.v * self.period
+            {
+                // The point is also no farther than a stop requested now would end: the
+                // machine may be far slower than the model assumed when the stop began
+                // (the path braked harder, for a slow line ahead). Kept out there, the
+                // point let the speed policy cruise at that line's feed to it: a feed
+                // hold in a canned cycle's rapid to its R plane drilled on at 1.35 mm/s
+                // for over a second (the kernel fuzz target,
+                // fuzz/defects/kernel/z-moves-at-1.35-mm-s-in-a-feed-hold).
+                let slack = if quick { 0.0 } else { st.v * self.period };
+                hold_at = st.at + d_need + slack;
             }
             let hr = hold_at - st.at;
             if hr < goal.rem {
