@@ -5,7 +5,7 @@
 mod generate;
 mod prepared;
 
-use generate::{STOP_JERK_SHARE, STOP_SHARE, StepLimits};
+use generate::{STOP_JERK_SHARE, STOP_SHARE, StepLimits, stop_reach};
 pub use prepared::{Preparation, PreparedMove};
 
 use crate::axes::{AXES, AxisVec, norm};
@@ -1646,7 +1646,17 @@ impl<K: Kinematics> Planner<K> {
         // of slack for the discrete landing (none for a quick stop: it brakes at once; the
         // hold point moves on when the path does not let the axes brake that hard).
         let c = self.cur;
-        let (d, _) = stop(c.v, c.a.max(-a), STOP_SHARE * a, STOP_JERK_SHARE * j);
+        let j_full = self.q.index(c.id).map_or(j, |i| {
+            let quick = kind == StopKind::Quick;
+            generate::CONTROL_SHARE * self.q.get(i).j_proj[quick as usize]
+        });
+        let d = stop_reach(
+            c.v,
+            c.a.max(-a),
+            STOP_SHARE * a,
+            STOP_JERK_SHARE * j,
+            j_full,
+        );
         let slack = if kind == StopKind::Quick {
             0.0
         } else {

@@ -1103,31 +1103,48 @@ fn an_abort_or_a_quick_stop_before_a_programs_end_keeps_the_limits() {
     assert!(failed.is_empty(), "stops over a limit: {failed:?}");
 }
 
-/// The longest a hold's stop may take from path speed `v` and acceleration `a` (the
-/// planner's hold: half the axes' deceleration and jerk, planned at 97 % and 90 % of them,
-/// docs/motion.md): the acceleration brought down to 0 at the hold's jerk while the speed
-/// still grows, that speed braked at the hold's deceleration with its jerk ramping in and
-/// out, plus 20 periods for the landing.
-fn hold_time_bound(v: f64, a: f64) -> f64 {
-    let (ah, jh) = (0.97 * 0.5 * A, 0.9 * 0.5 * J);
+/// The stops of [`a_stop_in_a_fast_line_before_a_slow_one_keeps_its_profile`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum StopRequest {
+    Hold,
+    Abort,
+    Quick,
+}
+
+/// The longest a stop may take from path speed `v` and acceleration `a`: the acceleration
+/// brought down to 0 at the stop's jerk while the speed still grows, that speed braked at
+/// the stop's deceleration with its jerk ramping in and out, plus 20 periods for the
+/// landing. A hold and an abort brake with half the axes' deceleration and jerk, a quick
+/// stop with their quick-stop values at 99 % (here the same as the normal ones), each
+/// planned at 97 % and 90 % of them (docs/motion.md).
+fn stop_time_bound(kind: StopRequest, v: f64, a: f64) -> f64 {
+    let share = if kind == StopRequest::Quick {
+        0.99
+    } else {
+        0.5
+    };
+    let (ah, jh) = (0.97 * share * A, 0.9 * share * J);
     let a = a.max(0.0);
     a / jh + (v + a * a / (2.0 * jh)) / ah + ah / jh + 20.0 * T
 }
 
 #[test]
-fn a_hold_in_a_fast_line_before_a_slow_one_stops_within_the_holds_profile() {
+fn a_stop_in_a_fast_line_before_a_slow_one_keeps_its_profile() {
     // A short fast line (a rapid to a canned cycle's R plane) runs on into a slow one (its
     // feed below R); held while the fast line still accelerates, the hold's own stop
     // reached past the junction while the path braked harder for the slow line's feed.
     // The hold's point stayed out there and the slow line fed on to it: at 1.35 mm/s for
     // over a second on the mill (crates/kernel/tests/hold_in_a_canned_cycle.rs). Random
     // directions, lengths and feeds, collinear or turned by up to 30°; held, or aborted
-    // (the same stop), at every period of the fast line. Before the fix, 3 848 of these
-    // 13 968 stops (in release builds; 366 of 1 280 in debug builds) came to rest later
-    // than the bound, some after more than 1.3 s.
+    // (the same stop), or quick-stopped, at every period of the fast line. Before the fix,
+    // 3 848 of the 13 968 holds and aborts (in release builds; 366 of 1 280 in debug
+    // builds) came to rest later than the bound, some after more than 1.3 s; 9 quick stops
+    // (of case 20: `a_quick_stop_braking_hard_into_a_slow_line_keeps_the_jerk_limit`) went
+    // over the jerk limit.
     let mut rng = Lcg(20_261_128);
     let cases = if cfg!(debug_assertions) { 6 } else { 60 };
     let mut late = Vec::new();
+    let mut over = Vec::new();
     let mut runs = 0;
     for case in 0..cases {
         let dir = {
@@ -1159,13 +1176,18 @@ fn a_hold_in_a_fast_line_before_a_slow_one_stops_within_the_holds_profile() {
             .iter()
             .position(|p| dist(p, &p3(end1[0], end1[1], end1[2])) < 0.01)
             .unwrap_or(plain.pts.len());
-        for (hold, abort) in (1..fast_periods.min(200)).flat_map(|n| [(n, false), (n, true)]) {
+        let kinds = [StopRequest::Hold, StopRequest::Abort, StopRequest::Quick];
+        for (hold, kind) in (1..fast_periods.min(200)).flat_map(|n| kinds.map(|k| (n, k))) {
             runs += 1;
             let mut pl = planner(&limits(V, A, J), p3(0.0, 0.0, 0.0), 256);
             let mut resumed = false;
             let tr = run_with(&mut pl, &moves, 400_000, |n, pl| {
                 if n == hold {
-                    if abort { pl.abort() } else { pl.hold() }
+                    match kind {
+                        StopRequest::Hold => pl.hold(),
+                        StopRequest::Abort => pl.abort(),
+                        StopRequest::Quick => pl.quick_stop(),
+                    }
                 }
                 // Resumed long after any stop within the bound, so that the run ends.
                 if n == hold + 3000 && !resumed {
@@ -1173,8 +1195,15 @@ fn a_hold_in_a_fast_line_before_a_slow_one_stops_within_the_holds_profile() {
                     resumed = true;
                 }
             });
-            assert_limits(&tr, V, A, J);
-            // tr.speed[n] is the speed after period n; the hold acts from period `hold`.
+            let within = std::panic::catch_unwind(|| assert_limits(&tr, V, A, J)).is_ok();
+            if !within || pl.stats().limit_violations > 0 {
+                over.push(format!(
+                    "case {case} (fast {fast:.1} mm/s over {first:.2} mm, slow {slow:.2} \
+                     mm/s), {kind:?} at period {hold}: over a limit"
+                ));
+                continue;
+            }
+            // tr.speed[n] is the speed after period n; the stop acts from period `hold`.
             let (v, a) = if hold >= 2 {
                 let v = tr.speed[hold - 1];
                 (v, (v - tr.speed[hold - 2]) / T)
@@ -1189,21 +1218,74 @@ fn a_hold_in_a_fast_line_before_a_slow_one_stops_within_the_holds_profile() {
                         .all(|s| *s == 0.0)
                 })
                 .map_or(f64::INFINITY, |n| (n - hold) as f64 * T);
-            let bound = hold_time_bound(v, a);
+            let bound = stop_time_bound(kind, v, a);
             if held > bound {
                 late.push(format!(
                     "case {case} (fast {fast:.1} mm/s over {first:.2} mm, slow {slow:.2} \
-                     mm/s), {} at period {hold}: at rest after {held:.3} s, bound {bound:.3} s",
-                    if abort { "aborted" } else { "held" }
+                     mm/s), {kind:?} at period {hold}: at rest after {held:.3} s, bound {bound:.3} s"
                 ));
             }
         }
     }
     assert!(runs > 10 * cases, "{runs} stops");
     assert!(
+        over.is_empty(),
+        "{} of {runs} stops over a limit:\n{}",
+        over.len(),
+        over[..over.len().min(20)].join("\n")
+    );
+    assert!(
         late.is_empty(),
         "{} of {runs} stops late:\n{}",
         late.len(),
         late[..late.len().min(20)].join("\n")
+    );
+}
+
+#[test]
+fn a_quick_stop_braking_hard_into_a_slow_line_keeps_the_jerk_limit() {
+    // Case 20 of the family above: a 1.57 mm line at 60.7 mm/s into one at 0.99 mm/s. A
+    // quick stop while the path brakes at up to 900 mm/s² for the slow line: its stop model
+    // (90 % of the jerk) cannot release that deceleration before the speed is zero, and the
+    // stop point it gave (where the speed reaches zero, the deceleration still on) could
+    // not be landed on: a dead end, rollbacks, and the jerk 1.68 × over its limit. The
+    // point is now where the path's full jerk brings both to zero. Before the fix 21 of
+    // these 75 stops went over a limit.
+    let dir = [
+        -0.753927615785071,
+        -0.5212924212041232,
+        -0.39980915666325295,
+    ];
+    let (first, fast, slow, turn) = (
+        1.5741969514298764,
+        60.73267708384555,
+        0.9863932360858281,
+        0.03115573463631577,
+    );
+    let bent = [dir[0] + turn * dir[1], dir[1] - turn * dir[0], dir[2]];
+    let end1 = dir.map(|c| c * first);
+    let mut over = Vec::new();
+    for second in [2.0, 4.0, 8.0] {
+        let end2 = [0, 1, 2].map(|i| end1[i] + bent[i] * second);
+        let moves = [
+            Move::line(p3(end1[0], end1[1], end1[2]), fast, blend(0.01), 2),
+            Move::line(p3(end2[0], end2[1], end2[2]), slow, PathMode::ExactPath, 3),
+        ];
+        for stop_at in 70..95 {
+            let mut pl = planner(&limits(V, A, J), p3(0.0, 0.0, 0.0), 256);
+            let tr = run_with(&mut pl, &moves, 400_000, |n, pl| {
+                if n == stop_at {
+                    pl.quick_stop()
+                }
+            });
+            let within = std::panic::catch_unwind(|| assert_limits(&tr, V, A, J)).is_ok();
+            if !within || pl.stats().limit_violations > 0 {
+                over.push((second, stop_at));
+            }
+        }
+    }
+    assert!(
+        over.is_empty(),
+        "quick stops over a limit (second line, period): {over:?}"
     );
 }

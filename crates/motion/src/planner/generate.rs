@@ -18,12 +18,26 @@ use crate::scurve::stop_advance;
 
 /// Share of the projected axis limits the speed policy uses (the set-point check allows the
 /// rest; the margin absorbs the rounding of the check).
-const CONTROL_SHARE: f64 = 0.9999;
+pub(super) const CONTROL_SHARE: f64 = 0.9999;
 /// Share of the stop model's deceleration the policy plans its stops with.
 pub(super) const STOP_SHARE: f64 = 0.97;
 /// The same for the jerk: the discrete landing on a stop needs a little more jerk than the
 /// continuous profile it follows.
 pub(super) const STOP_JERK_SHARE: f64 = 0.9;
+
+/// The distance of the stop model (`am`, `jm`) from (v, a). A state that already brakes so
+/// hard that the model's jerk cannot release the deceleration before the speed is zero
+/// stops with the path's full jerk `j_full` instead: the model's distance ends at zero
+/// speed with the deceleration still on, a point no jerk-limited set-point can land on (a
+/// quick stop aimed there met a dead end and ended 1.7 × over the jerk limit).
+pub(super) fn stop_reach(v: f64, a: f64, am: f64, jm: f64, j_full: f64) -> f64 {
+    let j = if a < 0.0 && a * a > 2.0 * jm * v.max(0.0) {
+        j_full.max(jm)
+    } else {
+        jm
+    };
+    stop(v, a, am, j).0
+}
 /// Speed-model scale per rollback attempt at the same dead end (deceleration, jerk and the
 /// braking-curve cap all shrink by this factor per attempt). The restart state is on the
 /// curve, so the cap puts it above the stricter one and it brakes as hard as the path
@@ -916,7 +930,8 @@ impl<K: Kinematics> Planner<K> {
         };
         // The stop this period brakes for: the path's next stop, or a hold's point before it.
         let path_stop = self.path_stop(&st, head);
-        let (mut goal, mut hold_at) = self.hold_stop(&st, path_stop, quick, f);
+        let j_full = CONTROL_SHARE * head.j_proj[quick as usize];
+        let (mut goal, mut hold_at) = self.hold_stop(&st, path_stop, quick, f, j_full);
         let b = self.period_bounds(&st, &pd);
         trace!(
             self.trace,
@@ -978,7 +993,13 @@ impl<K: Kinematics> Planner<K> {
         (n.v, n.a, n.j_last) = self.speed_after(&st, ds, rem0, &step, &landing, &b);
         if let (true, Some(h)) = (hold_deferred, self.hold) {
             // The hold point moves to where the hold's stop from here ends.
-            let (d_need, _) = stop(n.v, n.a.max(-h.a), STOP_SHARE * h.a, STOP_JERK_SHARE * h.j);
+            let d_need = stop_reach(
+                n.v,
+                n.a.max(-h.a),
+                STOP_SHARE * h.a,
+                STOP_JERK_SHARE * h.j,
+                j_full,
+            );
             n.hold_at = n.hold_at.max(n.at + d_need + n.v * t);
         }
         Some(n)
@@ -994,18 +1015,21 @@ impl<K: Kinematics> Planner<K> {
     /// The stop this period brakes for, and the hold point: during a hold, the hold point
     /// with the hold's deceleration and jerk when it comes before the path's stop, else
     /// the path's stop.
-    fn hold_stop(&self, st: &GenState, path: StopGoal, quick: bool, f: f64) -> (StopGoal, f64) {
+    fn hold_stop(
+        &self,
+        st: &GenState,
+        path: StopGoal,
+        quick: bool,
+        f: f64,
+        j_full: f64,
+    ) -> (StopGoal, f64) {
         let mut goal = path;
         let mut hold_at = st.hold_at;
         if let Some(h) = self.hold {
             // A hold point is soft: when the axes cannot brake as the stop model assumes (on a
             // curve at speed), it moves on to where the machine can stop from here.
-            let (d_need, _) = stop(
-                st.v,
-                st.a.max(-h.a),
-                STOP_SHARE * h.a * f,
-                STOP_JERK_SHARE * h.j * f,
-            );
+            let jm = STOP_JERK_SHARE * h.j * f;
+            let d_need = stop_reach(st.v, st.a.max(-h.a), STOP_SHARE * h.a * f, jm, j_full);
             // A quick stop's landing in progress is planned with the axes' own quick-stop
             // jerk, beyond the stop model's: the point it lands on stays.
             let landing_quick = quick && st.land_n >= 2;
@@ -1013,6 +1037,7 @@ impl<K: Kinematics> Planner<K> {
                 hold_at = st.at + d_need;
             } else if st.land_n == 0
                 && st.a >= -h.a
+                && !(st.a < 0.0 && st.a * st.a > 2.0 * jm * st.v)
                 && hold_at - st.at - d_need - h.slack > 2.0 * st.v * self.period
             {
                 // The point is also no farther than a stop requested now would end: the
@@ -1021,7 +1046,11 @@ impl<K: Kinematics> Planner<K> {
                 // point let the speed policy cruise at that line's feed to it: a feed
                 // hold in a canned cycle's rapid to its R plane drilled on at 1.35 mm/s
                 // for over a second (the kernel fuzz target,
-                // fuzz/defects/kernel/z-moves-at-1.35-mm-s-in-a-feed-hold).
+                // fuzz/defects/kernel/z-moves-at-1.35-mm-s-in-a-feed-hold). Not while the
+                // state brakes harder than the model's jerk can release: pulled in to the
+                // model's distance there, an abort in a hold's stop had no landing and
+                // stopped X from 5.4 mm/s in one period
+                // (fuzz/defects/kernel/abort-pulls-a-holds-point-where-no-stop-lands).
                 let slack = if quick { 0.0 } else { st.v * self.period };
                 hold_at = st.at + d_need + slack;
             }
