@@ -5,8 +5,9 @@
 //! the simulated load, that
 //!
 //! - the limits are kept: every axis' set-point velocity within its `max_velocity`, its
-//!   acceleration within `max_acceleration` (within `quick_stop_acceleration` while an
-//!   e-stop or an abort stops it), its position within the soft limits once homed;
+//!   acceleration within `max_acceleration` and its jerk within `max_jerk` (within
+//!   `quick_stop_acceleration` and `quick_stop_jerk` while an e-stop or an abort stops
+//!   it), its position within the soft limits once homed;
 //! - a hold holds: after a feed hold, once the path has had the time to decelerate, no axis
 //!   moves until the operator releases it (resume, cycle start, abort, e-stop, reset, a
 //!   jog, homing), whatever else arrives (MDI lines, program starts, machine functions);
@@ -275,6 +276,9 @@ struct Harness {
     max_velocity: [f64; AXES],
     max_acceleration: [f64; AXES],
     quick_stop_acceleration: [f64; AXES],
+    max_jerk: [f64; AXES],
+    quick_stop_jerk: [f64; AXES],
+    previous_acceleration: Option<[f64; AXES]>,
     soft_limits: [(f64, f64); AXES],
     /// The last two recorded set-points (for velocity and acceleration).
     previous: Option<Sample>,
@@ -341,6 +345,11 @@ impl Harness {
                     .quick_stop_acceleration
                     .unwrap_or(axis(i).max_acceleration)
             }),
+            max_jerk: std::array::from_fn(|i| axis(i).max_jerk),
+            quick_stop_jerk: std::array::from_fn(|i| {
+                axis(i).quick_stop_jerk.unwrap_or(axis(i).max_jerk)
+            }),
+            previous_acceleration: None,
             soft_limits: std::array::from_fn(|i| (axis(i).min_position, axis(i).max_position)),
             sim,
             ops: Vec::new(),
@@ -595,6 +604,7 @@ impl Harness {
         // Drives off or stopping for a fault: the set-points follow the load.
         if !status.ready || self.fault_since.is_some() {
             self.previous_velocity = None;
+            self.previous_acceleration = None;
             return;
         }
         let before = axes_of(&previous);
@@ -607,21 +617,41 @@ impl Harness {
                 ));
             }
         }
+        let mut accelerations = None;
         if let Some(v0) = self.previous_velocity {
+            let acceleration: [f64; AXES] =
+                std::array::from_fn(|i| (velocity[i] - v0[i]) / self.period_s);
             for i in 0..AXES {
                 let limit = if self.quick_stopping {
                     self.quick_stop_acceleration[i]
                 } else {
                     self.max_acceleration[i]
                 };
-                let acceleration = (velocity[i] - v0[i]) / self.period_s;
-                if acceleration.abs() > limit * (1.0 + 1e-6) + 1e-6 {
+                if acceleration[i].abs() > limit * (1.0 + 1e-6) + 1e-6 {
                     self.broken(format!(
-                        "axis {i} accelerates at {acceleration} mm/s², above its {limit} mm/s²"
+                        "axis {i} accelerates at {} mm/s², above its {limit} mm/s²",
+                        acceleration[i]
                     ));
                 }
             }
+            if let Some(a0) = self.previous_acceleration {
+                for i in 0..AXES {
+                    let limit = if self.quick_stopping {
+                        self.quick_stop_jerk[i]
+                    } else {
+                        self.max_jerk[i]
+                    };
+                    let jerk = (acceleration[i] - a0[i]) / self.period_s;
+                    if jerk.abs() > limit * (1.0 + 1e-6) + 1e-3 {
+                        self.broken(format!(
+                            "axis {i} jerks at {jerk} mm/s³, above its {limit} mm/s³"
+                        ));
+                    }
+                }
+            }
+            accelerations = Some(acceleration);
         }
+        self.previous_acceleration = accelerations;
         if velocity.iter().all(|v| *v == 0.0) {
             self.quick_stopping = false;
         }

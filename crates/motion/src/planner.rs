@@ -1662,8 +1662,27 @@ impl<K: Kinematics> Planner<K> {
         } else {
             c.v * self.period
         };
+        // An abort during a hold's (or an abort's) stop brakes as that stop does: it keeps
+        // the point the machine already brakes for when that comes first. Recomputed from
+        // the braking state, the point could fall past the path's next stop, which then
+        // became the goal under the path's own model: at the end of a tight arc that
+        // model had no stop left from the hold's state, and the set-points reached the
+        // arc's end at 1 mm/s, 17 × over the jerk limit (the kernel fuzz target's
+        // corpus, with the jerk checked).
+        let braking_for = match self.hold {
+            Some(h) if h.kind != StopKind::Quick && kind != StopKind::Quick => {
+                Some((self.cur.hold_at, h.slack))
+            }
+            _ => None,
+        };
+        let (hold_at, slack) = match braking_for {
+            Some((at, kept_slack)) if at.is_finite() && at > c.at && at < c.at + d + slack => {
+                (at, kept_slack.max(slack))
+            }
+            _ => (c.at + d + slack, slack),
+        };
         self.hold = Some(Hold { a, j, kind, slack });
-        self.cur.hold_at = c.at + d + slack;
+        self.cur.hold_at = hold_at;
         // On an isolated line's S-curve whose end comes before this stop would, or which
         // already brakes for it (slowing down to rest at the line's end, not to a lower
         // speed after an override): the S-curve (which stops there at the full limits) is
