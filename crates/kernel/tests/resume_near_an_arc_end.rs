@@ -9,7 +9,7 @@
 //! the machine.
 
 use crate::common::*;
-use rtcnc_kernel::{Command, Urgent};
+use rtcnc_kernel::{Command, MachineConfig, MachineState, Urgent};
 
 const PERIOD: f64 = 0.001;
 /// The fuzz target's fourth program: a circle and a half of 2.54 mm radius at F200 in/min.
@@ -29,6 +29,21 @@ fn largest_acceleration(m: &Machine) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// The mill started on the program at period 84, held `run` periods later, and `then`
+/// sent `gap` periods after the hold.
+fn held_then(cfg: &MachineConfig, run: u64, gap: u64, then: Urgent) -> Machine {
+    let mut m = Machine::new(cfg, Some(program(PROGRAM, "near-an-arc-end.ngc")));
+    m.cycles(2);
+    m.command(Command::Reset);
+    m.cycles(82);
+    m.command(Command::Start { from_line: 0 });
+    m.cycles(run);
+    assert!(m.sim.handle().urgent(Urgent::FeedHold));
+    m.cycles(gap);
+    assert!(m.sim.handle().urgent(then));
+    m
+}
+
 #[test]
 fn a_resume_while_a_hold_brakes_into_a_tight_arcs_end_keeps_the_acceleration_limit() {
     // Started at period 84, held 700-706 periods later (the fuzz input: 704), resumed 3-7
@@ -38,15 +53,7 @@ fn a_resume_while_a_hold_brakes_into_a_tight_arcs_end_keeps_the_acceleration_lim
     let mut over = Vec::new();
     for run in 700..=706 {
         for gap in 3..=7 {
-            let mut m = Machine::new(&cfg, Some(program(PROGRAM, "resume-near-an-arc-end.ngc")));
-            m.cycles(2);
-            m.command(Command::Reset);
-            m.cycles(82);
-            m.command(Command::Start { from_line: 0 });
-            m.cycles(run);
-            assert!(m.sim.handle().urgent(Urgent::FeedHold));
-            m.cycles(gap);
-            assert!(m.sim.handle().urgent(Urgent::Resume));
+            let mut m = held_then(&cfg, run, gap, Urgent::Resume);
             assert!(
                 m.until(5.0, |s| s.program_ended),
                 "the program ends after a hold at {run} and a resume {gap} periods later"
@@ -93,17 +100,9 @@ fn an_abort_while_a_hold_brakes_into_a_tight_arcs_end_keeps_the_jerk_limit() {
     let mut over = Vec::new();
     for run in 700..=706 {
         for gap in 1..=11 {
-            let mut m = Machine::new(&cfg, Some(program(PROGRAM, "abort-near-an-arc-end.ngc")));
-            m.cycles(2);
-            m.command(Command::Reset);
-            m.cycles(82);
-            m.command(Command::Start { from_line: 0 });
-            m.cycles(run);
-            assert!(m.sim.handle().urgent(Urgent::FeedHold));
-            m.cycles(gap);
-            assert!(m.sim.handle().urgent(Urgent::Abort));
+            let mut m = held_then(&cfg, run, gap, Urgent::Abort);
             assert!(
-                m.until(1.0, |s| s.state == rtcnc_kernel::MachineState::Idle),
+                m.until(1.0, |s| s.state == MachineState::Idle),
                 "the abort ends"
             );
             assert!(m.faults.is_empty(), "{:?}", m.faults);

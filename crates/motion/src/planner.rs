@@ -1667,7 +1667,7 @@ impl<K: Kinematics> Planner<K> {
         // the braking state, the point could fall past the path's next stop, which then
         // became the goal under the path's own model: at the end of a tight arc that
         // model had no stop left from the hold's state, and the set-points reached the
-        // arc's end at 1 mm/s, 17 × over the jerk limit (the kernel fuzz target's
+        // arc's end at 1 mm/s, up to 22 × over the jerk limit (the kernel fuzz target's
         // corpus, with the jerk checked).
         let braking_for = match self.hold {
             Some(h) if h.kind != StopKind::Quick && kind != StopKind::Quick => {

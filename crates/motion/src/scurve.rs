@@ -11,6 +11,14 @@ pub(crate) fn advance(s: f64, v: f64, a: f64, j: f64, t: f64) -> (f64, f64, f64)
     )
 }
 
+/// Whether a state decelerates so hard that the speed reaches zero before the jerk `jmax`
+/// can bring the acceleration back to zero (a < 0, a² > 2·jmax·v): no stop without a
+/// reversal follows from it at that jerk.
+#[inline]
+pub(crate) fn over_brakes(v: f64, a: f64, jmax: f64) -> bool {
+    a < 0.0 && a * a > 2.0 * jmax * v.max(0.0)
+}
+
 /// The time-optimal stop from speed `v` ≥ 0 and acceleration `a` to rest under |acc| ≤ `amax`
 /// and |jerk| ≤ `jmax`, without reversing. Returns (distance, duration). When the state
 /// already decelerates so hard that the speed reaches zero before the acceleration can be
@@ -18,7 +26,7 @@ pub(crate) fn advance(s: f64, v: f64, a: f64, j: f64, t: f64) -> (f64, f64, f64)
 /// speed is zero with jerk +jmax (the best possible; the caller treats it as a stop).
 pub(crate) fn stop(v: f64, a: f64, amax: f64, jmax: f64) -> (f64, f64) {
     let v = v.max(0.0);
-    if a < 0.0 && a * a > 2.0 * jmax * v {
+    if over_brakes(v, a, jmax) {
         // v + a t + J t²/2 = 0, smallest root.
         let disc = (a * a - 2.0 * jmax * v).max(0.0);
         let t = ((-a - disc.sqrt()) / jmax).max(0.0);
@@ -59,7 +67,7 @@ pub(crate) fn stop_advance(v: f64, a: f64, amax: f64, jmax: f64, t: f64) -> (f64
     let v0 = v.max(0.0);
     // Phases (jerk, duration) of the stop profile.
     let mut phases = [(0.0, 0.0); 3];
-    if a < 0.0 && a * a > 2.0 * jmax * v0 {
+    if over_brakes(v0, a, jmax) {
         let disc = (a * a - 2.0 * jmax * v0).max(0.0);
         phases[0] = (jmax, ((-a - disc.sqrt()) / jmax).max(0.0));
     } else {

@@ -14,7 +14,7 @@ use super::*;
 use crate::geometry::Shape;
 use crate::otg::{Limits as OtgLimits, State as OtgState, position_profile};
 use crate::piece::jerk_stop_speed;
-use crate::scurve::stop_advance;
+use crate::scurve::{over_brakes, stop_advance};
 
 /// Share of the projected axis limits the speed policy uses (the set-point check allows the
 /// rest; the margin absorbs the rounding of the check).
@@ -31,7 +31,7 @@ pub(super) const STOP_JERK_SHARE: f64 = 0.9;
 /// speed with the deceleration still on, a point no jerk-limited set-point can land on (a
 /// quick stop aimed there met a dead end and ended 1.7 × over the jerk limit).
 pub(super) fn stop_reach(v: f64, a: f64, am: f64, jm: f64, j_full: f64) -> f64 {
-    let j = if a < 0.0 && a * a > 2.0 * jm * v.max(0.0) {
+    let j = if over_brakes(v, a, jm) {
         j_full.max(jm)
     } else {
         jm
@@ -1037,7 +1037,7 @@ impl<K: Kinematics> Planner<K> {
                 hold_at = st.at + d_need;
             } else if st.land_n == 0
                 && st.a >= -h.a
-                && !(st.a < 0.0 && st.a * st.a > 2.0 * jm * st.v)
+                && !over_brakes(st.v, st.a, jm)
                 && hold_at - st.at - d_need - h.slack > 2.0 * st.v * self.period
             {
                 // The point is also no farther than a stop requested now would end: the
@@ -1329,10 +1329,10 @@ impl<K: Kinematics> Planner<K> {
         let (mut ds, mut v1, mut a1) = stop_advance(v, a, model.a_stop, model.j_stop, t);
         let fits =
             |ds: f64, v1: f64, a1: f64| ds + stop(v1, a1, model.a_stop, model.j_stop).0 <= rem;
-        let releasable = !(a < 0.0 && a * a > 2.0 * model.j_stop * v.max(0.0));
+        let releasable = !over_brakes(v, a, model.j_stop);
         // A hold's jerk is a soft choice: a deceleration that would outlast the speed under
         // it is released with the path's own jerk bound.
-        let j_full = if soft && a < 0.0 && a * a > 2.0 * j_stop * v.max(0.0) {
+        let j_full = if soft && over_brakes(v, a, j_stop) {
             j_stop.max(0.99 * b.j_hi.min(b.jm))
         } else {
             j_stop
@@ -1344,7 +1344,7 @@ impl<K: Kinematics> Planner<K> {
             let end = st.at + ds + stop(v1, a1, a_stop, j_full).0;
             *hold_at = hold_at.min(end);
         }
-        let full_releasable = !(a < 0.0 && a * a > 2.0 * j_full * v.max(0.0));
+        let full_releasable = !over_brakes(v, a, j_full);
         let full_stop_fits = full_releasable && ds + stop(v1, a1, a_stop, j_full).0 <= rem;
         if !soft && !full_stop_fits {
             // Even the full stop model overshoots, or cannot release the deceleration
